@@ -1,0 +1,18 @@
+"""Reduced solver: Eksergian's equation 𝔍(q) q̈ + ζ(q) q̇² + dV/dq = Q for one-DOF linkages."""
+
+from .dynamics import Coefficients, MechanismModel
+from .errors import NumericalFailure
+from .integrators import RKN4, RKN4_AS_PRINTED, RKNTableau, Solution, solve_adaptive, solve_fixed_step
+from .linkage import AssemblyError, FourBar, LoopLinkage, SingularPositionError
+from .result import EngineResult, EnergyAudit
+from .scene import Scene, SceneError, default_scene_path, load_scene, scene_from_dict
+from .simulate import ReducedSettings, simulate
+from .trajectory import Peak, Trajectory
+
+__all__ = [
+    "AssemblyError", "Coefficients", "EnergyAudit", "EngineResult", "FourBar", "LoopLinkage",
+    "MechanismModel", "NumericalFailure", "Peak", "RKN4", "RKN4_AS_PRINTED", "RKNTableau",
+    "ReducedSettings", "Scene", "SceneError", "SingularPositionError", "Solution", "Trajectory",
+    "default_scene_path", "load_scene", "scene_from_dict", "simulate", "solve_adaptive",
+    "solve_fixed_step",
+]

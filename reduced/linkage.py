@@ -1,0 +1,278 @@
+"""Kinematics of one-degree-of-freedom planar linkages described by vector loops.
+
+Coordinates are joint angles x = (q, φ1, …, φm): q is the independent one, the φ are
+fixed by m loop-closure equations Φ(x) = 0. Every position that matters (the loop,
+a body's centre of mass, a damper's attachment point) is a *phasor sum*
+
+    r(x) = r0 + Σ_t a_t e(x[i_t] + α_t),    e(θ) = (cos θ, sin θ),
+
+so its velocity and acceleration coefficients follow generically:
+
+    K_r = dr/dq = Σ a_t K[i_t] e⊥(x[i_t] + α_t),             e⊥(θ) = (−sin θ, cos θ)
+    L_r = dK_r/dq = Σ a_t (L[i_t] e⊥(·) − K[i_t]² e(·)).
+
+The φ rates come from the loop's velocity equations Φ_φ K_φ = −Φ_q, and their
+derivatives from its acceleration equations Φ_φ L_φ = −γ, with γ the part of
+d²Φ/dq² that is quadratic in K (no finite differences). A new linkage type only
+supplies its loop phasors, its bodies, and a position solver.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import NumericalFailure
+from .scene import FourBarGeometry
+
+# Below this |det Φ_φ| / (product of link lengths) the position is treated as singular.
+SINGULAR_DETERMINANT = 1e-9
+
+
+class AssemblyError(ValueError):
+    """The linkage cannot be assembled at the requested input angle."""
+
+
+class SingularPositionError(NumericalFailure):
+    """The loop Jacobian Φ_φ is singular: a dead-centre (limit) position of the input."""
+
+    def __init__(self, message: str):
+        super().__init__("singular", message)
+
+
+@dataclass(frozen=True)
+class PhasorSum:
+    """r(x) = offset + Σ_t lengths[t] · e(x[index[t]] + phase[t]), a point of the plane (m)."""
+
+    offset: tuple[float, float]
+    lengths: tuple[float, ...]
+    index: tuple[int, ...]
+    phase: tuple[float, ...]
+
+    @staticmethod
+    def fixed(point: tuple[float, float]) -> "PhasorSum":
+        return PhasorSum(tuple(point), (), (), ())
+
+    def plus(self, other: "PhasorSum") -> "PhasorSum":
+        return PhasorSum((self.offset[0] + other.offset[0], self.offset[1] + other.offset[1]),
+                         self.lengths + other.lengths, self.index + other.index,
+                         self.phase + other.phase)
+
+    def _terms(self, x) -> list[tuple[float, float, int]]:
+        """(length, angle, coordinate index) of each term; scalar maths, these are hot."""
+        return [(a, x[i] + p, i) for a, i, p in zip(self.lengths, self.index, self.phase)]
+
+    def position(self, x) -> tuple[float, float]:
+        """r(x) (m)."""
+        rx, ry = self.offset
+        for a, th, _ in self._terms(x):
+            rx += a * math.cos(th)
+            ry += a * math.sin(th)
+        return rx, ry
+
+    def velocity_coefficient(self, x, K) -> tuple[float, float]:
+        """K_r = dr/dq (m/rad)."""
+        kx = ky = 0.0
+        for a, th, i in self._terms(x):
+            w = a * K[i]
+            kx -= w * math.sin(th)
+            ky += w * math.cos(th)
+        return kx, ky
+
+    def acceleration_coefficient(self, x, K, L) -> tuple[float, float]:
+        """L_r = d²r/dq² (m/rad²)."""
+        lx = ly = 0.0
+        for a, th, i in self._terms(x):
+            s, c = math.sin(th), math.cos(th)
+            wl, wk = a * L[i], a * K[i] * K[i]
+            lx += -wl * s - wk * c
+            ly += wl * c - wk * s
+        return lx, ly
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂r/∂x, shape (2, len(x))."""
+        J = np.zeros((2, len(x)))
+        for a, t, i in self._terms(x):
+            J[0, i] -= a * math.sin(t)
+            J[1, i] += a * math.cos(t)
+        return J
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid link: its angle is x[angle_index] + angle_offset, its frame origin a phasor sum."""
+
+    name: str
+    angle_index: int
+    angle_offset: float
+    origin: PhasorSum
+    pivoted: bool  # the frame origin is fixed to the ground
+
+    def point(self, local: tuple[float, float]) -> PhasorSum:
+        """A point fixed in the body, given in the body frame (m)."""
+        u, v = local
+        if u == 0.0 and v == 0.0:
+            return self.origin
+        rotating = PhasorSum((0.0, 0.0), (math.hypot(u, v),), (self.angle_index,),
+                             (self.angle_offset + math.atan2(v, u),))
+        return self.origin.plus(rotating)
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Joint angles and their velocity and acceleration coefficients at one q.
+
+    x, K = dx/dq, L = d²x/dq²: arrays of shape (n,), with x[0] = q, K[0] = 1, L[0] = 0.
+    """
+
+    x: np.ndarray
+    K: np.ndarray
+    L: np.ndarray
+
+
+class LoopLinkage:
+    """A one-DOF planar linkage: loop phasors that must sum to zero, and its bodies."""
+
+    coordinate_names: tuple[str, ...]
+    loops: tuple[PhasorSum, ...]  # each loop gives two scalar equations
+    bodies: dict[str, Body]
+
+    # -- position ---------------------------------------------------------
+    def assemble(self, q: float) -> np.ndarray:
+        """All joint angles x at input angle q on the declared branch, shape (n,)."""
+        raise NotImplementedError
+
+    def loop_residual(self, x: np.ndarray) -> np.ndarray:
+        """Φ(x), shape (2·len(loops),) (m)."""
+        return np.array([r for loop in self.loops for r in loop.position(x)])
+
+    def loop_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂Φ/∂x, shape (2·len(loops), n)."""
+        return np.vstack([loop.jacobian(x) for loop in self.loops])
+
+    def refine(self, x_guess: np.ndarray, tol: float = 1e-14, max_iter: int = 20) -> np.ndarray:
+        """Newton's method on Φ(q, φ) = 0 with q held fixed, from a nearby guess."""
+        x = np.array(x_guess, dtype=float)
+        for _ in range(max_iter):
+            r = self.loop_residual(x)
+            if np.max(np.abs(r)) < tol:
+                return x
+            J = self.loop_jacobian(x)[:, 1:]
+            x[1:] -= np.linalg.solve(J, r)
+        if np.max(np.abs(self.loop_residual(x))) > 1e3 * tol:
+            raise AssemblyError(f"Newton's method did not close the loop at q = {x[0]}")
+        return x
+
+    # -- velocity and acceleration coefficients (generic path) ------------
+    def kinematics(self, q: float) -> Kinematics:
+        """x, K and L at input angle q; linkages may override with closed forms."""
+        return self.kinematics_generic(q)
+
+    def kinematics_generic(self, q: float, x: np.ndarray | None = None) -> Kinematics:
+        """K and L of every coordinate, from the loop's velocity and acceleration equations."""
+        if x is None:
+            x = self.assemble(q)
+        J = self.loop_jacobian(x)
+        J_phi = J[:, 1:]
+        scale = np.prod(np.abs(np.concatenate([loop.lengths for loop in self.loops])))
+        if abs(np.linalg.det(J_phi)) < SINGULAR_DETERMINANT * scale:
+            raise SingularPositionError(f"dead-centre position at q = {q:.15g} rad: the loop "
+                                        "Jacobian ∂Φ/∂φ is singular")
+        # Velocity: Φ_q + Φ_φ K_φ = 0.
+        K = np.empty_like(x)
+        K[0] = 1.0
+        K[1:] = np.linalg.solve(J_phi, -J[:, 0])
+        # Acceleration: Φ_φ L_φ + γ = 0, γ = Σ_t −a_t K[i_t]² e(θ_t)  (L[0] = q'' w.r.t. q = 0).
+        gamma = np.array([g for loop in self.loops
+                          for g in loop.acceleration_coefficient(x, K, np.zeros_like(x))])
+        L = np.zeros_like(x)
+        L[1:] = np.linalg.solve(J_phi, -gamma)
+        return Kinematics(x=x, K=K, L=L)
+
+
+class FourBar(LoopLinkage):
+    """The four-bar O1-A-B-O3 of the seed: c1 e(q) + c2 e(φ1) + c3 e(φ2) − c4 e(0) = 0.
+
+    Coordinates x = (q, φ1, φ2); φ2 is the angle of the vector B→O3, so the rocker's own
+    angle (O3→B) is φ2 + π.
+    """
+
+    coordinate_names = ("q", "phi1", "phi2")
+
+    def __init__(self, geometry: FourBarGeometry):
+        g = self.geometry = geometry
+        self.loops = (PhasorSum((-g.c4, 0.0), (g.c1, g.c2, g.c3), (0, 1, 2), (0.0, 0.0, 0.0)),)
+        a = PhasorSum((0.0, 0.0), (g.c1,), (0,), (0.0,))
+        self.bodies = {
+            "crank": Body("crank", 0, 0.0, PhasorSum.fixed((0.0, 0.0)), pivoted=True),
+            "coupler": Body("coupler", 1, 0.0, a, pivoted=False),
+            "rocker": Body("rocker", 2, math.pi, PhasorSum.fixed((g.c4, 0.0)), pivoted=True),
+        }
+
+    def discriminant(self, q: float) -> float:
+        """A² + B² − C² of the seed's φ1 formula (m⁴); negative: cannot be assembled."""
+        A, B, C = self._abc(q)
+        return A * A + B * B - C * C
+
+    def _abc(self, q: float) -> tuple[float, float, float]:
+        g = self.geometry
+        A = 2.0 * g.c1 * g.c2 * math.sin(q)
+        B = 2.0 * g.c2 * (g.c1 * math.cos(q) - g.c4)
+        C = g.c1**2 + g.c2**2 - g.c3**2 + g.c4**2 - 2.0 * g.c1 * g.c4 * math.cos(q)
+        return A, B, C
+
+    def assemble(self, q: float) -> np.ndarray:
+        """Closed-form position analysis on the scene's branch.
+
+        A sin φ1 + B cos φ1 + C = 0 is solved as φ1 = β − branch·acos(−C/R), with
+        R = √(A²+B²), β = atan2(A, B): the same root as the seed's half-angle formula
+        with the ± sign equal to ``branch``, without its division by C − B (erratum 4).
+        φ2 uses atan2 on both loop components (erratum 3).
+        """
+        g = self.geometry
+        A, B, C = self._abc(q)
+        disc = A * A + B * B - C * C
+        if disc < 0.0:
+            raise AssemblyError(f"the linkage cannot be assembled (discriminant A²+B²−C² = {disc:.6g} m⁴ < 0)")
+        R = math.hypot(A, B)
+        phi1 = math.atan2(A, B) - g.branch * math.acos(max(-1.0, min(1.0, -C / R)))
+        phi2 = math.atan2(-(g.c1 * math.sin(q) + g.c2 * math.sin(phi1)),
+                          g.c4 - g.c1 * math.cos(q) - g.c2 * math.cos(phi1))
+        return np.array([q, _wrap(phi1), phi2])
+
+
+    def kinematics(self, q: float) -> Kinematics:
+        """Closed-form K and L of the seed (the generic path checks them in the tests).
+
+        K_φ1 = c1 sin(q − φ2) / (c2 sin(φ2 − φ1)),  K_φ2 = c1 sin(φ1 − q) / (c3 sin(φ2 − φ1)),
+        L_φ1 = (X cos φ2 + Y sin φ2) / (c2 sin(φ2 − φ1)),  L_φ2 = (X cos φ1 + Y sin φ1) / (c3 sin(φ1 − φ2)),
+        X = c1 cos q + K_φ1² c2 cos φ1 + K_φ2² c3 cos φ2,  Y likewise with sines.
+        """
+        g = self.geometry
+        x = self.assemble(q)
+        _, p1, p2 = x
+        s21 = math.sin(p2 - p1)
+        if abs(s21) < SINGULAR_DETERMINANT:
+            raise SingularPositionError(f"dead-centre position at q = {q:.15g} rad: "
+                                        f"sin(φ2 − φ1) = {s21:.3g}")
+        k1 = g.c1 * math.sin(q - p2) / (g.c2 * s21)
+        k2 = g.c1 * math.sin(p1 - q) / (g.c3 * s21)
+        c1c, c1s = math.cos(p1), math.sin(p1)
+        c2c, c2s = math.cos(p2), math.sin(p2)
+        X = g.c1 * math.cos(q) + k1 * k1 * g.c2 * c1c + k2 * k2 * g.c3 * c2c
+        Y = g.c1 * math.sin(q) + k1 * k1 * g.c2 * c1s + k2 * k2 * g.c3 * c2s
+        l1 = (X * c2c + Y * c2s) / (g.c2 * s21)
+        l2 = -(X * c1c + Y * c1s) / (g.c3 * s21)
+        return Kinematics(x=x, K=np.array([1.0, k1, k2]), L=np.array([0.0, l1, l2]))
+
+
+def _wrap(angle: float) -> float:
+    """Angle in (−π, π]."""
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+def unwrap_continuous(angles: np.ndarray) -> np.ndarray:
+    """Remove 2π jumps along a sampled trajectory of joint angles, shape (n_samples, n)."""
+    return np.unwrap(angles, axis=0)

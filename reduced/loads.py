@@ -1,0 +1,83 @@
+"""Torque profiles T(t) on the input link (N·m), piecewise constant in time.
+
+Each profile lists its discontinuities (``edges``) so that integrators can put a
+step boundary on each one, and can be evaluated on one smooth piece
+(:meth:`TorqueProfile.on_piece`) so that every stage inside a step sees the same
+side of an edge (SEED-NOTES erratum 5).
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+
+class TorqueProfile:
+    """Base class: a right-continuous, piecewise-constant function of time."""
+
+    def __call__(self, t: float) -> float:
+        """T(t) in N·m; at an edge, the value after it."""
+        raise NotImplementedError
+
+    @property
+    def edges(self) -> tuple[float, ...]:
+        """Times (s) where T(t) jumps."""
+        raise NotImplementedError
+
+    def on_piece(self, start: float, end: float) -> Callable[[float], float]:
+        """T on the open interval (start, end), extended continuously to its ends."""
+        inside = self(0.5 * (start + end))
+        return lambda t: inside
+
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        """T at each time (right-continuous), shape like ``times``."""
+        return np.array([self(float(t)) for t in np.ravel(times)]).reshape(np.shape(times))
+
+
+@dataclass(frozen=True)
+class ConstantTorque(TorqueProfile):
+    """T = amplitude for all t."""
+
+    amplitude: float
+
+    def __call__(self, t: float) -> float:
+        return self.amplitude
+
+    @property
+    def edges(self) -> tuple[float, ...]:
+        return ()
+
+
+@dataclass(frozen=True)
+class PulseTorque(TorqueProfile):
+    """T = amplitude for start ≤ t < start + duration, zero otherwise."""
+
+    amplitude: float
+    start: float
+    duration: float
+
+    def __call__(self, t: float) -> float:
+        return self.amplitude if self.start <= t < self.start + self.duration else 0.0
+
+    @property
+    def edges(self) -> tuple[float, ...]:
+        return (self.start, self.start + self.duration)
+
+
+@dataclass(frozen=True)
+class PiecewiseConstantTorque(TorqueProfile):
+    """T = values[i] for times[i] ≤ t < times[i+1]; zero before times[0]; the last value holds."""
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def __call__(self, t: float) -> float:
+        i = bisect.bisect_right(self.times, t) - 1
+        return 0.0 if i < 0 else self.values[i]
+
+    @property
+    def edges(self) -> tuple[float, ...]:
+        return self.times

@@ -1,0 +1,115 @@
+"""The one trajectory type every engine returns, with its interpolant and peak finder.
+
+Samples are (t, q, q̇, q̈) of the input link. Times are non-decreasing; a time may
+appear twice where q̈ jumps (a load edge): q and q̇ agree there, q̈ holds the values on
+either side. Between samples the trajectory is the quintic Hermite polynomial through
+q, q̇, q̈ at both ends: O(h⁶) in q and O(h⁵) in q̇ for a smooth motion, so it adds less
+error than a fourth-order integrator at the same spacing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Peak:
+    """An extremum of the input link's angular velocity: ω (rad/s) at time t (s)."""
+
+    omega: float
+    time: float
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of the input link: times (s), q (rad), q̇ (rad/s), q̈ (rad/s²), each shape (n,)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    qddot: np.ndarray
+
+    def __post_init__(self) -> None:
+        arrays = {name: np.asarray(getattr(self, name), dtype=float)
+                  for name in ("t", "q", "qdot", "qddot")}
+        n = arrays["t"].shape
+        for name, a in arrays.items():
+            if a.ndim != 1 or a.shape != n:
+                raise ValueError(f"Trajectory.{name} must have shape {n}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"Trajectory.{name} contains NaN or inf")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if n[0] < 2:
+            raise ValueError("a trajectory needs at least two samples")
+        if np.any(np.diff(arrays["t"]) < 0):
+            raise ValueError("Trajectory.t must be non-decreasing")
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def _coefficients(self, i: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Polynomial coefficients c0..c5 in s = (t − t_i)/h on intervals i."""
+        q0, v0, a0 = self.q[i], self.qdot[i], self.qddot[i]
+        q1, v1, a1 = self.q[i + 1], self.qdot[i + 1], self.qddot[i + 1]
+        c0, c1, c2 = q0, h * v0, 0.5 * h * h * a0
+        r0 = q1 - c0 - c1 - c2
+        r1 = h * v1 - c1 - 2.0 * c2
+        r2 = h * h * a1 - 2.0 * c2
+        c3 = 10.0 * r0 - 4.0 * r1 + 0.5 * r2
+        c4 = -15.0 * r0 + 7.0 * r1 - r2
+        c5 = 6.0 * r0 - 3.0 * r1 + 0.5 * r2
+        return c0, c1, c2, c3, c4, c5
+
+    def _locate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # The interval [t_i, t_{i+1}] with t_i < t_{i+1}: zero-length intervals at edges are skipped.
+        i = np.searchsorted(self.t, times, side="right") - 1
+        i = np.clip(i, 0, len(self.t) - 2)
+        while np.any(zero := self.t[i + 1] == self.t[i]):
+            i = np.where(zero, np.where(i + 1 < len(self.t) - 1, i + 1, i - 1), i)
+        h = self.t[i + 1] - self.t[i]
+        return i, h, (times - self.t[i]) / h
+
+    def interpolate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q, q̇, q̈ at ``times`` (within [t0, tf]); each the shape of ``times``."""
+        times = np.asarray(times, dtype=float)
+        if np.any(times < self.t[0] - 1e-12) or np.any(times > self.t[-1] + 1e-12):
+            raise ValueError("interpolation outside the trajectory's time span")
+        i, h, s = self._locate(times)
+        c0, c1, c2, c3, c4, c5 = self._coefficients(i, h)
+        q = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+        v = (c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
+        a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
+        return q, v, a
+
+    def peak_angular_velocity(self) -> Peak:
+        """The largest |q̇| over the run, located between samples where q̈ = 0.
+
+        Candidates are every sample (a maximum may sit on a load edge where q̈ jumps)
+        and every root of the interpolant's q̈ (a cubic in s) inside the intervals next
+        to the largest sample; the best candidate is returned with its sign.
+        """
+        k = int(np.argmax(np.abs(self.qdot)))
+        best = Peak(float(self.qdot[k]), float(self.t[k]))
+        for i in (k - 2, k - 1, k, k + 1):
+            if i < 0 or i + 1 >= len(self.t) or self.t[i + 1] == self.t[i]:
+                continue
+            h = self.t[i + 1] - self.t[i]
+            _, _, c2, c3, c4, c5 = self._coefficients(np.array(i), np.array(h))
+            # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³
+            roots = np.roots([20 * c5, 12 * c4, 6 * c3, 2 * c2]) if (c5 or c4 or c3) else []
+            for r in roots:
+                if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0:
+                    t = self.t[i] + r.real * h
+                    _, v, _ = self.interpolate(np.array([t]))
+                    if abs(v[0]) > abs(best.omega):
+                        best = Peak(float(v[0]), float(t))
+        return best
+
+    def resample(self, times: np.ndarray) -> "Trajectory":
+        """The trajectory at new sample times (interpolated)."""
+        q, v, a = self.interpolate(times)
+        return Trajectory(np.asarray(times, dtype=float), q, v, a)

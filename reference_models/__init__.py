@@ -1,0 +1,1 @@
+"""The MuJoCo reference model of a scene."""
