@@ -100,6 +100,110 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
 
 
+def _reduced_reference(args: argparse.Namespace) -> ReducedSettings:
+    if args.reference == "rkn4":
+        return ReducedSettings(method="rkn4", step=args.reference_step)
+    return ReducedSettings(method=args.reference, rtol=args.reference_rtol)
+
+
+def _tolerances(scene, args: argparse.Namespace):
+    from .run import override_tolerances
+
+    return override_tolerances(scene.tolerances, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+                               omega_atol=args.omega_atol)
+
+
+def print_comparison(c) -> None:
+    r, m, d = c.reduced, c.mujoco, c.diff
+    ref = r.settings
+    ref_label = f"{ref['solver']} " + (f"h={ref['step']:g}s" if ref["method"] == "rkn4" else f"rtol={ref['rtol']:g}")
+    mj = m.settings
+    mj_label = f"{mj['integrator']} dt={mj['timestep']:g}s"
+    rows = [
+        ("", f"reduced ({ref_label})", f"MuJoCo ({mj_label})", "difference"),
+        ("peak omega (rad/s)", f"{r.peak.omega:.10g}", f"{m.peak.omega:.10g}",
+         f"{d.peak_omega_abs:.3e} ({d.peak_omega_rel:.2e} rel)"),
+        ("time of peak (s)", f"{r.peak.time:.8g}", f"{m.peak.time:.8g}", f"{d.t_peak_abs:.3e}"),
+        ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
+        ("loop violation (m)", "-", f"{m.diagnostics['max_constraint_violation']:.2e}", ""),
+        ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
+        ("max |dq| (rad)", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
+        ("max |domega| (rad/s)", "", "", f"{d.omega_max_abs:.3e} (rms {d.omega_rms:.2e})"),
+        ("max |domega| at equal q", "", "", f"{d.omega_vs_q_max_abs:.3e}"),
+    ]
+    widths = [max(len(row[i]) for row in rows) for i in range(4)]
+    print(f"scene: {c.scene.name} ({c.scene.source}); effects: {', '.join(c.scene.effects) or 'none'}")
+    for row in rows:
+        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
+    for note in m.diagnostics.get("edge_warnings", []):
+        print(f"warning: {note}")
+    _print_gate(c.gate)
+
+
+def _print_gate(g) -> None:
+    t = g.tolerances
+    print(f"gate: {'PASSED' if g.passed else 'FAILED'} (peak_omega_rtol {t.peak_omega_rtol:g}, "
+          f"q_atol {t.q_atol:g} rad, omega_atol {t.omega_atol:g} rad/s)")
+    for failure in g.failures:
+        print(f"  {failure}")
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .report import write_outputs
+    from .run import compare_engines
+
+    scene = _scene(args.scene)
+    comparison = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args),
+                                 tolerances=_tolerances(scene, args))
+    print_comparison(comparison)
+    paths = write_outputs(comparison, args.out)
+    print(f"wrote {len(paths)} files to {args.out}/")
+    return EXIT_OK
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from .run import compare_engines
+
+    scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
+    failed = 0
+    for scene in scenes:
+        tolerances = _tolerances(scene, args)
+        try:
+            c = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args),
+                                tolerances=tolerances)
+        except NumericalFailure as exc:
+            failed += 1
+            print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")
+            continue
+        d = c.diff
+        status = "ok  " if c.gate.passed else "FAIL"
+        failed += not c.gate.passed
+        print(f"{status}  {scene.source}: peak_omega_rel {d.peak_omega_rel:.2e} (tol {tolerances.peak_omega_rtol:g}), "
+              f"q_max_abs {d.q_max_abs:.2e} (tol {tolerances.q_atol:g}), "
+              f"omega_max_abs {d.omega_max_abs:.2e} (tol {tolerances.omega_atol:g})")
+        for failure in c.gate.failures:
+            print(f"      {failure}")
+    print(f"{len(scenes) - failed} passed, {failed} failed")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("reduced reference")
+    g.add_argument("--reference", choices=("dop853", "rkn4", "radau"), default="dop853",
+                   help="reduced solver used as the reference (default dop853)")
+    g.add_argument("--reference-rtol", type=_positive, default=1e-12,
+                   help="tolerance of an adaptive reference (default 1e-12)")
+    g.add_argument("--reference-step", type=_positive, default=1e-4,
+                   help="step of an rkn4 reference in s (default 1e-4)")
+
+
+def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("gate tolerances (override the scene's [tolerances] table)")
+    g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of peak omega")
+    g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad")
+    g.add_argument("--omega-atol", type=_positive, default=None, help="max |domega| in rad/s")
+
+
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="scene TOML file (default: scenes/seed_fourbar.toml, the seed example)")
@@ -137,6 +241,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="MJCF file to write")
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
+
+    p = sub.add_parser("run", help="run both engines, compare, write report and plots",
+                       description="Run the scene through the reduced solver and MuJoCo, print a "
+                                   "table of both results and their differences, and write "
+                                   "report.json, reduced.csv, mujoco.csv and PNG plots into --out.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    _add_reference_arguments(p)
+    _add_mujoco_arguments(p)
+    _add_tolerance_arguments(p)
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",
+                       description="Run both engines on each scene and compare the differences "
+                                   "against the scene's [tolerances] (flags override). Exit 0 when "
+                                   "every scene passes, 1 when any fails, 2 on bad input.")
+    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
+    _add_reference_arguments(p)
+    _add_mujoco_arguments(p)
+    _add_tolerance_arguments(p)
+    p.set_defaults(func=cmd_check)
     return parser
 
 

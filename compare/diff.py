@@ -1,0 +1,107 @@
+"""Differences between two trajectories of the input link, and the agreement gate.
+
+Common time grid: the compared trajectory's own sample times. The reference is evaluated
+there through its quintic Hermite interpolant (O(h⁶) in q, O(h⁵) in q̇ at its ≤ 1 ms
+sample spacing: below 1e-10 rad on the seed scene), so the compared engine's samples
+are used as they are and the interpolation adds less error than either engine makes.
+
+Over configuration: for each compared sample (q_k, q̇_k) the reference time t* with
+q_ref(t*) = q_k is found by Newton's method on the interpolant (from t_k), and
+Δω(q) = q̇_k − q̇_ref(t*). A pure timing (phase) error then gives Δω(q) ≈ 0 while
+|Δq̇(t)| can be large. Samples where the reference moves slowly
+(|q̇_ref| < 1 % of its largest value) are left out: there q does not fix the time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reduced.scene import Tolerances
+from reduced.trajectory import Trajectory
+
+SLOW_FRACTION = 0.01
+
+
+@dataclass(frozen=True)
+class Difference:
+    """How far ``other`` is from ``reference`` (units: rad, rad/s, s)."""
+
+    peak_omega_abs: float
+    peak_omega_rel: float
+    t_peak_abs: float
+    q_max_abs: float
+    q_rms: float
+    omega_max_abs: float
+    omega_rms: float
+    omega_vs_q_max_abs: float
+    times: np.ndarray = field(repr=False)
+    dq: np.ndarray = field(repr=False)
+    domega: np.ndarray = field(repr=False)
+    q_samples: np.ndarray = field(repr=False)  # q_k of the compared samples used for Δω(q)
+    domega_vs_q: np.ndarray = field(repr=False)
+
+    def figures(self) -> dict[str, float]:
+        """The scalar figures, for reports."""
+        return {k: getattr(self, k) for k in (
+            "peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
+            "omega_max_abs", "omega_rms", "omega_vs_q_max_abs")}
+
+
+def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndarray,
+                   iterations: int = 8) -> np.ndarray:
+    """Solve q_ref(t) = q_target near t_guess by Newton's method (vectorized)."""
+    t = t_guess.copy()
+    lo, hi = reference.t[0], reference.t[-1]
+    for _ in range(iterations):
+        q, v, _ = reference.interpolate(t)
+        t = np.clip(t - (q - q_target) / v, lo, hi)
+    return t
+
+
+def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference:
+    """Differences of ``other`` from ``reference`` on ``other``'s sample times."""
+    end = min(reference.t[-1], other.t[-1])
+    keep = other.t <= end + 1e-12
+    times = other.t[keep]
+    q_ref, v_ref, _ = reference.interpolate(np.minimum(times, reference.t[-1]))
+    dq = other.q[keep] - q_ref
+    domega = other.qdot[keep] - v_ref
+
+    p_ref, p_other = reference.peak_angular_velocity(), other.peak_angular_velocity()
+    fast = np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))
+    t_star = _time_at_angle(reference, other.q[keep][fast], times[fast])
+    _, v_star, _ = reference.interpolate(t_star)
+    domega_q = other.qdot[keep][fast] - v_star
+
+    def rms(a: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(a * a))) if a.size else 0.0
+
+    return Difference(
+        peak_omega_abs=abs(p_other.omega - p_ref.omega),
+        peak_omega_rel=abs(p_other.omega - p_ref.omega) / max(abs(p_ref.omega), 1e-300),
+        t_peak_abs=abs(p_other.time - p_ref.time),
+        q_max_abs=float(np.max(np.abs(dq))), q_rms=rms(dq),
+        omega_max_abs=float(np.max(np.abs(domega))), omega_rms=rms(domega),
+        omega_vs_q_max_abs=float(np.max(np.abs(domega_q))) if domega_q.size else 0.0,
+        times=times, dq=dq, domega=domega, q_samples=other.q[keep][fast], domega_vs_q=domega_q)
+
+
+@dataclass(frozen=True)
+class GateResult:
+    """Whether two engines agree within the tolerances."""
+
+    passed: bool
+    failures: tuple[str, ...]
+    tolerances: Tolerances
+
+
+def gate(diff: Difference, tolerances: Tolerances) -> GateResult:
+    """Check the peak-ω relative difference, max |Δq| and max |Δq̇| against tolerances."""
+    checks = (("peak_omega_rel", diff.peak_omega_rel, tolerances.peak_omega_rtol, ""),
+              ("q_max_abs", diff.q_max_abs, tolerances.q_atol, " rad"),
+              ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s"))
+    failures = tuple(f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
+                     for name, value, tol, unit in checks if not value <= tol)
+    return GateResult(passed=not failures, failures=failures, tolerances=tolerances)

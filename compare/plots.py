@@ -1,0 +1,115 @@
+"""Diff plots of a comparison (PNG, matplotlib's Agg backend: no display needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .run import Comparison  # noqa: E402
+
+REDUCED_STYLE = {"color": "tab:blue", "label": "reduced (Eksergian)"}
+MUJOCO_STYLE = {"color": "tab:orange", "label": "MuJoCo", "linestyle": "--"}
+
+
+def _save(fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_trajectories(c: Comparison, path: Path) -> None:
+    fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+        ax_q.plot(result.trajectory.t, result.trajectory.q, **style)
+        ax_w.plot(result.trajectory.t, result.trajectory.qdot, **style)
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+        ax_w.plot([result.peak.time], [result.peak.omega], "o", color=style["color"], markersize=5)
+    ax_q.set_ylabel("crank angle q (rad)")
+    ax_w.set_ylabel("crank angular velocity ω (rad/s)")
+    ax_w.set_xlabel("time t (s)")
+    ax_q.set_title(f"{c.scene.name}: input link, both engines (dots: peak ω)")
+    ax_q.legend(), ax_w.legend()
+    ax_q.grid(alpha=0.3), ax_w.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_differences(c: Comparison, path: Path) -> None:
+    d = c.diff
+    fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    ax_q.plot(d.times, d.dq, color="tab:red", label="Δq = q_MuJoCo − q_reduced")
+    ax_w.plot(d.times, d.domega, color="tab:red", label="Δω = ω_MuJoCo − ω_reduced")
+    tol = c.gate.tolerances
+    for ax, limit in ((ax_q, tol.q_atol), (ax_w, tol.omega_atol)):
+        ax.axhline(limit, color="grey", linestyle=":", label="gate tolerance")
+        ax.axhline(-limit, color="grey", linestyle=":")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best")
+    ax_q.set_ylabel("Δq (rad)")
+    ax_w.set_ylabel("Δω (rad/s)")
+    ax_w.set_xlabel("time t (s)")
+    ax_q.set_title(f"{c.scene.name}: MuJoCo minus reduced reference on MuJoCo's sample times")
+    _save(fig, path)
+
+
+def plot_omega_vs_q(c: Comparison, path: Path) -> None:
+    fig, (ax, ax_d) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+        ax.plot(result.trajectory.q, result.trajectory.qdot, **style)
+    ax.set_ylabel("ω (rad/s)")
+    ax.set_title(f"{c.scene.name}: crank speed against crank angle (phase-free comparison)")
+    ax.legend(), ax.grid(alpha=0.3)
+    ax_d.plot(c.diff.q_samples, c.diff.domega_vs_q, ".", markersize=2, color="tab:red",
+              label="Δω at equal q")
+    ax_d.set_xlabel("crank angle q (rad)")
+    ax_d.set_ylabel("Δω(q) (rad/s)")
+    ax_d.legend(), ax_d.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_constraint_violation(c: Comparison, path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(8, 4))
+    times = c.mujoco.diagnostics["times"]
+    violation = c.mujoco.diagnostics["constraint_violation"]
+    ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="|B_coupler − B_rocker|")
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel("loop-closure violation (m)")
+    ax.set_title(f"{c.scene.name}: MuJoCo equality-constraint violation "
+                 f"(max {c.mujoco.diagnostics['max_constraint_violation']:.2e} m)")
+    ax.legend(), ax.grid(alpha=0.3, which="both")
+    _save(fig, path)
+
+
+def plot_energy(c: Comparison, path: Path) -> None:
+    fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+        a = result.audit
+        ls = style.get("linestyle", "-")
+        name = style["label"].split()[0]
+        ax.plot(a.t, a.kinetic, color="tab:green", linestyle=ls, label=f"kinetic ({name})")
+        ax.plot(a.t, a.torque_work, color="tab:purple", linestyle=ls, label=f"torque work ({name})")
+        ax.plot(a.t, a.damper_dissipation, color="tab:brown", linestyle=ls, label=f"damper dissipation ({name})")
+        if np.any(a.potential != a.potential[0]):
+            ax.plot(a.t, a.potential - a.potential[0], color="tab:grey", linestyle=ls,
+                    label=f"potential − V0 ({name})")
+        ax_r.plot(a.t, a.residual, color=style["color"], linestyle=ls, label=f"residual ({name})")
+    ax.set_ylabel("energy (J)")
+    ax.set_title(f"{c.scene.name}: energy audit, T + V − (T0 + V0) − W + D = residual")
+    ax.legend(fontsize=8, ncol=2), ax.grid(alpha=0.3)
+    ax_r.set_ylabel("residual (J)")
+    ax_r.set_xlabel("time t (s)")
+    ax_r.legend(fontsize=8), ax_r.grid(alpha=0.3)
+    _save(fig, path)
+
+
+PLOTS = {
+    "trajectories.png": plot_trajectories,
+    "differences.png": plot_differences,
+    "omega_vs_q.png": plot_omega_vs_q,
+    "constraint_violation.png": plot_constraint_violation,
+    "energy.png": plot_energy,
+}
