@@ -9,7 +9,8 @@ Over configuration: for each compared sample (q_k, q̇_k) the reference time t* 
 q_ref(t*) = q_k is found by Newton's method on the interpolant (from t_k), and
 Δω(q) = q̇_k − q̇_ref(t*). A pure timing (phase) error then gives Δω(q) ≈ 0 while
 |Δq̇(t)| can be large. Samples where the reference moves slowly
-(|q̇_ref| < 1 % of its largest value) are left out: there q does not fix the time.
+(|q̇_ref| < 1 % of its largest value) are left out: there q does not fix the time; so
+are samples whose angle the reference never reaches within its time span.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from reduced.scene import Tolerances
 from reduced.trajectory import Trajectory
 
 SLOW_FRACTION = 0.01
+ANGLE_MATCH = 1e-9  # rad per rad: Newton's residual below which q_ref(t*) = q_k is accepted
 
 
 @dataclass(frozen=True)
@@ -71,9 +73,11 @@ def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference
 
     p_ref, p_other = reference.peak_angular_velocity(), other.peak_angular_velocity()
     fast = np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))
-    t_star = _time_at_angle(reference, other.q[keep][fast], times[fast])
-    _, v_star, _ = reference.interpolate(t_star)
-    domega_q = other.qdot[keep][fast] - v_star
+    q_fast = other.q[keep][fast]
+    t_star = _time_at_angle(reference, q_fast, times[fast])
+    q_star, v_star, _ = reference.interpolate(t_star)
+    matched = np.abs(q_star - q_fast) <= ANGLE_MATCH * (1.0 + np.abs(q_fast))
+    domega_q = (other.qdot[keep][fast] - v_star)[matched]
 
     def rms(a: np.ndarray) -> float:
         return float(np.sqrt(np.mean(a * a))) if a.size else 0.0
@@ -85,7 +89,7 @@ def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference
         q_max_abs=float(np.max(np.abs(dq))), q_rms=rms(dq),
         omega_max_abs=float(np.max(np.abs(domega))), omega_rms=rms(domega),
         omega_vs_q_max_abs=float(np.max(np.abs(domega_q))) if domega_q.size else 0.0,
-        times=times, dq=dq, domega=domega, q_samples=other.q[keep][fast], domega_vs_q=domega_q)
+        times=times, dq=dq, domega=domega, q_samples=q_fast[matched], domega_vs_q=domega_q)
 
 
 @dataclass(frozen=True)

@@ -74,6 +74,7 @@ def write_outputs(c: Comparison, out_dir: str | Path) -> list[Path]:
     from .plots import PLOTS
 
     out = Path(out_dir)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".xval-", dir=out))
     try:
@@ -86,5 +87,10 @@ def write_outputs(c: Comparison, out_dir: str | Path) -> list[Path]:
         for name in names:
             os.replace(staging / name, out / name)
         return [out / n for n in names]
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)

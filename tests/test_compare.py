@@ -1,0 +1,129 @@
+"""The comparison, its report and plots, and the CLI gate (real runs, nothing mocked)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from compare.diff import compare_trajectories, gate
+from compare.report import write_outputs
+from compare.run import compare_engines
+from reduced import Trajectory, load_scene
+from reduced.scene import Tolerances
+
+from helpers import SEED_SCENE
+
+REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "wall_s", "settings", "energy_residual"}
+REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
+                    "omega_max_abs", "omega_rms", "omega_vs_q_max_abs"}
+
+
+def xval(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "compare.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def seed_comparison():
+    return compare_engines(load_scene(SEED_SCENE))
+
+
+def smooth_trajectory(shift: float = 0.0, n: int = 2001) -> Trajectory:
+    """A crank turning unevenly: q = 20 t + 0.3 sin(8 t), sampled on [0, 2] s, delayed by ``shift``."""
+    t = np.linspace(0.0, 2.0, n)
+    s = t - shift
+    return Trajectory(t, 20 * s + 0.3 * np.sin(8 * s), 20 + 2.4 * np.cos(8 * s), -19.2 * np.sin(8 * s))
+
+
+def test_identical_trajectories_differ_by_nothing():
+    a = smooth_trajectory()
+    d = compare_trajectories(a, a)
+    # Interpolating a trajectory at its own samples returns them (to round-off in q̇ = c1/h).
+    assert d.q_max_abs == 0.0
+    assert d.omega_max_abs < 1e-12 and d.omega_vs_q_max_abs < 1e-12
+    assert d.peak_omega_abs == 0.0 and d.t_peak_abs == 0.0
+
+
+def test_time_shift_is_reported_as_phase_not_speed_error():
+    """A 1 ms delay of a fast crank: |Δω(t)| is large (ω̇ · 1 ms ≈ 0.02 rad/s), but at equal
+    angle the speeds agree to the interpolation error of the reference (≈ 1e-9 here)."""
+    ref, late = smooth_trajectory(), smooth_trajectory(shift=1e-3)
+    d = compare_trajectories(ref, late)
+    assert d.omega_max_abs > 0.015
+    assert d.q_max_abs > 0.015  # ≈ 20 rad/s × 1 ms
+    assert d.omega_vs_q_max_abs < 1e-6
+    assert d.t_peak_abs == pytest.approx(1e-3, abs=1e-6)
+
+
+def test_gate_uses_tolerances(seed_comparison):
+    d = seed_comparison.diff
+    assert seed_comparison.gate.passed, seed_comparison.gate.failures
+    tight = gate(d, Tolerances(peak_omega_rtol=d.peak_omega_rel / 2, q_atol=1.0, omega_atol=10.0))
+    assert not tight.passed and len(tight.failures) == 1 and "peak_omega_rel" in tight.failures[0]
+
+
+def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
+    paths = write_outputs(seed_comparison, tmp_path / "out")
+    names = {p.name for p in paths}
+    assert {"report.json", "reduced.csv", "mujoco.csv", "trajectories.png", "differences.png",
+            "omega_vs_q.png", "constraint_violation.png", "energy.png"} <= names
+    assert not [p for p in (tmp_path / "out").iterdir() if p.name.startswith(".")]  # no staging left
+    for p in paths:
+        assert p.stat().st_size > 0
+        if p.suffix == ".png":
+            assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+            image = matplotlib.image.imread(p)
+            assert image.shape[0] > 200 and image.shape[1] > 400
+            assert np.ptp(image[..., :3]) > 0.5  # not a blank canvas
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert {"scene", "reduced", "mujoco", "diff", "gate"} <= report.keys()
+    for engine in ("reduced", "mujoco"):
+        assert REPORT_ENGINE_KEYS <= report[engine].keys()
+        assert isinstance(report[engine]["peak_omega"], float)
+    assert isinstance(report["mujoco"]["max_constraint_violation"], float)
+    assert report["diff"].keys() == REPORT_DIFF_KEYS
+    assert report["gate"]["passed"] is True and report["gate"]["failures"] == []
+    assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1}
+    csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)
+    assert csv.shape[1] == 4 and np.all(np.diff(csv[:, 0]) >= 0)
+
+
+def test_check_passes_on_seed_and_fails_below_measured_difference(seed_comparison):
+    ok = xval("check", str(SEED_SCENE))
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "1 passed, 0 failed" in ok.stdout
+    tight = seed_comparison.diff.peak_omega_rel / 10
+    bad = xval("check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}")
+    assert bad.returncode == 1
+    assert "peak_omega_rel" in bad.stdout and "> tolerance" in bad.stdout
+
+
+def test_run_writes_report(tmp_path):
+    out = tmp_path / "run"
+    proc = xval("run", str(SEED_SCENE), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "gate: PASSED" in proc.stdout
+    assert json.loads((out / "report.json").read_text())["scene"]["name"] == "seed_fourbar"
+
+
+@pytest.mark.parametrize("command", ["run", "check", "mujoco", "reduced"])
+def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SEED_SCENE.read_text().replace("c2 = 0.9", "c2 = -0.9"))
+    out = tmp_path / "out"
+    args = [command, str(bad)] + (["--out", str(out)] if command == "run" else [])
+    proc = xval(*args)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "linkage.c2" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
+def test_bad_flag_value_exits_2():
+    proc = xval("check", str(SEED_SCENE), "--peak-rtol", "nan")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
