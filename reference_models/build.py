@@ -133,8 +133,16 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                     objtype=mujoco.mjtObj.mjOBJ_SITE, objname="B_rocker")
     spec.add_sensor(name="crank_angacc", type=mujoco.mjtSensor.mjSENS_FRAMEANGACC,
                     objtype=mujoco.mjtObj.mjOBJ_BODY, objname="crank")
-    spec.add_sensor(name="kinetic_energy", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
-    spec.add_sensor(name="potential_energy", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
+    # Centre-of-mass position and velocity and angular velocity of every link, for the energy
+    # audit (MuJoCo's e_kinetic sensor reads the energy of the previous evaluation).
+    for name in BODY_NAMES:
+        for kind, sensor in (("com_pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
+                             ("com_vel", mujoco.mjtSensor.mjSENS_FRAMELINVEL),
+                             ("ang_vel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL)):
+            spec.add_sensor(name=f"{name}_{kind}", type=sensor, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=name)
+    for i in range(len(scene.springs)):
+        spec.add_sensor(name=f"spring{i}_length", type=mujoco.mjtSensor.mjSENS_TENDONPOS,
+                        objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=f"spring{i}")
     for name in dampers:
         spec.add_sensor(name=f"{name}_rate", type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)

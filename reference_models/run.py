@@ -19,7 +19,7 @@ from mujoco import rollout
 
 from reduced.errors import NumericalFailure
 from reduced.result import EnergyAudit, EngineResult
-from reduced.scene import Scene
+from reduced.scene import BODY_NAMES, Scene
 from reduced.trajectory import Trajectory
 
 from .build import ConstraintSettings, ModelHandles, build_spec, compile_model, initial_qpos_qvel
@@ -149,7 +149,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
                                f"t = {times[k]:.6g} s exceeds {settings.max_constraint_violation:g} m",
                                float(times[k]))
 
-    audit = _energy_audit(model, data, handles, states, sensors, ctrl, spec)
+    audit = _energy_audit(model, handles, times, states, sensors, ctrl)
     return EngineResult(
         engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
@@ -195,29 +195,41 @@ def _with_edge_samples(model, data, scene, times, q, qdot, qddot, states, ctrl, 
     return Trajectory(np.array(t), np.array(qs), np.array(vs), np.array(accs))
 
 
-def _energy_audit(model, data, handles, states, sensors, ctrl, spec) -> EnergyAudit:
-    """Kinetic ½ q̇ᵀM q̇ and potential energy from MuJoCo at every stored state; the work of
-    the motor ∫ u q̇_crank dt and the damper dissipation ∫ Σ b l̇² dt by the trapezoid rule
-    (first order in the step for the explicit Euler integrator, like its dynamics)."""
-    n = len(states)
-    kinetic, potential = np.empty(n), np.empty(n)
-    for k in range(n):
-        mujoco.mj_setState(model, data, states[k], spec)
-        mujoco.mj_forward(model, data)
-        kinetic[k], potential[k] = data.energy[1], data.energy[0]
-    times = states[:, 0]
+def _energy_audit(model, handles, times, states, sensors, ctrl) -> EnergyAudit:
+    """The energy balance from MuJoCo's own quantities at every stored state.
+
+    Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² and potential −Σ m g·r_G + Σ ½ k (l − l0)² from the
+    body and tendon sensors with the model's masses, inertias, stiffnesses (kinetic energy
+    agrees with ½ q̇ᵀM q̇); the work of the motor ∫ u q̇_crank dt and the damper dissipation
+    ∫ Σ b l̇² dt by the trapezoid rule (the control is constant within each step).
+    """
+    sl = handles.sensor_slices
+    n = len(times)
+    kinetic, potential = np.zeros(n), np.zeros(n)
+    gravity = model.opt.gravity
+    for name in BODY_NAMES:
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        mass, izz = model.body_mass[body], model.body_inertia[body, 2]
+        v, w = sensors[:, sl[f"{name}_com_vel"]], sensors[:, sl[f"{name}_ang_vel"]]
+        kinetic += 0.5 * mass * np.sum(v * v, axis=1) + 0.5 * izz * w[:, 2] ** 2
+        potential -= mass * sensors[:, sl[f"{name}_com_pos"]] @ gravity
+    for tendon in range(model.ntendon):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon)
+        if f"{name}_length" in sl:
+            stretch = sensors[:, sl[f"{name}_length"]][:, 0] - model.tendon_lengthspring[tendon, 0]
+            potential += 0.5 * model.tendon_stiffness[tendon] * stretch * stretch
     dt = np.diff(times)
     qvel_crank = states[:, 1 + model.nq]
     zero = np.zeros(1)
     if model.nu:
-        # The control is constant on each step; q̇ by the trapezoid rule within it.
-        torque_work = np.concatenate([zero, np.cumsum(ctrl[:, 0] * 0.5 * (qvel_crank[:-1] + qvel_crank[1:]) * dt)])
+        power_dt = ctrl[:, 0] * 0.5 * (qvel_crank[:-1] + qvel_crank[1:]) * dt
+        torque_work = np.concatenate([zero, np.cumsum(power_dt)])
     else:
         torque_work = np.zeros(n)
     rate = np.zeros(n)
     for name in handles.damper_tendons:
         b = model.tendon_damping[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)]
-        ldot = sensors[:, handles.sensor_slices[f"{name}_rate"]][:, 0]
+        ldot = sensors[:, sl[f"{name}_rate"]][:, 0]
         rate += b * ldot * ldot
     dissipation = np.concatenate([zero, np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)])
     return EnergyAudit(t=times, kinetic=kinetic, potential=potential, torque_work=torque_work,
