@@ -49,14 +49,15 @@ def cmd_reduced(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _mujoco_settings(args: argparse.Namespace):
+def _mujoco_settings(args: argparse.Namespace, scene):
+    """MuJoCo settings: command-line flags over the scene's [mujoco] table over the defaults."""
     from reference_models import MujocoSettings
 
-    kwargs = {"integrator": args.integrator, "timestep": args.timestep}
-    if args.solref is not None:
-        kwargs["solref"] = tuple(args.solref)
-    if args.solimp is not None:
-        kwargs["solimp"] = tuple(args.solimp)
+    kwargs = dict(scene.mujoco)
+    for name in ("integrator", "timestep", "solref", "solimp"):
+        value = getattr(args, name)
+        if value is not None:
+            kwargs[name] = tuple(value) if isinstance(value, list) else value
     return MujocoSettings(**kwargs)
 
 
@@ -64,7 +65,7 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     from reference_models import simulate_mujoco
 
     scene = _scene(args.scene)
-    settings = _mujoco_settings(args)
+    settings = _mujoco_settings(args, scene)
     result = simulate_mujoco(scene, settings)
     print(f"scene            {scene.name}  ({scene.source})")
     print(f"effects          {', '.join(scene.effects) or 'none'}")
@@ -84,16 +85,17 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
     from reference_models import export_mjcf
 
     scene = _scene(args.scene)
-    export_mjcf(scene, args.output, _mujoco_settings(args))
+    export_mjcf(scene, args.output, _mujoco_settings(args, scene))
     print(f"wrote {args.output}")
     return EXIT_OK
 
 
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("MuJoCo settings")
-    g.add_argument("--integrator", choices=("euler", "implicit", "implicitfast", "rk4"), default="rk4",
-                   help="MuJoCo integrator (default rk4)")
-    g.add_argument("--timestep", type=_positive, default=1e-3, help="MuJoCo timestep in s (default 1e-3)")
+    g.add_argument("--integrator", choices=("euler", "implicit", "implicitfast", "rk4"), default=None,
+                   help="MuJoCo integrator (default: the scene's [mujoco] table, else rk4)")
+    g.add_argument("--timestep", type=_positive, default=None,
+                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else 1e-3)")
     g.add_argument("--solref", type=float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
@@ -153,7 +155,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .run import compare_engines
 
     scene = _scene(args.scene)
-    comparison = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args),
+    comparison = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print_comparison(comparison)
     paths = write_outputs(comparison, args.out)
@@ -169,7 +171,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     for scene in scenes:
         tolerances = _tolerances(scene, args)
         try:
-            c = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args),
+            c = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args, scene),
                                 tolerances=tolerances)
         except NumericalFailure as exc:
             failed += 1
@@ -185,6 +187,25 @@ def cmd_check(args: argparse.Namespace) -> int:
             print(f"      {failure}")
     print(f"{len(scenes) - failed} passed, {failed} failed")
     return EXIT_FAILED if failed else EXIT_OK
+
+
+def cmd_cost(args: argparse.Namespace) -> int:
+    from .cost import (cost_report, ground_truth, ladder, recommend, summary_lines, sweep,
+                       write_cost_outputs)
+
+    scene = _scene(args.scene)
+    target = args.target if args.target is not None else scene.tolerances.peak_omega_rtol
+    repeats = args.repeats if args.repeats is not None else 3
+    truth = ground_truth(scene)
+    configs = ladder(quick=args.quick)
+    measurements = sweep(scene, configs, truth, repeats=repeats, workers=args.workers)
+    recommendations = recommend(scene, measurements, truth, target, repeats)
+    report = cost_report(scene, truth, measurements, recommendations, repeats)
+    for line in summary_lines(report, measurements):
+        print(line)
+    paths = write_cost_outputs(report, measurements, args.out, target)
+    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    return EXIT_OK
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
@@ -262,6 +283,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_mujoco_arguments(p)
     _add_tolerance_arguments(p)
     p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",
+                       description="Sweep both engines over steps, tolerances, MuJoCo integrators and "
+                                   "constraint softness; measure errors against the reduced truth "
+                                   "(DOP853 rtol 1e-12) and the median wall time of the simulation; "
+                                   "write cost.png (work-precision diagram), cost.csv and cost.json; "
+                                   "recommend the cheapest configuration of each engine for the target.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
+    p.add_argument("--target", type=_positive, default=None,
+                   help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
+    p.add_argument("--repeats", type=int, default=None, help="timed runs per configuration (default 3)")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.set_defaults(func=cmd_cost)
     return parser
 
 
@@ -276,6 +312,9 @@ def main(argv: list[str] | None = None) -> int:
     except NumericalFailure as exc:
         print(f"xval: numerical failure ({exc.reason}): {exc}", file=sys.stderr)
         return EXIT_FAILED
+    except BrokenPipeError:  # output piped into e.g. `head`
+        sys.stderr.close()
+        return EXIT_OK
 
 
 if __name__ == "__main__":

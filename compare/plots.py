@@ -113,3 +113,42 @@ PLOTS = {
     "constraint_violation.png": plot_constraint_violation,
     "energy.png": plot_energy,
 }
+
+
+SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
+INTEGRATOR_COLOURS = {"euler": "tab:red", "implicit": "tab:purple", "implicitfast": "tab:brown",
+                      "rk4": "tab:orange"}
+
+
+def plot_work_precision(measurements, front, target: float | None, title: str, path: Path) -> None:
+    """Log-log work-precision diagram: peak-ω relative error (x) against wall time (y)."""
+    fig, ax = plt.subplots(figsize=(12, 6.5))
+    series: dict[str, list] = {}
+    for m in measurements:
+        if m.ok and m.peak_omega_rel > 0:
+            series.setdefault(m.config.series, []).append(m)
+    for name, points in series.items():
+        points = sorted(points, key=lambda m: -m.config.parameter)
+        if name in SERIES_MARKERS:
+            colour, marker, ls = SERIES_MARKERS[name]
+        else:  # "MuJoCo <integrator> (<softness>)"
+            integrator = name.split()[1]
+            colour = INTEGRATOR_COLOURS.get(integrator, "grey")
+            marker, ls = ("^", "--") if "(hard)" in name else ("v", ":")
+        ax.loglog([m.peak_omega_rel for m in points], [m.wall_median_s for m in points],
+                  marker=marker, linestyle=ls, color=colour, label=name, markersize=5)
+    if front:
+        ax.loglog([m.peak_omega_rel for m in front], [m.wall_median_s for m in front], color="black",
+                  linewidth=2.5, alpha=0.35, label="Pareto front", zorder=0)
+        ax.scatter([m.peak_omega_rel for m in front], [m.wall_median_s for m in front], s=110,
+                   facecolors="none", edgecolors="black", zorder=5)
+    if target:
+        ax.axvline(target, color="green", linestyle="-.", label=f"target {target:g}")
+    ax.set_xlabel("relative error of peak angular velocity against the truth")
+    ax.set_ylabel("wall time of the simulation (s, median)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    ax.text(0.01, 0.01, "lower left is better: accurate and cheap; circles: Pareto front",
+            transform=ax.transAxes, fontsize=8, color="dimgray")
+    _save(fig, path)

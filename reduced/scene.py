@@ -111,6 +111,7 @@ class Scene:
     qdot0: float
     horizon: float
     tolerances: Tolerances = field(default_factory=Tolerances)
+    mujoco: Mapping[str, Any] = field(default_factory=dict)  # settings this scene asks MuJoCo for
     source: str = "<memory>"
 
     @property
@@ -339,13 +340,39 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
             omega_atol=tol.number("omega_atol", Tolerances.omega_atol, positive=True),
         )
         tol.close()
+    mujoco = _parse_mujoco(top.table("mujoco")) if top.has("mujoco") else {}
+    top.used.add("mujoco")
     top.close()
 
     scene = Scene(name=name, description=description, linkage=linkage, bodies=bodies,
                   torque=torque, dampers=tuple(dampers), springs=tuple(springs), gravity=gravity,
-                  q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, source=source)
+                  q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, mujoco=mujoco,
+                  source=source)
     _check_assembly(scene)
     return scene
+
+
+MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+
+
+def _parse_mujoco(t: _Table) -> dict[str, Any]:
+    """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers)."""
+    out: dict[str, Any] = {}
+    if t.has("integrator"):
+        name = t.string("integrator")
+        if name not in MUJOCO_INTEGRATORS:
+            raise SceneError(f"'{t.key('integrator')}' must be one of {', '.join(MUJOCO_INTEGRATORS)}, got \"{name}\"")
+        out["integrator"] = name
+    if t.has("timestep"):
+        out["timestep"] = t.number("timestep", positive=True)
+    for name, size in (("solref", 2), ("solimp", 5)):
+        if t.has(name):
+            value = t.raw(name)
+            if not isinstance(value, list) or len(value) != size:
+                raise SceneError(f"'{t.key(name)}' must be an array of {size} numbers")
+            out[name] = tuple(_number(v, f"{t.key(name)}[{i}]") for i, v in enumerate(value))
+    t.close()
+    return out
 
 
 def _check_assembly(scene: Scene) -> None:
