@@ -26,6 +26,17 @@ from .build import ConstraintSettings, ModelHandles, build_spec, compile_model, 
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
+# MuJoCo prints its warnings and appends them to MUJOCO_LOG.TXT in the working directory.
+# We keep the latest text instead and turn warnings into failures through data.warning.
+_last_mujoco_warning: list[str] = []
+
+
+def _keep_warning(message: str) -> None:
+    _last_mujoco_warning[:] = [message.strip()]
+
+
+mujoco.set_mju_user_warning(_keep_warning)
+
 
 class OffGridEdgeWarning(UserWarning):
     """A load edge does not fall on a MuJoCo step boundary."""
@@ -165,9 +176,9 @@ def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:
     for kind, label in names.items():
         w = data.warning[int(kind)]
         if w.number:
-            raise NumericalFailure("unstable", f"MuJoCo reported {label} {w.number} time(s) "
-                                   f"(first index {w.lastinfo}); mj_step reset the state: the "
-                                   "simulation is unstable at these settings")
+            text = f" ({_last_mujoco_warning[0]})" if _last_mujoco_warning else ""
+            raise NumericalFailure("unstable", f"MuJoCo reported {label} {w.number} time(s){text}; "
+                                   "mj_step reset the state: the simulation is unstable at these settings")
     if not np.all(np.isfinite(states)):
         raise NumericalFailure("non-finite", "MuJoCo's state became NaN or infinite")
     # A reset (warning swallowed elsewhere) shows as time going backwards.
