@@ -7,6 +7,10 @@
     V = −Σ M_i g·r_Gi + Σ ½ k_s (D_s − D0_s)²
     Q_nc = T(t) − Σ b_d K_Dd² q̇           (K_D = dD/dq, D the damper length)
 
+The same equation holds in any joint angle x_i as the coordinate (for passing the input
+link's dead centres): every K and L is then a derivative with respect to x_i, and the
+torque on the input link contributes T · dq/dx_i to the generalized force.
+
 Units: 𝔍 in kg·m², ζ in kg·m², dV/dq and Q in N·m (per rad).
 """
 
@@ -52,6 +56,12 @@ class Coefficients:
     potential_gradient: float  # dV/dq (N·m)
     damping: float  # Σ b K_D² (N·m·s)
     potential: float  # V (J)
+    input_rate: float = 1.0  # dq/dx_i: 1 when the input angle q is the coordinate
+
+    def acceleration(self, torque: float, rate: float) -> float:
+        """ẍ_i from Eksergian's equation at coordinate rate ẋ_i (rad/s) and input torque (N·m)."""
+        Q = torque * self.input_rate - self.damping * rate
+        return (Q - self.centrifugal * rate * rate - self.potential_gradient) / self.generalized_inertia
 
 
 class MechanismModel:
@@ -90,8 +100,11 @@ class MechanismModel:
 
     # -- coefficients -------------------------------------------------------
     def coefficients(self, q: float) -> Coefficients:
-        """𝔍, ζ, dV/dq, damping and V at input angle q (rad)."""
-        kin = self.linkage.kinematics(q)
+        """𝔍, ζ, dV/dq, damping and V at input angle q (rad), with q as the coordinate."""
+        return self.coefficients_from(self.linkage.kinematics(q))
+
+    def coefficients_from(self, kin: Kinematics) -> Coefficients:
+        """The coefficients for kinematics whose K, L are derivatives w.r.t. any one coordinate."""
         x, K, L = kin.x, kin.K, kin.L
         J = zeta = 0.0
         for term in self._mass_terms:
@@ -119,7 +132,7 @@ class MechanismModel:
         for damper in self._dampers:
             _, k_d = _length_and_rate(damper, x, K)
             damping += damper.coefficient * k_d * k_d
-        return Coefficients(kin, J, zeta, dV, damping, V)
+        return Coefficients(kin, J, zeta, dV, damping, V, input_rate=K[0])
 
     def generalized_inertia(self, q: float) -> float:
         """𝔍(q) in kg·m²."""
@@ -132,14 +145,16 @@ class MechanismModel:
         The torque is taken from the open interval (start, end) even at its ends, so a
         step that ends on a pulse edge sees only one side of it (SEED-NOTES erratum 5).
         """
-        torque = self.torque.on_piece(start, end) if self.torque is not None else (lambda t: 0.0)
+        torque = self.torque_on_piece(start, end)
 
         def f(t: float, q: float, qdot: float) -> float:
-            c = self.coefficients(q)
-            Q = torque(t) - c.damping * qdot
-            return (Q - c.centrifugal * qdot * qdot - c.potential_gradient) / c.generalized_inertia
+            return self.coefficients(q).acceleration(torque(t), qdot)
 
         return f
+
+    def torque_on_piece(self, start: float, end: float) -> Callable[[float], float]:
+        """T(t) on one smooth piece of the load history (N·m), zero without a torque."""
+        return self.torque.on_piece(start, end) if self.torque is not None else (lambda t: 0.0)
 
     @property
     def load_edges(self) -> tuple[float, ...]:

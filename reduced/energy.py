@@ -1,9 +1,10 @@
-"""Energy audit of a reduced-model trajectory.
+"""Energy audit of a reduced-model run.
 
-The work of the torque ∫ T q̇ dt and the damper dissipation ∫ Σ b K_D² q̇² dt are
-integrated with 4-point Gauss-Legendre quadrature on each sample interval of the
-trajectory's quintic Hermite interpolant (exact for polynomials of degree 7), so the
-quadrature adds far less than the integrator's own error.
+Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the torque ∫ T q̇ dt and
+the damper dissipation ∫ Σ b K_D² ẋ_i² dt by 4-point Gauss-Legendre quadrature on each
+sample interval of the chart's quintic Hermite interpolant (exact for polynomials of
+degree 7), so the quadrature adds far less than the integrator's own error. A run that
+switched coordinates is audited chart by chart, each in its own coordinate.
 """
 
 from __future__ import annotations
@@ -12,33 +13,44 @@ import numpy as np
 
 from .dynamics import MechanismModel
 from .result import EnergyAudit
-from .trajectory import Trajectory
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(4)
 
 
-def energy_audit(model: MechanismModel, trajectory: Trajectory) -> EnergyAudit:
-    """Kinetic and potential energy at each sample, and the work terms accumulated to it."""
-    t, q, v = trajectory.t, trajectory.q, trajectory.qdot
-    coeffs = [model.coefficients(float(qi)) for qi in q]
+def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, ...]:
+    """Kinetic, potential, torque work and dissipation increments of one chart's samples."""
+    t, x, v = trajectory.t, trajectory.q, trajectory.qdot
+    chart.reset()
+    coeffs = [chart.coefficients(float(xi)) for xi in x]
     kinetic = 0.5 * np.array([c.generalized_inertia for c in coeffs]) * v * v
     potential = np.array([c.potential for c in coeffs])
 
     h = np.diff(t)
     live = h > 0
     mid = 0.5 * (t[:-1] + t[1:])
-    nodes = mid[:, None] + 0.5 * h[:, None] * _NODES[None, :]  # (n-1, 4)
-    flat = nodes[live].ravel()
-    qn, vn, _ = trajectory.interpolate(flat)
-    torque = model.torque.sample(flat) if model.torque is not None else np.zeros_like(flat)
-    damping = np.array([model.coefficients(float(x)).damping for x in qn]) if model.scene.dampers \
-        else np.zeros_like(flat)
+    nodes = (mid[:, None] + 0.5 * h[:, None] * _NODES[None, :])[live].ravel()
+    xn, vn, _ = trajectory.interpolate(nodes)
+    chart.reset()
+    node_coeffs = [chart.coefficients(float(xi)) for xi in xn]
+    input_rate = np.array([c.input_rate for c in node_coeffs])  # dq/dx_i
+    damping = np.array([c.damping for c in node_coeffs])
+    torque = model.torque.sample(nodes) if model.torque is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
-    torque_step = np.zeros_like(h)
-    damper_step = np.zeros_like(h)
-    torque_step[live] = np.sum(w * (torque * vn).reshape(-1, 4), axis=1)
+    torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)
+    torque_step[live] = np.sum(w * (torque * input_rate * vn).reshape(-1, 4), axis=1)
     damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, 4), axis=1)
-    zero = np.zeros(1)
-    return EnergyAudit(t=t, kinetic=kinetic, potential=potential,
-                       torque_work=np.concatenate([zero, np.cumsum(torque_step)]),
-                       damper_dissipation=np.concatenate([zero, np.cumsum(damper_step)]))
+    return t, kinetic, potential, torque_step, damper_step
+
+
+def energy_audit(model: MechanismModel, segments) -> EnergyAudit:
+    """The energy balance of a run given as (chart, solution) segments, on its sample times."""
+    parts = [_chart_audit(model, chart, solution.trajectory) for chart, solution in segments]
+    t = np.concatenate([p[0] for p in parts])
+    kinetic = np.concatenate([p[1] for p in parts])
+    potential = np.concatenate([p[2] for p in parts])
+    # Increments between consecutive samples; a chart's first sample follows the previous
+    # chart's last at the same instant, an increment of zero.
+    torque_inc = np.concatenate([np.concatenate([[0.0], p[3]]) for p in parts])
+    damper_inc = np.concatenate([np.concatenate([[0.0], p[4]]) for p in parts])
+    return EnergyAudit(t=t, kinetic=kinetic, potential=potential, torque_work=np.cumsum(torque_inc),
+                       damper_dissipation=np.cumsum(damper_inc))

@@ -21,6 +21,38 @@ from .trajectory import Trajectory
 
 Acceleration = Callable[[float, float, float], float]
 PieceFactory = Callable[[float, float], Acceleration]
+StopCondition = Callable[[float, float, float], float]  # stop where it crosses from > 0 to ≤ 0
+
+# RKN4 applied to y'' = λ_1,2-mode of the linearized problem has the stability function of
+# classical RK4, R(z) = 1 + z + z²/2 + z³/6 + z⁴/24; a decaying mode needs |R(hλ)| ≤ 1.
+STABILITY_CHECK_EVERY = 50  # steps between linearized stability checks
+
+
+def rk4_amplification(z: complex) -> float:
+    """|R(z)| of classical RK4 (and of RKN4 on a linear problem)."""
+    return abs(1 + z + z * z / 2 + z**3 / 6 + z**4 / 24)
+
+
+def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: float) -> int:
+    """Raise if a decaying mode of the linearization is outside the stability region.
+
+    The Jacobian of (q, q̇) ↦ (q̇, f) is [[0, 1], [f_q, f_q̇]], estimated by one-sided
+    differences (two extra f evaluations). Growing modes (Re λ > 0) are physics, not
+    numerics, and are not judged here.
+    """
+    f0 = f(t, q, v)
+    dq = 1e-7 * max(1.0, abs(q))
+    dv = 1e-7 * max(1.0, abs(v))
+    f_q = (f(t, q + dq, v) - f0) / dq
+    f_v = (f(t, q, v + dv) - f0) / dv
+    for lam in np.roots([1.0, -f_v, -f_q]):  # λ² − f_q̇ λ − f_q = 0
+        z = complex(h * lam)
+        if z.real < 0 and rk4_amplification(z) > 1.0:
+            raise NumericalFailure(
+                "unstable", f"the step h = {h:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
+                f"(h·λ = {z.real:.3g}{z.imag:+.3g}j, |R| = {rk4_amplification(z):.3g} > 1): the problem is "
+                "too stiff for this explicit step; use a smaller step or the implicit Radau method", t)
+    return 3
 
 
 @dataclass(frozen=True)
@@ -87,6 +119,7 @@ class Solution:
     n_steps: int
     n_evaluations: int
     settings: dict = field(default_factory=dict)
+    stopped: bool = False  # ended early because the stop condition fired
 
 
 def pieces(t0: float, tf: float, breakpoints: tuple[float, ...]) -> list[tuple[float, float]]:
@@ -106,7 +139,8 @@ def _check_state(t: float, q: float, v: float, speed_limit: float) -> None:
 
 def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
                      step: float, *, breakpoints: tuple[float, ...] = (), tableau: RKNTableau = RKN4,
-                     speed_limit: float = 1e6) -> Solution:
+                     speed_limit: float = 1e6, stop: StopCondition | None = None,
+                     check_stability: bool = True) -> Solution:
     """Integrate with a fixed-step RKN method; each piece gets a whole number of equal steps.
 
     Parameters
@@ -115,11 +149,17 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
         Largest step (s); a piece of length ℓ uses ⌈ℓ/step⌉ equal steps.
     speed_limit : float
         |q̇| (rad/s) beyond which the run is declared unstable rather than returned.
+    stop : callable, optional
+        g(t, q, q̇), checked after every step; the run ends at the first step where g ≤ 0.
+    check_stability : bool
+        Check every ``STABILITY_CHECK_EVERY`` steps that the step is inside the stability
+        region of the locally linearized problem (RK4's stability function).
 
     Raises
     ------
     NumericalFailure
-        On a non-finite state, a runaway speed, or a singular position.
+        On a step outside the stability region, a non-finite state, a runaway speed, or a
+        singular position.
     """
     if not step > 0.0:
         raise ValueError("step must be positive")
@@ -141,6 +181,8 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
         ts.append(start), qs.append(q), vs.append(v), accs.append(accel)
         for m in range(n):
             t = start + m * h
+            if check_stability and n_steps % STABILITY_CHECK_EVERY == 0:
+                n_eval += _check_step_stability(f, t, q, v, h)
             k[0] = accel
             for i in range(1, ns):
                 Q = q + c[i] * h * v + h * h * sum(abar[i][j] * k[j] for j in range(i))
@@ -154,6 +196,10 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
             n_eval += ns
             n_steps += 1
             ts.append(t_next), qs.append(q), vs.append(v), accs.append(accel)
+            if stop is not None and stop(t_next, q, v) <= 0.0:
+                traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
+                return Solution(traj, tableau.name, n_steps, n_eval, {"method": "rkn4", "step": step},
+                                stopped=True)
     traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
     return Solution(traj, tableau.name, n_steps, n_eval, {"method": "rkn4", "step": step})
 
@@ -161,7 +207,7 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
 def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
                    *, rtol: float = 1e-12, atol: float | None = None, method: str = "DOP853",
                    breakpoints: tuple[float, ...] = (), sample_interval: float = 1e-3,
-                   speed_limit: float = 1e6) -> Solution:
+                   speed_limit: float = 1e6, stop: StopCondition | None = None) -> Solution:
     """Integrate with scipy's ``solve_ivp``, restarted at every breakpoint.
 
     The trajectory holds every accepted step plus points of the solver's own dense
@@ -174,6 +220,8 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         Tolerances handed to ``solve_ivp``; ``atol`` defaults to ``rtol`` (q in rad, q̇ in rad/s).
     method : str
         Any ``solve_ivp`` method; DOP853 by default, Radau for stiff problems.
+    stop : callable, optional
+        g(t, q, q̇); a terminal event: the run ends where g crosses zero downwards.
 
     Raises
     ------
@@ -190,9 +238,15 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         def first_order(t, state, f=f):
             return np.array([state[1], f(t, state[0], state[1])])
 
+        events = None
+        if stop is not None:
+            def event(t, state):
+                return stop(t, state[0], state[1])
+            event.terminal, event.direction = True, -1
+            events = [event]
         try:
             sol = solve_ivp(first_order, (start, end), y, method=method, rtol=rtol, atol=atol,
-                            dense_output=True)
+                            dense_output=True, events=events)
         except NumericalFailure:
             raise
         except (ArithmeticError, ValueError) as exc:
@@ -203,6 +257,7 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
                                    f"{sol.message}", float(sol.t[-1]))
         n_steps += len(sol.t) - 1
         n_eval += sol.nfev
+        end = float(sol.t[-1])  # earlier than the piece's end if the stop event fired
         grid = np.linspace(start, end, max(2, math.ceil((end - start) / sample_interval) + 1))
         times = np.union1d(sol.t, grid)
         states = sol.sol(times)
@@ -211,6 +266,8 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
             _check_state(t, qq, vv, speed_limit)
             ts.append(t), qs.append(qq), vs.append(vv), accs.append(f(t, qq, vv))
         y = sol.y[:, -1]
+        if sol.status == 1:  # the stop event ended the run
+            break
     traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
     return Solution(traj, method, n_steps, n_eval,
-                    {"method": method.lower(), "rtol": rtol, "atol": atol})
+                    {"method": method.lower(), "rtol": rtol, "atol": atol}, stopped=sol.status == 1)

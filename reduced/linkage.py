@@ -27,8 +27,11 @@ import numpy as np
 from .errors import NumericalFailure
 from .scene import FourBarGeometry
 
-# Below this |det Φ_φ| / (product of link lengths) the position is treated as singular.
+# Below this conditioning (|sin| of the angle between the dependent Jacobian columns) a
+# coordinate is treated as unable to drive the linkage: a dead-centre position.
 SINGULAR_DETERMINANT = 1e-9
+# A negative discriminant this small relative to A² + B² is round-off at a limit position.
+ASSEMBLY_TOLERANCE = 1e-12
 
 
 class AssemblyError(ValueError):
@@ -133,15 +136,25 @@ class Kinematics:
 
 
 class LoopLinkage:
-    """A one-DOF planar linkage: loop phasors that must sum to zero, and its bodies."""
+    """A one-DOF planar linkage: loop phasors that must sum to zero, and its bodies.
+
+    Any joint angle can serve as the independent coordinate (generalized coordinate
+    partitioning, Wehage & Haug): :meth:`solve` closes the loop with x[i] held and returns
+    K = dx/dx_i and L = d²x/dx_i²; :meth:`conditioning` says how well each choice is posed.
+    """
 
     coordinate_names: tuple[str, ...]
     loops: tuple[PhasorSum, ...]  # each loop gives two scalar equations
     bodies: dict[str, Body]
+    has_closed_form: bool = False  # kinematics(q, branch) is a closed form with q independent
 
     # -- position ---------------------------------------------------------
     def assemble(self, q: float) -> np.ndarray:
         """All joint angles x at input angle q on the declared branch, shape (n,)."""
+        raise NotImplementedError
+
+    def branch_of(self, x: np.ndarray) -> int:
+        """The assembly branch (±1) of a loop-consistent configuration."""
         raise NotImplementedError
 
     def loop_residual(self, x: np.ndarray) -> np.ndarray:
@@ -152,43 +165,89 @@ class LoopLinkage:
         """∂Φ/∂x, shape (2·len(loops), n)."""
         return np.vstack([loop.jacobian(x) for loop in self.loops])
 
-    def refine(self, x_guess: np.ndarray, tol: float = 1e-14, max_iter: int = 20) -> np.ndarray:
-        """Newton's method on Φ(q, φ) = 0 with q held fixed, from a nearby guess."""
+    def refine(self, x_guess: np.ndarray, independent: int = 0, tol: float = 1e-13,
+               max_iter: int = 25) -> np.ndarray:
+        """Newton's method on Φ(x) = 0 with x[independent] held fixed, from a nearby guess."""
         x = np.array(x_guess, dtype=float)
+        dep = [j for j in range(len(x)) if j != independent]
         for _ in range(max_iter):
             r = self.loop_residual(x)
             if np.max(np.abs(r)) < tol:
                 return x
-            J = self.loop_jacobian(x)[:, 1:]
-            x[1:] -= np.linalg.solve(J, r)
+            x[dep] -= np.linalg.solve(self.loop_jacobian(x)[:, dep], r)
         if np.max(np.abs(self.loop_residual(x))) > 1e3 * tol:
-            raise AssemblyError(f"Newton's method did not close the loop at q = {x[0]}")
+            raise SingularPositionError(
+                f"Newton's method did not close the loop with {self.coordinate_names[independent]} = "
+                f"{x[independent]:.15g} rad held: the position is singular or unreachable")
         return x
+
+    # -- conditioning and coordinate choice --------------------------------
+    def conditioning(self, x: np.ndarray) -> np.ndarray:
+        """For each coordinate as the independent one, |det J_dep| / Π ‖columns of J_dep‖.
+
+        1 when the dependent columns of the loop Jacobian are orthogonal, 0 at a position
+        where that coordinate cannot drive the linkage (for the four-bar with q independent,
+        |sin(φ2 − φ1)|: 0 at the input link's dead centre). Shape (n,).
+        """
+        J = self.loop_jacobian(x)
+        n = J.shape[1]
+        out = np.empty(n)
+        for i in range(n):
+            Jd = J[:, [j for j in range(n) if j != i]]
+            norms = np.prod(np.linalg.norm(Jd, axis=0))
+            out[i] = abs(np.linalg.det(Jd)) / norms if norms > 0 else 0.0
+        return out
 
     # -- velocity and acceleration coefficients (generic path) ------------
     def kinematics(self, q: float) -> Kinematics:
-        """x, K and L at input angle q; linkages may override with closed forms."""
+        """x, K and L at input angle q on the declared branch; may be overridden by closed forms."""
         return self.kinematics_generic(q)
 
-    def kinematics_generic(self, q: float, x: np.ndarray | None = None) -> Kinematics:
-        """K and L of every coordinate, from the loop's velocity and acceleration equations."""
-        if x is None:
-            x = self.assemble(q)
+    def kinematics_generic(self, q: float) -> Kinematics:
+        """K and L of every coordinate with q independent, from the loop's equations."""
+        return self.coefficients_at(self.assemble(q), independent=0)
+
+    def chart_sign(self, x: np.ndarray, independent: int) -> int:
+        """Sign of det J_dep at x: constant inside a chart, it names the assembly branch there."""
         J = self.loop_jacobian(x)
-        J_phi = J[:, 1:]
-        scale = np.prod(np.abs(np.concatenate([loop.lengths for loop in self.loops])))
-        if abs(np.linalg.det(J_phi)) < SINGULAR_DETERMINANT * scale:
-            raise SingularPositionError(f"dead-centre position at q = {q:.15g} rad: the loop "
-                                        "Jacobian ∂Φ/∂φ is singular")
-        # Velocity: Φ_q + Φ_φ K_φ = 0.
-        K = np.empty_like(x)
-        K[0] = 1.0
-        K[1:] = np.linalg.solve(J_phi, -J[:, 0])
-        # Acceleration: Φ_φ L_φ + γ = 0, γ = Σ_t −a_t K[i_t]² e(θ_t)  (L[0] = q'' w.r.t. q = 0).
+        dep = [j for j in range(len(x)) if j != independent]
+        return 1 if np.linalg.det(J[:, dep]) >= 0.0 else -1
+
+    def solve(self, x_guess: np.ndarray, independent: int, value: float, sign: int) -> Kinematics:
+        """Close the loop with x[independent] = value on the branch where sign(det J_dep) = sign.
+
+        Generic path: Newton's method from ``x_guess``; a result on the other branch is
+        refused (the guess was too far from the chart's branch).
+        """
+        x = np.array(x_guess, dtype=float)
+        x[independent] = value
+        x = self.refine(x, independent)
+        if self.chart_sign(x, independent) != sign:
+            raise SingularPositionError(f"Newton's method left the assembly branch at "
+                                        f"{self.coordinate_names[independent]} = {value:.15g} rad")
+        return self.coefficients_at(x, independent)
+
+    def coefficients_at(self, x: np.ndarray, independent: int) -> Kinematics:
+        """K = dx/dx_i and L = d²x/dx_i² at a loop-consistent x, i = ``independent``.
+
+        Velocity: J_dep K_dep = −J_i.  Acceleration: J_dep L_dep = −γ, with
+        γ = Σ_t −a_t K[i_t]² e(θ_t) the part of d²Φ/dx_i² that is quadratic in K.
+        """
+        J = self.loop_jacobian(x)
+        n = len(x)
+        dep = [j for j in range(n) if j != independent]
+        Jd = J[:, dep]
+        if self.conditioning(x)[independent] < SINGULAR_DETERMINANT:
+            raise SingularPositionError(
+                f"dead-centre position: {self.coordinate_names[independent]} = {x[independent]:.15g} rad "
+                f"cannot drive the linkage (the loop Jacobian of the other coordinates is singular)")
+        K = np.zeros(n)
+        K[independent] = 1.0
+        K[dep] = np.linalg.solve(Jd, -J[:, independent])
         gamma = np.array([g for loop in self.loops
-                          for g in loop.acceleration_coefficient(x, K, np.zeros_like(x))])
-        L = np.zeros_like(x)
-        L[1:] = np.linalg.solve(J_phi, -gamma)
+                          for g in loop.acceleration_coefficient(x, K, np.zeros(n))])
+        L = np.zeros(n)
+        L[dep] = np.linalg.solve(Jd, -gamma)
         return Kinematics(x=x, K=K, L=L)
 
 
@@ -200,6 +259,7 @@ class FourBar(LoopLinkage):
     """
 
     coordinate_names = ("q", "phi1", "phi2")
+    has_closed_form = True
 
     def __init__(self, geometry: FourBarGeometry):
         g = self.geometry = geometry
@@ -223,8 +283,8 @@ class FourBar(LoopLinkage):
         C = g.c1**2 + g.c2**2 - g.c3**2 + g.c4**2 - 2.0 * g.c1 * g.c4 * math.cos(q)
         return A, B, C
 
-    def assemble(self, q: float) -> np.ndarray:
-        """Closed-form position analysis on the scene's branch.
+    def assemble(self, q: float, branch: int | None = None) -> np.ndarray:
+        """Closed-form position analysis on the scene's branch (or the given one).
 
         A sin φ1 + B cos φ1 + C = 0 is solved as φ1 = β − branch·acos(−C/R), with
         R = √(A²+B²), β = atan2(A, B): the same root as the seed's half-angle formula
@@ -234,16 +294,59 @@ class FourBar(LoopLinkage):
         g = self.geometry
         A, B, C = self._abc(q)
         disc = A * A + B * B - C * C
-        if disc < 0.0:
+        if disc < -ASSEMBLY_TOLERANCE * (A * A + B * B):
             raise AssemblyError(f"the linkage cannot be assembled (discriminant A²+B²−C² = {disc:.6g} m⁴ < 0)")
         R = math.hypot(A, B)
-        phi1 = math.atan2(A, B) - g.branch * math.acos(max(-1.0, min(1.0, -C / R)))
+        sign = g.branch if branch is None else branch
+        phi1 = math.atan2(A, B) - sign * math.acos(max(-1.0, min(1.0, -C / R)))
         phi2 = math.atan2(-(g.c1 * math.sin(q) + g.c2 * math.sin(phi1)),
                           g.c4 - g.c1 * math.cos(q) - g.c2 * math.cos(phi1))
         return np.array([q, _wrap(phi1), phi2])
 
 
-    def kinematics(self, q: float) -> Kinematics:
+    def conditioning(self, x: np.ndarray) -> np.ndarray:
+        """Closed form of :meth:`LoopLinkage.conditioning` for the four-bar:
+        (|sin(φ2 − φ1)|, |sin(φ2 − q)|, |sin(φ1 − q)|) for q, φ1, φ2 independent."""
+        q, p1, p2 = x[0], x[1], x[2]
+        return np.array([abs(math.sin(p2 - p1)), abs(math.sin(p2 - q)), abs(math.sin(p1 - q))])
+
+    def solve(self, x_guess: np.ndarray, independent: int, value: float, sign: int) -> Kinematics:
+        """Closed form for any independent angle: the other two links form a dyad.
+
+        With x_i known, c_a e(a) + c_b e(b) = P = (c4, 0) − c_i e(x_i), so a = ψ ± α with
+        ψ = atan2(P), cos α = (c_a² + |P|² − c_b²) / (2 c_a |P|), and b from the remainder;
+        of the two roots, the one with sign(det J_dep) = sign(sin(b − a)) = ``sign``.
+        ``x_guess`` is not needed (the chart is stateless).
+        """
+        g = self.geometry
+        lengths = (g.c1, g.c2, g.c3)
+        ia, ib = [j for j in range(3) if j != independent]
+        ca, cb = lengths[ia], lengths[ib]
+        px = g.c4 - lengths[independent] * math.cos(value)
+        py = -lengths[independent] * math.sin(value)
+        d = math.hypot(px, py)
+        cos_alpha = (ca * ca + d * d - cb * cb) / (2.0 * ca * d)
+        if abs(cos_alpha) > 1.0 + 1e-12:
+            raise SingularPositionError(f"the linkage cannot be closed with {self.coordinate_names[independent]} "
+                                        f"= {value:.15g} rad")
+        alpha = math.acos(max(-1.0, min(1.0, cos_alpha)))
+        psi = math.atan2(py, px)
+        # det J_dep = det [c_a e⊥(a), c_b e⊥(b)] = c_a c_b sin(b − a)   (a before b in x).
+        for a in (psi + alpha, psi - alpha):
+            b = math.atan2(py - ca * math.sin(a), px - ca * math.cos(a))
+            if (1 if math.sin(b - a) >= 0.0 else -1) == sign:
+                break
+        x = np.empty(3)
+        x[independent], x[ia], x[ib] = value, a, b
+        return self.coefficients_at(x, independent)
+
+    def branch_of(self, x: np.ndarray) -> int:
+        """+1 or −1: the closed-form branch whose φ1 is nearest the configuration's."""
+        def gap(sign: int) -> float:
+            return abs(_wrap(self.assemble(x[0], sign)[1] - x[1]))
+        return 1 if gap(1) <= gap(-1) else -1
+
+    def kinematics(self, q: float, branch: int | None = None) -> Kinematics:
         """Closed-form K and L of the seed (the generic path checks them in the tests).
 
         K_φ1 = c1 sin(q − φ2) / (c2 sin(φ2 − φ1)),  K_φ2 = c1 sin(φ1 − q) / (c3 sin(φ2 − φ1)),
@@ -251,7 +354,7 @@ class FourBar(LoopLinkage):
         X = c1 cos q + K_φ1² c2 cos φ1 + K_φ2² c3 cos φ2,  Y likewise with sines.
         """
         g = self.geometry
-        x = self.assemble(q)
+        x = self.assemble(q, branch)
         _, p1, p2 = x
         s21 = math.sin(p2 - p1)
         if abs(s21) < SINGULAR_DETERMINANT:

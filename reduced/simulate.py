@@ -7,7 +7,8 @@ from dataclasses import asdict, dataclass
 
 from .dynamics import MechanismModel
 from .energy import energy_audit
-from .integrators import RKN4, Solution, solve_adaptive, solve_fixed_step
+from .integrators import RKN4, solve_adaptive, solve_fixed_step
+from .partition import PartitionedSolution, integrate_partitioned
 from .result import EngineResult
 from .scene import Scene
 
@@ -38,17 +39,25 @@ class ReducedSettings:
                 raise ValueError(f"{name} must be positive")
 
 
-def integrate(model: MechanismModel, settings: ReducedSettings) -> Solution:
-    """Run the integrator the settings name on the model's equation of motion."""
-    scene = model.scene
-    span = (0.0, scene.horizon)
+def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...]):
+    """The integrator the settings name, as a function of one chart's equation."""
     if settings.method == "rkn4":
-        return solve_fixed_step(model.acceleration_on_piece, span, scene.q0, scene.qdot0,
-                                settings.step, breakpoints=model.load_edges, tableau=RKN4)
-    return solve_adaptive(model.acceleration_on_piece, span, scene.q0, scene.qdot0,
-                          rtol=settings.rtol, method=settings.method.upper() if settings.method == "dop853"
-                          else "Radau", breakpoints=model.load_edges,
-                          sample_interval=settings.sample_interval)
+        def run(rhs_on_piece, span, x0, v0, stop):
+            return solve_fixed_step(rhs_on_piece, span, x0, v0, settings.step, breakpoints=breakpoints,
+                                    tableau=RKN4, stop=stop)
+    else:
+        method = "DOP853" if settings.method == "dop853" else "Radau"
+
+        def run(rhs_on_piece, span, x0, v0, stop):
+            return solve_adaptive(rhs_on_piece, span, x0, v0, rtol=settings.rtol, method=method,
+                                  breakpoints=breakpoints, sample_interval=settings.sample_interval,
+                                  stop=stop)
+    return run
+
+
+def integrate(model: MechanismModel, settings: ReducedSettings) -> PartitionedSolution:
+    """Run the integrator the settings name, switching coordinates at dead centres."""
+    return integrate_partitioned(model, chart_integrator(settings, model.load_edges))
 
 
 def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> EngineResult:
@@ -57,12 +66,14 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     Returns
     -------
     EngineResult
-        ``engine="reduced"``; ``wall_s`` times the integration only.
+        ``engine="reduced"``; ``wall_s`` times the integration only. ``diagnostics`` holds
+        the coordinate switches and the trajectory of every joint angle.
 
     Raises
     ------
     NumericalFailure
-        If the integration blows up, becomes non-finite or reaches a singular position.
+        If the integration blows up, leaves the stability region, becomes non-finite or
+        reaches a position no coordinate can drive.
     """
     model = MechanismModel(scene)
     start = time.perf_counter()
@@ -71,6 +82,7 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     trajectory = solution.trajectory
     return EngineResult(
         engine="reduced", trajectory=trajectory, peak=trajectory.peak_angular_velocity(),
-        audit=energy_audit(model, trajectory), wall_s=wall, n_steps=solution.n_steps,
+        audit=energy_audit(model, solution.segments), wall_s=wall, n_steps=solution.n_steps,
         n_evaluations=solution.n_evaluations, settings={**asdict(settings), "solver": solution.method},
-        diagnostics={"effects": list(model.effects)})
+        diagnostics={"effects": list(model.effects), "joints": solution.joints,
+                     "switches": [asdict(s) for s in solution.switches]})
