@@ -102,17 +102,21 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
 
 
-def _reduced_reference(args: argparse.Namespace) -> ReducedSettings:
-    if args.reference == "rkn4":
-        return ReducedSettings(method="rkn4", step=args.reference_step)
-    return ReducedSettings(method=args.reference, rtol=args.reference_rtol)
+def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
+    """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
+    kwargs = dict(scene.reduced)
+    for flag, name in (("reference", "method"), ("reference_rtol", "rtol"), ("reference_step", "step")):
+        value = getattr(args, flag)
+        if value is not None:
+            kwargs[name] = value
+    return ReducedSettings(**kwargs)
 
 
 def _tolerances(scene, args: argparse.Namespace):
     from .run import override_tolerances
 
     return override_tolerances(scene.tolerances, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
-                               omega_atol=args.omega_atol)
+                               omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
 
 
 def print_comparison(c) -> None:
@@ -132,6 +136,7 @@ def print_comparison(c) -> None:
         ("max |dq| (rad)", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
         ("max |domega| (rad/s)", "", "", f"{d.omega_max_abs:.3e} (rms {d.omega_rms:.2e})"),
         ("max |domega| at equal q", "", "", f"{d.omega_vs_q_max_abs:.3e}"),
+        ("branch mismatches", "", "", f"{c.branches.mismatches}"),
     ]
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
     print(f"scene: {c.scene.name} ({c.scene.source}); effects: {', '.join(c.scene.effects) or 'none'}")
@@ -155,7 +160,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .run import compare_engines
 
     scene = _scene(args.scene)
-    comparison = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args, scene),
+    comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print_comparison(comparison)
     paths = write_outputs(comparison, args.out)
@@ -171,7 +176,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     for scene in scenes:
         tolerances = _tolerances(scene, args)
         try:
-            c = compare_engines(scene, reduced=_reduced_reference(args), mujoco=_mujoco_settings(args, scene),
+            c = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                 tolerances=tolerances)
         except NumericalFailure as exc:
             failed += 1
@@ -208,14 +213,38 @@ def cmd_cost(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_stress(args: argparse.Namespace) -> int:
+    import json
+
+    from .stress import CATALOGUE, run_catalogue, table_lines
+
+    cases = CATALOGUE if not args.case else [c for c in CATALOGUE if c.name in args.case]
+    unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
+    if unknown:
+        raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
+    results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
+                                                           file=sys.stderr, flush=True))
+    for line in table_lines(results):
+        print(line)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
+             "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
+    tmp = out / ".stress.json.tmp"
+    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n", encoding="utf-8")
+    tmp.replace(out / "stress.json")
+    print(f"wrote {out / 'stress.json'}")
+    return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
+
+
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reduced reference")
-    g.add_argument("--reference", choices=("dop853", "rkn4", "radau"), default="dop853",
-                   help="reduced solver used as the reference (default dop853)")
-    g.add_argument("--reference-rtol", type=_positive, default=1e-12,
+    g.add_argument("--reference", choices=("dop853", "rkn4", "radau"), default=None,
+                   help="reduced solver used as the reference (default: the scene's [reduced] table, else dop853)")
+    g.add_argument("--reference-rtol", type=_positive, default=None,
                    help="tolerance of an adaptive reference (default 1e-12)")
-    g.add_argument("--reference-step", type=_positive, default=1e-4,
-                   help="step of an rkn4 reference in s (default 1e-4)")
+    g.add_argument("--reference-step", type=_positive, default=None,
+                   help="step of an rkn4 reference in s (default 1e-3)")
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
@@ -223,6 +252,8 @@ def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of peak omega")
     g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad")
     g.add_argument("--omega-atol", type=_positive, default=None, help="max |domega| in rad/s")
+    g.add_argument("--omega-vs-q-atol", type=_positive, default=None,
+                   help="max |domega| at equal crank angle in rad/s (phase-free)")
 
 
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
@@ -298,6 +329,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=None, help="timed runs per configuration (default 3)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     p.set_defaults(func=cmd_cost)
+
+    p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
+                       description="Run every hard case (dead centres, near change point, stiff damper, "
+                                   "long conservative run, fast crank, off-grid pulse edge, gravity) "
+                                   "through both engines; print a table of each engine's status, "
+                                   "differences, constraint violation, energy drift and wall time; "
+                                   "write stress.json. Exit 1 if any case does not behave as expected.")
+    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    p.set_defaults(func=cmd_stress)
     return parser
 
 

@@ -71,7 +71,10 @@ def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference
     dq = other.q[keep] - q_ref
     domega = other.qdot[keep] - v_ref
 
-    p_ref, p_other = reference.peak_angular_velocity(), other.peak_angular_velocity()
+    # The reference's largest |ω|, and the other's extremum on the same side (a swinging
+    # motion has two near-equal extremes of opposite sign).
+    p_ref = reference.peak_angular_velocity()
+    p_other = other.peak_angular_velocity(sign=1 if p_ref.omega >= 0 else -1)
     fast = np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))
     q_fast = other.q[keep][fast]
     t_star = _time_at_angle(reference, q_fast, times[fast])
@@ -93,6 +96,33 @@ def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference
 
 
 @dataclass(frozen=True)
+class BranchCheck:
+    """Samples where the compared engine sits on the other assembly branch."""
+
+    mismatches: int
+    first_time: float | None  # s
+
+
+def compare_branches(reference, other, window: float | None = None) -> BranchCheck:
+    """Count ``other``'s samples whose assembly branch differs from the reference's.
+
+    Both are :class:`~reduced.partition.JointTrajectory`. The reference branch changes
+    legitimately at the input link's limit positions; samples within ``window`` seconds of
+    such a change (default: twice the coarser sample spacing) are not judged.
+    """
+    t_ref, b_ref = reference.t, reference.branch
+    spacing = max(float(np.max(np.diff(t_ref))), float(np.max(np.diff(other.t))))
+    window = 2.0 * spacing if window is None else window
+    k = np.clip(np.searchsorted(t_ref, other.t), 0, len(t_ref) - 1)
+    changes = t_ref[1:][b_ref[1:] != b_ref[:-1]]
+    near_change = np.zeros(len(other.t), dtype=bool)
+    for tc in changes:
+        near_change |= np.abs(other.t - tc) <= window
+    wrong = (other.branch != b_ref[k]) & ~near_change
+    return BranchCheck(int(np.sum(wrong)), float(other.t[np.argmax(wrong)]) if wrong.any() else None)
+
+
+@dataclass(frozen=True)
 class GateResult:
     """Whether two engines agree within the tolerances."""
 
@@ -101,11 +131,17 @@ class GateResult:
     tolerances: Tolerances
 
 
-def gate(diff: Difference, tolerances: Tolerances) -> GateResult:
-    """Check the peak-ω relative difference, max |Δq| and max |Δq̇| against tolerances."""
-    checks = (("peak_omega_rel", diff.peak_omega_rel, tolerances.peak_omega_rtol, ""),
+def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None = None) -> GateResult:
+    """Check the peak-ω relative difference, max |Δq|, max |Δq̇| (and, when the tolerances
+    set it, max |Δω| at equal q) against tolerances, and that no sample is on the other branch."""
+    checks = [("peak_omega_rel", diff.peak_omega_rel, tolerances.peak_omega_rtol, ""),
               ("q_max_abs", diff.q_max_abs, tolerances.q_atol, " rad"),
-              ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s"))
-    failures = tuple(f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
-                     for name, value, tol, unit in checks if not value <= tol)
-    return GateResult(passed=not failures, failures=failures, tolerances=tolerances)
+              ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s")]
+    if tolerances.omega_vs_q_atol is not None:
+        checks.append(("omega_vs_q_max_abs", diff.omega_vs_q_max_abs, tolerances.omega_vs_q_atol, " rad/s"))
+    failures = [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
+                for name, value, tol, unit in checks if not value <= tol]
+    if branches is not None and branches.mismatches:
+        failures.append(f"assembly branch differs at {branches.mismatches} sample(s), first at "
+                        f"t = {branches.first_time:.6g} s: the loop constraint jumped to the other branch")
+    return GateResult(passed=not failures, failures=tuple(failures), tolerances=tolerances)

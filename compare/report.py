@@ -55,11 +55,13 @@ def report_dict(c: Comparison) -> dict:
                   "effects": list(s.effects), "q0": s.q0, "qdot0": s.qdot0, "horizon": s.horizon},
         "reduced": engine_summary(c.reduced),
         "mujoco": engine_summary(c.mujoco),
-        "diff": {k: _finite(v) for k, v in c.diff.figures().items()},
+        "diff": {**{k: _finite(v) for k, v in c.diff.figures().items()},
+                 "branch_mismatches": c.branches.mismatches, "branch_mismatch_first_time": c.branches.first_time},
         "gate": {"passed": c.gate.passed, "failures": list(c.gate.failures),
                  "tolerances": {"peak_omega_rtol": c.gate.tolerances.peak_omega_rtol,
                                 "q_atol": c.gate.tolerances.q_atol,
-                                "omega_atol": c.gate.tolerances.omega_atol}},
+                                "omega_atol": c.gate.tolerances.omega_atol,
+                                "omega_vs_q_atol": c.gate.tolerances.omega_vs_q_atol}},
     }
 
 

@@ -8,7 +8,7 @@ from reduced import EngineResult, ReducedSettings, Scene, simulate
 from reduced.scene import Tolerances
 from reference_models import MujocoSettings, simulate_mujoco
 
-from .diff import Difference, GateResult, compare_trajectories, gate
+from .diff import BranchCheck, Difference, GateResult, compare_branches, compare_trajectories, gate
 
 
 @dataclass(frozen=True)
@@ -19,26 +19,30 @@ class Comparison:
     reduced: EngineResult
     mujoco: EngineResult
     diff: Difference
+    branches: BranchCheck
     gate: GateResult
 
 
-def compare_engines(scene: Scene, *, reduced: ReducedSettings = ReducedSettings(),
-                    mujoco: MujocoSettings = MujocoSettings(),
+def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
+                    mujoco: MujocoSettings | None = None,
                     tolerances: Tolerances | None = None) -> Comparison:
     """Run both engines on ``scene`` and compare MuJoCo against the reduced reference.
 
-    ``tolerances`` defaults to the scene's own table.
+    Settings default to the scene's [reduced] and [mujoco] tables over the defaults;
+    ``tolerances`` to the scene's own table.
 
     Raises
     ------
     NumericalFailure
         If either engine fails.
     """
-    reference = simulate(scene, reduced)
-    other = simulate_mujoco(scene, mujoco)
+    reference = simulate(scene, reduced or ReducedSettings(**scene.reduced))
+    other = simulate_mujoco(scene, mujoco or MujocoSettings(**scene.mujoco))
     diff = compare_trajectories(reference.trajectory, other.trajectory)
-    verdict = gate(diff, tolerances or scene.tolerances)
-    return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, gate=verdict)
+    branches = compare_branches(reference.diagnostics["joints"], other.diagnostics["joints"])
+    verdict = gate(diff, tolerances or scene.tolerances, branches)
+    return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, branches=branches,
+                      gate=verdict)
 
 
 def override_tolerances(base: Tolerances, **overrides: float | None) -> Tolerances:

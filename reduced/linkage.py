@@ -157,6 +157,10 @@ class LoopLinkage:
         """The assembly branch (±1) of a loop-consistent configuration."""
         raise NotImplementedError
 
+    def branches(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`branch_of` of each row of x, shape (n, len(coordinates))."""
+        return np.array([self.branch_of(row) for row in x])
+
     def loop_residual(self, x: np.ndarray) -> np.ndarray:
         """Φ(x), shape (2·len(loops),) (m)."""
         return np.array([r for loop in self.loops for r in loop.position(x)])
@@ -342,9 +346,21 @@ class FourBar(LoopLinkage):
 
     def branch_of(self, x: np.ndarray) -> int:
         """+1 or −1: the closed-form branch whose φ1 is nearest the configuration's."""
-        def gap(sign: int) -> float:
-            return abs(_wrap(self.assemble(x[0], sign)[1] - x[1]))
-        return 1 if gap(1) <= gap(-1) else -1
+        return int(self.branches(np.asarray(x)[None, :])[0])
+
+    def branches(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`branch_of` for many configurations at once, x of shape (n, 3)."""
+        g = self.geometry
+        q, phi1 = x[:, 0], x[:, 1]
+        A = 2.0 * g.c1 * g.c2 * np.sin(q)
+        B = 2.0 * g.c2 * (g.c1 * np.cos(q) - g.c4)
+        C = g.c1**2 + g.c2**2 - g.c3**2 + g.c4**2 - 2.0 * g.c1 * g.c4 * np.cos(q)
+        half = np.arccos(np.clip(-C / np.hypot(A, B), -1.0, 1.0))
+        beta = np.arctan2(A, B)
+
+        def gap(root):
+            return np.abs(np.angle(np.exp(1j * (root - phi1))))
+        return np.where(gap(beta - half) <= gap(beta + half), 1, -1)
 
     def kinematics(self, q: float, branch: int | None = None) -> Kinematics:
         """Closed-form K and L of the seed (the generic path checks them in the tests).

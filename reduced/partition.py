@@ -179,7 +179,7 @@ def _assemble_outputs(segments) -> tuple[Trajectory, JointTrajectory]:
 
     q = x[0], q̇ = K_0 ẋ_i, q̈ = L_0 ẋ_i² + K_0 ẍ_i (K, L w.r.t. the chart's coordinate).
     """
-    ts, qs, vs, accs, xs, xdots, coords, branches = [], [], [], [], [], [], [], []
+    ts, qs, vs, accs, xs, xdots, coords = [], [], [], [], [], [], []
     for chart, solution in segments:
         chart.reset()
         tr = solution.trajectory
@@ -192,8 +192,8 @@ def _assemble_outputs(segments) -> tuple[Trajectory, JointTrajectory]:
             xs.append(kin.x)
             xdots.append(kin.K * rate)
             coords.append(chart.independent)
-            branches.append(chart.linkage.branch_of(kin.x))
+    linkage = segments[0][0].linkage
     x = np.unwrap(np.array(xs), axis=0)  # continuous angles (no 2π jumps)
-    names = segments[0][0].linkage.coordinate_names
-    joints = JointTrajectory(names, np.array(ts), x, np.array(xdots), np.array(coords), np.array(branches))
+    joints = JointTrajectory(linkage.coordinate_names, np.array(ts), x, np.array(xdots), np.array(coords),
+                             linkage.branches(x))
     return Trajectory(np.array(ts), x[:, 0], np.array(vs), np.array(accs)), joints

@@ -93,6 +93,7 @@ class Tolerances:
     peak_omega_rtol: float = 1e-4
     q_atol: float = 1e-3
     omega_atol: float = 1e-1
+    omega_vs_q_atol: float | None = None  # max |Δω| at equal q (rad/s); None: not checked
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,7 @@ class Scene:
     horizon: float
     tolerances: Tolerances = field(default_factory=Tolerances)
     mujoco: Mapping[str, Any] = field(default_factory=dict)  # settings this scene asks MuJoCo for
+    reduced: Mapping[str, Any] = field(default_factory=dict)  # settings for the reduced reference
     source: str = "<memory>"
 
     @property
@@ -338,15 +340,17 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
             peak_omega_rtol=tol.number("peak_omega_rtol", Tolerances.peak_omega_rtol, positive=True),
             q_atol=tol.number("q_atol", Tolerances.q_atol, positive=True),
             omega_atol=tol.number("omega_atol", Tolerances.omega_atol, positive=True),
+            omega_vs_q_atol=tol.number("omega_vs_q_atol", None, positive=True),
         )
         tol.close()
     mujoco = _parse_mujoco(top.table("mujoco")) if top.has("mujoco") else {}
-    top.used.add("mujoco")
+    reduced = _parse_reduced(top.table("reduced")) if top.has("reduced") else {}
+    top.used.update(("mujoco", "reduced"))
     top.close()
 
     scene = Scene(name=name, description=description, linkage=linkage, bodies=bodies,
                   torque=torque, dampers=tuple(dampers), springs=tuple(springs), gravity=gravity,
-                  q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, mujoco=mujoco,
+                  q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, mujoco=mujoco, reduced=reduced,
                   source=source)
     _check_assembly(scene)
     return scene
@@ -375,14 +379,38 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
     return out
 
 
+REDUCED_METHODS = ("dop853", "rkn4", "radau")
+
+
+def _parse_reduced(t: _Table) -> dict[str, Any]:
+    """Optional [reduced] table: the reference method, rtol, step (s)."""
+    out: dict[str, Any] = {}
+    if t.has("method"):
+        name = t.string("method")
+        if name not in REDUCED_METHODS:
+            raise SceneError(f"'{t.key('method')}' must be one of {', '.join(REDUCED_METHODS)}, got \"{name}\"")
+        out["method"] = name
+    for name in ("rtol", "step"):
+        if t.has(name):
+            out[name] = t.number(name, positive=True)
+    t.close()
+    return out
+
+
 def _check_assembly(scene: Scene) -> None:
     # Imported here: the linkage module needs the geometry type defined above.
     from .linkage import FourBar, AssemblyError
 
+    from .linkage import SINGULAR_DETERMINANT
+
+    linkage = FourBar(scene.linkage)
     try:
-        FourBar(scene.linkage).assemble(scene.q0)
+        x = linkage.assemble(scene.q0)
     except AssemblyError as exc:
         raise SceneError(f"'initial.q' = {scene.q0}: {exc}") from None
+    if scene.qdot0 != 0.0 and linkage.conditioning(x)[0] < SINGULAR_DETERMINANT:
+        raise SceneError(f"'initial.qdot' = {scene.qdot0}: the input link is at a dead centre at "
+                         f"q = {scene.q0} rad, where its speed must be zero")
 
 
 def load_scene(path: str | Path) -> Scene:

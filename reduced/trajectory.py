@@ -85,14 +85,16 @@ class Trajectory:
         a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
         return q, v, a
 
-    def peak_angular_velocity(self) -> Peak:
+    def peak_angular_velocity(self, sign: int | None = None) -> Peak:
         """The largest |q̇| over the run, located between samples where q̈ = 0.
 
         Candidates are every sample (a maximum may sit on a load edge where q̈ jumps)
         and every root of the interpolant's q̈ (a cubic in s) inside the intervals next
-        to the largest sample; the best candidate is returned with its sign.
+        to the largest sample; the best candidate is returned with its sign. With
+        ``sign`` = +1 (−1) only the largest positive (most negative) q̇ is sought, so that
+        two runs of a swinging motion are compared on the same side.
         """
-        k = int(np.argmax(np.abs(self.qdot)))
+        k = int(np.argmax(np.abs(self.qdot) if sign is None else sign * self.qdot))
         best = Peak(float(self.qdot[k]), float(self.t[k]))
         for i in (k - 2, k - 1, k, k + 1):
             if i < 0 or i + 1 >= len(self.t) or self.t[i + 1] == self.t[i]:
@@ -105,7 +107,8 @@ class Trajectory:
                 if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0:
                     t = self.t[i] + r.real * h
                     _, v, _ = self.interpolate(np.array([t]))
-                    if abs(v[0]) > abs(best.omega):
+                    better = abs(v[0]) > abs(best.omega) if sign is None else sign * v[0] > sign * best.omega
+                    if better:
                         best = Peak(float(v[0]), float(t))
         return best
 

@@ -172,16 +172,30 @@ def compile_model(spec: mujoco.MjSpec) -> ModelHandles:
 
 
 def initial_qpos_qvel(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Joint positions and velocities consistent with the loop at the scene's (q0, q̇0)."""
+    """Joint positions and velocities consistent with the loop at the scene's (q0, q̇0).
+
+    The joint rates are K ẋ_i in the best-conditioned coordinate x_i, so a start at the
+    input link's dead centre (where q̇0 must be 0) is assembled too.
+    """
     from reduced.linkage import FourBar
 
     linkage = FourBar(scene.linkage)
-    kin = linkage.kinematics(scene.q0)
-    q, phi1, phi2 = kin.x
-    _, k1, k2 = kin.K
-    qpos = np.array([q, phi1 - q, phi2 + np.pi])
-    qvel = scene.qdot0 * np.array([1.0, k1 - 1.0, k2])
-    return qpos, qvel
+    x = linkage.assemble(scene.q0)
+    kin = linkage.coefficients_at(x, int(np.argmax(linkage.conditioning(x))))
+    rate = scene.qdot0 / kin.K[0] if scene.qdot0 != 0.0 else 0.0
+    xdot = kin.K * rate
+    return joint_positions(x), np.array([xdot[0], xdot[1] - xdot[0], xdot[2]])
+
+
+def joint_positions(x: np.ndarray) -> np.ndarray:
+    """MuJoCo qpos (crank, coupler relative, rocker) from the loop angles (q, φ1, φ2)."""
+    return np.array([x[0], x[1] - x[0], x[2] + np.pi])
+
+
+def loop_angles(qpos: np.ndarray) -> np.ndarray:
+    """Loop angles (q, φ1, φ2), shape (n, 3), from MuJoCo qpos rows, shape (n, 3)."""
+    qpos = np.atleast_2d(qpos)
+    return np.column_stack([qpos[:, 0], qpos[:, 0] + qpos[:, 1], qpos[:, 2] - np.pi])
 
 
 __all__ = ["BODY_NAMES", "ConstraintSettings", "JOINTS", "ModelHandles", "build_spec",

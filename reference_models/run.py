@@ -18,11 +18,13 @@ import numpy as np
 from mujoco import rollout
 
 from reduced.errors import NumericalFailure
+from reduced.partition import JointTrajectory
 from reduced.result import EnergyAudit, EngineResult
 from reduced.scene import BODY_NAMES, Scene
 from reduced.trajectory import Trajectory
 
-from .build import ConstraintSettings, ModelHandles, build_spec, compile_model, initial_qpos_qvel
+from .build import (ConstraintSettings, ModelHandles, build_spec, compile_model, initial_qpos_qvel,
+                    loop_angles)
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
@@ -165,9 +167,20 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
         engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
         settings=settings.as_dict(),
-        diagnostics={"max_constraint_violation": max_violation,
+        diagnostics={"max_constraint_violation": max_violation, "joints": _joint_trajectory(scene, times, qpos, qvel),
                      "constraint_violation": violation, "times": times,
                      "edge_warnings": edge_notes, "effects": list(scene.effects)})
+
+
+def _joint_trajectory(scene: Scene, times, qpos, qvel) -> JointTrajectory:
+    """MuJoCo's loop angles and rates, with the assembly branch of each sample."""
+    from reduced.linkage import FourBar
+
+    linkage = FourBar(scene.linkage)
+    x = loop_angles(qpos)
+    xdot = loop_angles(qvel) + np.array([0.0, 0.0, np.pi])  # rates: no offset on the rocker
+    branch = linkage.branches(x)
+    return JointTrajectory(linkage.coordinate_names, times, x, xdot, np.full(len(times), -1), branch)
 
 
 def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:

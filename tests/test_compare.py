@@ -20,7 +20,8 @@ from helpers import SEED_SCENE
 
 REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "wall_s", "settings", "energy_residual"}
 REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
-                    "omega_max_abs", "omega_rms", "omega_vs_q_max_abs"}
+                    "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "branch_mismatches",
+                    "branch_mismatch_first_time"}
 
 
 def xval(*args: str, cwd=None) -> subprocess.CompletedProcess:
@@ -88,7 +89,9 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert isinstance(report["mujoco"]["max_constraint_violation"], float)
     assert report["diff"].keys() == REPORT_DIFF_KEYS
     assert report["gate"]["passed"] is True and report["gate"]["failures"] == []
-    assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1}
+    assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
+                                            "omega_vs_q_atol": None}
+    assert report["diff"]["branch_mismatches"] == 0
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)
     assert csv.shape[1] == 4 and np.all(np.diff(csv[:, 0]) >= 0)
 
