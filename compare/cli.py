@@ -33,6 +33,26 @@ def _positive(text: str) -> float:
     return value
 
 
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if value != value or abs(value) == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def cmd_reduced(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     settings = ReducedSettings(method=args.method, rtol=args.rtol, step=args.step)
@@ -96,9 +116,9 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    help="MuJoCo integrator (default: the scene's [mujoco] table, else rk4)")
     g.add_argument("--timestep", type=_positive, default=None,
                    help="MuJoCo timestep in s (default: the scene's [mujoco] table, else 1e-3)")
-    g.add_argument("--solref", type=float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
+    g.add_argument("--solref", type=_finite, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
                    help="loop constraint solref (default: 2*timestep, 1)")
-    g.add_argument("--solimp", type=float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
+    g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
 
 
@@ -256,6 +276,12 @@ def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
                    help="max |domega| at equal crank angle in rad/s (phase-free)")
 
 
+def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
+    _add_reference_arguments(p)
+    _add_mujoco_arguments(p)
+    _add_tolerance_arguments(p)
+
+
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="scene TOML file (default: scenes/seed_fourbar.toml, the seed example)")
@@ -300,9 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "report.json, reduced.csv, mujoco.csv and PNG plots into --out.")
     _add_scene_argument(p)
     p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
-    _add_reference_arguments(p)
-    _add_mujoco_arguments(p)
-    _add_tolerance_arguments(p)
+    _add_comparison_arguments(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",
@@ -310,9 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "against the scene's [tolerances] (flags override). Exit 0 when "
                                    "every scene passes, 1 when any fails, 2 on bad input.")
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
-    _add_reference_arguments(p)
-    _add_mujoco_arguments(p)
-    _add_tolerance_arguments(p)
+    _add_comparison_arguments(p)
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",
@@ -326,8 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
-    p.add_argument("--repeats", type=int, default=None, help="timed runs per configuration (default 3)")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--repeats", type=_positive_int, default=None, help="timed runs per configuration (default 3)")
+    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.set_defaults(func=cmd_cost)
 
     p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
