@@ -74,7 +74,7 @@ def _mujoco_settings(args: argparse.Namespace, scene):
     from reference_models import MujocoSettings
 
     kwargs = dict(scene.mujoco)
-    for name in ("integrator", "timestep", "solref", "solimp"):
+    for name in ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact"):
         value = getattr(args, name)
         if value is not None:
             kwargs[name] = tuple(value) if isinstance(value, list) else value
@@ -90,7 +90,10 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     print(f"scene            {scene.name}  ({scene.source})")
     print(f"effects          {', '.join(scene.effects) or 'none'}")
     print(f"settings         {settings.integrator}, timestep {settings.timestep:g} s, "
-          f"solref {tuple(settings.effective_solref)}, solimp {settings.solimp}, MuJoCo {result.settings['mujoco_version']}")
+          f"solref {tuple(settings.effective_solref)}, solimp {settings.solimp}, "
+          f"refsafe {'on' if settings.refsafe else 'off'}, diagexact {'on' if settings.diagexact else 'off'}, "
+          f"iterations {settings.iterations}, tolerance {settings.tolerance:g}, "
+          f"MuJoCo {result.settings['mujoco_version']}")
     print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
     print(f"loop violation   {result.diagnostics['max_constraint_violation']:.3e} m (largest over the run)")
     print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
@@ -120,6 +123,12 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
+    g.add_argument("--iterations", type=_positive_int, default=None, help="constraint solver iterations (default 100)")
+    g.add_argument("--tolerance", type=_positive, default=None, help="constraint solver tolerance (default 1e-12)")
+    g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
+                   help="disable refsafe (allows solref time constants below 2*timestep)")
+    g.add_argument("--diagexact", action="store_const", const=True, default=None,
+                   help="enable MuJoCo's exact constraint-diagonal flag")
 
 
 def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:

@@ -315,5 +315,6 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
         else:
             lines.append(f"{engine}: the target {r['target']:g} was not reached at any setting tried")
     if rec["mujoco_over_reduced_wall"] is not None:
-        lines.append(f"at that accuracy MuJoCo costs {rec['mujoco_over_reduced_wall']:.2f}x the reduced solver's wall time")
+        lines.append(f"at that accuracy MuJoCo costs {rec['mujoco_over_reduced_wall']:.2f}x "
+                     "the reduced solver's wall time")
     return lines

@@ -166,7 +166,8 @@ def _probe_integrators(scene: Scene, notes: list) -> dict:
     table = {}
     for integrator in INTEGRATORS:
         for h in PROBE_TIMESTEPS:
-            _, status, _ = _run(lambda: simulate_mujoco(scene, MujocoSettings(integrator=integrator, timestep=h)))
+            settings = MujocoSettings(integrator=integrator, timestep=h)
+            _, status, _ = _run(lambda settings=settings: simulate_mujoco(scene, settings))
             table[f"{integrator}@{h:g}"] = status
     stable = {i: [h for h in PROBE_TIMESTEPS if table[f"{i}@{h:g}"] == "ok"] for i in INTEGRATORS}
     notes.append("MuJoCo stable at: " + "; ".join(

@@ -360,7 +360,8 @@ MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 
 def _parse_mujoco(t: _Table) -> dict[str, Any]:
-    """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers)."""
+    """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers),
+    iterations, tolerance, refsafe and diagexact (booleans)."""
     out: dict[str, Any] = {}
     if t.has("integrator"):
         name = t.string("integrator")
@@ -369,6 +370,19 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
         out["integrator"] = name
     if t.has("timestep"):
         out["timestep"] = t.number("timestep", positive=True)
+    if t.has("tolerance"):
+        out["tolerance"] = t.number("tolerance", positive=True)
+    if t.has("iterations"):
+        value = t.raw("iterations")
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise SceneError(f"'{t.key('iterations')}' must be a whole number of at least 1")
+        out["iterations"] = value
+    for name in ("refsafe", "diagexact"):
+        if t.has(name):
+            value = t.raw(name)
+            if not isinstance(value, bool):
+                raise SceneError(f"'{t.key(name)}' must be true or false, got {_type_name(value)}")
+            out[name] = value
     for name, size in (("solref", 2), ("solimp", 5)):
         if t.has(name):
             value = t.raw(name)
