@@ -46,6 +46,9 @@ class ConstantTorque(TorqueProfile):
     def __call__(self, t: float) -> float:
         return self.amplitude
 
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(times), self.amplitude)
+
     @property
     def edges(self) -> tuple[float, ...]:
         return ()
@@ -62,6 +65,10 @@ class PulseTorque(TorqueProfile):
     def __call__(self, t: float) -> float:
         return self.amplitude if self.start <= t < self.start + self.duration else 0.0
 
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        times = np.asarray(times, dtype=float)
+        return np.where((times >= self.start) & (times < self.start + self.duration), self.amplitude, 0.0)
+
     @property
     def edges(self) -> tuple[float, ...]:
         return (self.start, self.start + self.duration)
@@ -77,6 +84,10 @@ class PiecewiseConstantTorque(TorqueProfile):
     def __call__(self, t: float) -> float:
         i = bisect.bisect_right(self.times, t) - 1
         return 0.0 if i < 0 else self.values[i]
+
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        i = np.searchsorted(self.times, np.asarray(times, dtype=float), side="right") - 1
+        return np.where(i < 0, 0.0, np.asarray(self.values)[np.maximum(i, 0)])
 
     @property
     def edges(self) -> tuple[float, ...]:

@@ -3,7 +3,8 @@
 The step loop runs in C (``rollout``); Python only builds the control sequence before and
 reads sensors and states after. Diagnostics on every run: the largest loop-closure
 violation |B_coupler − B_rocker|, MuJoCo's warnings (bad qacc and the like, which make
-``mj_step`` reset the state), and an energy audit from MuJoCo's own mass matrix.
+``mj_step`` reset the state), and an energy audit from MuJoCo's own body velocities and
+positions (sensors read inside the rollout).
 """
 
 from __future__ import annotations
