@@ -65,11 +65,15 @@ class Trajectory:
         return c0, c1, c2, c3, c4, c5
 
     def _locate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        # The interval [t_i, t_{i+1}] with t_i < t_{i+1}: zero-length intervals at edges are skipped.
+        """Interval index i, its length h and the local coordinate s = (t − t_i)/h.
+
+        Only intervals of positive length are used: a time on a repeated sample (a load edge
+        or a coordinate switch) goes to the next such interval, or the last one at the end.
+        """
+        live = np.flatnonzero(np.diff(self.t) > 0.0)
         i = np.searchsorted(self.t, times, side="right") - 1
-        i = np.clip(i, 0, len(self.t) - 2)
-        while np.any(zero := self.t[i + 1] == self.t[i]):
-            i = np.where(zero, np.where(i + 1 < len(self.t) - 1, i + 1, i - 1), i)
+        k = np.minimum(np.searchsorted(live, i), len(live) - 1)
+        i = live[k]
         h = self.t[i + 1] - self.t[i]
         return i, h, (times - self.t[i]) / h
 

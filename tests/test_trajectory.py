@@ -1,0 +1,70 @@
+"""The trajectory type: interpolation and peak location, against closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reduced import Trajectory
+
+
+def test_quintic_hermite_reproduces_quintic_polynomials():
+    """Hermite interpolation through q, q̇, q̈ at both ends is exact for degree ≤ 5
+    (round-off only: 1e-12 on values of order 10)."""
+    p = np.polynomial.Polynomial([0.3, -1.0, 2.0, 0.5, -0.7, 0.2])
+    t = np.array([0.0, 0.4, 1.1, 1.5, 2.3])
+    tr = Trajectory(t, p(t), p.deriv()(t), p.deriv(2)(t))
+    x = np.linspace(0.0, 2.3, 501)
+    q, v, a = tr.interpolate(x)
+    np.testing.assert_allclose(q, p(x), atol=1e-12)
+    np.testing.assert_allclose(v, p.deriv()(x), atol=1e-11)
+    np.testing.assert_allclose(a, p.deriv(2)(x), atol=1e-10)
+
+
+def test_interpolation_converges_at_sixth_order():
+    """For q = sin t the q error falls like h⁶ (ratio 64 per halving; allow 50-80)."""
+    errors = []
+    x = np.linspace(0.0, 3.0, 1001)
+    for n in (16, 32, 64):
+        t = np.linspace(0.0, 3.0, n + 1)
+        q, _, _ = Trajectory(t, np.sin(t), np.cos(t), -np.sin(t)).interpolate(x)
+        errors.append(np.max(np.abs(q - np.sin(x))))
+    assert 50 < errors[0] / errors[1] < 80 and 50 < errors[1] / errors[2] < 80
+
+
+def test_repeated_sample_times_are_handled():
+    """A time may repeat (load edge, coordinate switch), even three times at the end."""
+    t = np.array([0.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
+    tr = Trajectory(t, t.copy(), np.ones(7), np.zeros(7))
+    q, v, _ = tr.interpolate(np.array([0.0, 0.5, 1.0, 1.5, 2.0]))
+    np.testing.assert_allclose(q, [0.0, 0.5, 1.0, 1.5, 2.0])
+    np.testing.assert_allclose(v, 1.0)
+
+
+def test_peak_is_found_between_samples():
+    """q̇ = 3 + sin(5 t) peaks at t = π/10 with 4; samples every 0.1 s miss it by up to 0.01."""
+    t = np.linspace(0.0, 1.0, 11)
+    tr = Trajectory(t, 3 * t - np.cos(5 * t) / 5, 3 + np.sin(5 * t), 5 * np.cos(5 * t))
+    peak = tr.peak_angular_velocity()
+    assert peak.time == pytest.approx(np.pi / 10, abs=1e-4)
+    assert peak.omega == pytest.approx(4.0, abs=1e-6)
+    assert peak.omega > np.max(tr.qdot)
+
+
+def test_signed_peak_picks_the_requested_side():
+    t = np.linspace(0.0, 2 * np.pi, 201)
+    tr = Trajectory(t, -np.cos(t), np.sin(t), np.cos(t))
+    assert tr.peak_angular_velocity(sign=1).omega == pytest.approx(1.0, abs=1e-9)
+    assert tr.peak_angular_velocity(sign=-1).omega == pytest.approx(-1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("bad", ["nan", "decreasing", "shape"])
+def test_invalid_trajectories_are_refused(bad):
+    t, q = np.linspace(0, 1, 5), np.zeros(5)
+    if bad == "nan":
+        q = q.copy()
+        q[2] = np.nan
+    if bad == "decreasing":
+        t = t[::-1]
+    with pytest.raises(ValueError):
+        Trajectory(t, q, np.zeros(4) if bad == "shape" else np.zeros(5), np.zeros(5))
