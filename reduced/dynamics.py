@@ -20,7 +20,6 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-import numpy as np
 
 from .linkage import FourBar, Kinematics, LoopLinkage, PhasorSum
 from .scene import Scene
@@ -105,22 +104,20 @@ class MechanismModel:
 
     def coefficients_from(self, kin: Kinematics) -> Coefficients:
         """The coefficients for kinematics whose K, L are derivatives w.r.t. any one coordinate."""
-        x, K, L = kin.x, kin.K, kin.L
+        x, K, L = kin.x.tolist(), kin.K.tolist(), kin.L.tolist()  # scalar maths: lists are fastest
         J = zeta = 0.0
         for term in self._mass_terms:
             k_w, l_w = K[term.angle_index], L[term.angle_index]
             J += term.rotational_inertia * k_w * k_w
             zeta += term.rotational_inertia * k_w * l_w
             if term.mass:
-                kx, ky = term.centre.velocity_coefficient(x, K)
-                lx, ly = term.centre.acceleration_coefficient(x, K, L)
+                _, _, kx, ky, lx, ly = term.centre.evaluate(x, K, L)
                 J += term.mass * (kx * kx + ky * ky)
                 zeta += term.mass * (kx * lx + ky * ly)
         dV = V = 0.0
         for mass, centre in self._gravity_terms:
             gx, gy = self._gravity
-            kx, ky = centre.velocity_coefficient(x, K)
-            rx, ry = centre.position(x)
+            rx, ry, kx, ky, _, _ = centre.evaluate(x, K)
             dV -= mass * (gx * kx + gy * ky)
             V -= mass * (gx * rx + gy * ry)
         for spring in self._springs:
@@ -162,11 +159,10 @@ class MechanismModel:
         return self.torque.edges if self.torque is not None else ()
 
 
-def _length_and_rate(element: _LineElement, x: np.ndarray, K: np.ndarray) -> tuple[float, float]:
+def _length_and_rate(element: _LineElement, x, K) -> tuple[float, float]:
     """Length D (m) of a line element and K_D = dD/dq (m/rad)."""
-    px, py = element.attachment.position(x)
+    px, py, kx, ky, _, _ = element.attachment.evaluate(x, K)
     dx, dy = px - element.ground_point[0], py - element.ground_point[1]
     length = math.hypot(dx, dy)
-    kx, ky = element.attachment.velocity_coefficient(x, K)
     k_d = (dx * kx + dy * ky) / length
     return length, k_d

@@ -67,6 +67,28 @@ class PhasorSum:
         """(length, angle, coordinate index) of each term; scalar maths, these are hot."""
         return [(a, x[i] + p, i) for a, i, p in zip(self.lengths, self.index, self.phase)]
 
+    def evaluate(self, x, K, L=None) -> tuple[float, ...]:
+        """r, K_r = dr/dq and (if L is given) L_r = d²r/dq² in one pass: (rx, ry, kx, ky, lx, ly).
+
+        x, K, L are sequences indexed by coordinate (plain lists are fastest). Units m, m/rad,
+        m/rad².
+        """
+        rx, ry = self.offset
+        kx = ky = lx = ly = 0.0
+        for a, i, p in zip(self.lengths, self.index, self.phase):
+            th = x[i] + p
+            c, s = math.cos(th), math.sin(th)
+            rx += a * c
+            ry += a * s
+            w = a * K[i]
+            kx -= w * s
+            ky += w * c
+            if L is not None:
+                wl, wk = a * L[i], w * K[i]
+                lx += -wl * s - wk * c
+                ly += wl * c - wk * s
+        return rx, ry, kx, ky, lx, ly
+
     def position(self, x) -> tuple[float, float]:
         """r(x) (m)."""
         rx, ry = self.offset
@@ -77,22 +99,11 @@ class PhasorSum:
 
     def velocity_coefficient(self, x, K) -> tuple[float, float]:
         """K_r = dr/dq (m/rad)."""
-        kx = ky = 0.0
-        for a, th, i in self._terms(x):
-            w = a * K[i]
-            kx -= w * math.sin(th)
-            ky += w * math.cos(th)
-        return kx, ky
+        return self.evaluate(x, K)[2:4]
 
     def acceleration_coefficient(self, x, K, L) -> tuple[float, float]:
         """L_r = d²r/dq² (m/rad²)."""
-        lx = ly = 0.0
-        for a, th, i in self._terms(x):
-            s, c = math.sin(th), math.cos(th)
-            wl, wk = a * L[i], a * K[i] * K[i]
-            lx += -wl * s - wk * c
-            ly += wl * c - wk * s
-        return lx, ly
+        return self.evaluate(x, K, L)[4:6]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂r/∂x, shape (2, len(x))."""

@@ -73,19 +73,27 @@ class Chart:
         self._last = start
         # The input angle with a closed form keeps the branch it starts on inside a chart.
         self._closed_form = independent == 0 and self.linkage.has_closed_form
+        # The stop check after a step asks again for the kinematics that the step's last
+        # evaluation has just computed: keep that one.
+        self._memo: tuple[float, Kinematics] | None = None
 
     def reset(self) -> None:
         self._last = self._start
+        self._memo = None
 
     def kinematics(self, value: float) -> Kinematics:
         """Joint angles, K and L with x_i = value, continuous with the last call."""
+        if self._memo is not None and self._memo[0] == value:
+            return self._memo[1]
         if self._closed_form:
-            return self.linkage.kinematics(value, self.branch)
-        last = self._last
-        delta = value - last.x[self.independent]
-        guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
-        kin = self.linkage.solve(guess, self.independent, value, self.sign)
-        self._last = kin
+            kin = self.linkage.kinematics(value, self.branch)
+        else:
+            last = self._last
+            delta = value - last.x[self.independent]
+            guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
+            kin = self.linkage.solve(guess, self.independent, value, self.sign)
+            self._last = kin
+        self._memo = (value, kin)
         return kin
 
     def coefficients(self, value: float) -> Coefficients:
