@@ -179,6 +179,13 @@ class _Table:
             raise SceneError(f"'{self.key(name)}' must be a string, got {_type_name(value)}")
         return value
 
+    def choice(self, name: str, options: tuple[str, ...]) -> str:
+        """A string that must be one of ``options``."""
+        value = self.string(name)
+        if value not in options:
+            raise SceneError(f"'{self.key(name)}' must be one of {', '.join(options)}, got \"{value}\"")
+        return value
+
     def table(self, name: str) -> "_Table":
         return _Table(self.raw(name), self.key(name))
 
@@ -364,10 +371,7 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
     iterations, tolerance, refsafe and diagexact (booleans)."""
     out: dict[str, Any] = {}
     if t.has("integrator"):
-        name = t.string("integrator")
-        if name not in MUJOCO_INTEGRATORS:
-            raise SceneError(f"'{t.key('integrator')}' must be one of {', '.join(MUJOCO_INTEGRATORS)}, got \"{name}\"")
-        out["integrator"] = name
+        out["integrator"] = t.choice("integrator", MUJOCO_INTEGRATORS)
     if t.has("timestep"):
         out["timestep"] = t.number("timestep", positive=True)
     if t.has("tolerance"):
@@ -400,10 +404,7 @@ def _parse_reduced(t: _Table) -> dict[str, Any]:
     """Optional [reduced] table: the reference method, rtol, step (s)."""
     out: dict[str, Any] = {}
     if t.has("method"):
-        name = t.string("method")
-        if name not in REDUCED_METHODS:
-            raise SceneError(f"'{t.key('method')}' must be one of {', '.join(REDUCED_METHODS)}, got \"{name}\"")
-        out["method"] = name
+        out["method"] = t.choice("method", REDUCED_METHODS)
     for name in ("rtol", "step"):
         if t.has(name):
             out[name] = t.number(name, positive=True)

@@ -127,6 +127,10 @@ def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path):
     assert not out.exists()
 
 
-def test_bad_flag_value_exits_2():
-    proc = xval("check", str(SEED_SCENE), "--peak-rtol", "nan")
+@pytest.mark.parametrize("args", [("check", str(SEED_SCENE), "--peak-rtol", "nan"),
+                                  ("mujoco", "--timestep", "-1"), ("cost", "--repeats", "0"),
+                                  ("stress", "--case", "no_such_case"), ("frobnicate",)])
+def test_bad_flag_value_exits_2_with_one_line(args):
+    proc = xval(*args)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "error" in proc.stderr
