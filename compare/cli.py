@@ -152,42 +152,6 @@ def _tolerances(scene, args: argparse.Namespace):
                                omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
 
 
-def print_comparison(c) -> None:
-    r, m, d = c.reduced, c.mujoco, c.diff
-    ref = r.settings
-    ref_label = f"{ref['solver']} " + (f"h={ref['step']:g}s" if ref["method"] == "rkn4" else f"rtol={ref['rtol']:g}")
-    mj = m.settings
-    mj_label = f"{mj['integrator']} dt={mj['timestep']:g}s"
-    rows = [
-        ("", f"reduced ({ref_label})", f"MuJoCo ({mj_label})", "difference"),
-        ("peak omega (rad/s)", f"{r.peak.omega:.10g}", f"{m.peak.omega:.10g}",
-         f"{d.peak_omega_abs:.3e} ({d.peak_omega_rel:.2e} rel)"),
-        ("time of peak (s)", f"{r.peak.time:.8g}", f"{m.peak.time:.8g}", f"{d.t_peak_abs:.3e}"),
-        ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
-        ("loop violation (m)", "-", f"{m.diagnostics['max_constraint_violation']:.2e}", ""),
-        ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
-        ("max |dq| (rad)", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
-        ("max |domega| (rad/s)", "", "", f"{d.omega_max_abs:.3e} (rms {d.omega_rms:.2e})"),
-        ("max |domega| at equal q", "", "", f"{d.omega_vs_q_max_abs:.3e}"),
-        ("branch mismatches", "", "", f"{c.branches.mismatches}"),
-    ]
-    widths = [max(len(row[i]) for row in rows) for i in range(4)]
-    print(f"scene: {c.scene.name} ({c.scene.source}); effects: {', '.join(c.scene.effects) or 'none'}")
-    for row in rows:
-        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
-    for note in m.diagnostics.get("edge_warnings", []):
-        print(f"warning: {note}")
-    _print_gate(c.gate)
-
-
-def _print_gate(g) -> None:
-    t = g.tolerances
-    print(f"gate: {'PASSED' if g.passed else 'FAILED'} (peak_omega_rtol {t.peak_omega_rtol:g}, "
-          f"q_atol {t.q_atol:g} rad, omega_atol {t.omega_atol:g} rad/s)")
-    for failure in g.failures:
-        print(f"  {failure}")
-
-
 def cmd_run(args: argparse.Namespace) -> int:
     from .report import write_outputs
     from .run import compare_engines
@@ -195,7 +159,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
-    print_comparison(comparison)
+    from .text import comparison_lines
+
+    print("\n".join(comparison_lines(comparison)))
     paths = write_outputs(comparison, args.out)
     print(f"wrote {len(paths)} files to {args.out}/")
     return EXIT_OK

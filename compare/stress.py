@@ -19,11 +19,11 @@ import numpy as np
 
 from reduced import NumericalFailure, ReducedSettings, Scene, load_scene, simulate
 from reduced.loads import PulseTorque
+from reduced.scene import hard_scene_dir
 from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from .diff import compare_branches, compare_trajectories, gate
 
-HARD_SCENES = Path(__file__).resolve().parent.parent / "scenes" / "hard"
 PROBE_TIMESTEPS = (1e-3, 1e-4, 1e-5)
 
 
@@ -42,7 +42,7 @@ class Case:
 
     @property
     def path(self) -> Path:
-        return HARD_SCENES / self.scene_file
+        return hard_scene_dir() / self.scene_file
 
 
 CATALOGUE = (

@@ -2,20 +2,38 @@
 
 from __future__ import annotations
 
+from enum import Enum
+
+
+class FailureReason(str, Enum):
+    """Why a run did not produce a trustworthy result (compares equal to its value string)."""
+
+    UNSTABLE = "unstable"  # outside the stability region, runaway speed, MuJoCo reset the state
+    SINGULAR = "singular"  # a position no coordinate can drive, or the solver could not go on
+    NON_FINITE = "non-finite"  # NaN or inf in the state
+    STEP_SIZE = "step-size"  # the adaptive solver's step collapsed
+    CONSTRAINT_DRIFT = "constraint-drift"  # MuJoCo's loop opened beyond its bound
+    INACCURATE = "inaccurate"  # the run's own error estimate is above the requested tolerance
+    ENERGY_IMBALANCE = "energy-imbalance"  # the energy balance does not close within its bound
+    INITIAL_STATE = "initial-state"  # the initial state violates the loop constraints
+    INCOMPLETE = "incomplete"  # the run or the comparison did not cover the horizon
+
+    def __str__(self) -> str:
+        return self.value
+
 
 class NumericalFailure(RuntimeError):
     """A run that did not produce a trustworthy result.
 
     Attributes
     ----------
-    reason : str
-        Short machine-readable cause: ``"unstable"``, ``"singular"``, ``"non-finite"``,
-        ``"step-size"``, ``"constraint-drift"``.
+    reason : FailureReason
+        The cause; a plain string is converted (and must be one of the reasons' values).
     time : float or None
         Simulation time (s) at which it was detected.
     """
 
-    def __init__(self, reason: str, message: str, time: float | None = None):
+    def __init__(self, reason: FailureReason | str, message: str, time: float | None = None):
         super().__init__(message)
-        self.reason = reason
+        self.reason = FailureReason(reason)
         self.time = time

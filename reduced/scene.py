@@ -88,9 +88,15 @@ class LinearSpring:
 
 @dataclass(frozen=True)
 class Tolerances:
-    """Agreement tolerances between the engines (used by ``xval check``)."""
+    """Agreement tolerances between the engines (used by ``xval check``).
+
+    The peak passes when |Δ peak ω| ≤ peak_omega_rtol·|peak ω| + peak_omega_atol: the
+    absolute floor keeps a relative figure of a motion that barely moves from judging
+    round-off.
+    """
 
     peak_omega_rtol: float = 1e-4
+    peak_omega_atol: float = 1e-9  # rad/s
     q_atol: float = 1e-3
     omega_atol: float = 1e-1
     omega_vs_q_atol: float | None = None  # max |Δω| at equal q (rad/s); None: not checked
@@ -345,6 +351,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
         tol = top.table("tolerances")
         tolerances = Tolerances(
             peak_omega_rtol=tol.number("peak_omega_rtol", Tolerances.peak_omega_rtol, positive=True),
+            peak_omega_atol=tol.number("peak_omega_atol", Tolerances.peak_omega_atol, positive=True),
             q_atol=tol.number("q_atol", Tolerances.q_atol, positive=True),
             omega_atol=tol.number("omega_atol", Tolerances.omega_atol, positive=True),
             omega_vs_q_atol=tol.number("omega_vs_q_atol", None, positive=True),
@@ -448,6 +455,16 @@ def load_scene(path: str | Path) -> Scene:
     return scene_from_dict(data, source=str(path))
 
 
+def scenes_dir() -> Path:
+    """Folder of the scenes shipped with the project (``seed_fourbar.toml``, ``hard/``)."""
+    return Path(__file__).resolve().parent.parent / "scenes"
+
+
 def default_scene_path() -> Path:
     """Path of the seed four-bar scene shipped with the project."""
-    return Path(__file__).resolve().parent.parent / "scenes" / "seed_fourbar.toml"
+    return scenes_dir() / "seed_fourbar.toml"
+
+
+def hard_scene_dir() -> Path:
+    """Folder of the hard-case catalogue (``xval stress``)."""
+    return scenes_dir() / "hard"
