@@ -287,7 +287,7 @@ def _number(value: Any, key: str, *, positive: bool = False, nonnegative: bool =
 def _check_range(value: float, key: str, r: Range, what: str = "") -> None:
     inside = r.low <= value <= r.high if r.low else abs(value) <= r.high
     if not inside:
-        raise SceneError(f"'{key}'{what} = {value:g} is out of range: a {r.kind} must be in {r.text()}")
+        raise SceneError(f"'{key}'{what} = {value:g} is out of range: {r.kind} must be in {r.text()}")
 
 
 def _point(value: Any, key: str, *, kind: str = "position") -> tuple[float, float]:
@@ -549,11 +549,12 @@ def _read_text(path: Path) -> str:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError as exc:
         raise SceneError(f"cannot read scene file '{path}': {exc.strerror}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+        raise SceneError(f"cannot read scene file '{path}': it is {what}")
     with os.fdopen(fd, "rb") as f:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
-            raise SceneError(f"cannot read scene file '{path}': it is {what}")
         try:
             raw = f.read(MAX_SCENE_BYTES + 1)
         except OSError as exc:
