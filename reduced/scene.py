@@ -82,6 +82,11 @@ MAX_TABLE_ENTRIES = 10_000  # entries of a torque table
 MAX_NAME_CHARS = 100  # a scene name is printed, plotted and used in file listings
 MAX_DESCRIPTION_CHARS = 1000
 MAX_SCENE_BYTES = 1 << 20  # 1 MiB: a scene is a short text file (the seed is 2 kB)
+# Largest crank angle a scene may sweep by the bound of speed_bound (rad, ~3 200 turns): the work
+# of every engine grows with it. The seed started at q̇0 = 1000 rad/s has a bound of 5.2e3 rad,
+# really turns ~3e3 rad and takes DOP853 (default rtol) 32 726 steps, ~45 s; the hard cases
+# fast_crank and long_conservative have bounds of 5.8e3 and 3.7e3 rad.
+MAX_SWEPT_ANGLE = 2e4
 
 
 # ---------------------------------------------------------------------------
@@ -455,6 +460,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
                   q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, mujoco=mujoco, reduced=reduced,
                   source=source)
     _check_assembly(scene)
+    _check_motion(scene)
     return scene
 
 
@@ -521,6 +527,57 @@ def _check_assembly(scene: Scene) -> None:
     if scene.qdot0 != 0.0 and linkage.conditioning(x)[0] < SINGULAR_DETERMINANT:
         raise SceneError(f"'initial.qdot' = {scene.qdot0}: the input link is at a dead centre at "
                          f"q = {scene.q0} rad, where its speed must be zero")
+
+
+def speed_bound(scene: Scene) -> dict[str, float]:
+    """An upper bound of the crank's speed |q̇| (rad/s) over the horizon, split by cause (the
+    scene key or effect, quoted as in messages; the parts add up to the bound).
+
+    𝔍(q) ≥ I_O1, the crank's pivot inertia (every other term of 𝔍 is ≥ 0). With K = E − V_min
+    (E the mechanical energy), dK/dt ≤ |T||q̇| ≤ |T|·√(2K/I_O1), so √K grows at most by
+    ∫|T|dt/√(2 I_O1), and |q̇| ≤ √(2K/I_O1) ≤ √(𝔍(q0)/I_O1)·|q̇0| + √(2ΔV/I_O1) + ∫|T|dt / I_O1,
+    where ΔV bounds the potential energy the springs and gravity can release (over the reach of
+    each point, c1 + c4 + |point|). Dampers only take energy out.
+    """
+    from .dynamics import MechanismModel
+
+    j_low = scene.bodies["crank"].pivot_inertia
+    g = scene.linkage
+    reach = g.c1 + g.c4
+    initial = 0.0
+    if scene.qdot0:  # not at a dead centre (checked before), so 𝔍(q0) is defined
+        initial = math.sqrt(MechanismModel(scene).generalized_inertia(scene.q0) / j_low) * abs(scene.qdot0)
+    released = 0.0
+    for sp in scene.springs:
+        longest = math.hypot(*sp.ground_point) + reach + math.hypot(*sp.body_point)
+        released += 0.5 * sp.stiffness * max(longest - sp.rest_length, sp.rest_length) ** 2
+    if scene.gravity is not None:
+        weight = math.hypot(*scene.gravity)
+        released += sum(2.0 * b.mass * weight * (reach + math.hypot(*b.com)) for b in scene.bodies.values())
+    torque = scene.torque
+    if torque is None:
+        impulse = 0.0
+    elif isinstance(torque, PulseTorque):
+        impulse = abs(torque.amplitude) * max(0.0, min(torque.duration, scene.horizon - torque.start))
+    elif isinstance(torque, ConstantTorque):
+        impulse = abs(torque.amplitude) * scene.horizon
+    else:
+        impulse = max(abs(v) for v in torque.values) * scene.horizon
+    torque_key = "'torque.values'" if isinstance(torque, PiecewiseConstantTorque) else "'torque.value'"
+    return {"'initial.qdot'": initial, "the springs and gravity": math.sqrt(2.0 * released / j_low),
+            torque_key: impulse / j_low}
+
+
+def _check_motion(scene: Scene) -> None:
+    """Refuse a scene whose crank could sweep more than MAX_SWEPT_ANGLE over its horizon."""
+    parts = speed_bound(scene)
+    swept = sum(parts.values()) * scene.horizon
+    if swept > MAX_SWEPT_ANGLE:
+        cause = max(parts, key=parts.get)
+        raise SceneError(f"the crank could turn up to {swept:.3g} rad in 'simulation.horizon' = {scene.horizon:g} s"
+                         f" (|q̇| ≤ {sum(parts.values()):.3g} rad/s, mostly from {cause}), more than"
+                         f" {MAX_SWEPT_ANGLE:g} rad: lower {cause} or the horizon, or raise the crank's"
+                         " inertia ('bodies.crank')")
 
 
 def load_scene(path: str | Path) -> Scene:

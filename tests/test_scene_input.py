@@ -12,6 +12,7 @@ import dataclasses
 import math
 import os
 
+import numpy as np
 import pytest
 
 from compare import cli
@@ -104,7 +105,21 @@ OTHER_CASES = [
      "'bodies.crank.mass' and 'bodies.crank.com' go together"),
 ]
 
-CASES = RANGE_CASES + OTHER_CASES
+# Work: the crank's speed bound (reduced.scene.speed_bound) times the horizon, at most MAX_SWEPT_ANGLE.
+TINY_INERTIAS = {"bodies.crank.pivot_inertia": 1e-9, "bodies.rocker.pivot_inertia": 1e-9,
+                 "bodies.coupler.inertia": 1e-9, "bodies.coupler.mass": 1e-6}
+MOTION_CASES = [
+    ("qdot0_fast", {"initial.qdot": 1e4}, "mostly from 'initial.qdot'), more than 20000 rad"),
+    ("torque_large", {"torque.value": 1e6}, "mostly from 'torque.value'), more than 20000 rad"),
+    ("all_inertias_at_their_floor", TINY_INERTIAS, "the crank could turn up to 5e+11 rad"),
+    ("table_torque_long", {"torque": dict(TABLE, values=[1e4, 1e4]), "simulation.horizon": 10.0},
+     "mostly from 'torque.values')"),
+    ("stiff_spring_long", {"springs": spring(stiffness=1e8, rest_length=0.0), "simulation.horizon": 1e3},
+     "mostly from the springs and gravity)"),
+    ("horizon_long", {"simulation.horizon": 1e3}, "in 'simulation.horizon' = 1000 s"),
+]
+
+CASES = RANGE_CASES + OTHER_CASES + MOTION_CASES
 
 
 @pytest.mark.parametrize("patch, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
@@ -126,14 +141,16 @@ LOW, HIGH = {k: r.low for k, r in LIMITS.items()}, {k: r.high for k, r in LIMITS
 CORNERS = {
     "light": {"bodies.crank.pivot_inertia": LOW["inertia"], "bodies.rocker.pivot_inertia": LOW["inertia"],
               "bodies.coupler.mass": LOW["mass"], "bodies.coupler.inertia": LOW["inertia"],
-              "dampers[0].coefficient": LOW["damping"], "springs": spring(stiffness=LOW["stiffness"])},
+              "dampers[0].coefficient": LOW["damping"], "springs": spring(stiffness=LOW["stiffness"]),
+              "torque.value": 1e-9, "simulation.horizon": LOW["horizon"]},
     "heavy": {"bodies.crank.pivot_inertia": HIGH["inertia"], "bodies.rocker.pivot_inertia": HIGH["inertia"],
               "bodies.coupler.mass": HIGH["mass"], "bodies.coupler.inertia": HIGH["inertia"],
               "bodies.coupler.com": [HIGH["position"], -HIGH["position"]],
               "dampers[0].coefficient": HIGH["damping"], "torque.value": -HIGH["torque"],
               "springs": spring(stiffness=HIGH["stiffness"], rest_length=HIGH["position"]),
-              "simulation.horizon": HIGH["horizon"], "torque.duration": HIGH["time"],
-              "initial.qdot": HIGH["speed"]},
+              "torque.start": HIGH["time"], "gravity": [HIGH["gravity"], 0.0], "simulation.horizon": 1.0,
+              "bodies.crank.mass": 1.0, "bodies.crank.com": [0.25, 0.0],
+              "bodies.rocker.mass": 1.0, "bodies.rocker.com": [0.35, 0.0]},
     "large": {"linkage.c1": 500.0, "linkage.c2": 900.0, "linkage.c3": 700.0, "linkage.c4": HIGH["length"]},
     "small": {"linkage.c1": 0.5e-3 * 2, "linkage.c2": 1.8e-3, "linkage.c3": 1.4e-3, "linkage.c4": 2e-3},
 }
@@ -215,3 +232,27 @@ def test_only_regular_files_are_read(tmp_path, capsys, where):
     assert cli.main(["reduced", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"cannot read scene file '{path}': it is" in err
+
+
+# The bound behind the work limit must hold: the reduced engine's largest |q̇| stays below it, for
+# each kind of cause. (A bound that drops a term, e.g. √(𝔍(q0)/I_O1), falls below the real speed.)
+BOUND_SCENES = {
+    "seed_torque": {},
+    "spring_released": {"torque": DELETE, "dampers": DELETE,
+                        "springs": spring(stiffness=2000.0, rest_length=0.2)},
+    "coasting": {"torque": DELETE, "dampers": DELETE, "initial.qdot": 10.0},
+    "gravity": {"torque": DELETE, "dampers": DELETE, "gravity": [0.0, -9.81],
+                "bodies.crank.mass": 1.5, "bodies.crank.com": [0.25, 0.05],
+                "bodies.rocker.mass": 3.0, "bodies.rocker.com": [0.35, 0.0]},
+}
+
+
+@pytest.mark.parametrize("patch", BOUND_SCENES.values(), ids=BOUND_SCENES.keys())
+def test_speed_bound_holds_along_a_reduced_run(patch):
+    from reduced import ReducedSettings, simulate
+    from reduced.scene import speed_bound
+
+    scene = scene_from_dict(patched(patch))
+    bound = sum(speed_bound(scene).values())
+    fastest = float(np.max(np.abs(simulate(scene, ReducedSettings()).trajectory.qdot)))
+    assert 0.0 < fastest <= bound
