@@ -77,6 +77,7 @@ LIMITS: Mapping[str, Range] = _ranges(
     Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)"),
     Range("horizon", "s", 1e-3, 1e3, "at MuJoCo's 1 ms default a 1000 s run is already 1e6 steps"),
     Range("gravity", "m/s²", 0.0, 1e3, "about 100 g"),
+    Range("step", "s", 1e-6, 1.0, "a scene's [mujoco] timestep or [reduced] step; the hard cases use 2e-5 to 1e-3"),
 )
 MAX_TABLE_ENTRIES = 10_000  # entries of a torque table
 MAX_NAME_CHARS = 100  # a scene name is printed, plotted and used in file listings
@@ -459,6 +460,10 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
                   torque=torque, dampers=tuple(dampers), springs=tuple(springs), gravity=gravity,
                   q0=q0, qdot0=qdot0, horizon=horizon, tolerances=tolerances, mujoco=mujoco, reduced=reduced,
                   source=source)
+    for key, table in (("mujoco.timestep", mujoco), ("reduced.step", reduced)):
+        step = table.get(key.split(".")[1])
+        if step is not None and step > horizon:
+            raise SceneError(f"'{key}' = {step:g} s is longer than 'simulation.horizon' = {horizon:g} s")
     _check_assembly(scene)
     _check_motion(scene)
     return scene
@@ -474,7 +479,7 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
     if t.has("integrator"):
         out["integrator"] = t.choice("integrator", MUJOCO_INTEGRATORS)
     if t.has("timestep"):
-        out["timestep"] = t.number("timestep", positive=True)
+        out["timestep"] = t.number("timestep", positive=True, kind="step")
     if t.has("tolerance"):
         out["tolerance"] = t.number("tolerance", positive=True)
     if t.has("iterations"):
@@ -506,9 +511,10 @@ def _parse_reduced(t: _Table) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if t.has("method"):
         out["method"] = t.choice("method", REDUCED_METHODS)
-    for name in ("rtol", "step"):
-        if t.has(name):
-            out[name] = t.number(name, positive=True)
+    if t.has("rtol"):
+        out["rtol"] = t.number("rtol", positive=True)
+    if t.has("step"):
+        out["step"] = t.number("step", positive=True, kind="step")
     t.close()
     return out
 

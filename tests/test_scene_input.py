@@ -72,6 +72,9 @@ RANGE_CASES = [
     ("horizon_huge", {"simulation.horizon": HUGE}, out_of_range("simulation.horizon", HUGE, "horizon")),
     ("horizon_tiny", {"simulation.horizon": 1e-12}, out_of_range("simulation.horizon", 1e-12, "horizon")),
     ("gravity_huge", {"gravity": [0.0, -HUGE]}, out_of_range("gravity[1]", -HUGE, "gravity")),
+    ("mujoco_timestep_tiny", {"mujoco": {"timestep": 1e-12}}, out_of_range("mujoco.timestep", 1e-12, "step")),
+    ("mujoco_timestep_huge", {"mujoco": {"timestep": HUGE}}, out_of_range("mujoco.timestep", HUGE, "step")),
+    ("reduced_step_tiny", {"reduced": {"step": 1e-12}}, out_of_range("reduced.step", 1e-12, "step")),
     ("integer_beyond_float", {"linkage.c1": 10 ** 400}, "'linkage.c1' must be finite, got an integer of 401 digits"),
 ]
 
@@ -91,6 +94,10 @@ OTHER_CASES = [
     ("description_long", {"description": "d" * 5000}, "'description' has 5000 characters"),
     ("name_not_string", {"name": 3}, "'name' must be a string, got an integer"),
     # sizes
+    ("timestep_beyond_horizon", {"mujoco": {"timestep": 0.5}, "simulation.horizon": 0.1},
+     "'mujoco.timestep' = 0.5 s is longer than 'simulation.horizon' = 0.1 s"),
+    ("step_beyond_horizon", {"reduced": {"step": 0.5}, "simulation.horizon": 0.1},
+     "'reduced.step' = 0.5 s is longer than 'simulation.horizon' = 0.1 s"),
     ("table_too_long", {"torque": dict(TABLE, times=[float(i) for i in range(MAX_TABLE_ENTRIES + 1)],
                                        values=[1.0] * (MAX_TABLE_ENTRIES + 1))},
      f"'torque.times' has {MAX_TABLE_ENTRIES + 1} entries; at most {MAX_TABLE_ENTRIES}"),
