@@ -64,13 +64,13 @@ def _ranges(*items: Range) -> Mapping[str, Range]:
 # inside each) and keep the arithmetic of validation finite: mass·|com|² ≤ 1e6·2e6 kg·m², the
 # assembly discriminant is of order length⁴ ≤ 1e12 m⁴, spring energy k·D² ≤ 1e8·1e6 J.
 LIMITS: Mapping[str, Range] = _ranges(
-    Range("length", "m", 1e-3, 1e3, "link lengths and spring rest lengths; lengths⁴ (assembly) stay ≤ 1e12"),
-    Range("position", "m", 0.0, 1e3, "points and centres of mass in a body frame or the ground"),
+    Range("length", "m", 1e-3, 1e3, "link lengths c1…c4; lengths⁴ in the assembly discriminant stay ≤ 1e12"),
+    Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths"),
     Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades"),
     Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m²; a pivot "
           "inertia becomes I_zz of a 1 kg point body, so its ratio to that mass stays ≥ 1e-9 m²"),
     Range("damping", "N·s/m", 1e-9, 1e7, "the stiff_damper hard case uses 1e6; beyond, only Radau would finish"),
-    Range("stiffness", "N/m", 1e-9, 1e8, "a spring of 1e8 N/m on a 1e-9 kg·m² link is a 1e-8 s oscillation"),
+    Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms"),
     Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m"),
     Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits"),
     Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed"),
@@ -278,7 +278,8 @@ def _number(value: Any, key: str, *, positive: bool = False, nonnegative: bool =
     try:
         value = float(value)
     except OverflowError:  # a TOML integer beyond the float range
-        raise SceneError(f"'{key}' must be finite, got an integer of {len(str(abs(value)))} digits") from None
+        raise SceneError(f"'{key}' must be finite, got an integer of about"
+                         f" {int(value.bit_length() * math.log10(2)) + 1} digits") from None
     if not math.isfinite(value):
         raise SceneError(f"'{key}' must be finite, got {value}")
     if positive and value <= 0.0:
@@ -637,7 +638,7 @@ def _parse_toml(text: str, path: Path) -> dict[str, Any]:
     """``tomllib.loads`` with its errors as one-line SceneErrors naming the file."""
     try:
         return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+    except ValueError as exc:  # TOMLDecodeError, or an integer past Python's 4300-digit limit
         raise SceneError(f"'{path}' is not valid TOML: {exc}") from None
     except RecursionError:
         raise SceneError(f"'{path}' is not a usable scene: its arrays or tables are nested too deeply") from None
