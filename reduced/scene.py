@@ -5,6 +5,9 @@ damping in N·s/m, stiffness in N/m, time in s. The README documents the format.
 
 A malformed scene raises :class:`SceneError` with one message that names the
 offending key and the reason; nothing else in the package raises on bad input.
+Every number lies in the range of its kind (:data:`LIMITS`, one table for both
+engines), and a scene whose crank could turn more than :data:`MAX_SWEPT_ANGLE`
+over its horizon (:func:`speed_bound`) is refused before any work.
 """
 
 from __future__ import annotations
@@ -67,9 +70,9 @@ LIMITS: Mapping[str, Range] = _ranges(
     Range("length", "m", 1e-3, 1e3, "link lengths c1…c4; lengths⁴ in the assembly discriminant stay ≤ 1e12"),
     Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths"),
     Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades"),
-    Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m²; a pivot "
-          "inertia becomes I_zz of a 1 kg point body, so its ratio to that mass stays ≥ 1e-9 m²"),
-    Range("damping", "N·s/m", 1e-9, 1e7, "the stiff_damper hard case uses 1e6; beyond, only Radau would finish"),
+    Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m² (a pivot "
+          "inertia becomes I_zz of a 1 kg point body); 1e-9 leaves six decades"),
+    Range("damping", "N·s/m", 1e-9, 1e7, "stiff_damper uses 1e6; the seed with 1e7 ran in 2.6 s (DOP853, 9675 steps)"),
     Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms"),
     Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m"),
     Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits"),
