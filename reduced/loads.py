@@ -9,10 +9,16 @@ side of an edge (SEED-NOTES erratum 5).
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+
+
+def _finite(owner: str, name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ValueError(f"{owner}.{name} must be finite, got {value}")
 
 
 class TorqueProfile:
@@ -43,6 +49,9 @@ class ConstantTorque(TorqueProfile):
 
     amplitude: float
 
+    def __post_init__(self):
+        _finite("ConstantTorque", "amplitude", self.amplitude)
+
     def __call__(self, t: float) -> float:
         return self.amplitude
 
@@ -62,6 +71,13 @@ class PulseTorque(TorqueProfile):
     start: float
     duration: float
 
+    def __post_init__(self):
+        for name in ("amplitude", "start", "duration"):
+            _finite("PulseTorque", name, getattr(self, name))
+        for name in ("start", "duration"):
+            if getattr(self, name) < 0.0:
+                raise ValueError(f"PulseTorque.{name} must not be negative, got {getattr(self, name)}")
+
     def __call__(self, t: float) -> float:
         return self.amplitude if self.start <= t < self.start + self.duration else 0.0
 
@@ -80,6 +96,16 @@ class PiecewiseConstantTorque(TorqueProfile):
 
     times: tuple[float, ...]
     values: tuple[float, ...]
+
+    def __post_init__(self):
+        if len(self.times) != len(self.values) or not self.times:
+            raise ValueError("PiecewiseConstantTorque.times and .values must have the same, non-zero length,"
+                             f" got {len(self.times)} and {len(self.values)}")
+        for name in ("times", "values"):
+            for i, v in enumerate(getattr(self, name)):
+                _finite("PiecewiseConstantTorque", f"{name}[{i}]", v)
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("PiecewiseConstantTorque.times must be strictly increasing")
 
     def __call__(self, t: float) -> float:
         i = bisect.bisect_right(self.times, t) - 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -29,3 +30,28 @@ def conservative(qdot0: float = 10.0, horizon: float = 2.0) -> Scene:
     """Seed linkage, no damper, no torque, no gravity, started with speed qdot0 (rad/s)."""
     return variant(drop=("torque", "dampers", "tolerances"), initial={"q": 0.2, "qdot": qdot0},
                    simulation={"horizon": horizon})
+
+
+def _locate(data, path: str):
+    """(container, key) of a dotted path such as 'dampers[0].body_point[1]' inside parsed TOML."""
+    parts = re.findall(r"[^.\[\]]+|\[\d+\]", path)
+    node = data
+    for part in parts[:-1]:
+        node = node[int(part[1:-1])] if part.startswith("[") else node.setdefault(part, {})
+    last = parts[-1]
+    return node, int(last[1:-1]) if last.startswith("[") else last
+
+
+DELETE = object()  # a patch value that removes the key
+
+
+def patched(patch: dict) -> dict:
+    """The seed scene's data with each dotted path set to its value (DELETE removes it)."""
+    data = seed_dict()
+    for path, value in patch.items():
+        node, key = _locate(data, path)
+        if value is DELETE:
+            del node[key]
+        else:
+            node[key] = value
+    return data

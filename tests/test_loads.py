@@ -24,3 +24,20 @@ def test_a_piece_sees_one_side_of_each_edge(profile):
         inside = profile(0.5 * (a + b))
         f = profile.on_piece(a, b)
         assert f(a) == inside and f(b) == inside  # both ends take the value of the open interval
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: ConstantTorque(float("nan")), "ConstantTorque.amplitude"),
+    (lambda: PulseTorque(1.0, -0.5, 1.0), "PulseTorque.start"),
+    (lambda: PulseTorque(1.0, 0.0, -1.0), "PulseTorque.duration"),
+    (lambda: PulseTorque(float("inf"), 0.0, 1.0), "PulseTorque.amplitude"),
+    (lambda: PiecewiseConstantTorque((0.0, 1.0), (1.0,)), "PiecewiseConstantTorque.times and .values"),
+    (lambda: PiecewiseConstantTorque((), ()), "PiecewiseConstantTorque.times and .values"),
+    (lambda: PiecewiseConstantTorque((0.0, 0.0), (1.0, 2.0)), "PiecewiseConstantTorque.times must be strictly"),
+    (lambda: PiecewiseConstantTorque((0.0, 1.0), (1.0, float("nan"))), "PiecewiseConstantTorque.values[1]"),
+], ids=["nan", "neg_start", "neg_duration", "inf", "lengths", "empty", "not_increasing", "nan_value"])
+def test_profiles_validate_their_fields(make, field):
+    """Built directly (not from a scene), a profile still refuses what it cannot represent."""
+    with pytest.raises(ValueError) as info:
+        make()
+    assert str(info.value).startswith(field)

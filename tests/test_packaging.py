@@ -1,0 +1,56 @@
+"""The scenes ship inside the package: a wheel holds every scene of the repository, and the
+functions that locate scenes go through importlib.resources, not the source tree's layout.
+(.ci/run installs the wheel in a fresh venv and runs ``xval reduced`` and ``xval stress`` from
+outside the repository.)"""
+
+from __future__ import annotations
+
+import importlib.resources
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+from reduced.scene import default_scene_path, hard_scene_dir, scenes_dir
+
+from helpers import ROOT
+
+REPO_SCENES = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "scenes").rglob("*.toml"))
+
+
+def test_scene_folders_come_from_the_scenes_package():
+    assert scenes_dir() == importlib.resources.files("scenes")
+    assert default_scene_path().is_file() and default_scene_path().parent == scenes_dir()
+    shipped = sorted(p.relative_to(scenes_dir().parent).as_posix() for p in scenes_dir().rglob("*.toml"))
+    assert shipped == REPO_SCENES and hard_scene_dir().name == "hard"
+
+
+@pytest.mark.slow
+def test_wheel_contains_every_scene(tmp_path):
+    """Build a wheel from a copy of the sources (the checkout stays clean) and list it. pip builds
+    in an isolated environment with the setuptools that pyproject.toml asks for."""
+    src = tmp_path / "src"
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(ROOT / name, src / name if src.exists() else (src.mkdir() or src / name))
+    for package in ("reduced", "reference_models", "compare", "scenes"):
+        shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__"))
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
+                    "-w", str(tmp_path / "dist"), str(src)], check=True, capture_output=True, timeout=300)
+    (wheel,) = (tmp_path / "dist").glob("xval-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert "scenes/__init__.py" in names
+    assert [n for n in REPO_SCENES if n not in names] == []
+    assert "scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
+    # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    code = ("from reduced.scene import default_scene_path, hard_scene_dir, load_scene; "
+            "print(default_scene_path()); print(load_scene(default_scene_path()).name); "
+            "print(len([load_scene(p) for p in hard_scene_dir().glob('*.toml')]))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"}, check=True)
+    path, name, n_hard = proc.stdout.split("\n")[:3]
+    assert path == str(site / "scenes" / "seed_fourbar.toml") and name == "seed_fourbar"
+    assert int(n_hard) == sum(n.startswith("scenes/hard/") for n in REPO_SCENES)
