@@ -277,6 +277,14 @@ def _check_work(scene: Scene, h: float, model: mujoco.MjModel | None = None) -> 
     return n
 
 
+def _within_limits(scene: Scene, h: float, model: mujoco.MjModel) -> bool:
+    try:
+        _check_work(scene, h, model)
+    except ValueError:
+        return False
+    return True
+
+
 def _check_handles(handles: ModelHandles, settings: MujocoSettings) -> None:
     """Refuse a compiled model whose options differ from the settings (ValueError naming both)."""
     m = handles.model
@@ -312,8 +320,10 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
     is accepted when max |Δq|, max |Δω| and |Δ peak| are at most HALVING_FRACTION of the
     scene's q_atol, omega_atol and peak tolerance (for RK4 the difference estimates the
     coarser run's error, and the finer run is returned), else h is halved, down to
-    TIMESTEP_FLOOR. ``result.settings`` records the step used, ``timestep_automatic`` and the
-    halving evidence (``timestep_check``). With ``handles`` (e.g. from an exported MJCF file)
+    TIMESTEP_FLOOR or the work limits. ``result.settings`` records the step used,
+    ``timestep_automatic`` and the halving evidence (``timestep_check``: per check the coarse
+    step and the differences against their limits); ``result.diagnostics
+    ["automatic_timestep_cost"]`` the runs, steps and rollout wall time the choice took. With ``handles`` (e.g. from an exported MJCF file)
     an automatic timestep is the model's own, and every other option must match the model.
 
     Raises
@@ -345,9 +355,12 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
     tol = scene.tolerances
     h = grid_timestep(scene)
     evidence: list[dict] = []
+    shape = build_model(scene, replace(settings, timestep=h)).model  # for the memory estimate
+    _check_work(scene, h, shape)
     coarse = _attempt(scene, replace(settings, timestep=h))
+    runs = [coarse]
     while True:
-        if h / 2 < TIMESTEP_FLOOR or _n_steps(scene, h / 2) > MAX_STEPS:
+        if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
             if isinstance(coarse, NumericalFailure):  # even the finest step fails: say how
                 raise NumericalFailure(coarse.reason, f"{coarse} (at the finest automatic MuJoCo timestep {h:g} s)",
                                        coarse.time)
@@ -357,6 +370,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"(last check, h = {last['timestep']:g} s against h/2: "
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
         fine = _attempt(scene, replace(settings, timestep=h / 2))
+        runs.append(fine)
         record = {"timestep": h}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
             failed = coarse if isinstance(coarse, NumericalFailure) else fine
@@ -373,7 +387,10 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
         record["accepted"] = accepted
         evidence.append(record)
         if accepted:
+            done = [r for r in runs if isinstance(r, EngineResult)]
             fine.settings.update(timestep_automatic=True, timestep_check=evidence)
+            fine.diagnostics["automatic_timestep_cost"] = {
+                "runs": len(runs), "steps": sum(r.n_steps for r in done), "wall_s": sum(r.wall_s for r in done)}
             return fine
         coarse, h = fine, h / 2
 
