@@ -58,7 +58,7 @@ def seed_reduced(seed):
     ("max_constraint_violation", 0.0), ("max_energy_residual", -1.0), ("max_energy_residual", float("inf")),
 ])
 def test_every_settings_field_is_validated_by_name(field, value):
-    with pytest.raises(ValueError, match=field.split("_")[0] if field.startswith("max") else field):
+    with pytest.raises(ValueError, match=field):
         MujocoSettings(**{field: value})
 
 
@@ -87,14 +87,15 @@ def test_good_runs_are_inside_the_energy_bound_with_margin(seed_auto):
 
 # --- damper dissipation (planted bug 1 of issue 9) -------------------------------------------
 
-def test_mujoco_damper_dissipation_matches_the_reduced_engine(seed_auto, seed_reduced):
+def test_mujoco_damper_dissipation_matches_the_reduced_engine(seed, seed_reduced):
     """MuJoCo's ∫ b l̇² dt against the reduced engine's (DOP853, rtol 1e-12) over the seed run.
 
     The damper takes 28 % of the torque's work. Measured: 1.05e-4 relative at the automatic
     0.5 ms, converging at first order in h (5.2e-5 at 0.25 ms, 2.1e-5 at 0.1 ms); bound 5e-4. The
     residual check pins the rest of the balance: 3.2e-5 of the scale measured, bound 1e-4.
     """
-    m, r = seed_auto.audit, seed_reduced.audit
+    # The energy gate is opened so that this test judges the audit on its own.
+    m, r = simulate_mujoco(seed, MujocoSettings(max_energy_residual=1.0)).audit, seed_reduced.audit
     assert m.damper_dissipation[-1] > 0.1 * m.torque_work[-1]  # the damper matters here
     rel = abs(m.damper_dissipation[-1] - r.damper_dissipation[-1]) / r.damper_dissipation[-1]
     assert rel < 5e-4
