@@ -240,7 +240,8 @@ def test_grid_step_puts_an_off_grid_edge_on_the_grid():
     assert 0.99e-3 < h <= 1e-3 and abs(OFF_GRID_END / h - round(OFF_GRID_END / h)) < 1e-9
 
 
-@pytest.mark.parametrize("kind", ["pulse_off_grid", "fast_non_grashof_swing"])
+@pytest.mark.parametrize("kind", ["pulse_off_grid",
+                                  pytest.param("fast_non_grashof_swing", marks=pytest.mark.slow)])  # 2.8 s
 def test_default_settings_pass_the_default_gate_where_1_ms_fails(kind):
     """Issue 9's two failing kinds of valid scene. Measured against DOP853 (rtol 1e-12): at the
     old fixed 1 ms, |Δq| 1.3e-2 and 3.4e-3 rad (q_atol 1e-3); automatic (0.4997 ms on the
