@@ -80,6 +80,17 @@ def test_energy_imbalance_of_a_real_run_fails(seed):
     assert "max_energy_residual" in str(info.value)
 
 
+def test_energy_imbalance_at_a_too_coarse_explicit_step_fails():
+    """A non-Grashof crank swinging at 60 rad/s, run at an explicit 1 ms with every other setting
+    default: the loop stays closed (drift check passes) but the balance is 0.66 % off (measured
+    6.6e-3, bound 3e-3); the automatic step runs this scene at 31 µs."""
+    scene = variant(**{**FAST_SWING, "linkage": {"type": "four_bar", "c1": 0.8, "c2": 0.5, "c3": 0.7, "c4": 1.6,
+                                                 "branch": 1}, "initial": {"q": 0.2, "qdot": 60.0}})
+    with pytest.raises(NumericalFailure) as info:
+        simulate_mujoco(scene, MujocoSettings(timestep=1e-3))
+    assert info.value.reason == FailureReason.ENERGY_IMBALANCE
+
+
 def test_good_runs_are_inside_the_energy_bound_with_margin(seed_auto):
     """The seed at its automatic step: 3.2e-5 measured, ~100x inside the 3e-3 default."""
     assert seed_auto.diagnostics["energy_relative_residual"] < 1e-4
