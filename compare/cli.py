@@ -93,8 +93,9 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     result = simulate_mujoco(scene, settings)
     print(f"scene            {scene.name}  ({scene.source})")
     print(f"effects          {', '.join(scene.effects) or 'none'}")
-    print(f"settings         {settings.integrator}, timestep {settings.timestep:g} s, "
-          f"solref {tuple(settings.effective_solref)}, solimp {settings.solimp}, "
+    print(f"settings         {settings.integrator}, timestep {result.settings['timestep']:g} s"
+          f"{' (automatic)' if result.settings['timestep_automatic'] else ''}, "
+          f"solref {tuple(result.settings['solref'])}, solimp {settings.solimp}, "
           f"refsafe {'on' if settings.refsafe else 'off'}, diagexact {'on' if settings.diagexact else 'off'}, "
           f"iterations {settings.iterations}, tolerance {settings.tolerance:g}, "
           f"MuJoCo {result.settings['mujoco_version']}")

@@ -26,6 +26,7 @@ HARD = {"solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}  # solref (2·timestep, 1):
 MUJOCO_DEFAULT_SOFTNESS = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}
 SOFTNESS = {"hard": HARD, "mujoco-default": MUJOCO_DEFAULT_SOFTNESS}
 SWEEP_VIOLATION_LIMIT = 0.1  # m: a sweep measures soft constraints rather than rejecting them
+SWEEP_ENERGY_LIMIT = 1.0  # of the energy scale: likewise for first-order integrators' energy error
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,8 @@ def ladder(quick: bool = False, integrators=("euler", "implicit", "implicitfast"
         for softness, extra in SOFTNESS.items():
             for h in timesteps:
                 settings = MujocoSettings(integrator=integrator, timestep=h,
-                                          max_constraint_violation=SWEEP_VIOLATION_LIMIT, **extra)
+                                          max_constraint_violation=SWEEP_VIOLATION_LIMIT,
+                                          max_energy_residual=SWEEP_ENERGY_LIMIT, **extra)
                 configs.append(Config("mujoco", f"MuJoCo {integrator} ({softness})", h, mujoco=settings))
     return configs
 

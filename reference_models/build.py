@@ -29,6 +29,7 @@ from reduced.scene import BODY_NAMES, BodyInertia, Scene
 # Joint order in qpos/qvel: crank angle q, coupler relative angle φ1 − q, rocker angle φ2 + π.
 JOINTS = ("crank_hinge", "coupler_hinge", "rocker_hinge")
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
+LOOP_EQUALITY = "loop_closure_B"  # name of the connect equality that closes the loop
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     rocker.add_site(name="B_rocker", pos=[g.c3, 0.0, 0.0])
     bodies = {"crank": crank, "coupler": coupler, "rocker": rocker}
 
-    loop = spec.add_equality(name="loop_closure_B", type=mujoco.mjtEq.mjEQ_CONNECT,
+    loop = spec.add_equality(name=LOOP_EQUALITY, type=mujoco.mjtEq.mjEQ_CONNECT,
                              objtype=mujoco.mjtObj.mjOBJ_SITE, name1="B_coupler", name2="B_rocker")
     loop.solref = list(constraint.solref)
     loop.solimp = list(constraint.solimp)
@@ -125,6 +126,10 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                                   trntype=mujoco.mjtTrn.mjTRN_JOINT)
         motor.set_to_motor()
         motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        # The torque MuJoCo applied in each step, read at the step's start (the control holds
+        # over the step).
+        spec.add_sensor(name="crank_motor_force", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname="crank_motor")
 
     # Read-outs (no forces): constraint violation, crank acceleration, energy, damper rates.
     spec.add_sensor(name="B_coupler_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
@@ -198,5 +203,5 @@ def loop_angles(qpos: np.ndarray) -> np.ndarray:
     return np.column_stack([qpos[:, 0], qpos[:, 0] + qpos[:, 1], qpos[:, 2] - np.pi])
 
 
-__all__ = ["BODY_NAMES", "ConstraintSettings", "JOINTS", "ModelHandles", "build_spec",
+__all__ = ["BODY_NAMES", "ConstraintSettings", "JOINTS", "LOOP_EQUALITY", "ModelHandles", "build_spec",
            "compile_model", "initial_qpos_qvel"]

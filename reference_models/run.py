@@ -1,36 +1,72 @@
 """Run a scene's MuJoCo model with ``mujoco.rollout`` and return an :class:`EngineResult`.
 
 The step loop runs in C (``rollout``); Python only builds the control sequence before and
-reads sensors and states after. Diagnostics on every run: the largest loop-closure
-violation |B_coupler − B_rocker|, MuJoCo's warnings (bad qacc and the like, which make
-``mj_step`` reset the state), and an energy audit from MuJoCo's own body velocities and
-positions (sensors read inside the rollout).
+reads sensors and states after. Every run is gated on its own diagnostics: the initial
+state against MuJoCo's own loop-constraint residuals, MuJoCo's warnings (bad qacc and the
+like, which make ``mj_step`` reset the state), a non-finite state, a trajectory that stops
+short of the horizon, the largest loop-closure violation |B_coupler − B_rocker|, and an
+energy audit from MuJoCo's own body velocities and positions (sensors read inside the
+rollout). Without an explicit timestep the step is chosen from the scene and confirmed by
+step halving (:func:`simulate_mujoco`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
+from numbers import Integral, Real
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-from reduced.errors import NumericalFailure
+from reduced.errors import FailureReason, NumericalFailure
 from reduced.partition import JointTrajectory
 from reduced.result import EnergyAudit, EngineResult
 from reduced.scene import BODY_NAMES, Scene
 from reduced.trajectory import Trajectory
 
-from .build import (ConstraintSettings, ModelHandles, build_spec, compile_model, initial_qpos_qvel,
-                    loop_angles)
+from .build import (LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
+                    initial_qpos_qvel, loop_angles)
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+_INTEGRATOR_ENUM = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+                    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
+
+# Newton on this model's three loop rows converges in a handful of iterations; a cap of
+# 10 000 per step already means a solver that is not converging, and keeps the binding's
+# C int (iterations ≥ 2**31 raise a TypeError there) far away.
+MAX_ITERATIONS = 10_000
+# Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
+# of the horizon) that puts every load edge on the step grid; it is halved until a run at h
+# and one at h/2 differ by at most HALVING_FRACTION of the scene's tolerances, down to
+# TIMESTEP_FLOOR (the finest step any scene here needs is 2e-5 s, fast_crank's).
+TIMESTEP_CEILING = 1e-3  # s
+TIMESTEP_FLOOR = 1e-5  # s
+MIN_AUTO_STEPS = 100
+HALVING_FRACTION = 0.25
+# Work refused up front: the rollout keeps every state and sensor row (~60 float64 per step
+# here, held about three times over while the result is assembled).
+MAX_STEPS = 20_000_000
+MAX_MEMORY_BYTES = 2 * 1024 ** 3
+_COPIES = 3
+# Initial state: MuJoCo's loop residuals after mj_forward at the assembled (qpos, qvel), relative
+# to the largest link length (m) and to that length times the largest joint rate (m/s).
+# Assembly by trigonometry leaves ~1e-16 relative (measured on every scene here: ≤ 3.3e-16 m
+# with 1 m links, ≤ 1.6e-16 relative in velocity), so 1e-12 is round-off with 3000x margin.
+INITIAL_RESIDUAL_REL = 1e-12
+
+
+class OffGridEdgeWarning(UserWarning):
+    """A load edge does not fall on a MuJoCo step boundary."""
+
 
 # MuJoCo prints its warnings and appends them to MUJOCO_LOG.TXT in the working directory.
-# We keep the latest text instead and turn warnings into failures through data.warning.
+# During a run we keep the latest text instead and turn warnings into failures through
+# data.warning; the process's handler is restored afterwards.
 _last_mujoco_warning: list[str] = []
 
 
@@ -38,25 +74,54 @@ def _keep_warning(message: str) -> None:
     _last_mujoco_warning[:] = [message.strip()]
 
 
-mujoco.set_mju_user_warning(_keep_warning)
+@contextlib.contextmanager
+def _warnings_kept():
+    previous = mujoco.get_mju_user_warning()
+    _last_mujoco_warning.clear()
+    mujoco.set_mju_user_warning(_keep_warning)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
-class OffGridEdgeWarning(UserWarning):
-    """A load edge does not fall on a MuJoCo step boundary."""
+def _finite_number(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return float(value)
 
 
 @dataclass(frozen=True)
 class MujocoSettings:
     """Everything that changes MuJoCo's answer; recorded with every result.
 
-    The defaults are chosen for accuracy (README, "MuJoCo defaults"): RK4 at 1e-3 s;
-    a hard loop constraint, solimp (0.9999, 0.9999, 0.001, 0.5, 2) and solref with
-    time constant 2·timestep (the smallest that ``refsafe`` allows) and critical damping;
-    Newton solver tolerance 1e-12.
+    The defaults are chosen for accuracy (README, "MuJoCo defaults"): RK4; the timestep
+    chosen from the scene (``timestep=None``: load edges on the step grid, confirmed by step
+    halving, see :func:`simulate_mujoco`); a hard loop constraint, solimp (0.9999, 0.9999,
+    0.001, 0.5, 2) and solref with time constant 2·timestep (the smallest that ``refsafe``
+    allows) and critical damping; Newton solver tolerance 1e-12.
+
+    Parameters
+    ----------
+    integrator : one of ``INTEGRATORS``.
+    timestep : s, finite and positive; None chooses it from the scene.
+    solref : (time constant s, damping ratio), both finite and positive; None is
+        (2·timestep, 1). MuJoCo's direct form (negative stiffness and damping) is not supported.
+    solimp : (dmin, dmax, width, midpoint, power) with mjMINIMP ≤ dmin ≤ dmax ≤ mjMAXIMP
+        (1e-4, 0.9999: MuJoCo clamps the impedance to that range), width > 0 (m),
+        0 < midpoint < 1, power ≥ 1 (MuJoCo, "Solver parameters").
+    iterations : int in [1, MAX_ITERATIONS].
+    tolerance : solver tolerance, finite ≥ 0.
+    max_constraint_violation : m; a larger loop-closure gap fails the run (constraint drift).
+    max_energy_residual : largest |energy residual| / energy scale a run may have, else it
+        fails (energy imbalance). Default 3e-3: about 12x the worst run measured over every
+        scene in scenes/ and scenes/hard/ with its own [mujoco] settings (2.55e-4,
+        long_conservative at 0.5 ms over 45 s; next fast_crank 3.9e-5 at 2e-5 s; the seed at
+        its automatic 0.5 ms: 3.2e-5), so a balance 5 % off fails.
     """
 
     integrator: str = "rk4"
-    timestep: float = 1e-3
+    timestep: float | None = None
     solref: tuple[float, float] | None = None  # None: (2·timestep, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
     iterations: int = 100
@@ -64,27 +129,76 @@ class MujocoSettings:
     refsafe: bool = True
     diagexact: bool = False
     max_constraint_violation: float = 1e-3  # m; beyond it the run is reported as drifted
+    max_energy_residual: float = 3e-3  # of the energy scale; beyond it the run fails
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
-        if not self.timestep > 0.0:
-            raise ValueError("timestep must be positive")
+        if self.timestep is not None:
+            if _finite_number(self.timestep, "timestep") <= 0.0:
+                raise ValueError(f"timestep must be positive, got {self.timestep!r}")
+        if self.solref is not None:
+            if len(self.solref) != 2:
+                raise ValueError(f"solref must be two numbers (time constant, damping ratio), got {self.solref!r}")
+            for value, name in zip(self.solref, ("time constant", "damping ratio")):
+                if _finite_number(value, f"solref {name}") <= 0.0:
+                    raise ValueError(f"solref {name} must be positive (the direct negative form is not "
+                                     f"supported), got {value!r}")
+        if len(self.solimp) != 5:
+            raise ValueError(f"solimp must be five numbers (dmin, dmax, width, midpoint, power), got {self.solimp!r}")
+        dmin, dmax, width, midpoint, power = (_finite_number(v, f"solimp {n}") for v, n in
+                                              zip(self.solimp, ("dmin", "dmax", "width", "midpoint", "power")))
+        if not mujoco.mjMINIMP <= dmin <= dmax <= mujoco.mjMAXIMP:
+            raise ValueError(f"solimp dmin, dmax must satisfy {mujoco.mjMINIMP:g} ≤ dmin ≤ dmax ≤ "
+                             f"{mujoco.mjMAXIMP:g}, got {dmin!r}, {dmax!r}")
+        if not width > 0.0:
+            raise ValueError(f"solimp width must be positive, got {width!r}")
+        if not 0.0 < midpoint < 1.0:
+            raise ValueError(f"solimp midpoint must be in (0, 1), got {midpoint!r}")
+        if not power >= 1.0:
+            raise ValueError(f"solimp power must be at least 1, got {power!r}")
+        if (isinstance(self.iterations, bool) or not isinstance(self.iterations, Integral)
+                or not 1 <= self.iterations <= MAX_ITERATIONS):
+            raise ValueError(f"iterations must be a whole number in [1, {MAX_ITERATIONS}], got {self.iterations!r}")
+        if _finite_number(self.tolerance, "tolerance") < 0.0:
+            raise ValueError(f"tolerance must be at least 0, got {self.tolerance!r}")
+        for name in ("refsafe", "diagexact"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for name in ("max_constraint_violation", "max_energy_residual"):
+            if _finite_number(getattr(self, name), name) <= 0.0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
 
     @property
-    def effective_solref(self) -> tuple[float, float]:
-        return self.solref if self.solref is not None else (2.0 * self.timestep, 1.0)
+    def automatic(self) -> bool:
+        """True when the timestep is chosen from the scene."""
+        return self.timestep is None
+
+    @property
+    def effective_solref(self) -> tuple[float, float] | None:
+        """The loop's solref (s, 1); follows the timestep. None while the timestep is automatic
+        and solref is not given (a run records the one it used in ``result.settings``)."""
+        if self.solref is not None:
+            return tuple(self.solref)
+        return None if self.timestep is None else (2.0 * self.timestep, 1.0)
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        d["solref"] = list(self.effective_solref)
+        solref = self.effective_solref
+        d["solref"] = None if solref is None else list(solref)
         d["solimp"] = list(self.solimp)
         d["mujoco_version"] = mujoco.__version__
         return d
 
 
 def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> ModelHandles:
-    """Compile the scene's model with the settings' solver options."""
+    """Compile the scene's model with the settings' solver options.
+
+    An automatic timestep builds at the first candidate of :func:`grid_timestep` (the step
+    halving happens only in a run; :func:`export_mjcf` exports the step a run chooses).
+    """
+    if settings.timestep is None:
+        settings = replace(settings, timestep=grid_timestep(scene))
     spec = build_spec(scene, constraint=ConstraintSettings(settings.effective_solref, settings.solimp),
                       integrator=settings.integrator, timestep=settings.timestep,
                       iterations=settings.iterations, tolerance=settings.tolerance,
@@ -92,8 +206,34 @@ def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> Mo
     return compile_model(spec)
 
 
+def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
+    """The largest step h ≤ min(ceiling, horizon/MIN_AUTO_STEPS) that puts every load edge
+    inside the horizon on the step grid (edge/h integral to 1e-9), in s.
+
+    Raises ValueError naming ``simulation.horizon`` when that bound is below TIMESTEP_FLOOR.
+    Without such a step down to TIMESTEP_FLOOR (edges with no common divisor there), the bound
+    itself is returned and the edges stay off the grid (the run warns and the halving check
+    judges the consequence).
+    """
+    h_max = min(ceiling, scene.horizon / MIN_AUTO_STEPS)
+    if h_max < TIMESTEP_FLOOR:
+        raise ValueError(f"simulation.horizon {scene.horizon:g} s is too short for an automatic MuJoCo timestep "
+                         f"({MIN_AUTO_STEPS} steps of at least {TIMESTEP_FLOOR:g} s): lengthen it or set "
+                         "[mujoco] timestep (--timestep)")
+    edges = sorted(e for e in (scene.torque.edges if scene.torque is not None else ()) if 0.0 < e < scene.horizon)
+    if not edges:
+        return h_max
+    first = edges[0]
+    for n in range(math.ceil(first / h_max - 1e-9), math.floor(first / TIMESTEP_FLOOR) + 1):
+        h = first / n
+        if h <= h_max * (1 + 1e-12) and all(abs(e / h - round(e / h)) <= 1e-9 for e in edges):
+            return h
+    return h_max
+
+
 def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.ndarray, list[str]]:
-    """Motor control for each step (the torque on the step's open interval), shape (n_steps, nu).
+    """Motor control for each step, shape (n_steps, nu): T at the step's midpoint t_k + h/2,
+    so a load edge inside a step is applied at the nearest step boundary.
 
     Returns the controls and one warning per load edge that falls inside a step.
     """
@@ -111,26 +251,193 @@ def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.nd
     return ctrl, notes
 
 
+def _n_steps(scene: Scene, h: float) -> int:
+    return int(math.ceil(scene.horizon / h - 1e-9))
+
+
+def _check_work(scene: Scene, h: float, model: mujoco.MjModel | None = None) -> int:
+    """Refuse a run of less than one step, or of more steps or memory than the limits.
+
+    Returns the number of steps.
+    """
+    flag = "[mujoco] timestep (--timestep)"
+    if not h <= scene.horizon:
+        raise ValueError(f"MuJoCo timestep {h:g} s is longer than simulation.horizon {scene.horizon:g} s: "
+                         f"set {flag} at most the horizon")
+    n = _n_steps(scene, h)
+    if n > MAX_STEPS:
+        raise ValueError(f"MuJoCo run of {n:.3g} steps (simulation.horizon {scene.horizon:g} s / timestep {h:g} s) "
+                         f"exceeds the limit of {MAX_STEPS:.3g} steps: raise {flag} or shorten simulation.horizon")
+    if model is not None:
+        width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu
+        need = _COPIES * 8 * width * (n + 1)
+        if need > MAX_MEMORY_BYTES:
+            raise ValueError(f"MuJoCo run of {n:.3g} steps (simulation.horizon {scene.horizon:g} s / timestep {h:g} s) "
+                             f"needs about {need / 1024 ** 3:.3g} GiB, more than {MAX_MEMORY_BYTES / 1024 ** 3:g} GiB: "
+                             f"raise {flag} or shorten simulation.horizon")
+    return n
+
+
+def _within_limits(scene: Scene, h: float, model: mujoco.MjModel) -> bool:
+    try:
+        _check_work(scene, h, model)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_handles(handles: ModelHandles, settings: MujocoSettings) -> None:
+    """Refuse a compiled model whose options differ from the settings (ValueError naming both)."""
+    m = handles.model
+    eq = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, LOOP_EQUALITY)
+    if eq < 0:
+        raise ValueError(f"the model has no loop equality {LOOP_EQUALITY!r}")
+    pairs = [("timestep", float(m.opt.timestep), settings.timestep),
+             ("integrator", int(m.opt.integrator), int(_INTEGRATOR_ENUM[settings.integrator])),
+             ("iterations", int(m.opt.iterations), settings.iterations),
+             ("tolerance", float(m.opt.tolerance), settings.tolerance),
+             ("solref", tuple(float(v) for v in m.eq_solref[eq]), tuple(settings.effective_solref)),
+             ("solimp", tuple(float(v) for v in m.eq_solimp[eq]), tuple(float(v) for v in settings.solimp)),
+             ("refsafe", not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE, settings.refsafe),
+             ("diagexact", bool(m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_DIAGEXACT), settings.diagexact)]
+    for name, model_value, wanted in pairs:
+        same = (np.allclose(model_value, wanted, rtol=1e-12, atol=0.0) if not isinstance(wanted, bool)
+                else bool(model_value) == wanted)
+        if not same:
+            if name == "integrator":
+                model_value = next(k for k, v in _INTEGRATOR_ENUM.items() if int(v) == model_value)
+                wanted = settings.integrator
+            raise ValueError(f"the model's {name} {model_value} differs from the settings' {name} {wanted}: "
+                             "run it with settings that match the model (or build it from these settings)")
+
+
 def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
                     handles: ModelHandles | None = None) -> EngineResult:
     """Roll the scene's MuJoCo model out to the horizon.
 
+    With an explicit ``settings.timestep`` the run uses it as given. With ``timestep=None``
+    (the default) the step is chosen from the scene: the first candidate puts every load edge
+    on the step grid (:func:`grid_timestep`); runs at h and h/2 are compared on h's grid and h
+    is accepted when max |Δq|, max |Δω| and |Δ peak| are at most HALVING_FRACTION of the
+    scene's q_atol, omega_atol and peak tolerance (for RK4 the difference estimates the
+    coarser run's error, and the finer run is returned), else h is halved, down to
+    TIMESTEP_FLOOR or the work limits. ``result.settings`` records the step used,
+    ``timestep_automatic`` and the halving evidence (``timestep_check``: per check the coarse
+    step and the differences against their limits); ``result.diagnostics
+    ["automatic_timestep_cost"]`` the runs, steps and rollout wall time the choice took. With ``handles`` (e.g. from an exported MJCF file)
+    an automatic timestep is the model's own, and every other option must match the model.
+
     Raises
     ------
+    ValueError
+        Handles whose options differ from the settings; a timestep longer than the horizon;
+        a run beyond MAX_STEPS steps or MAX_MEMORY_BYTES of rollout memory.
     NumericalFailure
-        On MuJoCo warnings (bad qacc etc.), a non-finite state, or a loop-constraint
-        violation above ``settings.max_constraint_violation``.
+        INITIAL_STATE: MuJoCo's loop residuals at the start exceed round-off; UNSTABLE or
+        NON_FINITE: MuJoCo warnings or a non-finite state; INCOMPLETE: the trajectory stops
+        short of the horizon by more than half a step; CONSTRAINT_DRIFT: a loop-closure gap
+        above ``settings.max_constraint_violation``; ENERGY_IMBALANCE: an energy residual
+        above ``settings.max_energy_residual`` of the energy scale; INACCURATE: no automatic
+        step down to TIMESTEP_FLOOR meets the tolerance.
     """
-    handles = handles or build_model(scene, settings)
+    with _warnings_kept():
+        if handles is not None:
+            if settings.timestep is None:
+                settings = replace(settings, timestep=float(handles.model.opt.timestep))
+            _check_handles(handles, settings)
+            return _run(scene, settings, handles)
+        if settings.timestep is not None:
+            _check_work(scene, settings.timestep)
+            return _run(scene, settings, build_model(scene, settings))
+        return _automatic(scene, settings)
+
+
+def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
+    tol = scene.tolerances
+    h = grid_timestep(scene)
+    evidence: list[dict] = []
+    shape = build_model(scene, replace(settings, timestep=h)).model  # for the memory estimate
+    _check_work(scene, h, shape)
+    coarse = _attempt(scene, replace(settings, timestep=h))
+    runs = [coarse]
+    while True:
+        if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
+            if isinstance(coarse, NumericalFailure):  # even the finest step fails: say how
+                raise NumericalFailure(coarse.reason, f"{coarse} (at the finest automatic MuJoCo timestep {h:g} s)",
+                                       coarse.time)
+            last = evidence[-1] if evidence else {"timestep": h}
+            raise NumericalFailure(FailureReason.INACCURATE,
+                                   f"no automatic MuJoCo timestep down to {h:g} s meets the scene's tolerances "
+                                   f"(last check, h = {last['timestep']:g} s against h/2: "
+                                   f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
+        fine = _attempt(scene, replace(settings, timestep=h / 2))
+        runs.append(fine)
+        record = {"timestep": h}
+        if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
+            failed = coarse if isinstance(coarse, NumericalFailure) else fine
+            record["failure"] = f"{failed.reason.value}: {failed}"
+            accepted = False
+        else:
+            dq, dw, dpeak = _halving_difference(coarse, fine)
+            peak_tol = tol.peak_omega_rtol * abs(fine.peak.omega) + tol.peak_omega_atol
+            record.update(max_dq=dq, max_domega=dw, dpeak=dpeak,
+                          limits=[HALVING_FRACTION * tol.q_atol, HALVING_FRACTION * tol.omega_atol,
+                                  HALVING_FRACTION * peak_tol])
+            accepted = (dq <= HALVING_FRACTION * tol.q_atol and dw <= HALVING_FRACTION * tol.omega_atol
+                        and dpeak <= HALVING_FRACTION * peak_tol)
+        record["accepted"] = accepted
+        evidence.append(record)
+        if accepted:
+            done = [r for r in runs if isinstance(r, EngineResult)]
+            fine.settings.update(timestep_automatic=True, timestep_check=evidence)
+            fine.diagnostics["automatic_timestep_cost"] = {
+                "runs": len(runs), "steps": sum(r.n_steps for r in done), "wall_s": sum(r.wall_s for r in done)}
+            return fine
+        coarse, h = fine, h / 2
+
+
+def _describe(record: dict) -> str:
+    if "failure" in record:
+        return record["failure"]
+    if "max_dq" not in record:
+        return "not run"
+    return (f"max |Δq| {record['max_dq']:.3g} rad, max |Δω| {record['max_domega']:.3g} rad/s, "
+            f"|Δ peak| {record['dpeak']:.3g} rad/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
+
+
+def _attempt(scene: Scene, settings: MujocoSettings) -> EngineResult | NumericalFailure:
+    """One run at an explicit step; a numerical failure is returned for the halving check."""
+    handles = build_model(scene, settings)
+    _check_work(scene, settings.timestep, handles.model)
+    try:
+        return _run(scene, settings, handles)
+    except NumericalFailure as failure:
+        if failure.reason == FailureReason.INITIAL_STATE:
+            raise
+        return failure
+
+
+def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float, float, float]:
+    """max |Δq|, max |Δω| on the coarse grid (every second fine state) and |Δ peak ω|."""
+    qc, wc = coarse.diagnostics["q"], coarse.diagnostics["omega"]
+    qf, wf = fine.diagnostics["q"][::2], fine.diagnostics["omega"][::2]
+    n = min(len(qc), len(qf))
+    return (float(np.max(np.abs(qc[:n] - qf[:n]))), float(np.max(np.abs(wc[:n] - wf[:n]))),
+            abs(coarse.peak.omega - fine.peak.omega))
+
+
+def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult:
+    """One rollout at the settings' explicit timestep, gated on its diagnostics."""
     model, data = handles.model, mujoco.MjData(handles.model)
     h = settings.timestep
-    n_steps = int(math.ceil(scene.horizon / h - 1e-9))
+    n_steps = _check_work(scene, h, model)
     ctrl, edge_notes = control_sequence(scene, h, n_steps)
     for note in edge_notes:
-        warnings.warn(note, OffGridEdgeWarning, stacklevel=2)
+        warnings.warn(note, OffGridEdgeWarning, stacklevel=3)
 
     qpos0, qvel0 = initial_qpos_qvel(scene)
     data.qpos[:], data.qvel[:] = qpos0, qvel0
+    initial = check_initial_state(scene, model, data)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state0, spec)
@@ -145,6 +452,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
     # rollout's state k is after step k+1; sensordata k was computed at the start of step k+1.
     states = np.vstack([state0, states])
     times = states[:, 0]
+    _check_complete(scene, times, h)
     qpos = states[:, 1:1 + model.nq]
     qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
     final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
@@ -159,18 +467,62 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
     max_violation = float(np.max(violation))
     if not math.isfinite(max_violation) or max_violation > settings.max_constraint_violation:
         k = int(np.argmax(np.nan_to_num(violation, nan=np.inf)))
-        raise NumericalFailure("constraint-drift", f"loop-closure violation {violation[k]:.3g} m at "
+        raise NumericalFailure(FailureReason.CONSTRAINT_DRIFT, f"loop-closure violation {violation[k]:.3g} m at "
                                f"t = {times[k]:.6g} s exceeds {settings.max_constraint_violation:g} m",
                                float(times[k]))
 
     audit = _energy_audit(model, handles, times, states, sensors, ctrl)
+    residual = np.abs(audit.residual)
+    if not audit.max_abs_residual <= settings.max_energy_residual * audit.scale:
+        k = int(np.argmax(np.nan_to_num(residual, nan=np.inf)))
+        raise NumericalFailure(FailureReason.ENERGY_IMBALANCE,
+                               f"MuJoCo's energy balance is off by {residual[k]:.3g} J at t = {times[k]:.6g} s, "
+                               f"{audit.relative_residual:.3g} of the energy scale {audit.scale:.6g} J, above "
+                               f"max_energy_residual {settings.max_energy_residual:g}", float(times[k]))
+    motor = sensors[:, sl["crank_motor_force"]][:, 0] if "crank_motor_force" in sl else np.zeros(len(times))
+    recorded = settings.as_dict()
+    recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False)
     return EngineResult(
         engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
-        settings=settings.as_dict(),
+        settings=recorded,
         diagnostics={"max_constraint_violation": max_violation, "joints": _joint_trajectory(scene, times, qpos, qvel),
-                     "constraint_violation": violation, "times": times,
+                     "constraint_violation": violation, "times": times, "q": qpos[:, 0].copy(),
+                     "omega": qvel[:, 0].copy(), "motor_torque": motor, "initial_residuals": initial,
+                     "energy_relative_residual": audit.relative_residual,
                      "edge_warnings": edge_notes, "effects": list(scene.effects)})
+
+
+def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData) -> dict:
+    """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
+
+    After mj_forward, the loop equality's rows of ``efc_pos`` are the gap B_coupler − B_rocker
+    (m) and of ``efc_vel`` = J q̇ its rate (m/s). Bounds: INITIAL_RESIDUAL_REL × the largest link
+    length, and × that length × the largest |q̇| (rad/s).
+    """
+    mujoco.mj_forward(model, data)
+    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, LOOP_EQUALITY)
+    rows = np.flatnonzero((data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (data.efc_id == eq))
+    position = float(np.linalg.norm(data.efc_pos[rows]))
+    velocity = float(np.linalg.norm(data.efc_vel[rows]))
+    g = scene.linkage
+    length = max(g.c1, g.c2, g.c3, g.c4)
+    rate = float(np.max(np.abs(data.qvel))) if model.nv else 0.0
+    limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * length * rate)
+    if len(rows) != 3 or not position <= limits[0] or not velocity <= limits[1]:
+        raise NumericalFailure(FailureReason.INITIAL_STATE,
+                               f"MuJoCo's loop residuals at the initial state are {position:.3g} m (position, "
+                               f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s): "
+                               "the assembled (q0, q̇0) does not close the loop", 0.0)
+    return {"position": position, "velocity": velocity, "limits": limits}
+
+
+def _check_complete(scene: Scene, times: np.ndarray, h: float) -> None:
+    """INCOMPLETE unless the trajectory reaches the horizon within half a step."""
+    if not times[-1] >= scene.horizon - 0.5 * h:
+        raise NumericalFailure(FailureReason.INCOMPLETE,
+                               f"MuJoCo's trajectory ends at t = {times[-1]:.6g} s, short of simulation.horizon "
+                               f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
 
 
 def _joint_trajectory(scene: Scene, times, qpos, qvel) -> JointTrajectory:
@@ -265,10 +617,13 @@ def export_mjcf(scene: Scene, path, settings: MujocoSettings = MujocoSettings())
     """Write the scene's model as human-readable MJCF that MuJoCo loads on its own.
 
     The file is written to a temporary name and renamed, so a failure leaves nothing behind.
-    Returns the XML text.
+    An automatic timestep is resolved by a run first (:func:`simulate_mujoco`), so the file
+    reproduces the default run. Returns the XML text.
     """
     from pathlib import Path
 
+    if settings.timestep is None:  # the step a run would choose, so the file reproduces it
+        settings = replace(settings, timestep=simulate_mujoco(scene, settings).settings["timestep"])
     xml = build_model(scene, settings).spec.to_xml()
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")

@@ -125,7 +125,8 @@ def test_unstable_setting_is_reported_not_returned(seed):
 def test_soft_default_constraint_drift_is_detected(seed):
     """MuJoCo's own default softness lets the loop open by millimetres on this scene."""
     with pytest.raises(NumericalFailure) as info:
-        simulate_mujoco(seed, MujocoSettings(solref=(0.02, 1.0), solimp=(0.9, 0.95, 0.001, 0.5, 2.0)))
+        simulate_mujoco(seed, MujocoSettings(timestep=1e-3, solref=(0.02, 1.0),
+                                             solimp=(0.9, 0.95, 0.001, 0.5, 2.0)))
     assert info.value.reason == "constraint-drift"
 
 
