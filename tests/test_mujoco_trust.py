@@ -215,12 +215,14 @@ def test_warning_handler_is_the_processes_own_after_a_run(seed):
     ({}, MujocoSettings(timestep=1e-12), r"limit of .* steps.*--timestep"),
     ({}, MujocoSettings(timestep=1e308), "longer than simulation.horizon"),
     ({}, MujocoSettings(timestep=10.0), "longer than simulation.horizon"),
-    ({"simulation": {"horizon": 1e-12}}, MujocoSettings(timestep=1e-3), "simulation.horizon"),
-    ({"simulation": {"horizon": 1e-12}}, MujocoSettings(), "simulation.horizon"),
-    ({"simulation": {"horizon": 1e6}}, MujocoSettings(), "simulation.horizon"),
+    ({"horizon": 1e-12}, MujocoSettings(timestep=1e-3), "simulation.horizon"),
+    ({"horizon": 1e-12}, MujocoSettings(), "simulation.horizon"),
+    ({"horizon": 1e6}, MujocoSettings(), "simulation.horizon"),
 ])
 def test_unbounded_or_meaningless_work_is_refused_up_front(changes, settings, words):
-    scene = variant(**changes)
+    """The engine refuses on its own, also for a Scene built in code past the scene file's
+    ranges (a horizon of 1e-12 s or 1e6 s is refused by the parser before this)."""
+    scene = dataclasses.replace(variant(), **changes)
     with pytest.raises(ValueError, match=words):
         simulate_mujoco(scene, settings)
 
