@@ -195,7 +195,7 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
     domega = other.qdot[keep] - v_ref
 
     (p_ref, t_ref), (p_other, t_other) = compared_peaks(reference, other, start, end)
-    fast = np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))
+    fast = (np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))) & (v_ref != 0.0)
     q_fast = other.q[keep][fast]
     t_star = _time_at_angle(reference, q_fast, times[fast])
     q_star, v_star, _ = reference.interpolate(t_star)
