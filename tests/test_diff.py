@@ -211,3 +211,14 @@ def test_swing_peak_is_one_event_in_both_engines_and_the_table_subtracts():
     when = rows["time of peak (s)"]
     assert Decimal(when[5]) - Decimal(when[4]) == Decimal(when[6])
     assert abs(float(when[6])) == pytest.approx(d.t_peak_abs, rel=0.01)
+
+
+def test_trajectories_that_never_overlap_are_a_numerical_failure():
+    from reduced import NumericalFailure
+    from reduced.errors import FailureReason
+
+    early = parabola()
+    late = Trajectory(T + 3.0, early.q, early.qdot, early.qddot)
+    with pytest.raises(NumericalFailure) as caught:
+        compare_trajectories(early, late)
+    assert caught.value.reason == FailureReason.INCOMPLETE and "nothing to compare" in str(caught.value)
