@@ -112,13 +112,16 @@ def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndar
 def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima of |q̇| on [start, end]: their times (s) and values (rad/s, ≥ 0).
 
-    Candidates are samples where |q̇| stops rising (the ends of the span included), each
-    refined between samples by the trajectory's own peak finder on its neighbouring
-    intervals. Only candidates within twice ``PEAK_TIE_BAND`` of the largest sample are
+    Candidates are samples where |q̇| stops rising, each refined between samples by the
+    trajectory's own peak finder on its neighbouring intervals, and each end of the span
+    (interpolated) where |q̇| does not rise into the span. Only candidates within twice ``PEAK_TIE_BAND`` of the largest sample are
     refined: the others cannot be the compared peak.
     """
     t = trajectory.t
     inside = np.flatnonzero((t >= start - 1e-12) & (t <= end + 1e-12))
+    if inside.size == 0:  # the span lies between two samples: its ends are the candidates
+        ends = np.array([start, end])
+        return ends, np.abs(trajectory.interpolate(np.clip(ends, t[0], t[-1]))[1])
     inside = inside[np.r_[np.diff(t[inside]) > 0.0, True]]  # one sample per repeated time
     w = np.abs(trajectory.qdot[inside])
     rising_in = np.r_[True, w[1:] > w[:-1]]
@@ -136,6 +139,15 @@ def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[
         p = Trajectory(t[a:b], trajectory.q[a:b], trajectory.qdot[a:b], trajectory.qddot[a:b]).peak_angular_velocity()
         times.append(p.time)
         values.append(abs(p.omega))
+    # An end of the span (possibly between samples) is a maximum when |q̇| does not rise
+    # into the span from it: sign(q̇)·q̈ ≤ 0 at the start, ≥ 0 at the end.
+    ends = np.array([start, end])
+    _, v_end, a_end = trajectory.interpolate(np.clip(ends, t[0], t[-1]))
+    rising = np.sign(v_end) * a_end
+    for time, v, r, inward in zip(ends, v_end, rising, (-1.0, 1.0)):
+        if inward * r >= 0.0:
+            times.append(float(time))
+            values.append(float(abs(v)))
     times_arr, unique = np.unique(np.asarray(times), return_index=True)
     return times_arr, np.asarray(values)[unique]
 

@@ -222,3 +222,15 @@ def test_trajectories_that_never_overlap_are_a_numerical_failure():
     with pytest.raises(NumericalFailure) as caught:
         compare_trajectories(early, late)
     assert caught.value.reason == FailureReason.INCOMPLETE and "nothing to compare" in str(caught.value)
+
+
+def test_a_span_shorter_than_the_reference_spacing_is_still_compared():
+    """The other run stops after 0.4 ms, before the reference's second 1 ms sample: the
+    comparison says so instead of failing to find a peak."""
+    ref = parabola()
+    t = np.linspace(0.0, 4e-4, 5)
+    short = Trajectory(t, 10 * t**2, 20 * t, np.full_like(t, 20.0))
+    diff = compare_trajectories(ref, short)
+    assert diff.span_end == pytest.approx(4e-4) and not diff.covers_horizon
+    assert diff.peak_omega_reference == pytest.approx(8e-3) and diff.peak_omega_abs < 1e-12
+    assert not gate(diff, LOOSE).passed
