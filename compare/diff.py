@@ -114,8 +114,8 @@ def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[
 
     Candidates are samples where |q̇| stops rising, each refined between samples by the
     trajectory's own peak finder on its neighbouring intervals, and each end of the span
-    (interpolated) where |q̇| does not rise into the span. Only candidates within twice ``PEAK_TIE_BAND`` of the largest sample are
-    refined: the others cannot be the compared peak.
+    (interpolated) where |q̇| does not rise into the span. Only candidates within twice
+    ``PEAK_TIE_BAND`` of the largest sample are kept: the others cannot be the compared peak.
     """
     t = trajectory.t
     inside = np.flatnonzero((t >= start - 1e-12) & (t <= end + 1e-12))
@@ -131,7 +131,7 @@ def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[
     lo, hi = int(inside[0]), int(inside[-1])
     times, values = [], []
     for k in candidates:
-        a, b = max(k - 3, lo), min(k + 4, hi + 1)
+        a, b = max(k - 1, lo), min(k + 2, hi + 1)  # the two intervals beside sample k
         if b - a < 2 or not np.any(np.diff(t[a:b]) > 0.0):
             times.append(float(t[k]))
             values.append(float(abs(trajectory.qdot[k])))
