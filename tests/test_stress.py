@@ -2,8 +2,9 @@
 
 Each case is run once per session, on first use (real runs of both engines); the results
 keep the engine runs, so no test simulates a case again. Each test reads one claim off
-them; none is skipped or marked as expected to fail. The two long cases (stiff_damper
-probes 12 MuJoCo configurations; long_conservative turns 200 times) are marked slow.
+them; none is skipped or marked as expected to fail. The three long cases (stiff_damper
+probes 12 MuJoCo configurations; long_conservative turns 200 times; fast_crank takes 60 000
+MuJoCo steps) are marked slow.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from reference_models import MujocoSettings, build_model, simulate_mujoco
 
 CASES = [c.name for c in CATALOGUE]
 BY_NAME = {c.name: c for c in CATALOGUE}
-SLOW_CASES = {"stiff_damper", "long_conservative"}
+SLOW_CASES = {"stiff_damper", "long_conservative", "fast_crank"}
 
 
 def case_param(name: str):
@@ -180,6 +181,7 @@ def test_gravity_only_where_declared_and_energy_conserved(results):
 FAST_CRANK_PEAK = 998.089345  # rad/s, to ~2e-9 relative
 
 
+@pytest.mark.slow
 def test_fast_crank_peak_is_the_high_accuracy_value(results):
     """The catalogue's reference (rtol 1e-11, 1 ms samples) is 1.2e-8 below the value above
     (its 1 ms interpolant is the limit); bound 3e-8. MuJoCo at 2e-5 s within the scene's
