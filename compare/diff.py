@@ -1,9 +1,25 @@
 """Differences between two trajectories of the input link, and the agreement gate.
 
-Common time grid: the compared trajectory's own sample times. The reference is evaluated
-there through its quintic Hermite interpolant (O(h⁶) in q, O(h⁵) in q̇ at its ≤ 1 ms
-sample spacing: below 1e-10 rad on the seed scene), so the compared engine's samples
+Span: the comparison covers the times both trajectories reach, [max of the starts, min of
+the ends], and records it (``span_start``, ``span_end``) beside the span it was asked to
+cover (``horizon``: the scene's, or by default the reference's end). The gate fails when a
+trajectory stops short of the horizon, so a truncated run is never judged on its overlap.
+
+Common time grid: the compared trajectory's own sample times inside the span. The reference
+is evaluated there through its quintic Hermite interpolant (O(h⁶) in q, O(h⁵) in q̇ at its
+≤ 1 ms sample spacing: below 1e-10 rad on the seed scene), so the compared engine's samples
 are used as they are and the interpolation adds less error than either engine makes.
+
+The compared peak: the largest |ω| (rad/s, a magnitude) of the reference within the span,
+and the other engine's local maximum of |ω| that is the same event, namely among its local
+maxima within ``PEAK_TIE_BAND`` (relative) of its own largest |ω|, the one nearest in time
+to the reference's. A conservative swing has several extremes of |ω| equal to round-off,
+of both signs; matching by time keeps both engines on the same one, so the peak-time
+difference is the difference of the two reported times.
+
+Relative peak figure: |Δ peak| / max(|peak_ref|, ``peak_floor``), with ``peak_floor`` =
+peak_omega_atol / peak_omega_rtol of the tolerances (1e-5 rad/s by default): a motion that
+barely moves is judged on its absolute difference, never on a ratio of round-off.
 
 Over configuration: for each compared sample (q_k, q̇_k) the reference time t* with
 q_ref(t*) = q_k is found by Newton's method on the interpolant (from t_k), and
@@ -19,16 +35,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from reduced.errors import FailureReason, NumericalFailure
 from reduced.scene import Tolerances
 from reduced.trajectory import Trajectory
 
 SLOW_FRACTION = 0.01
 ANGLE_MATCH = 1e-9  # rad per rad: Newton's residual below which q_ref(t*) = q_k is accepted
+# Relative band within which two extremes of |ω| count as tied: 10x the default peak
+# tolerance (1e-4), so a real tie is a tie in both engines whenever they agree.
+PEAK_TIE_BAND = 1e-3
+DEFAULT_PEAK_FLOOR = Tolerances().peak_omega_atol / Tolerances().peak_omega_rtol  # rad/s
+SPAN_SLACK = 1e-9  # relative: a trajectory ending this close to the horizon covers it
 
 
 @dataclass(frozen=True)
 class Difference:
-    """How far ``other`` is from ``reference`` (units: rad, rad/s, s)."""
+    """How far ``other`` is from ``reference`` (units: rad, rad/s, s).
+
+    ``peak_omega_reference``/``peak_omega_other`` are the compared peaks of |ω| (rad/s) at
+    ``t_peak_reference``/``t_peak_other`` (s); ``peak_omega_abs`` and ``t_peak_abs`` are
+    their differences, ``peak_omega_rel`` = peak_omega_abs / max(peak_omega_reference,
+    ``peak_floor``). ``span_start``/``span_end`` (s) is the time span compared;
+    ``horizon`` (s) the end it had to reach; ``reference_end``/``other_end`` where each
+    trajectory stops.
+    """
 
     peak_omega_abs: float
     peak_omega_rel: float
@@ -43,12 +73,29 @@ class Difference:
     domega: np.ndarray = field(repr=False)
     q_samples: np.ndarray = field(repr=False)  # q_k of the compared samples used for Δω(q)
     domega_vs_q: np.ndarray = field(repr=False)
+    peak_omega_reference: float
+    peak_omega_other: float
+    t_peak_reference: float
+    t_peak_other: float
+    peak_floor: float
+    span_start: float
+    span_end: float
+    horizon: float
+    reference_end: float
+    other_end: float
+
+    @property
+    def covers_horizon(self) -> bool:
+        """Whether the compared span reaches the horizon (to ``SPAN_SLACK`` relative)."""
+        return self.span_end >= self.horizon - SPAN_SLACK * max(abs(self.horizon), 1.0)
 
     def figures(self) -> dict[str, float]:
         """The scalar figures, for reports."""
         return {k: getattr(self, k) for k in (
             "peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
-            "omega_max_abs", "omega_rms", "omega_vs_q_max_abs")}
+            "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "peak_omega_reference",
+            "peak_omega_other", "t_peak_reference", "t_peak_other", "span_start", "span_end",
+            "horizon")}
 
 
 def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndarray,
@@ -62,20 +109,105 @@ def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndar
     return t
 
 
-def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference:
-    """Differences of ``other`` from ``reference`` on ``other``'s sample times."""
+def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+    """Local maxima of |q̇| on [start, end]: their times (s) and values (rad/s, ≥ 0).
+
+    Candidates are samples where |q̇| stops rising, each refined between samples by the
+    trajectory's own peak finder on its neighbouring intervals, and each end of the span
+    (interpolated) where |q̇| does not rise into the span. Only candidates within twice
+    ``PEAK_TIE_BAND`` of the largest sample are kept: the others cannot be the compared peak.
+    """
+    t = trajectory.t
+    inside = np.flatnonzero((t >= start - 1e-12) & (t <= end + 1e-12))
+    if inside.size == 0:  # the span lies between two samples: its ends are the candidates
+        ends = np.array([start, end])
+        return ends, np.abs(trajectory.interpolate(np.clip(ends, t[0], t[-1]))[1])
+    inside = inside[np.r_[np.diff(t[inside]) > 0.0, True]]  # one sample per repeated time
+    w = np.abs(trajectory.qdot[inside])
+    rising_in = np.r_[True, w[1:] > w[:-1]]
+    falling_out = np.r_[w[:-1] >= w[1:], True]
+    top = float(np.max(w))
+    candidates = inside[rising_in & falling_out & (w >= (1.0 - 2.0 * PEAK_TIE_BAND) * top)]
+    lo, hi = int(inside[0]), int(inside[-1])
+    times, values = [], []
+    for k in candidates:
+        a, b = max(k - 1, lo), min(k + 2, hi + 1)  # the two intervals beside sample k
+        if b - a < 2 or not np.any(np.diff(t[a:b]) > 0.0):
+            times.append(float(t[k]))
+            values.append(float(abs(trajectory.qdot[k])))
+            continue
+        p = Trajectory(t[a:b], trajectory.q[a:b], trajectory.qdot[a:b], trajectory.qddot[a:b]).peak_angular_velocity()
+        times.append(p.time)
+        values.append(abs(p.omega))
+    # An end of the span (possibly between samples) is a maximum when |q̇| does not rise
+    # into the span from it: sign(q̇)·q̈ ≤ 0 at the start, ≥ 0 at the end.
+    ends = np.array([start, end])
+    _, v_end, a_end = trajectory.interpolate(np.clip(ends, t[0], t[-1]))
+    rising = np.sign(v_end) * a_end
+    for time, v, r, inward in zip(ends, v_end, rising, (-1.0, 1.0)):
+        if inward * r >= 0.0:
+            times.append(float(time))
+            values.append(float(abs(v)))
+    times_arr, unique = np.unique(np.asarray(times), return_index=True)
+    return times_arr, np.asarray(values)[unique]
+
+
+def compared_peaks(reference: Trajectory, other: Trajectory, start: float, end: float
+                   ) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The compared peak of |ω| of each trajectory on [start, end], as ((|ω|, t), (|ω|, t)).
+
+    The reference's is its largest |ω|; the other's is, among its local maxima within
+    ``PEAK_TIE_BAND`` of its own largest, the one nearest in time to the reference's.
+    """
+    t_ref, w_ref = abs_omega_maxima(reference, start, end)
+    k = int(np.argmax(w_ref))
+    t_oth, w_oth = abs_omega_maxima(other, start, end)
+    tied = np.flatnonzero(w_oth >= (1.0 - PEAK_TIE_BAND) * np.max(w_oth))
+    j = int(tied[np.argmin(np.abs(t_oth[tied] - t_ref[k]))])
+    return (float(w_ref[k]), float(t_ref[k])), (float(w_oth[j]), float(t_oth[j]))
+
+
+def peak_floor_of(tolerances: Tolerances) -> float:
+    """peak_omega_atol / peak_omega_rtol (rad/s): below this |peak| a relative figure is
+    taken of the floor instead, so that rel ≤ rtol implies the gate's absolute test."""
+    if tolerances.peak_omega_rtol <= 0.0:
+        return np.inf
+    return tolerances.peak_omega_atol / tolerances.peak_omega_rtol
+
+
+def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: float | None = None,
+                         peak_floor: float = DEFAULT_PEAK_FLOOR) -> Difference:
+    """Differences of ``other`` from ``reference`` on ``other``'s sample times.
+
+    Parameters
+    ----------
+    horizon : the time (s) both must reach; default the reference's end. Recorded in the
+        result; :func:`gate` fails when the compared span stops short of it.
+    peak_floor : the smallest |peak| (rad/s) a relative peak difference is taken of:
+        ``peak_omega_rel`` = |Δ peak| / max(|peak_ref|, peak_floor). Pass
+        peak_omega_atol / peak_omega_rtol of the tolerances in use.
+
+    Raises
+    ------
+    NumericalFailure
+        (INCOMPLETE) when the two trajectories share no sample time at all.
+    """
+    if not peak_floor >= 0.0:
+        raise ValueError(f"peak_floor must be non-negative, got {peak_floor}")
+    start = max(reference.t[0], other.t[0])
     end = min(reference.t[-1], other.t[-1])
-    keep = other.t <= end + 1e-12
+    keep = (other.t >= start - 1e-12) & (other.t <= end + 1e-12)
+    if not np.any(keep) or end < start:
+        raise NumericalFailure(FailureReason.INCOMPLETE, (
+            f"nothing to compare: the reference spans [{reference.t[0]:g}, {reference.t[-1]:g}] s, "
+            f"the other trajectory [{other.t[0]:g}, {other.t[-1]:g}] s"))
     times = other.t[keep]
-    q_ref, v_ref, _ = reference.interpolate(np.minimum(times, reference.t[-1]))
+    q_ref, v_ref, _ = reference.interpolate(np.clip(times, reference.t[0], reference.t[-1]))
     dq = other.q[keep] - q_ref
     domega = other.qdot[keep] - v_ref
 
-    # The reference's largest |ω|, and the other's extremum on the same side (a swinging
-    # motion has two near-equal extremes of opposite sign).
-    p_ref = reference.peak_angular_velocity()
-    p_other = other.peak_angular_velocity(sign=1 if p_ref.omega >= 0 else -1)
-    fast = np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))
+    (p_ref, t_ref), (p_other, t_other) = compared_peaks(reference, other, start, end)
+    fast = (np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))) & (v_ref != 0.0)
     q_fast = other.q[keep][fast]
     t_star = _time_at_angle(reference, q_fast, times[fast])
     q_star, v_star, _ = reference.interpolate(t_star)
@@ -85,14 +217,20 @@ def compare_trajectories(reference: Trajectory, other: Trajectory) -> Difference
     def rms(a: np.ndarray) -> float:
         return float(np.sqrt(np.mean(a * a))) if a.size else 0.0
 
+    peak_abs = abs(p_other - p_ref)
+    scale = max(p_ref, peak_floor)
     return Difference(
-        peak_omega_abs=abs(p_other.omega - p_ref.omega),
-        peak_omega_rel=abs(p_other.omega - p_ref.omega) / max(abs(p_ref.omega), 1e-300),
-        t_peak_abs=abs(p_other.time - p_ref.time),
+        peak_omega_abs=peak_abs,
+        peak_omega_rel=(peak_abs / scale if scale > 0.0 else np.inf) if peak_abs else 0.0,
+        t_peak_abs=abs(t_other - t_ref),
         q_max_abs=float(np.max(np.abs(dq))), q_rms=rms(dq),
         omega_max_abs=float(np.max(np.abs(domega))), omega_rms=rms(domega),
         omega_vs_q_max_abs=float(np.max(np.abs(domega_q))) if domega_q.size else 0.0,
-        times=times, dq=dq, domega=domega, q_samples=q_fast[matched], domega_vs_q=domega_q)
+        times=times, dq=dq, domega=domega, q_samples=q_fast[matched], domega_vs_q=domega_q,
+        peak_omega_reference=p_ref, peak_omega_other=p_other, t_peak_reference=t_ref,
+        t_peak_other=t_other, peak_floor=peak_floor, span_start=float(start), span_end=float(end),
+        horizon=float(reference.t[-1] if horizon is None else horizon),
+        reference_end=float(reference.t[-1]), other_end=float(other.t[-1]))
 
 
 @dataclass(frozen=True)
@@ -132,15 +270,32 @@ class GateResult:
 
 
 def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None = None) -> GateResult:
-    """Check the peak-ω relative difference, max |Δq|, max |Δq̇| (and, when the tolerances
-    set it, max |Δω| at equal q) against tolerances, and that no sample is on the other branch."""
-    checks = [("peak_omega_rel", diff.peak_omega_rel, tolerances.peak_omega_rtol, ""),
-              ("q_max_abs", diff.q_max_abs, tolerances.q_atol, " rad"),
+    """Judge a comparison against tolerances.
+
+    It fails when the compared span stops short of ``diff.horizon``; when the peaks of |ω|
+    differ by more than peak_omega_rtol·|peak_ref| + peak_omega_atol (rad/s); when max |Δq|
+    exceeds q_atol (rad) or max |Δq̇| exceeds omega_atol (rad/s); when the tolerances set
+    omega_vs_q_atol and max |Δω| at equal q exceeds it (rad/s); and when a sample sits on
+    the other assembly branch.
+    """
+    failures = []
+    if not diff.covers_horizon:
+        short = [f"{name} stops at t = {end:.6g} s" for name, end in
+                 (("the reference", diff.reference_end), ("the compared run", diff.other_end))
+                 if end < diff.span_end + 1e-12]
+        failures.append(f"compared span [{diff.span_start:.6g}, {diff.span_end:.6g}] s stops short of the "
+                        f"horizon {diff.horizon:.6g} s: {' and '.join(short)}")
+    bound = tolerances.peak_omega_rtol * diff.peak_omega_reference + tolerances.peak_omega_atol
+    if not diff.peak_omega_abs <= bound:
+        failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} rad/s > tolerance peak_omega_rtol·|peak| + "
+                        f"peak_omega_atol = {bound:.3e} rad/s (peak_omega_rel = {diff.peak_omega_rel:.3e} "
+                        f"> tolerance {tolerances.peak_omega_rtol:.3e})")
+    checks = [("q_max_abs", diff.q_max_abs, tolerances.q_atol, " rad"),
               ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s")]
     if tolerances.omega_vs_q_atol is not None:
         checks.append(("omega_vs_q_max_abs", diff.omega_vs_q_max_abs, tolerances.omega_vs_q_atol, " rad/s"))
-    failures = [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
-                for name, value, tol, unit in checks if not value <= tol]
+    failures += [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
+                 for name, value, tol, unit in checks if not value <= tol]
     if branches is not None and branches.mismatches:
         failures.append(f"assembly branch differs at {branches.mismatches} sample(s), first at "
                         f"t = {branches.first_time:.6g} s: the loop constraint jumped to the other branch")

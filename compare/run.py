@@ -8,7 +8,8 @@ from reduced import EngineResult, ReducedSettings, Scene, simulate
 from reduced.scene import Tolerances
 from reference_models import MujocoSettings, simulate_mujoco
 
-from .diff import BranchCheck, Difference, GateResult, compare_branches, compare_trajectories, gate
+from .diff import (BranchCheck, Difference, GateResult, compare_branches, compare_trajectories, gate,
+                   peak_floor_of)
 
 
 @dataclass(frozen=True)
@@ -29,18 +30,26 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     """Run both engines on ``scene`` and compare MuJoCo against the reduced reference.
 
     Settings default to the scene's [reduced] and [mujoco] tables over the defaults;
-    ``tolerances`` to the scene's own table.
+    ``tolerances`` to the scene's own table. The comparison covers the scene's horizon:
+    if either run stops short of it, the gate fails and names the span compared.
 
     Raises
     ------
     NumericalFailure
         If either engine fails.
     """
+    tolerances = tolerances or scene.tolerances
     reference = simulate(scene, reduced or ReducedSettings(**scene.reduced))
     other = simulate_mujoco(scene, mujoco or MujocoSettings(**scene.mujoco))
-    diff = compare_trajectories(reference.trajectory, other.trajectory)
+    return judge(scene, reference, other, tolerances)
+
+
+def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances: Tolerances) -> Comparison:
+    """Compare two finished runs of ``scene`` over its whole horizon and gate them."""
+    diff = compare_trajectories(reference.trajectory, other.trajectory, horizon=scene.horizon,
+                                peak_floor=peak_floor_of(tolerances))
     branches = compare_branches(reference.diagnostics["joints"], other.diagnostics["joints"])
-    verdict = gate(diff, tolerances or scene.tolerances, branches)
+    verdict = gate(diff, tolerances, branches)
     return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, branches=branches,
                       gate=verdict)
 

@@ -22,7 +22,10 @@ from reduced.loads import PulseTorque
 from reduced.scene import hard_scene_dir
 from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
-from .diff import compare_branches, compare_trajectories, gate
+from reduced.result import EngineResult
+
+from .diff import compare_trajectories
+from .run import Comparison, judge
 
 PROBE_TIMESTEPS = (1e-3, 1e-4, 1e-5)
 
@@ -69,6 +72,9 @@ class CaseResult:
     problems: tuple[str, ...]  # why the case did not pass (empty when it did)
     figures: dict = field(default_factory=dict)  # peak_omega_rel, q_max_abs, violation, drift, walls
     notes: tuple[str, ...] = ()  # what the case showed, in words
+    reduced: EngineResult | None = field(default=None, repr=False)  # the runs, kept for the tests
+    mujoco: EngineResult | None = field(default=None, repr=False)
+    comparison: Comparison | None = field(default=None, repr=False)  # when both engines finished
 
 
 def _run(engine_call):
@@ -103,14 +109,15 @@ def run_case(case: Case) -> CaseResult:
     if mujoco is None:
         problems.append(f"MuJoCo failed: {m_message}")
 
+    comparison = None
     if reduced is not None and mujoco is not None:
-        diff = compare_trajectories(reduced.trajectory, mujoco.trajectory)
-        branches = compare_branches(reduced.diagnostics["joints"], mujoco.diagnostics["joints"])
-        verdict = gate(diff, scene.tolerances, branches)
-        problems += [f"gate: {f}" for f in verdict.failures]
-        figures.update(peak_omega_rel=diff.peak_omega_rel, q_max_abs=diff.q_max_abs,
+        comparison = judge(scene, reduced, mujoco, scene.tolerances)
+        diff, branches = comparison.diff, comparison.branches
+        problems += [f"gate: {f}" for f in comparison.gate.failures]
+        figures.update(peak_omega_rel=diff.peak_omega_rel, peak_omega_abs=diff.peak_omega_abs,
+                       t_peak_abs=diff.t_peak_abs, q_max_abs=diff.q_max_abs,
                        omega_max_abs=diff.omega_max_abs, omega_vs_q_max_abs=diff.omega_vs_q_max_abs,
-                       branch_mismatches=branches.mismatches)
+                       span_end=diff.span_end, branch_mismatches=branches.mismatches)
     if reduced is not None:
         figures.update(reduced_wall_s=reduced.wall_s, reduced_energy_residual=reduced.audit.relative_residual,
                        switches=len(reduced.diagnostics["switches"]))
@@ -133,7 +140,8 @@ def run_case(case: Case) -> CaseResult:
     if case.off_grid_edge and mujoco is not None and reduced is not None:
         problems += _quantify_off_grid_edge(scene, mujoco_settings, figures, notes)
 
-    return CaseResult(case.name, not problems, r_status, m_status, tuple(problems), figures, tuple(notes))
+    return CaseResult(case.name, not problems, r_status, m_status, tuple(problems), figures, tuple(notes),
+                      reduced=reduced, mujoco=mujoco, comparison=comparison)
 
 
 def _check_switches(reduced, notes: list) -> list[str]:
@@ -206,7 +214,7 @@ def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dic
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             other = simulate_mujoco(s, settings)
-        return compare_trajectories(reference.trajectory, other.trajectory), caught
+        return compare_trajectories(reference.trajectory, other.trajectory, horizon=s.horizon), caught
 
     off, caught = error(scene)
     on, _ = error(on_grid)

@@ -21,7 +21,8 @@ from helpers import SEED_SCENE
 REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "wall_s", "settings", "energy_residual"}
 REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
                     "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "branch_mismatches",
-                    "branch_mismatch_first_time"}
+                    "branch_mismatch_first_time", "peak_omega_reference", "peak_omega_other",
+                    "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon"}
 
 
 def xval(*args: str, cwd=None) -> subprocess.CompletedProcess:
