@@ -409,6 +409,7 @@ def test_energy_imbalance_beyond_the_bound_is_a_failure(monkeypatch):
     assert simulate(scene, ReducedSettings(check_error=False)).diagnostics["energy_bound"] == 1e-12
 
 
+@pytest.mark.slow  # ~9 s: 100 000 samples of the fine run and their energy audit
 def test_reference_peak_is_not_limited_by_its_interpolant():
     """Crossed-branch seed (branch −1). With samples only at the solver's steps and the 1 ms
     grid the peak was off by 1.1e-7 rad/s; with 4 samples per step it agrees with an
