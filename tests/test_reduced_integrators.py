@@ -392,6 +392,7 @@ def test_initial_speed_beyond_the_limit_is_refused_at_once():
         with pytest.raises(NumericalFailure) as info:
             solve(constant_piece(lambda t, q, v: 0.0), (0.0, 1.0), 0.0, 1e308)
         assert info.value.reason == "unstable" and info.value.time == 0.0
+        assert "initial speed" in str(info.value)
 
 
 def test_energy_imbalance_beyond_the_bound_is_a_failure(monkeypatch):
