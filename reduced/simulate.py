@@ -33,10 +33,12 @@ DEFAULT_STEP = 5e-4  # s, RKN4
 DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples
 RTOL_RANGE = (100 * np.finfo(float).eps, 0.1)  # scipy raises rtol below 100 ε to it, with a warning
 
-# Work refused up front. Measured on the seed scene: a sample of an RKN4 run costs ~100 µs
-# (integration, joint angles, energy audit) and an adaptive sample ~100 µs as well; 1e6
-# samples (≈ 2 min, a few hundred MB of Python floats) is the most a run may hold.
-MAX_SAMPLES = 1_000_000
+# Work refused up front. Measured: a sample costs ~100 µs (RKN4 on the seed: integration,
+# joint angles, energy audit; DOP853 on long_conservative: 142 000 samples in 14 s) and
+# ~0.7 kB of memory (long_conservative peaks at 180 MB, 77 MB of it the imports). 5e5
+# samples (≈ 1 min, ≈ 0.4 GB) is the most a run may hold. An adaptive run's samples beyond
+# its grid (4 per solver step) are bounded by integrators.MAX_EVALUATIONS.
+MAX_SAMPLES = 500_000
 
 # Energy balance: relative residual allowed, as a multiple of the run's rtol. Adaptive runs
 # of every shipped scene at their own rtol measure 8–140 × rtol (seed 12, dead_centre 70,

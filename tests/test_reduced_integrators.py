@@ -365,7 +365,7 @@ def test_settings_the_method_uses_raise_no_warning():
     (dict(method="rkn4"), {"simulation": {"horizon": 1e6}}, "--step"),
     (dict(sample_interval=1e-9), {}, "sample_interval")])
 def test_unbounded_work_is_refused_up_front(settings, changes, key):
-    """A run needing more than MAX_SAMPLES (1e6) samples is a ValueError before any work."""
+    """A run needing more than MAX_SAMPLES (5e5) samples is a ValueError before any work."""
     scene = variant(**changes)
     with pytest.raises(ValueError, match=key.replace(".", r"\.")):
         simulate(scene, ReducedSettings(**settings))
