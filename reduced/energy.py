@@ -1,9 +1,12 @@
 """Energy audit of a reduced-model run.
 
 Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the torque ∫ T q̇ dt and
-the damper dissipation ∫ Σ b K_D² ẋ_i² dt by 4-point Gauss-Legendre quadrature on each
+the damper dissipation ∫ Σ b K_D² ẋ_i² dt by 3-point Gauss-Legendre quadrature on each
 sample interval of the chart's quintic Hermite interpolant (exact for polynomials of
-degree 7), so the quadrature adds far less than the integrator's own error. A run that
+degree 5). The adaptive runs sample every quarter solver step, so the quadrature adds far
+less than the integrator's own error: on every shipped scene the relative residual with
+3 points equals the 4-point one to the digits printed (2 points differ, 4.4e-11 against
+1.3e-11 on the seed); the nodes are the audit's main cost on long runs. A run that
 switched coordinates is audited chart by chart, each in its own coordinate.
 """
 
@@ -14,16 +17,26 @@ import numpy as np
 from .dynamics import MechanismModel
 from .result import EnergyAudit
 
-_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(4)
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(3)
+
+
+def _fields(chart, values: np.ndarray, *names: str) -> tuple[np.ndarray, ...]:
+    """Coefficient fields at each coordinate value, without keeping the coefficient objects
+    (a long run has ~10⁶ of them)."""
+    out = np.empty((len(names), len(values)))
+    for k, value in enumerate(values.tolist()):
+        c = chart.coefficients(value)
+        for j, name in enumerate(names):
+            out[j, k] = getattr(c, name)
+    return tuple(out)
 
 
 def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, ...]:
     """Kinetic, potential, torque work and dissipation increments of one chart's samples."""
     t, x, v = trajectory.t, trajectory.q, trajectory.qdot
     chart.reset()
-    coeffs = [chart.coefficients(float(xi)) for xi in x]
-    kinetic = 0.5 * np.array([c.generalized_inertia for c in coeffs]) * v * v
-    potential = np.array([c.potential for c in coeffs])
+    inertia, potential = _fields(chart, x, "generalized_inertia", "potential")
+    kinetic = 0.5 * inertia * v * v
 
     h = np.diff(t)
     live = h > 0
@@ -31,14 +44,12 @@ def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, 
     nodes = (mid[:, None] + 0.5 * h[:, None] * _NODES[None, :])[live].ravel()
     xn, vn, _ = trajectory.interpolate(nodes)
     chart.reset()
-    node_coeffs = [chart.coefficients(float(xi)) for xi in xn]
-    input_rate = np.array([c.input_rate for c in node_coeffs])  # dq/dx_i
-    damping = np.array([c.damping for c in node_coeffs])
+    input_rate, damping = _fields(chart, xn, "input_rate", "damping")  # dq/dx_i, Σ b K_D²
     torque = model.torque.sample(nodes) if model.torque is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
     torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)
-    torque_step[live] = np.sum(w * (torque * input_rate * vn).reshape(-1, 4), axis=1)
-    damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, 4), axis=1)
+    torque_step[live] = np.sum(w * (torque * input_rate * vn).reshape(-1, len(_NODES)), axis=1)
+    damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, len(_NODES)), axis=1)
     return t, kinetic, potential, torque_step, damper_step
 
 

@@ -37,3 +37,7 @@ class NumericalFailure(RuntimeError):
         super().__init__(message)
         self.reason = FailureReason(reason)
         self.time = time
+
+
+class IgnoredSettingWarning(UserWarning):
+    """A setting was given that the chosen method does not use (it has no effect)."""

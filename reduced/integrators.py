@@ -26,6 +26,14 @@ StopCondition = Callable[[float, float, float], float]  # stop where it crosses 
 # RKN4 applied to y'' = λ_1,2-mode of the linearized problem has the stability function of
 # classical RK4, R(z) = 1 + z + z²/2 + z³/6 + z⁴/24; a decaying mode needs |R(hλ)| ≤ 1.
 STABILITY_CHECK_EVERY = 50  # steps between linearized stability checks
+# Growth per step beyond the exact one that is refused. Round-off in the differenced
+# Jacobian puts an undamped mode at Re(hλ) ~ 1e-10 on the seed; RK4 just outside its
+# imaginary interval (|hω| = 2√2 (1 + 1e-4)) already amplifies by 1 + 2e-4.
+STABILITY_MARGIN = 1e-6
+# The adaptive solver's work is bounded: the most expensive shipped scene (45 s of
+# long_conservative) needs 3e5 evaluations; 1e6 (about 10–20 s at the measured 10–20 µs per
+# evaluation) means the step has collapsed (an extreme speed, damper or inertia).
+MAX_EVALUATIONS = 1_000_000
 
 
 def rk4_amplification(z: complex) -> float:
@@ -34,11 +42,15 @@ def rk4_amplification(z: complex) -> float:
 
 
 def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: float) -> int:
-    """Raise if a decaying mode of the linearization is outside the stability region.
+    """Raise if a mode of the linearization grows faster in the method than in the problem.
 
     The Jacobian of (q, q̇) ↦ (q̇, f) is [[0, 1], [f_q, f_q̇]], estimated by one-sided
-    differences (two extra f evaluations). Growing modes (Re λ > 0) are physics, not
-    numerics, and are not judged here.
+    differences (two extra f evaluations). A mode λ grows by |e^{hλ}| per step in the exact
+    solution and by |R(hλ)| in the method; the step is refused when
+    |R(hλ)| > max(1, |e^{hλ}|) + STABILITY_MARGIN. This judges damped modes (exact decay,
+    numerical growth), undamped ones (Re hλ = ±round-off from the differences: RK4 keeps
+    |R(iy)| ≤ 1 only for |y| ≤ 2√2) and leaves genuinely growing modes (Re λ > 0, e.g. an
+    inverted pendulum) alone, since R(z) ≤ e^z there while the step resolves them.
     """
     f0 = f(t, q, v)
     dq = 1e-7 * max(1.0, abs(q))
@@ -47,11 +59,14 @@ def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: floa
     f_v = (f(t, q, v + dv) - f0) / dv
     for lam in np.roots([1.0, -f_v, -f_q]):  # λ² − f_q̇ λ − f_q = 0
         z = complex(h * lam)
-        if z.real < 0 and rk4_amplification(z) > 1.0:
+        amplification = rk4_amplification(z)
+        exact = math.exp(min(z.real, 700.0))
+        if amplification > max(1.0, exact) + STABILITY_MARGIN:
             raise NumericalFailure(
                 "unstable", f"the step h = {h:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
-                f"(h·λ = {z.real:.3g}{z.imag:+.3g}j, |R| = {rk4_amplification(z):.3g} > 1): the problem is "
-                "too stiff for this explicit step; use a smaller step or the implicit Radau method", t)
+                f"(h·λ = {z.real:.3g}{z.imag:+.3g}j, |R| = {amplification:.3g} > 1): the problem is "
+                "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
+                "the implicit Radau method", t)
     return 3
 
 
@@ -137,6 +152,14 @@ def _check_state(t: float, q: float, v: float, speed_limit: float) -> None:
                                f"t = {t:.6g} s: the integration is unstable at this step", t)
 
 
+def _check_initial_state(t: float, q: float, v: float, speed_limit: float) -> None:
+    if not (math.isfinite(q) and math.isfinite(v)):
+        raise NumericalFailure("non-finite", f"the initial state is NaN or infinite (q = {q}, q̇ = {v})", t)
+    if abs(v) > speed_limit:
+        raise NumericalFailure("unstable", f"the initial speed |q̇| = {abs(v):.3g} rad/s exceeds the "
+                               f"integrators' limit of {speed_limit:.3g} rad/s: no step can resolve it", t)
+
+
 def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
                      step: float, *, breakpoints: tuple[float, ...] = (), tableau: RKNTableau = RKN4,
                      speed_limit: float = 1e6, stop: StopCondition | None = None,
@@ -166,6 +189,7 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
     c, abar, a, bbar, b = tableau.c, tableau.abar, tableau.a, tableau.bbar, tableau.b
     if c[0] != 0.0:
         raise ValueError("the driver reuses f at the end of a step as the next first stage (c[0] = 0)")
+    _check_initial_state(t_span[0], q0, qdot0, speed_limit)
     ns = len(c)
     ts, qs, vs, accs = [], [], [], []
     q, v = float(q0), float(qdot0)
@@ -204,15 +228,64 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
     return Solution(traj, tableau.name, n_steps, n_eval, {"method": "rkn4", "step": step})
 
 
+def _hermite(t0, t1, y0, y1, a0, a1, times):
+    """q and q̇ of the quintic Hermite interpolant through (q, q̇, q̈) at t0 and t1 (arrays)."""
+    h = t1 - t0
+    s = (times - t0) / h
+    c0, c1, c2 = y0[0], h * y0[1], 0.5 * h * h * a0
+    r0 = y1[0] - c0 - c1 - c2
+    r1 = h * y1[1] - c1 - 2.0 * c2
+    r2 = h * h * a1 - 2.0 * c2
+    c3 = 10.0 * r0 - 4.0 * r1 + 0.5 * r2
+    c4 = -15.0 * r0 + 7.0 * r1 - r2
+    c5 = 6.0 * r0 - 3.0 * r1 + 0.5 * r2
+    q = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+    v = (c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
+    return q, v
+
+
+# Samples per accepted step of the adaptive solver. Quintic Hermite interpolation on
+# spacing δ errs by O(δ⁵) in q̇; the solver's steps are short where the motion is fast, so
+# a fixed fraction of each step puts the samples where they are needed. Measured on the
+# crossed-branch seed scene (DOP853, rtol 1e-12, with the 1 ms grid), peak ω against 64
+# samples per step: off by 1.1e-7 rad/s with the steps alone, 1.9e-9 with 2 per step,
+# 1.6e-10 with 4, 3.2e-10 with 8, 3.1e-10 with 16: from 4 on the difference is the dense
+# output's own error (~1e-8 rad/s in q̇ at the speed spikes), not the interpolant's.
+SAMPLES_PER_STEP = 4
+
+
+def dense_samples(sol, f, start: float, end: float, sample_interval: float,
+                  per_step: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample times, states (2, n) and q̈ on [start, end] from a solver's dense output.
+
+    The times are the solver's steps, each cut into ``per_step`` equal parts, and a grid
+    no coarser than ``sample_interval`` (s). The states at the solver's steps are its own
+    (not interpolated); q̈ = f at every sample.
+    """
+    per_step = SAMPLES_PER_STEP if per_step is None else per_step
+    grid = np.linspace(start, end, max(2, math.ceil((end - start) / sample_interval) + 1))
+    t0, t1 = sol.t[:-1], sol.t[1:]
+    inner = (t0[:, None] + (t1 - t0)[:, None] * (np.arange(1, per_step) / per_step)[None, :]).ravel()
+    times = np.union1d(np.union1d(sol.t, grid), inner)
+    times = times[(times >= start) & (times <= end)]
+    states = sol.sol(times)
+    at_step = np.searchsorted(times, sol.t)
+    states[:, at_step] = sol.y
+    acc = np.array([f(t, qq, vv) for t, qq, vv in zip(times.tolist(), states[0].tolist(), states[1].tolist())])
+    return times, states, acc
+
+
 def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
                    *, rtol: float = 1e-12, atol: float | None = None, method: str = "DOP853",
                    breakpoints: tuple[float, ...] = (), sample_interval: float = 1e-3,
-                   speed_limit: float = 1e6, stop: StopCondition | None = None) -> Solution:
+                   speed_limit: float = 1e6, stop: StopCondition | None = None,
+                   max_evaluations: int = MAX_EVALUATIONS) -> Solution:
     """Integrate with scipy's ``solve_ivp``, restarted at every breakpoint.
 
     The trajectory holds every accepted step plus points of the solver's own dense
-    output no further apart than ``sample_interval`` (s), so that the quintic Hermite
-    interpolant between samples adds less error than the solver makes.
+    output no further apart than ``sample_interval`` (s) and ``SAMPLES_PER_STEP`` per
+    accepted step (:func:`dense_samples`), so that the quintic Hermite interpolant between
+    samples is not the limit of the trajectory's accuracy.
 
     Parameters
     ----------
@@ -222,21 +295,37 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         Any ``solve_ivp`` method; DOP853 by default, Radau for stiff problems.
     stop : callable, optional
         g(t, q, q̇); a terminal event: the run ends where g crosses zero downwards.
+    max_evaluations : int
+        Evaluations of f (all pieces) after which the step is declared collapsed.
 
     Raises
     ------
     NumericalFailure
-        When the solver fails, or the state becomes non-finite or runs away.
+        When the solver fails or exceeds ``max_evaluations`` (STEP_SIZE), the state or f
+        becomes non-finite, or the state runs away.
     """
     atol = rtol if atol is None else atol
+    _check_initial_state(t_span[0], q0, qdot0, speed_limit)
     ts, qs, vs, accs = [], [], [], []
     y = np.array([q0, qdot0], dtype=float)
     n_steps = n_eval = 0
+    budget = [max_evaluations]
     for start, end in pieces(*t_span, breakpoints):
         f = rhs_on_piece(start, end)
 
         def first_order(t, state, f=f):
-            return np.array([state[1], f(t, state[0], state[1])])
+            budget[0] -= 1
+            if budget[0] < 0:
+                raise NumericalFailure(
+                    "step-size", f"{method} used more than {max_evaluations} evaluations of the equation "
+                    f"and reached only t = {t:.6g} s of [{t_span[0]:.6g}, {t_span[1]:.6g}] s: its step "
+                    "has collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
+            accel = f(t, state[0], state[1])
+            if not math.isfinite(accel):
+                raise NumericalFailure("non-finite", f"the acceleration became NaN or infinite at "
+                                       f"t = {t:.6g} s (q = {state[0]:.6g} rad, q̇ = {state[1]:.6g} rad/s)",
+                                       float(t))
+            return np.array([state[1], accel])
 
         events = None
         if stop is not None:
@@ -245,8 +334,9 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
             event.terminal, event.direction = True, -1
             events = [event]
         try:
-            sol = solve_ivp(first_order, (start, end), y, method=method, rtol=rtol, atol=atol,
-                            dense_output=True, events=events)
+            with np.errstate(over="ignore", invalid="ignore"):
+                sol = solve_ivp(first_order, (start, end), y, method=method, rtol=rtol, atol=atol,
+                                dense_output=True, events=events)
         except NumericalFailure:
             raise
         except (ArithmeticError, ValueError) as exc:
@@ -258,16 +348,19 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         n_steps += len(sol.t) - 1
         n_eval += sol.nfev
         end = float(sol.t[-1])  # earlier than the piece's end if the stop event fired
-        grid = np.linspace(start, end, max(2, math.ceil((end - start) / sample_interval) + 1))
-        times = np.union1d(sol.t, grid)
-        states = sol.sol(times)
-        states[:, 0], states[:, -1] = sol.y[:, 0], sol.y[:, -1]
-        for t, (qq, vv) in zip(times, states.T):
-            _check_state(t, qq, vv, speed_limit)
-            ts.append(t), qs.append(qq), vs.append(vv), accs.append(f(t, qq, vv))
+        times, states, acc = dense_samples(sol, f, start, end, sample_interval)
+        if not (np.all(np.isfinite(states)) and np.all(np.isfinite(acc))):
+            bad = int(np.argmin(np.all(np.isfinite(states), axis=0) & np.isfinite(acc)))
+            raise NumericalFailure("non-finite", f"the state became NaN or infinite at t = {times[bad]:.6g} s",
+                                   float(times[bad]))
+        fast = np.flatnonzero(np.abs(states[1]) > speed_limit)
+        if fast.size:
+            _check_state(float(times[fast[0]]), float(states[0, fast[0]]), float(states[1, fast[0]]),
+                         speed_limit)
+        ts.append(times), qs.append(states[0]), vs.append(states[1]), accs.append(acc)
         y = sol.y[:, -1]
         if sol.status == 1:  # the stop event ended the run
             break
-    traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
+    traj = Trajectory(np.concatenate(ts), np.concatenate(qs), np.concatenate(vs), np.concatenate(accs))
     return Solution(traj, method, n_steps, n_eval,
                     {"method": method.lower(), "rtol": rtol, "atol": atol}, stopped=sol.status == 1)

@@ -2,48 +2,124 @@
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import asdict, dataclass
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
 
 from .dynamics import MechanismModel
 from .energy import energy_audit
+from .errors import IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, solve_adaptive, solve_fixed_step
 from .partition import PartitionedSolution, integrate_partitioned
 from .result import EngineResult
 from .scene import Scene
+from .trajectory import Trajectory
 
 METHODS = ("dop853", "rkn4", "radau")
+ADAPTIVE = ("dop853", "radau")
+
+# Default accuracy requests. The adaptive methods are the reference: 1e-12 (scipy's floor is
+# 100 ε ≈ 2.2e-14). RKN4's error is estimated by step doubling and judged against
+# rtol × the run's largest |q̇| (and |q|, each at least 1). RKN4's default, 1e-5, is a tenth
+# of the tightest shipped comparison tolerance (peak_omega_rtol 1e-4), so an RKN4 reference
+# that passes cannot use up a gate. Its default step is the largest halving of 1 ms that
+# meets it on the seed scene: the estimate there is 2.4e-5 at 1 ms (failing) and 5.7e-7 at
+# 0.5 ms (the true largest errors: 8.6e-6 and 7.2e-8 of the peak speed).
+DEFAULT_RTOL = {"dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
+DEFAULT_STEP = 5e-4  # s, RKN4
+DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples
+RTOL_RANGE = (100 * np.finfo(float).eps, 0.1)  # scipy raises rtol below 100 ε to it, with a warning
+
+# Work refused up front. Measured: a sample costs ~100 µs (RKN4 on the seed: integration,
+# joint angles, energy audit; DOP853 on long_conservative: 142 000 samples in 14 s) and
+# ~0.7 kB of memory (long_conservative peaks at 180 MB, 77 MB of it the imports). 5e5
+# samples (≈ 1 min, ≈ 0.4 GB) is the most a run may hold. An adaptive run's samples beyond
+# its grid (4 per solver step) are bounded by integrators.MAX_EVALUATIONS.
+MAX_SAMPLES = 500_000
+
+# Energy balance: relative residual allowed, as a multiple of the run's rtol. Adaptive runs
+# of every shipped scene at their own rtol measure 8–140 × rtol (seed 12, dead_centre 70,
+# fast_crank 104, long_conservative 141, stiff_damper 29); 1000 × rtol leaves 7× above the
+# worst. RKN4 on the seed (0.25–4 ms, over 0.7 s and 2 s): residual ≤ 1.2 × its own error
+# estimate, so a run that meets rtol balances to ~1.2 rtol; 10 × rtol leaves 8×.
+ENERGY_FACTOR = {"dop853": 1000.0, "radau": 1000.0, "rkn4": 10.0}
 
 
 @dataclass(frozen=True)
 class ReducedSettings:
     """How to integrate Eksergian's equation.
 
+    A field left at None takes its method's default; a field given that the method does not
+    use raises an :class:`IgnoredSettingWarning` (``given`` lists the fields that were set).
+
     method : "dop853" (adaptive reference), "rkn4" (the seed's fixed-step method,
         corrected) or "radau" (implicit, for stiff dampers).
-    rtol : relative (and absolute) tolerance of the adaptive methods.
-    step : largest step (s) of the fixed-step method.
-    sample_interval : largest spacing (s) of saved samples for the adaptive methods.
+    rtol : the accuracy requested. Adaptive methods: their relative (and absolute) tolerance
+        (default 1e-12). RKN4: the largest step-doubling error estimate allowed, relative to
+        the run's largest |q| (rad) and |q̇| (rad/s), each at least 1 (default 1e-5).
+        Within [100 ε, 0.1].
+    step : RKN4's largest step (s); default 5e-4.
+    sample_interval : largest spacing (s) of the adaptive methods' samples; default 1e-3.
+    check_error : raise when the run's error estimate or energy balance is beyond its
+        bound (True); False records them only (for cost studies of coarse settings).
     """
 
     method: str = "dop853"
-    rtol: float = 1e-12
-    step: float = 1e-3
-    sample_interval: float = 1e-3
+    rtol: float | None = None
+    step: float | None = None
+    sample_interval: float | None = None
+    check_error: bool = True
+    given: frozenset = field(default=frozenset(), init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        for name in ("rtol", "step", "sample_interval"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} must be positive")
+            raise ValueError(f"ReducedSettings.method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if not isinstance(self.check_error, bool):
+            raise ValueError(f"ReducedSettings.check_error must be True or False, got {self.check_error!r}")
+        given = frozenset(n for n in ("rtol", "step", "sample_interval") if getattr(self, n) is not None)
+        for name in given:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise ValueError(f"ReducedSettings.{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"ReducedSettings.{name} must be positive and finite, got {value!r}")
+        if "rtol" in given and not RTOL_RANGE[0] <= self.rtol <= RTOL_RANGE[1]:
+            raise ValueError(f"ReducedSettings.rtol must be within [{RTOL_RANGE[0]:.3g}, {RTOL_RANGE[1]:g}] "
+                             f"(below 100 machine epsilons no method can honour it), got {self.rtol!r}")
+        ignored = [n for n in sorted(given)
+                   if (n == "step" and self.method in ADAPTIVE) or (n == "sample_interval" and self.method == "rkn4")]
+        if ignored:
+            warnings.warn(f"{', '.join(ignored)} has no effect with method {self.method!r}"
+                          + (" (RKN4 samples every step)" if self.method == "rkn4" else
+                             " (an adaptive method chooses its own steps; use rtol)"),
+                          IgnoredSettingWarning, stacklevel=3)
+        object.__setattr__(self, "given", given)
+        object.__setattr__(self, "rtol", float(self.rtol) if "rtol" in given else DEFAULT_RTOL[self.method])
+        if self.method == "rkn4":
+            object.__setattr__(self, "step", float(self.step) if "step" in given else DEFAULT_STEP)
+            object.__setattr__(self, "sample_interval", None)
+        else:
+            object.__setattr__(self, "step", None)
+            object.__setattr__(self, "sample_interval", float(self.sample_interval) if "sample_interval" in given
+                               else DEFAULT_SAMPLE_INTERVAL)
+
+    def as_dict(self) -> dict:
+        """The resolved settings (what the run used), for reports."""
+        return {"method": self.method, "rtol": self.rtol, "step": self.step,
+                "sample_interval": self.sample_interval, "check_error": self.check_error}
 
 
-def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...]):
-    """The integrator the settings name, as a function of one chart's equation."""
+def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...], step: float | None = None):
+    """The integrator the settings name, as a function of one chart's equation
+    (``step`` overrides the RKN4 step: the error estimate's run at twice the step)."""
     if settings.method == "rkn4":
+        h = settings.step if step is None else step
+
         def run(rhs_on_piece, span, x0, v0, stop):
-            return solve_fixed_step(rhs_on_piece, span, x0, v0, settings.step, breakpoints=breakpoints,
+            return solve_fixed_step(rhs_on_piece, span, x0, v0, h, breakpoints=breakpoints,
                                     tableau=RKN4, stop=stop)
     else:
         method = "DOP853" if settings.method == "dop853" else "Radau"
@@ -55,34 +131,169 @@ def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...]):
     return run
 
 
-def integrate(model: MechanismModel, settings: ReducedSettings) -> PartitionedSolution:
+def integrate(model: MechanismModel, settings: ReducedSettings, step: float | None = None) -> PartitionedSolution:
     """Run the integrator the settings name, switching coordinates at dead centres."""
-    return integrate_partitioned(model, chart_integrator(settings, model.load_edges))
+    return integrate_partitioned(model, chart_integrator(settings, model.load_edges, step))
+
+
+def check_work(scene: Scene, settings: ReducedSettings) -> None:
+    """Refuse, before any work, a run that would hold more than ``MAX_SAMPLES`` samples.
+
+    Raises
+    ------
+    ValueError
+        Naming the setting or scene key to change.
+    """
+    horizon, edges = scene.horizon, len(scene.torque.edges) if scene.torque is not None else 0
+    if settings.method == "rkn4":
+        samples = horizon / settings.step + 2 * edges
+        if samples > MAX_SAMPLES:
+            raise ValueError(
+                f"an RKN4 run of {horizon:g} s at step {settings.step:g} s needs {samples:.3g} steps "
+                f"(the limit is {MAX_SAMPLES:.0e}): increase `step` (`--step`, `[reduced] step`) to at least "
+                f"{horizon / MAX_SAMPLES:.3g} s or shorten `simulation.horizon`")
+    else:
+        samples = horizon / settings.sample_interval
+        if samples > MAX_SAMPLES:
+            key = ("`sample_interval`" if "sample_interval" in settings.given else "`simulation.horizon`")
+            raise ValueError(
+                f"a run of {horizon:g} s sampled every {settings.sample_interval:g} s needs {samples:.3g} "
+                f"samples (the limit is {MAX_SAMPLES:.0e}): shorten {key}"
+                + (" or increase `sample_interval`" if key == "`simulation.horizon`" else ""))
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """RKN4's step-doubling estimate of its own global error, and what it is judged against.
+
+    q_abs (rad), qdot_abs (rad/s): largest |y_h − y_2h| / (2⁴ − 1) on the run at 2h's
+    samples (or 2⁴ |y_h − y_h/2| / (2⁴ − 1) on h's when the run at 2h is unstable); q_scale (rad), qdot_scale (rad/s): the run's largest |q|, |q̇|, at least 1;
+    relative: the larger of q_abs/q_scale and qdot_abs/qdot_scale; tolerance: rtol.
+    """
+
+    q_abs: float
+    qdot_abs: float
+    q_scale: float
+    qdot_scale: float
+    tolerance: float
+    step: float
+    wall_s: float
+
+    @property
+    def relative(self) -> float:
+        return max(self.q_abs / self.q_scale, self.qdot_abs / self.qdot_scale)
+
+    def as_dict(self) -> dict:
+        return {"q_abs_rad": self.q_abs, "qdot_abs_rad_per_s": self.qdot_abs, "q_scale_rad": self.q_scale,
+                "qdot_scale_rad_per_s": self.qdot_scale, "relative": self.relative,
+                "tolerance": self.tolerance, "method": "step doubling (Richardson, order 4)",
+                "step_s": self.step, "wall_s": self.wall_s}
+
+
+def richardson_estimate(fine: Trajectory, coarse: Trajectory, weight: float) -> tuple[float, float]:
+    """weight × the largest |q_fine − q_coarse| and |q̇_fine − q̇_coarse| over the coarse
+    run's sample times (the fine run interpolated there)."""
+    times, idx = np.unique(coarse.t, return_index=True)
+    q, v, _ = fine.interpolate(times)
+    return (weight * float(np.max(np.abs(q - coarse.q[idx]))),
+            weight * float(np.max(np.abs(v - coarse.qdot[idx]))))
+
+
+def estimate_error(model: MechanismModel, settings: ReducedSettings, solution: PartitionedSolution) -> ErrorEstimate:
+    """RKN4's global error by step doubling: the same partitioned run at twice the step
+    (error of y_h ≈ (y_h − y_2h)/15). If the run at 2h fails (outside the stability
+    region), at half the step instead (error of y_h ≈ 16 (y_h − y_h/2)/15)."""
+    start = time.perf_counter()
+    fine = solution.trajectory
+    factor = 2.0 ** RKN4.order
+    try:
+        coarse = integrate(model, settings, step=2.0 * settings.step).trajectory
+        q_abs, v_abs = richardson_estimate(fine, coarse, 1.0 / (factor - 1.0))
+    except NumericalFailure:
+        try:
+            finer = integrate(model, settings, step=0.5 * settings.step).trajectory
+            q_abs, v_abs = richardson_estimate(finer, fine, factor / (factor - 1.0))
+        except NumericalFailure as exc:
+            if settings.check_error:
+                raise NumericalFailure(
+                    "inaccurate", f"RKN4's error estimate needs the same run at half the step "
+                    f"({settings.step / 2:g} s), which failed ({exc.reason}: {exc}); use a smaller step "
+                    "(`--step`, `[reduced] step`)", exc.time) from None
+            q_abs = v_abs = math.nan
+    return ErrorEstimate(q_abs, v_abs, max(1.0, float(np.max(np.abs(fine.q)))),
+                         max(1.0, float(np.max(np.abs(fine.qdot)))), settings.rtol, settings.step,
+                         time.perf_counter() - start)
 
 
 def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> EngineResult:
-    """Solve the scene's Eksergian equation and audit its energy.
+    """Solve the scene's Eksergian equation, estimate its error and audit its energy.
 
     Returns
     -------
     EngineResult
-        ``engine="reduced"``; ``wall_s`` times the integration only. ``diagnostics`` holds
-        the coordinate switches and the trajectory of every joint angle.
+        ``engine="reduced"``; ``wall_s`` times the integration only (not RKN4's error
+        estimate, whose time is in its diagnostics). ``settings`` are the resolved settings;
+        ``diagnostics`` hold the coordinate switches, every joint angle, RKN4's
+        ``error_estimate``, the ``energy_bound`` (relative residual allowed) and the
+        ``energy_scale_J`` it is relative to (:func:`energy_scale`).
 
     Raises
     ------
+    ValueError
+        If the run would need more than ``MAX_SAMPLES`` samples (refused before any work).
     NumericalFailure
-        If the integration blows up, leaves the stability region, becomes non-finite or
-        reaches a position no coordinate can drive.
+        If the integration blows up, leaves the stability region, becomes non-finite,
+        reaches a position no coordinate can drive, or its step collapses; and, with
+        ``settings.check_error``, if RKN4's error estimate exceeds rtol (INACCURATE) or the
+        energy balance does not close within its bound (ENERGY_IMBALANCE).
     """
+    check_work(scene, settings)
     model = MechanismModel(scene)
     start = time.perf_counter()
     solution = integrate(model, settings)
     wall = time.perf_counter() - start
     trajectory = solution.trajectory
+    diagnostics = {"effects": list(model.effects), "joints": solution.joints,
+                   "switches": [_switch_dict(s) for s in solution.switches]}
+    if settings.method == "rkn4":
+        estimate = estimate_error(model, settings, solution)
+        diagnostics["error_estimate"] = estimate.as_dict()
+        if settings.check_error and not estimate.relative <= settings.rtol:
+            raise NumericalFailure(
+                "inaccurate", f"RKN4 at step {settings.step:g} s estimates its own error (step doubling) at "
+                f"{estimate.relative:.2e} of the run's scale ({estimate.q_abs:.2e} rad in q, "
+                f"{estimate.qdot_abs:.2e} rad/s in q̇ at speeds up to {estimate.qdot_scale:.4g} rad/s), above "
+                f"the tolerance rtol = {settings.rtol:g}: use a smaller step (`--step`, `[reduced] step`; about "
+                f"{settings.step * (settings.rtol / estimate.relative / 2) ** 0.25:.2g} s) or a looser rtol")
+    audit = energy_audit(model, solution.segments)
+    bound = ENERGY_FACTOR[settings.method] * settings.rtol
+    scale = energy_scale(audit, solution)
+    diagnostics["energy_bound"] = bound
+    diagnostics["energy_scale_J"] = scale
+    if settings.check_error and not audit.max_abs_residual <= bound * scale:
+        raise NumericalFailure(
+            "energy-imbalance", f"the energy balance does not close: residual {audit.max_abs_residual:.3e} J, "
+            f"{audit.max_abs_residual / scale:.2e} of the run's {scale:.4g} J, above the bound {bound:.1e} "
+            f"({ENERGY_FACTOR[settings.method]:g} × rtol): use a tighter rtol"
+            + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
     return EngineResult(
         engine="reduced", trajectory=trajectory, peak=trajectory.peak_angular_velocity(),
-        audit=energy_audit(model, solution.segments), wall_s=wall, n_steps=solution.n_steps,
-        n_evaluations=solution.n_evaluations, settings={**asdict(settings), "solver": solution.method},
-        diagnostics={"effects": list(model.effects), "joints": solution.joints,
-                     "switches": [asdict(s) for s in solution.switches]})
+        audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
+        settings={**settings.as_dict(), "solver": solution.method}, diagnostics=diagnostics)
+
+
+def energy_scale(audit, solution: PartitionedSolution) -> float:
+    """The energy (J) the gate's relative residual is measured against: the audit's scale
+    (largest |W_torque|, T, |V − V0|), but at least the kinetic energy ½ 𝔍0 (1 rad/s)² of the
+    initial configuration at unit speed, so that a run in which almost nothing moves (a pulse
+    of 1e-12 s, a 1e30 kg coupler: scales of 1e-21 J and less) is judged by round-off, not by a
+    relative figure of nothing. The floor is the same as the error estimate's |q̇| ≥ 1 rad/s."""
+    chart, first = solution.segments[0]
+    chart.reset()
+    inertia = chart.coefficients(float(first.trajectory.q[0])).generalized_inertia
+    return max(audit.scale, 0.5 * abs(inertia))
+
+
+def _switch_dict(switch) -> dict:
+    return {"time": switch.time, "old": switch.old, "new": switch.new,
+            "conditioning_old": switch.conditioning_old, "conditioning_new": switch.conditioning_new}
