@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import importlib
 
 import numpy as np
@@ -361,12 +363,13 @@ def test_settings_the_method_uses_raise_no_warning():
 
 @pytest.mark.parametrize("settings, changes, key", [
     (dict(method="rkn4", step=1e-12), {}, "--step"),
-    (dict(), {"simulation": {"horizon": 1e6}}, "simulation.horizon"),
-    (dict(method="rkn4"), {"simulation": {"horizon": 1e6}}, "--step"),
+    (dict(), {"horizon": 1e6}, "simulation.horizon"),
+    (dict(method="rkn4"), {"horizon": 1e6}, "--step"),
     (dict(sample_interval=1e-9), {}, "sample_interval")])
 def test_unbounded_work_is_refused_up_front(settings, changes, key):
-    """A run needing more than MAX_SAMPLES (5e5) samples is a ValueError before any work."""
-    scene = variant(**changes)
+    """A run needing more than MAX_SAMPLES (5e5) samples is a ValueError before any work; the
+    engine refuses on its own also for a Scene built in code past the scene file's ranges."""
+    scene = dataclasses.replace(variant(), **changes)
     with pytest.raises(ValueError, match=key.replace(".", r"\.")):
         simulate(scene, ReducedSettings(**settings))
 
