@@ -399,7 +399,10 @@ def main(argv: list[str] | None = None) -> int:
         with signals_as_exceptions(), warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
             warnings.showwarning = _show_warning
-            args = build_parser().parse_args(argv)
+            try:
+                args = build_parser().parse_args(argv)
+            except SystemExit as exc:  # --help, or a usage error already printed
+                return exc.code if isinstance(exc.code, int) else EXIT_OK
             return args.func(args)
     except NumericalFailure as exc:
         print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
