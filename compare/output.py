@@ -177,6 +177,7 @@ def _check_file(target: Path, text: str, flag: str) -> Path:
 def signals_as_exceptions() -> Iterator[None]:
     """For the duration of the block, SIGTERM raises :class:`Terminated` and SIGINT
     ``KeyboardInterrupt`` (so clean-ups run); the previous handlers are restored after.
+    A signal that is ignored when the block starts stays ignored.
 
     Does nothing outside the main thread (Python only handles signals there).
     """
@@ -187,8 +188,10 @@ def signals_as_exceptions() -> Iterator[None]:
     def terminate(signum, frame):
         raise Terminated()
 
-    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, terminate),
-                signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
+    wanted = {signal.SIGTERM: terminate, signal.SIGINT: signal.default_int_handler}
+    # A signal the caller chose to ignore (``nohup``, a background job) stays ignored.
+    previous = {s: signal.signal(s, handler) for s, handler in wanted.items()
+                if signal.getsignal(s) is not signal.SIG_IGN}
     try:
         yield
     finally:
