@@ -26,6 +26,7 @@ from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated,
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_ITERATIONS = 100_000  # MuJoCo solver iterations: beyond this a run cannot finish in reasonable time
 MAX_REPEATS = 1000
+MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
 
 
 class UsageError(ValueError):
@@ -368,7 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
     p.add_argument("--repeats", type=_int_in(1, MAX_REPEATS), default=None,
                    help="timed runs per configuration (default 3)")
-    p.add_argument("--workers", type=_int_in(1, 1024), default=None,
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores)")
     p.set_defaults(func=cmd_cost)
 

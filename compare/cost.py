@@ -24,7 +24,6 @@ from .diff import compare_trajectories
 from .output import json_text, portable_source, write_folder
 
 COST_FILES = ("cost.png", "cost.csv", "cost.json")
-MAX_WORKERS = 1024  # more processes than this is a typing error, not a request
 
 HARD = {"solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}  # solref (2·timestep, 1): xval's default
 MUJOCO_DEFAULT_SOFTNESS = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}
