@@ -121,6 +121,11 @@ def test_only_the_flags_given_override_the_scene():
     assert (settings.integrator, settings.timestep) == ("rk4", 5e-4)  # flag over table, table kept
     reduced = parser.parse_args(["reduced"])
     assert (reduced.method, reduced.rtol, reduced.step) == (None, None, None)
+    data["reduced"] = {"method": "radau"}
+    scene = scene_from_dict(data)
+    flags = {"method": "method", "rtol": "rtol", "step": "step"}
+    settings = cli._reduced_settings(parser.parse_args(["reduced", "--rtol", "1e-9"]), scene, flags)
+    assert (settings.method, settings.rtol) == ("radau", 1e-9)
 
 
 def test_workers_are_capped_at_the_cores():
