@@ -1,18 +1,32 @@
 """The ``xval`` command line.
 
-Exit status: 0 success, 1 a check failed or a run failed numerically, 2 bad input.
-Bad input gets one line on stderr naming the problem, never a traceback.
+Exit status: 0 success; 1 a gate or check failed or a run failed numerically; 2 bad input
+(including an output path that cannot be written, checked before any work); 130 interrupted
+(Ctrl-C); 143 terminated (SIGTERM). Errors are one line on stderr, never a traceback; an
+interrupted or failed run leaves its output folder as it was (:mod:`compare.output`).
+Warnings raised while settings are resolved or engines run (a setting the method ignores, a
+load edge off MuJoCo's step grid) are printed as one line each, ``xval: warning: ...``.
+
+Engine flags default to None: only the flags given override the scene's [reduced] and
+[mujoco] tables, which override each engine's own defaults.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-from pathlib import Path
+import warnings
 
 from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene_path, load_scene, simulate
 
+from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
+                     json_text, signals_as_exceptions, write_file, write_folder)
+
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+MAX_ITERATIONS = 100_000  # MuJoCo solver iterations: beyond this a run cannot finish in reasonable time
+MAX_REPEATS = 1000
+MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
 
 
 class UsageError(ValueError):
@@ -47,24 +61,51 @@ def _positive(text: str) -> float:
     return value
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+def _int_in(low: int, high: int):
+    """An argparse type: a whole number in [low, high]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be between {low} and {high}, got {value}")
+        return value
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+def _given(args: argparse.Namespace, names: dict[str, str]) -> dict:
+    """The flags the user gave (not None), keyed by setting name; lists become tuples."""
+    out = {}
+    for flag, name in names.items():
+        value = getattr(args, flag, None)
+        if value is not None:
+            out[name] = tuple(value) if isinstance(value, list) else value
+    return out
+
+
+def _setting_text(settings: dict, name: str, unit: str = "") -> str:
+    value = settings.get(name)
+    return "automatic" if value is None else f"{value:g}{unit}" if isinstance(value, float) else str(value)
+
+
+def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) -> ReducedSettings:
+    """Reduced settings: the flags given over the scene's [reduced] table over the defaults."""
+    return ReducedSettings(**{**scene.reduced, **_given(args, flags)})
 
 
 def cmd_reduced(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
-    settings = ReducedSettings(method=args.method, rtol=args.rtol, step=args.step)
+    settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
     result = simulate(scene, settings)
+    used = result.settings
     print(f"scene            {scene.name}  ({scene.source})")
     print(f"effects          {', '.join(scene.effects) or 'none'}")
-    print(f"solver           {result.settings['solver']}  "
-          + (f"step = {settings.step:g} s" if settings.method == "rkn4" else f"rtol = {settings.rtol:g}"))
+    print(f"solver           {used['solver']}  "
+          + (f"step = {_setting_text(used, 'step', ' s')}" if used.get("method") == "rkn4"
+             else f"rtol = {_setting_text(used, 'rtol')}"))
     print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
     print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
           f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
@@ -77,12 +118,8 @@ def _mujoco_settings(args: argparse.Namespace, scene):
     """MuJoCo settings: command-line flags over the scene's [mujoco] table over the defaults."""
     from reference_models import MujocoSettings
 
-    kwargs = dict(scene.mujoco)
-    for name in ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact"):
-        value = getattr(args, name)
-        if value is not None:
-            kwargs[name] = tuple(value) if isinstance(value, list) else value
-    return MujocoSettings(**kwargs)
+    names = ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact")
+    return MujocoSettings(**{**scene.mujoco, **_given(args, {n: n for n in names})})
 
 
 def cmd_mujoco(args: argparse.Namespace) -> int:
@@ -91,30 +128,31 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     settings = _mujoco_settings(args, scene)
     result = simulate_mujoco(scene, settings)
+    used = result.settings  # as run (an automatic timestep resolved)
     print(f"scene            {scene.name}  ({scene.source})")
     print(f"effects          {', '.join(scene.effects) or 'none'}")
-    print(f"settings         {settings.integrator}, timestep {result.settings['timestep']:g} s"
-          f"{' (automatic)' if result.settings['timestep_automatic'] else ''}, "
-          f"solref {tuple(result.settings['solref'])}, solimp {settings.solimp}, "
-          f"refsafe {'on' if settings.refsafe else 'off'}, diagexact {'on' if settings.diagexact else 'off'}, "
-          f"iterations {settings.iterations}, tolerance {settings.tolerance:g}, "
-          f"MuJoCo {result.settings['mujoco_version']}")
+    print(f"settings         {used.get('integrator')}, timestep {_setting_text(used, 'timestep', ' s')}"
+          f"{' (automatic)' if used.get('timestep_automatic') else ''}, "
+          f"solref {tuple(used.get('solref') or ())}, solimp {tuple(used.get('solimp') or ())}, "
+          f"refsafe {'on' if used.get('refsafe') else 'off'}, diagexact {'on' if used.get('diagexact') else 'off'}, "
+          f"iterations {used.get('iterations')}, tolerance {_setting_text(used, 'tolerance')}, "
+          f"MuJoCo {used.get('mujoco_version')}")
     print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
     print(f"loop violation   {result.diagnostics['max_constraint_violation']:.3e} m (largest over the run)")
     print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
           f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
     print(f"cost             {result.n_steps} steps, {result.wall_s:.3f} s")
-    for note in result.diagnostics["edge_warnings"]:
-        print(f"warning          {note}")
-    return EXIT_OK
+    return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
 
 
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
-    from reference_models import export_mjcf
+    from reference_models import mjcf_text
 
+    check_file(args.output, flag="-o")  # before any work
     scene = _scene(args.scene)
-    export_mjcf(scene, args.output, _mujoco_settings(args, scene))
-    print(f"wrote {args.output}")
+    xml = mjcf_text(scene, _mujoco_settings(args, scene))
+    path = write_file(args.output, xml, flag="-o")
+    print(f"wrote {path}")
     return EXIT_OK
 
 
@@ -128,7 +166,8 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
-    g.add_argument("--iterations", type=_positive_int, default=None, help="constraint solver iterations (default 100)")
+    g.add_argument("--iterations", type=_int_in(1, MAX_ITERATIONS), default=None,
+                   help=f"constraint solver iterations, 1 to {MAX_ITERATIONS} (default 100)")
     g.add_argument("--tolerance", type=_positive, default=None, help="constraint solver tolerance (default 1e-12)")
     g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
                    help="disable refsafe (allows solref time constants below 2*timestep)")
@@ -138,12 +177,8 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
 
 def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
     """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
-    kwargs = dict(scene.reduced)
-    for flag, name in (("reference", "method"), ("reference_rtol", "rtol"), ("reference_step", "step")):
-        value = getattr(args, flag)
-        if value is not None:
-            kwargs[name] = value
-    return ReducedSettings(**kwargs)
+    return _reduced_settings(args, scene, {"reference": "method", "reference_rtol": "rtol",
+                                           "reference_step": "step"})
 
 
 def _tolerances(scene, args: argparse.Namespace):
@@ -154,18 +189,18 @@ def _tolerances(scene, args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .report import write_outputs
+    from .report import REPORT_FILES, write_outputs
     from .run import compare_engines
+    from .text import comparison_lines
 
+    check_folder(args.out, REPORT_FILES)  # before any work
     scene = _scene(args.scene)
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
-    from .text import comparison_lines
-
     print("\n".join(comparison_lines(comparison)))
     paths = write_outputs(comparison, args.out)
     print(f"wrote {len(paths)} files to {args.out}/")
-    return EXIT_OK
+    return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -195,15 +230,20 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_cost(args: argparse.Namespace) -> int:
-    from .cost import (cost_report, ground_truth, ladder, recommend, summary_lines, sweep,
-                       write_cost_outputs)
+    from .cost import (COST_FILES, cost_report, ground_truth, ladder, recommend, summary_lines, sweep,
+                       worker_count, write_cost_outputs)
 
+    check_folder(args.out, COST_FILES)  # before any work
     scene = _scene(args.scene)
     target = args.target if args.target is not None else scene.tolerances.peak_omega_rtol
     repeats = args.repeats if args.repeats is not None else 3
-    truth = ground_truth(scene)
     configs = ladder(quick=args.quick)
-    measurements = sweep(scene, configs, truth, repeats=repeats, workers=args.workers)
+    workers = worker_count(args.workers, len(configs))
+    if args.workers is not None and workers < args.workers:
+        print(f"xval: warning: --workers {args.workers}: using {workers} "
+              f"(at most one process per core: {os.cpu_count() or 1} cores)", file=sys.stderr)
+    truth = ground_truth(scene)
+    measurements = sweep(scene, configs, truth, repeats=repeats, workers=workers)
     recommendations = recommend(scene, measurements, truth, target, repeats)
     report = cost_report(scene, truth, measurements, recommendations, repeats)
     for line in summary_lines(report, measurements):
@@ -214,26 +254,21 @@ def cmd_cost(args: argparse.Namespace) -> int:
 
 
 def cmd_stress(args: argparse.Namespace) -> int:
-    import json
-
     from .stress import CATALOGUE, run_catalogue, table_lines
 
     cases = CATALOGUE if not args.case else [c for c in CATALOGUE if c.name in args.case]
     unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
+    check_folder(args.out, ("stress.json",))  # before any work
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
     for line in table_lines(results):
         print(line)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
              "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
-    tmp = out / ".stress.json.tmp"
-    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n", encoding="utf-8")
-    tmp.replace(out / "stress.json")
-    print(f"wrote {out / 'stress.json'}")
+    [path] = write_folder(args.out, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")})
+    print(f"wrote {path}")
     return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
 
 
@@ -278,10 +313,13 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Solve the scene's Eksergian equation; print the peak angular "
                                    "velocity of the input link, its time and the energy residual.")
     _add_scene_argument(p)
-    p.add_argument("--method", choices=("dop853", "rkn4", "radau"), default="dop853",
-                   help="adaptive DOP853 (default), fixed-step RKN4, or implicit Radau")
-    p.add_argument("--rtol", type=_positive, default=1e-12, help="tolerance of adaptive methods (default 1e-12)")
-    p.add_argument("--step", type=_positive, default=1e-3, help="step of RKN4 in s (default 1e-3)")
+    p.add_argument("--method", choices=("dop853", "rkn4", "radau"), default=None,
+                   help="adaptive DOP853, fixed-step RKN4, or implicit Radau "
+                        "(default: the scene's [reduced] table, else dop853)")
+    p.add_argument("--rtol", type=_positive, default=None,
+                   help="tolerance of adaptive methods (default: the scene's, else the method's)")
+    p.add_argument("--step", type=_positive, default=None,
+                   help="step of RKN4 in s (default: the scene's, else the method's)")
     p.set_defaults(func=cmd_reduced)
 
     p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
@@ -305,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "table of both results and their differences, and write "
                                    "report.json, reduced.csv, mujoco.csv and PNG plots into --out.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
     _add_comparison_arguments(p)
     p.set_defaults(func=cmd_run)
 
@@ -324,12 +363,15 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write cost.png (work-precision diagram), cost.csv and cost.json; "
                                    "recommend the cheapest configuration of each engine for the target.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
-    p.add_argument("--repeats", type=_positive_int, default=None, help="timed runs per configuration (default 3)")
-    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--repeats", type=_int_in(1, MAX_REPEATS), default=None,
+                   help="timed runs per configuration (default 3)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores)")
     p.set_defaults(func=cmd_cost)
 
     p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
@@ -338,26 +380,51 @@ def build_parser() -> argparse.ArgumentParser:
                                    "through both engines; print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
-    p.add_argument("--out", default="xval-out", help="output folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
     return parser
 
 
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"xval: warning: {_one_line(message)}", file=sys.stderr, flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run one ``xval`` command; return its exit status (see the module docstring)."""
     try:
-        return args.func(args)
-    except (SceneError, UsageError, ValueError) as exc:
-        print(f"xval: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        with signals_as_exceptions(), warnings.catch_warnings():
+            warnings.simplefilter("default")  # each distinct warning once
+            warnings.showwarning = _show_warning
+            try:
+                args = build_parser().parse_args(argv)
+            except SystemExit as exc:  # --help, or a usage error already printed
+                return exc.code if isinstance(exc.code, int) else EXIT_OK
+            return args.func(args)
     except NumericalFailure as exc:
-        print(f"xval: numerical failure ({exc.reason}): {exc}", file=sys.stderr)
+        print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
+    except (SceneError, UsageError, OutputError, ValueError) as exc:
+        print(f"xval: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except BrokenPipeError:  # output piped into e.g. `head`
         sys.stderr.close()
         return EXIT_OK
+    except OSError as exc:  # e.g. the disk filled up while writing: the outputs are as they were
+        where = f"'{exc.filename}': " if exc.filename else ""
+        print(f"xval: error: {where}{exc.strerror or _one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("xval: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print("xval: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
 
 
 if __name__ == "__main__":

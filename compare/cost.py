@@ -14,13 +14,16 @@ import os
 import statistics
 import sys
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 from reduced import NumericalFailure, ReducedSettings, Scene, Trajectory, simulate
 from reference_models import MujocoSettings, simulate_mujoco
 
 from .diff import compare_trajectories
+from .output import json_text, portable_source, write_folder
+
+COST_FILES = ("cost.png", "cost.csv", "cost.json")
 
 HARD = {"solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}  # solref (2·timestep, 1): xval's default
 MUJOCO_DEFAULT_SOFTNESS = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}
@@ -159,10 +162,29 @@ class Progress:
             sys.stderr.flush()
 
 
+def worker_count(requested: int | None, jobs: int) -> int:
+    """Processes for ``jobs`` configurations: the request (default: all cores), at most one
+    per core and one per job."""
+    cores = os.cpu_count() or 1
+    return max(1, min(requested or cores, cores, jobs))
+
+
+def _ignore_interrupts() -> None:
+    """Worker start-up: Ctrl-C (sent to the whole process group) is the parent's to handle;
+    SIGTERM kills a worker outright (the parent ends its workers when it stops)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3,
           workers: int | None = None) -> list[Measurement]:
-    """Measure every configuration, ``workers`` processes at a time (default: all cores)."""
-    workers = workers or os.cpu_count() or 1
+    """Measure every configuration, ``workers`` processes at a time (see :func:`worker_count`).
+
+    An exception in the parent (Ctrl-C, SIGTERM raised as an exception) ends the workers.
+    """
+    workers = worker_count(workers, len(configs))
     progress = Progress(len(configs))
     jobs = [(scene, c, truth.trajectory, repeats) for c in configs]
     results: list[Measurement] = []
@@ -171,10 +193,19 @@ def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3
             results.append(_measure_args(job))
             progress.step(job[1].label)
         return results
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for m in pool.map(_measure_args, jobs):
+    import multiprocessing
+
+    pool = multiprocessing.Pool(workers, initializer=_ignore_interrupts)
+    try:
+        for m in pool.imap(_measure_args, jobs):
             results.append(m)
             progress.step(m.config.label)
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
     return results
 
 
@@ -196,17 +227,22 @@ class Recommendation:
         return self.confirmed is not None and self.confirmed.ok and self.confirmed.peak_omega_rel <= self.target
 
 
+def cheapest_meeting(measurements: list[Measurement], engine: str, target: float) -> Measurement | None:
+    """The successful measurement of ``engine`` with the smallest median wall time among those
+    whose peak-ω relative error is at most ``target`` (None if there is none)."""
+    meeting = [m for m in measurements if m.config.engine == engine and m.ok and m.peak_omega_rel <= target]
+    return min(meeting, key=lambda m: m.wall_median_s) if meeting else None
+
+
 def recommend(scene: Scene, measurements: list[Measurement], truth: Truth, target: float,
               repeats: int = 3) -> dict[str, Recommendation]:
     """Per engine, the cheapest measured configuration with peak-ω relative error ≤ target."""
     out = {}
     for engine in ("reduced", "mujoco"):
-        meeting = [m for m in measurements
-                   if m.config.engine == engine and m.ok and m.peak_omega_rel <= target]
-        if not meeting:
+        best = cheapest_meeting(measurements, engine, target)
+        if best is None:
             out[engine] = Recommendation(engine, target, None)
             continue
-        best = min(meeting, key=lambda m: m.wall_median_s)
         confirmed = measure(scene, best.config, truth.trajectory, repeats)
         out[engine] = Recommendation(engine, target, best, confirmed)
     return out
@@ -253,7 +289,7 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
     ratio = (mj.measurement.wall_median_s / red.measurement.wall_median_s
              if red.reached and mj.reached else None)
     return {
-        "scene": scene.name, "source": scene.source,
+        "scene": scene.name, "source": portable_source(scene.source),
         "truth": {"method": "DOP853 rtol 1e-12", "peak_omega": truth.peak_omega, "accuracy": truth.error},
         "timing": {"what": "simulation only (integration or rollout); no model building, audit or plots",
                    "repeats": repeats, "statistic": "median"},
@@ -262,35 +298,29 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
     }
 
 
-def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, target: float) -> list:
-    """cost.png, cost.csv and cost.json into ``out_dir``, all-or-nothing."""
+def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, target: float) -> list[Path]:
+    """cost.png, cost.csv and cost.json into ``out_dir``, as a set (:func:`compare.output.write_folder`).
+
+    cost.json is strict JSON: figures that were not measured (NaN) are null.
+    """
     import csv
-    import json
-    import shutil
-    import tempfile
-    from pathlib import Path
 
     from .plots import plot_work_precision
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".xval-cost-", dir=out))
-    try:
-        plot_work_precision(measurements, pareto_front(measurements), target,
-                            f"{report['scene']}: what accuracy costs (truth: DOP853 rtol 1e-12)",
-                            staging / "cost.png")
+    def write_csv(path: Path) -> None:
         rows = [m.row() for m in measurements]
-        with open(staging / "cost.csv", "w", newline="", encoding="utf-8") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        with open(path, "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["status"])
             writer.writeheader()
             writer.writerows(rows)
-        (staging / "cost.json").write_text(json.dumps(report, indent=2, default=float) + "\n", encoding="utf-8")
-        names = ["cost.png", "cost.csv", "cost.json"]
-        for name in names:
-            os.replace(staging / name, out / name)
-        return [out / n for n in names]
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+
+    files = {
+        "cost.png": lambda p: plot_work_precision(measurements, pareto_front(measurements), target,
+                                                  report["scene"], p),
+        "cost.csv": write_csv,
+        "cost.json": lambda p: p.write_text(json_text(report), encoding="utf-8"),
+    }
+    return write_folder(out_dir, files)
 
 
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:

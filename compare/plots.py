@@ -1,28 +1,52 @@
-"""Diff plots of a comparison (PNG, matplotlib's Agg backend: no display needed)."""
+"""Diff plots of a comparison (PNG, matplotlib's Agg backend: no display needed).
+
+matplotlib is imported only when a plot is drawn. Names from scene files are plain text:
+every text element that carries one is drawn with ``parse_math=False`` (a ``$...$`` in a
+name is not mathtext), and names are shortened to :data:`NAME_CHARS` characters in titles.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from .run import Comparison
 
-from .run import Comparison  # noqa: E402
+NAME_CHARS = 60  # longest scene name shown in a title
+PLAIN = {"parse_math": False}  # keyword for text elements that carry user text
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def short_name(name: str, limit: int = NAME_CHARS) -> str:
+    """``name`` on one line, cut to ``limit`` characters with an ellipsis."""
+    name = " ".join(name.split())
+    return name if len(name) <= limit else name[:limit - 1] + "…"
+
 
 REDUCED_STYLE = {"color": "tab:blue", "label": "reduced (Eksergian)"}
 MUJOCO_STYLE = {"color": "tab:orange", "label": "MuJoCo", "linestyle": "--"}
 
 
 def _save(fig, path: Path) -> None:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plt = _pyplot()
+    try:
+        fig.tight_layout()
+        fig.savefig(path, dpi=110, format="png")
+    finally:
+        plt.close(fig)
 
 
 def plot_trajectories(c: Comparison, path: Path) -> None:
+    plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         ax_q.plot(result.trajectory.t, result.trajectory.q, **style)
@@ -32,7 +56,7 @@ def plot_trajectories(c: Comparison, path: Path) -> None:
     ax_q.set_ylabel("crank angle q (rad)")
     ax_w.set_ylabel("crank angular velocity ω (rad/s)")
     ax_w.set_xlabel("time t (s)")
-    ax_q.set_title(f"{c.scene.name}: input link, both engines (dots: peak ω)")
+    ax_q.set_title(f"{short_name(c.scene.name)}: input link, both engines (dots: peak ω)", **PLAIN)
     ax_q.legend(), ax_w.legend()
     ax_q.grid(alpha=0.3), ax_w.grid(alpha=0.3)
     _save(fig, path)
@@ -40,6 +64,7 @@ def plot_trajectories(c: Comparison, path: Path) -> None:
 
 def plot_differences(c: Comparison, path: Path) -> None:
     d = c.diff
+    plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     ax_q.plot(d.times, d.dq, color="tab:red", label="Δq = q_MuJoCo − q_reduced")
     ax_w.plot(d.times, d.domega, color="tab:red", label="Δω = ω_MuJoCo − ω_reduced")
@@ -52,16 +77,19 @@ def plot_differences(c: Comparison, path: Path) -> None:
     ax_q.set_ylabel("Δq (rad)")
     ax_w.set_ylabel("Δω (rad/s)")
     ax_w.set_xlabel("time t (s)")
-    ax_q.set_title(f"{c.scene.name}: MuJoCo minus reduced reference on MuJoCo's sample times")
+    ax_q.set_title(f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times",
+                   **PLAIN)
     _save(fig, path)
 
 
 def plot_omega_vs_q(c: Comparison, path: Path) -> None:
+    plt = _pyplot()
     fig, (ax, ax_d) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         ax.plot(result.trajectory.q, result.trajectory.qdot, **style)
     ax.set_ylabel("ω (rad/s)")
-    ax.set_title(f"{c.scene.name}: crank speed against crank angle (phase-free comparison)")
+    ax.set_title(f"{short_name(c.scene.name)}: crank speed against crank angle (phase-free comparison)",
+                 **PLAIN)
     ax.legend(), ax.grid(alpha=0.3)
     ax_d.plot(c.diff.q_samples, c.diff.domega_vs_q, ".", markersize=2, color="tab:red",
               label="Δω at equal q")
@@ -72,19 +100,21 @@ def plot_omega_vs_q(c: Comparison, path: Path) -> None:
 
 
 def plot_constraint_violation(c: Comparison, path: Path) -> None:
+    plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
     times = c.mujoco.diagnostics["times"]
     violation = c.mujoco.diagnostics["constraint_violation"]
     ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="|B_coupler − B_rocker|")
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("loop-closure violation (m)")
-    ax.set_title(f"{c.scene.name}: MuJoCo equality-constraint violation "
-                 f"(max {c.mujoco.diagnostics['max_constraint_violation']:.2e} m)")
+    ax.set_title(f"{short_name(c.scene.name)}: MuJoCo equality-constraint violation "
+                 f"(max {c.mujoco.diagnostics['max_constraint_violation']:.2e} m)", **PLAIN)
     ax.legend(), ax.grid(alpha=0.3, which="both")
     _save(fig, path)
 
 
 def plot_energy(c: Comparison, path: Path) -> None:
+    plt = _pyplot()
     fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         a = result.audit
@@ -98,7 +128,7 @@ def plot_energy(c: Comparison, path: Path) -> None:
                     label=f"potential − V0 ({name})")
         ax_r.plot(a.t, a.residual, color=style["color"], linestyle=ls, label=f"residual ({name})")
     ax.set_ylabel("energy (J)")
-    ax.set_title(f"{c.scene.name}: energy audit, T + V − (T0 + V0) − W + D = residual")
+    ax.set_title(f"{short_name(c.scene.name)}: energy audit, T + V − (T0 + V0) − W + D = residual", **PLAIN)
     ax.legend(fontsize=8, ncol=2), ax.grid(alpha=0.3)
     ax_r.set_ylabel("residual (J)")
     ax_r.set_xlabel("time t (s)")
@@ -120,8 +150,9 @@ INTEGRATOR_COLOURS = {"euler": "tab:red", "implicit": "tab:purple", "implicitfas
                       "rk4": "tab:orange"}
 
 
-def plot_work_precision(measurements, front, target: float | None, title: str, path: Path) -> None:
+def plot_work_precision(measurements, front, target: float | None, scene_name: str, path: Path) -> None:
     """Log-log work-precision diagram: peak-ω relative error (x) against wall time (y)."""
+    plt = _pyplot()
     fig, ax = plt.subplots(figsize=(12, 6.5))
     series: dict[str, list] = {}
     for m in measurements:
@@ -146,7 +177,7 @@ def plot_work_precision(measurements, front, target: float | None, title: str, p
         ax.axvline(target, color="green", linestyle="-.", label=f"target {target:g}")
     ax.set_xlabel("relative error of peak angular velocity against the truth")
     ax.set_ylabel("wall time of the simulation (s, median)")
-    ax.set_title(title)
+    ax.set_title(f"{short_name(scene_name)}: what accuracy costs (truth: DOP853 rtol 1e-12)", **PLAIN)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.text(0.01, 0.01, "lower left is better: accurate and cheap; circles: Pareto front",

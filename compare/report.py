@@ -1,26 +1,27 @@
 """``report.json``, trajectory CSVs and plots of a comparison, written all-or-nothing.
 
-Everything is first written into a fresh temporary folder beside the output folder and
-then moved into place, ``report.json`` last; a failure part-way leaves no partial report.
+The files are written through :func:`compare.output.write_folder`: staged in a fresh
+hidden folder and replaced as a set, so a failure or an interrupt part-way leaves the
+output folder as it was. ``report.json`` is strict JSON (non-finite numbers are null) and
+names the scene file relative to the working directory, never by an absolute path.
 The schema is documented in the README ("report.json").
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from reduced import EngineResult
 
+from .output import json_text, portable_source, write_folder
+from .plots import PLOTS
 from .run import Comparison
 
 SCHEMA_VERSION = 1
+REPORT_FILES = ("reduced.csv", "mujoco.csv", *PLOTS, "report.json")  # in the order they are committed
 
 
 def _finite(x: float) -> float | None:
@@ -51,7 +52,7 @@ def report_dict(c: Comparison) -> dict:
     s = c.scene
     return {
         "schema_version": SCHEMA_VERSION,
-        "scene": {"name": s.name, "source": s.source, "description": s.description,
+        "scene": {"name": s.name, "source": portable_source(s.source), "description": s.description,
                   "effects": list(s.effects), "q0": s.q0, "qdot0": s.qdot0, "horizon": s.horizon},
         "reduced": engine_summary(c.reduced),
         "mujoco": engine_summary(c.mujoco),
@@ -72,27 +73,15 @@ def _write_csv(result: EngineResult, path: Path) -> None:
 
 
 def write_outputs(c: Comparison, out_dir: str | Path) -> list[Path]:
-    """Write report.json, reduced.csv, mujoco.csv and the PNG plots into ``out_dir``."""
-    from .plots import PLOTS
+    """Write report.json, reduced.csv, mujoco.csv and the PNG plots into ``out_dir``, as a set.
 
-    out = Path(out_dir)
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".xval-", dir=out))
-    try:
-        _write_csv(c.reduced, staging / "reduced.csv")
-        _write_csv(c.mujoco, staging / "mujoco.csv")
-        for name, plot in PLOTS.items():
-            plot(c, staging / name)
-        (staging / "report.json").write_text(json.dumps(report_dict(c), indent=2) + "\n", encoding="utf-8")
-        names = ["reduced.csv", "mujoco.csv", *PLOTS, "report.json"]
-        for name in names:
-            os.replace(staging / name, out / name)
-        return [out / n for n in names]
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        if created:
-            shutil.rmtree(out, ignore_errors=True)
-        raise
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    Raises
+    ------
+    OutputError
+        If ``out_dir`` cannot receive them (nothing is then written).
+    """
+    files = {"reduced.csv": lambda p: _write_csv(c.reduced, p),
+             "mujoco.csv": lambda p: _write_csv(c.mujoco, p)}
+    files.update({name: (lambda p, plot=plot: plot(c, p)) for name, plot in PLOTS.items()})
+    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c)), encoding="utf-8")
+    return write_folder(out_dir, files)

@@ -2,10 +2,10 @@
 
 from .build import ConstraintSettings, ModelHandles, build_spec, compile_model, initial_qpos_qvel
 from .run import (INTEGRATORS, MAX_ITERATIONS, TIMESTEP_CEILING, TIMESTEP_FLOOR, MujocoSettings,
-                  OffGridEdgeWarning, build_model, check_initial_state, control_sequence, export_mjcf,
+                  OffGridEdgeWarning, build_model, check_initial_state, control_sequence, mjcf_text,
                   grid_timestep, handles_from_mjcf, simulate_mujoco)
 
 __all__ = ["ConstraintSettings", "INTEGRATORS", "MAX_ITERATIONS", "ModelHandles", "MujocoSettings",
            "OffGridEdgeWarning", "TIMESTEP_CEILING", "TIMESTEP_FLOOR", "build_model", "build_spec",
-           "check_initial_state", "compile_model", "control_sequence", "export_mjcf", "grid_timestep",
+           "check_initial_state", "compile_model", "control_sequence", "mjcf_text", "grid_timestep",
            "handles_from_mjcf", "initial_qpos_qvel", "simulate_mujoco"]

@@ -195,7 +195,7 @@ def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> Mo
     """Compile the scene's model with the settings' solver options.
 
     An automatic timestep builds at the first candidate of :func:`grid_timestep` (the step
-    halving happens only in a run; :func:`export_mjcf` exports the step a run chooses).
+    halving happens only in a run; :func:`mjcf_text` exports the step a run chooses).
     """
     if settings.timestep is None:
         settings = replace(settings, timestep=grid_timestep(scene))
@@ -636,23 +636,16 @@ def _energy_audit(model, handles, times, states, sensors, ctrl) -> EnergyAudit:
                        damper_dissipation=dissipation)
 
 
-def export_mjcf(scene: Scene, path, settings: MujocoSettings = MujocoSettings()) -> str:
-    """Write the scene's model as human-readable MJCF that MuJoCo loads on its own.
+def mjcf_text(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> str:
+    """The scene's model as human-readable MJCF text that MuJoCo loads on its own.
 
-    The file is written to a temporary name and renamed, so a failure leaves nothing behind.
-    An automatic timestep is resolved by a run first (:func:`simulate_mujoco`), so the file
-    reproduces the default run. Returns the XML text.
+    An automatic timestep is resolved by a run first (:func:`simulate_mujoco`), so the text
+    reproduces the default run. Writing it to a file is the caller's (``xval export-mjcf``
+    writes it through the one output writer, ``compare.output``).
     """
-    from pathlib import Path
-
     if settings.timestep is None:  # the step a run would choose, so the file reproduces it
         settings = replace(settings, timestep=simulate_mujoco(scene, settings).settings["timestep"])
-    xml = build_model(scene, settings).spec.to_xml()
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(xml, encoding="utf-8")
-    tmp.replace(path)
-    return xml
+    return build_model(scene, settings).spec.to_xml()
 
 
 def handles_from_mjcf(path) -> ModelHandles:

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import matplotlib.image
 import numpy as np
 import pytest
 
+import compare.report
+from compare.cli import main
 from compare.diff import compare_trajectories, gate
-from compare.report import write_outputs
+from compare.report import REPORT_FILES, write_outputs
 from compare.run import compare_engines
 from reduced import Trajectory, load_scene
 from reduced.scene import Tolerances
@@ -23,11 +23,6 @@ REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs
                     "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "branch_mismatches",
                     "branch_mismatch_first_time", "peak_omega_reference", "peak_omega_other",
                     "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon"}
-
-
-def xval(*args: str, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "compare.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -97,41 +92,52 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert csv.shape[1] == 4 and np.all(np.diff(csv[:, 0]) >= 0)
 
 
-def test_check_passes_on_seed_and_fails_below_measured_difference(seed_comparison):
-    ok = xval("check", str(SEED_SCENE))
-    assert ok.returncode == 0, ok.stdout + ok.stderr
-    assert "1 passed, 0 failed" in ok.stdout
+def test_check_passes_on_seed_and_fails_below_measured_difference(seed_comparison, capsys):
+    assert main(["check", str(SEED_SCENE)]) == 0
+    assert "1 passed, 0 failed" in capsys.readouterr().out
     tight = seed_comparison.diff.peak_omega_rel / 10
-    bad = xval("check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}")
-    assert bad.returncode == 1
-    assert "peak_omega_rel" in bad.stdout and "> tolerance" in bad.stdout
+    assert main(["check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}"]) == 1
+    out = capsys.readouterr().out
+    assert "peak_omega_rel" in out and "> tolerance" in out
 
 
-def test_run_writes_report(tmp_path):
+def test_run_writes_report(tmp_path, capsys):
     out = tmp_path / "run"
-    proc = xval("run", str(SEED_SCENE), "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
-    assert "gate: PASSED" in proc.stdout
-    assert json.loads((out / "report.json").read_text())["scene"]["name"] == "seed_fourbar"
+    assert main(["run", str(SEED_SCENE), "--out", str(out)]) == 0
+    assert "gate: PASSED" in capsys.readouterr().out
+    report = json.loads((out / "report.json").read_text(),
+                        parse_constant=lambda token: pytest.fail(f"bare {token} in report.json"))
+    assert report["scene"]["name"] == "seed_fourbar"
+    assert sorted(p.name for p in out.iterdir()) == sorted(REPORT_FILES)  # no staging left
 
 
 @pytest.mark.parametrize("command", ["run", "check", "mujoco", "reduced"])
-def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path):
+def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text(SEED_SCENE.read_text().replace("c2 = 0.9", "c2 = -0.9"))
     out = tmp_path / "out"
     args = [command, str(bad)] + (["--out", str(out)] if command == "run" else [])
-    proc = xval(*args)
-    assert proc.returncode == 2
-    assert proc.stderr.strip().count("\n") == 0 and "linkage.c2" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.strip().count("\n") == 0 and "linkage.c2" in err
+    assert "Traceback" not in err
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args", [("check", str(SEED_SCENE), "--peak-rtol", "nan"),
-                                  ("mujoco", "--timestep", "-1"), ("cost", "--repeats", "0"),
-                                  ("stress", "--case", "no_such_case"), ("frobnicate",)])
-def test_bad_flag_value_exits_2_with_one_line(args):
-    proc = xval(*args)
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert len(proc.stderr.strip().splitlines()) == 1 and "error" in proc.stderr
+@pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt()], ids=["exception", "ctrl-c"])
+def test_failed_run_leaves_the_output_folder_as_it_was(seed_comparison, tmp_path, monkeypatch, error):
+    """Issue 9, planted bug 3: a plot that fails after the CSVs are written leaves the earlier
+    run's complete report (and nothing hidden) in place."""
+    out = tmp_path / "out"
+    write_outputs(seed_comparison, out)
+    (out / "report.json").write_text('{"old": true}\n')
+    before = {p.name: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+
+    def failing_plot(c, path):
+        path.write_bytes(b"\x89PNG half")
+        raise error
+    monkeypatch.setitem(compare.report.PLOTS, "energy.png", failing_plot)
+    with pytest.raises(type(error)):
+        write_outputs(seed_comparison, out)
+    assert {p.name: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.rglob("*")) == sorted(["out", *before])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from reduced import MechanismModel, NumericalFailure, ReducedSettings, load_scene, simulate
-from reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, export_mjcf,
+from reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               handles_from_mjcf, simulate_mujoco)
 
 from helpers import SEED_SCENE, conservative, variant
@@ -132,7 +132,7 @@ def test_soft_default_constraint_drift_is_detected(seed):
 
 def test_exported_mjcf_loads_alone_and_reproduces_the_run(seed, tmp_path):
     path = tmp_path / "model.xml"
-    export_mjcf(seed, path)
+    path.write_text(mjcf_text(seed), encoding='utf-8')
     text = path.read_text()
     assert "<connect" in text and "<spatial" in text and 'damping="55"' in text
     direct = simulate_mujoco(seed)

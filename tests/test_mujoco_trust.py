@@ -15,7 +15,7 @@ from compare.diff import compare_trajectories, gate
 from reduced import NumericalFailure, ReducedSettings, load_scene, scene_from_dict, simulate
 from reduced.errors import FailureReason
 from reduced.linkage import FourBar
-from reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, export_mjcf,
+from reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
 from helpers import SEED_SCENE, seed_dict, variant
@@ -139,7 +139,7 @@ def test_control_is_the_torque_at_each_steps_midpoint():
 
 def test_model_exported_at_another_step_is_refused_or_run_at_its_own(seed, tmp_path):
     path = tmp_path / "fine.xml"
-    export_mjcf(seed, path, MujocoSettings(timestep=1e-4))
+    path.write_text(mjcf_text(seed, MujocoSettings(timestep=1e-4)), encoding='utf-8')
     handles = handles_from_mjcf(path)
     with pytest.raises(ValueError, match=r"timestep 0\.0001 .* timestep 0\.001"):
         simulate_mujoco(seed, MujocoSettings(timestep=1e-3), handles=handles)

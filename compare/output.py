@@ -1,0 +1,362 @@
+"""Every file xval writes goes through here: destinations checked up front, outputs replaced as a set.
+
+Guarantees
+----------
+Checked before any work (:func:`check_folder`, :func:`check_file`): an empty name, a name
+longer than the file system allows, a folder whose parent does not exist, is not a folder
+or cannot be written, a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
+existing output that is not a regular file (a symbolic link, a device node, a folder) are
+refused with :class:`OutputError` (a ``ValueError``: exit status 2) naming the path.
+
+Written all-or-nothing (:func:`write_folder`, :func:`write_file`):
+
+- Every file of a set is first written into a fresh staging folder with a unique hidden
+  name (``.xval-stage-*``), inside the output folder when it exists, beside it when it does
+  not. Nothing in the output folder changes while files are being produced, so a failure
+  (an exception, Ctrl-C, SIGTERM converted to an exception by :func:`signals_as_exceptions`)
+  leaves the output folder exactly as it was.
+- A run removes only what it created: its own staging folder (and, if its commit fails
+  part-way, the files it had already moved in, putting back the ones they replaced). It never
+  removes the output folder, so run A interrupted after run B has written the same folder
+  leaves B's files alone.
+- Commit: a new folder is the staging folder renamed into place (one atomic step); into an
+  existing folder each file is swapped in with ``os.replace``, under an exclusive ``flock`` on
+  the folder so that two runs committing at once cannot interleave their sets. Before the
+  first swap every target is checked again: if any is not a regular file (say a folder named
+  ``report.json`` appeared) nothing is replaced. An ``OSError`` part-way rolls the swapped files
+  back. SIGINT and SIGTERM are held during the commit (it takes microseconds) and delivered
+  right after it, so an interrupted commit still leaves one complete set.
+- Only regular files are replaced: an existing symbolic link, device node, FIFO or folder at
+  a target is refused, never renamed over.
+
+Not covered: SIGKILL or a power cut while staging can leave a ``.xval-stage-*`` folder (the
+outputs themselves are still either old or new); files are not fsync'ed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import math
+import os
+import shutil
+import signal
+import stat
+import tempfile
+import threading
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+STAGING_PREFIX = ".xval-stage-"
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM
+
+
+class OutputError(ValueError):
+    """A destination that cannot be written (exit status 2)."""
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised as an exception so that ``finally`` blocks and clean-ups run."""
+
+
+# ---------------------------------------------------------------------------- checks
+
+def _name_max(folder: Path) -> int:
+    try:
+        return os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def _check_text(path: str | os.PathLike, flag: str, what: str) -> Path:
+    text = os.fspath(path)
+    if text == "":
+        raise OutputError(f"{flag} is empty: give a {what} name")
+    if "\0" in text:
+        raise OutputError(f"{flag} {text!r}: a path cannot contain a NUL character")
+    if len(os.fsencode(os.path.abspath(text))) >= 4096:
+        raise OutputError(f"{flag}: path of {len(text)} characters is too long")
+    limit = _name_max(Path("."))
+    for part in Path(text).parts:
+        if len(os.fsencode(part)) > limit:
+            raise OutputError(f"{flag}: a name of {len(part)} characters is too long (at most {limit} bytes)")
+    return Path(text)
+
+
+def _check_parent(parent: Path, flag: str, shown: str) -> None:
+    if not parent.exists():
+        raise OutputError(f"{flag} {shown}: folder '{parent}' does not exist (create it first)")
+    if not parent.is_dir():
+        raise OutputError(f"{flag} {shown}: '{parent}' is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{flag} {shown}: cannot write in '{parent}' (permission denied or read-only)")
+
+
+def _refuse_non_regular(target: Path, flag: str) -> None:
+    """Raise unless ``target`` is absent or a regular file (not following symbolic links)."""
+    try:
+        mode = os.lstat(target).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise OutputError(f"{flag}: cannot use '{target}': {exc.strerror}") from None
+    if stat.S_ISREG(mode):
+        return
+    kind = ("a symbolic link" if stat.S_ISLNK(mode) else "a folder" if stat.S_ISDIR(mode)
+            else "a device node" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+    raise OutputError(f"{flag}: '{target}' is {kind}; xval replaces only regular files, move it away first")
+
+
+def check_folder(path: str | os.PathLike, names: Iterable[str] = (), *, flag: str = "--out") -> Path:
+    """Check that the folder ``path`` can receive the files ``names``, before any work.
+
+    The folder may exist (it must then be a writable folder, and each of ``names`` in it
+    absent or a regular file) or not (its parent must then be a writable folder).
+
+    Raises
+    ------
+    OutputError
+        Naming the path and the reason.
+    """
+    out = _check_text(path, flag, "folder")
+    try:
+        return _check_folder(out, names, flag)
+    except OSError as exc:
+        raise OutputError(f"{flag} '{out}': {exc.strerror or exc}") from None
+
+
+def _check_folder(out: Path, names: Iterable[str], flag: str) -> Path:
+    shown = f"'{out}'"
+    if out.exists() or out.is_symlink():
+        if not out.is_dir():
+            raise OutputError(f"{flag} {shown} is a file, not a folder" if out.is_file() or out.is_symlink()
+                              else f"{flag} {shown} is not a folder")
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise OutputError(f"{flag} {shown}: cannot write in it (permission denied or read-only)")
+        for name in names:
+            _refuse_non_regular(out / name, flag)
+    else:
+        parent = out.parent
+        # A path below a file ("file.txt/out") fails here: its parent is not a folder.
+        _check_parent(parent, flag, shown)
+    return out
+
+
+def check_file(path: str | os.PathLike, *, flag: str = "-o") -> Path:
+    """Check that the file ``path`` can be written (created, or a regular file replaced).
+
+    Raises
+    ------
+    OutputError
+        For an empty name, a folder (``.``, ``..``, a trailing ``/``, an existing folder), a
+        missing or unwritable parent folder, or an existing target that is not a regular file.
+    """
+    target = _check_text(path, flag, "file")
+    try:
+        return _check_file(target, os.fspath(path), flag)
+    except OSError as exc:
+        raise OutputError(f"{flag} '{target}': {exc.strerror or exc}") from None
+
+
+def _check_file(target: Path, text: str, flag: str) -> Path:
+    if target.name in ("", ".", "..") or text.endswith(os.sep) or target.is_dir():
+        raise OutputError(f"{flag} '{text}' is a folder: give a file name, e.g. model.xml")
+    _check_parent(target.parent, flag, f"'{text}'")
+    _refuse_non_regular(target, flag)
+    return target
+
+
+# ---------------------------------------------------------------------------- signals
+
+@contextlib.contextmanager
+def signals_as_exceptions() -> Iterator[None]:
+    """For the duration of the block, SIGTERM raises :class:`Terminated` and SIGINT
+    ``KeyboardInterrupt`` (so clean-ups run); the previous handlers are restored after.
+    A signal that is ignored when the block starts stays ignored.
+
+    Does nothing outside the main thread (Python only handles signals there).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise Terminated()
+
+    wanted = {signal.SIGTERM: terminate, signal.SIGINT: signal.default_int_handler}
+    # A signal the caller chose to ignore (``nohup``, a background job) stays ignored.
+    previous = {s: signal.signal(s, handler) for s, handler in wanted.items()
+                if signal.getsignal(s) is not signal.SIG_IGN}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM for a short critical section, then deliver them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum))
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(pending):
+            handler = previous[s]
+            if callable(handler):
+                handler(s, None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), s)
+
+
+# ---------------------------------------------------------------------------- writing
+
+@contextlib.contextmanager
+def _locked(folder: Path) -> Iterator[None]:
+    """An exclusive advisory lock on a folder (no lock file: ``flock`` on the folder itself)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str) -> None:
+    """Move ``content/name`` over ``out/name`` for every name, all or none (see module notes)."""
+    for name in names:  # nothing is replaced if any target is not a regular file
+        _refuse_non_regular(out / name, flag)
+    backup.mkdir()
+    moved: list[list] = []  # [name, an old file was set aside, the new file is in place]
+    try:
+        for name in names:
+            had_old = os.path.lexists(out / name)
+            if had_old:
+                os.replace(out / name, backup / name)
+            moved.append([name, had_old, False])
+            os.replace(content / name, out / name)
+            moved[-1][2] = True
+    except BaseException:
+        for name, had_old, placed in reversed(moved):  # put back what was there
+            with contextlib.suppress(OSError):
+                if placed:
+                    os.unlink(out / name)
+                if had_old:
+                    os.replace(backup / name, out / name)
+        raise
+
+
+def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
+                 flag: str = "--out") -> list[Path]:
+    """Write a set of files into the folder ``path``, all or nothing.
+
+    Parameters
+    ----------
+    path : the output folder; it is created if absent (its parent must exist).
+    files : file name -> function that writes that file at the path it is given (a staging
+        path, not the final one). Files are committed in this order.
+
+    Returns
+    -------
+    The final paths, in the order of ``files``.
+
+    Raises
+    ------
+    OutputError
+        If the destination is not usable (checked first, and again before the commit).
+    Whatever a writer raises (including ``KeyboardInterrupt``/:class:`Terminated`): the folder
+    is then exactly as it was.
+    """
+    names = list(files)
+    out = check_folder(path, names, flag=flag)
+    existed = out.is_dir()
+    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
+    try:
+        content = staging / "set"
+        content.mkdir()
+        for name, write in files.items():
+            write(content / name)
+            if not (content / name).is_file():
+                raise RuntimeError(f"the writer of {name} produced no file")
+        with _signals_held():
+            if not existed:
+                try:
+                    os.rename(content, out)  # the whole set appears at once
+                    return [out / name for name in names]
+                except OSError as exc:  # the folder appeared meanwhile: swap file by file
+                    if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                        raise
+                if not out.is_dir():
+                    raise OutputError(f"{flag} '{out}' appeared meanwhile and is not a folder")
+            with _locked(out):
+                _swap_in(content, staging / "replaced", out, names, flag)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return [out / name for name in names]
+
+
+def write_file(path: str | os.PathLike, text: str, *, flag: str = "-o") -> Path:
+    """Write ``text`` (UTF-8) to the file ``path``, replacing only a regular file, atomically."""
+    target = check_file(path, flag=flag)
+    return write_folder(target.parent, {target.name: lambda p: p.write_text(text, encoding="utf-8")},
+                        flag=flag)[0]
+
+
+# ---------------------------------------------------------------------------- content
+
+def plain(value):
+    """``value`` as strict-JSON data: NaN and ±inf become None; tuples, numpy scalars and
+    arrays, enums and paths become lists, numbers and strings."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [plain(v) for v in value.tolist()]
+    if isinstance(value, Enum):
+        return plain(value.value)
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return value
+
+
+def json_text(data) -> str:
+    """Strict JSON (no NaN or Infinity tokens), indented, with a final newline."""
+    return json.dumps(plain(data), indent=2, allow_nan=False) + "\n"
+
+
+def portable_source(source: str) -> str:
+    """A scene's source path without the user's folders: relative to the working directory
+    when the file is below it, else the file name alone."""
+    if source.startswith("<"):
+        return source
+    path = Path(source)
+    if not path.is_absolute():
+        return source
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except (ValueError, OSError):
+        return path.name

@@ -1,0 +1,191 @@
+"""The command line, called in-process (``main([...])`` with captured output): destinations
+refused before any work, exit statuses, signals, warnings, flags. One subprocess smoke test
+checks the installed entry point.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import compare.cost
+import compare.report
+import compare.run
+import compare.stress
+import reference_models
+from compare import cli
+from compare.cli import main
+from compare.cost import worker_count
+from reduced import scene_from_dict
+
+from helpers import SEED_SCENE, seed_dict
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    assert captured.out == ""  # nothing was computed or printed before the refusal
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Any computation fails the test: destinations must be refused before it starts."""
+    def computed(*args, **kwargs):
+        raise AssertionError("work started before the destination was checked")
+    for module, name in ((compare.run, "compare_engines"), (compare.cost, "ground_truth"),
+                         (compare.stress, "run_catalogue"), (reference_models, "build_model")):
+        monkeypatch.setattr(module, name, computed)
+
+
+def place(tmp_path: Path, kind: str) -> str:
+    """A destination of the given kind under ``tmp_path``."""
+    (tmp_path / "file").write_text("keep")
+    (tmp_path / "folder").mkdir()
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    return {"existing file": str(tmp_path / "file"), "below a file": str(tmp_path / "file" / "out"),
+            "missing folder": str(tmp_path / "nope" / "out"), "unwritable": str(locked / "out"),
+            "long name": str(tmp_path / ("x" * 300)), "empty": "", "folder": str(tmp_path / "folder"),
+            "dot-dot": str(tmp_path / "folder" / ".."), "device": str(tmp_path / "null"),
+            "symlink": str(tmp_path / "link")}[kind]
+
+
+# (command, destination kind, words the message must contain)
+BAD_DESTINATIONS = [
+    *[(command, kind, words) for command in ("run", "cost", "stress") for kind, words in (
+        ("existing file", "is a file"), ("below a file", "is not a folder"),
+        ("missing folder", "does not exist"), ("unwritable", "cannot write"),
+        ("long name", "too long"), ("empty", "--out is empty"))],
+    ("export-mjcf", "folder", "is a folder"), ("export-mjcf", "dot-dot", "is a folder"),
+    ("export-mjcf", "missing folder", "does not exist"), ("export-mjcf", "empty", "-o is empty"),
+    ("export-mjcf", "device", "device node"), ("export-mjcf", "symlink", "symbolic link"),
+    ("export-mjcf", "long name", "too long"),
+]
+
+
+@pytest.mark.parametrize("command,kind,words", BAD_DESTINATIONS)
+def test_bad_destination_is_refused_before_any_work(command, kind, words, tmp_path, capsys, no_work):
+    dest = place(tmp_path, kind)
+    if kind == "unwritable" and os.access(tmp_path / "locked", os.W_OK):  # root may write in it
+        if os.access("/proc/1", os.W_OK):
+            pytest.skip("no unwritable folder available to this user")
+        dest = "/proc/1/out"
+    if kind == "symlink":
+        os.symlink(tmp_path / "file", dest)
+    if kind == "device":  # our own null device: a planted bug must not replace the real one
+        if os.geteuid() != 0:
+            pytest.skip("creating a device node needs root")
+        os.mknod(dest, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    flag = ["-o", dest] if command == "export-mjcf" else ["--out", dest]
+    assert main([command, *flag]) == 2
+    assert words in one_error_line(capsys)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing created, nothing removed
+    assert (tmp_path / "file").read_text() == "keep"
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["mujoco", "--iterations", "2147483648"], "--iterations: must be between 1 and 100000"),
+    (["cost", "--workers", "100000"], "--workers: must be between 1 and 1024"),
+    (["cost", "--repeats", "0"], "--repeats: must be between 1 and 1000"),
+    (["check", str(SEED_SCENE), "--peak-rtol", "nan"], "must be finite"),
+    (["mujoco", "--timestep", "-1"], "must be positive"),
+    (["stress", "--case", "no_such_case"], "unknown case"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_bad_flag_value_exits_2_with_one_line(argv, words, capsys, no_work):
+    assert main(argv) == 2
+    assert words in one_error_line(capsys)
+
+
+def test_only_the_flags_given_override_the_scene():
+    data = seed_dict()
+    data["mujoco"] = {"integrator": "euler", "timestep": 5e-4}
+    scene = scene_from_dict(data)
+    parser = cli.build_parser()
+    plain = parser.parse_args(["run"])
+    assert cli._given(plain, {n: n for n in ("integrator", "timestep", "iterations", "solimp")}) == {}
+    assert cli._given(plain, {"reference": "method", "reference_rtol": "rtol", "reference_step": "step"}) == {}
+    settings = cli._mujoco_settings(parser.parse_args(["run", "--integrator", "rk4"]), scene)
+    assert (settings.integrator, settings.timestep) == ("rk4", 5e-4)  # flag over table, table kept
+    reduced = parser.parse_args(["reduced"])
+    assert (reduced.method, reduced.rtol, reduced.step) == (None, None, None)
+    data["reduced"] = {"method": "radau"}
+    scene = scene_from_dict(data)
+    flags = {"method": "method", "rtol": "rtol", "step": "step"}
+    settings = cli._reduced_settings(parser.parse_args(["reduced", "--rtol", "1e-9"]), scene, flags)
+    assert (settings.method, settings.rtol) == ("radau", 1e-9)
+
+
+def test_workers_are_capped_at_the_cores():
+    cores = os.cpu_count() or 1
+    assert worker_count(1024, 100) == cores
+    assert worker_count(None, 1) == 1
+    assert worker_count(1, 100) == 1
+
+
+def test_warnings_are_one_line_each(capsys):
+    """An off-grid pulse edge (1.00037 s on a 1 ms grid) is warned about on stderr, once, in one line."""
+    scene = str(ROOT / "scenes" / "hard" / "off_grid_edge.toml")
+    assert main(["mujoco", scene, "--timestep", "0.001"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err and all(line.startswith("xval: warning: ") for line in err), err
+    assert any("not a multiple of the timestep" in line for line in err)
+    assert len(err) == len(set(err))
+
+
+@pytest.mark.parametrize("signum,status,line", [(signal.SIGINT, 130, "xval: interrupted"),
+                                                (signal.SIGTERM, 143, "xval: terminated")])
+def test_a_signal_stops_cleanly_and_leaves_nothing(signum, status, line, tmp_path, capsys, monkeypatch):
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signum)
+        raise AssertionError("the signal did not stop the run")
+    monkeypatch.setattr(compare.run, "compare_engines", signalled)
+    previous = signal.getsignal(signal.SIGTERM)
+    assert main(["run", str(SEED_SCENE), "--out", str(tmp_path / "out")]) == status
+    assert capsys.readouterr().err == line + "\n"
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) == previous  # handlers restored after main()
+
+
+def test_failed_gate_exits_1_and_still_writes_the_report(tmp_path, capsys):
+    """Also: a scene name that is mathtext to matplotlib, and longer than a title shows (the
+    scene's limit is 100 characters, titles cut at NAME_CHARS = 60), is plotted as text."""
+    data = seed_dict()
+    data["name"] = r"a $x^$ and $\undefined$ " + "x" * 70  # both are errors as mathtext
+    scene = tmp_path / "dollar.toml"
+    scene.write_text(SEED_SCENE.read_text().replace('name = "seed_fourbar"', f"name = {json.dumps(data['name'])}"))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--peak-rtol", "1e-12"]) == 1
+    captured = capsys.readouterr()
+    assert "gate: FAILED" in captured.out and "Traceback" not in captured.err
+    report = json.loads((out / "report.json").read_text())
+    assert report["gate"]["passed"] is False and report["scene"]["name"] == data["name"]
+    assert not Path(report["scene"]["source"]).is_absolute()
+    assert all((out / name).stat().st_size > 0 for name in compare.report.REPORT_FILES)
+
+
+def test_long_names_are_cut_in_titles():
+    from compare.plots import NAME_CHARS, short_name
+
+    assert short_name("x" * 10**6) == "x" * (NAME_CHARS - 1) + "…"
+    assert short_name("a\nb  c") == "a b c" and short_name("seed_fourbar") == "seed_fourbar"
+
+
+def test_entry_point_smoke(tmp_path):
+    """The one subprocess: ``python -m compare.cli`` runs, exits 2 with one line on a bad -o."""
+    proc = subprocess.run([sys.executable, "-m", "compare.cli", "export-mjcf", "-o", ""], capture_output=True,
+                          text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr == "xval: error: -o is empty: give a file name\n"
+    assert list(tmp_path.iterdir()) == []

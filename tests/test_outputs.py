@@ -1,0 +1,256 @@
+"""The output writer's guarantees (compare/output.py), each under the fault it is meant to survive.
+
+Faults are real: exceptions raised by a writer part-way, a directory in the way, a second
+process writing the same folder, SIGINT and SIGTERM sent to a process while it writes.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from compare import output
+from compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
+
+NAMES = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
+
+
+def snapshot(folder: Path) -> dict:
+    """Every entry below ``folder`` (hidden ones included) with its kind and content."""
+    out = {}
+    for path in sorted(folder.rglob("*")):
+        rel = str(path.relative_to(folder))
+        out[rel] = ("link", os.readlink(path)) if path.is_symlink() else \
+            ("dir", None) if path.is_dir() else ("file", path.read_bytes()) if path.is_file() else ("other", None)
+    return out
+
+
+def writers(tag: str, fail_at: str | None = None, error: BaseException | None = None) -> dict:
+    """Files whose content is ``tag``; the writer of ``fail_at`` writes half a file, then raises."""
+    def make(name):
+        def write(path: Path):
+            if name == fail_at:
+                path.write_text(f"{tag} half")
+                raise error
+            path.write_text(f"{tag} {name}")
+        return write
+    return {name: make(name) for name in NAMES}
+
+
+@pytest.fixture
+def old_folder(tmp_path) -> Path:
+    """An output folder holding an earlier run's complete set and a file of the user's."""
+    out = tmp_path / "out"
+    write_folder(out, writers("old"))
+    (out / "notes.txt").write_text("mine")
+    return out
+
+
+def test_a_set_replaces_the_old_one_and_nothing_else(old_folder):
+    write_folder(old_folder, writers("new"))
+    assert snapshot(old_folder) == {**{n: ("file", f"new {n}".encode()) for n in NAMES},
+                                    "notes.txt": ("file", b"mine")}
+    assert [p.name for p in old_folder.parent.iterdir()] == ["out"]  # no staging left beside it
+
+
+@pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt(), Terminated(),
+                                   OSError(errno.ENOSPC, "No space left on device")],
+                         ids=["exception", "ctrl-c", "sigterm", "disk-full"])
+@pytest.mark.parametrize("fail_at", ["mujoco.csv", "report.json"])
+def test_failure_while_writing_leaves_the_folder_as_it_was(old_folder, error, fail_at):
+    """Issue 9, planted bug 3 (a failed run leaves a half-written folder)."""
+    before = snapshot(old_folder.parent)
+    with pytest.raises(type(error)):
+        write_folder(old_folder, writers("new", fail_at, error))
+    assert snapshot(old_folder.parent) == before
+
+
+def test_failure_while_writing_a_new_folder_creates_nothing(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        write_folder(tmp_path / "out", writers("new", "report.json", KeyboardInterrupt()))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_old_report_in_the_way_leaves_no_mix(old_folder):
+    """A folder named report.json: refused before anything is replaced, whether it was there
+    at the start or appeared while the files were being written."""
+    (old_folder / "report.json").unlink()
+    (old_folder / "report.json").mkdir()
+    before = snapshot(old_folder)
+    with pytest.raises(OutputError, match="report.json' is a folder"):
+        write_folder(old_folder, writers("new"))
+    assert snapshot(old_folder) == before
+
+    (old_folder / "report.json").rmdir()
+    (old_folder / "report.json").write_text("old report.json")
+    before = snapshot(old_folder)
+    files = writers("new")
+    write_png = files["plot.png"]
+
+    def obstacle_appears(path):  # another process puts a folder where report.json goes
+        write_png(path)
+        (old_folder / "report.json").unlink()
+        (old_folder / "report.json").mkdir()
+    files["plot.png"] = obstacle_appears
+    with pytest.raises(OutputError, match="only regular files"):
+        write_folder(old_folder, files)
+    assert snapshot(old_folder) == {**before, "report.json": ("dir", None)}
+
+
+def test_a_commit_failing_part_way_is_rolled_back(old_folder, monkeypatch):
+    before = snapshot(old_folder.parent)
+    real_replace, calls = os.replace, []
+
+    def replace_failing_on_the_fifth(src, dst):
+        calls.append(dst)
+        if len(calls) == 5:  # after two files swapped in: 2 × (set aside old, move in new)
+            raise OSError(errno.EIO, "Input/output error")
+        real_replace(src, dst)
+    monkeypatch.setattr(output.os, "replace", replace_failing_on_the_fifth)
+    with pytest.raises(OSError, match="Input/output"):
+        write_folder(old_folder, writers("new"))
+    monkeypatch.undo()
+    assert snapshot(old_folder.parent) == before
+
+
+def test_an_interrupt_during_the_commit_comes_after_a_complete_set(old_folder, monkeypatch):
+    real_replace = os.replace
+
+    def replace_then_interrupt(src, dst):
+        real_replace(src, dst)
+        os.kill(os.getpid(), signal.SIGINT)
+    monkeypatch.setattr(output.os, "replace", replace_then_interrupt)
+    with signals_as_exceptions(), pytest.raises(KeyboardInterrupt):
+        write_folder(old_folder, writers("new"))
+    monkeypatch.undo()
+    assert {n: (old_folder / n).read_text() for n in NAMES} == {n: f"new {n}" for n in NAMES}
+
+
+@pytest.mark.parametrize("kind", ["symlink", "dangling symlink", "fifo", "device", "folder"])
+def test_only_regular_files_are_replaced(tmp_path, kind):
+    target = tmp_path / "model.xml"
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    if kind == "symlink":
+        target.symlink_to(victim)
+    elif kind == "dangling symlink":
+        target.symlink_to(tmp_path / "nowhere")
+    elif kind == "fifo":
+        os.mkfifo(target)
+    elif kind == "device":  # a null device of our own: a planted bug must not replace the real one
+        if os.geteuid() != 0:
+            pytest.skip("creating a device node needs root")
+        os.mknod(target, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    else:
+        target.mkdir()
+    before = snapshot(tmp_path)
+    with pytest.raises(OutputError, match="folder|only regular files"):
+        write_file(target, "<mujoco/>")
+    assert snapshot(tmp_path) == before
+    if kind == "device":
+        assert target.is_char_device()
+
+
+def test_a_regular_file_is_replaced(tmp_path):
+    (tmp_path / "model.xml").write_text("old")
+    assert write_file(tmp_path / "model.xml", "<mujoco/>") == tmp_path / "model.xml"
+    assert snapshot(tmp_path) == {"model.xml": ("file", b"<mujoco/>")}
+
+
+def test_json_is_strict_and_paths_are_not_absolute(tmp_path, monkeypatch):
+    text = json_text({"a": float("nan"), "b": [float("inf"), -float("inf"), 1.5], "c": (1, 2)})
+    assert json.loads(text, parse_constant=lambda token: pytest.fail(f"bare {token} in JSON")) == \
+        {"a": None, "b": [None, None, 1.5], "c": [1, 2]}
+    monkeypatch.chdir(tmp_path)
+    assert output.portable_source(str(tmp_path / "scenes" / "a.toml")) == "scenes/a.toml"
+    assert output.portable_source("/elsewhere/b.toml") == "b.toml"
+    assert output.portable_source("rel/c.toml") == "rel/c.toml"
+
+
+# --------------------------------------------------------------- other processes and signals
+
+CHILD = textwrap.dedent("""
+    import sys, time
+    from pathlib import Path
+    from compare.output import Terminated, signals_as_exceptions, write_folder
+    out, ready, tag = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
+    names = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
+
+    def make(name):
+        def write(path):
+            path.write_text(tag + " " + name)
+            if name == "mujoco.csv":  # half-way through the set: wait to be told
+                ready.write_text("staging")
+                while ready.read_text() != "go":
+                    time.sleep(0.01)
+        return write
+
+    try:
+        with signals_as_exceptions():
+            write_folder(out, {n: make(n) for n in names})
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Terminated:
+        sys.exit(143)
+""")
+
+
+def start_child(out: Path, ready: Path, tag: str) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(out), str(ready), tag],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (ready.exists() and ready.read_text() == "staging"):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "child never reached the middle of its writing"
+        time.sleep(0.01)
+    return proc
+
+
+def finish(proc: subprocess.Popen) -> int:
+    _, err = proc.communicate(timeout=60)
+    assert "Traceback" not in err, err
+    return proc.returncode
+
+
+@pytest.mark.parametrize("ending", ["ctrl-c", "completes"])
+def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending):
+    """Run A stages, run B writes the same new folder and finishes, then A is interrupted (B's
+    set must stay: issue 10, lost data 1) or completes (A's set replaces B's, whole)."""
+    out, ready = tmp_path / "out", tmp_path / "ready"
+    a = start_child(out, ready, "A")
+    write_folder(out, {n: (lambda p, n=n: p.write_text(f"B {n}")) for n in NAMES})  # run B
+    if ending == "ctrl-c":
+        a.send_signal(signal.SIGINT)
+        assert finish(a) == 130
+        survivor = "B"
+    else:
+        ready.write_text("go")
+        assert finish(a) == 0
+        survivor = "A"
+    ready.unlink()
+    assert snapshot(tmp_path) == {"out": ("dir", None),
+                                  **{f"out/{n}": ("file", f"{survivor} {n}".encode()) for n in NAMES}}
+
+
+def test_sigterm_while_writing_leaves_no_partial_folder(old_folder):
+    """Issue 10, lost data 3: SIGTERM mid-write; the old files are untouched, nothing hidden stays."""
+    ready = old_folder.parent / "ready"
+    child = start_child(old_folder, ready, "new")
+    before = snapshot(old_folder)
+    assert any(name.startswith(output.STAGING_PREFIX) for name in before)  # it is staging in there
+    child.send_signal(signal.SIGTERM)
+    assert finish(child) == 143
+    ready.unlink()
+    assert snapshot(old_folder.parent) == {"out": ("dir", None),
+                                           **{f"out/{n}": ("file", f"old {n}".encode()) for n in NAMES},
+                                           "out/notes.txt": ("file", b"mine")}
