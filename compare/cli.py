@@ -107,6 +107,11 @@ def cmd_reduced(args: argparse.Namespace) -> int:
           + (f"step = {_setting_text(used, 'step', ' s')}" if used.get("method") == "rkn4"
              else f"rtol = {_setting_text(used, 'rtol')}"))
     print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
+    estimate = result.diagnostics.get("error_estimate")
+    if estimate:
+        print(f"error estimate   {estimate['q_abs_rad']:.3e} rad in q, {estimate['qdot_abs_rad_per_s']:.3e} rad/s "
+              f"in q̇: {estimate['relative']:.3e} of the run's scale (tolerance rtol = {estimate['tolerance']:g}; "
+              f"{estimate['method']})")
     print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
           f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
     print(f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, "
