@@ -146,6 +146,7 @@ def test_off_grid_edge_is_warned_and_its_error_quantified(results):
     assert r.figures["off_grid_q_max"] > 50 * r.figures["on_grid_q_max"]
 
 
+@pytest.mark.slow
 def test_off_grid_edge_error_is_first_order_in_the_misplacement():
     """The pulse ends δ early on MuJoCo's 1 ms grid: the crank misses an impulse T·δ, so
     its speed error after the edge, and the angle error it accumulates, are first order
