@@ -144,20 +144,18 @@ def pieces(t0: float, tf: float, breakpoints: tuple[float, ...]) -> list[tuple[f
     return list(zip(edges[:-1], edges[1:]))
 
 
-def _check_state(t: float, q: float, v: float, speed_limit: float) -> None:
+def _check_state(t: float, q: float, v: float, speed_limit: float, *, initial: bool = False) -> None:
+    """NumericalFailure for a non-finite state or a speed beyond ``speed_limit`` (rad/s)."""
     if not (math.isfinite(q) and math.isfinite(v)):
-        raise NumericalFailure("non-finite", f"the state became NaN or infinite at t = {t:.6g} s", t)
+        what = f"the initial state is NaN or infinite (q = {q}, q̇ = {v})" if initial else \
+            f"the state became NaN or infinite at t = {t:.6g} s"
+        raise NumericalFailure("non-finite", what, t)
     if abs(v) > speed_limit:
-        raise NumericalFailure("unstable", f"|q̇| = {abs(v):.3g} rad/s exceeds {speed_limit:.3g} rad/s at "
-                               f"t = {t:.6g} s: the integration is unstable at this step", t)
-
-
-def _check_initial_state(t: float, q: float, v: float, speed_limit: float) -> None:
-    if not (math.isfinite(q) and math.isfinite(v)):
-        raise NumericalFailure("non-finite", f"the initial state is NaN or infinite (q = {q}, q̇ = {v})", t)
-    if abs(v) > speed_limit:
-        raise NumericalFailure("unstable", f"the initial speed |q̇| = {abs(v):.3g} rad/s exceeds the "
-                               f"integrators' limit of {speed_limit:.3g} rad/s: no step can resolve it", t)
+        what = (f"the initial speed |q̇| = {abs(v):.3g} rad/s exceeds the integrators' limit of "
+                f"{speed_limit:.3g} rad/s: no step can resolve it") if initial else \
+            (f"|q̇| = {abs(v):.3g} rad/s exceeds {speed_limit:.3g} rad/s at t = {t:.6g} s: "
+             "the integration is unstable at this step")
+        raise NumericalFailure("unstable", what, t)
 
 
 def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
@@ -189,7 +187,7 @@ def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0
     c, abar, a, bbar, b = tableau.c, tableau.abar, tableau.a, tableau.bbar, tableau.b
     if c[0] != 0.0:
         raise ValueError("the driver reuses f at the end of a step as the next first stage (c[0] = 0)")
-    _check_initial_state(t_span[0], q0, qdot0, speed_limit)
+    _check_state(t_span[0], q0, qdot0, speed_limit, initial=True)
     ns = len(c)
     ts, qs, vs, accs = [], [], [], []
     q, v = float(q0), float(qdot0)
@@ -305,7 +303,7 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         becomes non-finite, or the state runs away.
     """
     atol = rtol if atol is None else atol
-    _check_initial_state(t_span[0], q0, qdot0, speed_limit)
+    _check_state(t_span[0], q0, qdot0, speed_limit, initial=True)
     ts, qs, vs, accs = [], [], [], []
     y = np.array([q0, qdot0], dtype=float)
     n_steps = n_eval = 0
