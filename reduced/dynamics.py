@@ -140,7 +140,7 @@ class MechanismModel:
         """q̈ = f(t, q, q̇) on one smooth piece [start, end] of the load history.
 
         The torque is taken from the open interval (start, end) even at its ends, so a
-        step that ends on a pulse edge sees only one side of it (SEED-NOTES erratum 5).
+        step that ends on a pulse edge sees only one side of it (seed-notes erratum 5, README).
         """
         torque = self.torque_on_piece(start, end)
 

@@ -4,7 +4,7 @@ adaptive reference (scipy's DOP853). They know nothing about linkages.
 Both take ``rhs_on_piece(start, end) -> f``, a factory that returns the acceleration
 function valid on one smooth piece of the load history, and the ``breakpoints`` where
 the loads jump. Every breakpoint is a step boundary, and every stage of a step
-evaluates the piece that contains the step (SEED-NOTES erratum 5).
+evaluates the piece that contains the step (seed-notes erratum 5, README).
 """
 
 from __future__ import annotations

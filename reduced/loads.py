@@ -3,7 +3,7 @@
 Each profile lists its discontinuities (``edges``) so that integrators can put a
 step boundary on each one, and can be evaluated on one smooth piece
 (:meth:`TorqueProfile.on_piece`) so that every stage inside a step sees the same
-side of an edge (SEED-NOTES erratum 5).
+side of an edge (seed-notes erratum 5, README).
 """
 
 from __future__ import annotations

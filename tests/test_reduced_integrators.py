@@ -69,7 +69,7 @@ def test_rkn4_is_fourth_order_when_f_is_nonlinear_in_velocity():
 
 
 def test_printed_seed_method_is_only_third_order():
-    """SEED-NOTES erratum 2: with m2 in the third stage's position argument the method drops
+    """seed-notes erratum 2, README: with m2 in the third stage's position argument the method drops
     to order 3 whenever f depends on q."""
     errors = final_error(lambda t, q, v: -q, np.cos, 10.0, STEPS, tableau=RKN4_AS_PRINTED)
     assert_order(STEPS, errors, RKN4_AS_PRINTED)

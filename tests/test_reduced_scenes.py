@@ -1,6 +1,6 @@
 """Scene validation, systematically: every key of the seed scene broken in every way it can be
 broken names itself in one line; the bad-scene files through the CLI's error path; the
-default scene is the seed example of SEED-NOTES.
+default scene is the seed notes' worked example (README, 'The seed notes').
 
 Each bad-scene file goes through the CLI's ``main`` in the test process (exit status 2, one
 stderr line naming the key, no traceback); tests/test_scenes.py runs the installed ``xval``
@@ -197,7 +197,7 @@ def test_cli_main_reports_the_bad_key_in_one_line(path, capsys):
 
 
 def test_default_scene_is_the_seed_example():
-    """The numbers of SEED-NOTES 'The worked example', read back from the default scene."""
+    """The numbers of the seed notes' worked example (README, 'The seed notes'), read back from the default scene."""
     assert default_scene_path() == SEED_SCENE.resolve()
     scene = load_scene(default_scene_path())
     assert scene.effects == ("torque", "damper")
