@@ -19,12 +19,12 @@ import sys
 import warnings
 
 from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene_path, load_scene, simulate
+from reduced.scene import MUJOCO_MAX_ITERATIONS
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
                      json_text, signals_as_exceptions, write_file, write_folder)
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-MAX_ITERATIONS = 100_000  # MuJoCo solver iterations: beyond this a run cannot finish in reasonable time
 MAX_REPEATS = 1000
 MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
 
@@ -171,8 +171,8 @@ def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                    default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
-    g.add_argument("--iterations", type=_int_in(1, MAX_ITERATIONS), default=None,
-                   help=f"constraint solver iterations, 1 to {MAX_ITERATIONS} (default 100)")
+    g.add_argument("--iterations", type=_int_in(1, MUJOCO_MAX_ITERATIONS), default=None,
+                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} (default 100)")
     g.add_argument("--tolerance", type=_positive, default=None, help="constraint solver tolerance (default 1e-12)")
     g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
                    help="disable refsafe (allows solref time constants below 2*timestep)")

@@ -476,6 +476,12 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
 MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 
+# MuJoCo's constraint-solver iterations per step: Newton on a loop's rows converges in a handful;
+# 10 000 already means a solver that is not converging, and keeps the binding's C int (2**31
+# raises a TypeError there) far away. One limit for the scene file, the CLI and MujocoSettings.
+MUJOCO_MAX_ITERATIONS = 10_000
+
+
 def _parse_mujoco(t: _Table) -> dict[str, Any]:
     """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers),
     iterations, tolerance, refsafe and diagexact (booleans)."""
@@ -488,8 +494,8 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
         out["tolerance"] = t.number("tolerance", positive=True)
     if t.has("iterations"):
         value = t.raw("iterations")
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise SceneError(f"'{t.key('iterations')}' must be a whole number of at least 1")
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MUJOCO_MAX_ITERATIONS:
+            raise SceneError(f"'{t.key('iterations')}' must be a whole number from 1 to {MUJOCO_MAX_ITERATIONS}")
         out["iterations"] = value
     for name in ("refsafe", "diagexact"):
         if t.has(name):

@@ -26,7 +26,7 @@ from mujoco import rollout
 from reduced.errors import FailureReason, NumericalFailure
 from reduced.partition import JointTrajectory
 from reduced.result import EnergyAudit, EngineResult
-from reduced.scene import BODY_NAMES, Scene
+from reduced.scene import BODY_NAMES, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
 from .build import (LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
@@ -36,10 +36,7 @@ INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 _INTEGRATOR_ENUM = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
                     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
 
-# Newton on this model's three loop rows converges in a handful of iterations; a cap of
-# 10 000 per step already means a solver that is not converging, and keeps the binding's
-# C int (iterations ≥ 2**31 raise a TypeError there) far away.
-MAX_ITERATIONS = 10_000
+MAX_ITERATIONS = MUJOCO_MAX_ITERATIONS  # reduced.scene says why
 # Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
 # of the horizon) that puts every load edge on the step grid; it is halved until a run at h
 # and one at h/2 differ by at most HALVING_FRACTION of the scene's tolerances, down to

@@ -219,3 +219,11 @@ def test_scene_from_dict_does_not_modify_its_input():
     before = copy.deepcopy(data)
     scene_from_dict(data)
     assert data == before
+
+
+@pytest.mark.parametrize("value", [0, 10_001, 2**31])
+def test_mujoco_iterations_beyond_the_one_limit_name_the_key(value):
+    """The scene file, the CLI and MujocoSettings share MUJOCO_MAX_ITERATIONS (10 000)."""
+    data = seed_dict()
+    data["mujoco"] = {"iterations": value}
+    assert "'mujoco.iterations' must be a whole number from 1 to 10000" in scene_error(data)
