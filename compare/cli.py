@@ -93,7 +93,9 @@ def _setting_text(settings: dict, name: str, unit: str = "") -> str:
 
 def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) -> ReducedSettings:
     """Reduced settings: the flags given over the scene's [reduced] table over the defaults."""
-    return ReducedSettings(**{**scene.reduced, **_given(args, flags)})
+    from .settings import reduced_settings
+
+    return reduced_settings(scene, **_given(args, flags))
 
 
 def cmd_reduced(args: argparse.Namespace) -> int:
@@ -121,10 +123,10 @@ def cmd_reduced(args: argparse.Namespace) -> int:
 
 def _mujoco_settings(args: argparse.Namespace, scene):
     """MuJoCo settings: command-line flags over the scene's [mujoco] table over the defaults."""
-    from reference_models import MujocoSettings
+    from .settings import mujoco_settings
 
     names = ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact")
-    return MujocoSettings(**{**scene.mujoco, **_given(args, {n: n for n in names})})
+    return mujoco_settings(scene, **_given(args, {n: n for n in names}))
 
 
 def cmd_mujoco(args: argparse.Namespace) -> int:

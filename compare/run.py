@@ -8,6 +8,7 @@ from reduced import EngineResult, ReducedSettings, Scene, simulate
 from reduced.scene import Tolerances
 from reference_models import MujocoSettings, simulate_mujoco
 
+from .settings import mujoco_settings, reduced_settings
 from .diff import (BranchCheck, Difference, GateResult, compare_branches, compare_trajectories, gate,
                    peak_floor_of)
 
@@ -39,8 +40,8 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
         If either engine fails.
     """
     tolerances = tolerances or scene.tolerances
-    reference = simulate(scene, reduced or ReducedSettings(**scene.reduced))
-    other = simulate_mujoco(scene, mujoco or MujocoSettings(**scene.mujoco))
+    reference = simulate(scene, reduced or reduced_settings(scene))
+    other = simulate_mujoco(scene, mujoco or mujoco_settings(scene))
     return judge(scene, reference, other, tolerances)
 
 

@@ -26,6 +26,7 @@ from reduced.result import EngineResult
 
 from .diff import compare_trajectories
 from .run import Comparison, judge
+from .settings import mujoco_settings as resolve_mujoco, reduced_settings as resolve_reduced
 
 PROBE_TIMESTEPS = (1e-3, 1e-4, 1e-5)
 
@@ -98,8 +99,8 @@ def _drift_per_revolution(result) -> float:
 def run_case(case: Case) -> CaseResult:
     """Run one case: both engines, the gate and the case's own checks."""
     scene = load_scene(case.path)
-    reduced_settings = ReducedSettings(**scene.reduced)
-    mujoco_settings = MujocoSettings(**scene.mujoco)
+    reduced_settings = resolve_reduced(scene)
+    mujoco_settings = resolve_mujoco(scene)
     problems, notes, figures = [], [], {}
 
     reduced, r_status, r_message = _run(lambda: simulate(scene, reduced_settings))
@@ -210,7 +211,7 @@ def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dic
     on_grid = replace(scene, torque=replace(torque, duration=round(torque.duration / h) * h))
 
     def error(s: Scene):
-        reference = simulate(s, ReducedSettings(**s.reduced))
+        reference = simulate(s, resolve_reduced(s))
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             other = simulate_mujoco(s, settings)

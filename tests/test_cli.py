@@ -189,3 +189,15 @@ def test_entry_point_smoke(tmp_path):
                           text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 2 and proc.stderr == "xval: error: -o is empty: give a file name\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scene_table_the_engine_refuses_names_the_file_and_table(tmp_path, capsys):
+    """[mujoco] solimp out of MuJoCo's range in a scene: one line naming the file and the table,
+    exit 2, nothing written; the same values as a flag name the field."""
+    scene = tmp_path / "bad_solimp.toml"
+    scene.write_text(SEED_SCENE.read_text().replace(
+        "[simulation]", "[mujoco]\nsolimp = [2.0, 2.0, 2.0, 2.0, 2.0]\n\n[simulation]"))
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"xval: error: {scene}: [mujoco] solimp") and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
