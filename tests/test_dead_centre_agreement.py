@@ -1,0 +1,94 @@
+"""Both engines from a start where the input angle q is not the reduced engine's coordinate.
+
+Near an input-link dead centre the reduced engine starts in (or switches to) a chart whose
+independent coordinate is φ1 or φ2; the closed-form dyad solution of that chart used to return
+the dependent angles in another turn than the assembled configuration (q = q0 − 2π), so the
+reduced trajectory was the scene's motion shifted by 2π in q: MuJoCo and the reduced engine
+disagreed by 6.283 rad at every MuJoCo step while ω agreed to 1e-6 (found on random four-bars,
+with an independent Lagrange-multiplier DAE integration agreeing with MuJoCo and with the
+shifted reduced run to 3e-11 rad once the shift was removed).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from compare.run import compare_engines
+from reduced import FourBar, scene_from_dict, simulate
+
+# q0 = 2.379 rad is within the hysteresis of a dead centre: the run starts in a φ chart and never
+# leaves it. Measured |Δq| 3.2e-10 rad between the engines (MuJoCo's automatic step, 0.5 ms).
+START_IN_PHI_CHART = {
+    "name": "start_in_phi_chart",
+    "linkage": {"type": "four_bar", "c1": 0.372, "c2": 1.549, "c3": 1.912, "c4": 0.301, "branch": -1},
+    "bodies": {"crank": {"pivot_inertia": 1.5},
+               "coupler": {"mass": 17.4, "inertia": 5.0, "com": [0.643, -0.091]},
+               "rocker": {"pivot_inertia": 3.5}},
+    "initial": {"q": 2.379, "qdot": 0.977},
+    "simulation": {"horizon": 1.0},
+}
+# q0 = 3.13 rad, just below π, under gravity: starts in the φ2 chart, passes a dead centre and
+# switches twice (φ2 → q → φ1). Measured |Δq| 1.2e-6 rad (MuJoCo's automatic step, 0.125 ms).
+THROUGH_DEAD_CENTRE = {
+    "name": "through_dead_centre",
+    "gravity": [0.0, -9.81],
+    "linkage": {"type": "four_bar", "c1": 0.384, "c2": 1.674, "c3": 1.822, "c4": 0.451, "branch": -1},
+    "bodies": {"crank": {"mass": 1.18, "inertia": 0.465, "com": [0.192, 0.0]},
+               "coupler": {"mass": 12.4, "inertia": 5.0, "com": [1.217, -0.185]},
+               "rocker": {"mass": 1.42, "inertia": 0.223, "com": [0.911, 0.0]}},
+    "initial": {"q": 3.13, "qdot": 7.2},
+    "simulation": {"horizon": 0.5},
+}
+# Bound on max |Δq| between the engines: 5-6x the measured difference (a 2π shift is 6.28 rad).
+CASES = [(START_IN_PHI_CHART, 0, 2e-9), (THROUGH_DEAD_CENTRE, 2, 6e-6)]
+
+
+@pytest.mark.parametrize("data, switches, q_bound", CASES, ids=[c[0]["name"] for c in CASES])
+def test_reduced_run_starts_at_the_assembled_state(data, switches, q_bound):
+    """The reduced trajectory's first sample is the scene's configuration, in the same turn."""
+    scene = scene_from_dict(data)
+    result = simulate(scene)
+    joints = result.diagnostics["joints"]
+    assert joints.coordinate[0] != 0, "precondition: the run starts in a φ chart"
+    assert len(result.diagnostics["switches"]) == switches
+    # Round-off of the closed-form dyad solution (1e-15 rad); a wrong turn is off by 6.28.
+    np.testing.assert_allclose(joints.x[0], FourBar(scene.linkage).assemble(scene.q0), rtol=0, atol=1e-12)
+    assert result.trajectory.q[0] == pytest.approx(scene.q0, abs=1e-12)
+
+
+@pytest.mark.parametrize("data, switches, q_bound", CASES, ids=[c[0]["name"] for c in CASES])
+def test_engines_agree_from_a_phi_chart_start(data, switches, q_bound):
+    """MuJoCo (maximal coordinates, no charts) and the reduced engine agree in q, not modulo 2π."""
+    scene = scene_from_dict(data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        comparison = compare_engines(scene)
+    assert comparison.gate.passed, comparison.gate.failures
+    assert comparison.diff.q_max_abs <= q_bound
+    assert comparison.branches.mismatches == 0
+
+
+def test_dyad_solution_continues_the_guess_turn():
+    """FourBar.solve returns the dependent angles in the 2π turn of its guess, as the generic
+    Newton path does (the chart's continuity relies on it)."""
+    linkage = FourBar(scene_from_dict(START_IN_PHI_CHART).linkage)
+    checked = 0
+    for q in np.linspace(-3.0, 3.0, 13):
+        try:
+            x = linkage.assemble(float(q))
+        except ValueError:
+            continue
+        for i in (1, 2):
+            if linkage.conditioning(x)[i] < 0.1:  # near the chart's own singularity acos loses digits
+                continue
+            sign = linkage.chart_sign(x, i)
+            for turns in (-1, 0, 1):
+                guess = x + 2.0 * math.pi * turns * (np.arange(3) != i)
+                kin = linkage.solve(guess, i, float(x[i]), sign)
+                np.testing.assert_allclose(kin.x, guess, rtol=0, atol=1e-9)
+                checked += 1
+    assert checked >= 12
