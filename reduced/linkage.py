@@ -356,7 +356,7 @@ class FourBar(LoopLinkage):
         x = np.empty(3)
         x[independent], x[ia], x[ib] = value, a, b
         for j in (ia, ib) if x_guess is not None else ():
-            x[j] += 2.0 * math.pi * round((x_guess[j] - x[j]) / (2.0 * math.pi))
+            x[j] += 2.0 * math.pi * np.round((x_guess[j] - x[j]) / (2.0 * math.pi))  # NaN stays NaN
         return self.coefficients_at(x, independent)
 
     def branch_of(self, x: np.ndarray) -> int:
