@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from compare.run import compare_engines
-from reduced import FourBar, scene_from_dict, simulate
+from reduced import FourBar, SingularPositionError, scene_from_dict, simulate
 
 # q0 = 2.379 rad is within the hysteresis of a dead centre: the run starts in a φ chart and never
 # leaves it. Measured |Δq| 3.2e-10 rad between the engines (MuJoCo's automatic step, 0.5 ms).
@@ -110,7 +110,7 @@ DOP853_PAST_CHART_REACH = {
 }
 
 
-@pytest.mark.xfail(strict=True, reason="DOP853 evaluates a trial stage beyond the φ2 chart's reach and "
+@pytest.mark.xfail(strict=True, raises=SingularPositionError, reason="DOP853 evaluates a trial stage beyond the φ2 chart's reach and "
                    "raises SingularPositionError instead of rejecting the step (reduced/partition.py, "
                    "reduced/integrators.py: owned by other helpers)")
 def test_default_reference_passes_a_fast_dead_centre():
