@@ -331,7 +331,9 @@ class FourBar(LoopLinkage):
         With x_i known, c_a e(a) + c_b e(b) = P = (c4, 0) − c_i e(x_i), so a = ψ ± α with
         ψ = atan2(P), cos α = (c_a² + |P|² − c_b²) / (2 c_a |P|), and b from the remainder;
         of the two roots, the one with sign(det J_dep) = sign(sin(b − a)) = ``sign``.
-        ``x_guess`` is not needed (the chart is stateless).
+        The root does not depend on ``x_guess``; the dependent angles are returned in the
+        turn (2π multiple) nearest to it (when given), as the generic path's Newton iteration
+        does, so that a chart's angles continue the configuration it started from.
         """
         g = self.geometry
         lengths = (g.c1, g.c2, g.c3)
@@ -353,6 +355,8 @@ class FourBar(LoopLinkage):
                 break
         x = np.empty(3)
         x[independent], x[ia], x[ib] = value, a, b
+        for j in (ia, ib) if x_guess is not None else ():
+            x[j] += 2.0 * math.pi * np.round((x_guess[j] - x[j]) / (2.0 * math.pi))  # NaN stays NaN
         return self.coefficients_at(x, independent)
 
     def branch_of(self, x: np.ndarray) -> int:
