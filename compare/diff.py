@@ -31,6 +31,7 @@ are samples whose angle the reference never reaches within its time span.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -225,7 +226,10 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
         t_peak_abs=abs(t_other - t_ref),
         q_max_abs=float(np.max(np.abs(dq))), q_rms=rms(dq),
         omega_max_abs=float(np.max(np.abs(domega))), omega_rms=rms(domega),
-        omega_vs_q_max_abs=float(np.max(np.abs(domega_q))) if domega_q.size else 0.0,
+        # No fast sample: nothing to compare (0). Fast samples but none at an angle the reference
+        # reaches: the engines are not in the same configuration at all — NaN, which fails the gate.
+        omega_vs_q_max_abs=(float(np.max(np.abs(domega_q))) if domega_q.size
+                            else math.nan if fast.any() else 0.0),
         times=times, dq=dq, domega=domega, q_samples=q_fast[matched], domega_vs_q=domega_q,
         peak_omega_reference=p_ref, peak_omega_other=p_other, t_peak_reference=t_ref,
         t_peak_other=t_other, peak_floor=peak_floor, span_start=float(start), span_end=float(end),
@@ -294,7 +298,9 @@ def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None 
               ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s")]
     if tolerances.omega_vs_q_atol is not None:
         checks.append(("omega_vs_q_max_abs", diff.omega_vs_q_max_abs, tolerances.omega_vs_q_atol, " rad/s"))
-    failures += [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}"
+    failures += [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}" if not math.isnan(value) else
+                 f"{name}: no sample of the compared run is at an angle the reference reaches, so ω at equal "
+                 "q cannot be compared (the engines are not in the same configuration)"
                  for name, value, tol, unit in checks if not value <= tol]
     if branches is not None and branches.mismatches:
         failures.append(f"assembly branch differs at {branches.mismatches} sample(s), first at "

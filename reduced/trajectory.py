@@ -14,6 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 
+PEAK_CANDIDATE_BAND = 0.01  # local maxima of |q̇| samples within 1 % of the largest are refined
+
+
 @dataclass(frozen=True)
 class Peak:
     """An extremum of the input link's angular velocity: ω (rad/s) at time t (s)."""
@@ -98,9 +101,17 @@ class Trajectory:
         ``sign`` = +1 (−1) only the largest positive (most negative) q̇ is sought, so that
         two runs of a swinging motion are compared on the same side.
         """
-        k = int(np.argmax(np.abs(self.qdot) if sign is None else sign * self.qdot))
+        objective = np.abs(self.qdot) if sign is None else sign * self.qdot
+        k = int(np.argmax(objective))
         best = Peak(float(self.qdot[k]), float(self.t[k]))
-        for i in (k - 2, k - 1, k, k + 1):
+        # The summit between samples of one extremum can exceed the largest sample, which may
+        # belong to another: refine around every local maximum of the samples within
+        # PEAK_CANDIDATE_BAND of the largest (a summit exceeds its samples by ~h²|q⃛|/8, far less).
+        rises = (objective[1:-1] > objective[:-2]) & (objective[1:-1] >= objective[2:])
+        near = objective[1:-1] >= objective[k] - PEAK_CANDIDATE_BAND * abs(objective[k])
+        maxima = np.flatnonzero(rises & near) + 1
+        around = sorted({i for m in (k, *maxima.tolist()) for i in (m - 2, m - 1, m, m + 1)})
+        for i in around:
             if i < 0 or i + 1 >= len(self.t) or self.t[i + 1] == self.t[i]:
                 continue
             h = self.t[i + 1] - self.t[i]

@@ -150,10 +150,10 @@ PEAK_BETWEEN_SAMPLES = {
 PEAK_BETWEEN_SAMPLES_ORACLE = -13.8487445140  # rad/s, the independent DAE integration above
 
 
-@pytest.mark.xfail(strict=True, reason="Trajectory.peak_angular_velocity refines only around the largest "
-                   "sample and misses a higher summit between samples of another extremum "
-                   "(reduced/trajectory.py; patch in the trust-deadcentre report)")
 def test_peak_between_samples_is_found():
+    """|ω| has near-equal extremes; the true top (oracle −13.8487445140 rad/s) falls between the
+    reduced run's samples while another extremum has the larger sample (13.8445): refining only
+    around the largest sample reported −13.844503, 2.35e-4 relative off, at every MuJoCo step."""
     scene = scene_from_dict(PEAK_BETWEEN_SAMPLES)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

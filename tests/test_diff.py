@@ -6,6 +6,7 @@ own samples (q exactly, q̇ to round-off ~1e-14) and each figure is a known clos
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from decimal import Decimal
 
@@ -246,3 +247,18 @@ def test_an_untied_peak_is_each_engines_own_refined_peak(seed_runs):
                                 (d.peak_omega_other, d.t_peak_other, mujoco)):
         assert compared == pytest.approx(abs(own.peak.omega), rel=1e-14) and when == pytest.approx(own.peak.time)
         assert compared > np.max(np.abs(own.trajectory.qdot))
+
+
+def test_omega_vs_q_with_no_matching_angle_fails_instead_of_reading_zero():
+    """A compared run that never reaches the reference's angles (here shifted by a whole turn,
+    as a reduced run once reported q0 − 2π) gives no sample to compare at equal q: the figure is
+    NaN and the gate fails saying why, instead of a max |Δω| of 0 that passes."""
+    t = np.linspace(0.0, 1.0, 201)
+    reference = Trajectory(t, 2.0 * t, np.full_like(t, 2.0), np.zeros_like(t))
+    shifted = Trajectory(t, 2.0 * t - 2 * np.pi, np.full_like(t, 2.0), np.zeros_like(t))
+    d = compare_trajectories(reference, shifted)
+    assert math.isnan(d.omega_vs_q_max_abs)
+    verdict = gate(d, Tolerances(q_atol=10.0, omega_atol=1.0, omega_vs_q_atol=1.0))
+    assert not verdict.passed and "cannot be compared" in " ".join(verdict.failures)
+    same = compare_trajectories(reference, reference)
+    assert same.omega_vs_q_max_abs == 0.0
