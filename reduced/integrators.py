@@ -277,7 +277,7 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
                    *, rtol: float = 1e-12, atol: float | None = None, method: str = "DOP853",
                    breakpoints: tuple[float, ...] = (), sample_interval: float = 1e-3,
                    speed_limit: float = 1e6, stop: StopCondition | None = None,
-                   max_evaluations: int = MAX_EVALUATIONS) -> Solution:
+                   max_evaluations: int = MAX_EVALUATIONS, max_step: float = math.inf) -> Solution:
     """Integrate with scipy's ``solve_ivp``, restarted at every breakpoint.
 
     The trajectory holds every accepted step plus points of the solver's own dense
@@ -334,7 +334,7 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         try:
             with np.errstate(over="ignore", invalid="ignore"):
                 sol = solve_ivp(first_order, (start, end), y, method=method, rtol=rtol, atol=atol,
-                                dense_output=True, events=events)
+                                dense_output=True, events=events, max_step=max_step)
         except NumericalFailure:
             raise
         except (ArithmeticError, ValueError) as exc:

@@ -399,14 +399,15 @@ def test_initial_speed_beyond_the_limit_is_refused_at_once():
 
 
 def test_energy_imbalance_beyond_the_bound_is_a_failure(monkeypatch):
-    """The seed's DOP853 run balances to 1.3e-11 of the work, inside its bound 1000 × rtol =
-    1e-9; with the bound cut to 1 × rtol (1e-12) the same run is an ENERGY_IMBALANCE, and with
-    check_error off it is returned with the bound recorded."""
+    """The seed's DOP853 run balances to 1.3e-11 of the work, inside its bound
+    max(1000 × rtol, ENERGY_FLOOR) = 1e-8; with the bound cut to 1 × rtol (1e-12) the same run
+    is an ENERGY_IMBALANCE, and with check_error off it is returned with the bound recorded."""
     scene = load_scene(SEED_SCENE)
     result = simulate(scene)
-    assert result.diagnostics["energy_bound"] == pytest.approx(1e-9)
+    assert result.diagnostics["energy_bound"] == pytest.approx(1e-8)
     assert result.audit.relative_residual < 1e-10
     monkeypatch.setitem(simulate_module.ENERGY_FACTOR, "dop853", 1.0)
+    monkeypatch.setattr(simulate_module, "ENERGY_FLOOR", 0.0)
     with pytest.raises(NumericalFailure) as info:
         simulate(scene)
     assert info.value.reason == "energy-imbalance" and "1.0e-12" in str(info.value)
