@@ -1,0 +1,256 @@
+"""The general linkage description: value types, joint graph, and malformed descriptions.
+
+The builders here (seed four-bar, offset slider-crank, Watt II six-bar) are reused by
+test_loops.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from reduced.mechanism import (GROUND, Body, Linkage, MechanismError, PrismaticJoint,
+                               RevoluteJoint)
+
+SEED = (0.5, 0.9, 0.7, 1.0)  # c1 (crank), c2 (coupler), c3 (rocker), c4 (ground), m
+
+
+def four_bar(c=SEED, input_joint="O1"):
+    """The seed four-bar O1-A-B-O3: each link's frame has its x axis along the link."""
+    c1, c2, c3, c4 = c
+    return Linkage(
+        bodies=[Body(GROUND, {"O1": (0.0, 0.0), "O3": (c4, 0.0)}),
+                Body("crank", {"O1": (0.0, 0.0), "A": (c1, 0.0)}),
+                Body("coupler", {"A": (0.0, 0.0), "B": (c2, 0.0)}),
+                Body("rocker", {"O3": (0.0, 0.0), "B": (c3, 0.0)})],
+        joints=[RevoluteJoint("O1", GROUND, "O1", "crank", "O1"),
+                RevoluteJoint("A", "crank", "A", "coupler", "A"),
+                RevoluteJoint("B", "coupler", "B", "rocker", "B"),
+                RevoluteJoint("O3", GROUND, "O3", "rocker", "O3")],
+        input_joint=input_joint)
+
+
+def slider_crank(r=0.1, l=0.35, e=0.03, input_joint="crank"):
+    """Offset slider-crank: crank O→A (r), rod A→B (l), B slides on the line y = e."""
+    return Linkage(
+        bodies=[Body(GROUND, {"O": (0.0, 0.0), "line": (0.0, e)}),
+                Body("crank", {"O": (0.0, 0.0), "A": (r, 0.0)}),
+                Body("rod", {"A": (0.0, 0.0), "B": (l, 0.0)}),
+                Body("slider", {"pin": (0.0, 0.0)})],
+        joints=[RevoluteJoint("crank", GROUND, "O", "crank", "O"),
+                RevoluteJoint("crank_pin", "crank", "A", "rod", "A"),
+                RevoluteJoint("wrist_pin", "rod", "B", "slider", "pin"),
+                PrismaticJoint("slide", GROUND, "line", 0.0, "slider", "pin")],
+        input_joint=input_joint)
+
+
+def watt_ii():
+    """Watt II six-bar: the seed four-bar whose rocker (ternary, point D) drives a second
+    four-bar D-E-O5 (two loops)."""
+    c1, c2, c3, c4 = SEED
+    return Linkage(
+        bodies=[Body(GROUND, {"O1": (0.0, 0.0), "O3": (c4, 0.0), "O5": (1.6, 0.9)}),
+                Body("crank", {"O1": (0.0, 0.0), "A": (c1, 0.0)}),
+                Body("coupler", {"A": (0.0, 0.0), "B": (c2, 0.0)}),
+                Body("rocker", {"O3": (0.0, 0.0), "B": (c3, 0.0), "D": (0.4, 0.3)}),
+                Body("link5", {"D": (0.0, 0.0), "E": (0.8, 0.0)}),
+                Body("link6", {"E": (0.0, 0.0), "O5": (0.6, 0.0)})],
+        joints=[RevoluteJoint("O1", GROUND, "O1", "crank", "O1"),
+                RevoluteJoint("A", "crank", "A", "coupler", "A"),
+                RevoluteJoint("B", "coupler", "B", "rocker", "B"),
+                RevoluteJoint("O3", GROUND, "O3", "rocker", "O3"),
+                RevoluteJoint("D", "rocker", "D", "link5", "D"),
+                RevoluteJoint("E", "link5", "E", "link6", "E"),
+                RevoluteJoint("O5", "link6", "O5", GROUND, "O5")],
+        input_joint="O1")
+
+
+# -- graph analysis ----------------------------------------------------------------
+
+def test_four_bar_tree_and_loop():
+    lk = four_bar()
+    assert lk.moving == ("crank", "coupler", "rocker")
+    assert [(e.body, e.joint, e.parent) for e in lk.tree] == [
+        ("crank", "O1", GROUND), ("rocker", "O3", GROUND), ("coupler", "A", "crank")]
+    assert lk.cut_joints == ("B",)
+    assert sorted(lk.loop_of("B")) == ["A", "B", "O1", "O3"]
+
+
+def test_slider_crank_takes_the_slide_into_the_tree_and_cuts_a_revolute():
+    lk = slider_crank()
+    assert lk.tree[0].joint == "slide"  # prismatic first, although "crank" is declared first
+    assert {e.joint for e in lk.tree} == {"slide", "crank", "wrist_pin"}
+    assert lk.cut_joints == ("crank_pin",)
+
+
+def test_watt_ii_has_two_loops_cut_at_revolutes():
+    lk = watt_ii()
+    assert len(lk.cut_joints) == 2
+    assert set(lk.loop_of(lk.cut_joints[0])) | set(lk.loop_of(lk.cut_joints[1])) == {
+        j.name for j in lk.joints}
+
+
+def test_body_points_are_read_only_and_converted():
+    b = Body("crank", {"A": (1, 2)})
+    assert b.points["A"] == (1.0, 2.0)
+    with pytest.raises(TypeError):
+        b.points["B"] = (0.0, 0.0)
+
+
+# -- malformed descriptions: each its own one-line message -----------------------------
+
+def _bodies_joints(c=SEED):
+    lk = four_bar(c)
+    return list(lk.bodies), list(lk.joints)
+
+
+def _replace_joint(joints, name, new):
+    return [new if j.name == name else j for j in joints]
+
+
+def _unknown_body():
+    b, j = _bodies_joints()
+    return Linkage(b, _replace_joint(j, "A", RevoluteJoint("A", "crank", "A", "couple", "A")), "O1")
+
+
+def _unknown_point():
+    b, j = _bodies_joints()
+    return Linkage(b, _replace_joint(j, "A", RevoluteJoint("A", "crank", "Z", "coupler", "A")), "O1")
+
+
+def _body_connected_to_nothing():
+    b, j = _bodies_joints()
+    return Linkage(b + [Body("loose", {"P": (0.0, 0.0)})], j, "O1")
+
+
+def _disconnected_group():
+    # A four-bar plus a pair of bodies pinned to each other twice and to nothing else.
+    b, j = _bodies_joints()
+    return Linkage(b + [Body("u", {"P": (0.0, 0.0), "Q": (1.0, 0.0)}),
+                        Body("v", {"P": (0.0, 0.0), "Q": (1.0, 0.0)})],
+                   j + [RevoluteJoint("uvP", "u", "P", "v", "P"),
+                        RevoluteJoint("uvQ", "u", "Q", "v", "Q")], "O1")
+
+
+def _two_dof():
+    # A five-bar: ground, crank, two couplers, rocker.
+    return Linkage(
+        [Body(GROUND, {"O1": (0.0, 0.0), "O4": (1.0, 0.0)}),
+         Body("a", {"O": (0.0, 0.0), "P": (0.5, 0.0)}), Body("b", {"O": (0.0, 0.0), "P": (0.5, 0.0)}),
+         Body("c", {"O": (0.0, 0.0), "P": (0.5, 0.0)}), Body("d", {"O": (0.0, 0.0), "P": (0.5, 0.0)})],
+        [RevoluteJoint("j1", GROUND, "O1", "a", "O"), RevoluteJoint("j2", "a", "P", "b", "O"),
+         RevoluteJoint("j3", "b", "P", "c", "O"), RevoluteJoint("j4", "c", "P", "d", "O"),
+         RevoluteJoint("j5", "d", "P", GROUND, "O4")], "j1")
+
+
+def _zero_dof():
+    # A triangle truss: two bars pinned to ground and to each other.
+    return Linkage(
+        [Body(GROUND, {"O1": (0.0, 0.0), "O2": (1.0, 0.0)}),
+         Body("a", {"O": (0.0, 0.0), "P": (0.7, 0.0)}), Body("b", {"O": (0.0, 0.0), "P": (0.7, 0.0)})],
+        [RevoluteJoint("j1", GROUND, "O1", "a", "O"), RevoluteJoint("j2", GROUND, "O2", "b", "O"),
+         RevoluteJoint("j3", "a", "P", "b", "P")], "j1")
+
+
+def _prismatic_only_loop():
+    # A wedge (three sliders in a loop) with a pendulum hung on it: Grübler says 1.
+    return Linkage(
+        [Body(GROUND, {"O": (0.0, 0.0)}),
+         Body("a", {"O": (0.0, 0.0)}), Body("b", {"O": (0.0, 0.0)}),
+         Body("p", {"O": (0.0, 0.0), "P": (0.3, 0.0)})],
+        [PrismaticJoint("pa", GROUND, "O", 0.0, "a", "O"),
+         PrismaticJoint("pb", GROUND, "O", math.pi / 2, "b", "O"),
+         PrismaticJoint("ab", "a", "O", math.pi / 4, "b", "O"),
+         RevoluteJoint("hinge", "b", "O", "p", "O")], "hinge")
+
+
+def _duplicate_body():
+    b, j = _bodies_joints()
+    return Linkage(b + [Body("crank", {"O1": (0.0, 0.0)})], j, "O1")
+
+
+def _duplicate_joint():
+    b, j = _bodies_joints()
+    return Linkage(b, j + [RevoluteJoint("A", "crank", "A", "coupler", "A")], "O1")
+
+
+def _input_missing():
+    b, j = _bodies_joints()
+    return Linkage(b, j, "O2")
+
+
+def _joint_to_itself():
+    return RevoluteJoint("A", "crank", "A", "crank", "O1")
+
+
+def _point_not_finite():
+    return Body("crank", {"A": (math.nan, 0.0)})
+
+
+def _point_not_a_pair():
+    return Body("crank", {"A": (1.0, 2.0, 3.0)})
+
+
+def _body_without_points():
+    return Body("crank", {})
+
+
+def _direction_not_finite():
+    return PrismaticJoint("s", GROUND, "O", math.inf, "a", "O")
+
+
+def _no_ground_joint():
+    # crank, coupler, rocker pinned in a triangle: connected, but not to ground.
+    return Linkage([Body("a", {"P": (0.0, 0.0), "Q": (1.0, 0.0)}),
+                    Body("b", {"P": (0.0, 0.0), "Q": (1.0, 0.0)})],
+                   [RevoluteJoint("j1", "a", "Q", "b", "P")], "j1")
+
+
+def _no_moving_body():
+    return Linkage([Body(GROUND, {"O": (0.0, 0.0)})], [], "j1")
+
+
+MALFORMED = {
+    "unknown body": (_unknown_body, "joint 'A': unknown body 'couple' (body_b)"),
+    "unknown point": (_unknown_point, "joint 'A': body 'crank' has no point 'Z' (point_a)"),
+    "body connected to nothing": (_body_connected_to_nothing, "body 'loose' is connected to nothing"),
+    "disconnected group": (_disconnected_group, "bodies 'u', 'v' form a group not connected to ground"),
+    "two DOF": (_two_dof, "the linkage has 2 degrees of freedom by Grübler's count 3·4 moving bodies − 2·5 joints, not 1"),
+    "zero DOF": (_zero_dof, "the linkage has 0 degrees of freedom by Grübler's count 3·2 moving bodies − 2·3 joints, not 1"),
+    "prismatic-only loop": (_prismatic_only_loop, "has only prismatic joints: no revolute joint to cut it"),
+    "duplicate body": (_duplicate_body, "duplicate body name 'crank'"),
+    "duplicate joint": (_duplicate_joint, "duplicate joint name 'A'"),
+    "input joint missing": (_input_missing, "input joint 'O2' is not one of the joints"),
+    "joint to itself": (_joint_to_itself, "joint 'A' joins body 'crank' to itself"),
+    "point not finite": (_point_not_finite, "body 'crank': point 'A' must be finite"),
+    "point not a pair": (_point_not_a_pair, "body 'crank': point 'A' must be a pair of numbers"),
+    "body without points": (_body_without_points, "body 'crank' has no points"),
+    "direction not finite": (_direction_not_finite, "joint 's': direction_a must be finite"),
+    "no joint to ground": (_no_ground_joint, "no joint connects the linkage to ground"),
+    "no moving body": (_no_moving_body, "the linkage has no moving body"),
+}
+
+
+@pytest.mark.parametrize("case", list(MALFORMED))
+def test_malformed_description_names_its_fault(case):
+    build, message = MALFORMED[case]
+    with pytest.raises(MechanismError) as info:
+        build()
+    text = str(info.value)
+    assert message in text
+    assert "\n" not in text
+
+
+def test_malformed_messages_are_all_different():
+    messages = set()
+    for build, _ in MALFORMED.values():
+        with pytest.raises(MechanismError) as info:
+            build()
+        messages.add(str(info.value))
+    assert len(messages) == len(MALFORMED)
+
+
+def test_mechanism_error_is_a_value_error():
+    # The CLI maps ValueError to exit 2 (bad input).
+    assert issubclass(MechanismError, ValueError)
