@@ -45,6 +45,24 @@ def slider_crank(r=0.1, l=0.35, e=0.03, input_joint="crank"):
         input_joint=input_joint)
 
 
+def inverted_slider_crank(r=0.3, d=0.5, line_on_rocker=True):
+    """Inverted slider-crank (the core of a Whitworth quick-return): crank O→A (r), a block
+    pinned at A slides along a rocker turning about O2 = (d, 0). The slide is declared with
+    the line in the rocker (s = |A − O2|) or, reversed, in the block (s = −|A − O2|)."""
+    slide = (PrismaticJoint("slide", "rocker", "O2", 0.0, "block", "A") if line_on_rocker
+             else PrismaticJoint("slide", "block", "A", 0.0, "rocker", "O2"))
+    return Linkage(
+        bodies=[Body(GROUND, {"O": (0.0, 0.0), "O2": (d, 0.0)}),
+                Body("crank", {"O": (0.0, 0.0), "A": (r, 0.0)}),
+                Body("rocker", {"O2": (0.0, 0.0)}),
+                Body("block", {"A": (0.0, 0.0)})],
+        joints=[RevoluteJoint("O", GROUND, "O", "crank", "O"),
+                RevoluteJoint("O2", GROUND, "O2", "rocker", "O2"),
+                slide,
+                RevoluteJoint("pin", "crank", "A", "block", "A")],
+        input_joint="O")
+
+
 def watt_ii():
     """Watt II six-bar: the seed four-bar whose rocker (ternary, point D) drives a second
     four-bar D-E-O5 (two loops)."""
@@ -82,6 +100,14 @@ def test_slider_crank_takes_the_slide_into_the_tree_and_cuts_a_revolute():
     assert lk.tree[0].joint == "slide"  # prismatic first, although "crank" is declared first
     assert {e.joint for e in lk.tree} == {"slide", "crank", "wrist_pin"}
     assert lk.cut_joints == ("crank_pin",)
+
+
+def test_inverted_slider_crank_hangs_the_block_on_the_slide():
+    for line_on_rocker in (True, False):
+        lk = inverted_slider_crank(line_on_rocker=line_on_rocker)
+        assert [(e.body, e.joint) for e in lk.tree] == [("crank", "O"), ("rocker", "O2"),
+                                                        ("block", "slide")]
+        assert lk.cut_joints == ("pin",)
 
 
 def test_watt_ii_has_two_loops_cut_at_revolutes():
