@@ -13,10 +13,10 @@ built from the spanning tree (the path from ground to the body): a revolute tree
 the rotating vector of the child's point, a prismatic one adds s e(θ + direction), a term
 whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows):
 
-- two rows per cut revolute joint: its two points, reached along the tree, coincide;
-- two rows per cut prismatic joint: point_b − point_a − s e(θ_a + direction) = 0 (its s
-  is a coordinate; the perpendicular offset is 0 and s is the parallel one);
-- one linear row per prismatic joint (tree or cut): θ_b − θ_a = 0, the slider keeps its angle.
+- two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
+  always revolute: :class:`~reduced.mechanism.Linkage` takes prismatic joints into the tree
+  first and refuses a loop of prismatic joints only, so a prismatic joint is never cut;
+- one linear row per prismatic joint: θ_b − θ_a = 0, the slider keeps its angle.
 
 The input joint adds the driving row c·x = q: c picks s for a prismatic input and
 θ_b − θ_a for a revolute one (θ of ground is 0), so a revolute between two moving bodies is
@@ -335,6 +335,7 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
     linear_rows = []
 
     def parallel(jt: PrismaticJoint) -> None:
+        """θ_b − θ_a = 0: body_b keeps its angle relative to body_a."""
         row = np.zeros(n)
         if angle[jt.body_b] >= 0:
             row[angle[jt.body_b]] += 1.0
@@ -359,11 +360,8 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
     loops = []
     for name in linkage.cut_joints:
         jt = joints[name]
-        gap = point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b))
-        if isinstance(jt, PrismaticJoint):
-            parallel(jt)
-            gap = gap.add(1.0, disp[name], angle[jt.body_a], jt.direction_a)
-        loops.append(gap)
+        assert not isinstance(jt, PrismaticJoint), "Linkage never cuts a prismatic joint"
+        loops.append(point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b)))
 
     inp = joints[linkage.input_joint]
     drive = np.zeros(n)

@@ -117,6 +117,23 @@ def test_watt_ii_has_two_loops_cut_at_revolutes():
         j.name for j in lk.joints}
 
 
+def test_loop_of_a_dyad_between_two_moving_bodies_leaves_out_their_common_path():
+    """Watt I: a dyad P-E-Q between the (ternary) crank and coupler. Its loop is
+    P, E, Q and the pin A; the crank's pivot O1 is on both tree paths, not in the loop."""
+    lk = four_bar()
+    bodies = [b for b in lk.bodies if b.name not in ("crank", "coupler")] + [
+        Body("crank", {"O1": (0.0, 0.0), "A": (0.5, 0.0), "P": (0.2, 0.2)}),
+        Body("coupler", {"A": (0.0, 0.0), "B": (0.9, 0.0), "Q": (0.4, 0.3)}),
+        Body("link5", {"P": (0.0, 0.0), "E": (0.3, 0.0)}),
+        Body("link6", {"E": (0.0, 0.0), "Q": (0.3, 0.0)})]
+    joints = list(lk.joints) + [RevoluteJoint("P", "crank", "P", "link5", "P"),
+                                RevoluteJoint("E", "link5", "E", "link6", "E"),
+                                RevoluteJoint("Q", "coupler", "Q", "link6", "Q")]
+    watt_i = Linkage(bodies, joints, "O1")
+    loops = sorted(sorted(watt_i.loop_of(c)) for c in watt_i.cut_joints)
+    assert loops == [["A", "B", "O1", "O3"], ["A", "E", "P", "Q"]]
+
+
 def test_body_points_are_read_only_and_converted():
     b = Body("crank", {"A": (1, 2)})
     assert b.points["A"] == (1.0, 2.0)
