@@ -84,6 +84,42 @@ def watt_ii():
         input_joint="O1")
 
 
+# Andrews' squeezing mechanism, /work/shared/benchmarks/andrews-testset.md (Hairer & Wanner,
+# Solving ODEs II, VII.7; Test Set for IVP Solvers, problem "andrews"), lengths in m.
+ANDREWS = dict(d=0.028, e=0.02, rr=0.007, ss=0.035, sc=0.018, sd=0.02, xa=-0.06934,
+               ya=-0.00227, xb=-0.03635, yb=0.03273, xc=0.014, yc=0.072, zt=0.04, zf=0.02, u=0.04)
+
+
+def andrews():
+    """Bodies b1…b7 as in the test set; each frame's angle is the test set's absolute angle:
+    b1 β, b2 β+Θ, b3 γ, b4 Φ+δ, b5 δ, b6 Ω+ε, b7 ε. Points read off its loop equations:
+    P = K − d e(β+Θ) with K = rr e(β) (b1, b2); P = B + R(γ)(0, −ss) (b3, spring point
+    D = B + R(γ)(sd, −sc)); P = Q + R(Φ+δ)(0, −e), Q = A + zt e(δ) (b4, b5);
+    P = R + zf e(Ω+ε), R = A + R(ε)(0, −u) (b6, b7). Four bodies meet at P: three pins."""
+    a = ANDREWS
+    return Linkage(
+        bodies=[Body(GROUND, {"O": (0.0, 0.0), "A": (a["xa"], a["ya"]), "B": (a["xb"], a["yb"]),
+                              "C": (a["xc"], a["yc"])}),
+                Body("b1", {"O": (0.0, 0.0), "K": (a["rr"], 0.0)}),
+                Body("b2", {"K": (0.0, 0.0), "P": (-a["d"], 0.0)}),
+                Body("b3", {"B": (0.0, 0.0), "P": (0.0, -a["ss"]), "D": (a["sd"], -a["sc"])}),
+                Body("b4", {"Q": (0.0, 0.0), "P": (0.0, -a["e"])}),
+                Body("b5", {"A": (0.0, 0.0), "Q": (a["zt"], 0.0)}),
+                Body("b6", {"R": (0.0, 0.0), "P": (a["zf"], 0.0)}),
+                Body("b7", {"A": (0.0, 0.0), "R": (0.0, -a["u"])})],
+        joints=[RevoluteJoint("O", GROUND, "O", "b1", "O"),
+                RevoluteJoint("K", "b1", "K", "b2", "K"),
+                RevoluteJoint("B", GROUND, "B", "b3", "B"),
+                RevoluteJoint("A5", GROUND, "A", "b5", "A"),
+                RevoluteJoint("A7", GROUND, "A", "b7", "A"),
+                RevoluteJoint("Q", "b5", "Q", "b4", "Q"),
+                RevoluteJoint("R", "b7", "R", "b6", "R"),
+                RevoluteJoint("P3", "b2", "P", "b3", "P"),
+                RevoluteJoint("P4", "b2", "P", "b4", "P"),
+                RevoluteJoint("P6", "b2", "P", "b6", "P")],
+        input_joint="O")
+
+
 # -- graph analysis ----------------------------------------------------------------
 
 def test_four_bar_tree_and_loop():
@@ -132,6 +168,12 @@ def test_loop_of_a_dyad_between_two_moving_bodies_leaves_out_their_common_path()
     watt_i = Linkage(bodies, joints, "O1")
     loops = sorted(sorted(watt_i.loop_of(c)) for c in watt_i.cut_joints)
     assert loops == [["A", "B", "O1", "O3"], ["A", "E", "P", "Q"]]
+
+
+def test_andrews_has_three_loops_closing_at_p():
+    lk = andrews()
+    assert len(lk.moving) == 7 and len(lk.joints) == 10  # 3·7 − 2·10 = 1
+    assert lk.cut_joints == ("P3", "P4", "P6")
 
 
 def test_body_points_are_read_only_and_converted():
