@@ -332,23 +332,23 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
         ax, ay = anchor[body]
         return base[body].rotated((px - ax, py - ay), angle[body])
 
-    linear_rows = []
-
-    def parallel(jt: PrismaticJoint) -> None:
-        """θ_b − θ_a = 0: body_b keeps its angle relative to body_a."""
+    def relative_angle(body_a: str, body_b: str) -> np.ndarray:
+        """The row r with r·x = θ_b − θ_a (θ of ground is 0)."""
         row = np.zeros(n)
-        if angle[jt.body_b] >= 0:
-            row[angle[jt.body_b]] += 1.0
-        if angle[jt.body_a] >= 0:
-            row[angle[jt.body_a]] -= 1.0
-        linear_rows.append(row)
+        if angle[body_b] >= 0:
+            row[angle[body_b]] += 1.0
+        if angle[body_a] >= 0:
+            row[angle[body_a]] -= 1.0
+        return row
+
+    linear_rows = []  # θ_b − θ_a = 0 for each prismatic joint: the slider keeps its angle
 
     for edge in linkage.tree:
         jt = joints[edge.joint]
         child_is_b = jt.body_b == edge.body
         own, other = ("b", "a") if child_is_b else ("a", "b")
         if isinstance(jt, PrismaticJoint):
-            parallel(jt)
+            linear_rows.append(relative_angle(jt.body_a, jt.body_b))
             # point_b = point_a + s e(θ_a + direction); θ_a is the child's or the parent's.
             sign = 1.0 if child_is_b else -1.0
             base[edge.body] = point(edge.parent, getattr(jt, f"point_{other}")).add(
@@ -364,15 +364,12 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
         loops.append(point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b)))
 
     inp = joints[linkage.input_joint]
-    drive = np.zeros(n)
     if isinstance(inp, PrismaticJoint):
+        drive = np.zeros(n)
         drive[disp[inp.name]] = 1.0
         unit = "m"
-    else:
-        if angle[inp.body_b] >= 0:
-            drive[angle[inp.body_b]] += 1.0
-        if angle[inp.body_a] >= 0:
-            drive[angle[inp.body_a]] -= 1.0
+    else:  # a revolute's coordinate is its relative angle, also between two moving bodies
+        drive = relative_angle(inp.body_a, inp.body_b)
         unit = "rad"
 
     point_names = tuple((b.name, p) for b in linkage.bodies for p in b.points)
