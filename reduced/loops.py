@@ -31,7 +31,7 @@ rows contribute nothing to γ. No finite differences anywhere.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -104,6 +104,14 @@ class LoopSystem:
     def coordinate(self, name: str) -> int:
         """Index of the coordinate called ``name``."""
         return self.coordinate_names.index(name)
+
+    def driven_by(self, index: int) -> "LoopSystem":
+        """The same linkage with coordinate x[index] as the input (coordinate partitioning):
+        :func:`assemble` then holds x[index] = q and :func:`coefficients` gives dx/dx[index]."""
+        drive = np.zeros(self.n)
+        drive[index] = 1.0
+        unit = "rad" if self.coordinate_names[index].endswith(".angle") else "m"
+        return replace(self, drive=drive, input_unit=unit)
 
 
 # -- evaluation on plain arrays (the hot path) -----------------------------------------
@@ -205,10 +213,12 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
     if not (math.isfinite(q) and np.all(np.isfinite(x))):
         raise AssemblyError(f"q = {q} and the guess must be finite")
     polished = False
-    for _ in range(max_iter):
+    for iteration in range(1, max_iter + 1):
         F = np.append(constraint_residual(system, x), system.drive @ x - q)
         if not np.all(np.isfinite(F)):
-            break
+            raise AssemblyError(f"Newton's method diverged at q = {q:.15g} {system.input_unit} "
+                                f"(non-finite residual at iteration {iteration}): start from "
+                                f"another guess")
         if polished:
             return x
         converged = np.max(np.abs(F)) <= tol

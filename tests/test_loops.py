@@ -241,6 +241,19 @@ def test_rank_drops_at_a_change_point():
     assert jacobian_rank(system, np.array([0.5, 0.0, 0.5])) == 2  # an ordinary position
 
 
+def test_driven_by_another_coordinate_is_the_other_input_joint():
+    """The crank-driven slider-crank re-driven by its slide coordinate gives the same x, K, L
+    as the linkage declared with the slide as input joint (same arithmetic: exact)."""
+    crank = compile_linkage(slider_crank(R, LEN, E))
+    by_slide = crank.driven_by(crank.coordinate("slide.s"))
+    declared = compile_linkage(slider_crank(R, LEN, E, input_joint="slide"))
+    assert by_slide.input_unit == "m"
+    x = assemble(by_slide, 0.3, [1.0, 0.0, 0.0, 0.3])
+    np.testing.assert_array_equal(x, assemble(declared, 0.3, [1.0, 0.0, 0.0, 0.3]))
+    for a, b in zip(coefficients(by_slide, x), coefficients(declared, x)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_slider_input_at_dead_centre():
     """Centred slider-crank at θ = 0: s is at its extreme, so s cannot be the independent
     coordinate (conditioning 0, coefficients refused) while the crank can."""
