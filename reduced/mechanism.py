@@ -1,0 +1,292 @@
+"""The general description of a planar one-degree-of-freedom linkage, and its joint graph.
+
+A linkage is rigid bodies with named points in their own frames, revolute and prismatic
+joints between two bodies' points, and the input joint whose coordinate is q. Ground is the
+body named ``"ground"`` (:data:`GROUND`): it does not move, its points are fixed points of the
+plane, and it is not counted as a moving body. Mass properties are not part of this layer.
+
+:class:`Linkage` checks the description as a graph on construction (names, connectivity,
+the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
+spanning tree from ground and the cut joints, one per independent loop. The numeric loop
+kinematics built from it are in :mod:`reduced.loops`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+GROUND = "ground"
+
+
+class MechanismError(ValueError):
+    """A linkage description that is malformed or not a one-degree-of-freedom mechanism."""
+
+
+def _finite_pair(value, what: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise MechanismError(f"{what} must be a pair of numbers (x, y) in m, got {value!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise MechanismError(f"{what} must be finite, got ({x}, {y})")
+    return x, y
+
+
+def _name(value, what: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise MechanismError(f"{what} must be a non-empty string, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body and its named points.
+
+    Parameters
+    ----------
+    name : str
+        Unique among the bodies; ``"ground"`` is the fixed frame.
+    points : mapping str → (x, y)
+        Named points in the body's own frame (m). Stored read-only.
+    """
+
+    name: str
+    points: Mapping[str, tuple[float, float]] = field(hash=False)
+
+    def __post_init__(self):
+        _name(self.name, "body name")
+        if not isinstance(self.points, Mapping):
+            raise MechanismError(f"body {self.name!r}: points must be a mapping name → (x, y), "
+                                 f"got {type(self.points).__name__}")
+        if not self.points:
+            raise MechanismError(f"body {self.name!r} has no points")
+        pts = {}
+        for key, value in self.points.items():
+            _name(key, f"body {self.name!r}: point name")
+            pts[key] = _finite_pair(value, f"body {self.name!r}: point {key!r}")
+        object.__setattr__(self, "points", MappingProxyType(pts))
+
+
+@dataclass(frozen=True)
+class RevoluteJoint:
+    """A pin: point ``point_a`` of ``body_a`` and point ``point_b`` of ``body_b`` coincide.
+
+    Its coordinate is the angle of body_b's frame relative to body_a's (rad).
+    """
+
+    name: str
+    body_a: str
+    point_a: str
+    body_b: str
+    point_b: str
+
+    def __post_init__(self):
+        _name(self.name, "joint name")
+        for f in ("body_a", "point_a", "body_b", "point_b"):
+            _name(getattr(self, f), f"joint {self.name!r}: {f}")
+        if self.body_a == self.body_b:
+            raise MechanismError(f"joint {self.name!r} joins body {self.body_a!r} to itself")
+
+
+@dataclass(frozen=True)
+class PrismaticJoint:
+    """A planar slider between body_a and body_b.
+
+    Point ``point_b`` of body_b slides along the line through ``point_a`` of body_a with
+    direction ``direction_a`` (rad, in body_a's frame), and body_b's frame stays parallel to
+    body_a's (relative angle 0). Its coordinate is the displacement s (m) of point_b from
+    point_a along the line.
+    """
+
+    name: str
+    body_a: str
+    point_a: str
+    direction_a: float
+    body_b: str
+    point_b: str
+
+    def __post_init__(self):
+        _name(self.name, "joint name")
+        for f in ("body_a", "point_a", "body_b", "point_b"):
+            _name(getattr(self, f), f"joint {self.name!r}: {f}")
+        try:
+            direction = float(self.direction_a)
+        except (TypeError, ValueError):
+            raise MechanismError(f"joint {self.name!r}: direction_a must be an angle in rad, "
+                                 f"got {self.direction_a!r}") from None
+        if not math.isfinite(direction):
+            raise MechanismError(f"joint {self.name!r}: direction_a must be finite, got {direction}")
+        object.__setattr__(self, "direction_a", direction)
+        if self.body_a == self.body_b:
+            raise MechanismError(f"joint {self.name!r} joins body {self.body_a!r} to itself")
+
+
+Joint = RevoluteJoint | PrismaticJoint
+
+
+@dataclass(frozen=True)
+class TreeEdge:
+    """How a moving body hangs from the spanning tree: by ``joint`` from ``parent``."""
+
+    body: str
+    joint: str
+    parent: str
+
+
+@dataclass(frozen=True)
+class Linkage:
+    """A planar linkage of revolute and prismatic joints with one degree of freedom.
+
+    Parameters
+    ----------
+    bodies : sequence of Body
+        The moving bodies, and optionally a body named ``"ground"`` holding fixed points.
+    joints : sequence of RevoluteJoint or PrismaticJoint
+    input_joint : str
+        Name of the joint whose coordinate is the independent coordinate q (rad for a
+        revolute: body_b's angle relative to body_a; m for a prismatic: its displacement).
+
+    Attributes (derived)
+    --------------------
+    moving : tuple of str
+        Names of the moving bodies, in the order given.
+    tree : tuple of TreeEdge
+        The spanning tree from ground, in breadth-first order (a parent before its children).
+        Prismatic joints are taken into the tree before revolute ones, so a loop is cut at a
+        revolute joint whenever it has one.
+    cut_joints : tuple of str
+        One joint per independent loop, not in the tree; its loop closes when it is satisfied.
+    """
+
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    input_joint: str
+    moving: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    tree: tuple[TreeEdge, ...] = field(init=False, repr=False, compare=False)
+    cut_joints: tuple[str, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        object.__setattr__(self, "joints", tuple(self.joints))
+        for b in self.bodies:
+            if not isinstance(b, Body):
+                raise MechanismError(f"bodies must be Body values, got {type(b).__name__}")
+        for j in self.joints:
+            if not isinstance(j, (RevoluteJoint, PrismaticJoint)):
+                raise MechanismError(f"joints must be RevoluteJoint or PrismaticJoint values, "
+                                     f"got {type(j).__name__}")
+        _unique([b.name for b in self.bodies], "body")
+        _unique([j.name for j in self.joints], "joint")
+        bodies = self.body_map
+        moving = tuple(b.name for b in self.bodies if b.name != GROUND)
+        if not moving:
+            raise MechanismError("the linkage has no moving body")
+        for j in self.joints:
+            for side in ("a", "b"):
+                body, point = getattr(j, f"body_{side}"), getattr(j, f"point_{side}")
+                if body not in bodies:
+                    raise MechanismError(f"joint {j.name!r}: unknown body {body!r} (body_{side})")
+                if point not in bodies[body].points:
+                    raise MechanismError(f"joint {j.name!r}: body {body!r} has no point {point!r} "
+                                         f"(point_{side})")
+        if self.input_joint not in {j.name for j in self.joints}:
+            raise MechanismError(f"input joint {self.input_joint!r} is not one of the joints")
+        touched = {j.body_a for j in self.joints} | {j.body_b for j in self.joints}
+        for name in moving:
+            if name not in touched:
+                raise MechanismError(f"body {name!r} is connected to nothing (no joint names it)")
+        if GROUND not in touched:
+            raise MechanismError("no joint connects the linkage to ground")
+        n, j = len(moving), len(self.joints)
+        dof = 3 * n - 2 * j
+        tree, cut = self._spanning_tree(moving)
+        if dof != 1:
+            raise MechanismError(f"the linkage has {dof} degrees of freedom by Grübler's count "
+                                 f"3·{n} moving bodies − 2·{j} joints, not 1")
+        kinds = self.joint_map
+        for name in cut:
+            loop = _cycle(tree, kinds[name])
+            if all(isinstance(kinds[k], PrismaticJoint) for k in loop):
+                raise MechanismError(f"the loop of joints {', '.join(loop)} has only prismatic "
+                                     f"joints: no revolute joint to cut it with a connect equality")
+        object.__setattr__(self, "moving", moving)
+        object.__setattr__(self, "tree", tree)
+        object.__setattr__(self, "cut_joints", cut)
+
+    @property
+    def body_map(self) -> dict[str, Body]:
+        """Bodies by name."""
+        return {b.name: b for b in self.bodies}
+
+    @property
+    def joint_map(self) -> dict[str, Joint]:
+        """Joints by name."""
+        return {j.name: j for j in self.joints}
+
+    def loop_of(self, cut_joint: str) -> tuple[str, ...]:
+        """The joints of the loop that ``cut_joint`` closes: its tree path and itself."""
+        return _cycle(self.tree, self.joint_map[cut_joint])
+
+    def _spanning_tree(self, moving: tuple[str, ...]) -> tuple[tuple[TreeEdge, ...], tuple[str, ...]]:
+        """Breadth-first tree from ground, prismatic joints first (a maximum spanning tree
+        with prismatic joints weighted above revolute ones): a cut joint is prismatic only
+        if its loop is all prismatic."""
+        adjacent: dict[str, list[Joint]] = {}
+        for jt in self.joints:
+            adjacent.setdefault(jt.body_a, []).append(jt)
+            adjacent.setdefault(jt.body_b, []).append(jt)
+        reached = {GROUND}
+        frontier: deque[Joint] = deque(adjacent.get(GROUND, ()))
+        tree: list[TreeEdge] = []
+        used = set()
+        while frontier:
+            candidates = [jt for jt in frontier
+                          if (jt.body_a in reached) != (jt.body_b in reached)]
+            if not candidates:
+                break
+            prismatic = [jt for jt in candidates if isinstance(jt, PrismaticJoint)]
+            jt = (prismatic or candidates)[0]
+            frontier.remove(jt)
+            child, parent = ((jt.body_b, jt.body_a) if jt.body_a in reached
+                             else (jt.body_a, jt.body_b))
+            reached.add(child)
+            used.add(jt.name)
+            tree.append(TreeEdge(child, jt.name, parent))
+            frontier.extend(k for k in adjacent[child] if k.name not in used and k not in frontier)
+        missing = [b for b in moving if b not in reached]
+        if missing:
+            raise MechanismError(f"bodies {', '.join(map(repr, missing))} form a group not "
+                                 f"connected to ground")
+        return tuple(tree), tuple(jt.name for jt in self.joints if jt.name not in used)
+
+
+def _unique(names: list[str], kind: str) -> None:
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise MechanismError(f"duplicate {kind} name {n!r}")
+        seen.add(n)
+
+
+def _path_to_ground(tree: tuple[TreeEdge, ...], body: str) -> list[str]:
+    """Tree joints from ``body`` down to ground, nearest first."""
+    up = {e.body: e for e in tree}
+    path = []
+    while body != GROUND:
+        e = up[body]
+        path.append(e.joint)
+        body = e.parent
+    return path
+
+
+def _cycle(tree: tuple[TreeEdge, ...], joint: Joint) -> tuple[str, ...]:
+    """The tree joints on the path between the joint's two bodies, and the joint itself."""
+    pa = _path_to_ground(tree, joint.body_a)
+    pb = _path_to_ground(tree, joint.body_b)
+    common = set(pa) & set(pb)
+    return tuple([k for k in pa if k not in common] + [k for k in pb if k not in common]
+                 + [joint.name])
