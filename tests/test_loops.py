@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from reduced.errors import FailureReason, NumericalFailure
-from reduced.linkage import FourBar, PhasorSum
+from reduced.linkage import FourBar
 from reduced.loops import (AssemblyError, assemble, coefficients, compile_linkage,
                            conditioning, constraint_residual, jacobian_rank, point_kinematics)
 from reduced.scene import FourBarGeometry
