@@ -1,12 +1,24 @@
 """Build the MuJoCo model of a scene with ``mujoco.MjSpec``.
 
-The four-bar is an open chain closed by an equality constraint: crank and coupler hang
-from O1, the rocker from O3, all hinges about z, and an ``<equality><connect>`` joins a
-site at B on the coupler to a site at B on the rocker. Only the effects the scene
-declares are built: a damper is a spatial tendon with ``damping``, a spring a tendon
-with ``stiffness`` and ``springlength``, the torque a motor on the crank hinge, gravity
-the scene's vector (else zero). There are no geoms, contacts are disabled, and no joint
-has damping, armature, stiffness or friction loss.
+The four-bar is a tree of bodies closed by an equality constraint: crank and coupler hang
+from O1, the rocker from O3, all hinges about z, and an ``<equality><connect>`` joins the
+coupler and the rocker at B (``body1``/``body2``/``anchor``, as published closed-loop models
+do). Every chain hangs from one fixed body ``base`` under ``<worldbody>`` (readers such as
+Pinocchio's keep only the first body tree there), which also holds the ground points.
+
+Pose. The model is authored in the scene's assembled configuration (the four-bar's closed
+form at q0 on the scene's branch): each body's ``pos``/``quat`` (a rotation about z) put the
+links where the assembly puts them, every hinge has ``ref`` 0, so ``qpos = 0`` is the
+assembled pose and qpos counts the joint angles from it. MuJoCo's default state, the
+``home`` keyframe (with the scene's q̇0 as joint rates) and any reader that starts from the
+zero configuration therefore see the loop closed, and the connect's anchor on the rocker,
+which MuJoCo computes at ``qpos0``, is B. :func:`joint_positions` and :func:`loop_angles`
+convert between qpos and the loop angles (q, φ1, φ2).
+
+Only the effects the scene declares are built: a damper is a spatial tendon with
+``damping``, a spring a tendon with ``stiffness`` and ``springlength``, the torque a motor on
+the crank hinge, gravity the scene's vector (else zero). There are no geoms, contacts are
+disabled, and no joint has damping, armature, stiffness or friction loss.
 
 Mass properties. A link given by its inertia about a fixed pivot becomes a body whose
 centre of mass is the pivot (a 1 kg point there: it neither moves nor adds kinetic
@@ -19,6 +31,7 @@ inequality on principal moments.
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 import mujoco
@@ -26,8 +39,11 @@ import numpy as np
 
 from reduced.scene import BODY_NAMES, BodyInertia, Scene
 
-# Joint order in qpos/qvel: crank angle q, coupler relative angle φ1 − q, rocker angle φ2 + π.
+# Joint order in qpos/qvel: crank angle q, coupler relative angle φ1 − q, rocker angle φ2 + π,
+# each counted from its value in the assembled pose at q0 (qpos = 0 is that pose).
 JOINTS = ("crank_hinge", "coupler_hinge", "rocker_hinge")
+BASE_BODY = "base"  # the fixed body every chain hangs from
+HOME_KEY = "home"  # keyframe with the scene's initial state
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
 LOOP_EQUALITY = "loop_closure_B"  # name of the connect equality that closes the loop
 
@@ -38,6 +54,36 @@ class ConstraintSettings:
 
     solref: tuple[float, float]
     solimp: tuple[float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class TreeBody:
+    """One moving body of the spanning tree, placed in its parent's frame at the assembled pose.
+
+    Parameters
+    ----------
+    name : body name (a key of ``scene.bodies``).
+    parent : parent body name (``BASE_BODY`` or another tree body).
+    joint : name of the hinge (about z) that joins it to its parent.
+    pos : (x, y) of the hinge in the parent's frame, m.
+    angle : rotation about z of the body's frame relative to its parent's at the assembled
+        pose, rad (the body's ``quat``; the hinge's qpos counts from it).
+    """
+
+    name: str
+    parent: str
+    joint: str
+    pos: tuple[float, float]
+    angle: float
+
+    def __post_init__(self) -> None:
+        if not all(np.isfinite([*self.pos, self.angle])):
+            raise ValueError(f"body {self.name!r}: pos and angle must be finite, got {self.pos!r}, {self.angle!r}")
+
+    @property
+    def quat(self) -> list[float]:
+        """Unit quaternion (w, x, y, z) of the rotation by ``angle`` about z."""
+        return [float(np.cos(0.5 * self.angle)), 0.0, 0.0, float(np.sin(0.5 * self.angle))]
 
 
 @dataclass(frozen=True)
@@ -90,24 +136,24 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
 
     z = [0.0, 0.0, 1.0]
-    crank = spec.worldbody.add_body(name="crank", pos=[0.0, 0.0, 0.0])
-    crank.add_joint(name=JOINTS[0], type=mujoco.mjtJoint.mjJNT_HINGE, axis=z)
-    _set_inertial(crank, scene.bodies["crank"], pivoted=True)
-    crank.add_site(name="A_crank", pos=[g.c1, 0.0, 0.0])
+    base = spec.worldbody.add_body(name=BASE_BODY)  # fixed: no joint
+    bodies = {BASE_BODY: base}
+    pivoted = {"crank": True, "coupler": False, "rocker": True}
+    for link in spanning_tree(scene):
+        body = bodies[link.parent].add_body(name=link.name, pos=[*link.pos, 0.0], quat=link.quat)
+        body.add_joint(name=link.joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=z)
+        _set_inertial(body, scene.bodies[link.name], pivoted=pivoted[link.name])
+        bodies[link.name] = body
+    bodies["crank"].add_site(name="A_crank", pos=[g.c1, 0.0, 0.0])
+    # B on each side of the cut joint: read-outs of the loop closure (sensors below).
+    bodies["coupler"].add_site(name="B_coupler", pos=[g.c2, 0.0, 0.0])
+    bodies["rocker"].add_site(name="B_rocker", pos=[g.c3, 0.0, 0.0])
 
-    coupler = crank.add_body(name="coupler", pos=[g.c1, 0.0, 0.0])
-    coupler.add_joint(name=JOINTS[1], type=mujoco.mjtJoint.mjJNT_HINGE, axis=z)
-    _set_inertial(coupler, scene.bodies["coupler"], pivoted=False)
-    coupler.add_site(name="B_coupler", pos=[g.c2, 0.0, 0.0])
-
-    rocker = spec.worldbody.add_body(name="rocker", pos=[g.c4, 0.0, 0.0])
-    rocker.add_joint(name=JOINTS[2], type=mujoco.mjtJoint.mjJNT_HINGE, axis=z)
-    _set_inertial(rocker, scene.bodies["rocker"], pivoted=True)
-    rocker.add_site(name="B_rocker", pos=[g.c3, 0.0, 0.0])
-    bodies = {"crank": crank, "coupler": coupler, "rocker": rocker}
-
+    # The cut joint B: anchor in the coupler's frame; MuJoCo finds the rocker's anchor at
+    # qpos0, the assembled pose, where it is B.
     loop = spec.add_equality(name=LOOP_EQUALITY, type=mujoco.mjtEq.mjEQ_CONNECT,
-                             objtype=mujoco.mjtObj.mjOBJ_SITE, name1="B_coupler", name2="B_rocker")
+                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1="coupler", name2="rocker")
+    loop.data[0:3] = [g.c2, 0.0, 0.0]
     loop.solref = list(constraint.solref)
     loop.solimp = list(constraint.solimp)
 
@@ -151,17 +197,75 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     for name in dampers:
         spec.add_sensor(name=f"{name}_rate", type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)
+
+    # The scene's initial state; the control is the torque the run applies in its first step
+    # (sampled at the step's midpoint, as ``run.control_sequence`` does).
+    qpos0, qvel0 = initial_qpos_qvel(scene)
+    ctrl0 = [] if scene.torque is None else [float(scene.torque.sample(np.array([0.5 * timestep]))[0])]
+    spec.add_key(name=HOME_KEY, time=0.0, qpos=list(qpos0), qvel=list(qvel0), ctrl=ctrl0)
     return spec
 
 
 def _line_tendon(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str,
                  ground_point: tuple[float, float], body_point: tuple[float, float]):
-    spec.worldbody.add_site(name=f"{name}_ground", pos=[*ground_point, 0.0])
+    spec.body(BASE_BODY).add_site(name=f"{name}_ground", pos=[*ground_point, 0.0])
     body.add_site(name=f"{name}_body", pos=[*body_point, 0.0])
     tendon = spec.add_tendon(name=name)
     tendon.wrap_site(f"{name}_ground")
     tendon.wrap_site(f"{name}_body")
     return tendon
+
+
+def _number(value: float) -> str:
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
+    """``spec.to_xml()`` with every number this builder sets written to full precision.
+
+    MuJoCo 4.0.1's writer prints 6 significant digits, which would put the bodies of the
+    assembled pose ~1e-6 m off and open the loop by that much when the file is loaded.
+    Each number is rewritten as the shortest text that reads back to the same double
+    (``repr``, without a trailing ".0"); attributes the writer left out (at their defaults) stay out.
+    """
+    root = ET.fromstring(spec.to_xml())
+
+    def put(element, attribute, values):
+        if element is not None and attribute in element.attrib:
+            element.set(attribute, " ".join(_number(v) for v in np.atleast_1d(values)))
+
+    option = root.find("option")
+    for attribute, value in (("timestep", spec.option.timestep), ("tolerance", spec.option.tolerance),
+                             ("gravity", spec.option.gravity)):
+        put(option, attribute, value)
+    for element in root.iter("body"):
+        body = spec.body(element.get("name"))
+        put(element, "pos", body.pos)
+        put(element, "quat", body.quat)
+        inertial = element.find("inertial")
+        put(inertial, "pos", body.ipos)
+        put(inertial, "mass", body.mass)
+        put(inertial, "diaginertia", body.inertia)
+    for element in root.iter("site"):
+        if element.get("name") is not None:
+            put(element, "pos", spec.site(element.get("name")).pos)
+    for element in root.iter("spatial"):
+        tendon = spec.tendon(element.get("name"))
+        put(element, "damping", tendon.damping[0])
+        put(element, "stiffness", tendon.stiffness[0])
+        put(element, "springlength", tendon.springlength[0])
+    for element in root.iter("connect"):
+        equality = spec.equality(element.get("name"))
+        put(element, "anchor", equality.data[0:3])
+        put(element, "solref", equality.solref)
+        put(element, "solimp", equality.solimp)
+    for element in root.iter("key"):
+        key = spec.key(element.get("name"))
+        for attribute in ("qpos", "qvel", "ctrl"):
+            put(element, attribute, getattr(key, attribute))
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode") + "\n"
 
 
 def compile_model(spec: mujoco.MjSpec) -> ModelHandles:
@@ -176,32 +280,74 @@ def compile_model(spec: mujoco.MjSpec) -> ModelHandles:
     return ModelHandles(model=model, spec=spec, sensor_slices=slices, damper_tendons=dampers)
 
 
+def assembled_angles(scene: Scene) -> np.ndarray:
+    """Loop angles (q, φ1, φ2) of the scene's assembly at q0 (rad): the model's authored pose."""
+    from reduced.linkage import FourBar
+
+    return FourBar(scene.linkage).assemble(scene.q0)
+
+
+def spanning_tree(scene: Scene) -> tuple[TreeBody, ...]:
+    """The moving bodies, parents first, placed at the assembled pose.
+
+    Body frames: crank at O1 turned by q, coupler at A turned by φ1, rocker at O3 turned by
+    φ2 + π (its x axis from O3 towards B), so the hinges' qpos at the pose are all zero.
+    """
+    g = scene.linkage
+    angles = _hinge_angles(assembled_angles(scene))
+    return (TreeBody("crank", BASE_BODY, JOINTS[0], (0.0, 0.0), angles[0]),
+            TreeBody("coupler", "crank", JOINTS[1], (g.c1, 0.0), angles[1]),
+            TreeBody("rocker", BASE_BODY, JOINTS[2], (g.c4, 0.0), angles[2]))
+
+
 def initial_qpos_qvel(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions and velocities consistent with the loop at the scene's (q0, q̇0).
 
-    The joint rates are K ẋ_i in the best-conditioned coordinate x_i, so a start at the
-    input link's dead centre (where q̇0 must be 0) is assembled too.
+    The positions are zero (the model is authored at the assembled pose). The joint rates
+    are K ẋ_i in the best-conditioned coordinate x_i, so a start at the input link's dead
+    centre (where q̇0 must be 0) is assembled too.
     """
     from reduced.linkage import FourBar
 
     linkage = FourBar(scene.linkage)
-    x = linkage.assemble(scene.q0)
+    x = assembled_angles(scene)
     kin = linkage.coefficients_at(x, int(np.argmax(linkage.conditioning(x))))
     rate = scene.qdot0 / kin.K[0] if scene.qdot0 != 0.0 else 0.0
     xdot = kin.K * rate
-    return joint_positions(x), np.array([xdot[0], xdot[1] - xdot[0], xdot[2]])
+    return joint_positions(x, x), joint_rates(xdot)
 
 
-def joint_positions(x: np.ndarray) -> np.ndarray:
-    """MuJoCo qpos (crank, coupler relative, rocker) from the loop angles (q, φ1, φ2)."""
-    return np.array([x[0], x[1] - x[0], x[2] + np.pi])
+def _hinge_angles(x: np.ndarray) -> np.ndarray:
+    """Each hinge's angle from its parent's frame (crank q, coupler φ1 − q, rocker φ2 + π), shape (..., 3)."""
+    x = np.asarray(x, dtype=float)
+    return np.stack([x[..., 0], x[..., 1] - x[..., 0], x[..., 2] + np.pi], axis=-1)
 
 
-def loop_angles(qpos: np.ndarray) -> np.ndarray:
-    """Loop angles (q, φ1, φ2), shape (n, 3), from MuJoCo qpos rows, shape (n, 3)."""
-    qpos = np.atleast_2d(qpos)
-    return np.column_stack([qpos[:, 0], qpos[:, 0] + qpos[:, 1], qpos[:, 2] - np.pi])
+def joint_positions(x: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """MuJoCo qpos (crank, coupler relative, rocker; rad) at loop angles ``x`` = (q, φ1, φ2)
+    of a model authored at the loop angles ``pose`` (:func:`assembled_angles`)."""
+    return _hinge_angles(x) - _hinge_angles(pose)
 
 
-__all__ = ["BODY_NAMES", "ConstraintSettings", "JOINTS", "LOOP_EQUALITY", "ModelHandles", "build_spec",
-           "compile_model", "initial_qpos_qvel"]
+def joint_rates(xdot: np.ndarray) -> np.ndarray:
+    """MuJoCo qvel (rad/s) from the loop rates (q̇, φ̇1, φ̇2)."""
+    xdot = np.asarray(xdot, dtype=float)
+    return np.stack([xdot[..., 0], xdot[..., 1] - xdot[..., 0], xdot[..., 2]], axis=-1)
+
+
+def loop_angles(qpos: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Loop angles (q, φ1, φ2), shape (n, 3), from MuJoCo qpos rows, shape (n, 3), of a model
+    authored at the loop angles ``pose``."""
+    hinge = np.atleast_2d(qpos) + _hinge_angles(pose)
+    return np.column_stack([hinge[:, 0], hinge[:, 0] + hinge[:, 1], hinge[:, 2] - np.pi])
+
+
+def loop_rates(qvel: np.ndarray) -> np.ndarray:
+    """Loop rates (q̇, φ̇1, φ̇2), shape (n, 3), from MuJoCo qvel rows, shape (n, 3)."""
+    qvel = np.atleast_2d(qvel)
+    return np.column_stack([qvel[:, 0], qvel[:, 0] + qvel[:, 1], qvel[:, 2]])
+
+
+__all__ = ["BASE_BODY", "BODY_NAMES", "ConstraintSettings", "HOME_KEY", "JOINTS", "LOOP_EQUALITY", "ModelHandles",
+           "TreeBody", "assembled_angles", "build_spec", "compile_model", "initial_qpos_qvel", "joint_positions",
+           "joint_rates", "loop_angles", "loop_rates", "mjcf_from_spec", "spanning_tree"]

@@ -30,7 +30,7 @@ from reduced.scene import BODY_NAMES, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
 from .build import (LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
-                    initial_qpos_qvel, loop_angles)
+                    assembled_angles, initial_qpos_qvel, loop_angles, loop_rates, mjcf_from_spec)
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 _INTEGRATOR_ENUM = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
@@ -452,6 +452,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
     _check_complete(scene, times, h)
     qpos = states[:, 1:1 + model.nq]
     qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
+    q = loop_angles(qpos, assembled_angles(scene))[:, 0]  # qpos counts from the assembled pose
     final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
     sensors = np.vstack([sensordata, final_sensors])
 
@@ -459,7 +460,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
     gap = sensors[:, sl["B_coupler_pos"]] - sensors[:, sl["B_rocker_pos"]]
     violation = np.linalg.norm(gap, axis=1)
     qddot = sensors[:, sl["crank_angacc"]][:, 2]
-    trajectory = _with_edge_samples(model, data, scene, times, qpos[:, 0], qvel[:, 0], qddot,
+    trajectory = _with_edge_samples(model, data, scene, times, q, qvel[:, 0], qddot,
                                     states, ctrl, handles, spec)
     max_violation = float(np.max(violation))
     if not math.isfinite(max_violation) or max_violation > settings.max_constraint_violation:
@@ -487,7 +488,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
         settings=recorded,
         diagnostics={"max_constraint_violation": max_violation, "joints": _joint_trajectory(scene, times, qpos, qvel),
-                     "constraint_violation": violation, "times": times, "q": qpos[:, 0].copy(),
+                     "constraint_violation": violation, "times": times, "q": q,
                      "omega": qvel[:, 0].copy(), "motor_torque": motor, "initial_residuals": initial,
                      "energy_relative_residual": audit.relative_residual,
                      "edge_warnings": edge_notes, "effects": list(scene.effects)})
@@ -550,8 +551,8 @@ def _joint_trajectory(scene: Scene, times, qpos, qvel) -> JointTrajectory:
     from reduced.linkage import FourBar
 
     linkage = FourBar(scene.linkage)
-    x = loop_angles(qpos)
-    xdot = loop_angles(qvel) + np.array([0.0, 0.0, np.pi])  # rates: no offset on the rocker
+    x = loop_angles(qpos, assembled_angles(scene))
+    xdot = loop_rates(qvel)
     branch = linkage.branches(x)
     return JointTrajectory(linkage.coordinate_names, times, x, xdot, np.full(len(times), -1), branch)
 
@@ -642,7 +643,7 @@ def mjcf_text(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> str:
     """
     if settings.timestep is None:  # the step a run would choose, so the file reproduces it
         settings = replace(settings, timestep=simulate_mujoco(scene, settings).settings["timestep"])
-    return build_model(scene, settings).spec.to_xml()
+    return mjcf_from_spec(build_model(scene, settings).spec)
 
 
 def handles_from_mjcf(path) -> ModelHandles:

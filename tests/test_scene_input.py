@@ -169,7 +169,7 @@ def test_corners_of_the_ranges_load_and_mujoco_compiles_them(patch):
 
     scene = scene_from_dict(patched(patch))
     handles = build_model(scene)
-    assert handles.model.nbody == 4 and all(math.isfinite(m) for m in handles.model.body_mass)
+    assert handles.model.nbody == 5 and all(math.isfinite(m) for m in handles.model.body_mass)
 
 
 def test_below_the_inertia_range_mujoco_itself_refuses():
