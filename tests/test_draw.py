@@ -157,7 +157,8 @@ def test_a_drawing_that_fails_midway_leaves_the_old_file(tmp_path, monkeypatch, 
     import compare.draw
 
     def half_then_fail(scene, path):
-        open(path, "wb").write(PNG_SIGNATURE)
+        with open(path, "wb") as f:
+            f.write(PNG_SIGNATURE)
         raise ValueError("the drawing failed")
 
     out = tmp_path / "linkage.png"
