@@ -140,7 +140,14 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
                 ax.add_patch(anchor)
                 artists[f"anchor:{e.name}"] = anchor
 
-    # Joints.
+    # Joints; labels of joints at one place are stacked, 13 points apart.
+    labelled: list[np.ndarray] = []
+
+    def stacked(p: np.ndarray) -> float:
+        k = sum(1 for o in labelled if np.hypot(*(p - o)) <= 1e-9 * span)
+        labelled.append(p)
+        return 13.0 * k
+
     for j in linkage.joints:
         c = at(j.body_a, j.point_a)
         label = j.name + (f" ({input_label})" if j.name == linkage.input_joint else "")
@@ -156,7 +163,8 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
                               edgecolor="black", linewidth=1.5, zorder=4)
             ax.add_patch(patch)
             artists[f"joint:{j.name}"] = patch
-            ax.annotate(label, b, xytext=(8, 8), textcoords="offset points", fontsize=9, **PLAIN)
+            ax.annotate(label, b, xytext=(10, 8 - stacked(b)), textcoords="offset points",
+                        fontsize=9, bbox=LABEL_BOX, **PLAIN)
             continue
         if GROUND in (j.body_a, j.body_b):
             base = Polygon([c, c + [-1.6 * radius, -2.8 * radius], c + [1.6 * radius, -2.8 * radius]],
@@ -172,7 +180,7 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
                         zorder=5)
         ax.add_patch(circle)
         artists[f"joint:{j.name}"] = circle
-        ax.annotate(label, c, xytext=(10, -16) if GROUND in (j.body_a, j.body_b) else (10, 8),
+        ax.annotate(label, c, xytext=(10, (-16 if GROUND in (j.body_a, j.body_b) else 8) - stacked(c)),
                     textcoords="offset points", fontsize=10, bbox=LABEL_BOX, **PLAIN)
 
     # Every named point, small; labelled when nothing else explains it.

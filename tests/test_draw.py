@@ -168,3 +168,33 @@ def test_a_drawing_that_fails_midway_leaves_the_old_file(tmp_path, monkeypatch, 
     assert capsys.readouterr().err.strip() == "xval: error: the drawing failed"
     assert out.read_bytes() == b"before"
     assert [p.name for p in tmp_path.iterdir()] == ["linkage.png"]
+
+
+def test_a_slider_is_drawn_at_the_slider_crank_s_closed_form():
+    """The general description with a prismatic joint (no masses, no elements): the block
+    sits at x = r cos q + √(l² − (r sin q − e)²), y = e, the offset slider-crank's closed form."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from reduced.loops import assemble, compile_linkage
+    from test_mechanism import slider_crank
+
+    r, l, e = 0.1, 0.35, 0.03
+    linkage = slider_crank(r, l, e)
+    system = compile_linkage(linkage)
+    for q in (0.0, 0.8, 2.5, -1.9):
+        x = assemble(system, q, np.array([q, 0.0, 0.0, l]))
+        fig, ax = plt.subplots()
+        try:
+            art = draw_linkage(ax, linkage, system, x)
+        finally:
+            plt.close(fig)
+        want = [r * math.cos(q) + math.sqrt(l * l - (r * math.sin(q) - e) ** 2), e]
+        assert np.allclose(art["joint:slide"].get_center(), want, rtol=0.0, atol=ROUND_OFF)
+        assert np.allclose(art["joint:wrist_pin"].center, want, rtol=0.0, atol=ROUND_OFF)
+        assert np.allclose(art["joint:crank_pin"].center, [r * math.cos(q), r * math.sin(q)],
+                           rtol=0.0, atol=ROUND_OFF)
