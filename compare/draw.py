@@ -3,7 +3,8 @@
 Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
 their joint and attachment points, revolute joints as labelled circles, ground pivots with
 a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
-springs as zigzags with their coefficients, centres of mass as crossed circles. Every
+springs as zigzags with their coefficients, centres of mass as crossed circles; a scene's gravity
+is given in the title. Every
 position is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the assembled
 coordinates; nothing is recomputed here. Lengths in m, equal axis scales.
 
@@ -234,8 +235,10 @@ def draw_scene(scene, path: str | Path) -> None:
         draw_linkage(ax, linkage, system, x0, elements=four_bar_elements(scene),
                      masses=four_bar_masses(scene), input_label=f"input, q0 = {scene.q0:g} rad")
         branch = "+1" if scene.linkage.branch > 0 else "-1"
-        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} rad, branch {branch}",
-                     **TITLE_PLAIN)
+        gravity = ("" if scene.gravity is None
+                   else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
+        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} rad, branch {branch}"
+                     f"{gravity}", **TITLE_PLAIN)
     except BaseException:
         plt.close(fig)
         raise
