@@ -198,3 +198,33 @@ def test_a_slider_is_drawn_at_the_slider_crank_s_closed_form():
         assert np.allclose(art["joint:wrist_pin"].center, want, rtol=0.0, atol=ROUND_OFF)
         assert np.allclose(art["joint:crank_pin"].center, [r * math.cos(q), r * math.sin(q)],
                            rtol=0.0, atol=ROUND_OFF)
+
+
+def test_user_names_are_plain_text_and_cut(tmp_path, monkeypatch, capsys):
+    """A scene name with broken mathtext draws as text (a mathtext parse would fail at save),
+    cut to compare.plots.NAME_CHARS in the title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import compare.plots
+
+    name = r"seed $\notacommand{x}$ " + "x" * 70
+    scene = tmp_path / "odd.toml"
+    scene.write_text(SEED_SCENE.read_text().replace('name = "seed_fourbar"', f"name = '{name}'"))
+    titles = []
+    real_save = compare.plots._save
+
+    def keep_title(fig, path):
+        titles.append(fig.axes[0].get_title())
+        real_save(fig, path)
+
+    monkeypatch.setattr(compare.plots, "_save", keep_title)
+    out = tmp_path / "odd.png"
+    assert main(["draw", str(scene), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert png_size(out) == (990, 715)
+    title, = titles
+    assert title.startswith(r"seed $\notacommand{x}$ xxx"), title
+    assert title.index(": linkage at") == compare.plots.NAME_CHARS and "…:" in title
+    assert plt.get_fignums() == []
