@@ -163,6 +163,16 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_draw(args: argparse.Namespace) -> int:
+    from .draw import draw_scene
+
+    target = check_file(args.out, flag="--out").absolute()  # before any work
+    scene = _scene(args.scene)
+    path = write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("MuJoCo settings")
     g.add_argument("--integrator", choices=("euler", "implicit", "implicitfast", "rk4"), default=None,
@@ -344,6 +354,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="MJCF file to write")
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
+
+    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG)",
+                       description="Draw the scene's linkage assembled at its initial angle: bodies, "
+                                   "joints, ground pivots, dampers, springs and centres of mass, "
+                                   "labelled, lengths in m. Check a scene's geometry before running it.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="linkage.png", help="PNG file to write (default ./linkage.png)")
+    p.set_defaults(func=cmd_draw)
 
     p = sub.add_parser("run", help="run both engines, compare, write report and plots",
                        description="Run the scene through the reduced solver and MuJoCo, print a "

@@ -1,0 +1,245 @@
+"""A drawing of a linkage in one configuration (``xval draw``), to check a scene's geometry.
+
+Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
+their joint and attachment points, revolute joints as labelled circles, ground pivots with
+a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
+springs as zigzags with their coefficients, centres of mass as crossed circles; a scene's gravity
+is given in the title. Every
+position is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the assembled
+coordinates; nothing is recomputed here. Lengths in m, equal axis scales.
+
+matplotlib is imported only when a drawing is made. User names are plain text
+(``parse_math=False``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from reduced.expand import COM, LineElement, MassPoint
+from reduced.loops import LoopSystem, positions
+from reduced.mechanism import GROUND, Linkage, PrismaticJoint
+
+PLAIN = {"parse_math": False}
+BODY_COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:brown", "tab:purple", "tab:olive",
+                "tab:cyan", "tab:pink")
+ELEMENT_STYLE = {"damper": {"color": "tab:purple", "linestyle": "--", "linewidth": 1.5},
+                 "spring": {"color": "tab:green", "linestyle": "-", "linewidth": 1.2}}
+ELEMENT_UNIT = {"damper": "N·s/m", "spring": "N/m"}
+LABEL_BOX = {"boxstyle": "round,pad=0.15", "facecolor": "white", "edgecolor": "none", "alpha": 0.8}
+
+
+def _zigzag(p: np.ndarray, q: np.ndarray, turns: int, width: float) -> np.ndarray:
+    """A spring's polyline from p to q: straight ends and ``turns`` zigzags between (m)."""
+    d = q - p
+    length = float(np.hypot(*d))
+    if length == 0.0:
+        return np.array([p, q])
+    u = d / length
+    n = np.array([-u[1], u[0]])
+    s = np.linspace(0.2, 0.8, 2 * turns + 1)
+    off = np.zeros_like(s)
+    off[1:-1:2], off[2:-1:2] = width, -width
+    zig = p + np.outer(s * length, u) + np.outer(off, n)
+    return np.vstack([p, zig, q])
+
+
+def _polygon_order(points: np.ndarray) -> np.ndarray:
+    """The points ordered by angle about their centroid (a simple outline of a plate)."""
+    c = points.mean(axis=0)
+    return points[np.argsort(np.arctan2(points[:, 1] - c[1], points[:, 0] - c[0]))]
+
+
+def _distinct(points: list[np.ndarray], tol: float) -> np.ndarray:
+    out: list[np.ndarray] = []
+    for p in points:
+        if all(np.hypot(*(p - o)) > tol for o in out):
+            out.append(p)
+    return np.array(out).reshape(-1, 2)
+
+
+def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
+                 elements: Sequence[LineElement] = (), masses: Sequence[MassPoint] = (),
+                 input_label: str = "input") -> dict[str, object]:
+    """Draw the linkage at coordinates ``x`` (shape (n,), assembled) on the axes ``ax``.
+
+    Returns
+    -------
+    The artists by name: ``"body:<body>"``, ``"joint:<joint>"`` (a Circle for a revolute,
+    the block Rectangle for a prismatic), ``"ground:<joint>"`` (hatched base of a ground
+    pivot), ``"point:<body>.<point>"`` (marker of every named point), ``"<kind>:<name>"``
+    for dampers and springs (a Line2D from its a end to its b end) and ``"com:<body>"``.
+    """
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
+    r = positions(system.points, np.asarray(x, dtype=float))
+
+    def at(body: str, point: str) -> np.ndarray:
+        return r[system.point_index(body, point)]
+
+    def angle_of(body: str) -> float:
+        return 0.0 if body == GROUND else float(x[system.coordinate(f"{body}.angle")])
+
+    span = float(np.max(np.ptp(r, axis=0))) if len(r) > 1 else 1.0
+    span = span if span > 0.0 else 1.0
+    radius = 0.018 * span
+    artists: dict[str, object] = {}
+    colour = {name: BODY_COLOURS[k % len(BODY_COLOURS)] for k, name in enumerate(linkage.moving)}
+    joint_points = {(j.body_a, j.point_a) for j in linkage.joints} | {
+        (j.body_b, j.point_b) for j in linkage.joints}
+    element_points = {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+
+    centre = r.mean(axis=0)
+    shapes: dict[str, np.ndarray] = {}
+
+    # Bodies: the outline of their joint and attachment points (not the centre of mass).
+    for name in linkage.moving:
+        pts = [at(b, p) for b, p in sorted(joint_points | element_points) if b == name]
+        shape = _distinct(pts, 1e-9 * span)
+        if len(shape) >= 3:
+            patch = Polygon(_polygon_order(shape), closed=True, facecolor=colour[name], alpha=0.25,
+                            edgecolor=colour[name], linewidth=3, zorder=1)
+            ax.add_patch(patch)
+            artists[f"body:{name}"] = patch
+        elif len(shape) == 2:
+            (line,) = ax.plot(shape[:, 0], shape[:, 1], color=colour[name], linewidth=4,
+                              solid_capstyle="round", zorder=1)
+            artists[f"body:{name}"] = line
+        if len(shape):
+            # The name beside the body, on the side away from the whole linkage's centre.
+            mid = shape.mean(axis=0)
+            d = shape[-1] - shape[0] if len(shape) >= 2 else np.array([1.0, 0.0])
+            normal = np.array([-d[1], d[0]]) / (np.hypot(*d) or 1.0)
+            if normal @ (mid - centre) < 0.0:
+                normal = -normal
+            ax.annotate(name, mid, xytext=tuple(16 * normal), textcoords="offset points",
+                        ha="center", va="center", color=colour[name], fontsize=9,
+                        fontweight="bold", bbox=LABEL_BOX, **PLAIN)
+        shapes[name] = shape
+
+    # Dampers and springs.
+    for e in elements:
+        p, q = at(e.body_a, e.point_a), at(e.body_b, e.point_b)
+        path = _zigzag(p, q, 6, 0.6 * radius) if e.kind == "spring" else np.array([p, q])
+        (line,) = ax.plot(path[:, 0], path[:, 1], zorder=2, **ELEMENT_STYLE[e.kind])
+        artists[f"{e.kind}:{e.name}"] = line
+        mid = 0.5 * (p + q)
+        text = f"{e.name} {e.coefficient:g} {ELEMENT_UNIT[e.kind]}"
+        if e.kind == "spring":
+            text += f", D0 {e.rest_length:g} m"
+        ax.annotate(text, mid, xytext=(6, 0), textcoords="offset points", fontsize=8,
+                    color=ELEMENT_STYLE[e.kind]["color"], bbox=LABEL_BOX, **PLAIN)
+        for body, point in ((e.body_a, e.point_a), (e.body_b, e.point_b)):
+            if body == GROUND and (body, point) not in joint_points:
+                c = at(body, point)
+                anchor = Rectangle((c[0] - radius, c[1] - radius), 2 * radius, 2 * radius,
+                                   facecolor="white", edgecolor="black", hatch="////", zorder=3)
+                ax.add_patch(anchor)
+                artists[f"anchor:{e.name}"] = anchor
+
+    # Joints; labels of joints at one place are stacked, 13 points apart.
+    labelled: list[np.ndarray] = []
+
+    def stacked(p: np.ndarray) -> float:
+        k = sum(1 for o in labelled if np.hypot(*(p - o)) <= 1e-9 * span)
+        labelled.append(p)
+        return 13.0 * k
+
+    for j in linkage.joints:
+        c = at(j.body_a, j.point_a)
+        label = j.name + (f" ({input_label})" if j.name == linkage.input_joint else "")
+        if isinstance(j, PrismaticJoint):
+            th = angle_of(j.body_a) + j.direction_a
+            u = np.array([math.cos(th), math.sin(th)])
+            b = at(j.body_b, j.point_b)
+            guide = np.array([c - 0.1 * span * u, b + 0.1 * span * u])
+            ax.plot(guide[:, 0], guide[:, 1], color="0.3", linewidth=1, zorder=2)
+            w, h = 4 * radius, 2.5 * radius
+            corner = b - 0.5 * w * u - 0.5 * h * np.array([-u[1], u[0]])
+            patch = Rectangle(tuple(corner), w, h, angle=math.degrees(th), facecolor="white",
+                              edgecolor="black", linewidth=1.5, zorder=4)
+            ax.add_patch(patch)
+            artists[f"joint:{j.name}"] = patch
+            ax.annotate(label, b, xytext=(10, 8 - stacked(b)), textcoords="offset points",
+                        fontsize=9, bbox=LABEL_BOX, **PLAIN)
+            continue
+        if GROUND in (j.body_a, j.body_b):
+            base = Polygon([c, c + [-1.6 * radius, -2.8 * radius], c + [1.6 * radius, -2.8 * radius]],
+                           closed=True, facecolor="white", edgecolor="black", zorder=3)
+            ax.add_patch(base)
+            hatch = Rectangle((c[0] - 2.4 * radius, c[1] - 3.8 * radius), 4.8 * radius, radius,
+                              facecolor="none", edgecolor="black", hatch="////", linewidth=0, zorder=3)
+            ax.add_patch(hatch)
+            ax.plot([c[0] - 2.4 * radius, c[0] + 2.4 * radius], [c[1] - 2.8 * radius] * 2,
+                    color="black", linewidth=1, zorder=3)
+            artists[f"ground:{j.name}"] = base
+        circle = Circle(tuple(c), radius, facecolor="white", edgecolor="black", linewidth=1.5,
+                        zorder=5)
+        ax.add_patch(circle)
+        artists[f"joint:{j.name}"] = circle
+        ax.annotate(label, c, xytext=(10, (-16 if GROUND in (j.body_a, j.body_b) else 8) - stacked(c)),
+                    textcoords="offset points", fontsize=10, bbox=LABEL_BOX, **PLAIN)
+
+    # Every named point, small; labelled when nothing else explains it.
+    for body in linkage.bodies:
+        for point in body.points:
+            c = at(body.name, point)
+            (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=2.5, color="black", zorder=6)
+            artists[f"point:{body.name}.{point}"] = mark
+            key = (body.name, point)
+            if key not in joint_points and key not in element_points and point != COM:
+                ax.annotate(f"{body.name}.{point}", c, xytext=(4, -10), textcoords="offset points",
+                            fontsize=8, color="0.3", **PLAIN)
+
+    # Centres of mass (mass points with a mass), crossed circles.
+    for m in masses:
+        if m.mass <= 0.0:
+            continue
+        c = at(m.body, m.point)
+        for p in shapes.get(m.body, ()):  # thin ties to the body it belongs to
+            ax.plot([c[0], p[0]], [c[1], p[1]], color=colour.get(m.body, "0.5"), linewidth=0.8,
+                    linestyle=":", zorder=1)
+        (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=11, markerfacecolor="white",
+                          markeredgecolor="black", zorder=6)
+        ax.plot([c[0]], [c[1]], "+", markersize=11, color="black", zorder=7)
+        artists[f"com:{m.body}"] = mark
+        ax.annotate(f"G {m.body}, {m.mass:g} kg", c, xytext=(9, 6), textcoords="offset points",
+                    fontsize=8, bbox=LABEL_BOX, **PLAIN)
+
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.12)
+    ax.grid(True, color="0.9", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    return artists
+
+
+def draw_scene(scene, path: str | Path) -> None:
+    """Draw a four-bar scene's linkage at its q0 into the PNG file ``path``.
+
+    Raises AssemblyError/MechanismError (ValueErrors) for a linkage that cannot be drawn.
+    """
+    from reduced.expand import four_bar_elements, four_bar_linkage, four_bar_masses
+
+    from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
+
+    linkage, system, x0 = four_bar_linkage(scene)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(9, 6.5))
+    try:
+        draw_linkage(ax, linkage, system, x0, elements=four_bar_elements(scene),
+                     masses=four_bar_masses(scene), input_label=f"input, q0 = {scene.q0:g} rad")
+        branch = "+1" if scene.linkage.branch > 0 else "-1"
+        gravity = ("" if scene.gravity is None
+                   else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
+        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} rad, branch {branch}"
+                     f"{gravity}", **TITLE_PLAIN)
+    except BaseException:
+        plt.close(fig)
+        raise
+    _save(fig, Path(path))
