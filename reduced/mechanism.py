@@ -71,6 +71,15 @@ class Body:
         object.__setattr__(self, "points", MappingProxyType(pts))
 
 
+def _check_joint_ends(joint) -> None:
+    """A joint's name and the names of its two bodies and points; the bodies must differ."""
+    _name(joint.name, "joint name")
+    for f in ("body_a", "point_a", "body_b", "point_b"):
+        _name(getattr(joint, f), f"joint {joint.name!r}: {f}")
+    if joint.body_a == joint.body_b:
+        raise MechanismError(f"joint {joint.name!r} joins body {joint.body_a!r} to itself")
+
+
 @dataclass(frozen=True)
 class RevoluteJoint:
     """A pin: point ``point_a`` of ``body_a`` and point ``point_b`` of ``body_b`` coincide.
@@ -85,11 +94,7 @@ class RevoluteJoint:
     point_b: str
 
     def __post_init__(self):
-        _name(self.name, "joint name")
-        for f in ("body_a", "point_a", "body_b", "point_b"):
-            _name(getattr(self, f), f"joint {self.name!r}: {f}")
-        if self.body_a == self.body_b:
-            raise MechanismError(f"joint {self.name!r} joins body {self.body_a!r} to itself")
+        _check_joint_ends(self)
 
 
 @dataclass(frozen=True)
@@ -110,9 +115,7 @@ class PrismaticJoint:
     point_b: str
 
     def __post_init__(self):
-        _name(self.name, "joint name")
-        for f in ("body_a", "point_a", "body_b", "point_b"):
-            _name(getattr(self, f), f"joint {self.name!r}: {f}")
+        _check_joint_ends(self)
         try:
             direction = float(self.direction_a)
         except (TypeError, ValueError):
@@ -121,8 +124,6 @@ class PrismaticJoint:
         if not math.isfinite(direction):
             raise MechanismError(f"joint {self.name!r}: direction_a must be finite, got {direction}")
         object.__setattr__(self, "direction_a", direction)
-        if self.body_a == self.body_b:
-            raise MechanismError(f"joint {self.name!r} joins body {self.body_a!r} to itself")
 
 
 Joint = RevoluteJoint | PrismaticJoint
