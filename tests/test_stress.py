@@ -2,9 +2,9 @@
 
 Each case is run once per session, on first use (real runs of both engines); the results
 keep the engine runs, so no test simulates a case again. Each test reads one claim off
-them; none is skipped or marked as expected to fail. The three long cases (stiff_damper
-probes 12 MuJoCo configurations; long_conservative turns 200 times; fast_crank takes 60 000
-MuJoCo steps) are marked slow.
+them; none is skipped or marked as expected to fail. The long cases (stiff_damper probes 12
+MuJoCo configurations; long_conservative turns 200 times; fast_crank takes 60 000 MuJoCo
+steps; off_grid_edge runs both engines twice) are marked slow.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from reference_models import MujocoSettings, build_model, simulate_mujoco
 
 CASES = [c.name for c in CATALOGUE]
 BY_NAME = {c.name: c for c in CATALOGUE}
-SLOW_CASES = {"stiff_damper", "long_conservative", "fast_crank"}
+SLOW_CASES = {"stiff_damper", "long_conservative", "fast_crank", "off_grid_edge"}
 
 
 def case_param(name: str):
