@@ -19,7 +19,7 @@ import sys
 import warnings
 
 from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene_path, load_scene, simulate
-from reduced.scene import MUJOCO_MAX_ITERATIONS
+from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
                      json_text, signals_as_exceptions, write_file, write_folder)
@@ -175,7 +175,7 @@ def cmd_draw(args: argparse.Namespace) -> int:
 
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("MuJoCo settings")
-    g.add_argument("--integrator", choices=("euler", "implicit", "implicitfast", "rk4"), default=None,
+    g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
                    help="MuJoCo integrator (default: the scene's [mujoco] table, else rk4)")
     g.add_argument("--timestep", type=_positive, default=None,
                    help="MuJoCo timestep in s (default: the scene's [mujoco] table, else 1e-3)")
@@ -257,8 +257,8 @@ def cmd_cost(args: argparse.Namespace) -> int:
     configs = ladder(quick=args.quick)
     workers = worker_count(args.workers, len(configs))
     if args.workers is not None and workers < args.workers:
-        print(f"xval: warning: --workers {args.workers}: using {workers} "
-              f"(at most one process per core: {os.cpu_count() or 1} cores)", file=sys.stderr)
+        warnings.warn(f"--workers {args.workers}: using {workers} "
+                      f"(at most one process per core: {os.cpu_count() or 1} cores)")
     truth = ground_truth(scene)
     measurements = sweep(scene, configs, truth, repeats=repeats, workers=workers)
     recommendations = recommend(scene, measurements, truth, target, repeats)
@@ -291,7 +291,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reduced reference")
-    g.add_argument("--reference", choices=("dop853", "rkn4", "radau"), default=None,
+    g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
                    help="reduced solver used as the reference (default: the scene's [reduced] table, else dop853)")
     g.add_argument("--reference-rtol", type=_positive, default=None,
                    help="tolerance of an adaptive reference (default 1e-12)")
@@ -330,7 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Solve the scene's Eksergian equation; print the peak angular "
                                    "velocity of the input link, its time and the energy residual.")
     _add_scene_argument(p)
-    p.add_argument("--method", choices=("dop853", "rkn4", "radau"), default=None,
+    p.add_argument("--method", choices=REDUCED_METHODS, default=None,
                    help="adaptive DOP853, fixed-step RKN4, or implicit Radau "
                         "(default: the scene's [reduced] table, else dop853)")
     p.add_argument("--rtol", type=_positive, default=None,

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from reduced import NumericalFailure, ReducedSettings, Scene, Trajectory, simulate
-from reference_models import MujocoSettings, simulate_mujoco
+from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from .diff import compare_trajectories
 from .output import json_text, portable_source, write_folder
@@ -94,7 +94,7 @@ def ground_truth(scene: Scene) -> Truth:
                  {"against": "DOP853 rtol 1e-11", **d.figures()})
 
 
-def ladder(quick: bool = False, integrators=("euler", "implicit", "implicitfast", "rk4")) -> list[Config]:
+def ladder(quick: bool = False, integrators=INTEGRATORS) -> list[Config]:
     """The configurations of a sweep (a small ladder with ``quick``)."""
     if quick:
         steps, rtols, timesteps = (1e-2, 3e-3, 1e-3), (1e-4, 1e-7, 1e-10), (1e-3, 2.5e-4)

@@ -289,7 +289,7 @@ def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None 
                  if end < diff.span_end + 1e-12]
         failures.append(f"compared span [{diff.span_start:.6g}, {diff.span_end:.6g}] s stops short of the "
                         f"horizon {diff.horizon:.6g} s: {' and '.join(short)}")
-    bound = tolerances.peak_omega_rtol * diff.peak_omega_reference + tolerances.peak_omega_atol
+    bound = tolerances.peak_bound(diff.peak_omega_reference)
     if not diff.peak_omega_abs <= bound:
         failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} rad/s > tolerance peak_omega_rtol·|peak| + "
                         f"peak_omega_atol = {bound:.3e} rad/s (peak_omega_rel = {diff.peak_omega_rel:.3e} "

@@ -12,7 +12,6 @@ import warnings
 from typing import Any, Callable, Mapping, TypeVar
 
 from reduced import ReducedSettings, Scene, SceneError
-from reference_models import MujocoSettings
 
 S = TypeVar("S")
 
@@ -33,6 +32,10 @@ def reduced_settings(scene: Scene, **flags: Any) -> ReducedSettings:
     return _resolve(ReducedSettings, "reduced", scene.reduced, scene, flags)
 
 
-def mujoco_settings(scene: Scene, **flags: Any) -> MujocoSettings:
-    """MuJoCo's settings: ``flags`` (None: not given) over ``[mujoco]``."""
+def mujoco_settings(scene: Scene, **flags: Any):
+    """MuJoCo's settings (a ``MujocoSettings``): ``flags`` (None: not given) over ``[mujoco]``.
+
+    MuJoCo is imported here, not with this module: ``xval reduced`` does not load it."""
+    from reference_models import MujocoSettings
+
     return _resolve(MujocoSettings, "mujoco", scene.mujoco, scene, flags)

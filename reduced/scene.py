@@ -169,6 +169,10 @@ class Tolerances:
     omega_atol: float = 1e-1
     omega_vs_q_atol: float | None = None  # max |Δω| at equal q (rad/s); None: not checked
 
+    def peak_bound(self, peak: float) -> float:
+        """The largest |Δ peak ω| allowed for a peak of magnitude ``peak`` (rad/s)."""
+        return self.peak_omega_rtol * peak + self.peak_omega_atol
+
 
 @dataclass(frozen=True)
 class Scene:

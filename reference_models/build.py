@@ -37,11 +37,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from reduced.scene import BODY_NAMES, BodyInertia, Scene
+from reduced.scene import BODY_NAMES, MUJOCO_INTEGRATORS, BodyInertia, Scene
 
 # Joint order in qpos/qvel: crank angle q, coupler relative angle φ1 − q, rocker angle φ2 + π,
 # each counted from its value in the assembled pose at q0 (qpos = 0 is that pose).
 JOINTS = ("crank_hinge", "coupler_hinge", "rocker_hinge")
+# MuJoCo's enum for each integrator name (the names are listed once, in reduced.scene).
+INTEGRATOR_ENUM = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in MUJOCO_INTEGRATORS}
 BASE_BODY = "base"  # the fixed body every chain hangs from
 HOME_KEY = "home"  # keyframe with the scene's initial state
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
@@ -120,10 +122,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     spec.modelname = scene.name
     opt = spec.option
     opt.timestep = timestep
-    opt.integrator = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
-                      "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-                      "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-                      "rk4": mujoco.mjtIntegrator.mjINT_RK4}[integrator]
+    opt.integrator = INTEGRATOR_ENUM[integrator]
     opt.iterations = iterations
     opt.tolerance = tolerance
     opt.gravity = [*(scene.gravity or (0.0, 0.0)), 0.0]

@@ -26,15 +26,13 @@ from mujoco import rollout
 from reduced.errors import FailureReason, NumericalFailure
 from reduced.partition import JointTrajectory
 from reduced.result import EnergyAudit, EngineResult
-from reduced.scene import BODY_NAMES, MUJOCO_MAX_ITERATIONS, Scene
+from reduced.scene import BODY_NAMES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
-from .build import (LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
+from .build import (INTEGRATOR_ENUM, LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
                     assembled_angles, initial_qpos_qvel, loop_angles, loop_rates, mjcf_from_spec)
 
-INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
-_INTEGRATOR_ENUM = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-                    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
+INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in reduced.scene
 
 MAX_ITERATIONS = MUJOCO_MAX_ITERATIONS  # reduced.scene says why
 # Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
@@ -290,7 +288,7 @@ def _check_handles(handles: ModelHandles, settings: MujocoSettings) -> None:
     if eq < 0:
         raise ValueError(f"the model has no loop equality {LOOP_EQUALITY!r}")
     pairs = [("timestep", float(m.opt.timestep), settings.timestep),
-             ("integrator", int(m.opt.integrator), int(_INTEGRATOR_ENUM[settings.integrator])),
+             ("integrator", int(m.opt.integrator), int(INTEGRATOR_ENUM[settings.integrator])),
              ("iterations", int(m.opt.iterations), settings.iterations),
              ("tolerance", float(m.opt.tolerance), settings.tolerance),
              ("solref", tuple(float(v) for v in m.eq_solref[eq]), tuple(settings.effective_solref)),
@@ -302,7 +300,7 @@ def _check_handles(handles: ModelHandles, settings: MujocoSettings) -> None:
                 else bool(model_value) == wanted)
         if not same:
             if name == "integrator":
-                model_value = next(k for k, v in _INTEGRATOR_ENUM.items() if int(v) == model_value)
+                model_value = next(k for k, v in INTEGRATOR_ENUM.items() if int(v) == model_value)
                 wanted = settings.integrator
             raise ValueError(f"the model's {name} {model_value} differs from the settings' {name} {wanted}: "
                              "run it with settings that match the model (or build it from these settings)")
@@ -376,7 +374,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
             accepted = False
         else:
             dq, dw, dpeak = _halving_difference(coarse, fine)
-            peak_tol = tol.peak_omega_rtol * abs(fine.peak.omega) + tol.peak_omega_atol
+            peak_tol = tol.peak_bound(abs(fine.peak.omega))
             record.update(max_dq=dq, max_domega=dw, dpeak=dpeak,
                           limits=[HALVING_FRACTION * tol.q_atol, HALVING_FRACTION * tol.omega_atol,
                                   HALVING_FRACTION * peak_tol])
