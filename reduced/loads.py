@@ -42,6 +42,10 @@ class TorqueProfile:
         """T at each time (right-continuous), shape like ``times``."""
         return np.array([self(float(t)) for t in np.ravel(times)]).reshape(np.shape(times))
 
+    def impulse_bound(self, horizon: float) -> float:
+        """An upper bound of ∫₀^horizon |T| dt (N·m·s), for the scene's work limit."""
+        raise NotImplementedError
+
 
 @dataclass(frozen=True)
 class ConstantTorque(TorqueProfile):
@@ -57,6 +61,9 @@ class ConstantTorque(TorqueProfile):
 
     def sample(self, times: np.ndarray) -> np.ndarray:
         return np.full(np.shape(times), self.amplitude)
+
+    def impulse_bound(self, horizon: float) -> float:
+        return abs(self.amplitude) * horizon
 
     @property
     def edges(self) -> tuple[float, ...]:
@@ -89,6 +96,9 @@ class PulseTorque(TorqueProfile):
     def edges(self) -> tuple[float, ...]:
         return (self.start, self.start + self.duration)
 
+    def impulse_bound(self, horizon: float) -> float:
+        return abs(self.amplitude) * max(0.0, min(self.duration, horizon - self.start))
+
 
 @dataclass(frozen=True)
 class PiecewiseConstantTorque(TorqueProfile):
@@ -118,3 +128,6 @@ class PiecewiseConstantTorque(TorqueProfile):
     @property
     def edges(self) -> tuple[float, ...]:
         return self.times
+
+    def impulse_bound(self, horizon: float) -> float:
+        return max(abs(v) for v in self.values) * horizon

@@ -575,14 +575,7 @@ def speed_bound(scene: Scene) -> dict[str, float]:
         weight = math.hypot(*scene.gravity)
         released += sum(2.0 * b.mass * weight * (reach + math.hypot(*b.com)) for b in scene.bodies.values())
     torque = scene.torque
-    if torque is None:
-        impulse = 0.0
-    elif isinstance(torque, PulseTorque):
-        impulse = abs(torque.amplitude) * max(0.0, min(torque.duration, scene.horizon - torque.start))
-    elif isinstance(torque, ConstantTorque):
-        impulse = abs(torque.amplitude) * scene.horizon
-    else:
-        impulse = max(abs(v) for v in torque.values) * scene.horizon
+    impulse = 0.0 if torque is None else torque.impulse_bound(scene.horizon)
     torque_key = "'torque.values'" if isinstance(torque, PiecewiseConstantTorque) else "'torque.value'"
     return {"'initial.qdot'": initial, "the springs and gravity": math.sqrt(2.0 * released / j_low),
             torque_key: impulse / j_low}
