@@ -19,7 +19,7 @@ import numpy as np
 
 from reduced import NumericalFailure, ReducedSettings, Scene, load_scene, simulate
 from reduced.loads import PulseTorque
-from reduced.scene import hard_scene_dir
+from reduced.scenefile import hard_scene_dir
 from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from reduced.result import EngineResult

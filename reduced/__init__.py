@@ -5,7 +5,8 @@ from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, RKN4_AS_PRINTED, RKNTableau, Solution, solve_adaptive, solve_fixed_step
 from .linkage import AssemblyError, FourBar, LoopLinkage, SingularPositionError
 from .result import EngineResult, EnergyAudit
-from .scene import Scene, SceneError, default_scene_path, load_scene, scene_from_dict
+from .scene import Scene, SceneError
+from .scenefile import default_scene_path, load_scene, scene_from_dict
 from .simulate import ReducedSettings, simulate
 from .trajectory import Peak, Trajectory
 

@@ -131,3 +131,52 @@ class PiecewiseConstantTorque(TorqueProfile):
 
     def impulse_bound(self, horizon: float) -> float:
         return max(abs(v) for v in self.values) * horizon
+
+
+@dataclass(frozen=True)
+class TabulatedForce:
+    """F(q): a force magnitude (N) tabulated over the input coordinate q (rad or m).
+
+    A cubic spline through the table (scipy's ``CubicSpline``): periodic with ``period`` when
+    given (the table is closed by repeating its first value one period on), else with
+    not-a-knot ends and F held at the end values outside the table. C² in q, so the
+    adaptive integrators keep their order across the table's points.
+    """
+
+    coordinate: tuple[float, ...]
+    values: tuple[float, ...]
+    period: float | None = None
+
+    def __post_init__(self):
+        from scipy.interpolate import CubicSpline
+
+        q = np.asarray(self.coordinate, dtype=float)
+        f = np.asarray(self.values, dtype=float)
+        if self.period is not None:
+            if q[-1] - q[0] >= self.period * (1 - 1e-12):  # the last point is the first repeated
+                q, f = q[:-1], f[:-1]
+            q, f = np.append(q, q[0] + self.period), np.append(f, f[0])
+            spline = CubicSpline(q, f, bc_type="periodic") if len(q) > 2 else None
+        else:
+            spline = CubicSpline(q, f) if len(q) > 2 else None
+        object.__setattr__(self, "_knots", q)
+        object.__setattr__(self, "_spline", spline)
+
+    def __call__(self, q: float | np.ndarray) -> float | np.ndarray:
+        knots = self._knots
+        x = np.asarray(q, dtype=float)
+        if self.period is not None:
+            x = knots[0] + np.mod(x - knots[0], self.period)
+        else:
+            x = np.clip(x, knots[0], knots[-1])
+        if self._spline is None:  # two points: the straight line
+            out = np.interp(x, knots, np.asarray(self.values if self.period is None else
+                                                 (self.values[0], self.values[0]), dtype=float))
+        else:
+            out = self._spline(x)
+        return float(out) if np.ndim(out) == 0 else out
+
+    def bound(self) -> float:
+        """max |F| over the table's spline (N), sampled finely; for the scene's work limit."""
+        knots = self._knots
+        return float(np.max(np.abs(self(np.linspace(knots[0], knots[-1], 64 * len(knots))))))

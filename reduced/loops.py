@@ -79,6 +79,9 @@ class LoopSystem:
     drive : (n,) — the input coordinate q = drive·x
     points : TermTable with one row per named point, named by ``point_names`` (body, point)
     input_unit : "rad" or "m"
+    centres : TermTable with one row per moving body: its centre of mass (m)
+    mode_pairs : (loops, 2) int — for each loop the two coordinates that close it at its
+        cut joint (:func:`assembly_mode`)
     """
 
     coordinate_names: tuple[str, ...]
@@ -89,6 +92,8 @@ class LoopSystem:
     points: TermTable
     point_names: tuple[tuple[str, str], ...]
     input_unit: str
+    centres: TermTable
+    mode_pairs: np.ndarray
 
     @property
     def n(self) -> int:
@@ -263,6 +268,33 @@ def point_kinematics(system: LoopSystem, x: np.ndarray, K: np.ndarray, L: np.nda
     return positions(system.points, x), kr, lr
 
 
+def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
+    """The assembly mode of each configuration: one sign (±1, 0 when degenerate) per loop.
+
+    For loop k, closed at its cut joint by the coordinates u, v of :attr:`LoopSystem.mode_pairs`
+    (the joint coordinates nearest the cut on either side: a body's angle or a slider's
+    displacement), the sign of −det [∂Φ_k/∂x_u, ∂Φ_k/∂x_v]. For two links a, b meeting at
+    the cut pin P that turn about their tree joints A and B, that is the sign of the cross
+    product (P − A) × (P − B), the dyad's "elbow up or down" (+1 for the seed four-bar's
+    branch +1). It
+    changes only where that dyad is singular (a limit position). x has shape (n,) or
+    (samples, n); the result (loops,) or (samples, loops), int.
+    """
+    X = np.atleast_2d(np.asarray(x, dtype=float))
+    out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
+    for i, row in enumerate(X):
+        J = jacobian(system.loops, row)
+        for k, (u, v) in enumerate(system.mode_pairs):
+            det = J[2 * k, u] * J[2 * k + 1, v] - J[2 * k, v] * J[2 * k + 1, u]
+            out[i, k] = -int(np.sign(det))
+    return out[0] if np.ndim(x) == 1 else out
+
+
+def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
+    """:func:`assembly_modes` of one configuration, as a tuple."""
+    return tuple(int(v) for v in assembly_modes(system, np.asarray(x, dtype=float)))
+
+
 def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = 1e-9) -> int:
     """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF."""
     sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
@@ -367,11 +399,34 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
             base[edge.body] = point(edge.parent, getattr(jt, f"point_{other}"))
         anchor[edge.body] = bodies[edge.body].points[getattr(jt, f"point_{own}")]
 
-    loops = []
+    up = {e.body: e for e in linkage.tree}
+
+    def coordinates_below(body: str) -> list[int]:
+        """The coordinates of the tree joints from ``body`` down to ground, nearest first."""
+        out = []
+        while body != GROUND:
+            e = up[body]
+            jt = joints[e.joint]
+            out.append(disp[jt.name] if isinstance(jt, PrismaticJoint) else angle[e.body])
+            body = e.parent
+        return out
+
+    loops, mode_pairs = [], []
     for name in linkage.cut_joints:
         jt = joints[name]
         assert not isinstance(jt, PrismaticJoint), "Linkage never cuts a prismatic joint"
         loops.append(point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b)))
+        side_a, side_b = coordinates_below(jt.body_a), coordinates_below(jt.body_b)
+        if side_a and side_b:
+            mode_pairs.append((side_a[0], side_b[0]))
+        else:  # the cut joint is on ground: the two coordinates nearest it on the other side
+            side = side_a or side_b
+            mode_pairs.append((side[0], side[1]))
+
+    def centre(body: str) -> _Sum:
+        cx, cy = bodies[body].com
+        ax, ay = anchor[body]
+        return base[body].rotated((cx - ax, cy - ay), angle[body])
 
     inp = joints[linkage.input_joint]
     if isinstance(inp, PrismaticJoint):
@@ -387,4 +442,6 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
                       linear=np.array(linear_rows, dtype=float).reshape(-1, n),
                       linear_rhs=np.zeros(len(linear_rows)), drive=drive,
                       points=_table([point(b, p) for b, p in point_names]),
-                      point_names=point_names, input_unit=unit)
+                      point_names=point_names, input_unit=unit,
+                      centres=_table([centre(b) for b in linkage.moving]),
+                      mode_pairs=np.array(mode_pairs, dtype=np.intp).reshape(-1, 2))

@@ -1,9 +1,12 @@
 """The general description of a planar one-degree-of-freedom linkage, and its joint graph.
 
-A linkage is rigid bodies with named points in their own frames, revolute and prismatic
-joints between two bodies' points, and the input joint whose coordinate is q. Ground is the
-body named ``"ground"`` (:data:`GROUND`): it does not move, its points are fixed points of the
-plane, and it is not counted as a moving body. Mass properties are not part of this layer.
+A linkage is rigid bodies with named points and mass properties in their own frames,
+revolute and prismatic joints between two bodies' points, and the input joint whose
+coordinate is q. Ground is the body named ``"ground"`` (:data:`GROUND`): it does not move,
+its points are fixed points of the plane, and it is not counted as a moving body. A
+:class:`Mechanism` adds what acts on the bodies: dampers and springs between two points
+(:class:`LineElement`) and point forces tabulated over the input coordinate
+(:class:`PointForce`). Both engines build from a :class:`Mechanism`; neither is known here.
 
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
 the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
@@ -44,21 +47,40 @@ def _name(value, what: str) -> str:
 
 @dataclass(frozen=True)
 class Body:
-    """A rigid body and its named points.
+    """A rigid body, its named points and its mass properties.
 
     Parameters
     ----------
     name : str
-        Unique among the bodies; ``"ground"`` is the fixed frame.
+        Unique among the bodies; ``"ground"`` is the fixed frame (no mass properties).
     points : mapping str → (x, y)
         Named points in the body's own frame (m). Stored read-only.
+    mass : float
+        kg, ≥ 0. Zero only for a body given by its inertia about a fixed pivot (``com`` is
+        then that pivot, a point of a revolute joint to ground: :class:`Linkage` checks it).
+    com : (x, y)
+        Centre of mass in the body's frame (m).
+    inertia : float
+        Moment of inertia about the centre of mass, about z (kg·m²), ≥ 0.
     """
 
     name: str
     points: Mapping[str, tuple[float, float]] = field(hash=False)
+    mass: float = 0.0
+    com: tuple[float, float] = (0.0, 0.0)
+    inertia: float = 0.0
 
     def __post_init__(self):
         _name(self.name, "body name")
+        for f in ("mass", "inertia"):
+            value = getattr(self, f)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                    math.isfinite(value) and value >= 0.0):
+                raise MechanismError(f"body {self.name!r}: {f} must be a finite number ≥ 0, got {value!r}")
+            object.__setattr__(self, f, float(value))
+        object.__setattr__(self, "com", _finite_pair(self.com, f"body {self.name!r}: com"))
+        if self.name == GROUND and (self.mass or self.inertia):
+            raise MechanismError("the ground does not move: it has no mass or inertia")
         if not isinstance(self.points, Mapping):
             raise MechanismError(f"body {self.name!r}: points must be a mapping name → (x, y), "
                                  f"got {type(self.points).__name__}")
@@ -157,8 +179,8 @@ class Linkage:
         Names of the moving bodies, in the order given.
     tree : tuple of TreeEdge
         The spanning tree from ground, in breadth-first order (a parent before its children).
-        Prismatic joints are taken into the tree before revolute ones, so a loop is cut at a
-        revolute joint whenever it has one.
+        The input joint is taken first, then prismatic joints before revolute ones, so the
+        input is a tree joint and a loop is cut at a revolute joint whenever it has one.
     cut_joints : tuple of str
         One joint per independent loop, not in the tree; its loop closes when it is satisfied.
     """
@@ -214,6 +236,10 @@ class Linkage:
             if all(isinstance(kinds[k], PrismaticJoint) for k in loop):
                 raise MechanismError(f"the loop of joints {', '.join(loop)} has only prismatic "
                                      f"joints: no revolute joint to cut it with a connect equality")
+            if isinstance(kinds[name], PrismaticJoint):
+                raise MechanismError(f"the loop of joints {', '.join(loop)} can only be cut at its "
+                                     f"prismatic joint {name!r} once the input joint is kept whole: "
+                                     f"no revolute joint to close it with a connect equality")
         object.__setattr__(self, "moving", moving)
         object.__setattr__(self, "tree", tree)
         object.__setattr__(self, "cut_joints", cut)
@@ -233,9 +259,11 @@ class Linkage:
         return _cycle(self.tree, self.joint_map[cut_joint])
 
     def _spanning_tree(self, moving: tuple[str, ...]) -> tuple[tuple[TreeEdge, ...], tuple[str, ...]]:
-        """Breadth-first tree from ground, prismatic joints first (a maximum spanning tree
-        with prismatic joints weighted above revolute ones): a cut joint is prismatic only
-        if its loop is all prismatic."""
+        """Breadth-first tree from ground taking the input joint first, then prismatic joints
+        (a maximum spanning tree with prismatic joints weighted above revolute ones): the
+        input joint is never cut (an engine can drive it as a tree joint), and a cut joint
+        is prismatic only if its loop is all prismatic (or it closes the input's loop that way,
+        which :class:`Linkage` refuses like an all-prismatic loop)."""
         adjacent: dict[str, list[Joint]] = {}
         for jt in self.joints:
             adjacent.setdefault(jt.body_a, []).append(jt)
@@ -249,8 +277,9 @@ class Linkage:
                           if (jt.body_a in reached) != (jt.body_b in reached)]
             if not candidates:
                 break
+            driven = [jt for jt in candidates if jt.name == self.input_joint]
             prismatic = [jt for jt in candidates if isinstance(jt, PrismaticJoint)]
-            jt = (prismatic or candidates)[0]
+            jt = (driven or prismatic or candidates)[0]
             frontier.remove(jt)
             child, parent = ((jt.body_b, jt.body_a) if jt.body_a in reached
                              else (jt.body_a, jt.body_b))
@@ -263,6 +292,25 @@ class Linkage:
             raise MechanismError(f"bodies {', '.join(map(repr, missing))} form a group not "
                                  f"connected to ground")
         return tuple(tree), tuple(jt.name for jt in self.joints if jt.name not in used)
+
+
+def _check_mass(body: Body, joints) -> None:
+    """A moving body has mass and inertia, or only an inertia about a fixed pivot."""
+    if body.mass > 0.0:
+        if body.inertia <= 0.0:
+            raise MechanismError(f"body {body.name!r} has mass but no inertia: give its "
+                                 f"moment of inertia about the centre of mass")
+        return
+    if body.inertia <= 0.0:
+        raise MechanismError(f"body {body.name!r} has neither mass nor inertia")
+    for j in joints:
+        if isinstance(j, RevoluteJoint) and GROUND in (j.body_a, j.body_b) and body.name in (j.body_a, j.body_b):
+            own = j.point_b if j.body_b == body.name else j.point_a
+            if body.points[own] == body.com:
+                return
+    raise MechanismError(f"body {body.name!r} has no mass: only a body turning about a fixed "
+                         f"pivot may be given by its inertia about it alone (its com must be "
+                         f"the point of a revolute joint to ground)")
 
 
 def _unique(names: list[str], kind: str) -> None:
@@ -291,3 +339,130 @@ def _cycle(tree: tuple[TreeEdge, ...], joint: Joint) -> tuple[str, ...]:
     common = set(pa) & set(pb)
     return tuple([k for k in pa if k not in common] + [k for k in pb if k not in common]
                  + [joint.name])
+
+
+def point_ref(text, what: str) -> tuple[str, str]:
+    """(body, point) from a ``"body.point"`` reference."""
+    if not isinstance(text, str) or text.count(".") != 1 or not all(text.split(".")):
+        raise MechanismError(f"{what} must be a point reference \"body.point\", got {text!r}")
+    body, point = text.split(".")
+    return body, point
+
+
+@dataclass(frozen=True)
+class LineElement:
+    """A damper or a spring along the line between two points.
+
+    ``kind`` is ``"damper"`` (force −b Ḋ along the line, ``coefficient`` b in N·s/m) or
+    ``"spring"`` (V = ½ k (D − D0)², ``coefficient`` k in N/m, ``rest_length`` D0 in m).
+    """
+
+    kind: str
+    name: str
+    body_a: str
+    point_a: str
+    body_b: str
+    point_b: str
+    coefficient: float
+    rest_length: float = 0.0
+
+    def __post_init__(self):
+        _name(self.name, "line element name")
+        if self.kind not in LINE_ELEMENT_KINDS:
+            raise MechanismError(f"line element {self.name!r}: kind must be one of "
+                                 f"{', '.join(LINE_ELEMENT_KINDS)}, got {self.kind!r}")
+        if not (math.isfinite(self.coefficient) and self.coefficient > 0.0):
+            raise MechanismError(f"{self.kind} {self.name!r}: coefficient must be positive "
+                                 f"and finite, got {self.coefficient}")
+        if not (math.isfinite(self.rest_length) and self.rest_length >= 0.0):
+            raise MechanismError(f"{self.kind} {self.name!r}: rest_length must be ≥ 0 m, "
+                                 f"got {self.rest_length}")
+        if self.body_a == self.body_b:
+            raise MechanismError(f"{self.kind} {self.name!r} joins two points of body "
+                                 f"{self.body_a!r}: its length never changes")
+
+
+LINE_ELEMENT_KINDS = ("damper", "spring")
+
+
+@dataclass(frozen=True)
+class PointForce:
+    """A force of magnitude F(q) along a fixed direction of the plane, applied at a point.
+
+    F is tabulated over the input coordinate q (rad or m) and interpolated by a cubic
+    spline (periodic with ``period`` when given; else held at its end values outside the
+    table); a gas force over crank angle, a punch-press load over ram travel.
+
+    direction : rad, in the ground frame; the force is F(q) (cos, sin)(direction) (N).
+    coordinate, values : (k,) the table, k ≥ 2, coordinate strictly increasing.
+    period : the table repeats every ``period`` (rad or m), or None.
+    """
+
+    name: str
+    body: str
+    point: str
+    direction: float
+    coordinate: tuple[float, ...]
+    values: tuple[float, ...]
+    period: float | None = None
+
+    def __post_init__(self):
+        _name(self.name, "point force name")
+        q = tuple(float(v) for v in self.coordinate)
+        f = tuple(float(v) for v in self.values)
+        if len(q) != len(f) or len(q) < 2:
+            raise MechanismError(f"point force {self.name!r}: the table needs two or more "
+                                 f"(coordinate, value) pairs of equal length")
+        if not all(math.isfinite(v) for v in q + f + (float(self.direction),)):
+            raise MechanismError(f"point force {self.name!r}: the table and direction must be finite")
+        if any(b <= a for a, b in zip(q, q[1:])):
+            raise MechanismError(f"point force {self.name!r}: the coordinates must increase strictly")
+        if self.period is not None:
+            if not (math.isfinite(self.period) and self.period > 0.0):
+                raise MechanismError(f"point force {self.name!r}: period must be positive, got {self.period}")
+            if q[-1] - q[0] > self.period:
+                raise MechanismError(f"point force {self.name!r}: the table spans {q[-1] - q[0]:g}, "
+                                     f"more than its period {self.period:g}")
+        object.__setattr__(self, "coordinate", q)
+        object.__setattr__(self, "values", f)
+        object.__setattr__(self, "direction", float(self.direction))
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """A checked linkage with mass properties, and the dampers, springs and point forces
+    acting on it (every moving body has mass and inertia, or an inertia about a fixed pivot)."""
+
+    linkage: Linkage
+    elements: tuple[LineElement, ...] = ()
+    point_forces: tuple[PointForce, ...] = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "elements", tuple(self.elements))
+        object.__setattr__(self, "point_forces", tuple(self.point_forces))
+        bodies = self.linkage.body_map
+        for name in self.linkage.moving:
+            _check_mass(bodies[name], self.linkage.joints)
+        _unique([e.name for e in self.elements], "damper or spring")
+        _unique([p.name for p in self.point_forces], "point force")
+
+        def check(body, point, what):
+            if body not in bodies:
+                raise MechanismError(f"{what}: unknown body {body!r}")
+            if point not in bodies[body].points:
+                raise MechanismError(f"{what}: body {body!r} has no point {point!r}")
+        for e in self.elements:
+            check(e.body_a, e.point_a, f"{e.kind} {e.name!r}")
+            check(e.body_b, e.point_b, f"{e.kind} {e.name!r}")
+        for p in self.point_forces:
+            check(p.body, p.point, f"point force {p.name!r}")
+            if p.body == GROUND:
+                raise MechanismError(f"point force {p.name!r} acts on the ground: it does no work")
+
+    @property
+    def dampers(self) -> tuple[LineElement, ...]:
+        return tuple(e for e in self.elements if e.kind == "damper")
+
+    @property
+    def springs(self) -> tuple[LineElement, ...]:
+        return tuple(e for e in self.elements if e.kind == "spring")

@@ -13,7 +13,7 @@ import zipfile
 
 import pytest
 
-from reduced.scene import default_scene_path, hard_scene_dir, scenes_dir
+from reduced.scenefile import default_scene_path, hard_scene_dir, scenes_dir
 
 from helpers import ROOT
 

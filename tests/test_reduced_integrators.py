@@ -11,7 +11,7 @@ import pytest
 
 from reduced import (RKN4, RKN4_AS_PRINTED, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene,
                      scene_from_dict, simulate, solve_adaptive, solve_fixed_step)
-from reduced.scene import hard_scene_dir
+from reduced.scenefile import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 

@@ -258,7 +258,7 @@ BOUND_SCENES = {
 @pytest.mark.parametrize("patch", BOUND_SCENES.values(), ids=BOUND_SCENES.keys())
 def test_speed_bound_holds_along_a_reduced_run(patch):
     from reduced import ReducedSettings, simulate
-    from reduced.scene import speed_bound
+    from reduced.scenefile import speed_bound
 
     scene = scene_from_dict(patched(patch))
     bound = sum(speed_bound(scene).values())
