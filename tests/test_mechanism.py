@@ -131,11 +131,18 @@ def test_four_bar_tree_and_loop():
     assert sorted(lk.loop_of("B")) == ["A", "B", "O1", "O3"]
 
 
-def test_slider_crank_takes_the_slide_into_the_tree_and_cuts_a_revolute():
+def test_slider_crank_takes_the_input_then_the_slide_into_the_tree_and_cuts_a_revolute():
     lk = slider_crank()
-    assert lk.tree[0].joint == "slide"  # prismatic first, although "crank" is declared first
-    assert {e.joint for e in lk.tree} == {"slide", "crank", "wrist_pin"}
-    assert lk.cut_joints == ("crank_pin",)
+    assert [e.joint for e in lk.tree[:2]] == ["crank", "slide"]  # the input first, then prismatic
+    (cut,) = lk.cut_joints
+    assert cut in ("crank_pin", "wrist_pin")  # a revolute: the slide stays in the tree
+    assert {e.joint for e in lk.tree} | {cut} == {j.name for j in lk.joints}
+
+
+def test_slide_input_is_taken_first():
+    lk = slider_crank(input_joint="slide")
+    assert lk.tree[0].joint == "slide"
+    assert lk.cut_joints[0] != "slide"
 
 
 def test_inverted_slider_crank_hangs_the_block_on_the_slide():

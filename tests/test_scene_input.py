@@ -118,7 +118,7 @@ TINY_INERTIAS = {"bodies.crank.pivot_inertia": 1e-9, "bodies.rocker.pivot_inerti
 MOTION_CASES = [
     ("qdot0_fast", {"initial.qdot": 1e4}, "mostly from 'initial.qdot'), more than 20000 rad"),
     ("torque_large", {"torque.value": 1e6}, "mostly from 'torque.value'), more than 20000 rad"),
-    ("all_inertias_at_their_floor", TINY_INERTIAS, "the crank could turn up to 5e+11 rad"),
+    ("all_inertias_at_their_floor", TINY_INERTIAS, "the input could move up to 5e+11 rad"),
     ("table_torque_long", {"torque": dict(TABLE, values=[1e4, 1e4]), "simulation.horizon": 10.0},
      "mostly from 'torque.values')"),
     ("stiff_spring_long", {"springs": spring(stiffness=1e8, rest_length=0.0), "simulation.horizon": 1e3},
@@ -137,8 +137,25 @@ def test_bad_value_is_one_line_naming_key_value_and_range(patch, expected):
     assert expected in message and "\n" not in message
 
 
+def test_point_force_beyond_the_force_range_is_refused():
+    """The planar seed with a tabulated point force of 1e308 N on the coupler."""
+    import tomllib
+
+    from reduced.scenefile import scenes_dir
+
+    data = tomllib.loads((scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text())
+    data["point_forces"] = [{"point": "coupler.B", "direction": 0.0, "q": [0.0, 1.0], "values": [HUGE, 0.0]}]
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(data)
+    assert FORCE_MESSAGE in str(info.value)
+
+
+FORCE_MESSAGE = out_of_range("point_forces[0].values[0]", HUGE, "force")
+
+
 def test_every_kind_of_range_is_exercised():
-    kinds = {k for k in LIMITS if any(f": {k} must be in" in c[2] for c in CASES)}
+    messages = [c[2] for c in CASES] + [FORCE_MESSAGE]
+    kinds = {k for k in LIMITS if any(f": {k} must be in" in m for m in messages)}
     assert kinds == set(LIMITS)
 
 
