@@ -411,17 +411,25 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
             body = e.parent
         return out
 
+    inp = joints[linkage.input_joint]
+    # The input's own coordinate never names a mode: q is given, so the mode is the sign of a
+    # pair of dependent coordinates, which changes only where q cannot drive the loop.
+    driven = {disp[inp.name]} if isinstance(inp, PrismaticJoint) else {
+        angle[b] for b in (inp.body_a, inp.body_b) if angle[b] >= 0 and GROUND in (inp.body_a, inp.body_b)}
     loops, mode_pairs = [], []
     for name in linkage.cut_joints:
         jt = joints[name]
         assert not isinstance(jt, PrismaticJoint), "Linkage never cuts a prismatic joint"
         loops.append(point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b)))
-        side_a, side_b = coordinates_below(jt.body_a), coordinates_below(jt.body_b)
+        full_a, full_b = coordinates_below(jt.body_a), coordinates_below(jt.body_b)
+        side_a = [c for c in full_a if c not in driven]
+        side_b = [c for c in full_b if c not in driven]
         if side_a and side_b:
-            mode_pairs.append((side_a[0], side_b[0]))
-        else:  # the cut joint is on ground: the two coordinates nearest it on the other side
-            side = side_a or side_b
-            mode_pairs.append((side[0], side[1]))
+            pair = (side_a[0], side_b[0])
+        else:  # the cut joint is on ground or on the input body: the two nearest on the other side
+            side = (side_a or side_b) + [c for c in full_a + full_b if c not in side_a + side_b]
+            pair = (side[0], side[1])
+        mode_pairs.append(pair)
 
     def centre(body: str) -> _Sum:
         cx, cy = bodies[body].com

@@ -254,9 +254,10 @@ def _parse_joint(t: _Table):
     body_a, point_a = _point_ref(t, "a")
     body_b, point_b = _point_ref(t, "b")
     if kind == "revolute":
-        joint = RevoluteJoint(name, body_a, point_a, body_b, point_b)
+        joint = _mechanism_value(t.path, lambda: RevoluteJoint(name, body_a, point_a, body_b, point_b))
     else:
-        joint = PrismaticJoint(name, body_a, point_a, t.number("direction", kind="angle"), body_b, point_b)
+        direction = t.number("direction", kind="angle")
+        joint = _mechanism_value(t.path, lambda: PrismaticJoint(name, body_a, point_a, direction, body_b, point_b))
     t.close()
     return joint
 
@@ -317,6 +318,9 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
     if not joints_t:
         raise SceneError("missing key 'joints': a planar linkage needs [[joints]]")
     joints = [_parse_joint(t) for t in joints_t]
+    joint_names = [j.name for j in joints]
+    if input_joint not in joint_names:
+        raise SceneError(f"'linkage.input' = \"{input_joint}\" is not one of the joints: {', '.join(joint_names)}")
     linkage = _mechanism_value("joints", lambda: Linkage(bodies, joints, input_joint))
     input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
     elements = _parse_line_elements(top)
