@@ -666,13 +666,22 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
     """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
 
     After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
-    of ``efc_vel`` = J q̇ their rates (m/s). Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
+    of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
+    connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
     (the largest distance between two of its points at x0), and × the largest point speed
     scale (size × largest hinge rate, or largest slide rate).
     """
     mujoco.mj_forward(model, data)
     rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
     position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
+    # MuJoCo derives each connect's anchor on body2 from the authored pose (at qpos0), so a pose
+    # that does not close a loop shows there, not in efc_pos: it must be the joint's point_b.
+    linkage = scene.mechanism.linkage
+    for name in linkage.cut_joints:
+        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, name)
+        jt = linkage.joint_map[name]
+        point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
+        position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
     velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
     length = _mechanism_size(scene)
     hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
