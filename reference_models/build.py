@@ -405,6 +405,13 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         spec.add_sensor(name=f"{pf.name}_vel", type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(pf.body, pf.point))
 
+    # Point forces are applied by the runner (mjcb_control), not by the model: say so in the file.
+    for pf in mech.point_forces:
+        spec.add_text(name=f"point_force {pf.name}",
+                      data=f"F(q) N along {pf.direction!r} rad (ground frame) at site {site_name(pf.body, pf.point)}, "
+                           "tabulated over the input coordinate: not a model element; xval applies it through "
+                           "mjcb_control (reference_models.run.point_force_callback)")
+
     # The scene's initial state; the control is the load the run applies in its first step
     # (sampled at the step's midpoint, as ``run.control_sequence`` does).
     qpos0, qvel0 = initial_qpos_qvel(scene)
