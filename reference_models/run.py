@@ -380,7 +380,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
         fine = _attempt(scene, replace(settings, timestep=h / 2))
         runs.append(fine)
-        record = {"timestep": h}
+        record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
             failed = coarse if isinstance(coarse, NumericalFailure) else fine
             record["failure"] = f"{failed.reason.value}: {failed}"
@@ -409,8 +409,9 @@ def _describe(record: dict) -> str:
         return record["failure"]
     if "max_dq" not in record:
         return "not run"
-    return (f"max |Δq| {record['max_dq']:.3g} rad, max |Δω| {record['max_domega']:.3g} rad/s, "
-            f"|Δ peak| {record['dpeak']:.3g} rad/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
+    unit = record.get("unit", "rad")  # the input coordinate's: rad or m
+    return (f"max |Δq| {record['max_dq']:.3g} {unit}, max |Δω| {record['max_domega']:.3g} {unit}/s, "
+            f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
 def _attempt(scene: Scene, settings: MujocoSettings) -> EngineResult | NumericalFailure:
