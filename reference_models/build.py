@@ -206,18 +206,17 @@ def joint_rates_matrix(scene: Scene) -> np.ndarray:
     linkage = scene.mechanism.linkage
     system = loops.compile_linkage(linkage)
     joints = linkage.joint_map
-    up = {e.body: e for e in linkage.tree}
+    edges = {e.joint: e for e in linkage.tree}
     order = joint_order(linkage)
     P = np.zeros((len(order), system.n))
     for k, name in enumerate(order):
-        e = next(e for e in linkage.tree if e.joint == name)
+        e = edges[name]
         if isinstance(joints[name], PrismaticJoint):
             P[k, system.coordinate(f"{name}.s")] = 1.0
         else:
             P[k, linkage.moving.index(e.body)] += 1.0
             if e.parent != GROUND:
                 P[k, linkage.moving.index(e.parent)] -= 1.0
-    del up
     return P
 
 

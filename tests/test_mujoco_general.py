@@ -175,6 +175,9 @@ def test_exported_mjcf_loads_with_every_loop_closed(scene):
             assert np.linalg.norm(gap) < CLOSURE_ATOL, name
         if key is not None:
             assert np.max(np.abs(data.efc_vel[rows]), initial=0.0) < VELOCITY_ATOL
+            _, T = coordinate_map(scene)  # the input turns or slides at q̇0
+            system = loops.compile_linkage(linkage)
+            assert system.drive @ T @ data.qvel == pytest.approx(scene.qdot0, rel=1e-15, abs=1e-15)
     # Every tree joint, also at the assembly: each named point where the loop kinematics put it.
     mujoco.mj_resetData(model, data)
     mujoco.mj_forward(model, data)
