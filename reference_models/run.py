@@ -1,13 +1,19 @@
-"""Run a scene's MuJoCo model with ``mujoco.rollout`` and return an :class:`EngineResult`.
+"""Run a scene's MuJoCo model and return an :class:`EngineResult`.
 
-The step loop runs in C (``rollout``); Python only builds the control sequence before and
-reads sensors and states after. Every run is gated on its own diagnostics: the initial
-state against MuJoCo's own loop-constraint residuals, MuJoCo's warnings (bad qacc and the
-like, which make ``mj_step`` reset the state), a non-finite state, a trajectory that stops
-short of the horizon, the largest loop-closure violation |B_coupler − B_rocker|, and an
-energy audit from MuJoCo's own body velocities and positions (sensors read inside the
-rollout). Without an explicit timestep the step is chosen from the scene and confirmed by
-step halving (:func:`simulate_mujoco`).
+The step loop runs in C (``mujoco.rollout``); Python only builds the control sequence before
+and reads sensors and states after. A scene with point forces is stepped by a Python loop of
+``mj_step`` instead, with the forces applied through ``mjcb_control`` at every integrator stage
+(:func:`point_force_callback`). Every run is gated on its own diagnostics: the initial state
+against MuJoCo's own residuals of every loop constraint (position and velocity), MuJoCo's
+warnings (bad qacc and the like, which make ``mj_step`` reset the state), a non-finite state, a
+trajectory that stops short of the horizon, the largest loop-closure violation (over the cut
+joints, the gap between the joint's two sites), and an energy audit from MuJoCo's own body
+velocities and positions (sensors read inside the run). Without an explicit timestep the step
+is chosen from the scene and confirmed by step halving (:func:`simulate_mujoco`).
+
+MuJoCo's qpos/qvel map linearly onto the scene's general coordinates (x = x0 + T·qpos,
+:func:`reference_models.build.coordinate_map`); the trajectory is the input coordinate
+q = drive·x (rad or m, ``scene.input_unit``) and its rates.
 """
 
 from __future__ import annotations
@@ -26,11 +32,14 @@ from mujoco import rollout
 from reduced.errors import FailureReason, NumericalFailure
 from reduced.partition import JointTrajectory
 from reduced.result import EnergyAudit, EngineResult
-from reduced.scene import BODY_NAMES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
+from reduced import loops
+from reduced.loads import TabulatedForce
+from reduced.mechanism import PrismaticJoint
+from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
-from .build import (INTEGRATOR_ENUM, LOOP_EQUALITY, ConstraintSettings, ModelHandles, build_spec, compile_model,
-                    assembled_angles, initial_qpos_qvel, loop_angles, loop_rates, mjcf_from_spec)
+from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
+                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, site_name)
 
 INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in reduced.scene
 
@@ -49,9 +58,9 @@ MAX_STEPS = 20_000_000
 MAX_MEMORY_BYTES = 2 * 1024 ** 3
 _COPIES = 3
 # Initial state: MuJoCo's loop residuals after mj_forward at the assembled (qpos, qvel), relative
-# to the largest link length (m) and to that length times the largest joint rate (m/s).
-# Assembly by trigonometry leaves ~1e-16 relative (measured on every scene here: ≤ 3.3e-16 m
-# with 1 m links, ≤ 1.6e-16 relative in velocity), so 1e-12 is round-off with 3000x margin.
+# to the mechanism's size (m) and to its point-speed scale (m/s) (check_initial_state). The
+# assembly leaves ~1e-16 relative (measured on the seed, two slider-cranks and a Watt II six-bar:
+# ≤ 2.2e-16 m and ≤ 4.4e-16 m/s, sizes 0.4–2 m), so 1e-12 is round-off with 1000x margin.
 INITIAL_RESIDUAL_REL = 1e-12
 
 
@@ -215,7 +224,7 @@ def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
         raise ValueError(f"simulation.horizon {scene.horizon:g} s is too short for an automatic MuJoCo timestep "
                          f"({MIN_AUTO_STEPS} steps of at least {TIMESTEP_FLOOR:g} s): lengthen it or set "
                          "[mujoco] timestep (--timestep)")
-    edges = sorted(e for e in (scene.torque.edges if scene.torque is not None else ()) if 0.0 < e < scene.horizon)
+    edges = sorted(e for e in (scene.load.edges if scene.load is not None else ()) if 0.0 < e < scene.horizon)
     if not edges:
         return h_max
     first = edges[0]
@@ -232,12 +241,12 @@ def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.nd
 
     Returns the controls and one warning per load edge that falls inside a step.
     """
-    if scene.torque is None:
+    if scene.load is None:
         return np.zeros((n_steps, 0)), []
     starts = np.arange(n_steps) * timestep
-    ctrl = scene.torque.sample(starts + 0.5 * timestep)[:, None]
+    ctrl = scene.load.sample(starts + 0.5 * timestep)[:, None]
     notes = []
-    for edge in scene.torque.edges:
+    for edge in scene.load.edges:
         k = edge / timestep
         if 0.0 < edge < scene.horizon and abs(k - round(k)) > 1e-6:
             notes.append(f"load edge at t = {edge:g} s is not a multiple of the timestep {timestep:g} s: "
@@ -281,20 +290,24 @@ def _within_limits(scene: Scene, h: float, model: mujoco.MjModel) -> bool:
     return True
 
 
-def _check_handles(handles: ModelHandles, settings: MujocoSettings) -> None:
-    """Refuse a compiled model whose options differ from the settings (ValueError naming both)."""
+def _check_handles(scene: Scene, handles: ModelHandles, settings: MujocoSettings) -> None:
+    """Refuse a compiled model whose joints, loops or options differ from the scene's and the
+    settings' (ValueError naming both)."""
     m = handles.model
-    eq = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, LOOP_EQUALITY)
-    if eq < 0:
-        raise ValueError(f"the model has no loop equality {LOOP_EQUALITY!r}")
+    check_joint_order(scene, m)
+    loops_ = tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, i) for i in range(m.neq))
+    if loops_ != scene.mechanism.linkage.cut_joints:
+        raise ValueError(f"the model's loop equalities {loops_} are not the scene's cut joints "
+                         f"{scene.mechanism.linkage.cut_joints}")
     pairs = [("timestep", float(m.opt.timestep), settings.timestep),
              ("integrator", int(m.opt.integrator), int(INTEGRATOR_ENUM[settings.integrator])),
              ("iterations", int(m.opt.iterations), settings.iterations),
-             ("tolerance", float(m.opt.tolerance), settings.tolerance),
-             ("solref", tuple(float(v) for v in m.eq_solref[eq]), tuple(settings.effective_solref)),
-             ("solimp", tuple(float(v) for v in m.eq_solimp[eq]), tuple(float(v) for v in settings.solimp)),
-             ("refsafe", not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE, settings.refsafe),
-             ("diagexact", bool(m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_DIAGEXACT), settings.diagexact)]
+             ("tolerance", float(m.opt.tolerance), settings.tolerance)]
+    for eq in range(m.neq):
+        pairs += [("solref", tuple(float(v) for v in m.eq_solref[eq]), tuple(settings.effective_solref)),
+                  ("solimp", tuple(float(v) for v in m.eq_solimp[eq]), tuple(float(v) for v in settings.solimp))]
+    pairs += [("refsafe", not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE, settings.refsafe),
+              ("diagexact", bool(m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_DIAGEXACT), settings.diagexact)]
     for name, model_value, wanted in pairs:
         same = (np.allclose(model_value, wanted, rtol=1e-12, atol=0.0) if not isinstance(wanted, bool)
                 else bool(model_value) == wanted)
@@ -339,7 +352,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
         if handles is not None:
             if settings.timestep is None:
                 settings = replace(settings, timestep=float(handles.model.opt.timestep))
-            _check_handles(handles, settings)
+            _check_handles(scene, handles, settings)
             return _run(scene, settings, handles)
         if settings.timestep is not None:
             _check_work(scene, settings.timestep)
@@ -367,7 +380,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
         fine = _attempt(scene, replace(settings, timestep=h / 2))
         runs.append(fine)
-        record = {"timestep": h}
+        record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
             failed = coarse if isinstance(coarse, NumericalFailure) else fine
             record["failure"] = f"{failed.reason.value}: {failed}"
@@ -396,8 +409,9 @@ def _describe(record: dict) -> str:
         return record["failure"]
     if "max_dq" not in record:
         return "not run"
-    return (f"max |Δq| {record['max_dq']:.3g} rad, max |Δω| {record['max_domega']:.3g} rad/s, "
-            f"|Δ peak| {record['dpeak']:.3g} rad/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
+    unit = record.get("unit", "rad")  # the input coordinate's: rad or m
+    return (f"max |Δq| {record['max_dq']:.3g} {unit}, max |Δω| {record['max_domega']:.3g} {unit}/s, "
+            f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
 def _attempt(scene: Scene, settings: MujocoSettings) -> EngineResult | NumericalFailure:
@@ -422,44 +436,56 @@ def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float
 
 
 def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult:
-    """One rollout at the settings' explicit timestep, gated on its diagnostics."""
+    """One run at the settings' explicit timestep, gated on its diagnostics.
+
+    Without point forces the step loop is ``mujoco.rollout`` (in C); with them it is a Python
+    loop of ``mj_step`` with :func:`point_force_callback` installed as ``mjcb_control``.
+    """
     model, data = handles.model, mujoco.MjData(handles.model)
+    check_joint_order(scene, model)
     h = settings.timestep
     n_steps = _check_work(scene, h, model)
     ctrl, edge_notes = control_sequence(scene, h, n_steps)
     for note in edge_notes:
         warnings.warn(note, OffGridEdgeWarning, stacklevel=3)
+    layout = _Layout.of(scene, model)
 
-    qpos0, qvel0 = initial_qpos_qvel(scene)
-    data.qpos[:], data.qvel[:] = qpos0, qvel0
-    initial = check_initial_state(scene, model, data)
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state0 = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, state0, spec)
+    with _point_forces_installed(scene, model, layout):
+        qpos0, qvel0 = initial_qpos_qvel(scene)
+        data.qpos[:], data.qvel[:] = qpos0, qvel0
+        initial = check_initial_state(scene, model, data)
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state0 = np.empty(mujoco.mj_stateSize(model, spec))
+        mujoco.mj_getState(model, data, state0, spec)
 
-    start = time.perf_counter()
-    states, sensordata = rollout.rollout(model, data, state0[None, :], ctrl[None, :, :] if model.nu else None,
-                                         nstep=n_steps)
-    wall = time.perf_counter() - start
+        start = time.perf_counter()
+        if scene.mechanism.point_forces:
+            states, sensordata = _step_loop(model, data, state0, ctrl, n_steps, spec)
+        else:
+            states, sensordata = rollout.rollout(model, data, state0[None, :],
+                                                 ctrl[None, :, :] if model.nu else None, nstep=n_steps)
+            states, sensordata = states[0], sensordata[0]
+        wall = time.perf_counter() - start
 
-    states, sensordata = states[0], sensordata[0]
-    _check_warnings(data, states, h)
-    # rollout's state k is after step k+1; sensordata k was computed at the start of step k+1.
-    states = np.vstack([state0, states])
-    times = states[:, 0]
-    _check_complete(scene, times, h)
-    qpos = states[:, 1:1 + model.nq]
-    qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
-    q = loop_angles(qpos, assembled_angles(scene))[:, 0]  # qpos counts from the assembled pose
-    final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
-    sensors = np.vstack([sensordata, final_sensors])
+        _check_warnings(data, states, h)
+        # state k is after step k+1; sensordata k was computed at the start of step k+1.
+        states = np.vstack([state0, states])
+        times = states[:, 0]
+        _check_complete(scene, times, h)
+        qpos = states[:, 1:1 + model.nq]
+        qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
+        q = layout.q(qpos)  # qpos counts from the assembled pose
+        qdot = layout.qdot(qvel)
+        final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
+        sensors = np.vstack([sensordata, final_sensors])
 
-    sl = handles.sensor_slices
-    gap = sensors[:, sl["B_coupler_pos"]] - sensors[:, sl["B_rocker_pos"]]
-    violation = np.linalg.norm(gap, axis=1)
-    qddot = sensors[:, sl["crank_angacc"]][:, 2]
-    trajectory = _with_edge_samples(model, data, scene, times, q, qvel[:, 0], qddot,
-                                    states, ctrl, handles, spec)
+        sl = handles.sensor_slices
+        violation = np.zeros(len(times))
+        for name in scene.mechanism.linkage.cut_joints:
+            gap = sensors[:, sl[f"{name}_a_pos"]] - sensors[:, sl[f"{name}_b_pos"]]
+            violation = np.maximum(violation, np.linalg.norm(gap, axis=1))
+        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec)
+        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec)
     max_violation = float(np.max(violation))
     if not math.isfinite(max_violation) or max_violation > settings.max_constraint_violation:
         k = int(np.argmax(np.nan_to_num(violation, nan=np.inf)))
@@ -467,9 +493,9 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
                                f"t = {times[k]:.6g} s exceeds {settings.max_constraint_violation:g} m",
                                float(times[k]))
 
-    audit = _energy_audit(model, handles, times, states, sensors, ctrl)
+    audit = _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q)
     residual = np.abs(audit.residual)
-    # A run in which almost nothing moves is judged against at least ½ 𝔍0 (1 rad/s)², never
+    # A run in which almost nothing moves is judged against at least ½ 𝔍0 (1 unit/s)², never
     # against an energy scale made of round-off (the reduced engine uses the same floor).
     scale = max(audit.scale, 0.5 * initial["unit_rate_inertia"])
     if not audit.max_abs_residual <= settings.max_energy_residual * scale:
@@ -478,59 +504,228 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
                                f"MuJoCo's energy balance is off by {residual[k]:.3g} J at t = {times[k]:.6g} s, "
                                f"{residual[k] / scale:.3g} of the energy scale {scale:.6g} J, above "
                                f"max_energy_residual {settings.max_energy_residual:g}", float(times[k]))
-    motor = sensors[:, sl["crank_motor_force"]][:, 0] if "crank_motor_force" in sl else np.zeros(len(times))
+    key = f"{INPUT_MOTOR}_force"
+    motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
     recorded = settings.as_dict()
     recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False)
     return EngineResult(
         engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
         settings=recorded,
-        diagnostics={"max_constraint_violation": max_violation, "joints": _joint_trajectory(scene, times, qpos, qvel),
+        diagnostics={"max_constraint_violation": max_violation,
+                     "joints": _joint_trajectory(scene, layout, times, qpos, qvel),
                      "constraint_violation": violation, "times": times, "q": q,
-                     "omega": qvel[:, 0].copy(), "motor_torque": motor, "initial_residuals": initial,
-                     "energy_relative_residual": audit.relative_residual,
-                     "edge_warnings": edge_notes, "effects": list(scene.effects)})
+                     "omega": qdot.copy(), "motor_torque": motor, "input_load": motor,
+                     "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
+                     "edge_warnings": edge_notes, "effects": list(scene.effects),
+                     "point_forces": "mjcb_control (qfrc_applied, every RK stage)"
+                     if scene.mechanism.point_forces else None})
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """How MuJoCo's qpos/qvel map to the scene's coordinates (:func:`build.coordinate_map`).
+
+    x0 (n,), T (n, nq): x = x0 + T qpos; drive (n,): q = drive·x; input_dof: the input
+    joint's dof; input_hinge: whether it is a hinge (else a slide).
+    """
+
+    system: loops.LoopSystem
+    x0: np.ndarray
+    T: np.ndarray
+    input_dof: int
+    input_hinge: bool
+    input_body: str
+    input_parent: str
+
+    @staticmethod
+    def of(scene: Scene, model: mujoco.MjModel) -> "_Layout":
+        linkage = scene.mechanism.linkage
+        system = loops.compile_linkage(linkage)
+        x0, T = coordinate_map(scene)
+        joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, linkage.input_joint)
+        edge = next(e for e in linkage.tree if e.joint == linkage.input_joint)
+        return _Layout(system, x0, T, int(model.jnt_dofadr[joint]),
+                       not isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint), edge.body, edge.parent)
+
+    def x(self, qpos: np.ndarray) -> np.ndarray:
+        return self.x0 + np.atleast_2d(qpos) @ self.T.T
+
+    def xdot(self, qvel: np.ndarray) -> np.ndarray:
+        return np.atleast_2d(qvel) @ self.T.T
+
+    def q(self, qpos: np.ndarray) -> np.ndarray:
+        return self.x(qpos) @ self.system.drive
+
+    def qdot(self, qvel: np.ndarray) -> np.ndarray:
+        return self.xdot(qvel) @ self.system.drive
+
+    @property
+    def input_row(self) -> np.ndarray:
+        """(nq,) the input coordinate's rate from qvel: q̇ = input_row·qvel."""
+        return self.system.drive @ self.T
+
+
+def point_force_callback(scene: Scene, model: mujoco.MjModel, layout: "_Layout"):
+    """The ``mjcb_control`` callback that applies the scene's point forces, or None without any.
+
+    How: MuJoCo calls ``mjcb_control`` in every ``mj_forward`` after the position and velocity
+    stages, before actuation and acceleration, so also in each of RK4's four stages at that
+    stage's state. The callback sets ``qfrc_applied`` = Σ J_pᵀ F(q) u (J_p the site's
+    translational Jacobian ``mj_jacSite``, u the force's fixed ground direction, q the input
+    coordinate from that stage's qpos): the force is exactly F(q(t)) at every stage, so RK4
+    keeps its order. Scenes with point forces are stepped by a Python loop of ``mj_step``
+    (:func:`_step_loop`) rather than ``mujoco.rollout``: single-threaded rollout does call a
+    Python ``mjcb_control`` (measured with MuJoCo 4.0.1: 1600 calls in 400 RK4 steps, states
+    identical to the loop's) but the documented callback contract does not cover its threads, and
+    the callback (~65 µs, mostly the spline) dominates either way.
+    """
+    forces = []
+    for pf in scene.mechanism.point_forces:
+        site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name(pf.body, pf.point))
+        if site < 0:
+            raise ValueError(f"the model has no site {site_name(pf.body, pf.point)!r} for point force {pf.name!r}")
+        forces.append((TabulatedForce(pf.coordinate, pf.values, pf.period), site,
+                       np.array([math.cos(pf.direction), math.sin(pf.direction), 0.0])))
+    if not forces:
+        return None
+    q0 = float(layout.system.drive @ layout.x0)
+    row = layout.input_row
+    jac = np.zeros((3, model.nv))
+
+    def callback(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        q = q0 + float(row @ d.qpos)
+        total = np.zeros(m.nv)
+        for force, site, u in forces:
+            mujoco.mj_jacSite(m, d, jac, None, site)
+            total += float(force(q)) * (u @ jac)
+        d.qfrc_applied[:] = total
+
+    return callback
+
+
+@contextlib.contextmanager
+def _point_forces_installed(scene: Scene, model: mujoco.MjModel, layout: "_Layout"):
+    callback = point_force_callback(scene, model, layout)
+    if callback is None:
+        yield
+        return
+    previous = mujoco.get_mjcb_control()
+    mujoco.set_mjcb_control(callback)
+    try:
+        yield
+    finally:
+        mujoco.set_mjcb_control(previous)
+
+
+def _step_loop(model, data, state0, ctrl, n_steps, spec) -> tuple[np.ndarray, np.ndarray]:
+    """``rollout``'s states and sensordata from a Python loop of ``mj_step`` (for callbacks)."""
+    mujoco.mj_setState(model, data, state0, spec)
+    states = np.empty((n_steps, state0.size))
+    sensors = np.empty((n_steps, model.nsensordata))
+    for k in range(n_steps):
+        if model.nu:
+            data.ctrl[:] = ctrl[k]
+        mujoco.mj_step(model, data)
+        mujoco.mj_getState(model, data, states[k], spec)
+        sensors[k] = data.sensordata
+    return states, sensors
+
+
+def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec) -> np.ndarray:
+    """q̈ at every stored state (rad/s² or m/s²).
+
+    A hinge input: the z angular acceleration of its child body minus its parent's (sensors
+    read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
+    with that step's control.
+    """
+    if layout.input_hinge:
+        return _hinge_acceleration(handles.sensor_slices, layout, sensors)
+    out = np.empty(len(states))
+    for k, state in enumerate(states):
+        mujoco.mj_setState(model, data, state, spec)
+        if model.nu:
+            data.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
+        mujoco.mj_forward(model, data)
+        out[k] = layout.input_row @ data.qacc
+    return out
+
+
+def _hinge_acceleration(sl, layout, sensors) -> np.ndarray:
+    sensors = np.atleast_2d(sensors)
+    acc = sensors[:, sl[f"{layout.input_body}_angacc"]][:, 2]
+    if f"{layout.input_parent}_angacc" in sl:
+        acc = acc - sensors[:, sl[f"{layout.input_parent}_angacc"]][:, 2]
+    return acc
+
+
+def _mechanism_size(scene: Scene) -> float:
+    """The largest distance between two named points at x0 (m): the mechanism's size."""
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    p = loops.positions(system.points, np.asarray(scene.x0, dtype=float))
+    return float(np.max(np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)))
 
 
 def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData) -> dict:
     """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
 
-    After mj_forward, the loop equality's rows of ``efc_pos`` are the gap B_coupler − B_rocker
-    (m) and of ``efc_vel`` = J q̇ its rate (m/s). Bounds: INITIAL_RESIDUAL_REL × the largest link
-    length, and × that length × the largest |q̇| (rad/s).
+    After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
+    of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
+    connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
+    (the largest distance between two of its points at x0), and × the largest point speed
+    scale (size × largest hinge rate, or largest slide rate).
     """
     mujoco.mj_forward(model, data)
-    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, LOOP_EQUALITY)
-    rows = np.flatnonzero((data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (data.efc_id == eq))
-    position = float(np.linalg.norm(data.efc_pos[rows]))
-    velocity = float(np.linalg.norm(data.efc_vel[rows]))
-    g = scene.linkage
-    length = max(g.c1, g.c2, g.c3, g.c4)
-    rate = float(np.max(np.abs(data.qvel))) if model.nv else 0.0
-    limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * length * rate)
-    if len(rows) != 3 or not position <= limits[0] or not velocity <= limits[1]:
+    rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
+    # MuJoCo derives each connect's anchor on body2 from the authored pose (at qpos0), so a pose
+    # that does not close a loop shows there, not in efc_pos: it must be the joint's point_b.
+    linkage = scene.mechanism.linkage
+    for name in linkage.cut_joints:
+        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, name)
+        jt = linkage.joint_map[name]
+        point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
+        position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
+    velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
+    length = _mechanism_size(scene)
+    hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
+    qvel = np.abs(data.qvel)
+    speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
+    limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * speed)
+    expected = 3 * len(scene.mechanism.linkage.cut_joints)
+    if len(rows) != expected or not position <= limits[0] or not velocity <= limits[1]:
         raise NumericalFailure(FailureReason.INITIAL_STATE,
                                f"MuJoCo's loop residuals at the initial state are {position:.3g} m (position, "
-                               f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s): "
-                               "the assembled (q0, q̇0) does not close the loop", 0.0)
+                               f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s) "
+                               f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
+                               "does not close the loops", 0.0)
+    layout = _Layout.of(scene, model)
     return {"position": position, "velocity": velocity, "limits": limits,
-            "unit_rate_inertia": _unit_rate_inertia(model, data, rows)}
+            "unit_rate_inertia": _unit_rate_inertia(model, data, rows, layout.input_row)}
 
 
-def _unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray) -> float:
-    """uᵀ M u (kg·m²) for the joint rates u that keep the loop closed with the crank at 1 rad/s.
+def _unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray,
+                       input_row: np.ndarray) -> float:
+    """uᵀ M u (kg·m² or kg) for the joint rates u that keep every loop closed with the input
+    joint at unit rate (1 rad/s or 1 m/s).
 
-    u spans the null space of the loop's constraint Jacobian J (MuJoCo's own, at the state in
-    ``data``), scaled so u_crank = 1; at a dead centre of the crank (u_crank ≈ 0) so that its
-    largest component is 1. This is 𝔍(q0) of Eksergian's equation, from MuJoCo's quantities.
+    u spans the null space of all equality rows of MuJoCo's constraint Jacobian J (at the state
+    in ``data``), scaled so input_row·u = 1; at a dead centre of the input (input_row·u ≈ 0)
+    so that its largest component is 1. This is 𝔍(q0) of Eksergian's equation, from MuJoCo's
+    quantities.
     """
-    jacobian = np.zeros((data.nefc, model.nv))
-    if mujoco.mj_isSparse(model):
-        mujoco.mju_sparse2dense(jacobian, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind)
+    if len(rows):
+        jacobian = np.zeros((data.nefc, model.nv))
+        if mujoco.mj_isSparse(model):
+            mujoco.mju_sparse2dense(jacobian, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
+                                    data.efc_J_colind)
+        else:
+            jacobian[:] = data.efc_J.reshape(data.nefc, model.nv)
+        u = np.linalg.svd(jacobian[rows])[2][-1]  # right singular vector of the smallest singular value
     else:
-        jacobian[:] = data.efc_J.reshape(data.nefc, model.nv)
-    u = np.linalg.svd(jacobian[rows])[2][-1]  # right singular vector of the smallest singular value
-    u = u / u[0] if abs(u[0]) > 1e-6 * np.max(np.abs(u)) else u / np.max(np.abs(u))
+        u = input_row.copy()
+    rate = float(input_row @ u)
+    u = u / rate if abs(rate) > 1e-6 * np.max(np.abs(u)) else u / np.max(np.abs(u))
     mass = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, mass)
     return float(u @ mass @ u)
@@ -544,15 +739,12 @@ def _check_complete(scene: Scene, times: np.ndarray, h: float) -> None:
                                f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
 
 
-def _joint_trajectory(scene: Scene, times, qpos, qvel) -> JointTrajectory:
-    """MuJoCo's loop angles and rates, with the assembly branch of each sample."""
-    from reduced.linkage import FourBar
-
-    linkage = FourBar(scene.linkage)
-    x = loop_angles(qpos, assembled_angles(scene))
-    xdot = loop_rates(qvel)
-    branch = linkage.branches(x)
-    return JointTrajectory(linkage.coordinate_names, times, x, xdot, np.full(len(times), -1), branch)
+def _joint_trajectory(scene: Scene, layout: _Layout, times, qpos, qvel) -> JointTrajectory:
+    """MuJoCo's general coordinates and rates, with the assembly mode of each sample."""
+    x = layout.x(qpos)
+    mode = loops.assembly_modes(layout.system, x)
+    return JointTrajectory(layout.system.coordinate_names, times, x, layout.xdot(qvel),
+                           np.full(len(times), -1), mode)
 
 
 def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:
@@ -579,31 +771,41 @@ def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
     return data.sensordata.copy()
 
 
-def _with_edge_samples(model, data, scene, times, q, qdot, qddot, states, ctrl, handles, spec) -> Trajectory:
+def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec) -> Trajectory:
     """Insert, at each step where the control jumps, a sample with q̈ from before the jump."""
     t, qs, vs, accs = list(times), list(q), list(qdot), list(qddot)
     if model.nu:
         jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
-        acc_slice = handles.sensor_slices["crank_angacc"]
         for k in sorted(jumps, reverse=True):
-            before = _sensors_at(model, data, states[k], ctrl[k - 1], spec)[acc_slice][2]
+            if layout.input_hinge:
+                before = _hinge_acceleration(handles.sensor_slices, layout,
+                                             _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0]
+            else:
+                _sensors_at(model, data, states[k], ctrl[k - 1], spec)
+                before = float(layout.input_row @ data.qacc)
             t.insert(k, times[k]), qs.insert(k, q[k]), vs.insert(k, qdot[k]), accs.insert(k, before)
     return Trajectory(np.array(t), np.array(qs), np.array(vs), np.array(accs))
 
 
-def _energy_audit(model, handles, times, states, sensors, ctrl) -> EnergyAudit:
+def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    return np.concatenate([np.zeros(1), np.cumsum(0.5 * (power[:-1] + power[1:]) * dt)])
+
+
+def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q) -> EnergyAudit:
     """The energy balance from MuJoCo's own quantities at every stored state.
 
-    Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² and potential −Σ m g·r_G + Σ ½ k (l − l0)² from the
-    body and tendon sensors with the model's masses, inertias, stiffnesses (kinetic energy
-    agrees with ½ q̇ᵀM q̇); the work of the motor ∫ u q̇_crank dt and the damper dissipation
-    ∫ Σ b l̇² dt by the trapezoid rule (the control is constant within each step).
+    Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² over every moving body and potential −Σ m g·r_G +
+    Σ ½ k (l − l0)² over every spring tendon, from the body and tendon sensors with the model's
+    masses, inertias, stiffnesses (kinetic energy agrees with ½ q̇ᵀM q̇); the work of the motor
+    ∫ u q̇_input dt (the input joint's rate; the control is constant within each step) plus the
+    work of the point forces ∫ Σ F(q) u·v_p dt (in ``torque_work``: the work of the external
+    loads), and the damper dissipation ∫ Σ b l̇² dt, by the trapezoid rule.
     """
     sl = handles.sensor_slices
     n = len(times)
     kinetic, potential = np.zeros(n), np.zeros(n)
     gravity = model.opt.gravity
-    for name in BODY_NAMES:
+    for name in scene.mechanism.linkage.moving:
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         mass, izz = model.body_mass[body], model.body_inertia[body, 2]
         v, w = sensors[:, sl[f"{name}_com_vel"]], sensors[:, sl[f"{name}_ang_vel"]]
@@ -615,20 +817,27 @@ def _energy_audit(model, handles, times, states, sensors, ctrl) -> EnergyAudit:
             stretch = sensors[:, sl[f"{name}_length"]][:, 0] - model.tendon_lengthspring[tendon, 0]
             potential += 0.5 * model.tendon_stiffness[tendon] * stretch * stretch
     dt = np.diff(times)
-    qvel_crank = states[:, 1 + model.nq]
     zero = np.zeros(1)
     if model.nu:
-        power_dt = ctrl[:, 0] * 0.5 * (qvel_crank[:-1] + qvel_crank[1:]) * dt
-        torque_work = np.concatenate([zero, np.cumsum(power_dt)])
+        rate = states[:, 1 + model.nq + layout.input_dof]
+        power_dt = ctrl[:, 0] * 0.5 * (rate[:-1] + rate[1:]) * dt
+        load_work = np.concatenate([zero, np.cumsum(power_dt)])
     else:
-        torque_work = np.zeros(n)
+        load_work = np.zeros(n)
+    if scene.mechanism.point_forces:
+        power = np.zeros(n)
+        for pf in scene.mechanism.point_forces:
+            u = np.array([math.cos(pf.direction), math.sin(pf.direction), 0.0])
+            force = TabulatedForce(pf.coordinate, pf.values, pf.period)
+            power += np.asarray(force(q), dtype=float) * (sensors[:, sl[f"{pf.name}_vel"]] @ u)
+        load_work = load_work + _cumulative_trapezoid(power, dt)
     rate = np.zeros(n)
     for name in handles.damper_tendons:
         b = model.tendon_damping[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)]
         ldot = sensors[:, sl[f"{name}_rate"]][:, 0]
         rate += b * ldot * ldot
     dissipation = np.concatenate([zero, np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)])
-    return EnergyAudit(t=times, kinetic=kinetic, potential=potential, torque_work=torque_work,
+    return EnergyAudit(t=times, kinetic=kinetic, potential=potential, torque_work=load_work,
                        damper_dissipation=dissipation)
 
 

@@ -44,7 +44,7 @@ def scene_at(branch: int, q0: float, qdot0: float, **extra):
 
 def points(scene) -> tuple[np.ndarray, np.ndarray]:
     """A and B (m) of the closed-form assembly at q0 on the scene's branch."""
-    g = scene.linkage
+    g = scene.four_bar
     q, phi1, _ = FourBar(g).assemble(scene.q0)
     a = g.c1 * np.array([np.cos(q), np.sin(q), 0.0])
     return a, a + g.c2 * np.array([np.cos(phi1), np.sin(phi1), 0.0])
@@ -62,10 +62,10 @@ def equality_rows(model, data) -> np.ndarray:
 def check_closed(scene, model, data) -> float:
     """Assert the state in ``data`` (after mj_forward) is the assembly at q0; return the gap (m)."""
     a, b = points(scene)
-    gap = float(np.linalg.norm(data.site("B_coupler").xpos - data.site("B_rocker").xpos))
+    gap = float(np.linalg.norm(data.site("coupler.B").xpos - data.site("rocker.B").xpos))
     assert gap < CLOSURE_ATOL
-    np.testing.assert_allclose(data.site("A_crank").xpos, a, rtol=0, atol=CLOSURE_ATOL)  # at q0
-    np.testing.assert_allclose(data.site("B_rocker").xpos, b, rtol=0, atol=CLOSURE_ATOL)  # on the branch
+    np.testing.assert_allclose(data.site("crank.A").xpos, a, rtol=0, atol=CLOSURE_ATOL)  # at q0
+    np.testing.assert_allclose(data.site("rocker.B").xpos, b, rtol=0, atol=CLOSURE_ATOL)  # on the branch
     np.testing.assert_allclose(data.efc_pos[equality_rows(model, data)], 0.0, rtol=0, atol=CLOSURE_ATOL)
     return gap
 
@@ -74,12 +74,12 @@ def check_closed(scene, model, data) -> float:
 def test_exported_model_loads_assembled_at_its_default_state_and_home(branch, q0, qdot0):
     scene = scene_at(branch, q0, qdot0)
     model, data = loaded(mjcf_text(scene, MujocoSettings(timestep=STEP)))
-    g = scene.linkage
+    g = scene.four_bar
 
     mujoco.mj_forward(model, data)  # MuJoCo's default state: qpos0, zero velocity
     check_closed(scene, model, data)
     # The rocker's anchor, placed by MuJoCo where B is at qpos0, is B on the rocker (O3B = c3 on x).
-    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, "loop_closure_B")
+    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, "B")
     np.testing.assert_allclose(model.eq_data[eq, :6], [g.c2, 0, 0, g.c3, 0, 0], rtol=0, atol=CLOSURE_ATOL)
 
     mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, HOME_KEY))
@@ -153,10 +153,10 @@ def test_pinocchio_reads_both_chains_closed_at_its_neutral_configuration(branch,
     path = tmp_path / "model.xml"
     path.write_text(mjcf_text(scene, MujocoSettings(timestep=STEP)), encoding="utf-8")
     model = pin.buildModelFromMJCF(str(path))
-    assert model.nq == 3 and list(model.names)[1:] == ["crank_hinge", "coupler_hinge", "rocker_hinge"]
+    assert model.nq == 3 and list(model.names)[1:] == ["O1", "A", "O3"]
     data = model.createData()
     pin.framesForwardKinematics(model, data, pin.neutral(model))
-    coupler_b = data.oMf[model.getFrameId("B_coupler")].translation
-    rocker_b = data.oMf[model.getFrameId("B_rocker")].translation
+    coupler_b = data.oMf[model.getFrameId("coupler.B")].translation
+    rocker_b = data.oMf[model.getFrameId("rocker.B")].translation
     np.testing.assert_allclose(coupler_b, points(scene)[1], rtol=0, atol=CLOSURE_ATOL)
     np.testing.assert_allclose(rocker_b, points(scene)[1], rtol=0, atol=CLOSURE_ATOL)
