@@ -1,12 +1,15 @@
-"""A drawing of a linkage in one configuration (``xval draw``), to check a scene's geometry.
+"""A drawing of any planar linkage in one configuration (``xval draw``, and the mechanism
+strip of ``xval run``), to check a scene's geometry.
 
 Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
 their joint and attachment points, revolute joints as labelled circles, ground pivots with
 a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
-springs as zigzags with their coefficients, centres of mass as crossed circles; a scene's gravity
-is given in the title. Every
-position is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the assembled
-coordinates; nothing is recomputed here. Lengths in m, equal axis scales.
+springs as zigzags with their coefficients, point forces as arrows F(q) along their
+direction (ending at the point they act on), centres of mass as crossed circles; the title
+gives q0 with its unit, the assembly mode (one sign per loop) and gravity. Every position
+is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the general
+coordinates x (``scene.x0`` for ``xval draw``); nothing is recomputed here. Lengths in m,
+equal axis scales.
 
 matplotlib is imported only when a drawing is made. User names are plain text
 (``parse_math=False``).
@@ -20,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from reduced.expand import COM, LineElement, MassPoint
-from reduced.loops import LoopSystem, positions
-from reduced.mechanism import GROUND, Linkage, PrismaticJoint
+from reduced.loads import TabulatedForce
+from reduced.loops import LoopSystem, compile_linkage, positions
+from reduced.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
 
 PLAIN = {"parse_math": False}
 BODY_COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:brown", "tab:purple", "tab:olive",
@@ -62,21 +65,85 @@ def _distinct(points: list[np.ndarray], tol: float) -> np.ndarray:
     return np.array(out).reshape(-1, 2)
 
 
-def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
-                 elements: Sequence[LineElement] = (), masses: Sequence[MassPoint] = (),
-                 input_label: str = "input") -> dict[str, object]:
-    """Draw the linkage at coordinates ``x`` (shape (n,), assembled) on the axes ``ax``.
+def _parts(mechanism: Mechanism | Linkage):
+    """(linkage, line elements, point forces) of a mechanism, or of a bare linkage."""
+    if isinstance(mechanism, Linkage):
+        return mechanism, (), ()
+    return mechanism.linkage, mechanism.elements, mechanism.point_forces
+
+
+def mode_text(mode: Sequence[int]) -> str:
+    """An assembly mode as the title shows it: ``(+1)``, ``(+1, −1)``; ``()`` without a loop."""
+    return "(" + ", ".join("0" if m == 0 else f"{'+' if m > 0 else '−'}1" for m in mode) + ")"
+
+
+def body_outlines(linkage: Linkage, system: LoopSystem, x: np.ndarray,
+                  elements: Sequence = ()) -> dict[str, np.ndarray]:
+    """Each moving body's outline at coordinates x: its distinct joint and attachment
+    points (m), shape (k, 2), ordered round their centroid when k ≥ 3."""
+    r = positions(system.points, np.asarray(x, dtype=float))
+    span = float(np.max(np.ptp(r, axis=0))) if len(r) > 1 else 1.0
+    span = span if span > 0.0 else 1.0
+    ends = {(j.body_a, j.point_a) for j in linkage.joints} | {(j.body_b, j.point_b) for j in linkage.joints}
+    ends |= {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+    out = {}
+    for name in linkage.moving:
+        pts = [r[system.point_index(b, p)] for b, p in sorted(ends) if b == name]
+        shape = _distinct(pts, 1e-9 * span)
+        out[name] = _polygon_order(shape) if len(shape) >= 3 else shape
+    return out
+
+
+def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, colour: str,
+                 linestyle: str = "-", label: str | None = None, alpha: float = 1.0) -> list:
+    """A light drawing of the linkage at x (bodies as closed outlines, joints as dots), for
+    overlaying several configurations (the mechanism strip of ``xval run``). Returns the
+    Line2D artists, bodies first in :attr:`Linkage.moving` order, then the joints."""
+    r = positions(system.points, np.asarray(x, dtype=float))
+    artists = []
+    for k, (name, shape) in enumerate(body_outlines(linkage, system, x).items()):
+        path = np.vstack([shape, shape[:1]]) if len(shape) >= 3 else shape
+        if len(path) == 0:
+            continue
+        (line,) = ax.plot(path[:, 0], path[:, 1], color=colour, linestyle=linestyle, linewidth=2.2,
+                          alpha=alpha, marker="o" if len(path) == 1 else None,
+                          label=label if k == 0 else None, zorder=2)
+        artists.append(line)
+    centres = np.array([r[system.point_index(j.body_a, j.point_a)] for j in linkage.joints
+                        if not isinstance(j, PrismaticJoint)]).reshape(-1, 2)
+    (dots,) = ax.plot(centres[:, 0], centres[:, 1], "o", markersize=4, markerfacecolor="white",
+                      markeredgecolor=colour, alpha=alpha, zorder=3)
+    artists.append(dots)
+    for j in linkage.joints:
+        if isinstance(j, PrismaticJoint):  # the slider's block as a square marker
+            b = r[system.point_index(j.body_b, j.point_b)]
+            (block,) = ax.plot([b[0]], [b[1]], "s", markersize=7, markerfacecolor="none",
+                               markeredgecolor=colour, alpha=alpha, zorder=3)
+            artists.append(block)
+    return artists
+
+
+def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.ndarray, *,
+                 q: float | None = None, input_label: str = "input") -> dict[str, object]:
+    """Draw the mechanism (or a bare linkage) at coordinates ``x`` (shape (n,), assembled)
+    on the axes ``ax``. ``q`` is the input coordinate there (rad or m), at which the point
+    forces' tables F(q) are read; default drive·x.
 
     Returns
     -------
     The artists by name: ``"body:<body>"``, ``"joint:<joint>"`` (a Circle for a revolute,
     the block Rectangle for a prismatic), ``"ground:<joint>"`` (hatched base of a ground
     pivot), ``"point:<body>.<point>"`` (marker of every named point), ``"<kind>:<name>"``
-    for dampers and springs (a Line2D from its a end to its b end) and ``"com:<body>"``.
+    for dampers and springs (a Line2D from its a end to its b end), ``"force:<name>"`` for
+    point forces (an Annotation whose ``xy`` is the point acted on) and ``"com:<body>"``.
     """
     from matplotlib.patches import Circle, Polygon, Rectangle
 
-    r = positions(system.points, np.asarray(x, dtype=float))
+    linkage, elements, point_forces = _parts(mechanism)
+    x = np.asarray(x, dtype=float)
+    q_in = float(system.drive @ x) if q is None else float(q)
+    r = positions(system.points, x)
+    com = positions(system.centres, x)
 
     def at(body: str, point: str) -> np.ndarray:
         return r[system.point_index(body, point)]
@@ -92,16 +159,16 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
     joint_points = {(j.body_a, j.point_a) for j in linkage.joints} | {
         (j.body_b, j.point_b) for j in linkage.joints}
     element_points = {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+    force_points = {(f.body, f.point) for f in point_forces}
 
     centre = r.mean(axis=0)
-    shapes: dict[str, np.ndarray] = {}
+    shapes = body_outlines(linkage, system, x, elements)
 
     # Bodies: the outline of their joint and attachment points (not the centre of mass).
     for name in linkage.moving:
-        pts = [at(b, p) for b, p in sorted(joint_points | element_points) if b == name]
-        shape = _distinct(pts, 1e-9 * span)
+        shape = shapes[name]
         if len(shape) >= 3:
-            patch = Polygon(_polygon_order(shape), closed=True, facecolor=colour[name], alpha=0.25,
+            patch = Polygon(shape, closed=True, facecolor=colour[name], alpha=0.25,
                             edgecolor=colour[name], linewidth=3, zorder=1)
             ax.add_patch(patch)
             artists[f"body:{name}"] = patch
@@ -119,7 +186,6 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
             ax.annotate(name, mid, xytext=tuple(16 * normal), textcoords="offset points",
                         ha="center", va="center", color=colour[name], fontsize=9,
                         fontweight="bold", bbox=LABEL_BOX, **PLAIN)
-        shapes[name] = shape
 
     # Dampers and springs.
     for e in elements:
@@ -140,6 +206,20 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
                                    facecolor="white", edgecolor="black", hatch="////", zorder=3)
                 ax.add_patch(anchor)
                 artists[f"anchor:{e.name}"] = anchor
+
+    # Point forces: an arrow of length 0.15 span ending at the point, along F(q)·direction.
+    for f in point_forces:
+        value = float(TabulatedForce(f.coordinate, f.values, f.period)(q_in))
+        p = at(f.body, f.point)
+        u = np.array([math.cos(f.direction), math.sin(f.direction)]) * (1.0 if value >= 0.0 else -1.0)
+        tail = p - 0.15 * span * u
+        arrow = ax.annotate("", xy=tuple(p), xytext=tuple(tail), textcoords="data",
+                            arrowprops={"arrowstyle": "-|>", "color": "tab:red", "linewidth": 2},
+                            zorder=6)
+        artists[f"force:{f.name}"] = arrow
+        ax.annotate(f"{f.name} F(q0) = {value:g} N", tuple(tail), xytext=(-4, 4),
+                    textcoords="offset points", ha="right", fontsize=8, color="tab:red",
+                    bbox=LABEL_BOX, **PLAIN)
 
     # Joints; labels of joints at one place are stacked, 13 points apart.
     labelled: list[np.ndarray] = []
@@ -191,23 +271,28 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
             (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=2.5, color="black", zorder=6)
             artists[f"point:{body.name}.{point}"] = mark
             key = (body.name, point)
-            if key not in joint_points and key not in element_points and point != COM:
+            near_com = body.name in linkage.moving and np.hypot(
+                *(c - com[linkage.moving.index(body.name)])) <= 1e-9 * span
+            if key not in joint_points | element_points | force_points and not near_com:
                 ax.annotate(f"{body.name}.{point}", c, xytext=(4, -10), textcoords="offset points",
                             fontsize=8, color="0.3", **PLAIN)
 
-    # Centres of mass (mass points with a mass), crossed circles.
-    for m in masses:
-        if m.mass <= 0.0:
+    # Centres of mass of the bodies given a mass, crossed circles (a body given by its
+    # inertia about a fixed pivot has its centre there and no mass of its own: not drawn).
+    bodies = linkage.body_map
+    for k, name in enumerate(linkage.moving):
+        mass = getattr(bodies[name], "mass", 0.0) or 0.0
+        if mass <= 0.0:
             continue
-        c = at(m.body, m.point)
-        for p in shapes.get(m.body, ()):  # thin ties to the body it belongs to
-            ax.plot([c[0], p[0]], [c[1], p[1]], color=colour.get(m.body, "0.5"), linewidth=0.8,
+        c = com[k]
+        for p in shapes.get(name, ()):  # thin ties to the body it belongs to
+            ax.plot([c[0], p[0]], [c[1], p[1]], color=colour[name], linewidth=0.8,
                     linestyle=":", zorder=1)
         (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=11, markerfacecolor="white",
                           markeredgecolor="black", zorder=6)
         ax.plot([c[0]], [c[1]], "+", markersize=11, color="black", zorder=7)
-        artists[f"com:{m.body}"] = mark
-        ax.annotate(f"G {m.body}, {m.mass:g} kg", c, xytext=(9, 6), textcoords="offset points",
+        artists[f"com:{name}"] = mark
+        ax.annotate(f"G {name}, {mass:g} kg", c, xytext=(9, 6), textcoords="offset points",
                     fontsize=8, bbox=LABEL_BOX, **PLAIN)
 
     ax.set_aspect("equal", adjustable="datalim")
@@ -220,25 +305,24 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
 
 
 def draw_scene(scene, path: str | Path) -> None:
-    """Draw a four-bar scene's linkage at its q0 into the PNG file ``path``.
+    """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into the PNG ``path``.
 
-    Raises AssemblyError/MechanismError (ValueErrors) for a linkage that cannot be drawn.
+    The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
+    sign per loop, ``scene.mode``) and gravity.
     """
-    from reduced.expand import four_bar_elements, four_bar_linkage, four_bar_masses
-
     from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
 
-    linkage, system, x0 = four_bar_linkage(scene)
+    system = compile_linkage(scene.mechanism.linkage)
+    unit = scene.input_unit
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(9, 6.5))
     try:
-        draw_linkage(ax, linkage, system, x0, elements=four_bar_elements(scene),
-                     masses=four_bar_masses(scene), input_label=f"input, q0 = {scene.q0:g} rad")
-        branch = "+1" if scene.linkage.branch > 0 else "-1"
+        draw_linkage(ax, scene.mechanism, system, np.asarray(scene.x0, dtype=float), q=scene.q0,
+                     input_label=f"input, q0 = {scene.q0:g} {unit}")
         gravity = ("" if scene.gravity is None
                    else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
-        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} rad, branch {branch}"
-                     f"{gravity}", **TITLE_PLAIN)
+        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
+                     f"mode {mode_text(scene.mode)}{gravity}", **TITLE_PLAIN)
     except BaseException:
         plt.close(fig)
         raise

@@ -8,10 +8,12 @@ name is not mathtext), and names are shortened to :data:`NAME_CHARS` characters 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .run import Comparison
+if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` needs neither)
+    from .run import Comparison
 
 NAME_CHARS = 60  # longest scene name shown in a title
 PLAIN = {"parse_math": False}  # keyword for text elements that carry user text
@@ -45,7 +47,7 @@ def _save(fig, path: Path) -> None:
         plt.close(fig)
 
 
-def plot_trajectories(c: Comparison, path: Path) -> None:
+def plot_trajectories(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
@@ -62,7 +64,7 @@ def plot_trajectories(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_differences(c: Comparison, path: Path) -> None:
+def plot_differences(c: "Comparison", path: Path) -> None:
     d = c.diff
     plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
@@ -82,7 +84,7 @@ def plot_differences(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_omega_vs_q(c: Comparison, path: Path) -> None:
+def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, (ax, ax_d) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
@@ -99,7 +101,7 @@ def plot_omega_vs_q(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_constraint_violation(c: Comparison, path: Path) -> None:
+def plot_constraint_violation(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
     times = c.mujoco.diagnostics["times"]
@@ -113,7 +115,7 @@ def plot_constraint_violation(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_energy(c: Comparison, path: Path) -> None:
+def plot_energy(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
