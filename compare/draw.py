@@ -327,3 +327,139 @@ def draw_scene(scene, path: str | Path) -> None:
         plt.close(fig)
         raise
     _save(fig, Path(path))
+
+
+# -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----
+
+def configuration_at(joints, t: float) -> np.ndarray:
+    """The general coordinates x (shape (n,)) of a JointTrajectory at time t (s).
+
+    Cubic Hermite interpolation from the samples' x and ẋ on the interval containing t
+    (O(h⁴); at ≤ 1 ms samples far below a pixel), clamped to the run's span. At a repeated
+    time (a coordinate switch) the later sample is used.
+    """
+    T = np.asarray(joints.t, dtype=float)
+    X = np.asarray(joints.x, dtype=float)
+    V = np.asarray(joints.xdot, dtype=float)
+    t = float(np.clip(t, T[0], T[-1]))
+    k = int(np.searchsorted(T, t, side="right")) - 1
+    k = min(max(k, 0), len(T) - 2) if len(T) > 1 else 0
+    if len(T) == 1 or T[k + 1] <= T[k]:
+        return X[min(k + 1, len(T) - 1)].copy()
+    h = T[k + 1] - T[k]
+    s = (t - T[k]) / h
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+
+
+def _checked_system(scene, *runs) -> LoopSystem:
+    system = compile_linkage(scene.mechanism.linkage)
+    for joints in runs:
+        if tuple(joints.names) != system.coordinate_names:
+            raise ValueError(f"the run's coordinates {list(joints.names)} are not the scene's "
+                             f"{list(system.coordinate_names)}")
+    return system
+
+
+REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
+OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
+
+
+def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str) -> None:
+    """Both engines' configurations overlaid (reduced solid, MuJoCo dashed) on ``ax``."""
+    for x, look in zip(xs, (REFERENCE_LOOK, OTHER_LOOK)):
+        draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
+                     label=look["label"])
+    ground = [system.point_index(j.body_a if j.body_a == GROUND else j.body_b,
+                                 j.point_a if j.body_a == GROUND else j.point_b)
+              for j in linkage.joints if GROUND in (j.body_a, j.body_b)]
+    g = positions(system.points, np.asarray(xs[0], dtype=float))[ground]
+    ax.plot(g[:, 0], g[:, 1], "^", color="black", markersize=7, zorder=4)
+    ax.set_title(title, fontsize=9, **PLAIN)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="0.9", linewidth=0.6)
+    ax.set_xlabel("x (m)")
+
+
+def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], path: str | Path) -> None:
+    """A strip of the mechanism at the given moments ((label, t s), one panel each), both
+    engines overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other``
+    (MuJoCo's) dashed, into the PNG ``path``.
+
+    Raises ValueError when a run's coordinate names are not the scene's.
+    """
+    from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
+
+    system = _checked_system(scene, reference, other)
+    linkage = scene.mechanism.linkage
+    unit = scene.input_unit
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(moments), figsize=(4.5 * len(moments), 4.2), squeeze=False)
+    try:
+        for ax, (label, t) in zip(axes[0], moments):
+            xs = [configuration_at(run, t) for run in (reference, other)]
+            q = [float(system.drive @ x) for x in xs]
+            _frame(ax, linkage, system, xs,
+                   f"{label}, t = {t:.6g} s\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
+        axes[0][0].set_ylabel("y (m)")
+        axes[0][0].legend(loc="best", fontsize=8)
+        fig.suptitle(f"{short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", **TITLE_PLAIN)
+    except BaseException:
+        plt.close(fig)
+        raise
+    _save(fig, Path(path))
+
+
+def gif_writer_available() -> bool:
+    """Whether matplotlib can write a GIF here (its PillowWriter needs pillow, a dependency
+    of matplotlib)."""
+    try:
+        from matplotlib.animation import PillowWriter
+    except ImportError:
+        return False
+    return bool(PillowWriter.isAvailable())
+
+
+def animate_run(scene, reference, other, path: str | Path, *, frames: int = 60, fps: int = 15) -> None:
+    """An animated GIF of both engines' mechanism over the run (reduced solid, MuJoCo
+    dashed), ``frames`` frames at equal time steps over the span both runs cover.
+
+    Raises RuntimeError when no GIF writer is available (:func:`gif_writer_available`);
+    ValueError when a run's coordinate names are not the scene's.
+    """
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    from .plots import _pyplot, short_name
+
+    if not gif_writer_available():
+        raise RuntimeError("matplotlib's PillowWriter is not available (pillow missing): no GIF")
+    system = _checked_system(scene, reference, other)
+    linkage = scene.mechanism.linkage
+    start = max(float(reference.t[0]), float(other.t[0]))
+    end = min(float(reference.t[-1]), float(other.t[-1]))
+    times = np.linspace(start, end, max(int(frames), 2))
+    configs = [[configuration_at(run, t) for run in (reference, other)] for t in times]
+    every = positions(system.points, np.asarray(configs[0][0]))
+    for pair in configs:
+        for x in pair:
+            every = np.vstack([every, positions(system.points, x)])
+    lo, hi = every.min(axis=0), every.max(axis=0)
+    pad = 0.08 * float(np.max(hi - lo) or 1.0)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 5))
+
+    def show(k: int):
+        ax.clear()
+        _frame(ax, linkage, system, configs[k],
+               f"{short_name(scene.name)}: t = {times[k]:.4f} s (reduced solid, MuJoCo dashed)")
+        ax.set_aspect("equal", adjustable="box")  # fixed limits: the same view in every frame
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        return []
+
+    try:
+        FuncAnimation(fig, show, frames=len(times), blit=False).save(
+            str(path), writer=PillowWriter(fps=fps))
+    finally:
+        plt.close(fig)
