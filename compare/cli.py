@@ -21,7 +21,7 @@ from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene
 from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
-                     signals_as_exceptions, write_file, write_folder)
+                     signals_as_exceptions, write_file)
 from .text import mujoco_lines, reduced_lines
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -131,11 +131,11 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 
 def cmd_draw(args: argparse.Namespace) -> int:
-    from .draw import draw_scene
+    from .draw import write_drawing
 
-    target = check_file(args.out, flag="--out").absolute()  # before any work
+    target = check_file(args.out, flag="--out")  # before any work
     scene = _scene(args.scene)
-    path = write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
+    path = write_drawing(scene, target)
     print(f"wrote {path}")
     return EXIT_OK
 

@@ -304,6 +304,15 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     return artists
 
 
+def write_drawing(scene, path: str | Path) -> Path:
+    """``xval draw``: :func:`draw_scene` into the file ``path`` through the atomic writer
+    (:func:`compare.output.write_folder`); returns the path written."""
+    from .output import write_folder
+
+    target = Path(path).absolute()
+    return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
+
+
 def draw_scene(scene, path: str | Path) -> None:
     """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into the PNG ``path``.
 

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from reduced.scene import MUJOCO_INTEGRATORS
+
 if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` needs neither)
     from .run import Comparison
 
@@ -175,8 +177,9 @@ PLOTS = {
 
 
 SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
-INTEGRATOR_COLOURS = {"euler": "tab:red", "implicit": "tab:purple", "implicitfast": "tab:brown",
-                      "rk4": "tab:orange"}
+# One colour per MuJoCo integrator, in the order reduced.scene lists them (the one list of names).
+INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab:brown", "tab:orange",
+                                                   "tab:olive", "tab:pink")))
 
 
 def plot_work_precision(measurements, front, target: float | None, scene_name: str, path: Path) -> None:
