@@ -1,4 +1,7 @@
-"""Differences between two trajectories of the input link, and the agreement gate.
+"""Differences between two trajectories of the input joint, and the agreement gate.
+
+q is the input coordinate: an angle (rad) or a slider displacement (m); "ω" in names and
+keys is its rate q̇ (rad/s or m/s). Figures below quoted in rad hold for a revolute input.
 
 Span: the comparison covers the times both trajectories reach, [max of the starts, min of
 the ends], and records it (``span_start``, ``span_end``) beside the span it was asked to
@@ -41,7 +44,7 @@ from reduced.scene import Tolerances
 from reduced.trajectory import Trajectory
 
 SLOW_FRACTION = 0.01
-ANGLE_MATCH = 1e-9  # rad per rad: Newton's residual below which q_ref(t*) = q_k is accepted
+ANGLE_MATCH = 1e-9  # per unit of q (rad or m): Newton's residual below which q_ref(t*) = q_k is accepted
 # Relative band within which two extremes of |ω| count as tied: 10x the default peak
 # tolerance (1e-4), so a real tie is a tie in both engines whenever they agree.
 PEAK_TIE_BAND = 1e-3

@@ -430,9 +430,14 @@ def gif_writer_available() -> bool:
     return bool(PillowWriter.isAvailable())
 
 
-def animate_run(scene, reference, other, path: str | Path, *, frames: int = 60, fps: int = 15) -> None:
+ANIMATION_FRAMES = 60  # frames of mechanism.gif, at 15 per second: a 4 s loop
+
+
+def animate_run(scene, reference, other, path: str | Path, *, frames: int | None = None,
+                fps: int = 15) -> None:
     """An animated GIF of both engines' mechanism over the run (reduced solid, MuJoCo
-    dashed), ``frames`` frames at equal time steps over the span both runs cover.
+    dashed), ``frames`` (default :data:`ANIMATION_FRAMES`) frames at equal time steps over
+    the span both runs cover.
 
     Raises RuntimeError when no GIF writer is available (:func:`gif_writer_available`);
     ValueError when a run's coordinate names are not the scene's.
@@ -447,7 +452,7 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int = 60, 
     linkage = scene.mechanism.linkage
     start = max(float(reference.t[0]), float(other.t[0]))
     end = min(float(reference.t[-1]), float(other.t[-1]))
-    times = np.linspace(start, end, max(int(frames), 2))
+    times = np.linspace(start, end, max(int(ANIMATION_FRAMES if frames is None else frames), 2))
     configs = [[configuration_at(run, t) for run in (reference, other)] for t in times]
     every = positions(system.points, np.asarray(configs[0][0]))
     for pair in configs:

@@ -207,7 +207,7 @@ def plot_work_precision(measurements, front, target: float | None, scene_name: s
                    facecolors="none", edgecolors="black", zorder=5)
     if target:
         ax.axvline(target, color="green", linestyle="-.", label=f"target {target:g}")
-    ax.set_xlabel("relative error of peak angular velocity against the truth")
+    ax.set_xlabel("relative error of the peak input speed against the truth")
     ax.set_ylabel("wall time of the simulation (s, median)")
     ax.set_title(f"{short_name(scene_name)}: what accuracy costs (truth: DOP853 rtol 1e-12)", **PLAIN)
     ax.grid(alpha=0.3, which="both")

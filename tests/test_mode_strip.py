@@ -233,3 +233,107 @@ def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatc
     monkeypatch.setattr(compare.draw, "gif_writer_available", lambda: False)
     with pytest.warns(UserWarning, match="--animate: matplotlib's PillowWriter is not available"):
         assert resolve_animation(True) is False
+
+
+# -- the report of a comparison, without the engines ------------------------------------
+
+def engine_result(engine, joints, trajectory, violation=0.0):
+    from reduced.result import EngineResult
+    from reduced.trajectory import Peak
+
+    t = trajectory.t
+    k = int(np.argmax(np.abs(trajectory.qdot)))
+    kinetic = 0.5 * trajectory.qdot ** 2
+    audit = EnergyAudit(t, kinetic, np.zeros_like(t), kinetic - kinetic[0], np.zeros_like(t))
+    diagnostics = {"joints": joints, "effects": ["torque"]}
+    if engine == "mujoco":
+        diagnostics.update(times=t, constraint_violation=np.full(len(t), violation),
+                           max_constraint_violation=violation)
+    settings = ({"solver": "DOP853", "method": "dop853", "rtol": 1e-12} if engine == "reduced"
+                else {"integrator": "rk4", "timestep": 1e-3})
+    return EngineResult(engine, trajectory, Peak(float(t[k]), float(trajectory.qdot[k])), audit, 0.1,
+                        len(t), 4 * len(t), settings, diagnostics)
+
+
+from reduced.result import EnergyAudit  # noqa: E402
+
+
+def slider_run(scene, t, shift=0.0):
+    """The slider-driven slider-crank along s(t) = 0.4 − 0.1t + shift·sin(πt) (m)."""
+    system = compile_linkage(scene.mechanism.linkage)
+    q = 0.4 - 0.1 * t + shift * np.sin(math.pi * t)
+    qd = -0.1 + shift * math.pi * np.cos(math.pi * t)
+    qdd = -shift * math.pi ** 2 * np.sin(math.pi * t)
+    x, X, V = np.asarray(scene.x0), [], []
+    for qq, vv in zip(q, qd):
+        x = assemble(system, float(qq), x)
+        X.append(x)
+        V.append(coefficients(system, x)[0] * vv)
+    X, V = np.array(X), np.array(V)
+    return (joint_trajectory(system.coordinate_names, t, X, V, assembly_modes(system, X)),
+            Trajectory(t, q, qd, qdd))
+
+
+def comparison_of(scene, reference, other):
+    """What compare.run.judge builds, from two constructed runs (the engines not run)."""
+    (rj, rt), (oj, ot) = reference, other
+    diff = compare_trajectories(rt, ot, horizon=float(rt.t[-1]))
+    modes = compare_modes(rj, oj)
+    tolerances = Tolerances(q_atol=1e-3, omega_atol=0.1)
+    fields = dict(scene=scene, reduced=engine_result("reduced", rj, rt),
+                  mujoco=engine_result("mujoco", oj, ot, 1e-9), diff=diff, modes=modes,
+                  gate=gate(diff, tolerances, modes, unit=scene.input_unit))
+    return type("Comparison", (), fields)()
+
+
+def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
+    """Table, gate, report.json and CSV of a prismatic input give q in m and q̇ in m/s, the
+    mode per loop; write_outputs writes every file, the strip and (asked for) the GIF."""
+    import json
+
+    from compare.report import ANIMATION_FILE, REPORT_FILES, report_dict, write_outputs
+    from compare.text import comparison_lines
+    from test_draw import slider_crank_scene
+
+    scene = slider_crank_scene(0.4, prismatic_input=True)
+    assert scene.input_unit == "m"
+    t = np.linspace(0.0, 1.0, 201)
+    c = comparison_of(scene, slider_run(scene, t), slider_run(scene, t, shift=0.002))
+    lines = comparison_lines(c)
+    rows = {line.split("  ")[0]: line for line in lines}
+    assert "peak |qdot| (m/s)" in rows and "max |dq| (m)" in rows and "max |dqdot| (m/s)" in rows
+    assert rows["mode mismatches (per loop)"].split()[-1] == "0"
+    assert f"({', '.join(f'{v:+d}' for v in scene.mode)})" in rows["assembly mode at q0"]
+    assert lines[0].startswith("scene: slider_crank (<memory>); input slide (m)")
+    assert not any("rad" in line for line in lines), lines
+    report = report_dict(c)
+    assert report["schema_version"] == 2
+    assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
+    assert report["scene"]["mode"] == list(scene.mode)
+    assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]
+    import compare.draw
+
+    monkeypatch.setattr(compare.draw, "ANIMATION_FRAMES", 4)  # a short GIF: this test is about the set
+    paths = write_outputs(c, tmp_path / "out", animate=True)
+    assert sorted(p.name for p in paths) == sorted(REPORT_FILES + (ANIMATION_FILE,))
+    assert (tmp_path / "out" / "reduced.csv").read_text().startswith("t_s,q_m,qdot_m_per_s,qddot_m_per_s2\n")
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["diff"]["mode_mismatches_total"] == 0
+    assert (tmp_path / "out" / "mechanism.png").read_bytes()[:8] == PNG_SIGNATURE
+    assert (tmp_path / "out" / ANIMATION_FILE).read_bytes()[:6] == b"GIF89a"
+
+
+def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
+    t = np.linspace(0.0, 1.0, 101)
+    right = watt_run(scene, t)
+    other_j, other_t = watt_run(scene, t, second_mode=-1)
+    wrong_j = dataclasses.replace(right[0], x=np.vstack([right[0].x[:60], other_j.x[60:]]),
+                                  mode=np.vstack([right[0].mode[:60], other_j.mode[60:]]))
+    from compare.report import report_dict
+    from compare.text import comparison_lines
+
+    c = comparison_of(scene, right, (wrong_j, right[1]))
+    assert not c.gate.passed
+    rows = {line.split("  ")[0]: line for line in comparison_lines(c)}
+    assert rows["mode mismatches (per loop)"].endswith("0, 41")
+    assert report_dict(c)["diff"]["mode_mismatches"] == [0, 41]
+    assert any("loop 2: 41 sample(s) from t = 0.6 s" in f for f in c.gate.failures)
