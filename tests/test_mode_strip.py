@@ -337,3 +337,28 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
     assert rows["mode mismatches (per loop)"].endswith("0, 41")
     assert report_dict(c)["diff"]["mode_mismatches"] == [0, 41]
     assert any("loop 2: 41 sample(s) from t = 0.6 s" in f for f in c.gate.failures)
+
+
+def test_command_lines_of_a_slider_driven_scene_give_metres():
+    """What ``xval reduced``, ``xval mujoco`` and ``xval check`` print (compare.text) names
+    the input joint and gives its unit."""
+    from compare.text import check_lines, mujoco_lines, reduced_lines
+    from test_draw import slider_crank_scene
+
+    scene = slider_crank_scene(0.4, prismatic_input=True)
+    t = np.linspace(0.0, 1.0, 51)
+    run = slider_run(scene, t)
+    red = reduced_lines(scene, engine_result("reduced", *run))
+    mj = mujoco_lines(scene, engine_result("mujoco", *run, violation=1e-9))
+    for lines in (red, mj):
+        assert lines[1].startswith("input            slide (q in m, mode (")
+        peak = next(line for line in lines if line.startswith("peak |qdot|"))
+        assert peak.endswith(" s") and " m/s at t = " in peak
+        assert not any("rad" in line for line in lines), lines
+    c = comparison_of(scene, run, slider_run(scene, t, shift=0.002))
+    head, *failures = check_lines(c)
+    assert head.startswith("FAIL  <memory>: peak_omega_rel") and " m (tol 0.001)" in head and " m/s (tol 0.1)" in head
+    # Δq = 0.002 sin(πt) m: Δq̇ peaks at 0.002π = 6.283e-3 m/s, max |Δq| is 2.000e-3 m.
+    assert failures == ["      peak_omega_abs = 6.283e-03 m/s > tolerance peak_omega_rtol·|peak| + "
+                        "peak_omega_atol = 1.000e-05 m/s (peak_omega_rel = 6.283e-02 > tolerance 1.000e-04)",
+                        "      q_max_abs = 2.000e-03 m > tolerance 1.000e-03 m"]
