@@ -217,8 +217,9 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
                             arrowprops={"arrowstyle": "-|>", "color": "tab:red", "linewidth": 2},
                             zorder=6)
         artists[f"force:{f.name}"] = arrow
-        ax.annotate(f"{f.name} F(q0) = {value:g} N", tuple(tail), xytext=(-4, 4),
-                    textcoords="offset points", ha="right", fontsize=8, color="tab:red",
+        ax.update_datalim([tail])  # the whole arrow inside the axes
+        ax.annotate(f"{f.name} F(q0) = {value:g} N", tuple(0.5 * (p + tail)), xytext=(0, -26),
+                    textcoords="offset points", ha="center", fontsize=8, color="tab:red",
                     bbox=LABEL_BOX, **PLAIN)
 
     # Joints; labels of joints at one place are stacked, 13 points apart.
