@@ -174,11 +174,12 @@ def _tolerances(scene, args: argparse.Namespace):
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .report import report_files, resolve_animation, write_outputs
-    from .run import compare_engines
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
-    check_folder(args.out, report_files(animate))  # before any work
+    check_folder(args.out, report_files(animate))  # before any work (and before MuJoCo is loaded)
+    from .run import compare_engines
+
     scene = _scene(args.scene)
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))

@@ -362,3 +362,18 @@ def test_command_lines_of_a_slider_driven_scene_give_metres():
     assert failures == ["      peak_omega_abs = 6.283e-03 m/s > tolerance peak_omega_rtol·|peak| + "
                         "peak_omega_atol = 1.000e-05 m/s (peak_omega_rel = 6.283e-02 > tolerance 1.000e-04)",
                         "      q_max_abs = 2.000e-03 m > tolerance 1.000e-03 m"]
+
+
+@pytest.mark.parametrize("animate", [False, True])
+def test_run_refuses_a_folder_where_an_output_goes_before_any_work(tmp_path, monkeypatch, capsys, animate):
+    """``xval run [--animate]`` checks every file it will write (mechanism.png, and
+    mechanism.gif when animating) before reading the scene."""
+    from compare import cli
+
+    monkeypatch.setattr(cli, "_scene", lambda path: pytest.fail("the scene was read"))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ("mechanism.gif" if animate else "mechanism.png")).mkdir()
+    assert cli.main(["run", "--out", str(out)] + (["--animate"] if animate else [])) == 2
+    line, = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("xval: error: --out") and "mechanism." in line and "is a folder" in line, line
