@@ -14,7 +14,6 @@ Engine flags default to None: only the flags given override the scene's [reduced
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import warnings
 
@@ -22,7 +21,8 @@ from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene
 from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
-                     json_text, signals_as_exceptions, write_file, write_folder)
+                     signals_as_exceptions, write_file)
+from .text import mujoco_lines, reduced_lines
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_REPEATS = 1000
@@ -86,11 +86,6 @@ def _given(args: argparse.Namespace, names: dict[str, str]) -> dict:
     return out
 
 
-def _setting_text(settings: dict, name: str, unit: str = "") -> str:
-    value = settings.get(name)
-    return "automatic" if value is None else f"{value:g}{unit}" if isinstance(value, float) else str(value)
-
-
 def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) -> ReducedSettings:
     """Reduced settings: the flags given over the scene's [reduced] table over the defaults."""
     from .settings import reduced_settings
@@ -102,22 +97,7 @@ def cmd_reduced(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
     result = simulate(scene, settings)
-    used = result.settings
-    print(f"scene            {scene.name}  ({scene.source})")
-    print(f"effects          {', '.join(scene.effects) or 'none'}")
-    print(f"solver           {used['solver']}  "
-          + (f"step = {_setting_text(used, 'step', ' s')}" if used.get("method") == "rkn4"
-             else f"rtol = {_setting_text(used, 'rtol')}"))
-    print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
-    estimate = result.diagnostics.get("error_estimate")
-    if estimate:
-        print(f"error estimate   {estimate['q_abs_rad']:.3e} rad in q, {estimate['qdot_abs_rad_per_s']:.3e} rad/s "
-              f"in q̇: {estimate['relative']:.3e} of the run's scale (tolerance rtol = {estimate['tolerance']:g}; "
-              f"{estimate['method']})")
-    print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
-          f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
-    print(f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, "
-          f"{result.wall_s:.3f} s")
+    print("\n".join(reduced_lines(scene, result)))
     return EXIT_OK
 
 
@@ -135,20 +115,7 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     settings = _mujoco_settings(args, scene)
     result = simulate_mujoco(scene, settings)
-    used = result.settings  # as run (an automatic timestep resolved)
-    print(f"scene            {scene.name}  ({scene.source})")
-    print(f"effects          {', '.join(scene.effects) or 'none'}")
-    print(f"settings         {used.get('integrator')}, timestep {_setting_text(used, 'timestep', ' s')}"
-          f"{' (automatic)' if used.get('timestep_automatic') else ''}, "
-          f"solref {tuple(used.get('solref') or ())}, solimp {tuple(used.get('solimp') or ())}, "
-          f"refsafe {'on' if used.get('refsafe') else 'off'}, diagexact {'on' if used.get('diagexact') else 'off'}, "
-          f"iterations {used.get('iterations')}, tolerance {_setting_text(used, 'tolerance')}, "
-          f"MuJoCo {used.get('mujoco_version')}")
-    print(f"peak omega       {result.peak.omega:.10g} rad/s at t = {result.peak.time:.10g} s")
-    print(f"loop violation   {result.diagnostics['max_constraint_violation']:.3e} m (largest over the run)")
-    print(f"energy residual  {result.audit.max_abs_residual:.3e} J "
-          f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
-    print(f"cost             {result.n_steps} steps, {result.wall_s:.3f} s")
+    print("\n".join(mujoco_lines(scene, result)))
     return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
 
 
@@ -164,11 +131,11 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 
 def cmd_draw(args: argparse.Namespace) -> int:
-    from .draw import draw_scene
+    from .draw import write_drawing
 
-    target = check_file(args.out, flag="--out").absolute()  # before any work
+    target = check_file(args.out, flag="--out")  # before any work
     scene = _scene(args.scene)
-    path = write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
+    path = write_drawing(scene, target)
     print(f"wrote {path}")
     return EXIT_OK
 
@@ -199,29 +166,32 @@ def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
 
 
 def _tolerances(scene, args: argparse.Namespace):
-    from .run import override_tolerances
+    from .settings import gate_tolerances
 
-    return override_tolerances(scene.tolerances, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
-                               omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
+    return gate_tolerances(scene, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+                           omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .report import REPORT_FILES, write_outputs
-    from .run import compare_engines
+    from .report import report_files, resolve_animation, write_outputs
     from .text import comparison_lines
 
-    check_folder(args.out, REPORT_FILES)  # before any work
+    animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
+    check_folder(args.out, report_files(animate))  # before any work (and before MuJoCo is loaded)
+    from .run import compare_engines
+
     scene = _scene(args.scene)
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print("\n".join(comparison_lines(comparison)))
-    paths = write_outputs(comparison, args.out)
+    paths = write_outputs(comparison, args.out, animate=animate)
     print(f"wrote {len(paths)} files to {args.out}/")
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .run import compare_engines
+    from .text import check_lines
 
     scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
     failed = 0
@@ -234,57 +204,38 @@ def cmd_check(args: argparse.Namespace) -> int:
             failed += 1
             print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")
             continue
-        d = c.diff
-        status = "ok  " if c.gate.passed else "FAIL"
         failed += not c.gate.passed
-        print(f"{status}  {scene.source}: peak_omega_rel {d.peak_omega_rel:.2e} (tol {tolerances.peak_omega_rtol:g}), "
-              f"q_max_abs {d.q_max_abs:.2e} (tol {tolerances.q_atol:g}), "
-              f"omega_max_abs {d.omega_max_abs:.2e} (tol {tolerances.omega_atol:g})")
-        for failure in c.gate.failures:
-            print(f"      {failure}")
+        print("\n".join(check_lines(c)))
     print(f"{len(scenes) - failed} passed, {failed} failed")
     return EXIT_FAILED if failed else EXIT_OK
 
 
 def cmd_cost(args: argparse.Namespace) -> int:
-    from .cost import (COST_FILES, cost_report, ground_truth, ladder, recommend, summary_lines, sweep,
-                       worker_count, write_cost_outputs)
+    from .cost import COST_FILES, study, summary_lines, write_cost_outputs
 
     check_folder(args.out, COST_FILES)  # before any work
     scene = _scene(args.scene)
-    target = args.target if args.target is not None else scene.tolerances.peak_omega_rtol
-    repeats = args.repeats if args.repeats is not None else 3
-    configs = ladder(quick=args.quick)
-    workers = worker_count(args.workers, len(configs))
-    if args.workers is not None and workers < args.workers:
-        warnings.warn(f"--workers {args.workers}: using {workers} "
-                      f"(at most one process per core: {os.cpu_count() or 1} cores)")
-    truth = ground_truth(scene)
-    measurements = sweep(scene, configs, truth, repeats=repeats, workers=workers)
-    recommendations = recommend(scene, measurements, truth, target, repeats)
-    report = cost_report(scene, truth, measurements, recommendations, repeats)
-    for line in summary_lines(report, measurements):
-        print(line)
+    report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
+                                         workers=args.workers)
+    print("\n".join(summary_lines(report, measurements)))
     paths = write_cost_outputs(report, measurements, args.out, target)
     print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
     return EXIT_OK
 
 
 def cmd_stress(args: argparse.Namespace) -> int:
-    from .stress import CATALOGUE, run_catalogue, table_lines
+    from .stress import CATALOGUE, STRESS_FILES, run_catalogue, table_lines, write_stress
 
     cases = CATALOGUE if not args.case else [c for c in CATALOGUE if c.name in args.case]
     unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
-    check_folder(args.out, ("stress.json",))  # before any work
+    check_folder(args.out, STRESS_FILES)  # before any work
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
     for line in table_lines(results):
         print(line)
-    data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
-             "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
-    [path] = write_folder(args.out, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")})
+    [path] = write_stress(results, args.out)
     print(f"wrote {path}")
     return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
 
@@ -301,11 +252,11 @@ def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("gate tolerances (override the scene's [tolerances] table)")
-    g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of peak omega")
-    g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad")
-    g.add_argument("--omega-atol", type=_positive, default=None, help="max |domega| in rad/s")
+    g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of the peak input speed")
+    g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad (m for a prismatic input)")
+    g.add_argument("--omega-atol", type=_positive, default=None, help="max |dqdot| in rad/s (m/s for a prismatic input)")
     g.add_argument("--omega-vs-q-atol", type=_positive, default=None,
-                   help="max |domega| at equal crank angle in rad/s (phase-free)")
+                   help="max |dqdot| at equal input position, rad/s or m/s (phase-free)")
 
 
 def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
@@ -327,8 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     p = sub.add_parser("reduced", help="solve the scene's Eksergian equation",
-                       description="Solve the scene's Eksergian equation; print the peak angular "
-                                   "velocity of the input link, its time and the energy residual.")
+                       description="Solve the scene's Eksergian equation; print the peak speed of the "
+                                   "input joint (rad/s or m/s), its time and the energy residual.")
     _add_scene_argument(p)
     p.add_argument("--method", choices=REDUCED_METHODS, default=None,
                    help="adaptive DOP853, fixed-step RKN4, or implicit Radau "
@@ -341,7 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
                        description="Run the scene's MuJoCo model (open chain closed by an equality "
-                                   "constraint); print the peak angular velocity of the crank, its "
+                                   "constraints); print the peak speed of the input joint, its "
                                    "time, the largest loop-constraint violation and the energy residual.")
     _add_scene_argument(p)
     _add_mujoco_arguments(p)
@@ -356,9 +307,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_export_mjcf)
 
     p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG)",
-                       description="Draw the scene's linkage assembled at its initial angle: bodies, "
-                                   "joints, ground pivots, dampers, springs and centres of mass, "
-                                   "labelled, lengths in m. Check a scene's geometry before running it.")
+                       description="Draw the scene's linkage assembled at q0 in its assembly mode: "
+                                   "bodies, revolute and prismatic joints, ground pivots, dampers, "
+                                   "springs, point forces and centres of mass, labelled, lengths in m. "
+                                   "Check a scene's geometry before running it.")
     _add_scene_argument(p)
     p.add_argument("--out", default="linkage.png", help="PNG file to write (default ./linkage.png)")
     p.set_defaults(func=cmd_draw)
@@ -366,10 +318,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run both engines, compare, write report and plots",
                        description="Run the scene through the reduced solver and MuJoCo, print a "
                                    "table of both results and their differences, and write "
-                                   "report.json, reduced.csv, mujoco.csv and PNG plots into --out.")
+                                   "report.json, reduced.csv, mujoco.csv and PNG plots (with a strip of "
+                                   "the mechanism at the peak speed and at the largest disagreement, "
+                                   "both engines overlaid) into --out.")
     _add_scene_argument(p)
     p.add_argument("--out", default="xval-out",
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--animate", action="store_true",
+                   help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
     _add_comparison_arguments(p)
     p.set_defaults(func=cmd_run)
 

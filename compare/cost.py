@@ -289,7 +289,7 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
     ratio = (mj.measurement.wall_median_s / red.measurement.wall_median_s
              if red.reached and mj.reached else None)
     return {
-        "scene": scene.name, "source": portable_source(scene.source),
+        "scene": scene.name, "source": portable_source(scene.source), "input_unit": scene.input_unit,
         "truth": {"method": "DOP853 rtol 1e-12", "peak_omega": truth.peak_omega, "accuracy": truth.error},
         "timing": {"what": "simulation only (integration or rollout); no model building, audit or plots",
                    "repeats": repeats, "statistic": "median"},
@@ -325,9 +325,10 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
 
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     """A printed summary: the table, the truth's accuracy and the recommendation."""
-    lines = [f"truth: DOP853 rtol 1e-12, peak omega {report['truth']['peak_omega']:.12g} rad/s; "
+    unit = report.get("input_unit", "rad")
+    lines = [f"truth: DOP853 rtol 1e-12, peak |qdot| {report['truth']['peak_omega']:.12g} {unit}/s; "
              f"against rtol 1e-11: peak {report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
-             f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} rad",
+             f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}",
              f"wall time: median of {report['timing']['repeats']} runs, simulation only",
              f"{'configuration':46s} {'status':>8s} {'peak rel':>9s} {'max|dq|':>9s} {'max|dw|':>9s} "
              f"{'dw at q':>9s} {'loop (m)':>9s} {'wall (s)':>9s} {'steps':>7s}"]
@@ -351,3 +352,24 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
         lines.append(f"at that accuracy MuJoCo costs {rec['mujoco_over_reduced_wall']:.2f}x "
                      "the reduced solver's wall time")
     return lines
+
+
+def study(scene: Scene, *, quick: bool = False, target: float | None = None, repeats: int | None = None,
+          workers: int | None = None) -> tuple[dict, list[Measurement], float]:
+    """The whole cost pipeline: truth, sweep, recommendation and report.
+
+    ``target`` defaults to the scene's peak_omega_rtol, ``repeats`` to 3, ``workers`` to
+    one process per core (a request above that warns and is capped). Returns the report
+    (cost.json's data), the measurements and the target used.
+    """
+    target = target if target is not None else scene.tolerances.peak_omega_rtol
+    repeats = repeats if repeats is not None else 3
+    configs = ladder(quick=quick)
+    used = worker_count(workers, len(configs))
+    if workers is not None and used < workers:
+        warnings.warn(f"--workers {workers}: using {used} "
+                      f"(at most one process per core: {os.cpu_count() or 1} cores)")
+    truth = ground_truth(scene)
+    measurements = sweep(scene, configs, truth, repeats=repeats, workers=used)
+    recommendations = recommend(scene, measurements, truth, target, repeats)
+    return cost_report(scene, truth, measurements, recommendations, repeats), measurements, target

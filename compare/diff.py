@@ -1,4 +1,7 @@
-"""Differences between two trajectories of the input link, and the agreement gate.
+"""Differences between two trajectories of the input joint, and the agreement gate.
+
+q is the input coordinate: an angle (rad) or a slider displacement (m); "ω" in names and
+keys is its rate q̇ (rad/s or m/s). Figures below quoted in rad hold for a revolute input.
 
 Span: the comparison covers the times both trajectories reach, [max of the starts, min of
 the ends], and records it (``span_start``, ``span_end``) beside the span it was asked to
@@ -41,7 +44,7 @@ from reduced.scene import Tolerances
 from reduced.trajectory import Trajectory
 
 SLOW_FRACTION = 0.01
-ANGLE_MATCH = 1e-9  # rad per rad: Newton's residual below which q_ref(t*) = q_k is accepted
+ANGLE_MATCH = 1e-9  # per unit of q (rad or m): Newton's residual below which q_ref(t*) = q_k is accepted
 # Relative band within which two extremes of |ω| count as tied: 10x the default peak
 # tolerance (1e-4), so a real tie is a tie in both engines whenever they agree.
 PEAK_TIE_BAND = 1e-3
@@ -51,7 +54,8 @@ SPAN_SLACK = 1e-9  # relative: a trajectory ending this close to the horizon cov
 
 @dataclass(frozen=True)
 class Difference:
-    """How far ``other`` is from ``reference`` (units: rad, rad/s, s).
+    """How far ``other`` is from ``reference`` in the input coordinate q (units: rad and
+    rad/s for a revolute input, m and m/s for a prismatic one, and s; "ω" is q̇ either way).
 
     ``peak_omega_reference``/``peak_omega_other`` are the compared peaks of |ω| (rad/s) at
     ``t_peak_reference``/``t_peak_other`` (s); ``peak_omega_abs`` and ``t_peak_abs`` are
@@ -238,30 +242,63 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
 
 
 @dataclass(frozen=True)
-class BranchCheck:
-    """Samples where the compared engine sits on the other assembly branch."""
+class ModeCheck:
+    """Samples where the compared engine sits in another assembly mode, loop by loop.
 
-    mismatches: int
-    first_time: float | None  # s
-
-
-def compare_branches(reference, other, window: float | None = None) -> BranchCheck:
-    """Count ``other``'s samples whose assembly branch differs from the reference's.
-
-    Both are :class:`~reduced.partition.JointTrajectory`. The reference branch changes
-    legitimately at the input link's limit positions; samples within ``window`` seconds of
-    such a change (default: twice the coarser sample spacing) are not judged.
+    ``mismatches[k]`` counts the judged samples whose sign of loop k differs from the
+    reference's; ``first_times[k]`` (s) is the first of them, or None.
     """
-    t_ref, b_ref = reference.t, reference.branch
-    spacing = max(float(np.max(np.diff(t_ref))), float(np.max(np.diff(other.t))))
+
+    mismatches: tuple[int, ...]
+    first_times: tuple[float | None, ...]
+
+    @property
+    def total(self) -> int:
+        """Samples with any loop in another mode, summed over the loops."""
+        return int(sum(self.mismatches))
+
+    def lines(self) -> list[str]:
+        """One phrase per loop that differs: ``loop 2: 41 sample(s) from t = 0.6 s``."""
+        return [f"loop {k + 1}: {n} sample(s) from t = {t:.6g} s"
+                for k, (n, t) in enumerate(zip(self.mismatches, self.first_times)) if n]
+
+
+def compare_modes(reference, other, window: float | None = None) -> ModeCheck:
+    """Count, per loop, ``other``'s samples whose assembly mode differs from the reference's.
+
+    Both are :class:`~reduced.partition.JointTrajectory`, whose ``mode`` has shape
+    (samples, loops) (one sign ±1 per loop, 0 where the loop's dyad is degenerate). A loop's
+    mode changes legitimately where its dyad passes a limit position; samples within
+    ``window`` seconds of a change of that loop's reference mode (default: twice the coarser
+    sample spacing) are not judged, nor are samples where either sign is 0. The reference is
+    read at its sample at or after each compared time.
+
+    Raises
+    ------
+    ValueError
+        When the two trajectories do not have the same number of loops.
+    """
+    m_ref = np.asarray(reference.mode, dtype=int).reshape(len(reference.t), -1)
+    m_oth = np.asarray(other.mode, dtype=int).reshape(len(other.t), -1)
+    if m_ref.shape[1] != m_oth.shape[1]:
+        raise ValueError(f"the reference has {m_ref.shape[1]} loop(s), the compared run "
+                         f"{m_oth.shape[1]}: their modes cannot be compared")
+    t_ref, t_oth = np.asarray(reference.t), np.asarray(other.t)
+    spacing = max(float(np.max(np.diff(t_ref), initial=0.0)), float(np.max(np.diff(t_oth), initial=0.0)))
     window = 2.0 * spacing if window is None else window
-    k = np.clip(np.searchsorted(t_ref, other.t), 0, len(t_ref) - 1)
-    changes = t_ref[1:][b_ref[1:] != b_ref[:-1]]
-    near_change = np.zeros(len(other.t), dtype=bool)
-    for tc in changes:
-        near_change |= np.abs(other.t - tc) <= window
-    wrong = (other.branch != b_ref[k]) & ~near_change
-    return BranchCheck(int(np.sum(wrong)), float(other.t[np.argmax(wrong)]) if wrong.any() else None)
+    k = np.clip(np.searchsorted(t_ref, t_oth), 0, len(t_ref) - 1)
+    mismatches, firsts = [], []
+    for loop in range(m_ref.shape[1]):
+        ref = m_ref[:, loop]
+        changes = t_ref[1:][ref[1:] != ref[:-1]]
+        near_change = np.zeros(len(t_oth), dtype=bool)
+        for tc in changes:
+            near_change |= np.abs(t_oth - tc) <= window
+        judged = ~near_change & (ref[k] != 0) & (m_oth[:, loop] != 0)
+        wrong = (m_oth[:, loop] != ref[k]) & judged
+        mismatches.append(int(np.sum(wrong)))
+        firsts.append(float(t_oth[np.argmax(wrong)]) if wrong.any() else None)
+    return ModeCheck(tuple(mismatches), tuple(firsts))
 
 
 @dataclass(frozen=True)
@@ -273,15 +310,18 @@ class GateResult:
     tolerances: Tolerances
 
 
-def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None = None) -> GateResult:
+def gate(diff: Difference, tolerances: Tolerances, modes: ModeCheck | None = None, *,
+         unit: str = "rad") -> GateResult:
     """Judge a comparison against tolerances.
 
     It fails when the compared span stops short of ``diff.horizon``; when the peaks of |ω|
     differ by more than peak_omega_rtol·|peak_ref| + peak_omega_atol (rad/s); when max |Δq|
     exceeds q_atol (rad) or max |Δq̇| exceeds omega_atol (rad/s); when the tolerances set
-    omega_vs_q_atol and max |Δω| at equal q exceeds it (rad/s); and when a sample sits on
-    the other assembly branch.
+    omega_vs_q_atol and max |Δω| at equal q exceeds it (rad/s); and when a sample sits in
+    another assembly mode (any loop). ``unit`` is the input coordinate's ("rad" or "m",
+    ``scene.input_unit``): the messages give q in it and its rate in it per s.
     """
+    rate = f"{unit}/s"
     failures = []
     if not diff.covers_horizon:
         short = [f"{name} stops at t = {end:.6g} s" for name, end in
@@ -291,18 +331,18 @@ def gate(diff: Difference, tolerances: Tolerances, branches: BranchCheck | None 
                         f"horizon {diff.horizon:.6g} s: {' and '.join(short)}")
     bound = tolerances.peak_bound(diff.peak_omega_reference)
     if not diff.peak_omega_abs <= bound:
-        failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} rad/s > tolerance peak_omega_rtol·|peak| + "
-                        f"peak_omega_atol = {bound:.3e} rad/s (peak_omega_rel = {diff.peak_omega_rel:.3e} "
+        failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} {rate} > tolerance peak_omega_rtol·|peak| + "
+                        f"peak_omega_atol = {bound:.3e} {rate} (peak_omega_rel = {diff.peak_omega_rel:.3e} "
                         f"> tolerance {tolerances.peak_omega_rtol:.3e})")
-    checks = [("q_max_abs", diff.q_max_abs, tolerances.q_atol, " rad"),
-              ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, " rad/s")]
+    checks = [("q_max_abs", diff.q_max_abs, tolerances.q_atol, f" {unit}"),
+              ("omega_max_abs", diff.omega_max_abs, tolerances.omega_atol, f" {rate}")]
     if tolerances.omega_vs_q_atol is not None:
-        checks.append(("omega_vs_q_max_abs", diff.omega_vs_q_max_abs, tolerances.omega_vs_q_atol, " rad/s"))
+        checks.append(("omega_vs_q_max_abs", diff.omega_vs_q_max_abs, tolerances.omega_vs_q_atol, f" {rate}"))
     failures += [f"{name} = {value:.3e}{unit} > tolerance {tol:.3e}{unit}" if not math.isnan(value) else
-                 f"{name}: no sample of the compared run is at an angle the reference reaches, so ω at equal "
+                 f"{name}: no sample of the compared run is at an input position the reference reaches, so ω at equal "
                  "q cannot be compared (the engines are not in the same configuration)"
                  for name, value, tol, unit in checks if not value <= tol]
-    if branches is not None and branches.mismatches:
-        failures.append(f"assembly branch differs at {branches.mismatches} sample(s), first at "
-                        f"t = {branches.first_time:.6g} s: the loop constraint jumped to the other branch")
+    if modes is not None and modes.total:
+        failures.append(f"assembly mode differs ({'; '.join(modes.lines())}): a loop closed in "
+                        f"its other assembly")
     return GateResult(passed=not failures, failures=tuple(failures), tolerances=tolerances)

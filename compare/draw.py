@@ -1,12 +1,15 @@
-"""A drawing of a linkage in one configuration (``xval draw``), to check a scene's geometry.
+"""A drawing of any planar linkage in one configuration (``xval draw``, and the mechanism
+strip of ``xval run``), to check a scene's geometry.
 
 Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
 their joint and attachment points, revolute joints as labelled circles, ground pivots with
 a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
-springs as zigzags with their coefficients, centres of mass as crossed circles; a scene's gravity
-is given in the title. Every
-position is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the assembled
-coordinates; nothing is recomputed here. Lengths in m, equal axis scales.
+springs as zigzags with their coefficients, point forces as arrows F(q) along their
+direction (ending at the point they act on), centres of mass as crossed circles; the title
+gives q0 with its unit, the assembly mode (one sign per loop) and gravity. Every position
+is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the general
+coordinates x (``scene.x0`` for ``xval draw``); nothing is recomputed here. Lengths in m,
+equal axis scales.
 
 matplotlib is imported only when a drawing is made. User names are plain text
 (``parse_math=False``).
@@ -20,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from reduced.expand import COM, LineElement, MassPoint
-from reduced.loops import LoopSystem, positions
-from reduced.mechanism import GROUND, Linkage, PrismaticJoint
+from reduced.loads import TabulatedForce
+from reduced.loops import LoopSystem, compile_linkage, positions
+from reduced.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
 
 PLAIN = {"parse_math": False}
 BODY_COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:brown", "tab:purple", "tab:olive",
@@ -62,21 +65,85 @@ def _distinct(points: list[np.ndarray], tol: float) -> np.ndarray:
     return np.array(out).reshape(-1, 2)
 
 
-def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
-                 elements: Sequence[LineElement] = (), masses: Sequence[MassPoint] = (),
-                 input_label: str = "input") -> dict[str, object]:
-    """Draw the linkage at coordinates ``x`` (shape (n,), assembled) on the axes ``ax``.
+def _parts(mechanism: Mechanism | Linkage):
+    """(linkage, line elements, point forces) of a mechanism, or of a bare linkage."""
+    if isinstance(mechanism, Linkage):
+        return mechanism, (), ()
+    return mechanism.linkage, mechanism.elements, mechanism.point_forces
+
+
+def mode_text(mode: Sequence[int]) -> str:
+    """An assembly mode as the title shows it: ``(+1)``, ``(+1, −1)``; ``()`` without a loop."""
+    return "(" + ", ".join("0" if m == 0 else f"{'+' if m > 0 else '−'}1" for m in mode) + ")"
+
+
+def body_outlines(linkage: Linkage, system: LoopSystem, x: np.ndarray,
+                  elements: Sequence = ()) -> dict[str, np.ndarray]:
+    """Each moving body's outline at coordinates x: its distinct joint and attachment
+    points (m), shape (k, 2), ordered round their centroid when k ≥ 3."""
+    r = positions(system.points, np.asarray(x, dtype=float))
+    span = float(np.max(np.ptp(r, axis=0))) if len(r) > 1 else 1.0
+    span = span if span > 0.0 else 1.0
+    ends = {(j.body_a, j.point_a) for j in linkage.joints} | {(j.body_b, j.point_b) for j in linkage.joints}
+    ends |= {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+    out = {}
+    for name in linkage.moving:
+        pts = [r[system.point_index(b, p)] for b, p in sorted(ends) if b == name]
+        shape = _distinct(pts, 1e-9 * span)
+        out[name] = _polygon_order(shape) if len(shape) >= 3 else shape
+    return out
+
+
+def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, colour: str,
+                 linestyle: str = "-", label: str | None = None, alpha: float = 1.0) -> list:
+    """A light drawing of the linkage at x (bodies as closed outlines, joints as dots), for
+    overlaying several configurations (the mechanism strip of ``xval run``). Returns the
+    Line2D artists, bodies first in :attr:`Linkage.moving` order, then the joints."""
+    r = positions(system.points, np.asarray(x, dtype=float))
+    artists = []
+    for k, (name, shape) in enumerate(body_outlines(linkage, system, x).items()):
+        path = np.vstack([shape, shape[:1]]) if len(shape) >= 3 else shape
+        if len(path) == 0:
+            continue
+        (line,) = ax.plot(path[:, 0], path[:, 1], color=colour, linestyle=linestyle, linewidth=2.2,
+                          alpha=alpha, marker="o" if len(path) == 1 else None,
+                          label=label if k == 0 else None, zorder=2)
+        artists.append(line)
+    centres = np.array([r[system.point_index(j.body_a, j.point_a)] for j in linkage.joints
+                        if not isinstance(j, PrismaticJoint)]).reshape(-1, 2)
+    (dots,) = ax.plot(centres[:, 0], centres[:, 1], "o", markersize=4, markerfacecolor="white",
+                      markeredgecolor=colour, alpha=alpha, zorder=3)
+    artists.append(dots)
+    for j in linkage.joints:
+        if isinstance(j, PrismaticJoint):  # the slider's block as a square marker
+            b = r[system.point_index(j.body_b, j.point_b)]
+            (block,) = ax.plot([b[0]], [b[1]], "s", markersize=7, markerfacecolor="none",
+                               markeredgecolor=colour, alpha=alpha, zorder=3)
+            artists.append(block)
+    return artists
+
+
+def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.ndarray, *,
+                 q: float | None = None, input_label: str = "input") -> dict[str, object]:
+    """Draw the mechanism (or a bare linkage) at coordinates ``x`` (shape (n,), assembled)
+    on the axes ``ax``. ``q`` is the input coordinate there (rad or m), at which the point
+    forces' tables F(q) are read; default drive·x.
 
     Returns
     -------
     The artists by name: ``"body:<body>"``, ``"joint:<joint>"`` (a Circle for a revolute,
     the block Rectangle for a prismatic), ``"ground:<joint>"`` (hatched base of a ground
     pivot), ``"point:<body>.<point>"`` (marker of every named point), ``"<kind>:<name>"``
-    for dampers and springs (a Line2D from its a end to its b end) and ``"com:<body>"``.
+    for dampers and springs (a Line2D from its a end to its b end), ``"force:<name>"`` for
+    point forces (an Annotation whose ``xy`` is the point acted on) and ``"com:<body>"``.
     """
     from matplotlib.patches import Circle, Polygon, Rectangle
 
-    r = positions(system.points, np.asarray(x, dtype=float))
+    linkage, elements, point_forces = _parts(mechanism)
+    x = np.asarray(x, dtype=float)
+    q_in = float(system.drive @ x) if q is None else float(q)
+    r = positions(system.points, x)
+    com = positions(system.centres, x)
 
     def at(body: str, point: str) -> np.ndarray:
         return r[system.point_index(body, point)]
@@ -92,16 +159,16 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
     joint_points = {(j.body_a, j.point_a) for j in linkage.joints} | {
         (j.body_b, j.point_b) for j in linkage.joints}
     element_points = {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+    force_points = {(f.body, f.point) for f in point_forces}
 
     centre = r.mean(axis=0)
-    shapes: dict[str, np.ndarray] = {}
+    shapes = body_outlines(linkage, system, x, elements)
 
     # Bodies: the outline of their joint and attachment points (not the centre of mass).
     for name in linkage.moving:
-        pts = [at(b, p) for b, p in sorted(joint_points | element_points) if b == name]
-        shape = _distinct(pts, 1e-9 * span)
+        shape = shapes[name]
         if len(shape) >= 3:
-            patch = Polygon(_polygon_order(shape), closed=True, facecolor=colour[name], alpha=0.25,
+            patch = Polygon(shape, closed=True, facecolor=colour[name], alpha=0.25,
                             edgecolor=colour[name], linewidth=3, zorder=1)
             ax.add_patch(patch)
             artists[f"body:{name}"] = patch
@@ -119,7 +186,6 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
             ax.annotate(name, mid, xytext=tuple(16 * normal), textcoords="offset points",
                         ha="center", va="center", color=colour[name], fontsize=9,
                         fontweight="bold", bbox=LABEL_BOX, **PLAIN)
-        shapes[name] = shape
 
     # Dampers and springs.
     for e in elements:
@@ -140,6 +206,21 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
                                    facecolor="white", edgecolor="black", hatch="////", zorder=3)
                 ax.add_patch(anchor)
                 artists[f"anchor:{e.name}"] = anchor
+
+    # Point forces: an arrow of length 0.15 span ending at the point, along F(q)·direction.
+    for f in point_forces:
+        value = float(TabulatedForce(f.coordinate, f.values, f.period)(q_in))
+        p = at(f.body, f.point)
+        u = np.array([math.cos(f.direction), math.sin(f.direction)]) * (1.0 if value >= 0.0 else -1.0)
+        tail = p - 0.15 * span * u
+        arrow = ax.annotate("", xy=tuple(p), xytext=tuple(tail), textcoords="data",
+                            arrowprops={"arrowstyle": "-|>", "color": "tab:red", "linewidth": 2},
+                            zorder=6)
+        artists[f"force:{f.name}"] = arrow
+        ax.update_datalim([tail])  # the whole arrow inside the axes
+        ax.annotate(f"{f.name} F(q0) = {value:g} N", tuple(0.5 * (p + tail)), xytext=(0, -26),
+                    textcoords="offset points", ha="center", fontsize=8, color="tab:red",
+                    bbox=LABEL_BOX, **PLAIN)
 
     # Joints; labels of joints at one place are stacked, 13 points apart.
     labelled: list[np.ndarray] = []
@@ -191,23 +272,28 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
             (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=2.5, color="black", zorder=6)
             artists[f"point:{body.name}.{point}"] = mark
             key = (body.name, point)
-            if key not in joint_points and key not in element_points and point != COM:
+            near_com = body.name in linkage.moving and np.hypot(
+                *(c - com[linkage.moving.index(body.name)])) <= 1e-9 * span
+            if key not in joint_points | element_points | force_points and not near_com:
                 ax.annotate(f"{body.name}.{point}", c, xytext=(4, -10), textcoords="offset points",
                             fontsize=8, color="0.3", **PLAIN)
 
-    # Centres of mass (mass points with a mass), crossed circles.
-    for m in masses:
-        if m.mass <= 0.0:
+    # Centres of mass of the bodies given a mass, crossed circles (a body given by its
+    # inertia about a fixed pivot has its centre there and no mass of its own: not drawn).
+    bodies = linkage.body_map
+    for k, name in enumerate(linkage.moving):
+        mass = getattr(bodies[name], "mass", 0.0) or 0.0
+        if mass <= 0.0:
             continue
-        c = at(m.body, m.point)
-        for p in shapes.get(m.body, ()):  # thin ties to the body it belongs to
-            ax.plot([c[0], p[0]], [c[1], p[1]], color=colour.get(m.body, "0.5"), linewidth=0.8,
+        c = com[k]
+        for p in shapes.get(name, ()):  # thin ties to the body it belongs to
+            ax.plot([c[0], p[0]], [c[1], p[1]], color=colour[name], linewidth=0.8,
                     linestyle=":", zorder=1)
         (mark,) = ax.plot([c[0]], [c[1]], "o", markersize=11, markerfacecolor="white",
                           markeredgecolor="black", zorder=6)
         ax.plot([c[0]], [c[1]], "+", markersize=11, color="black", zorder=7)
-        artists[f"com:{m.body}"] = mark
-        ax.annotate(f"G {m.body}, {m.mass:g} kg", c, xytext=(9, 6), textcoords="offset points",
+        artists[f"com:{name}"] = mark
+        ax.annotate(f"G {name}, {mass:g} kg", c, xytext=(9, 6), textcoords="offset points",
                     fontsize=8, bbox=LABEL_BOX, **PLAIN)
 
     ax.set_aspect("equal", adjustable="datalim")
@@ -219,27 +305,176 @@ def draw_linkage(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *,
     return artists
 
 
+def write_drawing(scene, path: str | Path) -> Path:
+    """``xval draw``: :func:`draw_scene` into the file ``path`` through the atomic writer
+    (:func:`compare.output.write_folder`); returns the path written."""
+    from .output import write_folder
+
+    target = Path(path).absolute()
+    return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
+
+
 def draw_scene(scene, path: str | Path) -> None:
-    """Draw a four-bar scene's linkage at its q0 into the PNG file ``path``.
+    """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into the PNG ``path``.
 
-    Raises AssemblyError/MechanismError (ValueErrors) for a linkage that cannot be drawn.
+    The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
+    sign per loop, ``scene.mode``) and gravity.
     """
-    from reduced.expand import four_bar_elements, four_bar_linkage, four_bar_masses
-
     from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
 
-    linkage, system, x0 = four_bar_linkage(scene)
+    system = compile_linkage(scene.mechanism.linkage)
+    unit = scene.input_unit
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(9, 6.5))
     try:
-        draw_linkage(ax, linkage, system, x0, elements=four_bar_elements(scene),
-                     masses=four_bar_masses(scene), input_label=f"input, q0 = {scene.q0:g} rad")
-        branch = "+1" if scene.linkage.branch > 0 else "-1"
+        draw_linkage(ax, scene.mechanism, system, np.asarray(scene.x0, dtype=float), q=scene.q0,
+                     input_label=f"input, q0 = {scene.q0:g} {unit}")
         gravity = ("" if scene.gravity is None
                    else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
-        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} rad, branch {branch}"
-                     f"{gravity}", **TITLE_PLAIN)
+        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
+                     f"mode {mode_text(scene.mode)}{gravity}", **TITLE_PLAIN)
     except BaseException:
         plt.close(fig)
         raise
     _save(fig, Path(path))
+
+
+# -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----
+
+def configuration_at(joints, t: float) -> np.ndarray:
+    """The general coordinates x (shape (n,)) of a JointTrajectory at time t (s).
+
+    Cubic Hermite interpolation from the samples' x and ẋ on the interval containing t
+    (O(h⁴); at ≤ 1 ms samples far below a pixel), clamped to the run's span. At a repeated
+    time (a coordinate switch) the later sample is used.
+    """
+    T = np.asarray(joints.t, dtype=float)
+    X = np.asarray(joints.x, dtype=float)
+    V = np.asarray(joints.xdot, dtype=float)
+    t = float(np.clip(t, T[0], T[-1]))
+    k = int(np.searchsorted(T, t, side="right")) - 1
+    k = min(max(k, 0), len(T) - 2) if len(T) > 1 else 0
+    if len(T) == 1 or T[k + 1] <= T[k]:
+        return X[min(k + 1, len(T) - 1)].copy()
+    h = T[k + 1] - T[k]
+    s = (t - T[k]) / h
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+
+
+def _checked_system(scene, *runs) -> LoopSystem:
+    system = compile_linkage(scene.mechanism.linkage)
+    for joints in runs:
+        if tuple(joints.names) != system.coordinate_names:
+            raise ValueError(f"the run's coordinates {list(joints.names)} are not the scene's "
+                             f"{list(system.coordinate_names)}")
+    return system
+
+
+REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
+OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
+
+
+def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str) -> None:
+    """Both engines' configurations overlaid (reduced solid, MuJoCo dashed) on ``ax``."""
+    for x, look in zip(xs, (REFERENCE_LOOK, OTHER_LOOK)):
+        draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
+                     label=look["label"])
+    ground = [system.point_index(j.body_a if j.body_a == GROUND else j.body_b,
+                                 j.point_a if j.body_a == GROUND else j.point_b)
+              for j in linkage.joints if GROUND in (j.body_a, j.body_b)]
+    g = positions(system.points, np.asarray(xs[0], dtype=float))[ground]
+    ax.plot(g[:, 0], g[:, 1], "^", color="black", markersize=7, zorder=4)
+    ax.set_title(title, fontsize=9, **PLAIN)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="0.9", linewidth=0.6)
+    ax.set_xlabel("x (m)")
+
+
+def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], path: str | Path) -> None:
+    """A strip of the mechanism at the given moments ((label, t s), one panel each), both
+    engines overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other``
+    (MuJoCo's) dashed, into the PNG ``path``.
+
+    Raises ValueError when a run's coordinate names are not the scene's.
+    """
+    from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
+
+    system = _checked_system(scene, reference, other)
+    linkage = scene.mechanism.linkage
+    unit = scene.input_unit
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(moments), figsize=(4.5 * len(moments), 4.2), squeeze=False)
+    try:
+        for ax, (label, t) in zip(axes[0], moments):
+            xs = [configuration_at(run, t) for run in (reference, other)]
+            q = [float(system.drive @ x) for x in xs]
+            _frame(ax, linkage, system, xs,
+                   f"{label}, t = {t:.6g} s\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
+        axes[0][0].set_ylabel("y (m)")
+        axes[0][0].legend(loc="best", fontsize=8)
+        fig.suptitle(f"{short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", **TITLE_PLAIN)
+    except BaseException:
+        plt.close(fig)
+        raise
+    _save(fig, Path(path))
+
+
+def gif_writer_available() -> bool:
+    """Whether matplotlib can write a GIF here (its PillowWriter needs pillow, a dependency
+    of matplotlib)."""
+    try:
+        from matplotlib.animation import PillowWriter
+    except ImportError:
+        return False
+    return bool(PillowWriter.isAvailable())
+
+
+ANIMATION_FRAMES = 60  # frames of mechanism.gif, at 15 per second: a 4 s loop
+
+
+def animate_run(scene, reference, other, path: str | Path, *, frames: int | None = None,
+                fps: int = 15) -> None:
+    """An animated GIF of both engines' mechanism over the run (reduced solid, MuJoCo
+    dashed), ``frames`` (default :data:`ANIMATION_FRAMES`) frames at equal time steps over
+    the span both runs cover.
+
+    Raises RuntimeError when no GIF writer is available (:func:`gif_writer_available`);
+    ValueError when a run's coordinate names are not the scene's.
+    """
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    from .plots import _pyplot, short_name
+
+    if not gif_writer_available():
+        raise RuntimeError("matplotlib's PillowWriter is not available (pillow missing): no GIF")
+    system = _checked_system(scene, reference, other)
+    linkage = scene.mechanism.linkage
+    start = max(float(reference.t[0]), float(other.t[0]))
+    end = min(float(reference.t[-1]), float(other.t[-1]))
+    times = np.linspace(start, end, max(int(ANIMATION_FRAMES if frames is None else frames), 2))
+    configs = [[configuration_at(run, t) for run in (reference, other)] for t in times]
+    every = positions(system.points, np.asarray(configs[0][0]))
+    for pair in configs:
+        for x in pair:
+            every = np.vstack([every, positions(system.points, x)])
+    lo, hi = every.min(axis=0), every.max(axis=0)
+    pad = 0.08 * float(np.max(hi - lo) or 1.0)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 5))
+
+    def show(k: int):
+        ax.clear()
+        _frame(ax, linkage, system, configs[k],
+               f"{short_name(scene.name)}: t = {times[k]:.4f} s (reduced solid, MuJoCo dashed)")
+        ax.set_aspect("equal", adjustable="box")  # fixed limits: the same view in every frame
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        return []
+
+    try:
+        FuncAnimation(fig, show, frames=len(times), blit=False).save(
+            str(path), writer=PillowWriter(fps=fps))
+    finally:
+        plt.close(fig)

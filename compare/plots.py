@@ -8,10 +8,14 @@ name is not mathtext), and names are shortened to :data:`NAME_CHARS` characters 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .run import Comparison
+from reduced.scene import MUJOCO_INTEGRATORS
+
+if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` needs neither)
+    from .run import Comparison
 
 NAME_CHARS = 60  # longest scene name shown in a title
 PLAIN = {"parse_math": False}  # keyword for text elements that carry user text
@@ -45,7 +49,14 @@ def _save(fig, path: Path) -> None:
         plt.close(fig)
 
 
-def plot_trajectories(c: Comparison, path: Path) -> None:
+def _units(c: "Comparison") -> tuple[str, str]:
+    """The input coordinate's unit and its rate's: ("rad", "rad/s") or ("m", "m/s")."""
+    unit = c.scene.input_unit
+    return unit, f"{unit}/s"
+
+
+def plot_trajectories(c: "Comparison", path: Path) -> None:
+    unit, rate = _units(c)
     plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
@@ -53,58 +64,60 @@ def plot_trajectories(c: Comparison, path: Path) -> None:
         ax_w.plot(result.trajectory.t, result.trajectory.qdot, **style)
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         ax_w.plot([result.peak.time], [result.peak.omega], "o", color=style["color"], markersize=5)
-    ax_q.set_ylabel("crank angle q (rad)")
-    ax_w.set_ylabel("crank angular velocity ω (rad/s)")
+    ax_q.set_ylabel(f"input q ({unit})")
+    ax_w.set_ylabel(f"input rate q̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
-    ax_q.set_title(f"{short_name(c.scene.name)}: input link, both engines (dots: peak ω)", **PLAIN)
+    ax_q.set_title(f"{short_name(c.scene.name)}: input joint, both engines (dots: peak |q̇|)", **PLAIN)
     ax_q.legend(), ax_w.legend()
     ax_q.grid(alpha=0.3), ax_w.grid(alpha=0.3)
     _save(fig, path)
 
 
-def plot_differences(c: Comparison, path: Path) -> None:
+def plot_differences(c: "Comparison", path: Path) -> None:
+    unit, rate = _units(c)
     d = c.diff
     plt = _pyplot()
     fig, (ax_q, ax_w) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     ax_q.plot(d.times, d.dq, color="tab:red", label="Δq = q_MuJoCo − q_reduced")
-    ax_w.plot(d.times, d.domega, color="tab:red", label="Δω = ω_MuJoCo − ω_reduced")
+    ax_w.plot(d.times, d.domega, color="tab:red", label="Δq̇ = q̇_MuJoCo − q̇_reduced")
     tol = c.gate.tolerances
     for ax, limit in ((ax_q, tol.q_atol), (ax_w, tol.omega_atol)):
         ax.axhline(limit, color="grey", linestyle=":", label="gate tolerance")
         ax.axhline(-limit, color="grey", linestyle=":")
         ax.grid(alpha=0.3)
         ax.legend(loc="best")
-    ax_q.set_ylabel("Δq (rad)")
-    ax_w.set_ylabel("Δω (rad/s)")
+    ax_q.set_ylabel(f"Δq ({unit})")
+    ax_w.set_ylabel(f"Δq̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
     ax_q.set_title(f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times",
                    **PLAIN)
     _save(fig, path)
 
 
-def plot_omega_vs_q(c: Comparison, path: Path) -> None:
+def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
+    unit, rate = _units(c)
     plt = _pyplot()
     fig, (ax, ax_d) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         ax.plot(result.trajectory.q, result.trajectory.qdot, **style)
-    ax.set_ylabel("ω (rad/s)")
-    ax.set_title(f"{short_name(c.scene.name)}: crank speed against crank angle (phase-free comparison)",
+    ax.set_ylabel(f"q̇ ({rate})")
+    ax.set_title(f"{short_name(c.scene.name)}: input rate against input position (phase-free comparison)",
                  **PLAIN)
     ax.legend(), ax.grid(alpha=0.3)
     ax_d.plot(c.diff.q_samples, c.diff.domega_vs_q, ".", markersize=2, color="tab:red",
-              label="Δω at equal q")
-    ax_d.set_xlabel("crank angle q (rad)")
-    ax_d.set_ylabel("Δω(q) (rad/s)")
+              label="Δq̇ at equal q")
+    ax_d.set_xlabel(f"input q ({unit})")
+    ax_d.set_ylabel(f"Δq̇(q) ({rate})")
     ax_d.legend(), ax_d.grid(alpha=0.3)
     _save(fig, path)
 
 
-def plot_constraint_violation(c: Comparison, path: Path) -> None:
+def plot_constraint_violation(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
     times = c.mujoco.diagnostics["times"]
     violation = c.mujoco.diagnostics["constraint_violation"]
-    ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="|B_coupler − B_rocker|")
+    ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="largest loop gap")
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("loop-closure violation (m)")
     ax.set_title(f"{short_name(c.scene.name)}: MuJoCo equality-constraint violation "
@@ -113,7 +126,7 @@ def plot_constraint_violation(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_energy(c: Comparison, path: Path) -> None:
+def plot_energy(c: "Comparison", path: Path) -> None:
     plt = _pyplot()
     fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
@@ -121,7 +134,7 @@ def plot_energy(c: Comparison, path: Path) -> None:
         ls = style.get("linestyle", "-")
         name = style["label"].split()[0]
         ax.plot(a.t, a.kinetic, color="tab:green", linestyle=ls, label=f"kinetic ({name})")
-        ax.plot(a.t, a.torque_work, color="tab:purple", linestyle=ls, label=f"torque work ({name})")
+        ax.plot(a.t, a.torque_work, color="tab:purple", linestyle=ls, label=f"{c.scene.load_name} work ({name})")
         ax.plot(a.t, a.damper_dissipation, color="tab:brown", linestyle=ls, label=f"damper dissipation ({name})")
         if np.any(a.potential != a.potential[0]):
             ax.plot(a.t, a.potential - a.potential[0], color="tab:grey", linestyle=ls,
@@ -136,18 +149,37 @@ def plot_energy(c: Comparison, path: Path) -> None:
     _save(fig, path)
 
 
+def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
+    """The moments the mechanism strip shows: the reduced run's peak speed (the compared
+    peak, ``diff.t_peak_reference``) and the sample of largest |Δq| (s)."""
+    d = c.diff
+    worst = float(d.times[int(np.argmax(np.abs(d.dq)))]) if len(d.times) else d.span_end
+    return [("peak speed", float(d.t_peak_reference)), ("largest |Δq|", worst)]
+
+
+def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
+    """The mechanism at the peak speed and at the largest disagreement, both engines
+    overlaid (:func:`compare.draw.draw_strip`)."""
+    from .draw import draw_strip
+
+    draw_strip(c.scene, c.reduced.diagnostics["joints"], c.mujoco.diagnostics["joints"],
+               strip_moments(c), path)
+
+
 PLOTS = {
     "trajectories.png": plot_trajectories,
     "differences.png": plot_differences,
     "omega_vs_q.png": plot_omega_vs_q,
     "constraint_violation.png": plot_constraint_violation,
     "energy.png": plot_energy,
+    "mechanism.png": plot_mechanism_strip,
 }
 
 
 SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
-INTEGRATOR_COLOURS = {"euler": "tab:red", "implicit": "tab:purple", "implicitfast": "tab:brown",
-                      "rk4": "tab:orange"}
+# One colour per MuJoCo integrator, in the order reduced.scene lists them (the one list of names).
+INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab:brown", "tab:orange",
+                                                   "tab:olive", "tab:pink")))
 
 
 def plot_work_precision(measurements, front, target: float | None, scene_name: str, path: Path) -> None:
@@ -175,7 +207,7 @@ def plot_work_precision(measurements, front, target: float | None, scene_name: s
                    facecolors="none", edgecolors="black", zorder=5)
     if target:
         ax.axvline(target, color="green", linestyle="-.", label=f"target {target:g}")
-    ax.set_xlabel("relative error of peak angular velocity against the truth")
+    ax.set_xlabel("relative error of the peak input speed against the truth")
     ax.set_ylabel("wall time of the simulation (s, median)")
     ax.set_title(f"{short_name(scene_name)}: what accuracy costs (truth: DOP853 rtol 1e-12)", **PLAIN)
     ax.grid(alpha=0.3, which="both")

@@ -9,7 +9,7 @@ from reduced.scene import Tolerances
 from reference_models import MujocoSettings, simulate_mujoco
 
 from .settings import mujoco_settings, reduced_settings
-from .diff import (BranchCheck, Difference, GateResult, compare_branches, compare_trajectories, gate,
+from .diff import (Difference, GateResult, ModeCheck, compare_modes, compare_trajectories, gate,
                    peak_floor_of)
 
 
@@ -21,7 +21,7 @@ class Comparison:
     reduced: EngineResult
     mujoco: EngineResult
     diff: Difference
-    branches: BranchCheck
+    modes: ModeCheck  # assembly mode of each loop, MuJoCo against the reduced reference
     gate: GateResult
 
 
@@ -49,12 +49,13 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
     """Compare two finished runs of ``scene`` over its whole horizon and gate them."""
     diff = compare_trajectories(reference.trajectory, other.trajectory, horizon=scene.horizon,
                                 peak_floor=peak_floor_of(tolerances))
-    branches = compare_branches(reference.diagnostics["joints"], other.diagnostics["joints"])
-    verdict = gate(diff, tolerances, branches)
-    return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, branches=branches,
+    modes = compare_modes(reference.diagnostics["joints"], other.diagnostics["joints"])
+    verdict = gate(diff, tolerances, modes, unit=scene.input_unit)
+    return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, modes=modes,
                       gate=verdict)
 
 
 def override_tolerances(base: Tolerances, **overrides: float | None) -> Tolerances:
-    """The scene's tolerances with any non-None override applied."""
+    """``base`` with any non-None override applied (see :func:`compare.settings.gate_tolerances`,
+    which the commands use)."""
     return replace(base, **{k: v for k, v in overrides.items() if v is not None})

@@ -1,4 +1,5 @@
-"""Engine settings resolved once: the flags given, over the scene's table, over the defaults.
+"""Engine settings and gate tolerances resolved once: the flags given, over the scene's
+table, over the defaults.
 
 Every command, the comparison and the stress catalogue resolve settings here. A scene table
 that the engine's own settings refuse is reported as bad input naming the file and the table
@@ -11,7 +12,10 @@ from __future__ import annotations
 import warnings
 from typing import Any, Callable, Mapping, TypeVar
 
+from dataclasses import replace
+
 from reduced import ReducedSettings, Scene, SceneError
+from reduced.scene import Tolerances
 
 S = TypeVar("S")
 
@@ -39,3 +43,8 @@ def mujoco_settings(scene: Scene, **flags: Any):
     from reference_models import MujocoSettings
 
     return _resolve(MujocoSettings, "mujoco", scene.mujoco, scene, flags)
+
+
+def gate_tolerances(scene: Scene, **flags: float | None) -> Tolerances:
+    """The gate's tolerances: ``flags`` (None: not given) over the scene's [tolerances]."""
+    return replace(scene.tolerances, **{k: v for k, v in flags.items() if v is not None})

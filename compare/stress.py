@@ -88,7 +88,7 @@ def _run(engine_call):
 
 
 def _drift_per_revolution(result) -> float:
-    """|E(T) − E(0)| / E(0) per crank revolution (conservative scenes)."""
+    """|E(T) − E(0)| / E(0) per revolution of the input (conservative scenes)."""
     a = result.audit
     energy = a.kinetic + a.potential
     scale = max(a.scale, abs(energy[0]), 1e-300)
@@ -113,12 +113,12 @@ def run_case(case: Case) -> CaseResult:
     comparison = None
     if reduced is not None and mujoco is not None:
         comparison = judge(scene, reduced, mujoco, scene.tolerances)
-        diff, branches = comparison.diff, comparison.branches
+        diff, modes = comparison.diff, comparison.modes
         problems += [f"gate: {f}" for f in comparison.gate.failures]
         figures.update(peak_omega_rel=diff.peak_omega_rel, peak_omega_abs=diff.peak_omega_abs,
                        t_peak_abs=diff.t_peak_abs, q_max_abs=diff.q_max_abs,
                        omega_max_abs=diff.omega_max_abs, omega_vs_q_max_abs=diff.omega_vs_q_max_abs,
-                       span_end=diff.span_end, branch_mismatches=branches.mismatches)
+                       span_end=diff.span_end, mode_mismatches=modes.total)
     if reduced is not None:
         figures.update(reduced_wall_s=reduced.wall_s, reduced_energy_residual=reduced.audit.relative_residual,
                        switches=len(reduced.diagnostics["switches"]))
@@ -153,13 +153,13 @@ def _check_switches(reduced, notes: list) -> list[str]:
     same_time = np.diff(joints.t) == 0.0
     jump_x = float(np.max(np.abs(np.diff(joints.x, axis=0))[same_time])) if same_time.any() else 0.0
     jump_v = float(np.max(np.abs(np.diff(joints.xdot, axis=0))[same_time])) if same_time.any() else 0.0
-    changes = int(np.sum(joints.branch[1:] != joints.branch[:-1]))
+    changes = int(np.sum(np.any(joints.mode[1:] != joints.mode[:-1], axis=-1)))
     notes.append(f"{len(switches)} coordinate switches ({', '.join(sorted({s['new'] for s in switches}))}), "
-                 f"{changes} assembly-branch changes tracked; largest jump across a switch: "
-                 f"{jump_x:.1e} rad, {jump_v:.1e} rad/s")
+                 f"{changes} assembly-mode changes tracked; largest jump across a switch: "
+                 f"{jump_x:.1e} (rad or m), {jump_v:.1e} (rad or m)/s")
     # Across a switch the state is the same instant seen in two charts: only round-off differs.
-    return [] if jump_x < 1e-12 and jump_v < 1e-9 else [f"discontinuity across a switch: {jump_x:.2e} rad, "
-                                                        f"{jump_v:.2e} rad/s"]
+    return [] if jump_x < 1e-12 and jump_v < 1e-9 else [f"discontinuity across a switch: {jump_x:.2e} (rad or m), "
+                                                        f"{jump_v:.2e} (rad or m)/s"]
 
 
 def _check_explicit(scene: Scene, case: Case, notes: list, figures: dict) -> list[str]:
@@ -223,7 +223,7 @@ def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dic
     figures.update(off_grid_peak_rel=off.peak_omega_rel, on_grid_peak_rel=on.peak_omega_rel,
                    off_grid_q_max=off.q_max_abs, on_grid_q_max=on.q_max_abs)
     notes.append(f"edge {torque.start + torque.duration:g} s off the {h:g} s grid: peak error "
-                 f"{off.peak_omega_rel:.1e} (on grid {on.peak_omega_rel:.1e}), max |dq| {off.q_max_abs:.1e} rad "
+                 f"{off.peak_omega_rel:.1e} (on grid {on.peak_omega_rel:.1e}), max |dq| {off.q_max_abs:.1e} {scene.input_unit} "
                  f"(on grid {on.q_max_abs:.1e}); warned: {'yes' if warned else 'NO'}")
     problems = [] if warned else ["no warning for the off-grid pulse edge"]
     if not off.q_max_abs > on.q_max_abs:
@@ -263,3 +263,16 @@ def table_lines(results: list[CaseResult]) -> list[str]:
             lines.append(f"{'':18s}   problem: {problem}")
     lines.append(f"{sum(r.passed for r in results)} passed, {sum(not r.passed for r in results)} failed")
     return lines
+
+
+STRESS_FILES = ("stress.json",)
+
+
+def write_stress(results: list[CaseResult], out_dir) -> list:
+    """stress.json (one entry per case: status, problems, notes, figures) into ``out_dir``,
+    through :func:`compare.output.write_folder`."""
+    from .output import json_text, write_folder
+
+    data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
+             "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
+    return write_folder(out_dir, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")})

@@ -20,8 +20,8 @@ from helpers import SEED_SCENE
 
 REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "wall_s", "settings", "energy_residual"}
 REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
-                    "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "branch_mismatches",
-                    "branch_mismatch_first_time", "peak_omega_reference", "peak_omega_other",
+                    "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "mode_mismatches",
+                    "mode_mismatch_first_times", "mode_mismatches_total", "peak_omega_reference", "peak_omega_other",
                     "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon"}
 
 
@@ -87,7 +87,10 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["passed"] is True and report["gate"]["failures"] == []
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
-    assert report["diff"]["branch_mismatches"] == 0
+    assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
+    assert report["schema_version"] == 2
+    assert report["scene"]["input_unit"] == "rad" and report["scene"]["mode"] == [1]
+    assert (tmp_path / "out" / "mujoco.csv").read_text().startswith("t_s,q_rad,qdot_rad_per_s,")
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)
     assert csv.shape[1] == 4 and np.all(np.diff(csv[:, 0]) >= 0)
 

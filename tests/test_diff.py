@@ -206,7 +206,7 @@ def test_swing_peak_is_one_event_in_both_engines_and_the_table_subtracts():
     assert d.t_peak_abs < 5e-3
     assert d.peak_omega_abs <= d.omega_max_abs + 1e-9
     rows = {line.split("  ")[0]: line.split() for line in comparison_lines(c)}
-    peak = rows["peak |omega| (rad/s)"]
+    peak = rows["peak |qdot| (rad/s)"]
     assert Decimal(peak[4]) - Decimal(peak[3]) == Decimal(peak[5])
     assert float(peak[3]) == pytest.approx(d.peak_omega_reference, rel=1e-9) and float(peak[4]) > 0
     when = rows["time of peak (s)"]

@@ -14,10 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from compare.diff import compare_branches, compare_trajectories
+from compare.diff import compare_modes, compare_trajectories
 from compare.stress import CATALOGUE, CaseResult, run_case
 from reduced import ReducedSettings, load_scene, simulate
-from reduced.linkage import FourBar
 from reduced.loads import PulseTorque
 from reduced.partition import JointTrajectory
 from reference_models import MujocoSettings, build_model, simulate_mujoco
@@ -59,7 +58,7 @@ def test_case_passes_over_the_whole_horizon(results, name):
     assert r.passed, r.problems
     d = r.comparison.diff
     assert d.covers_horizon and d.span_end == pytest.approx(load_scene(BY_NAME[name].path).horizon)
-    assert r.figures["branch_mismatches"] == 0
+    assert r.figures["mode_mismatches"] == 0
 
 
 @pytest.mark.parametrize("name", [case_param(n) for n in CASES])
@@ -84,7 +83,7 @@ def test_dead_centre_switches_coordinate_and_stays_continuous(results):
     joints: JointTrajectory = result.diagnostics["joints"]
     assert len(switches) >= 2
     assert {s["old"] for s in switches} >= {"q"}  # q hands over before its dead centre
-    assert set(np.unique(joints.branch)) == {-1, 1}  # the branch changes at the limit, tracked
+    assert set(np.unique(joints.mode)) == {-1, 1}  # the mode changes at the limit, tracked
     same = np.diff(joints.t) == 0.0
     assert same.sum() == len(switches)
     assert np.max(np.abs(np.diff(joints.x, axis=0))[same]) < 1e-12
@@ -192,20 +191,38 @@ def test_fast_crank_peak_is_the_high_accuracy_value(results):
     assert r.comparison.diff.peak_omega_other == pytest.approx(FAST_CRANK_PEAK, rel=3e-5)
 
 
-def test_branch_jump_is_detected():
-    """Put part of a trajectory on the other assembly branch: the check reports it."""
+def test_mode_jump_is_detected():
+    """Put part of a trajectory in the other assembly mode: the check reports it on the loop."""
+    from reduced.loops import assemble, assembly_modes, compile_linkage, positions
+
     scene = load_scene(BY_NAME["near_change_point"].path)
-    linkage = FourBar(scene.linkage)
+    system = compile_linkage(scene.mechanism.linkage)
     t = np.linspace(0.0, 1.0, 101)
     q = 0.2 + 3.0 * t
-    x_right = np.array([linkage.assemble(qq, 1) for qq in q])
-    x_wrong = x_right.copy()
-    x_wrong[60:] = [linkage.assemble(qq, -1) for qq in q[60:]]
+
+    def track(x):
+        out = []
+        for qq in q:
+            x = assemble(system, float(qq), x)
+            out.append(x)
+        return np.array(out)
+
+    x_right = track(np.asarray(scene.x0))
+    # The other assembly at q0: B reflected in the line A-O3 (frames along the links).
+    r = positions(system.points, np.asarray(scene.x0))
+    A, B, O3 = (r[system.point_index(body, p)] for body, p in (("coupler", "A"), ("coupler", "B"),
+                                                               ("rocker", "O3")))
+    u = (O3 - A) / np.hypot(*(O3 - A))
+    B2 = A + 2.0 * ((B - A) @ u) * u - (B - A)
+    guess = np.array([scene.q0, np.arctan2(*(B2 - A)[::-1]), np.arctan2(*(B2 - O3)[::-1])])
+    x_other = track(assemble(system, scene.q0, guess))
+    assert np.all(assembly_modes(system, x_other) == -assembly_modes(system, x_right))
+    x_wrong = np.vstack([x_right[:60], x_other[60:]])
 
     def joints(x):
-        return JointTrajectory(linkage.coordinate_names, t, x, np.zeros_like(x), np.zeros(len(t), int),
-                               linkage.branches(x))
+        return JointTrajectory(system.coordinate_names, t, x, np.zeros_like(x), np.zeros(len(t), int),
+                               assembly_modes(system, x))
 
-    assert compare_branches(joints(x_right), joints(x_right)).mismatches == 0
-    check = compare_branches(joints(x_right), joints(x_wrong))
-    assert check.mismatches == 41 and check.first_time == pytest.approx(0.6)
+    assert compare_modes(joints(x_right), joints(x_right)).total == 0
+    check = compare_modes(joints(x_right), joints(x_wrong))
+    assert check.mismatches == (41,) and check.first_times[0] == pytest.approx(0.6)
