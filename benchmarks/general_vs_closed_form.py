@@ -1,0 +1,167 @@
+"""Time per evaluation of q̈ = f(t, q, q̇): the general description against the four-bar closed
+form on the seed scene, and the general description on every catalogue mechanism.
+
+Three rows per scene, whichever can run:
+
+- ``engine``: the reduced engine's own right-hand side, a :class:`reduced.partition.Chart` of a
+  :class:`reduced.dynamics.MechanismModel` in the input coordinate (what the integrators call);
+- ``closed form``: the same with the four-bar closed form (``scene.four_bar`` scenes only: the
+  shorthand seed, scenes/seed_fourbar.toml);
+- ``loops``: Eksergian's equation written here directly on :mod:`reduced.loops` (Newton from the
+  previous configuration, K and L, masses, springs, dampers, gravity, point forces and the input
+  load: everything on plain arrays, no model object), a floor for what the general path costs
+  in Python and a check of the engine row's value (the two must agree).
+
+Each f is called along a short path back and forth, q_k = q0 + j·Δq with j going 0…200…0…
+(Δq = q̇0·1 µs, or 1e-5 of the input's unit when q̇0 = 0), as an integrator's stages do, so every
+call re-solves the loops; the figure is the best of ``--repeats`` timeit runs of ``--calls``
+calls, per call.
+
+    python benchmarks/general_vs_closed_form.py [--calls 2000] [--repeats 5]
+
+ADAPT (lead): ``engine_f`` and ``closed_form_f`` are the only two functions that touch the
+engine's API; they follow the current reduced/dynamics.py and reduced/partition.py (Chart,
+``rhs_on_piece``) and print "not available: <reason>" while the engine is being ported.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import timeit
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from reduced import loops
+from reduced.loads import TabulatedForce
+from reduced.scenefile import default_scene_path, load_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
+F = Callable[[float, float, float], float]
+
+
+def engine_f(scene) -> F:
+    """The reduced engine's q̈ = f(t, q, q̇) in the input coordinate (index 0 of a chart)."""
+    from reduced.dynamics import MechanismModel
+    from reduced.partition import Chart
+
+    model = MechanismModel(scene)
+    x0 = np.asarray(scene.x0)
+    start = model.linkage.coefficients_at(x0, 0)
+    return Chart(model, 0, start).rhs_on_piece(0.0, scene.horizon)
+
+
+def closed_form_f(scene) -> F:
+    """The four-bar closed form's f (scene.four_bar scenes only)."""
+    from reduced.dynamics import MechanismModel
+    from reduced.linkage import FourBar
+
+    if scene.four_bar is None:
+        raise ValueError("not a four-bar shorthand scene")
+    model = MechanismModel(scene, FourBar(scene.four_bar))
+    return model.acceleration_on_piece(0.0, scene.horizon)
+
+
+def loops_f(scene) -> F:
+    """Eksergian's equation on reduced.loops' plain arrays (see the module docstring)."""
+    mech = scene.mechanism
+    linkage = mech.linkage
+    system = loops.compile_linkage(linkage)
+    bodies = linkage.body_map
+    mass = np.array([bodies[b].mass for b in linkage.moving])
+    inertia = np.array([bodies[b].inertia for b in linkage.moving])
+    n_bodies = len(linkage.moving)
+    gravity = np.zeros(2) if scene.gravity is None else np.asarray(scene.gravity, dtype=float)
+
+    def ends(element):
+        return system.point_index(element.body_a, element.point_a), system.point_index(element.body_b, element.point_b)
+
+    springs = [(ends(s), s.coefficient, s.rest_length) for s in mech.springs]
+    dampers = [(ends(d), d.coefficient) for d in mech.dampers]
+    forces = [(system.point_index(p.body, p.point), np.array([math.cos(p.direction), math.sin(p.direction)]),
+               TabulatedForce(p.coordinate, p.values, p.period)) for p in mech.point_forces]
+    load = scene.load if scene.load is not None else (lambda t: 0.0)  # T(t) (N·m) or F(t) (N)
+    last = {"x": np.asarray(scene.x0, dtype=float), "K": None, "L": None, "q": scene.q0}
+
+    def f(t: float, q: float, qdot: float) -> float:
+        x, K, L = last["x"], last["K"], last["L"]
+        if K is not None:  # predictor, as the engine's chart does
+            dq = q - last["q"]
+            x = x + K * dq + 0.5 * L * dq * dq
+        x = loops.assemble(system, q, x)
+        K, L = loops.coefficients(system, x)
+        last.update(x=x, K=K, L=L, q=q)
+        kc, lc = loops.rates(system.centres, x, K, L)
+        ka = K[:n_bodies]
+        J = float(mass @ np.einsum("ij,ij->i", kc, kc) + inertia @ (ka * ka))
+        zeta = float(mass @ np.einsum("ij,ij->i", kc, lc) + inertia @ (ka * L[:n_bodies]))
+        Q = load(t) + float(mass @ (kc @ gravity))
+        if springs or dampers or forces:
+            r = loops.positions(system.points, x)
+            kr, _ = loops.rates(system.points, x, K)
+            for (a, b), k, rest in springs:
+                d = r[b] - r[a]
+                length = math.hypot(d[0], d[1])
+                Q -= k * (length - rest) * float(d @ (kr[b] - kr[a])) / length
+            for (a, b), c in dampers:
+                d = r[b] - r[a]
+                rate = float(d @ (kr[b] - kr[a])) / math.hypot(d[0], d[1])
+                Q -= c * rate * rate * qdot
+            for i, direction, table in forces:
+                Q += table(q) * float(direction @ kr[i])
+        return (Q - zeta * qdot * qdot) / J
+
+    return f
+
+
+def time_per_call(f: F, scene, calls: int, repeats: int) -> tuple[float, float]:
+    """(best seconds per call, f at the last point) along the path of the module docstring."""
+    step = scene.qdot0 * 1e-6 if scene.qdot0 else 1e-5
+    qs = [scene.q0 + step * (k % 200 if k % 400 < 200 else 200 - k % 200) for k in range(calls)]
+    qdot = scene.qdot0
+
+    def run():
+        for k, q in enumerate(qs):
+            f(k * 1e-7, q, qdot)
+
+    best = min(timeit.repeat(run, number=1, repeat=repeats)) / calls
+    return best, f(0.0, scene.q0, qdot)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calls", type=int, default=2000)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+
+    rows = [("seed_fourbar (shorthand)", load_scene(default_scene_path()))]
+    rows += [(p.stem, load_scene(p)) for p in CATALOGUE]
+    print(f"time per f-evaluation (µs), best of {args.repeats} × {args.calls} calls along a short path")
+    print(f"{'scene':32s} {'bodies':>6s} {'loops':>5s} {'closed form':>12s} {'engine':>12s} {'loops':>12s}  f (engine / loops)")
+    notes = []
+    for label, scene in rows:
+        cells, values = [], []
+        linkage = scene.mechanism.linkage
+        for build in (closed_form_f, engine_f, loops_f):
+            try:
+                seconds, value = time_per_call(build(scene), scene, args.calls, args.repeats)
+            except Exception as exc:  # an engine not yet ported to general linkages
+                cells.append("n/a")
+                values.append(None)
+                if build is not closed_form_f or scene.four_bar is not None:
+                    notes.append(f"  {label}: {build.__name__} not available: {type(exc).__name__}: {exc}"[:160])
+                continue
+            cells.append(f"{seconds * 1e6:.1f}")
+            values.append(value)
+        shown = " / ".join("-" if v is None else f"{v:.6g}" for v in values[1:])
+        print(f"{label:32s} {len(linkage.moving):6d} {len(linkage.cut_joints):5d} "
+              f"{cells[0]:>12s} {cells[1]:>12s} {cells[2]:>12s}  {shown}")
+    print("f at (t, q, q̇) = (0, q0, q̇0): rad/s² or m/s²; the engine and loops rows must agree")
+    print("\n".join(notes))
+
+
+if __name__ == "__main__":
+    main()
