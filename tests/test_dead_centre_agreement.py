@@ -69,7 +69,7 @@ def test_engines_agree_from_a_phi_chart_start(data, switches, q_bound):
         comparison = compare_engines(scene)
     assert comparison.gate.passed, comparison.gate.failures
     assert comparison.diff.q_max_abs <= q_bound
-    assert comparison.branches.mismatches == 0
+    assert comparison.modes.total == 0
 
 
 def test_dyad_solution_continues_the_guess_turn():

@@ -194,10 +194,14 @@ def test_below_the_inertia_range_mujoco_itself_refuses():
     scene is built past the validator (dataclasses.replace) to reach MuJoCo's compiler."""
     from reference_models.run import build_model
 
+    from reduced.mechanism import Linkage
+
     scene = scene_from_dict(patched({}))
-    crank = dataclasses.replace(scene.bodies["crank"], pivot_inertia=1e-16)
+    linkage = scene.mechanism.linkage
+    bodies = tuple(dataclasses.replace(b, inertia=1e-16) if b.name == "crank" else b for b in linkage.bodies)
+    mechanism = dataclasses.replace(scene.mechanism, linkage=Linkage(bodies, linkage.joints, linkage.input_joint))
     with pytest.raises(ValueError, match="mjMINVAL"):
-        build_model(dataclasses.replace(scene, bodies={**scene.bodies, "crank": crank}))
+        build_model(dataclasses.replace(scene, mechanism=mechanism))
 
 
 def test_names_are_plain_text():
