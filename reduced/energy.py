@@ -1,7 +1,8 @@
 """Energy audit of a reduced-model run.
 
-Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the torque ∫ T q̇ dt and
-the damper dissipation ∫ Σ b K_D² ẋ_i² dt by 3-point Gauss-Legendre quadrature on each
+Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the input load and of the
+point forces ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit's ``torque_work``) and the damper
+dissipation ∫ Σ b K_D² ẋ_i² dt by 3-point Gauss-Legendre quadrature on each
 sample interval of the chart's quintic Hermite interpolant (exact for polynomials of
 degree 5). The adaptive runs sample every quarter solver step, so the quadrature adds far
 less than the integrator's own error: on every shipped scene the relative residual with
@@ -32,7 +33,8 @@ def _fields(chart, values: np.ndarray, *names: str) -> tuple[np.ndarray, ...]:
 
 
 def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, ...]:
-    """Kinetic, potential, torque work and dissipation increments of one chart's samples."""
+    """Kinetic, potential, work (load and point forces) and dissipation increments of one
+    chart's samples."""
     t, x, v = trajectory.t, trajectory.q, trajectory.qdot
     chart.reset()
     inertia, potential = _fields(chart, x, "generalized_inertia", "potential")
@@ -44,11 +46,15 @@ def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, 
     nodes = (mid[:, None] + 0.5 * h[:, None] * _NODES[None, :])[live].ravel()
     xn, vn, _ = trajectory.interpolate(nodes)
     chart.reset()
-    input_rate, damping = _fields(chart, xn, "input_rate", "damping")  # dq/dx_i, Σ b K_D²
-    torque = model.torque.sample(nodes) if model.torque is not None else np.zeros_like(nodes)
+    # dq/dx_i, Σ b K_D², Σ F e·K_P
+    input_rate, damping, point_force = _fields(chart, xn, "input_rate", "damping", "point_force")
+    load = model.load.sample(nodes) if model.load is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
     torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)
-    torque_step[live] = np.sum(w * (torque * input_rate * vn).reshape(-1, len(_NODES)), axis=1)
+    generalized = load * input_rate
+    if np.any(point_force):
+        generalized = generalized + point_force
+    torque_step[live] = np.sum(w * (generalized * vn).reshape(-1, len(_NODES)), axis=1)
     damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, len(_NODES)), axis=1)
     return t, kinetic, potential, torque_step, damper_step
 

@@ -1,4 +1,10 @@
-"""Kinematics of one-degree-of-freedom planar linkages described by vector loops.
+"""Kinematics of one-degree-of-freedom planar linkages: the four-bar closed form and the
+general loop system.
+
+:class:`GeneralLinkage` drives any :class:`reduced.loops.LoopSystem` (plain arrays, Newton's
+method with branch continuity); :class:`FourBar` is the seed's closed form, kept as a checked
+fast path for scenes that use the ``four_bar`` shorthand. Both offer the interface that
+:mod:`reduced.partition` uses (:class:`LoopLinkage`). What follows describes the closed form.
 
 Coordinates are joint angles x = (q, φ1, …, φm): q is the independent one, the φ are
 fixed by m loop-closure equations Φ(x) = 0. Every position that matters (the loop,
@@ -24,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import loops
 from .errors import NumericalFailure
 from .scene import FourBarGeometry
 
@@ -158,6 +165,31 @@ class LoopLinkage:
     loops: tuple[PhasorSum, ...]  # each loop gives two scalar equations
     bodies: dict[str, Body]
     has_closed_form: bool = False  # kinematics(q, branch) is a closed form with q independent
+    input_index: int = 0  # the input q is x[input_index] (closed forms); see input_rate
+
+    def input_value(self, x: np.ndarray) -> float:
+        """q = drive·x (rad or m)."""
+        return float(x[self.input_index])
+
+    def input_rate(self, K: np.ndarray) -> float:
+        """dq/dx_i = drive·K for K = dx/dx_i."""
+        return float(K[self.input_index])
+
+    def input_curvature(self, L: np.ndarray) -> float:
+        """d²q/dx_i² = drive·L."""
+        return float(L[self.input_index])
+
+    def to_general(self, X: np.ndarray) -> np.ndarray:
+        """Configurations (samples, n) in the coordinates of :class:`reduced.loops.LoopSystem`."""
+        return X
+
+    def to_general_rates(self, Xdot: np.ndarray) -> np.ndarray:
+        """Rates (samples, n) in the general coordinates (a constant shift leaves them)."""
+        return Xdot
+
+    def angle_columns(self) -> np.ndarray:
+        """Boolean mask (n,) of the coordinates that are angles (unwrapped along a run)."""
+        return np.ones(len(self.coordinate_names), dtype=bool)
 
     # -- position ---------------------------------------------------------
     def assemble(self, q: float) -> np.ndarray:
@@ -275,6 +307,12 @@ class FourBar(LoopLinkage):
 
     coordinate_names = ("q", "phi1", "phi2")
     has_closed_form = True
+
+    def to_general(self, X: np.ndarray) -> np.ndarray:
+        """(q, φ1, φ2) → the general frame angles (crank, coupler, rocker) = (q, φ1, φ2 + π)."""
+        out = np.array(X, dtype=float, copy=True)
+        out[..., 2] += math.pi
+        return out
 
     def __init__(self, geometry: FourBarGeometry):
         g = self.geometry = geometry
@@ -400,6 +438,90 @@ class FourBar(LoopLinkage):
         l1 = (X * c2c + Y * c2s) / (g.c2 * s21)
         l2 = -(X * c1c + Y * c1s) / (g.c3 * s21)
         return Kinematics(x=x, K=np.array([1.0, k1, k2]), L=np.array([0.0, l1, l2]))
+
+
+class GeneralLinkage(LoopLinkage):
+    """Any one-DOF loop system (:mod:`reduced.loops`), with any coordinate independent.
+
+    Coordinates are those of the :class:`~reduced.loops.LoopSystem` (body frame angles in
+    rad, then slider displacements in m); the input q = drive·x need not be a coordinate.
+    Everything evaluated here is on the system's plain arrays (term tables, linear rows and
+    the driving rows of :meth:`LoopSystem.driven_by`), so a compiled kernel can replace it.
+
+    Position: Newton's method on the loops with x_i held, from the predictor
+    x + K Δ + ½ L Δ² of the chart's last configuration (branch continuity), checked to keep
+    the sign of det [Φ_x; e_i] (the chart's assembly branch, which cannot change inside a
+    chart: it ends before its own singularity).
+    """
+
+    has_closed_form = False
+
+    def __init__(self, system: "loops.LoopSystem", x0):
+        self.system = system
+        self.x0 = np.array(x0, dtype=float)
+        self.coordinate_names = system.coordinate_names
+        self.drive = np.array(system.drive, dtype=float)
+        unit = np.array([name.endswith(".angle") for name in system.coordinate_names])
+        self._angles = unit
+        self._driven = tuple(system.driven_by(i) for i in range(system.n))
+        self.loops = ()
+        self.bodies = {}
+
+    def input_value(self, x: np.ndarray) -> float:
+        return float(self.drive @ x)
+
+    def input_rate(self, K: np.ndarray) -> float:
+        return float(self.drive @ K)
+
+    def input_curvature(self, L: np.ndarray) -> float:
+        return float(self.drive @ L)
+
+    def angle_columns(self) -> np.ndarray:
+        return self._angles
+
+    def assemble(self, q: float) -> np.ndarray:
+        """The scene's assembled configuration when q is its q0; else Newton from it."""
+        if q == self.input_value(self.x0):
+            return self.x0.copy()
+        try:
+            return loops.assemble(self.system, q, self.x0)
+        except loops.AssemblyError as exc:
+            raise AssemblyError(str(exc)) from None
+
+    def loop_residual(self, x: np.ndarray) -> np.ndarray:
+        return loops.constraint_residual(self.system, x)
+
+    def loop_jacobian(self, x: np.ndarray) -> np.ndarray:
+        return loops.constraint_jacobian(self.system, x)
+
+    def conditioning(self, x: np.ndarray) -> np.ndarray:
+        return loops.conditioning(self.system, x)
+
+    def chart_sign(self, x: np.ndarray, independent: int) -> int:
+        """Sign of det [Φ_x; e_i] (= ± det Φ_dep): constant inside a chart."""
+        A = np.vstack([loops.constraint_jacobian(self.system, x), self._driven[independent].drive])
+        return 1 if np.linalg.det(A) >= 0.0 else -1
+
+    def branch_of(self, x: np.ndarray) -> int:
+        return 0  # the general path tracks assembly modes (loops.assembly_modes), not a ±1
+
+    def solve(self, x_guess: np.ndarray, independent: int, value: float, sign: int) -> Kinematics:
+        """Close the loops with x_i = value by Newton's method from ``x_guess``, on the chart's
+        branch (``sign`` of det [Φ_x; e_i]); K, L with respect to x_i."""
+        name = self.coordinate_names[independent]
+        try:
+            x = loops.assemble(self._driven[independent], value, x_guess)
+        except loops.AssemblyError as exc:
+            raise SingularPositionError(f"Newton's method did not close the loops with {name} = "
+                                        f"{value:.15g} held: {exc}") from None
+        if self.chart_sign(x, independent) != sign:
+            raise SingularPositionError(f"Newton's method left the assembly branch at {name} = {value:.15g}")
+        return self.coefficients_at(x, independent)
+
+    def coefficients_at(self, x: np.ndarray, independent: int) -> Kinematics:
+        """K = dx/dx_i and L = d²x/dx_i² at an assembled x (:func:`reduced.loops.coefficients`)."""
+        K, L = loops.coefficients(self._driven[independent], x)
+        return Kinematics(x=np.asarray(x, dtype=float), K=K, L=L)
 
 
 def _wrap(angle: float) -> float:

@@ -1,10 +1,11 @@
 """Generalized coordinate partitioning (Wehage & Haug) for Eksergian's equation.
 
-The equation 𝔍 ẍ_i + ζ ẋ_i² + dV/dx_i = Q_i holds with any joint angle x_i as the
-coordinate. At the input link's dead centre (coupler and rocker collinear) the input
-angle q cannot serve: K = dφ/dq → ∞. The driver integrates in the coordinate whose
-dependent loop Jacobian is best conditioned (:meth:`LoopLinkage.conditioning`) and switches,
-with hysteresis, when the current one falls below ``HYSTERESIS`` times the best:
+The equation 𝔍 ẍ_i + ζ ẋ_i² + dV/dx_i = Q_i holds with any joint coordinate x_i as the
+coordinate: a body's angle or a slider's displacement. At the input's dead centre (of a
+crank, or of a slider driving a slider-crank) the input q cannot serve: K = dx/dq → ∞. The
+driver integrates in the coordinate whose dependent loop Jacobian is best conditioned
+(:meth:`LoopLinkage.conditioning`, over all joint coordinates) and switches, with
+hysteresis, when the current one falls below ``HYSTERESIS`` times the best:
 
     switch when  c_i(x) < HYSTERESIS · max_j c_j(x);   ẋ_j = K_j ẋ_i  (K w.r.t. x_i).
 
@@ -22,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import loops
 from .dynamics import Coefficients, MechanismModel
 from .errors import NumericalFailure
 from .integrators import Solution
@@ -30,6 +32,11 @@ from .trajectory import Trajectory
 
 HYSTERESIS = 0.5  # switch when the current coordinate is less than half as well conditioned
 MAX_SWITCHES = 10_000
+# General path: a Newton correction larger than this fraction of the predicted motion |K Δ|
+# means the jump was too long for the quadratic predictor (its error is O(Δ³)); the jump is
+# then halved, at most MAX_HALVINGS times (each halving doubles the depth of the walk).
+PREDICTOR_TRUST = 0.25
+MAX_HALVINGS = 30
 
 
 @dataclass(frozen=True)
@@ -45,10 +52,12 @@ class Switch:
 
 @dataclass(frozen=True)
 class JointTrajectory:
-    """Every joint angle along a run.
+    """Every joint coordinate along a run, in the coordinates of :class:`reduced.loops.LoopSystem`.
 
-    t (n,) s; x (n, m) rad; xdot (n, m) rad/s; coordinate (n,) index of the independent
-    angle used at each sample; branch (n,) the assembly branch (±1) at each sample.
+    names (m,) its coordinate names; t (n,) s; x (n, m) rad or m (angles unwrapped);
+    xdot (n, m) rad/s or m/s; coordinate (n,) index of the independent coordinate used at
+    each sample (−1 for an engine without charts, MuJoCo); mode (n, loops) int, the
+    assembly mode (:func:`reduced.loops.assembly_modes`) at each sample.
     """
 
     names: tuple[str, ...]
@@ -56,7 +65,7 @@ class JointTrajectory:
     x: np.ndarray
     xdot: np.ndarray
     coordinate: np.ndarray
-    branch: np.ndarray
+    mode: np.ndarray
 
 
 class Chart:
@@ -67,7 +76,7 @@ class Chart:
         self.linkage = model.linkage
         self.independent = independent
         self.name = self.linkage.coordinate_names[independent]
-        self.branch = self.linkage.branch_of(start.x)
+        self.branch = self.linkage.branch_of(start.x) if self.linkage.has_closed_form else 0
         self.sign = self.linkage.chart_sign(start.x, independent)
         self._start = start
         self._last = start
@@ -87,24 +96,49 @@ class Chart:
             return self._memo[1]
         if self._closed_form:
             kin = self.linkage.kinematics(value, self.branch)
-        else:
+        elif self.linkage.has_closed_form:  # the four-bar's dyad closed form (the guess picks the turn)
             last = self._last
             delta = value - last.x[self.independent]
             guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
             kin = self.linkage.solve(guess, self.independent, value, self.sign)
             self._last = kin
+        else:
+            kin = self._continue(self._last, value, MAX_HALVINGS)
+            self._last = kin
         self._memo = (value, kin)
         return kin
+
+    def _continue(self, last: Kinematics, value: float, halvings: int) -> Kinematics:
+        """Newton from the predictor x + K Δ + ½ L Δ² of ``last``; a jump whose Newton
+        correction exceeds ``PREDICTOR_TRUST`` × the predicted motion |K Δ| (or that fails)
+        is taken in two halves. Along a chart the configuration is a function of x_i
+        (implicit function theorem, the branch fixed by the chart's sign), so walking back
+        to an earlier value, as the dense output of an adaptive run does, finds the same
+        configuration, in the same turn."""
+        i = self.independent
+        delta = value - last.x[i]
+        guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
+        try:
+            kin = self.linkage.solve(guess, i, value, self.sign)
+            ok = float(np.max(np.abs(kin.x - guess))) <= PREDICTOR_TRUST * float(np.max(np.abs(last.K * delta)))
+        except NumericalFailure:
+            if halvings <= 0:
+                raise
+            ok, kin = False, None
+        if ok or halvings <= 0:
+            return kin
+        middle = self._continue(last, last.x[i] + 0.5 * delta, halvings - 1)
+        return self._continue(middle, value, halvings - 1)
 
     def coefficients(self, value: float) -> Coefficients:
         return self.model.coefficients_from(self.kinematics(value))
 
     def rhs_on_piece(self, start: float, end: float):
         """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history."""
-        torque = self.model.torque_on_piece(start, end)
+        load = self.model.load_on_piece(start, end)
 
         def f(t: float, value: float, rate: float) -> float:
-            return self.coefficients(value).acceleration(torque(t), rate)
+            return self.coefficients(value).acceleration(load(t), rate)
 
         return f
 
@@ -130,7 +164,7 @@ class PartitionedSolution:
 
     segments: tuple[tuple[Chart, Solution], ...]
     switches: tuple[Switch, ...]
-    trajectory: Trajectory  # the input link q, q̇, q̈
+    trajectory: Trajectory  # the input q, q̇, q̈
     joints: JointTrajectory
     n_steps: int
     n_evaluations: int
@@ -148,10 +182,11 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
     x0 = linkage.assemble(scene.q0)
     i = best_coordinate(model, x0)
     kin = linkage.coefficients_at(x0, i)
-    if scene.qdot0 != 0.0 and abs(kin.K[0]) < 1e-12:
-        raise NumericalFailure("singular", f"the input link is at a dead centre at q0 = {scene.q0} rad, "
-                               "where its speed must be zero")
-    rate = scene.qdot0 / kin.K[0] if scene.qdot0 != 0.0 else 0.0
+    input_rate = linkage.input_rate(kin.K)
+    if scene.qdot0 != 0.0 and abs(input_rate) < 1e-12:
+        raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
+                               f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
+    rate = scene.qdot0 / input_rate if scene.qdot0 != 0.0 else 0.0
     t = 0.0
     segments, switches = [], []
     while True:
@@ -174,7 +209,7 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
         rate = rate_old * old.K[j]  # ẋ_j = K_j ẋ_i, K w.r.t. the old coordinate
         switches.append(Switch(t, chart.name, linkage.coordinate_names[j], float(c[i]), float(c[j])))
         i = j
-    input_traj, joints = _assemble_outputs(segments)
+    input_traj, joints = _assemble_outputs(model, segments)
     first = segments[0][1]
     return PartitionedSolution(
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
@@ -182,26 +217,32 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
         method=first.method, settings=first.settings)
 
 
-def _assemble_outputs(segments) -> tuple[Trajectory, JointTrajectory]:
-    """The input link's trajectory and all joint angles, from every chart's samples.
+def _assemble_outputs(model: MechanismModel, segments) -> tuple[Trajectory, JointTrajectory]:
+    """The input's trajectory and all joint coordinates, from every chart's samples.
 
-    q = x[0], q̇ = K_0 ẋ_i, q̈ = L_0 ẋ_i² + K_0 ẍ_i (K, L w.r.t. the chart's coordinate).
+    q = drive·x, q̇ = (drive·K) ẋ_i, q̈ = (drive·L) ẋ_i² + (drive·K) ẍ_i (K, L w.r.t. the
+    chart's coordinate x_i).
     """
-    ts, qs, vs, accs, xs, xdots, coords = [], [], [], [], [], [], []
+    ts, vs, accs, xs, xdots, coords = [], [], [], [], [], []
+    linkage = model.linkage
     for chart, solution in segments:
         chart.reset()
         tr = solution.trajectory
         for t, value, rate, accel in zip(tr.t, tr.q, tr.qdot, tr.qddot):
             kin = chart.kinematics(float(value))
+            k_q = linkage.input_rate(kin.K)
             ts.append(t)
-            qs.append(kin.x[0])
-            vs.append(kin.K[0] * rate)
-            accs.append(kin.L[0] * rate * rate + kin.K[0] * accel)
+            vs.append(k_q * rate)
+            accs.append(linkage.input_curvature(kin.L) * rate * rate + k_q * accel)
             xs.append(kin.x)
             xdots.append(kin.K * rate)
             coords.append(chart.independent)
-    linkage = segments[0][0].linkage
-    x = np.unwrap(np.array(xs), axis=0)  # continuous angles (no 2π jumps)
-    joints = JointTrajectory(linkage.coordinate_names, np.array(ts), x, np.array(xdots), np.array(coords),
-                             linkage.branches(x))
-    return Trajectory(np.array(ts), x[:, 0], np.array(vs), np.array(accs)), joints
+    x = np.array(xs)
+    angles = linkage.angle_columns()
+    x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
+    q = x[:, linkage.input_index] if linkage.has_closed_form else x @ model.system.drive
+    general = linkage.to_general(x)
+    joints = JointTrajectory(model.system.coordinate_names, np.array(ts), general,
+                             linkage.to_general_rates(np.array(xdots)), np.array(coords),
+                             loops.assembly_modes(model.system, general).reshape(len(ts), -1))
+    return Trajectory(np.array(ts), q, np.array(vs), np.array(accs)), joints

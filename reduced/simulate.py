@@ -164,7 +164,7 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
     ValueError
         Naming the setting or scene key to change.
     """
-    horizon, edges = scene.horizon, len(scene.torque.edges) if scene.torque is not None else 0
+    horizon, edges = scene.horizon, len(scene.load.edges) if scene.load is not None else 0
     if settings.method == "rkn4":
         samples = horizon / settings.step + 2 * edges
         if samples > MAX_SAMPLES:
@@ -198,6 +198,7 @@ class ErrorEstimate:
     tolerance: float
     step: float
     wall_s: float
+    unit: str = "rad"  # of q (the keys of as_dict keep their historical "_rad" names)
 
     @property
     def relative(self) -> float:
@@ -207,7 +208,7 @@ class ErrorEstimate:
         return {"q_abs_rad": self.q_abs, "qdot_abs_rad_per_s": self.qdot_abs, "q_scale_rad": self.q_scale,
                 "qdot_scale_rad_per_s": self.qdot_scale, "relative": self.relative,
                 "tolerance": self.tolerance, "method": "step doubling (Richardson, order 4)",
-                "step_s": self.step, "wall_s": self.wall_s}
+                "step_s": self.step, "wall_s": self.wall_s, "unit": self.unit}
 
 
 def richardson_estimate(fine: Trajectory, coarse: Trajectory, weight: float) -> tuple[float, float]:
@@ -242,7 +243,7 @@ def estimate_error(model: MechanismModel, settings: ReducedSettings, solution: P
             q_abs = v_abs = math.nan
     return ErrorEstimate(q_abs, v_abs, max(1.0, float(np.max(np.abs(fine.q)))),
                          max(1.0, float(np.max(np.abs(fine.qdot)))), settings.rtol, settings.step,
-                         time.perf_counter() - start)
+                         time.perf_counter() - start, model.scene.input_unit)
 
 
 def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> EngineResult:
@@ -278,11 +279,12 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     if settings.method == "rkn4":
         estimate = estimate_error(model, settings, solution)
         diagnostics["error_estimate"] = estimate.as_dict()
+        unit = scene.input_unit
         if settings.check_error and not estimate.relative <= settings.rtol:
             raise NumericalFailure(
                 "inaccurate", f"RKN4 at step {settings.step:g} s estimates its own error (step doubling) at "
-                f"{estimate.relative:.2e} of the run's scale ({estimate.q_abs:.2e} rad in q, "
-                f"{estimate.qdot_abs:.2e} rad/s in q̇ at speeds up to {estimate.qdot_scale:.4g} rad/s), above "
+                f"{estimate.relative:.2e} of the run's scale ({estimate.q_abs:.2e} {unit} in q, "
+                f"{estimate.qdot_abs:.2e} {unit}/s in q̇ at speeds up to {estimate.qdot_scale:.4g} {unit}/s), above "
                 f"the tolerance rtol = {settings.rtol:g}: use a smaller step (`--step`, `[reduced] step`; about "
                 f"{settings.step * (settings.rtol / estimate.relative / 2) ** 0.25:.2g} s) or a looser rtol")
     audit = energy_audit(model, solution.segments)
@@ -304,7 +306,7 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
 
 def energy_scale(audit, solution: PartitionedSolution) -> float:
     """The energy (J) the gate's relative residual is measured against: the audit's scale
-    (largest |W_torque|, T, |V − V0|), but at least the kinetic energy ½ 𝔍0 (1 rad/s)² of the
+    (largest |W_torque|, T, |V − V0|), but at least the kinetic energy ½ 𝔍0 (1 rad/s or 1 m/s)² of the
     initial configuration at unit speed, so that a run in which almost nothing moves (a pulse
     of 1e-12 s, a 1e30 kg coupler: scales of 1e-21 J and less) is judged by round-off, not by a
     relative figure of nothing. The floor is the same as the error estimate's |q̇| ≥ 1 rad/s."""
