@@ -166,6 +166,7 @@ class LoopLinkage:
     bodies: dict[str, Body]
     has_closed_form: bool = False  # kinematics(q, branch) is a closed form with q independent
     input_index: int = 0  # the input q is x[input_index] (closed forms); see input_rate
+    input_coordinate: int | None = 0  # index of q among the coordinates, None when q is not one
 
     def input_value(self, x: np.ndarray) -> float:
         """q = drive·x (rad or m)."""
@@ -461,6 +462,9 @@ class GeneralLinkage(LoopLinkage):
         self.x0 = np.array(x0, dtype=float)
         self.coordinate_names = system.coordinate_names
         self.drive = np.array(system.drive, dtype=float)
+        unit_rows = np.flatnonzero(self.drive)
+        self.input_coordinate = (int(unit_rows[0]) if len(unit_rows) == 1 and self.drive[unit_rows[0]] == 1.0
+                                 else None)  # a revolute between two moving bodies drives θ_b − θ_a
         unit = np.array([name.endswith(".angle") for name in system.coordinate_names])
         self._angles = unit
         self._driven = tuple(system.driven_by(i) for i in range(system.n))
@@ -507,21 +511,68 @@ class GeneralLinkage(LoopLinkage):
 
     def solve(self, x_guess: np.ndarray, independent: int, value: float, sign: int) -> Kinematics:
         """Close the loops with x_i = value by Newton's method from ``x_guess``, on the chart's
-        branch (``sign`` of det [Φ_x; e_i]); K, L with respect to x_i."""
+        branch (``sign`` of det [Φ_x; e_i]); K, L with respect to x_i.
+
+        Newton on Φ(x) = 0 with x_i held until every residual is ≤ ``NEWTON_TOL`` (m or rad),
+        then one more step (round-off), at most ``NEWTON_MAX_ITER`` iterations; the last
+        Jacobian gives K and L (:func:`reduced.loops.coefficients`' equations).
+        """
+        system, name = self.system, self.coordinate_names[independent]
+        x = np.array(x_guess, dtype=float)
+        x[independent] = value
+        e_i = self._driven[independent].drive
+        polished = False
+        for _ in range(NEWTON_MAX_ITER):
+            F = loops.constraint_residual(system, x)
+            A = np.vstack([loops.constraint_jacobian(system, x), e_i])
+            if polished:
+                break
+            if not np.all(np.isfinite(F)):
+                break
+            polished = float(np.max(np.abs(F))) <= NEWTON_TOL
+            try:
+                x = x - np.linalg.solve(A, np.append(F, 0.0))
+            except np.linalg.LinAlgError:
+                break
+        else:
+            polished = False
+        if not polished or not np.all(np.isfinite(x)):
+            raise SingularPositionError(f"Newton's method did not close the loops with {name} = {value:.15g} "
+                                        f"held: the position is singular or unreachable from the predictor")
+        return self._coefficients(A, x, independent, sign)
+
+    def _coefficients(self, A: np.ndarray, x: np.ndarray, independent: int, sign: int | None) -> Kinematics:
+        """K, L from A = [Φ_x; e_i] at x; refuses a singular A and, with ``sign``, another branch."""
+        det = np.linalg.det(A)
+        norms = np.prod(np.linalg.norm(A[:-1], axis=0)[np.arange(len(x)) != independent])
         name = self.coordinate_names[independent]
-        try:
-            x = loops.assemble(self._driven[independent], value, x_guess)
-        except loops.AssemblyError as exc:
-            raise SingularPositionError(f"Newton's method did not close the loops with {name} = "
-                                        f"{value:.15g} held: {exc}") from None
-        if self.chart_sign(x, independent) != sign:
-            raise SingularPositionError(f"Newton's method left the assembly branch at {name} = {value:.15g}")
-        return self.coefficients_at(x, independent)
+        if not (norms > 0.0 and abs(det) / norms >= SINGULAR_DETERMINANT):
+            raise SingularPositionError(f"dead-centre position: {name} = {x[independent]:.15g} cannot drive the "
+                                        "linkage (the loop Jacobian of the other coordinates is singular)")
+        if sign is not None and (1 if det >= 0.0 else -1) != sign:
+            raise SingularPositionError(f"Newton's method left the assembly branch at {name} = {x[independent]:.15g}")
+        n = len(x)
+        rhs = np.zeros(n)
+        rhs[-1] = 1.0
+        K = np.linalg.solve(A, rhs)
+        _, gamma = loops.rates(self.system.loops, x, K)
+        rhs = np.zeros(n)
+        rhs[:gamma.size] = -gamma.ravel()
+        L = np.linalg.solve(A, rhs)
+        return Kinematics(x=x, K=K, L=L)
 
     def coefficients_at(self, x: np.ndarray, independent: int) -> Kinematics:
-        """K = dx/dx_i and L = d²x/dx_i² at an assembled x (:func:`reduced.loops.coefficients`)."""
-        K, L = loops.coefficients(self._driven[independent], x)
-        return Kinematics(x=np.asarray(x, dtype=float), K=K, L=L)
+        """K = dx/dx_i and L = d²x/dx_i² at an assembled x (the equations of
+        :func:`reduced.loops.coefficients`, with x_i driving)."""
+        x = np.asarray(x, dtype=float)
+        A = np.vstack([loops.constraint_jacobian(self.system, x), self._driven[independent].drive])
+        return self._coefficients(A, x, independent, None)
+
+
+# General path's Newton iteration: converged at residuals ≤ 1e-12 (m or rad) plus one step,
+# as loops.assemble; from the chart's quadratic predictor it takes 2–3 iterations.
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 20
 
 
 def _wrap(angle: float) -> float:
