@@ -166,6 +166,7 @@ class LoopLinkage:
     bodies: dict[str, Body]
     has_closed_form: bool = False  # kinematics(q, branch) is a closed form with q independent
     input_index: int = 0  # the input q is x[input_index] (closed forms); see input_rate
+    input_coordinate: int | None = 0  # index of q among the coordinates, None when q is not one
 
     def input_value(self, x: np.ndarray) -> float:
         """q = drive·x (rad or m)."""
@@ -440,6 +441,56 @@ class FourBar(LoopLinkage):
         return Kinematics(x=x, K=np.array([1.0, k1, k2]), L=np.array([0.0, l1, l2]))
 
 
+class _LoopKernel:
+    """Φ, Φ_x and γ of a loop system on precomputed flat index arrays (np.bincount instead of
+    np.add.at: the general path's hot loop). Same equations as :mod:`reduced.loops`."""
+
+    def __init__(self, system: "loops.LoopSystem"):
+        t, n = system.loops, system.n
+        self.n, self.rows = n, t.rows
+        self.offset = t.offset.ravel()  # (2R,) x0, y0, x1, y1, ...
+        self.row = t.row
+        self.coef, self.phase = t.coef, t.phase
+        self.mag = np.where(t.mag >= 0, t.mag, n)  # index n: the appended 1 (or 0 for rates)
+        self.angle = np.where(t.angle >= 0, t.angle, n)
+        ha, hm = t.angle >= 0, t.mag >= 0
+        self.ha, self.hm = ha, hm
+        rx, ry = 2 * t.row * n, (2 * t.row + 1) * n
+        self.jac_index = np.concatenate([rx[ha] + t.angle[ha], ry[ha] + t.angle[ha],
+                                         rx[hm] + t.mag[hm], ry[hm] + t.mag[hm]])
+        self.size = 2 * t.rows * n
+        self.linear = system.linear
+
+    def _terms(self, x):
+        m = self.coef * np.append(x, 1.0)[self.mag]
+        th = np.append(x, 0.0)[self.angle] + self.phase
+        return m, np.cos(th), np.sin(th)
+
+    def residual_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        m, c, s = self._terms(x)
+        R = self.rows
+        F = self.offset.copy()
+        F[0::2] += np.bincount(self.row, m * c, minlength=R)
+        F[1::2] += np.bincount(self.row, m * s, minlength=R)
+        ha, hm = self.ha, self.hm
+        w = np.concatenate([-(m * s)[ha], (m * c)[ha], (self.coef * c)[hm], (self.coef * s)[hm]])
+        J = np.bincount(self.jac_index, w, minlength=self.size).reshape(2 * R, self.n)
+        if self.linear.size:
+            J = np.vstack([J, self.linear])
+            F = np.concatenate([F, self.linear @ x])  # linear_rhs is zero (compile_linkage)
+        return F, J
+
+    def gamma(self, x: np.ndarray, K: np.ndarray) -> np.ndarray:
+        """The part of d²Φ/dx_i² without L, shape (2R,)."""
+        m, c, s = self._terms(x)
+        thd = np.append(K, 0.0)[self.angle]
+        md = self.coef * np.append(K, 0.0)[self.mag]
+        g = np.empty(2 * self.rows)
+        g[0::2] = np.bincount(self.row, -2.0 * md * thd * s - m * thd * thd * c, minlength=self.rows)
+        g[1::2] = np.bincount(self.row, 2.0 * md * thd * c - m * thd * thd * s, minlength=self.rows)
+        return g
+
+
 class GeneralLinkage(LoopLinkage):
     """Any one-DOF loop system (:mod:`reduced.loops`), with any coordinate independent.
 
@@ -461,9 +512,14 @@ class GeneralLinkage(LoopLinkage):
         self.x0 = np.array(x0, dtype=float)
         self.coordinate_names = system.coordinate_names
         self.drive = np.array(system.drive, dtype=float)
+        unit_rows = np.flatnonzero(self.drive)
+        self.input_coordinate = (int(unit_rows[0]) if len(unit_rows) == 1 and self.drive[unit_rows[0]] == 1.0
+                                 else None)  # a revolute between two moving bodies drives θ_b − θ_a
         unit = np.array([name.endswith(".angle") for name in system.coordinate_names])
         self._angles = unit
         self._driven = tuple(system.driven_by(i) for i in range(system.n))
+        self._kernel = _LoopKernel(system)
+        assert not np.any(system.linear_rhs), "the kernel takes linear_rhs = 0"
         self.loops = ()
         self.bodies = {}
 
@@ -507,21 +563,70 @@ class GeneralLinkage(LoopLinkage):
 
     def solve(self, x_guess: np.ndarray, independent: int, value: float, sign: int) -> Kinematics:
         """Close the loops with x_i = value by Newton's method from ``x_guess``, on the chart's
-        branch (``sign`` of det [Φ_x; e_i]); K, L with respect to x_i."""
+        branch (``sign`` of det [Φ_x; e_i]); K, L with respect to x_i.
+
+        Newton on Φ(x) = 0 with x_i held until every residual is ≤ ``NEWTON_TOL`` (m or rad),
+        then one more step (round-off), at most ``NEWTON_MAX_ITER`` iterations; the last
+        Jacobian gives K and L (:func:`reduced.loops.coefficients`' equations).
+        """
+        system, name = self.system, self.coordinate_names[independent]
+        x = np.array(x_guess, dtype=float)
+        x[independent] = value
+        e_i = self._driven[independent].drive
+        polished = False
+        kernel = self._kernel
+        for _ in range(NEWTON_MAX_ITER):
+            F, J = kernel.residual_and_jacobian(x)
+            A = np.vstack([J, e_i])
+            if polished:
+                break
+            if not np.all(np.isfinite(F)):
+                break
+            polished = float(np.max(np.abs(F))) <= NEWTON_TOL
+            try:
+                x = x - np.linalg.solve(A, np.append(F, 0.0))
+            except np.linalg.LinAlgError:
+                break
+        else:
+            polished = False
+        if not polished or not np.all(np.isfinite(x)):
+            raise SingularPositionError(f"Newton's method did not close the loops with {name} = {value:.15g} "
+                                        f"held: the position is singular or unreachable from the predictor")
+        return self._coefficients(A, x, independent, sign)
+
+    def _coefficients(self, A: np.ndarray, x: np.ndarray, independent: int, sign: int | None) -> Kinematics:
+        """K, L from A = [Φ_x; e_i] at x; refuses a singular A and, with ``sign``, another branch."""
+        det = np.linalg.det(A)
+        norms = np.prod(np.linalg.norm(A[:-1], axis=0)[np.arange(len(x)) != independent])
         name = self.coordinate_names[independent]
-        try:
-            x = loops.assemble(self._driven[independent], value, x_guess)
-        except loops.AssemblyError as exc:
-            raise SingularPositionError(f"Newton's method did not close the loops with {name} = "
-                                        f"{value:.15g} held: {exc}") from None
-        if self.chart_sign(x, independent) != sign:
-            raise SingularPositionError(f"Newton's method left the assembly branch at {name} = {value:.15g}")
-        return self.coefficients_at(x, independent)
+        if not (norms > 0.0 and abs(det) / norms >= SINGULAR_DETERMINANT):
+            raise SingularPositionError(f"dead-centre position: {name} = {x[independent]:.15g} cannot drive the "
+                                        "linkage (the loop Jacobian of the other coordinates is singular)")
+        if sign is not None and (1 if det >= 0.0 else -1) != sign:
+            raise SingularPositionError(f"Newton's method left the assembly branch at {name} = {x[independent]:.15g}")
+        n = len(x)
+        rhs = np.zeros(n)
+        rhs[-1] = 1.0
+        K = np.linalg.solve(A, rhs)
+        gamma = self._kernel.gamma(x, K)
+        rhs = np.zeros(n)
+        rhs[:gamma.size] = -gamma
+        L = np.linalg.solve(A, rhs)
+        return Kinematics(x=x, K=K, L=L)
 
     def coefficients_at(self, x: np.ndarray, independent: int) -> Kinematics:
-        """K = dx/dx_i and L = d²x/dx_i² at an assembled x (:func:`reduced.loops.coefficients`)."""
-        K, L = loops.coefficients(self._driven[independent], x)
-        return Kinematics(x=np.asarray(x, dtype=float), K=K, L=L)
+        """K = dx/dx_i and L = d²x/dx_i² at an assembled x (the equations of
+        :func:`reduced.loops.coefficients`, with x_i driving)."""
+        x = np.asarray(x, dtype=float)
+        _, J = self._kernel.residual_and_jacobian(x)
+        A = np.vstack([J, self._driven[independent].drive])
+        return self._coefficients(A, x, independent, None)
+
+
+# General path's Newton iteration: converged at residuals ≤ 1e-12 (m or rad) plus one step,
+# as loops.assemble; from the chart's quadratic predictor it takes 2–3 iterations.
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 20
 
 
 def _wrap(angle: float) -> float:

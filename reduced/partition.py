@@ -37,6 +37,9 @@ MAX_SWITCHES = 10_000
 # then halved, at most MAX_HALVINGS times (each halving doubles the depth of the walk).
 PREDICTOR_TRUST = 0.25
 MAX_HALVINGS = 30
+# A correction this small (rad or m) is always trusted: Newton's polish alone moves x by
+# ~1e-16, and two assemblies are never this close except at a singular position.
+TRUSTED_CORRECTION = 1e-9
 
 
 @dataclass(frozen=True)
@@ -120,7 +123,7 @@ class Chart:
         guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
         try:
             kin = self.linkage.solve(guess, i, value, self.sign)
-            ok = float(np.max(np.abs(kin.x - guess))) <= PREDICTOR_TRUST * float(np.max(np.abs(last.K * delta)))
+            ok = float(np.max(np.abs(kin.x - guess))) <= PREDICTOR_TRUST * float(np.max(np.abs(last.K * delta))) + TRUSTED_CORRECTION
         except NumericalFailure:
             if halvings <= 0:
                 raise
@@ -149,11 +152,11 @@ class Chart:
 
 
 def best_coordinate(model: MechanismModel, x: np.ndarray, current: int | None = None) -> int:
-    """The best-conditioned coordinate, keeping ``current`` (or the input angle) unless
-    another is better by more than the hysteresis factor."""
+    """The best-conditioned coordinate, keeping ``current`` (or the input joint's coordinate,
+    when q is one) unless another is better by more than the hysteresis factor."""
     c = model.linkage.conditioning(x)
-    keep = 0 if current is None else current
-    if c[keep] >= HYSTERESIS * np.max(c):
+    keep = model.linkage.input_coordinate if current is None else current
+    if keep is not None and c[keep] >= HYSTERESIS * np.max(c):
         return keep
     return int(np.argmax(c))
 

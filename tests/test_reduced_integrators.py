@@ -117,7 +117,7 @@ def test_pulse_edge_inside_a_step_keeps_fourth_order():
     reference = simulate(scene, REFERENCE)
     errors = [max_q_error(simulate(scene, rkn4_unchecked(h)), reference) for h in ORDER_STEPS]
     assert_order(ORDER_STEPS, errors)
-    edge = scene.torque.start + scene.torque.duration
+    edge = scene.load.start + scene.load.duration
     result = simulate(scene, rkn4_unchecked(1e-3))
     assert np.sum(result.trajectory.t == edge) == 2  # a sample on each side of the jump
 

@@ -201,17 +201,20 @@ def test_default_scene_is_the_seed_example():
     assert default_scene_path() == SEED_SCENE.resolve()
     scene = load_scene(default_scene_path())
     assert scene.effects == ("torque", "damper")
-    g = scene.linkage
+    g = scene.four_bar
     assert (g.c1, g.c2, g.c3, g.c4, g.branch) == (0.5, 0.9, 0.7, 1.0, 1)
-    crank, coupler, rocker = (scene.bodies[b] for b in ("crank", "coupler", "rocker"))
-    assert crank.pivot_inertia == 1.5 and rocker.pivot_inertia == 3.5
-    assert (coupler.mass, coupler.centroidal_inertia, coupler.com) == (40.0, 5.0, (0.5111, 0.1333))
-    (damper,) = scene.dampers
-    assert (damper.coefficient, damper.ground_point, damper.body, damper.body_point) == (
-        55.0, (1.3, 0.12), "coupler", (0.9, 0.0))
-    assert scene.torque(0.0) == 250.0 and scene.torque(0.999) == 250.0 and scene.torque(1.0) == 0.0
-    assert scene.torque.edges == (0.0, 1.0)
-    assert (scene.q0, scene.qdot0, scene.horizon, scene.gravity, scene.springs) == (0.2, 0.0, 2.0, None, ())
+    bodies = scene.mechanism.linkage.body_map
+    crank, coupler, rocker = (bodies[b] for b in ("crank", "coupler", "rocker"))
+    assert (crank.mass, crank.inertia) == (0.0, 1.5) and (rocker.mass, rocker.inertia) == (0.0, 3.5)
+    assert (coupler.mass, coupler.inertia, coupler.com) == (40.0, 5.0, (0.5111, 0.1333))
+    (damper,) = scene.mechanism.dampers
+    assert (damper.coefficient, damper.body_a, damper.body_b) == (55.0, "ground", "coupler")
+    assert bodies["ground"].points[damper.point_a] == (1.3, 0.12)
+    assert bodies["coupler"].points[damper.point_b] == (0.9, 0.0)
+    assert scene.load(0.0) == 250.0 and scene.load(0.999) == 250.0 and scene.load(1.0) == 0.0
+    assert scene.load.edges == (0.0, 1.0)
+    assert (scene.q0, scene.qdot0, scene.horizon, scene.gravity, scene.mechanism.springs) == (0.2, 0.0, 2.0, None, ())
+    assert scene.mode == (1,) and scene.input_unit == "rad"
 
 
 def test_scene_from_dict_does_not_modify_its_input():
