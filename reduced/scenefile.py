@@ -631,15 +631,12 @@ def _input_inertia_floor(scene: Scene) -> float | None:
     return body.inertia + body.mass * ((body.com[0] - px) ** 2 + (body.com[1] - py) ** 2)
 
 
-def _generalized_inertia(scene: Scene, system) -> float:
-    """𝔍 at x0: Σ m |K_G|² + I K_θ² (kg·m² or kg)."""
-    x0 = np.asarray(scene.x0)
-    K, L = loops.coefficients(system, x0)
-    kc, _ = loops.rates(system.centres, x0, K, L)
-    linkage = scene.mechanism.linkage
-    bodies = linkage.body_map
-    return float(sum(bodies[b].mass * (kc[i] @ kc[i]) + bodies[b].inertia * K[i] ** 2
-                     for i, b in enumerate(linkage.moving)))
+def _generalized_inertia(scene: Scene) -> float:
+    """𝔍 at x0 (kg·m² or kg), from the reduced model (imported here: dynamics needs the scene
+    types, not the parser)."""
+    from .dynamics import MechanismModel
+
+    return MechanismModel(scene).coefficients_at(np.asarray(scene.x0)).generalized_inertia
 
 
 def speed_bound(scene: Scene, system=None) -> dict[str, float]:
@@ -671,7 +668,7 @@ def speed_bound(scene: Scene, system=None) -> dict[str, float]:
             reach += 2.0 * abs(scene.x0[k])
     initial = 0.0
     if scene.qdot0:  # not at a dead centre (checked before), so 𝔍(q0) is defined
-        initial = math.sqrt(_generalized_inertia(scene, system) / j_low) * abs(scene.qdot0)
+        initial = math.sqrt(_generalized_inertia(scene) / j_low) * abs(scene.qdot0)
     released = 0.0
     for sp in scene.mechanism.springs:
         released += 0.5 * sp.coefficient * max(2.0 * reach - sp.rest_length, sp.rest_length) ** 2
