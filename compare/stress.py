@@ -204,11 +204,11 @@ def _check_reduced_drift(reduced, settings: ReducedSettings, figures: dict, note
 def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dict, notes: list) -> list[str]:
     """MuJoCo's error with the edge off the grid against the same scene with the edge moved
     onto the grid (each against its own reduced reference)."""
-    torque = scene.torque
+    torque = scene.load
     if not isinstance(torque, PulseTorque):
         return ["off-grid case needs a pulse torque"]
     h = settings.timestep
-    on_grid = replace(scene, torque=replace(torque, duration=round(torque.duration / h) * h))
+    on_grid = replace(scene, load=replace(torque, duration=round(torque.duration / h) * h))
 
     def error(s: Scene):
         reference = simulate(s, resolve_reduced(s))

@@ -104,7 +104,7 @@ def test_start_at_dead_centre_uses_another_coordinate(results):
     scene = load_scene(BY_NAME["start_dead_centre"].path)
     result = results("start_dead_centre").reduced
     joints = result.diagnostics["joints"]
-    assert FourBar(scene.linkage).conditioning(joints.x[0])[0] < 1e-9  # exactly at the limit
+    assert FourBar(scene.four_bar).conditioning(joints.x[0])[0] < 1e-9  # exactly at the limit
     assert joints.coordinate[0] != 0
     assert result.audit.relative_residual < 3e-10  # measured 2.9e-11
 
@@ -155,8 +155,8 @@ def test_off_grid_edge_error_is_first_order_in_the_misplacement():
     deltas = np.array([0.37e-3, 0.25e-3, 0.12e-3])
     errors = []
     for delta in deltas:
-        s = replace(scene, torque=replace(scene.torque, duration=1.0 + delta))
-        assert isinstance(s.torque, PulseTorque)
+        s = replace(scene, load=replace(scene.load, duration=1.0 + delta))
+        assert isinstance(s.load, PulseTorque)
         reference = simulate(s, ReducedSettings(**s.reduced))
         with pytest.warns(UserWarning, match="not a multiple of the timestep"):
             other = simulate_mujoco(s, MujocoSettings(**s.mujoco))
