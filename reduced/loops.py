@@ -277,7 +277,7 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     the cut pin P that turn about their tree joints A and B, that is the sign of the cross
     product (P − A) × (P − B), the dyad's "elbow up or down" (+1 for the seed four-bar's
     branch +1). It
-    changes only where that dyad is singular (a limit position). x has shape (n,) or
+    changes only where that dyad is singular (a limit position), where it is 0. x has shape (n,) or
     (samples, n); the result (loops,) or (samples, loops), int.
     """
     X = np.atleast_2d(np.asarray(x, dtype=float))
@@ -286,7 +286,10 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
         J = jacobian(system.loops, row)
         for k, (u, v) in enumerate(system.mode_pairs):
             det = J[2 * k, u] * J[2 * k + 1, v] - J[2 * k, v] * J[2 * k + 1, u]
-            out[i, k] = -int(np.sign(det))
+            scale = math.hypot(J[2 * k, u], J[2 * k + 1, u]) * math.hypot(J[2 * k, v], J[2 * k + 1, v])
+            # At the dyad's limit position (|sin| of the angle between the columns below
+            # SINGULAR_RCOND) the sign is round-off: the mode is 0 there, not ±1.
+            out[i, k] = 0 if abs(det) <= SINGULAR_RCOND * scale else -int(np.sign(det))
     return out[0] if np.ndim(x) == 1 else out
 
 

@@ -81,6 +81,10 @@ class Body:
         object.__setattr__(self, "com", _finite_pair(self.com, f"body {self.name!r}: com"))
         if self.name == GROUND and (self.mass or self.inertia):
             raise MechanismError("the ground does not move: it has no mass or inertia")
+
+    def __reduce__(self):
+        # The read-only points view does not pickle (a scene is sent to worker processes).
+        return (Body, (self.name, dict(self.points), self.mass, self.com, self.inertia))
         if not isinstance(self.points, Mapping):
             raise MechanismError(f"body {self.name!r}: points must be a mapping name → (x, y), "
                                  f"got {type(self.points).__name__}")

@@ -76,7 +76,7 @@ def test_engines_agree_from_a_phi_chart_start(data, switches, q_bound):
 def test_dyad_solution_continues_the_guess_turn():
     """FourBar.solve returns the dependent angles in the 2π turn of its guess, as the generic
     Newton path does (the chart's continuity relies on it)."""
-    linkage = FourBar(scene_from_dict(START_IN_PHI_CHART).linkage)
+    linkage = FourBar(scene_from_dict(START_IN_PHI_CHART).four_bar)
     checked = 0
     for q in np.linspace(-3.0, 3.0, 13):
         try:

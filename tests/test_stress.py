@@ -17,6 +17,7 @@ import pytest
 from compare.diff import compare_modes, compare_trajectories
 from compare.stress import CATALOGUE, CaseResult, run_case
 from reduced import ReducedSettings, load_scene, simulate
+from reduced.linkage import FourBar
 from reduced.loads import PulseTorque
 from reduced.partition import JointTrajectory
 from reference_models import MujocoSettings, build_model, simulate_mujoco
