@@ -19,7 +19,7 @@ import numpy as np
 
 from reduced import NumericalFailure, ReducedSettings, Scene, load_scene, simulate
 from reduced.loads import PulseTorque
-from reduced.scenefile import hard_scene_dir
+from reduced.scenefile import scenes_dir
 from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from reduced.result import EngineResult
@@ -46,19 +46,23 @@ class Case:
 
     @property
     def path(self) -> Path:
-        return hard_scene_dir() / self.scene_file
+        return scenes_dir() / self.scene_file
 
 
 CATALOGUE = (
-    Case("dead_centre", "dead_centre.toml", must_switch=True),
-    Case("start_dead_centre", "start_dead_centre.toml"),
-    Case("near_change_point", "near_change_point.toml"),
-    Case("stiff_damper", "stiff_damper.toml", explicit_step=1e-3, explicit_expect="unstable",
+    Case("dead_centre", "hard/dead_centre.toml", must_switch=True),
+    Case("start_dead_centre", "hard/start_dead_centre.toml"),
+    Case("near_change_point", "hard/near_change_point.toml"),
+    Case("stiff_damper", "hard/stiff_damper.toml", explicit_step=1e-3, explicit_expect="unstable",
          probe_integrators=True),
-    Case("long_conservative", "long_conservative.toml", energy_drift=True),
-    Case("fast_crank", "fast_crank.toml"),
-    Case("off_grid_edge", "off_grid_edge.toml", off_grid_edge=True),
-    Case("gravity", "gravity.toml", energy_drift=True),
+    Case("long_conservative", "hard/long_conservative.toml", energy_drift=True),
+    Case("fast_crank", "hard/fast_crank.toml"),
+    Case("off_grid_edge", "hard/off_grid_edge.toml", off_grid_edge=True),
+    Case("gravity", "hard/gravity.toml", energy_drift=True),
+    # General linkages: a slider-driven slider-crank through its dead centres (the slide cannot
+    # drive there: the reduced solver must change coordinate), a six-bar near a toggle.
+    Case("slider_dead_centres", "mechanisms/slider_crank_driven_slider.toml", must_switch=True),
+    Case("sixbar_near_toggle", "mechanisms/stephenson3_near_toggle.toml"),
 )
 
 

@@ -46,7 +46,7 @@ def test_wheel_contains_every_scene(tmp_path):
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    code = ("from reduced.scene import default_scene_path, hard_scene_dir, load_scene; "
+    code = ("from reduced.scenefile import default_scene_path, hard_scene_dir, load_scene; "
             "print(default_scene_path()); print(load_scene(default_scene_path()).name); "
             "print(len([load_scene(p) for p in hard_scene_dir().glob('*.toml')]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
