@@ -19,9 +19,8 @@ calls, per call.
 
     python benchmarks/general_vs_closed_form.py [--calls 2000] [--repeats 5]
 
-ADAPT (lead): ``engine_f`` and ``closed_form_f`` are the only two functions that touch the
-engine's API; they follow the current reduced/dynamics.py and reduced/partition.py (Chart,
-``rhs_on_piece``) and print "not available: <reason>" while the engine is being ported.
+Every f is taken on the first smooth piece of the load history, (0, first load edge), so the
+load at t = 0 is the one the integrators see there.
 """
 
 from __future__ import annotations
@@ -50,8 +49,15 @@ def engine_f(scene) -> F:
 
     model = MechanismModel(scene)
     x0 = np.asarray(scene.x0)
-    start = model.linkage.coefficients_at(x0, 0)
-    return Chart(model, 0, start).rhs_on_piece(0.0, scene.horizon)
+    i = model.linkage.input_coordinate  # the input is a coordinate in every catalogue scene
+    start = model.linkage.coefficients_at(x0, i)
+    return Chart(model, i, start).rhs_on_piece(0.0, first_piece_end(scene))
+
+
+def first_piece_end(scene) -> float:
+    """The end of the load history's first smooth piece (s)."""
+    edges = [e for e in (scene.load.edges if scene.load is not None else ()) if e > 0.0]
+    return min(edges + [scene.horizon])
 
 
 def closed_form_f(scene) -> F:
@@ -62,7 +68,7 @@ def closed_form_f(scene) -> F:
     if scene.four_bar is None:
         raise ValueError("not a four-bar shorthand scene")
     model = MechanismModel(scene, FourBar(scene.four_bar))
-    return model.acceleration_on_piece(0.0, scene.horizon)
+    return model.acceleration_on_piece(0.0, first_piece_end(scene))
 
 
 def loops_f(scene) -> F:
