@@ -281,15 +281,26 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     (samples, n); the result (loops,) or (samples, loops), int.
     """
     X = np.atleast_2d(np.asarray(x, dtype=float))
+    t = system.loops
+    # Every term's magnitude and angle at every sample, shape (samples, terms).
+    m = t.coef * np.where(t.mag >= 0, X[:, np.maximum(t.mag, 0)], 1.0)
+    th = np.where(t.angle >= 0, X[:, np.maximum(t.angle, 0)], 0.0) + t.phase
+    c, sn = np.cos(th), np.sin(th)
     out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
-    for i, row in enumerate(X):
-        J = jacobian(system.loops, row)
-        for k, (u, v) in enumerate(system.mode_pairs):
-            det = J[2 * k, u] * J[2 * k + 1, v] - J[2 * k, v] * J[2 * k + 1, u]
-            scale = math.hypot(J[2 * k, u], J[2 * k + 1, u]) * math.hypot(J[2 * k, v], J[2 * k + 1, v])
-            # At the dyad's limit position (|sin| of the angle between the columns below
-            # SINGULAR_RCOND) the sign is round-off: the mode is 0 there, not ±1.
-            out[i, k] = 0 if abs(det) <= SINGULAR_RCOND * scale else -int(np.sign(det))
+    for k, (u, v) in enumerate(system.mode_pairs):
+        def column(i):
+            """∂(loop k)/∂x_i at every sample: (x, y), each shape (samples,)."""
+            by_angle = (t.row == k) & (t.angle == i)
+            by_mag = (t.row == k) & (t.mag == i)
+            jx = -(m[:, by_angle] * sn[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * c[:, by_mag]).sum(axis=1)
+            jy = (m[:, by_angle] * c[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * sn[:, by_mag]).sum(axis=1)
+            return jx, jy
+        (ux, uy), (vx, vy) = column(u), column(v)
+        det = ux * vy - vx * uy
+        # At the dyad's limit position (|sin| of the angle between the columns below
+        # SINGULAR_RCOND) the sign is round-off: the mode is 0 there, not ±1.
+        degenerate = np.abs(det) <= SINGULAR_RCOND * np.hypot(ux, uy) * np.hypot(vx, vy)
+        out[:, k] = np.where(degenerate, 0, -np.sign(det)).astype(int)
     return out[0] if np.ndim(x) == 1 else out
 
 

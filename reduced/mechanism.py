@@ -82,9 +82,6 @@ class Body:
         if self.name == GROUND and (self.mass or self.inertia):
             raise MechanismError("the ground does not move: it has no mass or inertia")
 
-    def __reduce__(self):
-        # The read-only points view does not pickle (a scene is sent to worker processes).
-        return (Body, (self.name, dict(self.points), self.mass, self.com, self.inertia))
         if not isinstance(self.points, Mapping):
             raise MechanismError(f"body {self.name!r}: points must be a mapping name → (x, y), "
                                  f"got {type(self.points).__name__}")
@@ -95,6 +92,10 @@ class Body:
             _name(key, f"body {self.name!r}: point name")
             pts[key] = _finite_pair(value, f"body {self.name!r}: point {key!r}")
         object.__setattr__(self, "points", MappingProxyType(pts))
+
+    def __reduce__(self):
+        # The read-only points view does not pickle (a scene is sent to worker processes).
+        return (Body, (self.name, dict(self.points), self.mass, self.com, self.inertia))
 
 
 def _check_joint_ends(joint) -> None:

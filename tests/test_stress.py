@@ -44,9 +44,10 @@ def results():
     return get
 
 
-def test_catalogue_covers_the_eight_kinds_of_hard_case():
+def test_catalogue_covers_the_ten_kinds_of_hard_case():
     assert CASES == ["dead_centre", "start_dead_centre", "near_change_point", "stiff_damper",
-                     "long_conservative", "fast_crank", "off_grid_edge", "gravity"]
+                     "long_conservative", "fast_crank", "off_grid_edge", "gravity",
+                     "slider_dead_centres", "sixbar_near_toggle"]
     for case in CATALOGUE:
         text = case.path.read_text()
         assert "# HARD CASE" in text and "Expected:" in text  # each scene documents itself
