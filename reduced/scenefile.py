@@ -262,6 +262,17 @@ def _parse_joint(t: _Table):
     return joint
 
 
+def _line_law(t: _Table, kind: str) -> tuple[float, float]:
+    """(coefficient, rest length) of a damper (b, 0) or a spring (k, D0); closes the table."""
+    if kind == "damper":
+        coefficient, rest = t.number("coefficient", positive=True, kind="damping"), 0.0
+    else:
+        coefficient = t.number("stiffness", positive=True, kind="stiffness")
+        rest = t.number("rest_length", nonnegative=True, kind="position")
+    t.close()
+    return coefficient, rest
+
+
 def _parse_line_elements(top: _Table) -> list[LineElement]:
     out = []
     for kind, table in (("damper", "dampers"), ("spring", "springs")):
@@ -269,12 +280,7 @@ def _parse_line_elements(top: _Table) -> list[LineElement]:
             body_a, point_a = _point_ref(t, "a")
             body_b, point_b = _point_ref(t, "b")
             name = _name_key(t.string("name", f"{kind}{k}"), t.key("name"))
-            if kind == "damper":
-                coefficient, rest = t.number("coefficient", positive=True, kind="damping"), 0.0
-            else:
-                coefficient = t.number("stiffness", positive=True, kind="stiffness")
-                rest = t.number("rest_length", nonnegative=True, kind="position")
-            t.close()
+            coefficient, rest = _line_law(t, kind)
             out.append(_mechanism_value(t.path, lambda: LineElement(kind, name, body_a, point_a, body_b,
                                                                      point_b, coefficient, rest)))
     return out
@@ -403,12 +409,7 @@ def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechan
             name = f"{kind}{k}"
             points[GROUND][name] = t.point("ground_point")
             points[body][name] = t.point("body_point")
-            if kind == "damper":
-                coefficient, rest = t.number("coefficient", positive=True, kind="damping"), 0.0
-            else:
-                coefficient = t.number("stiffness", positive=True, kind="stiffness")
-                rest = t.number("rest_length", nonnegative=True, kind="position")
-            t.close()
+            coefficient, rest = _line_law(t, kind)
             elements.append(LineElement(kind, name, GROUND, name, body, name, coefficient, rest))
     bodies = [Body(GROUND, points[GROUND])] + [
         Body(name, points[name], *mass_properties[name]) for name in FOUR_BAR_BODIES]

@@ -205,14 +205,7 @@ def test_draw_scene_titles_q0_with_its_unit_and_the_mode(tmp_path, monkeypatch):
     """A slider-driven scene gives q0 in m; the Watt II its two-loop mode."""
     import compare.plots
 
-    titles = []
-    real_save = compare.plots._save
-
-    def keep_title(fig, path):
-        titles.append(fig.axes[0].get_title())
-        real_save(fig, path)
-
-    monkeypatch.setattr(compare.plots, "_save", keep_title)
+    titles = keep_titles(monkeypatch)
     slider = slider_crank_scene(0.4, prismatic_input=True)
     draw_scene(slider, tmp_path / "slider.png")
     draw_scene(watt_ii_scene((1, -1)), tmp_path / "watt.png")
@@ -322,14 +315,7 @@ def test_user_names_are_plain_text_and_cut(tmp_path, monkeypatch, capsys):
     name = r"seed $\notacommand{x}$ " + "x" * 70
     scene = tmp_path / "odd.toml"
     scene.write_text(SEED_SCENE.read_text().replace('name = "seed_fourbar"', f"name = '{name}'"))
-    titles = []
-    real_save = compare.plots._save
-
-    def keep_title(fig, path):
-        titles.append(fig.axes[0].get_title())
-        real_save(fig, path)
-
-    monkeypatch.setattr(compare.plots, "_save", keep_title)
+    titles = keep_titles(monkeypatch)
     out = tmp_path / "odd.png"
     assert main(["draw", str(scene), "--out", str(out)]) == 0, capsys.readouterr().err
     assert png_size(out) == (990, 715)
@@ -338,3 +324,18 @@ def test_user_names_are_plain_text_and_cut(tmp_path, monkeypatch, capsys):
     assert title.index(": linkage at") == compare.plots.NAME_CHARS and "…:" in title
     assert title.endswith("q0 = 0.2 rad, mode (+1)")
     assert plt.get_fignums() == []
+
+
+def keep_titles(monkeypatch) -> list:
+    """The titles of the figures the plots module saves from now on (it still saves them)."""
+    import compare.plots
+
+    titles = []
+    real_save = compare.plots._save
+
+    def keep_title(fig, path):
+        titles.append(fig.axes[0].get_title())
+        real_save(fig, path)
+
+    monkeypatch.setattr(compare.plots, "_save", keep_title)
+    return titles

@@ -34,23 +34,8 @@ from test_draw import watt_ii_scene
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-@dataclasses.dataclass(frozen=True)
-class ContractJoints:
-    """The brief's JointTrajectory (names, t, x, xdot, coordinate, mode), used only while
-    reduced.partition.JointTrajectory still has the old ±1 ``branch`` on this branch."""
-
-    names: tuple[str, ...]
-    t: np.ndarray
-    x: np.ndarray
-    xdot: np.ndarray
-    coordinate: np.ndarray
-    mode: np.ndarray
-
-
 def joint_trajectory(names, t, x, xdot, mode):
-    if "mode" in {f.name for f in dataclasses.fields(JointTrajectory)}:
-        return JointTrajectory(tuple(names), t, x, xdot, np.zeros(len(t), dtype=int), mode)
-    return ContractJoints(tuple(names), t, x, xdot, np.zeros(len(t), dtype=int), mode)
+    return JointTrajectory(tuple(names), t, x, xdot, np.zeros(len(t), dtype=int), mode)
 
 
 def input_motion(t, shift=0.0):
