@@ -394,7 +394,7 @@ LINE_ELEMENT_KINDS = ("damper", "spring")
 class PointForce:
     """A force of magnitude F(q) along a fixed direction of the plane, applied at a point.
 
-    F is tabulated over the input coordinate q (rad or m) and interpolated by a cubic
+    F is tabulated over the input coordinate q (rad or m) and interpolated by a degree-5
     spline (periodic with ``period`` when given; else held at its end values outside the
     table); a gas force over crank angle, a punch-press load over ram travel.
 
