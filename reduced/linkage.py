@@ -441,56 +441,6 @@ class FourBar(LoopLinkage):
         return Kinematics(x=x, K=np.array([1.0, k1, k2]), L=np.array([0.0, l1, l2]))
 
 
-class _LoopKernel:
-    """Φ, Φ_x and γ of a loop system on precomputed flat index arrays (np.bincount instead of
-    np.add.at: the general path's hot loop). Same equations as :mod:`reduced.loops`."""
-
-    def __init__(self, system: "loops.LoopSystem"):
-        t, n = system.loops, system.n
-        self.n, self.rows = n, t.rows
-        self.offset = t.offset.ravel()  # (2R,) x0, y0, x1, y1, ...
-        self.row = t.row
-        self.coef, self.phase = t.coef, t.phase
-        self.mag = np.where(t.mag >= 0, t.mag, n)  # index n: the appended 1 (or 0 for rates)
-        self.angle = np.where(t.angle >= 0, t.angle, n)
-        ha, hm = t.angle >= 0, t.mag >= 0
-        self.ha, self.hm = ha, hm
-        rx, ry = 2 * t.row * n, (2 * t.row + 1) * n
-        self.jac_index = np.concatenate([rx[ha] + t.angle[ha], ry[ha] + t.angle[ha],
-                                         rx[hm] + t.mag[hm], ry[hm] + t.mag[hm]])
-        self.size = 2 * t.rows * n
-        self.linear = system.linear
-
-    def _terms(self, x):
-        m = self.coef * np.append(x, 1.0)[self.mag]
-        th = np.append(x, 0.0)[self.angle] + self.phase
-        return m, np.cos(th), np.sin(th)
-
-    def residual_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        m, c, s = self._terms(x)
-        R = self.rows
-        F = self.offset.copy()
-        F[0::2] += np.bincount(self.row, m * c, minlength=R)
-        F[1::2] += np.bincount(self.row, m * s, minlength=R)
-        ha, hm = self.ha, self.hm
-        w = np.concatenate([-(m * s)[ha], (m * c)[ha], (self.coef * c)[hm], (self.coef * s)[hm]])
-        J = np.bincount(self.jac_index, w, minlength=self.size).reshape(2 * R, self.n)
-        if self.linear.size:
-            J = np.vstack([J, self.linear])
-            F = np.concatenate([F, self.linear @ x])  # linear_rhs is zero (compile_linkage)
-        return F, J
-
-    def gamma(self, x: np.ndarray, K: np.ndarray) -> np.ndarray:
-        """The part of d²Φ/dx_i² without L, shape (2R,)."""
-        m, c, s = self._terms(x)
-        thd = np.append(K, 0.0)[self.angle]
-        md = self.coef * np.append(K, 0.0)[self.mag]
-        g = np.empty(2 * self.rows)
-        g[0::2] = np.bincount(self.row, -2.0 * md * thd * s - m * thd * thd * c, minlength=self.rows)
-        g[1::2] = np.bincount(self.row, 2.0 * md * thd * c - m * thd * thd * s, minlength=self.rows)
-        return g
-
-
 class GeneralLinkage(LoopLinkage):
     """Any one-DOF loop system (:mod:`reduced.loops`), with any coordinate independent.
 
@@ -518,8 +468,6 @@ class GeneralLinkage(LoopLinkage):
         unit = np.array([name.endswith(".angle") for name in system.coordinate_names])
         self._angles = unit
         self._driven = tuple(system.driven_by(i) for i in range(system.n))
-        self._kernel = _LoopKernel(system)
-        assert not np.any(system.linear_rhs), "the kernel takes linear_rhs = 0"
         self.loops = ()
         self.bodies = {}
 
@@ -574,9 +522,8 @@ class GeneralLinkage(LoopLinkage):
         x[independent] = value
         e_i = self._driven[independent].drive
         polished = False
-        kernel = self._kernel
         for _ in range(NEWTON_MAX_ITER):
-            F, J = kernel.residual_and_jacobian(x)
+            F, J = loops.residual_and_jacobian(system, x)
             A = np.vstack([J, e_i])
             if polished:
                 break
@@ -608,9 +555,9 @@ class GeneralLinkage(LoopLinkage):
         rhs = np.zeros(n)
         rhs[-1] = 1.0
         K = np.linalg.solve(A, rhs)
-        gamma = self._kernel.gamma(x, K)
+        _, gamma = loops.rates(self.system.loops, x, K)
         rhs = np.zeros(n)
-        rhs[:gamma.size] = -gamma
+        rhs[:gamma.size] = -gamma.ravel()
         L = np.linalg.solve(A, rhs)
         return Kinematics(x=x, K=K, L=L)
 
@@ -618,8 +565,7 @@ class GeneralLinkage(LoopLinkage):
         """K = dx/dx_i and L = d²x/dx_i² at an assembled x (the equations of
         :func:`reduced.loops.coefficients`, with x_i driving)."""
         x = np.asarray(x, dtype=float)
-        _, J = self._kernel.residual_and_jacobian(x)
-        A = np.vstack([J, self._driven[independent].drive])
+        A = np.vstack([loops.constraint_jacobian(self.system, x), self._driven[independent].drive])
         return self._coefficients(A, x, independent, None)
 
 
