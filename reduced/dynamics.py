@@ -274,8 +274,6 @@ class MechanismModel:
         """The input load on one smooth piece of its history (N·m or N), zero without one."""
         return self.load.on_piece(start, end) if self.load is not None else (lambda t: 0.0)
 
-    torque_on_piece = load_on_piece  # the name before the input could be a slider
-
     @property
     def load_edges(self) -> tuple[float, ...]:
         """Times (s) where the applied loads jump."""

@@ -184,10 +184,6 @@ class LoopLinkage:
         """Configurations (samples, n) in the coordinates of :class:`reduced.loops.LoopSystem`."""
         return X
 
-    def to_general_rates(self, Xdot: np.ndarray) -> np.ndarray:
-        """Rates (samples, n) in the general coordinates (a constant shift leaves them)."""
-        return Xdot
-
     def angle_columns(self) -> np.ndarray:
         """Boolean mask (n,) of the coordinates that are angles (unwrapped along a run)."""
         return np.ones(len(self.coordinate_names), dtype=bool)

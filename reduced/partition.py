@@ -243,9 +243,11 @@ def _assemble_outputs(model: MechanismModel, segments) -> tuple[Trajectory, Join
     x = np.array(xs)
     angles = linkage.angle_columns()
     x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
-    q = x[:, linkage.input_index] if linkage.has_closed_form else x @ model.system.drive
     general = linkage.to_general(x)
+    q = general @ model.system.drive
+    # Rates need no conversion: the closed form's coordinates differ from the general ones by
+    # a constant (φ2 + π).
     joints = JointTrajectory(model.system.coordinate_names, np.array(ts), general,
-                             linkage.to_general_rates(np.array(xdots)), np.array(coords),
+                             np.array(xdots), np.array(coords),
                              loops.assembly_modes(model.system, general).reshape(len(ts), -1))
     return Trajectory(np.array(ts), q, np.array(vs), np.array(accs)), joints

@@ -123,7 +123,7 @@ def test_model_contains_exactly_the_declared_effects(effects):
     cs = [model.coefficients(q) for q in np.linspace(0.0, 2 * np.pi, 13)[:-1]]
     damping = [c.damping for c in cs]
     gradient = [c.potential_gradient for c in cs]
-    torque = model.torque_on_piece(0.0, 1.0)(0.5)
+    torque = model.load_on_piece(0.0, 1.0)(0.5)
     assert (max(damping) > 0.0) == ("damper" in effects) and min(damping) >= 0.0
     assert (max(map(abs, gradient)) > 0.0) == ("spring" in effects or "gravity" in effects)
     assert (torque == 250.0) if "torque" in effects else (torque == 0.0 and model.load_edges == ())
