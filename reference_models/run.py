@@ -515,7 +515,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
         diagnostics={"max_constraint_violation": max_violation,
                      "joints": _joint_trajectory(scene, layout, times, qpos, qvel),
                      "constraint_violation": violation, "times": times, "q": q,
-                     "omega": qdot.copy(), "motor_torque": motor, "input_load": motor,
+                     "omega": qdot.copy(), "input_load": motor,
                      "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
                      "edge_warnings": edge_notes, "effects": list(scene.effects),
                      "point_forces": "mjcb_control (qfrc_applied, every RK stage)"

@@ -128,7 +128,7 @@ def test_control_is_the_torque_at_each_steps_midpoint():
         warnings.simplefilter("ignore", OffGridEdgeWarning)
         result = simulate_mujoco(scene, MujocoSettings(timestep=h))
     t = result.diagnostics["times"][:-1]
-    applied = result.diagnostics["motor_torque"][:-1]
+    applied = result.diagnostics["input_load"][:-1]
     np.testing.assert_array_equal(applied, scene.load.sample(t + 0.5 * h))
     assert np.any(scene.load.sample(t) != applied)  # the scene does tell the two apart
     assert abs(np.sum(applied) * h - 250.0 * OFF_GRID_END) <= 0.5 * h * 250.0
