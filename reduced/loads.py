@@ -143,6 +143,9 @@ class TabulatedForce:
     and F held at the end values outside the table. C⁴ in q: a cubic spline (C²) made DOP853 at
     rtol 1e-12 misjudge its steps across the knots of the catalogue's gas-force table (energy
     balance 3.6e-9 over 0.2 s, against 7.7e-11 with degree 5 and 16 % fewer evaluations).
+    Like any interpolating spline it overshoots between the points of a sharply peaked table
+    (the catalogue's gas force, 20° apart: 4.2 % above its largest value, 3.3 % with a cubic):
+    tabulate densely near a peak.
     """
 
     coordinate: tuple[float, ...]
