@@ -13,7 +13,7 @@ from .dynamics import MechanismModel
 from .energy import energy_audit
 from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, solve_adaptive, solve_fixed_step
-from .partition import PartitionedSolution, integrate_partitioned
+from .partition import PartitionedSolution, integrate_partitioned, integrate_rkn4
 from .result import EngineResult
 from .scene import REDUCED_METHODS, Scene
 from .trajectory import Trajectory
@@ -153,6 +153,8 @@ def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...], 
 
 def integrate(model: MechanismModel, settings: ReducedSettings, step: float | None = None) -> PartitionedSolution:
     """Run the integrator the settings name, switching coordinates at dead centres."""
+    if settings.method == "rkn4":
+        return integrate_rkn4(model, settings.step if step is None else step)
     return integrate_partitioned(model, chart_integrator(settings, model.load_edges, step))
 
 
