@@ -23,7 +23,8 @@ def _concatenate(parts, total):
     out = np.empty(total)
     k = 0
     for p in parts:
-        out[k:k + p.shape[0]] = p
+        for j in range(p.shape[0]):
+            out[k + j] = p[j]
         k += p.shape[0]
     return out
 
@@ -105,10 +106,10 @@ def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_lim
         value = start[0, chart[0][physics.INDEPENDENT]]
     out_starts = np.empty((len(starts), 3, n))
     for s in range(len(starts)):
-        out_starts[s] = starts[s]
+        physics._copy(starts[s], out_starts[s])
     out_switches = np.empty((len(switches) - 1, 5))
     for s in range(1, len(switches)):
-        out_switches[s - 1] = switches[s]
+        physics._copy(switches[s], out_switches[s - 1])
     return (status, info, _concatenate(t_parts, total), _concatenate(q_parts, total),
             _concatenate(v_parts, total), _concatenate(a_parts, total),
             _concatenate(seg_parts, total).astype(np.int64), np.array(coordinates, dtype=np.int64), out_starts,

@@ -182,6 +182,16 @@ def lu_solve(A, piv, b):
         b[r] = s / A[r, r]
 
 
+@njit(cache=True, error_model="numpy")
+def _copy(src, dst):
+    """dst[:] = src for two arrays of the same shape (an explicit loop: numba types a slice
+    assignment in seconds, this in milliseconds)."""
+    a = src.ravel()
+    b = dst.ravel()
+    for k in range(a.shape[0]):
+        b[k] = a[k]
+
+
 # -- term tables -----------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
@@ -387,7 +397,7 @@ def _walk(F, I, S, W, value):
     i = S[INDEPENDENT]
     _, _, last, kin, _, _, _, _, _, _, guess, base, target, _ = _views(I, W)
     budget = S[S_HEADER + n:S_HEADER + n + DEPTH]
-    base[0] = last
+    _copy(last, base[0])
     target[0] = value
     budget[0] = MAX_HALVINGS
     depth = 0  # base[d] is the configuration from which target[d] is sought
@@ -408,15 +418,15 @@ def _walk(F, I, S, W, value):
                 break
             # the midpoint is reached: it is the base of the second half, one level down
             depth -= 1
-            base[depth] = kin
+            _copy(kin, base[depth])
             budget[depth] -= 1
             continue
         # halve: seek the midpoint first, then the target from there
-        base[depth + 1] = base[depth]
+        _copy(base[depth], base[depth + 1])
         target[depth + 1] = base[depth, 0, i] + 0.5 * (target[depth] - base[depth, 0, i])
         budget[depth + 1] = budget[depth] - 1
         depth += 1
-    last[:, :] = kin
+    _copy(kin, last)
     return True
 
 
@@ -600,8 +610,8 @@ def start_chart(model, chart, x, independent):
         S[STATUS] = SINGULAR
         return False
     S[SIGN] = 1 if fields[DETERMINANT] >= 0.0 else -1
-    last[:, :] = kin
-    start[:, :] = kin
+    _copy(kin, last)
+    _copy(kin, start)
     W[0] = x[independent]
     S[VALID] = 1
     return True
@@ -612,7 +622,7 @@ def reset(model, chart):
     """Back to the chart's start configuration (a new walk along the chart)."""
     S, W = chart
     _, start, last, _, _, _, _, _, _, _, _, _, _, _ = _views(model[1], W)
-    last[:, :] = start
+    _copy(start, last)
     S[VALID] = 0
     S[STATUS] = OK
 
@@ -626,8 +636,8 @@ def walk(model, chart, values, fields, kin):
     for s in range(values.shape[0]):
         if not evaluate(model, chart, values[s]):
             return s
-        fields[s] = views[4]
-        kin[s] = views[3]
+        _copy(views[4], fields[s])
+        _copy(views[3], kin[s])
     return values.shape[0]
 
 
