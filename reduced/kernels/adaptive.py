@@ -196,16 +196,21 @@ def _fun(problem, chart, load, t, q, v, K, row, work):
 @njit(cache=True)
 def _grow1(a, n):
     b = np.empty(2 * a.shape[0])
-    b[:n] = a[:n]
+    for i in range(n):  # explicit loops: a slice assignment costs seconds of compile time
+        b[i] = a[i]
     return b
 
 
 @njit(cache=True)
 def _grow_steps(sy, sF, n):
     sy2 = np.empty((2 * sy.shape[0], 2))
-    sy2[:n] = sy[:n]
     sF2 = np.empty((2 * sF.shape[0], INTERPOLATOR_POWER, 2))
-    sF2[:n] = sF[:n]
+    for i in range(n):
+        sy2[i, 0] = sy[i, 0]
+        sy2[i, 1] = sy[i, 1]
+        for r in range(INTERPOLATOR_POWER):
+            sF2[i, r, 0] = sF[i, r, 0]
+            sF2[i, r, 1] = sF[i, r, 1]
     return sy2, sF2
 
 
@@ -407,24 +412,44 @@ def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interva
     end = st[n]
     m_grid = max(2, int(math.ceil((end - start) / sample_interval)) + 1)
     n_inner = per_step - 1 if per_step > 1 else 0
-    cand = np.empty(n + 1 + m_grid + n * n_inner)
+    # the steps cut into per_step parts, in order (nearly sorted), merged with the grid
+    n_seq = n + 1 + n * n_inner
+    seq = np.empty(n_seq)
     k = 0
-    for j in range(n + 1):
-        cand[k] = st[j]
-        k += 1
-    # np.linspace(start, end, m_grid): i * step + start, last = end
-    step = (end - start) / (m_grid - 1)
-    for i in range(m_grid - 1):
-        cand[k] = i * step + start if step != 0 else i / (m_grid - 1) * (end - start) + start
-        k += 1
-    cand[k] = end
-    k += 1
     for j in range(n):
+        seq[k] = st[j]
+        k += 1
         dt = st[j + 1] - st[j]
         for i in range(1, per_step):
-            cand[k] = st[j] + dt * (i / per_step)
+            seq[k] = st[j] + dt * (i / per_step)
             k += 1
-    cand = np.sort(cand[:k])
+    seq[k] = st[n]
+    # np.linspace(start, end, m_grid): i * step + start, the last one = end
+    grid = np.empty(m_grid)
+    step = (end - start) / (m_grid - 1)
+    for i in range(m_grid - 1):
+        grid[i] = i * step + start if step != 0 else i / (m_grid - 1) * (end - start) + start
+    grid[m_grid - 1] = end
+    k = n_seq + m_grid
+    cand = np.empty(k)
+    a = 0
+    b = 0
+    for i in range(k):
+        if b >= m_grid or (a < n_seq and seq[a] <= grid[b]):
+            cand[i] = seq[a]
+            a += 1
+        else:
+            cand[i] = grid[b]
+            b += 1
+    # insertion sort: repairs any round-off inversion (O(k) when sorted; np.sort would cost
+    # seconds of compile time)
+    for i in range(1, k):
+        x = cand[i]
+        j = i - 1
+        while j >= 0 and cand[j] > x:
+            cand[j + 1] = cand[j]
+            j -= 1
+        cand[j + 1] = x
     times = np.empty(k)
     m = 0
     for i in range(k):
@@ -531,10 +556,11 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
             oq = _grow1(oq, no)
             ov = _grow1(ov, no)
             oa = _grow1(oa, no)
-        ot[no:no + m] = times
-        oq[no:no + m] = qs
-        ov[no:no + m] = vs
-        oa[no:no + m] = acc
+        for i in range(m):
+            ot[no + i] = times[i]
+            oq[no + i] = qs[i]
+            ov[no + i] = vs[i]
+            oa[no + i] = acc[i]
         no += m
         q = sy[n, 0]
         v = sy[n, 1]
