@@ -179,6 +179,22 @@ def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
 
 
 @njit(cache=True)
+def _norm2(x0, x1):
+    """np.linalg.norm((x0, x1)): numpy takes sqrt(x.dot(x)) (BLAS ddot), and so does this (np.dot
+    in numba calls the same BLAS), for bit-equal results."""
+    x = np.empty(2)
+    x[0] = x0
+    x[1] = x1
+    return math.sqrt(np.dot(x, x))
+
+
+@njit(cache=True)
+def _rms2(x0, x1):
+    """scipy's norm of (x0, x1): np.linalg.norm(x) / x.size ** 0.5."""
+    return _norm2(x0, x1) / SQRT_N
+
+
+@njit(cache=True)
 def _fun(problem, chart, load, t, q, v, K, row, work):
     """The first-order system (q̇, f) into K[row]; work = [nfev, max_evaluations].
     Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
@@ -240,12 +256,8 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
     else:
         sc0 = atol + abs(y0) * rtol
         sc1 = atol + abs(y1) * rtol
-        a0 = y0 / sc0
-        a1 = y1 / sc1
-        d0 = math.sqrt(a0 * a0 + a1 * a1) / SQRT_N
-        a0 = f0 / sc0
-        a1 = f1 / sc1
-        d1 = math.sqrt(a0 * a0 + a1 * a1) / SQRT_N
+        d0 = _rms2(y0 / sc0, y1 / sc1)
+        d1 = _rms2(f0 / sc0, f1 / sc1)
         if d0 < 1e-5 or d1 < 1e-5:
             h0 = 1e-6
         else:
@@ -255,9 +267,7 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
                  fk, 0, work)
         if s != OK:
             return s, n, False, t + h0, st, sh, sy, sF
-        a0 = (fk[0, 0] - f0) / sc0
-        a1 = (fk[0, 1] - f1) / sc1
-        d2 = math.sqrt(a0 * a0 + a1 * a1) / SQRT_N / h0
+        d2 = _rms2((fk[0, 0] - f0) / sc0, (fk[0, 1] - f1) / sc1) / h0
         if d1 <= 1e-15 and d2 <= 1e-15:
             h1 = _pymax(1e-6, h0 * 1e-3)
         else:
@@ -289,43 +299,27 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
             # rk_step
             K[0, 0] = f0
             K[0, 1] = f1
+            # The sums are np.dot as in scipy: numba's np.dot calls the same BLAS (gemv) as
+            # numpy's, bit for bit; at tight tolerances the error estimate is mostly round-off
+            # and a loop in another order changes the step sequence by ~1e-6 relative.
             for si in range(1, N_STAGES):
-                dy0 = 0.0
-                dy1 = 0.0
-                for j in range(si):
-                    dy0 += K[j, 0] * A[si, j]
-                    dy1 += K[j, 1] * A[si, j]
-                s = _fun(problem, chart, load, t + C[si] * h, y0 + dy0 * h, y1 + dy1 * h, K, si, work)
+                dy = np.dot(K[:si].T, A[si, :si]) * h
+                s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0], y1 + dy[1], K, si, work)
                 if s != OK:
                     return s, n, False, t + C[si] * h, st, sh, sy, sF
-            b0 = 0.0
-            b1 = 0.0
-            for j in range(N_STAGES):
-                b0 += K[j, 0] * B[j]
-                b1 += K[j, 1] * B[j]
-            yn0 = y0 + h * b0
-            yn1 = y1 + h * b1
+            bk = np.dot(K[:N_STAGES].T, B)
+            yn0 = y0 + h * bk[0]
+            yn1 = y1 + h * bk[1]
             s = _fun(problem, chart, load, t + h, yn0, yn1, K, N_STAGES, work)
             if s != OK:
                 return s, n, False, t + h, st, sh, sy, sF
             sc0 = atol + np.maximum(abs(y0), abs(yn0)) * rtol
             sc1 = atol + np.maximum(abs(y1), abs(yn1)) * rtol
             # DOP853._estimate_error_norm
-            e50 = 0.0
-            e51 = 0.0
-            e30 = 0.0
-            e31 = 0.0
-            for j in range(N_STAGES + 1):
-                e50 += K[j, 0] * E5[j]
-                e51 += K[j, 1] * E5[j]
-                e30 += K[j, 0] * E3[j]
-                e31 += K[j, 1] * E3[j]
-            e50 /= sc0
-            e51 /= sc1
-            e30 /= sc0
-            e31 /= sc1
-            err5_norm_2 = math.sqrt(e50 * e50 + e51 * e51) ** 2
-            err3_norm_2 = math.sqrt(e30 * e30 + e31 * e31) ** 2
+            e5 = np.dot(K[:N_STAGES + 1].T, E5)
+            e3 = np.dot(K[:N_STAGES + 1].T, E3)
+            err5_norm_2 = _norm2(e5[0] / sc0, e5[1] / sc1) ** 2
+            err3_norm_2 = _norm2(e3[0] / sc0, e3[1] / sc1) ** 2
             if err5_norm_2 == 0 and err3_norm_2 == 0:
                 error_norm = 0.0
             else:
@@ -354,12 +348,8 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
         f1 = K[N_STAGES, 1]
         # DOP853._dense_output_impl
         for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
-            dy0 = 0.0
-            dy1 = 0.0
-            for j in range(si):
-                dy0 += K[j, 0] * A[si, j]
-                dy1 += K[j, 1] * A[si, j]
-            s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy0 * h, yo1 + dy1 * h, K, si, work)
+            dy = np.dot(K[:si].T, A[si, :si]) * h
+            s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0], yo1 + dy[1], K, si, work)
             if s != OK:
                 return s, n, False, t_old + C[si] * h, st, sh, sy, sF
         if n + 1 >= st.shape[0]:
@@ -374,14 +364,10 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
         sF[n, 1, 1] = h * K[0, 1] - dl1
         sF[n, 2, 0] = 2 * dl0 - h * (f0 + K[0, 0])
         sF[n, 2, 1] = 2 * dl1 - h * (f1 + K[0, 1])
+        DK = np.dot(D, K)
         for r in range(INTERPOLATOR_POWER - 3):
-            p0 = 0.0
-            p1 = 0.0
-            for j in range(N_STAGES_EXTENDED):
-                p0 += D[r, j] * K[j, 0]
-                p1 += D[r, j] * K[j, 1]
-            sF[n, 3 + r, 0] = h * p0
-            sF[n, 3 + r, 1] = h * p1
+            sF[n, 3 + r, 0] = h * DK[r, 0]
+            sF[n, 3 + r, 1] = h * DK[r, 1]
         sh[n] = t - t_old
         st[n + 1] = t
         sy[n + 1, 0] = y0
