@@ -61,7 +61,7 @@ def rhs_factory(problem, chart, edges, loads):
 @pytest.mark.parametrize("rtol", [1e-6, 1e-9, 1e-12])
 @pytest.mark.parametrize("use_stop", [False, True])
 def test_steps_states_and_evaluations_equal_scipy(rtol, use_stop):
-    problem, chart = make_toy(k=4.0, c=0.3, q_stop=-0.5 if use_stop else math.inf)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5, q_stop=-0.5 if use_stop else math.inf)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=rtol, use_stop=use_stop, **ALL_STEPS)
     sols = scipy_pieces(problem, chart, EDGES, LOADS, Q0, V0, rtol, use_stop=use_stop)
     assert r.status == K.OK
@@ -96,7 +96,7 @@ def test_event_direction_rule():
 @pytest.mark.parametrize("rtol", [1e-6, 1e-12])
 def test_samples_equal_xval_dense_samples(rtol):
     """Sampling rule and dense output: the kernel's samples are solve_adaptive's (scipy) samples."""
-    problem, chart = make_toy(k=4.0, c=0.3)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=rtol, sample_interval=0.05, per_step=4)
     ref = solve_adaptive(rhs_factory(problem, chart, EDGES, LOADS), (EDGES[0], EDGES[-1]), Q0, V0,
                          rtol=rtol, breakpoints=tuple(EDGES[1:-1]), sample_interval=0.05)
@@ -112,7 +112,7 @@ def test_samples_equal_xval_dense_samples(rtol):
 
 def test_dense_output_equals_scipy_sol():
     """Between the steps the samples are scipy's Dop853DenseOutput (sol.sol) at the same times."""
-    problem, chart = make_toy(k=9.0, c=0.1)
+    problem, chart = make_toy(k=9.0, c=0.1, w=0.5)
     r = K.run(problem, chart, [0.0, 2.0], [1.0], 0.4, 0.0, rtol=1e-8, sample_interval=0.01,
               per_step=5)
     sol = scipy_pieces(problem, chart, [0.0, 2.0], [1.0], 0.4, 0.0, 1e-8)[0]
@@ -124,7 +124,7 @@ def test_dense_output_equals_scipy_sol():
 
 
 def test_chart_mutation_counts_every_evaluation():
-    problem, chart = make_toy(k=4.0, c=0.3)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=1e-9)
     assert chart.calls[0] == r.n_evaluations + r.n_sample_evaluations
 
@@ -148,7 +148,7 @@ def test_error_falls_with_rtol():
 
 
 def test_nonfinite_acceleration():
-    problem, chart = make_toy(k=4.0, c=0.3, t_nan=1.234)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5, t_nan=1.234)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=1e-9)
     assert r.status == K.NONFINITE
     with pytest.raises(NumericalFailure) as exc:
@@ -161,7 +161,7 @@ def test_nonfinite_acceleration():
 
 
 def test_step_size_when_budget_spent():
-    problem, chart = make_toy(k=4.0, c=0.3)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=1e-9, max_evaluations=50)
     assert r.status == K.STEP_SIZE
     assert r.n_evaluations == 50
@@ -173,7 +173,7 @@ def test_step_size_when_budget_spent():
 
 
 def test_speed_limit():
-    problem, chart = make_toy(k=4.0, c=0.3)
+    problem, chart = make_toy(k=4.0, c=0.3, w=0.5)
     r = K.run(problem, chart, EDGES, LOADS, Q0, V0, rtol=1e-9, speed_limit=0.5)
     assert r.status == K.SPEED
     assert abs(r.fail_value) > 0.5
