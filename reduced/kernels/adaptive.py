@@ -95,6 +95,14 @@ def _pymax(a, b):
 
 
 @njit(cache=True)
+def _npmax(a, b):
+    """np.maximum(a, b) of two floats (NaN if either is)."""
+    if a != a or b != b:
+        return math.nan
+    return a if a >= b else b
+
+
+@njit(cache=True)
 def _dense_eval(t, t_old, h, y_old0, y_old1, F, j):
     """Dop853DenseOutput._call_impl at t for step j (F: (n_steps, 7, 2)), same operation order."""
     x = (t - t_old) / h
@@ -134,7 +142,7 @@ def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
     if fcur == 0:
         return xcur
     for _ in range(100):
-        if fpre != 0 and fcur != 0 and (np.signbit(fpre) != np.signbit(fcur)):
+        if fpre != 0 and fcur != 0 and ((math.copysign(1.0, fpre) < 0) != (math.copysign(1.0, fcur) < 0)):
             xblk = xpre
             fblk = fpre
             spre = xcur - xpre
@@ -195,6 +203,12 @@ def _rms2(x0, x1):
 
 
 @njit(cache=True)
+def _dot_kt(K, a, s):
+    """np.dot(K[:s].T, a[:s]) (BLAS gemv, as numpy does it); one call site keeps compile time down."""
+    return np.dot(K[:s].T, a[:s])
+
+
+@njit(cache=True)
 def _fun(problem, chart, load, t, q, v, K, row, work):
     """The first-order system (q̇, f) into K[row]; work = [nfev, max_evaluations].
     Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
@@ -231,12 +245,99 @@ def _grow_steps(sy, sF, n):
 
 
 @njit(cache=True)
+def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, K, work):
+    """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py).
+    Returns (status, fail_time, h_abs)."""
+    s = _fun(problem, chart, load, t, y0, y1, K, 0, work)
+    if s != OK:
+        return s, t, 0.0
+    f0 = K[0, 0]
+    f1 = K[0, 1]
+    interval_length = abs(end - t)
+    if interval_length == 0.0:
+        return OK, math.nan, 0.0
+    sc0 = atol + abs(y0) * rtol
+    sc1 = atol + abs(y1) * rtol
+    d0 = _rms2(y0 / sc0, y1 / sc1)
+    d1 = _rms2(f0 / sc0, f1 / sc1)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = _pymin(h0, interval_length)
+    s = _fun(problem, chart, load, t + h0 * 1.0, y0 + h0 * 1.0 * f0, y1 + h0 * 1.0 * f1, K, 1, work)
+    if s != OK:
+        return s, t + h0, 0.0
+    d2 = _rms2((K[1, 0] - f0) / sc0, (K[1, 1] - f1) / sc1) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = _pymax(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / _pymax(d1, d2)) ** (1 / (ERROR_ESTIMATOR_ORDER + 1))
+    return OK, math.nan, _pymin(_pymin(_pymin(100 * h0, h1), interval_length), max_step)
+
+
+@njit(cache=True)
+def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, work):
+    """rk_step and DOP853._estimate_error_norm for one attempt (K[0] = f at (t, y) on entry;
+    K[12] = f_new on exit). Returns (status, fail_time, y_new0, y_new1, error_norm)."""
+    # The sums are np.dot as in scipy: numba's np.dot calls the same BLAS (gemv) as numpy's,
+    # bit for bit; at tight tolerances the error estimate is mostly round-off and a loop in
+    # another order changes the step sequence by ~1e-6 relative.
+    for si in range(1, N_STAGES):
+        dy = _dot_kt(K, A[si], si)  # scipy: dy = np.dot(...) * h, then y + dy
+        s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, si, work)
+        if s != OK:
+            return s, t + C[si] * h, 0.0, 0.0, 0.0
+    bk = _dot_kt(K, B, N_STAGES)
+    yn0 = y0 + h * bk[0]
+    yn1 = y1 + h * bk[1]
+    s = _fun(problem, chart, load, t + h, yn0, yn1, K, N_STAGES, work)
+    if s != OK:
+        return s, t + h, 0.0, 0.0, 0.0
+    sc0 = atol + _npmax(abs(y0), abs(yn0)) * rtol
+    sc1 = atol + _npmax(abs(y1), abs(yn1)) * rtol
+    e5 = _dot_kt(K, E5, N_STAGES + 1)
+    e3 = _dot_kt(K, E3, N_STAGES + 1)
+    err5_norm_2 = _norm2(e5[0] / sc0, e5[1] / sc1) ** 2
+    err3_norm_2 = _norm2(e3[0] / sc0, e3[1] / sc1) ** 2
+    if err5_norm_2 == 0 and err3_norm_2 == 0:
+        return OK, math.nan, yn0, yn1, 0.0
+    denom = err5_norm_2 + 0.01 * err3_norm_2
+    return OK, math.nan, yn0, yn1, abs(h) * err5_norm_2 / math.sqrt(denom * 2)
+
+
+@njit(cache=True)
+def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, work, sF, n):
+    """DOP853._dense_output_impl: 3 extra stages into K[13:16], F into sF[n].
+    Returns (status, fail_time)."""
+    for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
+        dy = _dot_kt(K, A[si], si)
+        s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0] * h, yo1 + dy[1] * h, K, si,
+                 work)
+        if s != OK:
+            return s, t_old + C[si] * h
+    dl0 = y0 - yo0
+    dl1 = y1 - yo1
+    sF[n, 0, 0] = dl0
+    sF[n, 0, 1] = dl1
+    sF[n, 1, 0] = h * K[0, 0] - dl0
+    sF[n, 1, 1] = h * K[0, 1] - dl1
+    sF[n, 2, 0] = 2 * dl0 - h * (K[N_STAGES, 0] + K[0, 0])
+    sF[n, 2, 1] = 2 * dl1 - h * (K[N_STAGES, 1] + K[0, 1])
+    DK = np.dot(D, K)
+    for r in range(INTERPOLATOR_POWER - 3):
+        sF[n, 3 + r, 0] = h * DK[r, 0]
+        sF[n, 3 + r, 1] = h * DK[r, 1]
+    return OK, math.nan
+
+
+@njit(cache=True)
 def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_stop, work,
            st, sh, sy, sF):
     """One solve_ivp call on [start, end]: steps into st (times), sh (dense h), sy (states),
-    sF (dense coefficients). Returns (status, n_steps, stopped, fail_time, st, sh, sy, sF)."""
+    sF (dense coefficients), grown as needed. Returns (status, n_steps, stopped, fail_time,
+    st, sh, sy, sF). One exit: each return of the tuple costs compile time."""
     K = np.empty((N_STAGES_EXTENDED, 2))
-    fk = np.empty((1, 2))
     t = start
     y0 = q0
     y1 = v0
@@ -244,44 +345,19 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
     sy[0, 0] = y0
     sy[0, 1] = y1
     n = 0
-    # RungeKutta.__init__: self.f = fun(t0, y0), then select_initial_step
-    s = _fun(problem, chart, load, t, y0, y1, fk, 0, work)
-    if s != OK:
-        return s, n, False, t, st, sh, sy, sF
-    f0 = fk[0, 0]
-    f1 = fk[0, 1]
-    interval_length = abs(end - start)
-    if interval_length == 0.0:
-        h_abs = 0.0
-    else:
-        sc0 = atol + abs(y0) * rtol
-        sc1 = atol + abs(y1) * rtol
-        d0 = _rms2(y0 / sc0, y1 / sc1)
-        d1 = _rms2(f0 / sc0, f1 / sc1)
-        if d0 < 1e-5 or d1 < 1e-5:
-            h0 = 1e-6
-        else:
-            h0 = 0.01 * d0 / d1
-        h0 = _pymin(h0, interval_length)
-        s = _fun(problem, chart, load, t + h0 * 1.0, y0 + h0 * 1.0 * f0, y1 + h0 * 1.0 * f1,
-                 fk, 0, work)
-        if s != OK:
-            return s, n, False, t + h0, st, sh, sy, sF
-        d2 = _rms2((fk[0, 0] - f0) / sc0, (fk[0, 1] - f1) / sc1) / h0
-        if d1 <= 1e-15 and d2 <= 1e-15:
-            h1 = _pymax(1e-6, h0 * 1e-3)
-        else:
-            h1 = (0.01 / _pymax(d1, d2)) ** (1 / (ERROR_ESTIMATOR_ORDER + 1))
-        h_abs = _pymin(_pymin(_pymin(100 * h0, h1), interval_length), max_step)
-    g = 0.0
-    if use_stop:
-        g = stop_margin(problem, chart, t, y0, y1)
     stopped = False
-    while True:
+    status, fail_time, h_abs = _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol,
+                                             max_step, K, work)
+    f0 = K[0, 0]
+    f1 = K[0, 1]
+    g = 0.0
+    if use_stop and status == OK:
+        g = stop_margin(problem, chart, t, y0, y1)
+    while status == OK:
         if t == end:  # OdeSolver.step's corner case (an empty piece)
             break
         # ---- RungeKutta._step_impl ----
-        min_step = 10 * abs(np.nextafter(t, math.inf) - t)
+        min_step = 10 * abs(math.nextafter(t, math.inf) - t)
         if h_abs > max_step:
             h_abs = max_step
         elif h_abs < min_step:
@@ -289,42 +365,21 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
         step_rejected = False
         while True:
             if h_abs < min_step:
-                return STEP_SIZE, n, False, t, st, sh, sy, sF
+                status = STEP_SIZE
+                fail_time = t
+                break
             h = h_abs * 1.0
             t_new = t + h
             if 1.0 * (t_new - end) > 0:
                 t_new = end
             h = t_new - t
             h_abs = abs(h)
-            # rk_step
             K[0, 0] = f0
             K[0, 1] = f1
-            # The sums are np.dot as in scipy: numba's np.dot calls the same BLAS (gemv) as
-            # numpy's, bit for bit; at tight tolerances the error estimate is mostly round-off
-            # and a loop in another order changes the step sequence by ~1e-6 relative.
-            for si in range(1, N_STAGES):
-                dy = np.dot(K[:si].T, A[si, :si]) * h
-                s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0], y1 + dy[1], K, si, work)
-                if s != OK:
-                    return s, n, False, t + C[si] * h, st, sh, sy, sF
-            bk = np.dot(K[:N_STAGES].T, B)
-            yn0 = y0 + h * bk[0]
-            yn1 = y1 + h * bk[1]
-            s = _fun(problem, chart, load, t + h, yn0, yn1, K, N_STAGES, work)
-            if s != OK:
-                return s, n, False, t + h, st, sh, sy, sF
-            sc0 = atol + np.maximum(abs(y0), abs(yn0)) * rtol
-            sc1 = atol + np.maximum(abs(y1), abs(yn1)) * rtol
-            # DOP853._estimate_error_norm
-            e5 = np.dot(K[:N_STAGES + 1].T, E5)
-            e3 = np.dot(K[:N_STAGES + 1].T, E3)
-            err5_norm_2 = _norm2(e5[0] / sc0, e5[1] / sc1) ** 2
-            err3_norm_2 = _norm2(e3[0] / sc0, e3[1] / sc1) ** 2
-            if err5_norm_2 == 0 and err3_norm_2 == 0:
-                error_norm = 0.0
-            else:
-                denom = err5_norm_2 + 0.01 * err3_norm_2
-                error_norm = abs(h) * err5_norm_2 / math.sqrt(denom * 2)
+            status, fail_time, yn0, yn1, error_norm = _rk_step(problem, chart, load, t, y0, y1, h,
+                                                               rtol, atol, K, work)
+            if status != OK:
+                break
             if error_norm < 1:
                 if error_norm == 0:
                     factor = MAX_FACTOR
@@ -337,6 +392,8 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
             else:
                 h_abs *= _pymax(MIN_FACTOR, SAFETY * error_norm ** ERROR_EXPONENT)
                 step_rejected = True
+        if status != OK:
+            break
         # accepted: t_old = t, t = t_new, y_old = y, y = y_new, f = f_new
         t_old = t
         yo0 = y0
@@ -346,28 +403,14 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
         y1 = yn1
         f0 = K[N_STAGES, 0]
         f1 = K[N_STAGES, 1]
-        # DOP853._dense_output_impl
-        for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
-            dy = np.dot(K[:si].T, A[si, :si]) * h
-            s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0], yo1 + dy[1], K, si, work)
-            if s != OK:
-                return s, n, False, t_old + C[si] * h, st, sh, sy, sF
         if n + 1 >= st.shape[0]:
             st = _grow1(st, n + 1)
             sh = _grow1(sh, n)
             sy, sF = _grow_steps(sy, sF, n + 1)
-        dl0 = y0 - yo0
-        dl1 = y1 - yo1
-        sF[n, 0, 0] = dl0
-        sF[n, 0, 1] = dl1
-        sF[n, 1, 0] = h * K[0, 0] - dl0
-        sF[n, 1, 1] = h * K[0, 1] - dl1
-        sF[n, 2, 0] = 2 * dl0 - h * (f0 + K[0, 0])
-        sF[n, 2, 1] = 2 * dl1 - h * (f1 + K[0, 1])
-        DK = np.dot(D, K)
-        for r in range(INTERPOLATOR_POWER - 3):
-            sF[n, 3 + r, 0] = h * DK[r, 0]
-            sF[n, 3 + r, 1] = h * DK[r, 1]
+        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h,
+                                                K, work, sF, n)
+        if status != OK:
+            break
         sh[n] = t - t_old
         st[n + 1] = t
         sy[n + 1, 0] = y0
@@ -389,7 +432,7 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
             g = g_new
         if t - end >= 0:
             break
-    return OK, n, stopped, math.nan, st, sh, sy, sF
+    return status, n, stopped, fail_time, st, sh, sy, sF
 
 
 @njit(cache=True)
@@ -506,37 +549,49 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     n_samp = 0
     stopped = False
     t_reached = piece_edges[0]
+    status = OK
+    fail_time = math.nan
+    fail_value = math.nan
     if not (math.isfinite(q0) and math.isfinite(v0)):
-        return (NONFINITE, ot[:0], oq[:0], ov[:0], oa[:0], 0, 0, 0, False, t_reached,
-                t_reached, math.nan)
-    if abs(v0) > speed_limit:
-        return (SPEED, ot[:0], oq[:0], ov[:0], oa[:0], 0, 0, 0, False, t_reached,
-                t_reached, v0)
+        status = NONFINITE
+        fail_time = t_reached
+    elif abs(v0) > speed_limit:
+        status = SPEED
+        fail_time = t_reached
+        fail_value = v0
     q = q0
     v = v0
-    for p in range(piece_load.shape[0]):
+    # one exit (each return of this 12-tuple costs compile time)
+    for p in range(piece_load.shape[0] if status == OK else 0):
         start = piece_edges[p]
         end = piece_edges[p + 1]
         load = piece_load[p]
-        status, n, stopped, fail_t, st, sh, sy, sF = _piece(
+        status, n, stopped, fail_time, st, sh, sy, sF = _piece(
             problem, chart, load, start, end, q, v, rtol, atol, max_step, use_stop, work,
             st, sh, sy, sF)
-        if status != OK:
-            return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps + n, work[0], n_samp,
-                    False, t_reached, fail_t, math.nan)
         n_steps += n
+        if status != OK:
+            stopped = False
+            break
         times, qs, vs, acc = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
                                            sample_interval, per_step)
         m = times.shape[0]
         n_samp += m
         for i in range(m):
             if not (math.isfinite(qs[i]) and math.isfinite(vs[i]) and math.isfinite(acc[i])):
-                return (NONFINITE, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp,
-                        False, t_reached, times[i], math.nan)
-        for i in range(m):
-            if abs(vs[i]) > speed_limit:
-                return (SPEED, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp,
-                        False, t_reached, times[i], vs[i])
+                status = NONFINITE
+                fail_time = times[i]
+                break
+        if status == OK:
+            for i in range(m):
+                if abs(vs[i]) > speed_limit:
+                    status = SPEED
+                    fail_time = times[i]
+                    fail_value = vs[i]
+                    break
+        if status != OK:
+            stopped = False
+            break
         while no + m > ot.shape[0]:
             ot = _grow1(ot, no)
             oq = _grow1(oq, no)
@@ -553,8 +608,8 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         t_reached = st[n]
         if stopped:
             break
-    return (OK, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
-            t_reached, math.nan, math.nan)
+    return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
+            t_reached, fail_time, fail_value)
 
 
 def run(problem, chart, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None,
