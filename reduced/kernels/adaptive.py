@@ -82,19 +82,19 @@ class RunResult(NamedTuple):
 
 # ---- helpers --------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pymin(a, b):
     """Python's min(a, b): a unless b < a (NaN handling as in Python)."""
     return b if b < a else a
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pymax(a, b):
     """Python's max(a, b): a unless b > a."""
     return b if b > a else a
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _npmax(a, b):
     """np.maximum(a, b) of two floats (NaN if either is)."""
     if a != a or b != b:
@@ -186,7 +186,7 @@ def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
     #              bracketed continuous g at these tolerances
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _norm2(x0, x1):
     """np.linalg.norm((x0, x1)): numpy takes sqrt(x.dot(x)) (BLAS ddot), and so does this (np.dot
     in numba calls the same BLAS), for bit-equal results."""
@@ -196,7 +196,7 @@ def _norm2(x0, x1):
     return math.sqrt(np.dot(x, x))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rms2(x0, x1):
     """scipy's norm of (x0, x1): np.linalg.norm(x) / x.size ** 0.5."""
     return _norm2(x0, x1) / SQRT_N
@@ -208,7 +208,7 @@ def _dot_kt(K, a, s):
     return np.dot(K[:s].T, a[:s])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _fun(problem, chart, load, t, q, v, K, row, work):
     """The first-order system (q̇, f) into K[row]; work = [nfev, max_evaluations].
     Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
@@ -223,7 +223,7 @@ def _fun(problem, chart, load, t, q, v, K, row, work):
     return OK
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _grow1(a, n):
     b = np.empty(2 * a.shape[0])
     for i in range(n):  # explicit loops: a slice assignment costs seconds of compile time
@@ -231,7 +231,7 @@ def _grow1(a, n):
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _grow_steps(sy, sF, n):
     sy2 = np.empty((2 * sy.shape[0], 2))
     sF2 = np.empty((2 * sF.shape[0], INTERPOLATOR_POWER, 2))
