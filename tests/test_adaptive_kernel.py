@@ -13,10 +13,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from reduced.errors import NumericalFailure
-from reduced.integrators import solve_adaptive
-from reduced.kernels import adaptive as K
-from reduced.kernels.problem import acceleration, make_toy, stop_margin
+pytest.importorskip("numba")
+
+from reduced.errors import NumericalFailure  # noqa: E402
+from reduced.integrators import solve_adaptive  # noqa: E402
+from reduced.kernels import adaptive as K  # noqa: E402
+from reduced.kernels.problem import acceleration, make_toy, stop_margin  # noqa: E402
 
 EDGES = np.array([0.0, 0.7, 1.9, 3.0])   # three pieces: a restart at every edge
 LOADS = np.array([1.5, -2.0, 0.4])
