@@ -16,13 +16,20 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from typing import TYPE_CHECKING
 
-from reduced import NumericalFailure, ReducedSettings, SceneError, default_scene_path, load_scene, simulate
-from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS
+# Only what parsing and error reporting need is imported here; each command imports its
+# engine (the reduced solver, MuJoCo, matplotlib) when it runs.
+from reduced.errors import NumericalFailure
+from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, SceneError
+from reduced.scenefile import default_scene_path, load_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
                      signals_as_exceptions, write_file)
 from .text import mujoco_lines, reduced_lines
+
+if TYPE_CHECKING:
+    from reduced import ReducedSettings
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_REPEATS = 1000
@@ -94,6 +101,8 @@ def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) ->
 
 
 def cmd_reduced(args: argparse.Namespace) -> int:
+    from reduced import simulate
+
     scene = _scene(args.scene)
     settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
     result = simulate(scene, settings)

@@ -320,23 +320,18 @@ def draw_scene(scene, path: str | Path) -> None:
     The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
     sign per loop, ``scene.mode``) and gravity.
     """
-    from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
+    from . import plots
 
     system = compile_linkage(scene.mechanism.linkage)
     unit = scene.input_unit
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(9, 6.5))
-    try:
-        draw_linkage(ax, scene.mechanism, system, np.asarray(scene.x0, dtype=float), q=scene.q0,
-                     input_label=f"input, q0 = {scene.q0:g} {unit}")
-        gravity = ("" if scene.gravity is None
-                   else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
-        ax.set_title(f"{short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
-                     f"mode {mode_text(scene.mode)}{gravity}", **TITLE_PLAIN)
-    except BaseException:
-        plt.close(fig)
-        raise
-    _save(fig, Path(path))
+    fig, ax = plots.new_figure((9, 6.5), margins=DRAWING_MARGINS)
+    draw_linkage(ax, scene.mechanism, system, np.asarray(scene.x0, dtype=float), q=scene.q0,
+                 input_label=f"input, q0 = {scene.q0:g} {unit}")
+    gravity = ("" if scene.gravity is None
+               else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
+    ax.set_title(f"{plots.short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
+                 f"mode {mode_text(scene.mode)}{gravity}", **plots.PLAIN)
+    plots._save(fig, Path(path))
 
 
 # -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----
@@ -372,6 +367,12 @@ def _checked_system(scene, *runs) -> LoopSystem:
     return system
 
 
+# Fixed margins (inches, see compare.plots.new_figure) of the drawing, of the strip (a
+# suptitle above two-line panel titles) and of the animation's frames.
+DRAWING_MARGINS = {"left": 0.85, "right": 0.3, "top": 0.45, "bottom": 0.6}
+STRIP_MARGINS = {"left": 0.75, "right": 0.2, "top": 0.85, "bottom": 0.55, "wspace": 0.55}
+ANIMATION_MARGINS = {"left": 0.8, "right": 0.2, "top": 0.4, "bottom": 0.55}
+
 REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
 OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
 
@@ -399,26 +400,23 @@ def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], pa
 
     Raises ValueError when a run's coordinate names are not the scene's.
     """
-    from .plots import PLAIN as TITLE_PLAIN, _pyplot, _save, short_name
+    from . import plots
 
     system = _checked_system(scene, reference, other)
     linkage = scene.mechanism.linkage
     unit = scene.input_unit
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(moments), figsize=(4.5 * len(moments), 4.2), squeeze=False)
-    try:
-        for ax, (label, t) in zip(axes[0], moments):
-            xs = [configuration_at(run, t) for run in (reference, other)]
-            q = [float(system.drive @ x) for x in xs]
-            _frame(ax, linkage, system, xs,
-                   f"{label}, t = {t:.6g} s\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
-        axes[0][0].set_ylabel("y (m)")
-        axes[0][0].legend(loc="best", fontsize=8)
-        fig.suptitle(f"{short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", **TITLE_PLAIN)
-    except BaseException:
-        plt.close(fig)
-        raise
-    _save(fig, Path(path))
+    fig, axes = plots.new_figure((4.5 * len(moments), 4.2), 1, len(moments), squeeze=False,
+                                 margins=STRIP_MARGINS)
+    for ax, (label, t) in zip(axes[0], moments):
+        xs = [configuration_at(run, t) for run in (reference, other)]
+        q = [float(system.drive @ x) for x in xs]
+        _frame(ax, linkage, system, xs,
+               f"{label}, t = {t:.6g} s\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
+    axes[0][0].set_ylabel("y (m)")
+    axes[0][0].legend(loc="best", fontsize=8)
+    fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", y=0.975,
+                 va="top", **plots.PLAIN)
+    plots._save(fig, Path(path))
 
 
 def gif_writer_available() -> bool:
@@ -445,7 +443,7 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
     """
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    from .plots import _pyplot, short_name
+    from .plots import new_figure, short_name
 
     if not gif_writer_available():
         raise RuntimeError("matplotlib's PillowWriter is not available (pillow missing): no GIF")
@@ -461,8 +459,7 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
             every = np.vstack([every, positions(system.points, x)])
     lo, hi = every.min(axis=0), every.max(axis=0)
     pad = 0.08 * float(np.max(hi - lo) or 1.0)
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 5))
+    fig, ax = new_figure((6, 5), margins=ANIMATION_MARGINS)
 
     def show(k: int):
         ax.clear()
@@ -473,8 +470,4 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         return []
 
-    try:
-        FuncAnimation(fig, show, frames=len(times), blit=False).save(
-            str(path), writer=PillowWriter(fps=fps))
-    finally:
-        plt.close(fig)
+    FuncAnimation(fig, show, frames=len(times), blit=False).save(str(path), writer=PillowWriter(fps=fps))

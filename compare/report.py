@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from reduced import EngineResult
+from reduced.result import EngineResult
 
 from .output import json_text, portable_source, write_folder
 from .plots import PLOTS
