@@ -27,8 +27,8 @@ import numpy as np
 from . import loops
 from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
 from .errors import NumericalFailure
-from .integrators import RKN4, SPEED_LIMIT, Solution
-from .kernels import fixed_step, physics
+from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution
+from .kernels import adaptive, fixed_step, physics
 from .kernels import partition as compiled
 from .trajectory import Trajectory
 
@@ -240,6 +240,11 @@ def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart
             f"(h·λ = {info[1]:.3g}{info[2]:+.3g}j, |R| = {info[3]:.6g} > {info[4]:.6g}): the problem is "
             "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
             "the implicit Radau method", t)
+    if status == adaptive.STEP_SIZE:
+        return NumericalFailure(
+            "step-size", f"DOP853 used more than {MAX_EVALUATIONS} evaluations of the equation or its step fell "
+            f"below the spacing of the floating-point numbers, and reached only t = {t:.6g} s: its step has "
+            "collapsed (an extreme speed, damper or inertia in the scene?)", t)
     if status == fixed_step.FAILED:
         if chart.S[physics.STATUS] == physics.SINGULAR:
             name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
@@ -263,6 +268,22 @@ def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = T
     if status != fixed_step.OK:
         raise compiled_failure(model, status, info, chart, step)
     return compiled_solution(model, run, RKN4.name, {"method": "rkn4", "step": step})
+
+
+def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
+                     retry_caps: tuple[float, ...]) -> PartitionedSolution:
+    """The compiled DOP853 run of the scene at rtol = atol = ``rtol``, all charts; samples no
+    further apart than ``sample_interval`` (s); a chart that meets a singular position is run
+    again with the step capped to each fraction ``retry_caps`` of its span."""
+    x0, i, rate = _start(model)
+    edges, loads = load_pieces(model)
+    chart = model.new_chart()
+    status, info, *run = compiled.run_dop853(model.arrays, chart, edges, loads, x0, i, rate, float(rtol),
+                                             float(sample_interval), SAMPLES_PER_STEP, SPEED_LIMIT,
+                                             MAX_EVALUATIONS, np.array(retry_caps, dtype=float), MAX_SWITCHES)
+    if status != fixed_step.OK:
+        raise compiled_failure(model, status, info, chart)
+    return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 
 def _solution(model: MechanismModel, segments, switches) -> PartitionedSolution:

@@ -18,9 +18,7 @@ Failures are status codes, never exceptions (:data:`OK`, :data:`STEP_SIZE`, :dat
 :data:`SPEED`).
 
 Debugging: ``NUMBA_DISABLE_JIT=1`` runs the same code as plain Python (slow but steppable).
-Caching: numba keys its on-disk cache on the function's own file only, so a driver cached here
-would keep an old ``problem.py`` inlined; :func:`_cache_follows_the_whole_package` makes every
-kernel of this package depend on the hash of all the package's sources instead.
+Caching: see :mod:`reduced.kernels` (the cache follows every source of the package).
 """
 
 from __future__ import annotations
@@ -30,56 +28,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from scipy.integrate._ivp import dop853_coefficients as _coef
+from . import dop853_tableau as _coef
 
-
-def _cache_follows_the_whole_package() -> None:
-    """Make numba's on-disk cache of every kernel in this package depend on ALL its sources.
-
-    numba keys a function's cache on the hash of its own file only, so a driver compiled here
-    with ``acceleration`` inlined from problem.py kept the old physics after problem.py changed
-    (seen: edit problem.py, same cached result). The locators below, tried before numba's own
-    ones for files in this package, stamp the cache with the hash of every .py file under it.
-    Uses numba internals (numba.core.caching); if they change, numba's default applies.
-    """
-    import glob
-    import hashlib
-    import os
-
-    try:
-        from numba.core import caching
-    except ImportError:  # pragma: no cover
-        return
-    root = os.path.dirname(os.path.abspath(__file__))
-
-    class _PackageStamp:
-        def get_source_stamp(self):
-            digest = hashlib.sha256()
-            for path in sorted(glob.glob(os.path.join(root, "**", "*.py"), recursive=True)):
-                with open(path, "rb") as f:
-                    digest.update(path.encode() + b"\0" + f.read())
-            return digest.digest()
-
-        @classmethod
-        def from_function(cls, py_func, py_file):
-            if not os.path.abspath(py_file).startswith(root + os.sep):
-                return None
-            return super().from_function(py_func, py_file)
-
-    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
-    bases = [getattr(caching, name, None) for name in
-             ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
-    if impl is None or None in bases or not isinstance(getattr(impl, "_locator_classes", None), list):
-        return  # pragma: no cover
-    if any(getattr(c, "_xval_kernels", False) for c in impl._locator_classes):
-        return
-    ours = [type("Kernels" + b.__name__, (_PackageStamp, b), {"_xval_kernels": True}) for b in bases]
-    impl._locator_classes[:0] = ours
-
-
-_cache_follows_the_whole_package()
-
-from .problem import acceleration, stop_margin  # noqa: E402  (after the cache locators)
+from .problem import acceleration, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
 OK = 0          #: the run reached the end of the last piece, or the stop event ended it

@@ -3,18 +3,27 @@
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
 conditioned by more than the hysteresis), then continues in the best-conditioned coordinate j
 from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i).
-:mod:`reduced.partition` documents the method; this module only strings the charts together.
+:mod:`reduced.partition` documents the method; this module only strings the charts together,
+with either integrator: :func:`run_rkn4` (fixed step) or :func:`run_dop853` (adaptive).
+
+Both return (status, info, t, value, rate, accel, segment, coordinate, starts, switches,
+n_steps, n_evaluations): the samples of each chart's coordinate, the segment (chart number) of
+each sample, each segment's coordinate and start configuration (segments, 3, n), each switch as
+(time, old, new, c_old, c_new). info[0] is the time of a failure, info[1] its value.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
-from . import physics
-from .fixed_step import FAILED, OK, rkn4_chart
+from . import adaptive, physics
+from .fixed_step import FAILED, NONFINITE, OK, rkn4_chart
 
-# statuses beyond the integrators' own
+# statuses beyond the integrators' own (OK 0, STEP_SIZE 1, NONFINITE 2, SPEED 3, UNSTABLE 4,
+# FAILED 5)
 NO_BETTER, TOO_MANY_SWITCHES, SINGULAR_START = 6, 7, 8
 
 
@@ -52,15 +61,49 @@ def switch(model, chart, value, rate, info):
 
 
 @njit(cache=True, error_model="numpy")
-def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_limit, stability, max_switches):
-    """RKN4 over [edges[0], edges[-1]] from the assembled x0 with ẋ_independent = rate0,
-    switching charts as needed.
+def _pieces_from(edges, loads, t):
+    """The load pieces of [t, edges[-1]]: edges (p+1,) starting at t and their loads (p,)."""
+    first = 0
+    while first < loads.shape[0] - 1 and edges[first + 1] <= t:
+        first += 1
+    p = loads.shape[0] - first
+    out_edges = np.empty(p + 1)
+    out_loads = np.empty(p)
+    out_edges[0] = t
+    for k in range(p):
+        out_loads[k] = loads[first + k]
+        out_edges[k + 1] = edges[first + k + 1]
+    return out_edges, out_loads
 
-    Returns (status, info, t, value, rate, accel, segment, coordinate, starts, switches,
-    n_steps, n_evaluations): samples of each chart's coordinate, the segment (chart number) of
-    each sample, each segment's coordinate and start configuration (segments, 3, n), each
-    switch as (time, old, new, c_old, c_new). info[0] is the time of a failure.
-    """
+
+@njit(cache=True, error_model="numpy")
+def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
+                  max_evaluations, retry_caps, info):
+    """One chart by DOP853 from t; a chart that meets a singular position (a trial stage past
+    the reach of its coordinate, before the switch event fires) is integrated again from its
+    start with the step capped to each fraction of its span in ``retry_caps`` in turn."""
+    piece_edges, piece_loads = _pieces_from(edges, loads, t)
+    span = edges[-1] - t
+    for attempt in range(retry_caps.shape[0] + 1):
+        cap = math.inf if attempt == 0 else retry_caps[attempt - 1] * span
+        if attempt > 0:
+            physics.reset(model, chart)
+        (status, ts, qs, vs, accs, steps, evals, sample_evals, stopped, t_reached, fail_time,
+         fail_value) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
+                                           sample_interval, per_step, speed_limit, max_evaluations, cap, True)
+        singular = status == NONFINITE and chart[0][physics.STATUS] == physics.SINGULAR
+        if not singular:
+            break
+    if status != OK:
+        info[0], info[1] = fail_time, fail_value
+        if singular:
+            status = FAILED
+    return status, stopped, ts, qs, vs, accs, steps, evals  # as scipy counts: not the samples
+
+
+@njit(cache=True, error_model="numpy")
+def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, step, rtol, sample_interval,
+         per_step, speed_limit, stability, max_evaluations, retry_caps, max_switches):
     n = model[1][physics.N]
     info = np.zeros(8)
     t_parts, q_parts, v_parts, a_parts, seg_parts = [np.empty(0)], [np.empty(0)], [np.empty(0)], [np.empty(0)], \
@@ -77,8 +120,13 @@ def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_lim
     n_steps, n_eval = 0, 0
     status = OK
     while True:
-        status, stopped, ts, qs, vs, accs, steps, evals = rkn4_chart(
-            model, chart, edges, loads, t, value, rate, step, speed_limit, stability, True, info)
+        if adaptive_method:
+            status, stopped, ts, qs, vs, accs, steps, evals = _dop853_chart(
+                model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
+                max_evaluations - n_eval, retry_caps, info)
+        else:
+            status, stopped, ts, qs, vs, accs, steps, evals = rkn4_chart(
+                model, chart, edges, loads, t, value, rate, step, speed_limit, stability, True, info)
         n_steps += steps
         n_eval += evals
         t_parts.append(ts)
@@ -114,3 +162,20 @@ def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_lim
             _concatenate(v_parts, total), _concatenate(a_parts, total),
             _concatenate(seg_parts, total).astype(np.int64), np.array(coordinates, dtype=np.int64), out_starts,
             out_switches, n_steps, n_eval)
+
+
+def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_limit, stability, max_switches):
+    """RKN4 at the largest step ``step`` (s) over [edges[0], edges[-1]] from the assembled x0
+    with ẋ_independent = rate0, switching charts as needed."""
+    return _run(model, chart, edges, loads, x0, independent, rate0, False, step, 0.0, 0.0, 0, speed_limit,
+                stability, 0, np.empty(0), max_switches)
+
+
+def run_dop853(model, chart, edges, loads, x0, independent, rate0, rtol, sample_interval, per_step,
+               speed_limit, max_evaluations, retry_caps, max_switches):
+    """DOP853 at rtol = atol ``rtol`` (scipy's algorithm, :mod:`.adaptive`), sampled no coarser
+    than ``sample_interval`` (s) and ``per_step`` samples per step; ``max_evaluations`` of q̈
+    in all; charts that meet a singular position retried with the step capped to the fractions
+    ``retry_caps`` (k,) of their span."""
+    return _run(model, chart, edges, loads, x0, independent, rate0, True, 0.0, rtol, sample_interval, per_step,
+                speed_limit, False, max_evaluations, retry_caps, max_switches)
