@@ -28,10 +28,16 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic, overload
+from numba.np.arrayobj import make_array, populate_array
 
 # Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
-# is still applied (polish to round-off). From the predictor it takes 2 iterations.
+# is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
+# K, L and the coefficients are those of the x returned, whatever the walk's history (with the
+# factors of the iterate before, f(t, q, q̇) varied by 4e-12 relative with the previous call,
+# and DOP853's steps with it). From the quadratic predictor: 2 steps, 3 factorizations.
 NEWTON_TOL = 1e-12
 NEWTON_MAX_ITER = 20
 # Below this conditioning a coordinate cannot drive the linkage (a dead-centre position).
@@ -95,39 +101,82 @@ def new_chart(n: int, rows: int) -> Chart:
     return Chart(np.zeros(S_HEADER + n + DEPTH, np.int64), np.zeros(size))
 
 
+def _view(W, offset, shape):
+    """W[offset:offset + prod(shape)] as a C-contiguous view of that shape (reshape in Python;
+    in compiled code, :func:`_compiled_view`)."""
+    size = 1
+    for s in shape:
+        size *= s
+    return W[offset:offset + size].reshape(shape)
+
+
+@intrinsic
+def _compiled_view(typingctx, W, offset, shape):
+    """:func:`_view` with the array header built inline, unchecked: numba's ``reshape`` calls a
+    C helper on every use (25 ns, most of an evaluation's overhead: the chart's views are taken
+    several times per evaluation), and a strided view has a non-contiguous type, on which
+    ravel() copies."""
+    sig = types.Array(W.dtype, len(shape), "C")(W, offset, shape)
+
+    def codegen(context, builder, signature, args):
+        source_type = signature.args[0]
+        source = make_array(source_type)(context, builder, value=args[0])
+        view = make_array(signature.return_type)(context, builder)
+        dims = cgutils.unpack_tuple(builder, args[2])
+        itemsize = context.get_constant(types.intp, context.get_abi_sizeof(
+            context.get_data_type(source_type.dtype)))
+        strides = [itemsize]
+        for d in reversed(dims[1:]):
+            strides.insert(0, builder.mul(strides[0], d))
+        # no meminfo: the view is not reference-counted (an atomic increment and decrement per
+        # view, 14 views per call of _views), so it must not outlive W: kernels only use
+        # views while W is alive in their caller, and never return one
+        null = cgutils.get_null_value(source.meminfo.type)
+        populate_array(view, data=builder.gep(source.data, [args[1]]), shape=dims, strides=strides,
+                       itemsize=itemsize, meminfo=null, parent=cgutils.get_null_value(source.parent.type))
+        return view._getvalue()
+
+    return sig, codegen
+
+
+@overload(_view)
+def _view_overload(W, offset, shape):
+    return lambda W, offset, shape: _compiled_view(W, offset, shape)
+
+
 @njit(cache=True, error_model="numpy")
 def _views(I, W):
     """Views into W: value (1,), start, last, kin (3, n), fields, A (n, n), rhs, trig (2, n),
     norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)."""
     n = I[N]
     o = 0
-    value = W[o:o + 1]
+    value = _view(W, o, (1,))
     o += 1
-    start = W[o:o + 3 * n].reshape(3, n)
+    start = _view(W, o, (3, n))
     o += 3 * n
-    last = W[o:o + 3 * n].reshape(3, n)
+    last = _view(W, o, (3, n))
     o += 3 * n
-    kin = W[o:o + 3 * n].reshape(3, n)
+    kin = _view(W, o, (3, n))
     o += 3 * n
-    fields = W[o:o + N_FIELDS]
+    fields = _view(W, o, (N_FIELDS,))
     o += N_FIELDS
-    A = W[o:o + n * n].reshape(n, n)
+    A = _view(W, o, (n, n))
     o += n * n
-    rhs = W[o:o + n]
+    rhs = _view(W, o, (n,))
     o += n
-    trig = W[o:o + 2 * n].reshape(2, n)
+    trig = _view(W, o, (2, n))
     o += 2 * n
-    norms = W[o:o + n]
+    norms = _view(W, o, (n,))
     o += n
-    x = W[o:o + n]
+    x = _view(W, o, (n,))
     o += n
-    guess = W[o:o + n]
+    guess = _view(W, o, (n,))
     o += n
-    base = W[o:o + DEPTH * 3 * n].reshape(DEPTH, 3, n)
+    base = _view(W, o, (DEPTH, 3, n))
     o += DEPTH * 3 * n
-    target = W[o:o + DEPTH]
+    target = _view(W, o, (DEPTH,))
     o += DEPTH
-    rows = W[o:o + 4 * max(I[MAX_ROWS], 1)].reshape(max(I[MAX_ROWS], 1), 4)
+    rows = _view(W, o, (max(I[MAX_ROWS], 1), 4))
     return value, start, last, kin, fields, A, rhs, trig, norms, x, guess, base, target, rows
 
 
@@ -351,7 +400,8 @@ def _close(F, I, S, W, base, value, out):
     x[i] = value
     det = 0.0
     converged = False
-    for _ in range(NEWTON_MAX_ITER):
+    factored = False  # at the polished x
+    for _ in range(NEWTON_MAX_ITER + 1):
         angle_trig(I, x, trig)
         constraints(F, I, x, trig, A, res)
         largest = 0.0
@@ -370,13 +420,14 @@ def _close(F, I, S, W, base, value, out):
         det = lu_factor(A, piv)
         if det == 0.0 or not math.isfinite(det):
             return 1
+        if converged:
+            factored = True
+            break
         lu_solve(A, piv, res)
         for j in range(n):
             x[j] -= res[j]
-        if largest <= NEWTON_TOL:  # the step just taken polishes to round-off
-            converged = True
-            break
-    if not converged:
+        converged = largest <= NEWTON_TOL  # the step just taken polishes to round-off
+    if not factored:
         return 1
     for j in range(n):
         if not math.isfinite(x[j]):
