@@ -17,7 +17,7 @@ from reduced import loops
 from reduced.partition import Chart
 from reduced.scene import FourBarGeometry
 
-from helpers import SEED_SCENE, seed_dict, variant
+from helpers import SEED_SCENE, coefficients_along, seed_dict, variant
 
 SEED = FourBarGeometry(0.5, 0.9, 0.7, 1.0, 1)
 QS = np.linspace(0.0, 2 * np.pi, 73)[:-1]  # a full crank revolution, every 5°
@@ -183,12 +183,8 @@ def seed_generalized_inertia(q: float) -> float:
 
 
 def seed_coefficients(qs):
-    """The compiled coefficients of the seed at each q of ``qs`` in turn: a chart of the crank
-    angle (the input) walked from the scene's x0 (MechanismModel.coefficients(q) assembles by
-    Newton from x0 and does not converge half a revolution away)."""
-    model = MechanismModel(load_scene(SEED_SCENE))
-    chart = Chart(model, model.input_coordinate, model.x0)
-    return [chart.coefficients(float(q)) for q in qs]
+    """The compiled coefficients of the seed at each q of ``qs`` (:func:`helpers.coefficients_along`)."""
+    return coefficients_along(MechanismModel(load_scene(SEED_SCENE)), qs)
 
 
 def test_generalized_inertia_matches_the_seed_formula():
@@ -219,10 +215,9 @@ def test_damper_rate_matches_the_seed():
         by = 0.5 * math.sin(q) + 0.9 * math.sin(x[1])
         return math.hypot(1.3 - bx, by - 0.12)
 
-    chart = Chart(model, model.input_coordinate, model.x0)
-    for q in QS[::4]:
+    for q, c in zip(QS[::4], coefficients_along(model, QS[::4])):
         k_d = (length(q + 1e-6) - length(q - 1e-6)) / 2e-6
-        assert chart.coefficients(float(q)).damping == pytest.approx(55.0 * k_d**2, rel=1e-6, abs=1e-9)
+        assert c.damping == pytest.approx(55.0 * k_d**2, rel=1e-6, abs=1e-9)
 
 
 def test_model_contains_only_declared_effects():
