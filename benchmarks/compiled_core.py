@@ -183,6 +183,15 @@ def coefficients_loop(model, chart, n):
     return s
 
 
+@njit(cache=True, error_model="numpy")
+def views_loop(model, chart, n):
+    """physics._views alone (the chart's 14 array views), n times."""
+    s = 0.0
+    for k in range(n):
+        s += physics._views(model[1], chart[1])[4][0]
+    return s
+
+
 def median_of(run, repeats):
     run()  # warm-up (compilation)
     times = []
@@ -232,6 +241,7 @@ def part1(scene, quick: bool, repeats: int) -> bool:
     t_bound = median_of(lambda: bound_loop(load, q0, STEP_Q, RATE, n), repeats)
     t_walk = median_of(lambda: walk_loop(model.arrays, chart, q0, STEP_Q, n), repeats)
     t_coef = median_of(lambda: coefficients_loop(model.arrays, chart, n), repeats)
+    t_views = median_of(lambda: views_loop(model.arrays, chart, n), repeats)
     ns = 1e9 / n
     print(f"\n   timed: @njit loops of N = {n} calls, q = {q0} + k·{STEP_Q:g} rad (about {n * STEP_Q / (2 * math.pi):.0f} "
           f"crank turns), q̇ = {RATE:g} rad/s, load 250 N·m; median of {repeats} loops "
@@ -241,6 +251,7 @@ def part1(scene, quick: bool, repeats: int) -> bool:
     print(f"   {'general: physics.acceleration (walk + coefficients)':58s} {t_general * ns:9.1f}")
     print(f"   {'  of which the chart walk (Newton, K, L, conditioning)':58s} {t_walk * ns:9.1f}")
     print(f"   {'  of which the coefficients (𝔍, ζ, damper, load rate)':58s} {t_coef * ns:9.1f}")
+    print(f"   {'  physics._views alone (5 calls per evaluation)':58s} {t_views * ns:9.1f}")
     print(f"   ratio general / bound: {t_general / t_bound:.2f}x (target ≤ 1.5x)")
     return ok
 
@@ -263,6 +274,7 @@ def part2(scene, quick: bool, repeats: int) -> None:
           f"once for errors; those meeting a target timed again, median of {repeats}")
     first = [measure(scene, c, truth.trajectory, 1) for c in configs]
     timed: dict[str, object] = {}
+    rkn4_steps = set()
 
     def retimed(m):
         if m.config.label not in timed:
@@ -289,6 +301,8 @@ def part2(scene, quick: bool, repeats: int) -> None:
             if m is None:
                 print(f"   {label:24s} {engine:8s} {'not reached':34s}")
             else:
+                if engine == "reduced":
+                    rkn4_steps.add(m.config.parameter)
                 print(f"   {label:24s} {engine:8s} {m.config.label:34s} {getattr(m, attr):9.2e} "
                       f"{m.wall_median_s * 1e3:10.3f} {m.n_steps:7d}")
         if best["reduced"] and best["mujoco"]:
@@ -296,10 +310,35 @@ def part2(scene, quick: bool, repeats: int) -> None:
                   f"{best['mujoco'].wall_median_s / best['reduced'].wall_median_s:.1f}x (target ≥ 30x)")
         else:
             print(f"   ratio MuJoCo / reduced at {name} ≤ {target:g}: not measured (a target not reached)")
+    for h in sorted(rkn4_steps):
+        run_only, whole = rkn4_breakdown(scene, h, repeats)
+        print(f"   RKN4 h={h:.1e}: the compiled run alone (kernels.partition.run_rkn4) {run_only * 1e3:.3f} ms "
+              f"of integrate()'s {whole * 1e3:.3f} ms (the rest: start, output assembly in Python)")
     mj = [m for m in first if m.config.engine == "mujoco" and m.ok]
     if mj:
         print(f"   smallest MuJoCo errors measured: peak {min(m.peak_omega_rel for m in mj):.2e}, "
               f"max |Δq| {min(m.q_max_abs for m in mj):.2e} rad")
+
+
+def rkn4_breakdown(scene, step: float, repeats: int) -> tuple[float, float]:
+    """Median wall times (s) of the compiled RKN4 run alone and of the whole
+    ``reduced.simulate.integrate`` call at ``step``."""
+    from reduced.integrators import SPEED_LIMIT
+    from reduced.kernels import partition as compiled
+    from reduced.partition import MAX_SWITCHES, _start, load_pieces
+    from reduced.simulate import integrate
+
+    model = MechanismModel(scene)
+    x0, i, rate = _start(model)
+    edges, loads = load_pieces(model)
+    chart = model.new_chart()
+
+    def run_only():
+        compiled.run_rkn4(model.arrays, chart, edges, loads, x0, i, rate, float(step), SPEED_LIMIT, True,
+                          MAX_SWITCHES)
+
+    settings = ReducedSettings(method="rkn4", step=step)
+    return median_time(run_only, repeats), median_time(lambda: integrate(model, settings), repeats)
 
 
 # -- part 3: the adaptive reference --------------------------------------------------------
