@@ -108,7 +108,7 @@ class Chart:
     def walk(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """From the chart's start, the coefficient fields (m, N_FIELDS) and kinematics
         (m, 3, n) at each of ``values`` in turn (compiled)."""
-        values = np.ascontiguousarray(values, dtype=float)
+        values = np.array(values, dtype=float)  # a writable copy: a read-only array is another type to compile
         fields = np.empty((len(values), physics.N_FIELDS))
         kin = np.empty((len(values), 3, len(self.model.coordinate_names)))
         done = physics.walk(self.model.arrays, self.state, values, fields, kin)

@@ -17,7 +17,7 @@ N the constraint null space with β' = 1); (2) the published index-3 equations i
 with scipy's DOP853 reach the published reference (independent of our loops code: this checks
 the transcription); (3) Eksergian's equation built from OUR loops and the scene's masses,
 integrated with scipy, reaches the published reference (the scene alone, no engine). The last
-test runs the reduced engine (``reduced.engine``) and needs it ported to general linkages.
+test runs the reduced engine (``reduced.simulate``) and needs it ported to general linkages.
 """
 
 from __future__ import annotations
@@ -247,14 +247,14 @@ def test_eksergians_equation_on_our_loops_reaches_the_published_solution(andrews
 
 
 def test_the_reduced_engine_meets_the_published_solution(andrews):
-    """The issue's requirement: reduced.engine (DOP853) at t = 0.03 s against the test set's
+    """The issue's requirement: reduced.simulate (DOP853) at t = 0.03 s against the test set's
     reference, every angle to 1e-9 and every rate to 2e-7 relative, after mapping our absolute
     frame angles x (result.diagnostics["joints"].x, in the order of the scene's bodies) to the
     published (β, Θ, γ, Φ, δ, Ω, ε). Needs the reduced engine ported to general linkages."""
     import reduced
 
     scene, linkage, system = andrews
-    result = reduced.engine(scene, reduced.ReducedSettings(method="dop853", rtol=1e-13))
+    result = reduced.simulate(scene, reduced.ReducedSettings(method="dop853", rtol=1e-13))
     joints = result.diagnostics["joints"]
     assert tuple(joints.names) == system.coordinate_names
     assert joints.t[-1] == pytest.approx(HORIZON, abs=1e-15)
