@@ -17,11 +17,11 @@
    those that meet a target are timed again (median of the repeats) and the cheapest of each
    engine is printed, for peak-ω error 1e-6 and for max |Δq| 1e-6 rad, with the ratio
    MuJoCo / reduced (target ≥ 30×). Wall times: reduced, ``EngineResult.wall_s`` of
-   ``reduced.simulate`` = the call to ``reduced.simulate.integrate`` (the compiled RKN4 run
+   ``reduced.simulate`` = the call to ``reduced.engine.integrate`` (the compiled RKN4 run
    and its output assembly; not the error estimate or energy audit); MuJoCo,
    ``simulate_mujoco``'s ``wall_s`` = the rollout only.
 3. The adaptive reference: median wall time of
-   ``reduced.simulate.integrate(model, ReducedSettings(method="dop853", rtol=1e-12))`` on the
+   ``reduced.engine.integrate(model, ReducedSettings(method="dop853", rtol=1e-12))`` on the
    seed, model built beforehand (target < 10 ms). Whatever that call runs is measured.
 4. ``xval run`` on the seed end to end: wall time of the ``xval run --out TMP`` subprocess,
    warm (median of 3 after one run that fills the numba cache) and cold (``NUMBA_CACHE_DIR``
@@ -203,7 +203,7 @@ def median_of(run, repeats):
 
 
 def part1(scene, quick: bool, repeats: int) -> bool:
-    from reduced.simulate import integrate
+    from reduced.engine import integrate
 
     model = MechanismModel(scene)
     x0 = np.ascontiguousarray(model.assemble(scene.q0), dtype=float)
@@ -322,11 +322,11 @@ def part2(scene, quick: bool, repeats: int) -> None:
 
 def rkn4_breakdown(scene, step: float, repeats: int) -> tuple[float, float]:
     """Median wall times (s) of the compiled RKN4 run alone and of the whole
-    ``reduced.simulate.integrate`` call at ``step``."""
+    ``reduced.engine.integrate`` call at ``step``."""
     from reduced.integrators import SPEED_LIMIT
     from reduced.kernels import partition as compiled
     from reduced.partition import MAX_SWITCHES, _start, load_pieces
-    from reduced.simulate import integrate
+    from reduced.engine import integrate
 
     model = MechanismModel(scene)
     x0, i, rate = _start(model)
@@ -344,13 +344,13 @@ def rkn4_breakdown(scene, step: float, repeats: int) -> tuple[float, float]:
 # -- part 3: the adaptive reference --------------------------------------------------------
 
 def part3(scene, repeats: int) -> None:
-    from reduced.simulate import integrate
+    from reduced.engine import integrate
 
     model = MechanismModel(scene)
     settings = ReducedSettings(method="dop853", rtol=1e-12)
     solution = integrate(model, settings)
     t = median_time(lambda: integrate(model, settings), repeats)
-    print(f"\n3. adaptive reference on the seed: reduced.simulate.integrate(model, "
+    print(f"\n3. adaptive reference on the seed: reduced.engine.integrate(model, "
           f"ReducedSettings(method='dop853', rtol=1e-12)), model built beforehand, median of {repeats}")
     print(f"   {'solver':28s} {'steps':>7s} {'f evals':>8s} {'wall (ms)':>10s}")
     print(f"   {solution.method:28s} {solution.n_steps:7d} {solution.n_evaluations:8d} {t * 1e3:10.2f}")

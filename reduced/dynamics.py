@@ -216,8 +216,18 @@ class MechanismModel:
         return coefficients_from(views["fields"], views["kin"])
 
     def coefficients(self, q: float) -> Coefficients:
-        """The coefficients at input q (rad or m) on the scene's assembly, q the coordinate."""
-        return self.coefficients_at(self.assemble(q))
+        """The coefficients at input q (rad or m) on the scene's assembly, q the coordinate:
+        the input's chart walked from the scene's configuration at q0 to q (Newton from x0
+        alone, as :meth:`assemble` does, does not reach half a turn away)."""
+        i = self.input_coordinate
+        chart = self.new_chart()
+        if i is None or not physics.start_chart(self.arrays, chart, self.x0, i):
+            return self.coefficients_at(self.assemble(q))
+        if not physics.evaluate(self.arrays, chart, float(q)):
+            raise NumericalFailure("singular", f"the input's chart cannot be followed from q0 to q = {q:.15g} "
+                                               f"{self.scene.input_unit}: a dead centre or an unreachable position")
+        views = physics.chart_arrays(self.arrays, chart)
+        return coefficients_from(views["fields"], views["kin"])
 
     def generalized_inertia(self, q: float) -> float:
         """𝔍(q) (kg·m² or kg)."""

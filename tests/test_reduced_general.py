@@ -357,3 +357,15 @@ def test_rkn4_is_fourth_order_through_the_general_path():
         errors.append(abs(tr.qdot[-1] - v[0]))
     orders = [math.log2(errors[k] / errors[k + 1]) for k in range(2)]
     assert all(abs(p - 4.0) <= 0.2 for p in orders), orders
+
+
+def test_model_coefficients_follow_the_input_around_a_whole_turn():
+    """MechanismModel.coefficients(q) walks the input's chart from q0: on the seed's crank-rocker
+    it gives the closed form's 𝔍, ζ and damping at every q of a turn (Newton from x0 alone
+    failed half a turn away). 1e-12 relative: both are round-off from the same configuration."""
+    scene = load_scene(SEED_SCENE)
+    model = MechanismModel(scene)
+    for q in scene.q0 + np.linspace(0.0, 2 * math.pi, 13):
+        got, want = model.coefficients(float(q)), closed_form_coefficients(scene, float(q))
+        for name in ("generalized_inertia", "centrifugal", "damping"):
+            assert abs(getattr(got, name) - want[name]) <= 1e-12 * abs(want["generalized_inertia"]), (q, name)
