@@ -55,7 +55,7 @@ RTOL_EQUAL = 1e-13
 ATOL_EQUAL = 1e-13
 # - q̈ at those samples: a q that differs in its last bits is closed by Newton's method (to
 #   physics.NEWTON_TOL = 1e-12) from another start: measured up to 3.2e-11 absolute (5.7e-14
-#   relative, |q̈| ≈ 570 rad/s² on the seed) and 4.2e-12 absolute where |q̈| ≈ 14; ≥ 3x margin.
+#   relative, |q̈| ≈ 570 rad/s² on the seed) and 3.6e-12 absolute where |q̈| ≈ 0.9; ≥ 2.8x margin.
 RTOL_ACCEL = 2e-13
 ATOL_ACCEL = 1e-11
 
