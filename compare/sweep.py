@@ -140,7 +140,7 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
             warnings.simplefilter("ignore")
             scene = scene_from_dict(apply(data, values), source)
             c = compare_engines(scene)
-    except (SceneError, ValueError) as exc:
+    except (SceneError, ValueError) as exc:  # as main() does: the variant's scene or settings are bad input
         row.update(status="invalid", reason=" ".join(str(exc).split()))
     except NumericalFailure as exc:
         row.update(status="failed", reason=f"{exc.reason}: {' '.join(str(exc).split())}")
