@@ -214,3 +214,27 @@ def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path,
     status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
     assert status == 130 and "interrupted" in err
     assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
+
+
+def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypatch):
+    """The first variant is the slowest (forked workers inherit the patched function): rows
+    still come back 0, 1, 2, 3."""
+    import multiprocessing
+    import time
+
+    from compare.sweep import run_rows
+    from compare.sweep_spec import spec_from_args
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("needs forked workers to see the patched variant runner")
+
+    def slow_first(index, values, data, source, keep=False):
+        time.sleep(0.5 if index == 0 else 0.01)
+        return {"index": index, "status": "passed", "reason": "", **values, "pid": multiprocessing.current_process().pid}
+
+    monkeypatch.setattr(sweep_module, "run_variant", slow_first)
+    spec = spec_from_args(["torque.value=1:4:4"])
+    rows = list(run_rows({}, spec, "<memory>", workers=2))
+    assert [r["index"] for r in rows] == [0, 1, 2, 3]
+    assert [r["torque.value"] for r in rows] == [1, 2, 3, 4]
+    assert len({r["pid"] for r in rows}) == 2  # both workers took part
