@@ -332,6 +332,11 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path) ->
         ax.plot(x[idx], np.abs(mj[idx]), marker="x", markersize=4, color=MUJOCO_STYLE["color"],
                 linestyle="--", label=MUJOCO_STYLE["label"] if first else None,
                 alpha=1.0 if len(groups) == 1 else 0.6)
+        ok = np.flatnonzero(np.isfinite(red[idx]))
+        if others and ok.size and len(groups) <= 10:  # name each line by the other keys' values
+            last = idx[ok[-1]]
+            ax.annotate(suffix.strip(" ()"), (x[last], abs(red[last])), textcoords="offset points", xytext=(-4, 4),
+                        ha="right", fontsize=7, **PLAIN)
     bad = np.array([s in ("invalid", "failed") for s in cols["status"]])
     if bad.any():
         for xv in x[bad]:
