@@ -505,6 +505,8 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
 
     n = count(spec)
     used = worker_count(workers, n)
+    if workers is not None and used < workers and used < n:
+        warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
     summary = Summary(spec.keys, workers=used)
     bar = _Progress(n) if progress else None
 
