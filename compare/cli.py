@@ -272,6 +272,30 @@ def cmd_stress(args: argparse.Namespace) -> int:
     return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import run_sweep, summary_lines, sweep_files
+    from .sweep_spec import check, load_sweep, spec_from_args
+
+    path = args.scene if args.scene else str(default_scene_path())
+    data, table_spec = load_sweep(path)
+    if args.vary:
+        spec = spec_from_args(args.vary, args.samples, args.seed)
+    elif table_spec is None:
+        raise UsageError(f"{path}: nothing to sweep: give --vary KEY=SPEC or a [sweep] table in the scene file")
+    elif args.samples is not None or args.seed is not None:
+        raise UsageError("--samples and --seed go with --vary (the scene's [sweep] table has its own)")
+    else:
+        spec = table_spec
+    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    check_folder(args.out, sweep_files(spec, args.keep_trajectories))
+    _announce_compilation()
+    summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
+                               keep_trajectories=args.keep_trajectories)
+    print("\n".join(summary_lines(summary)))
+    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    return EXIT_FAILED if summary.failed_any else EXIT_OK
+
+
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reduced reference")
     g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
@@ -398,6 +422,35 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
+
+    p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
+                       description="Run variants of the scene (numbers of the scene file varied over a grid "
+                                   "or a Monte Carlo sample) through both engines and the gate, as xval run "
+                                   "does (the scene's own settings and tolerances), in parallel; write "
+                                   "sweep.csv and sweep.json (one row per variant: its status, the varied values, "
+                                   "report.json's diff and gate figures, both engines' peaks and times), plots, "
+                                   "and print a summary. Variants that cannot be assembled (invalid) or whose "
+                                   "engines fail numerically (failed) are counted rows. Exit 1 if any variant "
+                                   "fails the gate or numerically, 2 on bad input (checked before any run).")
+    _add_scene_argument(p)
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC",
+                   help="a dotted key of the scene file (bodies.coupler.mass, dampers.0.coefficient, "
+                        "linkage.c2, mujoco.timestep, tolerances.peak_omega_rtol...) and its values: lo:hi:n, "
+                        "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
+                        "sample. Without --vary: the scene file's [sweep] table; when both are given, "
+                        "--vary wins and the table is ignored")
+    p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
+                   help="number of Monte Carlo variants (distributions only)")
+    p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
+                   help="seed of the Monte Carlo sample (default 0)")
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores)")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="also write trajectories.csv, every variant's input trajectory from both engines "
+                        "(for small sweeps)")
+    p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("compile", help="compile the reduced solver's kernels ahead of the first run",
                        description="Compile the reduced solver's numba kernels into numba's on-disk cache "
