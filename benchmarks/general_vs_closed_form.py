@@ -4,9 +4,11 @@ form on the seed scene, and the general description on every catalogue mechanism
 Three rows per scene, whichever can run:
 
 - ``engine``: the reduced engine's own right-hand side, a :class:`reduced.partition.Chart` of a
-  :class:`reduced.dynamics.MechanismModel` in the input coordinate (what the integrators call);
-- ``closed form``: the same with the four-bar closed form (``scene.four_bar`` scenes only: the
-  shorthand seed, scenes/seed_fourbar.toml);
+  :class:`reduced.dynamics.MechanismModel` in the input coordinate (the compiled kernel, called
+  once per f from Python, as scipy's integrators call it);
+- ``closed form``: Eksergian's equation written here from the four-bar closed form
+  (:meth:`reduced.linkage.FourBar.kinematics`) and the bodies' geometry (``scene.four_bar``
+  scenes only: the shorthand seed, scenes/seed_fourbar.toml; no point forces);
 - ``loops``: Eksergian's equation written here directly on :mod:`reduced.loops` (Newton from the
   previous configuration, K and L, masses, springs, dampers, gravity, point forces and the input
   load: everything on plain arrays, no model object), a floor for what the general path costs
@@ -48,10 +50,8 @@ def engine_f(scene) -> F:
     from reduced.partition import Chart
 
     model = MechanismModel(scene)
-    x0 = np.asarray(scene.x0)
-    i = model.linkage.input_coordinate  # the input is a coordinate in every catalogue scene
-    start = model.linkage.coefficients_at(x0, i)
-    return Chart(model, i, start).rhs_on_piece(0.0, first_piece_end(scene))
+    i = model.input_coordinate  # the input is a coordinate in every catalogue scene
+    return Chart(model, i, model.x0).rhs_on_piece(0.0, first_piece_end(scene))
 
 
 def first_piece_end(scene) -> float:
@@ -61,14 +61,56 @@ def first_piece_end(scene) -> float:
 
 
 def closed_form_f(scene) -> F:
-    """The four-bar closed form's f (scene.four_bar scenes only)."""
-    from reduced.dynamics import MechanismModel
+    """The four-bar closed form's f (scene.four_bar scenes only): body frames crank at O1 turning
+    with q, coupler at A = c1 e(q) turning with φ1, rocker at O3 = (c4, 0) turning with φ2 + π;
+    a body point p is r = o + R(θ) p, K_r = K_o + θ' (R p)⊥, L_r = L_o + θ'' (R p)⊥ − θ'² R p."""
     from reduced.linkage import FourBar
 
-    if scene.four_bar is None:
-        raise ValueError("not a four-bar shorthand scene")
-    model = MechanismModel(scene, FourBar(scene.four_bar))
-    return model.acceleration_on_piece(0.0, first_piece_end(scene))
+    if scene.four_bar is None or scene.mechanism.point_forces:
+        raise ValueError("not a four-bar shorthand scene without point forces")
+    g = scene.four_bar
+    fourbar = FourBar(g)
+    mech = scene.mechanism
+    bodies = mech.linkage.body_map
+    gravity = np.zeros(2) if scene.gravity is None else np.asarray(scene.gravity, dtype=float)
+    load = scene.load.on_piece(0.0, first_piece_end(scene)) if scene.load is not None else (lambda t: 0.0)
+    zero = np.zeros(2)
+
+    def f(t: float, q: float, qdot: float) -> float:
+        kin = fourbar.kinematics(q)
+        x, K, L = kin.x, kin.K, kin.L
+        a = g.c1 * np.array([math.cos(x[0]), math.sin(x[0])])
+        ap = np.array([-a[1], a[0]])
+        frames = {"ground": (zero, zero, zero, 0.0, 0.0, 0.0), "crank": (zero, zero, zero, x[0], K[0], L[0]),
+                  "coupler": (a, K[0] * ap, L[0] * ap - K[0] ** 2 * a, x[1], K[1], L[1]),
+                  "rocker": (np.array([g.c4, 0.0]), zero, zero, x[2] + math.pi, K[2], L[2])}
+
+        def point(body, p):
+            o, ko, lo, th, kt, lt = frames[body]
+            c, s_ = math.cos(th), math.sin(th)
+            rp = np.array([c * p[0] - s_ * p[1], s_ * p[0] + c * p[1]])
+            rpp = np.array([-rp[1], rp[0]])
+            return o + rp, ko + kt * rpp, lo + lt * rpp - kt * kt * rp
+
+        J = zeta = Q = 0.0
+        for name in ("crank", "coupler", "rocker"):
+            b = bodies[name]
+            _, k, l = point(name, b.com)
+            kt, lt = frames[name][4], frames[name][5]
+            J += b.mass * (k @ k) + b.inertia * kt * kt
+            zeta += b.mass * (k @ l) + b.inertia * kt * lt
+            Q += b.mass * (gravity @ k)
+        Q += load(t)
+        for e in (*mech.dampers, *mech.springs):
+            ra, ka, _ = point(e.body_a, bodies[e.body_a].points[e.point_a])
+            rb, kb, _ = point(e.body_b, bodies[e.body_b].points[e.point_b])
+            d = rb - ra
+            length = math.hypot(d[0], d[1])
+            k_d = float(d @ (kb - ka)) / length
+            Q -= e.coefficient * k_d * k_d * qdot if e.kind == "damper" else e.coefficient * (length - e.rest_length) * k_d
+        return (Q - zeta * qdot * qdot) / J
+
+    return f
 
 
 def loops_f(scene) -> F:
@@ -146,7 +188,7 @@ def main() -> None:
     rows = [("seed_fourbar (shorthand)", load_scene(default_scene_path()))]
     rows += [(p.stem, load_scene(p)) for p in CATALOGUE]
     print(f"time per f-evaluation (µs), best of {args.repeats} × {args.calls} calls along a short path")
-    print(f"{'scene':32s} {'bodies':>6s} {'loops':>5s} {'closed form':>12s} {'engine':>12s} {'loops':>12s}  f (engine / loops)")
+    print(f"{'scene':32s} {'bodies':>6s} {'loops':>5s} {'closed form':>12s} {'engine':>12s} {'loops':>12s}  f (closed form / engine / loops)")
     notes = []
     for label, scene in rows:
         cells, values = [], []
@@ -162,10 +204,10 @@ def main() -> None:
                 continue
             cells.append(f"{seconds * 1e6:.1f}")
             values.append(value)
-        shown = " / ".join("-" if v is None else f"{v:.6g}" for v in values[1:])
+        shown = " / ".join("-" if v is None else f"{v:.12g}" for v in values)
         print(f"{label:32s} {len(linkage.moving):6d} {len(linkage.cut_joints):5d} "
               f"{cells[0]:>12s} {cells[1]:>12s} {cells[2]:>12s}  {shown}")
-    print("f at (t, q, q̇) = (0, q0, q̇0): rad/s² or m/s²; the engine and loops rows must agree")
+    print("f at (t, q, q̇) = (0, q0, q̇0): rad/s² or m/s²; every row must agree")
     print("\n".join(notes))
 
 

@@ -20,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import largest_passing, median_time  # noqa: E402
 
 from reduced import MechanismModel, ReducedSettings, default_scene_path, load_scene  # noqa: E402
-from reduced.simulate import integrate  # noqa: E402
+from reduced.engine import integrate  # noqa: E402
 
 
 def main() -> None:

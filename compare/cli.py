@@ -100,10 +100,29 @@ def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) ->
     return reduced_settings(scene, **_given(args, flags))
 
 
+def _announce_compilation() -> None:
+    """One line on stderr when this run will compile the reduced solver's kernels."""
+    from reduced.precompile import kernels_cached
+
+    if not kernels_cached():
+        print("xval: compiling the reduced solver's kernels, once for this install (about a minute on 2 "
+              "cores; `xval compile` does it ahead)", file=sys.stderr, flush=True)
+
+
+def cmd_compile(args: argparse.Namespace) -> int:
+    from reduced.precompile import compile_kernels
+
+    seconds = compile_kernels(processes=args.processes)
+    print("compiled the reduced solver's kernels into numba's cache: "
+          + ", ".join(f"{group} {s:.1f} s" for group, s in seconds.items()))
+    return EXIT_OK
+
+
 def cmd_reduced(args: argparse.Namespace) -> int:
     from reduced import simulate
 
     scene = _scene(args.scene)
+    _announce_compilation()
     settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
     result = simulate(scene, settings)
     print("\n".join(reduced_lines(scene, result)))
@@ -190,6 +209,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .run import compare_engines
 
     scene = _scene(args.scene)
+    _announce_compilation()
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print("\n".join(comparison_lines(comparison)))
@@ -203,6 +223,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .text import check_lines
 
     scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
+    _announce_compilation()
     failed = 0
     for scene in scenes:
         tolerances = _tolerances(scene, args)
@@ -224,6 +245,7 @@ def cmd_cost(args: argparse.Namespace) -> int:
 
     check_folder(args.out, COST_FILES)  # before any work
     scene = _scene(args.scene)
+    _announce_compilation()
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
                                          workers=args.workers)
     print("\n".join(summary_lines(report, measurements)))
@@ -240,6 +262,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
     check_folder(args.out, STRESS_FILES)  # before any work
+    _announce_compilation()
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
     for line in table_lines(results):
@@ -247,6 +270,30 @@ def cmd_stress(args: argparse.Namespace) -> int:
     [path] = write_stress(results, args.out)
     print(f"wrote {path}")
     return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import run_sweep, summary_lines, sweep_files
+    from .sweep_spec import check, load_sweep, spec_from_args
+
+    path = args.scene if args.scene else str(default_scene_path())
+    data, table_spec = load_sweep(path)
+    if args.vary:
+        spec = spec_from_args(args.vary, args.samples, args.seed)
+    elif table_spec is None:
+        raise UsageError(f"{path}: nothing to sweep: give --vary KEY=SPEC or a [sweep] table in the scene file")
+    elif args.samples is not None or args.seed is not None:
+        raise UsageError("--samples and --seed go with --vary (the scene's [sweep] table has its own)")
+    else:
+        spec = table_spec
+    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    check_folder(args.out, sweep_files(spec, args.keep_trajectories))
+    _announce_compilation()
+    summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
+                               keep_trajectories=args.keep_trajectories)
+    print("\n".join(summary_lines(summary)))
+    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    return EXIT_FAILED if summary.failed_any else EXIT_OK
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
@@ -291,8 +338,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "input joint (rad/s or m/s), its time and the energy residual.")
     _add_scene_argument(p)
     p.add_argument("--method", choices=REDUCED_METHODS, default=None,
-                   help="adaptive DOP853, fixed-step RKN4, or implicit Radau "
-                        "(default: the scene's [reduced] table, else dop853)")
+                   help="adaptive DOP853 or fixed-step RKN4 (both compiled), implicit Radau, or scipy's "
+                        "DOP853 on the same equation as a cross-check (default: the scene's [reduced] "
+                        "table, else dop853)")
     p.add_argument("--rtol", type=_positive, default=None,
                    help="tolerance of adaptive methods (default: the scene's, else the method's)")
     p.add_argument("--step", type=_positive, default=None,
@@ -374,6 +422,43 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
+
+    p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
+                       description="Run variants of the scene (numbers of the scene file varied over a grid "
+                                   "or a Monte Carlo sample) through both engines and the gate, as xval run "
+                                   "does (the scene's own settings and tolerances), in parallel; write "
+                                   "sweep.csv and sweep.json (one row per variant: its status, the varied values, "
+                                   "report.json's diff and gate figures, both engines' peaks and times), plots, "
+                                   "and print a summary. Variants that cannot be assembled (invalid) or whose "
+                                   "engines fail numerically (failed) are counted rows. Exit 1 if any variant "
+                                   "fails the gate or numerically, 2 on bad input (checked before any run).")
+    _add_scene_argument(p)
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC",
+                   help="a dotted key of the scene file (bodies.coupler.mass, dampers.0.coefficient, "
+                        "linkage.c2, mujoco.timestep, tolerances.peak_omega_rtol...) and its values: lo:hi:n, "
+                        "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
+                        "sample. Without --vary: the scene file's [sweep] table; when both are given, "
+                        "--vary wins and the table is ignored")
+    p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
+                   help="number of Monte Carlo variants (distributions only)")
+    p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
+                   help="seed of the Monte Carlo sample (default 0)")
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores)")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="also write trajectories.csv, every variant's input trajectory from both engines "
+                        "(for small sweeps)")
+    p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("compile", help="compile the reduced solver's kernels ahead of the first run",
+                       description="Compile the reduced solver's numba kernels into numba's on-disk cache "
+                                   "(about a minute on 2 cores, once per install or after an edit of "
+                                   "reduced/kernels); without it the first run that needs them compiles them.")
+    p.add_argument("--processes", type=_int_in(1, 2), default=2,
+                   help="compile in this many processes side by side (default 2)")
+    p.set_defaults(func=cmd_compile)
     return parser
 
 

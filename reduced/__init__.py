@@ -1,21 +1,38 @@
-"""Reduced solver: Eksergian's equation 𝔍(q) q̈ + ζ(q) q̇² + dV/dq = Q for one-DOF linkages."""
+"""Reduced solver: Eksergian's equation 𝔍(q) q̈ + ζ(q) q̇² + dV/dq = Q for one-DOF linkages.
 
-from .dynamics import Coefficients, MechanismModel
-from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
-from .integrators import RKN4, RKN4_AS_PRINTED, RKNTableau, Solution, solve_adaptive, solve_fixed_step
-from .linkage import AssemblyError, FourBar, GeneralLinkage, LoopLinkage, SingularPositionError
-from .partition import JointTrajectory
-from .result import EngineResult, EnergyAudit
-from .scene import Scene, SceneError
-from .scenefile import default_scene_path, load_scene, scene_from_dict
-from .simulate import ReducedSettings, simulate
-from .trajectory import Peak, Trajectory
+The names below load their submodule on first use (PEP 562), so that ``import reduced.scene``
+or ``reduced.errors`` does not load numba and the compiled kernels.
+"""
 
-__all__ = [
-    "AssemblyError", "Coefficients", "FailureReason", "EnergyAudit", "EngineResult", "FourBar", "GeneralLinkage", "IgnoredSettingWarning",
-    "JointTrajectory", "LoopLinkage",
-    "MechanismModel", "NumericalFailure", "Peak", "RKN4", "RKN4_AS_PRINTED", "RKNTableau",
-    "ReducedSettings", "Scene", "SceneError", "SingularPositionError", "Solution", "Trajectory",
-    "default_scene_path", "load_scene", "scene_from_dict", "simulate", "solve_adaptive",
-    "solve_fixed_step",
-]
+from __future__ import annotations
+
+import importlib
+
+_HOMES = {
+    "Coefficients": "dynamics", "MechanismModel": "dynamics",
+    "FailureReason": "errors", "IgnoredSettingWarning": "errors", "NumericalFailure": "errors",
+    "RKN4": "integrators", "RKN4_AS_PRINTED": "integrators", "RKNTableau": "integrators",
+    "Solution": "integrators", "solve_adaptive": "integrators", "solve_fixed_step": "integrators",
+    "AssemblyError": "linkage", "FourBar": "linkage", "Kinematics": "linkage", "SingularPositionError": "linkage",
+    "JointTrajectory": "partition",
+    "EngineResult": "result", "EnergyAudit": "result",
+    "Scene": "scene", "SceneError": "scene",
+    "default_scene_path": "scenefile", "load_scene": "scenefile", "scene_from_dict": "scenefile",
+    "ReducedSettings": "engine", "simulate": "engine",
+    "Peak": "trajectory", "Trajectory": "trajectory",
+}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'reduced' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

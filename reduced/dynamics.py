@@ -2,7 +2,7 @@
 
     𝔍(x_i) ẍ_i + ζ(x_i) ẋ_i² + dV/dx_i = Q_i(t, x_i, ẋ_i)
 
-    𝔍 = Σ m |K_G|² + I_G K_θ²                (a pivoted body: mass 0, I about its pivot)
+    𝔍 = Σ m |K_G|² + I_G K_θ²
     ζ = ½ d𝔍/dx_i = Σ m K_G·L_G + I_G K_θ L_θ
     V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)²    (D = |r_a − r_b| between the element's points)
     Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P − Σ b_d K_Dd² ẋ_i   (K_D = dD/dx_i)
@@ -12,10 +12,9 @@ displacement, :mod:`reduced.partition`); every K and L is a derivative with resp
 The input q = drive·x; dq/dx_i = drive·K. Units: with x_i an angle 𝔍, ζ in kg·m², dV/dx_i and
 Q_i in N·m; with a displacement, kg and N.
 
-Two evaluations of the same equation: the general one on the loop system's plain arrays
-(:mod:`reduced.loops`), and the seed's four-bar closed form (:class:`reduced.linkage.FourBar`,
-phasor sums) for scenes given with the ``four_bar`` shorthand and no point forces — a fast
-path, checked against the general one in the tests.
+The arithmetic is compiled (:mod:`reduced.kernels.physics`, one implementation for every
+linkage); this module builds its arrays from a scene (:class:`MechanismModel`) and gives
+Python callers the results as values (:class:`Kinematics`, :class:`Coefficients`).
 """
 
 from __future__ import annotations
@@ -27,30 +26,12 @@ from typing import Callable
 import numpy as np
 
 from . import loops
-from .linkage import FourBar, GeneralLinkage, Kinematics, LoopLinkage, PhasorSum
+from .errors import NumericalFailure
+from .kernels import physics
+from .kernels.physics import Model
+from .linkage import Kinematics
 from .loads import TabulatedForce
-from .mechanism import GROUND
 from .scene import Scene
-
-
-@dataclass(frozen=True)
-class _MassTerm:
-    """One link's share of 𝔍 (closed-form path): mass at a point G, plus an inertia about it."""
-
-    mass: float  # 0 for a pivoted body described by its pivot inertia
-    centre: PhasorSum
-    rotational_inertia: float  # I_G, or I_O when centre is the fixed pivot
-    angle_index: int
-
-
-@dataclass(frozen=True)
-class _LineElement:
-    """A damper or spring between two points (closed-form path)."""
-
-    end_a: PhasorSum
-    end_b: PhasorSum
-    coefficient: float  # b (N·s/m) or k (N/m)
-    rest_length: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -69,206 +50,188 @@ class Coefficients:
 
     def acceleration(self, load: float, rate: float) -> float:
         """ẍ_i from Eksergian's equation at coordinate rate ẋ_i and input load (N·m or N)."""
-        Q = load * self.input_rate - self.damping * rate
-        if self.point_force:
-            Q += self.point_force
+        Q = load * self.input_rate + self.point_force - self.damping * rate
         return (Q - self.centrifugal * rate * rate - self.potential_gradient) / self.generalized_inertia
 
 
-def _select(table: loops.TermTable, rows: list[int]) -> loops.TermTable:
-    """The rows ``rows`` of a term table, in that order (plain arrays)."""
-    index = {r: k for k, r in enumerate(rows)}
-    keep = np.array([r in index for r in table.row.tolist()], dtype=bool)
-    return loops.TermTable(offset=table.offset[rows].reshape(-1, 2),
-                           row=np.array([index[r] for r in table.row[keep].tolist()], dtype=np.intp),
-                           coef=table.coef[keep], mag=table.mag[keep], angle=table.angle[keep],
-                           phase=table.phase[keep])
+def coefficients_from(fields: np.ndarray, kin: np.ndarray) -> Coefficients:
+    """A :class:`Coefficients` value from a kernel's fields (N_FIELDS,) and kinematics (3, n)."""
+    f = fields.tolist()
+    return Coefficients(Kinematics(kin[0].copy(), kin[1].copy(), kin[2].copy()), f[physics.INERTIA],
+                        f[physics.CENTRIFUGAL], f[physics.POTENTIAL_GRADIENT], f[physics.DAMPING],
+                        f[physics.POTENTIAL], f[physics.INPUT_RATE], f[physics.POINT_FORCE])
+
+
+def _table(table: loops.TermTable, rows: list[int] | None = None):
+    """A :class:`loops.TermTable` (or its rows ``rows``, in that order) as the kernel's arrays:
+    offset (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,)."""
+    offset, row, coef, mag, angle, phase = (table.offset, table.row, table.coef, table.mag, table.angle,
+                                            table.phase)
+    if rows is not None:
+        index = {r: k for k, r in enumerate(rows)}
+        keep = np.array([r in index for r in row.tolist()], dtype=bool)
+        offset = offset[rows].reshape(-1, 2)
+        row = np.array([index[r] for r in row[keep].tolist()], dtype=np.int64)
+        coef, mag, angle, phase = coef[keep], mag[keep], angle[keep], phase[keep]
+    w = np.column_stack([coef * np.cos(phase), coef * np.sin(phase)]).reshape(-1, 2)
+    return np.asarray(offset, dtype=float).reshape(-1, 2), w, row, mag, angle
+
+
+def _splines(forces: tuple[TabulatedForce, ...]):
+    """Each F(q) as a B-spline: knots, coefficients, degree, range and period."""
+    out = []
+    for f in forces:
+        spline = f._spline
+        if spline is None:  # two points: the straight line (a degree-1 B-spline)
+            q0, q1 = f._knots[0], f._knots[-1]
+            values = f.values if f.period is None else (f.values[0], f.values[0])
+            knots, coef, k = np.array([q0, q0, q1, q1]), np.array(values[:2], dtype=float), 1
+        else:
+            knots, coef, k = spline.t, spline.c, spline.k
+        out.append((np.asarray(knots, dtype=float), np.asarray(coef, dtype=float), int(k), float(f._knots[0]),
+                    float(f._knots[-1]), float(f.period) if f.period is not None else 0.0))
+    return out
+
+
+class _Packer:
+    """Appends arrays to the flat F and I of :class:`reduced.kernels.physics.Model`."""
+
+    def __init__(self):
+        self.F: list[np.ndarray] = []
+        self.I: list[np.ndarray] = [np.zeros(physics.HEADER, dtype=np.int64)]
+        self.nf, self.ni = 0, physics.HEADER
+
+    def float(self, values) -> int:
+        a = np.ascontiguousarray(values, dtype=float).ravel()
+        self.F.append(a)
+        self.nf += a.size
+        return self.nf - a.size
+
+    def int(self, values) -> int:
+        a = np.ascontiguousarray(values, dtype=np.int64).ravel()
+        self.I.append(a)
+        self.ni += a.size
+        return self.ni - a.size
+
+    def model(self) -> Model:
+        return Model(np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I))
+
+
+def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
+    """The kernel arrays of a scene (:mod:`reduced.kernels.physics` documents the layout): only
+    the effects it declares have rows."""
+    mech = scene.mechanism
+    linkage = mech.linkage
+    bodies = linkage.body_map
+    elements = list(mech.dampers) + list(mech.springs)
+    ends = []
+    for e in elements:
+        ends += [system.point_index(e.body_a, e.point_a), system.point_index(e.body_b, e.point_b)]
+    pf = mech.point_forces
+    splines = _splines(tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf))
+    tables = (_table(system.loops), _table(system.centres), _table(system.points, ends),
+              _table(system.points, [system.point_index(p.body, p.point) for p in pf]))
+    P = _Packer()
+    h = P.I[0]
+    h[physics.N], h[physics.N_ANGLES] = system.n, len(linkage.moving)
+    h[physics.N_LINEAR], h[physics.N_DAMPERS] = len(system.linear), len(mech.dampers)
+    h[physics.N_ELEMENTS], h[physics.N_FORCES] = len(elements), len(pf)
+    h[physics.HAS_GRAVITY] = scene.gravity is not None
+    h[physics.MAX_ROWS] = max(len(t[0]) for t in tables)
+    h[physics.DRIVE] = P.float(system.drive)
+    h[physics.MASSES] = P.float([bodies[b].mass for b in linkage.moving])
+    h[physics.INERTIAS] = P.float([bodies[b].inertia for b in linkage.moving])
+    h[physics.GRAVITY] = P.float(scene.gravity if scene.gravity is not None else (0.0, 0.0))
+    h[physics.ELEMENT_COEF] = P.float([e.coefficient for e in elements])
+    h[physics.ELEMENT_REST] = P.float([e.rest_length for e in elements])
+    h[physics.FORCE_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in pf])
+    h[physics.LINEAR] = P.float(system.linear)
+    h[physics.SPLINE_KNOTS] = P.float(np.concatenate([s[0] for s in splines]) if splines else [])
+    h[physics.SPLINE_COEF] = P.float(np.concatenate([s[1] for s in splines]) if splines else [])
+    h[physics.SPLINE_LO] = P.float([s[3] for s in splines])
+    h[physics.SPLINE_HI] = P.float([s[4] for s in splines])
+    h[physics.SPLINE_PERIOD] = P.float([s[5] for s in splines])
+    h[physics.KNOT_START] = P.int(np.cumsum([0] + [len(s[0]) for s in splines]))
+    h[physics.COEF_START] = P.int(np.cumsum([0] + [len(s[1]) for s in splines]))
+    h[physics.SPLINE_DEGREE] = P.int([s[2] for s in splines])
+    for k, (offset, w, row, mag, angle) in enumerate(tables):
+        tb = physics.TABLES + physics.TABLE_ENTRIES * k
+        h[tb], h[tb + 1] = len(offset), len(row)
+        h[tb + 2], h[tb + 3] = P.float(offset), P.float(w)
+        h[tb + 4], h[tb + 5], h[tb + 6] = P.int(row), P.int(mag), P.int(angle)
+    return P.model()
 
 
 class MechanismModel:
-    """Eksergian's equation for one scene; knows which effects it contains.
+    """Eksergian's equation for one scene, as compiled arrays (:attr:`arrays`).
 
     Parameters
     ----------
     scene : Scene
         The validated scene.
-    closed_form : bool, optional
-        Use the four-bar closed form (default: when the scene used the ``four_bar`` shorthand
-        and has no point forces). False forces the general path.
     """
 
-    def __init__(self, scene: Scene, closed_form: bool | None = None):
+    def __init__(self, scene: Scene):
         self.scene = scene
-        mech = scene.mechanism
-        linkage = mech.linkage
-        self.system = loops.compile_linkage(linkage)
+        self.system = loops.compile_linkage(scene.mechanism.linkage)
         self.effects: tuple[str, ...] = scene.effects
         self.load = scene.load
-        self._gravity = scene.gravity
-        can_close = scene.four_bar is not None and not mech.point_forces
-        if closed_form is None:
-            closed_form = can_close
-        if closed_form and not can_close:
-            raise ValueError("the closed form needs a four_bar shorthand scene without point forces")
-        self.closed_form = bool(closed_form)
-        self.general = GeneralLinkage(self.system, scene.x0)
-        bodies = linkage.body_map
-        self._masses = np.array([bodies[b].mass for b in linkage.moving])
-        self._inertias = np.array([bodies[b].inertia for b in linkage.moving])
-        self._nb = len(linkage.moving)
-        # element ends and point-force points as a small term table (rows 2k, 2k+1: ends of k)
-        elements = list(mech.dampers) + list(mech.springs)
-        self._n_dampers = len(mech.dampers)
-        ends = []
-        for e in elements:
-            ends += [self.system.point_index(e.body_a, e.point_a), self.system.point_index(e.body_b, e.point_b)]
-        self._ends = _select(self.system.points, ends) if ends else None
-        self._coefficient = np.array([e.coefficient for e in elements])
-        self._rest = np.array([e.rest_length for e in elements])
-        pf = mech.point_forces
-        self._forces = tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf)
-        self._force_points = (_select(self.system.points, [self.system.point_index(p.body, p.point) for p in pf])
-                              if pf else None)
-        self._force_dirs = np.array([[math.cos(p.direction), math.sin(p.direction)] for p in pf]).reshape(-1, 2)
-        if self.closed_form:
-            self.linkage: LoopLinkage = FourBar(scene.four_bar)
-            self._build_closed_form()
-        else:
-            self.linkage = self.general
+        self.arrays = build_arrays(scene, self.system)
+        self.x0 = np.array(scene.x0, dtype=float)
+        drive = self.system.drive
+        unit = np.flatnonzero(drive)
+        # the input's coordinate, or None when q = θ_b − θ_a of two moving bodies
+        self.input_coordinate = int(unit[0]) if len(unit) == 1 and drive[unit[0]] == 1.0 else None
+        self.angle_columns = np.array([name.endswith(".angle") for name in self.system.coordinate_names])
 
-    # -- the closed-form path (the seed's four-bar; same arithmetic as before the general port)
-    def _build_closed_form(self) -> None:
-        mech = self.scene.mechanism
-        fb = self.linkage.bodies
-        bodies = mech.linkage.body_map
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        return self.system.coordinate_names
 
-        def point(body: str, name: str) -> PhasorSum:
-            p = bodies[body].points[name]
-            return PhasorSum.fixed(p) if body == GROUND else fb[body].point(p)
-        terms = []
-        for name in mech.linkage.moving:
-            b, body = bodies[name], fb[name]
-            if body.pivoted:  # its inertia about the fixed pivot, the frame origin (as before the port)
-                cx, cy = b.com
-                pivot = b.inertia + b.mass * (cx ** 2 + cy ** 2) if b.mass else b.inertia
-                terms.append(_MassTerm(0.0, body.origin, pivot, body.angle_index))
-            else:
-                terms.append(_MassTerm(b.mass, body.point(b.com), b.inertia, body.angle_index))
-        self._mass_terms = tuple(terms)
-        self._dampers = tuple(_LineElement(point(d.body_a, d.point_a), point(d.body_b, d.point_b), d.coefficient)
-                              for d in mech.dampers)
-        self._springs = tuple(_LineElement(point(s.body_a, s.point_a), point(s.body_b, s.point_b), s.coefficient,
-                                           s.rest_length) for s in mech.springs)
-        self._gravity_terms = () if self._gravity is None else tuple(
-            (bodies[name].mass, fb[name].point(bodies[name].com)) for name in mech.linkage.moving)
+    def new_chart(self) -> physics.Chart:
+        """Empty kernel chart state sized for this model."""
+        I = self.arrays.I
+        return physics.new_chart(int(I[physics.N]), int(I[physics.MAX_ROWS]))
 
-    def _closed_form_coefficients(self, kin: Kinematics) -> Coefficients:
-        x, K, L = kin.x.tolist(), kin.K.tolist(), kin.L.tolist()  # scalar maths: lists are fastest
-        J = zeta = 0.0
-        for term in self._mass_terms:
-            k_w, l_w = K[term.angle_index], L[term.angle_index]
-            J += term.rotational_inertia * k_w * k_w
-            zeta += term.rotational_inertia * k_w * l_w
-            if term.mass:
-                _, _, kx, ky, lx, ly = term.centre.evaluate(x, K, L)
-                J += term.mass * (kx * kx + ky * ky)
-                zeta += term.mass * (kx * lx + ky * ly)
-        dV = V = 0.0
-        for mass, centre in self._gravity_terms:
-            gx, gy = self._gravity
-            rx, ry, kx, ky, _, _ = centre.evaluate(x, K)
-            dV -= mass * (gx * kx + gy * ky)
-            V -= mass * (gx * rx + gy * ry)
-        for spring in self._springs:
-            length, k_d = _length_and_rate(spring, x, K)
-            stretch = length - spring.rest_length
-            dV += spring.coefficient * stretch * k_d
-            V += 0.5 * spring.coefficient * stretch * stretch
-        damping = 0.0
-        for damper in self._dampers:
-            _, k_d = _length_and_rate(damper, x, K)
-            damping += damper.coefficient * k_d * k_d
-        return Coefficients(kin, J, zeta, dV, damping, V, input_rate=K[0])
+    def assemble(self, q: float) -> np.ndarray:
+        """The configuration at input q (rad or m): the scene's own at q0, else Newton from it."""
+        if q == float(self.system.drive @ self.x0):
+            return self.x0.copy()
+        return loops.assemble(self.system, q, self.x0)
 
-    # -- the general path (plain arrays) -------------------------------------
-    def _general_coefficients(self, kin: Kinematics) -> Coefficients:
-        """𝔍, ζ, dV/dx_i, damping, V and the point forces at general coordinates x."""
-        x, K, L = kin.x, kin.K, kin.L
-        system, nb = self.system, self._nb
-        kc, lc = loops.rates(system.centres, x, K, L)
-        kt, lt = K[:nb], L[:nb]
-        m, inertia = self._masses, self._inertias
-        J = float(m @ np.einsum("ij,ij->i", kc, kc) + inertia @ (kt * kt))
-        zeta = float(m @ np.einsum("ij,ij->i", kc, lc) + inertia @ (kt * lt))
-        dV = V = damping = force = 0.0
-        if self._gravity is not None:
-            g = np.asarray(self._gravity, dtype=float)
-            rc = loops.positions(system.centres, x)
-            dV -= float(m @ (kc @ g))
-            V -= float(m @ (rc @ g))
-        if self._ends is not None:
-            r = loops.positions(self._ends, x)
-            kr, _ = loops.rates(self._ends, x, K)
-            d = r[0::2] - r[1::2]
-            kd_vec = kr[0::2] - kr[1::2]
-            length = np.hypot(d[:, 0], d[:, 1])
-            k_d = np.einsum("ij,ij->i", d, kd_vec) / length
-            nd = self._n_dampers
-            damping = float(self._coefficient[:nd] @ (k_d[:nd] * k_d[:nd]))
-            stretch = length[nd:] - self._rest[nd:]
-            dV += float(self._coefficient[nd:] @ (stretch * k_d[nd:]))
-            V += float(0.5 * self._coefficient[nd:] @ (stretch * stretch))
-        if self._forces:
-            q = float(self.system.drive @ x)
-            kp, _ = loops.rates(self._force_points, x, K)
-            along = np.einsum("ij,ij->i", kp, self._force_dirs)
-            force = float(sum(f(q) * a for f, a in zip(self._forces, along.tolist())))
-        return Coefficients(kin, J, zeta, dV, damping, V, input_rate=float(self.system.drive @ K),
-                            point_force=force)
-
-    # -- coefficients -------------------------------------------------------
-    def coefficients_from(self, kin: Kinematics) -> Coefficients:
-        """The coefficients for kinematics (in :attr:`linkage`'s coordinates) whose K, L are
-        derivatives with respect to any one coordinate."""
-        if self.closed_form:
-            return self._closed_form_coefficients(kin)
-        return self._general_coefficients(kin)
-
-    def coefficients(self, q: float) -> Coefficients:
-        """The coefficients at input q (rad or m) on the scene's assembly, with q as the
-        coordinate (closed form: the scene's branch; general: Newton from x0)."""
-        if self.closed_form:
-            return self._closed_form_coefficients(self.linkage.kinematics(q))
-        return self.coefficients_at(self.general.assemble(q))
-
-    def coefficients_at(self, x) -> Coefficients:
-        """The coefficients at an assembled configuration x (general coordinates,
-        :class:`reduced.loops.LoopSystem`, shape (n,)) with the input q as the coordinate:
-        ½ 𝔍 q̇² is the kinetic energy there. Always the general path.
+    def coefficients_at(self, x, row: np.ndarray | None = None) -> Coefficients:
+        """The coefficients at an assembled configuration x (shape (n,)) with respect to the
+        input q (or to p = row·x): ½ 𝔍 q̇² is the kinetic energy there.
 
         Raises NumericalFailure(SINGULAR) where q cannot drive the linkage.
         """
-        x = np.asarray(x, dtype=float)
-        K, L = loops.coefficients(self.system, x)
-        return self._general_coefficients(Kinematics(x=x, K=K, L=L))
+        chart = self.new_chart()
+        chart.S[physics.INDEPENDENT] = -1
+        x = np.ascontiguousarray(x, dtype=float)
+        row = np.ascontiguousarray(self.system.drive if row is None else row, dtype=float)
+        if not physics.kinematics_at(self.arrays, chart, x, row):
+            raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot drive the "
+                                               f"linkage at q = {self.system.drive @ x:.15g} {self.scene.input_unit}")
+        views = physics.chart_arrays(self.arrays, chart)
+        return coefficients_from(views["fields"], views["kin"])
+
+    def coefficients(self, q: float) -> Coefficients:
+        """The coefficients at input q (rad or m) on the scene's assembly, q the coordinate:
+        the input's chart walked from the scene's configuration at q0 to q (Newton from x0
+        alone, as :meth:`assemble` does, does not reach half a turn away)."""
+        i = self.input_coordinate
+        chart = self.new_chart()
+        if i is None or not physics.start_chart(self.arrays, chart, self.x0, i):
+            return self.coefficients_at(self.assemble(q))
+        if not physics.evaluate(self.arrays, chart, float(q)):
+            raise NumericalFailure("singular", f"the input's chart cannot be followed from q0 to q = {q:.15g} "
+                                               f"{self.scene.input_unit}: a dead centre or an unreachable position")
+        views = physics.chart_arrays(self.arrays, chart)
+        return coefficients_from(views["fields"], views["kin"])
 
     def generalized_inertia(self, q: float) -> float:
         """𝔍(q) (kg·m² or kg)."""
         return self.coefficients(q).generalized_inertia
-
-    # -- the equation of motion ----------------------------------------------
-    def acceleration_on_piece(self, start: float, end: float) -> Callable[[float, float, float], float]:
-        """q̈ = f(t, q, q̇) on one smooth piece [start, end] of the load history (q the coordinate).
-
-        The load is taken from the open interval (start, end) even at its ends, so a
-        step that ends on a pulse edge sees only one side of it (seed-notes erratum 5, README).
-        """
-        load = self.load_on_piece(start, end)
-
-        def f(t: float, q: float, qdot: float) -> float:
-            return self.coefficients(q).acceleration(load(t), qdot)
-
-        return f
 
     def load_on_piece(self, start: float, end: float) -> Callable[[float], float]:
         """The input load on one smooth piece of its history (N·m or N), zero without one."""
@@ -278,13 +241,3 @@ class MechanismModel:
     def load_edges(self) -> tuple[float, ...]:
         """Times (s) where the applied loads jump."""
         return self.load.edges if self.load is not None else ()
-
-
-def _length_and_rate(element: _LineElement, x, K) -> tuple[float, float]:
-    """Length D (m) of a line element and K_D = dD/dx_i."""
-    bx, by, kbx, kby, _, _ = element.end_b.evaluate(x, K)
-    ax, ay, kax, kay, _, _ = element.end_a.evaluate(x, K)
-    dx, dy = bx - ax, by - ay
-    length = math.hypot(dx, dy)
-    k_d = (dx * (kbx - kax) + dy * (kby - kay)) / length
-    return length, k_d

@@ -16,28 +16,24 @@ from __future__ import annotations
 import numpy as np
 
 from .dynamics import MechanismModel
+from .kernels import physics
 from .result import EnergyAudit
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(3)
 
 
-def _fields(chart, values: np.ndarray, *names: str) -> tuple[np.ndarray, ...]:
-    """Coefficient fields at each coordinate value, without keeping the coefficient objects
-    (a long run has ~10⁶ of them)."""
-    out = np.empty((len(names), len(values)))
-    for k, value in enumerate(values.tolist()):
-        c = chart.coefficients(value)
-        for j, name in enumerate(names):
-            out[j, k] = getattr(c, name)
-    return tuple(out)
+def _fields(chart, values: np.ndarray, *names: int) -> tuple[np.ndarray, ...]:
+    """Coefficient fields (:mod:`reduced.kernels.physics` indices) at each coordinate value,
+    walking the chart from its start (compiled)."""
+    fields, _ = chart.walk(values)
+    return tuple(fields[:, k] for k in names)
 
 
 def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, ...]:
     """Kinetic, potential, work (load and point forces) and dissipation increments of one
     chart's samples."""
     t, x, v = trajectory.t, trajectory.q, trajectory.qdot
-    chart.reset()
-    inertia, potential = _fields(chart, x, "generalized_inertia", "potential")
+    inertia, potential = _fields(chart, x, physics.INERTIA, physics.POTENTIAL)
     kinetic = 0.5 * inertia * v * v
 
     h = np.diff(t)
@@ -45,9 +41,8 @@ def _chart_audit(model: MechanismModel, chart, trajectory) -> tuple[np.ndarray, 
     mid = 0.5 * (t[:-1] + t[1:])
     nodes = (mid[:, None] + 0.5 * h[:, None] * _NODES[None, :])[live].ravel()
     xn, vn, _ = trajectory.interpolate(nodes)
-    chart.reset()
     # dq/dx_i, Σ b K_D², Σ F e·K_P
-    input_rate, damping, point_force = _fields(chart, xn, "input_rate", "damping", "point_force")
+    input_rate, damping, point_force = _fields(chart, xn, physics.INPUT_RATE, physics.DAMPING, physics.POINT_FORCE)
     load = model.load.sample(nodes) if model.load is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
     torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .errors import NumericalFailure
 from .trajectory import Trajectory
@@ -40,6 +39,8 @@ GROWTH_EXCESS = 0.1
 # long_conservative) needs 3e5 evaluations; 1e6 (about 10–20 s at the measured 10–20 µs per
 # evaluation) means the step has collapsed (an extreme speed, damper or inertia).
 MAX_EVALUATIONS = 1_000_000
+# |q̇| (rad/s or m/s) beyond which a run is declared unstable rather than returned.
+SPEED_LIMIT = 1e6
 
 
 def rk4_amplification(z: complex) -> float:
@@ -309,6 +310,8 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         When the solver fails or exceeds ``max_evaluations`` (STEP_SIZE), the state or f
         becomes non-finite, or the state runs away.
     """
+    from scipy.integrate import solve_ivp  # scipy only for this cross-check path (import ~0.5 s)
+
     atol = rtol if atol is None else atol
     _check_state(t_span[0], q0, qdot0, speed_limit, initial=True)
     ts, qs, vs, accs = [], [], [], []

@@ -4,17 +4,18 @@ The equation 𝔍 ẍ_i + ζ ẋ_i² + dV/dx_i = Q_i holds with any joint coordi
 coordinate: a body's angle or a slider's displacement. At the input's dead centre (of a
 crank, or of a slider driving a slider-crank) the input q cannot serve: K = dx/dq → ∞. The
 driver integrates in the coordinate whose dependent loop Jacobian is best conditioned
-(:meth:`LoopLinkage.conditioning`, over all joint coordinates) and switches, with
+(c_j = |det Φ_dep| / Π ‖columns of Φ_dep‖ over all joint coordinates) and switches, with
 hysteresis, when the current one falls below ``HYSTERESIS`` times the best:
 
     switch when  c_i(x) < HYSTERESIS · max_j c_j(x);   ẋ_j = K_j ẋ_i  (K w.r.t. x_i).
 
-Inside a chart the sign of det J_dep cannot change (the chart ends before its own
-singularity), so it names the chart's assembly branch: the dependent angles are solved on
-that branch (in closed form for the four-bar; by Newton's method from a predictor
-x + K Δx_i + ½ L Δx_i², checked against the sign, for other linkages). The branch of the
-input angle's closed form changes at each limit position and is tracked by this. The
-integrators see only a scalar equation and a stop condition.
+Inside a chart the sign of det [Φ_x; e_i] cannot change (the chart ends before its own
+singularity), so it names the chart's assembly branch: the dependent coordinates are found
+by Newton's method from the predictor x + K Δx_i + ½ L Δx_i² of the chart's last
+configuration, checked against the sign, a jump too long for the predictor taken in halves
+(:mod:`reduced.kernels.physics`). The compiled runs string the charts together in compiled
+code (:mod:`reduced.kernels.partition`); :func:`integrate_partitioned` does it in Python for
+the integrators that take a Python function (scipy's).
 """
 
 from __future__ import annotations
@@ -24,22 +25,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import loops
-from .dynamics import Coefficients, MechanismModel
+from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
 from .errors import NumericalFailure
-from .integrators import Solution
-from .linkage import Kinematics
+from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution
+from .kernels import adaptive, fixed_step, physics
+from .kernels import partition as compiled
 from .trajectory import Trajectory
 
-HYSTERESIS = 0.5  # switch when the current coordinate is less than half as well conditioned
+HYSTERESIS = physics.HYSTERESIS  # switch when the current coordinate is less than half as well conditioned
 MAX_SWITCHES = 10_000
-# General path: a Newton correction larger than this fraction of the predicted motion |K Δ|
-# means the jump was too long for the quadratic predictor (its error is O(Δ³)); the jump is
-# then halved, at most MAX_HALVINGS times (each halving doubles the depth of the walk).
-PREDICTOR_TRUST = 0.25
-MAX_HALVINGS = 30
-# A correction this small (rad or m) is always trusted: Newton's polish alone moves x by
-# ~1e-16, and two assemblies are never this close except at a singular position.
-TRUSTED_CORRECTION = 1e-9
 
 
 @dataclass(frozen=True)
@@ -72,90 +66,93 @@ class JointTrajectory:
 
 
 class Chart:
-    """Eksergian's equation in one independent coordinate, with its dependent-angle cache."""
+    """Eksergian's equation in one independent coordinate: a Python view of a compiled chart
+    (:class:`reduced.kernels.physics.Chart`) that starts at an assembled configuration x."""
 
-    def __init__(self, model: MechanismModel, independent: int, start: Kinematics):
+    def __init__(self, model: MechanismModel, independent: int, x: np.ndarray):
         self.model = model
-        self.linkage = model.linkage
         self.independent = independent
-        self.name = self.linkage.coordinate_names[independent]
-        self.branch = self.linkage.branch_of(start.x) if self.linkage.has_closed_form else 0
-        self.sign = self.linkage.chart_sign(start.x, independent)
-        self._start = start
-        self._last = start
-        # The input angle with a closed form keeps the branch it starts on inside a chart.
-        self._closed_form = independent == 0 and self.linkage.has_closed_form
-        # The stop check after a step asks again for the kinematics that the step's last
-        # evaluation has just computed: keep that one.
-        self._memo: tuple[float, Kinematics] | None = None
+        self.name = model.coordinate_names[independent]
+        self.state = model.new_chart()
+        if not physics.start_chart(model.arrays, self.state, np.ascontiguousarray(x, dtype=float), independent):
+            raise NumericalFailure("singular", f"{self.name} cannot drive the linkage at its start "
+                                              f"({self.name} = {x[independent]:.15g})")
+
+        self._views = physics.chart_arrays(model.arrays, self.state)
+
+    @property
+    def start(self) -> Kinematics:
+        x, K, L = self._views["start"]
+        return Kinematics(x.copy(), K.copy(), L.copy())
 
     def reset(self) -> None:
-        self._last = self._start
-        self._memo = None
+        """Walk again from the chart's start."""
+        physics.reset(self.model.arrays, self.state)
+
+    def _evaluate(self, value: float) -> None:
+        if not physics.evaluate(self.model.arrays, self.state, float(value)):
+            raise NumericalFailure("singular", f"Newton's method did not close the loops with {self.name} = "
+                                   f"{value:.15g} held on the chart's branch: the position is singular or "
+                                   f"unreachable")
 
     def kinematics(self, value: float) -> Kinematics:
-        """Joint angles, K and L with x_i = value, continuous with the last call."""
-        if self._memo is not None and self._memo[0] == value:
-            return self._memo[1]
-        if self._closed_form:
-            kin = self.linkage.kinematics(value, self.branch)
-        elif self.linkage.has_closed_form:  # the four-bar's dyad closed form (the guess picks the turn)
-            last = self._last
-            delta = value - last.x[self.independent]
-            guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
-            kin = self.linkage.solve(guess, self.independent, value, self.sign)
-            self._last = kin
-        else:
-            kin = self._continue(self._last, value, MAX_HALVINGS)
-            self._last = kin
-        self._memo = (value, kin)
-        return kin
-
-    def _continue(self, last: Kinematics, value: float, halvings: int) -> Kinematics:
-        """Newton from the predictor x + K Δ + ½ L Δ² of ``last``; a jump whose Newton
-        correction exceeds ``PREDICTOR_TRUST`` × the predicted motion |K Δ| (or that fails)
-        is taken in two halves. Along a chart the configuration is a function of x_i
-        (implicit function theorem, the branch fixed by the chart's sign), so walking back
-        to an earlier value, as the dense output of an adaptive run does, finds the same
-        configuration, in the same turn."""
-        i = self.independent
-        delta = value - last.x[i]
-        guess = last.x + last.K * delta + 0.5 * last.L * delta * delta
-        try:
-            kin = self.linkage.solve(guess, i, value, self.sign)
-            ok = float(np.max(np.abs(kin.x - guess))) <= PREDICTOR_TRUST * float(np.max(np.abs(last.K * delta))) + TRUSTED_CORRECTION
-        except NumericalFailure:
-            if halvings <= 0:
-                raise
-            ok, kin = False, None
-        if ok or halvings <= 0:
-            return kin
-        middle = self._continue(last, last.x[i] + 0.5 * delta, halvings - 1)
-        return self._continue(middle, value, halvings - 1)
+        """Joint coordinates, K and L with x_i = value, continuous with the last call."""
+        self._evaluate(value)
+        x, K, L = self._views["kin"]
+        return Kinematics(x.copy(), K.copy(), L.copy())
 
     def coefficients(self, value: float) -> Coefficients:
-        return self.model.coefficients_from(self.kinematics(value))
+        self._evaluate(value)
+        return coefficients_from(self._views["fields"], self._views["kin"])
+
+    def walk(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """From the chart's start, the coefficient fields (m, N_FIELDS) and kinematics
+        (m, 3, n) at each of ``values`` in turn (compiled)."""
+        values = np.array(values, dtype=float)  # a writable copy: a read-only array is another type to compile
+        fields = np.empty((len(values), physics.N_FIELDS))
+        kin = np.empty((len(values), 3, len(self.model.coordinate_names)))
+        done = physics.walk(self.model.arrays, self.state, values, fields, kin)
+        if done < len(values):
+            raise NumericalFailure("singular", f"the chart of {self.name} cannot be followed to "
+                                   f"{self.name} = {values[done]:.15g}")
+        return fields, kin
 
     def rhs_on_piece(self, start: float, end: float):
-        """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history."""
-        load = self.model.load_on_piece(start, end)
+        """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history (a Python function)."""
+        load = float(self.model.load_on_piece(start, end)(0.5 * (start + end)))
+        arrays, state = self.model.arrays, self.state
 
         def f(t: float, value: float, rate: float) -> float:
-            return self.coefficients(value).acceleration(load(t), rate)
+            a = physics.acceleration(arrays, state, load, t, value, rate)
+            if a != a and state.S[physics.STATUS] == physics.SINGULAR:
+                self._evaluate(value)  # raises with the reason
+            return a
 
         return f
 
     def switch_margin(self, t: float, value: float, rate: float) -> float:
         """> 0 while this coordinate is good enough; ≤ 0 when another is clearly better."""
-        c = self.linkage.conditioning(self.kinematics(value).x)
-        return c[self.independent] - HYSTERESIS * float(np.max(c))
+        self._evaluate(value)
+        return physics.stop_margin(self.model.arrays, self.state, t, value, rate)
+
+    def conditioning(self, value: float) -> tuple[float, float, int]:
+        """(c_i, max_j c_j, argmax_j) at x_i = value."""
+        self._evaluate(value)
+        f = self._views["fields"]
+        return float(f[physics.CONDITIONING]), float(f[physics.BEST_CONDITIONING]), int(f[physics.BEST])
+
+
+def conditioning(model: MechanismModel, x: np.ndarray) -> np.ndarray:
+    """For each coordinate as the independent one, |det Φ_dep| / Π ‖columns of Φ_dep‖ (n,):
+    0 where it cannot drive the linkage, 1 with the other columns orthogonal."""
+    return loops.conditioning(model.system, x)
 
 
 def best_coordinate(model: MechanismModel, x: np.ndarray, current: int | None = None) -> int:
     """The best-conditioned coordinate, keeping ``current`` (or the input joint's coordinate,
     when q is one) unless another is better by more than the hysteresis factor."""
-    c = model.linkage.conditioning(x)
-    keep = model.linkage.input_coordinate if current is None else current
+    c = conditioning(model, x)
+    keep = model.input_coordinate if current is None else current
     if keep is not None and c[keep] >= HYSTERESIS * np.max(c):
         return keep
     return int(np.argmax(c))
@@ -175,26 +172,32 @@ class PartitionedSolution:
     settings: dict = field(default_factory=dict)
 
 
+def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
+    """The assembled x0, the coordinate to start in, and its rate ẋ_i for the scene's q̇0."""
+    scene = model.scene
+    x0 = model.assemble(scene.q0)
+    i = best_coordinate(model, x0)
+    input_rate = Chart(model, i, x0).coefficients(float(x0[i])).input_rate
+    if scene.qdot0 != 0.0 and abs(input_rate) < 1e-12:
+        raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
+                               f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
+    return x0, i, scene.qdot0 / input_rate if scene.qdot0 != 0.0 else 0.0
+
+
 def integrate_partitioned(model: MechanismModel, integrate_chart) -> PartitionedSolution:
-    """Integrate the scene from t = 0 to its horizon, switching coordinates as needed.
+    """Integrate the scene from t = 0 to its horizon, switching coordinates as needed, with
+    an integrator that takes Python functions (scipy's).
 
     ``integrate_chart(rhs_on_piece, t_span, x0, v0, stop)`` runs one integrator in one chart
     and returns a :class:`Solution` (``stopped`` when ``stop`` fired).
     """
-    scene, linkage = model.scene, model.linkage
-    x0 = linkage.assemble(scene.q0)
-    i = best_coordinate(model, x0)
-    kin = linkage.coefficients_at(x0, i)
-    input_rate = linkage.input_rate(kin.K)
-    if scene.qdot0 != 0.0 and abs(input_rate) < 1e-12:
-        raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
-                               f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
-    rate = scene.qdot0 / input_rate if scene.qdot0 != 0.0 else 0.0
+    scene = model.scene
+    x, i, rate = _start(model)
     t = 0.0
     segments, switches = [], []
     while True:
-        chart = Chart(model, i, kin)
-        solution = integrate_chart(chart.rhs_on_piece, (t, scene.horizon), float(kin.x[i]), rate,
+        chart = Chart(model, i, x)
+        solution = integrate_chart(chart.rhs_on_piece, (t, scene.horizon), float(x[i]), rate,
                                    chart.switch_margin)
         segments.append((chart, solution))
         if not solution.stopped or solution.trajectory.t[-1] >= scene.horizon:
@@ -203,21 +206,112 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
             raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
         end = solution.trajectory
         t, value, rate_old = float(end.t[-1]), float(end.q[-1]), float(end.qdot[-1])
-        old = chart.kinematics(value)
-        c = linkage.conditioning(old.x)
-        j = int(np.argmax(c))  # the stop condition fired: another coordinate is clearly better
+        c_i, c_j, j = chart.conditioning(value)  # the stop condition fired: another is clearly better
         if j == i:
             raise NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
-        kin = linkage.coefficients_at(old.x, j)
+        old = chart.kinematics(value)
         rate = rate_old * old.K[j]  # ẋ_j = K_j ẋ_i, K w.r.t. the old coordinate
-        switches.append(Switch(t, chart.name, linkage.coordinate_names[j], float(c[i]), float(c[j])))
-        i = j
+        switches.append(Switch(t, chart.name, model.coordinate_names[j], c_i, c_j))
+        x, i = old.x, j
+    return _solution(model, segments, switches)
+
+
+def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Edges (p+1,) of the smooth pieces of [t0, horizon] and the input load on each (p,)."""
+    horizon = model.scene.horizon
+    edges = np.array([t0, *sorted({b for b in model.load_edges if t0 < b < horizon}), horizon])
+    loads = np.array([model.load_on_piece(a, b)(0.5 * (a + b)) for a, b in zip(edges[:-1], edges[1:])],
+                     dtype=float)
+    return edges, loads
+
+
+def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart, step: float | None = None):
+    """The :class:`NumericalFailure` for a compiled run's status (info[0]: the time)."""
+    t = float(info[0])
+    unit = model.scene.input_unit
+    if status == fixed_step.NONFINITE:
+        return NumericalFailure("non-finite", f"the state became NaN or infinite at t = {t:.6g} s", t)
+    if status == fixed_step.SPEED:
+        return NumericalFailure("unstable", f"|q̇| = {abs(info[1]):.3g} {unit}/s exceeds {SPEED_LIMIT:.3g} "
+                                f"{unit}/s at t = {t:.6g} s: the integration is unstable at this step", t)
+    if status == fixed_step.UNSTABLE:
+        return NumericalFailure(
+            "unstable", f"the step h = {step:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
+            f"(h·λ = {info[1]:.3g}{info[2]:+.3g}j, |R| = {info[3]:.6g} > {info[4]:.6g}): the problem is "
+            "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
+            "the implicit Radau method", t)
+    if status == adaptive.STEP_SIZE:
+        return NumericalFailure(
+            "step-size", f"DOP853 used more than {MAX_EVALUATIONS} evaluations of the equation or its step fell "
+            f"below the spacing of the floating-point numbers, and reached only t = {t:.6g} s: its step has "
+            "collapsed (an extreme speed, damper or inertia in the scene?)", t)
+    if status == fixed_step.FAILED:
+        if chart.S[physics.STATUS] == physics.SINGULAR:
+            name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
+            return NumericalFailure("singular", f"Newton's method did not close the loops in the chart of {name} "
+                                    f"at t = {t:.6g} s: the position is singular or unreachable", t)
+        return NumericalFailure("non-finite", f"the acceleration became NaN or infinite at t = {t:.6g} s", t)
+    if status == compiled.NO_BETTER:
+        return NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
+    if status == compiled.TOO_MANY_SWITCHES:
+        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
+    return NumericalFailure("singular", f"the run cannot start: its coordinate cannot drive the linkage", t)
+
+
+def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:
+    """The compiled RKN4 run of the scene at the largest step ``step`` (s), all charts."""
+    x0, i, rate = _start(model)
+    edges, loads = load_pieces(model)
+    chart = model.new_chart()
+    status, info, *run = compiled.run_rkn4(model.arrays, chart, edges, loads, x0, i, rate, float(step),
+                                           SPEED_LIMIT, check_stability, MAX_SWITCHES)
+    if status != fixed_step.OK:
+        raise compiled_failure(model, status, info, chart, step)
+    return compiled_solution(model, run, RKN4.name, {"method": "rkn4", "step": step})
+
+
+def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
+                     retry_caps: tuple[float, ...]) -> PartitionedSolution:
+    """The compiled DOP853 run of the scene at rtol = atol = ``rtol``, all charts; samples no
+    further apart than ``sample_interval`` (s); a chart that meets a singular position is run
+    again with the step capped to each fraction ``retry_caps`` of its span."""
+    x0, i, rate = _start(model)
+    edges, loads = load_pieces(model)
+    chart = model.new_chart()
+    status, info, *run = compiled.run_dop853(model.arrays, chart, edges, loads, x0, i, rate, float(rtol),
+                                             float(sample_interval), SAMPLES_PER_STEP, SPEED_LIMIT,
+                                             MAX_EVALUATIONS, np.array(retry_caps, dtype=float), MAX_SWITCHES)
+    if status != fixed_step.OK:
+        raise compiled_failure(model, status, info, chart)
+    return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
+
+
+def _solution(model: MechanismModel, segments, switches) -> PartitionedSolution:
     input_traj, joints = _assemble_outputs(model, segments)
     first = segments[0][1]
     return PartitionedSolution(
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
         method=first.method, settings=first.settings)
+
+
+def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -> PartitionedSolution:
+    """A :class:`PartitionedSolution` from the arrays of a compiled partitioned run
+    (t, value, rate, accel, segment, coordinates, starts (segments, 3, n), switches (s, 5),
+    n_steps, n_evaluations)."""
+    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval = run
+    segments = []
+    cuts = np.flatnonzero(np.diff(segment)) + 1
+    for k, rows in enumerate(np.split(np.arange(len(t)), cuts)):
+        chart = Chart(model, int(coordinates[k]), starts[k][0])
+        traj = Trajectory(t[rows], value[rows], rate[rows], accel[rows])
+        stopped = k + 1 < len(coordinates)
+        segments.append((chart, Solution(traj, method, n_steps if k == 0 else 0, n_eval if k == 0 else 0,
+                                         settings, stopped=stopped)))
+    names = model.coordinate_names
+    switches = [Switch(float(r[0]), names[int(r[1])], names[int(r[2])], float(r[3]), float(r[4]))
+                for r in switch_rows]
+    return _solution(model, segments, switches)
 
 
 def _assemble_outputs(model: MechanismModel, segments) -> tuple[Trajectory, JointTrajectory]:
@@ -227,27 +321,20 @@ def _assemble_outputs(model: MechanismModel, segments) -> tuple[Trajectory, Join
     chart's coordinate x_i).
     """
     ts, vs, accs, xs, xdots, coords = [], [], [], [], [], []
-    linkage = model.linkage
     for chart, solution in segments:
-        chart.reset()
         tr = solution.trajectory
-        for t, value, rate, accel in zip(tr.t, tr.q, tr.qdot, tr.qddot):
-            kin = chart.kinematics(float(value))
-            k_q = linkage.input_rate(kin.K)
-            ts.append(t)
-            vs.append(k_q * rate)
-            accs.append(linkage.input_curvature(kin.L) * rate * rate + k_q * accel)
-            xs.append(kin.x)
-            xdots.append(kin.K * rate)
-            coords.append(chart.independent)
-    x = np.array(xs)
-    angles = linkage.angle_columns()
+        fields, kin = chart.walk(tr.q)
+        k_q, l_q = fields[:, physics.INPUT_RATE], fields[:, physics.INPUT_CURVATURE]
+        ts.append(tr.t)
+        vs.append(k_q * tr.qdot)
+        accs.append(l_q * tr.qdot ** 2 + k_q * tr.qddot)
+        xs.append(kin[:, 0, :])
+        xdots.append(kin[:, 1, :] * tr.qdot[:, None])
+        coords.append(np.full(len(tr.t), chart.independent))
+    x = np.concatenate(xs)
+    angles = model.angle_columns
     x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
-    general = linkage.to_general(x)
-    q = general @ model.system.drive
-    # Rates need no conversion: the closed form's coordinates differ from the general ones by
-    # a constant (φ2 + π).
-    joints = JointTrajectory(model.system.coordinate_names, np.array(ts), general,
-                             np.array(xdots), np.array(coords),
-                             loops.assembly_modes(model.system, general).reshape(len(ts), -1))
-    return Trajectory(np.array(ts), q, np.array(vs), np.array(accs)), joints
+    t = np.concatenate(ts)
+    joints = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
+                             loops.assembly_modes(model.system, x).reshape(len(t), -1))
+    return Trajectory(t, x @ model.system.drive, np.concatenate(vs), np.concatenate(accs)), joints

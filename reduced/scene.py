@@ -196,4 +196,4 @@ MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 # 10 000 already means a solver that is not converging, and keeps the binding's C int (2**31
 # raises a TypeError there) far away. One limit for the scene file, the CLI and MujocoSettings.
 MUJOCO_MAX_ITERATIONS = 10_000
-REDUCED_METHODS = ("dop853", "rkn4", "radau")
+REDUCED_METHODS = ("dop853", "rkn4", "radau", "scipy-dop853")

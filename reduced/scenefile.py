@@ -475,7 +475,9 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
         tol.close()
     mujoco = _parse_mujoco(top.table("mujoco")) if top.has("mujoco") else {}
     reduced = _parse_reduced(top.table("reduced")) if top.has("reduced") else {}
-    top.used.update(("mujoco", "reduced"))
+    if top.has("sweep"):
+        _check_sweep(top.raw("sweep"), source)
+    top.used.update(("mujoco", "reduced", "sweep"))
     top.close()
     for key, table in (("mujoco.timestep", mujoco), ("reduced.step", reduced)):
         step = table.get(key.split(".")[1])
@@ -598,6 +600,18 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
             out[name] = tuple(_number(v, f"{t.key(name)}[{i}]") for i, v in enumerate(value))
     t.close()
     return out
+
+
+def _check_sweep(table: Any, source: str) -> None:
+    """The optional [sweep] table (a family of variants of this scene, ``xval sweep``): read by
+    :func:`compare.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
+    does not use it; whether its keys fit the scene is checked when the sweep runs."""
+    from compare.sweep_spec import SweepSpecError, spec_from_table
+
+    try:
+        spec_from_table(table, source="")
+    except SweepSpecError as exc:
+        raise SceneError(str(exc)) from None
 
 
 def _parse_reduced(t: _Table) -> dict[str, Any]:

@@ -55,3 +55,16 @@ def patched(patch: dict) -> dict:
         else:
             node[key] = value
     return data
+
+
+def coefficients_along(model, qs) -> list:
+    """The model's coefficients at each input q of ``qs`` in turn, evaluated afresh
+    (:meth:`MechanismModel.coefficients_at`) at the configuration that a chart of the input
+    coordinate, walked from the scene's x0, reaches there: what ``model.coefficients(q)`` gives
+    near q0 (MechanismModel.assemble is Newton from x0 and does not converge half a revolution
+    away). Not the walked chart's own coefficients: those come from A factored before Newton's
+    last step, up to ~1e-10 of V from the ones at the x it returns. The input must be a coordinate."""
+    from reduced.partition import Chart
+
+    chart = Chart(model, model.input_coordinate, model.x0)
+    return [model.coefficients_at(chart.kinematics(float(q)).x) for q in qs]

@@ -10,7 +10,7 @@ import pytest
 
 from reduced import MechanismModel, ReducedSettings, Scene, load_scene, scene_from_dict, simulate
 
-from helpers import SEED_SCENE, conservative, seed_dict, variant
+from helpers import SEED_SCENE, coefficients_along, conservative, seed_dict, variant
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +120,7 @@ def test_model_contains_exactly_the_declared_effects(effects):
     not built adds nothing) while a declared one contributes somewhere on the revolution."""
     model = MechanismModel(scene_with(effects))
     assert model.effects == effects
-    cs = [model.coefficients(q) for q in np.linspace(0.0, 2 * np.pi, 13)[:-1]]
+    cs = coefficients_along(model, np.linspace(0.0, 2 * np.pi, 13)[:-1])
     damping = [c.damping for c in cs]
     gradient = [c.potential_gradient for c in cs]
     torque = model.load_on_piece(0.0, 1.0)(0.5)
@@ -131,14 +131,15 @@ def test_model_contains_exactly_the_declared_effects(effects):
 
 def gravity_potential(q: float, x) -> float:
     """−Σ m g·r_G from the positions written out here: crank G = R(q) com, coupler
-    G = c1 e(q) + R(φ1) com, rocker G = O3 + R(φ2 + π) com (rocker frame along O3→B)."""
+    G = c1 e(q) + R(φ1) com, rocker G = O3 + R(θ3) com (rocker frame along O3→B); x in the
+    general coordinates (crank, coupler, rocker) = (q, φ1, θ3 = φ2 + π)."""
     def rotate(angle, p):
         return (p[0] * math.cos(angle) - p[1] * math.sin(angle), p[0] * math.sin(angle) + p[1] * math.cos(angle))
-    _, phi1, phi2 = x
+    _, phi1, theta3 = x
     g_crank = rotate(q, ALL_BODIES["crank"]["com"])
     u, v = rotate(phi1, ALL_BODIES["coupler"]["com"])
     g_coupler = (0.5 * math.cos(q) + u, 0.5 * math.sin(q) + v)
-    u, v = rotate(phi2 + math.pi, ALL_BODIES["rocker"]["com"])
+    u, v = rotate(theta3, ALL_BODIES["rocker"]["com"])
     g_rocker = (1.0 + u, v)
     return 9.81 * sum(ALL_BODIES[b]["mass"] * g[1]
                       for b, g in (("crank", g_crank), ("coupler", g_coupler), ("rocker", g_rocker)))
@@ -153,10 +154,12 @@ def test_gravity_potential_matches_the_positions_and_energy_is_conserved():
     scene = scene_with(("gravity",))
     model = MechanismModel(scene)
     d = 1e-5
-    for q in np.linspace(0.0, 2 * np.pi, 25)[:-1]:
-        c = model.coefficients(q)
+    qs = np.linspace(0.0, 2 * np.pi, 25)[:-1]
+    along = zip(qs, coefficients_along(model, qs), coefficients_along(model, qs + d),
+                coefficients_along(model, qs - d))
+    for q, c, plus, minus in along:
         assert c.potential == pytest.approx(gravity_potential(q, c.kinematics.x), rel=0, abs=1e-11)
-        fd = (model.coefficients(q + d).potential - model.coefficients(q - d).potential) / (2 * d)
+        fd = (plus.potential - minus.potential) / (2 * d)
         assert c.potential_gradient == pytest.approx(fd, rel=0, abs=1e-6)
     audit = simulate(scene, ReducedSettings(method="dop853", rtol=1e-12)).audit
     assert np.ptp(audit.potential) > 100.0  # the potential really changes

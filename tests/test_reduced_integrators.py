@@ -15,7 +15,7 @@ from reduced.scenefile import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 
-simulate_module = importlib.import_module("reduced.simulate")  # the package's `simulate` is the function
+simulate_module = importlib.import_module("reduced.engine")  # the package's `simulate` is the function
 
 
 def observed_order(steps, errors) -> float:

@@ -1,4 +1,9 @@
-"""Kinematics: closed-form, generic and finite-difference K, L agree; the seed's 𝔍 and ζ."""
+"""Kinematics: closed-form, compiled general and finite-difference K, L agree; the seed's 𝔍 and ζ.
+
+The four-bar's closed form (:class:`reduced.linkage.FourBar`) and the dyad closed form written
+below are the oracles of the compiled general path (:mod:`reduced.kernels.physics`, through
+:class:`reduced.dynamics.MechanismModel` and :class:`reduced.partition.Chart`); the pure-numpy
+loop equations of :mod:`reduced.loops` are a third, independent evaluation of K and L."""
 
 from __future__ import annotations
 
@@ -7,10 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from reduced import FourBar, LoopLinkage, MechanismModel, SceneError, load_scene
+from reduced import FourBar, MechanismModel, SceneError, load_scene, scene_from_dict
+from reduced import loops
+from reduced.partition import Chart
 from reduced.scene import FourBarGeometry
 
-from helpers import SEED_SCENE, seed_dict, variant
+from helpers import SEED_SCENE, coefficients_along, seed_dict, variant
 
 SEED = FourBarGeometry(0.5, 0.9, 0.7, 1.0, 1)
 QS = np.linspace(0.0, 2 * np.pi, 73)[:-1]  # a full crank revolution, every 5°
@@ -42,48 +49,121 @@ def test_seed_configuration_and_branches():
     assert linkage.branch_of(x) == 1 and linkage.branch_of(other) == -1
 
 
+def seed_model(branch: int = 1) -> MechanismModel:
+    """The seed scene on assembly branch ``branch`` (compiled general path)."""
+    data = seed_dict()
+    data["linkage"]["branch"] = branch
+    return MechanismModel(scene_from_dict(data))
+
+
 @pytest.mark.parametrize("branch", [1, -1])
-def test_closed_form_generic_and_finite_difference_K_L_agree(branch):
+def test_closed_form_general_and_finite_difference_K_L_agree(branch):
     """Over a full revolution, on both assembly branches; the loop residual is asserted first
     so that a wrong configuration cannot pass as a K/L agreement.
 
-    Generic (loop equations) against closed form: both are exact, so they agree to round-off;
-    K, L are O(1) here (|K| <= 1.19, |L| <= 2.25), measured gap 2e-15, bound 1e-12.
+    Compiled general path (loop equations, :meth:`MechanismModel.coefficients_at` at the
+    closed form's configuration, in the general coordinates (q, φ1, φ2 + π): K and L are the
+    same) against the closed form: both are exact, so they agree to round-off; K, L are O(1)
+    here (|K| <= 1.19, |L| <= 2.25), bound 1e-12.
     Central differences with δ = 1e-5 rad: for K from x(q) the truncation is δ²/6 |d³x/dq³|
     (<= 7.5 over the revolution: 1.3e-10) plus round-off ε |x| / δ ≈ 9e-11, bound 1e-9
     (measured 1.8e-10). For L we difference the closed-form K (differencing x twice would
     cost round-off ε/δ² ≈ 2e-6): truncation δ²/6 |d⁴x/dq⁴| (<= 31.4: 5.2e-10) plus
     round-off ε |K| / δ ≈ 3e-11, bound 2e-9 (measured 5.6e-10)."""
     linkage = FourBar(FourBarGeometry(0.5, 0.9, 0.7, 1.0, branch))
+    model = seed_model(branch)
     d = 1e-5
     for q in QS:
         x = linkage.assemble(q)
         assert np.max(np.abs(linkage.loop_residual(x))) < 1e-14
-        closed, generic = linkage.kinematics(q), linkage.kinematics_generic(q)
+        xg = linkage.to_general(x)
+        assert np.max(np.abs(loops.constraint_residual(model.system, xg))) < 1e-14
+        closed, general = linkage.kinematics(q), model.coefficients_at(xg).kinematics
         np.testing.assert_array_equal(closed.x, x)
-        np.testing.assert_allclose(generic.K, closed.K, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(generic.L, closed.L, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(general.x, xg)
+        np.testing.assert_allclose(general.K, closed.K, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(general.L, closed.L, rtol=0, atol=1e-12)
         fd_K = signed_gap(linkage.assemble(q + d), linkage.assemble(q - d)) / (2 * d)
         np.testing.assert_allclose(fd_K, closed.K, rtol=0, atol=1e-9)
         fd_L = (linkage.kinematics(q + d).K - linkage.kinematics(q - d).K) / (2 * d)
         np.testing.assert_allclose(fd_L, closed.L, rtol=0, atol=2e-9)
 
 
-def test_every_chart_closed_form_matches_newton():
-    """With φ1 or φ2 as the coordinate the four-bar's dyad closed form and the generic Newton
-    path find the same configuration (round-off) and the same K, L."""
-    linkage = FourBar(SEED)
+def dyad_closed_form(g: FourBarGeometry, independent: int, value: float, sign: int) -> np.ndarray:
+    """The four-bar closed with x_i = value held, in its closed-form coordinates (q, φ1, φ2):
+    the other two links form a dyad. c_a e(a) + c_b e(b) = P = (c4, 0) − c_i e(x_i), so
+    a = ψ ± α with ψ = atan2(P), cos α = (c_a² + |P|² − c_b²) / (2 c_a |P|), and b from the
+    remainder; of the two roots the one with sign(sin(b − a)) = ``sign`` (the sign of
+    det J_dep = c_a c_b sin(b − a), a before b in x: constant on a chart's branch)."""
+    lengths = (g.c1, g.c2, g.c3)
+    ia, ib = [j for j in range(3) if j != independent]
+    ca, cb = lengths[ia], lengths[ib]
+    px = g.c4 - lengths[independent] * math.cos(value)
+    py = -lengths[independent] * math.sin(value)
+    dist = math.hypot(px, py)
+    alpha = math.acos(max(-1.0, min(1.0, (ca * ca + dist * dist - cb * cb) / (2.0 * ca * dist))))
+    psi = math.atan2(py, px)
+    for a in (psi + alpha, psi - alpha):
+        b = math.atan2(py - ca * math.sin(a), px - ca * math.cos(a))
+        if (1 if math.sin(b - a) >= 0.0 else -1) == sign:
+            break
+    x = np.empty(3)
+    x[independent], x[ia], x[ib] = value, a, b
+    return x
+
+
+def test_every_chart_matches_the_dyad_closed_form_and_newton():
+    """With q, φ1 or φ2 as the chart's coordinate, the compiled chart (started at the closed
+    form's configuration, then walked 0.02 rad along its coordinate) lands where the dyad's
+    closed form puts the linkage (round-off), with the K, L of the pure-numpy loop equations
+    (:func:`reduced.loops.coefficients` with that coordinate driving, at the same x) and, for
+    q, of the four-bar closed form (bounds 1e-10, 1e-9: the walked x is Newton's, ~1e-12 from
+    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), reduced.loops and
+    the compiled chart agree."""
+    g = SEED
+    linkage = FourBar(g)
+    model = seed_model(1)
+    shift = np.array([0.0, 0.0, math.pi])  # closed-form (q, φ1, φ2) → general (crank, coupler, rocker)
+    step = 0.02
+    checked = 0
     for q in QS[::6]:
         x = linkage.assemble(q)
+        xg = linkage.to_general(x)
+        c_closed = linkage.conditioning(x)
+        np.testing.assert_allclose(loops.conditioning(model.system, xg), c_closed, rtol=0, atol=1e-14)
         for i in range(3):
-            sign = linkage.chart_sign(x, i)
-            closed = linkage.solve(None, i, x[i], sign)
-            newton = LoopLinkage.solve(linkage, x + 0.01, i, x[i], sign)
-            assert np.max(angle_gap(closed.x, x)) < 1e-12 and np.max(angle_gap(newton.x, x)) < 1e-12
-            np.testing.assert_allclose(closed.K, newton.K, atol=1e-10)
-            np.testing.assert_allclose(closed.L, newton.L, atol=1e-9)
-        generic = LoopLinkage.conditioning(linkage, x)
-        np.testing.assert_allclose(linkage.conditioning(x), generic, atol=1e-14)
+            if c_closed[i] < 0.05:  # the chart's own dead centre: not a chart there
+                continue
+            ia, ib = [j for j in range(3) if j != i]
+            sign = 1 if math.sin(x[ib] - x[ia]) >= 0.0 else -1
+            chart = Chart(model, i, xg)
+            c_i, c_best, best = chart.conditioning(float(xg[i]))
+            assert c_i == pytest.approx(c_closed[i], abs=1e-12)
+            assert c_best == pytest.approx(np.max(c_closed), abs=1e-12) and best == int(np.argmax(c_closed))
+            start = chart.start  # K, L at the closed form's configuration
+            K, L = loops.coefficients(model.system.driven_by(i), xg)
+            np.testing.assert_allclose(start.K, K, rtol=0, atol=1e-10)
+            np.testing.assert_allclose(start.L, L, rtol=0, atol=1e-9)
+            value = float(xg[i]) + step
+            kin = chart.kinematics(value)
+            closed = dyad_closed_form(g, i, value - shift[i], sign) + shift
+            assert np.max(angle_gap(kin.x, closed)) < 1e-12, (q, i, kin.x, closed)
+            # continuous with the chart's start: |K| ≤ 6.3 at these conditionings moves x by ≤ 0.13 rad,
+            # a 2π jump would move it by more than 6
+            assert np.max(np.abs(kin.x - xg)) < 1.0, (q, i, kin.x, xg)
+            # after a walk the kernel's K, L come from the factors of A before Newton's last
+            # (polishing) step, ~1e-12 rad from the x it returns: measured up to 5.1e-11 in K and
+            # 1.9e-9 in L (|L| = 38.6, 4.9e-11 relative) at q = 5.76 in the φ1 chart; bound
+            # 2e-10 relative to max(1, |K|), max(1, |L|)
+            K, L = loops.coefficients(model.system.driven_by(i), kin.x)
+            assert np.max(np.abs(kin.K - K)) <= 2e-10 * max(1.0, np.max(np.abs(K))), (q, i)
+            assert np.max(np.abs(kin.L - L)) <= 2e-10 * max(1.0, np.max(np.abs(L))), (q, i)
+            if i == 0:
+                seed = linkage.kinematics(value)
+                assert np.max(np.abs(kin.K - seed.K)) <= 2e-10 * max(1.0, np.max(np.abs(seed.K))), q
+                assert np.max(np.abs(kin.L - seed.L)) <= 2e-10 * max(1.0, np.max(np.abs(seed.L))), q
+            checked += 1
+    assert checked >= 2 * len(QS[::6])
 
 
 def seed_generalized_inertia(q: float) -> float:
@@ -102,26 +182,32 @@ def seed_generalized_inertia(q: float) -> float:
     return 1.5 + 3.5 * k2**2 + 40.0 * (kgx**2 + kgy**2) + 5.0 * k1**2
 
 
+def seed_coefficients(qs):
+    """The compiled coefficients of the seed at each q of ``qs`` (:func:`helpers.coefficients_along`)."""
+    return coefficients_along(MechanismModel(load_scene(SEED_SCENE)), qs)
+
+
 def test_generalized_inertia_matches_the_seed_formula():
-    model = MechanismModel(load_scene(SEED_SCENE))
-    for q in QS:
-        assert model.generalized_inertia(q) == pytest.approx(seed_generalized_inertia(q), rel=1e-12)
+    for q, c in zip(QS, seed_coefficients(QS)):
+        assert c.generalized_inertia == pytest.approx(seed_generalized_inertia(q), rel=1e-12)
 
 
 def test_centrifugal_coefficient_is_half_the_derivative_of_inertia():
     """ζ = ½ d𝔍/dq against a central difference (δ = 1e-5: truncation ~1e-10 𝔍''', round-off
     ~1e-11 𝔍/δ): 1e-7 relative to the size of ζ over the revolution."""
-    model = MechanismModel(load_scene(SEED_SCENE))
     d = 1e-5
-    zetas = np.array([model.coefficients(q).centrifugal for q in QS])
-    fd = np.array([(model.generalized_inertia(q + d) - model.generalized_inertia(q - d)) / (4 * d) for q in QS])
+    zetas = np.array([c.centrifugal for c in seed_coefficients(QS)])
+    plus = np.array([c.generalized_inertia for c in seed_coefficients(QS + d)])
+    minus = np.array([c.generalized_inertia for c in seed_coefficients(QS - d)])
+    fd = (plus - minus) / (4 * d)
     np.testing.assert_allclose(zetas, fd, rtol=0, atol=1e-7 * np.max(np.abs(zetas)))
 
 
 def test_damper_rate_matches_the_seed():
     """Q_damper = −B K_D² q̇ with the seed's K_D = dD/dq (finite difference of D)."""
-    model = MechanismModel(load_scene(SEED_SCENE))
-    linkage = model.linkage
+    scene = load_scene(SEED_SCENE)
+    model = MechanismModel(scene)
+    linkage = FourBar(scene.four_bar)  # the closed form: independent of the compiled path
 
     def length(q):
         x = linkage.assemble(q)
@@ -129,9 +215,9 @@ def test_damper_rate_matches_the_seed():
         by = 0.5 * math.sin(q) + 0.9 * math.sin(x[1])
         return math.hypot(1.3 - bx, by - 0.12)
 
-    for q in QS[::4]:
+    for q, c in zip(QS[::4], coefficients_along(model, QS[::4])):
         k_d = (length(q + 1e-6) - length(q - 1e-6)) / 2e-6
-        assert model.coefficients(q).damping == pytest.approx(55.0 * k_d**2, rel=1e-6, abs=1e-9)
+        assert c.damping == pytest.approx(55.0 * k_d**2, rel=1e-6, abs=1e-9)
 
 
 def test_model_contains_only_declared_effects():

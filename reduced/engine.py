@@ -13,13 +13,14 @@ from .dynamics import MechanismModel
 from .energy import energy_audit
 from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, solve_adaptive, solve_fixed_step
-from .partition import PartitionedSolution, integrate_partitioned
+from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .result import EngineResult
 from .scene import REDUCED_METHODS, Scene
 from .trajectory import Trajectory
 
 METHODS = REDUCED_METHODS  # listed once, in reduced.scene
-ADAPTIVE = ("dop853", "radau")
+ADAPTIVE = ("dop853", "scipy-dop853", "radau")
+SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by scipy's solve_ivp
 
 # Default accuracy requests. The adaptive methods are the reference: 1e-12 (scipy's floor is
 # 100 ε ≈ 2.2e-14). RKN4's error is estimated by step doubling and judged against
@@ -28,7 +29,7 @@ ADAPTIVE = ("dop853", "radau")
 # that passes cannot use up a gate. Its default step is the largest halving of 1 ms that
 # meets it on the seed scene: the estimate there is 2.4e-5 at 1 ms (failing) and 5.7e-7 at
 # 0.5 ms (the true largest errors: 8.6e-6 and 7.2e-8 of the peak speed).
-DEFAULT_RTOL = {"dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
+DEFAULT_RTOL = {"dop853": 1e-12, "scipy-dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
 DEFAULT_STEP = 5e-4  # s, RKN4
 DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples
 RTOL_RANGE = (100 * np.finfo(float).eps, 0.1)  # scipy raises rtol below 100 ε to it, with a warning
@@ -45,7 +46,7 @@ MAX_SAMPLES = 500_000
 # fast_crank 104, long_conservative 141, stiff_damper 29); 1000 × rtol leaves 7× above the
 # worst. RKN4 on the seed (0.25–4 ms, over 0.7 s and 2 s): residual ≤ 1.2 × its own error
 # estimate, so a run that meets rtol balances to ~1.2 rtol; 10 × rtol leaves 8×.
-ENERGY_FACTOR = {"dop853": 1000.0, "radau": 1000.0, "rkn4": 10.0}
+ENERGY_FACTOR = {"dop853": 1000.0, "scipy-dop853": 1000.0, "radau": 1000.0, "rkn4": 10.0}
 # Below ~1e-9 the audit itself is the limit, not the integration: on random four-bars that
 # start near a dead centre (many coordinate switches), DOP853 at rtol 1e-12 leaves 1.2e-9 and
 # 1.5e-9 of the energy, and 3.9e-9 at 1e-11 — the residual stops falling with rtol. The bound
@@ -61,8 +62,10 @@ class ReducedSettings:
     A field left at None takes its method's default; a field given that the method does not
     use raises an :class:`IgnoredSettingWarning` (``given`` lists the fields that were set).
 
-    method : "dop853" (adaptive reference), "rkn4" (the seed's fixed-step method,
-        corrected) or "radau" (implicit, for stiff dampers).
+    method : "dop853" (adaptive reference, compiled), "rkn4" (the seed's fixed-step method,
+        corrected, compiled), "radau" (implicit, for stiff dampers; scipy) or "scipy-dop853"
+        (scipy's DOP853 on the same compiled equation: an independent check of the compiled
+        integrator).
     rtol : the accuracy requested. Adaptive methods: their relative (and absolute) tolerance
         (default 1e-12). RKN4: the largest step-doubling error estimate allowed, relative to
         the run's largest |q| (rad) and |q̇| (rad/s), each at least 1 (default 1e-5).
@@ -134,7 +137,7 @@ def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...], 
             return solve_fixed_step(rhs_on_piece, span, x0, v0, h, breakpoints=breakpoints,
                                     tableau=RKN4, stop=stop)
     else:
-        method = "DOP853" if settings.method == "dop853" else "Radau"
+        method = SCIPY_NAMES[settings.method]
 
         def run(rhs_on_piece, span, x0, v0, stop):
             # A trial stage of a long step can land past the reach of the chart's coordinate
@@ -153,6 +156,10 @@ def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...], 
 
 def integrate(model: MechanismModel, settings: ReducedSettings, step: float | None = None) -> PartitionedSolution:
     """Run the integrator the settings name, switching coordinates at dead centres."""
+    if settings.method == "rkn4":
+        return integrate_rkn4(model, settings.step if step is None else step)
+    if settings.method == "dop853":
+        return integrate_dop853(model, settings.rtol, settings.sample_interval, CHART_RETRY_MAX_STEP)
     return integrate_partitioned(model, chart_integrator(settings, model.load_edges, step))
 
 

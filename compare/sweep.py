@@ -1,0 +1,531 @@
+"""``xval sweep``: a family of scenes through both engines, one summary row per variant.
+
+A sweep (:mod:`compare.sweep_spec`) makes variants of one scene file. Each variant is built
+with :func:`reduced.scenefile.scene_from_dict` and run through :func:`compare.run.compare_engines`
+with the scene's own settings and tolerances (the same code path and settings as ``xval run``
+without engine flags). A variant that cannot be assembled is a row with status ``invalid``, one
+whose engines fail numerically a row with status ``failed``; both are counted and the sweep goes
+on.
+
+Variants run in a process pool (``workers`` processes, default all cores), in chunks of
+consecutive variants per task; results come back in variant order (``Pool.imap``) and each row is
+written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
+(only a bounded summary is kept: counts, the worst variant, per key the range of the failing
+variants' values).
+
+Files (written through :func:`compare.output.write_folder`: all or nothing). The rows are
+streamed into the staged ``sweep.csv`` inside write_folder's hidden staging folder: the sweep
+itself is the writer of ``sweep.csv``, so a failed or interrupted sweep leaves the output folder as
+it was (nothing appears until the whole set is committed). The plots and ``sweep.json`` are then
+made from the staged ``sweep.csv`` read back row by row.
+
+- ``sweep.csv``: one row per variant, in variant order (:data:`FIXED_COLUMNS`, then the varied
+  keys by name, then :data:`FIGURE_COLUMNS`); empty cells are figures not measured; list figures
+  (``diff.mode_mismatches``...) are JSON text.
+- ``sweep.json``: the specification, the summary and the rows (strict JSON, null for NaN).
+- plots: ``sweep_peak_omega.png`` (peak ω of both engines against the first varied key, a grid),
+  ``sweep_gate_map.png`` (the gate's worst ratio over the first two keys of a grid of two or more
+  keys), ``sweep_peak_omega_hist.png`` (Monte Carlo: histogram of both engines' peak ω).
+- ``trajectories.csv`` with ``keep_trajectories``: index, engine, t, q, qdot, qddot of every
+  variant that ran (for small sweeps).
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+import os
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Mapping
+
+from .output import json_text, plain, portable_source, write_folder
+from .sweep_spec import SweepSpec, count, variant_values
+
+STATUSES = ("passed", "gate_failed", "failed", "invalid")
+"""A variant's status: both engines ran and the gate passed / failed; an engine failed
+numerically; the variant could not be assembled (its scene is invalid)."""
+
+FIXED_COLUMNS = ("index", "status", "reason")
+DIFF_FIGURES = ("peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms", "omega_max_abs",
+                "omega_rms", "omega_vs_q_max_abs", "peak_omega_reference", "peak_omega_other",
+                "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon",
+                "mode_mismatches", "mode_mismatch_first_times", "mode_mismatches_total")
+GATE_FIGURES = ("passed", "peak_omega_rtol", "q_atol", "omega_atol", "omega_vs_q_atol", "peak_ratio",
+                "worst_ratio")
+ENGINE_FIGURES = ("peak_omega", "t_peak", "wall_s", "n_steps", "energy_residual", "energy_residual_rel")
+FIGURE_COLUMNS = (tuple(f"diff.{k}" for k in DIFF_FIGURES) + tuple(f"gate.{k}" for k in GATE_FIGURES)
+                  + tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + tuple(f"mujoco.{k}" for k in ENGINE_FIGURES)
+                  + ("mujoco.max_constraint_violation", "variant_wall_s"))
+LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
+
+CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
+PEAK_PLOT, MAP_PLOT, HIST_PLOT = "sweep_peak_omega.png", "sweep_gate_map.png", "sweep_peak_omega_hist.png"
+MAX_CHUNK = 32
+
+
+def columns(spec: SweepSpec) -> tuple[str, ...]:
+    """The columns of sweep.csv for ``spec``."""
+    return FIXED_COLUMNS + spec.keys + FIGURE_COLUMNS
+
+
+def plot_files(spec: SweepSpec) -> tuple[str, ...]:
+    """The plots a sweep of ``spec`` draws."""
+    if not spec.is_grid:
+        return (HIST_PLOT,)
+    return (PEAK_PLOT,) + ((MAP_PLOT,) if len(spec.keys) >= 2 else ())
+
+
+def sweep_files(spec: SweepSpec, keep_trajectories: bool = False) -> tuple[str, ...]:
+    """Every file a sweep of ``spec`` writes, in the order they are committed."""
+    return ((CSV_FILE,) + ((TRAJECTORY_FILE,) if keep_trajectories else ()) + plot_files(spec)
+            + (JSON_FILE,))
+
+
+# -- one variant ------------------------------------------------------------------------
+
+def _finite(x: Any) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _ratio(value: float, bound: float | None) -> float | None:
+    if bound is None or value is None or not math.isfinite(value):
+        return None
+    return value / bound if bound > 0 else math.inf
+
+
+def comparison_row(c) -> dict[str, Any]:
+    """The figures of one comparison (the ``diff`` and ``gate`` of report.json, both engines'
+    peaks, times and residuals), keyed by sweep.csv column."""
+    from .report import engine_summary, report_dict
+
+    report = report_dict(c)
+    row: dict[str, Any] = {f"diff.{k}": report["diff"][k] for k in DIFF_FIGURES}
+    tol = c.gate.tolerances
+    peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(c.diff.peak_omega_reference))
+    ratios = [peak_ratio, _ratio(c.diff.q_max_abs, tol.q_atol), _ratio(c.diff.omega_max_abs, tol.omega_atol),
+              _ratio(c.diff.omega_vs_q_max_abs, tol.omega_vs_q_atol)]
+    ratios = [r for r in ratios if r is not None]
+    row.update({"gate.passed": c.gate.passed, **{f"gate.{k}": v for k, v in report["gate"]["tolerances"].items()},
+                "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
+    for engine, result in (("reduced", c.reduced), ("mujoco", c.mujoco)):
+        summary = engine_summary(result)
+        row.update({f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES})
+    row["mujoco.max_constraint_violation"] = c.mujoco.diagnostics.get("max_constraint_violation")
+    return row
+
+
+def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any], source: str,
+                keep_trajectories: bool = False) -> dict[str, Any]:
+    """One variant's row: built from ``data`` with ``values`` applied, run through both engines
+    and gated (as ``xval run``); invalid and failed variants are rows too."""
+    from reduced.errors import NumericalFailure
+    from reduced.scene import SceneError
+    from reduced.scenefile import scene_from_dict
+
+    from .run import compare_engines
+    from .sweep_spec import apply
+
+    row: dict[str, Any] = {"index": index, "status": "", "reason": "", **values}
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():  # off-grid edges and ignored settings: the same for many variants
+            warnings.simplefilter("ignore")
+            scene = scene_from_dict(apply(data, values), source)
+            c = compare_engines(scene)
+    except (SceneError, ValueError) as exc:  # as main() does: the variant's scene or settings are bad input
+        row.update(status="invalid", reason=" ".join(str(exc).split()))
+    except NumericalFailure as exc:
+        row.update(status="failed", reason=f"{exc.reason}: {' '.join(str(exc).split())}")
+    except Exception as exc:  # noqa: BLE001 - an engine's own error is this variant's, not the sweep's
+        row.update(status="failed", reason=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+    else:
+        row.update(comparison_row(c))
+        row.update(status="passed" if c.gate.passed else "gate_failed", reason="; ".join(c.gate.failures))
+        if keep_trajectories:
+            row["_trajectories"] = {e: _trajectory(r) for e, r in (("reduced", c.reduced), ("mujoco", c.mujoco))}
+    row["variant_wall_s"] = time.perf_counter() - start
+    return row
+
+
+def _trajectory(result) -> list[tuple[float, float, float, float]]:
+    tr = result.trajectory
+    return [tuple(map(float, r)) for r in zip(tr.t, tr.q, tr.qdot, tr.qddot)]
+
+
+# -- the pool ---------------------------------------------------------------------------
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(data, source, keep) -> None:
+    from .cost import _ignore_interrupts
+
+    _ignore_interrupts()
+    _WORKER.update(data=data, source=source, keep=keep)
+
+
+def _run_chunk(task: tuple[int, list[dict[str, float]]]) -> list[dict[str, Any]]:
+    start, values = task
+    return [run_variant(start + i, v, _WORKER["data"], _WORKER["source"], _WORKER["keep"])
+            for i, v in enumerate(values)]
+
+
+def chunk_size(n: int, workers: int) -> int:
+    """Variants per task: about eight tasks per worker, at most :data:`MAX_CHUNK`."""
+    return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
+
+
+def _chunks(spec: SweepSpec, size: int) -> Iterator[tuple[int, list[dict[str, float]]]]:
+    it = variant_values(spec)
+    start = 0
+    while True:
+        chunk = list(itertools.islice(it, size))
+        if not chunk:
+            return
+        yield start, chunk
+        start += len(chunk)
+
+
+def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
+             keep_trajectories: bool = False) -> Iterator[dict[str, Any]]:
+    """Every variant's row, in variant order, as they complete (``workers`` processes)."""
+    n = count(spec)
+    size = chunk_size(n, workers)
+    tasks = _chunks(spec, size)
+    if workers <= 1:
+        for start, values in tasks:
+            for i, v in enumerate(values):
+                yield run_variant(start + i, v, data, source, keep_trajectories)
+        return
+    import multiprocessing
+
+    pool = multiprocessing.Pool(workers, initializer=_init_worker, initargs=(dict(data), source, keep_trajectories))
+    try:
+        for rows in pool.imap(_run_chunk, tasks):
+            yield from rows
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+
+
+# -- the bounded summary ------------------------------------------------------------------
+
+@dataclass
+class Summary:
+    """What a sweep prints and keeps in memory: counts, the worst variant, and per key the
+    range of values of the variants that failed (the gate or numerically)."""
+
+    keys: tuple[str, ...]
+    total: int = 0
+    counts: dict[str, int] = field(default_factory=lambda: {s: 0 for s in STATUSES})
+    worst: dict[str, Any] | None = None  # index, values, peak_ratio, status
+    failing_ranges: dict[str, list[float]] = field(default_factory=dict)  # key -> [min, max]
+    ranges: dict[str, list[float]] = field(default_factory=dict)
+    wall_s: float = 0.0
+    workers: int = 1
+
+    def add(self, row: Mapping[str, Any]) -> None:
+        self.total += 1
+        status = row["status"]
+        self.counts[status] += 1
+        values = {k: row[k] for k in self.keys}
+        for k, v in values.items():
+            _extend(self.ranges, k, v)
+        if status in ("gate_failed", "failed"):
+            for k, v in values.items():
+                _extend(self.failing_ranges, k, v)
+        ratio = row.get("gate.peak_ratio")
+        if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
+            self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
+                          "peak_omega_rel": row.get("diff.peak_omega_rel")}
+
+    @property
+    def failed_any(self) -> bool:
+        return bool(self.counts["gate_failed"] or self.counts["failed"])
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"variants": self.total, "counts": dict(self.counts), "worst": self.worst,
+                "ranges": self.ranges, "failing_ranges": self.failing_ranges, "wall_s": self.wall_s,
+                "workers": self.workers}
+
+
+def _extend(ranges: dict[str, list[float]], key: str, value: float) -> None:
+    lo_hi = ranges.setdefault(key, [value, value])
+    lo_hi[0], lo_hi[1] = min(lo_hi[0], value), max(lo_hi[1], value)
+
+
+def summary_lines(summary: Summary) -> list[str]:
+    """The printed summary of a sweep."""
+    c = summary.counts
+    lines = [f"{summary.total} variants ({summary.workers} worker{'s' if summary.workers != 1 else ''}, "
+             f"{summary.wall_s:.1f} s): {c['passed']} passed, {c['gate_failed']} failed the gate, "
+             f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+    w = summary.worst
+    if w is not None:
+        values = ", ".join(f"{k} = {v:.6g}" for k, v in w["values"].items())
+        lines.append(f"worst variant: #{w['index']} ({values}): peak-omega difference {w['peak_ratio']:.3g}x its "
+                     f"tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
+    if summary.failing_ranges:
+        parts = []
+        for k, (lo, hi) in summary.failing_ranges.items():
+            all_lo, all_hi = summary.ranges[k]
+            parts.append(f"{k} in [{lo:.6g}, {hi:.6g}] (swept [{all_lo:.6g}, {all_hi:.6g}])")
+        lines.append("failing variants have: " + "; ".join(parts))
+    return lines
+
+
+# -- plots (drawn like compare/plots.py: new_figure, no pyplot) ----------------------------
+
+def _column(csv_path: Path, names: tuple[str, ...]) -> dict[str, list]:
+    """Some columns of a sweep.csv (None where not measured)."""
+    out: dict[str, list] = {n: [] for n in names}
+    for row in read_rows(csv_path):
+        for n in names:
+            out[n].append(row[n])
+    return out
+
+
+def _nan(values: list) -> "np.ndarray":
+    import numpy as np
+
+    return np.array([math.nan if v is None else float(v) for v in values], dtype=float)
+
+
+def _title(source: str, what: str) -> str:
+    from .plots import short_name
+
+    return f"{short_name(Path(source).stem if not source.startswith('<') else source)}: {what}"
+
+
+def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+    """Peak |ω| of both engines against the first varied key (other keys: one line each value)."""
+    import numpy as np
+
+    from .plots import MUJOCO_STYLE, PLAIN, REDUCED_STYLE, new_figure
+
+    key = spec.keys[0]
+    cols = _column(csv_path, spec.keys + ("reduced.peak_omega", "mujoco.peak_omega", "status"))
+    x = _nan(cols[key])
+    red, mj = _nan(cols["reduced.peak_omega"]), _nan(cols["mujoco.peak_omega"])
+    fig, ax = new_figure((7.0, 4.2))
+    others = spec.keys[1:]
+    groups: dict[tuple, list[int]] = {}
+    for i in range(len(x)):
+        groups.setdefault(tuple(cols[k][i] for k in others), []).append(i)
+    for n, (label, idx) in enumerate(groups.items()):
+        idx = np.array(idx)
+        suffix = (" (" + ", ".join(f"{k}={v:g}" for k, v in zip(others, label)) + ")") if others else ""
+        first = n == 0
+        ax.plot(x[idx], np.abs(red[idx]), marker="o", markersize=3, color=REDUCED_STYLE["color"],
+                label=REDUCED_STYLE["label"] if first else None, alpha=1.0 if len(groups) == 1 else 0.6)
+        ax.plot(x[idx], np.abs(mj[idx]), marker="x", markersize=4, color=MUJOCO_STYLE["color"],
+                linestyle="--", label=MUJOCO_STYLE["label"] if first else None,
+                alpha=1.0 if len(groups) == 1 else 0.6)
+        ok = np.flatnonzero(np.isfinite(red[idx]))
+        if others and ok.size and len(groups) <= 10:  # name each line by the other keys' values
+            last = idx[ok[-1]]
+            ax.annotate(suffix.strip(" ()"), (x[last], abs(red[last])), textcoords="offset points", xytext=(-4, 4),
+                        ha="right", fontsize=7, **PLAIN)
+    bad = np.array([s in ("invalid", "failed") for s in cols["status"]])
+    if bad.any():
+        for xv in x[bad]:
+            ax.axvline(xv, color="tab:red", alpha=0.3, linewidth=1)
+        ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
+    ax.set_xlabel(key, **PLAIN)
+    ax.set_ylabel("peak |ω| of the input")
+    ax.set_title(_title(source, f"peak speed against {key}"), **PLAIN)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(path)
+
+
+def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+    """The gate's worst ratio (largest figure over its tolerance) over the first two grid keys
+    (the others: the largest ratio over their values); gray where no comparison ran."""
+    import numpy as np
+    from matplotlib.colors import LogNorm
+
+    from .plots import PLAIN, new_figure
+
+    kx, ky = spec.keys[1], spec.keys[0]
+    xs, ys = list(spec.varies[1].values), list(spec.varies[0].values)
+    cols = _column(csv_path, (kx, ky, "gate.worst_ratio"))
+    grid = np.full((len(ys), len(xs)), np.nan)
+    for xv, yv, r in zip(cols[kx], cols[ky], cols["gate.worst_ratio"]):
+        if r is None:
+            continue
+        i, j = ys.index(yv), xs.index(xv)
+        grid[i, j] = r if math.isnan(grid[i, j]) else max(grid[i, j], r)
+    fig, ax = new_figure((7.0, 5.0), margins={"right": 1.3})
+    finite = grid[np.isfinite(grid) & (grid > 0)]
+    norm = LogNorm(vmin=min(finite.min(), 0.1), vmax=max(finite.max(), 10.0)) if finite.size else None
+    masked = np.ma.masked_invalid(np.where(grid > 0, grid, np.nan))
+    mesh = ax.pcolormesh(np.arange(len(xs) + 1), np.arange(len(ys) + 1), masked, cmap="RdYlGn_r", norm=norm,
+                         shading="flat")
+    ax.set_facecolor("0.8")
+    ax.set_xticks(np.arange(len(xs)) + 0.5, [f"{v:.4g}" for v in xs], fontsize=7, rotation=45 if len(xs) > 6 else 0)
+    ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{v:.4g}" for v in ys], fontsize=7)
+    ax.set_xlabel(kx, **PLAIN)
+    ax.set_ylabel(ky, **PLAIN)
+    ax.set_title(_title(source, "gate's worst figure / tolerance (> 1 fails)"), **PLAIN)
+    fig.colorbar(mesh, ax=ax, label="worst ratio")
+    fig.savefig(path)
+
+
+def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+    """Histogram of both engines' peak |ω| over a Monte Carlo sample."""
+    import numpy as np
+
+    from .plots import MUJOCO_STYLE, PLAIN, REDUCED_STYLE, new_figure
+
+    cols = _column(csv_path, ("reduced.peak_omega", "mujoco.peak_omega"))
+    red, mj = np.abs(_nan(cols["reduced.peak_omega"])), np.abs(_nan(cols["mujoco.peak_omega"]))
+    red, mj = red[np.isfinite(red)], mj[np.isfinite(mj)]
+    fig, ax = new_figure((7.0, 4.2))
+    both = np.concatenate([red, mj])
+    if both.size:
+        bins = np.histogram_bin_edges(both, bins=min(50, max(5, int(math.sqrt(both.size)))))
+        ax.hist(red, bins=bins, color=REDUCED_STYLE["color"], alpha=0.6, label=REDUCED_STYLE["label"])
+        ax.hist(mj, bins=bins, histtype="step", color=MUJOCO_STYLE["color"], linestyle="--", linewidth=1.5,
+                label=MUJOCO_STYLE["label"])
+        ax.legend(fontsize=8)
+    ax.set_xlabel("peak |ω| of the input")
+    ax.set_ylabel("variants")
+    ax.set_title(_title(source, f"peak speed over {len(red)} samples (seed {spec.seed})"), **PLAIN)
+    ax.grid(True, alpha=0.3)
+    fig.savefig(path)
+
+
+PLOTS = {PEAK_PLOT: plot_peak_omega, MAP_PLOT: plot_gate_map, HIST_PLOT: plot_peak_histogram}
+
+
+# -- files ------------------------------------------------------------------------------
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, (list, tuple)):
+        return json.dumps([_finite(v) if isinstance(v, float) else v for v in value])
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ""
+    return value
+
+
+def _parse(column: str, text: str) -> Any:
+    if column in ("status", "reason"):
+        return text
+    if column == "index":
+        return int(text)
+    if text == "":
+        return None
+    if column in LIST_COLUMNS:
+        return json.loads(text)
+    if text in ("true", "false"):
+        return text == "true"
+    value = float(text)
+    return int(value) if column.endswith(("n_steps", "mode_mismatches_total")) else value
+
+
+def read_rows(path: str | Path) -> Iterator[dict[str, Any]]:
+    """The rows of a sweep.csv, one at a time, with their types (None: not measured)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        for raw in csv.DictReader(f):
+            yield {k: _parse(k, v) for k, v in raw.items()}
+
+
+class _Progress:
+    def __init__(self, total: int):
+        from .cost import Progress
+
+        self.bar = Progress(total, label="sweep")
+
+    def step(self, row):
+        self.bar.step(f"#{row['index']} {row['status']}")
+
+
+def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
+            summary: Summary, progress: Callable | None) -> None:
+    cols = columns(spec)
+    traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
+    try:
+        tw = csv.writer(traj) if traj else None
+        if tw:
+            tw.writerow(("index", "engine", "t_s", "q", "qdot", "qddot"))
+        with open(csv_path, "w", newline="", encoding="utf-8") as f:
+            writer = csv.writer(f)
+            writer.writerow(cols)
+            for row in rows:
+                trajectories = row.pop("_trajectories", None)
+                writer.writerow([_cell(row.get(k)) for k in cols])
+                if tw and trajectories:
+                    for engine, samples in trajectories.items():
+                        tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
+                summary.add(row)
+                if progress:
+                    progress(row)
+    finally:
+        if traj:
+            traj.close()
+
+
+def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary) -> None:
+    """sweep.json: the specification and summary, then the rows read back one by one."""
+    head = {"source": portable_source(source), "keys": list(spec.keys),
+            "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
+            "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
+                       for v in spec.varies],
+            "summary": summary.as_dict()}
+    text = json_text(head)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text.rstrip().rstrip("}").rstrip() + ',\n  "rows": [')
+        for i, row in enumerate(read_rows(csv_path)):
+            f.write(("," if i else "") + "\n    " + json.dumps(plain(row), allow_nan=False))
+        f.write("\n  ]\n}\n")
+
+
+def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
+              workers: int | None = None, keep_trajectories: bool = False,
+              progress: bool = True) -> tuple[Summary, list[Path]]:
+    """Run every variant and write the sweep's files into ``out`` (module docstring). The
+    caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`)."""
+    from .cost import worker_count
+
+    n = count(spec)
+    used = worker_count(workers, n)
+    if workers is not None and used < workers and used < n:
+        warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
+    summary = Summary(spec.keys, workers=used)
+    bar = _Progress(n) if progress else None
+
+    def write_rows(path: Path) -> None:
+        start = time.perf_counter()
+        rows = run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories)
+        _stream(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
+                bar.step if bar else None)
+        summary.wall_s = time.perf_counter() - start
+
+    def staged(path: Path) -> None:  # written with sweep.csv
+        if not path.is_file():
+            raise RuntimeError(f"{path.name} was not written with {CSV_FILE}")
+
+    files: dict[str, Callable[[Path], None]] = {CSV_FILE: write_rows}
+    if keep_trajectories:
+        files[TRAJECTORY_FILE] = staged
+    for name in plot_files(spec):
+        files[name] = lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p)
+    files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary)
+    paths = write_folder(out, files)
+    return summary, paths

@@ -1,0 +1,639 @@
+"""A compiled DOP853 driver for one scalar second-order ODE x'' = f(t, x, x').
+
+:func:`dop853_run` does, in one call of compiled code, what ``reduced.integrators.solve_adaptive``
+does with scipy: the load history is constant on pieces; on each piece it runs scipy's
+``solve_ivp(method="DOP853", dense_output=True, events=[stop])`` algorithm step for step
+(``scipy/integrate/_ivp/rk.py``: ``RungeKutta._step_impl``, ``DOP853._estimate_error_norm``,
+``DOP853._dense_output_impl`` and ``Dop853DenseOutput``; ``select_initial_step`` in
+``common.py``; the terminal event as in ``ivp.py`` with scipy's Brent root finder), restarting
+at every piece edge, and samples the result with xval's rule (``dense_samples`` in
+``reduced/integrators.py``). The coefficients are scipy's (``dop853_coefficients``), read at
+import time into global arrays that numba freezes as constants.
+
+The problem is opaque here: the kernel calls ``acceleration(problem, chart, load, t, q, v)`` and
+``stop_margin(problem, chart, t, q, v)`` from :mod:`reduced.kernels.problem` and passes
+``problem`` and ``chart`` through untouched.
+
+Failures are status codes, never exceptions (:data:`OK`, :data:`STEP_SIZE`, :data:`NONFINITE`,
+:data:`SPEED`).
+
+Debugging: ``NUMBA_DISABLE_JIT=1`` runs the same code as plain Python (slow but steppable).
+Caching: see :mod:`reduced.kernels` (the cache follows every source of the package).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from . import dop853_tableau as _coef
+
+from .problem import acceleration, stop_margin
+
+# ---- status codes (module constants; the kernel returns one of them) -------------------------
+OK = 0          #: the run reached the end of the last piece, or the stop event ended it
+STEP_SIZE = 1   #: more than max_evaluations evaluations of f, or scipy's "required step size is
+#                  less than spacing between numbers"; fail_time: where the solver was
+NONFINITE = 2   #: f was NaN/inf at a stage (fail_time: that stage's time) or a sample's state or
+#                  q̈ was not finite (fail_time: the sample's time); also a non-finite initial state
+SPEED = 3       #: |q̇| > speed_limit at a sample (or initially); fail_time, fail_value: where, q̇
+STATUS_NAMES = {OK: "ok", STEP_SIZE: "step-size", NONFINITE: "non-finite", SPEED: "unstable"}
+
+# ---- scipy's DOP853 constants ---------------------------------------------------------------
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+N_STAGES = _coef.N_STAGES                    # 12
+N_STAGES_EXTENDED = _coef.N_STAGES_EXTENDED  # 16
+INTERPOLATOR_POWER = _coef.INTERPOLATOR_POWER  # 7
+ERROR_ESTIMATOR_ORDER = 7
+ERROR_EXPONENT = -1 / (ERROR_ESTIMATOR_ORDER + 1)
+EPS = float(np.finfo(float).eps)
+SQRT_N = 2 ** 0.5  # x.size ** 0.5 in scipy's RMS norm, n = 2
+
+A = np.ascontiguousarray(_coef.A, dtype=np.float64)          # (16, 16)
+B = np.ascontiguousarray(_coef.B, dtype=np.float64)          # (12,)
+C = np.ascontiguousarray(_coef.C, dtype=np.float64)          # (16,)
+E3 = np.ascontiguousarray(_coef.E3, dtype=np.float64)        # (13,)
+E5 = np.ascontiguousarray(_coef.E5, dtype=np.float64)        # (13,)
+D = np.ascontiguousarray(_coef.D, dtype=np.float64)          # (4, 16)
+
+
+class RunResult(NamedTuple):
+    """What :func:`dop853_run` returns (a plain tuple from the kernel, named by :func:`run`)."""
+    status: int            # OK, STEP_SIZE, NONFINITE or SPEED
+    t: np.ndarray          # sample times (pieces concatenated; a piece's first time repeats the
+    q: np.ndarray          # previous piece's last), states and q̈ at every sample
+    v: np.ndarray
+    a: np.ndarray
+    n_steps: int           # accepted steps over all pieces (a step cut by the stop event counts)
+    n_evaluations: int     # scipy's nfev summed over pieces (initial f, initial-step probe,
+    #                        12 per attempted step, 3 per dense output)
+    n_sample_evaluations: int  # evaluations of f at the samples (not in n_evaluations)
+    stopped: bool          # the stop event ended the run
+    t_reached: float       # the last time integrated (the event's root if stopped)
+    fail_time: float       # where a failure happened (nan if OK)
+    fail_value: float      # q̇ for SPEED, else nan
+
+
+# ---- helpers --------------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _pymin(a, b):
+    """Python's min(a, b): a unless b < a (NaN handling as in Python)."""
+    return b if b < a else a
+
+
+@njit(cache=True, inline="always")
+def _pymax(a, b):
+    """Python's max(a, b): a unless b > a."""
+    return b if b > a else a
+
+
+@njit(cache=True, inline="always")
+def _npmax(a, b):
+    """np.maximum(a, b) of two floats (NaN if either is)."""
+    if a != a or b != b:
+        return math.nan
+    return a if a >= b else b
+
+
+@njit(cache=True)
+def _dense_eval(t, t_old, h, y_old0, y_old1, F, j):
+    """Dop853DenseOutput._call_impl at t for step j (F: (n_steps, 7, 2)), same operation order."""
+    x = (t - t_old) / h
+    y0 = 0.0
+    y1 = 0.0
+    for i in range(INTERPOLATOR_POWER):
+        r = INTERPOLATOR_POWER - 1 - i
+        y0 += F[j, r, 0]
+        y1 += F[j, r, 1]
+        if i % 2 == 0:
+            y0 *= x
+            y1 *= x
+        else:
+            y0 *= 1 - x
+            y1 *= 1 - x
+    return y0 + y_old0, y1 + y_old1
+
+
+@njit(cache=True)
+def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
+    """scipy.optimize.brentq (Zeros/brentq.c) of stop_margin on step j's dense output,
+    xtol = rtol = 4 EPS, maxiter 100, as solve_ivp's solve_event_equation calls it."""
+    xtol = 4 * EPS
+    rtol = 4 * EPS
+    xpre = xa
+    xcur = xb
+    xblk = 0.0
+    fblk = 0.0
+    spre = 0.0
+    scur = 0.0
+    q, v = _dense_eval(xpre, t_old, h, y_old0, y_old1, F, j)
+    fpre = stop_margin(problem, chart, xpre, q, v)
+    q, v = _dense_eval(xcur, t_old, h, y_old0, y_old1, F, j)
+    fcur = stop_margin(problem, chart, xcur, q, v)
+    if fpre == 0:
+        return xpre
+    if fcur == 0:
+        return xcur
+    for _ in range(100):
+        if fpre != 0 and fcur != 0 and ((math.copysign(1.0, fpre) < 0) != (math.copysign(1.0, fcur) < 0)):
+            xblk = xpre
+            fblk = fpre
+            spre = xcur - xpre
+            scur = spre
+        if abs(fblk) < abs(fcur):
+            xpre = xcur
+            xcur = xblk
+            xblk = xpre
+            fpre = fcur
+            fcur = fblk
+            fblk = fpre
+        delta = (xtol + rtol * abs(xcur)) / 2
+        sbis = (xblk - xcur) / 2
+        if fcur == 0 or abs(sbis) < delta:
+            return xcur
+        if abs(spre) > delta and abs(fcur) < abs(fpre):
+            if xpre == xblk:
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            if 2 * abs(stry) < min(abs(spre), 3 * abs(sbis) - delta):
+                spre = scur
+                scur = stry
+            else:
+                spre = sbis
+                scur = sbis
+        else:
+            spre = sbis
+            scur = sbis
+        xpre = xcur
+        fpre = fcur
+        if abs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0 else -delta
+        q, v = _dense_eval(xcur, t_old, h, y_old0, y_old1, F, j)
+        fcur = stop_margin(problem, chart, xcur, q, v)
+    return xcur  # scipy would raise (no convergence in 100 iterations); not reachable for a
+    #              bracketed continuous g at these tolerances
+
+
+@njit(cache=True, inline="always")
+def _norm2(x0, x1):
+    """np.linalg.norm((x0, x1)) = sqrt(x.dot(x)); OpenBLAS's ddot sums a 2-vector plainly."""
+    return math.sqrt(x0 * x0 + x1 * x1)
+
+
+@njit(cache=True, inline="always")
+def _rms2(x0, x1):
+    """scipy's norm of (x0, x1): np.linalg.norm(x) / x.size ** 0.5."""
+    return _norm2(x0, x1) / SQRT_N
+
+
+@njit(cache=True)
+def _dot_kt(K, a, s, out):
+    """out = np.dot(K[:s].T, a[:s]) summed in the order of numpy's BLAS call (OpenBLAS dgemv_n
+    for a 2-row matrix: columns in blocks of four, t += (p0 + p1), t += (p2 + p3), then the
+    rest one by one; no FMA). Bit-equal to numpy on 2100 random cases and on the whole runs of
+    the tests; it matters: at tight tolerances the error estimate is mostly round-off, and
+    another order moves the step sequence by ~1e-6 relative (measured at rtol 1e-12)."""
+    nb = s - s % 4
+    for r in range(2):
+        acc = 0.0
+        i = 0
+        while i < nb:
+            acc = acc + (K[i, r] * a[i] + K[i + 1, r] * a[i + 1])
+            acc = acc + (K[i + 2, r] * a[i + 2] + K[i + 3, r] * a[i + 3])
+            i += 4
+        while i < s:
+            acc = acc + K[i, r] * a[i]
+            i += 1
+        out[r] = acc
+
+
+@njit(cache=True, inline="always")
+def _fun(problem, chart, load, t, q, v, K, row, work):
+    """The first-order system (q̇, f) into K[row]; work = [nfev, max_evaluations].
+    Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
+    if work[0] >= work[1]:
+        return STEP_SIZE
+    work[0] += 1
+    acc = acceleration(problem, chart, load, t, q, v)
+    K[row, 0] = v
+    K[row, 1] = acc
+    if not math.isfinite(acc):
+        return NONFINITE
+    return OK
+
+
+@njit(cache=True, inline="always")
+def _grow1(a, n):
+    b = np.empty(2 * a.shape[0])
+    for i in range(n):  # explicit loops: a slice assignment costs seconds of compile time
+        b[i] = a[i]
+    return b
+
+
+@njit(cache=True, inline="always")
+def _grow_steps(sy, sF, n):
+    sy2 = np.empty((2 * sy.shape[0], 2))
+    sF2 = np.empty((2 * sF.shape[0], INTERPOLATOR_POWER, 2))
+    for i in range(n):
+        sy2[i, 0] = sy[i, 0]
+        sy2[i, 1] = sy[i, 1]
+        for r in range(INTERPOLATOR_POWER):
+            sF2[i, r, 0] = sF[i, r, 0]
+            sF2[i, r, 1] = sF[i, r, 1]
+    return sy2, sF2
+
+
+@njit(cache=True)
+def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, K, work):
+    """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py).
+    Returns (status, fail_time, h_abs)."""
+    s = _fun(problem, chart, load, t, y0, y1, K, 0, work)
+    if s != OK:
+        return s, t, 0.0
+    f0 = K[0, 0]
+    f1 = K[0, 1]
+    interval_length = abs(end - t)
+    if interval_length == 0.0:
+        return OK, math.nan, 0.0
+    sc0 = atol + abs(y0) * rtol
+    sc1 = atol + abs(y1) * rtol
+    d0 = _rms2(y0 / sc0, y1 / sc1)
+    d1 = _rms2(f0 / sc0, f1 / sc1)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = _pymin(h0, interval_length)
+    s = _fun(problem, chart, load, t + h0 * 1.0, y0 + h0 * 1.0 * f0, y1 + h0 * 1.0 * f1, K, 1, work)
+    if s != OK:
+        return s, t + h0, 0.0
+    d2 = _rms2((K[1, 0] - f0) / sc0, (K[1, 1] - f1) / sc1) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = _pymax(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / _pymax(d1, d2)) ** (1 / (ERROR_ESTIMATOR_ORDER + 1))
+    return OK, math.nan, _pymin(_pymin(_pymin(100 * h0, h1), interval_length), max_step)
+
+
+@njit(cache=True)
+def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, work):
+    """rk_step and DOP853._estimate_error_norm for one attempt (K[0] = f at (t, y) on entry;
+    K[12] = f_new on exit). Returns (status, fail_time, y_new0, y_new1, error_norm)."""
+    dy = np.empty(2)
+    for si in range(1, N_STAGES):
+        _dot_kt(K, A[si], si, dy)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
+        s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, si, work)
+        if s != OK:
+            return s, t + C[si] * h, 0.0, 0.0, 0.0
+    bk = dy
+    _dot_kt(K, B, N_STAGES, bk)
+    yn0 = y0 + h * bk[0]
+    yn1 = y1 + h * bk[1]
+    s = _fun(problem, chart, load, t + h, yn0, yn1, K, N_STAGES, work)
+    if s != OK:
+        return s, t + h, 0.0, 0.0, 0.0
+    sc0 = atol + _npmax(abs(y0), abs(yn0)) * rtol
+    sc1 = atol + _npmax(abs(y1), abs(yn1)) * rtol
+    e5 = np.empty(2)
+    e3 = np.empty(2)
+    _dot_kt(K, E5, N_STAGES + 1, e5)
+    _dot_kt(K, E3, N_STAGES + 1, e3)
+    err5_norm_2 = _norm2(e5[0] / sc0, e5[1] / sc1) ** 2
+    err3_norm_2 = _norm2(e3[0] / sc0, e3[1] / sc1) ** 2
+    if err5_norm_2 == 0 and err3_norm_2 == 0:
+        return OK, math.nan, yn0, yn1, 0.0
+    denom = err5_norm_2 + 0.01 * err3_norm_2
+    return OK, math.nan, yn0, yn1, abs(h) * err5_norm_2 / math.sqrt(denom * 2)
+
+
+@njit(cache=True)
+def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, work, sF, n):
+    """DOP853._dense_output_impl: 3 extra stages into K[13:16], F into sF[n].
+    Returns (status, fail_time)."""
+    dy = np.empty(2)
+    for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
+        _dot_kt(K, A[si], si, dy)
+        s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0] * h, yo1 + dy[1] * h, K, si,
+                 work)
+        if s != OK:
+            return s, t_old + C[si] * h
+    dl0 = y0 - yo0
+    dl1 = y1 - yo1
+    sF[n, 0, 0] = dl0
+    sF[n, 0, 1] = dl1
+    sF[n, 1, 0] = h * K[0, 0] - dl0
+    sF[n, 1, 1] = h * K[0, 1] - dl1
+    sF[n, 2, 0] = 2 * dl0 - h * (K[N_STAGES, 0] + K[0, 0])
+    sF[n, 2, 1] = 2 * dl1 - h * (K[N_STAGES, 1] + K[0, 1])
+    for r in range(INTERPOLATOR_POWER - 3):  # h * np.dot(D, K) (numpy: BLAS dgemm; the order
+        p0 = 0.0                             # differs, by round-off, in the dense output only)
+        p1 = 0.0
+        for j in range(N_STAGES_EXTENDED):
+            p0 += D[r, j] * K[j, 0]
+            p1 += D[r, j] * K[j, 1]
+        sF[n, 3 + r, 0] = h * p0
+        sF[n, 3 + r, 1] = h * p1
+    return OK, math.nan
+
+
+@njit(cache=True)
+def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_stop, work,
+           st, sh, sy, sF):
+    """One solve_ivp call on [start, end]: steps into st (times), sh (dense h), sy (states),
+    sF (dense coefficients), grown as needed. Returns (status, n_steps, stopped, fail_time,
+    st, sh, sy, sF). One exit: each return of the tuple costs compile time."""
+    K = np.empty((N_STAGES_EXTENDED, 2))
+    t = start
+    y0 = q0
+    y1 = v0
+    st[0] = t
+    sy[0, 0] = y0
+    sy[0, 1] = y1
+    n = 0
+    stopped = False
+    status, fail_time, h_abs = _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol,
+                                             max_step, K, work)
+    f0 = K[0, 0]
+    f1 = K[0, 1]
+    g = 0.0
+    if use_stop and status == OK:
+        g = stop_margin(problem, chart, t, y0, y1)
+    while status == OK:
+        if t == end:  # OdeSolver.step's corner case (an empty piece)
+            break
+        # ---- RungeKutta._step_impl ----
+        min_step = 10 * abs(math.nextafter(t, math.inf) - t)
+        if h_abs > max_step:
+            h_abs = max_step
+        elif h_abs < min_step:
+            h_abs = min_step
+        step_rejected = False
+        while True:
+            if h_abs < min_step:
+                status = STEP_SIZE
+                fail_time = t
+                break
+            h = h_abs * 1.0
+            t_new = t + h
+            if 1.0 * (t_new - end) > 0:
+                t_new = end
+            h = t_new - t
+            h_abs = abs(h)
+            K[0, 0] = f0
+            K[0, 1] = f1
+            status, fail_time, yn0, yn1, error_norm = _rk_step(problem, chart, load, t, y0, y1, h,
+                                                               rtol, atol, K, work)
+            if status != OK:
+                break
+            if error_norm < 1:
+                if error_norm == 0:
+                    factor = MAX_FACTOR
+                else:
+                    factor = _pymin(MAX_FACTOR, SAFETY * error_norm ** ERROR_EXPONENT)
+                if step_rejected:
+                    factor = _pymin(1.0, factor)
+                h_abs *= factor
+                break
+            else:
+                h_abs *= _pymax(MIN_FACTOR, SAFETY * error_norm ** ERROR_EXPONENT)
+                step_rejected = True
+        if status != OK:
+            break
+        # accepted: t_old = t, t = t_new, y_old = y, y = y_new, f = f_new
+        t_old = t
+        yo0 = y0
+        yo1 = y1
+        t = t_new
+        y0 = yn0
+        y1 = yn1
+        f0 = K[N_STAGES, 0]
+        f1 = K[N_STAGES, 1]
+        if n + 1 >= st.shape[0]:
+            st = _grow1(st, n + 1)
+            sh = _grow1(sh, n)
+            sy, sF = _grow_steps(sy, sF, n + 1)
+        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h,
+                                                K, work, sF, n)
+        if status != OK:
+            break
+        sh[n] = t - t_old
+        st[n + 1] = t
+        sy[n + 1, 0] = y0
+        sy[n + 1, 1] = y1
+        n += 1
+        if use_stop:
+            g_new = stop_margin(problem, chart, t, y0, y1)
+            if g >= 0 and g_new <= 0:  # find_active_events, direction -1
+                root = _brentq_stop(problem, chart, t_old, t, t_old, sh[n - 1], yo0, yo1, sF, n - 1)
+                q, v = _dense_eval(root, t_old, sh[n - 1], yo0, yo1, sF, n - 1)
+                if root == t_old and n > 1:
+                    n -= 1  # solve_ivp's donot_append: ts[-1] == t, the step is dropped
+                else:
+                    st[n] = root
+                    sy[n, 0] = q
+                    sy[n, 1] = v
+                stopped = True
+                break
+            g = g_new
+        if t - end >= 0:
+            break
+    return status, n, stopped, fail_time, st, sh, sy, sF
+
+
+@njit(cache=True)
+def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interval, per_step):
+    """xval's dense_samples on one piece: sorted unique times, states (2, m) and q̈."""
+    end = st[n]
+    m_grid = max(2, int(math.ceil((end - start) / sample_interval)) + 1)
+    n_inner = per_step - 1 if per_step > 1 else 0
+    # the steps cut into per_step parts, in order (nearly sorted), merged with the grid
+    n_seq = n + 1 + n * n_inner
+    seq = np.empty(n_seq)
+    k = 0
+    for j in range(n):
+        seq[k] = st[j]
+        k += 1
+        dt = st[j + 1] - st[j]
+        for i in range(1, per_step):
+            seq[k] = st[j] + dt * (i / per_step)
+            k += 1
+    seq[k] = st[n]
+    # np.linspace(start, end, m_grid): i * step + start, the last one = end
+    grid = np.empty(m_grid)
+    step = (end - start) / (m_grid - 1)
+    for i in range(m_grid - 1):
+        grid[i] = i * step + start if step != 0 else i / (m_grid - 1) * (end - start) + start
+    grid[m_grid - 1] = end
+    k = n_seq + m_grid
+    cand = np.empty(k)
+    a = 0
+    b = 0
+    for i in range(k):
+        if b >= m_grid or (a < n_seq and seq[a] <= grid[b]):
+            cand[i] = seq[a]
+            a += 1
+        else:
+            cand[i] = grid[b]
+            b += 1
+    # insertion sort: repairs any round-off inversion (O(k) when sorted; np.sort would cost
+    # seconds of compile time)
+    for i in range(1, k):
+        x = cand[i]
+        j = i - 1
+        while j >= 0 and cand[j] > x:
+            cand[j + 1] = cand[j]
+            j -= 1
+        cand[j + 1] = x
+    times = np.empty(k)
+    m = 0
+    for i in range(k):
+        x = cand[i]
+        if x >= start and x <= end and (m == 0 or x != times[m - 1]):
+            times[m] = x
+            m += 1
+    times = times[:m]
+    q = np.empty(m)
+    v = np.empty(m)
+    # OdeSolution: segment = clip(searchsorted(ts, t, 'left') - 1, 0, n - 1)
+    seg = 0
+    for i in range(m):
+        x = times[i]
+        while seg < n - 1 and st[seg + 1] < x:
+            seg += 1
+        q[i], v[i] = _dense_eval(x, st[seg], sh[seg], sy[seg, 0], sy[seg, 1], sF, seg)
+    # states at the step times are the solver's own
+    i = 0
+    for j in range(n + 1):
+        while times[i] < st[j]:
+            i += 1
+        q[i] = sy[j, 0]
+        v[i] = sy[j, 1]
+    acc = np.empty(m)
+    for i in range(m):
+        acc[i] = acceleration(problem, chart, load, times[i], q[i], v[i])
+    return times, q, v, acc
+
+
+@njit(cache=True)
+def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, sample_interval,
+               per_step, speed_limit, max_evaluations, max_step, use_stop):
+    """Integrate q̈ = acceleration(problem, chart, load, t, q, q̇) over the pieces.
+
+    Parameters
+    ----------
+    problem, chart : opaque, passed to ``acceleration`` and ``stop_margin``
+    piece_edges : float64 (p+1,), increasing; piece_load : float64 (p,), the load on each piece
+    q0, v0 : initial state at piece_edges[0]
+    rtol, atol : scipy's tolerances (same for q and q̇)
+    sample_interval : the uniform sample grid of each piece is no coarser than this (s)
+    per_step : each accepted step is cut into per_step equal parts for sampling
+    speed_limit : |q̇| beyond which a sample ends the run with SPEED
+    max_evaluations : budget of f evaluations over all pieces (as scipy's nfev counts them)
+    max_step : scipy's max_step (math.inf for none)
+    use_stop : bool; the terminal event stop_margin (direction -1)
+
+    Returns
+    -------
+    (status, t, q, v, a, n_steps, n_evaluations, n_sample_evaluations, stopped, t_reached,
+    fail_time, fail_value): see :class:`RunResult`. On a failure, the samples of the pieces
+    completed before it.
+    """
+    cap = 256
+    ot = np.empty(cap)
+    oq = np.empty(cap)
+    ov = np.empty(cap)
+    oa = np.empty(cap)
+    no = 0
+    st = np.empty(64)
+    sh = np.empty(64)
+    sy = np.empty((64, 2))
+    sF = np.empty((64, INTERPOLATOR_POWER, 2))
+    work = np.zeros(2, dtype=np.int64)
+    work[1] = max_evaluations
+    n_steps = 0
+    n_samp = 0
+    stopped = False
+    t_reached = piece_edges[0]
+    status = OK
+    fail_time = math.nan
+    fail_value = math.nan
+    if not (math.isfinite(q0) and math.isfinite(v0)):
+        status = NONFINITE
+        fail_time = t_reached
+    elif abs(v0) > speed_limit:
+        status = SPEED
+        fail_time = t_reached
+        fail_value = v0
+    q = q0
+    v = v0
+    # one exit (each return of this 12-tuple costs compile time)
+    for p in range(piece_load.shape[0] if status == OK else 0):
+        start = piece_edges[p]
+        end = piece_edges[p + 1]
+        load = piece_load[p]
+        status, n, stopped, fail_time, st, sh, sy, sF = _piece(
+            problem, chart, load, start, end, q, v, rtol, atol, max_step, use_stop, work,
+            st, sh, sy, sF)
+        n_steps += n
+        if status != OK:
+            stopped = False
+            break
+        times, qs, vs, acc = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
+                                           sample_interval, per_step)
+        m = times.shape[0]
+        n_samp += m
+        for i in range(m):
+            if not (math.isfinite(qs[i]) and math.isfinite(vs[i]) and math.isfinite(acc[i])):
+                status = NONFINITE
+                fail_time = times[i]
+                break
+        if status == OK:
+            for i in range(m):
+                if abs(vs[i]) > speed_limit:
+                    status = SPEED
+                    fail_time = times[i]
+                    fail_value = vs[i]
+                    break
+        if status != OK:
+            stopped = False
+            break
+        while no + m > ot.shape[0]:
+            ot = _grow1(ot, no)
+            oq = _grow1(oq, no)
+            ov = _grow1(ov, no)
+            oa = _grow1(oa, no)
+        for i in range(m):
+            ot[no + i] = times[i]
+            oq[no + i] = qs[i]
+            ov[no + i] = vs[i]
+            oa[no + i] = acc[i]
+        no += m
+        q = sy[n, 0]
+        v = sy[n, 1]
+        t_reached = st[n]
+        if stopped:
+            break
+    return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
+            t_reached, fail_time, fail_value)
+
+
+def run(problem, chart, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None,
+        sample_interval=1e-3, per_step=4, speed_limit=1e6, max_evaluations=1_000_000,
+        max_step=math.inf, use_stop=False) -> RunResult:
+    """Python convenience wrapper of :func:`dop853_run` (atol defaults to rtol)."""
+    atol = rtol if atol is None else atol
+    out = dop853_run(problem, chart, np.ascontiguousarray(piece_edges, dtype=np.float64),
+                     np.ascontiguousarray(piece_load, dtype=np.float64), float(q0), float(v0),
+                     float(rtol), float(atol), float(sample_interval), int(per_step),
+                     float(speed_limit), int(max_evaluations), float(max_step), bool(use_stop))
+    return RunResult(*out)

@@ -1,0 +1,698 @@
+"""Compiled kinematics and Eksergian coefficients of a one-DOF planar linkage (numba).
+
+The one implementation of the reduced model's physics. Everything here works on plain
+arrays (:class:`Model`, :class:`Chart`), so that the integrators' loops run without a Python
+object; :mod:`reduced.dynamics` builds the arrays from a scene and wraps these functions for
+Python callers. Debug with ``NUMBA_DISABLE_JIT=1``: the same functions then run as Python.
+
+Term tables (:mod:`reduced.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
+With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
+
+    ∂r/∂x[angle] = m u⊥,  ∂r/∂x[mag] = u,
+    K_r = ṁ u + m θ̇ u⊥,  L_r = m̈ u + (2 ṁ θ̇ + m θ̈) u⊥ − m θ̇² u     (ṁ = K[mag], θ̇ = K[angle], …)
+
+A chart integrates in one coordinate x_i. Its configuration at x_i = value is found by
+Newton's method on A = [Φ_x; e_i] from the quadratic predictor x + K Δ + ½ L Δ² of the
+chart's last configuration; K = dx/dx_i and L = d²x/dx_i² solve
+
+    A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
+
+with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
+c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic, overload
+from numba.np.arrayobj import make_array, populate_array
+
+# Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
+# is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
+# K, L and the coefficients are those of the x returned, whatever the walk's history (with the
+# factors of the iterate before, f(t, q, q̇) varied by 4e-12 relative with the previous call,
+# and DOP853's steps with it). From the quadratic predictor: 2 steps, 3 factorizations.
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 20
+# Below this conditioning a coordinate cannot drive the linkage (a dead-centre position).
+SINGULAR_CONDITIONING = 1e-9
+# A Newton correction larger than PREDICTOR_TRUST × the predicted motion |K Δ| (plus
+# TRUSTED_CORRECTION, rad or m) means the jump was too long for the predictor: it is taken in
+# halves, at most MAX_HALVINGS deep.
+PREDICTOR_TRUST = 0.25
+TRUSTED_CORRECTION = 1e-9
+MAX_HALVINGS = 30
+# Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
+# well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
+HYSTERESIS = 0.5
+
+# -- the packed layout -------------------------------------------------------------------
+# A model is two flat arrays, F (float64) and I (int64); a chart two more, S (int64) and W
+# (float64). Few, flat arguments keep numba's compile time small (a named tuple of thirty
+# arrays costs ~0.5 s of compilation per function that takes it).
+#
+# I[0:HEADER] is the header: counts, then offsets of each array in F (or in I).
+N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
+(DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
+ SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
+# Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
+# offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
+LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
+TABLES = 24
+TABLE_ENTRIES = 7
+HEADER = TABLES + 4 * TABLE_ENTRIES
+
+# S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
+# holds chart.value), then the pivots (n) and the walk's halving budgets (DEPTH).
+INDEPENDENT, SIGN, STATUS, VALID = range(4)
+S_HEADER = 4
+# S[STATUS]
+OK, SINGULAR = 0, 1
+# fields: the coefficients at the memo's value, with respect to x_i
+(INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
+ INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
+N_FIELDS = 12
+DEPTH = MAX_HALVINGS + 2
+
+
+class Model(NamedTuple):
+    """A scene's reduced model, packed (built by :func:`reduced.dynamics.build_arrays`)."""
+
+    F: np.ndarray
+    I: np.ndarray
+
+
+class Chart(NamedTuple):
+    """One chart's state (mutable): S int64, W float64 (layout in :func:`_views`)."""
+
+    S: np.ndarray
+    W: np.ndarray
+
+
+def new_chart(n: int, rows: int) -> Chart:
+    """An empty chart for a model of n coordinates whose largest table has ``rows`` rows."""
+    size = 1 + 9 * n + N_FIELDS + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * max(rows, 1)
+    return Chart(np.zeros(S_HEADER + n + DEPTH, np.int64), np.zeros(size))
+
+
+def _view(W, offset, shape):
+    """W[offset:offset + prod(shape)] as a C-contiguous view of that shape (reshape in Python;
+    in compiled code, :func:`_compiled_view`)."""
+    size = 1
+    for s in shape:
+        size *= s
+    return W[offset:offset + size].reshape(shape)
+
+
+@intrinsic
+def _compiled_view(typingctx, W, offset, shape):
+    """:func:`_view` with the array header built inline, unchecked: numba's ``reshape`` calls a
+    C helper on every use (25 ns, most of an evaluation's overhead: the chart's views are taken
+    several times per evaluation), and a strided view has a non-contiguous type, on which
+    ravel() copies."""
+    sig = types.Array(W.dtype, len(shape), "C")(W, offset, shape)
+
+    def codegen(context, builder, signature, args):
+        source_type = signature.args[0]
+        source = make_array(source_type)(context, builder, value=args[0])
+        view = make_array(signature.return_type)(context, builder)
+        dims = cgutils.unpack_tuple(builder, args[2])
+        itemsize = context.get_constant(types.intp, context.get_abi_sizeof(
+            context.get_data_type(source_type.dtype)))
+        strides = [itemsize]
+        for d in reversed(dims[1:]):
+            strides.insert(0, builder.mul(strides[0], d))
+        # no meminfo: the view is not reference-counted (an atomic increment and decrement per
+        # view, 14 views per call of _views), so it must not outlive W: kernels only use
+        # views while W is alive in their caller, and never return one
+        null = cgutils.get_null_value(source.meminfo.type)
+        populate_array(view, data=builder.gep(source.data, [args[1]]), shape=dims, strides=strides,
+                       itemsize=itemsize, meminfo=null, parent=cgutils.get_null_value(source.parent.type))
+        return view._getvalue()
+
+    return sig, codegen
+
+
+@overload(_view)
+def _view_overload(W, offset, shape):
+    return lambda W, offset, shape: _compiled_view(W, offset, shape)
+
+
+@njit(cache=True, error_model="numpy")
+def _views(I, W):
+    """Views into W: value (1,), start, last, kin (3, n), fields, A (n, n), rhs, trig (2, n),
+    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)."""
+    n = I[N]
+    o = 0
+    value = _view(W, o, (1,))
+    o += 1
+    start = _view(W, o, (3, n))
+    o += 3 * n
+    last = _view(W, o, (3, n))
+    o += 3 * n
+    kin = _view(W, o, (3, n))
+    o += 3 * n
+    fields = _view(W, o, (N_FIELDS,))
+    o += N_FIELDS
+    A = _view(W, o, (n, n))
+    o += n * n
+    rhs = _view(W, o, (n,))
+    o += n
+    trig = _view(W, o, (2, n))
+    o += 2 * n
+    norms = _view(W, o, (n,))
+    o += n
+    x = _view(W, o, (n,))
+    o += n
+    guess = _view(W, o, (n,))
+    o += n
+    base = _view(W, o, (DEPTH, 3, n))
+    o += DEPTH * 3 * n
+    target = _view(W, o, (DEPTH,))
+    o += DEPTH
+    rows = _view(W, o, (max(I[MAX_ROWS], 1), 4))
+    return value, start, last, kin, fields, A, rhs, trig, norms, x, guess, base, target, rows
+
+
+# -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) ------------------------
+
+@njit(cache=True, error_model="numpy")
+def lu_factor(A, piv):
+    """LU with partial pivoting of A (n, n) in place; returns det A (0.0 if singular)."""
+    n = A.shape[0]
+    det = 1.0
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for r in range(k + 1, n):
+            if abs(A[r, k]) > big:
+                big = abs(A[r, k])
+                p = r
+        piv[k] = p
+        if big == 0.0:
+            return 0.0
+        if p != k:
+            det = -det
+            for c in range(n):
+                A[k, c], A[p, c] = A[p, c], A[k, c]
+        d = A[k, k]
+        det *= d
+        for r in range(k + 1, n):
+            f = A[r, k] / d
+            A[r, k] = f
+            for c in range(k + 1, n):
+                A[r, c] -= f * A[k, c]
+    return det
+
+
+@njit(cache=True, error_model="numpy")
+def lu_solve(A, piv, b):
+    """Solve with :func:`lu_factor`'s factors; b (n,) is overwritten by the solution."""
+    n = A.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            b[k], b[p] = b[p], b[k]
+    for r in range(n):
+        s = b[r]
+        for c in range(r):
+            s -= A[r, c] * b[c]
+        b[r] = s
+    for r in range(n - 1, -1, -1):
+        s = b[r]
+        for c in range(r + 1, n):
+            s -= A[r, c] * b[c]
+        b[r] = s / A[r, r]
+
+
+@njit(cache=True, error_model="numpy")
+def _copy(src, dst):
+    """dst[:] = src for two arrays of the same shape (an explicit loop: numba types a slice
+    assignment in seconds, this in milliseconds)."""
+    a = src.ravel()
+    b = dst.ravel()
+    for k in range(a.shape[0]):
+        b[k] = a[k]
+
+
+# -- term tables -----------------------------------------------------------------------
+
+@njit(cache=True, error_model="numpy")
+def angle_trig(I, x, trig):
+    """cos and sin of every body angle x[:n_angles] into trig (2, n)."""
+    for j in range(I[N_ANGLES]):
+        trig[0, j] = math.cos(x[j])
+        trig[1, j] = math.sin(x[j])
+
+
+@njit(cache=True, error_model="numpy")
+def _term(F, I, tb, t, x, trig):
+    """Term t of the table whose header starts at tb: (row, mag index, angle index, m, u_x, u_y)
+    with u = R(θ) w (module docstring) and m = x[mag] or 1."""
+    row, g, a = I[I[tb + 4] + t], I[I[tb + 5] + t], I[I[tb + 6] + t]
+    wx, wy = F[I[tb + 3] + 2 * t], F[I[tb + 3] + 2 * t + 1]
+    if a >= 0:
+        c, s = trig[0, a], trig[1, a]
+        wx, wy = wx * c - wy * s, wx * s + wy * c
+    return row, g, a, (x[g] if g >= 0 else 1.0), wx, wy
+
+
+@njit(cache=True, error_model="numpy")
+def table_positions(F, I, table, x, trig, out):
+    """r of every row of a table into out[:, 0:2] (m), leaving columns 2, 3 alone."""
+    tb = TABLES + TABLE_ENTRIES * table
+    off = I[tb + 2]
+    for k in range(I[tb]):
+        out[k, 0] = F[off + 2 * k]
+        out[k, 1] = F[off + 2 * k + 1]
+    for t in range(I[tb + 1]):
+        k, _, _, m, ux, uy = _term(F, I, tb, t, x, trig)
+        out[k, 0] += m * ux
+        out[k, 1] += m * uy
+
+
+@njit(cache=True, error_model="numpy")
+def table_rates(F, I, table, x, trig, K, L, with_l, out):
+    """K_r into out[:, 0:2] and L_r into out[:, 2:4] (γ, the part without L, unless with_l)."""
+    tb = TABLES + TABLE_ENTRIES * table
+    for k in range(I[tb]):
+        for c in range(4):
+            out[k, c] = 0.0
+    for t in range(I[tb + 1]):
+        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
+        md = K[g] if g >= 0 else 0.0
+        td = K[a] if a >= 0 else 0.0
+        cu = 2.0 * md * td  # coefficient of u⊥ in L_r
+        cn = -m * td * td  # coefficient of u
+        if with_l:
+            if g >= 0:
+                cn += L[g]
+            if a >= 0:
+                cu += m * L[a]
+        out[k, 0] += md * ux - m * td * uy
+        out[k, 1] += md * uy + m * td * ux
+        out[k, 2] += cn * ux - cu * uy
+        out[k, 3] += cn * uy + cu * ux
+
+
+@njit(cache=True, error_model="numpy")
+def constraints(F, I, x, trig, A, res):
+    """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows)."""
+    n = I[N]
+    tb = TABLES + TABLE_ENTRIES * LOOPS
+    nl = 2 * I[tb]
+    for r in range(n - 1):
+        for c in range(n):
+            A[r, c] = 0.0
+    off = I[tb + 2]
+    for r in range(nl):
+        res[r] = F[off + r]
+    for t in range(I[tb + 1]):
+        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
+        res[2 * k] += m * ux
+        res[2 * k + 1] += m * uy
+        if a >= 0:
+            A[2 * k, a] -= m * uy
+            A[2 * k + 1, a] += m * ux
+        if g >= 0:
+            A[2 * k, g] += ux
+            A[2 * k + 1, g] += uy
+    lin = I[LINEAR]
+    for r in range(I[N_LINEAR]):
+        v = 0.0
+        for c in range(n):
+            A[nl + r, c] = F[lin + r * n + c]
+            v += F[lin + r * n + c] * x[c]
+        res[nl + r] = v
+
+
+# -- one configuration of a chart --------------------------------------------------------
+
+@njit(cache=True, error_model="numpy")
+def _finish(F, I, S, W, x, det, out):
+    """x, K and L into out (3, n) from the factors of A (at x, or round-off from it), and the
+    conditioning of every coordinate into the fields."""
+    n = I[N]
+    _, _, _, _, fields, A, _, trig, norms, _, _, _, _, rows = _views(I, W)
+    piv = S[S_HEADER:S_HEADER + n]
+    K = out[1]
+    for j in range(n):
+        K[j] = 0.0
+    K[n - 1] = 1.0
+    lu_solve(A, piv, K)
+    L = out[2]
+    table_rates(F, I, LOOPS, x, trig, K, L, False, rows)
+    nl = I[TABLES + TABLE_ENTRIES * LOOPS]
+    for k in range(nl):
+        L[2 * k] = -rows[k, 2]
+        L[2 * k + 1] = -rows[k, 3]
+    for j in range(2 * nl, n):
+        L[j] = 0.0
+    lu_solve(A, piv, L)
+    for j in range(n):
+        out[0, j] = x[j]
+    # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
+    product = 1.0
+    zeros = 0
+    for j in range(n):
+        if norms[j] > 0.0:
+            product *= norms[j]
+        else:
+            zeros += 1
+    i = S[INDEPENDENT]
+    best, best_j, own = 0.0, 0, 0.0
+    for j in range(n):
+        if zeros > 1 or (zeros == 1 and norms[j] > 0.0):
+            c = 0.0
+        else:
+            c = abs(K[j]) * abs(det) / (product / norms[j] if norms[j] > 0.0 else product)
+        if j == i:
+            own = c
+        if c > best:
+            best, best_j = c, j
+    fields[CONDITIONING] = own
+    fields[BEST_CONDITIONING] = best
+    fields[BEST] = best_j
+    fields[DETERMINANT] = det
+
+
+@njit(cache=True, error_model="numpy")
+def _close(F, I, S, W, base, value, out):
+    """Newton from base's predictor (rows x, K, L) to x_i = value; x, K, L into out (3, n).
+
+    Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
+    singular, or another branch). Leaves the conditioning and det in the fields.
+    """
+    n = I[N]
+    i = S[INDEPENDENT]
+    _, _, _, _, fields, A, res, trig, norms, x, guess, _, _, _ = _views(I, W)
+    piv = S[S_HEADER:S_HEADER + n]
+    delta = value - base[0, i]
+    for j in range(n):
+        x[j] = base[0, j] + base[1, j] * delta + 0.5 * base[2, j] * delta * delta
+        guess[j] = x[j]
+    x[i] = value
+    det = 0.0
+    converged = False
+    factored = False  # at the polished x
+    for _ in range(NEWTON_MAX_ITER + 1):
+        angle_trig(I, x, trig)
+        constraints(F, I, x, trig, A, res)
+        largest = 0.0
+        for r in range(n - 1):
+            if not math.isfinite(res[r]):
+                return 1
+            largest = max(largest, abs(res[r]))
+        for c in range(n):
+            v = 0.0
+            for r in range(n - 1):
+                v += A[r, c] * A[r, c]
+            norms[c] = math.sqrt(v)
+            A[n - 1, c] = 0.0
+        A[n - 1, i] = 1.0
+        res[n - 1] = 0.0
+        det = lu_factor(A, piv)
+        if det == 0.0 or not math.isfinite(det):
+            return 1
+        if converged:
+            factored = True
+            break
+        lu_solve(A, piv, res)
+        for j in range(n):
+            x[j] -= res[j]
+        converged = largest <= NEWTON_TOL  # the step just taken polishes to round-off
+    if not factored:
+        return 1
+    for j in range(n):
+        if not math.isfinite(x[j]):
+            return 1
+    _finish(F, I, S, W, x, det, out)
+    if fields[CONDITIONING] < SINGULAR_CONDITIONING:
+        return 1
+    if S[SIGN] != 0 and (1 if det >= 0.0 else -1) != S[SIGN]:
+        return 1
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def _walk(F, I, S, W, value):
+    """Continue the chart from its last configuration to x_i = value, halving untrusted
+    jumps; the result in kin and last. Returns True on success."""
+    n = I[N]
+    i = S[INDEPENDENT]
+    _, _, last, kin, _, _, _, _, _, _, guess, base, target, _ = _views(I, W)
+    budget = S[S_HEADER + n:S_HEADER + n + DEPTH]
+    _copy(last, base[0])
+    target[0] = value
+    budget[0] = MAX_HALVINGS
+    depth = 0  # base[d] is the configuration from which target[d] is sought
+    while True:
+        failed = _close(F, I, S, W, base[depth], target[depth], kin) != 0
+        trusted = False
+        if not failed:
+            delta = target[depth] - base[depth, 0, i]
+            moved, predicted = 0.0, 0.0
+            for j in range(n):
+                moved = max(moved, abs(kin[0, j] - guess[j]))
+                predicted = max(predicted, abs(base[depth, 1, j] * delta))
+            trusted = moved <= PREDICTOR_TRUST * predicted + TRUSTED_CORRECTION
+        if failed and budget[depth] <= 0:
+            return False
+        if trusted or budget[depth] <= 0:
+            if depth == 0:
+                break
+            # the midpoint is reached: it is the base of the second half, one level down
+            depth -= 1
+            _copy(kin, base[depth])
+            budget[depth] -= 1
+            continue
+        # halve: seek the midpoint first, then the target from there
+        _copy(base[depth], base[depth + 1])
+        target[depth + 1] = base[depth, 0, i] + 0.5 * (target[depth] - base[depth, 0, i])
+        budget[depth + 1] = budget[depth] - 1
+        depth += 1
+    _copy(kin, last)
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def point_force_value(F, I, p, q):
+    """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor)."""
+    lo, hi, period = F[I[SPLINE_LO] + p], F[I[SPLINE_HI] + p], F[I[SPLINE_PERIOD] + p]
+    if period > 0.0:
+        q = lo + (q - lo) - period * math.floor((q - lo) / period)
+    else:
+        q = min(max(q, lo), hi)
+    t0 = I[SPLINE_KNOTS] + I[I[KNOT_START] + p]
+    c0 = I[SPLINE_COEF] + I[I[COEF_START] + p]
+    nc = I[I[COEF_START] + p + 1] - I[I[COEF_START] + p]
+    k = I[I[SPLINE_DEGREE] + p]
+    l = k
+    while l < nc - 1 and F[t0 + l + 1] <= q:
+        l += 1
+    d = np.empty(k + 1)
+    for j in range(k + 1):
+        d[j] = F[c0 + l - k + j]
+    for r in range(1, k + 1):
+        for j in range(k, r - 1, -1):
+            left = F[t0 + j + l - k]
+            alpha = (q - left) / (F[t0 + j + 1 + l - r] - left)
+            d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
+    return d[k]
+
+
+@njit(cache=True, error_model="numpy")
+def _coefficients(F, I, S, W):
+    """Eksergian's coefficients at the chart's kin into its fields (reduced.dynamics documents
+    them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
+    _, _, _, kin, fields, _, _, trig, _, _, _, _, _, rows = _views(I, W)
+    x, K, L = kin[0], kin[1], kin[2]
+    nb = I[N_ANGLES]
+    ms, ins = I[MASSES], I[INERTIAS]
+    table_rates(F, I, CENTRES, x, trig, K, L, True, rows)
+    J, zeta = 0.0, 0.0
+    for b in range(nb):
+        m, inertia = F[ms + b], F[ins + b]
+        J += m * (rows[b, 0] * rows[b, 0] + rows[b, 1] * rows[b, 1]) + inertia * K[b] * K[b]
+        zeta += m * (rows[b, 0] * rows[b, 2] + rows[b, 1] * rows[b, 3]) + inertia * K[b] * L[b]
+    dV, V, damping, force = 0.0, 0.0, 0.0, 0.0
+    if I[HAS_GRAVITY]:
+        gx, gy = F[I[GRAVITY]], F[I[GRAVITY] + 1]
+        for b in range(nb):
+            dV -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
+        table_positions(F, I, CENTRES, x, trig, rows)
+        for b in range(nb):
+            V -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
+    ne = I[N_ELEMENTS]
+    if ne:
+        table_rates(F, I, ENDS, x, trig, K, L, False, rows)
+        for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
+            rows[2 * e, 2] = rows[2 * e, 0] - rows[2 * e + 1, 0]
+            rows[2 * e, 3] = rows[2 * e, 1] - rows[2 * e + 1, 1]
+        table_positions(F, I, ENDS, x, trig, rows)
+        for e in range(ne):
+            dx = rows[2 * e, 0] - rows[2 * e + 1, 0]
+            dy = rows[2 * e, 1] - rows[2 * e + 1, 1]
+            length = math.sqrt(dx * dx + dy * dy)
+            k_d = (dx * rows[2 * e, 2] + dy * rows[2 * e, 3]) / length  # K_D = dD/dx_i
+            c = F[I[ELEMENT_COEF] + e]
+            if e < I[N_DAMPERS]:
+                damping += c * k_d * k_d
+            else:
+                stretch = length - F[I[ELEMENT_REST] + e]
+                dV += c * stretch * k_d
+                V += 0.5 * c * stretch * stretch
+    rate, curvature, q = 0.0, 0.0, 0.0
+    for j in range(I[N]):
+        d = F[I[DRIVE] + j]
+        rate += d * K[j]
+        curvature += d * L[j]
+        q += d * x[j]
+    if I[N_FORCES]:
+        table_rates(F, I, FORCE_POINTS, x, trig, K, L, False, rows)
+        fd = I[FORCE_DIR]
+        for p in range(I[N_FORCES]):
+            along = rows[p, 0] * F[fd + 2 * p] + rows[p, 1] * F[fd + 2 * p + 1]
+            force += point_force_value(F, I, p, q) * along
+    fields[INERTIA] = J
+    fields[CENTRIFUGAL] = zeta
+    fields[POTENTIAL_GRADIENT] = dV
+    fields[DAMPING] = damping
+    fields[POTENTIAL] = V
+    fields[INPUT_RATE] = rate
+    fields[POINT_FORCE] = force
+    fields[INPUT_CURVATURE] = curvature
+
+
+# -- the chart interface -------------------------------------------------------------------
+
+@njit(cache=True, error_model="numpy")
+def evaluate(model, chart, value):
+    """The chart's configuration and coefficients at x_i = value (memoized): True on success,
+    else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
+    reach of the walk)."""
+    F, I = model
+    S, W = chart
+    if S[VALID] == 1 and W[0] == value:
+        return True
+    S[VALID] = 0
+    if not _walk(F, I, S, W, value):
+        S[STATUS] = SINGULAR
+        return False
+    _coefficients(F, I, S, W)
+    W[0] = value
+    S[VALID] = 1
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def acceleration(model, chart, load, t, value, rate):
+    """ẍ_i from Eksergian's equation with the input load (N·m or N, constant on the piece):
+    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the configuration
+    cannot be found (the chart's S[STATUS] says why)."""
+    if not evaluate(model, chart, value):
+        return math.nan
+    f = _views(model[1], chart[1])[4]
+    Q = load * f[INPUT_RATE] + f[POINT_FORCE] - f[DAMPING] * rate
+    return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
+
+
+@njit(cache=True, error_model="numpy")
+def stop_margin(model, chart, t, value, rate):
+    """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
+    than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
+    if not evaluate(model, chart, value):
+        return -1.0
+    f = _views(model[1], chart[1])[4]
+    return f[CONDITIONING] - HYSTERESIS * f[BEST_CONDITIONING]
+
+
+@njit(cache=True, error_model="numpy")
+def kinematics_at(model, chart, x, row):
+    """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
+    p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
+    where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
+    A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i."""
+    F, I = model
+    S, W = chart
+    n = I[N]
+    _, _, _, kin, _, A, res, trig, norms, _, _, _, _, _ = _views(I, W)
+    angle_trig(I, x, trig)
+    constraints(F, I, x, trig, A, res)
+    hadamard = 1.0
+    for c in range(n):
+        v = 0.0
+        for r in range(n - 1):
+            v += A[r, c] * A[r, c]
+        norms[c] = math.sqrt(v)
+        A[n - 1, c] = row[c]
+        hadamard *= math.sqrt(v + row[c] * row[c])
+    det = lu_factor(A, S[S_HEADER:S_HEADER + n])
+    S[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
+    if det == 0.0 or not math.isfinite(det) or abs(det) < SINGULAR_CONDITIONING * hadamard:
+        S[STATUS] = SINGULAR
+        return False
+    _finish(F, I, S, W, x, det, kin)
+    _coefficients(F, I, S, W)
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def start_chart(model, chart, x, independent):
+    """Make ``chart`` a chart of coordinate ``independent`` starting at the assembled x (n,):
+    its K, L there and the sign of its det A. Returns True on success (False: singular)."""
+    F, I = model
+    S, W = chart
+    n = I[N]
+    _, start, last, kin, fields, _, _, _, _, _, guess, _, _, _ = _views(I, W)
+    S[INDEPENDENT] = independent
+    S[SIGN] = 0
+    S[STATUS] = OK
+    for j in range(n):
+        guess[j] = 0.0
+    guess[independent] = 1.0
+    if not kinematics_at(model, chart, x, guess.copy()) or fields[CONDITIONING] < SINGULAR_CONDITIONING:
+        S[STATUS] = SINGULAR
+        return False
+    S[SIGN] = 1 if fields[DETERMINANT] >= 0.0 else -1
+    _copy(kin, last)
+    _copy(kin, start)
+    W[0] = x[independent]
+    S[VALID] = 1
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def reset(model, chart):
+    """Back to the chart's start configuration (a new walk along the chart)."""
+    S, W = chart
+    _, start, last, _, _, _, _, _, _, _, _, _, _, _ = _views(model[1], W)
+    _copy(start, last)
+    S[VALID] = 0
+    S[STATUS] = OK
+
+
+@njit(cache=True, error_model="numpy")
+def walk(model, chart, values, fields, kin):
+    """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, N_FIELDS) and
+    kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
+    reset(model, chart)
+    views = _views(model[1], chart[1])
+    for s in range(values.shape[0]):
+        if not evaluate(model, chart, values[s]):
+            return s
+        _copy(views[4], fields[s])
+        _copy(views[3], kin[s])
+    return values.shape[0]
+
+
+def chart_arrays(model: Model, chart: Chart) -> dict[str, np.ndarray]:
+    """Named views of a chart's state (Python callers): start, last, kin, fields."""
+    value, start, last, kin, fields = getattr(_views, "py_func", _views)(model.I, chart.W)[:5]
+    return {"value": value, "start": start, "last": last, "kin": kin, "fields": fields}

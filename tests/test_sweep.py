@@ -1,0 +1,240 @@
+"""xval sweep (compare.sweep): rows equal to xval run's report on the same variant scene, rows in
+variant order from a pool, Monte Carlo reproducible with its seed, bad specifications refused up
+front naming the key, invalid and failed variants counted without stopping the sweep, exit status,
+and the output folder left as it was by an interrupted sweep. Short scenes (the seed with a
+0.3 s horizon) and 2-4 variants."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import pytest
+
+from compare import sweep as sweep_module
+from compare.cli import main
+from compare.sweep import CSV_FILE, JSON_FILE, read_rows
+from reduced.scenefile import default_scene_path
+
+SEED_TEXT = default_scene_path().read_text()
+SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
+FIXED_STEP = "\n[mujoco]\ntimestep = 1e-3\n"  # an explicit step: the gate is not met by shrinking it
+WALL = ("reduced.wall_s", "mujoco.wall_s", "variant_wall_s")
+
+
+@pytest.fixture
+def short_scene(tmp_path):
+    assert SHORT_TEXT != SEED_TEXT
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT_TEXT)
+    return path
+
+
+def _sweep(capsys, scene, out, *args):
+    status = main(["sweep", str(scene), "--out", str(out), *args])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def _rows(out):
+    return list(read_rows(out / CSV_FILE))
+
+
+def _without_wall(row):
+    return {k: v for k, v in row.items() if k not in WALL}
+
+
+def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, capsys):
+    status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "dampers.0.coefficient=[50, 60.5]",
+                                "--workers", "2")
+    assert status == 0, printed
+    rows = _rows(tmp_path / "sw")
+    assert [r["index"] for r in rows] == [0, 1] and [r["status"] for r in rows] == ["passed", "passed"]
+    row = rows[1]
+    assert row["dampers.0.coefficient"] == 60.5
+    variant = tmp_path / "variant.toml"
+    variant.write_text(SHORT_TEXT.replace("coefficient = 55.0", "coefficient = 60.5"))
+    assert main(["run", str(variant), "--out", str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    report = json.loads((tmp_path / "run" / "report.json").read_text())
+    for key, value in report["diff"].items():
+        assert row[f"diff.{key}"] == value, key
+    assert row["gate.passed"] is report["gate"]["passed"]
+    for key, value in report["gate"]["tolerances"].items():
+        assert row[f"gate.{key}"] == value, key
+    for engine in ("reduced", "mujoco"):
+        for key in ("peak_omega", "t_peak", "n_steps", "energy_residual", "energy_residual_rel"):
+            assert row[f"{engine}.{key}"] == report[engine][key], (engine, key)
+    assert row["mujoco.max_constraint_violation"] == report["mujoco"]["max_constraint_violation"]
+    assert math.isclose(row["gate.peak_ratio"], report["diff"]["peak_omega_abs"]
+                        / (report["gate"]["tolerances"]["peak_omega_rtol"] * report["diff"]["peak_omega_reference"]
+                           + 1e-9))
+    data = json.loads((tmp_path / "sw" / JSON_FILE).read_text())  # sweep.json: the same rows
+    assert [_without_wall(r) for r in data["rows"]] == [_without_wall(r) for r in rows]
+    assert data["summary"]["counts"] == {"passed": 2, "gate_failed": 0, "failed": 0, "invalid": 0}
+    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == ["sweep.csv", "sweep.json",
+                                                                  "sweep_peak_omega.png"]
+
+
+def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys):
+    status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "bodies.coupler.mass=[41, 39]",
+                                "--vary", "dampers.0.coefficient=50:60:2", "--workers", "2")
+    assert status == 0, printed
+    rows = _rows(tmp_path / "sw")
+    assert [r["index"] for r in rows] == [0, 1, 2, 3]
+    assert [(r["bodies.coupler.mass"], r["dampers.0.coefficient"]) for r in rows] == [
+        (41, 50), (41, 60), (39, 50), (39, 60)]
+    # the peak moves the physical way: heavier coupler, slower crank; more damping, slower crank
+    peaks = [r["reduced.peak_omega"] for r in rows]
+    assert peaks[2] > peaks[0] and peaks[0] > peaks[1] and peaks[2] > peaks[3]
+    assert (tmp_path / "sw" / "sweep_gate_map.png").is_file()
+    assert "4 variants (2 workers" in printed and "4 passed" in printed
+
+
+def test_monte_carlo_is_reproducible_with_its_seed(short_scene, tmp_path, capsys):
+    runs = {}
+    for name, seed in (("a", "7"), ("b", "7"), ("c", "8")):
+        status, printed, _ = _sweep(capsys, short_scene, tmp_path / name, "--vary", "bodies.coupler.mass=normal(40, 1)",
+                                    "--vary", "dampers.0.coefficient=uniform(50, 60)", "--samples", "2",
+                                    "--seed", seed, "--workers", "1")
+        assert status == 0, printed
+        runs[name] = [_without_wall(r) for r in _rows(tmp_path / name)]
+    assert runs["a"] == runs["b"] and len(runs["a"]) == 2
+    values = lambda rows: [(r["bodies.coupler.mass"], r["dampers.0.coefficient"]) for r in rows]
+    assert values(runs["a"]) != values(runs["c"])
+    assert all(a != c for a, c in zip(values(runs["a"]), values(runs["c"])))
+    assert (tmp_path / "a" / "sweep_peak_omega_hist.png").is_file()
+
+
+@pytest.mark.parametrize("args, key", [
+    (["--vary", "bodies.coupler.mas=38:42:2"], "bodies.coupler.mas"),
+    (["--vary", "linkage.type=1:2:2"], "linkage.type"),
+    (["--vary", "dampers.0.coefficient=70:40:3"], "dampers.0.coefficient"),
+    (["--vary", "dampers.0.coefficient=40:70:0"], "dampers.0.coefficient"),
+    (["--vary", "bodies.coupler.mass=normal(40, -1)", "--samples", "2"], "bodies.coupler.mass"),
+    (["--vary", "bodies.coupler.mass=-1:40:2"], "bodies.coupler.mass"),
+    (["--vary", "linkage.c2=0.9:5:2"], "linkage.c2"),  # a coupler of 5 m cannot close the loop
+    (["--vary", "dampers.0.coefficient=normal(50, 1)"], "dampers.0.coefficient"),  # no --samples
+    (["--vary", "dampers.3.coefficient=1:2:2"], "dampers.3.coefficient"),
+], ids=["unknown", "not-a-number", "lo>hi", "n<1", "negative-sigma", "invalid-value", "invalid-extreme",
+        "no-samples", "no-such-entry"])
+def test_bad_specs_exit_2_naming_the_key_and_write_nothing(args, key, short_scene, tmp_path, capsys, monkeypatch):
+    ran = []
+    monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: ran.append(a))
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *args)
+    assert status == 2
+    assert printed == "" and err.count("\n") == 1 and err.startswith("xval: error:")
+    assert f"'{key}'" in err, err
+    assert not (tmp_path / "sw").exists() and not ran
+
+
+def test_nothing_to_sweep_and_a_bad_folder_are_refused(short_scene, tmp_path, capsys):
+    status, _, err = _sweep(capsys, short_scene, tmp_path / "sw")
+    assert status == 2 and "nothing to sweep" in err
+    status, _, err = _sweep(capsys, short_scene, tmp_path / "no" / "sw", "--vary", "torque.value=200:250:2")
+    assert status == 2 and "does not exist" in err
+
+
+def test_an_invalid_variant_is_a_counted_row_and_the_others_run(short_scene, tmp_path, capsys):
+    # c1 = 0.62 makes the four-bar non-Grashof: with the crank at 3.1 rad it cannot close; each
+    # key's extremes with the other nominal assemble, so check() lets the sweep through
+    status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "linkage.c1=[0.62, 0.5]",
+                                "--vary", "initial.q=[0.2, 3.1]", "--workers", "2")
+    assert status == 0, printed  # invalid variants are counted, not failures of the gate
+    rows = _rows(tmp_path / "sw")
+    assert [r["status"] for r in rows] == ["passed", "invalid", "passed", "passed"]
+    assert "cannot be assembled" in rows[1]["reason"]
+    assert rows[1]["reduced.peak_omega"] is None and rows[3]["reduced.peak_omega"] > 0
+    assert "3 passed, 0 failed the gate, 0 failed numerically, 1 invalid" in printed
+
+
+def test_a_variant_failing_the_gate_exits_1_and_names_the_failing_values(tmp_path, capsys):
+    scene = tmp_path / "fixed.toml"
+    scene.write_text(SHORT_TEXT + FIXED_STEP)
+    status, printed, _ = _sweep(capsys, scene, tmp_path / "sw", "--vary", "tolerances.peak_omega_rtol=[1e-4, 1e-12]",
+                                "--workers", "1")
+    assert status == 1
+    rows = _rows(tmp_path / "sw")
+    assert [r["status"] for r in rows] == ["passed", "gate_failed"]
+    assert "peak_omega_abs" in rows[1]["reason"] and rows[1]["gate.peak_ratio"] > 1
+    assert "1 passed, 1 failed the gate" in printed
+    assert "worst variant: #1 (tolerances.peak_omega_rtol = 1e-12)" in printed
+    assert "failing variants have: tolerances.peak_omega_rtol in [1e-12, 1e-12]" in printed
+
+
+def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, capsys, monkeypatch):
+    from reduced.errors import NumericalFailure
+
+    import compare.run
+
+    original, calls = compare.run.compare_engines, []
+
+    def flaky(scene, **kwargs):  # the second variant's engines fail
+        calls.append(scene)
+        if len(calls) == 2:
+            raise NumericalFailure("unstable", "planted")
+        return original(scene, **kwargs)
+
+    monkeypatch.setattr(compare.run, "compare_engines", flaky)
+    status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "torque.value=[250, 240, 245]",
+                                "--workers", "1")
+    rows = _rows(tmp_path / "sw")
+    assert [r["status"] for r in rows] == ["passed", "failed", "passed"], [r["reason"] for r in rows]
+    assert status == 1 and "1 failed numerically" in printed
+
+
+def test_the_scene_files_sweep_table_and_vary_winning(short_scene, tmp_path, capsys):
+    scene = tmp_path / "table.toml"
+    scene.write_text(SHORT_TEXT + '\n[sweep]\n[sweep.vary]\n"torque.value" = [240, 250]\n')
+    status, printed, _ = _sweep(capsys, scene, tmp_path / "a", "--workers", "1", "--keep-trajectories")
+    assert status == 0, printed
+    rows = _rows(tmp_path / "a")
+    assert [r["torque.value"] for r in rows] == [240, 250]
+    traj = (tmp_path / "a" / "trajectories.csv").read_text().splitlines()
+    assert traj[0] == "index,engine,t_s,q,qdot,qddot"
+    assert {tuple(line.split(",")[:2]) for line in traj[1:]} == {(i, e) for i in "01" for e in ("reduced", "mujoco")}
+    status, printed, _ = _sweep(capsys, scene, tmp_path / "b", "--vary", "torque.value=[230]", "--workers", "1")
+    assert status == 0
+    assert [r["torque.value"] for r in _rows(tmp_path / "b")] == [230]
+
+
+def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "sw"
+    out.mkdir()
+    (out / CSV_FILE).write_text("old\n")
+    real = sweep_module.run_variant
+
+    def interrupted(index, *args, **kwargs):
+        if index == 1:
+            raise KeyboardInterrupt
+        return real(index, *args, **kwargs)
+
+    monkeypatch.setattr(sweep_module, "run_variant", interrupted)
+    status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
+    assert status == 130 and "interrupted" in err
+    assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
+
+
+def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypatch):
+    """The first variant is the slowest (forked workers inherit the patched function): rows
+    still come back 0, 1, 2, 3."""
+    import multiprocessing
+    import time
+
+    from compare.sweep import run_rows
+    from compare.sweep_spec import spec_from_args
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("needs forked workers to see the patched variant runner")
+
+    def slow_first(index, values, data, source, keep=False):
+        time.sleep(0.5 if index == 0 else 0.01)
+        return {"index": index, "status": "passed", "reason": "", **values, "pid": multiprocessing.current_process().pid}
+
+    monkeypatch.setattr(sweep_module, "run_variant", slow_first)
+    spec = spec_from_args(["torque.value=1:4:4"])
+    rows = list(run_rows({}, spec, "<memory>", workers=2))
+    assert [r["index"] for r in rows] == [0, 1, 2, 3]
+    assert [r["torque.value"] for r in rows] == [1, 2, 3, 4]
+    assert len({r["pid"] for r in rows}) == 2  # both workers took part
