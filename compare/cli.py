@@ -289,8 +289,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, sweep_files(spec, args.keep_trajectories))
     _announce_compilation()
+    found = None
+    if args.sensitivity:
+        from .sensitivity import sensitivities, sensitivity_lines
+
+        items = sensitivities(data, spec, path)
+        print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
+        found = [s.as_dict() for s in items]
     summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
-                               keep_trajectories=args.keep_trajectories)
+                               keep_trajectories=args.keep_trajectories, sensitivity=found)
     print("\n".join(summary_lines(summary)))
     print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
     return EXIT_FAILED if summary.failed_any else EXIT_OK
@@ -450,6 +457,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-trajectories", action="store_true",
                    help="also write trajectories.csv, every variant's input trajectory from both engines "
                         "(for small sweeps)")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
+                        "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
     p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("compile", help="compile the reduced solver's kernels ahead of the first run",

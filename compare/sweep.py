@@ -481,13 +481,16 @@ def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, tra
             traj.close()
 
 
-def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary) -> None:
-    """sweep.json: the specification and summary, then the rows read back one by one."""
+def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary,
+                sensitivity: list[dict] | None = None) -> None:
+    """sweep.json: the specification, summary and sensitivities, then the rows read back one by one."""
     head = {"source": portable_source(source), "keys": list(spec.keys),
             "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
             "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
                        for v in spec.varies],
             "summary": summary.as_dict()}
+    if sensitivity is not None:
+        head["sensitivity"] = sensitivity
     text = json_text(head)
     with open(path, "w", encoding="utf-8") as f:
         f.write(text.rstrip().rstrip("}").rstrip() + ',\n  "rows": [')
@@ -498,9 +501,10 @@ def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summar
 
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
-              progress: bool = True) -> tuple[Summary, list[Path]]:
+              progress: bool = True, sensitivity: list[dict] | None = None) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
-    caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`)."""
+    caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`);
+    ``sensitivity`` (:meth:`compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json."""
     from .cost import worker_count
 
     n = count(spec)
@@ -526,6 +530,6 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[TRAJECTORY_FILE] = staged
     for name in plot_files(spec):
         files[name] = lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p)
-    files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary)
+    files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
     paths = write_folder(out, files)
     return summary, paths

@@ -485,10 +485,24 @@ def check(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") ->
     prefix = f"{source}: " if source else ""
     base = {k: v for k, v in data.items() if k != SWEEP_TABLE}
     scene_from_dict(base, source)  # the scene as written: its own errors are not the sweep's
+    given = nominal_values(base, spec, source)
+    nominal = {k: v for k, v in given.items() if _lookup(base, k) is _MISSING}
+    for key, value in nominal.items():  # each key the file does not give, alone
+        _build(base, {key: value}, key, f"{value:g} (its nominal value)", prefix, source)
+    _build(base, nominal, None, "", prefix, source)
+    for v in spec.varies:
+        for value, which in v.extremes:
+            _build(base, {**nominal, v.key: value}, v.key, f"{value:g} ({which})", prefix, source)
+
+
+def nominal_values(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") -> dict[str, float]:
+    """Each varied key's nominal value: the scene's own, or its spec's centre where the file
+    does not give it. SweepSpecError (naming the key) where the scene has no number there."""
+    prefix = f"{source}: " if source else ""
     nominal: dict[str, float] = {}
     for v in spec.varies:
         try:
-            current = _lookup(base, v.key)
+            current = _lookup(data, v.key)
         except SweepSpecError as exc:
             raise SweepSpecError(prefix + str(exc)) from None
         if current is _MISSING:
@@ -497,12 +511,9 @@ def check(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") ->
             shown = f" \"{current}\"" if isinstance(current, str) else ""
             raise SweepSpecError(f"{prefix}sweep key '{v.key}' is not a number: the scene has a "
                                  f"{_type_name(current)}{shown} there")
-    for key, value in nominal.items():  # each key the file does not give, alone
-        _build(base, {key: value}, key, f"{value:g} (its nominal value)", prefix, source)
-    _build(base, nominal, None, "", prefix, source)
-    for v in spec.varies:
-        for value, which in v.extremes:
-            _build(base, {**nominal, v.key: value}, v.key, f"{value:g} ({which})", prefix, source)
+        else:
+            nominal[v.key] = float(current)
+    return nominal
 
 
 def _build(base: dict, values: dict[str, float], key: str | None, shown: str, prefix: str, source: str) -> None:
