@@ -227,11 +227,17 @@ def connect(address: str, timeout: float | None = None):
     require_dask()
     timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
     from distributed import Client
+    from distributed.comm import get_address_host_port
 
+    try:  # a malformed address first: a Client that fails on one hangs in its __del__
+        get_address_host_port(address)
+    except ValueError as exc:
+        raise SchedulerError(f"--scheduler {address}: not a scheduler address like tcp://host:8786 "
+                             f"({' '.join(str(exc).split())})") from None
     try:
         client = Client(address, timeout=timeout, set_as_default=False)
-    except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError, a malformed address...
-        raise SchedulerError(f"--scheduler {address}: cannot connect within {timeout:g} s "
+    except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError...
+        raise SchedulerError(f"--scheduler {address}: cannot connect "
                              f"({type(exc).__name__}: {' '.join(str(exc).split())})") from None
     try:
         client.wait_for_workers(1, timeout=timeout)
