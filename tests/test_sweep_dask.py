@@ -1,12 +1,13 @@
 """xval sweep --scheduler (compare.sweep on a Dask cluster, the optional ``distributed`` extra):
 on a local cluster of two worker processes the rows are the same, in the same order, as a local
 run's (apart from wall times); a bad address, Dask missing, and --workers with --scheduler are
-refused with one line, exit 2, before any work. Short scenes (the seed with a 0.3 s horizon) and
+refused with one line, exit 2, before any work; a local sweep imports no Dask. Short scenes (the seed with a 0.3 s horizon) and
 6 variants in chunks of one (so order and completeness are checked over several tasks)."""
 
 from __future__ import annotations
 
 import re
+import subprocess
 import sys
 
 import pytest
@@ -25,7 +26,7 @@ VARY = ["--vary", "dampers.0.coefficient=[50, 55, 60]", "--vary", "bodies.couple
 
 @pytest.fixture(scope="module")
 def cluster():
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                                   silence_logs=True) as c:
         yield c
 
@@ -84,3 +85,13 @@ def test_scheduler_without_dask_or_with_workers_is_refused(short_scene, tmp_path
     assert status == 2 and printed == "" and err.count("\n") == 1
     assert "pip install 'xval[distributed]'" in err, err
     assert not (tmp_path / "sw").exists()
+
+
+def test_a_local_sweep_imports_no_dask(short_scene, tmp_path):
+    code = ("import sys; from compare.cli import main; "
+            f"status = main(['sweep', {str(short_scene)!r}, '--vary', 'dampers.0.coefficient=[50]', '--workers', '1', "
+            f"'--out', {str(tmp_path / 'sw')!r}]); "
+            "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
+            "print(status, loaded)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.stdout.splitlines()[-1] == "0 []", done.stdout + done.stderr
