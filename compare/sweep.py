@@ -210,7 +210,8 @@ earliest is read back, few enough that results waiting their turn stay a bounded
 
 
 class SchedulerError(ValueError):
-    """``--scheduler``: Dask is not installed or the scheduler cannot be reached (exit status 2)."""
+    """``--scheduler``: Dask is not installed, the scheduler cannot be reached, or the cluster lost a
+    chunk (one line, exit status 2)."""
 
 
 def require_dask() -> None:
@@ -281,13 +282,19 @@ def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool,
         while len(pending) < in_flight and submit():
             pass
         while pending:
-            rows = pending.popleft().result()
+            future = pending.popleft()
+            try:
+                rows = future.result()
+            except Exception as exc:  # noqa: BLE001 - the cluster's (a variant's own errors are rows)
+                raise SchedulerError(f"a chunk of variants failed on the Dask cluster ({type(exc).__name__}: "
+                                     f"{' '.join(str(exc).split())})") from exc
             submit()
             yield from rows
     finally:
-        for future in pending:  # interrupted or failed: nothing left running for this sweep
-            future.cancel()
-        client.cancel([shared])
+        try:  # interrupted or failed: nothing left running for this sweep
+            client.cancel(list(pending) + [shared])
+        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing to cancel
+            pass
 
 
 def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
