@@ -276,6 +276,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep import run_sweep, summary_lines, sweep_files
     from .sweep_spec import check, load_sweep, spec_from_args
 
+    if args.scheduler is not None:
+        from .sweep import require_dask
+
+        if args.workers is not None:
+            raise UsageError("--workers and --scheduler: the Dask cluster's workers run the sweep; give one of them")
+        require_dask()  # before any work: one line naming the extra to install
     path = args.scene if args.scene else str(default_scene_path())
     data, table_spec = load_sweep(path)
     if args.vary:
@@ -288,16 +294,25 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = table_spec
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, sweep_files(spec, args.keep_trajectories))
-    _announce_compilation()
-    found = None
-    if args.sensitivity:
-        from .sensitivity import sensitivities, sensitivity_lines
+    client = None
+    if args.scheduler is not None:
+        from .sweep import connect
 
-        items = sensitivities(data, spec, path)
-        print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
-        found = [s.as_dict() for s in items]
-    summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
-                               keep_trajectories=args.keep_trajectories, sensitivity=found)
+        client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
+    try:
+        _announce_compilation()
+        found = None
+        if args.sensitivity:
+            from .sensitivity import sensitivities, sensitivity_lines
+
+            items = sensitivities(data, spec, path)
+            print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
+            found = [s.as_dict() for s in items]
+        summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
+                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client)
+    finally:
+        if client is not None:
+            client.close()
     print("\n".join(summary_lines(summary)))
     print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
     return EXIT_FAILED if summary.failed_any else EXIT_OK
@@ -453,7 +468,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="xval-out",
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
-                   help="processes, at most one per core (default: all cores)")
+                   help="processes, at most one per core (default: all cores); not with --scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run the variants on the Dask cluster of this scheduler (tcp://host:8786) instead of "
+                        "local processes: the same chunks of variants are its tasks and the rows are the same, "
+                        "in the same order. Needs the distributed extra (pip install 'xval[distributed]'); "
+                        "refused with --workers (the cluster's workers run the sweep); an address not "
+                        "reached within 10 s is an error (exit 2)")
     p.add_argument("--keep-trajectories", action="store_true",
                    help="also write trajectories.csv, every variant's input trajectory from both engines "
                         "(for small sweeps)")

@@ -13,6 +13,12 @@ written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the nu
 (only a bounded summary is kept: counts, the worst variant, per key the range of the failing
 variants' values).
 
+With a Dask scheduler (``xval sweep --scheduler ADDRESS``, the optional ``distributed`` extra;
+nothing here imports Dask otherwise) the same chunks are Dask tasks: the scene data is scattered
+once to every worker, at most :data:`CHUNKS_IN_FLIGHT` chunks per worker thread are in flight, and
+the futures are read back in submission order, so the rows are the same, in the same order, as a
+local run's (only the wall times differ).
+
 Files (written through :func:`compare.output.write_folder`: all or nothing). The rows are
 streamed into the staged ``sweep.csv`` inside write_folder's hidden staging folder: the sweep
 itself is the writer of ``sweep.csv``, so a failed or interrupted sweep leaves the output folder as
@@ -194,12 +200,115 @@ def _chunks(spec: SweepSpec, size: int) -> Iterator[tuple[int, list[dict[str, fl
         start += len(chunk)
 
 
+# -- a Dask cluster (the optional ``distributed`` extra) ------------------------------------
+
+DASK_EXTRA = "pip install 'xval[distributed]'"
+CONNECT_TIMEOUT_S = 10.0
+CHUNKS_IN_FLIGHT = 4
+"""Dask tasks (chunks) submitted at a time per worker thread: enough to keep each busy while the
+earliest is read back, few enough that results waiting their turn stay a bounded handful."""
+
+
+class SchedulerError(ValueError):
+    """``--scheduler``: Dask is not installed, the scheduler cannot be reached, or the cluster lost a
+    chunk (one line, exit status 2)."""
+
+
+def require_dask() -> None:
+    """Refuse ``--scheduler`` without the ``distributed`` extra (checked before any work)."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise SchedulerError(f"--scheduler needs Dask, which is not installed: {DASK_EXTRA}") from None
+
+
+def connect(address: str, timeout: float | None = None):
+    """A :class:`distributed.Client` of the scheduler at ``address`` with at least one worker,
+    or :class:`SchedulerError` within about ``timeout`` seconds (default :data:`CONNECT_TIMEOUT_S`)."""
+    require_dask()
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    from distributed import Client
+    from distributed.comm import get_address_host_port
+
+    try:  # a malformed address first: a Client that fails on one hangs in its __del__
+        get_address_host_port(address)
+    except ValueError as exc:
+        raise SchedulerError(f"--scheduler {address}: not a scheduler address like tcp://host:8786 "
+                             f"({' '.join(str(exc).split())})") from None
+    try:
+        client = Client(address, timeout=timeout, set_as_default=False)
+    except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError...
+        raise SchedulerError(f"--scheduler {address}: cannot connect "
+                             f"({type(exc).__name__}: {' '.join(str(exc).split())})") from None
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except Exception:  # noqa: BLE001
+        client.close()
+        raise SchedulerError(f"--scheduler {address}: the scheduler has no workers "
+                             f"(none joined within {timeout:g} s)") from None
+    return client
+
+
+def dask_threads(client) -> int:
+    """Worker threads of a Dask cluster (what the chunk size and the tasks in flight scale with)."""
+    return max(1, sum(client.nthreads().values()))
+
+
+def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
+                keep: bool) -> list[dict[str, Any]]:
+    """One Dask task: the rows of the consecutive variants ``start``, ``start + 1``..."""
+    return [run_variant(start + i, v, data, source, keep) for i, v in enumerate(values)]
+
+
+def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool,
+               tasks: Iterator[tuple[int, list[dict[str, float]]]], in_flight: int) -> Iterator[dict[str, Any]]:
+    """The rows of ``tasks`` run on ``client``'s cluster, in variant order: the futures are read
+    in submission order, at most ``in_flight`` submitted at a time, the next submitted as the
+    earliest comes back (so the CSV streams and memory stays flat)."""
+    from collections import deque
+
+    [shared] = client.scatter([dict(data)], broadcast=True)  # the scene data: sent once to every worker
+    pending: deque = deque()
+
+    def submit() -> bool:
+        task = next(tasks, None)
+        if task is None:
+            return False
+        start, values = task
+        pending.append(client.submit(_dask_chunk, start, values, shared, source, keep, pure=False))
+        return True
+
+    try:
+        while len(pending) < in_flight and submit():
+            pass
+        while pending:
+            future = pending.popleft()
+            try:
+                rows = future.result()
+            except Exception as exc:  # noqa: BLE001 - the cluster's (a variant's own errors are rows)
+                raise SchedulerError(f"a chunk of variants failed on the Dask cluster ({type(exc).__name__}: "
+                                     f"{' '.join(str(exc).split())})") from exc
+            submit()
+            yield from rows
+    finally:
+        try:  # interrupted or failed: nothing left running for this sweep
+            client.cancel(list(pending) + [shared])
+        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing to cancel
+            pass
+
+
 def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
-             keep_trajectories: bool = False) -> Iterator[dict[str, Any]]:
-    """Every variant's row, in variant order, as they complete (``workers`` processes)."""
+             keep_trajectories: bool = False, client=None) -> Iterator[dict[str, Any]]:
+    """Every variant's row, in variant order, as they complete (``workers`` processes, or with
+    ``client`` the Dask cluster's worker threads: the same chunks become Dask tasks)."""
     n = count(spec)
+    if client is not None:
+        workers = dask_threads(client)
     size = chunk_size(n, workers)
     tasks = _chunks(spec, size)
+    if client is not None:
+        yield from _dask_rows(client, data, source, keep_trajectories, tasks, CHUNKS_IN_FLIGHT * workers)
+        return
     if workers <= 1:
         for start, values in tasks:
             for i, v in enumerate(values):
@@ -501,22 +610,24 @@ def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summar
 
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
-              progress: bool = True, sensitivity: list[dict] | None = None) -> tuple[Summary, list[Path]]:
+              progress: bool = True, sensitivity: list[dict] | None = None,
+              client=None) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`);
-    ``sensitivity`` (:meth:`compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json."""
+    ``sensitivity`` (:meth:`compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json.
+    With ``client`` (:func:`connect`) the variants run on that Dask cluster instead of a local pool."""
     from .cost import worker_count
 
     n = count(spec)
-    used = worker_count(workers, n)
-    if workers is not None and used < workers and used < n:
+    used = dask_threads(client) if client is not None else worker_count(workers, n)
+    if client is None and workers is not None and used < workers and used < n:
         warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
     summary = Summary(spec.keys, workers=used)
     bar = _Progress(n) if progress else None
 
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
-        rows = run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories)
+        rows = run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client)
         _stream(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
                 bar.step if bar else None)
         summary.wall_s = time.perf_counter() - start

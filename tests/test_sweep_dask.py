@@ -1,0 +1,97 @@
+"""xval sweep --scheduler (compare.sweep on a Dask cluster, the optional ``distributed`` extra):
+on a local cluster of two worker processes the rows are the same, in the same order, as a local
+run's (apart from wall times); a bad address, Dask missing, and --workers with --scheduler are
+refused with one line, exit 2, before any work; a local sweep imports no Dask. Short scenes (the seed with a 0.3 s horizon) and
+6 variants in chunks of one (so order and completeness are checked over several tasks)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from compare import sweep as sweep_module  # noqa: E402
+from compare.cli import main  # noqa: E402
+from compare.sweep import CSV_FILE, read_rows  # noqa: E402
+from reduced.scenefile import default_scene_path  # noqa: E402
+
+SEED_TEXT = default_scene_path().read_text()
+SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
+VARY = ["--vary", "dampers.0.coefficient=[50, 55, 60]", "--vary", "bodies.coupler.mass=[39, 41]"]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                  silence_logs=True) as c:
+        yield c
+
+
+@pytest.fixture
+def short_scene(tmp_path):
+    assert SHORT_TEXT != SEED_TEXT
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT_TEXT)
+    return path
+
+
+def _sweep(capsys, scene, out, *args):
+    status = main(["sweep", str(scene), "--out", str(out), *VARY, *args])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def _without_wall(row):
+    return {k: v for k, v in row.items() if "wall_s" not in k}
+
+
+def test_a_dask_run_gives_the_rows_of_a_local_run_in_the_same_order(cluster, short_scene, tmp_path, capsys,
+                                                                     monkeypatch):
+    monkeypatch.setattr(sweep_module, "MAX_CHUNK", 1)  # one variant per task: six tasks to keep in order
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "local", "--workers", "2")
+    assert status == 0, err
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "dask", "--scheduler", cluster.scheduler_address)
+    assert status == 0, err
+    assert "6 variants (2 workers" in printed and "6 passed" in printed
+    local = [_without_wall(r) for r in read_rows(tmp_path / "local" / CSV_FILE)]
+    dask = [_without_wall(r) for r in read_rows(tmp_path / "dask" / CSV_FILE)]
+    assert [r["index"] for r in dask] == list(range(6))
+    assert [(r["dampers.0.coefficient"], r["bodies.coupler.mass"]) for r in dask] == [
+        (50, 39), (50, 41), (55, 39), (55, 41), (60, 39), (60, 41)]
+    assert dask == local
+    assert sorted(p.name for p in (tmp_path / "dask").iterdir()) == sorted(p.name for p in (tmp_path / "local").iterdir())
+
+
+def test_an_unreachable_scheduler_is_one_line_exit_2_before_any_work(short_scene, tmp_path, capsys, monkeypatch):
+    ran = []
+    monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: ran.append(a))
+    monkeypatch.setattr(sweep_module, "CONNECT_TIMEOUT_S", 1.0)
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9")
+    assert status == 2 and printed == ""
+    assert err.count("\n") == 1 and err.startswith("xval: error: --scheduler tcp://127.0.0.1:9: cannot connect"), err
+    assert not (tmp_path / "sw").exists() and not ran
+
+
+def test_scheduler_without_dask_or_with_workers_is_refused(short_scene, tmp_path, capsys, monkeypatch):
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9",
+                                  "--workers", "2")
+    assert status == 2 and printed == "" and err.count("\n") == 1 and "--workers and --scheduler" in err
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if the extra were not installed
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9")
+    assert status == 2 and printed == "" and err.count("\n") == 1
+    assert "pip install 'xval[distributed]'" in err, err
+    assert not (tmp_path / "sw").exists()
+
+
+def test_a_local_sweep_imports_no_dask(short_scene, tmp_path):
+    code = ("import sys; from compare.cli import main; "
+            f"status = main(['sweep', {str(short_scene)!r}, '--vary', 'dampers.0.coefficient=[50]', '--workers', '1', "
+            f"'--out', {str(tmp_path / 'sw')!r}]); "
+            "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
+            "print(status, loaded)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.stdout.splitlines()[-1] == "0 []", done.stdout + done.stderr
