@@ -22,6 +22,7 @@ from reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from .diff import compare_trajectories
 from .output import json_text, portable_source, write_folder
+from .pool import ordered_map
 
 COST_FILES = ("cost.png", "cost.csv", "cost.json")
 
@@ -169,15 +170,6 @@ def worker_count(requested: int | None, jobs: int) -> int:
     return max(1, min(requested or cores, cores, jobs))
 
 
-def _ignore_interrupts() -> None:
-    """Worker start-up: Ctrl-C (sent to the whole process group) is the parent's to handle;
-    SIGTERM kills a worker outright (the parent ends its workers when it stops)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3,
           workers: int | None = None) -> list[Measurement]:
     """Measure every configuration, ``workers`` processes at a time (see :func:`worker_count`).
@@ -193,19 +185,9 @@ def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3
             results.append(_measure_args(job))
             progress.step(job[1].label)
         return results
-    import multiprocessing
-
-    pool = multiprocessing.Pool(workers, initializer=_ignore_interrupts)
-    try:
-        for m in pool.imap(_measure_args, jobs):
-            results.append(m)
-            progress.step(m.config.label)
-        pool.close()
-    except BaseException:
-        pool.terminate()
-        raise
-    finally:
-        pool.join()
+    for m in ordered_map(_measure_args, jobs, workers):
+        results.append(m)
+        progress.step(m.config.label)
     return results
 
 

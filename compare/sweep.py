@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping
 
 from .output import json_text, plain, portable_source, write_folder
+from .pool import ignore_interrupts, ordered_map
 from .sweep_spec import SweepSpec, count, variant_values
 
 STATUSES = ("passed", "gate_failed", "failed", "invalid")
@@ -172,9 +173,7 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(data, source, keep) -> None:
-    from .cost import _ignore_interrupts
-
-    _ignore_interrupts()
+    ignore_interrupts()
     _WORKER.update(data=data, source=source, keep=keep)
 
 
@@ -314,18 +313,8 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
             for i, v in enumerate(values):
                 yield run_variant(start + i, v, data, source, keep_trajectories)
         return
-    import multiprocessing
-
-    pool = multiprocessing.Pool(workers, initializer=_init_worker, initargs=(dict(data), source, keep_trajectories))
-    try:
-        for rows in pool.imap(_run_chunk, tasks):
-            yield from rows
-        pool.close()
-    except BaseException:
-        pool.terminate()
-        raise
-    finally:
-        pool.join()
+    for rows in ordered_map(_run_chunk, tasks, workers, _init_worker, (dict(data), source, keep_trajectories)):
+        yield from rows
 
 
 # -- the bounded summary ------------------------------------------------------------------

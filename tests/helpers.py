@@ -68,3 +68,14 @@ def coefficients_along(model, qs) -> list:
 
     chart = Chart(model, model.input_coordinate, model.x0)
     return [model.coefficients_at(chart.kinematics(float(q)).x) for q in qs]
+
+
+def short_seed_file(folder: Path, horizon: str = "0.3") -> Path:
+    """The seed scene file with a shorter horizon (s), written into ``folder``: a quick sweep."""
+    text = SEED_SCENE.read_text()
+    short = re.sub(r"(?m)^horizon = 2\.0.*$", f"horizon = {horizon}", text)
+    assert short != text
+    path = folder / "short.toml"
+    path.write_text(short)
+    return path
+

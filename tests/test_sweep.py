@@ -17,6 +17,8 @@ from compare.cli import main
 from compare.sweep import CSV_FILE, JSON_FILE, read_rows
 from reduced.scenefile import default_scene_path
 
+from helpers import short_seed_file
+
 SEED_TEXT = default_scene_path().read_text()
 SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
 FIXED_STEP = "\n[mujoco]\ntimestep = 1e-3\n"  # an explicit step: the gate is not met by shrinking it
@@ -25,10 +27,7 @@ WALL = ("reduced.wall_s", "mujoco.wall_s", "variant_wall_s")
 
 @pytest.fixture
 def short_scene(tmp_path):
-    assert SHORT_TEXT != SEED_TEXT
-    path = tmp_path / "short.toml"
-    path.write_text(SHORT_TEXT)
-    return path
+    return short_seed_file(tmp_path)
 
 
 def _sweep(capsys, scene, out, *args):

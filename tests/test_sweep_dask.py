@@ -6,7 +6,6 @@ refused with one line, exit 2, before any work; a local sweep imports no Dask. S
 
 from __future__ import annotations
 
-import re
 import subprocess
 import sys
 
@@ -17,10 +16,9 @@ distributed = pytest.importorskip("distributed")
 from compare import sweep as sweep_module  # noqa: E402
 from compare.cli import main  # noqa: E402
 from compare.sweep import CSV_FILE, read_rows  # noqa: E402
-from reduced.scenefile import default_scene_path  # noqa: E402
 
-SEED_TEXT = default_scene_path().read_text()
-SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
+from helpers import short_seed_file  # noqa: E402
+
 VARY = ["--vary", "dampers.0.coefficient=[50, 55, 60]", "--vary", "bodies.coupler.mass=[39, 41]"]
 
 
@@ -33,10 +31,7 @@ def cluster():
 
 @pytest.fixture
 def short_scene(tmp_path):
-    assert SHORT_TEXT != SEED_TEXT
-    path = tmp_path / "short.toml"
-    path.write_text(SHORT_TEXT)
-    return path
+    return short_seed_file(tmp_path)
 
 
 def _sweep(capsys, scene, out, *args):
