@@ -56,21 +56,25 @@ def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source
 
     from .settings import reduced_settings
 
+    where = f"the sensitivity to '{key}' needs the scene at {key} = {values[key]:.10g}, near its nominal value"
     try:
         scene = scene_from_dict(apply(data, values), source)
+    except SceneError as exc:  # bad input: exit 2
+        raise SweepSpecError(f"{source}: {where}: {exc}") from None
+    try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return abs(simulate(scene, reduced_settings(scene)).peak.omega)
-    except (SceneError, NumericalFailure) as exc:
-        raise SweepSpecError(f"{source}: the sensitivity to '{key}' needs the scene at {key} = "
-                             f"{values[key]:.10g}, near its nominal value: {exc}") from None
+    except NumericalFailure as exc:  # a failed run: exit 1, with its reason
+        raise NumericalFailure(exc.reason, f"{where}: {exc}", exc.time) from None
 
 
 def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") -> list[Sensitivity]:
     """d(peak |ω|)/dp for every key of ``spec`` at the nominal scene (module docstring): four
     reduced runs per key, the other keys at their nominal values.
 
-    Raises SweepSpecError naming the key when the scene cannot be run at p0 ± 2h.
+    Raises SweepSpecError naming the key when the scene is invalid at p0 ± 2h, NumericalFailure
+    (naming it too) when its run fails there.
     """
     from reduced import scene_from_dict
 

@@ -406,7 +406,7 @@ def _title(source: str, what: str) -> str:
     return f"{short_name(Path(source).stem if not source.startswith('<') else source)}: {what}"
 
 
-def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
     """Peak |ω| of both engines against the first varied key (other keys: one line each value)."""
     import numpy as np
 
@@ -441,20 +441,20 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path) ->
             ax.axvline(xv, color="tab:red", alpha=0.3, linewidth=1)
         ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
     ax.set_xlabel(key, **PLAIN)
-    ax.set_ylabel("peak |ω| of the input")
+    ax.set_ylabel(f"peak |ω| of the input ({speed_unit})")
     ax.set_title(_title(source, f"peak speed against {key}"), **PLAIN)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.savefig(path)
 
 
-def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
     """The gate's worst ratio (largest figure over its tolerance) over the first two grid keys
     (the others: the largest ratio over their values); gray where no comparison ran."""
     import numpy as np
     from matplotlib.colors import LogNorm
 
-    from .plots import PLAIN, new_figure
+    from .plots import PLAIN, new_figure, plain_log_axis
 
     kx, ky = spec.keys[1], spec.keys[0]
     xs, ys = list(spec.varies[1].values), list(spec.varies[0].values)
@@ -477,11 +477,13 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> N
     ax.set_xlabel(kx, **PLAIN)
     ax.set_ylabel(ky, **PLAIN)
     ax.set_title(_title(source, "gate's worst figure / tolerance (> 1 fails)"), **PLAIN)
-    fig.colorbar(mesh, ax=ax, label="worst ratio")
+    bar = fig.colorbar(mesh, ax=ax, label="worst ratio")
+    if norm is not None:
+        plain_log_axis(bar.ax.yaxis)  # the project's plain-text log labels (no mathtext)
     fig.savefig(path)
 
 
-def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path) -> None:
+def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
     """Histogram of both engines' peak |ω| over a Monte Carlo sample."""
     import numpy as np
 
@@ -498,7 +500,7 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
         ax.hist(mj, bins=bins, histtype="step", color=MUJOCO_STYLE["color"], linestyle="--", linewidth=1.5,
                 label=MUJOCO_STYLE["label"])
         ax.legend(fontsize=8)
-    ax.set_xlabel("peak |ω| of the input")
+    ax.set_xlabel(f"peak |ω| of the input ({speed_unit})")
     ax.set_ylabel("variants")
     ax.set_title(_title(source, f"peak speed over {len(red)} samples (seed {spec.seed})"), **PLAIN)
     ax.grid(True, alpha=0.3)
@@ -628,8 +630,11 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     files: dict[str, Callable[[Path], None]] = {CSV_FILE: write_rows}
     if keep_trajectories:
         files[TRAJECTORY_FILE] = staged
+    from reduced.scenefile import scene_from_dict
+
+    speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
     for name in plot_files(spec):
-        files[name] = lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p)
+        files[name] = lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit)
     files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
     paths = write_folder(out, files)
     return summary, paths

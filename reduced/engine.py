@@ -12,7 +12,7 @@ import numpy as np
 from .dynamics import MechanismModel
 from .energy import energy_audit
 from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
-from .integrators import RKN4, solve_adaptive, solve_fixed_step
+from .integrators import RKN4, solve_adaptive
 from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .result import EngineResult
 from .scene import REDUCED_METHODS, Scene
@@ -123,44 +123,39 @@ class ReducedSettings:
 
 # Caps on the adaptive step (fractions of a chart's time span) for a chart that failed at a
 # singular position. Measured: they get a fast triple rocker through (a regression test); on
-# 100 random near-dead-centre scenes they changed nothing, and one still fails (strict xfail).
+# 100 random near-dead-centre scenes they changed nothing. The compiled DOP853 applies them in
+# compiled code (reduced.kernels.partition); scipy's methods here.
 CHART_RETRY_MAX_STEP = (1e-3, 1e-4)
 
 
-def chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...], step: float | None = None):
-    """The integrator the settings name, as a function of one chart's equation
-    (``step`` overrides the RKN4 step: the error estimate's run at twice the step)."""
-    if settings.method == "rkn4":
-        h = settings.step if step is None else step
+def scipy_chart_integrator(settings: ReducedSettings, breakpoints: tuple[float, ...]):
+    """The scipy method the settings name (radau, scipy-dop853), as a function of one chart's
+    equation."""
+    method = SCIPY_NAMES[settings.method]
 
-        def run(rhs_on_piece, span, x0, v0, stop):
-            return solve_fixed_step(rhs_on_piece, span, x0, v0, h, breakpoints=breakpoints,
-                                    tableau=RKN4, stop=stop)
-    else:
-        method = SCIPY_NAMES[settings.method]
-
-        def run(rhs_on_piece, span, x0, v0, stop):
-            # A trial stage of a long step can land past the reach of the chart's coordinate
-            # (no closed loop there: a singular position) before the switch event fires. The
-            # chart is then integrated again with the step capped to a fraction of its span.
-            for cap in (math.inf, *CHART_RETRY_MAX_STEP):
-                try:
-                    return solve_adaptive(rhs_on_piece, span, x0, v0, rtol=settings.rtol, method=method,
-                                          breakpoints=breakpoints, sample_interval=settings.sample_interval,
-                                          stop=stop, max_step=cap * (span[1] - span[0]))
-                except NumericalFailure as exc:
-                    if exc.reason is not FailureReason.SINGULAR or cap == CHART_RETRY_MAX_STEP[-1]:
-                        raise
+    def run(rhs_on_piece, span, x0, v0, stop):
+        # A trial stage of a long step can land past the reach of the chart's coordinate
+        # (no closed loop there: a singular position) before the switch event fires. The
+        # chart is then integrated again with the step capped to a fraction of its span.
+        for cap in (math.inf, *CHART_RETRY_MAX_STEP):
+            try:
+                return solve_adaptive(rhs_on_piece, span, x0, v0, rtol=settings.rtol, method=method,
+                                      breakpoints=breakpoints, sample_interval=settings.sample_interval,
+                                      stop=stop, max_step=cap * (span[1] - span[0]))
+            except NumericalFailure as exc:
+                if exc.reason is not FailureReason.SINGULAR or cap == CHART_RETRY_MAX_STEP[-1]:
+                    raise
     return run
 
 
 def integrate(model: MechanismModel, settings: ReducedSettings, step: float | None = None) -> PartitionedSolution:
-    """Run the integrator the settings name, switching coordinates at dead centres."""
+    """Run the integrator the settings name, switching coordinates at dead centres (``step``
+    overrides the RKN4 step: the error estimate's runs at twice and half the step)."""
     if settings.method == "rkn4":
         return integrate_rkn4(model, settings.step if step is None else step)
     if settings.method == "dop853":
         return integrate_dop853(model, settings.rtol, settings.sample_interval, CHART_RETRY_MAX_STEP)
-    return integrate_partitioned(model, chart_integrator(settings, model.load_edges, step))
+    return integrate_partitioned(model, scipy_chart_integrator(settings, model.load_edges))
 
 
 def check_work(scene: Scene, settings: ReducedSettings) -> None:

@@ -77,7 +77,6 @@ class Chart:
         if not physics.start_chart(model.arrays, self.state, np.ascontiguousarray(x, dtype=float), independent):
             raise NumericalFailure("singular", f"{self.name} cannot drive the linkage at its start "
                                               f"({self.name} = {x[independent]:.15g})")
-
         self._views = physics.chart_arrays(model.arrays, self.state)
 
     @property
@@ -119,7 +118,7 @@ class Chart:
 
     def rhs_on_piece(self, start: float, end: float):
         """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history (a Python function)."""
-        load = float(self.model.load_on_piece(start, end)(0.5 * (start + end)))
+        load = piece_load(self.model, start, end)
         arrays, state = self.model.arrays, self.state
 
         def f(t: float, value: float, rate: float) -> float:
@@ -216,12 +215,16 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
     return _solution(model, segments, switches)
 
 
+def piece_load(model: MechanismModel, start: float, end: float) -> float:
+    """The input load (N·m or N) on one smooth piece [start, end] of its history: constant there."""
+    return float(model.load_on_piece(start, end)(0.5 * (start + end)))
+
+
 def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Edges (p+1,) of the smooth pieces of [t0, horizon] and the input load on each (p,)."""
     horizon = model.scene.horizon
     edges = np.array([t0, *sorted({b for b in model.load_edges if t0 < b < horizon}), horizon])
-    loads = np.array([model.load_on_piece(a, b)(0.5 * (a + b)) for a, b in zip(edges[:-1], edges[1:])],
-                     dtype=float)
+    loads = np.array([piece_load(model, a, b) for a, b in zip(edges[:-1], edges[1:])], dtype=float)
     return edges, loads
 
 
@@ -258,15 +261,23 @@ def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart
     return NumericalFailure("singular", f"the run cannot start: its coordinate cannot drive the linkage", t)
 
 
-def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:
-    """The compiled RKN4 run of the scene at the largest step ``step`` (s), all charts."""
+def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None) -> list:
+    """A whole compiled run (``kernel``: :func:`reduced.kernels.partition.run_rkn4` or
+    ``run_dop853``, with its ``settings`` after the start) from the scene's start over its load
+    pieces; the run's arrays, or the failure it reports raised."""
     x0, i, rate = _start(model)
     edges, loads = load_pieces(model)
     chart = model.new_chart()
-    status, info, *run = compiled.run_rkn4(model.arrays, chart, edges, loads, x0, i, rate, float(step),
-                                           SPEED_LIMIT, check_stability, MAX_SWITCHES)
+    status, info, *run = kernel(model.arrays, chart, edges, loads, x0, i, rate, *settings)
     if status != fixed_step.OK:
         raise compiled_failure(model, status, info, chart, step)
+    return run
+
+
+def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:
+    """The compiled RKN4 run of the scene at the largest step ``step`` (s), all charts."""
+    run = _run_compiled(model, compiled.run_rkn4, float(step), SPEED_LIMIT, check_stability, MAX_SWITCHES,
+                        step=step)
     return compiled_solution(model, run, RKN4.name, {"method": "rkn4", "step": step})
 
 
@@ -275,14 +286,8 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     """The compiled DOP853 run of the scene at rtol = atol = ``rtol``, all charts; samples no
     further apart than ``sample_interval`` (s); a chart that meets a singular position is run
     again with the step capped to each fraction ``retry_caps`` of its span."""
-    x0, i, rate = _start(model)
-    edges, loads = load_pieces(model)
-    chart = model.new_chart()
-    status, info, *run = compiled.run_dop853(model.arrays, chart, edges, loads, x0, i, rate, float(rtol),
-                                             float(sample_interval), SAMPLES_PER_STEP, SPEED_LIMIT,
-                                             MAX_EVALUATIONS, np.array(retry_caps, dtype=float), MAX_SWITCHES)
-    if status != fixed_step.OK:
-        raise compiled_failure(model, status, info, chart)
+    run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
+                        SPEED_LIMIT, MAX_EVALUATIONS, np.array(retry_caps, dtype=float), MAX_SWITCHES)
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 

@@ -72,3 +72,15 @@ def test_the_sweep_command_prints_and_records_the_sensitivities(tmp_path, capsys
 def test_a_sensitivity_needs_a_positive_step():
     with pytest.raises(ValueError, match="step"):
         Sensitivity("k", 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def test_a_failed_run_near_the_nominal_value_is_a_numerical_failure_naming_the_key(seed):
+    """A run that fails (here RKN4 at a step far too large for its own error estimate) is a
+    numerical failure (exit 1), not bad input, and names the key and value that needed it."""
+    from reduced.errors import NumericalFailure
+
+    data, path = seed
+    coarse = {**data, "reduced": {"method": "rkn4", "step": 0.05}}
+    with pytest.raises(NumericalFailure, match="sensitivity to 'dampers.0.coefficient'") as failure:
+        sensitivities(coarse, spec_from_args(KEYS[:1]), path)
+    assert failure.value.reason == "inaccurate"
