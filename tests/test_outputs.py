@@ -75,6 +75,23 @@ def test_failure_while_writing_leaves_the_folder_as_it_was(old_folder, error, fa
     assert snapshot(old_folder.parent) == before
 
 
+@pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt(), Terminated(),
+                                   OSError(errno.ENOSPC, "No space left on device")],
+                         ids=["exception", "ctrl-c", "sigterm", "disk-full"])
+@pytest.mark.parametrize("fail_at", ["reduced.csv", "mujoco.csv", "report.json"])
+def test_writers_in_two_processes_fail_as_one(old_folder, error, fail_at):
+    """write_folder(workers=2) runs every other writer in a forked child (mujoco.csv and
+    report.json here): a failure on either side, whatever it raises, is raised here with its
+    type and leaves the folder as it was; without one the set is the same as one process's."""
+    before = snapshot(old_folder.parent)
+    with pytest.raises(type(error)):
+        write_folder(old_folder, writers("new", fail_at, error), workers=2)
+    assert snapshot(old_folder.parent) == before
+    write_folder(old_folder, writers("new"), workers=2)
+    assert snapshot(old_folder) == {**{n: ("file", f"new {n}".encode()) for n in NAMES},
+                                    "notes.txt": ("file", b"mine")}
+
+
 def test_failure_while_writing_a_new_folder_creates_nothing(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         write_folder(tmp_path / "out", writers("new", "report.json", KeyboardInterrupt()))
