@@ -79,3 +79,68 @@ def short_seed_file(folder: Path, horizon: str = "0.3") -> Path:
     path.write_text(short)
     return path
 
+
+
+class _NumpyInKernelOrder:
+    """numpy, but for the sums of scipy's DOP853 on a 2-vector state: np.dot of the stages
+    (2 × s by s) and of the dense output (D by K) and np.linalg.norm of a 2-vector, summed in the
+    compiled kernel's fixed order (reduced.kernels.adaptive: _dot_kt, _dense_coefficients,
+    _norm2). numpy hands these to the BLAS, whose order depends on the CPU (OpenBLAS picks its
+    kernels at run time: on an AMD EPYC 1085 of 2000 random 2 × s products differ from the
+    kernel's order in the last bit, and DOP853 at rtol 1e-12 turns such bits into other steps).
+    The order is a convention both sides share, not a result under test."""
+
+    def __init__(self):
+        import numpy
+        from types import SimpleNamespace
+
+        self._np = numpy
+        self.linalg = SimpleNamespace(**{k: getattr(numpy.linalg, k) for k in dir(numpy.linalg)
+                                         if not k.startswith("__")})
+        self.linalg.norm = self._norm
+
+    def __getattr__(self, name):
+        return getattr(self._np, name)
+
+    def _norm(self, x, *args, **kwargs):
+        from reduced.kernels.adaptive import _norm2
+
+        x = self._np.asarray(x)
+        if x.shape == (2,) and not args and not kwargs:
+            return _norm2.py_func(float(x[0]), float(x[1]))
+        return self._np.linalg.norm(x, *args, **kwargs)
+
+    def dot(self, a, b):
+        from reduced.kernels.adaptive import _dot_kt
+
+        np_ = self._np
+        a, b = np_.asarray(a), np_.asarray(b)
+        if a.ndim == 2 and b.ndim == 1 and a.shape[0] == 2:  # K[:s].T · a[:s]
+            out = np_.empty(2)
+            _dot_kt.py_func(a.T, b, b.shape[0], out)
+            return out
+        if a.ndim == 2 and b.ndim == 2 and b.shape[1] == 2:  # D · K, each entry summed over j in turn
+            out = np_.empty((a.shape[0], 2))
+            for r in range(a.shape[0]):
+                for c in range(2):
+                    acc = 0.0
+                    for j in range(a.shape[1]):
+                        acc += a[r, j] * b[j, c]
+                    out[r, c] = acc
+            return out
+        return np_.dot(a, b)
+
+
+def scipy_in_kernel_order():
+    """A context in which scipy's RK solvers (and select_initial_step) sum as the compiled
+    DOP853 does (:class:`_NumpyInKernelOrder`): for the tests that compare them step for step."""
+    import contextlib
+    from unittest import mock
+
+    from scipy.integrate._ivp import common, rk
+
+    stack = contextlib.ExitStack()
+    ordered = _NumpyInKernelOrder()
+    for module in (rk, common):
+        stack.enter_context(mock.patch.object(module, "np", ordered))
+    return stack

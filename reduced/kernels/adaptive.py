@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from . import dop853_tableau as _coef
 
+from ..integrators import RESTART_STEPS as _RESTART_STEPS
 from .problem import acceleration, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
@@ -40,6 +41,10 @@ NONFINITE = 2   #: f was NaN/inf at a stage (fail_time: that stage's time) or a 
 #                  q̈ was not finite (fail_time: the sample's time); also a non-finite initial state
 SPEED = 3       #: |q̇| > speed_limit at a sample (or initially); fail_time, fail_value: where, q̇
 STATUS_NAMES = {OK: "ok", STEP_SIZE: "step-size", NONFINITE: "non-finite", SPEED: "unstable"}
+
+# A piece after a load edge starts with scipy's select_initial_step, but at most the largest of
+# the previous piece's last RESTART_STEPS steps (reduced.integrators documents the rule).
+RESTART_STEPS = _RESTART_STEPS
 
 # ---- scipy's DOP853 constants ---------------------------------------------------------------
 SAFETY = 0.9
@@ -186,7 +191,7 @@ def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
 
 @njit(cache=True, inline="always")
 def _norm2(x0, x1):
-    """np.linalg.norm((x0, x1)) = sqrt(x.dot(x)); OpenBLAS's ddot sums a 2-vector plainly."""
+    """np.linalg.norm((x0, x1)) summed plainly (numpy: sqrt(x.dot(x)), by the BLAS)."""
     return math.sqrt(x0 * x0 + x1 * x1)
 
 
@@ -198,11 +203,14 @@ def _rms2(x0, x1):
 
 @njit(cache=True)
 def _dot_kt(K, a, s, out):
-    """out = np.dot(K[:s].T, a[:s]) summed in the order of numpy's BLAS call (OpenBLAS dgemv_n
-    for a 2-row matrix: columns in blocks of four, t += (p0 + p1), t += (p2 + p3), then the
-    rest one by one; no FMA). Bit-equal to numpy on 2100 random cases and on the whole runs of
-    the tests; it matters: at tight tolerances the error estimate is mostly round-off, and
-    another order moves the step sequence by ~1e-6 relative (measured at rtol 1e-12)."""
+    """out = np.dot(K[:s].T, a[:s]) summed in one fixed order: columns in blocks of four,
+    t += (p0 + p1), t += (p2 + p3), then the rest one by one; no FMA. It is OpenBLAS's dgemv_n on
+    the Intel machine it was measured on (bit-equal to numpy on 2100 random cases), not on every
+    CPU (on an AMD EPYC 1085 of 2000 cases differ in the last bit): OpenBLAS picks its kernels at
+    run time. The order matters where runs are compared step for step (at tight tolerances the
+    error estimate is mostly round-off, and another order moves the step sequence by ~1e-6
+    relative at rtol 1e-12), so the tests that do run scipy in this order
+    (tests/helpers.py, scipy_in_kernel_order)."""
     nb = s - s % 4
     for r in range(2):
         acc = 0.0
@@ -254,8 +262,9 @@ def _grow_steps(sy, sF, n):
 
 
 @njit(cache=True)
-def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, K, work):
-    """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py).
+def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, restart_cap, K, work):
+    """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py),
+    at most ``restart_cap`` when that is > 0 (a restart at a load edge: RESTART_STEPS).
     Returns (status, fail_time, h_abs)."""
     s = _fun(problem, chart, load, t, y0, y1, K, 0, work)
     if s != OK:
@@ -282,7 +291,8 @@ def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, K,
         h1 = _pymax(1e-6, h0 * 1e-3)
     else:
         h1 = (0.01 / _pymax(d1, d2)) ** (1 / (ERROR_ESTIMATOR_ORDER + 1))
-    return OK, math.nan, _pymin(_pymin(_pymin(100 * h0, h1), interval_length), max_step)
+    h = _pymin(_pymin(_pymin(100 * h0, h1), interval_length), max_step)
+    return OK, math.nan, (_pymin(h, restart_cap) if restart_cap > 0.0 else h)
 
 
 @njit(cache=True)
@@ -347,9 +357,10 @@ def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, wor
 
 
 @njit(cache=True)
-def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_stop, work,
+def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, restart_cap, use_stop, work,
            st, sh, sy, sF):
-    """One solve_ivp call on [start, end]: steps into st (times), sh (dense h), sy (states),
+    """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0):
+    steps into st (times), sh (dense h), sy (states),
     sF (dense coefficients), grown as needed. Returns (status, n_steps, stopped, fail_time,
     st, sh, sy, sF). One exit: each return of the tuple costs compile time."""
     K = np.empty((N_STAGES_EXTENDED, 2))
@@ -362,7 +373,7 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, use_s
     n = 0
     stopped = False
     status, fail_time, h_abs = _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol,
-                                             max_step, K, work)
+                                             max_step, restart_cap, K, work)
     f0 = K[0, 0]
     f1 = K[0, 1]
     g = 0.0
@@ -576,13 +587,14 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         fail_value = v0
     q = q0
     v = v0
+    previous_step = 0.0  # none: the first piece selects its own
     # one exit (each return of this 12-tuple costs compile time)
     for p in range(piece_load.shape[0] if status == OK else 0):
         start = piece_edges[p]
         end = piece_edges[p + 1]
         load = piece_load[p]
         status, n, stopped, fail_time, st, sh, sy, sF = _piece(
-            problem, chart, load, start, end, q, v, rtol, atol, max_step, use_stop, work,
+            problem, chart, load, start, end, q, v, rtol, atol, max_step, previous_step, use_stop, work,
             st, sh, sy, sF)
         n_steps += n
         if status != OK:
@@ -623,6 +635,9 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         t_reached = st[n]
         if stopped:
             break
+        previous_step = 0.0
+        for i in range(_pymax(n - RESTART_STEPS, 0), n):
+            previous_step = _pymax(previous_step, sh[i])
     return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
             t_reached, fail_time, fail_value)
 
