@@ -23,6 +23,7 @@ if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` ne
     from .run import Comparison
 
 NAME_CHARS = 60  # longest scene name shown in a title
+SUBTITLE_CHARS = 76  # longest line under a title (the title is centred over the axes, not the figure)
 PLAIN = {"parse_math": False}  # keyword for text elements that carry user text
 
 
@@ -139,10 +140,15 @@ def plot_trajectories(c: "Comparison", path: Path) -> None:
     _save(fig, path)
 
 
-def plot_differences(c: "Comparison", path: Path) -> None:
+def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -> None:
+    """Δq and Δq̇ (MuJoCo minus reduced) against time with the gate's tolerances; ``subtitle``
+    (plain text, lines of up to SUBTITLE_CHARS characters: longer ones are cut) under the
+    title, e.g. which variant of a sweep this is."""
     unit, rate = _units(c)
     d = c.diff
-    fig, (ax_q, ax_w) = new_figure((8, 6), 2, 1, sharex=True)
+    extra = [short_name(line, SUBTITLE_CHARS) for line in subtitle.splitlines()] if subtitle else []
+    fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * len(extra)), 2, 1, sharex=True,
+                                   margins={"top": 0.45 + 0.25 * len(extra)})
     ax_q.plot(d.times, d.dq, color="tab:red", label="Δq = q_MuJoCo − q_reduced")
     ax_w.plot(d.times, d.domega, color="tab:red", label="Δq̇ = q̇_MuJoCo − q̇_reduced")
     tol = c.gate.tolerances
@@ -154,8 +160,8 @@ def plot_differences(c: "Comparison", path: Path) -> None:
     ax_q.set_ylabel(f"Δq ({unit})")
     ax_w.set_ylabel(f"Δq̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
-    ax_q.set_title(f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times",
-                   **PLAIN)
+    title = f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times"
+    ax_q.set_title("\n".join([title, *extra]), **PLAIN)
     _save(fig, path)
 
 

@@ -31,7 +31,9 @@ made from the staged ``sweep.csv`` read back row by row.
 - ``sweep.json``: the specification, the summary and the rows (strict JSON, null for NaN).
 - plots: ``sweep_peak_omega.png`` (peak ω of both engines against the first varied key, a grid),
   ``sweep_gate_map.png`` (the gate's worst ratio over the first two keys of a grid of two or more
-  keys), ``sweep_peak_omega_hist.png`` (Monte Carlo: histogram of both engines' peak ω).
+  keys), ``sweep_peak_omega_hist.png`` (Monte Carlo: histogram of both engines' peak ω),
+  ``sweep_worst_differences.png`` (``xval run``'s differences plot of the worst variant, run
+  again: the one whose peak-ω difference is the largest multiple of its tolerance).
 - ``trajectories.csv`` with ``keep_trajectories``: index, engine, t, q, qdot, qddot of every
   variant that ran (for small sweeps).
 """
@@ -72,6 +74,7 @@ LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
 
 CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
 PEAK_PLOT, MAP_PLOT, HIST_PLOT = "sweep_peak_omega.png", "sweep_gate_map.png", "sweep_peak_omega_hist.png"
+WORST_PLOT = "sweep_worst_differences.png"
 MAX_CHUNK = 32
 
 
@@ -83,8 +86,8 @@ def columns(spec: SweepSpec) -> tuple[str, ...]:
 def plot_files(spec: SweepSpec) -> tuple[str, ...]:
     """The plots a sweep of ``spec`` draws."""
     if not spec.is_grid:
-        return (HIST_PLOT,)
-    return (PEAK_PLOT,) + ((MAP_PLOT,) if len(spec.keys) >= 2 else ())
+        return (HIST_PLOT, WORST_PLOT)
+    return (PEAK_PLOT,) + ((MAP_PLOT,) if len(spec.keys) >= 2 else ()) + (WORST_PLOT,)
 
 
 def sweep_files(spec: SweepSpec, keep_trajectories: bool = False) -> tuple[str, ...]:
@@ -483,6 +486,32 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     fig.savefig(path)
 
 
+def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Path) -> None:
+    """The differences plot of ``xval run`` (:func:`compare.plots.plot_differences`) for the
+    worst variant, the one whose peak-ω difference is the largest multiple of its tolerance, run
+    again through both engines (the same scene and settings as its row); a note instead when no
+    variant ran through both."""
+    from .plots import PLAIN, _save, new_figure, plot_differences
+    from .run import compare_engines
+    from .sweep_spec import apply
+    from reduced.scenefile import scene_from_dict
+
+    worst = summary.worst
+    if worst is None:
+        fig, ax = new_figure((8, 2))
+        ax.axis("off")
+        ax.text(0.5, 0.5, f"{_title(source, 'no variant ran through both engines: no differences to plot')}",
+                ha="center", va="center", **PLAIN)
+        _save(fig, path)
+        return
+    with warnings.catch_warnings():  # as run_variant: its warnings were the sweep's to ignore
+        warnings.simplefilter("ignore")
+        c = compare_engines(scene_from_dict(apply(data, worst["values"]), source))
+    values = ", ".join(f"{k} = {v:.6g}" for k, v in worst["values"].items())
+    plot_differences(c, path, subtitle=f"worst of {summary.total} variants: #{worst['index']}, peak-ω difference "
+                                       f"{worst['peak_ratio']:.3g}× its tolerance\n{values}")
+
+
 def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
     """Histogram of both engines' peak |ω| over a Monte Carlo sample."""
     import numpy as np
@@ -633,8 +662,9 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     from reduced.scenefile import scene_from_dict
 
     speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
-    for name in plot_files(spec):
-        files[name] = lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit)
+    for name in plot_files(spec):  # from the staged sweep.csv, but the worst variant's (run again)
+        files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
+            (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
     paths = write_folder(out, files)
     return summary, paths

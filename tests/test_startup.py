@@ -111,6 +111,18 @@ def test_every_plot_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch, 
         assert text_outside(fig) == [], name
 
 
+def test_a_subtitle_of_the_differences_plot_is_not_cut_off(tmp_path, monkeypatch, comparison):
+    """Two subtitle lines (a sweep's worst variant), longer than the SUBTITLE_CHARS kept."""
+    from compare.plots import plot_differences
+
+    kept = saved_figures(monkeypatch)
+    values = ", ".join(f"bodies.coupler{k}.mass = 36.125" for k in range(6))
+    plot_differences(comparison, tmp_path / "d.png", subtitle=f"worst of 100000 variants: #99999, {values}\n{values}")
+    (fig, draws), = kept
+    assert draws == 1 and text_outside(fig) == []
+    assert fig.axes[0].get_title().split("\n")[2].endswith("…")
+
+
 def test_the_drawing_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch):
     from compare.draw import draw_scene
     from reduced import load_scene

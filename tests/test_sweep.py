@@ -73,7 +73,8 @@ def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, 
     assert [_without_wall(r) for r in data["rows"]] == [_without_wall(r) for r in rows]
     assert data["summary"]["counts"] == {"passed": 2, "gate_failed": 0, "failed": 0, "invalid": 0}
     assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == ["sweep.csv", "sweep.json",
-                                                                  "sweep_peak_omega.png"]
+                                                                  "sweep_peak_omega.png",
+                                                                  "sweep_worst_differences.png"]
 
 
 def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys):
@@ -160,6 +161,35 @@ def test_a_variant_failing_the_gate_exits_1_and_names_the_failing_values(tmp_pat
     assert "1 passed, 1 failed the gate" in printed
     assert "worst variant: #1 (tolerances.peak_omega_rtol = 1e-12)" in printed
     assert "failing variants have: tolerances.peak_omega_rtol in [1e-12, 1e-12]" in printed
+
+
+def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, tmp_path, capsys, monkeypatch):
+    """sweep_worst_differences.png: xval run's differences plot of the row with the largest
+    peak-ω difference against its tolerance, from a run again of that variant (the plot's
+    comparison has the row's peaks) and named in the plot's subtitle."""
+    import compare.plots
+
+    drawn = []
+    real = compare.plots.plot_differences
+    monkeypatch.setattr(compare.plots, "plot_differences",
+                        lambda c, path, subtitle=None: (drawn.append((c, subtitle)), real(c, path, subtitle))[1])
+    status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "bodies.coupler.mass=[35, 45, 40]",
+                                "--workers", "2")
+    assert status == 0, printed
+    rows = _rows(tmp_path / "sw")
+    worst = max(rows, key=lambda r: r["gate.peak_ratio"])
+    assert len(drawn) == 1 and (tmp_path / "sw" / "sweep_worst_differences.png").is_file()
+    c, subtitle = drawn[0]
+    assert f"worst of 3 variants: #{worst['index']}," in subtitle
+    assert f"bodies.coupler.mass = {worst['bodies.coupler.mass']:g}" in subtitle
+    assert c.reduced.peak.omega == worst["reduced.peak_omega"] and c.mujoco.peak.omega == worst["mujoco.peak_omega"]
+
+
+def test_without_a_compared_variant_the_worst_plot_says_so(tmp_path):
+    from compare.sweep import Summary, plot_worst
+
+    plot_worst({}, "<none>", Summary(keys=()), tmp_path / "worst.png")
+    assert (tmp_path / "worst.png").stat().st_size > 0
 
 
 def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, capsys, monkeypatch):
