@@ -150,7 +150,7 @@ def make_bound_loop(accel):
     return loop
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: a cached caller keeps the physics it was compiled with
 def general_loop(model, chart, load, q0, dq, rate, n):
     """n calls of the general path along q = q0 + k dq, from the chart's start."""
     physics.reset(model, chart)
@@ -160,7 +160,7 @@ def general_loop(model, chart, load, q0, dq, rate, n):
     return s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: a cached caller keeps the physics it was compiled with
 def walk_loop(model, chart, q0, dq, n):
     """The chart walk alone (Newton from the predictor, K, L, conditioning) along the same q."""
     F, I = model
@@ -173,7 +173,7 @@ def walk_loop(model, chart, q0, dq, n):
     return s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: a cached caller keeps the physics it was compiled with
 def coefficients_loop(model, chart, n):
     """The Eksergian coefficients alone, n times at the chart's current configuration."""
     F, I = model
@@ -185,7 +185,7 @@ def coefficients_loop(model, chart, n):
     return s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: a cached caller keeps the physics it was compiled with
 def views_loop(model, chart, n):
     """physics._views alone (the chart's 14 array views), n times."""
     s = 0.0

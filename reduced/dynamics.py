@@ -93,6 +93,39 @@ def _splines(forces: tuple[TabulatedForce, ...]):
     return out
 
 
+def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int], list[float]]:
+    """For each coordinate i as the chart's, a plan to close the loops by closed form
+    (:func:`reduced.kernels.physics._dyads`): loops in an order where each has exactly two unknown
+    angles and only fixed-length terms (an RRR dyad: four-bars, their chains, the squeezer's
+    loops), or none (a slider's length, a linear row, a loop of more unknowns: Newton alone).
+    Returns the first step of each plan (−1: none), the steps (loop, a, b) and their (W_a, W_b)."""
+    offset, w, row, mag, angle = loop_table
+    loops_ = range(len(offset))
+    plans, steps, weights = [], [], []
+    for i in range(n):
+        known, order = {i}, []
+        while n_linear == 0 and len(order) < len(loops_):
+            for k in loops_:
+                terms = [t for t in range(len(row)) if row[t] == k]
+                unknown = sorted({int(angle[t]) for t in terms if angle[t] >= 0} - known)
+                if k not in [o[0] for o in order] and len(unknown) == 2 and all(mag[t] < 0 for t in terms):
+                    order.append((k, *unknown))
+                    known.update(unknown)
+                    break
+            else:
+                break
+        if len(order) != len(loops_) or known != set(range(n)):
+            plans.append(-1)
+            continue
+        plans.append(len(steps) // 3)
+        for k, a, b in order:
+            steps += [k, a, b]
+            for c in (a, b):
+                weights += [float(sum(w[t][0] for t in range(len(row)) if row[t] == k and angle[t] == c)),
+                            float(sum(w[t][1] for t in range(len(row)) if row[t] == k and angle[t] == c))]
+    return plans, steps, weights
+
+
 class _Packer:
     """Appends arrays to the flat F and I of :class:`reduced.kernels.physics.Model`."""
 
@@ -154,6 +187,8 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.KNOT_START] = P.int(np.cumsum([0] + [len(s[0]) for s in splines]))
     h[physics.COEF_START] = P.int(np.cumsum([0] + [len(s[1]) for s in splines]))
     h[physics.SPLINE_DEGREE] = P.int([s[2] for s in splines])
+    plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear))
+    h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
     for k, (offset, w, row, mag, angle) in enumerate(tables):
         tb = physics.TABLES + physics.TABLE_ENTRIES * k
         h[tb], h[tb + 1] = len(offset), len(row)

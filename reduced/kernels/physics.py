@@ -61,10 +61,14 @@ HYSTERESIS = 0.5
 N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
 (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
  SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
+# Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
+# step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
+# (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b) per step (4 floats).
+DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
 # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
 # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
 LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
-TABLES = 24
+TABLES = 27
 TABLE_ENTRIES = 7
 HEADER = TABLES + 4 * TABLE_ENTRIES
 
@@ -303,7 +307,8 @@ def table_rates(F, I, table, x, trig, K, L, with_l, out):
 
 @njit(cache=True, error_model="numpy")
 def constraints(F, I, x, trig, A, res):
-    """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows)."""
+    """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows).
+    Returns the sum of the magnitudes of Φ's terms (m or rad): its round-off scale."""
     n = I[N]
     tb = TABLES + TABLE_ENTRIES * LOOPS
     nl = 2 * I[tb]
@@ -311,12 +316,15 @@ def constraints(F, I, x, trig, A, res):
         for c in range(n):
             A[r, c] = 0.0
     off = I[tb + 2]
+    scale = 0.0
     for r in range(nl):
         res[r] = F[off + r]
+        scale += abs(F[off + r])
     for t in range(I[tb + 1]):
         k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
         res[2 * k] += m * ux
         res[2 * k + 1] += m * uy
+        scale += abs(m) * (abs(ux) + abs(uy))
         if a >= 0:
             A[2 * k, a] -= m * uy
             A[2 * k + 1, a] += m * ux
@@ -329,7 +337,78 @@ def constraints(F, I, x, trig, A, res):
         for c in range(n):
             A[nl + r, c] = F[lin + r * n + c]
             v += F[lin + r * n + c] * x[c]
+            scale += abs(F[lin + r * n + c] * x[c])
         res[nl + r] = v
+    return scale
+
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+# cos ψ beyond ±1 by round-off is a flat dyad (the circles touch), beyond this no assembly.
+DYAD_ROUND_OFF = 1e-12
+# A closed-form configuration is taken as it is when every residual is within this many ε of
+# the loop's size (the sum of its terms' magnitudes): near a flat dyad acos loses digits (ψ to
+# ~1e-8), and the residual, though ≤ NEWTON_TOL, would leave x off by NEWTON_TOL / σ_min(Φ_x);
+# there Newton polishes it as it polishes its own iterates.
+CLOSED_FORM_RESIDUAL = 64 * 2.220446049250313e-16
+# The closed form gives each angle modulo 2π; the turn is the predictor's. Beyond this predicted
+# motion (rad) the predictor cannot tell the turn (a walk back over a whole piece: hundreds of
+# rad), and the configuration is left to Newton's method and the walk's halving, which follow it.
+CLOSED_FORM_REACH = 0.5
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nearest(angle, target):
+    """angle + 2πk closest to target (rad)."""
+    return target + (angle - target) - 2.0 * math.pi * math.floor((angle - target) / (2.0 * math.pi) + 0.5)
+
+
+@njit(cache=True, error_model="numpy")
+def _dyads(F, I, first, x, base):
+    """The dependent angles of x by closed form, loop after loop of the plan that starts at step
+    ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
+    the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
+
+        R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
+
+    two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
+    (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
+    ``base`` (n,) is taken: the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart
+    (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b follows from
+    R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the predictor's).
+    Returns False where the circles do not meet (no closed loop)."""
+    tb = TABLES + TABLE_ENTRIES * LOOPS
+    n_loops = I[tb]
+    for step in range(first, first + n_loops):
+        k, a, b = I[I[DYAD_STEPS] + 3 * step], I[I[DYAD_STEPS] + 3 * step + 1], I[I[DYAD_STEPS] + 3 * step + 2]
+        w = I[DYAD_W] + 4 * step
+        wax, way, wbx, wby = F[w], F[w + 1], F[w + 2], F[w + 3]
+        dx, dy = -F[I[tb + 2] + 2 * k], -F[I[tb + 2] + 2 * k + 1]
+        for t in range(I[tb + 1]):
+            g = I[I[tb + 6] + t]
+            if I[I[tb + 4] + t] != k or g == a or g == b:
+                continue
+            ux, uy = F[I[tb + 3] + 2 * t], F[I[tb + 3] + 2 * t + 1]
+            if g >= 0:
+                c, sn = math.cos(x[g]), math.sin(x[g])
+                ux, uy = ux * c - uy * sn, ux * sn + uy * c
+            dx -= ux
+            dy -= uy
+        d2 = dx * dx + dy * dy
+        ra2 = wax * wax + way * way
+        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * math.sqrt(d2 * ra2))
+        if not abs(cos_psi) <= 1.0 + DYAD_ROUND_OFF:
+            return False
+        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross product
+        ca, sa, cb, sb = math.cos(base[a]), math.sin(base[a]), math.cos(base[b]), math.sin(base[b])
+        last = (wax * ca - way * sa) * (wbx * sb + wby * cb) - (wax * sa + way * ca) * (wbx * cb - wby * sb)
+        psi = math.acos(min(max(cos_psi, -1.0), 1.0))  # a flat dyad, to round-off: Newton polishes it
+        theta_a = _nearest(math.atan2(dy, dx) - math.atan2(way, wax) + (psi if last < 0.0 else -psi), x[a])
+        c, sn = math.cos(theta_a), math.sin(theta_a)
+        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)
+        x[b] = _nearest(math.atan2(qy, qx) - math.atan2(wby, wbx), x[b])
+        x[a] = theta_a
+    return True
 
 
 # -- one configuration of a chart --------------------------------------------------------
@@ -401,9 +480,16 @@ def _close(F, I, S, W, base, value, out):
     det = 0.0
     converged = False
     factored = False  # at the polished x
+    reach = 0.0  # the predicted motion of the dependent coordinates
+    for j in range(n):
+        reach = max(reach, abs(base[1, j] * delta))
+    plan = I[I[DYAD_PLAN] + i]
+    closed = plan >= 0 and reach <= CLOSED_FORM_REACH  # x by closed form: taken as it is if it closes the loops
+    if closed and not _dyads(F, I, plan, x, base[0]):
+        return 1
     for _ in range(NEWTON_MAX_ITER + 1):
         angle_trig(I, x, trig)
-        constraints(F, I, x, trig, A, res)
+        scale = constraints(F, I, x, trig, A, res)
         largest = 0.0
         for r in range(n - 1):
             if not math.isfinite(res[r]):
@@ -420,9 +506,10 @@ def _close(F, I, S, W, base, value, out):
         det = lu_factor(A, piv)
         if det == 0.0 or not math.isfinite(det):
             return 1
-        if converged:
+        if converged or (closed and largest <= CLOSED_FORM_RESIDUAL * scale):
             factored = True
             break
+        closed = False  # not closed to round-off: Newton from there
         lu_solve(A, piv, res)
         for j in range(n):
             x[j] -= res[j]
