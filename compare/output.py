@@ -292,23 +292,18 @@ def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, wor
         for name in names:
             files[name](content / name)
         return
-    from .pool import ignore_interrupts
+    from .pool import worker_pool
 
     _STAGED = (files, content)
-    pool = multiprocessing.get_context("fork").Pool(workers - 1, initializer=ignore_interrupts)
     try:
-        theirs = pool.map_async(_write_staged, names[1::2], chunksize=1)
-        for name in names[0::2]:
-            files[name](content / name)
-        for error in theirs.get():
-            if error is not None:
-                raise error
-        pool.close()
-    except BaseException:
-        pool.terminate()
-        raise
+        with worker_pool(workers - 1, start_method="fork") as pool:
+            theirs = pool.map_async(_write_staged, names[1::2], chunksize=1)
+            for name in names[0::2]:
+                files[name](content / name)
+            for error in theirs.get():
+                if error is not None:
+                    raise error
     finally:
-        pool.join()
         _STAGED = None
 
 

@@ -1,8 +1,9 @@
-"""Process pools of the studies (``xval cost``, ``xval sweep``): results in submission order,
-the workers ended with the parent."""
+"""Process pools of the studies (``xval cost``, ``xval sweep``) and of a run's files
+(``compare.output.write_folder``): the workers ended with the parent."""
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any, Callable, Iterable, Iterator
 
 
@@ -15,19 +16,28 @@ def ignore_interrupts() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def ordered_map(func: Callable[[Any], Any], items: Iterable[Any], workers: int,
-                initializer: Callable[..., None] = ignore_interrupts, initargs: tuple = ()) -> Iterator[Any]:
-    """func(item) for every item, computed by ``workers`` processes, yielded in the items' order
-    as they complete. An exception in the parent (Ctrl-C, SIGTERM raised as an exception, the
-    consumer closing the generator) ends the workers."""
+@contextlib.contextmanager
+def worker_pool(workers: int, initializer: Callable[..., None] = ignore_interrupts, initargs: tuple = (),
+                start_method: str | None = None) -> Iterator[Any]:
+    """A ``multiprocessing.Pool`` of ``workers`` processes (``start_method``: "fork", ... or the
+    platform's default) for the block: closed and joined when the block ends, terminated when it
+    raises (Ctrl-C, SIGTERM raised as an exception, a consumer closing a generator)."""
     import multiprocessing
 
-    pool = multiprocessing.Pool(workers, initializer=initializer, initargs=initargs)
+    pool = multiprocessing.get_context(start_method).Pool(workers, initializer=initializer, initargs=initargs)
     try:
-        yield from pool.imap(func, items)
+        yield pool
         pool.close()
     except BaseException:
         pool.terminate()
         raise
     finally:
         pool.join()
+
+
+def ordered_map(func: Callable[[Any], Any], items: Iterable[Any], workers: int,
+                initializer: Callable[..., None] = ignore_interrupts, initargs: tuple = ()) -> Iterator[Any]:
+    """func(item) for every item, computed by ``workers`` processes, yielded in the items' order
+    as they complete. An exception in the parent ends the workers."""
+    with worker_pool(workers, initializer, initargs) as pool:
+        yield from pool.imap(func, items)
