@@ -169,6 +169,9 @@ class PartitionedSolution:
     n_evaluations: int
     method: str
     settings: dict = field(default_factory=dict)
+    # per segment, the coefficient fields (m, N_FIELDS) at its samples where the integrator
+    # recorded them (the compiled runs), else None (the energy audit walks the chart for them)
+    sample_fields: tuple[np.ndarray, ...] | None = None
 
 
 def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
@@ -304,20 +307,28 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 
-def _solution(model: MechanismModel, segments, switches) -> PartitionedSolution:
-    input_traj, joints = _assemble_outputs(model, segments)
+def _solution(model: MechanismModel, segments, switches, observed=None) -> PartitionedSolution:
+    """``observed``: per segment, what the compiled run recorded at its samples
+    (:func:`reduced.kernels.physics.observe`), or None to walk each chart to its samples."""
+    n = len(model.coordinate_names)
+    if observed is None:
+        observed = [None] * len(segments)
+    recorded = [(o[:, :physics.N_FIELDS], o[:, physics.N_FIELDS:].reshape(-1, 3, n)) if o is not None else
+                chart.walk(solution.trajectory.q) for (chart, solution), o in zip(segments, observed)]
+    input_traj, joints = _assemble_outputs(model, segments, recorded)
     first = segments[0][1]
     return PartitionedSolution(
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
-        method=first.method, settings=first.settings)
+        method=first.method, settings=first.settings,
+        sample_fields=tuple(f for f, _ in recorded) if observed[0] is not None else None)
 
 
 def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -> PartitionedSolution:
     """A :class:`PartitionedSolution` from the arrays of a compiled partitioned run
     (t, value, rate, accel, segment, coordinates, starts (segments, 3, n), switches (s, 5),
-    n_steps, n_evaluations)."""
-    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval = run
+    n_steps, n_evaluations, observed (samples, observation_size))."""
+    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval, observed = run
     segments = []
     cuts = np.flatnonzero(np.diff(segment)) + 1
     for k, rows in enumerate(np.split(np.arange(len(t)), cuts)):
@@ -329,19 +340,19 @@ def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -
     names = model.coordinate_names
     switches = [Switch(float(r[0]), names[int(r[1])], names[int(r[2])], float(r[3]), float(r[4]))
                 for r in switch_rows]
-    return _solution(model, segments, switches)
+    return _solution(model, segments, switches, np.split(observed, cuts))
 
 
-def _assemble_outputs(model: MechanismModel, segments) -> tuple[Trajectory, JointTrajectory]:
-    """The input's trajectory and all joint coordinates, from every chart's samples.
+def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajectory, JointTrajectory]:
+    """The input's trajectory and all joint coordinates, from every chart's samples and the
+    fields (m, N_FIELDS) and kinematics (m, 3, n) at them (``recorded``, per segment).
 
     q = drive·x, q̇ = (drive·K) ẋ_i, q̈ = (drive·L) ẋ_i² + (drive·K) ẍ_i (K, L w.r.t. the
     chart's coordinate x_i).
     """
     ts, vs, accs, xs, xdots, coords = [], [], [], [], [], []
-    for chart, solution in segments:
+    for (chart, solution), (fields, kin) in zip(segments, recorded):
         tr = solution.trajectory
-        fields, kin = chart.walk(tr.q)
         k_q, l_q = fields[:, physics.INPUT_RATE], fields[:, physics.INPUT_CURVATURE]
         ts.append(tr.t)
         vs.append(k_q * tr.qdot)

@@ -31,7 +31,7 @@ from numba import njit
 from . import dop853_tableau as _coef
 
 from ..integrators import RESTART_STEPS as _RESTART_STEPS
-from .problem import acceleration, stop_margin
+from .problem import acceleration, observation_size, observe, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
 OK = 0          #: the run reached the end of the last piece, or the stop event ended it
@@ -81,6 +81,7 @@ class RunResult(NamedTuple):
     t_reached: float       # the last time integrated (the event's root if stopped)
     fail_time: float       # where a failure happened (nan if OK)
     fail_value: float      # q̇ for SPEED, else nan
+    observed: np.ndarray   # what the problem observed at each sample (m, observation_size)
 
 
 # ---- helpers --------------------------------------------------------------------------------
@@ -245,6 +246,15 @@ def _grow1(a, n):
     b = np.empty(2 * a.shape[0])
     for i in range(n):  # explicit loops: a slice assignment costs seconds of compile time
         b[i] = a[i]
+    return b
+
+
+@njit(cache=True, inline="always")
+def _grow_rows(a, n):
+    b = np.empty((2 * a.shape[0], a.shape[1]))
+    for i in range(n):
+        for c in range(a.shape[1]):
+            b[i, c] = a[i, c]
     return b
 
 
@@ -463,7 +473,8 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, resta
 
 @njit(cache=True)
 def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interval, per_step):
-    """xval's dense_samples on one piece: sorted unique times, states (2, m) and q̈."""
+    """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈ and what the
+    problem observes at each (m, observation_size)."""
     end = st[n]
     m_grid = max(2, int(math.ceil((end - start) / sample_interval)) + 1)
     n_inner = per_step - 1 if per_step > 1 else 0
@@ -530,9 +541,11 @@ def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interva
         q[i] = sy[j, 0]
         v[i] = sy[j, 1]
     acc = np.empty(m)
+    obs = np.empty((m, observation_size(problem)))
     for i in range(m):
         acc[i] = acceleration(problem, chart, load, times[i], q[i], v[i])
-    return times, q, v, acc
+        observe(problem, chart, obs[i])
+    return times, q, v, acc, obs
 
 
 @njit(cache=True)
@@ -556,7 +569,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     Returns
     -------
     (status, t, q, v, a, n_steps, n_evaluations, n_sample_evaluations, stopped, t_reached,
-    fail_time, fail_value): see :class:`RunResult`. On a failure, the samples of the pieces
+    fail_time, fail_value, observed): see :class:`RunResult`. On a failure, the samples of the pieces
     completed before it.
     """
     cap = 256
@@ -564,6 +577,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     oq = np.empty(cap)
     ov = np.empty(cap)
     oa = np.empty(cap)
+    oo = np.empty((cap, observation_size(problem)))
     no = 0
     st = np.empty(64)
     sh = np.empty(64)
@@ -600,8 +614,8 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         if status != OK:
             stopped = False
             break
-        times, qs, vs, acc = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
-                                           sample_interval, per_step)
+        times, qs, vs, acc, obs = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
+                                                sample_interval, per_step)
         m = times.shape[0]
         n_samp += m
         for i in range(m):
@@ -624,11 +638,14 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
             oq = _grow1(oq, no)
             ov = _grow1(ov, no)
             oa = _grow1(oa, no)
+            oo = _grow_rows(oo, no)
         for i in range(m):
             ot[no + i] = times[i]
             oq[no + i] = qs[i]
             ov[no + i] = vs[i]
             oa[no + i] = acc[i]
+            for c in range(obs.shape[1]):
+                oo[no + i, c] = obs[i, c]
         no += m
         q = sy[n, 0]
         v = sy[n, 1]
@@ -639,7 +656,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         for i in range(_pymax(n - RESTART_STEPS, 0), n):
             previous_step = _pymax(previous_step, sh[i])
     return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
-            t_reached, fail_time, fail_value)
+            t_reached, fail_time, fail_value, oo[:no])
 
 
 def run(problem, chart, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None,

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .problem import acceleration, stop_margin
+from .problem import acceleration, observation_size, observe, stop_margin
 
 # statuses (shared with the Python wrapper, reduced.integrators)
 OK, NONFINITE, SPEED, UNSTABLE, FAILED = 0, 2, 3, 4, 5
@@ -75,8 +75,9 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
     """Integrate one chart from t0 to edges[-1]; the load history is loads[k] on
     [edges[k], edges[k+1]] (pieces before t0 are skipped, the one holding t0 starts there).
 
-    Returns (status, stopped, t, q, v, a, n_steps, n_evaluations): the samples (each piece's
-    first sample repeats the previous piece's last time, with q̈ on the new side); stopped
+    Returns (status, stopped, t, q, v, a, observed, n_steps, n_evaluations): the samples (each
+    piece's first sample repeats the previous piece's last time, with q̈ on the new side) and
+    what ``observe`` recorded at each (m, observation_size); stopped
     when stop_margin fell to ≤ 0 after a step (the run ends at that step). On failure,
     info[0] is the time.
     """
@@ -93,16 +94,17 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
     qs = np.empty(total)
     vs = np.empty(total)
     accs = np.empty(total)
+    obs = np.empty((total, observation_size(problem)))
     n_samples = 0
     n_steps = 0
     n_eval = 0
     q, v = q0, v0
     if not (math.isfinite(q) and math.isfinite(v)):
         info[0] = t0
-        return NONFINITE, False, ts[:0], qs[:0], vs[:0], accs[:0], 0, 0
+        return NONFINITE, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], 0, 0
     if abs(v) > speed_limit:
         info[0], info[1] = t0, v
-        return SPEED, False, ts[:0], qs[:0], vs[:0], accs[:0], 0, 0
+        return SPEED, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], 0, 0
     for k in range(first, len(loads)):
         start = max(edges[k], t0)
         end = edges[k + 1]
@@ -115,8 +117,10 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
         n_eval += 1
         if not math.isfinite(accel):
             info[0] = start
-            return FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples], n_steps, n_eval
+            return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
+                    obs[:n_samples], n_steps, n_eval)
         ts[n_samples], qs[n_samples], vs[n_samples], accs[n_samples] = start, q, v, accel
+        observe(problem, chart, obs[n_samples])
         n_samples += 1
         for m in range(n):
             t = start + m * h
@@ -126,7 +130,7 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
                 if status != OK:
                     info[0] = t
                     return (status, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                            n_steps, n_eval)
+                            obs[:n_samples], n_steps, n_eval)
             k1 = accel
             qh = q + 0.5 * h * v + h * h * k1 / 8.0
             k2 = acceleration(problem, chart, load, t + 0.5 * h, qh, v + 0.5 * h * k1)
@@ -135,28 +139,30 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
             if not (math.isfinite(k2) and math.isfinite(k3) and math.isfinite(k4)):
                 info[0] = t
                 return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        n_steps, n_eval)
+                        obs[:n_samples], n_steps, n_eval)
             q, v = (q + h * v + h * h * (k1 + k2 + k3) / 6.0,
                     v + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0)
             t_next = end if m + 1 == n else start + (m + 1) * h
             if not (math.isfinite(q) and math.isfinite(v)):
                 info[0] = t_next
                 return (NONFINITE, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        n_steps, n_eval)
+                        obs[:n_samples], n_steps, n_eval)
             if abs(v) > speed_limit:
                 info[0], info[1] = t_next, v
                 return (SPEED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        n_steps, n_eval)
+                        obs[:n_samples], n_steps, n_eval)
             accel = acceleration(problem, chart, load, t_next, q, v)  # also the next step's k1
             n_eval += 4
             n_steps += 1
             if not math.isfinite(accel):
                 info[0] = t_next
                 return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        n_steps, n_eval)
+                        obs[:n_samples], n_steps, n_eval)
             ts[n_samples], qs[n_samples], vs[n_samples], accs[n_samples] = t_next, q, v, accel
+            observe(problem, chart, obs[n_samples])
             n_samples += 1
             if use_stop and stop_margin(problem, chart, t_next, q, v) <= 0.0:
                 return (OK, True, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        n_steps, n_eval)
-    return OK, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples], n_steps, n_eval
+                        obs[:n_samples], n_steps, n_eval)
+    return (OK, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples], obs[:n_samples],
+            n_steps, n_eval)

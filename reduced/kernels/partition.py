@@ -7,9 +7,10 @@ from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old c
 with either integrator: :func:`run_rkn4` (fixed step) or :func:`run_dop853` (adaptive).
 
 Both return (status, info, t, value, rate, accel, segment, coordinate, starts, switches,
-n_steps, n_evaluations): the samples of each chart's coordinate, the segment (chart number) of
-each sample, each segment's coordinate and start configuration (segments, 3, n), each switch as
-(time, old, new, c_old, c_new). info[0] is the time of a failure, info[1] its value.
+n_steps, n_evaluations, observed): the samples of each chart's coordinate, the segment (chart
+number) of each sample, each segment's coordinate and start configuration (segments, 3, n), each
+switch as (time, old, new, c_old, c_new), and the chart's fields, x, K and L at every sample
+(:func:`.physics.observe`). info[0] is the time of a failure, info[1] its value.
 """
 
 from __future__ import annotations
@@ -34,6 +35,18 @@ def _concatenate(parts, total):
     for p in parts:
         for j in range(p.shape[0]):
             out[k + j] = p[j]
+        k += p.shape[0]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _concatenate_rows(parts, total, width):
+    out = np.empty((total, width))
+    k = 0
+    for p in parts:
+        for j in range(p.shape[0]):
+            for c in range(width):
+                out[k + j, c] = p[j, c]
         k += p.shape[0]
     return out
 
@@ -89,7 +102,7 @@ def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_inter
         if attempt > 0:
             physics.reset(model, chart)
         (status, ts, qs, vs, accs, steps, evals, sample_evals, stopped, t_reached, fail_time,
-         fail_value) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
+         fail_value, observed) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
                                            sample_interval, per_step, speed_limit, max_evaluations, cap, True)
         singular = status == NONFINITE and chart[0][physics.STATUS] == physics.SINGULAR
         if not singular:
@@ -98,7 +111,7 @@ def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_inter
         info[0], info[1] = fail_time, fail_value
         if singular:
             status = FAILED
-    return status, stopped, ts, qs, vs, accs, steps, evals  # as scipy counts: not the samples
+    return status, stopped, ts, qs, vs, accs, observed, steps, evals  # as scipy counts: not the samples
 
 
 @njit(cache=True, error_model="numpy")
@@ -108,12 +121,15 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
     info = np.zeros(8)
     t_parts, q_parts, v_parts, a_parts, seg_parts = [np.empty(0)], [np.empty(0)], [np.empty(0)], [np.empty(0)], \
         [np.empty(0)]
+    width = physics.observation_size(model)
+    o_parts = [np.empty((0, width))]
     coordinates = [independent]
     starts = [np.empty((3, n))]
     switches = [np.zeros(5)]
     if not physics.start_chart(model, chart, x0, independent):
         return (SINGULAR_START, info, np.empty(0), np.empty(0), np.empty(0), np.empty(0),
-                np.zeros(0, np.int64), np.zeros(0, np.int64), np.empty((0, 3, n)), np.empty((0, 5)), 0, 0)
+                np.zeros(0, np.int64), np.zeros(0, np.int64), np.empty((0, 3, n)), np.empty((0, 5)), 0, 0,
+                np.empty((0, width)))
     starts[0] = physics._views(model[1], chart[1])[1].copy()
     t, value, rate = edges[0], x0[independent], rate0
     total = 0
@@ -121,11 +137,11 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
     status = OK
     while True:
         if adaptive_method:
-            status, stopped, ts, qs, vs, accs, steps, evals = _dop853_chart(
+            status, stopped, ts, qs, vs, accs, observed, steps, evals = _dop853_chart(
                 model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
                 max_evaluations - n_eval, retry_caps, info)
         else:
-            status, stopped, ts, qs, vs, accs, steps, evals = rkn4_chart(
+            status, stopped, ts, qs, vs, accs, observed, steps, evals = rkn4_chart(
                 model, chart, edges, loads, t, value, rate, step, speed_limit, stability, True, info)
         n_steps += steps
         n_eval += evals
@@ -133,6 +149,7 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
         q_parts.append(qs)
         v_parts.append(vs)
         a_parts.append(accs)
+        o_parts.append(observed)
         seg_parts.append(np.full(ts.shape[0], float(len(coordinates) - 1)))
         total += ts.shape[0]
         if status != OK or not stopped or ts[-1] >= edges[-1]:
@@ -161,7 +178,7 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
     return (status, info, _concatenate(t_parts, total), _concatenate(q_parts, total),
             _concatenate(v_parts, total), _concatenate(a_parts, total),
             _concatenate(seg_parts, total).astype(np.int64), np.array(coordinates, dtype=np.int64), out_starts,
-            out_switches, n_steps, n_eval)
+            out_switches, n_steps, n_eval, _concatenate_rows(o_parts, total, width))
 
 
 def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_limit, stability, max_switches):

@@ -691,6 +691,27 @@ def acceleration(model, chart, load, t, value, rate):
 
 
 @njit(cache=True, error_model="numpy")
+def observation_size(model):
+    """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + 3 n)."""
+    return N_FIELDS + 3 * model[1][N]
+
+
+@njit(cache=True, error_model="numpy")
+def observe(model, chart, out):
+    """The chart's configuration last evaluated, into ``out`` (:func:`observation_size`,): its
+    coefficient fields, then x, K and L (n each) — what the outputs and the energy audit need
+    at a sample, recorded where the integrator evaluated it instead of walked to again."""
+    views = _views(model[1], chart[1])
+    fields, kin = views[4], views[3]
+    n = model[1][N]
+    for k in range(N_FIELDS):
+        out[k] = fields[k]
+    for r in range(3):
+        for j in range(n):
+            out[N_FIELDS + r * n + j] = kin[r, j]
+
+
+@njit(cache=True, error_model="numpy")
 def stop_margin(model, chart, t, value, rate):
     """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
     than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
