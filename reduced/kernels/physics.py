@@ -12,9 +12,10 @@ With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
     ∂r/∂x[angle] = m u⊥,  ∂r/∂x[mag] = u,
     K_r = ṁ u + m θ̇ u⊥,  L_r = m̈ u + (2 ṁ θ̇ + m θ̈) u⊥ − m θ̇² u     (ṁ = K[mag], θ̇ = K[angle], …)
 
-A chart integrates in one coordinate x_i. Its configuration at x_i = value is found by
-Newton's method on A = [Φ_x; e_i] from the quadratic predictor x + K Δ + ½ L Δ² of the
-chart's last configuration; K = dx/dx_i and L = d²x/dx_i² solve
+A chart integrates in one coordinate x_i. Its configuration at x_i = value is found in closed
+form where the chart's loops are RRR dyads (:func:`_dyads`), else by Newton's method on
+A = [Φ_x; e_i] from the quadratic predictor x + K Δ + ½ L Δ² of the chart's last configuration;
+K = dx/dx_i and L = d²x/dx_i² solve
 
     A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
 
