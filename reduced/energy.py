@@ -29,14 +29,11 @@ def _fields(chart, values: np.ndarray, *names: int) -> tuple[np.ndarray, ...]:
     return tuple(fields[:, k] for k in names)
 
 
-def _chart_audit(model: MechanismModel, chart, trajectory, fields: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+def _chart_audit(model: MechanismModel, chart, trajectory, fields: np.ndarray) -> tuple[np.ndarray, ...]:
     """Kinetic, potential, work (load and point forces) and dissipation increments of one
-    chart's samples (``fields`` (m, N_FIELDS) at them when the run recorded them)."""
-    t, x, v = trajectory.t, trajectory.q, trajectory.qdot
-    if fields is None:
-        inertia, potential = _fields(chart, x, physics.INERTIA, physics.POTENTIAL)
-    else:
-        inertia, potential = fields[:, physics.INERTIA], fields[:, physics.POTENTIAL]
+    chart's samples (``fields`` (m, N_FIELDS) at them)."""
+    t, v = trajectory.t, trajectory.qdot
+    inertia, potential = fields[:, physics.INERTIA], fields[:, physics.POTENTIAL]
     kinetic = 0.5 * inertia * v * v
 
     h = np.diff(t)
@@ -57,11 +54,12 @@ def _chart_audit(model: MechanismModel, chart, trajectory, fields: np.ndarray | 
     return t, kinetic, potential, torque_step, damper_step
 
 
-def energy_audit(model: MechanismModel, segments, sample_fields=None) -> EnergyAudit:
+def energy_audit(model: MechanismModel, segments, sample_fields) -> EnergyAudit:
     """The energy balance of a run given as (chart, solution) segments, on its sample times
-    (``sample_fields``: per segment, the fields the run recorded at its samples, or None)."""
-    fields = sample_fields if sample_fields is not None else [None] * len(segments)
-    parts = [_chart_audit(model, chart, solution.trajectory, f) for (chart, solution), f in zip(segments, fields)]
+    (``sample_fields``: per segment, the coefficient fields at its samples,
+    :attr:`reduced.partition.PartitionedSolution.sample_fields`)."""
+    parts = [_chart_audit(model, chart, solution.trajectory, fields)
+             for (chart, solution), fields in zip(segments, sample_fields)]
     t = np.concatenate([p[0] for p in parts])
     kinetic = np.concatenate([p[1] for p in parts])
     potential = np.concatenate([p[2] for p in parts])

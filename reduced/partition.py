@@ -167,11 +167,11 @@ class PartitionedSolution:
     joints: JointTrajectory
     n_steps: int
     n_evaluations: int
+    # per segment, the coefficient fields (m, N_FIELDS) at its samples: recorded by the compiled
+    # runs, walked to for the others (the outputs and the energy audit both use them)
+    sample_fields: tuple[np.ndarray, ...]
     method: str
     settings: dict = field(default_factory=dict)
-    # per segment, the coefficient fields (m, N_FIELDS) at its samples where the integrator
-    # recorded them (the compiled runs), else None (the energy audit walks the chart for them)
-    sample_fields: tuple[np.ndarray, ...] | None = None
 
 
 def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
@@ -320,8 +320,7 @@ def _solution(model: MechanismModel, segments, switches, observed=None) -> Parti
     return PartitionedSolution(
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
-        method=first.method, settings=first.settings,
-        sample_fields=tuple(f for f, _ in recorded) if observed[0] is not None else None)
+        sample_fields=tuple(f for f, _ in recorded), method=first.method, settings=first.settings)
 
 
 def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -> PartitionedSolution:
