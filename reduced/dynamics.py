@@ -100,30 +100,31 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
     loops), or none (a slider's length, a linear row, a loop of more unknowns: Newton alone).
     Returns the first step of each plan (−1: none), the steps (loop, a, b) and their (W_a, W_b)."""
     offset, w, row, mag, angle = loop_table
-    loops_ = range(len(offset))
+    # per loop of fixed-length terms: W_c = Σ w_t over its terms turning with angle c
+    # (R(θ_c) W_c is their sum); loops with a slider's length take no part
+    turning: dict[int, dict[int, np.ndarray]] = {}
+    for k in range(len(offset)):
+        terms = np.flatnonzero(row == k)
+        if np.all(mag[terms] < 0):
+            turning[k] = {int(c): w[terms[angle[terms] == c]].sum(axis=0) for c in set(angle[terms]) if c >= 0}
     plans, steps, weights = [], [], []
     for i in range(n):
         known, order = {i}, []
-        while n_linear == 0 and len(order) < len(loops_):
-            for k in loops_:
-                terms = [t for t in range(len(row)) if row[t] == k]
-                unknown = sorted({int(angle[t]) for t in terms if angle[t] >= 0} - known)
-                if k not in [o[0] for o in order] and len(unknown) == 2 and all(mag[t] < 0 for t in terms):
-                    order.append((k, *unknown))
-                    known.update(unknown)
-                    break
-            else:
+        while n_linear == 0 and len(order) < len(offset):
+            ready = [(k, *sorted(set(W) - known)) for k, W in turning.items()
+                     if k not in {o[0] for o in order} and len(set(W) - known) == 2]
+            if not ready:
                 break
-        if len(order) != len(loops_) or known != set(range(n)):
+            order.append(ready[0])
+            known.update(ready[0][1:])
+        if len(order) != len(offset) or known != set(range(n)):
             plans.append(-1)
             continue
         plans.append(len(steps) // 3)
         for k, a, b in order:
             steps += [k, a, b]
-            for c in (a, b):
-                weights += [float(sum(w[t][0] for t in range(len(row)) if row[t] == k and angle[t] == c)),
-                            float(sum(w[t][1] for t in range(len(row)) if row[t] == k and angle[t] == c))]
-    return plans, steps, weights
+            weights += [*turning[k][a], *turning[k][b]]
+    return plans, steps, [float(v) for v in weights]
 
 
 class _Packer:
