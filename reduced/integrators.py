@@ -36,11 +36,25 @@ def _rms(x0: float, x1: float) -> float:
     return math.sqrt(x0 * x0 + x1 * x1) / math.sqrt(2.0)
 
 
-def restart_step(fun, t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, max_step: float, order: int,
-                 rtol: float, atol: float, previous_times: np.ndarray) -> float:
-    """The first step (s) of a piece after a load edge: select_initial_step (scipy's common.py,
-    one more evaluation of ``fun``), at most the largest of the previous piece's last
-    RESTART_STEPS steps (``previous_times``: its step times)."""
+def restart(fun, t0: float, y0: np.ndarray, t_bound: float, max_step: float, order: int, rtol: float,
+            atol: float, previous_times: np.ndarray):
+    """A piece after a load edge: its first step (s) and the function to hand solve_ivp.
+
+    The step is select_initial_step's (scipy's common.py: ``fun`` at (t0, y0) and at one probe),
+    at most the largest of the previous piece's last RESTART_STEPS steps (``previous_times``: its
+    step times). The function is ``fun`` but for its first call at (t0, y0), solve_ivp's own
+    evaluation of f0, which returns the f0 already computed: the probe has moved the chart on
+    since, and Newton from there would close it in other last bits.
+
+    Returns (first_step, fun for solve_ivp)."""
+    f0 = fun(t0, y0)
+    pending = [(t0, np.array(y0, dtype=float), f0)]
+
+    def primed(t, state):
+        if pending and t == pending[0][0] and np.array_equal(state, pending[0][1]):
+            return pending.pop()[2].copy()
+        return fun(t, state)
+
     interval = abs(t_bound - t0)
     s0, s1 = atol + abs(y0[0]) * rtol, atol + abs(y0[1]) * rtol
     d0 = _rms(y0[0] / s0, y0[1] / s1)
@@ -52,7 +66,7 @@ def restart_step(fun, t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float,
     h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / (order + 1))
     h = min(100 * h0, h1, interval, max_step)
     steps = np.diff(previous_times)[-RESTART_STEPS:]
-    return float(min(h, np.max(steps))) if steps.size else float(h)
+    return (float(min(h, np.max(steps))) if steps.size else float(h)), primed
 
 
 Acceleration = Callable[[float, float, float], float]
@@ -356,15 +370,10 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
     n_steps = n_eval = 0
     budget = [max_evaluations]
     previous_steps = np.empty(0)  # step times of the piece before (none before the first)
-    primed = []  # (t, state, value) of the evaluation solve_ivp starts a restarted piece with
     for start, end in pieces(*t_span, breakpoints):
         f = rhs_on_piece(start, end)
 
         def first_order(t, state, f=f):
-            if primed and t == primed[0][0] and np.array_equal(state, primed[0][1]):
-                # f0, already evaluated for the restart's first step: the chart has walked on to
-                # the probe since, and Newton from there would close it in other last bits
-                return primed.pop()[2].copy()
             budget[0] -= 1
             if budget[0] < 0:
                 raise NumericalFailure(
@@ -386,14 +395,12 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
             events = [event]
         try:
             with np.errstate(over="ignore", invalid="ignore"):
-                first_step = None
+                fun, first_step = first_order, None
                 if previous_steps.size and method in ESTIMATOR_ORDER and end > start:
-                    f0 = first_order(start, y)
-                    first_step = restart_step(first_order, start, y, f0, end, max_step,
-                                              ESTIMATOR_ORDER[method], rtol, atol, previous_steps)
-                    primed[:] = [(start, y.copy(), f0)]
+                    first_step, fun = restart(first_order, start, y, end, max_step, ESTIMATOR_ORDER[method],
+                                              rtol, atol, previous_steps)
                     n_eval += 1  # the probe; f0 is in solve_ivp's nfev
-                sol = solve_ivp(first_order, (start, end), y, method=method, rtol=rtol, atol=atol,
+                sol = solve_ivp(fun, (start, end), y, method=method, rtol=rtol, atol=atol,
                                 dense_output=True, events=events, max_step=max_step, first_step=first_step)
         except NumericalFailure:
             raise

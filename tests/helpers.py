@@ -144,3 +144,14 @@ def scipy_in_kernel_order():
     for module in (rk, common):
         stack.enter_context(mock.patch.object(module, "np", ordered))
     return stack
+
+
+def without_dyad_plans(model):
+    """``model``'s kernel arrays with every chart's dyad plan switched off: Newton's method alone
+    closes the loops (reduced.kernels.physics._close)."""
+    from reduced.kernels import physics
+
+    I = model.arrays.I.copy()
+    start = int(I[physics.DYAD_PLAN])
+    I[start:start + len(model.coordinate_names)] = -1
+    return physics.Model(model.arrays.F, I)

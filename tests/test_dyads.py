@@ -11,11 +11,10 @@ import pytest
 
 from reduced import MechanismModel, load_scene
 from reduced.kernels import physics
-from reduced.kernels.physics import Model
 from reduced.loops import assemble
 from reduced.partition import HYSTERESIS, conditioning
 
-from helpers import ROOT
+from helpers import ROOT, without_dyad_plans
 
 MECHANISMS = ROOT / "scenes" / "mechanisms"
 WITH_PLANS = ["seed_fourbar", "andrews_squeezer", "stephenson3_sixbar", "watt2_sixbar"]
@@ -38,14 +37,6 @@ def model(name: str) -> MechanismModel:
 def plans(m: MechanismModel) -> list[int]:
     I = m.arrays.I
     return [int(I[I[physics.DYAD_PLAN] + i]) for i in range(m.system.n)]
-
-
-def without_plans(m: MechanismModel) -> Model:
-    """The same model arrays with every chart's plan switched off (Newton alone)."""
-    I = m.arrays.I.copy()
-    start = int(I[physics.DYAD_PLAN])
-    I[start:start + m.system.n] = -1
-    return Model(m.arrays.F, I)
 
 
 def test_which_charts_close_in_closed_form():
@@ -89,7 +80,7 @@ def test_a_walk_in_closed_form_equals_newtons(name):
     x0 = m.x0.copy()
     values = x0[i] + np.linspace(0.0, 0.5, 200)
     runs = []
-    for arrays in (m.arrays, without_plans(m)):
+    for arrays in (m.arrays, without_dyad_plans(m)):
         chart = m.new_chart()
         assert physics.start_chart(arrays, chart, x0, i)
         fields = np.empty((len(values), physics.N_FIELDS))
