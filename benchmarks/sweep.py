@@ -294,7 +294,7 @@ def part1(path: Path, n: int) -> ReducedSettings:
         t2 = time.perf_counter()
         solution = integrate(model, settings)
         t3 = time.perf_counter()
-        energy_audit(model, solution.segments, solution.sample_fields)
+        energy_audit(model, solution)
         t4 = time.perf_counter()
         solution.trajectory.peak_angular_velocity()
         t5 = time.perf_counter()

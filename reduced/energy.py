@@ -2,13 +2,18 @@
 
 Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the input load and of the
 point forces ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit's ``torque_work``) and the damper
-dissipation ∫ Σ b K_D² ẋ_i² dt by 3-point Gauss-Legendre quadrature on each
-sample interval of the chart's quintic Hermite interpolant (exact for polynomials of
-degree 5). The adaptive runs sample every quarter solver step, so the quadrature adds far
-less than the integrator's own error: on every shipped scene the relative residual with
-3 points equals the 4-point one to the digits printed (2 points differ, 4.4e-11 against
-1.3e-11 on the seed); the nodes are the audit's main cost on long runs. A run that
-switched coordinates is audited chart by chart, each in its own coordinate.
+dissipation ∫ Σ b K_D² ẋ_i² dt.
+
+The compiled runs integrate the two power integrals alongside the state, with the
+integrator's own stages and weights (:func:`reduced.kernels.physics.power`): DOP853's
+order-8 quadrature and dense output, RKN4's order-4 weights of q̇. Nothing is evaluated
+again. scipy's runs (the independent cross-check) have no such by-product: their integrals
+are taken by 3-point Gauss-Legendre quadrature on each sample interval of the chart's quintic
+Hermite interpolant (exact for polynomials of degree 5; every quarter solver step is a
+sample, so the quadrature adds far less than the integrator's own error, and on every
+shipped scene 3 points give the 4-point residual to the digits printed). The tests check
+the two against each other. A run that switched coordinates is audited chart by chart, each
+in its own coordinate.
 """
 
 from __future__ import annotations
@@ -29,13 +34,10 @@ def _fields(chart, values: np.ndarray, *names: int) -> tuple[np.ndarray, ...]:
     return tuple(fields[:, k] for k in names)
 
 
-def _chart_audit(model: MechanismModel, chart, trajectory, fields: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Kinetic, potential, work (load and point forces) and dissipation increments of one
-    chart's samples (``fields`` (m, N_FIELDS) at them)."""
-    t, v = trajectory.t, trajectory.qdot
-    inertia, potential = fields[:, physics.INERTIA], fields[:, physics.POTENTIAL]
-    kinetic = 0.5 * inertia * v * v
-
+def quadrature_energy(model: MechanismModel, chart, trajectory) -> np.ndarray:
+    """The work done (load and point forces) and the energy dissipated since the chart's first
+    sample (m, 2), J, by Gauss-Legendre quadrature of the power over the samples' interpolant."""
+    t = trajectory.t
     h = np.diff(t)
     live = h > 0
     mid = 0.5 * (t[:-1] + t[1:])
@@ -51,21 +53,26 @@ def _chart_audit(model: MechanismModel, chart, trajectory, fields: np.ndarray) -
         generalized = generalized + point_force
     torque_step[live] = np.sum(w * (generalized * vn).reshape(-1, len(_NODES)), axis=1)
     damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, len(_NODES)), axis=1)
-    return t, kinetic, potential, torque_step, damper_step
+    energy = np.zeros((len(t), 2))
+    energy[1:, 0] = np.cumsum(torque_step)
+    energy[1:, 1] = np.cumsum(damper_step)
+    return energy
 
 
-def energy_audit(model: MechanismModel, segments, sample_fields) -> EnergyAudit:
-    """The energy balance of a run given as (chart, solution) segments, on its sample times
-    (``sample_fields``: per segment, the coefficient fields at its samples,
-    :attr:`reduced.partition.PartitionedSolution.sample_fields`)."""
-    parts = [_chart_audit(model, chart, solution.trajectory, fields)
-             for (chart, solution), fields in zip(segments, sample_fields)]
-    t = np.concatenate([p[0] for p in parts])
-    kinetic = np.concatenate([p[1] for p in parts])
-    potential = np.concatenate([p[2] for p in parts])
-    # Increments between consecutive samples; a chart's first sample follows the previous
-    # chart's last at the same instant, an increment of zero.
-    torque_inc = np.concatenate([np.concatenate([[0.0], p[3]]) for p in parts])
-    damper_inc = np.concatenate([np.concatenate([[0.0], p[4]]) for p in parts])
-    return EnergyAudit(t=t, kinetic=kinetic, potential=potential, torque_work=np.cumsum(torque_inc),
-                       damper_dissipation=np.cumsum(damper_inc))
+def energy_audit(model: MechanismModel, solution) -> EnergyAudit:
+    """The energy balance of a :class:`reduced.partition.PartitionedSolution` on its sample
+    times: its recorded fields, and its integrated energy flows (or, for scipy's runs, their
+    quadrature: :func:`quadrature_energy`)."""
+    energy = solution.sample_energy
+    if energy is None:
+        energy = [quadrature_energy(model, chart, s.trajectory) for chart, s in solution.segments]
+    t = np.concatenate([s.trajectory.t for _, s in solution.segments])
+    v = np.concatenate([s.trajectory.qdot for _, s in solution.segments])
+    fields = np.concatenate(solution.sample_fields)
+    kinetic = 0.5 * fields[:, physics.INERTIA] * v * v
+    # Each chart's flows start at zero; its first sample follows the previous chart's last at
+    # the same instant, so the charts' flows add up.
+    offset = np.cumsum([np.zeros(2)] + [e[-1] for e in energy[:-1]], axis=0)
+    flows = np.concatenate([e + o for e, o in zip(energy, offset)])
+    return EnergyAudit(t=t, kinetic=kinetic, potential=fields[:, physics.POTENTIAL], torque_work=flows[:, 0],
+                       damper_dissipation=flows[:, 1])

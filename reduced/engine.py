@@ -290,7 +290,7 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
                 f"{estimate.qdot_abs:.2e} {unit}/s in q̇ at speeds up to {estimate.qdot_scale:.4g} {unit}/s), above "
                 f"the tolerance rtol = {settings.rtol:g}: use a smaller step (`--step`, `[reduced] step`; about "
                 f"{settings.step * (settings.rtol / estimate.relative / 2) ** 0.25:.2g} s) or a looser rtol")
-    audit = energy_audit(model, solution.segments, solution.sample_fields)
+    audit = energy_audit(model, solution)
     bound = max(ENERGY_FACTOR[settings.method] * settings.rtol, ENERGY_FLOOR)
     scale = energy_scale(audit, solution)
     diagnostics["energy_bound"] = bound

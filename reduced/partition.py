@@ -170,6 +170,10 @@ class PartitionedSolution:
     # per segment, the coefficient fields (m, N_FIELDS) at its samples: recorded by the compiled
     # runs, walked to for the others (the outputs and the energy audit both use them)
     sample_fields: tuple[np.ndarray, ...]
+    # per segment, the work done and the energy dissipated since the chart's start (m, 2), J,
+    # integrated alongside the state by the compiled runs; None for scipy's (the energy audit
+    # then integrates the power over the samples' interpolant)
+    sample_energy: tuple[np.ndarray, ...] | None
     method: str
     settings: dict = field(default_factory=dict)
 
@@ -307,9 +311,10 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 
-def _solution(model: MechanismModel, segments, switches, observed=None) -> PartitionedSolution:
+def _solution(model: MechanismModel, segments, switches, observed=None, energy=None) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
-    (:func:`reduced.kernels.physics.observe`), or None to walk each chart to its samples."""
+    (:func:`reduced.kernels.physics.observe`), or None to walk each chart to its samples;
+    ``energy``: per segment, the energy flows the compiled run integrated (or None)."""
     n = len(model.coordinate_names)
     if observed is None:
         observed = [None] * len(segments)
@@ -320,14 +325,15 @@ def _solution(model: MechanismModel, segments, switches, observed=None) -> Parti
     return PartitionedSolution(
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
-        sample_fields=tuple(f for f, _ in recorded), method=first.method, settings=first.settings)
+        sample_fields=tuple(f for f, _ in recorded), sample_energy=None if energy is None else tuple(energy),
+        method=first.method, settings=first.settings)
 
 
 def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -> PartitionedSolution:
     """A :class:`PartitionedSolution` from the arrays of a compiled partitioned run
     (t, value, rate, accel, segment, coordinates, starts (segments, 3, n), switches (s, 5),
-    n_steps, n_evaluations, observed (samples, observation_size))."""
-    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval, observed = run
+    n_steps, n_evaluations, observed (samples, observation_size), energy (samples, 2))."""
+    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval, observed, energy = run
     segments = []
     cuts = np.flatnonzero(np.diff(segment)) + 1
     for k, rows in enumerate(np.split(np.arange(len(t)), cuts)):
@@ -339,7 +345,7 @@ def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -
     names = model.coordinate_names
     switches = [Switch(float(r[0]), names[int(r[1])], names[int(r[2])], float(r[3]), float(r[4]))
                 for r in switch_rows]
-    return _solution(model, segments, switches, np.split(observed, cuts))
+    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts))
 
 
 def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajectory, JointTrajectory]:

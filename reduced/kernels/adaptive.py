@@ -31,7 +31,7 @@ from numba import njit
 from . import dop853_tableau as _coef
 
 from ..integrators import RESTART_STEPS as _RESTART_STEPS
-from .problem import acceleration, observation_size, observe, stop_margin
+from .problem import acceleration, observation_size, observe, power, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
 OK = 0          #: the run reached the end of the last piece, or the stop event ended it
@@ -82,6 +82,7 @@ class RunResult(NamedTuple):
     fail_time: float       # where a failure happened (nan if OK)
     fail_value: float      # q̇ for SPEED, else nan
     observed: np.ndarray   # what the problem observed at each sample (m, observation_size)
+    energy: np.ndarray     # the work done and the energy dissipated since the start (m, 2), J
 
 
 # ---- helpers --------------------------------------------------------------------------------
@@ -107,15 +108,16 @@ def _npmax(a, b):
 
 
 @njit(cache=True)
-def _dense_eval(t, t_old, h, y_old0, y_old1, F, j):
-    """Dop853DenseOutput._call_impl at t for step j (F: (n_steps, 7, 2)), same operation order."""
+def _dense_eval(t, t_old, h, y_old0, y_old1, F, j, c=0):
+    """Dop853DenseOutput._call_impl at t for step j, components c and c + 1 (F: (n_steps, 7, 4):
+    q, q̇, then the energy flows), same operation order."""
     x = (t - t_old) / h
     y0 = 0.0
     y1 = 0.0
     for i in range(INTERPOLATOR_POWER):
         r = INTERPOLATOR_POWER - 1 - i
-        y0 += F[j, r, 0]
-        y1 += F[j, r, 1]
+        y0 += F[j, r, c]
+        y1 += F[j, r, c + 1]
         if i % 2 == 0:
             y0 *= x
             y1 *= x
@@ -227,8 +229,9 @@ def _dot_kt(K, a, s, out):
 
 
 @njit(cache=True, inline="always")
-def _fun(problem, chart, load, t, q, v, K, row, work):
-    """The first-order system (q̇, f) into K[row]; work = [nfev, max_evaluations].
+def _fun(problem, chart, load, t, q, v, K, P, row, work):
+    """The first-order system (q̇, f) into K[row] and the energy flows' rates (P, D) there
+    into P[row]; work = [nfev, max_evaluations].
     Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
     if work[0] >= work[1]:
         return STEP_SIZE
@@ -236,6 +239,7 @@ def _fun(problem, chart, load, t, q, v, K, row, work):
     acc = acceleration(problem, chart, load, t, q, v)
     K[row, 0] = v
     K[row, 1] = acc
+    P[row, 0], P[row, 1] = power(problem, chart, load, v)
     if not math.isfinite(acc):
         return NONFINITE
     return OK
@@ -260,23 +264,22 @@ def _grow_rows(a, n):
 
 @njit(cache=True, inline="always")
 def _grow_steps(sy, sF, n):
-    sy2 = np.empty((2 * sy.shape[0], 2))
-    sF2 = np.empty((2 * sF.shape[0], INTERPOLATOR_POWER, 2))
+    sy2 = np.empty((2 * sy.shape[0], 4))
+    sF2 = np.empty((2 * sF.shape[0], INTERPOLATOR_POWER, 4))
     for i in range(n):
-        sy2[i, 0] = sy[i, 0]
-        sy2[i, 1] = sy[i, 1]
-        for r in range(INTERPOLATOR_POWER):
-            sF2[i, r, 0] = sF[i, r, 0]
-            sF2[i, r, 1] = sF[i, r, 1]
+        for c in range(4):
+            sy2[i, c] = sy[i, c]
+            for r in range(INTERPOLATOR_POWER):
+                sF2[i, r, c] = sF[i, r, c]
     return sy2, sF2
 
 
 @njit(cache=True)
-def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, restart_cap, K, work):
+def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, restart_cap, K, P, work):
     """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py),
     at most ``restart_cap`` when that is > 0 (a restart at a load edge: RESTART_STEPS).
     Returns (status, fail_time, h_abs)."""
-    s = _fun(problem, chart, load, t, y0, y1, K, 0, work)
+    s = _fun(problem, chart, load, t, y0, y1, K, P, 0, work)
     if s != OK:
         return s, t, 0.0
     f0 = K[0, 0]
@@ -293,7 +296,7 @@ def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, re
     else:
         h0 = 0.01 * d0 / d1
     h0 = _pymin(h0, interval_length)
-    s = _fun(problem, chart, load, t + h0 * 1.0, y0 + h0 * 1.0 * f0, y1 + h0 * 1.0 * f1, K, 1, work)
+    s = _fun(problem, chart, load, t + h0 * 1.0, y0 + h0 * 1.0 * f0, y1 + h0 * 1.0 * f1, K, P, 1, work)
     if s != OK:
         return s, t + h0, 0.0
     d2 = _rms2((K[1, 0] - f0) / sc0, (K[1, 1] - f1) / sc1) / h0
@@ -306,20 +309,20 @@ def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, re
 
 
 @njit(cache=True)
-def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, work):
+def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, P, work):
     """rk_step and DOP853._estimate_error_norm for one attempt (K[0] = f at (t, y) on entry;
     K[12] = f_new on exit). Returns (status, fail_time, y_new0, y_new1, error_norm)."""
     dy = np.empty(2)
     for si in range(1, N_STAGES):
         _dot_kt(K, A[si], si, dy)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
-        s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, si, work)
+        s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, P, si, work)
         if s != OK:
             return s, t + C[si] * h, 0.0, 0.0, 0.0
     bk = dy
     _dot_kt(K, B, N_STAGES, bk)
     yn0 = y0 + h * bk[0]
     yn1 = y1 + h * bk[1]
-    s = _fun(problem, chart, load, t + h, yn0, yn1, K, N_STAGES, work)
+    s = _fun(problem, chart, load, t + h, yn0, yn1, K, P, N_STAGES, work)
     if s != OK:
         return s, t + h, 0.0, 0.0, 0.0
     sc0 = atol + _npmax(abs(y0), abs(yn0)) * rtol
@@ -337,13 +340,14 @@ def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, work):
 
 
 @njit(cache=True)
-def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, work, sF, n):
-    """DOP853._dense_output_impl: 3 extra stages into K[13:16], F into sF[n].
-    Returns (status, fail_time)."""
+def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, P, work, sF, sy, n):
+    """DOP853._dense_output_impl: 3 extra stages into K[13:16], F into sF[n][:, :2]; the same
+    interpolant of the energy flows (old values sy[n, 2:], new sy[n + 1, 2:], rates P) into
+    sF[n][:, 2:]. Returns (status, fail_time)."""
     dy = np.empty(2)
     for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
         _dot_kt(K, A[si], si, dy)
-        s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0] * h, yo1 + dy[1] * h, K, si,
+        s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0] * h, yo1 + dy[1] * h, K, P, si,
                  work)
         if s != OK:
             return s, t_old + C[si] * h
@@ -363,29 +367,48 @@ def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, wor
             p1 += D[r, j] * K[j, 1]
         sF[n, 3 + r, 0] = h * p0
         sF[n, 3 + r, 1] = h * p1
+    for c in range(2):
+        dl = sy[n + 1, 2 + c] - sy[n, 2 + c]
+        sF[n, 0, 2 + c] = dl
+        sF[n, 1, 2 + c] = h * P[0, c] - dl
+        sF[n, 2, 2 + c] = 2 * dl - h * (P[N_STAGES, c] + P[0, c])
+        for r in range(INTERPOLATOR_POWER - 3):
+            p = 0.0
+            for j in range(N_STAGES_EXTENDED):
+                p += D[r, j] * P[j, c]
+            sF[n, 3 + r, 2 + c] = h * p
     return OK, math.nan
 
 
 @njit(cache=True)
-def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, restart_cap, use_stop, work,
-           st, sh, sy, sF):
-    """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0):
-    steps into st (times), sh (dense h), sy (states),
-    sF (dense coefficients), grown as needed. Returns (status, n_steps, stopped, fail_time,
+def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_step, restart_cap, use_stop,
+           work, st, sh, sy, sF):
+    """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0) from
+    (q0, v0), the work done w0 and the energy dissipated d0 (J): steps into st (times), sh (dense h),
+    sy (states: q, q̇, work, dissipated), sF (dense coefficients), grown as needed.
+
+    The energy flows ride along: each accepted step adds h Σ b_s P_s of their stage rates
+    (DOP853's order-8 quadrature) and gets DOP853's dense output; they take no part in the
+    error estimate, so the steps are scipy's. Returns (status, n_steps, stopped, fail_time,
     st, sh, sy, sF). One exit: each return of the tuple costs compile time."""
     K = np.empty((N_STAGES_EXTENDED, 2))
+    P = np.empty((N_STAGES_EXTENDED, 2))
     t = start
     y0 = q0
     y1 = v0
     st[0] = t
     sy[0, 0] = y0
     sy[0, 1] = y1
+    sy[0, 2] = w0
+    sy[0, 3] = d0
     n = 0
     stopped = False
     status, fail_time, h_abs = _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol,
-                                             max_step, restart_cap, K, work)
+                                             max_step, restart_cap, K, P, work)
     f0 = K[0, 0]
     f1 = K[0, 1]
+    p0 = P[0, 0]
+    p1 = P[0, 1]
     g = 0.0
     if use_stop and status == OK:
         g = stop_margin(problem, chart, t, y0, y1)
@@ -412,8 +435,10 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, resta
             h_abs = abs(h)
             K[0, 0] = f0
             K[0, 1] = f1
+            P[0, 0] = p0
+            P[0, 1] = p1
             status, fail_time, yn0, yn1, error_norm = _rk_step(problem, chart, load, t, y0, y1, h,
-                                                               rtol, atol, K, work)
+                                                               rtol, atol, K, P, work)
             if status != OK:
                 break
             if error_norm < 1:
@@ -439,12 +464,19 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, resta
         y1 = yn1
         f0 = K[N_STAGES, 0]
         f1 = K[N_STAGES, 1]
+        p0 = P[N_STAGES, 0]
+        p1 = P[N_STAGES, 1]
         if n + 1 >= st.shape[0]:
             st = _grow1(st, n + 1)
             sh = _grow1(sh, n)
             sy, sF = _grow_steps(sy, sF, n + 1)
+        for c in range(2):
+            acc = 0.0
+            for si in range(N_STAGES):
+                acc += B[si] * P[si, c]
+            sy[n + 1, 2 + c] = sy[n, 2 + c] + h * acc
         status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h,
-                                                K, work, sF, n)
+                                                K, P, work, sF, sy, n)
         if status != OK:
             break
         sh[n] = t - t_old
@@ -457,12 +489,15 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, resta
             if g >= 0 and g_new <= 0:  # find_active_events, direction -1
                 root = _brentq_stop(problem, chart, t_old, t, t_old, sh[n - 1], yo0, yo1, sF, n - 1)
                 q, v = _dense_eval(root, t_old, sh[n - 1], yo0, yo1, sF, n - 1)
+                w, d = _dense_eval(root, t_old, sh[n - 1], sy[n - 1, 2], sy[n - 1, 3], sF, n - 1, 2)
                 if root == t_old and n > 1:
                     n -= 1  # solve_ivp's donot_append: ts[-1] == t, the step is dropped
                 else:
                     st[n] = root
                     sy[n, 0] = q
                     sy[n, 1] = v
+                    sy[n, 2] = w
+                    sy[n, 3] = d
                 stopped = True
                 break
             g = g_new
@@ -473,8 +508,8 @@ def _piece(problem, chart, load, start, end, q0, v0, rtol, atol, max_step, resta
 
 @njit(cache=True)
 def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interval, per_step):
-    """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈ and what the
-    problem observes at each (m, observation_size)."""
+    """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈, what the
+    problem observes at each (m, observation_size) and the energy flows (m, 2)."""
     end = st[n]
     m_grid = max(2, int(math.ceil((end - start) / sample_interval)) + 1)
     n_inner = per_step - 1 if per_step > 1 else 0
@@ -526,6 +561,7 @@ def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interva
     times = times[:m]
     q = np.empty(m)
     v = np.empty(m)
+    energy = np.empty((m, 2))
     # OdeSolution: segment = clip(searchsorted(ts, t, 'left') - 1, 0, n - 1)
     seg = 0
     for i in range(m):
@@ -533,6 +569,7 @@ def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interva
         while seg < n - 1 and st[seg + 1] < x:
             seg += 1
         q[i], v[i] = _dense_eval(x, st[seg], sh[seg], sy[seg, 0], sy[seg, 1], sF, seg)
+        energy[i, 0], energy[i, 1] = _dense_eval(x, st[seg], sh[seg], sy[seg, 2], sy[seg, 3], sF, seg, 2)
     # states at the step times are the solver's own
     i = 0
     for j in range(n + 1):
@@ -540,12 +577,14 @@ def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interva
             i += 1
         q[i] = sy[j, 0]
         v[i] = sy[j, 1]
+        energy[i, 0] = sy[j, 2]
+        energy[i, 1] = sy[j, 3]
     acc = np.empty(m)
     obs = np.empty((m, observation_size(problem)))
     for i in range(m):
         acc[i] = acceleration(problem, chart, load, times[i], q[i], v[i])
         observe(problem, chart, obs[i])
-    return times, q, v, acc, obs
+    return times, q, v, acc, obs, energy
 
 
 @njit(cache=True)
@@ -569,7 +608,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     Returns
     -------
     (status, t, q, v, a, n_steps, n_evaluations, n_sample_evaluations, stopped, t_reached,
-    fail_time, fail_value, observed): see :class:`RunResult`. On a failure, the samples of the pieces
+    fail_time, fail_value, observed, energy): see :class:`RunResult`. On a failure, the samples of the pieces
     completed before it.
     """
     cap = 256
@@ -578,11 +617,12 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     ov = np.empty(cap)
     oa = np.empty(cap)
     oo = np.empty((cap, observation_size(problem)))
+    oe = np.empty((cap, 2))
     no = 0
     st = np.empty(64)
     sh = np.empty(64)
-    sy = np.empty((64, 2))
-    sF = np.empty((64, INTERPOLATOR_POWER, 2))
+    sy = np.empty((64, 4))
+    sF = np.empty((64, INTERPOLATOR_POWER, 4))
     work = np.zeros(2, dtype=np.int64)
     work[1] = max_evaluations
     n_steps = 0
@@ -601,6 +641,8 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         fail_value = v0
     q = q0
     v = v0
+    w = 0.0
+    d = 0.0
     previous_step = 0.0  # none: the first piece selects its own
     # one exit (each return of this 12-tuple costs compile time)
     for p in range(piece_load.shape[0] if status == OK else 0):
@@ -608,13 +650,13 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         end = piece_edges[p + 1]
         load = piece_load[p]
         status, n, stopped, fail_time, st, sh, sy, sF = _piece(
-            problem, chart, load, start, end, q, v, rtol, atol, max_step, previous_step, use_stop, work,
-            st, sh, sy, sF)
+            problem, chart, load, start, end, q, v, w, d, rtol, atol, max_step, previous_step, use_stop,
+            work, st, sh, sy, sF)
         n_steps += n
         if status != OK:
             stopped = False
             break
-        times, qs, vs, acc, obs = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
+        times, qs, vs, acc, obs, energy = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
                                                 sample_interval, per_step)
         m = times.shape[0]
         n_samp += m
@@ -639,6 +681,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
             ov = _grow1(ov, no)
             oa = _grow1(oa, no)
             oo = _grow_rows(oo, no)
+            oe = _grow_rows(oe, no)
         for i in range(m):
             ot[no + i] = times[i]
             oq[no + i] = qs[i]
@@ -646,9 +689,13 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
             oa[no + i] = acc[i]
             for c in range(obs.shape[1]):
                 oo[no + i, c] = obs[i, c]
+            oe[no + i, 0] = energy[i, 0]
+            oe[no + i, 1] = energy[i, 1]
         no += m
         q = sy[n, 0]
         v = sy[n, 1]
+        w = sy[n, 2]
+        d = sy[n, 3]
         t_reached = st[n]
         if stopped:
             break
@@ -656,7 +703,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         for i in range(_pymax(n - RESTART_STEPS, 0), n):
             previous_step = _pymax(previous_step, sh[i])
     return (status, ot[:no], oq[:no], ov[:no], oa[:no], n_steps, work[0], n_samp, stopped,
-            t_reached, fail_time, fail_value, oo[:no])
+            t_reached, fail_time, fail_value, oo[:no], oe[:no])
 
 
 def run(problem, chart, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None,

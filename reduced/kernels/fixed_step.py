@@ -10,6 +10,11 @@ number of equal steps (⌈ℓ/step⌉), so every load edge is a step boundary (s
     k4 = f(t + h,   q + h v + h² k3/2,   v + h k3)
     q⁺ = q + h v + h² (k1 + k2 + k3)/6,   v⁺ = v + h (k1 + 2 k2 + 2 k3 + k4)/6
 
+The energy flows of :func:`.problem.power` (the work done on the system W and the
+dissipated energy E, with rates P and D at each stage) are integrated with the velocity's
+weights, W⁺ = W + h (P1 + 2 P2 + 2 P3 + P4)/6 and likewise E: the quadrature of a function of
+(t, q, q̇) that the update of q̇ is for f, so of the same order 4.
+
 Every ``STABILITY_CHECK_EVERY`` steps the step is checked against the stability region of the
 locally linearized problem (:func:`check_stability`; :mod:`reduced.integrators` documents the
 rule and its constants).
@@ -22,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .problem import acceleration, observation_size, observe, stop_margin
+from .problem import acceleration, observation_size, observe, power, stop_margin
 
 # statuses (shared with the Python wrapper, reduced.integrators)
 OK, NONFINITE, SPEED, UNSTABLE, FAILED = 0, 2, 3, 4, 5
@@ -75,9 +80,10 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
     """Integrate one chart from t0 to edges[-1]; the load history is loads[k] on
     [edges[k], edges[k+1]] (pieces before t0 are skipped, the one holding t0 starts there).
 
-    Returns (status, stopped, t, q, v, a, observed, n_steps, n_evaluations): the samples (each
-    piece's first sample repeats the previous piece's last time, with q̈ on the new side) and
-    what ``observe`` recorded at each (m, observation_size); stopped
+    Returns (status, stopped, t, q, v, a, observed, energy, n_steps, n_evaluations): the samples
+    (each piece's first sample repeats the previous piece's last time, with q̈ on the new side),
+    what ``observe`` recorded at each (m, observation_size) and the work done and the energy
+    dissipated since t0 (m, 2) (J, by the quadrature in the module docstring); stopped
     when stop_margin fell to ≤ 0 after a step (the run ends at that step). On failure,
     info[0] is the time.
     """
@@ -95,16 +101,18 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
     vs = np.empty(total)
     accs = np.empty(total)
     obs = np.empty((total, observation_size(problem)))
+    energy = np.empty((total, 2))
+    work, dissipated = 0.0, 0.0
     n_samples = 0
     n_steps = 0
     n_eval = 0
     q, v = q0, v0
     if not (math.isfinite(q) and math.isfinite(v)):
         info[0] = t0
-        return NONFINITE, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], 0, 0
+        return NONFINITE, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], energy[:0], 0, 0
     if abs(v) > speed_limit:
         info[0], info[1] = t0, v
-        return SPEED, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], 0, 0
+        return SPEED, False, ts[:0], qs[:0], vs[:0], accs[:0], obs[:0], energy[:0], 0, 0
     for k in range(first, len(loads)):
         start = max(edges[k], t0)
         end = edges[k + 1]
@@ -114,13 +122,15 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
         n = max(1, int(math.ceil((end - start) / step - 1e-9)))
         h = (end - start) / n
         accel = acceleration(problem, chart, load, start, q, v)
+        p1, d1 = power(problem, chart, load, v)
         n_eval += 1
         if not math.isfinite(accel):
             info[0] = start
             return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                    obs[:n_samples], n_steps, n_eval)
+                    obs[:n_samples], energy[:n_samples], n_steps, n_eval)
         ts[n_samples], qs[n_samples], vs[n_samples], accs[n_samples] = start, q, v, accel
         observe(problem, chart, obs[n_samples])
+        energy[n_samples, 0], energy[n_samples, 1] = work, dissipated
         n_samples += 1
         for m in range(n):
             t = start + m * h
@@ -130,39 +140,49 @@ def rkn4_chart(problem, chart, edges, loads, t0, q0, v0, step, speed_limit, stab
                 if status != OK:
                     info[0] = t
                     return (status, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                            obs[:n_samples], n_steps, n_eval)
+                            obs[:n_samples], energy[:n_samples], n_steps, n_eval)
             k1 = accel
             qh = q + 0.5 * h * v + h * h * k1 / 8.0
-            k2 = acceleration(problem, chart, load, t + 0.5 * h, qh, v + 0.5 * h * k1)
-            k3 = acceleration(problem, chart, load, t + 0.5 * h, qh, v + 0.5 * h * k2)
-            k4 = acceleration(problem, chart, load, t + h, q + h * v + 0.5 * h * h * k3, v + h * k3)
+            v2 = v + 0.5 * h * k1
+            k2 = acceleration(problem, chart, load, t + 0.5 * h, qh, v2)
+            p2, d2 = power(problem, chart, load, v2)
+            v3 = v + 0.5 * h * k2
+            k3 = acceleration(problem, chart, load, t + 0.5 * h, qh, v3)
+            p3, d3 = power(problem, chart, load, v3)
+            v4 = v + h * k3
+            k4 = acceleration(problem, chart, load, t + h, q + h * v + 0.5 * h * h * k3, v4)
+            p4, d4 = power(problem, chart, load, v4)
             if not (math.isfinite(k2) and math.isfinite(k3) and math.isfinite(k4)):
                 info[0] = t
                 return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        obs[:n_samples], n_steps, n_eval)
+                        obs[:n_samples], energy[:n_samples], n_steps, n_eval)
             q, v = (q + h * v + h * h * (k1 + k2 + k3) / 6.0,
                     v + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0)
+            work += h * (p1 + 2.0 * p2 + 2.0 * p3 + p4) / 6.0
+            dissipated += h * (d1 + 2.0 * d2 + 2.0 * d3 + d4) / 6.0
             t_next = end if m + 1 == n else start + (m + 1) * h
             if not (math.isfinite(q) and math.isfinite(v)):
                 info[0] = t_next
                 return (NONFINITE, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        obs[:n_samples], n_steps, n_eval)
+                        obs[:n_samples], energy[:n_samples], n_steps, n_eval)
             if abs(v) > speed_limit:
                 info[0], info[1] = t_next, v
                 return (SPEED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        obs[:n_samples], n_steps, n_eval)
+                        obs[:n_samples], energy[:n_samples], n_steps, n_eval)
             accel = acceleration(problem, chart, load, t_next, q, v)  # also the next step's k1
+            p1, d1 = power(problem, chart, load, v)
             n_eval += 4
             n_steps += 1
             if not math.isfinite(accel):
                 info[0] = t_next
                 return (FAILED, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        obs[:n_samples], n_steps, n_eval)
+                        obs[:n_samples], energy[:n_samples], n_steps, n_eval)
             ts[n_samples], qs[n_samples], vs[n_samples], accs[n_samples] = t_next, q, v, accel
             observe(problem, chart, obs[n_samples])
+            energy[n_samples, 0], energy[n_samples, 1] = work, dissipated
             n_samples += 1
             if use_stop and stop_margin(problem, chart, t_next, q, v) <= 0.0:
                 return (OK, True, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples],
-                        obs[:n_samples], n_steps, n_eval)
+                        obs[:n_samples], energy[:n_samples], n_steps, n_eval)
     return (OK, False, ts[:n_samples], qs[:n_samples], vs[:n_samples], accs[:n_samples], obs[:n_samples],
-            n_steps, n_eval)
+            energy[:n_samples], n_steps, n_eval)

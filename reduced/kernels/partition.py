@@ -7,10 +7,12 @@ from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old c
 with either integrator: :func:`run_rkn4` (fixed step) or :func:`run_dop853` (adaptive).
 
 Both return (status, info, t, value, rate, accel, segment, coordinate, starts, switches,
-n_steps, n_evaluations, observed): the samples of each chart's coordinate, the segment (chart
+n_steps, n_evaluations, observed, energy): the samples of each chart's coordinate, the segment (chart
 number) of each sample, each segment's coordinate and start configuration (segments, 3, n), each
 switch as (time, old, new, c_old, c_new), and the chart's fields, x, K and L at every sample
-(:func:`.physics.observe`). info[0] is the time of a failure, info[1] its value.
+(:func:`.physics.observe`), and the work done and the energy dissipated since each chart's start
+at every sample (samples, 2) (J, integrated alongside the state: :func:`.physics.power`).
+info[0] is the time of a failure, info[1] its value.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_inter
         if attempt > 0:
             physics.reset(model, chart)
         (status, ts, qs, vs, accs, steps, evals, sample_evals, stopped, t_reached, fail_time,
-         fail_value, observed) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
+         fail_value, observed, energy) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
                                            sample_interval, per_step, speed_limit, max_evaluations, cap, True)
         singular = status == NONFINITE and chart[0][physics.STATUS] == physics.SINGULAR
         if not singular:
@@ -111,7 +113,7 @@ def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_inter
         info[0], info[1] = fail_time, fail_value
         if singular:
             status = FAILED
-    return status, stopped, ts, qs, vs, accs, observed, steps, evals  # as scipy counts: not the samples
+    return status, stopped, ts, qs, vs, accs, observed, energy, steps, evals  # as scipy counts: not the samples
 
 
 @njit(cache=True, error_model="numpy")
@@ -123,13 +125,14 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
         [np.empty(0)]
     width = physics.observation_size(model)
     o_parts = [np.empty((0, width))]
+    e_parts = [np.empty((0, 2))]
     coordinates = [independent]
     starts = [np.empty((3, n))]
     switches = [np.zeros(5)]
     if not physics.start_chart(model, chart, x0, independent):
         return (SINGULAR_START, info, np.empty(0), np.empty(0), np.empty(0), np.empty(0),
                 np.zeros(0, np.int64), np.zeros(0, np.int64), np.empty((0, 3, n)), np.empty((0, 5)), 0, 0,
-                np.empty((0, width)))
+                np.empty((0, width)), np.empty((0, 2)))
     starts[0] = physics._views(model[1], chart[1])[1].copy()
     t, value, rate = edges[0], x0[independent], rate0
     total = 0
@@ -137,11 +140,11 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
     status = OK
     while True:
         if adaptive_method:
-            status, stopped, ts, qs, vs, accs, observed, steps, evals = _dop853_chart(
+            status, stopped, ts, qs, vs, accs, observed, energy, steps, evals = _dop853_chart(
                 model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
                 max_evaluations - n_eval, retry_caps, info)
         else:
-            status, stopped, ts, qs, vs, accs, observed, steps, evals = rkn4_chart(
+            status, stopped, ts, qs, vs, accs, observed, energy, steps, evals = rkn4_chart(
                 model, chart, edges, loads, t, value, rate, step, speed_limit, stability, True, info)
         n_steps += steps
         n_eval += evals
@@ -150,6 +153,7 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
         v_parts.append(vs)
         a_parts.append(accs)
         o_parts.append(observed)
+        e_parts.append(energy)
         seg_parts.append(np.full(ts.shape[0], float(len(coordinates) - 1)))
         total += ts.shape[0]
         if status != OK or not stopped or ts[-1] >= edges[-1]:
@@ -178,7 +182,8 @@ def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, st
     return (status, info, _concatenate(t_parts, total), _concatenate(q_parts, total),
             _concatenate(v_parts, total), _concatenate(a_parts, total),
             _concatenate(seg_parts, total).astype(np.int64), np.array(coordinates, dtype=np.int64), out_starts,
-            out_switches, n_steps, n_eval, _concatenate_rows(o_parts, total, width))
+            out_switches, n_steps, n_eval, _concatenate_rows(o_parts, total, width),
+            _concatenate_rows(e_parts, total, 2))
 
 
 def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_limit, stability, max_switches):

@@ -692,6 +692,15 @@ def acceleration(model, chart, load, t, value, rate):
 
 
 @njit(cache=True, error_model="numpy")
+def power(model, chart, load, rate):
+    """(P, D) at the configuration last evaluated, right after its ``acceleration``: the power
+    P = (load·dq/dx_i + Σ F e·K_P) ẋ_i of the input load and the point forces (W) and the
+    dampers' dissipation rate D = Σ b K_D² ẋ_i² (W); the energy audit integrates both."""
+    f = _views(model[1], chart[1])[4]
+    return (load * f[INPUT_RATE] + f[POINT_FORCE]) * rate, f[DAMPING] * rate * rate
+
+
+@njit(cache=True, error_model="numpy")
 def observation_size(model):
     """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + 3 n)."""
     return N_FIELDS + 3 * model[1][N]
