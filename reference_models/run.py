@@ -39,7 +39,8 @@ from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
-                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, site_name)
+                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, set_timestep,
+                    site_name)
 
 INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in reduced.scene
 
@@ -210,6 +211,15 @@ def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> Mo
     return compile_model(spec)
 
 
+def _at_timestep(handles: ModelHandles, scene: Scene, settings: MujocoSettings) -> ModelHandles:
+    """The model :func:`build_model` makes of the scene and settings, from one it made of them at
+    another timestep: its spec copied, set to ``settings.timestep`` (:func:`build.set_timestep`)
+    and compiled, without building the spec again."""
+    spec = handles.spec.copy()
+    set_timestep(spec, scene, settings.timestep, settings.effective_solref)
+    return compile_model(spec)
+
+
 def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
     """The largest step h ≤ min(ceiling, horizon/MIN_AUTO_STEPS) that puts every load edge
     inside the horizon on the step grid (edge/h integral to 1e-9), in s.
@@ -364,9 +374,10 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
     tol = scene.tolerances
     h = grid_timestep(scene)
     evidence: list[dict] = []
-    shape = build_model(scene, replace(settings, timestep=h)).model  # for the memory estimate
+    first = build_model(scene, replace(settings, timestep=h))
+    shape = first.model  # for the memory estimate
     _check_work(scene, h, shape)
-    coarse = _attempt(scene, replace(settings, timestep=h))
+    coarse = _attempt(scene, replace(settings, timestep=h), first)
     runs = [coarse]
     while True:
         if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
@@ -378,7 +389,8 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"no automatic MuJoCo timestep down to {h:g} s meets the scene's tolerances "
                                    f"(last check, h = {last['timestep']:g} s against h/2: "
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
-        fine = _attempt(scene, replace(settings, timestep=h / 2))
+        fine_settings = replace(settings, timestep=h / 2)
+        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings))
         runs.append(fine)
         record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
@@ -414,9 +426,9 @@ def _describe(record: dict) -> str:
             f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
-def _attempt(scene: Scene, settings: MujocoSettings) -> EngineResult | NumericalFailure:
-    """One run at an explicit step; a numerical failure is returned for the halving check."""
-    handles = build_model(scene, settings)
+def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult | NumericalFailure:
+    """One run of the model built at the settings' explicit step; a numerical failure is
+    returned for the halving check."""
     _check_work(scene, settings.timestep, handles.model)
     try:
         return _run(scene, settings, handles)
