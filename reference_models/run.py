@@ -377,7 +377,8 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
     first = build_model(scene, replace(settings, timestep=h))
     shape = first.model  # for the memory estimate
     _check_work(scene, h, shape)
-    coarse = _attempt(scene, replace(settings, timestep=h), first)
+    layout = _Layout.of(scene, shape)  # the same for every timestep's model
+    coarse = _attempt(scene, replace(settings, timestep=h), first, layout)
     runs = [coarse]
     while True:
         if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
@@ -390,7 +391,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"(last check, h = {last['timestep']:g} s against h/2: "
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
         fine_settings = replace(settings, timestep=h / 2)
-        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings))
+        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings), layout)
         runs.append(fine)
         record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
@@ -426,12 +427,13 @@ def _describe(record: dict) -> str:
             f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
-def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult | NumericalFailure:
+def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
+             layout: "_Layout") -> EngineResult | NumericalFailure:
     """One run of the model built at the settings' explicit step; a numerical failure is
     returned for the halving check."""
     _check_work(scene, settings.timestep, handles.model)
     try:
-        return _run(scene, settings, handles)
+        return _run(scene, settings, handles, layout)
     except NumericalFailure as failure:
         if failure.reason == FailureReason.INITIAL_STATE:
             raise
@@ -447,11 +449,13 @@ def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float
             abs(coarse.peak.omega - fine.peak.omega))
 
 
-def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult:
+def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
+         layout: _Layout | None = None) -> EngineResult:
     """One run at the settings' explicit timestep, gated on its diagnostics.
 
     Without point forces the step loop is ``mujoco.rollout`` (in C); with them it is a Python
     loop of ``mj_step`` with :func:`point_force_callback` installed as ``mjcb_control``.
+    ``layout``: the scene's :class:`_Layout` if the caller has it (made here otherwise).
     """
     model, data = handles.model, mujoco.MjData(handles.model)
     check_joint_order(scene, model)
@@ -460,12 +464,12 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
     ctrl, edge_notes = control_sequence(scene, h, n_steps)
     for note in edge_notes:
         warnings.warn(note, OffGridEdgeWarning, stacklevel=3)
-    layout = _Layout.of(scene, model)
+    if layout is None:
+        layout = _Layout.of(scene, model)
 
     with _point_forces_installed(scene, model, layout):
-        qpos0, qvel0 = initial_qpos_qvel(scene)
-        data.qpos[:], data.qvel[:] = qpos0, qvel0
-        initial = check_initial_state(scene, model, data)
+        data.qpos[:], data.qvel[:] = layout.qpos0, layout.qvel0
+        initial = check_initial_state(scene, model, data, layout)
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         state0 = np.empty(mujoco.mj_stateSize(model, spec))
         mujoco.mj_getState(model, data, state0, spec)
@@ -536,10 +540,14 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
 
 @dataclass(frozen=True)
 class _Layout:
-    """How MuJoCo's qpos/qvel map to the scene's coordinates (:func:`build.coordinate_map`).
+    """How MuJoCo's qpos/qvel map to the scene's coordinates (:func:`build.coordinate_map`),
+    and the rest of what a run takes from the scene alone (made once for all the runs of a
+    scene's model, whatever their timestep).
 
     x0 (n,), T (n, nq): x = x0 + T qpos; drive (n,): q = drive·x; input_dof: the input
-    joint's dof; input_hinge: whether it is a hinge (else a slide).
+    joint's dof; input_hinge: whether it is a hinge (else a slide); qpos0, qvel0: the initial
+    state (:func:`build.initial_qpos_qvel`); size: the mechanism's size (m,
+    :func:`_mechanism_size`).
     """
 
     system: loops.LoopSystem
@@ -549,6 +557,9 @@ class _Layout:
     input_hinge: bool
     input_body: str
     input_parent: str
+    qpos0: np.ndarray
+    qvel0: np.ndarray
+    size: float
 
     @staticmethod
     def of(scene: Scene, model: mujoco.MjModel) -> "_Layout":
@@ -558,7 +569,8 @@ class _Layout:
         joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, linkage.input_joint)
         edge = next(e for e in linkage.tree if e.joint == linkage.input_joint)
         return _Layout(system, x0, T, int(model.jnt_dofadr[joint]),
-                       not isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint), edge.body, edge.parent)
+                       not isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint), edge.body, edge.parent,
+                       *initial_qpos_qvel(scene), _mechanism_size(scene))
 
     def x(self, qpos: np.ndarray) -> np.ndarray:
         return self.x0 + np.atleast_2d(qpos) @ self.T.T
@@ -678,15 +690,19 @@ def _mechanism_size(scene: Scene) -> float:
     return float(np.max(np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)))
 
 
-def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData) -> dict:
+def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData,
+                        layout: "_Layout | None" = None) -> dict:
     """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
 
     After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
     of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
     connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
     (the largest distance between two of its points at x0), and × the largest point speed
-    scale (size × largest hinge rate, or largest slide rate).
+    scale (size × largest hinge rate, or largest slide rate). ``layout``: the scene's
+    :class:`_Layout` if the caller has it (made here otherwise).
     """
+    if layout is None:
+        layout = _Layout.of(scene, model)
     mujoco.mj_forward(model, data)
     rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
     position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
@@ -699,7 +715,7 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
         point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
         position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
     velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
-    length = _mechanism_size(scene)
+    length = layout.size
     hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
     qvel = np.abs(data.qvel)
     speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
@@ -711,7 +727,6 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
                                f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s) "
                                f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
                                "does not close the loops", 0.0)
-    layout = _Layout.of(scene, model)
     return {"position": position, "velocity": velocity, "limits": limits,
             "unit_rate_inertia": _unit_rate_inertia(model, data, rows, layout.input_row)}
 
