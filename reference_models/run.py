@@ -800,18 +800,19 @@ def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
 
 def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec) -> Trajectory:
     """Insert, at each step where the control jumps, a sample with q̈ from before the jump."""
-    t, qs, vs, accs = list(times), list(q), list(qdot), list(qddot)
-    if model.nu:
-        jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
-        for k in sorted(jumps, reverse=True):
-            if layout.input_hinge:
-                before = _hinge_acceleration(handles.sensor_slices, layout,
-                                             _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0]
-            else:
-                _sensors_at(model, data, states[k], ctrl[k - 1], spec)
-                before = float(layout.input_row @ data.qacc)
-            t.insert(k, times[k]), qs.insert(k, q[k]), vs.insert(k, qdot[k]), accs.insert(k, before)
-    return Trajectory(np.array(t), np.array(qs), np.array(vs), np.array(accs))
+    if not model.nu:
+        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
+    jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
+    before = []
+    for k in jumps:
+        if layout.input_hinge:
+            before.append(_hinge_acceleration(handles.sensor_slices, layout,
+                                              _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
+        else:
+            _sensors_at(model, data, states[k], ctrl[k - 1], spec)
+            before.append(float(layout.input_row @ data.qacc))
+    return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
+                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before))
 
 
 def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
