@@ -474,26 +474,27 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         state0 = np.empty(mujoco.mj_stateSize(model, spec))
         mujoco.mj_getState(model, data, state0, spec)
 
+        # The run writes in place: state k + 1 is after step k + 1 (state 0 is the initial one);
+        # sensors k were computed at the start of step k + 1 (the last row, at the end, below).
+        states = np.empty((n_steps + 1, state0.size))
+        sensors = np.empty((n_steps + 1, model.nsensordata))
+        states[0] = state0
         start = time.perf_counter()
         if scene.mechanism.point_forces:
-            states, sensordata = _step_loop(model, data, state0, ctrl, n_steps, spec)
+            _step_loop(model, data, state0, ctrl, n_steps, spec, states[1:], sensors[:-1])
         else:
-            states, sensordata = rollout.rollout(model, data, state0[None, :],
-                                                 ctrl[None, :, :] if model.nu else None, nstep=n_steps)
-            states, sensordata = states[0], sensordata[0]
+            rollout.rollout(model, data, state0[None, :], ctrl[None, :, :] if model.nu else None, nstep=n_steps,
+                            state=states[None, 1:], sensordata=sensors[None, :-1])
         wall = time.perf_counter() - start
 
-        _check_warnings(data, states, h)
-        # state k is after step k+1; sensordata k was computed at the start of step k+1.
-        states = np.vstack([state0, states])
+        _check_warnings(data, states[1:], h)
         times = states[:, 0]
         _check_complete(scene, times, h)
         qpos = states[:, 1:1 + model.nq]
         qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
         q = layout.q(qpos)  # qpos counts from the assembled pose
         qdot = layout.qdot(qvel)
-        final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
-        sensors = np.vstack([sensordata, final_sensors])
+        sensors[-1] = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
 
         sl = handles.sensor_slices
         violation = np.zeros(len(times))
@@ -642,18 +643,16 @@ def _point_forces_installed(scene: Scene, model: mujoco.MjModel, layout: "_Layou
         mujoco.set_mjcb_control(previous)
 
 
-def _step_loop(model, data, state0, ctrl, n_steps, spec) -> tuple[np.ndarray, np.ndarray]:
-    """``rollout``'s states and sensordata from a Python loop of ``mj_step`` (for callbacks)."""
+def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors) -> None:
+    """``rollout``'s states and sensordata, written into ``states`` and ``sensors`` (n_steps
+    rows each), from a Python loop of ``mj_step`` (for callbacks)."""
     mujoco.mj_setState(model, data, state0, spec)
-    states = np.empty((n_steps, state0.size))
-    sensors = np.empty((n_steps, model.nsensordata))
     for k in range(n_steps):
         if model.nu:
             data.ctrl[:] = ctrl[k]
         mujoco.mj_step(model, data)
         mujoco.mj_getState(model, data, states[k], spec)
         sensors[k] = data.sensordata
-    return states, sensors
 
 
 def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec) -> np.ndarray:
