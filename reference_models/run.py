@@ -378,7 +378,8 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
     shape = first.model  # for the memory estimate
     _check_work(scene, h, shape)
     layout = _Layout.of(scene, shape)  # the same for every timestep's model
-    coarse = _attempt(scene, replace(settings, timestep=h), first, layout)
+    data = mujoco.MjData(shape)  # and so is the MjData, reset for each run
+    coarse = _attempt(scene, replace(settings, timestep=h), first, layout, data)
     runs = [coarse]
     while True:
         if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
@@ -391,7 +392,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"(last check, h = {last['timestep']:g} s against h/2: "
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
         fine_settings = replace(settings, timestep=h / 2)
-        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings), layout)
+        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings), layout, data)
         runs.append(fine)
         record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
@@ -427,13 +428,13 @@ def _describe(record: dict) -> str:
             f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
-def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
-             layout: "_Layout") -> EngineResult | NumericalFailure:
+def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles, layout: "_Layout",
+             data: mujoco.MjData) -> EngineResult | NumericalFailure:
     """One run of the model built at the settings' explicit step; a numerical failure is
     returned for the halving check."""
     _check_work(scene, settings.timestep, handles.model)
     try:
-        return _run(scene, settings, handles, layout)
+        return _run(scene, settings, handles, layout, data)
     except NumericalFailure as failure:
         if failure.reason == FailureReason.INITIAL_STATE:
             raise
@@ -450,14 +451,21 @@ def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float
 
 
 def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
-         layout: _Layout | None = None) -> EngineResult:
+         layout: _Layout | None = None, data: mujoco.MjData | None = None) -> EngineResult:
     """One run at the settings' explicit timestep, gated on its diagnostics.
 
     Without point forces the step loop is ``mujoco.rollout`` (in C); with them it is a Python
     loop of ``mj_step`` with :func:`point_force_callback` installed as ``mjcb_control``.
     ``layout``: the scene's :class:`_Layout` if the caller has it (made here otherwise).
+    ``data``: an MjData to reuse (reset here, as a new one starts), made for a model of the
+    same sizes, as the automatic timestep's models are (they differ only in values:
+    :func:`_at_timestep`); else a new one.
     """
-    model, data = handles.model, mujoco.MjData(handles.model)
+    model = handles.model
+    if data is None:
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     check_joint_order(scene, model)
     h = settings.timestep
     n_steps = _check_work(scene, h, model)
