@@ -500,8 +500,8 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         _check_complete(scene, times, h)
         qpos = states[:, 1:1 + model.nq]
         qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
-        q = layout.q(qpos)  # qpos counts from the assembled pose
-        qdot = layout.qdot(qvel)
+        x, xdot = layout.x(qpos), layout.xdot(qvel)  # qpos counts from the assembled pose
+        q, qdot = x @ layout.system.drive, xdot @ layout.system.drive
         sensors[-1] = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
 
         sl = handles.sensor_slices
@@ -538,7 +538,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
         settings=recorded,
         diagnostics={"max_constraint_violation": max_violation,
-                     "joints": _joint_trajectory(scene, layout, times, qpos, qvel),
+                     "joints": _joint_trajectory(layout, times, x, xdot),
                      "constraint_violation": violation, "times": times, "q": q,
                      "omega": qdot.copy(), "input_load": motor,
                      "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
@@ -586,12 +586,6 @@ class _Layout:
 
     def xdot(self, qvel: np.ndarray) -> np.ndarray:
         return np.atleast_2d(qvel) @ self.T.T
-
-    def q(self, qpos: np.ndarray) -> np.ndarray:
-        return self.x(qpos) @ self.system.drive
-
-    def qdot(self, qvel: np.ndarray) -> np.ndarray:
-        return self.xdot(qvel) @ self.system.drive
 
     @property
     def input_row(self) -> np.ndarray:
@@ -773,11 +767,11 @@ def _check_complete(scene: Scene, times: np.ndarray, h: float) -> None:
                                f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
 
 
-def _joint_trajectory(scene: Scene, layout: _Layout, times, qpos, qvel) -> JointTrajectory:
-    """MuJoCo's general coordinates and rates, with the assembly mode of each sample."""
-    x = layout.x(qpos)
+def _joint_trajectory(layout: _Layout, times, x, xdot) -> JointTrajectory:
+    """MuJoCo's general coordinates and rates (from its qpos and qvel: :meth:`_Layout.x`,
+    :meth:`_Layout.xdot`), with the assembly mode of each sample."""
     mode = loops.assembly_modes(layout.system, x)
-    return JointTrajectory(layout.system.coordinate_names, times, x, layout.xdot(qvel),
+    return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
                            np.full(len(times), -1), mode)
 
 
