@@ -214,10 +214,11 @@ def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> Mo
 def _at_timestep(handles: ModelHandles, scene: Scene, settings: MujocoSettings) -> ModelHandles:
     """The model :func:`build_model` makes of the scene and settings, from one it made of them at
     another timestep: its spec copied, set to ``settings.timestep`` (:func:`build.set_timestep`)
-    and compiled, without building the spec again."""
+    and compiled, without building the spec again (nor indexing its sensors and dampers again:
+    the same as ``handles``')."""
     spec = handles.spec.copy()
     set_timestep(spec, scene, settings.timestep, settings.effective_solref)
-    return compile_model(spec)
+    return replace(handles, model=spec.compile(), spec=spec)
 
 
 def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:

@@ -80,7 +80,9 @@ def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
         scene = load_scene(scene_path)
     first = build_model(scene, MujocoSettings(timestep=1e-3))
     for settings in (MujocoSettings(timestep=5e-4), MujocoSettings(timestep=2.5e-4, solref=(0.01, 0.7))):
-        assert _mjb(_at_timestep(first, scene, settings).model) == _mjb(build_model(scene, settings).model)
+        rebuilt, fresh = _at_timestep(first, scene, settings), build_model(scene, settings)
+        assert _mjb(rebuilt.model) == _mjb(fresh.model)
+        assert (rebuilt.sensor_slices, rebuilt.damper_tendons) == (fresh.sensor_slices, fresh.damper_tendons)
 
 
 def test_kinetic_energy_matches_generalized_inertia(seed):
