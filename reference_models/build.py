@@ -308,7 +308,6 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     spec = mujoco.MjSpec()
     spec.modelname = scene.name
     opt = spec.option
-    opt.timestep = timestep
     opt.integrator = INTEGRATOR_ENUM[integrator]
     opt.iterations = iterations
     opt.tolerance = tolerance
@@ -349,7 +348,6 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         loop = spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_CONNECT, objtype=mujoco.mjtObj.mjOBJ_BODY,
                                  name1=_mujoco_body(jt.body_a), name2=_mujoco_body(jt.body_b))
         loop.data[0:3] = [*described[jt.body_a].points[jt.point_a], 0.0]
-        loop.solref = list(constraint.solref)
         loop.solimp = list(constraint.solimp)
         # Read-outs of the loop closure: the joint's point on either side.
         for side, body, point in (("a", jt.body_a, jt.point_a), ("b", jt.body_b, jt.point_b)):
@@ -411,12 +409,24 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                            "tabulated over the input coordinate: not a model element; xval applies it through "
                            "mjcb_control (reference_models.run.point_force_callback)")
 
-    # The scene's initial state; the control is the load the run applies in its first step
-    # (sampled at the step's midpoint, as ``run.control_sequence`` does).
+    # The scene's initial state (the control follows the timestep: set_timestep).
     qpos0, qvel0 = initial_qpos_qvel(scene)
-    ctrl0 = [] if scene.load is None else [float(scene.load.sample(np.array([0.5 * timestep]))[0])]
-    spec.add_key(name=HOME_KEY, time=0.0, qpos=list(qpos0), qvel=list(qvel0), ctrl=ctrl0)
+    spec.add_key(name=HOME_KEY, time=0.0, qpos=list(qpos0), qvel=list(qvel0))
+    set_timestep(spec, scene, timestep, constraint.solref)
     return spec
+
+
+def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tuple[float, float]) -> None:
+    """Set what follows the timestep in a spec made by :func:`build_spec` of ``scene``: the
+    option's timestep, every loop's solref and the home key's control (the load the run applies
+    in its first step, sampled at the step's midpoint as ``run.control_sequence`` does).
+
+    A spec built at one step and set to another compiles to the model built at the other.
+    """
+    spec.option.timestep = timestep
+    for name in scene.mechanism.linkage.cut_joints:
+        spec.equality(name).solref = list(solref)
+    spec.key(HOME_KEY).ctrl = [] if scene.load is None else [float(scene.load.sample(np.array([0.5 * timestep]))[0])]
 
 
 def _number(value: float) -> str:
@@ -502,4 +512,5 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
 __all__ = ["BASE_BODY", "ConstraintSettings", "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody",
            "assembled_angles", "build_spec", "check_joint_order", "compile_model", "coordinate_map",
            "initial_qpos_qvel", "initial_rates", "joint_order", "joint_positions", "joint_rates",
-           "joint_rates_matrix", "loop_angles", "loop_rates", "mjcf_from_spec", "site_name", "spanning_tree"]
+           "joint_rates_matrix", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
+           "spanning_tree"]

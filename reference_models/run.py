@@ -39,7 +39,8 @@ from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
 from reduced.trajectory import Trajectory
 
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
-                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, site_name)
+                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, set_timestep,
+                    site_name)
 
 INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in reduced.scene
 
@@ -210,6 +211,16 @@ def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> Mo
     return compile_model(spec)
 
 
+def _at_timestep(handles: ModelHandles, scene: Scene, settings: MujocoSettings) -> ModelHandles:
+    """The model :func:`build_model` makes of the scene and settings, from one it made of them at
+    another timestep: its spec copied, set to ``settings.timestep`` (:func:`build.set_timestep`)
+    and compiled, without building the spec again (nor indexing its sensors and dampers again:
+    the same as ``handles``')."""
+    spec = handles.spec.copy()
+    set_timestep(spec, scene, settings.timestep, settings.effective_solref)
+    return replace(handles, model=spec.compile(), spec=spec)
+
+
 def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
     """The largest step h ≤ min(ceiling, horizon/MIN_AUTO_STEPS) that puts every load edge
     inside the horizon on the step grid (edge/h integral to 1e-9), in s.
@@ -364,9 +375,12 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
     tol = scene.tolerances
     h = grid_timestep(scene)
     evidence: list[dict] = []
-    shape = build_model(scene, replace(settings, timestep=h)).model  # for the memory estimate
+    first = build_model(scene, replace(settings, timestep=h))
+    shape = first.model  # for the memory estimate
     _check_work(scene, h, shape)
-    coarse = _attempt(scene, replace(settings, timestep=h))
+    layout = _Layout.of(scene, shape)  # the same for every timestep's model
+    data = mujoco.MjData(shape)  # and so is the MjData, reset for each run
+    coarse = _attempt(scene, replace(settings, timestep=h), first, layout, data)
     runs = [coarse]
     while True:
         if h / 2 < TIMESTEP_FLOOR or not _within_limits(scene, h / 2, shape):
@@ -378,7 +392,8 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
                                    f"no automatic MuJoCo timestep down to {h:g} s meets the scene's tolerances "
                                    f"(last check, h = {last['timestep']:g} s against h/2: "
                                    f"{_describe(last)}); set [mujoco] timestep (--timestep) or loosen [tolerances]")
-        fine = _attempt(scene, replace(settings, timestep=h / 2))
+        fine_settings = replace(settings, timestep=h / 2)
+        fine = _attempt(scene, fine_settings, _at_timestep(first, scene, fine_settings), layout, data)
         runs.append(fine)
         record = {"timestep": h, "unit": scene.input_unit}
         if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
@@ -414,12 +429,13 @@ def _describe(record: dict) -> str:
             f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
 
 
-def _attempt(scene: Scene, settings: MujocoSettings) -> EngineResult | NumericalFailure:
-    """One run at an explicit step; a numerical failure is returned for the halving check."""
-    handles = build_model(scene, settings)
+def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles, layout: "_Layout",
+             data: mujoco.MjData) -> EngineResult | NumericalFailure:
+    """One run of the model built at the settings' explicit step; a numerical failure is
+    returned for the halving check."""
     _check_work(scene, settings.timestep, handles.model)
     try:
-        return _run(scene, settings, handles)
+        return _run(scene, settings, handles, layout, data)
     except NumericalFailure as failure:
         if failure.reason == FailureReason.INITIAL_STATE:
             raise
@@ -435,55 +451,65 @@ def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float
             abs(coarse.peak.omega - fine.peak.omega))
 
 
-def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> EngineResult:
+def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
+         layout: _Layout | None = None, data: mujoco.MjData | None = None) -> EngineResult:
     """One run at the settings' explicit timestep, gated on its diagnostics.
 
     Without point forces the step loop is ``mujoco.rollout`` (in C); with them it is a Python
     loop of ``mj_step`` with :func:`point_force_callback` installed as ``mjcb_control``.
+    ``layout``: the scene's :class:`_Layout` if the caller has it (made here otherwise).
+    ``data``: an MjData to reuse (reset here, as a new one starts), made for a model of the
+    same sizes, as the automatic timestep's models are (they differ only in values:
+    :func:`_at_timestep`); else a new one.
     """
-    model, data = handles.model, mujoco.MjData(handles.model)
+    model = handles.model
+    if data is None:
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     check_joint_order(scene, model)
     h = settings.timestep
     n_steps = _check_work(scene, h, model)
     ctrl, edge_notes = control_sequence(scene, h, n_steps)
     for note in edge_notes:
         warnings.warn(note, OffGridEdgeWarning, stacklevel=3)
-    layout = _Layout.of(scene, model)
+    if layout is None:
+        layout = _Layout.of(scene, model)
 
     with _point_forces_installed(scene, model, layout):
-        qpos0, qvel0 = initial_qpos_qvel(scene)
-        data.qpos[:], data.qvel[:] = qpos0, qvel0
-        initial = check_initial_state(scene, model, data)
+        data.qpos[:], data.qvel[:] = layout.qpos0, layout.qvel0
+        initial = check_initial_state(scene, model, data, layout)
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         state0 = np.empty(mujoco.mj_stateSize(model, spec))
         mujoco.mj_getState(model, data, state0, spec)
 
+        # The run writes in place: state k + 1 is after step k + 1 (state 0 is the initial one);
+        # sensors k were computed at the start of step k + 1 (the last row, at the end, below).
+        states = np.empty((n_steps + 1, state0.size))
+        sensors = np.empty((n_steps + 1, model.nsensordata))
+        states[0] = state0
         start = time.perf_counter()
         if scene.mechanism.point_forces:
-            states, sensordata = _step_loop(model, data, state0, ctrl, n_steps, spec)
+            _step_loop(model, data, state0, ctrl, n_steps, spec, states[1:], sensors[:-1])
         else:
-            states, sensordata = rollout.rollout(model, data, state0[None, :],
-                                                 ctrl[None, :, :] if model.nu else None, nstep=n_steps)
-            states, sensordata = states[0], sensordata[0]
+            rollout.rollout(model, data, state0[None, :], ctrl[None, :, :] if model.nu else None, nstep=n_steps,
+                            state=states[None, 1:], sensordata=sensors[None, :-1])
         wall = time.perf_counter() - start
 
-        _check_warnings(data, states, h)
-        # state k is after step k+1; sensordata k was computed at the start of step k+1.
-        states = np.vstack([state0, states])
+        _check_warnings(data, states[1:], h)
         times = states[:, 0]
         _check_complete(scene, times, h)
         qpos = states[:, 1:1 + model.nq]
         qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
-        q = layout.q(qpos)  # qpos counts from the assembled pose
-        qdot = layout.qdot(qvel)
-        final_sensors = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
-        sensors = np.vstack([sensordata, final_sensors])
+        x, xdot = layout.x(qpos), layout.xdot(qvel)  # qpos counts from the assembled pose
+        q, qdot = x @ layout.system.drive, xdot @ layout.system.drive
+        sensors[-1] = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
 
         sl = handles.sensor_slices
         violation = np.zeros(len(times))
         for name in scene.mechanism.linkage.cut_joints:
             gap = sensors[:, sl[f"{name}_a_pos"]] - sensors[:, sl[f"{name}_b_pos"]]
-            violation = np.maximum(violation, np.linalg.norm(gap, axis=1))
+            violation = np.maximum(violation, np.sqrt(_squares_by_row(gap)))
         qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec)
         trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec)
     max_violation = float(np.max(violation))
@@ -513,7 +539,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
         settings=recorded,
         diagnostics={"max_constraint_violation": max_violation,
-                     "joints": _joint_trajectory(scene, layout, times, qpos, qvel),
+                     "joints": _joint_trajectory(layout, times, x, xdot),
                      "constraint_violation": violation, "times": times, "q": q,
                      "omega": qdot.copy(), "input_load": motor,
                      "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
@@ -524,10 +550,14 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles) -> Engin
 
 @dataclass(frozen=True)
 class _Layout:
-    """How MuJoCo's qpos/qvel map to the scene's coordinates (:func:`build.coordinate_map`).
+    """How MuJoCo's qpos/qvel map to the scene's coordinates (:func:`build.coordinate_map`),
+    and the rest of what a run takes from the scene alone (made once for all the runs of a
+    scene's model, whatever their timestep).
 
     x0 (n,), T (n, nq): x = x0 + T qpos; drive (n,): q = drive·x; input_dof: the input
-    joint's dof; input_hinge: whether it is a hinge (else a slide).
+    joint's dof; input_hinge: whether it is a hinge (else a slide); qpos0, qvel0: the initial
+    state (:func:`build.initial_qpos_qvel`); size: the mechanism's size (m,
+    :func:`_mechanism_size`).
     """
 
     system: loops.LoopSystem
@@ -537,6 +567,9 @@ class _Layout:
     input_hinge: bool
     input_body: str
     input_parent: str
+    qpos0: np.ndarray
+    qvel0: np.ndarray
+    size: float
 
     @staticmethod
     def of(scene: Scene, model: mujoco.MjModel) -> "_Layout":
@@ -546,19 +579,14 @@ class _Layout:
         joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, linkage.input_joint)
         edge = next(e for e in linkage.tree if e.joint == linkage.input_joint)
         return _Layout(system, x0, T, int(model.jnt_dofadr[joint]),
-                       not isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint), edge.body, edge.parent)
+                       not isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint), edge.body, edge.parent,
+                       *initial_qpos_qvel(scene), _mechanism_size(scene))
 
     def x(self, qpos: np.ndarray) -> np.ndarray:
         return self.x0 + np.atleast_2d(qpos) @ self.T.T
 
     def xdot(self, qvel: np.ndarray) -> np.ndarray:
         return np.atleast_2d(qvel) @ self.T.T
-
-    def q(self, qpos: np.ndarray) -> np.ndarray:
-        return self.x(qpos) @ self.system.drive
-
-    def qdot(self, qvel: np.ndarray) -> np.ndarray:
-        return self.xdot(qvel) @ self.system.drive
 
     @property
     def input_row(self) -> np.ndarray:
@@ -618,18 +646,16 @@ def _point_forces_installed(scene: Scene, model: mujoco.MjModel, layout: "_Layou
         mujoco.set_mjcb_control(previous)
 
 
-def _step_loop(model, data, state0, ctrl, n_steps, spec) -> tuple[np.ndarray, np.ndarray]:
-    """``rollout``'s states and sensordata from a Python loop of ``mj_step`` (for callbacks)."""
+def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors) -> None:
+    """``rollout``'s states and sensordata, written into ``states`` and ``sensors`` (n_steps
+    rows each), from a Python loop of ``mj_step`` (for callbacks)."""
     mujoco.mj_setState(model, data, state0, spec)
-    states = np.empty((n_steps, state0.size))
-    sensors = np.empty((n_steps, model.nsensordata))
     for k in range(n_steps):
         if model.nu:
             data.ctrl[:] = ctrl[k]
         mujoco.mj_step(model, data)
         mujoco.mj_getState(model, data, states[k], spec)
         sensors[k] = data.sensordata
-    return states, sensors
 
 
 def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec) -> np.ndarray:
@@ -666,15 +692,19 @@ def _mechanism_size(scene: Scene) -> float:
     return float(np.max(np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)))
 
 
-def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData) -> dict:
+def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData,
+                        layout: "_Layout | None" = None) -> dict:
     """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
 
     After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
     of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
     connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
     (the largest distance between two of its points at x0), and × the largest point speed
-    scale (size × largest hinge rate, or largest slide rate).
+    scale (size × largest hinge rate, or largest slide rate). ``layout``: the scene's
+    :class:`_Layout` if the caller has it (made here otherwise).
     """
+    if layout is None:
+        layout = _Layout.of(scene, model)
     mujoco.mj_forward(model, data)
     rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
     position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
@@ -687,7 +717,7 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
         point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
         position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
     velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
-    length = _mechanism_size(scene)
+    length = layout.size
     hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
     qvel = np.abs(data.qvel)
     speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
@@ -699,7 +729,6 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
                                f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s) "
                                f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
                                "does not close the loops", 0.0)
-    layout = _Layout.of(scene, model)
     return {"position": position, "velocity": velocity, "limits": limits,
             "unit_rate_inertia": _unit_rate_inertia(model, data, rows, layout.input_row)}
 
@@ -739,11 +768,11 @@ def _check_complete(scene: Scene, times: np.ndarray, h: float) -> None:
                                f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
 
 
-def _joint_trajectory(scene: Scene, layout: _Layout, times, qpos, qvel) -> JointTrajectory:
-    """MuJoCo's general coordinates and rates, with the assembly mode of each sample."""
-    x = layout.x(qpos)
+def _joint_trajectory(layout: _Layout, times, x, xdot) -> JointTrajectory:
+    """MuJoCo's general coordinates and rates (from its qpos and qvel: :meth:`_Layout.x`,
+    :meth:`_Layout.xdot`), with the assembly mode of each sample."""
     mode = loops.assembly_modes(layout.system, x)
-    return JointTrajectory(layout.system.coordinate_names, times, x, layout.xdot(qvel),
+    return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
                            np.full(len(times), -1), mode)
 
 
@@ -773,18 +802,29 @@ def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
 
 def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec) -> Trajectory:
     """Insert, at each step where the control jumps, a sample with q̈ from before the jump."""
-    t, qs, vs, accs = list(times), list(q), list(qdot), list(qddot)
-    if model.nu:
-        jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
-        for k in sorted(jumps, reverse=True):
-            if layout.input_hinge:
-                before = _hinge_acceleration(handles.sensor_slices, layout,
-                                             _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0]
-            else:
-                _sensors_at(model, data, states[k], ctrl[k - 1], spec)
-                before = float(layout.input_row @ data.qacc)
-            t.insert(k, times[k]), qs.insert(k, q[k]), vs.insert(k, qdot[k]), accs.insert(k, before)
-    return Trajectory(np.array(t), np.array(qs), np.array(vs), np.array(accs))
+    if not model.nu:
+        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
+    jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
+    before = []
+    for k in jumps:
+        if layout.input_hinge:
+            before.append(_hinge_acceleration(handles.sensor_slices, layout,
+                                              _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
+        else:
+            _sensors_at(model, data, states[k], ctrl[k - 1], spec)
+            before.append(float(layout.input_row @ data.qacc))
+    return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
+                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before))
+
+
+def _squares_by_row(v: np.ndarray) -> np.ndarray:
+    """Σ_j v[:, j]² of each row of v (samples, 3), the columns added in order: the same sums as
+    ``np.sum(v * v, axis=1)`` (and ``np.linalg.norm(v, axis=1)²``), without numpy's slow
+    reduction along a short row."""
+    total = v[:, 0] * v[:, 0]
+    for j in range(1, v.shape[1]):
+        total = total + v[:, j] * v[:, j]
+    return total
 
 
 def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -809,7 +849,7 @@ def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         mass, izz = model.body_mass[body], model.body_inertia[body, 2]
         v, w = sensors[:, sl[f"{name}_com_vel"]], sensors[:, sl[f"{name}_ang_vel"]]
-        kinetic += 0.5 * mass * np.sum(v * v, axis=1) + 0.5 * izz * w[:, 2] ** 2
+        kinetic += 0.5 * mass * _squares_by_row(v) + 0.5 * izz * w[:, 2] ** 2
         potential -= mass * sensors[:, sl[f"{name}_com_pos"]] @ gravity
     for tendon in range(model.ntendon):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon)

@@ -14,6 +14,8 @@ from reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, c
 
 from helpers import SEED_SCENE, conservative, variant
 
+SCENES_DIR = SEED_SCENE.parent
+
 GRAVITY_BODIES = {
     "crank": {"mass": 2.0, "inertia": 0.05, "com": [0.25, 0.0]},
     "coupler": {"mass": 40.0, "inertia": 5.0, "com": [0.5111, 0.1333]},
@@ -59,6 +61,28 @@ def test_gravity_and_spring_only_when_declared():
     assert m.ntendon == 1 and m.tendon_stiffness[0] == 500.0 and m.tendon_damping[0] == 0.0
     assert m.nu == 0
     assert scene.effects == ("spring", "gravity")
+
+
+def _mjb(model: mujoco.MjModel) -> bytes:
+    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
+
+
+@pytest.mark.parametrize("scene_path", sorted(SCENES_DIR.rglob("*.toml")), ids=lambda p: p.stem)
+def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
+    """The automatic timestep's finer models are the coarse one's spec set to their step
+    (set_timestep), not built anew: byte for byte the model build_model makes there."""
+    from reference_models.run import _at_timestep
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = load_scene(scene_path)
+    first = build_model(scene, MujocoSettings(timestep=1e-3))
+    for settings in (MujocoSettings(timestep=5e-4), MujocoSettings(timestep=2.5e-4, solref=(0.01, 0.7))):
+        rebuilt, fresh = _at_timestep(first, scene, settings), build_model(scene, settings)
+        assert _mjb(rebuilt.model) == _mjb(fresh.model)
+        assert (rebuilt.sensor_slices, rebuilt.damper_tendons) == (fresh.sensor_slices, fresh.damper_tendons)
 
 
 def test_kinetic_energy_matches_generalized_inertia(seed):
