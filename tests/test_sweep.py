@@ -257,7 +257,7 @@ def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypat
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("needs forked workers to see the patched variant runner")
 
-    def slow_first(index, values, data, source, keep=False):
+    def slow_first(index, values, data, source, keep=False, engines=None):
         time.sleep(0.5 if index == 0 else 0.01)
         return {"index": index, "status": "passed", "reason": "", **values, "pid": multiprocessing.current_process().pid}
 
