@@ -47,25 +47,30 @@ is one run unless said otherwise, and none is asserted):
    ``rollout`` call per timestep with the list of models, with one MjData (one thread) and with
    two (two threads). Printed: totals, the ratios ours / bare (target ≤ 1.10), and where our time
    goes (model building, rollouts inside ours, the rest).
-3. ``xval sweep SCENE --vary ... --out TMP`` as a subprocess for N = 200 and 1 000 variants
-   (and 4 000 with ``--full``): the peak memory of its process tree (the xval process and its
-   pool workers), polled from /proc every 0.1 s: the largest sum of RSS and of PSS (PSS splits
-   pages shared by the forked workers, so it does not count them twice), and the largest single
-   process. ``xval sweep`` has no reduced-only mode: it runs both engines (reduced at the scene's
-   default DOP853 rtol 1e-12). Printed: peak MB per N, wall time, the slope MB per 1 000
-   variants (least squares over the N run) and an EXTRAPOLATION to 100 000 variants (not
-   measured), both linear and flat; a spread of peaks below the run-to-run noise (~20 MB: the
-   same sweep measured twice here differed by up to 19 MB) is said to be noise.
+3. ``xval sweep SCENE --vary ... --out TMP`` as a subprocess: the peak memory of its process
+   tree (the xval process and its pool workers), polled from /proc every 0.1 s: the largest sum
+   of RSS and of PSS (PSS splits pages shared by the forked workers, so it does not count them
+   twice), and the largest single process. Each mode of ``--engines`` asked for (default both):
+   ``both`` (the reduced solver at the scene's default DOP853 rtol 1e-12, and MuJoCo) for N = 200
+   and 1 000 variants (and 4 000 with ``--full``); ``reduced`` (``xval sweep --engines reduced``:
+   the reduced solver alone, the same settings; the issue's target 3) for N = 1 000 and 10 000
+   (and 100 000 with ``--full``; ``--reduced-sizes`` to choose). Printed per mode: peak MB per N,
+   wall time, the slope MB per 1 000 variants (least squares over the N run) and, unless
+   100 000 variants were run, an EXTRAPOLATION to 100 000 (not measured), both linear and flat; a
+   spread of peaks below the run-to-run noise (~20 MB: the same sweep measured twice here
+   differed by up to 19 MB) is said to be noise.
 4. The 1 000-variant sweep locally (part 3's run is reused when it ran) and with
    ``--scheduler`` on a ``distributed.LocalCluster(n_workers=2, threads_per_worker=1,
    processes=True)`` started here; ``sweep.csv`` rows compared as text after dropping the
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
    time-based columns of ``compare.sweep.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
-    python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4]
+    python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
+                               [--reduced-sizes 1000,10000,100000]
 
 ``--quick`` is a smoke run (100 reduced variants, 20 MuJoCo variants, sweeps of 40 and 100
-variants, Dask on 40). ``--full`` adds the 4 000-variant memory run and runs MuJoCo on all 1 000.
+variants in each mode, Dask on 40). ``--full`` adds the 4 000-variant memory run of both engines,
+the 100 000-variant reduced-only one, and runs MuJoCo on all 1 000.
 """
 
 from __future__ import annotations
@@ -92,7 +97,8 @@ sys.path.insert(0, str(ROOT))
 
 from compare.pool import ordered_map  # noqa: E402
 from compare.sweep import chunk_size  # noqa: E402
-from compare.sweep_spec import apply, check, count, load_sweep, spec_from_args, variant_values  # noqa: E402
+from compare.sweep_spec import (ENGINE_CHOICES, Engines, apply, check, count, load_sweep, spec_from_args,  # noqa: E402
+                                variant_values)
 from reduced import ReducedSettings, default_scene_path  # noqa: E402
 from reduced.scenefile import scene_from_dict  # noqa: E402
 
@@ -113,7 +119,8 @@ def grid_args(n_damper: int, n_mass: int) -> list[str]:
 
 def grid_for(n: int) -> tuple[int, int]:
     """A damper × mass grid of n variants (n = 1000: 25 × 40)."""
-    shapes = {40: (5, 8), 100: (10, 10), 200: (10, 20), 1000: (25, 40), 4000: (50, 80)}
+    shapes = {40: (5, 8), 100: (10, 10), 200: (10, 20), 1000: (25, 40), 4000: (50, 80), 10_000: (100, 100),
+              100_000: (250, 400)}
     return shapes[n]
 
 
@@ -464,9 +471,9 @@ def _mem_kb(pid: int) -> tuple[int, int]:
     return rss, pss
 
 
-def run_sweep(n: int, out: Path, scheduler: str | None = None) -> dict:
+def run_sweep(n: int, out: Path, scheduler: str | None = None, engines: Engines = Engines.BOTH) -> dict:
     cmd = [*xval_command(), "sweep", str(default_scene_path()), *sum((["--vary", a] for a in grid_args(*grid_for(n))), []),
-           "--out", str(out)]
+           "--out", str(out), "--engines", str(engines)]
     if scheduler:
         cmd += ["--scheduler", scheduler]
     peak = {"rss": 0, "pss": 0, "single": 0}
@@ -488,34 +495,44 @@ def run_sweep(n: int, out: Path, scheduler: str | None = None) -> dict:
     watcher.join()
     if proc.returncode not in (0, 1):  # 1: some variant failed the gate, still a full sweep
         raise RuntimeError(f"xval sweep exited {proc.returncode}: {stderr[-2000:]}")
-    summary = next((line for line in stdout.splitlines() if " variants (" in line), "").strip()
+    summary = next((line for line in stdout.splitlines() if " variants" in line), "").strip()
     return {"n": n, "wall": wall, "rss_mb": peak["rss"] / 1024, "pss_mb": peak["pss"] / 1024,
             "single_mb": peak["single"] / 1024, "csv": out / "sweep.csv", "summary": summary,
             "rc": proc.returncode}
 
 
-def part3(sizes: list[int], tmp: Path) -> dict:
+def part3(sizes: list[int], tmp: Path, engines: Engines = Engines.BOTH) -> dict:
+    what = "the reduced engine alone" if engines is Engines.REDUCED else "both engines"
     print(f"\n3. peak memory of `xval sweep {default_scene_path().name} --vary {DAMPER}=.. --vary {MASS}=.. "
-          f"--out TMP` (both engines: xval sweep has no reduced-only mode), 2 local workers, /proc polled every 0.1 s")
-    print(f"   {'N':>6s} {'wall (s)':>9s} {'tree RSS (MB)':>14s} {'tree PSS (MB)':>14s} {'largest process RSS':>20s}  xval's summary")
+          f"--engines {engines} --out TMP` ({what}), 2 local workers, /proc polled every 0.1 s", flush=True)
+    print(f"   {'N':>6s} {'wall (s)':>9s} {'tree RSS (MB)':>14s} {'tree PSS (MB)':>14s} {'largest process RSS':>20s}  "
+          f"xval's summary", flush=True)
     done = {}
     for n in sizes:
-        r = run_sweep(n, tmp / f"local-{n}")
+        r = run_sweep(n, tmp / f"local-{engines}-{n}", engines=engines)
         done[n] = r
-        print(f"   {n:6d} {r['wall']:9.1f} {r['rss_mb']:14.0f} {r['pss_mb']:14.0f} {r['single_mb']:20.0f}  {r['summary']}")
+        print(f"   {n:6d} {r['wall']:9.1f} {r['rss_mb']:14.0f} {r['pss_mb']:14.0f} {r['single_mb']:20.0f}  "
+              f"{r['summary']}", flush=True)
     lo, hi = min(sizes), max(sizes)
     x = np.array(sizes, dtype=float) / 1000
     for key, label in (("pss_mb", "PSS"), ("rss_mb", "RSS")):
         y = np.array([done[k][key] for k in sizes])
-        slope = float(np.polyfit(x, y, 1)[0])  # least squares over every N (two N: the endpoints)
-        linear = done[hi][key] + max(slope, 0.0) * (100_000 - hi) / 1000
         spread = float(y.max() - y.min())
-        print(f"   tree {label}: slope {slope:+.1f} MB per 1000 variants (least squares, N {lo}..{hi}); "
-              f"EXTRAPOLATION (not measured) to 100 000 variants: {linear:.0f} MB if linear in N, "
-              f"{done[hi][key]:.0f} MB if flat (target < 500 MB)")
+        if len(sizes) < 2:
+            print(f"   tree {label}: one N only, no slope")
+            continue
+        slope = float(np.polyfit(x, y, 1)[0])  # least squares over every N (two N: the endpoints)
+        line = f"   tree {label}: slope {slope:+.1f} MB per 1000 variants (least squares, N {lo}..{hi}); "
+        if hi >= 100_000:
+            line += f"MEASURED at N = {hi}: {done[hi][key]:.0f} MB (target < 500 MB)"
+        else:
+            linear = done[hi][key] + max(slope, 0.0) * (100_000 - hi) / 1000
+            line += (f"EXTRAPOLATION (not measured) to 100 000 variants: {linear:.0f} MB if linear in N, "
+                     f"{done[hi][key]:.0f} MB if flat (target < 500 MB)")
+        print(line)
         if spread < NOISE_MB:
             print(f"      the peaks differ by {spread:.0f} MB over N, within the run-to-run noise of this "
-                  f"measurement (~{NOISE_MB:g} MB): the linear figure multiplies noise (--full adds N = 4000)")
+                  f"measurement (~{NOISE_MB:g} MB): the slope is noise")
     return done
 
 
@@ -560,10 +577,18 @@ def part4(n: int, tmp: Path, local: dict | None) -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a fast smoke run")
-    parser.add_argument("--full", action="store_true", help="also the 4000-variant memory run, MuJoCo on all 1000")
+    parser.add_argument("--full", action="store_true", help="also the 4000-variant memory run of both engines and the 100000-variant "
+                        "reduced-only one, MuJoCo on all 1000")
     parser.add_argument("--parts", default="1,2,3,4", help="which parts to run, e.g. 1,3")
+    parser.add_argument("--engines", default=",".join(ENGINE_CHOICES),
+                        help=f"part 3's modes of xval sweep --engines, of {', '.join(ENGINE_CHOICES)} "
+                             f"(default all)")
+    parser.add_argument("--reduced-sizes", default=None,
+                        help="part 3's N of the reduced-only sweeps, e.g. 1000,10000,100000 (default 1000,10000; "
+                             "with --full also 100000)")
     args = parser.parse_args()
     parts = {int(p) for p in args.parts.split(",")}
+    modes = [Engines(e.strip()) for e in args.engines.split(",")]
     path = default_scene_path()
     n = 100 if args.quick else 1000
     start = time.perf_counter()
@@ -579,9 +604,16 @@ def main() -> int:
     try:
         done = None
         if 3 in parts:
-            sizes = [40, 100] if args.quick else [200, 1000] + ([4000] if args.full else [])
-            done = part3(sizes, tmp)
-            print(f"   (load average now {os.getloadavg()[0]:.2f})")
+            for engines in modes:
+                if engines is Engines.REDUCED:
+                    sizes = ([int(n) for n in args.reduced_sizes.split(",")] if args.reduced_sizes else
+                             [40, 100] if args.quick else [1000, 10_000] + ([100_000] if args.full else []))
+                else:
+                    sizes = [40, 100] if args.quick else [200, 1000] + ([4000] if args.full else [])
+                runs = part3(sizes, tmp, engines)
+                if engines is Engines.BOTH:
+                    done = runs  # part 4 compares both-engine rows
+                print(f"   (load average now {os.getloadavg()[0]:.2f})", flush=True)
         if 4 in parts:
             m = 40 if args.quick else 1000
             ok = part4(m, tmp, done.get(m) if done else None)

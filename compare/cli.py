@@ -26,6 +26,7 @@ from reduced.scenefile import default_scene_path, load_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
                      signals_as_exceptions, write_file)
+from .sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
 if TYPE_CHECKING:
@@ -273,6 +274,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from .sweep import run_sweep, summary_lines, sweep_files
     from .sweep_spec import check, load_sweep, spec_from_args
 
@@ -292,6 +295,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError("--samples and --seed go with --vary (the scene's [sweep] table has its own)")
     else:
         spec = table_spec
+    if args.engines is not None:  # the flag overrides the table's engines only when given
+        spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, sweep_files(spec, args.keep_trajectories))
     client = None
@@ -451,9 +456,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    "does (the scene's own settings and tolerances), in parallel; write "
                                    "sweep.csv and sweep.json (one row per variant: its status, the varied values, "
                                    "report.json's diff and gate figures, both engines' peaks and times), plots, "
-                                   "and print a summary. Variants that cannot be assembled (invalid) or whose "
-                                   "engines fail numerically (failed) are counted rows. Exit 1 if any variant "
-                                   "fails the gate or numerically, 2 on bad input (checked before any run).")
+                                   "and print a summary. With --engines reduced, only the reduced solver runs "
+                                   "(its own error and energy checks, no MuJoCo, no gate). Variants that cannot be "
+                                   "assembled (invalid) or whose engines fail numerically (failed) are counted "
+                                   "rows. Exit 1 if any variant fails the gate or numerically, 2 on bad input "
+                                   "(checked before any run).")
     _add_scene_argument(p)
     p.add_argument("--vary", action="append", metavar="KEY=SPEC",
                    help="a dotted key of the scene file (bodies.coupler.mass, dampers.0.coefficient, "
@@ -461,6 +468,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
                         "sample. Without --vary: the scene file's [sweep] table; when both are given, "
                         "--vary wins and the table is ignored")
+    p.add_argument("--engines", choices=ENGINE_CHOICES, default=None,
+                   help="what runs on each variant: both (the reduced solver and MuJoCo, compared and gated) or "
+                        "reduced (the reduced solver alone with the settings the comparison gives it; sweep.csv "
+                        "has no diff, gate or mujoco columns, no gate map or worst-differences plot). Default: the "
+                        "[sweep] table's engines when the table is used, else both")
     p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,

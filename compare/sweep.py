@@ -7,6 +7,18 @@ without engine flags). A variant that cannot be assembled is a row with status `
 whose engines fail numerically a row with status ``failed``; both are counted and the sweep goes
 on.
 
+Reduced-only sweeps (``spec.engines`` is :attr:`~compare.sweep_spec.Engines.REDUCED`, ``xval
+sweep --engines reduced`` or ``engines = "reduced"`` in the ``[sweep]`` table): each variant runs
+only :func:`reduced.engine.simulate` with the scene's reduced settings as the comparison resolves
+them (:func:`compare.settings.reduced_settings`); MuJoCo is neither run nor imported. ``passed``
+then means the reduced engine's own checks (error estimate, energy balance) passed; there is no
+gate, so no ``gate_failed``. Their sweep.csv has only the columns of what ran:
+:data:`FIXED_COLUMNS`, the varied keys, then :data:`REDUCED_ONLY_COLUMNS` (the ``reduced.*``
+figures and ``variant_wall_s``); the ``diff.*``, ``gate.*`` and ``mujoco.*`` columns are left
+out rather than left empty, since nothing was compared (empty cells would read like variants that
+failed, and their nulls would make each row of sweep.json 3.4 times longer: 1270 characters for
+374 on the seed). The mode is in sweep.json (``"engines"``) and readable from the header.
+
 Variants run in a process pool (``workers`` processes, default all cores), in chunks of
 consecutive variants per task; results come back in variant order (``Pool.imap``) and each row is
 written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
@@ -26,14 +38,16 @@ it was (nothing appears until the whole set is committed). The plots and ``sweep
 made from the staged ``sweep.csv`` read back row by row.
 
 - ``sweep.csv``: one row per variant, in variant order (:data:`FIXED_COLUMNS`, then the varied
-  keys by name, then :data:`FIGURE_COLUMNS`); empty cells are figures not measured; list figures
+  keys by name, then :data:`FIGURE_COLUMNS`, reduced-only :data:`REDUCED_ONLY_COLUMNS`); empty cells are figures not measured; list figures
   (``diff.mode_mismatches``...) are JSON text.
 - ``sweep.json``: the specification, the summary and the rows (strict JSON, null for NaN).
-- plots: ``sweep_peak_omega.png`` (peak ω of both engines against the first varied key, a grid),
-  ``sweep_gate_map.png`` (the gate's worst ratio over the first two keys of a grid of two or more
-  keys), ``sweep_peak_omega_hist.png`` (Monte Carlo: histogram of both engines' peak ω),
+- plots: ``sweep_peak_omega.png`` (peak ω of each engine run against the first varied key, a
+  grid), ``sweep_gate_map.png`` (the gate's worst ratio over the first two keys of a grid of two
+  or more keys), ``sweep_peak_omega_hist.png`` (Monte Carlo: histogram of each engine's peak ω),
   ``sweep_worst_differences.png`` (``xval run``'s differences plot of the worst variant, run
-  again: the one whose peak-ω difference is the largest multiple of its tolerance).
+  again: the one whose peak-ω difference is the largest multiple of its tolerance). A
+  reduced-only sweep draws the first or the third, with the reduced engine only: no gate map
+  and no worst differences, as nothing was compared (:func:`plot_files`).
 - ``trajectories.csv`` with ``keep_trajectories``: index, engine, t, q, qdot, qddot of every
   variant that ran (for small sweeps).
 """
@@ -53,10 +67,11 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 
 from .output import json_text, plain, portable_source, write_folder
 from .pool import ignore_interrupts, ordered_map
-from .sweep_spec import SweepSpec, count, variant_values
+from .sweep_spec import Engines, SweepSpec, count, variant_values
 
 STATUSES = ("passed", "gate_failed", "failed", "invalid")
-"""A variant's status: both engines ran and the gate passed / failed; an engine failed
+"""A variant's status: every check that ran passed (both engines and the gate; reduced-only:
+the reduced engine's own checks) / both engines ran and the gate failed; an engine failed
 numerically; the variant could not be assembled (its scene is invalid)."""
 
 FIXED_COLUMNS = ("index", "status", "reason")
@@ -70,6 +85,8 @@ ENGINE_FIGURES = ("peak_omega", "t_peak", "wall_s", "n_steps", "energy_residual"
 FIGURE_COLUMNS = (tuple(f"diff.{k}" for k in DIFF_FIGURES) + tuple(f"gate.{k}" for k in GATE_FIGURES)
                   + tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + tuple(f"mujoco.{k}" for k in ENGINE_FIGURES)
                   + ("mujoco.max_constraint_violation", "variant_wall_s"))
+REDUCED_ONLY_COLUMNS = tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + ("variant_wall_s",)
+"""The figure columns of a reduced-only sweep (module docstring)."""
 LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
 
 CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
@@ -80,14 +97,17 @@ MAX_CHUNK = 32
 
 def columns(spec: SweepSpec) -> tuple[str, ...]:
     """The columns of sweep.csv for ``spec``."""
-    return FIXED_COLUMNS + spec.keys + FIGURE_COLUMNS
+    return FIXED_COLUMNS + spec.keys + (REDUCED_ONLY_COLUMNS if spec.engines is Engines.REDUCED else FIGURE_COLUMNS)
 
 
 def plot_files(spec: SweepSpec) -> tuple[str, ...]:
-    """The plots a sweep of ``spec`` draws."""
+    """The plots a sweep of ``spec`` draws (a reduced-only sweep: no gate map, no worst differences)."""
+    compared = spec.engines is Engines.BOTH
     if not spec.is_grid:
-        return (HIST_PLOT, WORST_PLOT)
-    return (PEAK_PLOT,) + ((MAP_PLOT,) if len(spec.keys) >= 2 else ()) + (WORST_PLOT,)
+        plots = (HIST_PLOT,)
+    else:
+        plots = (PEAK_PLOT,) + ((MAP_PLOT,) if compared and len(spec.keys) >= 2 else ())
+    return plots + ((WORST_PLOT,) if compared else ())
 
 
 def sweep_files(spec: SweepSpec, keep_trajectories: bool = False) -> tuple[str, ...]:
@@ -114,7 +134,7 @@ def _ratio(value: float, bound: float | None) -> float | None:
 def comparison_row(c) -> dict[str, Any]:
     """The figures of one comparison (the ``diff`` and ``gate`` of report.json, both engines'
     peaks, times and residuals), keyed by sweep.csv column."""
-    from .report import engine_summary, report_dict
+    from .report import report_dict
 
     report = report_dict(c)
     row: dict[str, Any] = {f"diff.{k}": report["diff"][k] for k in DIFF_FIGURES}
@@ -125,22 +145,47 @@ def comparison_row(c) -> dict[str, Any]:
     ratios = [r for r in ratios if r is not None]
     row.update({"gate.passed": c.gate.passed, **{f"gate.{k}": v for k, v in report["gate"]["tolerances"].items()},
                 "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
-    for engine, result in (("reduced", c.reduced), ("mujoco", c.mujoco)):
-        summary = engine_summary(result)
-        row.update({f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES})
+    row.update(engine_row("reduced", c.reduced))
+    row.update(engine_row("mujoco", c.mujoco))
     row["mujoco.max_constraint_violation"] = c.mujoco.diagnostics.get("max_constraint_violation")
     return row
 
 
+def engine_row(engine: str, result) -> dict[str, Any]:
+    """One engine's figures (report.json's per-engine part), keyed by sweep.csv column."""
+    from .report import engine_summary
+
+    summary = engine_summary(result)
+    return {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}
+
+
+def _run_engines(scene, engines: Engines) -> tuple[dict[str, Any], str, str, dict[str, Any]]:
+    """The figures, status, reason and results by engine name of ``scene`` run as ``engines``
+    says: both engines compared and gated (as ``xval run``), or the reduced engine alone with the
+    settings the comparison would give it. NumericalFailure propagates."""
+    if engines is Engines.REDUCED:  # MuJoCo is not imported: compare.run would load it
+        from reduced.engine import simulate
+
+        from .settings import reduced_settings
+
+        result = simulate(scene, reduced_settings(scene))
+        return engine_row("reduced", result), "passed", "", {"reduced": result}
+    from .run import compare_engines
+
+    c = compare_engines(scene)
+    return (comparison_row(c), "passed" if c.gate.passed else "gate_failed", "; ".join(c.gate.failures),
+            {"reduced": c.reduced, "mujoco": c.mujoco})
+
+
 def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any], source: str,
-                keep_trajectories: bool = False) -> dict[str, Any]:
+                keep_trajectories: bool = False, engines: Engines = Engines.BOTH) -> dict[str, Any]:
     """One variant's row: built from ``data`` with ``values`` applied, run through both engines
-    and gated (as ``xval run``); invalid and failed variants are rows too."""
+    and gated (as ``xval run``), or with ``engines`` REDUCED through the reduced engine alone;
+    invalid and failed variants are rows too."""
     from reduced.errors import NumericalFailure
     from reduced.scene import SceneError
     from reduced.scenefile import scene_from_dict
 
-    from .run import compare_engines
     from .sweep_spec import apply
 
     row: dict[str, Any] = {"index": index, "status": "", "reason": "", **values}
@@ -149,7 +194,7 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
         with warnings.catch_warnings():  # off-grid edges and ignored settings: the same for many variants
             warnings.simplefilter("ignore")
             scene = scene_from_dict(apply(data, values), source)
-            c = compare_engines(scene)
+            figures, status, reason, results = _run_engines(scene, engines)
     except (SceneError, ValueError) as exc:  # as main() does: the variant's scene or settings are bad input
         row.update(status="invalid", reason=" ".join(str(exc).split()))
     except NumericalFailure as exc:
@@ -157,10 +202,10 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
     except Exception as exc:  # noqa: BLE001 - an engine's own error is this variant's, not the sweep's
         row.update(status="failed", reason=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
     else:
-        row.update(comparison_row(c))
-        row.update(status="passed" if c.gate.passed else "gate_failed", reason="; ".join(c.gate.failures))
+        row.update(figures)
+        row.update(status=status, reason=reason)
         if keep_trajectories:
-            row["_trajectories"] = {e: _trajectory(r) for e, r in (("reduced", c.reduced), ("mujoco", c.mujoco))}
+            row["_trajectories"] = {e: _trajectory(r) for e, r in results.items()}
     row["variant_wall_s"] = time.perf_counter() - start
     return row
 
@@ -175,14 +220,14 @@ def _trajectory(result) -> list[tuple[float, float, float, float]]:
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(data, source, keep) -> None:
+def _init_worker(data, source, keep, engines) -> None:
     ignore_interrupts()
-    _WORKER.update(data=data, source=source, keep=keep)
+    _WORKER.update(data=data, source=source, keep=keep, engines=engines)
 
 
 def _run_chunk(task: tuple[int, list[dict[str, float]]]) -> list[dict[str, Any]]:
     start, values = task
-    return [run_variant(start + i, v, _WORKER["data"], _WORKER["source"], _WORKER["keep"])
+    return [run_variant(start + i, v, _WORKER["data"], _WORKER["source"], _WORKER["keep"], _WORKER["engines"])
             for i, v in enumerate(values)]
 
 
@@ -257,12 +302,12 @@ def dask_threads(client) -> int:
 
 
 def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
-                keep: bool) -> list[dict[str, Any]]:
+                keep: bool, engines: Engines) -> list[dict[str, Any]]:
     """One Dask task: the rows of the consecutive variants ``start``, ``start + 1``..."""
-    return [run_variant(start + i, v, data, source, keep) for i, v in enumerate(values)]
+    return [run_variant(start + i, v, data, source, keep, engines) for i, v in enumerate(values)]
 
 
-def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool,
+def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool, engines: Engines,
                tasks: Iterator[tuple[int, list[dict[str, float]]]], in_flight: int) -> Iterator[dict[str, Any]]:
     """The rows of ``tasks`` run on ``client``'s cluster, in variant order: the futures are read
     in submission order, at most ``in_flight`` submitted at a time, the next submitted as the
@@ -277,7 +322,7 @@ def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool,
         if task is None:
             return False
         start, values = task
-        pending.append(client.submit(_dask_chunk, start, values, shared, source, keep, pure=False))
+        pending.append(client.submit(_dask_chunk, start, values, shared, source, keep, engines, pure=False))
         return True
 
     try:
@@ -309,14 +354,16 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
     size = chunk_size(n, workers)
     tasks = _chunks(spec, size)
     if client is not None:
-        yield from _dask_rows(client, data, source, keep_trajectories, tasks, CHUNKS_IN_FLIGHT * workers)
+        yield from _dask_rows(client, data, source, keep_trajectories, spec.engines, tasks,
+                              CHUNKS_IN_FLIGHT * workers)
         return
     if workers <= 1:
         for start, values in tasks:
             for i, v in enumerate(values):
-                yield run_variant(start + i, v, data, source, keep_trajectories)
+                yield run_variant(start + i, v, data, source, keep_trajectories, spec.engines)
         return
-    for rows in ordered_map(_run_chunk, tasks, workers, _init_worker, (dict(data), source, keep_trajectories)):
+    for rows in ordered_map(_run_chunk, tasks, workers, _init_worker,
+                            (dict(data), source, keep_trajectories, spec.engines)):
         yield from rows
 
 
@@ -324,17 +371,21 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
 
 @dataclass
 class Summary:
-    """What a sweep prints and keeps in memory: counts, the worst variant, and per key the
-    range of values of the variants that failed (the gate or numerically)."""
+    """What a sweep prints and keeps in memory: counts, the worst variant (compared sweeps),
+    the variants of the lowest and highest peak |ω| of the reduced engine, and per key the range
+    of values of the variants that failed (the gate or numerically)."""
 
     keys: tuple[str, ...]
     total: int = 0
     counts: dict[str, int] = field(default_factory=lambda: {s: 0 for s in STATUSES})
     worst: dict[str, Any] | None = None  # index, values, peak_ratio, status
+    peak_extremes: dict[str, dict[str, Any]] = field(default_factory=dict)  # lowest/highest: index, values, peak
     failing_ranges: dict[str, list[float]] = field(default_factory=dict)  # key -> [min, max]
     ranges: dict[str, list[float]] = field(default_factory=dict)
     wall_s: float = 0.0
     workers: int = 1
+    engines: Engines = Engines.BOTH
+    speed_unit: str = "rad/s"
 
     def add(self, row: Mapping[str, Any]) -> None:
         self.total += 1
@@ -350,15 +401,27 @@ class Summary:
         if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
             self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
                           "peak_omega_rel": row.get("diff.peak_omega_rel")}
+        peak = row.get("reduced.peak_omega")
+        if peak is not None and math.isfinite(peak):
+            entry = {"index": row["index"], "values": values, "peak_omega": abs(peak)}
+            low, high = self.peak_extremes.get("lowest"), self.peak_extremes.get("highest")
+            if low is None or abs(peak) < low["peak_omega"]:
+                self.peak_extremes["lowest"] = entry
+            if high is None or abs(peak) > high["peak_omega"]:
+                self.peak_extremes["highest"] = entry
 
     @property
     def failed_any(self) -> bool:
         return bool(self.counts["gate_failed"] or self.counts["failed"])
 
     def as_dict(self) -> dict[str, Any]:
-        return {"variants": self.total, "counts": dict(self.counts), "worst": self.worst,
-                "ranges": self.ranges, "failing_ranges": self.failing_ranges, "wall_s": self.wall_s,
-                "workers": self.workers}
+        return {"variants": self.total, "engines": self.engines, "counts": dict(self.counts), "worst": self.worst,
+                "peak_extremes": self.peak_extremes, "ranges": self.ranges, "failing_ranges": self.failing_ranges,
+                "wall_s": self.wall_s, "workers": self.workers}
+
+
+def _values_text(values: Mapping[str, float]) -> str:
+    return ", ".join(f"{k} = {v:.6g}" for k, v in values.items())
 
 
 def _extend(ranges: dict[str, list[float]], key: str, value: float) -> None:
@@ -369,14 +432,22 @@ def _extend(ranges: dict[str, list[float]], key: str, value: float) -> None:
 def summary_lines(summary: Summary) -> list[str]:
     """The printed summary of a sweep."""
     c = summary.counts
-    lines = [f"{summary.total} variants ({summary.workers} worker{'s' if summary.workers != 1 else ''}, "
-             f"{summary.wall_s:.1f} s): {c['passed']} passed, {c['gate_failed']} failed the gate, "
-             f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+    workers = f"{summary.workers} worker{'s' if summary.workers != 1 else ''}, {summary.wall_s:.1f} s"
+    if summary.engines is Engines.REDUCED:
+        lines = [f"{summary.total} variants, reduced engine only, no gate ({workers}): {c['passed']} passed its "
+                 f"own checks, {c['failed']} failed numerically, {c['invalid']} invalid"]
+        low, high = summary.peak_extremes.get("lowest"), summary.peak_extremes.get("highest")
+        if low is not None:
+            lines.append(f"peak |omega| from {low['peak_omega']:.6g} {summary.speed_unit} (#{low['index']}: "
+                         f"{_values_text(low['values'])}) to {high['peak_omega']:.6g} {summary.speed_unit} "
+                         f"(#{high['index']}: {_values_text(high['values'])})")
+    else:
+        lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
+                 f"{c['failed']} failed numerically, {c['invalid']} invalid"]
     w = summary.worst
     if w is not None:
-        values = ", ".join(f"{k} = {v:.6g}" for k, v in w["values"].items())
-        lines.append(f"worst variant: #{w['index']} ({values}): peak-omega difference {w['peak_ratio']:.3g}x its "
-                     f"tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
+        lines.append(f"worst variant: #{w['index']} ({_values_text(w['values'])}): peak-omega difference "
+                     f"{w['peak_ratio']:.3g}x its tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
     if summary.failing_ranges:
         parts = []
         for k, (lo, hi) in summary.failing_ranges.items():
@@ -409,16 +480,36 @@ def _title(source: str, what: str) -> str:
     return f"{short_name(Path(source).stem if not source.startswith('<') else source)}: {what}"
 
 
+def _peaks(csv_path: Path, spec: SweepSpec, names: tuple[str, ...] = ()) -> tuple[dict[str, list], dict]:
+    """The columns ``names`` of a sweep.csv, and the peak |ω| of each engine the sweep ran (by
+    engine name, in :attr:`Engines.runs` order, NaN where not measured)."""
+    cols = _column(csv_path, names + tuple(f"{e}.peak_omega" for e in spec.engines.runs))
+    return cols, {e: abs(_nan(cols[f"{e}.peak_omega"])) for e in spec.engines.runs}
+
+
+def _engine_styles() -> dict[str, dict[str, Any]]:
+    """How each engine is drawn in the sweep's plots: its colour, label, marker, line style."""
+    from .plots import MUJOCO_STYLE, REDUCED_STYLE
+
+    return {"reduced": {**REDUCED_STYLE, "marker": "o", "markersize": 3, "linestyle": "-"},
+            "mujoco": {**MUJOCO_STYLE, "marker": "x", "markersize": 4, "linestyle": "--"}}
+
+
+def _what(spec: SweepSpec, what: str) -> str:
+    return what + (" (reduced engine only)" if spec.engines is Engines.REDUCED else "")
+
+
 def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
-    """Peak |ω| of both engines against the first varied key (other keys: one line each value)."""
+    """Peak |ω| of each engine run against the first varied key (other keys: one line each value)."""
     import numpy as np
 
-    from .plots import MUJOCO_STYLE, PLAIN, REDUCED_STYLE, new_figure
+    from .plots import PLAIN, new_figure
 
     key = spec.keys[0]
-    cols = _column(csv_path, spec.keys + ("reduced.peak_omega", "mujoco.peak_omega", "status"))
+    cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
     x = _nan(cols[key])
-    red, mj = _nan(cols["reduced.peak_omega"]), _nan(cols["mujoco.peak_omega"])
+    red = peaks["reduced"]
+    styles = _engine_styles()
     fig, ax = new_figure((7.0, 4.2))
     others = spec.keys[1:]
     groups: dict[tuple, list[int]] = {}
@@ -427,16 +518,15 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
     for n, (label, idx) in enumerate(groups.items()):
         idx = np.array(idx)
         suffix = (" (" + ", ".join(f"{k}={v:g}" for k, v in zip(others, label)) + ")") if others else ""
-        first = n == 0
-        ax.plot(x[idx], np.abs(red[idx]), marker="o", markersize=3, color=REDUCED_STYLE["color"],
-                label=REDUCED_STYLE["label"] if first else None, alpha=1.0 if len(groups) == 1 else 0.6)
-        ax.plot(x[idx], np.abs(mj[idx]), marker="x", markersize=4, color=MUJOCO_STYLE["color"],
-                linestyle="--", label=MUJOCO_STYLE["label"] if first else None,
-                alpha=1.0 if len(groups) == 1 else 0.6)
+        for engine, peak in peaks.items():
+            style = styles[engine]
+            ax.plot(x[idx], peak[idx], marker=style["marker"], markersize=style["markersize"], color=style["color"],
+                    linestyle=style["linestyle"], label=style["label"] if n == 0 else None,
+                    alpha=1.0 if len(groups) == 1 else 0.6)
         ok = np.flatnonzero(np.isfinite(red[idx]))
         if others and ok.size and len(groups) <= 10:  # name each line by the other keys' values
             last = idx[ok[-1]]
-            ax.annotate(suffix.strip(" ()"), (x[last], abs(red[last])), textcoords="offset points", xytext=(-4, 4),
+            ax.annotate(suffix.strip(" ()"), (x[last], red[last]), textcoords="offset points", xytext=(-4, 4),
                         ha="right", fontsize=7, **PLAIN)
     bad = np.array([s in ("invalid", "failed") for s in cols["status"]])
     if bad.any():
@@ -445,7 +535,7 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
         ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
     ax.set_xlabel(key, **PLAIN)
     ax.set_ylabel(f"peak |ω| of the input ({speed_unit})")
-    ax.set_title(_title(source, f"peak speed against {key}"), **PLAIN)
+    ax.set_title(_title(source, _what(spec, f"peak speed against {key}")), **PLAIN)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.savefig(path)
@@ -507,31 +597,34 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
     with warnings.catch_warnings():  # as run_variant: its warnings were the sweep's to ignore
         warnings.simplefilter("ignore")
         c = compare_engines(scene_from_dict(apply(data, worst["values"]), source))
-    values = ", ".join(f"{k} = {v:.6g}" for k, v in worst["values"].items())
+    values = _values_text(worst["values"])
     plot_differences(c, path, subtitle=f"worst of {summary.total} variants: #{worst['index']}, peak-ω difference "
                                        f"{worst['peak_ratio']:.3g}× its tolerance\n{values}")
 
 
 def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
-    """Histogram of both engines' peak |ω| over a Monte Carlo sample."""
+    """Histogram of each engine run's peak |ω| over a Monte Carlo sample (the reduced engine's
+    filled, MuJoCo's outlined)."""
     import numpy as np
 
-    from .plots import MUJOCO_STYLE, PLAIN, REDUCED_STYLE, new_figure
+    from .plots import PLAIN, new_figure
 
-    cols = _column(csv_path, ("reduced.peak_omega", "mujoco.peak_omega"))
-    red, mj = np.abs(_nan(cols["reduced.peak_omega"])), np.abs(_nan(cols["mujoco.peak_omega"]))
-    red, mj = red[np.isfinite(red)], mj[np.isfinite(mj)]
+    _, peaks = _peaks(csv_path, spec)
+    peaks = {e: p[np.isfinite(p)] for e, p in peaks.items()}
+    styles = _engine_styles()
     fig, ax = new_figure((7.0, 4.2))
-    both = np.concatenate([red, mj])
-    if both.size:
-        bins = np.histogram_bin_edges(both, bins=min(50, max(5, int(math.sqrt(both.size)))))
-        ax.hist(red, bins=bins, color=REDUCED_STYLE["color"], alpha=0.6, label=REDUCED_STYLE["label"])
-        ax.hist(mj, bins=bins, histtype="step", color=MUJOCO_STYLE["color"], linestyle="--", linewidth=1.5,
-                label=MUJOCO_STYLE["label"])
+    every = np.concatenate(list(peaks.values()))
+    if every.size:
+        bins = np.histogram_bin_edges(every, bins=min(50, max(5, int(math.sqrt(every.size)))))
+        for engine, peak in peaks.items():
+            style = styles[engine]
+            look = {"alpha": 0.6} if engine == "reduced" else {"histtype": "step", "linestyle": "--", "linewidth": 1.5}
+            ax.hist(peak, bins=bins, color=style["color"], label=style["label"], **look)
         ax.legend(fontsize=8)
     ax.set_xlabel(f"peak |ω| of the input ({speed_unit})")
     ax.set_ylabel("variants")
-    ax.set_title(_title(source, f"peak speed over {len(red)} samples (seed {spec.seed})"), **PLAIN)
+    ax.set_title(_title(source, _what(spec, f"peak speed over {len(peaks['reduced'])} samples (seed {spec.seed})")),
+                 **PLAIN)
     ax.grid(True, alpha=0.3)
     fig.savefig(path)
 
@@ -613,7 +706,7 @@ def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, tra
 def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary,
                 sensitivity: list[dict] | None = None) -> None:
     """sweep.json: the specification, summary and sensitivities, then the rows read back one by one."""
-    head = {"source": portable_source(source), "keys": list(spec.keys),
+    head = {"source": portable_source(source), "engines": spec.engines, "keys": list(spec.keys),
             "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
             "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
                        for v in spec.varies],
@@ -642,7 +735,10 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     used = dask_threads(client) if client is not None else worker_count(workers, n)
     if client is None and workers is not None and used < workers and used < n:
         warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
-    summary = Summary(spec.keys, workers=used)
+    from reduced.scenefile import scene_from_dict
+
+    speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
+    summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)
     bar = _Progress(n) if progress else None
 
     def write_rows(path: Path) -> None:
@@ -659,9 +755,6 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     files: dict[str, Callable[[Path], None]] = {CSV_FILE: write_rows}
     if keep_trajectories:
         files[TRAJECTORY_FILE] = staged
-    from reduced.scenefile import scene_from_dict
-
-    speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
     for name in plot_files(spec):  # from the staged sweep.csv, but the worst variant's (run again)
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))

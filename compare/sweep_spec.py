@@ -23,11 +23,16 @@ distributions in one sweep are refused (a grid with a Monte Carlo sample on top 
 ``samples`` (≥ 1) is required by distributions and refused with grids (a grid's size is its n);
 ``seed`` (an integer ≥ 0) defaults to 0. At most :data:`MAX_VARIANTS` variants.
 
+``engines`` (:class:`Engines`) says what runs on each variant: ``both`` (the default: the reduced
+solver and MuJoCo, compared and gated as ``xval run`` does) or ``reduced`` (the reduced solver
+alone, with its own error and energy checks; no MuJoCo, no comparison, no gate).
+
 The same in a scene file, a ``[sweep]`` table (:func:`spec_from_table`)::
 
     [sweep]
     samples = 100                  # Monte Carlo only
     seed = 1                       # optional, default 0
+    engines = "reduced"            # optional, "both" (default) or "reduced"
     [sweep.vary]                   # KEY = SPEC, in the order of the sweep
     "dampers.0.coefficient" = "40:70:7"
     "bodies.coupler.mass" = "normal(40, 2)"
@@ -38,9 +43,9 @@ key (``bodies.coupler.mass = "..."`` without quotes) is TOML for nested tables a
 the same KEY. The scene itself ignores its ``[sweep]`` table; variants do not carry it.
 
 Everything is refused up front, before any work, by :class:`SweepSpecError` (a ValueError, one
-line naming the key): a malformed SPEC, lo > hi, n < 1, sigma < 0, a non-finite number, a key
-given twice, grids mixed with distributions, a missing or needless ``samples``, too many
-variants (the specification, where defined); and, against the scene (:func:`check`), an unknown
+line naming the key): an unknown ``engines``, a malformed SPEC, lo > hi, n < 1, sigma < 0, a
+non-finite number, a key given twice, grids mixed with distributions, a missing or needless
+``samples``, too many variants (the specification, where defined); and, against the scene (:func:`check`), an unknown
 key, a key whose value is not a number (``linkage.type``), and a value that makes the scene
 invalid at the nominal scene or at an extreme of a key (a grid's smallest and largest values,
 ``uniform``'s bounds, ``normal``'s mu ± 4 sigma, not clipped: a normal distribution whose
@@ -54,6 +59,7 @@ import itertools
 import math
 import re
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any, Iterator, Mapping, NamedTuple, Union
 
@@ -71,6 +77,25 @@ SWEEP_TABLE = "sweep"
 
 class SweepSpecError(ValueError):
     """A sweep specification that cannot be run; the message is one line naming the key."""
+
+
+class Engines(str, Enum):
+    """What runs on each variant of a sweep (compares equal to its value string)."""
+
+    BOTH = "both"  # the reduced solver and MuJoCo, compared and gated (as xval run)
+    REDUCED = "reduced"  # the reduced solver alone: its own error and energy checks, no gate
+
+    def __str__(self) -> str:
+        return self.value
+
+    @property
+    def runs(self) -> tuple[str, ...]:
+        """The engines run on each variant, by their names in sweep.csv's columns."""
+        return ("reduced",) if self is Engines.REDUCED else ("reduced", "mujoco")
+
+
+ENGINE_CHOICES = tuple(e.value for e in Engines)
+"""The values of ``--engines`` and ``sweep.engines``."""
 
 
 # -- keys ------------------------------------------------------------------------------
@@ -193,7 +218,8 @@ Vary = Union[Grid, Distribution]
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """The varied keys (in order), ``samples`` (distributions only) and ``seed``.
+    """The varied keys (in order), ``samples`` (distributions only), ``seed`` and the
+    ``engines`` run on each variant (a value of :data:`ENGINE_CHOICES` is converted).
 
     All grids: the product of their values, the last key fastest. All distributions: a sample
     of ``samples`` variants from ``default_rng(seed)``. Mixing the two is refused.
@@ -202,6 +228,7 @@ class SweepSpec:
     varies: tuple[Vary, ...]
     samples: int | None = None
     seed: int = 0
+    engines: Engines = Engines.BOTH
 
     def __post_init__(self):
         varies = tuple(self.varies) if isinstance(self.varies, (list, tuple)) else self.varies
@@ -220,6 +247,10 @@ class SweepSpec:
         if grids and dists:
             raise SweepSpecError(f"sweep key '{grids[0]}' is a grid and '{dists[0]}' a distribution: a sweep is "
                                  "either a full grid or a Monte Carlo sample, not both")
+        if not isinstance(self.engines, str) or self.engines not in ENGINE_CHOICES:
+            raise SweepSpecError(f"sweep engines (--engines or sweep.engines) must be one of "
+                                 f"{', '.join(ENGINE_CHOICES)}, got {self.engines!r}")
+        object.__setattr__(self, "engines", Engines(self.engines))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SweepSpecError(f"sweep seed (--seed or sweep.seed) must be an integer ≥ 0, got {self.seed!r}")
         if dists:
@@ -340,9 +371,9 @@ def spec_from_table(table: Any, source: str = "<memory>") -> SweepSpec:
     try:
         if not isinstance(table, dict):
             raise SweepSpecError("'sweep' must be a table ([sweep])")
-        unknown = sorted(set(table) - {"vary", "samples", "seed"})
+        unknown = sorted(set(table) - {"vary", "samples", "seed", "engines"})
         if unknown:
-            raise SweepSpecError(f"unknown key 'sweep.{unknown[0]}': [sweep] has vary, samples and seed")
+            raise SweepSpecError(f"unknown key 'sweep.{unknown[0]}': [sweep] has vary, samples, seed and engines")
         vary = table.get("vary")
         if not isinstance(vary, dict) or not vary:
             raise SweepSpecError("'sweep.vary' must be a table of KEY = SPEC, e.g. "
@@ -351,7 +382,8 @@ def spec_from_table(table: Any, source: str = "<memory>") -> SweepSpec:
         for name, value in (("samples", samples), ("seed", seed)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
                 raise SweepSpecError(f"'sweep.{name}' must be a whole number, got {value!r}")
-        return SweepSpec(tuple(parse_spec(k, v) for k, v in _flatten(vary)), samples, seed)
+        return SweepSpec(tuple(parse_spec(k, v) for k, v in _flatten(vary)), samples, seed,
+                         table.get("engines", Engines.BOTH))
     except SweepSpecError as exc:
         raise SweepSpecError(f"{source}: {exc}" if source else str(exc)) from None
 

@@ -10,8 +10,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from compare.sweep_spec import (MAX_VARIANTS, Distribution, Grid, SweepSpec, SweepSpecError, Variant, check,
-                                count, load_sweep, parse_vary, spec_from_args, spec_from_table, variants)
+from compare.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError, Variant,
+                                check, count, load_sweep, parse_vary, spec_from_args, spec_from_table, variants)
 from reduced.scene import SceneError
 from reduced.scenefile import default_scene_path, load_scene, scene_from_dict
 
@@ -292,3 +292,17 @@ def test_a_scene_file_without_sweep_table_loads_as_before(tmp_path):
     path.write_text(SEED_TEXT + "\n[sweeps]\nsamples = 3\n")
     with pytest.raises(SceneError, match=r"unknown key 'sweeps'"):
         load_scene(path)
+
+
+def test_engines_of_a_spec_and_of_the_sweep_table():
+    grid = (Grid("linkage.c2", (0.9,)),)
+    assert SweepSpec(grid).engines is Engines.BOTH
+    assert SweepSpec(grid, engines="reduced").engines is Engines.REDUCED  # a value string is converted
+    assert Engines.REDUCED.runs == ("reduced",) and Engines.BOTH.runs == ("reduced", "mujoco")
+    table = {"engines": "reduced", "vary": {"linkage.c2": [0.9, 1.0]}}
+    assert spec_from_table(table).engines is Engines.REDUCED
+    with pytest.raises(SweepSpecError, match=r"^s\.toml: sweep engines \(--engines or sweep\.engines\) must be one of "
+                                             r"both, reduced, got 'mujoco'$"):
+        spec_from_table({**table, "engines": "mujoco"}, "s.toml")
+    with pytest.raises(SweepSpecError, match=r"sweep\.engines.*got \['reduced'\]"):
+        SweepSpec(grid, engines=["reduced"])
