@@ -496,7 +496,16 @@ def _engine_styles() -> dict[str, dict[str, Any]]:
 
 
 def _what(spec: SweepSpec, what: str) -> str:
-    return what + (" (reduced engine only)" if spec.engines is Engines.REDUCED else "")
+    """A plot's title text; a reduced-only sweep says so on a second line (one line would not
+    fit over the axes with a long key)."""
+    return what + ("\n(reduced engine only: no MuJoCo, no gate)" if spec.engines is Engines.REDUCED else "")
+
+
+def _title_margins(spec: SweepSpec) -> dict[str, float]:
+    """new_figure's margins for :func:`_what`'s title (inches)."""
+    from .plots import MARGINS
+
+    return {"top": MARGINS["top"] + (0.25 if spec.engines is Engines.REDUCED else 0.0)}
 
 
 def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
@@ -510,7 +519,7 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
     x = _nan(cols[key])
     red = peaks["reduced"]
     styles = _engine_styles()
-    fig, ax = new_figure((7.0, 4.2))
+    fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
     others = spec.keys[1:]
     groups: dict[tuple, list[int]] = {}
     for i in range(len(x)):
@@ -524,7 +533,8 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
                     linestyle=style["linestyle"], label=style["label"] if n == 0 else None,
                     alpha=1.0 if len(groups) == 1 else 0.6)
         ok = np.flatnonzero(np.isfinite(red[idx]))
-        if others and ok.size and len(groups) <= 10:  # name each line by the other keys' values
+        if others and ok.size and (len(groups) <= 10 or n in (0, len(groups) - 1)):
+            # name each line by the other keys' values (of many lines, the first and the last)
             last = idx[ok[-1]]
             ax.annotate(suffix.strip(" ()"), (x[last], red[last]), textcoords="offset points", xytext=(-4, 4),
                         ha="right", fontsize=7, **PLAIN)
@@ -612,7 +622,7 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
     _, peaks = _peaks(csv_path, spec)
     peaks = {e: p[np.isfinite(p)] for e, p in peaks.items()}
     styles = _engine_styles()
-    fig, ax = new_figure((7.0, 4.2))
+    fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
     every = np.concatenate(list(peaks.values()))
     if every.size:
         bins = np.histogram_bin_edges(every, bins=min(50, max(5, int(math.sqrt(every.size)))))

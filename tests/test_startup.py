@@ -94,7 +94,9 @@ def text_outside(fig) -> list[str]:
                  zip(ax.yaxis.get_majorticklocs(), ax.yaxis.get_majorticklabels())
                  if low <= loc <= high and label.get_visible() and label.get_text()]
         if ax.yaxis.label.get_text() and shown:
-            if ax.yaxis.label.get_window_extent(renderer).x1 > min(b.x0 for b in shown) + 0.5:
+            label = ax.yaxis.label.get_window_extent(renderer)
+            if (label.x1 > min(b.x0 for b in shown) + 0.5 if ax.yaxis.get_label_position() == "left"
+                    else label.x0 < max(b.x1 for b in shown) - 0.5):  # a colour bar's, on the right
                 bad.append(f"y label {ax.yaxis.label.get_text()!r} overlaps its tick labels")
     return bad
 

@@ -399,3 +399,40 @@ def test_a_bad_engines_value_is_refused_up_front(args, table, named, short_scene
     assert status == 2 and printed == ""
     assert err.count("\n") == 1 and named in err and "Traceback" not in err, err
     assert not (tmp_path / "sw").exists()
+
+
+@pytest.mark.parametrize("engines", list(Engines))
+@pytest.mark.parametrize("varies", [["dampers.0.coefficient=40:70:5", "bodies.coupler.mass=35:45:12"],
+                                    ["bodies.coupler.mass=normal(40, 2)"]], ids=["grid", "monte-carlo"])
+def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
+    """The sweep's plots (not the worst variant's, which is xval run's) with long keys: the
+    reduced-only title's second line and the names of a family of twelve lines stay inside
+    the figure (measured on synthetic rows: only the layout is tested)."""
+    import csv
+
+    from matplotlib.figure import Figure
+
+    from compare.sweep import PLOTS, WORST_PLOT, columns, plot_files
+    from compare.sweep_spec import variant_values
+    from test_startup import text_outside
+
+    spec = replace(spec_from_args(varies, samples=200 if "normal" in varies[0] else None), engines=engines)
+    path = tmp_path / CSV_FILE
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns(spec))
+        writer.writeheader()
+        for index, values in enumerate(variant_values(spec)):
+            peak = 30.0 + 0.1 * sum(values.values())
+            row = {"index": index, "status": "passed", **values, "reduced.peak_omega": peak}
+            if engines is Engines.BOTH:
+                row.update({"mujoco.peak_omega": peak * (1 + 1e-5), "gate.worst_ratio": 0.5})
+            writer.writerow(row)
+    saved = []
+    real_savefig = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (saved.append(fig), real_savefig(fig, *a, **k)))
+    names = [n for n in plot_files(spec) if n != WORST_PLOT]
+    for name in names:
+        PLOTS[name](path, spec, str(ROOT / "scenes" / "seed_fourbar.toml"), tmp_path / name, "rad/s")
+    assert len(saved) == len(names)
+    for fig, name in zip(saved, names):
+        assert text_outside(fig) == [], name
