@@ -98,7 +98,8 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
     (:func:`reduced.kernels.physics._dyads`): loops in an order where each has exactly two unknown
     angles and only fixed-length terms (an RRR dyad: four-bars, their chains, the squeezer's
     loops), or none (a slider's length, a linear row, a loop of more unknowns: Newton alone).
-    Returns the first step of each plan (−1: none), the steps (loop, a, b) and their (W_a, W_b)."""
+    Returns the first step of each plan (−1: none), the steps (loop, a, b) and their
+    (W_a, W_b, φ_a, φ_b), φ the angle of W (rad): the closed form's constants."""
     offset, w, row, mag, angle = loop_table
     # per loop of fixed-length terms: W_c = Σ w_t over its terms turning with angle c
     # (R(θ_c) W_c is their sum); loops with a slider's length take no part
@@ -123,7 +124,8 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
         plans.append(len(steps) // 3)
         for k, a, b in order:
             steps += [k, a, b]
-            weights += [*turning[k][a], *turning[k][b]]
+            wa, wb = turning[k][a], turning[k][b]
+            weights += [*wa, *wb, math.atan2(wa[1], wa[0]), math.atan2(wb[1], wb[0])]
     return plans, steps, [float(v) for v in weights]
 
 

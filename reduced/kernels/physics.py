@@ -64,7 +64,8 @@ N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = 
  SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
 # Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
 # step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
-# (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b) per step (4 floats).
+# (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ the
+# angle of W).
 DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
 # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
 # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
@@ -385,8 +386,8 @@ def _dyads(F, I, first, x, base):
     n_loops = I[tb]
     for step in range(first, first + n_loops):
         k, a, b = I[I[DYAD_STEPS] + 3 * step], I[I[DYAD_STEPS] + 3 * step + 1], I[I[DYAD_STEPS] + 3 * step + 2]
-        w = I[DYAD_W] + 4 * step
-        wax, way, wbx, wby = F[w], F[w + 1], F[w + 2], F[w + 3]
+        w = I[DYAD_W] + 6 * step
+        wax, way, wbx, wby, phi_a, phi_b = F[w], F[w + 1], F[w + 2], F[w + 3], F[w + 4], F[w + 5]
         dx, dy = -F[I[tb + 2] + 2 * k], -F[I[tb + 2] + 2 * k + 1]
         for t in range(I[tb + 1]):
             g = I[I[tb + 6] + t]
@@ -403,14 +404,14 @@ def _dyads(F, I, first, x, base):
         cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * math.sqrt(d2 * ra2))
         if not abs(cos_psi) <= 1.0 + DYAD_ROUND_OFF:
             return False
-        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross product
-        ca, sa, cb, sb = math.cos(base[a]), math.sin(base[a]), math.cos(base[b]), math.sin(base[b])
-        last = (wax * ca - way * sa) * (wbx * sb + wby * cb) - (wax * sa + way * ca) * (wbx * cb - wby * sb)
+        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
+        # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
+        last = math.sin(base[b] + phi_b - base[a] - phi_a)
         psi = math.acos(min(max(cos_psi, -1.0), 1.0))  # a flat dyad, to round-off: Newton polishes it
-        theta_a = _nearest(math.atan2(dy, dx) - math.atan2(way, wax) + (psi if last < 0.0 else -psi), x[a])
+        theta_a = _nearest(math.atan2(dy, dx) - phi_a + (psi if last < 0.0 else -psi), x[a])
         c, sn = math.cos(theta_a), math.sin(theta_a)
         qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)
-        x[b] = _nearest(math.atan2(qy, qx) - math.atan2(wby, wbx), x[b])
+        x[b] = _nearest(math.atan2(qy, qx) - phi_b, x[b])
         x[a] = theta_a
     return True
 
