@@ -49,6 +49,13 @@ SINGULAR_CONDITIONING = 1e-9
 PREDICTOR_TRUST = 0.25
 TRUSTED_CORRECTION = 1e-9
 MAX_HALVINGS = 30
+# Beyond a predicted motion of LONG_JUMP (rad) the quadratic predictor cannot tell a dependent
+# angle's turn, and the closure nearest to it can be whole turns away: after walks of hundreds
+# of rad (back over a whole piece to its first sample) the dependent angles of a crank-rocker
+# stood at thousands of rad, where their round-off no longer let the loops close to NEWTON_TOL.
+# A closure reached by such a jump takes each dependent angle's turn nearest its base (the
+# configuration is the same; the outputs unwrap the angles).
+LONG_JUMP = 2.0
 # Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
 # well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
 HYSTERESIS = 0.5
@@ -547,9 +554,10 @@ def _walk(F, I, S, W, value):
     while True:
         failed = _close(F, I, S, W, base[depth], target[depth], kin) != 0
         trusted = False
+        predicted = 0.0
         if not failed:
             delta = target[depth] - base[depth, 0, i]
-            moved, predicted = 0.0, 0.0
+            moved = 0.0
             for j in range(n):
                 moved = max(moved, abs(kin[0, j] - guess[j]))
                 predicted = max(predicted, abs(base[depth, 1, j] * delta))
@@ -557,6 +565,10 @@ def _walk(F, I, S, W, value):
         if failed and budget[depth] <= 0:
             return False
         if trusted or budget[depth] <= 0:
+            if predicted > LONG_JUMP:
+                for j in range(I[N_ANGLES]):
+                    if j != i:
+                        kin[0, j] = _nearest(kin[0, j], base[depth, 0, j])
             if depth == 0:
                 break
             # the midpoint is reached: it is the base of the second half, one level down
