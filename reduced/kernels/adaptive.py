@@ -339,11 +339,28 @@ def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, P, work):
     return OK, math.nan, yn0, yn1, abs(h) * err5_norm_2 / math.sqrt(denom * 2)
 
 
+@njit(cache=True, inline="always")
+def _interpolant(sF, sy, n, h, R, col, c):
+    """Step n's dense coefficients F of component ``col`` (from sy[n] to sy[n + 1]) from its
+    rates R[:, c] at the 16 stages, in DOP853._dense_output_impl's order: Δ, h f_old − Δ,
+    2Δ − h (f_new + f_old), then h D·R (numpy: BLAS dgemm; the order differs, by round-off, in
+    the dense output only)."""
+    dl = sy[n + 1, col] - sy[n, col]
+    sF[n, 0, col] = dl
+    sF[n, 1, col] = h * R[0, c] - dl
+    sF[n, 2, col] = 2 * dl - h * (R[N_STAGES, c] + R[0, c])
+    for r in range(INTERPOLATOR_POWER - 3):
+        p = 0.0
+        for j in range(N_STAGES_EXTENDED):
+            p += D[r, j] * R[j, c]
+        sF[n, 3 + r, col] = h * p
+
+
 @njit(cache=True)
-def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, P, work, sF, sy, n):
-    """DOP853._dense_output_impl: 3 extra stages into K[13:16], F into sF[n][:, :2]; the same
-    interpolant of the energy flows (old values sy[n, 2:], new sy[n + 1, 2:], rates P) into
-    sF[n][:, 2:]. Returns (status, fail_time)."""
+def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n):
+    """DOP853._dense_output_impl: 3 extra stages into K[13:16] (and P), then the interpolant of
+    each component of sy from step n to n + 1 (both set) into sF[n]: q and q̇ from K, the energy
+    flows from P. Returns (status, fail_time)."""
     dy = np.empty(2)
     for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
         _dot_kt(K, A[si], si, dy)
@@ -351,32 +368,9 @@ def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h, K, P, 
                  work)
         if s != OK:
             return s, t_old + C[si] * h
-    dl0 = y0 - yo0
-    dl1 = y1 - yo1
-    sF[n, 0, 0] = dl0
-    sF[n, 0, 1] = dl1
-    sF[n, 1, 0] = h * K[0, 0] - dl0
-    sF[n, 1, 1] = h * K[0, 1] - dl1
-    sF[n, 2, 0] = 2 * dl0 - h * (K[N_STAGES, 0] + K[0, 0])
-    sF[n, 2, 1] = 2 * dl1 - h * (K[N_STAGES, 1] + K[0, 1])
-    for r in range(INTERPOLATOR_POWER - 3):  # h * np.dot(D, K) (numpy: BLAS dgemm; the order
-        p0 = 0.0                             # differs, by round-off, in the dense output only)
-        p1 = 0.0
-        for j in range(N_STAGES_EXTENDED):
-            p0 += D[r, j] * K[j, 0]
-            p1 += D[r, j] * K[j, 1]
-        sF[n, 3 + r, 0] = h * p0
-        sF[n, 3 + r, 1] = h * p1
     for c in range(2):
-        dl = sy[n + 1, 2 + c] - sy[n, 2 + c]
-        sF[n, 0, 2 + c] = dl
-        sF[n, 1, 2 + c] = h * P[0, c] - dl
-        sF[n, 2, 2 + c] = 2 * dl - h * (P[N_STAGES, c] + P[0, c])
-        for r in range(INTERPOLATOR_POWER - 3):
-            p = 0.0
-            for j in range(N_STAGES_EXTENDED):
-                p += D[r, j] * P[j, c]
-            sF[n, 3 + r, 2 + c] = h * p
+        _interpolant(sF, sy, n, h, K, c, c)
+        _interpolant(sF, sy, n, h, P, 2 + c, c)
     return OK, math.nan
 
 
@@ -393,6 +387,7 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
     st, sh, sy, sF). One exit: each return of the tuple costs compile time."""
     K = np.empty((N_STAGES_EXTENDED, 2))
     P = np.empty((N_STAGES_EXTENDED, 2))
+    pb = np.empty(2)  # h Σ b_s P_s / h of a step
     t = start
     y0 = q0
     y1 = v0
@@ -470,19 +465,16 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
             st = _grow1(st, n + 1)
             sh = _grow1(sh, n)
             sy, sF = _grow_steps(sy, sF, n + 1)
-        for c in range(2):
-            acc = 0.0
-            for si in range(N_STAGES):
-                acc += B[si] * P[si, c]
-            sy[n + 1, 2 + c] = sy[n, 2 + c] + h * acc
-        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, y0, y1, h,
-                                                K, P, work, sF, sy, n)
+        sy[n + 1, 0] = y0
+        sy[n + 1, 1] = y1
+        _dot_kt(P, B, N_STAGES, pb)  # the energy flows' step, with the state's weights
+        sy[n + 1, 2] = sy[n, 2] + h * pb[0]
+        sy[n + 1, 3] = sy[n, 3] + h * pb[1]
+        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n)
         if status != OK:
             break
         sh[n] = t - t_old
         st[n + 1] = t
-        sy[n + 1, 0] = y0
-        sy[n + 1, 1] = y1
         n += 1
         if use_stop:
             g_new = stop_margin(problem, chart, t, y0, y1)

@@ -474,8 +474,9 @@ def _finish(F, I, S, W, x, det, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _close(F, I, S, W, base, value, out):
-    """Newton from base's predictor (rows x, K, L) to x_i = value; x, K, L into out (3, n).
+def _close(F, I, S, W, base, value, reach, out):
+    """Newton from base's predictor (rows x, K, L) to x_i = value, whose predicted motion
+    max_j |K_j Δ| is ``reach``; x, K, L into out (3, n).
 
     Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
     singular, or another branch). Leaves the conditioning and det in the fields.
@@ -492,9 +493,6 @@ def _close(F, I, S, W, base, value, out):
     det = 0.0
     converged = False
     factored = False  # at the polished x
-    reach = 0.0  # the predicted motion of the dependent coordinates
-    for j in range(n):
-        reach = max(reach, abs(base[1, j] * delta))
     plan = I[I[DYAD_PLAN] + i]
     closed = plan >= 0 and reach <= CLOSED_FORM_REACH  # x by closed form: taken as it is if it closes the loops
     if closed and not _dyads(F, I, plan, x, base[0]):
@@ -552,15 +550,16 @@ def _walk(F, I, S, W, value):
     budget[0] = MAX_HALVINGS
     depth = 0  # base[d] is the configuration from which target[d] is sought
     while True:
-        failed = _close(F, I, S, W, base[depth], target[depth], kin) != 0
+        delta = target[depth] - base[depth, 0, i]
+        predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ|
+        for j in range(n):
+            predicted = max(predicted, abs(base[depth, 1, j] * delta))
+        failed = _close(F, I, S, W, base[depth], target[depth], predicted, kin) != 0
         trusted = False
-        predicted = 0.0
         if not failed:
-            delta = target[depth] - base[depth, 0, i]
             moved = 0.0
             for j in range(n):
                 moved = max(moved, abs(kin[0, j] - guess[j]))
-                predicted = max(predicted, abs(base[depth, 1, j] * delta))
             trusted = moved <= PREDICTOR_TRUST * predicted + TRUSTED_CORRECTION
         if failed and budget[depth] <= 0:
             return False
