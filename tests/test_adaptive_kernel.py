@@ -279,6 +279,26 @@ def test_samples_equal_xval_dense_samples(rtol, name):
     assert r.n_sample_evaluations == r.t.size
 
 
+@pytest.mark.parametrize("interval", [0.05, 0.002, 1e-4])
+def test_every_step_is_cut_into_equal_parts_no_longer_than_the_interval(interval):
+    """The sampling rule (integrators.sample_parts): each accepted step of h cut into
+    max(4, ⌈h / interval⌉) equal parts, so that the samples are no further apart than the
+    interval nor than h / 4, with no more samples than that (the seed's first piece; the
+    steps are those of a run sampled at its steps alone). Round-off: the cuts are
+    t_j + h (k / p), within a few ulp of the exact fractions."""
+    case = seed()
+    one = Case(case.model, case.x0, case.independent, case.v0, case.edges[:2], case.loads[:1])
+    steps = one.run(rtol=1e-8, **ALL_STEPS).t
+    r = one.run(rtol=1e-8, sample_interval=interval, per_step=4)
+    h = np.diff(steps)
+    parts = np.maximum(4, np.ceil(h / interval)).astype(int)
+    assert np.all(np.isin(steps, r.t))
+    np.testing.assert_array_equal(np.diff(np.searchsorted(r.t, steps)), parts)
+    gaps = np.diff(r.t)
+    np.testing.assert_allclose(gaps, np.repeat(h / parts, parts), rtol=1e-9, atol=1e-15)
+    assert np.all(gaps <= np.minimum(interval, np.repeat(h, parts) / 4) * (1 + 1e-9))
+
+
 def test_dense_output_equals_scipy_sol():
     """Between the steps the samples are scipy's Dop853DenseOutput (sol.sol) at the same times
     (the seed's first piece)."""

@@ -142,8 +142,11 @@ def seed_runs():
 
 
 def cut(trajectory: Trajectory, t_end: float) -> Trajectory:
-    k = int(np.searchsorted(trajectory.t, t_end, side="right"))
-    return Trajectory(trajectory.t[:k], trajectory.q[:k], trajectory.qdot[:k], trajectory.qddot[:k])
+    """The trajectory as if its run had stopped at t_end: its samples before, and its state there."""
+    k = int(np.searchsorted(trajectory.t, t_end, side="left"))
+    end = trajectory.interpolate(np.array([t_end]))
+    return Trajectory(*(np.append(a[:k], e) for a, e in zip(
+        (trajectory.t, trajectory.q, trajectory.qdot, trajectory.qddot), (np.array([t_end]), *end))))
 
 
 @pytest.mark.parametrize("which", ["mujoco", "reduced"])
@@ -154,7 +157,7 @@ def test_a_truncated_engine_trajectory_fails_the_gate(seed_runs, which):
     whole = judge(scene, reduced, mujoco, scene.tolerances)
     assert whole.gate.passed and whole.diff.span_end == pytest.approx(2.0)
     runs = {"reduced": reduced, "mujoco": mujoco}
-    runs[which] = replace(runs[which], trajectory=cut(runs[which].trajectory, 0.8 + 1e-9))
+    runs[which] = replace(runs[which], trajectory=cut(runs[which].trajectory, 0.8))
     c = judge(scene, runs["reduced"], runs["mujoco"], scene.tolerances)
     assert c.diff.span_end == pytest.approx(0.8) and c.diff.horizon == 2.0 and not c.diff.covers_horizon
     assert not c.gate.passed and len(c.gate.failures) == 1

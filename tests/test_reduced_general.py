@@ -59,6 +59,12 @@ BEFORE_BOUNDS = {"peak": 1e-11, "peak_time": 5e-12, "q": 3e-12, "qdot": 1e-10}
 # _dyads, moved q from 4.6e-13 to 3.8e-12 rad and the peak from 9.2e-11 rad/s.) Bounds ~2-5x those.
 PULSE_END = 1.0  # s, scenes/seed_fourbar.toml
 AFTER_RESTART_BOUNDS = {"peak": 5e-10, "peak_time": 1e-9, "q": 1.5e-11, "qdot": 2e-8}
+# Since DOP853's samples cut each step into equal parts (integrators.sample_parts) instead of
+# adding a 1 ms grid, the old sample times are no longer samples: before 1 s the comparison is
+# through the quintic Hermite interpolant, whose own error in q̇ (against samples 20 µs apart of
+# the same dense output) is up to 1.1e-8 rad/s on the seed (1.4e-8 with the old samples).
+# Measured before 1 s: q 4.3e-13 rad (within BEFORE_BOUNDS), q̇ 1.3e-9 rad/s. Bound ~4x.
+INTERPOLATED_QDOT = 5e-9
 
 
 @pytest.mark.parametrize("method", ["dop853", "rkn4"])
@@ -80,7 +86,7 @@ def test_seed_gives_the_numbers_of_the_engine_before_the_port(method):
         assert abs(result.peak.omega - PEAK_BEFORE[method][0]) <= BEFORE_BOUNDS["peak"]
         assert abs(result.peak.time - PEAK_BEFORE[method][1]) <= BEFORE_BOUNDS["peak_time"]
     assert np.max(dq) <= BEFORE_BOUNDS["q"]
-    assert np.max(dqdot) <= BEFORE_BOUNDS["qdot"]
+    assert np.max(dqdot) <= (INTERPOLATED_QDOT if method == "dop853" else BEFORE_BOUNDS["qdot"])
     if method == "rkn4":  # the same fixed grid: the joint coordinates sample for sample
         idx = before["index"]
         assert np.array_equal(tr.t[idx], before["t"])

@@ -498,58 +498,33 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
     return status, n, stopped, fail_time, st, sh, sy, sF
 
 
+@njit(cache=True, inline="always")
+def _parts(h, sample_interval, per_step):
+    """Equal parts a step of h (s) is cut into for sampling: max(per_step, ⌈h / sample_interval⌉)."""
+    return max(per_step, int(math.ceil(h / sample_interval)))
+
+
 @njit(cache=True)
 def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interval, per_step):
     """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈, what the
     problem observes at each (m, observation_size) and the energy flows (m, 2)."""
-    end = st[n]
-    m_grid = max(2, int(math.ceil((end - start) / sample_interval)) + 1)
-    n_inner = per_step - 1 if per_step > 1 else 0
-    # the steps cut into per_step parts, in order (nearly sorted), merged with the grid
-    n_seq = n + 1 + n * n_inner
-    seq = np.empty(n_seq)
-    k = 0
+    # each step [t_j, t_j + h_j] cut into max(per_step, ⌈h_j / sample_interval⌉) equal parts:
+    # samples no further apart than sample_interval nor h_j / per_step; in order (t_j + h_j·(k/p)
+    # is non-decreasing in k and at most t_j + h_j), so a tie is the only repair needed
+    m = 1
     for j in range(n):
-        seq[k] = st[j]
-        k += 1
+        m += _parts(st[j + 1] - st[j], sample_interval, per_step)
+    times = np.empty(m)
+    times[0] = st[0]
+    m = 1
+    for j in range(n):
         dt = st[j + 1] - st[j]
-        for i in range(1, per_step):
-            seq[k] = st[j] + dt * (i / per_step)
-            k += 1
-    seq[k] = st[n]
-    # np.linspace(start, end, m_grid): i * step + start, the last one = end
-    grid = np.empty(m_grid)
-    step = (end - start) / (m_grid - 1)
-    for i in range(m_grid - 1):
-        grid[i] = i * step + start if step != 0 else i / (m_grid - 1) * (end - start) + start
-    grid[m_grid - 1] = end
-    k = n_seq + m_grid
-    cand = np.empty(k)
-    a = 0
-    b = 0
-    for i in range(k):
-        if b >= m_grid or (a < n_seq and seq[a] <= grid[b]):
-            cand[i] = seq[a]
-            a += 1
-        else:
-            cand[i] = grid[b]
-            b += 1
-    # insertion sort: repairs any round-off inversion (O(k) when sorted; np.sort would cost
-    # seconds of compile time)
-    for i in range(1, k):
-        x = cand[i]
-        j = i - 1
-        while j >= 0 and cand[j] > x:
-            cand[j + 1] = cand[j]
-            j -= 1
-        cand[j + 1] = x
-    times = np.empty(k)
-    m = 0
-    for i in range(k):
-        x = cand[i]
-        if x >= start and x <= end and (m == 0 or x != times[m - 1]):
-            times[m] = x
-            m += 1
+        parts = _parts(dt, sample_interval, per_step)
+        for i in range(1, parts + 1):
+            x = st[j] + dt * (i / parts) if i < parts else st[j + 1]
+            if x != times[m - 1]:
+                times[m] = x
+                m += 1
     times = times[:m]
     q = np.empty(m)
     v = np.empty(m)
@@ -590,8 +565,8 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
     piece_edges : float64 (p+1,), increasing; piece_load : float64 (p,), the load on each piece
     q0, v0 : initial state at piece_edges[0]
     rtol, atol : scipy's tolerances (same for q and q̇)
-    sample_interval : the uniform sample grid of each piece is no coarser than this (s)
-    per_step : each accepted step is cut into per_step equal parts for sampling
+    sample_interval, per_step : each accepted step of h (s) is cut into max(per_step,
+        ⌈h / sample_interval⌉) equal parts for sampling (:func:`_parts`)
     speed_limit : |q̇| beyond which a sample ends the run with SPEED
     max_evaluations : budget of f evaluations over all pieces (as scipy's nfev counts them)
     max_step : scipy's max_step (math.inf for none)

@@ -196,7 +196,7 @@ def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_lim
 def run_dop853(model, chart, edges, loads, x0, independent, rate0, rtol, sample_interval, per_step,
                speed_limit, max_evaluations, retry_caps, max_switches):
     """DOP853 at rtol = atol ``rtol`` (scipy's algorithm, :mod:`.adaptive`), sampled no coarser
-    than ``sample_interval`` (s) and ``per_step`` samples per step; ``max_evaluations`` of q̈
+    than ``sample_interval`` (s), each step in at least ``per_step`` parts; ``max_evaluations`` of q̈
     in all; charts that meet a singular position retried with the step capped to the fractions
     ``retry_caps`` (k,) of their span."""
     return _run(model, chart, edges, loads, x0, independent, rate0, True, 0.0, rtol, sample_interval, per_step,
