@@ -6,6 +6,8 @@ chart with the plans switched off."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -65,8 +67,11 @@ def test_the_closed_form_is_newtons_configuration(name):
             if c[i] < HYSTERESIS * np.max(c):  # a chart the solver leaves (nearly flat dyad):
                 continue                       # x is defined there only to ε / σ_min(Φ_x)
             guess = x + 0.05 * (np.arange(len(x)) != i)
-            assert physics._dyads(F, I, plan, guess, x.copy())
+            trig = np.full((2, len(x)), np.nan)
+            assert physics._dyads(F, I, plan, guess, x.copy(), trig, i)
             assert np.max(np.abs(guess - x)) <= ANGLE_BOUND, (q, i)
+            # the trig it leaves is angle_trig's of the x it returns (libm's, as math's): every angle
+            assert np.array_equal(trig, [[math.cos(v) for v in guess], [math.sin(v) for v in guess]]), (q, i)
             checked += 1
     assert checked >= 7
 

@@ -376,7 +376,7 @@ def _nearest(angle, target):
 
 
 @njit(cache=True, error_model="numpy")
-def _dyads(F, I, first, x, base):
+def _dyads(F, I, first, x, base, trig, i):
     """The dependent angles of x by closed form, loop after loop of the plan that starts at step
     ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
     the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
@@ -388,9 +388,13 @@ def _dyads(F, I, first, x, base):
     ``base`` (n,) is taken: the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart
     (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b follows from
     R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the predictor's).
+    The cos and sin of every angle (the chart's coordinate i and the solved ones: with a plan,
+    all) go into trig (2, n) as they are computed, as :func:`angle_trig` would compute them.
     Returns False where the circles do not meet (no closed loop)."""
     tb = TABLES + TABLE_ENTRIES * LOOPS
     n_loops = I[tb]
+    trig[0, i] = math.cos(x[i])
+    trig[1, i] = math.sin(x[i])
     for step in range(first, first + n_loops):
         k, a, b = I[I[DYAD_STEPS] + 3 * step], I[I[DYAD_STEPS] + 3 * step + 1], I[I[DYAD_STEPS] + 3 * step + 2]
         w = I[DYAD_W] + 6 * step
@@ -401,8 +405,8 @@ def _dyads(F, I, first, x, base):
             if I[I[tb + 4] + t] != k or g == a or g == b:
                 continue
             ux, uy = F[I[tb + 3] + 2 * t], F[I[tb + 3] + 2 * t + 1]
-            if g >= 0:
-                c, sn = math.cos(x[g]), math.sin(x[g])
+            if g >= 0:  # a known angle: i's or solved by an earlier step
+                c, sn = trig[0, g], trig[1, g]
                 ux, uy = ux * c - uy * sn, ux * sn + uy * c
             dx -= ux
             dy -= uy
@@ -420,6 +424,8 @@ def _dyads(F, I, first, x, base):
         qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)
         x[b] = _nearest(math.atan2(qy, qx) - phi_b, x[b])
         x[a] = theta_a
+        trig[0, a], trig[1, a] = c, sn
+        trig[0, b], trig[1, b] = math.cos(x[b]), math.sin(x[b])
     return True
 
 
@@ -495,10 +501,11 @@ def _close(F, I, S, W, base, value, reach, out):
     factored = False  # at the polished x
     plan = I[I[DYAD_PLAN] + i]
     closed = plan >= 0 and reach <= CLOSED_FORM_REACH  # x by closed form: taken as it is if it closes the loops
-    if closed and not _dyads(F, I, plan, x, base[0]):
+    if closed and not _dyads(F, I, plan, x, base[0], trig, i):
         return 1
     for _ in range(NEWTON_MAX_ITER + 1):
-        angle_trig(I, x, trig)
+        if not closed:  # the closed form left trig at x
+            angle_trig(I, x, trig)
         scale = constraints(F, I, x, trig, A, res)
         largest = 0.0
         for r in range(n - 1):
