@@ -87,9 +87,24 @@ STABILITY_MARGIN = 1e-6
 GROWING = 1e-6
 GROWTH_EXCESS = 0.1
 # The adaptive solver's work is bounded: the most expensive shipped scene (45 s of
-# long_conservative) needs 3e5 evaluations; 1e6 (about 10–20 s at the measured 10–20 µs per
-# evaluation) means the step has collapsed (an extreme speed, damper or inertia).
+# long_conservative) needs 3e5 evaluations. 1e6 bounds a run's time and memory (about 1 s of
+# evaluations in compiled code, 10–20 s through scipy; and its samples, 4 per step). A run
+# spends it when its step collapses (an extreme speed, damper or inertia) or when it is simply
+# long and fast at a tight rtol (DOP853 at rtol 1e-12 takes ~300 evaluations per radian of a
+# fast crank: 1e6 is ~3 300 rad): budget_spent says which to change.
 MAX_EVALUATIONS = 1_000_000
+
+
+def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) -> NumericalFailure:
+    """The failure of an adaptive run that spent its ``budget`` of evaluations at t (s) of its
+    span [t0, t_end], with the rate it was spending it at and what to change."""
+    rate = budget / (t - t0) if t > t0 else math.inf
+    needed = f", so the whole run would need ~{rate * (t_end - t0):.2g}" if math.isfinite(rate) else ""
+    return NumericalFailure(
+        "step-size", f"{method} spent its budget of {budget} evaluations of the equation (a bound on a run's "
+        f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s, at ~{rate:.2g} per simulated second"
+        f"{needed}: loosen rtol (`--rtol`, `[reduced] rtol`) or shorten `simulation.horizon`; a budget spent "
+        "within moments means the step collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
 # |q̇| (rad/s or m/s) beyond which a run is declared unstable rather than returned.
 SPEED_LIMIT = 1e6
 
@@ -391,10 +406,7 @@ def solve_adaptive(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: 
         def first_order(t, state, f=f):
             budget[0] -= 1
             if budget[0] < 0:
-                raise NumericalFailure(
-                    "step-size", f"{method} used more than {max_evaluations} evaluations of the equation "
-                    f"and reached only t = {t:.6g} s of [{t_span[0]:.6g}, {t_span[1]:.6g}] s: its step "
-                    "has collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
+                raise budget_spent(method, max_evaluations, float(t), *t_span)
             accel = f(t, state[0], state[1])
             if not math.isfinite(accel):
                 raise NumericalFailure("non-finite", f"the acceleration became NaN or infinite at "

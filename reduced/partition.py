@@ -27,7 +27,7 @@ import numpy as np
 from . import loops
 from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
 from .errors import NumericalFailure
-from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution
+from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
 from .kernels import adaptive, fixed_step, physics
 from .kernels import partition as compiled
 from .trajectory import Trajectory
@@ -235,8 +235,10 @@ def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.
     return edges, loads
 
 
-def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart, step: float | None = None):
-    """The :class:`NumericalFailure` for a compiled run's status (info[0]: the time)."""
+def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart, step: float | None = None,
+                     evaluations: int = 0):
+    """The :class:`NumericalFailure` for a compiled run's status (info[0]: the time;
+    ``evaluations``: of f, by the run's count)."""
     t = float(info[0])
     unit = model.scene.input_unit
     if status == fixed_step.NONFINITE:
@@ -251,10 +253,11 @@ def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart
             "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
             "the implicit Radau method", t)
     if status == adaptive.STEP_SIZE:
+        if evaluations >= MAX_EVALUATIONS:
+            return budget_spent("DOP853", MAX_EVALUATIONS, t, 0.0, model.scene.horizon)
         return NumericalFailure(
-            "step-size", f"DOP853 used more than {MAX_EVALUATIONS} evaluations of the equation or its step fell "
-            f"below the spacing of the floating-point numbers, and reached only t = {t:.6g} s: its step has "
-            "collapsed (an extreme speed, damper or inertia in the scene?)", t)
+            "step-size", f"DOP853's step fell below the spacing of the floating-point numbers at t = {t:.6g} s: "
+            "it has collapsed (an extreme speed, damper or inertia in the scene?)", t)
     if status == fixed_step.FAILED:
         if chart.S[physics.STATUS] == physics.SINGULAR:
             name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
@@ -277,7 +280,7 @@ def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None =
     chart = model.new_chart()
     status, info, *run = kernel(model.arrays, chart, edges, loads, x0, i, rate, *settings)
     if status != fixed_step.OK:
-        raise compiled_failure(model, status, info, chart, step)
+        raise compiled_failure(model, status, info, chart, step, evaluations=run[9])
     return run
 
 

@@ -5,12 +5,14 @@ from __future__ import annotations
 import dataclasses
 
 import importlib
+import tomllib
 
 import numpy as np
 import pytest
 
 from reduced import (RKN4, RKN4_AS_PRINTED, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene,
                      scene_from_dict, simulate, solve_adaptive, solve_fixed_step)
+from reduced.integrators import MAX_EVALUATIONS
 from reduced.scenefile import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
@@ -381,6 +383,25 @@ def test_collapsing_adaptive_step_is_bounded():
         solve_adaptive(constant_piece(lambda t, q, v: -1e30 * q), (0.0, 1.0), 1.0, 0.0,
                        max_evaluations=10_000)
     assert info.value.reason == "step-size" and "10000 evaluations" in str(info.value)
+
+
+def test_a_long_fast_run_that_spends_the_budget_says_what_to_change():
+    """long_conservative at 300 rad/s for 24 s (the scene check's bound on its motion, 1.99e4
+    rad, is within MAX_SWEPT_ANGLE): DOP853 at rtol 1e-12 takes ~1e5 evaluations per simulated
+    second and spends the 1e6 budget at t ≈ 10.4 s. That is a long run, not a collapsing step:
+    the failure says so, with the rate and the keys to change (it used to blame an extreme
+    speed, damper or inertia alone)."""
+    with open(hard_scene_dir() / "long_conservative.toml", "rb") as f:
+        data = tomllib.load(f)
+    data["initial"]["qdot"], data["simulation"]["horizon"] = 300.0, 24.0
+    with pytest.raises(NumericalFailure) as info:
+        simulate(scene_from_dict(data))
+    message = str(info.value)
+    assert info.value.reason == "step-size" and 5.0 < info.value.time < 24.0
+    assert f"spent its budget of {MAX_EVALUATIONS} evaluations" in message
+    assert "per simulated second" in message and "loosen rtol" in message and "simulation.horizon" in message
+    needed = float(message.split("would need ~")[1].split(":")[0])
+    assert MAX_EVALUATIONS < needed < 24.0 / info.value.time * MAX_EVALUATIONS * 1.01
 
 
 def test_overflowing_acceleration_is_non_finite():
