@@ -49,3 +49,61 @@ def test_long_runs_at_loose_tolerances_sample_their_pieces(method, rtol):
 
     result = simulate(load_scene(LONG_CONSERVATIVE), ReducedSettings(method=method, rtol=rtol, check_error=False))
     assert result.trajectory.t[-1] == pytest.approx(45.0)
+
+
+def drag_link(qdot: float, horizon: float) -> dict:
+    """long_conservative made a drag link (ground the shortest link, 0.25 m: crank, coupler and
+    rocker all turn), its crank a 200 kg·m² flywheel, coasting at q̇0 from q0 = 0.2 rad."""
+    import tomllib
+
+    with open(LONG_CONSERVATIVE, "rb") as f:
+        data = tomllib.load(f)
+    data["linkage"].update(c4=0.25)
+    data["bodies"]["crank"]["pivot_inertia"] = 200.0
+    data["initial"]["qdot"], data["simulation"]["horizon"] = qdot, horizon
+    data.pop("tolerances", None)
+    return data
+
+
+def test_rotating_dependent_angles_keep_the_start_turns():
+    """A drag link at ~110 rad/s for 1 s (17 turns). The chart walks the piece's first sample
+    from its end, and its dependent angles (here the crank: the chart is the coupler's) take
+    the turn nearest the end's: the run's crank angle started 12 turns (75.4 rad) off q0. The
+    outputs now start on the start's turns (measured 1.1e-13 rad off), and each angle's change
+    over the run equals the integral of its rate over the samples: the input's by the
+    trapezoid rule with its end correction −h²/12 Δq̈ (O(h⁴): measured 1.6e-8 rad, bound 1e-7),
+    every joint's by the plain trapezoid (no accelerations recorded: measured 2.0e-3 rad at
+    ~1e4 rad/s² of the coupler, bound 1e-2; a turn is 6.28)."""
+    from reduced import ReducedSettings, scene_from_dict, simulate
+
+    scene = scene_from_dict(drag_link(100.0, 1.0))
+    r = simulate(scene, ReducedSettings())
+    joints, tr = r.diagnostics["joints"], r.trajectory
+    x0 = MechanismModel(scene).x0
+    assert abs(tr.q[0] - scene.q0) <= 1e-12 and np.max(np.abs(joints.x[0] - x0)) <= 1e-12
+    h = np.diff(tr.t)
+    q_integral = np.sum(h * (tr.qdot[1:] + tr.qdot[:-1]) / 2 - h * h / 12 * np.diff(tr.qddot))
+    assert abs(tr.q[-1] - tr.q[0] - q_integral) <= 1e-7, tr.q[-1] - tr.q[0] - q_integral
+    turned = joints.x[-1] - joints.x[0]
+    assert np.all(np.abs(turned) > 100.0)  # every angle turns
+    integral = np.trapezoid(joints.xdot, joints.t, axis=0)
+    assert np.max(np.abs(turned - integral)) <= 1e-2, turned - integral
+
+
+def test_loops_close_at_angles_of_ten_thousand_rad():
+    """The drag link at ~110 rad/s for 110 s: its angles pass 1.2e4 rad, where their rounding
+    (ulp 1.8e-12 rad, times links of ~1 m) is above Newton's 1e-12: the loops could not close,
+    and the run failed at t = 74 s (7 400 rad) as "singular". Newton's tolerance now includes
+    the rounding of the angles (physics.NEWTON_ROUND_OFF). DOP853 at rtol 1e-8 (its budget of
+    evaluations holds 125 s; the energy check is off: over 12 000 rad its residual, 2.9e-5, is
+    above 1000 rtol). Conservative: the speed at equal crank angle on the last turn is the
+    first turn's (measured 1.6e-4 of the peak; bound 1e-3)."""
+    from reduced import ReducedSettings, scene_from_dict, simulate
+
+    r = simulate(scene_from_dict(drag_link(100.0, 110.0)), ReducedSettings(rtol=1e-8, check_error=False))
+    tr = r.trajectory
+    assert tr.t[-1] == 110.0 and tr.q[-1] > 1.2e4
+    grid = tr.q[0] + np.linspace(0.0, 2 * math.pi, 200)
+    turns = math.floor((tr.q[-1] - tr.q[0]) / (2 * math.pi)) - 1
+    first, last = np.interp(grid, tr.q, tr.qdot), np.interp(grid + 2 * math.pi * turns, tr.q, tr.qdot)
+    assert np.max(np.abs(last - first)) <= 1e-3 * np.max(np.abs(first))

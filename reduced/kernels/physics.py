@@ -41,6 +41,11 @@ from numba.np.arrayobj import make_array, populate_array
 # and DOP853's steps with it). From the quadratic predictor: 2 steps, 3 factorizations.
 NEWTON_TOL = 1e-12
 NEWTON_MAX_ITER = 20
+# A loop's residual cannot fall below the rounding of its angles: ε|θ| of each term's lever
+# |m w|. Newton's tolerance is never below NEWTON_ROUND_OFF × Σ |m w| |θ| (4 ulps of it): at
+# |θ| ≈ 1e4 rad and 1 m that is 1e-11 m. Without it a drag link coasting at 100 rad/s failed
+# after 75 s (7 400 rad), reported as a singular position. Below ~1 000 rad·m it is NEWTON_TOL.
+NEWTON_ROUND_OFF = 4 * 2.220446049250313e-16
 # Below this conditioning a coordinate cannot drive the linkage (a dead-centre position).
 SINGULAR_CONDITIONING = 1e-9
 # A Newton correction larger than PREDICTOR_TRUST × the predicted motion |K Δ| (plus
@@ -320,7 +325,8 @@ def table_rates(F, I, table, x, trig, K, L, with_l, out):
 @njit(cache=True, error_model="numpy")
 def constraints(F, I, x, trig, A, res):
     """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows).
-    Returns the sum of the magnitudes of Φ's terms (m or rad): its round-off scale."""
+    Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off scale, and
+    Σ |m w| |θ| over the turning terms (m·rad): the scale of the rounding of their angles."""
     n = I[N]
     tb = TABLES + TABLE_ENTRIES * LOOPS
     nl = 2 * I[tb]
@@ -329,6 +335,7 @@ def constraints(F, I, x, trig, A, res):
             A[r, c] = 0.0
     off = I[tb + 2]
     scale = 0.0
+    spread = 0.0
     for r in range(nl):
         res[r] = F[off + r]
         scale += abs(F[off + r])
@@ -336,10 +343,12 @@ def constraints(F, I, x, trig, A, res):
         k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
         res[2 * k] += m * ux
         res[2 * k + 1] += m * uy
-        scale += abs(m) * (abs(ux) + abs(uy))
+        lever = abs(m) * (abs(ux) + abs(uy))
+        scale += lever
         if a >= 0:
             A[2 * k, a] -= m * uy
             A[2 * k + 1, a] += m * ux
+            spread += lever * abs(x[a])
         if g >= 0:
             A[2 * k, g] += ux
             A[2 * k + 1, g] += uy
@@ -351,7 +360,7 @@ def constraints(F, I, x, trig, A, res):
             v += F[lin + r * n + c] * x[c]
             scale += abs(F[lin + r * n + c] * x[c])
         res[nl + r] = v
-    return scale
+    return scale, spread
 
 
 # -- closed-form dyads ------------------------------------------------------------------
@@ -506,7 +515,7 @@ def _close(F, I, S, W, base, value, reach, out):
     for _ in range(NEWTON_MAX_ITER + 1):
         if not closed:  # the closed form left trig at x
             angle_trig(I, x, trig)
-        scale = constraints(F, I, x, trig, A, res)
+        scale, spread = constraints(F, I, x, trig, A, res)
         largest = 0.0
         for r in range(n - 1):
             if not math.isfinite(res[r]):
@@ -530,7 +539,8 @@ def _close(F, I, S, W, base, value, reach, out):
         lu_solve(A, piv, res)
         for j in range(n):
             x[j] -= res[j]
-        converged = largest <= NEWTON_TOL  # the step just taken polishes to round-off
+        # converged: the step just taken polishes to round-off
+        converged = largest <= max(NEWTON_TOL, NEWTON_ROUND_OFF * spread)
     if not factored:
         return 1
     for j in range(n):
