@@ -155,10 +155,13 @@ def test_inline_scenes_are_what_they_say(scene):
 
 # Measured over SCENES at the default state and at home: MuJoCo's equality residual ≤ 2.2e-16 m,
 # the sites on both sides of each cut joint ≤ 4.6e-16 m apart (seed driven at A), the home key's
-# equality velocity residual ≤ 4.4e-16 m/s. The issue asks 1e-9 m; these bounds (4–9x round-off)
-# keep a 6-digit export (~1e-6 m) or an unposed model (0.1–0.3 m) failing by orders of magnitude.
+# equality velocity residual ≤ 4.4e-16 m/s where q̇0 ≤ 2, and 2.8e-14 m/s in drag_link, started at
+# 25 rad/s (1.1e-15 per rad/s): velocities are rounded in proportion to the speed, so that bound is
+# per rad/s (or m/s) of q̇0, at least 1. The issue asks 1e-9 m;
+# these bounds (4–9x round-off) keep a 6-digit export (~1e-6 m) or an unposed model (0.1–0.3 m)
+# failing by orders of magnitude.
 CLOSURE_ATOL = 2e-15  # m
-VELOCITY_ATOL = 4e-15  # m/s
+VELOCITY_ATOL = 4e-15  # m/s per rad/s (or m/s) of q̇0, at least 1
 
 
 def test_exported_mjcf_loads_with_every_loop_closed(scene):
@@ -180,7 +183,7 @@ def test_exported_mjcf_loads_with_every_loop_closed(scene):
             gap = data.site(f"{jt.body_a}.{jt.point_a}").xpos - data.site(f"{jt.body_b}.{jt.point_b}").xpos
             assert np.linalg.norm(gap) < CLOSURE_ATOL, name
         if key is not None:
-            assert np.max(np.abs(data.efc_vel[rows]), initial=0.0) < VELOCITY_ATOL
+            assert np.max(np.abs(data.efc_vel[rows]), initial=0.0) < VELOCITY_ATOL * max(1.0, abs(scene.qdot0))
             _, T = coordinate_map(scene)  # the input turns or slides at q̇0
             system = loops.compile_linkage(linkage)
             assert system.drive @ T @ data.qvel == pytest.approx(scene.qdot0, rel=1e-15, abs=1e-15)
