@@ -230,6 +230,7 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
         labelled.append(p)
         return 13.0 * k
 
+    anchors = [at(j.body_a, j.point_a) for j in linkage.joints]
     for j in linkage.joints:
         c = at(j.body_a, j.point_a)
         label = j.name + (f" ({input_label})" if j.name == linkage.input_joint else "")
@@ -262,8 +263,12 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
                         zorder=5)
         ax.add_patch(circle)
         artists[f"joint:{j.name}"] = circle
-        ax.annotate(label, c, xytext=(10, (-16 if GROUND in (j.body_a, j.body_b) else 8) - stacked(c)),
-                    textcoords="offset points", fontsize=10, bbox=LABEL_BOX, **PLAIN)
+        # written leftwards where another joint stands just to the right on its level
+        crowded = any(abs(o[1] - c[1]) <= 0.03 * span and 0.0 < o[0] - c[0] <= 0.3 * span for o in anchors)
+        ax.annotate(label, c, xytext=(-10 if crowded else 10, (-16 if GROUND in (j.body_a, j.body_b) else 8)
+                                      - (0.0 if crowded else stacked(c))),
+                    textcoords="offset points", fontsize=10, bbox=LABEL_BOX,
+                    **{**PLAIN, "ha": "right"} if crowded else PLAIN)
 
     # Every named point, small; labelled when nothing else explains it.
     for body in linkage.bodies:
