@@ -70,6 +70,9 @@ def restart(fun, t0: float, y0: np.ndarray, t_bound: float, max_step: float, ord
 
 
 Acceleration = Callable[[float, float, float], float]
+# rhs_on_piece(start, end) -> f on that piece. An f that keeps state between calls (a linkage
+# chart continues from its last configuration) may carry f.rewind(): back to its state when it
+# was made, called before the piece's samples are evaluated, in order from the piece's start.
 PieceFactory = Callable[[float, float], Acceleration]
 StopCondition = Callable[[float, float, float], float]  # stop where it crosses from > 0 to ≤ 0
 
@@ -98,12 +101,11 @@ MAX_EVALUATIONS = 1_000_000
 def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) -> NumericalFailure:
     """The failure of an adaptive run that spent its ``budget`` of evaluations at t (s) of its
     span [t0, t_end], with the rate it was spending it at and what to change."""
-    rate = budget / (t - t0) if t > t0 else math.inf
-    needed = f", so the whole run would need ~{rate * (t_end - t0):.2g}" if math.isfinite(rate) else ""
+    pace = (f", at ~{budget / (t - t0):.2g} per simulated second, so the whole span would need "
+            f"~{budget / (t - t0) * (t_end - t0):.2g}") if t > t0 else " without advancing"
     return NumericalFailure(
         "step-size", f"{method} spent its budget of {budget} evaluations of the equation (a bound on a run's "
-        f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s, at ~{rate:.2g} per simulated second"
-        f"{needed}: loosen rtol (`--rtol`, `[reduced] rtol`) or shorten `simulation.horizon`; a budget spent "
+        f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s{pace}: loosen rtol (`--rtol`, `[reduced] rtol`) or shorten `simulation.horizon`; a budget spent "
         "within moments means the step collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
 # |q̇| (rad/s or m/s) beyond which a run is declared unstable rather than returned.
 SPEED_LIMIT = 1e6
@@ -345,7 +347,8 @@ def dense_samples(sol, f, start: float, end: float, sample_interval: float,
 
     The times are the solver's steps, each cut into :func:`sample_parts` equal parts (no
     further apart than ``sample_interval`` (s) nor than a ``per_step``-th of the step). The
-    states at the solver's steps are its own (not interpolated); q̈ = f at every sample.
+    states at the solver's steps are its own (not interpolated); q̈ = f at every sample, in
+    order, after ``f.rewind()`` where f has one (:data:`PieceFactory`).
     """
     per_step = SAMPLES_PER_STEP if per_step is None else per_step
     t0, t1 = sol.t[:-1], sol.t[1:]
@@ -358,6 +361,7 @@ def dense_samples(sol, f, start: float, end: float, sample_interval: float,
     states = sol.sol(times)
     at_step = np.searchsorted(times, sol.t)
     states[:, at_step] = sol.y
+    getattr(f, "rewind", lambda: None)()
     acc = np.array([f(t, qq, vv) for t, qq, vv in zip(times.tolist(), states[0].tolist(), states[1].tolist())])
     return times, states, acc
 

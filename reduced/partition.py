@@ -120,6 +120,7 @@ class Chart:
         """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history (a Python function)."""
         load = piece_load(self.model, start, end)
         arrays, state = self.model.arrays, self.state
+        marked = physics.mark(arrays, state)
 
         def f(t: float, value: float, rate: float) -> float:
             a = physics.acceleration(arrays, state, load, t, value, rate)
@@ -127,6 +128,7 @@ class Chart:
                 self._evaluate(value)  # raises with the reason
             return a
 
+        f.rewind = lambda: physics.rewind(arrays, state, marked)  # as the compiled DOP853 does
         return f
 
     def switch_margin(self, t: float, value: float, rate: float) -> float:
@@ -294,7 +296,9 @@ def load_kernels(model: MechanismModel) -> None:
     chart = Chart(model, i, x0)
     chart.walk(np.array([x0[i]]))
     chart.switch_margin(0.0, float(x0[i]), 0.0)
-    chart.rhs_on_piece(0.0, model.scene.horizon)(0.0, float(x0[i]), 0.0)
+    f = chart.rhs_on_piece(0.0, model.scene.horizon)
+    f(0.0, float(x0[i]), 0.0)
+    f.rewind()
 
 
 def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:

@@ -260,14 +260,15 @@ def test_event_direction_rule():
     assert abs(r.t_reached - sol[-1].t_events[0][0]) <= 1e-12
 
 
+@pytest.mark.parametrize("interval", [0.05, 1e-3])  # 1e-3: steps cut finer than 4 parts
 @pytest.mark.parametrize("rtol", [1e-6, 1e-12])
 @pytest.mark.parametrize("name", ["seed", "swing-stop"])
-def test_samples_equal_xval_dense_samples(rtol, name):
+def test_samples_equal_xval_dense_samples(rtol, name, interval):
     """Sampling rule and dense output: the kernel's samples are solve_adaptive's (scipy) samples."""
     make, use_stop = CASES[name]
     case = make()
-    r = case.run(rtol=rtol, sample_interval=0.05, per_step=4, use_stop=use_stop)
-    ref = adaptive(case, rtol, use_stop=use_stop, sample_interval=0.05)
+    r = case.run(rtol=rtol, sample_interval=interval, per_step=4, use_stop=use_stop)
+    ref = adaptive(case, rtol, use_stop=use_stop, sample_interval=interval)
     traj = ref.trajectory
     assert r.status == K.OK and r.stopped == ref.stopped == use_stop
     assert r.t.shape == traj.t.shape

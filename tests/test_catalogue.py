@@ -106,8 +106,8 @@ def test_the_crank_turns_fully_in_the_scenes_assembly_mode(name):
     i = _crank(scene, system)
     assert shift[i] == pytest.approx(2 * math.pi, abs=1e-12)
     # the other coordinates return, an angle possibly a whole turn on (the drag link's all turn)
-    turns = np.array([round(d / (2 * math.pi)) if name.endswith(".angle") else 0
-                      for d, name in zip(shift, system.coordinate_names)])
+    turns = np.array([round(d / (2 * math.pi)) if coordinate.endswith(".angle") else 0
+                      for d, coordinate in zip(shift, system.coordinate_names)])
     assert np.max(np.abs(np.delete(shift - 2 * math.pi * turns, i))) < 1e-9
     assert np.all(np.delete(turns, i) == (1 if name == "drag_link" else 0))
 

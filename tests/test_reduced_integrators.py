@@ -401,7 +401,7 @@ def test_a_long_fast_run_that_spends_the_budget_says_what_to_change():
     assert f"spent its budget of {MAX_EVALUATIONS} evaluations" in message
     assert "per simulated second" in message and "loosen rtol" in message and "simulation.horizon" in message
     needed = float(message.split("would need ~")[1].split(":")[0])
-    assert MAX_EVALUATIONS < needed < 24.0 / info.value.time * MAX_EVALUATIONS * 1.01
+    assert MAX_EVALUATIONS < needed < 24.0 / info.value.time * MAX_EVALUATIONS * 1.06  # printed to 2 digits
 
 
 def test_overflowing_acceleration_is_non_finite():

@@ -31,7 +31,7 @@ from numba import njit
 from . import dop853_tableau as _coef
 
 from ..integrators import RESTART_STEPS as _RESTART_STEPS
-from .problem import acceleration, observation_size, observe, power, stop_margin
+from .problem import acceleration, mark, observation_size, observe, power, rewind, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
 OK = 0          #: the run reached the end of the last piece, or the stop event ended it
@@ -616,6 +616,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         start = piece_edges[p]
         end = piece_edges[p + 1]
         load = piece_load[p]
+        marked = mark(problem, chart)
         status, n, stopped, fail_time, st, sh, sy, sF = _piece(
             problem, chart, load, start, end, q, v, w, d, rtol, atol, max_step, previous_step, use_stop,
             work, st, sh, sy, sF)
@@ -623,6 +624,7 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
         if status != OK:
             stopped = False
             break
+        rewind(problem, chart, marked)  # the samples in order from the piece's start
         times, qs, vs, acc, obs, energy = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
                                                 sample_interval, per_step)
         m = times.shape[0]

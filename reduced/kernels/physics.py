@@ -819,6 +819,27 @@ def start_chart(model, chart, x, independent):
 
 
 @njit(cache=True, error_model="numpy")
+def mark(model, chart):
+    """A copy (3, n) of the chart's last configuration (x, K, L), for :func:`rewind`."""
+    last = _views(model[1], chart[1])[2]
+    marked = np.empty((3, model[1][N]))
+    _copy(last, marked)
+    return marked
+
+
+@njit(cache=True, error_model="numpy")
+def rewind(model, chart, marked):
+    """Continue the chart's walk from the configuration :func:`mark` took. The integrators
+    walk a piece's samples forwards from its start this way, not back from its end: a jump
+    back over a long piece gives the angles that rotate the end's turns (:data:`LONG_JUMP`),
+    and a drag link's input then stood whole turns off, in its outputs and in its point forces."""
+    S, W = chart
+    last = _views(model[1], W)[2]
+    _copy(marked, last)
+    S[VALID] = 0
+
+
+@njit(cache=True, error_model="numpy")
 def reset(model, chart):
     """Back to the chart's start configuration (a new walk along the chart)."""
     S, W = chart

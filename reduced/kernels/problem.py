@@ -8,12 +8,15 @@
   sample's ``acceleration`` (``observation_size(problem)`` floats), returned with the samples;
 - ``power(problem, chart, load, v) -> (P, D)``: right after an ``acceleration``, the rates of
   the two energy flows the integrators integrate alongside the state (the work done on the
-  system and the energy dissipated, W), for the energy audit.
+  system and the energy dissipated, W), for the energy audit;
+- ``mark(problem, chart) -> marked`` and ``rewind(problem, chart, marked)``: the chart's state
+  at a piece's start, and back to it, so that the piece's samples are evaluated in order from
+  its start once it is integrated.
 
 The integrators (:mod:`.fixed_step`, :mod:`.adaptive`) import these names and nothing else
 of the physics, which supplies them for a linkage chart (:mod:`.physics`).
 """
 
-from .physics import acceleration, observation_size, observe, power, stop_margin
+from .physics import acceleration, mark, observation_size, observe, power, rewind, stop_margin
 
-__all__ = ["acceleration", "observation_size", "observe", "power", "stop_margin"]
+__all__ = ["acceleration", "mark", "observation_size", "observe", "power", "rewind", "stop_margin"]
