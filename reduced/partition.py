@@ -375,11 +375,6 @@ def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajec
     x = np.concatenate(xs)
     angles = model.angle_columns
     x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
-    # and on the start's turns: a chart walked back over a whole piece to its first sample takes
-    # its dependent angles' turns nearest the piece's end (physics.LONG_JUMP), whole turns away
-    # from the start for an angle that rotates (a drag link's crank was 12 turns off after 1 s)
-    start = segments[0][0].start.x[angles]
-    x[:, angles] += 2.0 * np.pi * np.round((start - x[0, angles]) / (2.0 * np.pi))
     t = np.concatenate(ts)
     joints = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
                              loops.assembly_modes(model.system, x).reshape(len(t), -1))

@@ -66,10 +66,11 @@ def drag_link(qdot: float, horizon: float) -> dict:
 
 
 def test_rotating_dependent_angles_keep_the_start_turns():
-    """A drag link at ~110 rad/s for 1 s (17 turns). The chart walks the piece's first sample
-    from its end, and its dependent angles (here the crank: the chart is the coupler's) take
+    """A drag link at ~110 rad/s for 1 s (17 turns). The chart walked the piece's first sample
+    from its end, and its dependent angles (here the crank: the chart is the coupler's) took
     the turn nearest the end's: the run's crank angle started 12 turns (75.4 rad) off q0. The
-    outputs now start on the start's turns (measured 1.1e-13 rad off), and each angle's change
+    samples are now walked forwards from the piece's start (physics.rewind): the outputs start
+    on the start's turns (measured 1.1e-13 rad off), and each angle's change
     over the run equals the integral of its rate over the samples: the input's by the
     trapezoid rule with its end correction −h²/12 Δq̈ (O(h⁴): measured 1.6e-8 rad, bound 1e-7),
     every joint's by the plain trapezoid (no accelerations recorded: measured 2.0e-3 rad at
