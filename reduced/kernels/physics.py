@@ -54,13 +54,18 @@ SINGULAR_CONDITIONING = 1e-9
 PREDICTOR_TRUST = 0.25
 TRUSTED_CORRECTION = 1e-9
 MAX_HALVINGS = 30
-# Beyond a predicted motion of LONG_JUMP (rad) the quadratic predictor cannot tell a dependent
-# angle's turn, and the closure nearest to it can be whole turns away: a jump that long is
-# halved without trying it. (Closed at once, walks of hundreds of rad had left a crank-rocker's
+# Beyond a predicted motion of LONG_JUMP (rad, or m) the quadratic predictor cannot tell a
+# dependent angle's turn, and the closure nearest to it can be whole turns away: a jump that long
+# is halved without trying it. (Closed at once, walks of hundreds of rad had left a crank-rocker's
 # coupler and rocker at thousands of rad, where round-off no longer let the loops close; taking
 # each angle's turn nearest its base instead put a drag link's rotating angles whole turns off,
 # and a force tabulated on q of a dependent input read there: 8e-2 rad of error at rtol 1e-6.)
+# Beyond FAR_JUMP a jump is no motion of the run but a trial stage of a blown-up step (seen at
+# 4e5 to 3e7 rad at loose rtol, a step the solver then rejects): walked in halves it cost
+# seconds to minutes an evaluation, so it is closed at once, each dependent angle on the turn
+# nearest its base. A walk of FAR_JUMP costs ~100 closures.
 LONG_JUMP = 2.0
+FAR_JUMP = 200.0
 # Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
 # well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
 HYSTERESIS = 0.5
@@ -571,8 +576,8 @@ def _walk(F, I, S, W, value):
         predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ|
         for j in range(n):
             predicted = max(predicted, abs(base[depth, 1, j] * delta))
-        failed = trusted = False  # a jump beyond LONG_JUMP is halved untried
-        if predicted <= LONG_JUMP or budget[depth] <= 0:
+        failed = trusted = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
+        if predicted <= LONG_JUMP or predicted > FAR_JUMP or budget[depth] <= 0:
             failed = _close(F, I, S, W, base[depth], target[depth], predicted, kin) != 0
             if not failed:
                 moved = 0.0
@@ -582,6 +587,10 @@ def _walk(F, I, S, W, value):
         if failed and budget[depth] <= 0:
             return False
         if trusted or budget[depth] <= 0:
+            if predicted > LONG_JUMP:  # closed at once: the turns nearest the base's
+                for j in range(I[N_ANGLES]):
+                    if j != i:
+                        kin[0, j] = _nearest(kin[0, j], base[depth, 0, j])
             if depth == 0:
                 break
             # the midpoint is reached: it is the base of the second half, one level down
