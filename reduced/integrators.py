@@ -96,6 +96,8 @@ GROWTH_EXCESS = 0.1
 # long and fast at a tight rtol (DOP853 at rtol 1e-12 takes ~300 evaluations per radian of a
 # fast crank: 1e6 is ~3 300 rad): budget_spent says which to change.
 MAX_EVALUATIONS = 1_000_000
+# |q̇| (rad/s or m/s) beyond which a run is declared unstable rather than returned.
+SPEED_LIMIT = 1e6
 
 
 def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) -> NumericalFailure:
@@ -105,10 +107,9 @@ def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) ->
             f"~{budget / (t - t0) * (t_end - t0):.2g}") if t > t0 else " without advancing"
     return NumericalFailure(
         "step-size", f"{method} spent its budget of {budget} evaluations of the equation (a bound on a run's "
-        f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s{pace}: loosen rtol (`--rtol`, `[reduced] rtol`) or shorten `simulation.horizon`; a budget spent "
-        "within moments means the step collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
-# |q̇| (rad/s or m/s) beyond which a run is declared unstable rather than returned.
-SPEED_LIMIT = 1e6
+        f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s{pace}: loosen rtol (`--rtol`, "
+        "`[reduced] rtol`) or shorten `simulation.horizon`; a budget spent within moments means the step "
+        "collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
 
 
 def rk4_amplification(z: complex) -> float:

@@ -505,7 +505,7 @@ def _parts(h, sample_interval, per_step):
 
 
 @njit(cache=True)
-def _sample_piece(problem, chart, load, start, st, sh, sy, sF, n, sample_interval, per_step):
+def _sample_piece(problem, chart, load, st, sh, sy, sF, n, sample_interval, per_step):
     """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈, what the
     problem observes at each (m, observation_size) and the energy flows (m, 2)."""
     # each step [t_j, t_j + h_j] cut into max(per_step, ⌈h_j / sample_interval⌉) equal parts:
@@ -625,8 +625,8 @@ def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, samp
             stopped = False
             break
         rewind(problem, chart, marked)  # the samples in order from the piece's start
-        times, qs, vs, acc, obs, energy = _sample_piece(problem, chart, load, start, st, sh, sy, sF, n,
-                                                sample_interval, per_step)
+        times, qs, vs, acc, obs, energy = _sample_piece(problem, chart, load, st, sh, sy, sF, n,
+                                                        sample_interval, per_step)
         m = times.shape[0]
         n_samp += m
         for i in range(m):

@@ -836,8 +836,8 @@ def mark(model, chart):
 @njit(cache=True, error_model="numpy")
 def rewind(model, chart, marked):
     """Continue the chart's walk from the configuration :func:`mark` took. The integrators
-    walk a piece's samples forwards from its start this way, in short jumps, not back from its
-    end: a walk of hundreds of rad each piece (halved down to :data:`LONG_JUMP`)."""
+    walk a piece's samples this way, forwards from its start in short jumps, rather than back
+    from its end in one walk of hundreds of rad (halved down to :data:`LONG_JUMP`)."""
     S, W = chart
     last = _views(model[1], W)[2]
     _copy(marked, last)
@@ -847,11 +847,8 @@ def rewind(model, chart, marked):
 @njit(cache=True, error_model="numpy")
 def reset(model, chart):
     """Back to the chart's start configuration (a new walk along the chart)."""
-    S, W = chart
-    _, start, last, _, _, _, _, _, _, _, _, _, _, _ = _views(model[1], W)
-    _copy(start, last)
-    S[VALID] = 0
-    S[STATUS] = OK
+    rewind(model, chart, _views(model[1], chart[1])[1])
+    chart[0][STATUS] = OK
 
 
 @njit(cache=True, error_model="numpy")
