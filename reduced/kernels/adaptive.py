@@ -31,6 +31,7 @@ from numba import njit
 from . import dop853_tableau as _coef
 
 from ..integrators import RESTART_STEPS as _RESTART_STEPS
+from ._options import NO_RUNTIME, RUNTIME
 from .problem import acceleration, mark, observation_size, observe, power, rewind, stop_margin
 
 # ---- status codes (module constants; the kernel returns one of them) -------------------------
@@ -107,7 +108,7 @@ def _npmax(a, b):
     return a if a >= b else b
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_RUNTIME)
 def _dense_eval(t, t_old, h, y_old0, y_old1, F, j, c=0):
     """Dop853DenseOutput._call_impl at t for step j, components c and c + 1 (F: (n_steps, 7, 4):
     q, q̇, then the energy flows), same operation order."""
@@ -127,7 +128,7 @@ def _dense_eval(t, t_old, h, y_old0, y_old1, F, j, c=0):
     return y0 + y_old0, y1 + y_old1
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_RUNTIME)
 def _brentq_stop(problem, chart, xa, xb, t_old, h, y_old0, y_old1, F, j):
     """scipy.optimize.brentq (Zeros/brentq.c) of stop_margin on step j's dense output,
     xtol = rtol = 4 EPS, maxiter 100, as solve_ivp's solve_event_equation calls it."""
@@ -204,7 +205,7 @@ def _rms2(x0, x1):
     return _norm2(x0, x1) / SQRT_N
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_RUNTIME)
 def _dot_kt(K, a, s, out):
     """out = np.dot(K[:s].T, a[:s]) summed in one fixed order: columns in blocks of four,
     t += (p0 + p1), t += (p2 + p3), then the rest one by one; no FMA. It is OpenBLAS's dgemv_n on
@@ -274,7 +275,7 @@ def _grow_steps(sy, sF, n):
     return sy2, sF2
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_RUNTIME)
 def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, restart_cap, K, P, work):
     """RungeKutta.__init__: f0 = fun(t0, y0) into K[0], then select_initial_step (common.py),
     at most ``restart_cap`` when that is > 0 (a restart at a load edge: RESTART_STEPS).
@@ -308,11 +309,12 @@ def _initial_step(problem, chart, load, t, end, y0, y1, rtol, atol, max_step, re
     return OK, math.nan, (_pymin(h, restart_cap) if restart_cap > 0.0 else h)
 
 
-@njit(cache=True)
-def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, P, work):
+@njit(cache=True, **NO_RUNTIME)
+def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, P, work, scratch):
     """rk_step and DOP853._estimate_error_norm for one attempt (K[0] = f at (t, y) on entry;
-    K[12] = f_new on exit). Returns (status, fail_time, y_new0, y_new1, error_norm)."""
-    dy = np.empty(2)
+    K[12] = f_new on exit; scratch (3, 2) is overwritten). Returns (status, fail_time, y_new0,
+    y_new1, error_norm)."""
+    dy = scratch[0]
     for si in range(1, N_STAGES):
         _dot_kt(K, A[si], si, dy)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
         s = _fun(problem, chart, load, t + C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, P, si, work)
@@ -327,8 +329,8 @@ def _rk_step(problem, chart, load, t, y0, y1, h, rtol, atol, K, P, work):
         return s, t + h, 0.0, 0.0, 0.0
     sc0 = atol + _npmax(abs(y0), abs(yn0)) * rtol
     sc1 = atol + _npmax(abs(y1), abs(yn1)) * rtol
-    e5 = np.empty(2)
-    e3 = np.empty(2)
+    e5 = scratch[1]
+    e3 = scratch[2]
     _dot_kt(K, E5, N_STAGES + 1, e5)
     _dot_kt(K, E3, N_STAGES + 1, e3)
     err5_norm_2 = _norm2(e5[0] / sc0, e5[1] / sc1) ** 2
@@ -356,12 +358,11 @@ def _interpolant(sF, sy, n, h, R, col, c):
         sF[n, 3 + r, col] = h * p
 
 
-@njit(cache=True)
-def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n):
+@njit(cache=True, **NO_RUNTIME)
+def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n, dy):
     """DOP853._dense_output_impl: 3 extra stages into K[13:16] (and P), then the interpolant of
     each component of sy from step n to n + 1 (both set) into sF[n]: q and q̇ from K, the energy
-    flows from P. Returns (status, fail_time)."""
-    dy = np.empty(2)
+    flows from P (dy (2,) is overwritten). Returns (status, fail_time)."""
     for si in range(N_STAGES + 1, N_STAGES_EXTENDED):
         _dot_kt(K, A[si], si, dy)
         s = _fun(problem, chart, load, t_old + C[si] * h, yo0 + dy[0] * h, yo1 + dy[1] * h, K, P, si,
@@ -374,7 +375,7 @@ def _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF
     return OK, math.nan
 
 
-@njit(cache=True)
+@njit(cache=True, **RUNTIME)
 def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_step, restart_cap, use_stop,
            work, st, sh, sy, sF):
     """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0) from
@@ -388,6 +389,7 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
     K = np.empty((N_STAGES_EXTENDED, 2))
     P = np.empty((N_STAGES_EXTENDED, 2))
     pb = np.empty(2)  # h Σ b_s P_s / h of a step
+    scratch = np.empty((3, 2))  # the stages' increments and error estimates (_rk_step)
     t = start
     y0 = q0
     y1 = v0
@@ -433,7 +435,7 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
             P[0, 0] = p0
             P[0, 1] = p1
             status, fail_time, yn0, yn1, error_norm = _rk_step(problem, chart, load, t, y0, y1, h,
-                                                               rtol, atol, K, P, work)
+                                                               rtol, atol, K, P, work, scratch)
             if status != OK:
                 break
             if error_norm < 1:
@@ -470,7 +472,8 @@ def _piece(problem, chart, load, start, end, q0, v0, w0, d0, rtol, atol, max_ste
         _dot_kt(P, B, N_STAGES, pb)  # the energy flows' step, with the state's weights
         sy[n + 1, 2] = sy[n, 2] + h * pb[0]
         sy[n + 1, 3] = sy[n, 3] + h * pb[1]
-        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n)
+        status, fail_time = _dense_coefficients(problem, chart, load, t_old, yo0, yo1, h, K, P, work, sF, sy, n,
+                                                scratch[0])
         if status != OK:
             break
         sh[n] = t - t_old
@@ -504,7 +507,7 @@ def _parts(h, sample_interval, per_step):
     return max(per_step, int(math.ceil(h / sample_interval)))
 
 
-@njit(cache=True)
+@njit(cache=True, **RUNTIME)
 def _sample_piece(problem, chart, load, st, sh, sy, sF, n, sample_interval, per_step):
     """xval's dense_samples on one piece: sorted unique times, states (2, m), q̈, what the
     problem observes at each (m, observation_size) and the energy flows (m, 2)."""
@@ -554,7 +557,7 @@ def _sample_piece(problem, chart, load, st, sh, sy, sF, n, sample_interval, per_
     return times, q, v, acc, obs, energy
 
 
-@njit(cache=True)
+@njit(cache=True, **RUNTIME)
 def dop853_run(problem, chart, piece_edges, piece_load, q0, v0, rtol, atol, sample_interval,
                per_step, speed_limit, max_evaluations, max_step, use_stop):
     """Integrate q̈ = acceleration(problem, chart, load, t, q, q̇) over the pieces.

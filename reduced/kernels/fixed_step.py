@@ -27,6 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ._options import NO_RUNTIME
 from .problem import acceleration, observation_size, observe, power, stop_margin
 
 # statuses (shared with the Python wrapper, reduced.integrators)
@@ -44,7 +45,7 @@ def rk4_amplification(z):
     return abs(1.0 + z + z * z / 2.0 + z * z * z / 6.0 + z * z * z * z / 24.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def check_stability(problem, chart, load, t, q, v, h, info):
     """0 if every mode of the linearization at (q, v) is inside RK4's stability region (or
     grows no faster in the method than in the problem); else UNSTABLE with info[1:5] =

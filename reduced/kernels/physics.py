@@ -34,6 +34,8 @@ from numba.core import cgutils
 from numba.extending import intrinsic, overload
 from numba.np.arrayobj import make_array, populate_array
 
+from ._options import NO_RUNTIME, RUNTIME
+
 # Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
 # is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
 # K, L and the coefficients are those of the x returned, whatever the walk's history (with the
@@ -164,12 +166,12 @@ def _compiled_view(typingctx, W, offset, shape):
     return sig, codegen
 
 
-@overload(_view)
+@overload(_view, jit_options=RUNTIME)
 def _view_overload(W, offset, shape):
     return lambda W, offset, shape: _compiled_view(W, offset, shape)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **RUNTIME)
 def _views(I, W):
     """Views into W: value (1,), start, last, kin (3, n), fields, A (n, n), rhs, trig (2, n),
     norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)."""
@@ -207,7 +209,7 @@ def _views(I, W):
 
 # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) ------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def lu_factor(A, piv):
     """LU with partial pivoting of A (n, n) in place; returns det A (0.0 if singular)."""
     n = A.shape[0]
@@ -236,7 +238,7 @@ def lu_factor(A, piv):
     return det
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def lu_solve(A, piv, b):
     """Solve with :func:`lu_factor`'s factors; b (n,) is overwritten by the solution."""
     n = A.shape[0]
@@ -256,7 +258,7 @@ def lu_solve(A, piv, b):
         b[r] = s / A[r, r]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _copy(src, dst):
     """dst[:] = src for two C-contiguous arrays of the same shape (an explicit loop: numba types
     a slice assignment in seconds, this in milliseconds; flat views by :func:`_view`, since
@@ -269,7 +271,7 @@ def _copy(src, dst):
 
 # -- term tables -----------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def angle_trig(I, x, trig):
     """cos and sin of every body angle x[:n_angles] into trig (2, n)."""
     for j in range(I[N_ANGLES]):
@@ -277,7 +279,7 @@ def angle_trig(I, x, trig):
         trig[1, j] = math.sin(x[j])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _term(F, I, tb, t, x, trig):
     """Term t of the table whose header starts at tb: (row, mag index, angle index, m, u_x, u_y)
     with u = R(θ) w (module docstring) and m = x[mag] or 1."""
@@ -289,7 +291,7 @@ def _term(F, I, tb, t, x, trig):
     return row, g, a, (x[g] if g >= 0 else 1.0), wx, wy
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def table_positions(F, I, table, x, trig, out):
     """r of every row of a table into out[:, 0:2] (m), leaving columns 2, 3 alone."""
     tb = TABLES + TABLE_ENTRIES * table
@@ -303,7 +305,7 @@ def table_positions(F, I, table, x, trig, out):
         out[k, 1] += m * uy
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def table_rates(F, I, table, x, trig, K, L, with_l, out):
     """K_r into out[:, 0:2] and L_r into out[:, 2:4] (γ, the part without L, unless with_l)."""
     tb = TABLES + TABLE_ENTRIES * table
@@ -327,7 +329,7 @@ def table_rates(F, I, table, x, trig, K, L, with_l, out):
         out[k, 3] += cn * uy + cu * ux
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def constraints(F, I, x, trig, A, res):
     """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows).
     Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off scale, and
@@ -383,13 +385,13 @@ CLOSED_FORM_RESIDUAL = 64 * 2.220446049250313e-16
 CLOSED_FORM_REACH = 0.5
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME, inline="always")
 def _nearest(angle, target):
     """angle + 2πk closest to target (rad)."""
     return target + (angle - target) - 2.0 * math.pi * math.floor((angle - target) / (2.0 * math.pi) + 0.5)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _dyads(F, I, first, x, base, trig, i):
     """The dependent angles of x by closed form, loop after loop of the plan that starts at step
     ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
@@ -445,7 +447,7 @@ def _dyads(F, I, first, x, base, trig, i):
 
 # -- one configuration of a chart --------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _finish(F, I, S, W, x, det, out):
     """x, K and L into out (3, n) from the factors of A (at x, or round-off from it), and the
     conditioning of every coordinate into the fields."""
@@ -493,7 +495,7 @@ def _finish(F, I, S, W, x, det, out):
     fields[DETERMINANT] = det
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _close(F, I, S, W, base, value, reach, out):
     """Newton from base's predictor (rows x, K, L) to x_i = value, whose predicted motion
     max_j |K_j Δ| is ``reach``; x, K, L into out (3, n).
@@ -559,7 +561,7 @@ def _close(F, I, S, W, base, value, reach, out):
     return 0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _walk(F, I, S, W, value):
     """Continue the chart from its last configuration to x_i = value, halving untrusted
     jumps; the result in kin and last. Returns True on success."""
@@ -607,7 +609,7 @@ def _walk(F, I, S, W, value):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **RUNTIME)
 def point_force_value(F, I, p, q):
     """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor)."""
     lo, hi, period = F[I[SPLINE_LO] + p], F[I[SPLINE_HI] + p], F[I[SPLINE_PERIOD] + p]
@@ -633,7 +635,7 @@ def point_force_value(F, I, p, q):
     return d[k]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _coefficients(F, I, S, W):
     """Eksergian's coefficients at the chart's kin into its fields (reduced.dynamics documents
     them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
@@ -698,7 +700,7 @@ def _coefficients(F, I, S, W):
 
 # -- the chart interface -------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def evaluate(model, chart, value):
     """The chart's configuration and coefficients at x_i = value (memoized): True on success,
     else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
@@ -717,7 +719,7 @@ def evaluate(model, chart, value):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def acceleration(model, chart, load, t, value, rate):
     """ẍ_i from Eksergian's equation with the input load (N·m or N, constant on the piece):
     (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the configuration
@@ -729,7 +731,7 @@ def acceleration(model, chart, load, t, value, rate):
     return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def power(model, chart, load, rate):
     """(P, D) at the configuration last evaluated, right after its ``acceleration``: the power
     P = (load·dq/dx_i + Σ F e·K_P) ẋ_i of the input load and the point forces (W) and the
@@ -738,13 +740,13 @@ def power(model, chart, load, rate):
     return (load * f[INPUT_RATE] + f[POINT_FORCE]) * rate, f[DAMPING] * rate * rate
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def observation_size(model):
     """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + 3 n)."""
     return N_FIELDS + 3 * model[1][N]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def observe(model, chart, out):
     """The chart's configuration last evaluated, into ``out`` (:func:`observation_size`,): its
     coefficient fields, then x, K and L (n each) — what the outputs and the energy audit need
@@ -759,7 +761,7 @@ def observe(model, chart, out):
             out[N_FIELDS + r * n + j] = kin[r, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def stop_margin(model, chart, t, value, rate):
     """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
     than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
@@ -769,7 +771,7 @@ def stop_margin(model, chart, t, value, rate):
     return f[CONDITIONING] - HYSTERESIS * f[BEST_CONDITIONING]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def kinematics_at(model, chart, x, row):
     """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
     p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
@@ -799,7 +801,7 @@ def kinematics_at(model, chart, x, row):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **RUNTIME)
 def start_chart(model, chart, x, independent):
     """Make ``chart`` a chart of coordinate ``independent`` starting at the assembled x (n,):
     its K, L there and the sign of its det A. Returns True on success (False: singular)."""
@@ -824,7 +826,7 @@ def start_chart(model, chart, x, independent):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **RUNTIME)
 def mark(model, chart):
     """A copy (3, n) of the chart's last configuration (x, K, L), for :func:`rewind`."""
     last = _views(model[1], chart[1])[2]
@@ -833,7 +835,7 @@ def mark(model, chart):
     return marked
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def rewind(model, chart, marked):
     """Continue the chart's walk from the configuration :func:`mark` took. The integrators
     walk a piece's samples this way, forwards from its start in short jumps, rather than back
@@ -844,14 +846,14 @@ def rewind(model, chart, marked):
     S[VALID] = 0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def reset(model, chart):
     """Back to the chart's start configuration (a new walk along the chart)."""
     rewind(model, chart, _views(model[1], chart[1])[1])
     chart[0][STATUS] = OK
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def walk(model, chart, values, fields, kin):
     """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, N_FIELDS) and
     kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
