@@ -65,7 +65,10 @@ MAX_HALVINGS = 30
 # Beyond FAR_JUMP a jump is no motion of the run but a trial stage of a blown-up step (seen at
 # 4e5 to 3e7 rad at loose rtol, a step the solver then rejects): walked in halves it cost
 # seconds to minutes an evaluation, so it is closed at once, each dependent angle on the turn
-# nearest its base. A walk of FAR_JUMP costs ~100 closures.
+# nearest its base. A walk of FAR_JUMP costs ~100 closures. Such a jump starts from the base's
+# configuration with only x_i moved, not from the predictor: K Δ + ½ L Δ² put the dependent
+# angles of a 3e7-rad jump near 1e15 rad, where their rounding alone is 0.1 rad and Newton's
+# round-off floor (NEWTON_ROUND_OFF) let configurations 1e-2 rad off pass as closed.
 LONG_JUMP = 2.0
 FAR_JUMP = 200.0
 # Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
@@ -434,14 +437,22 @@ def _dyads(F, I, first, x, base, trig, i):
         # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
         # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
         last = math.sin(base[b] + phi_b - base[a] - phi_a)
-        psi = math.acos(min(max(cos_psi, -1.0), 1.0))  # a flat dyad, to round-off: Newton polishes it
-        theta_a = _nearest(math.atan2(dy, dx) - phi_a + (psi if last < 0.0 else -psi), x[a])
-        c, sn = math.cos(theta_a), math.sin(theta_a)
-        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)
-        x[b] = _nearest(math.atan2(qy, qx) - phi_b, x[b])
-        x[a] = theta_a
+        cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
+        sin_psi = math.sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -math.sqrt(1.0 - cos_psi * cos_psi)
+        # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
+        norm = math.sqrt(d2)
+        ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
+        ra = math.sqrt(ra2)
+        c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
+        x[a] = _nearest(math.atan2(uy, ux) - phi_a, x[a])
         trig[0, a], trig[1, a] = c, sn
-        trig[0, b], trig[1, b] = math.cos(x[b]), math.sin(x[b])
+        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
+        x[b] = _nearest(math.atan2(qy, qx) - phi_b, x[b])
+        rq = math.sqrt(qx * qx + qy * qy) * math.sqrt(wbx * wbx + wby * wby)
+        if rq > 0.0:
+            trig[0, b], trig[1, b] = (qx * wbx + qy * wby) / rq, (qy * wbx - qx * wby) / rq
+        else:
+            trig[0, b], trig[1, b] = math.cos(x[b]), math.sin(x[b])
     return True
 
 
@@ -508,15 +519,16 @@ def _close(F, I, S, W, base, value, reach, out):
     _, _, _, _, fields, A, res, trig, norms, x, guess, _, _, _ = _views(I, W)
     piv = S[S_HEADER:S_HEADER + n]
     delta = value - base[0, i]
+    far = reach > FAR_JUMP  # from the base's configuration (FAR_JUMP)
     for j in range(n):
-        x[j] = base[0, j] + base[1, j] * delta + 0.5 * base[2, j] * delta * delta
-        guess[j] = x[j]
+        x[j] = base[0, j] if far else base[0, j] + base[1, j] * delta + 0.5 * base[2, j] * delta * delta
     x[i] = value
+    _copy(x, guess)
     det = 0.0
     converged = False
     factored = False  # at the polished x
     plan = I[I[DYAD_PLAN] + i]
-    closed = plan >= 0 and reach <= CLOSED_FORM_REACH  # x by closed form: taken as it is if it closes the loops
+    closed = plan >= 0 and (reach <= CLOSED_FORM_REACH or far)  # x by closed form: taken as it is if it closes the loops
     if closed and not _dyads(F, I, plan, x, base[0], trig, i):
         return 1
     for _ in range(NEWTON_MAX_ITER + 1):
@@ -722,13 +734,15 @@ def evaluate(model, chart, value):
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def acceleration(model, chart, load, t, value, rate):
     """ẍ_i from Eksergian's equation with the input load (N·m or N, constant on the piece):
-    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the configuration
-    cannot be found (the chart's S[STATUS] says why)."""
+    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN only when the configuration
+    cannot be found (the chart's S[STATUS] says why): an overflow (ẋ_i² beyond 1e308 in a
+    blown-up trial stage) is infinite, even where its terms' infinities cancel."""
     if not evaluate(model, chart, value):
         return math.nan
     f = _views(model[1], chart[1])[4]
     Q = load * f[INPUT_RATE] + f[POINT_FORCE] - f[DAMPING] * rate
-    return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
+    a = (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
+    return a if a == a else math.inf
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
