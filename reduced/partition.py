@@ -20,7 +20,6 @@ the integrators that take a Python function (scipy's).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,10 +123,8 @@ class Chart:
         marked = physics.mark(arrays, state)
 
         def f(t: float, value: float, rate: float) -> float:
-            if not (math.isfinite(value) and math.isfinite(rate)):  # a blown-up trial stage: scipy
-                return math.nan                                     # rejects its step, as the kernel does
             a = physics.acceleration(arrays, state, load, t, value, rate)
-            if a != a:
+            if a != a and state.S[physics.STATUS] == physics.SINGULAR:
                 self._evaluate(value)  # raises with the reason
             return a
 

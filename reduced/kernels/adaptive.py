@@ -38,7 +38,7 @@ from .problem import acceleration, mark, observation_size, observe, power, rewin
 OK = 0          #: the run reached the end of the last piece, or the stop event ended it
 STEP_SIZE = 1   #: more than max_evaluations evaluations of f, or scipy's "required step size is
 #                  less than spacing between numbers"; fail_time: where the solver was
-NONFINITE = 2   #: f was NaN at a stage (fail_time: that stage's time) or a sample's state or
+NONFINITE = 2   #: f was NaN/inf at a stage (fail_time: that stage's time) or a sample's state or
 #                  q̈ was not finite (fail_time: the sample's time); also a non-finite initial state
 SPEED = 3       #: |q̇| > speed_limit at a sample (or initially); fail_time, fail_value: where, q̇
 STATUS_NAMES = {OK: "ok", STEP_SIZE: "step-size", NONFINITE: "non-finite", SPEED: "unstable"}
@@ -233,22 +233,15 @@ def _dot_kt(K, a, s, out):
 def _fun(problem, chart, load, t, q, v, K, P, row, work):
     """The first-order system (q̇, f) into K[row] and the energy flows' rates (P, D) there
     into P[row]; work = [nfev, max_evaluations].
-    Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is NaN
-    (the problem cannot be evaluated there). An infinite f (an overflow), or a stage state that
-    is no longer finite (not evaluated: f is NaN), is a trial step blown up: the step's error
-    is then not finite and scipy's controller rejects the step and shrinks it by MIN_FACTOR."""
+    Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE if f is."""
     if work[0] >= work[1]:
         return STEP_SIZE
     work[0] += 1
-    K[row, 0] = v
-    if not (math.isfinite(q) and math.isfinite(v)):
-        K[row, 1] = math.nan
-        P[row, 0], P[row, 1] = math.nan, math.nan
-        return OK
     acc = acceleration(problem, chart, load, t, q, v)
+    K[row, 0] = v
     K[row, 1] = acc
     P[row, 0], P[row, 1] = power(problem, chart, load, v)
-    if acc != acc:
+    if not math.isfinite(acc):
         return NONFINITE
     return OK
 

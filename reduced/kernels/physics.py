@@ -214,7 +214,9 @@ def _views(I, W):
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def lu_factor(A, piv):
-    """LU with partial pivoting of A (n, n) in place; returns det A (0.0 if singular)."""
+    """LU with partial pivoting of A (n, n) in place, U's diagonal stored as its reciprocals
+    (a solve then multiplies: its divisions were most of its latency); returns det A (0.0 if
+    singular)."""
     n = A.shape[0]
     det = 1.0
     for k in range(n):
@@ -233,8 +235,10 @@ def lu_factor(A, piv):
                 A[k, c], A[p, c] = A[p, c], A[k, c]
         d = A[k, k]
         det *= d
+        inverse = 1.0 / d
+        A[k, k] = inverse
         for r in range(k + 1, n):
-            f = A[r, k] / d
+            f = A[r, k] * inverse
             A[r, k] = f
             for c in range(k + 1, n):
                 A[r, c] -= f * A[k, c]
@@ -258,7 +262,7 @@ def lu_solve(A, piv, b):
         s = b[r]
         for c in range(r + 1, n):
             s -= A[r, c] * b[c]
-        b[r] = s / A[r, r]
+        b[r] = s * A[r, r]
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
@@ -509,7 +513,7 @@ def _finish(F, I, S, W, x, det, out):
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def _close(F, I, S, W, base, value, reach, out):
     """Newton from base's predictor (rows x, K, L) to x_i = value, whose predicted motion
-    max_j |K_j Δ| is ``reach``; x, K, L into out (3, n).
+    max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into out (3, n).
 
     Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
     singular, or another branch). Leaves the conditioning and det in the fields.
@@ -587,9 +591,9 @@ def _walk(F, I, S, W, value):
     depth = 0  # base[d] is the configuration from which target[d] is sought
     while True:
         delta = target[depth] - base[depth, 0, i]
-        predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ|
+        predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
         for j in range(n):
-            predicted = max(predicted, abs(base[depth, 1, j] * delta))
+            predicted = max(predicted, abs(base[depth, 1, j] * delta) + 0.5 * abs(base[depth, 2, j]) * delta * delta)
         failed = trusted = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
         if predicted <= LONG_JUMP or predicted > FAR_JUMP or budget[depth] <= 0:
             failed = _close(F, I, S, W, base[depth], target[depth], predicted, kin) != 0
@@ -734,15 +738,13 @@ def evaluate(model, chart, value):
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def acceleration(model, chart, load, t, value, rate):
     """ẍ_i from Eksergian's equation with the input load (N·m or N, constant on the piece):
-    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN only when the configuration
-    cannot be found (the chart's S[STATUS] says why): an overflow (ẋ_i² beyond 1e308 in a
-    blown-up trial stage) is infinite, even where its terms' infinities cancel."""
+    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the configuration
+    cannot be found (the chart's S[STATUS] says why)."""
     if not evaluate(model, chart, value):
         return math.nan
     f = _views(model[1], chart[1])[4]
     Q = load * f[INPUT_RATE] + f[POINT_FORCE] - f[DAMPING] * rate
-    a = (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
-    return a if a == a else math.inf
+    return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
