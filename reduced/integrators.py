@@ -16,17 +16,13 @@ from typing import Callable
 import numpy as np
 
 from .errors import NumericalFailure
+# The kernels hold the rules both paths follow (numba freezes a kernel's globals, and its cache
+# is stamped with the kernels' own sources only)
+from .kernels.adaptive import RESTART_STEPS
+from .kernels.fixed_step import (GROWING, GROWTH_EXCESS, STABILITY_CHECK_EVERY, STABILITY_MARGIN,
+                                 rk4_amplification)
 from .trajectory import Trajectory
 
-# Restarts at load edges: a piece after an edge starts with scipy's select_initial_step (Hairer,
-# Nørsett & Wanner II.4), but at most the largest of the previous piece's last RESTART_STEPS
-# steps (its last is cut short by the edge): the edge changes the load, not the mechanism's time
-# scale. On seed variants (damper 61–63 N·s/m, coupler 36.1–36.2 kg) the selection alone gave
-# 8.0 ms after the pulse's end where the steps before were 1.3 ms; DOP853's error estimate
-# accepted it and the run's energy balance missed by 1.1e-8 (the nominal seed: 1.3e-11; with
-# the cap, at most 2.8e-11 over those variants). The selection stays the bound near a dead centre,
-# where it is the smaller. The compiled DOP853 (reduced.kernels.adaptive) does the same.
-RESTART_STEPS = 2
 # the error estimators' orders, as select_initial_step takes them (scipy's RK and Radau classes)
 ESTIMATOR_ORDER = {"DOP853": 7, "RK45": 4, "RK23": 2, "Radau": 3}
 
@@ -76,19 +72,6 @@ Acceleration = Callable[[float, float, float], float]
 PieceFactory = Callable[[float, float], Acceleration]
 StopCondition = Callable[[float, float, float], float]  # stop where it crosses from > 0 to ≤ 0
 
-# RKN4 applied to y'' = λ_1,2-mode of the linearized problem has the stability function of
-# classical RK4, R(z) = 1 + z + z²/2 + z³/6 + z⁴/24; a decaying mode needs |R(hλ)| ≤ 1.
-STABILITY_CHECK_EVERY = 50  # steps between linearized stability checks
-# Growth per step beyond the exact one that is refused. Round-off in the differenced
-# Jacobian puts an undamped mode at Re(hλ) ~ 1e-10 on the seed; RK4 just outside its
-# imaginary interval (|hω| = 2√2 (1 + 1e-4)) already amplifies by 1 + 2e-4.
-STABILITY_MARGIN = 1e-6
-# A mode with Re(hλ) above GROWING (relative to |hλ|; round-off gives ~1e-10) grows in the
-# problem itself; RK4 reproduces |e^{hλ}| only to O(|hλ|⁵) (on the seed at h = 4 ms a local mode
-# hλ = 0.169 + 0.224j has |R| above e^{0.169} by ~1e-5), so such a mode is refused only when the
-# method grows it GROWTH_EXCESS (10 %) per step faster than the problem does.
-GROWING = 1e-6
-GROWTH_EXCESS = 0.1
 # The adaptive solver's work is bounded: the most expensive shipped scene (45 s of
 # long_conservative) needs 3e5 evaluations. 1e6 bounds a run's time and memory (about 1 s of
 # evaluations in compiled code, 10–20 s through scipy; and its samples, 4 per step). A run
@@ -110,11 +93,6 @@ def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) ->
         f"time and memory) by t = {t:.6g} s of [{t0:.6g}, {t_end:.6g}] s{pace}: loosen rtol (`--rtol`, "
         "`[reduced] rtol`) or shorten `simulation.horizon`; a budget spent within moments means the step "
         "collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
-
-
-def rk4_amplification(z: complex) -> float:
-    """|R(z)| of classical RK4 (and of RKN4 on a linear problem)."""
-    return abs(1 + z + z * z / 2 + z**3 / 6 + z**4 / 24)
 
 
 def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: float) -> int:

@@ -189,7 +189,7 @@ def scipy_pieces(case: Case, rtol, *, use_stop=False):
             event.terminal, event.direction = True, -1
             events = [event]
         first_step = None
-        if sols:  # a restart at a load edge (reduced.integrators.RESTART_STEPS), as solve_adaptive
+        if sols:  # a restart at a load edge (reduced.kernels.adaptive.RESTART_STEPS), as solve_adaptive
             first_step, fun = restart(fun, case.edges[p], y, case.edges[p + 1], case.max_step, 7, rtol, rtol,
                                       sols[-1].t)
         sol = solve_ivp(fun, (case.edges[p], case.edges[p + 1]), y, method="DOP853", rtol=rtol, atol=rtol,

@@ -173,7 +173,7 @@ def test_the_restart_after_the_pulse_keeps_the_step_of_before(method):
     the pulse's end with scipy's initial-step selection (8.0 ms where the steps before were
     1.3 ms), accepted that step, and the energy balance missed by 1.10e-8 of the run's scale,
     failing the engine's 1e-8 bound at rtol 1e-12. Both drivers cap the first step after a load
-    edge by the steps before it (reduced.integrators.RESTART_STEPS): measured 9.9e-12 (compiled)
+    edge by the steps before it (reduced.kernels.adaptive.RESTART_STEPS): measured 9.9e-12 (compiled)
     and 9.6e-12 (scipy). Bound 5e-11: 5x those, 200x below the failure."""
     data = seed_dict()
     data["dampers"][0]["coefficient"] = 63.25

@@ -50,7 +50,7 @@ PEAK_BEFORE = {"dop853": (34.26441305844235, 1.154455342337707),
 # comparison is at the old sample times through the trajectory's interpolant. Bounds ~3-4x those.
 BEFORE_BOUNDS = {"peak": 1e-11, "peak_time": 5e-12, "q": 3e-12, "qdot": 1e-10}
 # Since then DOP853 restarts after a load edge with its initial step capped by the steps before
-# (reduced.integrators.RESTART_STEPS): after the pulse's end at 1 s it takes other steps, an
+# (reduced.kernels.adaptive.RESTART_STEPS): after the pulse's end at 1 s it takes other steps, an
 # equally valid run at rtol 1e-12 (4 more samples). Before 1 s the bounds above still hold
 # (measured: q 3.6e-14 rad, q̇ 1.4e-12 rad/s); after it the runs differ by the integrator's
 # error: peak ω 1.7e-10 rad/s (5e-12 relative), its time 2.9e-10 s, q 3.8e-12 rad (rtol 1e-12 of
