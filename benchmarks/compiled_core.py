@@ -24,7 +24,8 @@
    ``simulate_mujoco``'s ``wall_s`` = the rollout only.
 3. The adaptive reference: median wall time of
    ``reduced.engine.integrate(model, ReducedSettings(method="dop853", rtol=1e-12))`` on the
-   seed, model built beforehand (target < 10 ms). Whatever that call runs is measured.
+   seed, model built beforehand (target < 10 ms). Whatever that call runs is measured. The
+   same with ``method="scipy-dop853"`` (scipy's driver on the compiled equation) beside it.
 4. ``xval run`` on the seed end to end: wall time of the ``xval run --out TMP`` subprocess,
    warm (median of 3 after one run that fills the numba cache) and cold (``NUMBA_CACHE_DIR``
    set to a fresh empty temporary directory, once) (targets: 2 s warm, 6 s cold).
@@ -414,6 +415,12 @@ def part3(scene, repeats: int) -> None:
           f"ReducedSettings(method='dop853', rtol=1e-12)), model built beforehand, median of {repeats}")
     print(f"   {'solver':28s} {'steps':>7s} {'f evals':>8s} {'wall (ms)':>10s}")
     print(f"   {solution.method:28s} {solution.n_steps:7d} {solution.n_evaluations:8d} {t * 1e3:10.2f}")
+    # scipy's solve_ivp driving the same compiled equation: the independent cross-check
+    cross = ReducedSettings(method="scipy-dop853", rtol=1e-12)
+    by_scipy = integrate(model, cross)
+    t_scipy = median_time(lambda: integrate(model, cross), repeats)
+    print(f"   {'scipy-dop853 (cross-check)':28s} {by_scipy.n_steps:7d} {by_scipy.n_evaluations:8d} "
+          f"{t_scipy * 1e3:10.2f}   ({t_scipy / t:.1f}x the compiled driver)")
     print(f"   ratio to the target: {t / 10e-3:.2f}x of 10 ms (target < 1)")
 
 
