@@ -19,8 +19,7 @@ from .errors import NumericalFailure
 # The kernels hold the rules both paths follow (numba freezes a kernel's globals, and its cache
 # is stamped with the kernels' own sources only)
 from .kernels.adaptive import RESTART_STEPS
-from .kernels.fixed_step import (GROWING, GROWTH_EXCESS, STABILITY_CHECK_EVERY, STABILITY_MARGIN,
-                                 rk4_amplification)
+from .kernels.fixed_step import STABILITY_CHECK_EVERY, amplification_limit, rk4_amplification
 from .trajectory import Trajectory
 
 # the error estimators' orders, as select_initial_step takes them (scipy's RK and Radau classes)
@@ -114,8 +113,7 @@ def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: floa
     for lam in np.roots([1.0, -f_v, -f_q]):  # λ² − f_q̇ λ − f_q = 0
         z = complex(h * lam)
         amplification = rk4_amplification(z)
-        growing = z.real > GROWING * abs(z)
-        limit = math.exp(min(z.real, 700.0)) * (1.0 + GROWTH_EXCESS) if growing else 1.0 + STABILITY_MARGIN
+        limit = amplification_limit(z)
         if amplification > limit:
             raise NumericalFailure(
                 "unstable", f"the step h = {h:.3g} s is outside RKN4's stability region at t = {t:.6g} s "

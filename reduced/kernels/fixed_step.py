@@ -54,6 +54,15 @@ def rk4_amplification(z):
     return abs(1.0 + z + z * z / 2.0 + z * z * z / 6.0 + z * z * z * z / 24.0)
 
 
+@njit(cache=True, error_model="numpy")
+def amplification_limit(z):
+    """The largest |R(z)| allowed for the mode z = hλ: 1 + STABILITY_MARGIN where the mode does
+    not grow in the problem, |e^z| (1 + GROWTH_EXCESS) where it does (Re z > GROWING |z|)."""
+    if z.real > GROWING * abs(z):
+        return math.exp(min(z.real, 700.0)) * (1.0 + GROWTH_EXCESS)
+    return 1.0 + STABILITY_MARGIN
+
+
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def check_stability(problem, chart, load, t, q, v, h, info):
     """0 if every mode of the linearization at (q, v) is inside RK4's stability region (or
@@ -77,8 +86,7 @@ def check_stability(problem, chart, load, t, q, v, h, info):
     for lam in (0.5 * (f_v + root), 0.5 * (f_v - root)):
         z = h * lam
         amplification = rk4_amplification(z)
-        growing = z.real > GROWING * abs(z)
-        limit = math.exp(min(z.real, 700.0)) * (1.0 + GROWTH_EXCESS) if growing else 1.0 + STABILITY_MARGIN
+        limit = amplification_limit(z)
         if amplification > limit:
             info[1], info[2], info[3], info[4] = z.real, z.imag, amplification, limit
             return UNSTABLE
