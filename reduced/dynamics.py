@@ -64,15 +64,18 @@ def coefficients_from(fields: np.ndarray, kin: np.ndarray) -> Coefficients:
 
 def _table(table: loops.TermTable, rows: list[int] | None = None):
     """A :class:`loops.TermTable` (or its rows ``rows``, in that order) as the kernel's arrays:
-    offset (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,)."""
+    offset (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,).
+
+    A row listed twice in ``rows`` (two elements on one body point) is copied twice, each copy
+    with its own terms: every listed row k of the result is table row ``rows[k]`` whole."""
     offset, row, coef, mag, angle, phase = (table.offset, table.row, table.coef, table.mag, table.angle,
                                             table.phase)
     if rows is not None:
-        index = {r: k for k, r in enumerate(rows)}
-        keep = np.array([r in index for r in row.tolist()], dtype=bool)
-        offset = offset[rows].reshape(-1, 2)
-        row = np.array([index[r] for r in row[keep].tolist()], dtype=np.int64)
-        coef, mag, angle, phase = coef[keep], mag[keep], angle[keep], phase[keep]
+        terms = [np.flatnonzero(row == r) for r in rows]
+        take = np.concatenate(terms) if terms else np.zeros(0, dtype=np.int64)
+        offset = offset[np.asarray(rows, dtype=np.int64)].reshape(-1, 2)
+        row = np.repeat(np.arange(len(rows), dtype=np.int64), [len(t) for t in terms])
+        coef, mag, angle, phase = coef[take], mag[take], angle[take], phase[take]
     w = np.column_stack([coef * np.cos(phase), coef * np.sin(phase)]).reshape(-1, 2)
     return np.asarray(offset, dtype=float).reshape(-1, 2), w, row, mag, angle
 
