@@ -80,11 +80,6 @@ MAX_ELEMENTS = 100  # dampers, springs and point forces together
 MAX_NAME_CHARS = 100  # a scene name is printed, plotted and used in file listings
 MAX_DESCRIPTION_CHARS = 1000
 MAX_SCENE_BYTES = 1 << 20  # 1 MiB: a scene is a short text file (the seed is 2 kB)
-# Largest crank angle a scene may sweep by the bound of speed_bound (rad, ~3 200 turns): the work
-# of every engine grows with it. The seed started at q̇0 = 1000 rad/s has a bound of 5.2e3 rad,
-# really turns ~3e3 rad and takes DOP853 (default rtol) 32 726 steps, ~45 s; the hard cases
-# fast_crank and long_conservative have bounds of 5.8e3 and 3.7e3 rad.
-MAX_SWEPT_ANGLE = 2e4
 
 
 # ---------------------------------------------------------------------------

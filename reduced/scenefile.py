@@ -4,9 +4,10 @@ A malformed scene raises :class:`~reduced.scene.SceneError` with one message tha
 offending key and the reason; nothing else in the package raises on bad input. Every number
 lies in the range of its kind (:data:`~reduced.scene.LIMITS`, one table for both engines); the
 linkage is checked as a graph (:class:`~reduced.mechanism.Linkage`) and assembled at q0 by
-Newton's method from the scene's guess (:func:`~reduced.loops.assemble`); and a scene whose
-input could sweep more than :data:`~reduced.scene.MAX_SWEPT_ANGLE` over its horizon
-(:func:`speed_bound`) is refused before any work.
+Newton's method from the scene's guess (:func:`~reduced.loops.assemble`). How far the scene
+moves is not judged here: a bound on the motion cannot be tight (on a swinging crank one was 500
+times the truth), so the engines' work budgets stop a run that turns out too long, naming the
+setting to change.
 
 Two forms of ``[linkage]``: ``type = "planar"``, the general description (bodies with named
 points, revolute and prismatic joints, an input joint), and ``type = "four_bar"``, the seed's
@@ -31,7 +32,7 @@ from . import loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
 from .mechanism import (GROUND, Body, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint)
-from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_SWEPT_ANGLE, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
+from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
 FOUR_BAR_PIVOTS = {"crank": "O1", "rocker": "O3"}  # the links that turn about a fixed pivot
@@ -501,7 +502,6 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
                   mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
                   mujoco=mujoco, reduced=reduced, source=source, four_bar=four_bar)
-    _check_motion(scene, system)
     return scene
 
 
@@ -625,92 +625,6 @@ def _parse_reduced(t: _Table) -> dict[str, Any]:
         out["step"] = t.number("step", positive=True, kind="step")
     t.close()
     return out
-
-
-def _input_inertia_floor(scene: Scene) -> float | None:
-    """A lower bound of 𝔍 (kg·m² or kg), or None when there is no simple one.
-
-    With the input joint between ground and a body B, K_θB = 1 (revolute) or K_rB = e
-    (prismatic), so B's own kinetic energy alone gives 𝔍 ≥ I_B + m_B |G_B − pivot|²
-    (its inertia about the pivot) or 𝔍 ≥ m_B; every other term of 𝔍 is ≥ 0.
-    """
-    linkage = scene.mechanism.linkage
-    joint = linkage.joint_map[linkage.input_joint]
-    if GROUND not in (joint.body_a, joint.body_b):
-        return None
-    side = "b" if joint.body_a == GROUND else "a"
-    body = linkage.body_map[getattr(joint, f"body_{side}")]
-    if isinstance(joint, PrismaticJoint):
-        return body.mass if body.mass > 0.0 else None
-    px, py = body.points[getattr(joint, f"point_{side}")]
-    return body.inertia + body.mass * ((body.com[0] - px) ** 2 + (body.com[1] - py) ** 2)
-
-
-def _generalized_inertia(scene: Scene) -> float:
-    """𝔍 at x0 (kg·m² or kg), from the reduced model (imported here: dynamics needs the scene
-    types, not the parser)."""
-    from .dynamics import MechanismModel
-
-    return MechanismModel(scene).coefficients_at(np.asarray(scene.x0)).generalized_inertia
-
-
-def speed_bound(scene: Scene, system=None) -> dict[str, float]:
-    """An upper bound of the input's speed |q̇| (rad/s or m/s) over the horizon, split by
-    cause (the scene key or effect, quoted as in messages; the parts add up to the bound).
-    Empty when the linkage gives no simple lower bound of 𝔍 (:func:`_input_inertia_floor`).
-
-    With 𝔍(q) ≥ J_low and K = E − V_min (E the mechanical energy), dK/dt ≤ |Q||q̇| ≤
-    |Q|·√(2K/J_low), so √K grows at most by ∫|Q|dt/√(2 J_low), and
-    |q̇| ≤ √(𝔍(q0)/J_low)·|q̇0| + √(2ΔV/J_low) + ∫|Q|dt / J_low, where ΔV bounds the energy the
-    springs and gravity can release: each point stays within the reach R (the largest distance
-    of a ground point from the origin plus every moving body's extent about its joint point;
-    a slider's travel is taken as twice its displacement at q0 plus that). Dampers only take
-    energy out; tabulated point forces are not bounded here (the engines' work limits apply).
-    """
-    j_low = _input_inertia_floor(scene)
-    if not j_low:
-        return {}
-    system = system if system is not None else loops.compile_linkage(scene.mechanism.linkage)
-    linkage = scene.mechanism.linkage
-    bodies = linkage.body_map
-    reach = max((math.hypot(*p) for p in bodies[GROUND].points.values()), default=0.0) if GROUND in bodies else 0.0
-    for name in linkage.moving:
-        b = bodies[name]
-        pts = list(b.points.values()) + [b.com]
-        reach += max(math.hypot(px - qx, py - qy) for px, py in pts for qx, qy in pts)
-    for k, name in enumerate(system.coordinate_names):
-        if name.endswith(".s"):
-            reach += 2.0 * abs(scene.x0[k])
-    initial = 0.0
-    if scene.qdot0:  # not at a dead centre (checked before), so 𝔍(q0) is defined
-        initial = math.sqrt(_generalized_inertia(scene) / j_low) * abs(scene.qdot0)
-    released = 0.0
-    for sp in scene.mechanism.springs:
-        released += 0.5 * sp.coefficient * max(2.0 * reach - sp.rest_length, sp.rest_length) ** 2
-    if scene.gravity is not None:
-        weight = math.hypot(*scene.gravity)
-        released += sum(2.0 * bodies[b].mass * weight * reach for b in linkage.moving)
-    load = scene.load
-    impulse = 0.0 if load is None else load.impulse_bound(scene.horizon)
-    load_key = f"'{scene.load_name}.{'values' if isinstance(load, PiecewiseConstantTorque) else 'value'}'"
-    return {"'initial.qdot'": initial, "the springs and gravity": math.sqrt(2.0 * released / j_low),
-            load_key: impulse / j_low}
-
-
-def _check_motion(scene: Scene, system) -> None:
-    """Refuse a scene whose input could sweep more than MAX_SWEPT_ANGLE over its horizon."""
-    parts = speed_bound(scene, system)
-    swept = sum(parts.values()) * scene.horizon
-    if swept > MAX_SWEPT_ANGLE:
-        cause = max(parts, key=parts.get)
-        unit = scene.input_unit
-        linkage = scene.mechanism.linkage
-        joint = linkage.joint_map[linkage.input_joint]
-        body = joint.body_b if joint.body_a == GROUND else joint.body_a
-        raise SceneError(f"the input could move up to {swept:.3g} {unit} in 'simulation.horizon' = "
-                         f"{scene.horizon:g} s (|q̇| ≤ {sum(parts.values()):.3g} {unit}/s, mostly from {cause}), "
-                         f"more than {MAX_SWEPT_ANGLE:g} {unit}: lower {cause} or the horizon, or raise the "
-                         f"inertia of 'bodies.{body}'")
 
 
 def load_scene(path: str | Path) -> Scene:

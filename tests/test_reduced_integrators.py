@@ -386,9 +386,8 @@ def test_collapsing_adaptive_step_is_bounded():
 
 
 def test_a_long_fast_run_that_spends_the_budget_says_what_to_change():
-    """long_conservative at 300 rad/s for 24 s (the scene check's bound on its motion, 1.99e4
-    rad, is within MAX_SWEPT_ANGLE): DOP853 at rtol 1e-12 takes ~1e5 evaluations per simulated
-    second and spends the 1e6 budget at t ≈ 10.4 s. That is a long run, not a collapsing step:
+    """long_conservative at 300 rad/s for 24 s: DOP853 at rtol 1e-12 takes ~1e5 evaluations per
+    simulated second and spends the 1e6 budget at t ≈ 10.4 s. That is a long run, not a collapsing step:
     the failure says so, with the rate and the keys to change (it used to blame an extreme
     speed, damper or inertia alone)."""
     with open(hard_scene_dir() / "long_conservative.toml", "rb") as f:

@@ -12,7 +12,6 @@ import dataclasses
 import math
 import os
 
-import numpy as np
 import pytest
 
 from compare import cli
@@ -112,21 +111,7 @@ OTHER_CASES = [
      "'bodies.crank.mass' and 'bodies.crank.com' go together"),
 ]
 
-# Work: the crank's speed bound (reduced.scene.speed_bound) times the horizon, at most MAX_SWEPT_ANGLE.
-TINY_INERTIAS = {"bodies.crank.pivot_inertia": 1e-9, "bodies.rocker.pivot_inertia": 1e-9,
-                 "bodies.coupler.inertia": 1e-9, "bodies.coupler.mass": 1e-6}
-MOTION_CASES = [
-    ("qdot0_fast", {"initial.qdot": 1e4}, "mostly from 'initial.qdot'), more than 20000 rad"),
-    ("torque_large", {"torque.value": 1e6}, "mostly from 'torque.value'), more than 20000 rad"),
-    ("all_inertias_at_their_floor", TINY_INERTIAS, "the input could move up to 5e+11 rad"),
-    ("table_torque_long", {"torque": dict(TABLE, values=[1e4, 1e4]), "simulation.horizon": 10.0},
-     "mostly from 'torque.values')"),
-    ("stiff_spring_long", {"springs": spring(stiffness=1e8, rest_length=0.0), "simulation.horizon": 1e3},
-     "mostly from the springs and gravity)"),
-    ("horizon_long", {"simulation.horizon": 1e3}, "in 'simulation.horizon' = 1000 s"),
-]
-
-CASES = RANGE_CASES + OTHER_CASES + MOTION_CASES
+CASES = RANGE_CASES + OTHER_CASES
 
 
 @pytest.mark.parametrize("patch, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
@@ -263,25 +248,22 @@ def test_only_regular_files_are_read(tmp_path, capsys, where):
     assert err.count("\n") == 1 and f"cannot read scene file '{path}': it is" in err
 
 
-# The bound behind the work limit must hold: the reduced engine's largest |q̇| stays below it, for
-# each kind of cause. (A bound that drops a term, e.g. √(𝔍(q0)/I_O1), falls below the real speed.)
-BOUND_SCENES = {
-    "seed_torque": {},
-    "spring_released": {"torque": DELETE, "dampers": DELETE,
-                        "springs": spring(stiffness=2000.0, rest_length=0.2)},
-    "coasting": {"torque": DELETE, "dampers": DELETE, "initial.qdot": 10.0},
-    "gravity": {"torque": DELETE, "dampers": DELETE, "gravity": [0.0, -9.81],
-                "bodies.crank.mass": 1.5, "bodies.crank.com": [0.25, 0.05],
-                "bodies.rocker.mass": 3.0, "bodies.rocker.com": [0.35, 0.0]},
+# Scenes that a bound on their motion once refused (it could not be tight: 500x the truth on a
+# swinging crank): they are valid input now, and a run that turns out too long is stopped by
+# its engine's work budget (tests/test_swinging_cranks.py, test_reduced_integrators.py).
+TINY_INERTIAS = {"bodies.crank.pivot_inertia": 1e-9, "bodies.rocker.pivot_inertia": 1e-9,
+                 "bodies.coupler.inertia": 1e-9, "bodies.coupler.mass": 1e-6}
+ONCE_REFUSED = {
+    "qdot0_fast": {"initial.qdot": 1e4},
+    "torque_large": {"torque.value": 1e6},
+    "all_inertias_at_their_floor": TINY_INERTIAS,
+    "table_torque_long": {"torque": dict(TABLE, values=[1e4, 1e4]), "simulation.horizon": 10.0},
+    "stiff_spring_long": {"springs": spring(stiffness=1e8, rest_length=0.0), "simulation.horizon": 1e3},
+    "horizon_long": {"simulation.horizon": 1e3},
 }
 
 
-@pytest.mark.parametrize("patch", BOUND_SCENES.values(), ids=BOUND_SCENES.keys())
-def test_speed_bound_holds_along_a_reduced_run(patch):
-    from reduced import ReducedSettings, simulate
-    from reduced.scenefile import speed_bound
-
+@pytest.mark.parametrize("patch", ONCE_REFUSED.values(), ids=ONCE_REFUSED.keys())
+def test_a_scene_is_not_refused_for_how_far_it_might_move(patch):
     scene = scene_from_dict(patched(patch))
-    bound = sum(speed_bound(scene).values())
-    fastest = float(np.max(np.abs(simulate(scene, ReducedSettings()).trajectory.qdot)))
-    assert 0.0 < fastest <= bound
+    assert scene.horizon > 0.0
