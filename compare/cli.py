@@ -14,6 +14,8 @@ Engine flags default to None: only the flags given override the scene's [reduced
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import sys
 import warnings
 from typing import TYPE_CHECKING
@@ -513,6 +515,22 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"xval: warning: {_one_line(message)}", file=sys.stderr, flush=True)
 
 
+@contextlib.contextmanager
+def _progress_shown():
+    """The engines' progress lines (the ``xval`` loggers at INFO: MuJoCo's timestep search) on
+    stderr as ``xval: ...`` while a command runs."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("xval: %(message)s"))
+    logger = logging.getLogger("xval")
+    logger.addHandler(handler)
+    level, logger.level = logger.level, logging.INFO
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one ``xval`` command; return its exit status (see the module docstring)."""
     try:
@@ -523,7 +541,8 @@ def main(argv: list[str] | None = None) -> int:
                 args = build_parser().parse_args(argv)
             except SystemExit as exc:  # --help, or a usage error already printed
                 return exc.code if isinstance(exc.code, int) else EXIT_OK
-            return args.func(args)
+            with _progress_shown():
+                return args.func(args)
     except NumericalFailure as exc:
         print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED

@@ -31,7 +31,8 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     """Run both engines on ``scene`` and compare MuJoCo against the reduced reference.
 
     Settings default to the scene's [reduced] and [mujoco] tables over the defaults;
-    ``tolerances`` to the scene's own table. The comparison covers the scene's horizon:
+    ``tolerances`` to the scene's own table. MuJoCo's automatic timestep (without a timestep in
+    the settings) is chosen for these tolerances, the ones the gate applies. The comparison covers the scene's horizon:
     if either run stops short of it, the gate fails and names the span compared.
 
     Raises
@@ -41,7 +42,7 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     """
     tolerances = tolerances or scene.tolerances
     reference = simulate(scene, reduced or reduced_settings(scene))
-    other = simulate_mujoco(scene, mujoco or mujoco_settings(scene))
+    other = simulate_mujoco(replace(scene, tolerances=tolerances), mujoco or mujoco_settings(scene))
     return judge(scene, reference, other, tolerances)
 
 
@@ -50,9 +51,21 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
     diff = compare_trajectories(reference.trajectory, other.trajectory, horizon=scene.horizon,
                                 peak_floor=peak_floor_of(tolerances))
     modes = compare_modes(reference.diagnostics["joints"], other.diagnostics["joints"])
-    verdict = gate(diff, tolerances, modes, unit=scene.input_unit)
+    verdict = _name_the_fixed_step(scene, other, gate(diff, tolerances, modes, unit=scene.input_unit))
     return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, modes=modes,
                       gate=verdict)
+
+
+def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -> GateResult:
+    """A failed gate of a MuJoCo run at a fixed timestep also names where the step came from:
+    the automatic step would have been chosen for the gate's tolerances, a fixed one was not."""
+    if verdict.passed or run.engine != "mujoco" or run.settings.get("timestep_automatic", True):
+        return verdict
+    h = run.settings["timestep"]
+    source = ("the scene's [mujoco] timestep" if scene.mujoco.get("timestep") == h else "--timestep")
+    note = (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
+            f"without it the step is chosen automatically for them")
+    return replace(verdict, failures=(*verdict.failures, note))
 
 
 def override_tolerances(base: Tolerances, **overrides: float | None) -> Tolerances:

@@ -167,7 +167,7 @@ def test_failed_gate_exits_1_and_still_writes_the_report(tmp_path, capsys):
     scene = tmp_path / "dollar.toml"
     scene.write_text(SEED_SCENE.read_text().replace('name = "seed_fourbar"', f"name = {json.dumps(data['name'])}"))
     out = tmp_path / "out"
-    assert main(["run", str(scene), "--out", str(out), "--peak-rtol", "1e-12"]) == 1
+    assert main(["run", str(scene), "--out", str(out), "--peak-rtol", "1e-12", "--timestep", "1e-3"]) == 1
     captured = capsys.readouterr()
     assert "gate: FAILED" in captured.out and "Traceback" not in captured.err
     report = json.loads((out / "report.json").read_text())

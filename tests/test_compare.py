@@ -98,10 +98,12 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
 def test_check_passes_on_seed_and_fails_below_measured_difference(seed_comparison, capsys):
     assert main(["check", str(SEED_SCENE)]) == 0
     assert "1 passed, 0 failed" in capsys.readouterr().out
+    # at MuJoCo's step of that run (an automatic step would be chosen for the tighter gate)
     tight = seed_comparison.diff.peak_omega_rel / 10
-    assert main(["check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}"]) == 1
+    step = seed_comparison.mujoco.settings["timestep"]
+    assert main(["check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}", "--timestep", f"{step!r}"]) == 1
     out = capsys.readouterr().out
-    assert "peak_omega_rel" in out and "> tolerance" in out
+    assert "peak_omega_rel" in out and "> tolerance" in out and "fixed timestep" in out and "--timestep" in out
 
 
 def test_run_writes_report(tmp_path, capsys):
