@@ -59,10 +59,13 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
 def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -> GateResult:
     """A failed gate of a MuJoCo run at a fixed timestep also names where the step came from:
     the automatic step would have been chosen for the gate's tolerances, a fixed one was not."""
-    if verdict.passed or run.engine != "mujoco" or run.settings.get("timestep_automatic", True):
+    accuracy = ("peak_omega_abs", "q_max_abs", "omega_max_abs", "omega_vs_q_max_abs")
+    if (run.engine != "mujoco" or run.settings.get("timestep_automatic", True)
+            or not any(f.startswith(accuracy) for f in verdict.failures)):
         return verdict
     h = run.settings["timestep"]
-    source = ("the scene's [mujoco] timestep" if scene.mujoco.get("timestep") == h else "--timestep")
+    source = ("the scene's [mujoco] timestep" if scene.mujoco.get("timestep") == h
+              else "the settings (--timestep)")
     note = (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
             f"without it the step is chosen automatically for them")
     return replace(verdict, failures=(*verdict.failures, note))
