@@ -155,6 +155,7 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     for dampers and springs (a Line2D from its a end to its b end), ``"force:<name>"`` for
     point forces (an Annotation whose ``xy`` is the point acted on) and ``"com:<body>"``.
     """
+    from matplotlib.colors import to_rgba
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     linkage, elements, point_forces = _parts(mechanism)
@@ -271,7 +272,7 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
             corner = b - 0.5 * w * u - 0.5 * h * np.array([-u[1], u[0]])
             block_of = next((body for body, joint in blocks.items() if joint == j.name), None)
             patch = Rectangle(tuple(corner), w, h, angle=math.degrees(th),
-                              facecolor="white" if block_of is None else colour[block_of],
+                              facecolor="white" if block_of is None else to_rgba(colour[block_of], 0.45),
                               edgecolor="black", linewidth=1.5, zorder=4)
             ax.add_patch(patch)
             artists[f"joint:{j.name}"] = patch
