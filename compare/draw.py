@@ -1,10 +1,11 @@
 """A drawing of any planar linkage in one configuration (``xval draw``, and the mechanism
 strip of ``xval run``), to check a scene's geometry.
 
-Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
-their joint and attachment points, revolute joints as labelled circles, ground pivots with
-a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
-springs as zigzags with their coefficients, point forces as arrows F(q) along their
+Bodies are drawn as thick lines (two points) or filled polygons (three or more) through all
+their named points (joint and attachment points and any other), a body of one point as the
+block of the prismatic joint it slides in (in its colour) or a disc; revolute joints as
+labelled circles, ground pivots with a hatched base, prismatic joints as a guide line and a
+block, dampers as dashed lines and springs as zigzags with their coefficients, point forces as arrows F(q) along their
 direction (ending at the point they act on), centres of mass as crossed circles; the title
 gives q0 with its unit, the assembly mode (one sign per loop) and gravity. Every position
 is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the general
@@ -187,7 +188,7 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     blocks = {j.body_b: j.name for j in linkage.joints
               if isinstance(j, PrismaticJoint) and j.body_b in colour and len(shapes[j.body_b]) == 1}
 
-    # Bodies: the outline of their joint and attachment points (not the centre of mass).
+    # Bodies: the outline of all their named points (not the centre of mass).
     for name in linkage.moving:
         shape = shapes[name]
         if len(shape) >= 3:
