@@ -308,7 +308,7 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     """A printed summary: the table, the truth's accuracy and the recommendation."""
     unit = report.get("input_unit", "rad")
-    lines = [f"truth: DOP853 rtol 1e-12, peak |qdot| {report['truth']['peak_omega']:.12g} {unit}/s; "
+    lines = [f"truth: DOP853 rtol 1e-12, peak qdot {report['truth']['peak_omega']:+.12g} {unit}/s; "
              f"against rtol 1e-11: peak {report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
              f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}",
              f"wall time: median of {report['timing']['repeats']} runs, simulation only",

@@ -13,12 +13,15 @@ is evaluated there through its quintic Hermite interpolant (O(h⁶) in q, O(h⁵
 ≤ 1 ms sample spacing: below 1e-10 rad on the seed scene), so the compared engine's samples
 are used as they are and the interpolation adds less error than either engine makes.
 
-The compared peak: the largest |ω| (rad/s, a magnitude) of the reference within the span,
-and the other engine's local maximum of |ω| that is the same event, namely among its local
-maxima within ``PEAK_TIE_BAND`` (relative) of its own largest |ω|, the one nearest in time
-to the reference's. A conservative swing has several extremes of |ω| equal to round-off,
-of both signs; matching by time keeps both engines on the same one, so the peak-time
-difference is the difference of the two reported times.
+The compared peak, one event in both runs (:class:`reduced.trajectory.Peak`, defined once in
+:mod:`reduced.trajectory`): the reference's largest |ω| within the span, with its sign and
+time (:meth:`~reduced.trajectory.Trajectory.peak_angular_velocity`), and the other engine's
+local extremum of ω of the same sign nearest in time to it
+(:meth:`~reduced.trajectory.Trajectory.extremum_near`). A conservative swing has several
+extremes of |ω| equal to round-off, of both signs; pairing by sign and time keeps both engines
+on the same one, so the peak-time difference is the difference of the two reported times. A
+peak flagged ``still_rising`` is the span's last sample with |ω| still rising: the horizon
+ends before the speed peaks.
 
 Relative peak figure: |Δ peak| / max(|peak_ref|, ``peak_floor``), with ``peak_floor`` =
 peak_omega_atol / peak_omega_rtol of the tolerances (1e-5 rad/s by default): a motion that
@@ -41,13 +44,10 @@ import numpy as np
 
 from reduced.errors import FailureReason, NumericalFailure
 from reduced.scene import Tolerances
-from reduced.trajectory import Trajectory
+from reduced.trajectory import Peak, Trajectory
 
 SLOW_FRACTION = 0.01
 ANGLE_MATCH = 1e-9  # per unit of q (rad or m): Newton's residual below which q_ref(t*) = q_k is accepted
-# Relative band within which two extremes of |ω| count as tied: 10x the default peak
-# tolerance (1e-4), so a real tie is a tie in both engines whenever they agree.
-PEAK_TIE_BAND = 1e-3
 DEFAULT_PEAK_FLOOR = Tolerances().peak_omega_atol / Tolerances().peak_omega_rtol  # rad/s
 SPAN_SLACK = 1e-9  # relative: a trajectory ending this close to the horizon covers it
 
@@ -57,9 +57,10 @@ class Difference:
     """How far ``other`` is from ``reference`` in the input coordinate q (units: rad and
     rad/s for a revolute input, m and m/s for a prismatic one, and s; "ω" is q̇ either way).
 
-    ``peak_omega_reference``/``peak_omega_other`` are the compared peaks of |ω| (rad/s) at
+    ``peak_reference``/``peak_other`` are the compared peak, one event in both runs (module
+    docstring); ``peak_omega_reference``/``peak_omega_other`` their signed ω (rad/s) at
     ``t_peak_reference``/``t_peak_other`` (s); ``peak_omega_abs`` and ``t_peak_abs`` are
-    their differences, ``peak_omega_rel`` = peak_omega_abs / max(peak_omega_reference,
+    their differences, ``peak_omega_rel`` = peak_omega_abs / max(|peak_omega_reference|,
     ``peak_floor``). ``span_start``/``span_end`` (s) is the time span compared;
     ``horizon`` (s) the end it had to reach; ``reference_end``/``other_end`` where each
     trajectory stops.
@@ -78,16 +79,35 @@ class Difference:
     domega: np.ndarray = field(repr=False)
     q_samples: np.ndarray = field(repr=False)  # q_k of the compared samples used for Δω(q)
     domega_vs_q: np.ndarray = field(repr=False)
-    peak_omega_reference: float
-    peak_omega_other: float
-    t_peak_reference: float
-    t_peak_other: float
+    peak_reference: Peak
+    peak_other: Peak
     peak_floor: float
     span_start: float
     span_end: float
     horizon: float
     reference_end: float
     other_end: float
+
+    @property
+    def peak_omega_reference(self) -> float:
+        return self.peak_reference.omega
+
+    @property
+    def peak_omega_other(self) -> float:
+        return self.peak_other.omega
+
+    @property
+    def t_peak_reference(self) -> float:
+        return self.peak_reference.time
+
+    @property
+    def t_peak_other(self) -> float:
+        return self.peak_other.time
+
+    @property
+    def peak_still_rising(self) -> bool:
+        """Whether the reference's peak is the span's end with |ω| still rising."""
+        return self.peak_reference.still_rising
 
     @property
     def covers_horizon(self) -> bool:
@@ -114,62 +134,12 @@ def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndar
     return t
 
 
-def abs_omega_maxima(trajectory: Trajectory, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
-    """Local maxima of |q̇| on [start, end]: their times (s) and values (rad/s, ≥ 0).
-
-    Candidates are samples where |q̇| stops rising, each refined between samples by the
-    trajectory's own peak finder on its neighbouring intervals, and each end of the span
-    (interpolated) where |q̇| does not rise into the span. Only candidates within twice
-    ``PEAK_TIE_BAND`` of the largest sample are kept: the others cannot be the compared peak.
-    """
-    t = trajectory.t
-    inside = np.flatnonzero((t >= start - 1e-12) & (t <= end + 1e-12))
-    if inside.size == 0:  # the span lies between two samples: its ends are the candidates
-        ends = np.array([start, end])
-        return ends, np.abs(trajectory.interpolate(np.clip(ends, t[0], t[-1]))[1])
-    inside = inside[np.r_[np.diff(t[inside]) > 0.0, True]]  # one sample per repeated time
-    w = np.abs(trajectory.qdot[inside])
-    rising_in = np.r_[True, w[1:] > w[:-1]]
-    falling_out = np.r_[w[:-1] >= w[1:], True]
-    top = float(np.max(w))
-    candidates = inside[rising_in & falling_out & (w >= (1.0 - 2.0 * PEAK_TIE_BAND) * top)]
-    lo, hi = int(inside[0]), int(inside[-1])
-    times, values = [], []
-    for k in candidates:
-        a, b = max(k - 1, lo), min(k + 2, hi + 1)  # the two intervals beside sample k
-        if b - a < 2 or not np.any(np.diff(t[a:b]) > 0.0):
-            times.append(float(t[k]))
-            values.append(float(abs(trajectory.qdot[k])))
-            continue
-        p = Trajectory(t[a:b], trajectory.q[a:b], trajectory.qdot[a:b], trajectory.qddot[a:b]).peak_angular_velocity()
-        times.append(p.time)
-        values.append(abs(p.omega))
-    # An end of the span (possibly between samples) is a maximum when |q̇| does not rise
-    # into the span from it: sign(q̇)·q̈ ≤ 0 at the start, ≥ 0 at the end.
-    ends = np.array([start, end])
-    _, v_end, a_end = trajectory.interpolate(np.clip(ends, t[0], t[-1]))
-    rising = np.sign(v_end) * a_end
-    for time, v, r, inward in zip(ends, v_end, rising, (-1.0, 1.0)):
-        if inward * r >= 0.0:
-            times.append(float(time))
-            values.append(float(abs(v)))
-    times_arr, unique = np.unique(np.asarray(times), return_index=True)
-    return times_arr, np.asarray(values)[unique]
-
-
-def compared_peaks(reference: Trajectory, other: Trajectory, start: float, end: float
-                   ) -> tuple[tuple[float, float], tuple[float, float]]:
-    """The compared peak of |ω| of each trajectory on [start, end], as ((|ω|, t), (|ω|, t)).
-
-    The reference's is its largest |ω|; the other's is, among its local maxima within
-    ``PEAK_TIE_BAND`` of its own largest, the one nearest in time to the reference's.
-    """
-    t_ref, w_ref = abs_omega_maxima(reference, start, end)
-    k = int(np.argmax(w_ref))
-    t_oth, w_oth = abs_omega_maxima(other, start, end)
-    tied = np.flatnonzero(w_oth >= (1.0 - PEAK_TIE_BAND) * np.max(w_oth))
-    j = int(tied[np.argmin(np.abs(t_oth[tied] - t_ref[k]))])
-    return (float(w_ref[k]), float(t_ref[k])), (float(w_oth[j]), float(t_oth[j]))
+def compared_peaks(reference: Trajectory, other: Trajectory, start: float, end: float) -> tuple[Peak, Peak]:
+    """The compared peak on [start, end] (s), one event in both runs (module docstring): the
+    reference's largest |ω| with its sign and time, and ``other``'s local extremum of ω of
+    the same sign nearest in time to it."""
+    peak = reference.within(start, end).peak_angular_velocity()
+    return peak, other.within(start, end).extremum_near(peak)
 
 
 def peak_floor_of(tolerances: Tolerances) -> float:
@@ -211,7 +181,7 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
     dq = other.q[keep] - q_ref
     domega = other.qdot[keep] - v_ref
 
-    (p_ref, t_ref), (p_other, t_other) = compared_peaks(reference, other, start, end)
+    peak_ref, peak_other = compared_peaks(reference, other, start, end)
     fast = (np.abs(v_ref) >= SLOW_FRACTION * np.max(np.abs(reference.qdot))) & (v_ref != 0.0)
     q_fast = other.q[keep][fast]
     t_star = _time_at_angle(reference, q_fast, times[fast])
@@ -222,12 +192,12 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
     def rms(a: np.ndarray) -> float:
         return float(np.sqrt(np.mean(a * a))) if a.size else 0.0
 
-    peak_abs = abs(p_other - p_ref)
-    scale = max(p_ref, peak_floor)
+    peak_abs = abs(peak_other.omega - peak_ref.omega)
+    scale = max(abs(peak_ref.omega), peak_floor)
     return Difference(
         peak_omega_abs=peak_abs,
         peak_omega_rel=(peak_abs / scale if scale > 0.0 else np.inf) if peak_abs else 0.0,
-        t_peak_abs=abs(t_other - t_ref),
+        t_peak_abs=abs(peak_other.time - peak_ref.time),
         q_max_abs=float(np.max(np.abs(dq))), q_rms=rms(dq),
         omega_max_abs=float(np.max(np.abs(domega))), omega_rms=rms(domega),
         # No fast sample: nothing to compare (0). Fast samples but none at an angle the reference
@@ -235,8 +205,7 @@ def compare_trajectories(reference: Trajectory, other: Trajectory, *, horizon: f
         omega_vs_q_max_abs=(float(np.max(np.abs(domega_q))) if domega_q.size
                             else math.nan if fast.any() else 0.0),
         times=times, dq=dq, domega=domega, q_samples=q_fast[matched], domega_vs_q=domega_q,
-        peak_omega_reference=p_ref, peak_omega_other=p_other, t_peak_reference=t_ref,
-        t_peak_other=t_other, peak_floor=peak_floor, span_start=float(start), span_end=float(end),
+        peak_reference=peak_ref, peak_other=peak_other, peak_floor=peak_floor, span_start=float(start), span_end=float(end),
         horizon=float(reference.t[-1] if horizon is None else horizon),
         reference_end=float(reference.t[-1]), other_end=float(other.t[-1]))
 
@@ -329,7 +298,7 @@ def gate(diff: Difference, tolerances: Tolerances, modes: ModeCheck | None = Non
                  if end < diff.span_end + 1e-12]
         failures.append(f"compared span [{diff.span_start:.6g}, {diff.span_end:.6g}] s stops short of the "
                         f"horizon {diff.horizon:.6g} s: {' and '.join(short)}")
-    bound = tolerances.peak_bound(diff.peak_omega_reference)
+    bound = tolerances.peak_bound(abs(diff.peak_omega_reference))
     if not diff.peak_omega_abs <= bound:
         failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} {rate} > tolerance peak_omega_rtol·|peak| + "
                         f"peak_omega_atol = {bound:.3e} {rate} (peak_omega_rel = {diff.peak_omega_rel:.3e} "

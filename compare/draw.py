@@ -1,10 +1,11 @@
 """A drawing of any planar linkage in one configuration (``xval draw``, and the mechanism
 strip of ``xval run``), to check a scene's geometry.
 
-Bodies are drawn as thick lines (two points) or filled polygons (three or more) between
-their joint and attachment points, revolute joints as labelled circles, ground pivots with
-a hatched base, prismatic joints as a guide line and a block, dampers as dashed lines and
-springs as zigzags with their coefficients, point forces as arrows F(q) along their
+Bodies are drawn as thick lines (two points) or filled polygons (three or more) through all
+their named points (joint and attachment points and any other), a body of one point as the
+block of the prismatic joint it slides in (in its colour) or a disc; revolute joints as
+labelled circles, ground pivots with a hatched base, prismatic joints as a guide line and a
+block, dampers as dashed lines and springs as zigzags with their coefficients, point forces as arrows F(q) along their
 direction (ending at the point they act on), centres of mass as crossed circles; the title
 gives q0 with its unit, the assembly mode (one sign per loop) and gravity. Every position
 is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the general
@@ -77,37 +78,52 @@ def mode_text(mode: Sequence[int]) -> str:
     return "(" + ", ".join("0" if m == 0 else f"{'+' if m > 0 else '−'}1" for m in mode) + ")"
 
 
-def body_outlines(linkage: Linkage, system: LoopSystem, x: np.ndarray,
-                  elements: Sequence = ()) -> dict[str, np.ndarray]:
-    """Each moving body's outline at coordinates x: its distinct joint and attachment
-    points (m), shape (k, 2), ordered round their centroid when k ≥ 3."""
+def body_outlines(linkage: Linkage, system: LoopSystem, x: np.ndarray) -> dict[str, np.ndarray]:
+    """Each moving body's outline at coordinates x: its distinct named points (joint and
+    attachment points and any other the scene names; m), shape (k, 2), ordered round their
+    centroid when k ≥ 3. Every point of a body lies on its outline."""
     r = positions(system.points, np.asarray(x, dtype=float))
     span = float(np.max(np.ptp(r, axis=0))) if len(r) > 1 else 1.0
     span = span if span > 0.0 else 1.0
-    ends = {(j.body_a, j.point_a) for j in linkage.joints} | {(j.body_b, j.point_b) for j in linkage.joints}
-    ends |= {(e.body_a, e.point_a) for e in elements} | {(e.body_b, e.point_b) for e in elements}
+    bodies = linkage.body_map
     out = {}
     for name in linkage.moving:
-        pts = [r[system.point_index(b, p)] for b, p in sorted(ends) if b == name]
+        pts = [r[system.point_index(name, p)] for p in sorted(bodies[name].points)]
         shape = _distinct(pts, 1e-9 * span)
         out[name] = _polygon_order(shape) if len(shape) >= 3 else shape
     return out
 
 
+def _guide(r: np.ndarray, system: LoopSystem, x: np.ndarray, j: PrismaticJoint, span: float) -> np.ndarray:
+    """A prismatic joint's guide: the segment of its line from point_a to point_b, 0.1 span
+    beyond each (m), shape (2, 2)."""
+    th = (0.0 if j.body_a == GROUND else float(x[system.coordinate(f"{j.body_a}.angle")])) + j.direction_a
+    u = np.array([math.cos(th), math.sin(th)])
+    a, b = r[system.point_index(j.body_a, j.point_a)], r[system.point_index(j.body_b, j.point_b)]
+    ends = sorted((float(u @ (a - b)), 0.0))
+    return np.array([b + (ends[0] - 0.1 * span) * u, b + (ends[1] + 0.1 * span) * u])
+
+
 def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, colour: str,
                  linestyle: str = "-", label: str | None = None, alpha: float = 1.0) -> list:
-    """A light drawing of the linkage at x (bodies as closed outlines, joints as dots), for
-    overlaying several configurations (the mechanism strip of ``xval run``). Returns the
-    Line2D artists, bodies first in :attr:`Linkage.moving` order, then the joints."""
-    r = positions(system.points, np.asarray(x, dtype=float))
+    """A light drawing of the linkage at x (bodies as closed outlines through all their
+    points, a body of one point as a square, joints as dots, prismatic joints as a thin guide
+    line and a square block), for overlaying several configurations (the mechanism strip of
+    ``xval run``). Returns the Line2D artists, bodies first in :attr:`Linkage.moving` order
+    (each with gid ``body:<name>``), then the joints."""
+    x = np.asarray(x, dtype=float)
+    r = positions(system.points, x)
+    span = float(np.max(np.ptp(r, axis=0))) if len(r) > 1 else 1.0
+    span = span if span > 0.0 else 1.0
     artists = []
     for k, (name, shape) in enumerate(body_outlines(linkage, system, x).items()):
         path = np.vstack([shape, shape[:1]]) if len(shape) >= 3 else shape
         if len(path) == 0:
             continue
         (line,) = ax.plot(path[:, 0], path[:, 1], color=colour, linestyle=linestyle, linewidth=2.2,
-                          alpha=alpha, marker="o" if len(path) == 1 else None,
-                          label=label if k == 0 else None, zorder=2)
+                          alpha=alpha, marker="s" if len(path) == 1 else None, markersize=8,
+                          markerfacecolor="none", label=label if k == 0 else None, zorder=2,
+                          gid=f"body:{name}")
         artists.append(line)
     centres = np.array([r[system.point_index(j.body_a, j.point_a)] for j in linkage.joints
                         if not isinstance(j, PrismaticJoint)]).reshape(-1, 2)
@@ -115,11 +131,14 @@ def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, col
                       markeredgecolor=colour, alpha=alpha, zorder=3)
     artists.append(dots)
     for j in linkage.joints:
-        if isinstance(j, PrismaticJoint):  # the slider's block as a square marker
+        if isinstance(j, PrismaticJoint):  # the guide line and the slider's block, a square
+            g = _guide(r, system, x, j, span)
+            (guide,) = ax.plot(g[:, 0], g[:, 1], color=colour, linewidth=0.8, alpha=0.6 * alpha,
+                               linestyle=linestyle, zorder=1, gid=f"guide:{j.name}")
             b = r[system.point_index(j.body_b, j.point_b)]
             (block,) = ax.plot([b[0]], [b[1]], "s", markersize=7, markerfacecolor="none",
                                markeredgecolor=colour, alpha=alpha, zorder=3)
-            artists.append(block)
+            artists += [guide, block]
     return artists
 
 
@@ -137,6 +156,7 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     for dampers and springs (a Line2D from its a end to its b end), ``"force:<name>"`` for
     point forces (an Annotation whose ``xy`` is the point acted on) and ``"com:<body>"``.
     """
+    from matplotlib.colors import to_rgba
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     linkage, elements, point_forces = _parts(mechanism)
@@ -162,9 +182,13 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     force_points = {(f.body, f.point) for f in point_forces}
 
     centre = r.mean(axis=0)
-    shapes = body_outlines(linkage, system, x, elements)
+    shapes = body_outlines(linkage, system, x)
+    # A moving body of one point that is a prismatic joint's sliding end is drawn as that
+    # joint's block, in the body's colour; any other body of one point as a disc.
+    blocks = {j.body_b: j.name for j in linkage.joints
+              if isinstance(j, PrismaticJoint) and j.body_b in colour and len(shapes[j.body_b]) == 1}
 
-    # Bodies: the outline of their joint and attachment points (not the centre of mass).
+    # Bodies: the outline of all their named points (not the centre of mass).
     for name in linkage.moving:
         shape = shapes[name]
         if len(shape) >= 3:
@@ -176,6 +200,11 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
             (line,) = ax.plot(shape[:, 0], shape[:, 1], color=colour[name], linewidth=4,
                               solid_capstyle="round", zorder=1)
             artists[f"body:{name}"] = line
+        elif len(shape) == 1 and name not in blocks:
+            disc = Circle(tuple(shape[0]), 2.0 * radius, facecolor=colour[name], alpha=0.35,
+                          edgecolor=colour[name], linewidth=2, zorder=1)
+            ax.add_patch(disc)
+            artists[f"body:{name}"] = disc
         if len(shape):
             # The name beside the body, on the side away from the whole linkage's centre.
             mid = shape.mean(axis=0)
@@ -238,14 +267,18 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
             th = angle_of(j.body_a) + j.direction_a
             u = np.array([math.cos(th), math.sin(th)])
             b = at(j.body_b, j.point_b)
-            guide = np.array([c - 0.1 * span * u, b + 0.1 * span * u])
+            guide = _guide(r, system, x, j, span)
             ax.plot(guide[:, 0], guide[:, 1], color="0.3", linewidth=1, zorder=2)
             w, h = 4 * radius, 2.5 * radius
             corner = b - 0.5 * w * u - 0.5 * h * np.array([-u[1], u[0]])
-            patch = Rectangle(tuple(corner), w, h, angle=math.degrees(th), facecolor="white",
+            block_of = next((body for body, joint in blocks.items() if joint == j.name), None)
+            patch = Rectangle(tuple(corner), w, h, angle=math.degrees(th),
+                              facecolor="white" if block_of is None else to_rgba(colour[block_of], 0.45),
                               edgecolor="black", linewidth=1.5, zorder=4)
             ax.add_patch(patch)
             artists[f"joint:{j.name}"] = patch
+            if block_of is not None:
+                artists[f"body:{block_of}"] = patch
             ax.annotate(label, b, xytext=(10, 8 - stacked(b)), textcoords="offset points",
                         fontsize=9, bbox=LABEL_BOX, **PLAIN)
             continue
@@ -375,6 +408,7 @@ def _checked_system(scene, *runs) -> LoopSystem:
 # Fixed margins (inches, see compare.plots.new_figure) of the drawing, of the strip (a
 # suptitle above two-line panel titles) and of the animation's frames.
 DRAWING_MARGINS = {"left": 0.85, "right": 0.3, "top": 0.45, "bottom": 0.6}
+STRIP_MIN_WIDTH = 7.0  # inches: room for the title above a single panel
 STRIP_MARGINS = {"left": 0.75, "right": 0.2, "top": 0.85, "bottom": 0.55, "wspace": 0.55}
 ANIMATION_MARGINS = {"left": 0.8, "right": 0.2, "top": 0.4, "bottom": 0.55}
 
@@ -387,21 +421,60 @@ def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], t
     for x, look in zip(xs, (REFERENCE_LOOK, OTHER_LOOK)):
         draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
                      label=look["label"])
+    # Ground pivots (revolute joints to ground) as triangles; a slider's guide is a line, drawn
+    # with the outline.
     ground = [system.point_index(j.body_a if j.body_a == GROUND else j.body_b,
                                  j.point_a if j.body_a == GROUND else j.point_b)
-              for j in linkage.joints if GROUND in (j.body_a, j.body_b)]
-    g = positions(system.points, np.asarray(xs[0], dtype=float))[ground]
+              for j in linkage.joints if GROUND in (j.body_a, j.body_b) and not isinstance(j, PrismaticJoint)]
+    g = positions(system.points, np.asarray(xs[0], dtype=float))[ground].reshape(-1, 2)
     ax.plot(g[:, 0], g[:, 1], "^", color="black", markersize=7, zorder=4)
     ax.set_title(title, fontsize=9, **PLAIN)
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, color="0.9", linewidth=0.6)
     ax.set_xlabel("x (m)")
+    _few_ticks(ax)
+
+
+def _few_ticks(ax) -> None:
+    """At most five x ticks (and y ticks): a narrow panel of equal scales has room for no more
+    labels side by side."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]))
+
+
+# Of the drawing's span: two configurations closer than this are the same picture (a panel is
+# about 4 in × 110 dpi = 440 pixels across the span: less than a pixel apart).
+SAME_PICTURE = 1.0 / 440.0
+
+
+def same_pictures(system: LoopSystem, reference, other, moments: Sequence[tuple[str, float]]
+                  ) -> list[list[tuple[str, float]]]:
+    """``moments`` grouped into panels: a moment joins the previous panel when no point of
+    either run moves by more than SAME_PICTURE of the drawing's span between the two times
+    (the two panels would be the same picture)."""
+    def points(t: float) -> np.ndarray:
+        return np.vstack([positions(system.points, configuration_at(run, t)) for run in (reference, other)])
+
+    groups: list[list[tuple[str, float]]] = []
+    last = None
+    for label, t in moments:
+        here = points(t)
+        span = float(np.max(np.ptp(here, axis=0))) or 1.0
+        if last is not None and float(np.max(np.hypot(*(here - last).T))) <= SAME_PICTURE * span:
+            groups[-1].append((label, t))
+        else:
+            groups.append([(label, t)])
+            last = here
+    return groups
 
 
 def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], path: str | Path) -> None:
-    """A strip of the mechanism at the given moments ((label, t s), one panel each), both
-    engines overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other``
-    (MuJoCo's) dashed, into the PNG ``path``.
+    """A strip of the mechanism at the given moments ((label, t s), one panel each, or one
+    panel for moments that draw the same picture, :func:`same_pictures`), both engines
+    overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other`` (MuJoCo's)
+    dashed, into the PNG ``path``.
 
     Raises ValueError when a run's coordinate names are not the scene's.
     """
@@ -410,13 +483,20 @@ def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], pa
     system = _checked_system(scene, reference, other)
     linkage = scene.mechanism.linkage
     unit = scene.input_unit
-    fig, axes = plots.new_figure((4.5 * len(moments), 4.2), 1, len(moments), squeeze=False,
-                                 margins=STRIP_MARGINS)
-    for ax, (label, t) in zip(axes[0], moments):
+    panels = same_pictures(system, reference, other, moments)
+    fig, axes = plots.new_figure((max(4.5 * len(panels), STRIP_MIN_WIDTH), 4.2), 1, len(panels),
+                                 squeeze=False, margins=STRIP_MARGINS)
+    for ax, group in zip(axes[0], panels):
+        label, t = group[0]
         xs = [configuration_at(run, t) for run in (reference, other)]
         q = [float(system.drive @ x) for x in xs]
+        times = {f"{when:.6g}" for _, when in group}
+        if len(times) == 1:  # one moment, or several at the same time: drawn once
+            head = f"{' and '.join(name for name, _ in group)}, t = {t:.6g} s"
+        else:  # moments that would draw the same picture: said, and drawn once
+            head = " and ".join(f"{name} (t = {when:.6g} s)" for name, when in group) + ", one picture"
         _frame(ax, linkage, system, xs,
-               f"{label}, t = {t:.6g} s\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
+               f"{head}\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
     axes[0][0].set_ylabel("y (m)")
     axes[0][0].legend(loc="best", fontsize=8)
     fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", y=0.975,

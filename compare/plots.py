@@ -19,6 +19,8 @@ import numpy as np
 
 from reduced.scene import MUJOCO_INTEGRATORS
 
+from .text import STILL_RISING
+
 if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` needs neither)
     from .run import Comparison
 
@@ -124,44 +126,106 @@ def _units(c: "Comparison") -> tuple[str, str]:
 
 
 def plot_trajectories(c: "Comparison", path: Path) -> None:
+    """q and q̇ of both engines against time; dots mark the compared peak, one event in both
+    (``diff.peak_reference`` and ``peak_other``: the reduced run's largest |q̇| and MuJoCo's
+    extremum of the same sign nearest in time), and the title says when it is the end of the
+    horizon with the speed still rising."""
     unit, rate = _units(c)
-    fig, (ax_q, ax_w) = new_figure((8, 6), 2, 1, sharex=True)
+    rising = c.diff.peak_still_rising
+    fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * rising), 2, 1, sharex=True,
+                                   margins={"top": 0.45 + 0.25 * rising})
     for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
         ax_q.plot(result.trajectory.t, result.trajectory.q, **style)
         ax_w.plot(result.trajectory.t, result.trajectory.qdot, **style)
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
-        ax_w.plot([result.peak.time], [result.peak.omega], "o", color=style["color"], markersize=5)
+    # The reduced run's dot larger: where the two coincide, both show.
+    for peak, style, size in ((c.diff.peak_reference, REDUCED_STYLE, 8), (c.diff.peak_other, MUJOCO_STYLE, 4.5)):
+        ax_w.plot([peak.time], [peak.omega], "o", color=style["color"], markersize=size)
     ax_q.set_ylabel(f"input q ({unit})")
     ax_w.set_ylabel(f"input rate q̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
-    ax_q.set_title(f"{short_name(c.scene.name)}: input joint, both engines (dots: peak |q̇|)", **PLAIN)
+    title = f"{short_name(c.scene.name)}: input joint, both engines (dots: the compared peak q̇)"
+    if rising:
+        title += f"\npeak {STILL_RISING}: the horizon ends before the speed peaks"
+    ax_q.set_title(title, **PLAIN)
     ax_q.legend(), ax_w.legend()
     ax_q.grid(alpha=0.3), ax_w.grid(alpha=0.3)
     _save(fig, path)
 
 
+TOLERANCE_DECADE = 10.0  # a tolerance band is drawn when within this factor of the largest difference
+DATA_MARGIN = 0.08  # y-axis padding beyond the plotted values, a fraction of their range
+LEGEND_ROOM = 0.45  # inches above each axes of the differences plot for its two-line legend
+
+
+def tolerance_band(largest: float, tolerance: float, unit: str) -> tuple[bool, str]:
+    """Whether a tolerance ±``tolerance`` is drawn as a band on an axis scaled to differences
+    whose largest magnitude is ``largest`` (both in ``unit``), and its legend text.
+
+    The band is drawn when it is within a decade of the data (largest/10 ≤ tolerance ≤
+    10·largest); otherwise the legend says how far off scale it is, e.g. ``tolerance ±0.1
+    rad/s: off scale, 80× the largest difference``.
+    """
+    text = f"gate tolerance ±{tolerance:g} {unit}"
+    if largest > 0.0 and largest / TOLERANCE_DECADE <= tolerance <= TOLERANCE_DECADE * largest:
+        return True, text
+    if largest == 0.0:
+        return False, f"{text}: off scale, every difference is 0"
+    ratio = tolerance / largest
+    where = "off scale" if ratio > 1.0 else "too narrow to show"
+    return False, f"{text}: {where}, {ratio:.3g}× the largest difference"
+
+
+def scaled_limits(values: np.ndarray, band: float | None = None) -> tuple[float, float]:
+    """y limits enclosing ``values`` (and ±``band`` when given), padded by DATA_MARGIN of their
+    range; a flat or empty series gets a range of ±1 % of its magnitude (±1 when zero)."""
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    lo = float(values.min()) if values.size else 0.0
+    hi = float(values.max()) if values.size else 0.0
+    if band is not None:
+        lo, hi = min(lo, -band), max(hi, band)
+    span = hi - lo
+    if span <= 0.0:
+        half = 0.01 * abs(hi) or 1.0
+        return lo - half, hi + half
+    return lo - DATA_MARGIN * span, hi + DATA_MARGIN * span
+
+
 def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -> None:
-    """Δq and Δq̇ (MuJoCo minus reduced) against time with the gate's tolerances; ``subtitle``
-    (plain text, lines of up to SUBTITLE_CHARS characters: longer ones are cut) under the
-    title, e.g. which variant of a sweep this is."""
+    """Δq and Δq̇ (MuJoCo minus reduced) against time, each axis scaled to its data; the
+    gate's tolerance is a grey band only where it is within a decade of the data, and the
+    legend says so otherwise (:func:`tolerance_band`). ``subtitle`` (plain text, lines of up
+    to SUBTITLE_CHARS characters: longer ones are cut) goes under the title, e.g. which variant
+    of a sweep this is."""
+    from matplotlib.lines import Line2D
+
     unit, rate = _units(c)
     d = c.diff
     extra = [short_name(line, SUBTITLE_CHARS) for line in subtitle.splitlines()] if subtitle else []
-    fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * len(extra)), 2, 1, sharex=True,
-                                   margins={"top": 0.45 + 0.25 * len(extra)})
-    ax_q.plot(d.times, d.dq, color="tab:red", label="Δq = q_MuJoCo − q_reduced")
-    ax_w.plot(d.times, d.domega, color="tab:red", label="Δq̇ = q̇_MuJoCo − q̇_reduced")
+    # Each legend stands above its axes (the data fill the axes: no corner is free of them).
+    fig, (ax_q, ax_w) = new_figure((8, 6.9 + 0.25 * len(extra)), 2, 1, sharex=True,
+                                   margins={"top": 0.45 + LEGEND_ROOM + 0.25 * len(extra),
+                                            "hspace": 0.3 + LEGEND_ROOM})
     tol = c.gate.tolerances
-    for ax, limit in ((ax_q, tol.q_atol), (ax_w, tol.omega_atol)):
-        ax.axhline(limit, color="grey", linestyle=":", label="gate tolerance")
-        ax.axhline(-limit, color="grey", linestyle=":")
+    for ax, values, limit, u, label in (
+            (ax_q, d.dq, tol.q_atol, unit, "Δq = q_MuJoCo − q_reduced"),
+            (ax_w, d.domega, tol.omega_atol, rate, "Δq̇ = q̇_MuJoCo − q̇_reduced")):
+        ax.plot(d.times, values, color="tab:red", label=label)
+        largest = float(np.max(np.abs(values))) if len(values) else 0.0
+        drawn, text = tolerance_band(largest, limit, u)
+        if drawn:
+            ax.axhspan(-limit, limit, color="0.85", alpha=0.6, zorder=0, label=text)
+        else:  # a legend entry without a mark: the tolerance is named, not drawn
+            ax.add_line(Line2D([], [], linestyle="none", label=text))
+        ax.set_ylim(*scaled_limits(values, limit if drawn else None))
         ax.grid(alpha=0.3)
-        ax.legend(loc="best")
+        ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8.5, frameon=False,
+                  borderaxespad=0.2, handlelength=1.5)  # right: the axis' offset (1e-6) is at the left
     ax_q.set_ylabel(f"Δq ({unit})")
     ax_w.set_ylabel(f"Δq̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
     title = f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times"
-    ax_q.set_title("\n".join([title, *extra]), **PLAIN)
+    ax_q.set_title("\n".join([title, *extra]), pad=6 + 72 * LEGEND_ROOM, **PLAIN)  # above the legend
     _save(fig, path)
 
 
@@ -220,10 +284,12 @@ def plot_energy(c: "Comparison", path: Path) -> None:
 
 def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
     """The moments the mechanism strip shows: the reduced run's peak speed (the compared
-    peak, ``diff.t_peak_reference``) and the sample of largest |Δq| (s)."""
+    peak, ``diff.t_peak_reference``, said to be at the end of the horizon when it is) and the
+    sample of largest |Δq| (s). (The strip draws moments that look the same as one panel.)"""
     d = c.diff
+    peak = "peak speed" + (f" ({STILL_RISING})" if d.peak_still_rising else "")
     worst = float(d.times[int(np.argmax(np.abs(d.dq)))]) if len(d.times) else d.span_end
-    return [("peak speed", float(d.t_peak_reference)), ("largest |Δq|", worst)]
+    return [(peak, float(d.t_peak_reference)), ("largest |Δq|", worst)]
 
 
 def plot_mechanism_strip(c: "Comparison", path: Path) -> None:

@@ -11,7 +11,11 @@ in it per s); ``scene.mode`` is the assembly mode at q0 (one sign per loop); the
 per loop (samples where MuJoCo's mode of that loop differs from the reduced reference's,
 and the first such time in s or null), with ``mode_mismatches_total`` their sum; they
 replace schema 1's single ``branch_mismatches``. The CSV headers name the unit
-(``q_rad`` or ``q_m``).
+(``q_rad`` or ``q_m``). Schema 3 (one peak event): each engine's ``peak_omega``/``t_peak``
+is the compared peak (the reduced run's largest |q̇| and MuJoCo's extremum of the same sign
+nearest in time, :mod:`compare.diff`), signed, with ``peak_still_rising`` (the peak is the
+end of the horizon, |q̇| still rising); the ``diff`` peaks ``peak_omega_reference`` and
+``peak_omega_other`` are signed too (schema 2: magnitudes).
 
 ``xval run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set.
 """
@@ -27,13 +31,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from reduced.result import EngineResult
+from reduced.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
 from .plots import PLOTS
 if TYPE_CHECKING:
     from .run import Comparison
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 REPORT_FILES = ("reduced.csv", "mujoco.csv", *PLOTS, "report.json")  # in the order they are committed
 ANIMATION_FILE = "mechanism.gif"
 
@@ -62,11 +67,15 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def engine_summary(result: EngineResult) -> dict:
-    """The per-engine part of the report."""
+def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
+    """The per-engine part of the report. ``peak`` is the event reported (default the run's
+    own, ``result.peak``); a comparison passes its compared peak, the same event in both
+    engines (``Difference.peak_reference``/``peak_other``)."""
+    peak = result.peak if peak is None else peak
     summary = {
-        "peak_omega": result.peak.omega,
-        "t_peak": result.peak.time,
+        "peak_omega": peak.omega,
+        "t_peak": peak.time,
+        "peak_still_rising": peak.still_rising,
         "wall_s": result.wall_s,
         "n_steps": result.n_steps,
         "n_evaluations": result.n_evaluations,
@@ -90,8 +99,8 @@ def report_dict(c: "Comparison") -> dict:
                   "effects": list(s.effects), "input_joint": s.mechanism.linkage.input_joint,
                   "input_unit": s.input_unit, "q0": s.q0, "qdot0": s.qdot0, "mode": list(s.mode),
                   "horizon": s.horizon},
-        "reduced": engine_summary(c.reduced),
-        "mujoco": engine_summary(c.mujoco),
+        "reduced": engine_summary(c.reduced, c.diff.peak_reference),
+        "mujoco": engine_summary(c.mujoco, c.diff.peak_other),
         "diff": {**{k: _finite(v) for k, v in c.diff.figures().items()},
                  "mode_mismatches": list(c.modes.mismatches),
                  "mode_mismatch_first_times": list(c.modes.first_times),

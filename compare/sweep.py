@@ -139,23 +139,24 @@ def comparison_row(c) -> dict[str, Any]:
     report = report_dict(c)
     row: dict[str, Any] = {f"diff.{k}": report["diff"][k] for k in DIFF_FIGURES}
     tol = c.gate.tolerances
-    peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(c.diff.peak_omega_reference))
+    peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(abs(c.diff.peak_omega_reference)))
     ratios = [peak_ratio, _ratio(c.diff.q_max_abs, tol.q_atol), _ratio(c.diff.omega_max_abs, tol.omega_atol),
               _ratio(c.diff.omega_vs_q_max_abs, tol.omega_vs_q_atol)]
     ratios = [r for r in ratios if r is not None]
     row.update({"gate.passed": c.gate.passed, **{f"gate.{k}": v for k, v in report["gate"]["tolerances"].items()},
                 "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
-    row.update(engine_row("reduced", c.reduced))
-    row.update(engine_row("mujoco", c.mujoco))
+    row.update(engine_row("reduced", c.reduced, c.diff.peak_reference))
+    row.update(engine_row("mujoco", c.mujoco, c.diff.peak_other))
     row["mujoco.max_constraint_violation"] = c.mujoco.diagnostics.get("max_constraint_violation")
     return row
 
 
-def engine_row(engine: str, result) -> dict[str, Any]:
-    """One engine's figures (report.json's per-engine part), keyed by sweep.csv column."""
+def engine_row(engine: str, result, peak=None) -> dict[str, Any]:
+    """One engine's figures (report.json's per-engine part, with the peak event ``peak``:
+    default the run's own), keyed by sweep.csv column."""
     from .report import engine_summary
 
-    summary = engine_summary(result)
+    summary = engine_summary(result, peak)
     return {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}
 
 

@@ -40,12 +40,23 @@ def printed_pair(reference: float, other: float, digits: int = 10) -> tuple[str,
     return a, b, "0" if difference == 0 else f"{difference.normalize():+e}"
 
 
+STILL_RISING = "at the end of the horizon, still rising"
+
+
+def peak_text(peak, unit: str) -> str:
+    """A run's peak (:class:`reduced.trajectory.Peak`) as every table writes it: signed q̇ in
+    ``unit``/s, its time, and when it is the horizon's end with |q̇| still rising, that."""
+    return (f"{peak.omega:+.10g} {unit}/s at t = {peak.time:.10g} s"
+            + (f", {STILL_RISING}" if peak.still_rising else ""))
+
+
 def comparison_lines(c: "Comparison") -> list[str]:
     """The table of both engines' results and their differences, then the gate.
 
-    The peak row holds the compared peaks of |q̇| (``Difference.peak_omega_reference`` and
-    ``peak_omega_other``: the same event in both runs, as magnitudes), not each engine's
-    own signed extremum. q is the input coordinate, in ``scene.input_unit`` (rad or m).
+    The peak row holds the compared peak, signed (``Difference.peak_reference`` and
+    ``peak_other``: the reduced run's largest |q̇| and MuJoCo's extremum of the same sign
+    nearest in time, one event), followed by a line when it is at the end of the horizon,
+    still rising. q is the input coordinate, in ``scene.input_unit`` (rad or m).
     """
     r, m, d = c.reduced, c.mujoco, c.diff
     unit = c.scene.input_unit
@@ -58,7 +69,7 @@ def comparison_lines(c: "Comparison") -> list[str]:
     time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
     rows = [
         ("", f"reduced ({ref_label})", f"MuJoCo ({mj_label})", "difference (MuJoCo - reduced)"),
-        (f"peak |qdot| ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
+        (f"peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
         ("time of peak (s)", time_r, time_m, time_d),
         ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
         ("loop violation (m)", "-", f"{m.diagnostics['max_constraint_violation']:.2e}", ""),
@@ -74,6 +85,9 @@ def comparison_lines(c: "Comparison") -> list[str]:
     lines = [f"scene: {c.scene.name} ({c.scene.source}); input {c.scene.mechanism.linkage.input_joint} "
              f"({unit}); effects: {', '.join(c.scene.effects) or 'none'}"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
+    rising = [name for name, p in (("reduced", d.peak_reference), ("MuJoCo", d.peak_other)) if p.still_rising]
+    if rising:
+        lines.append(f"peak: {STILL_RISING} ({' and '.join(rising)}): the horizon ends before the speed peaks")
     lines += [f"warning: {note}" for note in m.diagnostics.get("edge_warnings", [])]
     return lines + gate_lines(c.gate, unit)
 
@@ -117,7 +131,7 @@ def reduced_lines(scene, result) -> list[str]:
         f"solver           {used['solver']}  "
         + (f"step = {setting_text(used, 'step', ' s')}" if used.get("method") == "rkn4"
            else f"rtol = {setting_text(used, 'rtol')}"),
-        f"peak |qdot|      {result.peak.omega:.10g} {unit}/s at t = {result.peak.time:.10g} s"]
+        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)"]
     estimate = result.diagnostics.get("error_estimate")
     if estimate:
         lines.append(f"error estimate   {estimate['q_abs_rad']:.3e} {unit} in q, {estimate['qdot_abs_rad_per_s']:.3e} "
@@ -139,7 +153,7 @@ def mujoco_lines(scene, result) -> list[str]:
         f"refsafe {'on' if used.get('refsafe') else 'off'}, diagexact {'on' if used.get('diagexact') else 'off'}, "
         f"iterations {used.get('iterations')}, tolerance {setting_text(used, 'tolerance')}, "
         f"MuJoCo {used.get('mujoco_version')}",
-        f"peak |qdot|      {result.peak.omega:.10g} {unit}/s at t = {result.peak.time:.10g} s",
+        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
         f"loop violation   {result.diagnostics['max_constraint_violation']:.3e} m (largest over the run)",
         _energy_line(result),
         f"cost             {result.n_steps} steps, {result.wall_s:.3f} s"]

@@ -19,10 +19,19 @@ PEAK_CANDIDATE_BAND = 0.01  # local maxima of |q̇| samples within 1 % of the la
 
 @dataclass(frozen=True)
 class Peak:
-    """An extremum of the input link's angular velocity: ω (rad/s) at time t (s)."""
+    """The peak of a run's input rate, one event: q̇ (signed; rad/s, or m/s for a prismatic
+    input) at time t (s).
+
+    ``still_rising`` is True when the event is the run's last sample and |q̇| is still rising
+    there (sign(q̇)·q̈ > 0): the horizon ends before the speed peaks, so the "peak" is only the
+    speed at the end. Defined by :meth:`Trajectory.peak_angular_velocity` (a run's own peak)
+    and :meth:`Trajectory.extremum_near` (the same event in another run): every output that
+    shows a peak takes it from these two.
+    """
 
     omega: float
     time: float
+    still_rising: bool = False
 
 
 @dataclass(frozen=True)
@@ -125,7 +134,55 @@ class Trajectory:
                     better = abs(v[0]) > abs(best.omega) if sign is None else sign * v[0] > sign * best.omega
                     if better:
                         best = Peak(float(v[0]), float(t))
-        return best
+        return self._flagged(best)
+
+    def _flagged(self, peak: Peak) -> Peak:
+        """``peak`` with ``still_rising`` set when it is the last sample and |q̇| rises there."""
+        rising = peak.time == self.t[-1] and float(np.sign(peak.omega) * self.qddot[-1]) > 0.0
+        return Peak(peak.omega, peak.time, still_rising=bool(rising))
+
+    def extremum_near(self, peak: Peak) -> Peak:
+        """The same event as ``peak`` (another run's peak) in this trajectory: the local
+        extremum of q̇ of the same sign as ``peak.omega`` nearest in time to ``peak.time``
+        (a local maximum of q̇ for a positive peak, a local minimum for a negative one).
+
+        Candidates are the samples where sign·q̇ > 0 stops rising, each end included where
+        sign·q̇ does not rise into the run from it; each is refined between samples by
+        :meth:`peak_angular_velocity` (with the sign) on its two neighbouring intervals. Of
+        candidates equally near, the larger sign·q̇ wins. When q̇ never takes that sign, there
+        is no such event: the value at ``peak.time`` is returned (so the difference of the two
+        shows how far apart the runs are, and a gate on it fails).
+        """
+        sign = 1.0 if peak.omega >= 0.0 else -1.0
+        w = sign * self.qdot
+        rising_in = np.r_[True, w[1:] > w[:-1]]
+        falling_out = np.r_[w[:-1] >= w[1:], True]
+        candidates = np.flatnonzero(rising_in & falling_out & (w > 0.0))
+        found: list[Peak] = []
+        n = len(self.t)
+        for k in candidates:
+            a, b = max(k - 1, 0), min(k + 2, n)  # the two intervals beside sample k
+            if b - a < 2 or not np.any(np.diff(self.t[a:b]) > 0.0):
+                found.append(Peak(float(self.qdot[k]), float(self.t[k])))
+                continue
+            part = Trajectory(self.t[a:b], self.q[a:b], self.qdot[a:b], self.qddot[a:b])
+            found.append(part.peak_angular_velocity(sign=int(sign)))
+        if not found:
+            time = float(np.clip(peak.time, self.t[0], self.t[-1]))
+            return Peak(float(self.interpolate(np.array([time]))[1][0]), time)
+        best = min(found, key=lambda p: (abs(p.time - peak.time), -sign * p.omega))
+        return self._flagged(Peak(best.omega, best.time))
+
+    def within(self, start: float, end: float) -> "Trajectory":
+        """The trajectory on [start, end] (s, inside its span): itself when that is its whole
+        span, else its samples inside with the ends interpolated."""
+        if start <= self.t[0] and end >= self.t[-1]:
+            return self
+        start, end = max(float(start), float(self.t[0])), min(float(end), float(self.t[-1]))
+        inside = (self.t > start) & (self.t < end)
+        q, v, a = self.interpolate(np.array([start, end]))
+        return Trajectory(np.r_[start, self.t[inside], end], np.r_[q[0], self.q[inside], q[1]],
+                          np.r_[v[0], self.qdot[inside], v[1]], np.r_[a[0], self.qddot[inside], a[1]])
 
     def resample(self, times: np.ndarray) -> "Trajectory":
         """The trajectory at new sample times (interpolated)."""

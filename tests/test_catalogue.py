@@ -24,7 +24,7 @@ EXPECTED = {  # scene: (moving bodies, loops, effects)
     "seed_fourbar": (3, 1, ("torque", "damper")),
     "slider_crank_gas": (3, 1, ("torque", "point-force")),
     "slider_crank_driven_slider": (3, 1, ("force",)),
-    "whitworth_inverted": (3, 1, ("torque", "damper", "gravity")),
+    "oscillating_slotted_lever": (3, 1, ("torque", "damper", "gravity")),
     "drag_link": (3, 1, ("torque", "damper")),
     "watt2_sixbar": (5, 2, ("torque", "damper", "gravity")),
     "stephenson3_sixbar": (5, 2, ("torque", "spring")),
@@ -88,7 +88,7 @@ def test_the_crank_turns_fully_in_the_scenes_assembly_mode(name):
     returns to x0 (plus one turn of the crank). The mode is a property of the input: it may
     change only where the input cannot drive the loop, so with the slider as input it changes
     exactly at the two dead centres (the extremes of s), and nowhere for a crank input (the
-    Whitworth lever's extremes are not singular for the crank: needs the mode_pairs fix in
+    oscillating slotted lever's extremes are not singular for the crank: needs the mode_pairs fix in
     reduced/loops.py, see the catalogue report). The other angles come back too, the drag link's
     a whole turn on (its coupler and follower turn with the crank), every other's where it was."""
     scene, system = _load(name)

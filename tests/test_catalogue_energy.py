@@ -6,7 +6,7 @@ constant (reduced/energy.py audits it by Gauss quadrature on the run's dense out
 asks below 1e-9 of the work done. DOP853 at rtol 1e-12 over the first 0.05 s of each scene
 (Andrews: its whole 0.03 s) measured: Andrews 1.4e-11, planar seed 9.2e-12, slider driven 6.9e-12,
 gas slider-crank 3.7e-11, Stephenson III 1.8e-12 (near toggle 1.6e-12), Watt II 2.6e-12,
-Whitworth 3.3e-12 relative; 1e-9 is the issue's bound, ~30x the worst. It caught a real fault:
+oscillating slotted lever 3.3e-12 relative; 1e-9 is the issue's bound, ~30x the worst. It caught a real fault:
 with a cubic (C²) force spline the gas slider-crank measured 1.7e-9.
 """
 

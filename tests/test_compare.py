@@ -18,7 +18,7 @@ from reduced.scene import Tolerances
 
 from helpers import SEED_SCENE
 
-REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "wall_s", "settings", "energy_residual"}
+REPORT_ENGINE_KEYS = {"peak_omega", "t_peak", "peak_still_rising", "wall_s", "settings", "energy_residual"}
 REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms",
                     "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "mode_mismatches",
                     "mode_mismatch_first_times", "mode_mismatches_total", "peak_omega_reference", "peak_omega_other",
@@ -88,7 +88,7 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
-    assert report["schema_version"] == 2
+    assert report["schema_version"] == 3
     assert report["scene"]["input_unit"] == "rad" and report["scene"]["mode"] == [1]
     assert (tmp_path / "out" / "mujoco.csv").read_text().startswith("t_s,q_rad,qdot_rad_per_s,")
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)

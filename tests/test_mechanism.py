@@ -46,7 +46,7 @@ def slider_crank(r=0.1, l=0.35, e=0.03, input_joint="crank"):
 
 
 def inverted_slider_crank(r=0.3, d=0.5, line_on_rocker=True):
-    """Inverted slider-crank (the core of a Whitworth quick-return): crank O→A (r), a block
+    """Inverted slider-crank (the core of a crank-and-slotted-lever drive): crank O→A (r), a block
     pinned at A slides along a rocker turning about O2 = (d, 0). The slide is declared with
     the line in the rocker (s = |A − O2|) or, reversed, in the block (s = −|A − O2|)."""
     slide = (PrismaticJoint("slide", "rocker", "O2", 0.0, "block", "A") if line_on_rocker

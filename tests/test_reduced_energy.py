@@ -205,7 +205,7 @@ def test_the_fields_a_run_records_at_its_samples_are_a_walk_to_them(method, path
 
 
 FLOW_SCENES = [SEED_SCENE] + [SEED_SCENE.parent / "mechanisms" / f"{name}.toml" for name in
-                              ("slider_crank_driven_slider", "whitworth_inverted", "slider_crank_gas")]
+                              ("slider_crank_driven_slider", "oscillating_slotted_lever", "slider_crank_gas")]
 
 
 @pytest.mark.parametrize("path", FLOW_SCENES, ids=lambda p: p.stem)
@@ -214,7 +214,7 @@ def test_the_energy_flows_integrated_with_the_state_equal_their_quadrature(path)
     state (its stages' power, reduced.kernels.physics.power); an independent route is
     Gauss-Legendre quadrature of the power over the samples' interpolant (what scipy's runs
     use). Measured difference, relative to the run's energy scale: seed 5e-14, driven slider
-    (2 charts) 4e-14, Whitworth (9 charts) 8e-13, gas slider-crank 3.3e-11 (a point force:
+    (2 charts) 4e-14, oscillating slotted lever (9 charts) 8e-13, gas slider-crank 3.3e-11 (a point force:
     there the quadrature is the coarser of the two). Bound 1e-10, 3x the largest."""
     import dataclasses
 

@@ -69,7 +69,7 @@ def test_tolerances_are_within_10x_of_the_measured_differences(results, name):
     says which): a tolerance far above them could never fail, one below would always."""
     r = results(name)
     d, tol = r.comparison.diff, r.comparison.gate.tolerances
-    pairs = [(d.peak_omega_abs, tol.peak_omega_rtol * d.peak_omega_reference + tol.peak_omega_atol),
+    pairs = [(d.peak_omega_abs, tol.peak_omega_rtol * abs(d.peak_omega_reference) + tol.peak_omega_atol),
              (d.q_max_abs, tol.q_atol), (d.omega_max_abs, tol.omega_atol)]
     if tol.omega_vs_q_atol is not None:
         pairs.append((d.omega_vs_q_max_abs, tol.omega_vs_q_atol))
