@@ -4,8 +4,11 @@
 
     𝔍 = Σ m |K_G|² + I_G K_θ²
     ζ = ½ d𝔍/dx_i = Σ m K_G·L_G + I_G K_θ L_θ
-    V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)²    (D = |r_a − r_b| between the element's points)
-    Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P − Σ b_d K_Dd² ẋ_i   (K_D = dD/dx_i)
+    V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)² + Σ ½ k_j (u_j − u0_j)²
+    Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P − Σ b_d K_Dd² ẋ_i − Σ c_j K_uj² ẋ_i
+
+(D = |r_a − r_b| between a line element's points, K_D = dD/dx_i; u = row·x a joint element's
+joint coordinate, relative angle or displacement, K_u = row·K: :class:`reduced.mechanism.JointElement`.)
 
 x_i is the chart's independent coordinate (any joint coordinate: a body angle or a slider
 displacement, :mod:`reduced.partition`); every K and L is a derivative with respect to it.
@@ -181,6 +184,11 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.ELEMENT_COEF] = P.float([e.coefficient for e in elements])
     h[physics.ELEMENT_REST] = P.float([e.rest_length for e in elements])
     h[physics.FORCE_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in pf])
+    joint_elements = list(mech.joint_dampers) + list(mech.joint_springs)
+    h[physics.N_JOINT_ELEMENTS], h[physics.N_JOINT_DAMPERS] = len(joint_elements), len(mech.joint_dampers)
+    h[physics.JOINT_ROWS] = P.float([system.joint_row(e.joint) for e in joint_elements])
+    h[physics.JOINT_COEF] = P.float([e.coefficient for e in joint_elements])
+    h[physics.JOINT_REST] = P.float([e.rest for e in joint_elements])
     h[physics.LINEAR] = P.float(system.linear)
     h[physics.SPLINE_KNOTS] = P.float(np.concatenate([s[0] for s in splines]) if splines else [])
     h[physics.SPLINE_COEF] = P.float(np.concatenate([s[1] for s in splines]) if splines else [])

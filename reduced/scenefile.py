@@ -29,7 +29,7 @@ import numpy as np
 
 from . import loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
-from .mechanism import (GROUND, Body, LineElement, Linkage, Mechanism, MechanismError, PointForce,
+from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint)
 from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_SWEPT_ANGLE, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
@@ -286,6 +286,38 @@ def _parse_line_elements(top: _Table) -> list[LineElement]:
     return out
 
 
+def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
+    """``[[joint_dampers]]`` (joint, coefficient) and ``[[joint_springs]]`` (joint, stiffness,
+    rest_angle on a revolute joint or rest_displacement on a prismatic one): elements on the
+    joint's own coordinate, in N·m·s/rad and N·m/rad on a revolute joint, N·s/m and N/m on a
+    prismatic one."""
+    out = []
+    joints = linkage.joint_map
+    for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
+        for k, t in enumerate(_array_of_tables(top, table)):
+            joint = t.string("joint")
+            if joint not in joints:
+                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+            name = _name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
+            revolute = not isinstance(joints[joint], PrismaticJoint)
+            rest = 0.0
+            if kind == "damper":
+                coefficient = t.number("coefficient", positive=True,
+                                       kind="rotational damping" if revolute else "damping")
+            else:
+                coefficient = t.number("stiffness", positive=True,
+                                       kind="rotational stiffness" if revolute else "stiffness")
+                rest_key, other = (("rest_angle", "rest_displacement") if revolute
+                                   else ("rest_displacement", "rest_angle"))
+                if t.has(other):
+                    raise SceneError(f"'{t.key(other)}' does not fit the {'revolute' if revolute else 'prismatic'} "
+                                     f"joint '{joint}': give '{rest_key}' ({'rad' if revolute else 'm'})")
+                rest = t.number(rest_key, kind="angle" if revolute else "position")
+            t.close()
+            out.append(_mechanism_value(t.path, lambda: JointElement(kind, name, joint, coefficient, rest)))
+    return out
+
+
 def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
     out = []
     for k, t in enumerate(_array_of_tables(top, "point_forces")):
@@ -331,8 +363,10 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
     input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)
-    _count(elements + forces, "dampers, springs and point_forces", MAX_ELEMENTS, "entries together")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces)), None
+    joint_elements = _parse_joint_elements(top, linkage)
+    _count(elements + forces + joint_elements, "dampers, springs, joint_dampers, joint_springs and point_forces",
+           MAX_ELEMENTS, "entries together")
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements)), None
 
 
 # -- the four-bar shorthand ------------------------------------------------------------
@@ -418,7 +452,8 @@ def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechan
               RevoluteJoint("B", "coupler", "B", "rocker", "B"),
               RevoluteJoint("O3", GROUND, "O3", "rocker", "O3")]
     linkage = Linkage(bodies, joints, "O1")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements)), g
+    joint_elements = _parse_joint_elements(top, linkage)
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements)), g
 
 
 # -- the scene -------------------------------------------------------------------------
@@ -664,8 +699,8 @@ def speed_bound(scene: Scene, system=None) -> dict[str, float]:
     |q̇| ≤ √(𝔍(q0)/J_low)·|q̇0| + √(2ΔV/J_low) + ∫|Q|dt / J_low, where ΔV bounds the energy the
     springs and gravity can release: each point stays within the reach R (the largest distance
     of a ground point from the origin plus every moving body's extent about its joint point;
-    a slider's travel is taken as twice its displacement at q0 plus that). Dampers only take
-    energy out; tabulated point forces are not bounded here (the engines' work limits apply).
+    a slider's travel is taken as twice its displacement at q0 plus that; a joint spring, its
+    potential ≥ 0, releases at most what it holds at x0). Dampers only take energy out; tabulated point forces are not bounded here (the engines' work limits apply).
     """
     j_low = _input_inertia_floor(scene)
     if not j_low:
@@ -687,6 +722,8 @@ def speed_bound(scene: Scene, system=None) -> dict[str, float]:
     released = 0.0
     for sp in scene.mechanism.springs:
         released += 0.5 * sp.coefficient * max(2.0 * reach - sp.rest_length, sp.rest_length) ** 2
+    for sp in scene.mechanism.joint_springs:  # V ≥ 0: it releases at most what it holds at the start
+        released += 0.5 * sp.coefficient * (float(system.joint_row(sp.joint) @ np.asarray(scene.x0)) - sp.rest) ** 2
     if scene.gravity is not None:
         weight = math.hypot(*scene.gravity)
         released += sum(2.0 * bodies[b].mass * weight * reach for b in linkage.moving)

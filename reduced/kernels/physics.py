@@ -89,10 +89,14 @@ N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = 
 # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ the
 # angle of W).
 DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
+# Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
+# the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
+# and rest values (count,).
+N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
 # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
 # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
 LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
-TABLES = 27
+TABLES = 32
 TABLE_ENTRIES = 7
 HEADER = TABLES + 4 * TABLE_ENTRIES
 
@@ -691,6 +695,23 @@ def _coefficients(F, I, S, W):
             else:
                 stretch = length - F[I[ELEMENT_REST] + e]
                 dV += c * stretch * k_d
+                V += 0.5 * c * stretch * stretch
+    nj = I[N_JOINT_ELEMENTS]
+    if nj:
+        n = I[N]
+        rows_at = I[JOINT_ROWS]
+        for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
+            u, k_u = 0.0, 0.0
+            for j in range(n):
+                r = F[rows_at + e * n + j]
+                u += r * x[j]
+                k_u += r * K[j]
+            c = F[I[JOINT_COEF] + e]
+            if e < I[N_JOINT_DAMPERS]:
+                damping += c * k_u * k_u
+            else:
+                stretch = u - F[I[JOINT_REST] + e]
+                dV += c * stretch * k_u
                 V += 0.5 * c * stretch * stretch
     rate, curvature, q = 0.0, 0.0, 0.0
     for j in range(I[N]):
