@@ -70,11 +70,11 @@ def _table(table: loops.TermTable, rows: list[int] | None = None):
     offset (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,)."""
     offset, row, coef, mag, angle, phase = (table.offset, table.row, table.coef, table.mag, table.angle,
                                             table.phase)
-    if rows is not None:
-        index = {r: k for k, r in enumerate(rows)}
-        keep = np.array([r in index for r in row.tolist()], dtype=bool)
+    if rows is not None:  # a row asked for twice (two elements at one point) gets its terms twice
+        keep = np.array([t for r in rows for t in np.flatnonzero(row == r)], dtype=np.int64)
+        new_row = np.array([k for k, r in enumerate(rows) for _ in np.flatnonzero(row == r)], dtype=np.int64)
         offset = offset[rows].reshape(-1, 2)
-        row = np.array([index[r] for r in row[keep].tolist()], dtype=np.int64)
+        row = new_row
         coef, mag, angle, phase = coef[keep], mag[keep], angle[keep], phase[keep]
     w = np.column_stack([coef * np.cos(phase), coef * np.sin(phase)]).reshape(-1, 2)
     return np.asarray(offset, dtype=float).reshape(-1, 2), w, row, mag, angle
