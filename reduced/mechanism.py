@@ -6,7 +6,8 @@ coordinate is q. Ground is the body named ``"ground"`` (:data:`GROUND`): it does
 its points are fixed points of the plane, and it is not counted as a moving body. A
 :class:`Mechanism` adds what acts on the bodies: dampers and springs between two points
 (:class:`LineElement`), dampers and springs on a joint's coordinate (:class:`JointElement`)
-and point forces tabulated over the input coordinate (:class:`PointForce`). Both engines build from a :class:`Mechanism`; neither is known here.
+point forces tabulated over the input coordinate (:class:`PointForce`) and point forces
+given over time (:class:`TimedForce`). Both engines build from a :class:`Mechanism`; neither is known here.
 
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
 the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
@@ -466,6 +467,33 @@ class PointForce:
 
 
 @dataclass(frozen=True)
+class TimedForce:
+    """A force of magnitude F(t) along a fixed direction of the plane, applied at a point: a
+    pressure history on a piston while the crank is the input.
+
+    ``profile`` is one of the input load's profiles (:mod:`reduced.loads`: constant, pulse,
+    table; piecewise constant in t, its values in N), ``direction`` rad in the ground frame; the
+    force is F(t) (cos, sin)(direction) (N). Its edges are load edges: the reduced integrators
+    stop at them and MuJoCo's automatic timestep puts them on its step grid.
+    """
+
+    name: str
+    body: str
+    point: str
+    direction: float
+    profile: object  # reduced.loads.TorqueProfile (not imported here: loads needs numpy only)
+
+    def __post_init__(self):
+        _name(self.name, "timed force name")
+        if not math.isfinite(float(self.direction)):
+            raise MechanismError(f"timed force {self.name!r}: direction must be finite, got {self.direction}")
+        if not hasattr(self.profile, "edges") or not hasattr(self.profile, "sample"):
+            raise MechanismError(f"timed force {self.name!r}: profile must be a load profile (reduced.loads), "
+                                 f"got {type(self.profile).__name__}")
+        object.__setattr__(self, "direction", float(self.direction))
+
+
+@dataclass(frozen=True)
 class Mechanism:
     """A checked linkage with mass properties, and the dampers, springs and point forces
     acting on it (every moving body has mass and inertia, or an inertia about a fixed pivot),
@@ -476,11 +504,13 @@ class Mechanism:
     elements: tuple[LineElement, ...] = ()
     point_forces: tuple[PointForce, ...] = ()
     joint_elements: tuple[JointElement, ...] = ()
+    timed_forces: tuple[TimedForce, ...] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "elements", tuple(self.elements))
         object.__setattr__(self, "point_forces", tuple(self.point_forces))
         object.__setattr__(self, "joint_elements", tuple(self.joint_elements))
+        object.__setattr__(self, "timed_forces", tuple(self.timed_forces))
         bodies = self.linkage.body_map
         for name in self.linkage.moving:
             _check_mass(bodies[name], self.linkage.joints)
@@ -489,7 +519,7 @@ class Mechanism:
         for e in self.joint_elements:
             if e.joint not in joints:
                 raise MechanismError(f"joint {e.kind} {e.name!r}: unknown joint {e.joint!r}")
-        _unique([p.name for p in self.point_forces], "point force")
+        _unique([p.name for p in self.point_forces] + [p.name for p in self.timed_forces], "point force")
 
         def check(body, point, what):
             if body not in bodies:
@@ -503,6 +533,10 @@ class Mechanism:
             check(p.body, p.point, f"point force {p.name!r}")
             if p.body == GROUND:
                 raise MechanismError(f"point force {p.name!r} acts on the ground: it does no work")
+        for p in self.timed_forces:
+            check(p.body, p.point, f"timed force {p.name!r}")
+            if p.body == GROUND:
+                raise MechanismError(f"timed force {p.name!r} acts on the ground: it does no work")
 
     @property
     def dampers(self) -> tuple[LineElement, ...]:

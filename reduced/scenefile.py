@@ -30,7 +30,7 @@ import numpy as np
 from . import loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
-                        PrismaticJoint, RevoluteJoint)
+                        PrismaticJoint, RevoluteJoint, TimedForce)
 from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_SWEPT_ANGLE, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
@@ -336,6 +336,19 @@ def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
     return out
 
 
+def _parse_timed_forces(top: _Table) -> list[TimedForce]:
+    """``[[timed_forces]]``: point, direction (rad, ground frame), optional name, and the load
+    over time as the input's ``[torque]`` gives it (type constant, pulse or table; values in N)."""
+    out = []
+    for k, t in enumerate(_array_of_tables(top, "timed_forces")):
+        body, point = _point_ref(t, "point")
+        name = _name_key(t.string("name", f"timed_force{k}"), t.key("name"))
+        direction = t.number("direction", kind="angle")
+        profile = _parse_profile(t, "force")  # closes the table
+        out.append(_mechanism_value(t.path, lambda: TimedForce(name, body, point, direction, profile)))
+    return out
+
+
 def _mechanism_value(key: str, build):
     """Build a mechanism value; its MechanismError becomes a SceneError naming ``key``."""
     try:
@@ -364,9 +377,11 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)
     joint_elements = _parse_joint_elements(top, linkage)
-    _count(elements + forces + joint_elements, "dampers, springs, joint_dampers, joint_springs and point_forces",
-           MAX_ELEMENTS, "entries together")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements)), None
+    timed = _parse_timed_forces(top)
+    _count(elements + forces + joint_elements + timed,
+           "dampers, springs, joint_dampers, joint_springs, point_forces and timed_forces", MAX_ELEMENTS,
+           "entries together")
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
 
 
 # -- the four-bar shorthand ------------------------------------------------------------
@@ -700,7 +715,8 @@ def speed_bound(scene: Scene, system=None) -> dict[str, float]:
     springs and gravity can release: each point stays within the reach R (the largest distance
     of a ground point from the origin plus every moving body's extent about its joint point;
     a slider's travel is taken as twice its displacement at q0 plus that; a joint spring, its
-    potential ≥ 0, releases at most what it holds at x0). Dampers only take energy out; tabulated point forces are not bounded here (the engines' work limits apply).
+    potential ≥ 0, releases at most what it holds at x0). Dampers only take energy out; point
+    forces over q or over t are not bounded here (the engines' work limits apply).
     """
     j_low = _input_inertia_floor(scene)
     if not j_low:

@@ -404,7 +404,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     for name in dampers:
         spec.add_sensor(name=f"{name}_rate", type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)
-    for pf in mech.point_forces:
+    for pf in mech.point_forces + mech.timed_forces:
         spec.add_sensor(name=f"{pf.name}_vel", type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(pf.body, pf.point))
 
@@ -414,6 +414,11 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                       data=f"F(q) N along {pf.direction!r} rad (ground frame) at site {site_name(pf.body, pf.point)}, "
                            "tabulated over the input coordinate: not a model element; xval applies it through "
                            "mjcb_control (reference_models.run.point_force_callback)")
+    for tf in mech.timed_forces:
+        spec.add_text(name=f"timed_force {tf.name}",
+                      data=f"F(t) N along {tf.direction!r} rad (ground frame) at site {site_name(tf.body, tf.point)}, "
+                           f"a {type(tf.profile).__name__} over time: not a model element; xval applies it through "
+                           "mjcb_control, held over each step at its midpoint value (reference_models.run.timed_values)")
 
     # The scene's initial state (the control follows the timestep: set_timestep).
     qpos0, qvel0 = initial_qpos_qvel(scene)
