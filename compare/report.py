@@ -90,8 +90,9 @@ def engine_summary(result: EngineResult) -> dict:
 
 def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
     """The comparison as plain JSON-serialisable data; ``joints`` the joints of its ``joints``
-    list (:func:`joint_report`; default :func:`joint_columns`)."""
+    list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``)."""
     s = c.scene
+    names = joint_columns(s) if joints is None else tuple(joints)
     return {
         "schema_version": SCHEMA_VERSION,
         "scene": {"name": s.name, "source": portable_source(s.source), "description": s.description,
@@ -109,7 +110,7 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
                                 "q_atol": c.gate.tolerances.q_atol,
                                 "omega_atol": c.gate.tolerances.omega_atol,
                                 "omega_vs_q_atol": c.gate.tolerances.omega_vs_q_atol}},
-        "joints": joint_report(c, joint_columns(s) if joints is None else joints),
+        "joints": joint_report(c, names) if names else [],
     }
 
 
