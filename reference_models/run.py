@@ -518,8 +518,9 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         for name in scene.mechanism.linkage.cut_joints:
             gap = sensors[:, sl[f"{name}_a_pos"]] - sensors[:, sl[f"{name}_b_pos"]]
             violation = np.maximum(violation, np.sqrt(_squares_by_row(gap)))
-        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec)
-        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec)
+        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback)
+        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
+                                        timed, callback)
     max_violation = float(np.max(violation))
     if not math.isfinite(max_violation) or max_violation > settings.max_constraint_violation:
         k = int(np.argmax(np.nan_to_num(violation, nan=np.inf)))
@@ -677,12 +678,12 @@ def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors, timed=
         sensors[k] = data.sensordata
 
 
-def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec) -> np.ndarray:
+def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
     """q̈ at every stored state (rad/s² or m/s²).
 
     A hinge input: the z angular acceleration of its child body minus its parent's (sensors
     read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
-    with that step's control.
+    with that step's control and timed forces' values (``timed``, handed to ``callback``).
     """
     if layout.input_hinge:
         return _hinge_acceleration(handles.sensor_slices, layout, sensors)
@@ -691,6 +692,8 @@ def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spe
         mujoco.mj_setState(model, data, state, spec)
         if model.nu:
             data.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
+        if timed.shape[1]:
+            callback.step_values[:] = timed[min(k, len(timed) - 1)]
         mujoco.mj_forward(model, data)
         out[k] = layout.input_row @ data.qacc
     return out
@@ -819,13 +822,22 @@ def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
     return data.sensordata.copy()
 
 
-def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec) -> Trajectory:
-    """Insert, at each step where the control jumps, a sample with q̈ from before the jump."""
-    if not model.nu:
+def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
+                       timed, callback) -> Trajectory:
+    """Insert, at each step where the control or a timed force jumps, a sample with q̈ from
+    before the jump."""
+    jumped = np.zeros(max(len(states) - 2, 0), dtype=bool)
+    if model.nu:
+        jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
+    if timed.shape[1]:
+        jumped |= np.any(np.diff(timed, axis=0) != 0.0, axis=1)
+    if not np.any(jumped):
         return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
-    jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
+    jumps = np.flatnonzero(jumped) + 1
     before = []
     for k in jumps:
+        if timed.shape[1]:
+            callback.step_values[:] = timed[k - 1]
         if layout.input_hinge:
             before.append(_hinge_acceleration(handles.sensor_slices, layout,
                                               _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
