@@ -204,7 +204,7 @@ def _tolerances(scene, args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .report import report_files, resolve_animation, write_outputs
+    from .report import joint_columns, report_files, resolve_animation, write_outputs
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
@@ -212,11 +212,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .run import compare_engines
 
     scene = _scene(args.scene)
+    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
     _announce_compilation()
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print("\n".join(comparison_lines(comparison)))
-    paths = write_outputs(comparison, args.out, animate=animate)
+    paths = write_outputs(comparison, args.out, animate=animate, joints=joints)
     print(f"wrote {len(paths)} files to {args.out}/")
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
@@ -412,6 +413,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--animate", action="store_true",
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
+    p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
+                   help="the joints whose coordinate and rate the CSVs and report.json carry, with the input's "
+                        "(default: every joint of a scene of at most 12 joints, else the input's alone)")
     _add_comparison_arguments(p)
     p.set_defaults(func=cmd_run)
 

@@ -15,7 +15,9 @@ replace schema 1's single ``branch_mismatches``. The CSV headers name the unit
 is the compared peak (the reduced run's largest |q̇| and MuJoCo's extremum of the same sign
 nearest in time, :mod:`compare.diff`), signed, with ``peak_still_rising`` (the peak is the
 end of the horizon, |q̇| still rising); the ``diff`` peaks ``peak_omega_reference`` and
-``peak_omega_other`` are signed too (schema 2: magnitudes).
+``peak_omega_other`` are signed too (schema 2: magnitudes). Each CSV also carries the coordinate and rate of every joint (a scene of
+at most :data:`JOINTS_BY_DEFAULT` joints; else the input's and those ``xval run --joints``
+names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_report`).
 
 ``xval run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set.
 """
@@ -26,16 +28,21 @@ import math
 import warnings
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from reduced import loops
+from reduced.mechanism import PrismaticJoint
 from reduced.result import EngineResult
+from reduced.scene import Scene
 from reduced.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
 from .plots import PLOTS
 if TYPE_CHECKING:
+    from reduced.partition import JointTrajectory
+
     from .run import Comparison
 
 SCHEMA_VERSION = 3
@@ -90,9 +97,11 @@ def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
     return summary
 
 
-def report_dict(c: "Comparison") -> dict:
-    """The comparison as plain JSON-serialisable data."""
+def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
+    """The comparison as plain JSON-serialisable data; ``joints`` the joints of its ``joints``
+    list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``)."""
     s = c.scene
+    names = joint_columns(s) if joints is None else tuple(joints)
     return {
         "schema_version": SCHEMA_VERSION,
         "scene": {"name": s.name, "source": portable_source(s.source), "description": s.description,
@@ -110,20 +119,119 @@ def report_dict(c: "Comparison") -> dict:
                                 "q_atol": c.gate.tolerances.q_atol,
                                 "omega_atol": c.gate.tolerances.omega_atol,
                                 "omega_vs_q_atol": c.gate.tolerances.omega_vs_q_atol}},
+        "joints": joint_report(c, names) if names else [],
     }
 
 
-def _write_csv(result: EngineResult, path: Path, unit: str = "rad") -> None:
-    """The input coordinate's trajectory: t (s), q, q̇, q̈ in ``unit`` ("rad" or "m")."""
+# A scene of at most this many joints gets every joint's columns by default; a larger one the
+# input's alone, unless ``xval run --joints`` names others.
+JOINTS_BY_DEFAULT = 12
+
+
+def joint_columns(scene: Scene, names: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The joints whose own coordinate and rate the CSVs and ``report.json`` carry, in the
+    description's order: ``names`` and the input joint when names are given, else every joint
+    of a scene of at most :data:`JOINTS_BY_DEFAULT` joints, else the input joint alone.
+
+    Raises
+    ------
+    ValueError
+        If a name is not one of the scene's joints (``--joints`` names it).
+    """
+    linkage = scene.mechanism.linkage
+    every = [j.name for j in linkage.joints]
+    if names is None:
+        return tuple(every) if len(every) <= JOINTS_BY_DEFAULT else (linkage.input_joint,)
+    for name in names:
+        if name not in every:
+            raise ValueError(f"--joints: {name!r} is not a joint of the scene; its joints are {', '.join(every)}")
+    chosen = {linkage.input_joint, *names}
+    return tuple(name for name in every if name in chosen)
+
+
+def joint_unit(scene: Scene, name: str) -> str:
+    """"m" for a prismatic joint's displacement, "rad" for a revolute joint's relative angle."""
+    return "m" if isinstance(scene.mechanism.linkage.joint_map[name], PrismaticJoint) else "rad"
+
+
+def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
+                 names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Each named joint's own coordinate u and rate u̇ at the samples ``t`` of the engine's input
+    trajectory, shapes (len(t), len(names)): u = row·x and u̇ = row·ẋ from the engine's body
+    poses and rates (:attr:`reduced.loops.LoopSystem.joint_rows`: θ_b − θ_a of a revolute joint,
+    cut or not; s of a prismatic one). A time the trajectory repeats (a load edge) takes the
+    joints' first sample there: positions and rates are continuous."""
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    rows = np.array([system.joint_row(name) for name in names]).reshape(len(names), system.n)
+    index = np.minimum(np.searchsorted(joints.t, t, side="left"), len(joints.t) - 1)
+    if not np.array_equal(joints.t[index], t):
+        raise ValueError("the engine's joint samples are not at its trajectory's times")
+    return joints.x[index] @ rows.T, joints.xdot[index] @ rows.T
+
+
+def _hermite(t: np.ndarray, u: np.ndarray, v: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic Hermite interpolant of samples (u, u̇ = v) at times t and its derivative,
+    evaluated at ``at`` (a repeated time keeps its last sample); columns interpolated together."""
+    keep = np.append(np.diff(t) > 0, True)
+    t, u, v = t[keep], u[keep], v[keep]
+    i = np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2)
+    h = (t[i + 1] - t[i])[:, None]
+    s = ((at - t[i])[:, None]) / h
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, 6 * s - 6 * s**2, 3 * s**2 - 2 * s
+    value = h00 * u[i] + h10 * h * v[i] + h01 * u[i + 1] + h11 * h * v[i + 1]
+    rate = (d00 * u[i] + d01 * u[i + 1]) / h + d10 * v[i] + d11 * v[i + 1]
+    return value, rate
+
+
+def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
+    """Per named joint: its type, unit, whether it is cut, each engine's range of u and largest
+    |u̇|, and the largest differences MuJoCo − reduced of u and u̇ on MuJoCo's samples (the
+    reference interpolated there by the cubic Hermite polynomial of its u and u̇ samples, and
+    u̇ by its derivative)."""
+    linkage = c.scene.mechanism.linkage
+    out = []
+    ref_t, mj_t = c.reduced.trajectory.t, c.mujoco.trajectory.t
+    ru, rv = joint_values(c.scene, c.reduced.diagnostics["joints"], ref_t, names)
+    mu, mv = joint_values(c.scene, c.mujoco.diagnostics["joints"], mj_t, names)
+    inside = (mj_t >= ref_t[0]) & (mj_t <= ref_t[-1])
+    u_ref, v_ref = _hermite(ref_t, ru, rv, mj_t[inside])
+    du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
+    for k, name in enumerate(names):
+        engines = {}
+        for engine, u, v in (("reduced", ru, rv), ("mujoco", mu, mv)):
+            engines[engine] = {"min": float(np.min(u[:, k])), "max": float(np.max(u[:, k])),
+                               "final": float(u[-1, k]), "rate_max_abs": float(np.max(np.abs(v[:, k])))}
+        out.append({"name": name, "type": "prismatic" if joint_unit(c.scene, name) == "m" else "revolute",
+                    "unit": joint_unit(c.scene, name), "cut": name in linkage.cut_joints, **engines,
+                    "diff_max_abs": _finite(float(np.max(du[:, k]))) if len(du) else None,
+                    "rate_diff_max_abs": _finite(float(np.max(dv[:, k]))) if len(dv) else None})
+    return out
+
+
+def _write_csv(result: EngineResult, path: Path, unit: str = "rad", scene: Scene | None = None,
+               joints: Sequence[str] = ()) -> None:
+    """The input coordinate's trajectory: t (s), q, q̇, q̈ in ``unit`` ("rad" or "m"); then, for
+    each of ``joints``, its own coordinate and rate (``<joint>_rad``, ``<joint>_rate_rad_per_s``,
+    or ``_m``, ``_rate_m_per_s`` for a prismatic joint: :func:`joint_values`)."""
     tr = result.trajectory
-    np.savetxt(path, np.column_stack([tr.t, tr.q, tr.qdot, tr.qddot]), delimiter=",",
-               header=f"t_s,q_{unit},qdot_{unit}_per_s,qddot_{unit}_per_s2", comments="", fmt="%.17g")
+    columns = [tr.t, tr.q, tr.qdot, tr.qddot]
+    header = f"t_s,q_{unit},qdot_{unit}_per_s,qddot_{unit}_per_s2"
+    if joints:
+        u, v = joint_values(scene, result.diagnostics["joints"], tr.t, joints)
+        for k, name in enumerate(joints):
+            ju = joint_unit(scene, name)
+            columns += [u[:, k], v[:, k]]
+            header += f",{name}_{ju},{name}_rate_{ju}_per_s"
+    np.savetxt(path, np.column_stack(columns), delimiter=",", header=header, comments="", fmt="%.17g")
 
 
-def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False) -> list[Path]:
+def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False,
+                  joints: Sequence[str] | None = None) -> list[Path]:
     """Write report.json, reduced.csv, mujoco.csv and the PNG plots (with the mechanism
     strip) into ``out_dir``, as a set; with ``animate``, also mechanism.gif (the caller
-    checks :func:`compare.draw.gif_writer_available` first).
+    checks :func:`compare.draw.gif_writer_available` first). The CSVs and report.json carry
+    the coordinates of the joints :func:`joint_columns` picks from ``joints``.
 
     Raises
     ------
@@ -131,13 +239,14 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
         If ``out_dir`` cannot receive them (nothing is then written).
     """
     unit = c.scene.input_unit
-    files = {"reduced.csv": lambda p: _write_csv(c.reduced, p, unit),
-             "mujoco.csv": lambda p: _write_csv(c.mujoco, p, unit)}
+    names = joint_columns(c.scene, joints)
+    files = {"reduced.csv": lambda p: _write_csv(c.reduced, p, unit, c.scene, names),
+             "mujoco.csv": lambda p: _write_csv(c.mujoco, p, unit, c.scene, names)}
     files.update({name: (lambda p, plot=plot: plot(c, p)) for name, plot in PLOTS.items()})
     if animate:
         from .draw import animate_run
 
         files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.diagnostics["joints"],
                                                       c.mujoco.diagnostics["joints"], p)
-    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c)), encoding="utf-8")
+    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names)), encoding="utf-8")
     return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1))

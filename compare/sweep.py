@@ -136,7 +136,7 @@ def comparison_row(c) -> dict[str, Any]:
     peaks, times and residuals), keyed by sweep.csv column."""
     from .report import report_dict
 
-    report = report_dict(c)
+    report = report_dict(c, joints=())  # a row holds no joint coordinates
     row: dict[str, Any] = {f"diff.{k}": report["diff"][k] for k in DIFF_FIGURES}
     tol = c.gate.tolerances
     peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(abs(c.diff.peak_omega_reference)))

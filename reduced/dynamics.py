@@ -4,8 +4,11 @@
 
     𝔍 = Σ m |K_G|² + I_G K_θ²
     ζ = ½ d𝔍/dx_i = Σ m K_G·L_G + I_G K_θ L_θ
-    V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)²    (D = |r_a − r_b| between the element's points)
-    Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P − Σ b_d K_Dd² ẋ_i   (K_D = dD/dx_i)
+    V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)² + Σ ½ k_j (u_j − u0_j)²
+    Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P + Σ F_r(t) e_r·K_R − Σ b_d K_Dd² ẋ_i − Σ c_j K_uj² ẋ_i
+
+(D = |r_a − r_b| between a line element's points, K_D = dD/dx_i; u = row·x a joint element's
+joint coordinate, relative angle or displacement, K_u = row·K: :class:`reduced.mechanism.JointElement`.)
 
 x_i is the chart's independent coordinate (any joint coordinate: a body angle or a slider
 displacement, :mod:`reduced.partition`); every K and L is a derivative with respect to it.
@@ -132,6 +135,23 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
     return plans, steps, [float(v) for v in weights]
 
 
+def piece_edges(scene: Scene) -> np.ndarray:
+    """The edges (p+1,) of the run's load pieces, s: 0, every load edge inside the horizon
+    (:attr:`reduced.scene.Scene.load_edges`), the horizon."""
+    horizon = scene.horizon
+    return np.array([0.0, *[b for b in scene.load_edges if 0.0 < b < horizon], horizon])
+
+
+def piece_values(scene: Scene, edges: np.ndarray) -> np.ndarray:
+    """The loads on each piece (p, 1 + timed forces): the input load (N·m or N; 0 without one),
+    then each timed force's value (N), all constant on the piece (taken at its midpoint)."""
+    mid = 0.5 * (edges[:-1] + edges[1:])
+    columns = [np.array([float(scene.load.on_piece(a, b)(m)) for a, b, m in zip(edges[:-1], edges[1:], mid)])
+               if scene.load is not None else np.zeros(len(mid))]
+    columns += [np.asarray(f.profile.sample(mid), dtype=float) for f in scene.mechanism.timed_forces]
+    return np.column_stack(columns)
+
+
 class _Packer:
     """Appends arrays to the flat F and I of :class:`reduced.kernels.physics.Model`."""
 
@@ -168,8 +188,9 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
         ends += [system.point_index(e.body_a, e.point_a), system.point_index(e.body_b, e.point_b)]
     pf = mech.point_forces
     splines = _splines(tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf))
+    tf = mech.timed_forces
     tables = (_table(system.loops), _table(system.centres), _table(system.points, ends),
-              _table(system.points, [system.point_index(p.body, p.point) for p in pf]))
+              _table(system.points, [system.point_index(p.body, p.point) for p in pf + tf]))
     P = _Packer()
     h = P.I[0]
     h[physics.N], h[physics.N_ANGLES] = system.n, len(linkage.moving)
@@ -184,6 +205,14 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.ELEMENT_COEF] = P.float([e.coefficient for e in elements])
     h[physics.ELEMENT_REST] = P.float([e.rest_length for e in elements])
     h[physics.FORCE_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in pf])
+    joint_elements = list(mech.joint_dampers) + list(mech.joint_springs)
+    h[physics.N_JOINT_ELEMENTS], h[physics.N_JOINT_DAMPERS] = len(joint_elements), len(mech.joint_dampers)
+    h[physics.JOINT_ROWS] = P.float([system.joint_row(e.joint) for e in joint_elements])
+    h[physics.JOINT_COEF] = P.float([e.coefficient for e in joint_elements])
+    h[physics.JOINT_REST] = P.float([e.rest for e in joint_elements])
+    h[physics.N_TIMED] = len(tf)
+    h[physics.TIMED_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in tf])
+    h[physics.PIECE_VALUES] = P.float(piece_values(scene, piece_edges(scene)))
     h[physics.LINEAR] = P.float(system.linear)
     h[physics.SPLINE_KNOTS] = P.float(np.concatenate([s[0] for s in splines]) if splines else [])
     h[physics.SPLINE_COEF] = P.float(np.concatenate([s[1] for s in splines]) if splines else [])
@@ -232,7 +261,7 @@ class MechanismModel:
     def new_chart(self) -> physics.Chart:
         """Empty kernel chart state sized for this model."""
         I = self.arrays.I
-        return physics.new_chart(int(I[physics.N]), int(I[physics.MAX_ROWS]))
+        return physics.new_chart(int(I[physics.N]), int(I[physics.MAX_ROWS]), int(I[physics.N_TIMED]))
 
     def assemble(self, q: float) -> np.ndarray:
         """The configuration at input q (rad or m): the scene's own at q0, else Newton from it."""
@@ -280,5 +309,10 @@ class MechanismModel:
 
     @property
     def load_edges(self) -> tuple[float, ...]:
-        """Times (s) where the applied loads jump."""
-        return self.load.edges if self.load is not None else ()
+        """Times (s) where the applied loads jump: the input's and the timed forces'."""
+        return self.scene.load_edges
+
+    @property
+    def piece_edges(self) -> np.ndarray:
+        """The edges of the load pieces (:func:`piece_edges`); the kernels' ``load`` is a piece's index."""
+        return piece_edges(self.scene)

@@ -1,7 +1,7 @@
 """Energy audit of a reduced-model run.
 
 Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the input load and of the
-point forces ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit's ``torque_work``) and the damper
+point forces over q and over t ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit's ``torque_work``) and the damper
 dissipation ∫ Σ b K_D² ẋ_i² dt.
 
 The compiled runs integrate the two power integrals alongside the state, with the
@@ -43,14 +43,19 @@ def quadrature_energy(model: MechanismModel, chart, trajectory) -> np.ndarray:
     mid = 0.5 * (t[:-1] + t[1:])
     nodes = (mid[:, None] + 0.5 * h[:, None] * _NODES[None, :])[live].ravel()
     xn, vn, _ = trajectory.interpolate(nodes)
-    # dq/dx_i, Σ b K_D², Σ F e·K_P
-    input_rate, damping, point_force = _fields(chart, xn, physics.INPUT_RATE, physics.DAMPING, physics.POINT_FORCE)
+    # dq/dx_i, Σ b K_D², Σ F e·K_P, then each timed force's e·K_P
+    timed = model.scene.mechanism.timed_forces
+    input_rate, damping, point_force, *rates = _fields(chart, xn, physics.INPUT_RATE, physics.DAMPING,
+                                                       physics.POINT_FORCE,
+                                                       *(physics.N_FIELDS + p for p in range(len(timed))))
     load = model.load.sample(nodes) if model.load is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
     torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)
     generalized = load * input_rate
     if np.any(point_force):
         generalized = generalized + point_force
+    for force, rate in zip(timed, rates):  # the nodes lie inside the load pieces
+        generalized = generalized + force.profile.sample(nodes) * rate
     torque_step[live] = np.sum(w * (generalized * vn).reshape(-1, len(_NODES)), axis=1)
     damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, len(_NODES)), axis=1)
     energy = np.zeros((len(t), 2))

@@ -166,7 +166,7 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
     ValueError
         Naming the setting or scene key to change.
     """
-    horizon, edges = scene.horizon, len(scene.load.edges) if scene.load is not None else 0
+    horizon, edges = scene.horizon, len(scene.load_edges)
     if settings.method == "rkn4":
         samples = horizon / settings.step + 2 * edges
         if samples > MAX_SAMPLES:

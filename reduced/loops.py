@@ -98,6 +98,9 @@ class LoopSystem:
     centres : TermTable with one row per moving body: its centre of mass (m)
     mode_pairs : (loops, 2) int — for each loop the two coordinates that close it at its
         cut joint (:func:`assembly_mode`)
+    joint_names, joint_rows : the joints in the description's order and (joints, n) the row
+        of each one's own coordinate u = row·x: a revolute joint's relative angle θ_b − θ_a
+        (rad; also of a cut joint), a prismatic joint's displacement s (m)
     """
 
     coordinate_names: tuple[str, ...]
@@ -110,6 +113,12 @@ class LoopSystem:
     input_unit: str
     centres: TermTable
     mode_pairs: np.ndarray
+    joint_names: tuple[str, ...]
+    joint_rows: np.ndarray
+
+    def joint_row(self, name: str) -> np.ndarray:
+        """(n,) the row of joint ``name``'s own coordinate (:attr:`joint_rows`)."""
+        return self.joint_rows[self.joint_names.index(name)]
 
     @property
     def n(self) -> int:
@@ -335,7 +344,7 @@ def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
 def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = 1e-9) -> int:
     """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF."""
     sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
-    return int(np.sum(sv > rtol * sv[0]))
+    return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
 
 
 def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
@@ -482,8 +491,17 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
         drive = relative_angle(inp.body_a, inp.body_b)
         unit = "rad"
 
+    def joint_row(jt) -> np.ndarray:
+        if isinstance(jt, PrismaticJoint):
+            row = np.zeros(n)
+            row[disp[jt.name]] = 1.0
+            return row
+        return relative_angle(jt.body_a, jt.body_b)
+
     point_names = tuple((b.name, p) for b in linkage.bodies for p in b.points)
-    return LoopSystem(coordinate_names=names, loops=_table(loops),
+    return LoopSystem(joint_names=tuple(j.name for j in linkage.joints),
+                      joint_rows=np.array([joint_row(j) for j in linkage.joints], dtype=float).reshape(-1, n),
+                      coordinate_names=names, loops=_table(loops),
                       linear=np.array(linear_rows, dtype=float).reshape(-1, n),
                       linear_rhs=np.zeros(len(linear_rows)), drive=drive,
                       points=_table([point(b, p) for b, p in point_names]),

@@ -5,8 +5,9 @@ revolute and prismatic joints between two bodies' points, and the input joint wh
 coordinate is q. Ground is the body named ``"ground"`` (:data:`GROUND`): it does not move,
 its points are fixed points of the plane, and it is not counted as a moving body. A
 :class:`Mechanism` adds what acts on the bodies: dampers and springs between two points
-(:class:`LineElement`) and point forces tabulated over the input coordinate
-(:class:`PointForce`). Both engines build from a :class:`Mechanism`; neither is known here.
+(:class:`LineElement`), dampers and springs on a joint's coordinate (:class:`JointElement`)
+point forces tabulated over the input coordinate (:class:`PointForce`) and point forces
+given over time (:class:`TimedForce`). Both engines build from a :class:`Mechanism`; neither is known here.
 
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
 the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
@@ -391,6 +392,38 @@ LINE_ELEMENT_KINDS = ("damper", "spring")
 
 
 @dataclass(frozen=True)
+class JointElement:
+    """A damper or a spring on one joint's own coordinate u: a revolute joint's relative angle
+    θ_b − θ_a (rad), a prismatic joint's displacement s (m); the joint may be a cut joint.
+
+    ``kind`` is ``"damper"`` (generalized force −c u̇ on u: a torque in N·m with c in
+    N·m·s/rad, or a force in N with c in N·s/m) or ``"spring"`` (V = ½ k (u − u0)², k in
+    N·m/rad or N/m, ``rest`` u0 in rad or m). The relative angle counts whole turns: a
+    torsion spring wound by one turn stores ½ k (2π)².
+    """
+
+    kind: str
+    name: str
+    joint: str
+    coefficient: float
+    rest: float = 0.0
+
+    def __post_init__(self):
+        _name(self.name, "joint element name")
+        _name(self.joint, f"joint {self.kind} {self.name!r}: joint")
+        if self.kind not in LINE_ELEMENT_KINDS:
+            raise MechanismError(f"joint element {self.name!r}: kind must be one of "
+                                 f"{', '.join(LINE_ELEMENT_KINDS)}, got {self.kind!r}")
+        if not (math.isfinite(self.coefficient) and self.coefficient > 0.0):
+            raise MechanismError(f"joint {self.kind} {self.name!r}: coefficient must be positive "
+                                 f"and finite, got {self.coefficient}")
+        if not math.isfinite(self.rest):
+            raise MechanismError(f"joint {self.kind} {self.name!r}: rest must be finite, got {self.rest}")
+        object.__setattr__(self, "coefficient", float(self.coefficient))
+        object.__setattr__(self, "rest", float(self.rest))
+
+
+@dataclass(frozen=True)
 class PointForce:
     """A force of magnitude F(q) along a fixed direction of the plane, applied at a point.
 
@@ -434,22 +467,59 @@ class PointForce:
 
 
 @dataclass(frozen=True)
+class TimedForce:
+    """A force of magnitude F(t) along a fixed direction of the plane, applied at a point: a
+    pressure history on a piston while the crank is the input.
+
+    ``profile`` is one of the input load's profiles (:mod:`reduced.loads`: constant, pulse,
+    table; piecewise constant in t, its values in N), ``direction`` rad in the ground frame; the
+    force is F(t) (cos, sin)(direction) (N). Its edges are load edges: the reduced integrators
+    stop at them and MuJoCo's automatic timestep puts them on its step grid.
+    """
+
+    name: str
+    body: str
+    point: str
+    direction: float
+    profile: object  # reduced.loads.TorqueProfile (not imported here: loads needs numpy only)
+
+    def __post_init__(self):
+        _name(self.name, "timed force name")
+        if not math.isfinite(float(self.direction)):
+            raise MechanismError(f"timed force {self.name!r}: direction must be finite, got {self.direction}")
+        if not hasattr(self.profile, "edges") or not hasattr(self.profile, "sample"):
+            raise MechanismError(f"timed force {self.name!r}: profile must be a load profile (reduced.loads), "
+                                 f"got {type(self.profile).__name__}")
+        object.__setattr__(self, "direction", float(self.direction))
+
+
+@dataclass(frozen=True)
 class Mechanism:
     """A checked linkage with mass properties, and the dampers, springs and point forces
-    acting on it (every moving body has mass and inertia, or an inertia about a fixed pivot)."""
+    acting on it (every moving body has mass and inertia, or an inertia about a fixed pivot),
+    and the dampers and springs on joints (:class:`JointElement`). Dampers and springs share
+    one namespace, line and joint elements alike (each is one tendon in MuJoCo)."""
 
     linkage: Linkage
     elements: tuple[LineElement, ...] = ()
     point_forces: tuple[PointForce, ...] = ()
+    joint_elements: tuple[JointElement, ...] = ()
+    timed_forces: tuple[TimedForce, ...] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "elements", tuple(self.elements))
         object.__setattr__(self, "point_forces", tuple(self.point_forces))
+        object.__setattr__(self, "joint_elements", tuple(self.joint_elements))
+        object.__setattr__(self, "timed_forces", tuple(self.timed_forces))
         bodies = self.linkage.body_map
         for name in self.linkage.moving:
             _check_mass(bodies[name], self.linkage.joints)
-        _unique([e.name for e in self.elements], "damper or spring")
-        _unique([p.name for p in self.point_forces], "point force")
+        _unique([e.name for e in self.elements] + [e.name for e in self.joint_elements], "damper or spring")
+        joints = self.linkage.joint_map
+        for e in self.joint_elements:
+            if e.joint not in joints:
+                raise MechanismError(f"joint {e.kind} {e.name!r}: unknown joint {e.joint!r}")
+        _unique([p.name for p in self.point_forces] + [p.name for p in self.timed_forces], "point force")
 
         def check(body, point, what):
             if body not in bodies:
@@ -463,6 +533,10 @@ class Mechanism:
             check(p.body, p.point, f"point force {p.name!r}")
             if p.body == GROUND:
                 raise MechanismError(f"point force {p.name!r} acts on the ground: it does no work")
+        for p in self.timed_forces:
+            check(p.body, p.point, f"timed force {p.name!r}")
+            if p.body == GROUND:
+                raise MechanismError(f"timed force {p.name!r} acts on the ground: it does no work")
 
     @property
     def dampers(self) -> tuple[LineElement, ...]:
@@ -471,3 +545,11 @@ class Mechanism:
     @property
     def springs(self) -> tuple[LineElement, ...]:
         return tuple(e for e in self.elements if e.kind == "spring")
+
+    @property
+    def joint_dampers(self) -> tuple[JointElement, ...]:
+        return tuple(e for e in self.joint_elements if e.kind == "damper")
+
+    @property
+    def joint_springs(self) -> tuple[JointElement, ...]:
+        return tuple(e for e in self.joint_elements if e.kind == "spring")

@@ -105,10 +105,10 @@ class Chart:
         return coefficients_from(self._views["fields"], self._views["kin"])
 
     def walk(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """From the chart's start, the coefficient fields (m, N_FIELDS) and kinematics
+        """From the chart's start, the coefficient fields (m, field_count) and kinematics
         (m, 3, n) at each of ``values`` in turn (compiled)."""
         values = np.array(values, dtype=float)  # a writable copy: a read-only array is another type to compile
-        fields = np.empty((len(values), physics.N_FIELDS))
+        fields = np.empty((len(values), physics.field_count(self.model.arrays)))
         kin = np.empty((len(values), 3, len(self.model.coordinate_names)))
         done = physics.walk(self.model.arrays, self.state, values, fields, kin)
         if done < len(values):
@@ -225,12 +225,16 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
 
 
 def piece_load(model: MechanismModel, start: float, end: float) -> float:
-    """The input load (N·m or N) on one smooth piece [start, end] of its history: constant there."""
-    return float(model.load_on_piece(start, end)(0.5 * (start + end)))
+    """The kernels' ``load`` on one smooth piece [start, end] of the load history: the index (a
+    float) of the model's load piece holding it (:func:`reduced.dynamics.piece_values` holds the
+    loads there, constant on it)."""
+    edges = model.piece_edges
+    return float(min(max(np.searchsorted(edges, 0.5 * (start + end), side="right") - 1, 0), len(edges) - 2))
 
 
 def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Edges (p+1,) of the smooth pieces of [t0, horizon] and the input load on each (p,)."""
+    """Edges (p+1,) of the smooth pieces of [t0, horizon] and each one's ``load``, its index
+    among the model's load pieces (p,)."""
     horizon = model.scene.horizon
     edges = np.array([t0, *sorted({b for b in model.load_edges if t0 < b < horizon}), horizon])
     loads = np.array([piece_load(model, a, b) for a, b in zip(edges[:-1], edges[1:])], dtype=float)
@@ -325,7 +329,8 @@ def _solution(model: MechanismModel, segments, switches, observed=None, energy=N
     n = len(model.coordinate_names)
     if observed is None:
         observed = [None] * len(segments)
-    recorded = [(o[:, :physics.N_FIELDS], o[:, physics.N_FIELDS:].reshape(-1, 3, n)) if o is not None else
+    nf = physics.field_count(model.arrays)
+    recorded = [(o[:, :nf], o[:, nf:].reshape(-1, 3, n)) if o is not None else
                 chart.walk(solution.trajectory.q) for (chart, solution), o in zip(segments, observed)]
     input_traj, joints = _assemble_outputs(model, segments, recorded)
     first = segments[0][1]

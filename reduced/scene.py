@@ -63,6 +63,10 @@ LIMITS: Mapping[str, Range] = _ranges(
           "inertia becomes I_zz of a 1 kg point body); 1e-9 leaves six decades"),
     Range("damping", "N·s/m", 1e-9, 1e7, "stiff_damper uses 1e6; the seed with 1e7 ran in 2.6 s (DOP853, 9675 steps)"),
     Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms"),
+    Range("rotational damping", "N·m·s/rad", 1e-9, 1e7, "a joint damper on a revolute joint: as a line damper "
+          "of the same coefficient acting 1 m from the pin"),
+    Range("rotational stiffness", "N·m/rad", 1e-9, 1e8, "a joint spring on a revolute joint: as a line spring "
+          "of the same stiffness acting 1 m from the pin"),
     Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m"),
     Range("force", "N", 0.0, 1e7, "a force on a slider, or a tabulated point force (a gas force of 1e5 N is a "
           "large engine's)"),
@@ -76,7 +80,7 @@ LIMITS: Mapping[str, Range] = _ranges(
 MAX_TABLE_ENTRIES = 10_000  # entries of a torque or point-force table
 MAX_BODIES = 50  # moving bodies of a linkage (Andrews' squeezer has 7); each adds a Newton column
 MAX_JOINTS = 2 * MAX_BODIES
-MAX_ELEMENTS = 100  # dampers, springs and point forces together
+MAX_ELEMENTS = 100  # dampers, springs (line and joint) and point forces (over q or t) together
 MAX_NAME_CHARS = 100  # a scene name is printed, plotted and used in file listings
 MAX_DESCRIPTION_CHARS = 1000
 MAX_SCENE_BYTES = 1 << 20  # 1 MiB: a scene is a short text file (the seed is 2 kB)
@@ -172,18 +176,30 @@ class Scene:
         return "force" if self.input_is_prismatic else "torque"
 
     @property
+    def load_edges(self) -> tuple[float, ...]:
+        """Times (s) where a load over time jumps, the input's and the timed forces', sorted
+        without repeats: the reduced integrators stop at them, MuJoCo's steps fall on them."""
+        edges = set(self.load.edges) if self.load is not None else set()
+        for force in self.mechanism.timed_forces:
+            edges.update(force.profile.edges)
+        return tuple(sorted(edges))
+
+    @property
     def effects(self) -> tuple[str, ...]:
         """The physical effects the scene declares, in a fixed order (:data:`EFFECTS`)."""
         m = self.mechanism
         present = {"torque": self.load is not None and not self.input_is_prismatic,
                    "force": self.load is not None and self.input_is_prismatic,
                    "damper": bool(m.dampers), "spring": bool(m.springs),
-                   "point-force": bool(m.point_forces), "gravity": self.gravity is not None}
+                   "joint-damper": bool(m.joint_dampers), "joint-spring": bool(m.joint_springs),
+                   "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces),
+                   "gravity": self.gravity is not None}
         return tuple(name for name in EFFECTS if present[name])
 
 
 # Every effect a scene can declare, in the order reports list them.
-EFFECTS = ("torque", "force", "damper", "spring", "point-force", "gravity")
+EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "point-force", "timed-force",
+           "gravity")
 
 
 MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")

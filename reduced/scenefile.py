@@ -30,8 +30,8 @@ import numpy as np
 
 from . import loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
-from .mechanism import (GROUND, Body, LineElement, Linkage, Mechanism, MechanismError, PointForce,
-                        PrismaticJoint, RevoluteJoint)
+from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
+                        PrismaticJoint, RevoluteJoint, TimedForce)
 from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
@@ -287,6 +287,38 @@ def _parse_line_elements(top: _Table) -> list[LineElement]:
     return out
 
 
+def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
+    """``[[joint_dampers]]`` (joint, coefficient) and ``[[joint_springs]]`` (joint, stiffness,
+    rest_angle on a revolute joint or rest_displacement on a prismatic one): elements on the
+    joint's own coordinate, in N·m·s/rad and N·m/rad on a revolute joint, N·s/m and N/m on a
+    prismatic one."""
+    out = []
+    joints = linkage.joint_map
+    for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
+        for k, t in enumerate(_array_of_tables(top, table)):
+            joint = t.string("joint")
+            if joint not in joints:
+                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+            name = _name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
+            revolute = not isinstance(joints[joint], PrismaticJoint)
+            rest = 0.0
+            if kind == "damper":
+                coefficient = t.number("coefficient", positive=True,
+                                       kind="rotational damping" if revolute else "damping")
+            else:
+                coefficient = t.number("stiffness", positive=True,
+                                       kind="rotational stiffness" if revolute else "stiffness")
+                rest_key, other = (("rest_angle", "rest_displacement") if revolute
+                                   else ("rest_displacement", "rest_angle"))
+                if t.has(other):
+                    raise SceneError(f"'{t.key(other)}' does not fit the {'revolute' if revolute else 'prismatic'} "
+                                     f"joint '{joint}': give '{rest_key}' ({'rad' if revolute else 'm'})")
+                rest = t.number(rest_key, kind="angle" if revolute else "position")
+            t.close()
+            out.append(_mechanism_value(t.path, lambda: JointElement(kind, name, joint, coefficient, rest)))
+    return out
+
+
 def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
     out = []
     for k, t in enumerate(_array_of_tables(top, "point_forces")):
@@ -302,6 +334,19 @@ def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
         t.close()
         out.append(_mechanism_value(t.path, lambda: PointForce(name, body, point, direction, coordinate,
                                                                values, period)))
+    return out
+
+
+def _parse_timed_forces(top: _Table) -> list[TimedForce]:
+    """``[[timed_forces]]``: point, direction (rad, ground frame), optional name, and the load
+    over time as the input's ``[torque]`` gives it (type constant, pulse or table; values in N)."""
+    out = []
+    for k, t in enumerate(_array_of_tables(top, "timed_forces")):
+        body, point = _point_ref(t, "point")
+        name = _name_key(t.string("name", f"timed_force{k}"), t.key("name"))
+        direction = t.number("direction", kind="angle")
+        profile = _parse_profile(t, "force")  # closes the table
+        out.append(_mechanism_value(t.path, lambda: TimedForce(name, body, point, direction, profile)))
     return out
 
 
@@ -332,8 +377,12 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
     input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)
-    _count(elements + forces, "dampers, springs and point_forces", MAX_ELEMENTS, "entries together")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces)), None
+    joint_elements = _parse_joint_elements(top, linkage)
+    timed = _parse_timed_forces(top)
+    _count(elements + forces + joint_elements + timed,
+           "dampers, springs, joint_dampers, joint_springs, point_forces and timed_forces", MAX_ELEMENTS,
+           "entries together")
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
 
 
 # -- the four-bar shorthand ------------------------------------------------------------
@@ -419,7 +468,8 @@ def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechan
               RevoluteJoint("B", "coupler", "B", "rocker", "B"),
               RevoluteJoint("O3", GROUND, "O3", "rocker", "O3")]
     linkage = Linkage(bodies, joints, "O1")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements)), g
+    joint_elements = _parse_joint_elements(top, linkage)
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements)), g
 
 
 # -- the scene -------------------------------------------------------------------------

@@ -24,7 +24,8 @@ MuJoCo's qpos (and qvel) to the general coordinates: a body's angle is its x0 an
 hinge qpos along its tree path, a slider's s is s0 plus its slide's qpos.
 
 Effects. Only what the scene declares is built: a damper is a spatial tendon between its two
-sites with ``damping``, a spring one with ``stiffness`` and ``springlength``, the input load
+sites with ``damping``, a spring one with ``stiffness`` and ``springlength``, a damper or spring
+on a joint a fixed tendon on the joint's coordinate (:func:`joint_tendon`), the input load
 a motor on the input joint (always a tree joint, hinge or slide), gravity the scene's vector
 (else zero). There are no geoms, contacts are disabled, and no joint has damping, armature,
 stiffness or friction loss. Point forces (F(q) along a fixed ground direction at a body
@@ -366,6 +367,8 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
             tendon.stiffness = [e.coefficient, 0.0, 0.0]
             tendon.springlength = [e.rest_length, e.rest_length]
 
+    dampers += _add_joint_elements(spec, scene)
+
     tree_joint = {e.joint: e for e in linkage.tree}
     inp = tree_joint[linkage.input_joint]
     if scene.load is not None:
@@ -395,10 +398,13 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     for e in mech.springs:
         spec.add_sensor(name=f"{e.name}_length", type=mujoco.mjtSensor.mjSENS_TENDONPOS,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
+    for e in mech.joint_springs:
+        spec.add_sensor(name=f"{e.name}_length", type=mujoco.mjtSensor.mjSENS_TENDONPOS,
+                        objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
     for name in dampers:
         spec.add_sensor(name=f"{name}_rate", type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)
-    for pf in mech.point_forces:
+    for pf in mech.point_forces + mech.timed_forces:
         spec.add_sensor(name=f"{pf.name}_vel", type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(pf.body, pf.point))
 
@@ -408,12 +414,55 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                       data=f"F(q) N along {pf.direction!r} rad (ground frame) at site {site_name(pf.body, pf.point)}, "
                            "tabulated over the input coordinate: not a model element; xval applies it through "
                            "mjcb_control (reference_models.run.point_force_callback)")
+    for tf in mech.timed_forces:
+        spec.add_text(name=f"timed_force {tf.name}",
+                      data=f"F(t) N along {tf.direction!r} rad (ground frame) at site {site_name(tf.body, tf.point)}, "
+                           f"a {type(tf.profile).__name__} over time: not a model element; xval applies it through "
+                           "mjcb_control, held over each step at its midpoint value (reference_models.run.timed_values)")
 
     # The scene's initial state (the control follows the timestep: set_timestep).
     qpos0, qvel0 = initial_qpos_qvel(scene)
     spec.add_key(name=HOME_KEY, time=0.0, qpos=list(qpos0), qvel=list(qvel0))
     set_timestep(spec, scene, timestep, constraint.solref)
     return spec
+
+
+def joint_tendon(scene: Scene, joint: str) -> tuple[np.ndarray, float]:
+    """(coef, u0): the joint's own coordinate (:attr:`reduced.loops.LoopSystem.joint_rows`:
+    relative angle θ_b − θ_a in rad, or displacement in m) as u = u0 + coef·qpos, coef (nq,)
+    over :func:`joint_order`. The bodies turn about z only, so a body's angle is its authored
+    angle plus the hinge angles on its tree path (:func:`coordinate_map`) and u is linear in
+    qpos also for a cut joint: the coefficients are 0 or ±1, and a fixed tendon is u − u0."""
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    x0, T = coordinate_map(scene)
+    row = system.joint_row(joint)
+    return row @ T, float(row @ x0)
+
+
+def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
+    """One fixed tendon per joint damper or spring (named after it) on the joint's coordinate
+    (:func:`joint_tendon`): a damper's with ``damping`` c, a spring's with ``stiffness`` k and
+    ``springlength`` u_rest − u0 (so ½ k (L − l0)² = ½ k (u − u_rest)²). A tendon, not the
+    joint's own stiffness and damping: it serves a cut joint too (closed by a connect equality,
+    no MuJoCo joint), and two elements on one joint stay two. Where u_rest − u0 < 0 the tendon
+    is written with the opposite sign (same force and energy), since MuJoCo reads a
+    springlength of −1 as "the length at qpos0". Returns the dampers' names."""
+    order = joint_order(scene.mechanism.linkage)
+    dampers = []
+    for e in scene.mechanism.joint_elements:
+        coef, u0 = joint_tendon(scene, e.joint)
+        length = e.rest - u0 if e.kind == "spring" else 0.0
+        sign = -1.0 if length < 0.0 else 1.0
+        tendon = spec.add_tendon(name=e.name)
+        for k in np.flatnonzero(coef):
+            tendon.wrap_joint(order[k], sign * float(coef[k]))
+        if e.kind == "damper":
+            tendon.damping = [e.coefficient, 0.0, 0.0]
+            dampers.append(e.name)
+        else:
+            tendon.stiffness = [e.coefficient, 0.0, 0.0]
+            tendon.springlength = [sign * length, sign * length]
+    return dampers
 
 
 def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tuple[float, float]) -> None:
@@ -470,7 +519,7 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
     for element in root.iter("site"):
         if element.get("name") is not None:
             put(element, "pos", spec.site(element.get("name")).pos)
-    for element in root.iter("spatial"):
+    for element in [*root.iter("spatial"), *root.iter("fixed")]:
         tendon = spec.tendon(element.get("name"))
         put(element, "damping", tendon.damping[0])
         put(element, "stiffness", tendon.stiffness[0])
@@ -512,5 +561,5 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
 __all__ = ["BASE_BODY", "ConstraintSettings", "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody",
            "assembled_angles", "build_spec", "check_joint_order", "compile_model", "coordinate_map",
            "initial_qpos_qvel", "initial_rates", "joint_order", "joint_positions", "joint_rates",
-           "joint_rates_matrix", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
+           "joint_rates_matrix", "joint_tendon", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
            "spanning_tree"]

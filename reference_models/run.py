@@ -244,7 +244,7 @@ def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
         raise ValueError(f"simulation.horizon {scene.horizon:g} s is too short for an automatic MuJoCo timestep "
                          f"({MIN_AUTO_STEPS} steps of at least {TIMESTEP_FLOOR:g} s): lengthen it or set "
                          "[mujoco] timestep (--timestep)")
-    edges = sorted(e for e in (scene.load.edges if scene.load is not None else ()) if 0.0 < e < scene.horizon)
+    edges = [e for e in scene.load_edges if 0.0 < e < scene.horizon]
     if not edges:
         return h_max
     first = edges[0]
@@ -261,18 +261,25 @@ def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.nd
 
     Returns the controls and one warning per load edge that falls inside a step.
     """
-    if scene.load is None:
-        return np.zeros((n_steps, 0)), []
-    starts = np.arange(n_steps) * timestep
-    ctrl = scene.load.sample(starts + 0.5 * timestep)[:, None]
     notes = []
-    for edge in scene.load.edges:
+    for edge in scene.load_edges:  # the input's and the timed forces' (timed_values)
         k = edge / timestep
         if 0.0 < edge < scene.horizon and abs(k - round(k)) > 1e-6:
             notes.append(f"load edge at t = {edge:g} s is not a multiple of the timestep {timestep:g} s: "
                          f"the jump is applied at t = {round(k) * timestep:g} s, up to "
                          f"{0.5 * timestep:g} s late or early")
-    return ctrl, notes
+    if scene.load is None:
+        return np.zeros((n_steps, 0)), notes
+    starts = np.arange(n_steps) * timestep
+    return scene.load.sample(starts + 0.5 * timestep)[:, None], notes
+
+
+def timed_values(scene: Scene, timestep: float, n_steps: int) -> np.ndarray:
+    """Each timed force's value over each step (n_steps, timed forces), N: F(t) at the step's
+    midpoint, as :func:`control_sequence` samples the input load (an edge on the step grid is
+    applied exactly there)."""
+    mid = np.arange(n_steps) * timestep + 0.5 * timestep
+    return np.array([f.profile.sample(mid) for f in scene.mechanism.timed_forces], dtype=float).reshape(-1, n_steps).T
 
 
 def _n_steps(scene: Scene, h: float) -> int:
@@ -562,7 +569,8 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
     if layout is None:
         layout = _Layout.of(scene, model)
 
-    with _point_forces_installed(scene, model, layout):
+    timed = timed_values(scene, h, n_steps)
+    with _point_forces_installed(scene, model, layout) as callback:
         data.qpos[:], data.qvel[:] = layout.qpos0, layout.qvel0
         initial = check_initial_state(scene, model, data, layout)
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -575,8 +583,8 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         sensors = np.empty((n_steps + 1, model.nsensordata))
         states[0] = state0
         start = time.perf_counter()
-        if scene.mechanism.point_forces:
-            _step_loop(model, data, state0, ctrl, n_steps, spec, states[1:], sensors[:-1])
+        if callback is not None:
+            _step_loop(model, data, state0, ctrl, n_steps, spec, states[1:], sensors[:-1], timed, callback)
         else:
             rollout.rollout(model, data, state0[None, :], ctrl[None, :, :] if model.nu else None, nstep=n_steps,
                             state=states[None, 1:], sensordata=sensors[None, :-1])
@@ -596,8 +604,9 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         for name in scene.mechanism.linkage.cut_joints:
             gap = sensors[:, sl[f"{name}_a_pos"]] - sensors[:, sl[f"{name}_b_pos"]]
             violation = np.maximum(violation, np.sqrt(_squares_by_row(gap)))
-        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec)
-        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec)
+        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback)
+        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
+                                        timed, callback)
     max_violation = float(np.max(violation))
     if not math.isfinite(max_violation) or max_violation > settings.max_constraint_violation:
         k = int(np.argmax(np.nan_to_num(violation, nan=np.inf)))
@@ -605,7 +614,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
                                f"t = {times[k]:.6g} s exceeds {settings.max_constraint_violation:g} m",
                                float(times[k]))
 
-    audit = _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q)
+    audit = _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
     residual = np.abs(audit.residual)
     # A run in which almost nothing moves is judged against at least ½ 𝔍0 (1 unit/s)², never
     # against an energy scale made of round-off (the reduced engine uses the same floor).
@@ -631,7 +640,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
                      "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
                      "edge_warnings": edge_notes, "effects": list(scene.effects),
                      "point_forces": "mjcb_control (qfrc_applied, every RK stage)"
-                     if scene.mechanism.point_forces else None})
+                     if scene.mechanism.point_forces or scene.mechanism.timed_forces else None})
 
 
 @dataclass(frozen=True)
@@ -694,18 +703,21 @@ def point_force_callback(scene: Scene, model: mujoco.MjModel, layout: "_Layout")
     identical to the loop's) but the documented callback contract does not cover its threads, and
     the callback (~65 µs, mostly the spline) dominates either way.
     """
-    forces = []
-    for pf in scene.mechanism.point_forces:
-        site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name(pf.body, pf.point))
+    def site_of(force, what):
+        site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name(force.body, force.point))
         if site < 0:
-            raise ValueError(f"the model has no site {site_name(pf.body, pf.point)!r} for point force {pf.name!r}")
-        forces.append((TabulatedForce(pf.coordinate, pf.values, pf.period), site,
-                       np.array([math.cos(pf.direction), math.sin(pf.direction), 0.0])))
-    if not forces:
+            raise ValueError(f"the model has no site {site_name(force.body, force.point)!r} for {what} {force.name!r}")
+        return site, np.array([math.cos(force.direction), math.sin(force.direction), 0.0])
+
+    forces = [(TabulatedForce(pf.coordinate, pf.values, pf.period), *site_of(pf, "point force"))
+              for pf in scene.mechanism.point_forces]
+    timed = [site_of(tf, "timed force") for tf in scene.mechanism.timed_forces]
+    if not forces and not timed:
         return None
     q0 = float(layout.system.drive @ layout.x0)
     row = layout.input_row
     jac = np.zeros((3, model.nv))
+    step_values = np.zeros(len(timed))  # the timed forces' values over the current step
 
     def callback(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         q = q0 + float(row @ d.qpos)
@@ -713,43 +725,51 @@ def point_force_callback(scene: Scene, model: mujoco.MjModel, layout: "_Layout")
         for force, site, u in forces:
             mujoco.mj_jacSite(m, d, jac, None, site)
             total += float(force(q)) * (u @ jac)
+        for value, (site, u) in zip(step_values, timed):
+            mujoco.mj_jacSite(m, d, jac, None, site)
+            total += float(value) * (u @ jac)
         d.qfrc_applied[:] = total
 
+    callback.step_values = step_values  # set by the step loop before each step (timed_values)
     return callback
 
 
 @contextlib.contextmanager
 def _point_forces_installed(scene: Scene, model: mujoco.MjModel, layout: "_Layout"):
+    """Install :func:`point_force_callback` for the block; yields it (None without point forces)."""
     callback = point_force_callback(scene, model, layout)
     if callback is None:
-        yield
+        yield None
         return
     previous = mujoco.get_mjcb_control()
     mujoco.set_mjcb_control(callback)
     try:
-        yield
+        yield callback
     finally:
         mujoco.set_mjcb_control(previous)
 
 
-def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors) -> None:
+def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors, timed=None, callback=None) -> None:
     """``rollout``'s states and sensordata, written into ``states`` and ``sensors`` (n_steps
-    rows each), from a Python loop of ``mj_step`` (for callbacks)."""
+    rows each), from a Python loop of ``mj_step`` (for callbacks); ``timed`` (n_steps, k) the
+    timed forces' values, handed to ``callback`` before each step."""
     mujoco.mj_setState(model, data, state0, spec)
     for k in range(n_steps):
         if model.nu:
             data.ctrl[:] = ctrl[k]
+        if timed is not None and timed.shape[1]:
+            callback.step_values[:] = timed[k]
         mujoco.mj_step(model, data)
         mujoco.mj_getState(model, data, states[k], spec)
         sensors[k] = data.sensordata
 
 
-def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec) -> np.ndarray:
+def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
     """q̈ at every stored state (rad/s² or m/s²).
 
     A hinge input: the z angular acceleration of its child body minus its parent's (sensors
     read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
-    with that step's control.
+    with that step's control and timed forces' values (``timed``, handed to ``callback``).
     """
     if layout.input_hinge:
         return _hinge_acceleration(handles.sensor_slices, layout, sensors)
@@ -758,6 +778,8 @@ def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spe
         mujoco.mj_setState(model, data, state, spec)
         if model.nu:
             data.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
+        if timed.shape[1]:
+            callback.step_values[:] = timed[min(k, len(timed) - 1)]
         mujoco.mj_forward(model, data)
         out[k] = layout.input_row @ data.qacc
     return out
@@ -886,13 +908,22 @@ def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
     return data.sensordata.copy()
 
 
-def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec) -> Trajectory:
-    """Insert, at each step where the control jumps, a sample with q̈ from before the jump."""
-    if not model.nu:
+def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
+                       timed, callback) -> Trajectory:
+    """Insert, at each step where the control or a timed force jumps, a sample with q̈ from
+    before the jump."""
+    jumped = np.zeros(max(len(states) - 2, 0), dtype=bool)
+    if model.nu:
+        jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
+    if timed.shape[1]:
+        jumped |= np.any(np.diff(timed, axis=0) != 0.0, axis=1)
+    if not np.any(jumped):
         return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
-    jumps = np.flatnonzero(np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)) + 1
+    jumps = np.flatnonzero(jumped) + 1
     before = []
     for k in jumps:
+        if timed.shape[1]:
+            callback.step_values[:] = timed[k - 1]
         if layout.input_hinge:
             before.append(_hinge_acceleration(handles.sensor_slices, layout,
                                               _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
@@ -917,14 +948,15 @@ def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros(1), np.cumsum(0.5 * (power[:-1] + power[1:]) * dt)])
 
 
-def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q) -> EnergyAudit:
+def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed) -> EnergyAudit:
     """The energy balance from MuJoCo's own quantities at every stored state.
 
     Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² over every moving body and potential −Σ m g·r_G +
     Σ ½ k (l − l0)² over every spring tendon, from the body and tendon sensors with the model's
     masses, inertias, stiffnesses (kinetic energy agrees with ½ q̇ᵀM q̇); the work of the motor
     ∫ u q̇_input dt (the input joint's rate; the control is constant within each step) plus the
-    work of the point forces ∫ Σ F(q) u·v_p dt (in ``torque_work``: the work of the external
+    work of the point forces ∫ Σ F(q) u·v_p dt and of the timed forces ∫ Σ F(t) u·v_p dt (F held
+    over each step, ``timed`` (steps, forces); in ``torque_work``: the work of the external
     loads), and the damper dissipation ∫ Σ b l̇² dt, by the trapezoid rule.
     """
     sl = handles.sensor_slices
@@ -957,6 +989,10 @@ def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q
             force = TabulatedForce(pf.coordinate, pf.values, pf.period)
             power += np.asarray(force(q), dtype=float) * (sensors[:, sl[f"{pf.name}_vel"]] @ u)
         load_work = load_work + _cumulative_trapezoid(power, dt)
+    for k, tf in enumerate(scene.mechanism.timed_forces):  # F constant over each step (timed_values)
+        u = np.array([math.cos(tf.direction), math.sin(tf.direction), 0.0])
+        along = sensors[:, sl[f"{tf.name}_vel"]] @ u
+        load_work = load_work + np.concatenate([zero, np.cumsum(timed[:, k] * 0.5 * (along[:-1] + along[1:]) * dt)])
     rate = np.zeros(n)
     for name in handles.damper_tendons:
         b = model.tendon_damping[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)]

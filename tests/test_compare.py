@@ -92,7 +92,9 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["scene"]["input_unit"] == "rad" and report["scene"]["mode"] == [1]
     assert (tmp_path / "out" / "mujoco.csv").read_text().startswith("t_s,q_rad,qdot_rad_per_s,")
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)
-    assert csv.shape[1] == 4 and np.all(np.diff(csv[:, 0]) >= 0)
+    # t, q, q̇, q̈, then u and u̇ of each of the four-bar's 4 joints
+    assert csv.shape[1] == 4 + 2 * 4 and np.all(np.diff(csv[:, 0]) >= 0)
+    assert [j["name"] for j in report["joints"]] == ["O1", "A", "B", "O3"]
 
 
 def test_check_passes_on_seed_and_fails_below_measured_difference(seed_comparison, capsys):

@@ -89,10 +89,19 @@ N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = 
 # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ the
 # angle of W).
 DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
+# Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
+# the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
+# and rest values (count,).
+N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
+# Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
+# in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and of
+# the loads on each piece of the run's load history (pieces, 1 + count): the input load, then
+# each timed force's value. The integrators pass a piece's index as its ``load``.
+N_TIMED, TIMED_DIR, PIECE_VALUES = range(32, 35)
 # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
 # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
 LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
-TABLES = 27
+TABLES = 35
 TABLE_ENTRIES = 7
 HEADER = TABLES + 4 * TABLE_ENTRIES
 
@@ -105,7 +114,7 @@ OK, SINGULAR = 0, 1
 # fields: the coefficients at the memo's value, with respect to x_i
 (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
  INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
-N_FIELDS = 12
+N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
 DEPTH = MAX_HALVINGS + 2
 
 
@@ -123,9 +132,10 @@ class Chart(NamedTuple):
     W: np.ndarray
 
 
-def new_chart(n: int, rows: int) -> Chart:
-    """An empty chart for a model of n coordinates whose largest table has ``rows`` rows."""
-    size = 1 + 9 * n + N_FIELDS + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * max(rows, 1)
+def new_chart(n: int, rows: int, timed: int = 0) -> Chart:
+    """An empty chart for a model of n coordinates whose largest table has ``rows`` rows and
+    with ``timed`` timed forces."""
+    size = 1 + 9 * n + N_FIELDS + timed + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * max(rows, 1)
     return Chart(np.zeros(S_HEADER + n + DEPTH, np.int64), np.zeros(size))
 
 
@@ -188,8 +198,8 @@ def _views(I, W):
     o += 3 * n
     kin = _view(W, o, (3, n))
     o += 3 * n
-    fields = _view(W, o, (N_FIELDS,))
-    o += N_FIELDS
+    fields = _view(W, o, (N_FIELDS + I[N_TIMED],))
+    o += N_FIELDS + I[N_TIMED]
     A = _view(W, o, (n, n))
     o += n * n
     rhs = _view(W, o, (n,))
@@ -692,18 +702,39 @@ def _coefficients(F, I, S, W):
                 stretch = length - F[I[ELEMENT_REST] + e]
                 dV += c * stretch * k_d
                 V += 0.5 * c * stretch * stretch
+    nj = I[N_JOINT_ELEMENTS]
+    if nj:
+        n = I[N]
+        rows_at = I[JOINT_ROWS]
+        for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
+            u, k_u = 0.0, 0.0
+            for j in range(n):
+                r = F[rows_at + e * n + j]
+                u += r * x[j]
+                k_u += r * K[j]
+            c = F[I[JOINT_COEF] + e]
+            if e < I[N_JOINT_DAMPERS]:
+                damping += c * k_u * k_u
+            else:
+                stretch = u - F[I[JOINT_REST] + e]
+                dV += c * stretch * k_u
+                V += 0.5 * c * stretch * stretch
     rate, curvature, q = 0.0, 0.0, 0.0
     for j in range(I[N]):
         d = F[I[DRIVE] + j]
         rate += d * K[j]
         curvature += d * L[j]
         q += d * x[j]
-    if I[N_FORCES]:
+    nf, nt = I[N_FORCES], I[N_TIMED]
+    if nf or nt:
         table_rates(F, I, FORCE_POINTS, x, trig, K, L, False, rows)
         fd = I[FORCE_DIR]
-        for p in range(I[N_FORCES]):
+        for p in range(nf):
             along = rows[p, 0] * F[fd + 2 * p] + rows[p, 1] * F[fd + 2 * p + 1]
             force += point_force_value(F, I, p, q) * along
+        td = I[TIMED_DIR]
+        for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
+            fields[N_FIELDS + p] = rows[nf + p, 0] * F[td + 2 * p] + rows[nf + p, 1] * F[td + 2 * p + 1]
     fields[INERTIA] = J
     fields[CENTRIFUGAL] = zeta
     fields[POTENTIAL_GRADIENT] = dV
@@ -736,30 +767,43 @@ def evaluate(model, chart, value):
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
+def _applied(F, I, f, piece):
+    """The generalized force of the loads (N·m or N) at fields f on load piece ``piece`` (its
+    index, a float): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
+    the piece (PIECE_VALUES)."""
+    nt = I[N_TIMED]
+    row = I[PIECE_VALUES] + int(piece) * (1 + nt)
+    g = F[row] * f[INPUT_RATE] + f[POINT_FORCE]
+    for p in range(nt):
+        g += F[row + 1 + p] * f[N_FIELDS + p]
+    return g
+
+
+@njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def acceleration(model, chart, load, t, value, rate):
-    """ẍ_i from Eksergian's equation with the input load (N·m or N, constant on the piece):
-    (load·dq/dx_i + Σ F e·K_P − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the configuration
-    cannot be found (the chart's S[STATUS] says why)."""
+    """ẍ_i from Eksergian's equation on load piece ``load`` (its index: the loads over time are
+    constant on it, :func:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the
+    configuration cannot be found (the chart's S[STATUS] says why)."""
     if not evaluate(model, chart, value):
         return math.nan
     f = _views(model[1], chart[1])[4]
-    Q = load * f[INPUT_RATE] + f[POINT_FORCE] - f[DAMPING] * rate
+    Q = _applied(model[0], model[1], f, load) - f[DAMPING] * rate
     return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def power(model, chart, load, rate):
     """(P, D) at the configuration last evaluated, right after its ``acceleration``: the power
-    P = (load·dq/dx_i + Σ F e·K_P) ẋ_i of the input load and the point forces (W) and the
-    dampers' dissipation rate D = Σ b K_D² ẋ_i² (W); the energy audit integrates both."""
+    P = Q_applied ẋ_i of the input load and the point forces over q and t on load piece ``load``
+    (W) and the dampers' dissipation rate D = Σ b K_D² ẋ_i² (W); the energy audit integrates both."""
     f = _views(model[1], chart[1])[4]
-    return (load * f[INPUT_RATE] + f[POINT_FORCE]) * rate, f[DAMPING] * rate * rate
+    return _applied(model[0], model[1], f, load) * rate, f[DAMPING] * rate * rate
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def observation_size(model):
-    """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + 3 n)."""
-    return N_FIELDS + 3 * model[1][N]
+    """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
+    return N_FIELDS + model[1][N_TIMED] + 3 * model[1][N]
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
@@ -770,11 +814,12 @@ def observe(model, chart, out):
     views = _views(model[1], chart[1])
     fields, kin = views[4], views[3]
     n = model[1][N]
-    for k in range(N_FIELDS):
+    nf = N_FIELDS + model[1][N_TIMED]
+    for k in range(nf):
         out[k] = fields[k]
     for r in range(3):
         for j in range(n):
-            out[N_FIELDS + r * n + j] = kin[r, j]
+            out[nf + r * n + j] = kin[r, j]
 
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
@@ -871,7 +916,7 @@ def reset(model, chart):
 
 @njit(cache=True, error_model="numpy", **NO_RUNTIME)
 def walk(model, chart, values, fields, kin):
-    """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, N_FIELDS) and
+    """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, field_count) and
     kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
     reset(model, chart)
     views = _views(model[1], chart[1])
@@ -881,6 +926,11 @@ def walk(model, chart, values, fields, kin):
         _copy(views[4], fields[s])
         _copy(views[3], kin[s])
     return values.shape[0]
+
+
+def field_count(model: Model) -> int:
+    """Length of a chart's fields: N_FIELDS, then one per timed force."""
+    return N_FIELDS + int(model.I[N_TIMED])
 
 
 def chart_arrays(model: Model, chart: Chart) -> dict[str, np.ndarray]:
