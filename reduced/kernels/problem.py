@@ -1,7 +1,8 @@
 """What the compiled integrators see of a problem: functions of an opaque (problem, chart).
 
-- ``acceleration(problem, chart, load, t, q, v) -> float``: q̈ of the chart's coordinate with
-  the piece's constant load; NaN when the problem cannot be evaluated there;
+- ``acceleration(problem, chart, load, t, q, v) -> float``: q̈ of the chart's coordinate on
+  load piece ``load`` (its index: every load over time is constant on a piece); NaN when the
+  problem cannot be evaluated there;
 - ``stop_margin(problem, chart, t, q, v) -> float``: > 0 while the chart serves; the run ends
   where it crosses to ≤ 0;
 - ``observe(problem, chart, out)``: what the problem records at a sample, right after the
