@@ -21,7 +21,10 @@ from typing import TYPE_CHECKING
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
 from reduced.errors import NumericalFailure
-from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, SceneError
+from reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
+                           REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
+                           SceneError)
 from reduced.scenefile import default_scene_path, load_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
@@ -169,19 +172,32 @@ def cmd_draw(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _rtol_defaults() -> str:
+    """The reduced methods' default tolerances, e.g. ``1e-12 (dop853, radau, scipy-dop853), 1e-05 (rkn4)``."""
+    by_value: dict[float, list[str]] = {}
+    for method in REDUCED_METHODS:
+        by_value.setdefault(REDUCED_DEFAULT_RTOL[method], []).append(method)
+    return ", ".join(f"{value:g} ({', '.join(sorted(methods))})" for value, methods in by_value.items())
+
+
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
+    # Every default printed here is the settings' own (reduced.scene holds the values).
     g = p.add_argument_group("MuJoCo settings")
     g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
-                   help="MuJoCo integrator (default: the scene's [mujoco] table, else rk4)")
+                   help=f"MuJoCo integrator (default: the scene's [mujoco] table, else {MUJOCO_DEFAULT_INTEGRATOR})")
     g.add_argument("--timestep", type=_positive, default=None,
-                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else 1e-3)")
+                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else chosen from the scene: "
+                        "load edges on the step grid, confirmed by step halving)")
     g.add_argument("--solref", type=_finite, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
-                   default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
+                   default=None, help="loop constraint solimp (default "
+                                      f"{' '.join(f'{v:g}' for v in MUJOCO_DEFAULT_SOLIMP)})")
     g.add_argument("--iterations", type=_int_in(1, MUJOCO_MAX_ITERATIONS), default=None,
-                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} (default 100)")
-    g.add_argument("--tolerance", type=_positive, default=None, help="constraint solver tolerance (default 1e-12)")
+                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} "
+                        f"(default {MUJOCO_DEFAULT_ITERATIONS})")
+    g.add_argument("--tolerance", type=_positive, default=None,
+                   help=f"constraint solver tolerance (default {MUJOCO_DEFAULT_TOLERANCE:g})")
     g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
                    help="disable refsafe (allows solref time constants below 2*timestep)")
     g.add_argument("--diagexact", action="store_const", const=True, default=None,
@@ -326,11 +342,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reduced reference")
     g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
-                   help="reduced solver used as the reference (default: the scene's [reduced] table, else dop853)")
+                   help="reduced solver used as the reference (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_METHOD})")
     g.add_argument("--reference-rtol", type=_positive, default=None,
-                   help="tolerance of an adaptive reference (default 1e-12)")
+                   help="accuracy requested of the reference (default: the scene's [reduced] table, else "
+                        f"{_rtol_defaults()})")
     g.add_argument("--reference-step", type=_positive, default=None,
-                   help="step of an rkn4 reference in s (default 1e-3)")
+                   help="step of an rkn4 reference in s (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_STEP:g})")
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
@@ -367,11 +386,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=REDUCED_METHODS, default=None,
                    help="adaptive DOP853 or fixed-step RKN4 (both compiled), implicit Radau, or scipy's "
                         "DOP853 on the same equation as a cross-check (default: the scene's [reduced] "
-                        "table, else dop853)")
+                        f"table, else {REDUCED_DEFAULT_METHOD})")
     p.add_argument("--rtol", type=_positive, default=None,
-                   help="tolerance of adaptive methods (default: the scene's, else the method's)")
+                   help=f"accuracy requested (default: the scene's, else {_rtol_defaults()})")
     p.add_argument("--step", type=_positive, default=None,
-                   help="step of RKN4 in s (default: the scene's, else the method's)")
+                   help=f"step of RKN4 in s (default: the scene's, else {REDUCED_DEFAULT_STEP:g})")
     p.set_defaults(func=cmd_reduced)
 
     p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",

@@ -35,7 +35,8 @@ from reduced.result import EnergyAudit, EngineResult
 from reduced import loops
 from reduced.loads import TabulatedForce
 from reduced.mechanism import PrismaticJoint
-from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
+from reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene)
 from reduced.trajectory import Trajectory
 
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
@@ -125,12 +126,12 @@ class MujocoSettings:
         its automatic 0.5 ms: 3.2e-5), so a balance 5 % off fails.
     """
 
-    integrator: str = "rk4"
+    integrator: str = MUJOCO_DEFAULT_INTEGRATOR  # the defaults' values: reduced.scene
     timestep: float | None = None
     solref: tuple[float, float] | None = None  # None: (2·timestep, 1.0)
-    solimp: tuple[float, float, float, float, float] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-    iterations: int = 100
-    tolerance: float = 1e-12
+    solimp: tuple[float, float, float, float, float] = MUJOCO_DEFAULT_SOLIMP
+    iterations: int = MUJOCO_DEFAULT_ITERATIONS
+    tolerance: float = MUJOCO_DEFAULT_TOLERANCE
     refsafe: bool = True
     diagexact: bool = False
     max_constraint_violation: float = 1e-3  # m; beyond it the run is reported as drifted

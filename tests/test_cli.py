@@ -25,7 +25,7 @@ from compare.cli import main
 from compare.cost import worker_count
 from reduced import scene_from_dict
 
-from helpers import SEED_SCENE, seed_dict
+from helpers import SEED_SCENE, interruptible, seed_dict, spawn  # noqa: F401 - fixtures
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -147,7 +147,8 @@ def test_warnings_are_one_line_each(capsys):
 
 @pytest.mark.parametrize("signum,status,line", [(signal.SIGINT, 130, "xval: interrupted"),
                                                 (signal.SIGTERM, 143, "xval: terminated")])
-def test_a_signal_stops_cleanly_and_leaves_nothing(signum, status, line, tmp_path, capsys, monkeypatch):
+def test_a_signal_stops_cleanly_and_leaves_nothing(signum, status, line, tmp_path, capsys, monkeypatch,
+                                                  interruptible):
     def signalled(*args, **kwargs):
         os.kill(os.getpid(), signum)
         raise AssertionError("the signal did not stop the run")
@@ -201,3 +202,50 @@ def test_a_scene_table_the_engine_refuses_names_the_file_and_table(tmp_path, cap
     err = capsys.readouterr().err
     assert err.startswith(f"xval: error: {scene}: [mujoco] solimp") and err.count("\n") == 1
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- help states the real defaults
+
+def _options():
+    """(command, action) for every option of every command."""
+    parser = cli.build_parser()
+    [commands] = [a for a in parser._actions if a.dest == "command"]
+    for name, sub in commands.choices.items():
+        for action in sub._actions:
+            if action.option_strings and action.help:
+                yield name, action
+
+
+def _resolved_defaults() -> dict[str, list[str]]:
+    """Flag -> the defaults the settings resolve to when neither the flag nor the scene gives
+    one, as the help should print them; taken from the settings objects, not the CLI."""
+    from compare.sweep_spec import spec_from_args
+    from reduced import ReducedSettings
+
+    mj = reference_models.MujocoSettings()
+    rtols = [f"{ReducedSettings(method=m).rtol:g} (" for m in ("dop853", "rkn4", "radau", "scipy-dop853")]
+    step = [f"{ReducedSettings(method='rkn4').step:g}"]
+    method = [ReducedSettings().method]
+    assert mj.timestep is None  # chosen from the scene: the help must say so, with no number
+    return {"--integrator": [mj.integrator], "--timestep": ["chosen from the scene"],
+            "--solimp": [" ".join(f"{v:g}" for v in mj.solimp)], "--iterations": [f"default {mj.iterations}"],
+            "--tolerance": [f"{mj.tolerance:g}"], "--reference": method, "--method": method,
+            "--reference-rtol": rtols, "--rtol": rtols, "--reference-step": step, "--step": step,
+            "--seed": [f"default {spec_from_args(['a.b=1,2']).seed}"]}
+
+
+def test_every_help_default_is_the_resolved_default():
+    import re
+
+    resolved = _resolved_defaults()
+    for command, action in _options():
+        flag = max(action.option_strings, key=len)
+        text = " ".join(action.help.split())
+        if flag in resolved:
+            for expected in resolved[flag]:
+                assert expected in text, f"xval {command} {flag}: help {text!r} lacks the default {expected!r}"
+            if flag == "--timestep":
+                assert not re.search(r"\d", text), f"xval {command} {flag}: {text!r} states a number"
+        elif action.default not in (None, False, True) and "default" in text:
+            shown = str(action.default)
+            assert shown in text, f"xval {command} {flag}: help {text!r} lacks its default {shown!r}"
