@@ -269,6 +269,55 @@ def require_dask() -> None:
         raise SchedulerError(f"--scheduler needs Dask, which is not installed: {DASK_EXTRA}") from None
 
 
+HANDSHAKE_MAX_BYTES = 1 << 20  # a Dask handshake is ~100 bytes; more is some other service's data
+
+
+def _probe_scheduler(address: str, host: str, port: int, deadline: float, timeout: float) -> None:
+    """Refuse a TCP address that is not a Dask scheduler before Dask talks to it, by ``deadline``.
+
+    A Dask server sends its handshake as soon as it accepts a connection: an 8-byte length,
+    then that many bytes. Dask's own client waits for it without a time limit (a silent
+    service hung ``xval sweep`` for 681 s) and allocates whatever length it reads (an HTTP
+    server's reply made it a MemoryError). Here the wait is bounded and the length checked."""
+    import socket
+    import struct
+
+    def fail(why: str):
+        return SchedulerError(f"--scheduler {address}: {why}")
+
+    def left() -> float:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise fail(f"no Dask scheduler there (no handshake within {timeout:g} s)")
+        return remaining
+
+    def read(sock, n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            sock.settimeout(left())
+            try:
+                chunk = sock.recv(n - len(data))
+            except socket.timeout:
+                continue  # left() raises once the deadline has passed
+            if not chunk:
+                raise fail("not a Dask scheduler (the service closed the connection)")
+            data += chunk
+        return data
+
+    try:
+        sock = socket.create_connection((host, port), timeout=left())
+    except OSError as exc:
+        raise fail(f"cannot connect ({exc.strerror or ' '.join(str(exc).split())})") from None
+    with sock:
+        try:
+            (size,) = struct.unpack("<Q", read(sock, 8))
+            if not 0 < size <= HANDSHAKE_MAX_BYTES:
+                raise fail("not a Dask scheduler (it did not answer with a Dask handshake)")
+            read(sock, size)
+        except OSError as exc:
+            raise fail(f"cannot connect ({exc.strerror or ' '.join(str(exc).split())})") from None
+
+
 def connect(address: str, timeout: float | None = None):
     """A :class:`distributed.Client` of the scheduler at ``address`` with at least one worker,
     or :class:`SchedulerError` within about ``timeout`` seconds (default :data:`CONNECT_TIMEOUT_S`)."""
@@ -278,12 +327,15 @@ def connect(address: str, timeout: float | None = None):
     from distributed.comm import get_address_host_port
 
     try:  # a malformed address first: a Client that fails on one hangs in its __del__
-        get_address_host_port(address)
+        host, port = get_address_host_port(address)
     except ValueError as exc:
         raise SchedulerError(f"--scheduler {address}: not a scheduler address like tcp://host:8786 "
                              f"({' '.join(str(exc).split())})") from None
+    deadline = time.monotonic() + timeout
+    if address.startswith("tcp://") or "://" not in address:
+        _probe_scheduler(address, host, port, deadline, timeout)
     try:
-        client = Client(address, timeout=timeout, set_as_default=False)
+        client = Client(address, timeout=max(deadline - time.monotonic(), 1.0), set_as_default=False)
     except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError...
         raise SchedulerError(f"--scheduler {address}: cannot connect "
                              f"({type(exc).__name__}: {' '.join(str(exc).split())})") from None
