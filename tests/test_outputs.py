@@ -22,6 +22,8 @@ import pytest
 from compare import output
 from compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
 
+from helpers import interruptible, spawn  # noqa: F401 - fixtures
+
 NAMES = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
 
 
@@ -140,7 +142,7 @@ def test_a_commit_failing_part_way_is_rolled_back(old_folder, monkeypatch):
     assert snapshot(old_folder.parent) == before
 
 
-def test_an_interrupt_during_the_commit_comes_after_a_complete_set(old_folder, monkeypatch):
+def test_an_interrupt_during_the_commit_comes_after_a_complete_set(old_folder, monkeypatch, interruptible):
     real_replace = os.replace
 
     def replace_then_interrupt(src, dst):
@@ -208,7 +210,10 @@ CHILD = textwrap.dedent("""
             path.write_text(tag + " " + name)
             if name == "mujoco.csv":  # half-way through the set: wait to be told
                 ready.write_text("staging")
+                deadline = time.monotonic() + 120  # never poll forever, whatever the test does
                 while ready.read_text() != "go":
+                    if time.monotonic() > deadline:
+                        sys.exit(3)
                     time.sleep(0.01)
         return write
 
@@ -222,9 +227,9 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def start_child(out: Path, ready: Path, tag: str) -> subprocess.Popen:
-    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(out), str(ready), tag],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def start_child(spawn, out: Path, ready: Path, tag: str) -> subprocess.Popen:
+    proc = spawn([sys.executable, "-c", CHILD, str(out), str(ready), tag],
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while not (ready.exists() and ready.read_text() == "staging"):
         assert proc.poll() is None, proc.communicate()
@@ -240,11 +245,11 @@ def finish(proc: subprocess.Popen) -> int:
 
 
 @pytest.mark.parametrize("ending", ["ctrl-c", "completes"])
-def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending):
+def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending, spawn):
     """Run A stages, run B writes the same new folder and finishes, then A is interrupted (B's
     set must stay: issue 10, lost data 1) or completes (A's set replaces B's, whole)."""
     out, ready = tmp_path / "out", tmp_path / "ready"
-    a = start_child(out, ready, "A")
+    a = start_child(spawn, out, ready, "A")
     write_folder(out, {n: (lambda p, n=n: p.write_text(f"B {n}")) for n in NAMES})  # run B
     if ending == "ctrl-c":
         a.send_signal(signal.SIGINT)
@@ -259,10 +264,10 @@ def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending):
                                   **{f"out/{n}": ("file", f"{survivor} {n}".encode()) for n in NAMES}}
 
 
-def test_sigterm_while_writing_leaves_no_partial_folder(old_folder):
+def test_sigterm_while_writing_leaves_no_partial_folder(old_folder, spawn):
     """Issue 10, lost data 3: SIGTERM mid-write; the old files are untouched, nothing hidden stays."""
     ready = old_folder.parent / "ready"
-    child = start_child(old_folder, ready, "new")
+    child = start_child(spawn, old_folder, ready, "new")
     before = snapshot(old_folder)
     assert any(name.startswith(output.STAGING_PREFIX) for name in before)  # it is staging in there
     child.send_signal(signal.SIGTERM)
