@@ -27,8 +27,8 @@ from reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS,
                            SceneError)
 from reduced.scenefile import default_scene_path, load_scene
 
-from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
-                     signals_as_exceptions, write_file)
+from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
+                     check_folder, signals_as_exceptions, write_file)
 from .sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
@@ -222,7 +222,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
-    check_folder(args.out, report_files(animate))  # before any work (and before MuJoCo is loaded)
+    check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
     from .run import compare_engines
 
     scene = _scene(args.scene)
@@ -260,7 +260,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 def cmd_cost(args: argparse.Namespace) -> int:
     from .cost import COST_FILES, study, summary_lines, write_cost_outputs
 
-    check_folder(args.out, COST_FILES)  # before any work
+    check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
     scene = _scene(args.scene)
     _announce_compilation()
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
@@ -278,7 +278,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
-    check_folder(args.out, STRESS_FILES)  # before any work
+    check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
     _announce_compilation()
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
@@ -314,7 +314,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.engines is not None:  # the flag overrides the table's engines only when given
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
-    check_folder(args.out, sweep_files(spec, args.keep_trajectories))
+    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
     client = None
     if args.scheduler is not None:
         from .sweep import connect

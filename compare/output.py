@@ -28,6 +28,10 @@ Written all-or-nothing (:func:`write_folder`, :func:`write_file`):
   right after it, so an interrupted commit still leaves one complete set.
 - Only regular files are replaced: an existing symbolic link, device node, FIFO or folder at
   a target is refused, never renamed over.
+- An ``--out`` folder holds one run (``write_folder(one_run=True)``): the set carries a
+  manifest (:data:`MANIFEST_FILE`), and the regular files the previous run's manifest lists
+  that the new set lacks (a ``mechanism.gif`` from a run with ``--animate``) are removed in
+  the same commit, rolled back with it. A file no manifest lists (the user's) is never removed.
 
 Not covered: SIGKILL or a power cut while staging can leave a ``.xval-stage-*`` folder (the
 outputs themselves are still either old or new); files are not fsync'ed.
@@ -52,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 STAGING_PREFIX = ".xval-stage-"
+MANIFEST_FILE = "xval-manifest.txt"  # in an --out folder: the names the run that wrote it wrote
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM
 
 
@@ -239,8 +244,32 @@ def _locked(folder: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
-def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str) -> None:
-    """Move ``content/name`` over ``out/name`` for every name, all or none (see module notes)."""
+def _previous_run(out: Path) -> list[str]:
+    """The files the previous run wrote into ``out`` (its manifest), that this run may remove:
+    plain names of regular files that are there now. No manifest, or an unreadable one: none."""
+    try:
+        if not stat.S_ISREG(os.lstat(out / MANIFEST_FILE).st_mode):
+            return []
+        listed = (out / MANIFEST_FILE).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+    names = []
+    for name in listed:
+        if (not name or name in (".", "..", MANIFEST_FILE) or "/" in name or os.sep in name or "\0" in name
+                or name.startswith(STAGING_PREFIX)):
+            continue
+        try:
+            if stat.S_ISREG(os.lstat(out / name).st_mode):
+                names.append(name)
+        except OSError:
+            continue
+    return names
+
+
+def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str,
+             stale: Iterable[str] = ()) -> None:
+    """Move ``content/name`` over ``out/name`` for every name and set the ``stale`` files of
+    ``out`` aside, all or none (see module notes)."""
     for name in names:  # nothing is replaced if any target is not a regular file
         _refuse_non_regular(out / name, flag)
     backup.mkdir()
@@ -253,6 +282,9 @@ def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str
             moved.append([name, had_old, False])
             os.replace(content / name, out / name)
             moved[-1][2] = True
+        for name in stale:  # removed with the staging folder once the set is in place
+            os.replace(out / name, backup / name)
+            moved.append([name, True, False])
     except BaseException:
         for name, had_old, placed in reversed(moved):  # put back what was there
             with contextlib.suppress(OSError):
@@ -308,7 +340,7 @@ def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, wor
 
 
 def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
-                 flag: str = "--out", workers: int = 1) -> list[Path]:
+                 flag: str = "--out", workers: int = 1, one_run: bool = False) -> list[Path]:
     """Write a set of files into the folder ``path``, all or nothing.
 
     Parameters
@@ -317,6 +349,10 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
     files : file name -> function that writes that file at the path it is given (a staging
         path, not the final one). Files are committed in this order.
     workers : how many processes write the files (:func:`_run_writers`); 1, here only.
+    one_run : the folder holds one run's outputs (an ``--out`` folder): the set is written with
+        its manifest (:data:`MANIFEST_FILE`, one name a line), and the files the previous run's
+        manifest lists that this set does not contain are removed in the same commit (a
+        failure puts them back). Files no manifest lists are never touched.
 
     Returns
     -------
@@ -330,6 +366,10 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
     is then exactly as it was.
     """
     names = list(files)
+    if one_run:
+        if MANIFEST_FILE in names:
+            raise ValueError(f"{MANIFEST_FILE} is written by write_folder itself")
+        names.append(MANIFEST_FILE)
     out = check_folder(path, names, flag=flag)
     existed = out.is_dir()
     staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
@@ -337,6 +377,8 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
         content = staging / "set"
         content.mkdir()
         _run_writers(files, content, workers)
+        if one_run:
+            (content / MANIFEST_FILE).write_text("".join(f"{n}\n" for n in files), encoding="utf-8")
         for name in names:
             if not (content / name).is_file():
                 raise RuntimeError(f"the writer of {name} produced no file")
@@ -344,17 +386,18 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
             if not existed:
                 try:
                     os.rename(content, out)  # the whole set appears at once
-                    return [out / name for name in names]
+                    return [out / name for name in files]
                 except OSError as exc:  # the folder appeared meanwhile: swap file by file
                     if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
                         raise
                 if not out.is_dir():
                     raise OutputError(f"{flag} '{out}' appeared meanwhile and is not a folder")
             with _locked(out):
-                _swap_in(content, staging / "replaced", out, names, flag)
+                stale = [n for n in _previous_run(out) if n not in names] if one_run else []
+                _swap_in(content, staging / "replaced", out, names, flag, stale)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return [out / name for name in names]
+    return [out / name for name in files]
 
 
 def write_file(path: str | os.PathLike, text: str, *, flag: str = "-o") -> Path:

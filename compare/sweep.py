@@ -821,5 +821,5 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
-    paths = write_folder(out, files)
+    paths = write_folder(out, files, one_run=True)
     return summary, paths

@@ -65,6 +65,48 @@ def test_a_set_replaces_the_old_one_and_nothing_else(old_folder):
     assert [p.name for p in old_folder.parent.iterdir()] == ["out"]  # no staging left beside it
 
 
+def test_an_out_folder_holds_one_run(tmp_path):
+    """Issue 24: a mechanism.gif of an earlier run stayed beside a new report. The files the
+    previous run's manifest lists and the new set lacks go; the user's files, a listed name
+    that is now a folder or a link, and names that escape the folder stay."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere.txt"
+    elsewhere.write_text("keep")
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif"),
+                       "old.png": lambda p: p.write_text("png")}, one_run=True)
+    assert (out / output.MANIFEST_FILE).read_text().splitlines() == [*NAMES, "mechanism.gif", "old.png"]
+    (out / "notes.txt").write_text("mine")
+    (out / "old.png").unlink()
+    (out / "old.png").mkdir()  # listed, but now the user's folder
+    with open(out / output.MANIFEST_FILE, "a") as f:  # a tampered manifest cannot reach outside
+        f.write("../elsewhere.txt\nnotes.txt/\n\n")
+    write_folder(out, writers("new"), one_run=True)
+    assert snapshot(out) == {**{n: ("file", f"new {n}".encode()) for n in NAMES}, "notes.txt": ("file", b"mine"),
+                             "old.png": ("dir", None), output.MANIFEST_FILE: ("file", "".join(
+                                 f"{n}\n" for n in NAMES).encode())}
+    assert elsewhere.read_text() == "keep"
+
+
+def test_without_a_manifest_nothing_is_removed_and_a_failed_commit_puts_the_stale_file_back(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif")})  # no manifest
+    write_folder(out, writers("new"), one_run=True)
+    assert (out / "mechanism.gif").read_text() == "gif"
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif"),
+                       "old.png": lambda p: p.write_text("png")}, one_run=True)
+    before = snapshot(out)
+    real_replace = os.replace
+
+    def failing_last(src, dst):  # the set swaps in, the GIF is set aside, then old.png's fails
+        if Path(src) == out / "old.png":
+            raise OSError(errno.EIO, "Input/output error")
+        real_replace(src, dst)
+    monkeypatch.setattr(output.os, "replace", failing_last)
+    with pytest.raises(OSError, match="Input/output"):
+        write_folder(out, writers("new"), one_run=True)
+    monkeypatch.undo()
+    assert snapshot(out) == before
+
+
 @pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt(), Terminated(),
                                    OSError(errno.ENOSPC, "No space left on device")],
                          ids=["exception", "ctrl-c", "sigterm", "disk-full"])

@@ -20,6 +20,7 @@ import pytest
 
 from compare import sweep as sweep_module
 from compare.cli import main
+from compare.output import MANIFEST_FILE
 from compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
 from compare.sweep_spec import Engines, spec_from_args
 from reduced.scenefile import default_scene_path
@@ -82,7 +83,7 @@ def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, 
     assert data["summary"]["counts"] == {"passed": 2, "gate_failed": 0, "failed": 0, "invalid": 0}
     assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == ["sweep.csv", "sweep.json",
                                                                   "sweep_peak_omega.png",
-                                                                  "sweep_worst_differences.png"]
+                                                                  "sweep_worst_differences.png", MANIFEST_FILE]
 
 
 def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys):
@@ -365,7 +366,7 @@ def test_the_files_written_are_sweep_files(varies, samples, keep, short_scene, t
     assert status == 0, printed
     spec = replace(spec_from_args(varies, samples), engines=Engines.REDUCED)
     expected = sweep_files(spec, keep)
-    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == sorted(expected)
+    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == sorted([*expected, MANIFEST_FILE])
     assert f"wrote {', '.join(expected)} to" in printed  # in the order committed
     assert not {"sweep_gate_map.png", "sweep_worst_differences.png"} & set(expected)
     assert ("sweep_peak_omega_hist.png" if samples else "sweep_peak_omega.png") in expected
