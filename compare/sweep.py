@@ -463,8 +463,14 @@ class Summary:
                 self.peak_extremes["highest"] = entry
 
     @property
+    def none_valid(self) -> bool:
+        """No variant could be assembled: the sweep checked nothing."""
+        return self.total > 0 and self.counts["invalid"] == self.total
+
+    @property
     def failed_any(self) -> bool:
-        return bool(self.counts["gate_failed"] or self.counts["failed"])
+        """A variant failed the gate or numerically, or none was valid (exit status 1)."""
+        return bool(self.counts["gate_failed"] or self.counts["failed"]) or self.none_valid
 
     def as_dict(self) -> dict[str, Any]:
         return {"variants": self.total, "engines": self.engines, "counts": dict(self.counts), "worst": self.worst,
@@ -496,6 +502,8 @@ def summary_lines(summary: Summary) -> list[str]:
     else:
         lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
                  f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+    if summary.none_valid:
+        lines.append("no variant is valid: the sweep checked nothing (sweep.csv's reason column says why)")
     w = summary.worst
     if w is not None:
         lines.append(f"worst variant: #{w['index']} ({_values_text(w['values'])}): peak-omega difference "

@@ -437,3 +437,18 @@ def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
     assert len(saved) == len(names)
     for fig, name in zip(saved, names):
         assert text_outside(fig) == [], name
+
+
+@pytest.mark.parametrize("vary,engines", [("reduced.rtol=1e-20,1e-19", "reduced"),
+                                          ("mujoco.solimp.0=2,3", "both")], ids=["rtol", "solimp"])
+def test_a_sweep_with_no_valid_variant_exits_1(vary, engines, short_scene, tmp_path, capsys):
+    """Issue 24: every variant invalid ("2 invalid") exited 0. Both settings are refused by the
+    engines' settings (rtol below 100 machine epsilons, solimp dmin above 0.9999), not by the
+    scene file, so the variants are built and counted invalid."""
+    with open(short_scene, "a") as f:
+        f.write("\n[mujoco]\nsolimp = [0.9999, 0.9999, 0.001, 0.5, 2]\n")
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", vary, "--engines", engines,
+                                  "--workers", "1")
+    assert "2 invalid" in printed and "no variant is valid" in printed, printed + err
+    assert status == 1
+    assert [r["status"] for r in _rows(tmp_path / "sw")] == ["invalid", "invalid"]
