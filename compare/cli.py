@@ -478,7 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "and print a summary. With --engines reduced, only the reduced solver runs "
                                    "(its own error and energy checks, no MuJoCo, no gate). Variants that cannot be "
                                    "assembled (invalid) or whose engines fail numerically (failed) are counted "
-                                   "rows. Exit 1 if any variant fails the gate or numerically, 2 on bad input "
+                                   "rows. Exit 1 if any variant fails the gate or numerically or none is valid, 2 on bad input "
                                    "(checked before any run).")
     _add_scene_argument(p)
     p.add_argument("--vary", action="append", metavar="KEY=SPEC",
@@ -534,8 +534,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 def main(argv: list[str] | None = None) -> int:
     """Run one ``xval`` command; return its exit status (see the module docstring)."""
+    received: list[int] = []
     try:
-        with signals_as_exceptions(), warnings.catch_warnings():
+        with signals_as_exceptions() as received, warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
             warnings.showwarning = _show_warning
             try:
@@ -543,25 +544,36 @@ def main(argv: list[str] | None = None) -> int:
             except SystemExit as exc:  # --help, or a usage error already printed
                 return exc.code if isinstance(exc.code, int) else EXIT_OK
             return args.func(args)
-    except NumericalFailure as exc:
+    except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on
+        return _failure(exc, received)
+
+
+def _failure(exc: BaseException, received: list[int]) -> int:
+    """Print the one line of what ended the command and return its exit status; raise what is
+    not an expected failure (a bug: its traceback). A signal received decides, whatever became
+    of its exception (a module interrupted while loading raises ImportError)."""
+    import signal
+
+    if isinstance(exc, KeyboardInterrupt) or (received and received[0] == signal.SIGINT):
+        print("xval: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if isinstance(exc, Terminated) or received:
+        print("xval: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    if isinstance(exc, NumericalFailure):
         print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
-    except (SceneError, UsageError, OutputError, ValueError) as exc:
+    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError)):
         print(f"xval: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except BrokenPipeError:  # output piped into e.g. `head`
+    if isinstance(exc, BrokenPipeError):  # output piped into e.g. `head`
         sys.stderr.close()
         return EXIT_OK
-    except OSError as exc:  # e.g. the disk filled up while writing: the outputs are as they were
+    if isinstance(exc, OSError):  # e.g. the disk filled up while writing: the outputs are as they were
         where = f"'{exc.filename}': " if exc.filename else ""
         print(f"xval: error: {where}{exc.strerror or _one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("xval: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Terminated:
-        print("xval: terminated", file=sys.stderr)
-        return EXIT_TERMINATED
+    raise exc
 
 
 if __name__ == "__main__":

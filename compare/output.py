@@ -179,42 +179,57 @@ def _check_file(target: Path, text: str, flag: str) -> Path:
 # ---------------------------------------------------------------------------- signals
 
 @contextlib.contextmanager
-def signals_as_exceptions() -> Iterator[None]:
+def signals_as_exceptions() -> Iterator[list[int]]:
     """For the duration of the block, SIGTERM raises :class:`Terminated` and SIGINT
     ``KeyboardInterrupt`` (so clean-ups run); the previous handlers are restored after.
-    A signal that is ignored when the block starts stays ignored.
+    A signal that is ignored when the block starts stays ignored. Yields the list of the
+    signals received, in order: code that turns the exception into another one (a C
+    extension interrupted while it is imported raises ImportError) cannot hide the signal.
 
     Does nothing outside the main thread (Python only handles signals there).
     """
+    received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
 
     def terminate(signum, frame):
+        received.append(signum)
         raise Terminated()
 
-    wanted = {signal.SIGTERM: terminate, signal.SIGINT: signal.default_int_handler}
+    def interrupt(signum, frame):
+        received.append(signum)
+        signal.default_int_handler(signum, frame)
+
+    wanted = {signal.SIGTERM: terminate, signal.SIGINT: interrupt}
     # A signal the caller chose to ignore (``nohup``, a background job) stays ignored.
     previous = {s: signal.signal(s, handler) for s, handler in wanted.items()
                 if signal.getsignal(s) is not signal.SIG_IGN}
     try:
-        yield
+        yield received
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
 
+class _Abandoned(BaseException):
+    """A commit undone because SIGINT or SIGTERM came during it (the held signal then raises)."""
+
+
 @contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM for a short critical section, then deliver them."""
+def _signals_held() -> Iterator[list[int]]:
+    """Hold SIGINT and SIGTERM for a short critical section, then deliver them. Yields the list
+    of the signals held so far (the ones not ignored), so that the section can undo its work."""
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield []
         return
     pending: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.getsignal(s) for s in _HANDLED}
+    for s, handler in previous.items():
+        if handler is not signal.SIG_IGN:
+            signal.signal(s, lambda signum, frame: pending.append(signum))
     try:
-        yield
+        yield pending
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -267,9 +282,10 @@ def _previous_run(out: Path) -> list[str]:
 
 
 def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str,
-             stale: Iterable[str] = ()) -> None:
+             stale: Iterable[str] = (), held: list[int] | None = None) -> None:
     """Move ``content/name`` over ``out/name`` for every name and set the ``stale`` files of
-    ``out`` aside, all or none (see module notes)."""
+    ``out`` aside, all or none (see module notes); undone if ``held`` (signals that came
+    meanwhile) is not empty at the end."""
     for name in names:  # nothing is replaced if any target is not a regular file
         _refuse_non_regular(out / name, flag)
     backup.mkdir()
@@ -285,6 +301,8 @@ def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str
         for name in stale:  # removed with the staging folder once the set is in place
             os.replace(out / name, backup / name)
             moved.append([name, True, False])
+        if held:
+            raise _Abandoned()
     except BaseException:
         for name, had_old, placed in reversed(moved):  # put back what was there
             with contextlib.suppress(OSError):
@@ -295,48 +313,123 @@ def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str
         raise
 
 
-# The set being staged, for the forked writers of write_folder(workers > 1): a child inherits it.
-_STAGED: tuple[Mapping[str, Callable[[Path], None]], Path] | None = None
+_HANDLED = (signal.SIGINT, signal.SIGTERM)
+_ERROR_LIMIT = 32_768  # bytes of a child's pickled exception (a pipe holds 64 KiB: the child never blocks)
 
 
-def _write_staged(name: str) -> BaseException | None:
-    """Run the writer of ``name`` of the set being staged (in a forked child); what it raised,
-    returned (a pool's worker would die of a BaseException, and its task never end)."""
-    files, content = _STAGED
+@contextlib.contextmanager
+def _signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked (kept pending by the kernel) for the block, then unblocked:
+    a signal that came meanwhile is handled right after it (by this process's handler)."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _HANDLED)
     try:
-        files[name](content / name)
-    except BaseException as exc:  # noqa: BLE001 - raised again in the parent
-        return exc
-    return None
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _fork_writer(files: Mapping[str, Callable[[Path], None]], names: list[str], content: Path,
+                 children: dict[int, int]) -> None:
+    """Fork a child that runs the writers of ``names`` into ``content``, and record it in
+    ``children`` (its pid: the read end of a pipe on which it reports what it raised) before
+    any signal can interrupt this process, so that the caller always reaps it. The child
+    starts with SIGINT and SIGTERM blocked, sets both to their default action (a signal to the process group kills it: the
+    parent handles the signal and cleans up) and only then unblocks them, so no signal ever
+    runs this process's handlers in the child; it leaves by ``os._exit``, running none of the
+    parent's clean-ups."""
+    import pickle
+
+    # Held (this process's handlers only record a signal) and blocked (the kernel keeps it
+    # pending): a signal cannot raise between the fork and the child's registration.
+    with _signals_held(), _signals_blocked():
+        read_end, write_end = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child
+            status = 1
+            try:
+                os.close(read_end)
+                for signum in _HANDLED:
+                    signal.signal(signum, signal.SIG_DFL)
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, _HANDLED)
+                for name in names:
+                    files[name](content / name)
+                status = 0
+            except BaseException as exc:  # noqa: BLE001 - reported to the parent
+                try:
+                    data = pickle.dumps(exc)
+                    if len(data) > _ERROR_LIMIT:
+                        raise ValueError("too long")
+                except Exception:  # noqa: BLE001 - an exception that does not pickle: its text
+                    data = pickle.dumps(RuntimeError(f"{type(exc).__name__}: {exc}"[:1000]))
+                with contextlib.suppress(OSError):
+                    os.write(write_end, data)
+            finally:
+                os._exit(status)
+        children[pid] = read_end
+        os.close(write_end)
+
+
+def _child_outcome(pid: int, status: int, read_end: int) -> BaseException | None:
+    """What a reaped writer child ended with: None (it wrote its files) or the exception to raise."""
+    import pickle
+
+    data = b""
+    while chunk := os.read(read_end, 65536):
+        data += chunk
+    if os.WIFSIGNALED(status):
+        signum = os.WTERMSIG(status)
+        return (KeyboardInterrupt() if signum == signal.SIGINT else Terminated() if signum == signal.SIGTERM
+                else RuntimeError(f"a file writer (process {pid}) died of signal {signum}"))
+    if os.WEXITSTATUS(status) == 0:
+        return None
+    try:
+        return pickle.loads(data)
+    except Exception:  # noqa: BLE001
+        return RuntimeError(f"a file writer (process {pid}) failed with exit status {os.WEXITSTATUS(status)}")
 
 
 def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, workers: int) -> None:
     """Every writer, into ``content``. With ``workers`` > 1 (and fork available, and not in a
-    pool's daemon worker, which may have no children) every other writer runs in a forked
-    child process while this one runs the rest: the plots of a run are independent and cost
-    ~0.1 s each. A child's exception is raised here; an exception here ends the children."""
-    global _STAGED
+    pool's daemon worker, which may have no children) ``workers`` - 1 forked child processes
+    (:func:`_fork_writer`) share the writers with this one: the plots of a run are independent
+    and cost ~0.1 s each. A child's exception is raised here. Whatever ends this process's part
+    (an exception, Ctrl-C, SIGTERM), every child still running is killed and reaped, with
+    SIGINT and SIGTERM held meanwhile, before the exception goes on: no child outlives it."""
     import multiprocessing
 
     names = list(files)
-    if (workers < 2 or len(names) < 2 or "fork" not in multiprocessing.get_all_start_methods()
-            or multiprocessing.current_process().daemon):
+    if workers < 2 or len(names) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon:
         for name in names:
             files[name](content / name)
         return
-    from .pool import worker_pool
-
-    _STAGED = (files, content)
+    workers = min(workers, len(names))
+    children: dict[int, int] = {}  # pid -> read end of its pipe
     try:
-        with worker_pool(workers - 1, start_method="fork") as pool:
-            theirs = pool.map_async(_write_staged, names[1::2], chunksize=1)
-            for name in names[0::2]:
-                files[name](content / name)
-            for error in theirs.get():
-                if error is not None:
-                    raise error
+        for k in range(1, workers):
+            _fork_writer(files, names[k::workers], content, children)
+        for name in names[0::workers]:
+            files[name](content / name)
+        while children:
+            pid = next(iter(children))
+            _, status = os.waitpid(pid, 0)
+            read_end = children.pop(pid)
+            try:
+                error = _child_outcome(pid, status, read_end)
+            finally:
+                os.close(read_end)
+            if error is not None:
+                raise error
     finally:
-        _STAGED = None
+        with _signals_blocked():
+            for pid, read_end in children.items():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                with contextlib.suppress(ChildProcessError):
+                    os.waitpid(pid, 0)
+                os.close(read_end)
 
 
 def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
@@ -372,8 +465,10 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
         names.append(MANIFEST_FILE)
     out = check_folder(path, names, flag=flag)
     existed = out.is_dir()
-    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
+    staging = None
     try:
+        with _signals_blocked():  # a signal now comes once staging is set, and so is cleaned up
+            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
         content = staging / "set"
         content.mkdir()
         _run_writers(files, content, workers)
@@ -382,21 +477,27 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
         for name in names:
             if not (content / name).is_file():
                 raise RuntimeError(f"the writer of {name} produced no file")
-        with _signals_held():
+        with _signals_held() as held:  # a signal that comes during the commit undoes it
             if not existed:
                 try:
                     os.rename(content, out)  # the whole set appears at once
-                    return [out / name for name in files]
                 except OSError as exc:  # the folder appeared meanwhile: swap file by file
                     if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
                         raise
+                else:
+                    if held:
+                        os.rename(out, content)
+                        raise _Abandoned()
+                    return [out / name for name in files]
                 if not out.is_dir():
                     raise OutputError(f"{flag} '{out}' appeared meanwhile and is not a folder")
             with _locked(out):
                 stale = [n for n in _previous_run(out) if n not in names] if one_run else []
-                _swap_in(content, staging / "replaced", out, names, flag, stale)
+                _swap_in(content, staging / "replaced", out, names, flag, stale, held)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        if staging is not None:
+            with _signals_blocked():  # a second signal does not cut the clean-up short
+                shutil.rmtree(staging, ignore_errors=True)
     return [out / name for name in files]
 
 

@@ -5,8 +5,10 @@ checks the installed entry point.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import shutil
 import signal
 import stat
 import subprocess
@@ -25,7 +27,7 @@ from compare.cli import main
 from compare.cost import worker_count
 from reduced import scene_from_dict
 
-from helpers import SEED_SCENE, interruptible, seed_dict, spawn  # noqa: F401 - fixtures
+from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -249,3 +251,61 @@ def test_every_help_default_is_the_resolved_default():
         elif action.default not in (None, False, True) and "default" in text:
             shown = str(action.default)
             assert shown in text, f"xval {command} {flag}: help {text!r} lacks its default {shown!r}"
+
+
+# ---------------------------------------------------------------- a signal at any moment of a run
+
+def _run_folder(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, spawn):
+    """Issue 24: SIGTERM or Ctrl-C while `xval run` forked its plot writers hung it (a zombie
+    writer, a second SIGTERM ignored, the staging folder left) or was swallowed (exit 0, the
+    results replaced). The signal goes to the whole process group, as a terminal's Ctrl-C does,
+    at delays spread from start-up to past the run's end (the run's length measured first, on
+    this machine). Every time: exit 130/143 (or killed by the signal itself before xval's
+    handlers are set: -2/-15 here, 130/143 in a shell), at most one line on stderr, no process of
+    the group left, no staging folder, and the folder as it was unless the run said it wrote."""
+    import time
+
+    from compare.output import STAGING_PREFIX
+
+    scene = short_seed_file(tmp_path)
+    old = tmp_path / "old"
+    for _ in range(2):  # the second run, with warm caches, is as long as the runs below
+        start = time.monotonic()
+        first = subprocess.run([sys.executable, "-m", "compare.cli", "run", str(scene), "--out", str(old)],
+                               capture_output=True, text=True, timeout=300)
+        length = time.monotonic() - start
+        assert first.returncode == 0, first.stderr
+    before = _run_folder(old)
+    statuses = {signal.SIGINT: (130, -signal.SIGINT), signal.SIGTERM: (143, -signal.SIGTERM)}[signum]
+    outcomes = []
+    for fraction in (0.03, 0.3, 0.6, 0.8, 0.9, 0.97, 1.1):
+        out = tmp_path / f"out-{fraction}"
+        shutil.copytree(old, out)
+        proc = spawn([sys.executable, "-m", "compare.cli", "run", str(scene), "--out", str(out)],
+                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        time.sleep(fraction * length)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signum)
+        printed, err = proc.communicate(timeout=60)  # a hang fails here
+        left = subprocess.run(["ps", "-o", "pid=,args=", "-g", str(proc.pid)], capture_output=True, text=True).stdout
+        wrote = "wrote " in printed
+        outcomes.append((fraction, proc.returncode, wrote))
+        assert left == "", f"at {fraction:.2f} of the run: processes left: {left}"
+        assert not [p for p in out.iterdir() if p.name.startswith(STAGING_PREFIX)], f"staging left at {fraction}"
+        if proc.returncode == 0:  # only when the run had ended before the signal was sent
+            assert wrote and fraction >= 0.6, (fraction, err)
+        else:
+            assert proc.returncode in statuses, (fraction, proc.returncode, err)
+            assert err.count("\n") <= 1 or proc.returncode < 0, (fraction, err)
+        now = _run_folder(out)
+        if wrote:
+            assert set(now) == set(before) and now["report.json"] != before["report.json"], fraction
+        else:
+            assert now == before, f"at {fraction:.2f} of the run the folder changed"
+    assert sum(not wrote for _, _, wrote in outcomes) >= 3, outcomes  # most signals came during the run

@@ -184,17 +184,26 @@ def test_a_commit_failing_part_way_is_rolled_back(old_folder, monkeypatch):
     assert snapshot(old_folder.parent) == before
 
 
-def test_an_interrupt_during_the_commit_comes_after_a_complete_set(old_folder, monkeypatch, interruptible):
-    real_replace = os.replace
+@pytest.mark.parametrize("existed", [True, False], ids=["into-a-folder", "a-new-folder"])
+def test_an_interrupt_during_the_commit_undoes_it(old_folder, monkeypatch, interruptible, existed):
+    """The commit is held against signals and undone when one came meanwhile: the folder is as
+    it was (issue 24: every signal before the run's end leaves it so), then KeyboardInterrupt."""
+    if not existed:
+        old_folder = old_folder.parent / "fresh"
+    before = snapshot(old_folder.parent)
+    real_replace, real_rename = os.replace, os.rename
 
-    def replace_then_interrupt(src, dst):
-        real_replace(src, dst)
-        os.kill(os.getpid(), signal.SIGINT)
-    monkeypatch.setattr(output.os, "replace", replace_then_interrupt)
+    def then_interrupt(real):
+        def call(src, dst):
+            real(src, dst)
+            os.kill(os.getpid(), signal.SIGINT)
+        return call
+    monkeypatch.setattr(output.os, "replace", then_interrupt(real_replace))
+    monkeypatch.setattr(output.os, "rename", then_interrupt(real_rename))
     with signals_as_exceptions(), pytest.raises(KeyboardInterrupt):
-        write_folder(old_folder, writers("new"))
+        write_folder(old_folder, writers("new"), one_run=True)
     monkeypatch.undo()
-    assert {n: (old_folder / n).read_text() for n in NAMES} == {n: f"new {n}" for n in NAMES}
+    assert snapshot(old_folder.parent) == before
 
 
 @pytest.mark.parametrize("kind", ["symlink", "dangling symlink", "fifo", "device", "folder"])
@@ -318,3 +327,54 @@ def test_sigterm_while_writing_leaves_no_partial_folder(old_folder, spawn):
     assert snapshot(old_folder.parent) == {"out": ("dir", None),
                                            **{f"out/{n}": ("file", f"old {n}".encode()) for n in NAMES},
                                            "out/notes.txt": ("file", b"mine")}
+
+
+FORKING_CHILD = textwrap.dedent("""
+    import sys, time
+    from pathlib import Path
+    from compare.output import Terminated, signals_as_exceptions, write_folder
+    out, started = Path(sys.argv[1]), Path(sys.argv[2])
+    names = [f"plot{i}.png" for i in range(6)]
+
+    def make(name):
+        def write(path):
+            with open(started, "a") as f:
+                f.write(name + "\\n")
+            time.sleep(0.5)  # a plot: ~0.1-0.5 s
+            path.write_text("new " + name)
+        return write
+
+    try:
+        with signals_as_exceptions():
+            write_folder(out, {n: make(n) for n in names}, workers=3, one_run=True)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Terminated:
+        sys.exit(143)
+""")
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_forked_writers_run_ends_all_of_them_and_changes_nothing(tmp_path, spawn, signum):
+    """Issue 24: a signal to the process group while write_folder's forked writers run (a run's
+    plots) hung the parent or was swallowed. Six writers of 0.5 s in three processes (~1 s);
+    the signal is sent when the first writer has started plus 0 to 0.6 s. Every time: the exit
+    status of the signal, no process of the group left, the folder as it was, no staging."""
+    old = tmp_path / "old"
+    write_folder(old, {f"plot{i}.png": (lambda p, i=i: p.write_text(f"old {i}")) for i in range(6)}, one_run=True)
+    before = snapshot(old)
+    status = {signal.SIGINT: 130, signal.SIGTERM: 143}[signum]
+    for delay in (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6):
+        started = tmp_path / f"started-{delay}"
+        proc = spawn([sys.executable, "-c", FORKING_CHILD, str(old), str(started)], stdout=subprocess.PIPE,
+                     stderr=subprocess.PIPE, text=True, start_new_session=True)
+        deadline = time.monotonic() + 60
+        while not started.exists():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.005)
+        time.sleep(delay)
+        os.killpg(proc.pid, signum)
+        assert finish(proc) == status, delay  # a hang fails in finish (60 s)
+        left = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(proc.pid)], capture_output=True, text=True)
+        assert left.stdout == "", f"{delay} s after the first writer: left {left.stdout}"
+        assert snapshot(old) == before, delay
