@@ -163,9 +163,10 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 
 def cmd_draw(args: argparse.Namespace) -> int:
-    from .draw import write_drawing
+    from .draw import drawing_format, write_drawing
 
-    target = check_file(args.out, flag="--out")  # before any work
+    drawing_format(args.out)  # before any work: .png, .pdf or .svg
+    target = check_file(args.out, flag="--out")
     scene = _scene(args.scene)
     path = write_drawing(scene, target)
     print(f"wrote {path}")
@@ -409,13 +410,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
 
-    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG)",
+    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
                        description="Draw the scene's linkage assembled at q0 in its assembly mode: "
                                    "bodies, revolute and prismatic joints, ground pivots, dampers, "
                                    "springs, point forces and centres of mass, labelled, lengths in m. "
                                    "Check a scene's geometry before running it.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="linkage.png", help="PNG file to write (default ./linkage.png)")
+    p.add_argument("--out", default="linkage.png",
+                   help="file to write, in the format its suffix names: .png, .pdf or .svg (default ./linkage.png)")
     p.set_defaults(func=cmd_draw)
 
     p = sub.add_parser("run", help="run both engines, compare, write report and plots",
