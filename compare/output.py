@@ -4,7 +4,8 @@ Guarantees
 ----------
 Checked before any work (:func:`check_folder`, :func:`check_file`): an empty name, a name
 longer than the file system allows, a folder whose parent does not exist, is not a folder
-or cannot be written, a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
+or cannot be written (tried: a staging folder is made and removed there, since ``os.access``
+says yes to root in /proc or /sys), a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
 existing output that is not a regular file (a symbolic link, a device node, a folder) are
 refused with :class:`OutputError` (a ``ValueError``: exit status 2) naming the path.
 
@@ -99,6 +100,19 @@ def _check_parent(parent: Path, flag: str, shown: str) -> None:
         raise OutputError(f"{flag} {shown}: '{parent}' is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{flag} {shown}: cannot write in '{parent}' (permission denied or read-only)")
+    _probe(parent, flag, shown)
+
+
+def _probe(folder: Path, flag: str, shown: str) -> None:
+    """Create and remove a staging-named folder in ``folder``: what writing there needs first.
+    ``os.access`` says yes to root in /proc or /sys, and on some read-only mounts; this does not."""
+    with _signals_blocked():  # never left behind
+        try:
+            probe = tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=folder)
+        except OSError as exc:
+            raise OutputError(f"{flag} {shown}: cannot write in '{folder}' "
+                              f"({exc.strerror or exc})") from None
+        os.rmdir(probe)
 
 
 def _refuse_non_regular(target: Path, flag: str) -> None:
@@ -143,6 +157,7 @@ def _check_folder(out: Path, names: Iterable[str], flag: str) -> Path:
                               else f"{flag} {shown} is not a folder")
         if not os.access(out, os.W_OK | os.X_OK):
             raise OutputError(f"{flag} {shown}: cannot write in it (permission denied or read-only)")
+        _probe(out, flag, shown)
         for name in names:
             _refuse_non_regular(out / name, flag)
     else:

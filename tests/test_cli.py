@@ -18,9 +18,11 @@ from pathlib import Path
 import pytest
 
 import compare.cost
+import compare.draw
 import compare.report
 import compare.run
 import compare.stress
+import compare.sweep
 import reference_models
 from compare import cli
 from compare.cli import main
@@ -46,7 +48,8 @@ def no_work(monkeypatch):
     def computed(*args, **kwargs):
         raise AssertionError("work started before the destination was checked")
     for module, name in ((compare.run, "compare_engines"), (compare.cost, "ground_truth"),
-                         (compare.stress, "run_catalogue"), (reference_models, "build_model")):
+                         (compare.stress, "run_catalogue"), (reference_models, "build_model"),
+                         (compare.sweep, "run_sweep"), (compare.draw, "draw_scene")):
         monkeypatch.setattr(module, name, computed)
 
 
@@ -60,7 +63,8 @@ def place(tmp_path: Path, kind: str) -> str:
             "missing folder": str(tmp_path / "nope" / "out"), "unwritable": str(locked / "out"),
             "long name": str(tmp_path / ("x" * 300)), "empty": "", "folder": str(tmp_path / "folder"),
             "dot-dot": str(tmp_path / "folder" / ".."), "device": str(tmp_path / "null"),
-            "symlink": str(tmp_path / "link")}[kind]
+            "symlink": str(tmp_path / "link"), "in /proc": "/proc/xval-out", "in /sys": "/sys/xval-out",
+            "/sys folder": "/sys/kernel"}[kind]
 
 
 # (command, destination kind, words the message must contain)
@@ -73,6 +77,9 @@ BAD_DESTINATIONS = [
     ("export-mjcf", "missing folder", "does not exist"), ("export-mjcf", "empty", "-o is empty"),
     ("export-mjcf", "device", "device node"), ("export-mjcf", "symlink", "symbolic link"),
     ("export-mjcf", "long name", "too long"),
+    # Issue 24: os.access says yes to root there; refused only after the work until the probe.
+    *[(command, kind, "cannot write") for command in ("run", "cost", "stress", "sweep", "draw", "export-mjcf")
+      for kind in ("in /proc", "in /sys", "/sys folder")],
 ]
 
 
@@ -91,7 +98,10 @@ def test_bad_destination_is_refused_before_any_work(command, kind, words, tmp_pa
         os.mknod(dest, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
     before = sorted(p.name for p in tmp_path.rglob("*"))
     flag = ["-o", dest] if command == "export-mjcf" else ["--out", dest]
-    assert main([command, *flag]) == 2
+    if command in ("draw", "export-mjcf") and kind.startswith(("in ", "/sys")):
+        flag[1] += "/l.png" if kind == "/sys folder" else ".png"
+    extra = ["--vary", "dampers.0.coefficient=50,60"] if command == "sweep" else []
+    assert main([command, *flag, *extra]) == 2
     assert words in one_error_line(capsys)
     assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing created, nothing removed
     assert (tmp_path / "file").read_text() == "keep"
