@@ -316,6 +316,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
+    if args.resume:
+        from .sweep import journaled_rows
+
+        if args.keep_trajectories:
+            raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
+        journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
     client = None
     if args.scheduler is not None:
         from .sweep import connect
@@ -331,7 +337,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
             found = [s.as_dict() for s in items]
         summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
-                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client)
+                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
+                                   resume=args.resume)
     finally:
         if client is not None:
             client.close()
@@ -511,6 +518,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-trajectories", action="store_true",
                    help="also write trajectories.csv, every variant's input trajectory from both engines "
                         "(for small sweeps)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted sweep: the rows it finished, kept in the journal beside --out "
+                        "(OUT.sweep-journal.csv, removed when a sweep completes), are not run again; the scene "
+                        "file, keys, values and engines must be the same. Not with --keep-trajectories")
     p.add_argument("--sensitivity", action="store_true",
                    help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")

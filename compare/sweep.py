@@ -54,6 +54,7 @@ made from the staged ``sweep.csv`` read back row by row.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
@@ -236,9 +237,8 @@ def chunk_size(n: int, workers: int) -> int:
     return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
 
 
-def _chunks(spec: SweepSpec, size: int) -> Iterator[tuple[int, list[dict[str, float]]]]:
-    it = variant_values(spec)
-    start = 0
+def _chunks(spec: SweepSpec, size: int, start: int = 0) -> Iterator[tuple[int, list[dict[str, float]]]]:
+    it = itertools.islice(variant_values(spec), start, None)
     while True:
         chunk = list(itertools.islice(it, size))
         if not chunk:
@@ -397,14 +397,17 @@ def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool, engines
 
 
 def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
-             keep_trajectories: bool = False, client=None) -> Iterator[dict[str, Any]]:
-    """Every variant's row, in variant order, as they complete (``workers`` processes, or with
-    ``client`` the Dask cluster's worker threads: the same chunks become Dask tasks)."""
-    n = count(spec)
+             keep_trajectories: bool = False, client=None, start: int = 0) -> Iterator[dict[str, Any]]:
+    """Every variant's row from variant ``start`` on, in variant order, as they complete
+    (``workers`` processes, or with ``client`` the Dask cluster's worker threads: the same
+    chunks become Dask tasks)."""
+    n = count(spec) - start
+    if n <= 0:
+        return
     if client is not None:
         workers = dask_threads(client)
     size = chunk_size(n, workers)
-    tasks = _chunks(spec, size)
+    tasks = _chunks(spec, size, start)
     if client is not None:
         yield from _dask_rows(client, data, source, keep_trajectories, spec.engines, tasks,
                               CHUNKS_IN_FLIGHT * workers)
@@ -749,7 +752,10 @@ class _Progress:
 
 
 def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
-            summary: Summary, progress: Callable | None) -> None:
+            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None,
+            replayed: int = 0) -> None:
+    """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row
+    after the first ``replayed`` (read back from the journal) also goes to ``journal``."""
     cols = columns(spec)
     traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
     try:
@@ -759,9 +765,12 @@ def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, tra
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
             writer.writerow(cols)
-            for row in rows:
+            for i, row in enumerate(rows):
                 trajectories = row.pop("_trajectories", None)
-                writer.writerow([_cell(row.get(k)) for k in cols])
+                cells = [_cell(row.get(k)) for k in cols]
+                writer.writerow(cells)
+                if journal and i >= replayed:
+                    journal(cells)
                 if tw and trajectories:
                     for engine, samples in trajectories.items():
                         tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
@@ -791,14 +800,141 @@ def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summar
         f.write("\n  ]\n}\n")
 
 
+# -- the journal of finished rows, and the estimate of a long sweep ------------------------
+
+JOURNAL_SUFFIX = ".sweep-journal.csv"
+JOURNAL_MAGIC = "# xval sweep journal "
+LONG_SWEEP_S = 600.0  # a sweep estimated to take longer says so (one warning line) before it runs on
+
+
+class JournalError(ValueError):
+    """--resume without a journal of this very sweep beside --out (exit status 2)."""
+
+
+def journal_path(out: str | os.PathLike) -> Path:
+    """The journal of a sweep into ``out``: beside it, never inside (``<out>.sweep-journal.csv``)."""
+    folder = Path(os.path.abspath(out))
+    return folder.parent / f"{folder.name}{JOURNAL_SUFFIX}"
+
+
+def _identity(data: Mapping[str, Any], spec: SweepSpec) -> str:
+    """A digest of what decides a sweep's rows: the scene data and the specification."""
+    import hashlib
+
+    text = json.dumps({"data": data, "spec": repr(spec)}, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def journaled_rows(out: str | os.PathLike, data: Mapping[str, Any], spec: SweepSpec) -> int:
+    """How many rows the journal beside ``out`` holds for this sweep (checked before any work).
+
+    Raises
+    ------
+    JournalError
+        No journal, or the journal of another sweep (scene, keys, values or engines differ).
+    """
+    path = journal_path(out)
+    try:
+        with open(path, encoding="utf-8", newline="") as f:
+            first = f.readline()
+            if first != f"{JOURNAL_MAGIC}{_identity(data, spec)}\n":
+                raise JournalError(f"--resume: {path} is the journal of another sweep (its scene file, keys, values "
+                                   "or engines differ): run without --resume to start afresh")
+            return sum(1 for _ in _complete_rows(f)) if f.readline() else 0
+    except FileNotFoundError:
+        raise JournalError(f"--resume: no journal {path} of an interrupted sweep into "
+                           f"{os.fspath(out)!r}: nothing to resume") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise JournalError(f"--resume: cannot read {path}: {exc}") from None
+
+
+def _complete_rows(f) -> Iterator[str]:
+    """The complete lines (the last one, cut by a kill, is not) of the journal after its header."""
+    for line in f:
+        if line.endswith("\n"):
+            yield line
+
+
+class _Journal:
+    """The rows of a sweep written as they finish, beside its output folder; removed once the
+    sweep's files are committed. A journal that cannot be written is a warning, not an error."""
+
+    def __init__(self, out, data: Mapping[str, Any], spec: SweepSpec, resume: bool):
+        self.path, self.file = journal_path(out), None
+        self.replayed = journaled_rows(out, data, spec) if resume else 0
+        try:
+            if resume:
+                self._truncate_partial_line()
+                self.file = open(self.path, "a", newline="", encoding="utf-8")
+            else:
+                if self.path.exists():
+                    warnings.warn(f"{self.path}: the rows of an interrupted sweep are replaced by this one's "
+                                  "(--resume continues a sweep)")
+                self.file = open(self.path, "w", newline="", encoding="utf-8")
+                self.file.write(f"{JOURNAL_MAGIC}{_identity(data, spec)}\n")
+                csv.writer(self.file).writerow(columns(spec))
+                self.file.flush()
+        except OSError as exc:
+            warnings.warn(f"no journal of finished rows ({self.path}: {exc.strerror or exc}): an interrupted "
+                          "sweep cannot be resumed")
+            self.file = None
+        self.writer = csv.writer(self.file) if self.file else None
+
+    def _truncate_partial_line(self) -> None:
+        with open(self.path, "rb+") as f:
+            data = f.read()
+            keep = data.rfind(b"\n") + 1
+            if keep < len(data):
+                f.truncate(keep)
+
+    def replay(self, spec: SweepSpec) -> Iterator[dict[str, Any]]:
+        """The journaled rows, in order, with their types (as read back from sweep.csv)."""
+        if not self.replayed:
+            return
+        with open(self.path, encoding="utf-8", newline="") as f:
+            f.readline()
+            for i, row in enumerate(csv.DictReader(_complete_rows(f), fieldnames=next(csv.reader([f.readline()])))):
+                if i >= self.replayed:
+                    return
+                yield {k: _parse(k, v) for k, v in row.items()}
+
+    def write(self, cells: list) -> None:
+        if self.writer:
+            self.writer.writerow(cells)
+            self.file.flush()
+
+    def close(self, done: bool) -> None:
+        if self.file:
+            self.file.close()
+        if done:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+
+
+def _estimate(n_left: int, seconds_each: float, workers: int) -> None:
+    """One warning line when the variants left are estimated to take over :data:`LONG_SWEEP_S`."""
+    total = n_left * seconds_each / workers
+    if total > LONG_SWEEP_S:
+        shown = f"{total / 3600:.1f} h" if total >= 3600 else f"{total / 60:.0f} min"
+        warnings.warn(f"this sweep is estimated to take {shown} ({n_left} variants at {seconds_each:.3g} s each "
+                      f"on {workers} worker{'s' if workers != 1 else ''}); Ctrl-C keeps the finished rows for "
+                      "--resume")
+
+
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
               progress: bool = True, sensitivity: list[dict] | None = None,
-              client=None) -> tuple[Summary, list[Path]]:
+              client=None, resume: bool = False) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`);
     ``sensitivity`` (:meth:`compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json.
-    With ``client`` (:func:`connect`) the variants run on that Dask cluster instead of a local pool."""
+    With ``client`` (:func:`connect`) the variants run on that Dask cluster instead of a local pool.
+
+    Each finished row also goes to the journal beside ``out`` (:func:`journal_path`), which the
+    commit of the files removes: an interrupted sweep leaves ``out`` as it was and its rows
+    there; with ``resume`` they are read back instead of run again (the caller checked the
+    journal with :func:`journaled_rows`). Before the bulk of the variants, the next two run
+    here and the second one's time estimates the rest (:func:`_estimate`)."""
     from .cost import worker_count
 
     n = count(spec)
@@ -811,11 +947,25 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)
     bar = _Progress(n) if progress else None
 
+    journal = _Journal(out, data, spec, resume)
+
+    def fresh_rows() -> Iterator[dict[str, Any]]:
+        first = journal.replayed
+        timed = []
+        for index, values in itertools.islice(enumerate(variant_values(spec)), first, first + 2):
+            began = time.perf_counter()
+            yield run_variant(index, values, data, source, keep_trajectories, spec.engines)
+            timed.append(time.perf_counter() - began)
+        if len(timed) == 2:  # the second: imports and compiled code loaded by the first
+            _estimate(n - first - 2, timed[1], used)
+        yield from run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client,
+                            start=first + len(timed))
+
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
-        rows = run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client)
+        rows = itertools.chain(journal.replay(spec), fresh_rows())
         _stream(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
-                bar.step if bar else None)
+                bar.step if bar else None, journal.write, journal.replayed)
         summary.wall_s = time.perf_counter() - start
 
     def staged(path: Path) -> None:  # written with sweep.csv
@@ -829,5 +979,10 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
-    paths = write_folder(out, files, one_run=True)
+    done = False
+    try:
+        paths = write_folder(out, files, one_run=True)
+        done = True
+    finally:
+        journal.close(done)
     return summary, paths
