@@ -165,8 +165,8 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 def cmd_draw(args: argparse.Namespace) -> int:
     from .draw import drawing_format, write_drawing
 
-    drawing_format(args.out)  # before any work: .png, .pdf or .svg
-    target = check_file(args.out, flag="--out")
+    target = check_file(args.out, flag="--out")  # before any work
+    drawing_format(args.out)  # .png, .pdf or .svg, before any work too
     scene = _scene(args.scene)
     path = write_drawing(scene, target)
     print(f"wrote {path}")

@@ -332,14 +332,14 @@ def write_drawing(scene, path: str | Path) -> Path:
     returns the path written."""
     from .output import write_folder
 
-    fmt = drawing_format(path)
+    drawing_format(path)
     target = Path(path).absolute()
-    return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p, fmt)}, flag="--out")[0]
+    return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
 
 
-def draw_scene(scene, path: str | Path, fmt: str = "png") -> None:
+def draw_scene(scene, path: str | Path) -> None:
     """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into ``path``, in the
-    format ``fmt`` (:data:`DRAWING_FORMATS`).
+    format its suffix names (:data:`DRAWING_FORMATS`).
 
     The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
     sign per loop, ``scene.mode``) and gravity.
@@ -355,7 +355,7 @@ def draw_scene(scene, path: str | Path, fmt: str = "png") -> None:
                else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
     ax.set_title(f"{plots.short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
                  f"mode {mode_text(scene.mode)}{gravity}", **plots.PLAIN)
-    plots._save(fig, Path(path), fmt)
+    plots._save(fig, Path(path))
 
 
 # -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----

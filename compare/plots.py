@@ -111,10 +111,11 @@ def plain_log_axis(axis) -> None:
     axis.set_minor_formatter(Plain(axis.get_minor_formatter()))
 
 
-def _save(fig, path: Path, fmt: str = "png") -> None:
-    """Render ``fig`` once into ``path`` (at :data:`DPI`) in the format ``fmt`` (png, pdf, svg).
-    PNG at zlib level 1: a third less time compressing than the default 6, for files ~6 %
-    larger (plots are mostly white)."""
+def _save(fig, path: Path) -> None:
+    """Render ``fig`` once into ``path`` (at :data:`DPI`) in the format its suffix names (png,
+    or pdf and svg for ``xval draw``). PNG at zlib level 1: a third less time compressing than
+    the default 6, for files ~6 % larger (plots are mostly white)."""
+    fmt = Path(path).suffix.lower().lstrip(".")
     fig.savefig(path, dpi=DPI, format=fmt, **({"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}))
 
 
