@@ -879,6 +879,7 @@ class _Journal:
                           "sweep cannot be resumed")
             self.file = None
         self.writer = csv.writer(self.file) if self.file else None
+        self.written = 0
 
     def _truncate_partial_line(self) -> None:
         with open(self.path, "rb+") as f:
@@ -902,11 +903,14 @@ class _Journal:
         if self.writer:
             self.writer.writerow(cells)
             self.file.flush()
+            self.written += 1
 
     def close(self, done: bool) -> None:
+        """Close the journal; remove it when the sweep's files are committed, or when it holds
+        no row (a sweep stopped before its first one leaves nothing to resume)."""
         if self.file:
             self.file.close()
-        if done:
+        if done or (self.file and not self.replayed and not self.written):
             with contextlib.suppress(OSError):
                 os.unlink(self.path)
 

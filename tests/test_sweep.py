@@ -254,6 +254,10 @@ def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path,
     status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
     assert status == 130 and "interrupted" in err
     assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
+    assert len(sweep_module.journal_path(out).read_text().splitlines()) == 2 + 1  # variant 0's row, beside
+    monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
+    assert status == 130 and not sweep_module.journal_path(out).exists()  # no row: no journal left
 
 
 def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypatch):
