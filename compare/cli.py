@@ -23,11 +23,14 @@ from typing import TYPE_CHECKING
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
 from reduced.errors import NumericalFailure
-from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, SceneError
+from reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
+                           REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
+                           SceneError)
 from reduced.scenefile import default_scene_path, load_scene
 
-from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, OutputError, Terminated, check_file, check_folder,
-                     signals_as_exceptions, write_file)
+from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
+                     check_folder, signals_as_exceptions, write_file)
 from .sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
@@ -162,28 +165,42 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 
 def cmd_draw(args: argparse.Namespace) -> int:
-    from .draw import write_drawing
+    from .draw import drawing_format, write_drawing
 
     target = check_file(args.out, flag="--out")  # before any work
+    drawing_format(args.out)  # .png, .pdf or .svg, before any work too
     scene = _scene(args.scene)
     path = write_drawing(scene, target)
     print(f"wrote {path}")
     return EXIT_OK
 
 
+def _rtol_defaults() -> str:
+    """The reduced methods' default tolerances, e.g. ``1e-12 (dop853, radau, scipy-dop853), 1e-05 (rkn4)``."""
+    by_value: dict[float, list[str]] = {}
+    for method in REDUCED_METHODS:
+        by_value.setdefault(REDUCED_DEFAULT_RTOL[method], []).append(method)
+    return ", ".join(f"{value:g} ({', '.join(sorted(methods))})" for value, methods in by_value.items())
+
+
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
+    # Every default printed here is the settings' own (reduced.scene holds the values).
     g = p.add_argument_group("MuJoCo settings")
     g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
-                   help="MuJoCo integrator (default: the scene's [mujoco] table, else rk4)")
+                   help=f"MuJoCo integrator (default: the scene's [mujoco] table, else {MUJOCO_DEFAULT_INTEGRATOR})")
     g.add_argument("--timestep", type=_positive, default=None,
-                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else 1e-3)")
+                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else chosen from the scene: "
+                        "load edges on the step grid, confirmed by step halving)")
     g.add_argument("--solref", type=_finite, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
                    help="loop constraint solref (default: 2*timestep, 1)")
     g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
-                   default=None, help="loop constraint solimp (default 0.9999 0.9999 0.001 0.5 2)")
+                   default=None, help="loop constraint solimp (default "
+                                      f"{' '.join(f'{v:g}' for v in MUJOCO_DEFAULT_SOLIMP)})")
     g.add_argument("--iterations", type=_int_in(1, MUJOCO_MAX_ITERATIONS), default=None,
-                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} (default 100)")
-    g.add_argument("--tolerance", type=_positive, default=None, help="constraint solver tolerance (default 1e-12)")
+                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} "
+                        f"(default {MUJOCO_DEFAULT_ITERATIONS})")
+    g.add_argument("--tolerance", type=_positive, default=None,
+                   help=f"constraint solver tolerance (default {MUJOCO_DEFAULT_TOLERANCE:g})")
     g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
                    help="disable refsafe (allows solref time constants below 2*timestep)")
     g.add_argument("--diagexact", action="store_const", const=True, default=None,
@@ -208,7 +225,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
-    check_folder(args.out, report_files(animate))  # before any work (and before MuJoCo is loaded)
+    check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
     from .run import compare_engines
 
     scene = _scene(args.scene)
@@ -247,7 +264,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 def cmd_cost(args: argparse.Namespace) -> int:
     from .cost import COST_FILES, study, summary_lines, write_cost_outputs
 
-    check_folder(args.out, COST_FILES)  # before any work
+    check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
     scene = _scene(args.scene)
     _announce_compilation()
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
@@ -265,7 +282,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
-    check_folder(args.out, STRESS_FILES)  # before any work
+    check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
     _announce_compilation()
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
@@ -301,7 +318,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.engines is not None:  # the flag overrides the table's engines only when given
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
-    check_folder(args.out, sweep_files(spec, args.keep_trajectories))
+    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
+    if args.resume:
+        from .sweep import journaled_rows
+
+        if args.keep_trajectories:
+            raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
+        journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
     client = None
     if args.scheduler is not None:
         from .sweep import connect
@@ -317,7 +340,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
             found = [s.as_dict() for s in items]
         summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
-                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client)
+                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
+                                   resume=args.resume)
     finally:
         if client is not None:
             client.close()
@@ -329,11 +353,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reduced reference")
     g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
-                   help="reduced solver used as the reference (default: the scene's [reduced] table, else dop853)")
+                   help="reduced solver used as the reference (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_METHOD})")
     g.add_argument("--reference-rtol", type=_positive, default=None,
-                   help="tolerance of an adaptive reference (default 1e-12)")
+                   help="accuracy requested of the reference (default: the scene's [reduced] table, else "
+                        f"{_rtol_defaults()})")
     g.add_argument("--reference-step", type=_positive, default=None,
-                   help="step of an rkn4 reference in s (default 1e-3)")
+                   help="step of an rkn4 reference in s (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_STEP:g})")
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
@@ -370,11 +397,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=REDUCED_METHODS, default=None,
                    help="adaptive DOP853 or fixed-step RKN4 (both compiled), implicit Radau, or scipy's "
                         "DOP853 on the same equation as a cross-check (default: the scene's [reduced] "
-                        "table, else dop853)")
+                        f"table, else {REDUCED_DEFAULT_METHOD})")
     p.add_argument("--rtol", type=_positive, default=None,
-                   help="tolerance of adaptive methods (default: the scene's, else the method's)")
+                   help=f"accuracy requested (default: the scene's, else {_rtol_defaults()})")
     p.add_argument("--step", type=_positive, default=None,
-                   help="step of RKN4 in s (default: the scene's, else the method's)")
+                   help=f"step of RKN4 in s (default: the scene's, else {REDUCED_DEFAULT_STEP:g})")
     p.set_defaults(func=cmd_reduced)
 
     p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
@@ -393,13 +420,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
 
-    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG)",
+    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
                        description="Draw the scene's linkage assembled at q0 in its assembly mode: "
                                    "bodies, revolute and prismatic joints, ground pivots, dampers, "
                                    "springs, point forces and centres of mass, labelled, lengths in m. "
                                    "Check a scene's geometry before running it.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="linkage.png", help="PNG file to write (default ./linkage.png)")
+    p.add_argument("--out", default="linkage.png",
+                   help="file to write, in the format its suffix names: .png, .pdf or .svg (default ./linkage.png)")
     p.set_defaults(func=cmd_draw)
 
     p = sub.add_parser("run", help="run both engines, compare, write report and plots",
@@ -465,7 +493,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "and print a summary. With --engines reduced, only the reduced solver runs "
                                    "(its own error and energy checks, no MuJoCo, no gate). Variants that cannot be "
                                    "assembled (invalid) or whose engines fail numerically (failed) are counted "
-                                   "rows. Exit 1 if any variant fails the gate or numerically, 2 on bad input "
+                                   "rows. Exit 1 if any variant fails the gate or numerically or none is valid, 2 on bad input "
                                    "(checked before any run).")
     _add_scene_argument(p)
     p.add_argument("--vary", action="append", metavar="KEY=SPEC",
@@ -496,6 +524,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-trajectories", action="store_true",
                    help="also write trajectories.csv, every variant's input trajectory from both engines "
                         "(for small sweeps)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted sweep: the rows it finished, kept in the journal beside --out "
+                        "(OUT.sweep-journal.csv, removed when a sweep completes), are not run again; the scene "
+                        "file, keys, values and engines must be the same. Not with --keep-trajectories")
     p.add_argument("--sensitivity", action="store_true",
                    help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
@@ -537,8 +569,9 @@ def _progress_shown():
 
 def main(argv: list[str] | None = None) -> int:
     """Run one ``xval`` command; return its exit status (see the module docstring)."""
+    received: list[int] = []
     try:
-        with signals_as_exceptions(), warnings.catch_warnings():
+        with signals_as_exceptions() as received, warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
             warnings.showwarning = _show_warning
             try:
@@ -547,25 +580,36 @@ def main(argv: list[str] | None = None) -> int:
                 return exc.code if isinstance(exc.code, int) else EXIT_OK
             with _progress_shown():
                 return args.func(args)
-    except NumericalFailure as exc:
+    except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on
+        return _failure(exc, received)
+
+
+def _failure(exc: BaseException, received: list[int]) -> int:
+    """Print the one line of what ended the command and return its exit status; raise what is
+    not an expected failure (a bug: its traceback). A signal received decides, whatever became
+    of its exception (a module interrupted while loading raises ImportError)."""
+    import signal
+
+    if isinstance(exc, KeyboardInterrupt) or (received and received[0] == signal.SIGINT):
+        print("xval: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if isinstance(exc, Terminated) or received:
+        print("xval: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    if isinstance(exc, NumericalFailure):
         print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
-    except (SceneError, UsageError, OutputError, ValueError) as exc:
+    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError)):
         print(f"xval: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except BrokenPipeError:  # output piped into e.g. `head`
+    if isinstance(exc, BrokenPipeError):  # output piped into e.g. `head`
         sys.stderr.close()
         return EXIT_OK
-    except OSError as exc:  # e.g. the disk filled up while writing: the outputs are as they were
+    if isinstance(exc, OSError):  # e.g. the disk filled up while writing: the outputs are as they were
         where = f"'{exc.filename}': " if exc.filename else ""
         print(f"xval: error: {where}{exc.strerror or _one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("xval: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Terminated:
-        print("xval: terminated", file=sys.stderr)
-        return EXIT_TERMINATED
+    raise exc
 
 
 if __name__ == "__main__":

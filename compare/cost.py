@@ -302,7 +302,7 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
         "cost.csv": write_csv,
         "cost.json": lambda p: p.write_text(json_text(report), encoding="utf-8"),
     }
-    return write_folder(out_dir, files)
+    return write_folder(out_dir, files, one_run=True)
 
 
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:

@@ -343,17 +343,36 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     return artists
 
 
+DRAWING_FORMATS = ("png", "pdf", "svg")  # what ``xval draw --out`` writes, named by the file's suffix
+
+
+def drawing_format(path: str | Path, flag: str = "--out") -> str:
+    """The format the suffix of ``path`` names (one of :data:`DRAWING_FORMATS`, any case);
+    OutputError (exit status 2) for any other suffix, before any work."""
+    from .output import OutputError
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in DRAWING_FORMATS:
+        shown = f"'.{suffix}'" if suffix else "no suffix"
+        raise OutputError(f"{flag} '{path}': a drawing is written as "
+                          f"{', '.join('.' + f for f in DRAWING_FORMATS)} (its suffix names the format), got {shown}")
+    return suffix
+
+
 def write_drawing(scene, path: str | Path) -> Path:
-    """``xval draw``: :func:`draw_scene` into the file ``path`` through the atomic writer
-    (:func:`compare.output.write_folder`); returns the path written."""
+    """``xval draw``: :func:`draw_scene` into the file ``path``, in the format its suffix names
+    (:func:`drawing_format`), through the atomic writer (:func:`compare.output.write_folder`);
+    returns the path written."""
     from .output import write_folder
 
+    drawing_format(path)
     target = Path(path).absolute()
     return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
 
 
 def draw_scene(scene, path: str | Path) -> None:
-    """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into the PNG ``path``.
+    """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into ``path``, in the
+    format its suffix names (:data:`DRAWING_FORMATS`).
 
     The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
     sign per loop, ``scene.mode``) and gravity.

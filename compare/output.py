@@ -4,7 +4,8 @@ Guarantees
 ----------
 Checked before any work (:func:`check_folder`, :func:`check_file`): an empty name, a name
 longer than the file system allows, a folder whose parent does not exist, is not a folder
-or cannot be written, a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
+or cannot be written (tried: a staging folder is made and removed there, since ``os.access``
+says yes to root in /proc or /sys), a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
 existing output that is not a regular file (a symbolic link, a device node, a folder) are
 refused with :class:`OutputError` (a ``ValueError``: exit status 2) naming the path.
 
@@ -28,6 +29,10 @@ Written all-or-nothing (:func:`write_folder`, :func:`write_file`):
   right after it, so an interrupted commit still leaves one complete set.
 - Only regular files are replaced: an existing symbolic link, device node, FIFO or folder at
   a target is refused, never renamed over.
+- An ``--out`` folder holds one run (``write_folder(one_run=True)``): the set carries a
+  manifest (:data:`MANIFEST_FILE`), and the regular files the previous run's manifest lists
+  that the new set lacks (a ``mechanism.gif`` from a run with ``--animate``) are removed in
+  the same commit, rolled back with it. A file no manifest lists (the user's) is never removed.
 
 Not covered: SIGKILL or a power cut while staging can leave a ``.xval-stage-*`` folder (the
 outputs themselves are still either old or new); files are not fsync'ed.
@@ -52,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 STAGING_PREFIX = ".xval-stage-"
+MANIFEST_FILE = "xval-manifest.txt"  # in an --out folder: the names the run that wrote it wrote
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM
 
 
@@ -94,6 +100,19 @@ def _check_parent(parent: Path, flag: str, shown: str) -> None:
         raise OutputError(f"{flag} {shown}: '{parent}' is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{flag} {shown}: cannot write in '{parent}' (permission denied or read-only)")
+    _probe(parent, flag, shown)
+
+
+def _probe(folder: Path, flag: str, shown: str) -> None:
+    """Create and remove a staging-named folder in ``folder``: what writing there needs first.
+    ``os.access`` says yes to root in /proc or /sys, and on some read-only mounts; this does not."""
+    with _signals_blocked():  # never left behind
+        try:
+            probe = tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=folder)
+        except OSError as exc:
+            raise OutputError(f"{flag} {shown}: cannot write in '{folder}' "
+                              f"({exc.strerror or exc})") from None
+        os.rmdir(probe)
 
 
 def _refuse_non_regular(target: Path, flag: str) -> None:
@@ -138,6 +157,7 @@ def _check_folder(out: Path, names: Iterable[str], flag: str) -> Path:
                               else f"{flag} {shown} is not a folder")
         if not os.access(out, os.W_OK | os.X_OK):
             raise OutputError(f"{flag} {shown}: cannot write in it (permission denied or read-only)")
+        _probe(out, flag, shown)
         for name in names:
             _refuse_non_regular(out / name, flag)
     else:
@@ -174,42 +194,57 @@ def _check_file(target: Path, text: str, flag: str) -> Path:
 # ---------------------------------------------------------------------------- signals
 
 @contextlib.contextmanager
-def signals_as_exceptions() -> Iterator[None]:
+def signals_as_exceptions() -> Iterator[list[int]]:
     """For the duration of the block, SIGTERM raises :class:`Terminated` and SIGINT
     ``KeyboardInterrupt`` (so clean-ups run); the previous handlers are restored after.
-    A signal that is ignored when the block starts stays ignored.
+    A signal that is ignored when the block starts stays ignored. Yields the list of the
+    signals received, in order: code that turns the exception into another one (a C
+    extension interrupted while it is imported raises ImportError) cannot hide the signal.
 
     Does nothing outside the main thread (Python only handles signals there).
     """
+    received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
 
     def terminate(signum, frame):
+        received.append(signum)
         raise Terminated()
 
-    wanted = {signal.SIGTERM: terminate, signal.SIGINT: signal.default_int_handler}
+    def interrupt(signum, frame):
+        received.append(signum)
+        signal.default_int_handler(signum, frame)
+
+    wanted = {signal.SIGTERM: terminate, signal.SIGINT: interrupt}
     # A signal the caller chose to ignore (``nohup``, a background job) stays ignored.
     previous = {s: signal.signal(s, handler) for s, handler in wanted.items()
                 if signal.getsignal(s) is not signal.SIG_IGN}
     try:
-        yield
+        yield received
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
 
+class _Abandoned(BaseException):
+    """A commit undone because SIGINT or SIGTERM came during it (the held signal then raises)."""
+
+
 @contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM for a short critical section, then deliver them."""
+def _signals_held() -> Iterator[list[int]]:
+    """Hold SIGINT and SIGTERM for a short critical section, then deliver them. Yields the list
+    of the signals held so far (the ones not ignored), so that the section can undo its work."""
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield []
         return
     pending: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.getsignal(s) for s in _HANDLED}
+    for s, handler in previous.items():
+        if handler is not signal.SIG_IGN:
+            signal.signal(s, lambda signum, frame: pending.append(signum))
     try:
-        yield
+        yield pending
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -239,8 +274,33 @@ def _locked(folder: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
-def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str) -> None:
-    """Move ``content/name`` over ``out/name`` for every name, all or none (see module notes)."""
+def _previous_run(out: Path) -> list[str]:
+    """The files the previous run wrote into ``out`` (its manifest), that this run may remove:
+    plain names of regular files that are there now. No manifest, or an unreadable one: none."""
+    try:
+        if not stat.S_ISREG(os.lstat(out / MANIFEST_FILE).st_mode):
+            return []
+        listed = (out / MANIFEST_FILE).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+    names = []
+    for name in listed:
+        if (not name or name in (".", "..", MANIFEST_FILE) or "/" in name or os.sep in name or "\0" in name
+                or name.startswith(STAGING_PREFIX)):
+            continue
+        try:
+            if stat.S_ISREG(os.lstat(out / name).st_mode):
+                names.append(name)
+        except OSError:
+            continue
+    return names
+
+
+def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str,
+             stale: Iterable[str] = (), held: list[int] | None = None) -> None:
+    """Move ``content/name`` over ``out/name`` for every name and set the ``stale`` files of
+    ``out`` aside, all or none (see module notes); undone if ``held`` (signals that came
+    meanwhile) is not empty at the end."""
     for name in names:  # nothing is replaced if any target is not a regular file
         _refuse_non_regular(out / name, flag)
     backup.mkdir()
@@ -253,6 +313,11 @@ def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str
             moved.append([name, had_old, False])
             os.replace(content / name, out / name)
             moved[-1][2] = True
+        for name in stale:  # removed with the staging folder once the set is in place
+            os.replace(out / name, backup / name)
+            moved.append([name, True, False])
+        if held:
+            raise _Abandoned()
     except BaseException:
         for name, had_old, placed in reversed(moved):  # put back what was there
             with contextlib.suppress(OSError):
@@ -263,52 +328,127 @@ def _swap_in(content: Path, backup: Path, out: Path, names: list[str], flag: str
         raise
 
 
-# The set being staged, for the forked writers of write_folder(workers > 1): a child inherits it.
-_STAGED: tuple[Mapping[str, Callable[[Path], None]], Path] | None = None
+_HANDLED = (signal.SIGINT, signal.SIGTERM)
+_ERROR_LIMIT = 32_768  # bytes of a child's pickled exception (a pipe holds 64 KiB: the child never blocks)
 
 
-def _write_staged(name: str) -> BaseException | None:
-    """Run the writer of ``name`` of the set being staged (in a forked child); what it raised,
-    returned (a pool's worker would die of a BaseException, and its task never end)."""
-    files, content = _STAGED
+@contextlib.contextmanager
+def _signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked (kept pending by the kernel) for the block, then unblocked:
+    a signal that came meanwhile is handled right after it (by this process's handler)."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _HANDLED)
     try:
-        files[name](content / name)
-    except BaseException as exc:  # noqa: BLE001 - raised again in the parent
-        return exc
-    return None
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _fork_writer(files: Mapping[str, Callable[[Path], None]], names: list[str], content: Path,
+                 children: dict[int, int]) -> None:
+    """Fork a child that runs the writers of ``names`` into ``content``, and record it in
+    ``children`` (its pid: the read end of a pipe on which it reports what it raised) before
+    any signal can interrupt this process, so that the caller always reaps it. The child
+    starts with SIGINT and SIGTERM blocked, sets both to their default action (a signal to the process group kills it: the
+    parent handles the signal and cleans up) and only then unblocks them, so no signal ever
+    runs this process's handlers in the child; it leaves by ``os._exit``, running none of the
+    parent's clean-ups."""
+    import pickle
+
+    # Held (this process's handlers only record a signal) and blocked (the kernel keeps it
+    # pending): a signal cannot raise between the fork and the child's registration.
+    with _signals_held(), _signals_blocked():
+        read_end, write_end = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child
+            status = 1
+            try:
+                os.close(read_end)
+                for signum in _HANDLED:
+                    signal.signal(signum, signal.SIG_DFL)
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, _HANDLED)
+                for name in names:
+                    files[name](content / name)
+                status = 0
+            except BaseException as exc:  # noqa: BLE001 - reported to the parent
+                try:
+                    data = pickle.dumps(exc)
+                    if len(data) > _ERROR_LIMIT:
+                        raise ValueError("too long")
+                except Exception:  # noqa: BLE001 - an exception that does not pickle: its text
+                    data = pickle.dumps(RuntimeError(f"{type(exc).__name__}: {exc}"[:1000]))
+                with contextlib.suppress(OSError):
+                    os.write(write_end, data)
+            finally:
+                os._exit(status)
+        children[pid] = read_end
+        os.close(write_end)
+
+
+def _child_outcome(pid: int, status: int, read_end: int) -> BaseException | None:
+    """What a reaped writer child ended with: None (it wrote its files) or the exception to raise."""
+    import pickle
+
+    data = b""
+    while chunk := os.read(read_end, 65536):
+        data += chunk
+    if os.WIFSIGNALED(status):
+        signum = os.WTERMSIG(status)
+        return (KeyboardInterrupt() if signum == signal.SIGINT else Terminated() if signum == signal.SIGTERM
+                else RuntimeError(f"a file writer (process {pid}) died of signal {signum}"))
+    if os.WEXITSTATUS(status) == 0:
+        return None
+    try:
+        return pickle.loads(data)
+    except Exception:  # noqa: BLE001
+        return RuntimeError(f"a file writer (process {pid}) failed with exit status {os.WEXITSTATUS(status)}")
 
 
 def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, workers: int) -> None:
     """Every writer, into ``content``. With ``workers`` > 1 (and fork available, and not in a
-    pool's daemon worker, which may have no children) every other writer runs in a forked
-    child process while this one runs the rest: the plots of a run are independent and cost
-    ~0.1 s each. A child's exception is raised here; an exception here ends the children."""
-    global _STAGED
+    pool's daemon worker, which may have no children) ``workers`` - 1 forked child processes
+    (:func:`_fork_writer`) share the writers with this one: the plots of a run are independent
+    and cost ~0.1 s each. A child's exception is raised here. Whatever ends this process's part
+    (an exception, Ctrl-C, SIGTERM), every child still running is killed and reaped, with
+    SIGINT and SIGTERM held meanwhile, before the exception goes on: no child outlives it."""
     import multiprocessing
 
     names = list(files)
-    if (workers < 2 or len(names) < 2 or "fork" not in multiprocessing.get_all_start_methods()
-            or multiprocessing.current_process().daemon):
+    if workers < 2 or len(names) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon:
         for name in names:
             files[name](content / name)
         return
-    from .pool import worker_pool
-
-    _STAGED = (files, content)
+    workers = min(workers, len(names))
+    children: dict[int, int] = {}  # pid -> read end of its pipe
     try:
-        with worker_pool(workers - 1, start_method="fork") as pool:
-            theirs = pool.map_async(_write_staged, names[1::2], chunksize=1)
-            for name in names[0::2]:
-                files[name](content / name)
-            for error in theirs.get():
-                if error is not None:
-                    raise error
+        for k in range(1, workers):
+            _fork_writer(files, names[k::workers], content, children)
+        for name in names[0::workers]:
+            files[name](content / name)
+        while children:
+            pid = next(iter(children))
+            _, status = os.waitpid(pid, 0)
+            read_end = children.pop(pid)
+            try:
+                error = _child_outcome(pid, status, read_end)
+            finally:
+                os.close(read_end)
+            if error is not None:
+                raise error
     finally:
-        _STAGED = None
+        with _signals_blocked():
+            for pid, read_end in children.items():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                with contextlib.suppress(ChildProcessError):
+                    os.waitpid(pid, 0)
+                os.close(read_end)
 
 
 def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
-                 flag: str = "--out", workers: int = 1) -> list[Path]:
+                 flag: str = "--out", workers: int = 1, one_run: bool = False) -> list[Path]:
     """Write a set of files into the folder ``path``, all or nothing.
 
     Parameters
@@ -317,6 +457,10 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
     files : file name -> function that writes that file at the path it is given (a staging
         path, not the final one). Files are committed in this order.
     workers : how many processes write the files (:func:`_run_writers`); 1, here only.
+    one_run : the folder holds one run's outputs (an ``--out`` folder): the set is written with
+        its manifest (:data:`MANIFEST_FILE`, one name a line), and the files the previous run's
+        manifest lists that this set does not contain are removed in the same commit (a
+        failure puts them back). Files no manifest lists are never touched.
 
     Returns
     -------
@@ -330,31 +474,46 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
     is then exactly as it was.
     """
     names = list(files)
+    if one_run:
+        if MANIFEST_FILE in names:
+            raise ValueError(f"{MANIFEST_FILE} is written by write_folder itself")
+        names.append(MANIFEST_FILE)
     out = check_folder(path, names, flag=flag)
     existed = out.is_dir()
-    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
+    staging = None
     try:
+        with _signals_blocked():  # a signal now comes once staging is set, and so is cleaned up
+            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
         content = staging / "set"
         content.mkdir()
         _run_writers(files, content, workers)
+        if one_run:
+            (content / MANIFEST_FILE).write_text("".join(f"{n}\n" for n in files), encoding="utf-8")
         for name in names:
             if not (content / name).is_file():
                 raise RuntimeError(f"the writer of {name} produced no file")
-        with _signals_held():
+        with _signals_held() as held:  # a signal that comes during the commit undoes it
             if not existed:
                 try:
                     os.rename(content, out)  # the whole set appears at once
-                    return [out / name for name in names]
                 except OSError as exc:  # the folder appeared meanwhile: swap file by file
                     if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
                         raise
+                else:
+                    if held:
+                        os.rename(out, content)
+                        raise _Abandoned()
+                    return [out / name for name in files]
                 if not out.is_dir():
                     raise OutputError(f"{flag} '{out}' appeared meanwhile and is not a folder")
             with _locked(out):
-                _swap_in(content, staging / "replaced", out, names, flag)
+                stale = [n for n in _previous_run(out) if n not in names] if one_run else []
+                _swap_in(content, staging / "replaced", out, names, flag, stale, held)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return [out / name for name in names]
+        if staging is not None:
+            with _signals_blocked():  # a second signal does not cut the clean-up short
+                shutil.rmtree(staging, ignore_errors=True)
+    return [out / name for name in files]
 
 
 def write_file(path: str | os.PathLike, text: str, *, flag: str = "-o") -> Path:

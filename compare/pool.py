@@ -1,5 +1,5 @@
-"""Process pools of the studies (``xval cost``, ``xval sweep``) and of a run's files
-(``compare.output.write_folder``): the workers ended with the parent."""
+"""Process pools of the studies (``xval cost``, ``xval sweep``): the workers ended with the
+parent. (A run's file writers are forked by ``compare.output.write_folder`` itself.)"""
 
 from __future__ import annotations
 

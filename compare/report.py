@@ -249,4 +249,4 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
         files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.diagnostics["joints"],
                                                       c.mujoco.diagnostics["joints"], p)
     files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names)), encoding="utf-8")
-    return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1))
+    return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True)

@@ -279,4 +279,5 @@ def write_stress(results: list[CaseResult], out_dir) -> list:
 
     data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
              "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
-    return write_folder(out_dir, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")})
+    return write_folder(out_dir, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")},
+                        one_run=True)

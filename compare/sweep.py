@@ -54,6 +54,7 @@ made from the staged ``sweep.csv`` read back row by row.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
@@ -237,9 +238,8 @@ def chunk_size(n: int, workers: int) -> int:
     return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
 
 
-def _chunks(spec: SweepSpec, size: int) -> Iterator[tuple[int, list[dict[str, float]]]]:
-    it = variant_values(spec)
-    start = 0
+def _chunks(spec: SweepSpec, size: int, start: int = 0) -> Iterator[tuple[int, list[dict[str, float]]]]:
+    it = itertools.islice(variant_values(spec), start, None)
     while True:
         chunk = list(itertools.islice(it, size))
         if not chunk:
@@ -270,6 +270,55 @@ def require_dask() -> None:
         raise SchedulerError(f"--scheduler needs Dask, which is not installed: {DASK_EXTRA}") from None
 
 
+HANDSHAKE_MAX_BYTES = 1 << 20  # a Dask handshake is ~100 bytes; more is some other service's data
+
+
+def _probe_scheduler(address: str, host: str, port: int, deadline: float, timeout: float) -> None:
+    """Refuse a TCP address that is not a Dask scheduler before Dask talks to it, by ``deadline``.
+
+    A Dask server sends its handshake as soon as it accepts a connection: an 8-byte length,
+    then that many bytes. Dask's own client waits for it without a time limit (a silent
+    service hung ``xval sweep`` for 681 s) and allocates whatever length it reads (an HTTP
+    server's reply made it a MemoryError). Here the wait is bounded and the length checked."""
+    import socket
+    import struct
+
+    def fail(why: str):
+        return SchedulerError(f"--scheduler {address}: {why}")
+
+    def left() -> float:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise fail(f"no Dask scheduler there (no handshake within {timeout:g} s)")
+        return remaining
+
+    def read(sock, n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            sock.settimeout(left())
+            try:
+                chunk = sock.recv(n - len(data))
+            except socket.timeout:
+                continue  # left() raises once the deadline has passed
+            if not chunk:
+                raise fail("not a Dask scheduler (the service closed the connection)")
+            data += chunk
+        return data
+
+    try:
+        sock = socket.create_connection((host, port), timeout=left())
+    except OSError as exc:
+        raise fail(f"cannot connect ({exc.strerror or ' '.join(str(exc).split())})") from None
+    with sock:
+        try:
+            (size,) = struct.unpack("<Q", read(sock, 8))
+            if not 0 < size <= HANDSHAKE_MAX_BYTES:
+                raise fail("not a Dask scheduler (it did not answer with a Dask handshake)")
+            read(sock, size)
+        except OSError as exc:
+            raise fail(f"cannot connect ({exc.strerror or ' '.join(str(exc).split())})") from None
+
+
 def connect(address: str, timeout: float | None = None):
     """A :class:`distributed.Client` of the scheduler at ``address`` with at least one worker,
     or :class:`SchedulerError` within about ``timeout`` seconds (default :data:`CONNECT_TIMEOUT_S`)."""
@@ -279,12 +328,15 @@ def connect(address: str, timeout: float | None = None):
     from distributed.comm import get_address_host_port
 
     try:  # a malformed address first: a Client that fails on one hangs in its __del__
-        get_address_host_port(address)
+        host, port = get_address_host_port(address)
     except ValueError as exc:
         raise SchedulerError(f"--scheduler {address}: not a scheduler address like tcp://host:8786 "
                              f"({' '.join(str(exc).split())})") from None
+    deadline = time.monotonic() + timeout
+    if address.startswith("tcp://") or "://" not in address:
+        _probe_scheduler(address, host, port, deadline, timeout)
     try:
-        client = Client(address, timeout=timeout, set_as_default=False)
+        client = Client(address, timeout=max(deadline - time.monotonic(), 1.0), set_as_default=False)
     except Exception as exc:  # noqa: BLE001 - OSError, TimeoutError...
         raise SchedulerError(f"--scheduler {address}: cannot connect "
                              f"({type(exc).__name__}: {' '.join(str(exc).split())})") from None
@@ -346,14 +398,17 @@ def _dask_rows(client, data: Mapping[str, Any], source: str, keep: bool, engines
 
 
 def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
-             keep_trajectories: bool = False, client=None) -> Iterator[dict[str, Any]]:
-    """Every variant's row, in variant order, as they complete (``workers`` processes, or with
-    ``client`` the Dask cluster's worker threads: the same chunks become Dask tasks)."""
-    n = count(spec)
+             keep_trajectories: bool = False, client=None, start: int = 0) -> Iterator[dict[str, Any]]:
+    """Every variant's row from variant ``start`` on, in variant order, as they complete
+    (``workers`` processes, or with ``client`` the Dask cluster's worker threads: the same
+    chunks become Dask tasks)."""
+    n = count(spec) - start
+    if n <= 0:
+        return
     if client is not None:
         workers = dask_threads(client)
     size = chunk_size(n, workers)
-    tasks = _chunks(spec, size)
+    tasks = _chunks(spec, size, start)
     if client is not None:
         yield from _dask_rows(client, data, source, keep_trajectories, spec.engines, tasks,
                               CHUNKS_IN_FLIGHT * workers)
@@ -412,8 +467,14 @@ class Summary:
                 self.peak_extremes["highest"] = entry
 
     @property
+    def none_valid(self) -> bool:
+        """No variant could be assembled: the sweep checked nothing."""
+        return self.total > 0 and self.counts["invalid"] == self.total
+
+    @property
     def failed_any(self) -> bool:
-        return bool(self.counts["gate_failed"] or self.counts["failed"])
+        """A variant failed the gate or numerically, or none was valid (exit status 1)."""
+        return bool(self.counts["gate_failed"] or self.counts["failed"]) or self.none_valid
 
     def as_dict(self) -> dict[str, Any]:
         return {"variants": self.total, "engines": self.engines, "counts": dict(self.counts), "worst": self.worst,
@@ -445,6 +506,8 @@ def summary_lines(summary: Summary) -> list[str]:
     else:
         lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
                  f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+    if summary.none_valid:
+        lines.append("no variant is valid: the sweep checked nothing (sweep.csv's reason column says why)")
     w = summary.worst
     if w is not None:
         lines.append(f"worst variant: #{w['index']} ({_values_text(w['values'])}): peak-omega difference "
@@ -690,7 +753,10 @@ class _Progress:
 
 
 def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
-            summary: Summary, progress: Callable | None) -> None:
+            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None,
+            replayed: int = 0) -> None:
+    """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row
+    after the first ``replayed`` (read back from the journal) also goes to ``journal``."""
     cols = columns(spec)
     traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
     try:
@@ -700,9 +766,12 @@ def _stream(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, tra
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
             writer.writerow(cols)
-            for row in rows:
+            for i, row in enumerate(rows):
                 trajectories = row.pop("_trajectories", None)
-                writer.writerow([_cell(row.get(k)) for k in cols])
+                cells = [_cell(row.get(k)) for k in cols]
+                writer.writerow(cells)
+                if journal and i >= replayed:
+                    journal(cells)
                 if tw and trajectories:
                     for engine, samples in trajectories.items():
                         tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
@@ -732,14 +801,145 @@ def _write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summar
         f.write("\n  ]\n}\n")
 
 
+# -- the journal of finished rows, and the estimate of a long sweep ------------------------
+
+JOURNAL_SUFFIX = ".sweep-journal.csv"
+JOURNAL_MAGIC = "# xval sweep journal "
+LONG_SWEEP_S = 600.0  # a sweep estimated to take longer says so (one warning line) before it runs on
+
+
+class JournalError(ValueError):
+    """--resume without a journal of this very sweep beside --out (exit status 2)."""
+
+
+def journal_path(out: str | os.PathLike) -> Path:
+    """The journal of a sweep into ``out``: beside it, never inside (``<out>.sweep-journal.csv``)."""
+    folder = Path(os.path.abspath(out))
+    return folder.parent / f"{folder.name}{JOURNAL_SUFFIX}"
+
+
+def _identity(data: Mapping[str, Any], spec: SweepSpec) -> str:
+    """A digest of what decides a sweep's rows: the scene data and the specification."""
+    import hashlib
+
+    text = json.dumps({"data": data, "spec": repr(spec)}, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def journaled_rows(out: str | os.PathLike, data: Mapping[str, Any], spec: SweepSpec) -> int:
+    """How many rows the journal beside ``out`` holds for this sweep (checked before any work).
+
+    Raises
+    ------
+    JournalError
+        No journal, or the journal of another sweep (scene, keys, values or engines differ).
+    """
+    path = journal_path(out)
+    try:
+        with open(path, encoding="utf-8", newline="") as f:
+            first = f.readline()
+            if first != f"{JOURNAL_MAGIC}{_identity(data, spec)}\n":
+                raise JournalError(f"--resume: {path} is the journal of another sweep (its scene file, keys, values "
+                                   "or engines differ): run without --resume to start afresh")
+            return sum(1 for _ in _complete_rows(f)) if f.readline() else 0
+    except FileNotFoundError:
+        raise JournalError(f"--resume: no journal {path} of an interrupted sweep into "
+                           f"{os.fspath(out)!r}: nothing to resume") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise JournalError(f"--resume: cannot read {path}: {exc}") from None
+
+
+def _complete_rows(f) -> Iterator[str]:
+    """The complete lines (the last one, cut by a kill, is not) of the journal after its header."""
+    for line in f:
+        if line.endswith("\n"):
+            yield line
+
+
+class _Journal:
+    """The rows of a sweep written as they finish, beside its output folder; removed once the
+    sweep's files are committed. A journal that cannot be written is a warning, not an error."""
+
+    def __init__(self, out, data: Mapping[str, Any], spec: SweepSpec, resume: bool):
+        self.path, self.file = journal_path(out), None
+        self.replayed = journaled_rows(out, data, spec) if resume else 0
+        try:
+            if resume:
+                self._truncate_partial_line()
+                self.file = open(self.path, "a", newline="", encoding="utf-8")
+            else:
+                if self.path.exists():
+                    warnings.warn(f"{self.path}: the rows of an interrupted sweep are replaced by this one's "
+                                  "(--resume continues a sweep)")
+                self.file = open(self.path, "w", newline="", encoding="utf-8")
+                self.file.write(f"{JOURNAL_MAGIC}{_identity(data, spec)}\n")
+                csv.writer(self.file).writerow(columns(spec))
+                self.file.flush()
+        except OSError as exc:
+            warnings.warn(f"no journal of finished rows ({self.path}: {exc.strerror or exc}): an interrupted "
+                          "sweep cannot be resumed")
+            self.file = None
+        self.writer = csv.writer(self.file) if self.file else None
+        self.written = 0
+
+    def _truncate_partial_line(self) -> None:
+        with open(self.path, "rb+") as f:
+            data = f.read()
+            keep = data.rfind(b"\n") + 1
+            if keep < len(data):
+                f.truncate(keep)
+
+    def replay(self, spec: SweepSpec) -> Iterator[dict[str, Any]]:
+        """The journaled rows, in order, with their types (as read back from sweep.csv)."""
+        if not self.replayed:
+            return
+        with open(self.path, encoding="utf-8", newline="") as f:
+            f.readline()
+            for i, row in enumerate(csv.DictReader(_complete_rows(f), fieldnames=next(csv.reader([f.readline()])))):
+                if i >= self.replayed:
+                    return
+                yield {k: _parse(k, v) for k, v in row.items()}
+
+    def write(self, cells: list) -> None:
+        if self.writer:
+            self.writer.writerow(cells)
+            self.file.flush()
+            self.written += 1
+
+    def close(self, done: bool) -> None:
+        """Close the journal; remove it when the sweep's files are committed, or when it holds
+        no row (a sweep stopped before its first one leaves nothing to resume)."""
+        if self.file:
+            self.file.close()
+        if done or (self.file and not self.replayed and not self.written):
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+
+
+def _estimate(n_left: int, seconds_each: float, workers: int) -> None:
+    """One warning line when the variants left are estimated to take over :data:`LONG_SWEEP_S`."""
+    total = n_left * seconds_each / workers
+    if total > LONG_SWEEP_S:
+        shown = f"{total / 3600:.1f} h" if total >= 3600 else f"{total / 60:.0f} min"
+        warnings.warn(f"this sweep is estimated to take {shown} ({n_left} variants at {seconds_each:.3g} s each "
+                      f"on {workers} worker{'s' if workers != 1 else ''}); Ctrl-C keeps the finished rows for "
+                      "--resume")
+
+
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
               progress: bool = True, sensitivity: list[dict] | None = None,
-              client=None) -> tuple[Summary, list[Path]]:
+              client=None, resume: bool = False) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`compare.output.check_folder`);
     ``sensitivity`` (:meth:`compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json.
-    With ``client`` (:func:`connect`) the variants run on that Dask cluster instead of a local pool."""
+    With ``client`` (:func:`connect`) the variants run on that Dask cluster instead of a local pool.
+
+    Each finished row also goes to the journal beside ``out`` (:func:`journal_path`), which the
+    commit of the files removes: an interrupted sweep leaves ``out`` as it was and its rows
+    there; with ``resume`` they are read back instead of run again (the caller checked the
+    journal with :func:`journaled_rows`). Before the bulk of the variants, the next two run
+    here and the second one's time estimates the rest (:func:`_estimate`)."""
     from .cost import worker_count
 
     n = count(spec)
@@ -752,11 +952,25 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)
     bar = _Progress(n) if progress else None
 
+    journal = _Journal(out, data, spec, resume)
+
+    def fresh_rows() -> Iterator[dict[str, Any]]:
+        first = journal.replayed
+        timed = []
+        for index, values in itertools.islice(enumerate(variant_values(spec)), first, first + 2):
+            began = time.perf_counter()
+            yield run_variant(index, values, data, source, keep_trajectories, spec.engines)
+            timed.append(time.perf_counter() - began)
+        if len(timed) == 2:  # the second: imports and compiled code loaded by the first
+            _estimate(n - first - 2, timed[1], used)
+        yield from run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client,
+                            start=first + len(timed))
+
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
-        rows = run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client)
+        rows = itertools.chain(journal.replay(spec), fresh_rows())
         _stream(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
-                bar.step if bar else None)
+                bar.step if bar else None, journal.write, journal.replayed)
         summary.wall_s = time.perf_counter() - start
 
     def staged(path: Path) -> None:  # written with sweep.csv
@@ -770,5 +984,10 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: _write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
-    paths = write_folder(out, files)
+    done = False
+    try:
+        paths = write_folder(out, files, one_run=True)
+        done = True
+    finally:
+        journal.close(done)
     return summary, paths

@@ -15,7 +15,7 @@ from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, solve_adaptive
 from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4, load_kernels
 from .result import EngineResult
-from .scene import REDUCED_METHODS, Scene
+from .scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
 from .trajectory import Trajectory
 
 METHODS = REDUCED_METHODS  # listed once, in reduced.scene
@@ -29,8 +29,9 @@ SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by
 # that passes cannot use up a gate. Its default step is the largest halving of 1 ms that
 # meets it on the seed scene: the estimate there is 2.4e-5 at 1 ms (failing) and 5.7e-7 at
 # 0.5 ms (the true largest errors: 8.6e-6 and 7.2e-8 of the peak speed).
-DEFAULT_RTOL = {"dop853": 1e-12, "scipy-dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
-DEFAULT_STEP = 5e-4  # s, RKN4
+# The values live in reduced.scene (the command line's help prints them from there).
+DEFAULT_RTOL = REDUCED_DEFAULT_RTOL
+DEFAULT_STEP = REDUCED_DEFAULT_STEP  # s, RKN4
 DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples
 RTOL_RANGE = (100 * np.finfo(float).eps, 0.1)  # scipy raises rtol below 100 ε to it, with a warning
 
@@ -76,7 +77,7 @@ class ReducedSettings:
         bound (True); False records them only (for cost studies of coarse settings).
     """
 
-    method: str = "dop853"
+    method: str = REDUCED_DEFAULT_METHOD
     rtol: float | None = None
     step: float | None = None
     sample_interval: float | None = None

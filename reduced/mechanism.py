@@ -461,6 +461,13 @@ class PointForce:
             if q[-1] - q[0] > self.period:
                 raise MechanismError(f"point force {self.name!r}: the table spans {q[-1] - q[0]:g}, "
                                      f"more than its period {self.period:g}")
+            # A table spanning one period (loads.TabulatedForce's closing rule) gives its last
+            # point twice: F(q0 + period) must be F(q0), or one of the two would be dropped.
+            if (q[-1] - q[0] >= self.period * (1 - 1e-12)
+                    and not math.isclose(f[-1], f[0], rel_tol=1e-12, abs_tol=1e-12 * max(map(abs, f)))):
+                raise MechanismError(f"point force {self.name!r}: the table spans its period {self.period:g} and "
+                                     f"its ends disagree (F = {f[0]:g} N at {q[0]:g}, {f[-1]:g} N at {q[-1]:g}): "
+                                     "a periodic table ends on its first value, or one period short of it")
         object.__setattr__(self, "coordinate", q)
         object.__setattr__(self, "values", f)
         object.__setattr__(self, "direction", float(self.direction))

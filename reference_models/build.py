@@ -124,6 +124,13 @@ def site_name(body: str, point: str) -> str:
     return f"{body}.{point}"
 
 
+def sensor_name(owner: str, kind: str) -> str:
+    """The name of a read-out sensor, ``"<owner>:<kind>"``: scene names cannot contain ':'
+    (letters, digits, '_' and '-'), so no scene name makes two sensors' names equal (a point
+    force ``piston_com`` and a body ``piston`` once both gave ``piston_com_vel``)."""
+    return f"{owner}:{kind}"
+
+
 def spanning_tree(scene: Scene) -> tuple[TreeBody, ...]:
     """The moving bodies in the linkage's tree order (parents first), placed at ``scene.x0``.
 
@@ -352,7 +359,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         loop.solimp = list(constraint.solimp)
         # Read-outs of the loop closure: the joint's point on either side.
         for side, body, point in (("a", jt.body_a, jt.point_a), ("b", jt.body_b, jt.point_b)):
-            spec.add_sensor(name=f"{name}_{side}_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+            spec.add_sensor(name=sensor_name(name, f"{side}_pos"), type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
                             objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(body, point))
 
     dampers = []
@@ -377,7 +384,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         # The load MuJoCo applied in each step, read at the step's start (the control holds
         # over the step).
-        spec.add_sensor(name=f"{INPUT_MOTOR}_force", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+        spec.add_sensor(name=sensor_name(INPUT_MOTOR, "force"), type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=INPUT_MOTOR)
 
     # Read-outs (no forces): the input's acceleration (a hinge's: the child's angular
@@ -386,7 +393,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     if not isinstance(joints[linkage.input_joint], PrismaticJoint):
         for body in (inp.body, inp.parent):
             if body != GROUND:
-                spec.add_sensor(name=f"{body}_angacc", type=mujoco.mjtSensor.mjSENS_FRAMEANGACC,
+                spec.add_sensor(name=sensor_name(body, "angacc"), type=mujoco.mjtSensor.mjSENS_FRAMEANGACC,
                                 objtype=mujoco.mjtObj.mjOBJ_BODY, objname=body)
     # Centre-of-mass position and velocity and angular velocity of every body, for the energy
     # audit (MuJoCo's e_kinetic sensor reads the energy of the previous evaluation).
@@ -394,18 +401,18 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         for kind, sensor in (("com_pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
                              ("com_vel", mujoco.mjtSensor.mjSENS_FRAMELINVEL),
                              ("ang_vel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL)):
-            spec.add_sensor(name=f"{name}_{kind}", type=sensor, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=name)
+            spec.add_sensor(name=sensor_name(name, kind), type=sensor, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=name)
     for e in mech.springs:
-        spec.add_sensor(name=f"{e.name}_length", type=mujoco.mjtSensor.mjSENS_TENDONPOS,
+        spec.add_sensor(name=sensor_name(e.name, "length"), type=mujoco.mjtSensor.mjSENS_TENDONPOS,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
     for e in mech.joint_springs:
-        spec.add_sensor(name=f"{e.name}_length", type=mujoco.mjtSensor.mjSENS_TENDONPOS,
+        spec.add_sensor(name=sensor_name(e.name, "length"), type=mujoco.mjtSensor.mjSENS_TENDONPOS,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
     for name in dampers:
-        spec.add_sensor(name=f"{name}_rate", type=mujoco.mjtSensor.mjSENS_TENDONVEL,
+        spec.add_sensor(name=sensor_name(name, "rate"), type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)
     for pf in mech.point_forces + mech.timed_forces:
-        spec.add_sensor(name=f"{pf.name}_vel", type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
+        spec.add_sensor(name=sensor_name(pf.name, "vel"), type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(pf.body, pf.point))
 
     # Point forces are applied by the runner (mjcb_control), not by the model: say so in the file.

@@ -36,12 +36,13 @@ from reduced.result import EnergyAudit, EngineResult
 from reduced import loops
 from reduced.loads import TabulatedForce
 from reduced.mechanism import PrismaticJoint
-from reduced.scene import MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene
+from reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene)
 from reduced.trajectory import Trajectory
 
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
                     compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, set_timestep,
-                    site_name)
+                    sensor_name, site_name)
 
 INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in reduced.scene
 
@@ -134,12 +135,12 @@ class MujocoSettings:
         its automatic 0.5 ms: 3.2e-5), so a balance 5 % off fails.
     """
 
-    integrator: str = "rk4"
+    integrator: str = MUJOCO_DEFAULT_INTEGRATOR  # the defaults' values: reduced.scene
     timestep: float | None = None
     solref: tuple[float, float] | None = None  # None: (2·timestep, 1.0)
-    solimp: tuple[float, float, float, float, float] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-    iterations: int = 100
-    tolerance: float = 1e-12
+    solimp: tuple[float, float, float, float, float] = MUJOCO_DEFAULT_SOLIMP
+    iterations: int = MUJOCO_DEFAULT_ITERATIONS
+    tolerance: float = MUJOCO_DEFAULT_TOLERANCE
     refsafe: bool = True
     diagexact: bool = False
     max_constraint_violation: float = 1e-3  # m; beyond it the run is reported as drifted
@@ -602,7 +603,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         sl = handles.sensor_slices
         violation = np.zeros(len(times))
         for name in scene.mechanism.linkage.cut_joints:
-            gap = sensors[:, sl[f"{name}_a_pos"]] - sensors[:, sl[f"{name}_b_pos"]]
+            gap = sensors[:, sl[sensor_name(name, "a_pos")]] - sensors[:, sl[sensor_name(name, "b_pos")]]
             violation = np.maximum(violation, np.sqrt(_squares_by_row(gap)))
         qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback)
         trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
@@ -625,7 +626,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
                                f"MuJoCo's energy balance is off by {residual[k]:.3g} J at t = {times[k]:.6g} s, "
                                f"{residual[k] / scale:.3g} of the energy scale {scale:.6g} J, above "
                                f"max_energy_residual {settings.max_energy_residual:g}", float(times[k]))
-    key = f"{INPUT_MOTOR}_force"
+    key = sensor_name(INPUT_MOTOR, "force")
     motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
     recorded = settings.as_dict()
     recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False)
@@ -787,9 +788,9 @@ def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spe
 
 def _hinge_acceleration(sl, layout, sensors) -> np.ndarray:
     sensors = np.atleast_2d(sensors)
-    acc = sensors[:, sl[f"{layout.input_body}_angacc"]][:, 2]
-    if f"{layout.input_parent}_angacc" in sl:
-        acc = acc - sensors[:, sl[f"{layout.input_parent}_angacc"]][:, 2]
+    acc = sensors[:, sl[sensor_name(layout.input_body, "angacc")]][:, 2]
+    if sensor_name(layout.input_parent, "angacc") in sl:
+        acc = acc - sensors[:, sl[sensor_name(layout.input_parent, "angacc")]][:, 2]
     return acc
 
 
@@ -966,13 +967,13 @@ def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q
     for name in scene.mechanism.linkage.moving:
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         mass, izz = model.body_mass[body], model.body_inertia[body, 2]
-        v, w = sensors[:, sl[f"{name}_com_vel"]], sensors[:, sl[f"{name}_ang_vel"]]
+        v, w = sensors[:, sl[sensor_name(name, "com_vel")]], sensors[:, sl[sensor_name(name, "ang_vel")]]
         kinetic += 0.5 * mass * _squares_by_row(v) + 0.5 * izz * w[:, 2] ** 2
-        potential -= mass * sensors[:, sl[f"{name}_com_pos"]] @ gravity
+        potential -= mass * sensors[:, sl[sensor_name(name, "com_pos")]] @ gravity
     for tendon in range(model.ntendon):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon)
-        if f"{name}_length" in sl:
-            stretch = sensors[:, sl[f"{name}_length"]][:, 0] - model.tendon_lengthspring[tendon, 0]
+        if sensor_name(name, "length") in sl:
+            stretch = sensors[:, sl[sensor_name(name, "length")]][:, 0] - model.tendon_lengthspring[tendon, 0]
             potential += 0.5 * model.tendon_stiffness[tendon] * stretch * stretch
     dt = np.diff(times)
     zero = np.zeros(1)
@@ -987,16 +988,16 @@ def _energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q
         for pf in scene.mechanism.point_forces:
             u = np.array([math.cos(pf.direction), math.sin(pf.direction), 0.0])
             force = TabulatedForce(pf.coordinate, pf.values, pf.period)
-            power += np.asarray(force(q), dtype=float) * (sensors[:, sl[f"{pf.name}_vel"]] @ u)
+            power += np.asarray(force(q), dtype=float) * (sensors[:, sl[sensor_name(pf.name, "vel")]] @ u)
         load_work = load_work + _cumulative_trapezoid(power, dt)
     for k, tf in enumerate(scene.mechanism.timed_forces):  # F constant over each step (timed_values)
         u = np.array([math.cos(tf.direction), math.sin(tf.direction), 0.0])
-        along = sensors[:, sl[f"{tf.name}_vel"]] @ u
+        along = sensors[:, sl[sensor_name(tf.name, "vel")]] @ u
         load_work = load_work + np.concatenate([zero, np.cumsum(timed[:, k] * 0.5 * (along[:-1] + along[1:]) * dt)])
     rate = np.zeros(n)
     for name in handles.damper_tendons:
         b = model.tendon_damping[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)]
-        ldot = sensors[:, sl[f"{name}_rate"]][:, 0]
+        ldot = sensors[:, sl[sensor_name(name, "rate")]][:, 0]
         rate += b * ldot * ldot
     dissipation = np.concatenate([zero, np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)])
     return EnergyAudit(t=times, kinetic=kinetic, potential=potential, torque_work=load_work,

@@ -6,6 +6,8 @@ import re
 import tomllib
 from pathlib import Path
 
+import pytest
+
 from reduced import Scene, scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -155,3 +157,55 @@ def without_dyad_plans(model):
     start = int(I[physics.DYAD_PLAN])
     I[start:start + len(model.coordinate_names)] = -1
     return physics.Model(model.arrays.F, I)
+
+
+# ---------------------------------------------------------------- signals and child processes
+# A suite started in the background (`pytest &`) inherits SIGINT ignored, and a child inherits
+# that too: the tests that send signals set the disposition they need, in this process and in
+# each child, and kill whatever child they started, whatever the outcome.
+
+def default_signal_disposition() -> None:
+    """``preexec_fn`` of a child that is to be interrupted: SIGINT and SIGTERM at their
+    defaults (Python then turns SIGINT into KeyboardInterrupt), whatever the parent ignores."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@pytest.fixture
+def interruptible():
+    """SIGINT raises KeyboardInterrupt in this process for the test, as in a foreground shell."""
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+@pytest.fixture
+def spawn():
+    """``spawn(args, **popen_kwargs)``: a ``subprocess.Popen`` with SIGINT and SIGTERM at their
+    defaults in the child; every one still running at the end of the test is killed (its whole
+    process group with ``start_new_session=True``: the forked writers too) and waited for."""
+    import os
+    import signal
+    import subprocess
+
+    started: list = []
+
+    def start(args, **kwargs):
+        proc = subprocess.Popen(args, preexec_fn=default_signal_disposition, **kwargs)
+        started.append((proc, kwargs.get("start_new_session", False)))
+        return proc
+
+    yield start
+    for proc, own_group in started:
+        if own_group:  # the group outlives its leader while a member runs; pgid = the leader's pid
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(timeout=60)

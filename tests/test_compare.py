@@ -11,6 +11,7 @@ import pytest
 import compare.report
 from compare.cli import main
 from compare.diff import compare_trajectories, gate
+from compare.output import MANIFEST_FILE
 from compare.report import REPORT_FILES, write_outputs
 from compare.run import compare_engines
 from reduced import Trajectory, load_scene
@@ -115,7 +116,8 @@ def test_run_writes_report(tmp_path, capsys):
     report = json.loads((out / "report.json").read_text(),
                         parse_constant=lambda token: pytest.fail(f"bare {token} in report.json"))
     assert report["scene"]["name"] == "seed_fourbar"
-    assert sorted(p.name for p in out.iterdir()) == sorted(REPORT_FILES)  # no staging left
+    assert sorted(p.name for p in out.iterdir()) == sorted([*REPORT_FILES, MANIFEST_FILE])  # no staging left
+    assert (out / MANIFEST_FILE).read_text().splitlines() == list(REPORT_FILES)
 
 
 @pytest.mark.parametrize("command", ["run", "check", "mujoco", "reduced"])

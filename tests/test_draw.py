@@ -339,3 +339,27 @@ def keep_titles(monkeypatch) -> list:
 
     monkeypatch.setattr(compare.plots, "_save", keep_title)
     return titles
+
+
+@pytest.mark.parametrize("name,magic", [("l.png", b"\x89PNG\r\n\x1a\n"), ("l.pdf", b"%PDF-"), ("L.SVG", b"<?xml")])
+def test_draw_writes_the_format_its_suffix_names(name, magic, tmp_path, capsys):
+    """Issue 24: --out l.pdf wrote PNG bytes. The file starts with its format's signature."""
+    from compare.cli import main
+
+    assert main(["draw", "--out", str(tmp_path / name)]) == 0
+    data = (tmp_path / name).read_bytes()
+    assert data.startswith(magic), data[:16]
+    if name.endswith("SVG"):
+        assert b"<svg" in data[:2000]
+
+
+@pytest.mark.parametrize("name", ["l.txt", "l.jpg", "linkage"])
+def test_draw_refuses_other_suffixes_before_any_work(name, tmp_path, capsys):
+    """Refused before the scene is read: with a scene that does not exist, the suffix is named."""
+    from compare.cli import main
+
+    assert main(["draw", str(tmp_path / "missing.toml"), "--out", str(tmp_path / name)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1, captured.err
+    assert "--out" in captured.err and ".png, .pdf, .svg" in captured.err
+    assert list(tmp_path.iterdir()) == []

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from reduced import NumericalFailure, ReducedSettings, load_scene, loops, simulate
+from reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
 from reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
                               joint_positions, joint_rates, mjcf_text, simulate_mujoco)
 
@@ -183,3 +183,26 @@ def test_off_grid_pulse_edge_warns():
         result = simulate_mujoco(scene, MujocoSettings(timestep=1e-3))
     assert any(issubclass(w.category, OffGridEdgeWarning) for w in caught)
     assert result.diagnostics["edge_warnings"]
+
+
+def test_no_scene_name_collides_with_a_generated_sensor_name():
+    """Issue 24: a point force named ``piston_com`` on a body named ``piston`` gave MuJoCo's
+    "repeated name 'piston_com_vel' in sensor" (exit 2, naming no scene key). Generated names
+    join an element's name and a fixed kind with ':', which scene names cannot contain. Here
+    every element is named as a body's read-out once was; the run equals the one with the
+    shipped names bit for bit (a name changes nothing of the physics)."""
+    import tomllib
+
+    path = SCENES_DIR / "mechanisms" / "slider_crank_gas.toml"
+    with open(path, "rb") as f:
+        data = tomllib.load(f)
+    data["simulation"]["horizon"] = 0.05
+    settings = MujocoSettings(timestep=5e-4)
+    shipped = simulate_mujoco(scene_from_dict(data, str(path)), settings)
+    data["point_forces"][0]["name"] = "piston_com"  # beside the body piston's "piston_com_vel" of old
+    renamed = scene_from_dict(data, str(path))
+    handles = build_model(renamed, settings)
+    names = [handles.model.sensor(i).name for i in range(handles.model.nsensor)]
+    assert len(names) == len(set(names)) and "piston_com:vel" in names and "piston:com_vel" in names
+    result = simulate_mujoco(renamed, settings)
+    assert np.array_equal(result.trajectory.qdot, shipped.trajectory.qdot)

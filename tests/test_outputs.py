@@ -22,6 +22,8 @@ import pytest
 from compare import output
 from compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
 
+from helpers import interruptible, spawn  # noqa: F401 - fixtures
+
 NAMES = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
 
 
@@ -61,6 +63,48 @@ def test_a_set_replaces_the_old_one_and_nothing_else(old_folder):
     assert snapshot(old_folder) == {**{n: ("file", f"new {n}".encode()) for n in NAMES},
                                     "notes.txt": ("file", b"mine")}
     assert [p.name for p in old_folder.parent.iterdir()] == ["out"]  # no staging left beside it
+
+
+def test_an_out_folder_holds_one_run(tmp_path):
+    """Issue 24: a mechanism.gif of an earlier run stayed beside a new report. The files the
+    previous run's manifest lists and the new set lacks go; the user's files, a listed name
+    that is now a folder or a link, and names that escape the folder stay."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere.txt"
+    elsewhere.write_text("keep")
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif"),
+                       "old.png": lambda p: p.write_text("png")}, one_run=True)
+    assert (out / output.MANIFEST_FILE).read_text().splitlines() == [*NAMES, "mechanism.gif", "old.png"]
+    (out / "notes.txt").write_text("mine")
+    (out / "old.png").unlink()
+    (out / "old.png").mkdir()  # listed, but now the user's folder
+    with open(out / output.MANIFEST_FILE, "a") as f:  # a tampered manifest cannot reach outside
+        f.write("../elsewhere.txt\nnotes.txt/\n\n")
+    write_folder(out, writers("new"), one_run=True)
+    assert snapshot(out) == {**{n: ("file", f"new {n}".encode()) for n in NAMES}, "notes.txt": ("file", b"mine"),
+                             "old.png": ("dir", None), output.MANIFEST_FILE: ("file", "".join(
+                                 f"{n}\n" for n in NAMES).encode())}
+    assert elsewhere.read_text() == "keep"
+
+
+def test_without_a_manifest_nothing_is_removed_and_a_failed_commit_puts_the_stale_file_back(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif")})  # no manifest
+    write_folder(out, writers("new"), one_run=True)
+    assert (out / "mechanism.gif").read_text() == "gif"
+    write_folder(out, {**writers("old"), "mechanism.gif": lambda p: p.write_text("gif"),
+                       "old.png": lambda p: p.write_text("png")}, one_run=True)
+    before = snapshot(out)
+    real_replace = os.replace
+
+    def failing_last(src, dst):  # the set swaps in, the GIF is set aside, then old.png's fails
+        if Path(src) == out / "old.png":
+            raise OSError(errno.EIO, "Input/output error")
+        real_replace(src, dst)
+    monkeypatch.setattr(output.os, "replace", failing_last)
+    with pytest.raises(OSError, match="Input/output"):
+        write_folder(out, writers("new"), one_run=True)
+    monkeypatch.undo()
+    assert snapshot(out) == before
 
 
 @pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt(), Terminated(),
@@ -140,17 +184,26 @@ def test_a_commit_failing_part_way_is_rolled_back(old_folder, monkeypatch):
     assert snapshot(old_folder.parent) == before
 
 
-def test_an_interrupt_during_the_commit_comes_after_a_complete_set(old_folder, monkeypatch):
-    real_replace = os.replace
+@pytest.mark.parametrize("existed", [True, False], ids=["into-a-folder", "a-new-folder"])
+def test_an_interrupt_during_the_commit_undoes_it(old_folder, monkeypatch, interruptible, existed):
+    """The commit is held against signals and undone when one came meanwhile: the folder is as
+    it was (issue 24: every signal before the run's end leaves it so), then KeyboardInterrupt."""
+    if not existed:
+        old_folder = old_folder.parent / "fresh"
+    before = snapshot(old_folder.parent)
+    real_replace, real_rename = os.replace, os.rename
 
-    def replace_then_interrupt(src, dst):
-        real_replace(src, dst)
-        os.kill(os.getpid(), signal.SIGINT)
-    monkeypatch.setattr(output.os, "replace", replace_then_interrupt)
+    def then_interrupt(real):
+        def call(src, dst):
+            real(src, dst)
+            os.kill(os.getpid(), signal.SIGINT)
+        return call
+    monkeypatch.setattr(output.os, "replace", then_interrupt(real_replace))
+    monkeypatch.setattr(output.os, "rename", then_interrupt(real_rename))
     with signals_as_exceptions(), pytest.raises(KeyboardInterrupt):
-        write_folder(old_folder, writers("new"))
+        write_folder(old_folder, writers("new"), one_run=True)
     monkeypatch.undo()
-    assert {n: (old_folder / n).read_text() for n in NAMES} == {n: f"new {n}" for n in NAMES}
+    assert snapshot(old_folder.parent) == before
 
 
 @pytest.mark.parametrize("kind", ["symlink", "dangling symlink", "fifo", "device", "folder"])
@@ -208,7 +261,10 @@ CHILD = textwrap.dedent("""
             path.write_text(tag + " " + name)
             if name == "mujoco.csv":  # half-way through the set: wait to be told
                 ready.write_text("staging")
+                deadline = time.monotonic() + 120  # never poll forever, whatever the test does
                 while ready.read_text() != "go":
+                    if time.monotonic() > deadline:
+                        sys.exit(3)
                     time.sleep(0.01)
         return write
 
@@ -222,9 +278,9 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def start_child(out: Path, ready: Path, tag: str) -> subprocess.Popen:
-    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(out), str(ready), tag],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def start_child(spawn, out: Path, ready: Path, tag: str) -> subprocess.Popen:
+    proc = spawn([sys.executable, "-c", CHILD, str(out), str(ready), tag],
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while not (ready.exists() and ready.read_text() == "staging"):
         assert proc.poll() is None, proc.communicate()
@@ -240,11 +296,11 @@ def finish(proc: subprocess.Popen) -> int:
 
 
 @pytest.mark.parametrize("ending", ["ctrl-c", "completes"])
-def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending):
+def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending, spawn):
     """Run A stages, run B writes the same new folder and finishes, then A is interrupted (B's
     set must stay: issue 10, lost data 1) or completes (A's set replaces B's, whole)."""
     out, ready = tmp_path / "out", tmp_path / "ready"
-    a = start_child(out, ready, "A")
+    a = start_child(spawn, out, ready, "A")
     write_folder(out, {n: (lambda p, n=n: p.write_text(f"B {n}")) for n in NAMES})  # run B
     if ending == "ctrl-c":
         a.send_signal(signal.SIGINT)
@@ -259,10 +315,10 @@ def test_two_runs_on_one_folder_leave_one_complete_set(tmp_path, ending):
                                   **{f"out/{n}": ("file", f"{survivor} {n}".encode()) for n in NAMES}}
 
 
-def test_sigterm_while_writing_leaves_no_partial_folder(old_folder):
+def test_sigterm_while_writing_leaves_no_partial_folder(old_folder, spawn):
     """Issue 10, lost data 3: SIGTERM mid-write; the old files are untouched, nothing hidden stays."""
     ready = old_folder.parent / "ready"
-    child = start_child(old_folder, ready, "new")
+    child = start_child(spawn, old_folder, ready, "new")
     before = snapshot(old_folder)
     assert any(name.startswith(output.STAGING_PREFIX) for name in before)  # it is staging in there
     child.send_signal(signal.SIGTERM)
@@ -271,3 +327,54 @@ def test_sigterm_while_writing_leaves_no_partial_folder(old_folder):
     assert snapshot(old_folder.parent) == {"out": ("dir", None),
                                            **{f"out/{n}": ("file", f"old {n}".encode()) for n in NAMES},
                                            "out/notes.txt": ("file", b"mine")}
+
+
+FORKING_CHILD = textwrap.dedent("""
+    import sys, time
+    from pathlib import Path
+    from compare.output import Terminated, signals_as_exceptions, write_folder
+    out, started = Path(sys.argv[1]), Path(sys.argv[2])
+    names = [f"plot{i}.png" for i in range(6)]
+
+    def make(name):
+        def write(path):
+            with open(started, "a") as f:
+                f.write(name + "\\n")
+            time.sleep(0.5)  # a plot: ~0.1-0.5 s
+            path.write_text("new " + name)
+        return write
+
+    try:
+        with signals_as_exceptions():
+            write_folder(out, {n: make(n) for n in names}, workers=3, one_run=True)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Terminated:
+        sys.exit(143)
+""")
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_forked_writers_run_ends_all_of_them_and_changes_nothing(tmp_path, spawn, signum):
+    """Issue 24: a signal to the process group while write_folder's forked writers run (a run's
+    plots) hung the parent or was swallowed. Six writers of 0.5 s in three processes (~1 s);
+    the signal is sent when the first writer has started plus 0 to 0.6 s. Every time: the exit
+    status of the signal, no process of the group left, the folder as it was, no staging."""
+    old = tmp_path / "old"
+    write_folder(old, {f"plot{i}.png": (lambda p, i=i: p.write_text(f"old {i}")) for i in range(6)}, one_run=True)
+    before = snapshot(old)
+    status = {signal.SIGINT: 130, signal.SIGTERM: 143}[signum]
+    for delay in (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6):
+        started = tmp_path / f"started-{delay}"
+        proc = spawn([sys.executable, "-c", FORKING_CHILD, str(old), str(started)], stdout=subprocess.PIPE,
+                     stderr=subprocess.PIPE, text=True, start_new_session=True)
+        deadline = time.monotonic() + 60
+        while not started.exists():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.005)
+        time.sleep(delay)
+        os.killpg(proc.pid, signum)
+        assert finish(proc) == status, delay  # a hang fails in finish (60 s)
+        left = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(proc.pid)], capture_output=True, text=True)
+        assert left.stdout == "", f"{delay} s after the first writer: left {left.stdout}"
+        assert snapshot(old) == before, delay

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import signal
 import subprocess
 import sys
 from dataclasses import replace
@@ -20,11 +22,12 @@ import pytest
 
 from compare import sweep as sweep_module
 from compare.cli import main
+from compare.output import MANIFEST_FILE
 from compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
 from compare.sweep_spec import Engines, spec_from_args
 from reduced.scenefile import default_scene_path
 
-from helpers import ROOT, short_seed_file
+from helpers import ROOT, interruptible, short_seed_file  # noqa: F401 - fixture
 
 SEED_TEXT = default_scene_path().read_text()
 SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
@@ -82,7 +85,7 @@ def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, 
     assert data["summary"]["counts"] == {"passed": 2, "gate_failed": 0, "failed": 0, "invalid": 0}
     assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == ["sweep.csv", "sweep.json",
                                                                   "sweep_peak_omega.png",
-                                                                  "sweep_worst_differences.png"]
+                                                                  "sweep_worst_differences.png", MANIFEST_FILE]
 
 
 def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys):
@@ -253,6 +256,10 @@ def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path,
     status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
     assert status == 130 and "interrupted" in err
     assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
+    assert len(sweep_module.journal_path(out).read_text().splitlines()) == 2 + 1  # variant 0's row, beside
+    monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
+    assert status == 130 and not sweep_module.journal_path(out).exists()  # no row: no journal left
 
 
 def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypatch):
@@ -367,7 +374,7 @@ def test_the_files_written_are_sweep_files(varies, samples, keep, short_scene, t
     assert status == 0, printed
     spec = replace(spec_from_args(varies, samples), engines=Engines.REDUCED)
     expected = sweep_files(spec, keep)
-    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == sorted(expected)
+    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == sorted([*expected, MANIFEST_FILE])
     assert f"wrote {', '.join(expected)} to" in printed  # in the order committed
     assert not {"sweep_gate_map.png", "sweep_worst_differences.png"} & set(expected)
     assert ("sweep_peak_omega_hist.png" if samples else "sweep_peak_omega.png") in expected
@@ -438,3 +445,86 @@ def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
     assert len(saved) == len(names)
     for fig, name in zip(saved, names):
         assert text_outside(fig) == [], name
+
+
+@pytest.mark.parametrize("vary,engines", [("reduced.rtol=1e-20,1e-19", "reduced"),
+                                          ("mujoco.solimp.0=2,3", "both")], ids=["rtol", "solimp"])
+def test_a_sweep_with_no_valid_variant_exits_1(vary, engines, short_scene, tmp_path, capsys):
+    """Issue 24: every variant invalid ("2 invalid") exited 0. Both settings are refused by the
+    engines' settings (rtol below 100 machine epsilons, solimp dmin above 0.9999), not by the
+    scene file, so the variants are built and counted invalid."""
+    with open(short_scene, "a") as f:
+        f.write("\n[mujoco]\nsolimp = [0.9999, 0.9999, 0.001, 0.5, 2]\n")
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", vary, "--engines", engines,
+                                  "--workers", "1")
+    assert "2 invalid" in printed and "no variant is valid" in printed, printed + err
+    assert status == 1
+    assert [r["status"] for r in _rows(tmp_path / "sw")] == ["invalid", "invalid"]
+
+
+# ---------------------------------------------------------------- an interrupted sweep, resumed
+
+RESUMED_VARY = ["--vary", "dampers.0.coefficient=40:60:7", "--engines", "reduced", "--workers", "1"]
+
+
+def _without_wall_times(rows):
+    return [{k: v for k, v in r.items() if "wall_s" not in k} for r in rows]
+
+
+def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(short_scene, tmp_path, capsys,
+                                                                                monkeypatch, interruptible):
+    """Issue 24: Ctrl-C discarded every finished row. Decision: --out is left as it was, the
+    finished rows are in a journal beside it (never inside), --resume runs only the rest and a
+    completed sweep removes the journal. A real SIGINT at variant 4 of 7 (serial, in this
+    process); the resumed sweep.csv equals an uninterrupted one's but for the wall times."""
+    status, _, err = _sweep(capsys, short_scene, tmp_path / "ref", *RESUMED_VARY)
+    assert status == 0, err
+    out = tmp_path / "sw"
+    out.mkdir()
+    (out / "sweep.csv").write_text("old\n")
+    journal = sweep_module.journal_path(out)
+    assert journal.parent == tmp_path and journal.name == "sw.sweep-journal.csv"
+    real_run_variant, ran, fired = sweep_module.run_variant, [], []
+
+    def interrupted_at_4(index, *args, **kwargs):
+        ran.append(index)
+        if index == 4 and not fired:
+            fired.append(index)
+            os.kill(os.getpid(), signal.SIGINT)
+        return real_run_variant(index, *args, **kwargs)
+    monkeypatch.setattr(sweep_module, "run_variant", interrupted_at_4)
+    status, printed, err = _sweep(capsys, short_scene, out, *RESUMED_VARY)
+    assert status == 130 and err == "xval: interrupted\n", err
+    assert sorted(p.name for p in out.iterdir()) == ["sweep.csv"] and (out / "sweep.csv").read_text() == "old\n"
+    lines = journal.read_text().splitlines()
+    assert len(lines) == 2 + 4 and [line.split(",")[0] for line in lines[2:]] == ["0", "1", "2", "3"]
+    ran.clear()
+    status, printed, err = _sweep(capsys, short_scene, out, *RESUMED_VARY, "--resume")
+    assert status == 0, err
+    assert ran == [4, 5, 6]  # the journaled rows were not run again
+    assert not journal.exists()
+    assert _without_wall_times(read_rows(out / CSV_FILE)) == _without_wall_times(read_rows(tmp_path / "ref" / CSV_FILE))
+    assert "7 variants" in printed and "7 passed" in printed
+
+
+def test_resume_needs_the_journal_of_the_same_sweep(short_scene, tmp_path, capsys):
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
+    assert status == 2 and printed == "" and "nothing to resume" in err and err.count("\n") == 1, err
+    sweep_module.journal_path(tmp_path / "sw").write_text("# xval sweep journal 0\nindex,status\n0,passed\n")
+    status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
+    assert status == 2 and printed == "" and "journal of another sweep" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "sw").exists()
+
+
+def test_a_long_sweep_says_so_before_it_runs_on(short_scene, tmp_path, capsys, monkeypatch):
+    """Issue 24: 10^6 variants (hours) were accepted without a word off a terminal. The estimate
+    (the second variant's time x the variants left / workers) is one warning line when over
+    LONG_SWEEP_S; here the limit is lowered to 1 ms so that a 7-variant sweep crosses it, and the
+    real 600 s is not crossed by the same sweep (about 0.1 s a variant)."""
+    status, _, err = _sweep(capsys, short_scene, tmp_path / "a", *RESUMED_VARY)
+    assert status == 0 and "estimated" not in err, err
+    monkeypatch.setattr(sweep_module, "LONG_SWEEP_S", 1e-3)
+    status, _, err = _sweep(capsys, short_scene, tmp_path / "b", *RESUMED_VARY)
+    lines = [line for line in err.splitlines() if "estimated" in line]
+    assert status == 0 and len(lines) == 1, err
+    assert lines[0].startswith("xval: warning: this sweep is estimated to take ") and "5 variants at" in lines[0]

@@ -90,3 +90,77 @@ def test_a_local_sweep_imports_no_dask(short_scene, tmp_path):
             "print(status, loaded)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.stdout.splitlines()[-1] == "0 []", done.stdout + done.stderr
+
+
+class _Service:
+    """A service on 127.0.0.1 that is not a Dask scheduler, in a thread of this process, stopped
+    when the block ends: "silent" accepts connections and says nothing (a plain TCP service),
+    "http" is Python's HTTP server (`python -m http.server`)."""
+
+    def __init__(self, kind: str):
+        import http.server
+        import socket
+        import threading
+
+        self.kind, self.held = kind, []
+        if kind == "http":
+            self.server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+            self.port = self.server.server_address[1]
+            self.thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.05},
+                                           daemon=True)
+        else:
+            self.sock = socket.create_server(("127.0.0.1", 0))
+            self.sock.settimeout(0.05)
+            self.port = self.sock.getsockname()[1]
+            self.stop = threading.Event()
+            self.thread = threading.Thread(target=self._accept, daemon=True)
+
+    def _accept(self):
+        while not self.stop.is_set():
+            try:
+                self.held.append(self.sock.accept()[0])  # kept open, never written to
+            except OSError:
+                pass
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.kind == "http":
+            self.server.shutdown()
+            self.server.server_close()
+        else:
+            self.stop.set()
+            self.thread.join(timeout=10)
+            for conn in self.held:
+                conn.close()
+            self.sock.close()
+        self.thread.join(timeout=10)
+
+
+@pytest.mark.parametrize("kind", ["silent", "http"])
+def test_a_service_that_is_not_a_scheduler_is_one_line_exit_2_within_the_timeout(kind, short_scene, tmp_path):
+    """Issue 24: a plain TCP service hung the sweep for 681 s, an HTTP server gave a MemoryError
+    traceback. With the connection timeout at 2 s the refusal must take at most 2 s + 1.5 s more
+    than a refused port's (measured in the same process, first, so with the imports' cost: the
+    machine is shared and start-up alone took 1-7 s); the subprocess is killed at 60 s."""
+    out, timings = tmp_path / "sw", tmp_path / "timings"
+    with _Service(kind) as service:
+        address = f"127.0.0.1:{service.port}"
+        code = ("import sys, time, compare.sweep as s; s.CONNECT_TIMEOUT_S = 2.0; from compare.cli import main\n"
+                "took = []\n"
+                f"for address in ('tcp://127.0.0.1:9', {address!r}):\n"
+                "    start = time.monotonic()\n"
+                f"    status = main(['sweep', {str(short_scene)!r}, '--out', {str(out)!r}, *{VARY!r}, "
+                "'--scheduler', address])\n"
+                "    took.append(time.monotonic() - start)\n"
+                f"open({str(timings)!r}, 'w').write(' '.join(map(str, took)))\n"
+                "sys.exit(status)")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr
+    first, line = done.stderr.splitlines()  # the refused port's line, then the service's
+    assert "Traceback" not in done.stderr and line.startswith(f"xval: error: --scheduler {address}: "), done.stderr
+    refused, service = map(float, timings.read_text().split())
+    assert service - refused < 2.0 + 1.5, f"refused after {service:.1f} s (a refused port: {refused:.1f} s)"
+    assert not out.exists()
