@@ -90,6 +90,8 @@ class Chart:
 
     def _evaluate(self, value: float) -> None:
         if not physics.evaluate(self.model.arrays, self.state, float(value)):
+            if self.state.S[physics.STATUS] == physics.WORK_SPENT:
+                raise walk_work_spent(self.name, f"to {self.name} = {value:.15g}", None)
             raise NumericalFailure("singular", f"Newton's method did not close the loops with {self.name} = "
                                    f"{value:.15g} held on the chart's branch: the position is singular or "
                                    f"unreachable")
@@ -111,6 +113,8 @@ class Chart:
         fields = np.empty((len(values), physics.field_count(self.model.arrays)))
         kin = np.empty((len(values), 3, len(self.model.coordinate_names)))
         done = physics.walk(self.model.arrays, self.state, values, fields, kin)
+        if done < len(values) and self.state.S[physics.STATUS] == physics.WORK_SPENT:
+            raise walk_work_spent(self.name, f"to {self.name} = {values[done]:.15g}", None)
         if done < len(values):
             raise NumericalFailure("singular", f"the chart of {self.name} cannot be followed to "
                                    f"{self.name} = {values[done]:.15g}")
@@ -124,7 +128,7 @@ class Chart:
 
         def f(t: float, value: float, rate: float) -> float:
             a = physics.acceleration(arrays, state, load, t, value, rate)
-            if a != a and state.S[physics.STATUS] == physics.SINGULAR:
+            if a != a and state.S[physics.STATUS] != physics.OK:  # SINGULAR or WORK_SPENT
                 self._evaluate(value)  # raises with the reason
             return a
 
@@ -241,6 +245,18 @@ def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.
     return edges, loads
 
 
+def walk_work_spent(name: str, where: str, t: float | None, rkn4: bool = False) -> NumericalFailure:
+    """The failure of a chart of coordinate ``name`` whose walk (``where``: to a value, or at a
+    time) needed more than :data:`~reduced.kernels.physics.MAX_WALK_CLOSURES` loop closures
+    (``rkn4``: in a fixed-step run, whose step is the setting; else an adaptive one's rtol)."""
+    shorter = "a smaller step (`--step`, `[reduced] step`)" if rkn4 else "a tighter rtol (`--rtol`, `[reduced] rtol`)"
+    return NumericalFailure(
+        "singular", f"the chart of {name} could not follow the linkage {where}: the walk needed more than "
+        f"{physics.MAX_WALK_CLOSURES} closures of the loops (Newton's method on the loop equations converging "
+        f"slowly or not at all: a position near a singular one, or loop equations that disagree with their "
+        f"Jacobian); {shorter} shortens the jumps between the positions it must close", t)
+
+
 def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart, step: float | None = None,
                      evaluations: int = 0):
     """The :class:`NumericalFailure` for a compiled run's status (info[0]: the time;
@@ -265,6 +281,9 @@ def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart
             "step-size", f"DOP853's step fell below the spacing of the floating-point numbers at t = {t:.6g} s: "
             "it has collapsed (an extreme speed, damper or inertia in the scene?)", t)
     if status == fixed_step.FAILED:
+        if chart.S[physics.STATUS] == physics.WORK_SPENT:
+            name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
+            return walk_work_spent(name, f"at t = {t:.6g} s", t, rkn4=step is not None)
         if chart.S[physics.STATUS] == physics.SINGULAR:
             name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
             return NumericalFailure("singular", f"Newton's method did not close the loops in the chart of {name} "

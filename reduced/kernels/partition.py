@@ -106,12 +106,13 @@ def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_inter
         (status, ts, qs, vs, accs, steps, evals, sample_evals, stopped, t_reached, fail_time,
          fail_value, observed, energy) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
                                            sample_interval, per_step, speed_limit, max_evaluations, cap, True)
-        singular = status == NONFINITE and chart[0][physics.STATUS] == physics.SINGULAR
+        walk_failed = status == NONFINITE and chart[0][physics.STATUS] != physics.OK  # SINGULAR or WORK_SPENT
+        singular = walk_failed and chart[0][physics.STATUS] == physics.SINGULAR
         if not singular:
             break
     if status != OK:
         info[0], info[1] = fail_time, fail_value
-        if singular:
+        if walk_failed:
             status = FAILED
     return status, stopped, ts, qs, vs, accs, observed, energy, steps, evals  # as scipy counts: not the samples
 

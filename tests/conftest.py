@@ -1,0 +1,75 @@
+"""Time limits of the tests (pytest-timeout, of the ``test`` extra): a hang fails, named.
+
+Every test has ``timeout`` seconds (300, pyproject.toml [tool.pytest.ini_options]; ``--timeout``
+overrides it), a test marked ``slow`` SLOW_TIMEOUT_S. The method is "thread": a test hung in
+compiled code (numba) never returns to the interpreter, so a signal handler would never run; the
+timer thread names the test, prints every thread's stack and ends the session (exit 1).
+
+Measured with the --durations of the whole suite (warm numba cache, a 2-core machine under a
+load of ~5): the slowest test not marked slow took 15.0 s (test_adaptive_kernel, seed at 1e-6),
+the slowest marked slow 31.0 s (test_compiled_vs_scipy, long_conservative). 300 s is 20× the
+first and leaves room for a kernel that a test compiles on a fresh checkout (the kernels the
+session start compiles, below, took 107–239 s a group on the same machine); SLOW_TIMEOUT_S is
+19× the second.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import pytest
+
+SLOW_TIMEOUT_S = 600
+_TIMER = pytest.StashKey[threading.Timer]()
+
+
+def pytest_sessionstart(session):
+    """Compile the reduced solver's kernels before the first test when numba's cache lacks them
+    (a fresh checkout: ``xval compile``, two processes), so that no test's time limit pays for it."""
+    from numba import config
+
+    from reduced.precompile import compile_kernels, kernels_cached
+
+    if not config.DISABLE_JIT and not kernels_cached():  # (without the JIT nothing compiles)
+        seconds = compile_kernels(processes=2)
+        sys.stderr.write("compiled the reduced solver's kernels before the tests: "
+                         + ", ".join(f"{k} {v:.0f} s" for k, v in seconds.items()) + "\n")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.get_closest_marker("slow") is not None and item.get_closest_marker("timeout") is None:
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
+
+
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
+def pytest_timeout_set_timer(item, settings):
+    """pytest-timeout's thread timer, with the test's name first (its own dump shows the stacks
+    but not which test, with its parameters, ran out of time)."""
+    if settings.method != "thread":
+        return None
+    from pytest_timeout import timeout_timer
+
+    def expire():
+        sys.stderr.write(f"\n{item.nodeid}: ran past its time limit of {settings.timeout:g} s\n")
+        sys.stderr.flush()
+        timeout_timer(item, settings)
+
+    timer = threading.Timer(settings.timeout, expire)
+    timer.name = f"{__name__} timeout {item.nodeid}"
+    timer.daemon = True
+    timer.start()
+    item.stash[_TIMER] = timer
+    return True
+
+
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
+def pytest_timeout_cancel_timer(item):
+    timer = item.stash.get(_TIMER, None)
+    if timer is None:
+        return None
+    timer.cancel()
+    timer.join()
+    del item.stash[_TIMER]
+    return True
