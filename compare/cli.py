@@ -462,8 +462,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write cost.png (work-precision diagram), cost.csv and cost.json; "
                                    "recommend the cheapest configuration of each engine for the target.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="xval-out",
-                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-cost",
+                   help="output folder, created if absent in an existing folder (default ./xval-cost: each command its own, as a folder holds one run)")
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
@@ -479,8 +479,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "through both engines; print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
-    p.add_argument("--out", default="xval-out",
-                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-stress",
+                   help="output folder, created if absent in an existing folder (default ./xval-stress: each command its own, as a folder holds one run)")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
 
@@ -511,8 +511,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
                    help="seed of the Monte Carlo sample (default 0)")
-    p.add_argument("--out", default="xval-out",
-                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--out", default="xval-sweep",
+                   help="output folder, created if absent in an existing folder (default ./xval-sweep: each command its own, as a folder holds one run)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores); not with --scheduler")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
