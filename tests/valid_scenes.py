@@ -36,6 +36,8 @@ import numpy as np
 from reduced import SceneError, scene_from_dict
 
 KINDS = ("four_bar", "four_bar_swing", "slider_crank", "slider_driven", "watt2", "stephenson3")
+# six-bars started just before their dyad's near-toggle, turning towards it (not in KINDS: ask for them)
+TOGGLE_KINDS = ("watt2_toggle", "stephenson3_toggle")
 G = 9.81  # m/s²
 
 
@@ -235,9 +237,11 @@ def _slider_crank(rng, slider_input: bool) -> dict:
 
 # -- six-bars ----------------------------------------------------------------------------------
 
-def _six_bar(rng, kind: str, near_toggle: bool) -> dict | None:
+def _six_bar(rng, kind: str, near_toggle: bool, approach: bool = False) -> dict | None:
     """Watt II (second dyad on the rocker) or Stephenson III (on the coupler) with a Grashof
-    crank-rocker first loop; None when the draw's second dyad cannot be placed."""
+    crank-rocker first loop; None when the draw's second dyad cannot be placed. ``approach``:
+    the crank starts 0.15–0.6 rad before the angle of the dyad's near-toggle and turns towards
+    it (a positive constant torque and speed), so that the run passes it."""
     scale = rng.uniform(0.15, 1.0)
     a, b, c, g = _four_bar_lengths(rng, grashof=True)
     k = scale / g
@@ -273,6 +277,8 @@ def _six_bar(rng, kind: str, near_toggle: bool) -> dict | None:
         return None
     sign2 = int(rng.choice([-1, 1]))
     theta0 = _r(float(rng.uniform(0, 2 * math.pi)), 4)
+    if approach:
+        theta0 = _r(float(thetas[int(np.argmax(d))] - rng.uniform(0.15, 0.6)), 4)
     A, B, C = pose(theta0)
     D = _dyad(C, l5, O6, l6, sign2)
     gravity = rng.uniform() < 0.5
@@ -308,6 +314,8 @@ def _six_bar(rng, kind: str, near_toggle: bool) -> dict | None:
     J = flywheel + sum(bodies[n]["mass"] * a ** 2 for n in ("coupler", "link")) + 0.3 * bodies["output"]["mass"] * l6 ** 2
     w = rng.uniform(3.0, 20.0)
     data["torque"] = _profile(rng, _r(J * w / min(horizon, 1.0) * rng.uniform(0.3, 1.0), 3), horizon)
+    if approach:
+        data["torque"] = {"type": "constant", "value": abs(data["torque"].get("value", 1.0) or 1.0)}
     if rng.uniform() < 0.6:
         data["dampers"] = [{"a": "ground.R", "b": "output.D", "coefficient": _r(J * rng.uniform(1.0, 10.0) / l6 ** 2, 3)}]
     if rng.uniform() < 0.4:
@@ -322,6 +330,8 @@ def _six_bar(rng, kind: str, near_toggle: bool) -> dict | None:
                                  **_profile(rng, _r(J * w / l6 * rng.uniform(0.2, 1.0), 3), horizon,
                                             kind=str(rng.choice(["pulse", "table"])))}]
     qdot0 = _r(rng.choice([0.0, rng.uniform(0.5, 1.0) * w]), 3)
+    if approach:
+        qdot0 = _r(rng.uniform(0.5, 1.0) * w, 3)
     data["initial"] = {"q": theta0, "qdot": qdot0,
                        "guess": {"coupler": _r(_angle(A, B), 5), "rocker": _r(_angle(O4, B), 5),
                                  "link": _r(_angle(C, D), 5), "output": _r(_angle(O6, D), 5)}}
@@ -339,6 +349,8 @@ def draw(rng, kind: str) -> dict | None:
         data = _four_bar(rng, swing=True)
     elif kind in ("slider_crank", "slider_driven"):
         data = _slider_crank(rng, slider_input=kind == "slider_driven")
+    elif kind.endswith("_toggle"):
+        data = _six_bar(rng, kind.removesuffix("_toggle"), near_toggle=True, approach=True)
     else:
         data = _six_bar(rng, kind, near_toggle=rng.uniform() < 0.35)
     if data is None:
@@ -413,9 +425,10 @@ def main(argv=None) -> None:
     p.add_argument("outdir", type=Path)
     p.add_argument("--seed", type=int, default=2024)
     p.add_argument("--n", type=int, default=42)
+    p.add_argument("--toggle", action="store_true", help="only six-bars that pass near their toggle")
     args = p.parse_args(argv)
     args.outdir.mkdir(parents=True, exist_ok=True)
-    for data in generate(args.seed, args.n):
+    for data in generate(args.seed, args.n, TOGGLE_KINDS if args.toggle else KINDS):
         (args.outdir / f"{data['name']}.toml").write_text(to_toml(data))
 
 
