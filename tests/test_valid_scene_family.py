@@ -14,7 +14,7 @@ import pytest
 from compare.run import compare_engines
 from reduced import scene_from_dict
 
-from valid_scenes import generate
+from valid_scenes import TOGGLE_KINDS, generate
 
 # Draw 0 of seed 2024: a Grashof crank-rocker whose 4.3e-3 kg·m² crank is spun to 383 rad/s by
 # a 309 N·m pulse (the draw's own tolerances: q 1e-2 rad, ω 0.5 rad/s). MuJoCo's runs at 1, 0.5
@@ -64,3 +64,16 @@ def test_the_defaults_pass_their_own_gate_on_a_generated_scene(name):
     c = compare_engines(scene_from_dict(FAMILY[name]))
     assert c.gate.passed, c.gate.failures
     assert c.mujoco.settings["timestep_automatic"]
+
+
+@pytest.mark.slow  # ~10 s: eight six-bars, some with a few halvings of MuJoCo's step
+@pytest.mark.parametrize("k", range(8))
+def test_the_defaults_pass_their_own_gate_through_a_near_toggle(k):
+    """Watt II and Stephenson III six-bars whose output dyad is 0.05–1 % longer than the largest
+    distance it must span, started 0.15–0.6 rad before that crank angle and turning towards it:
+    the run passes the near-toggle (the reduced run's q goes beyond the angle in the description)."""
+    data = generate(5, 8, TOGGLE_KINDS)[k]
+    c = compare_engines(scene_from_dict(data))
+    assert c.gate.passed, c.gate.failures
+    toggle = float(data["description"].split("q = ")[1].split(" rad")[0])
+    assert c.reduced.trajectory.q.min() < toggle < c.reduced.trajectory.q.max()

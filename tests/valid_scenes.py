@@ -336,6 +336,10 @@ def _six_bar(rng, kind: str, near_toggle: bool, approach: bool = False) -> dict 
                        "guess": {"coupler": _r(_angle(A, B), 5), "rocker": _r(_angle(O4, B), 5),
                                  "link": _r(_angle(C, D), 5), "output": _r(_angle(O6, D), 5)}}
     data["simulation"] = {"horizon": horizon}
+    if approach:
+        toggle = float(thetas[int(np.argmax(d))])
+        data["description"] = (f"dyad C-D-O6 {100 * (l5 + l6 - dmax) / dmax:.2g} % longer than its reach: "
+                               f"near its toggle at q = {toggle:.6f} rad")
     return data
 
 
