@@ -416,6 +416,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
             raise _search_failure(scene, coarse, evidence, runs, h, None)
         fine = attempt(h / 2)
         record = _check(scene, tol, h, coarse, fine)
+        _confirm_after_failure(evidence, record)
         evidence.append(record)
         if record["accepted"]:
             done = [r for r in runs if isinstance(r, EngineResult)]
@@ -453,6 +454,18 @@ def _check(scene: Scene, tol, h: float, coarse, fine) -> dict:
     record.update(max_dq=dq, max_domega=dw, dpeak=dpeak, limits=limits,
                   accepted=all(d <= lim for d, lim in zip((dq, dw, dpeak), limits)))
     return record
+
+
+def _confirm_after_failure(evidence: list[dict], record: dict) -> None:
+    """A check that meets its limits right after a check whose run failed (loop drift, energy
+    imbalance, instability) is not accepted alone: its coarse step is at the edge of where
+    MuJoCo's run works, where the differences of one halving need not fall as the step does
+    (measured on a fast crank: 1.25e-4 s against 6.25e-5 s differ by < 0.125 rad/s while each
+    is 1.6 rad/s off the converged run, and 6.25e-5 s against 3.125e-5 s by 1.2 rad/s). Such a
+    record is marked ``unconfirmed`` and the search halves once more: the next check, measured
+    after a measured one, is accepted on its own limits."""
+    if record.get("accepted") and evidence and "failure" in evidence[-1]:
+        record.update(accepted=False, unconfirmed=True)
 
 
 def _predicted_step(evidence: list[dict]) -> float | None:
@@ -520,7 +533,8 @@ def _describe(record: dict) -> str:
         return "not run"
     unit = record.get("unit", "rad")  # the input coordinate's: rad or m
     return (f"max |Δq| {record['max_dq']:.3g} {unit}, max |Δω| {record['max_domega']:.3g} {unit}/s, "
-            f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}")
+            f"|Δ peak| {record['dpeak']:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record['limits'])}"
+            + (", within them but after a failed coarser run: to be confirmed at h/2" if record.get("unconfirmed") else ""))
 
 
 def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles, layout: "_Layout",
