@@ -7,7 +7,8 @@ block of the prismatic joint it slides in (in its colour) or a disc; revolute jo
 labelled circles, ground pivots with a hatched base, prismatic joints as a guide line and a
 block, dampers as dashed lines and springs as zigzags with their coefficients, point forces as arrows F(q) along their
 direction (ending at the point they act on), centres of mass as crossed circles; the title
-gives q0 with its unit, the assembly mode (one sign per loop) and gravity. Every position
+gives q0 with its unit, the assembly mode (one sign per loop) and gravity. ``xval draw`` moves
+labels apart (:func:`declutter_labels`). Every position
 is taken from the compiled loop kinematics (:mod:`reduced.loops`) at the general
 coordinates x (``scene.x0`` for ``xval draw``); nothing is recomputed here. Lengths in m,
 equal axis scales.
@@ -388,7 +389,70 @@ def draw_scene(scene, path: str | Path) -> None:
                else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
     ax.set_title(f"{plots.short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
                  f"mode {mode_text(scene.mode)}{gravity}", **plots.PLAIN)
+    declutter_labels(ax)
     plots._save(fig, Path(path))
+
+
+LEADER_POINTS = 12.0  # a label moved further than this from where it was put gets a leader line
+# Offsets (points) a label may move by from where it was put, nearest first: rings of 8 directions.
+_LABEL_MOVES = [(0.0, 0.0)] + [(r * math.cos(a), r * math.sin(a)) for r in (10.0, 18.0, 28.0, 40.0, 54.0)
+                               for a in np.linspace(0.0, 2 * math.pi, 8, endpoint=False)]
+
+
+def label_boxes(ax) -> list:
+    """The display-space boxes (matplotlib Bbox, pixels) of the axes' labels: every annotation
+    with text, placed in points from its anchor."""
+    renderer = ax.figure.canvas.get_renderer()
+    return [t.get_window_extent(renderer) for t in _labels(ax)]
+
+
+def _labels(ax) -> list:
+    from matplotlib.text import Annotation
+
+    return [t for t in ax.texts if isinstance(t, Annotation) and t.get_text() and t.anncoords == "offset points"]
+
+
+def declutter_labels(ax) -> None:
+    """Move labels that would cover one another or a labelled mark: each label, in the order
+    drawn, keeps its place if it overlaps no label placed before it and no mark (a joint, a
+    centre of mass, a point: every label's anchor), else takes the nearest offset
+    (:data:`_LABEL_MOVES`) with the least overlap, inside the axes where one is. A label stays beside its anchor (at
+    most 54 points from where it was put)."""
+    ax.figure.canvas.draw()  # lays out the limits and the texts
+    renderer = ax.figure.canvas.get_renderer()
+    from matplotlib.transforms import Bbox
+
+    frame = ax.get_window_extent(renderer)
+    placed: list = []
+    # the marks labels are anchored at (joints, centres of mass, points): no label covers one
+    marks = [Bbox.from_bounds(x - 7.0, y - 7.0, 14.0, 14.0)
+             for x, y in ax.transData.transform([t.xy for t in _labels(ax) if t.xycoords == "data"])]
+
+    def cost(box) -> float:
+        overlap = sum(max(0.0, min(box.x1, b.x1 + 2) - max(box.x0, b.x0 - 2))
+                      * max(0.0, min(box.y1, b.y1 + 2) - max(box.y0, b.y0 - 2)) for b in placed)
+        overlap += 0.5 * sum(max(0.0, min(box.x1, b.x1) - max(box.x0, b.x0))
+                             * max(0.0, min(box.y1, b.y1) - max(box.y0, b.y0)) for b in marks)
+        outside = (max(0.0, frame.x0 - box.x0) + max(0.0, box.x1 - frame.x1)
+                   + max(0.0, frame.y0 - box.y0) + max(0.0, box.y1 - frame.y1))
+        return overlap + 100.0 * outside
+
+    for text in _labels(ax):
+        home = tuple(text.xyann)
+        best, best_cost = home, math.inf
+        for dx, dy in _LABEL_MOVES:
+            text.xyann = (home[0] + dx, home[1] + dy)
+            c = cost(text.get_window_extent(renderer))
+            if c < best_cost:
+                best, best_cost = text.xyann, c
+            if c == 0.0:
+                break
+        text.xyann = best
+        placed.append(text.get_window_extent(renderer))
+        if math.dist(best, home) > LEADER_POINTS:  # moved away: a thin line back to its anchor
+            ax.annotate("", xy=text.xy, xycoords=text.xycoords, xytext=best, textcoords="offset points",
+                        arrowprops=dict(arrowstyle="-", color="0.55", linewidth=0.6, shrinkA=0.0, shrinkB=3.0),
+                        zorder=1)
 
 
 # -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----

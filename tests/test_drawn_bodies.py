@@ -207,3 +207,28 @@ def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path,
                           np.zeros(2, dtype=int), np.ones((2, 1), dtype=int))
     draw_strip(scene, run, run, [("peak speed", 0.0), ("largest |Δq|", 1.0)], tmp_path / "b.png")
     assert [a.get_title().split(",")[0] for a in strips[1].axes] == ["peak speed", "largest |Δq|"]
+
+
+def _overlap(a, b) -> float:
+    """Area (px²) two display boxes share."""
+    return max(0.0, min(a.x1, b.x1) - max(a.x0, b.x0)) * max(0.0, min(a.y1, b.y1) - max(a.y0, b.y0))
+
+
+@pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
+def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, monkeypatch):
+    """The drawing's labels (joints, bodies, centres of mass, elements) as ``xval draw`` saves
+    them: no two share a pixel. Before
+    labels were moved apart, the Andrews squeezer's 'O (input, …)' covered body1's and body2's
+    labels, and the slotted lever's 'O2 (input, …)' its crank's. The figure is caught as it is
+    saved (the drawing itself is not replaced)."""
+    import compare.plots
+    from compare.draw import _labels, draw_scene, label_boxes
+
+    saved = []
+    original = compare.plots._save
+    monkeypatch.setattr(compare.plots, "_save", lambda fig, p, *a, **k: (saved.append(fig), original(fig, p, *a, **k)))
+    draw_scene(load_scene(path), tmp_path / "linkage.png")
+    [ax] = [a for a in saved[0].axes if _labels(a)]
+    boxes = label_boxes(ax)
+    clashes = [(i, j) for i in range(len(boxes)) for j in range(i) if _overlap(boxes[i], boxes[j]) > 0.0]
+    assert not clashes, [(_labels(ax)[i].get_text(), _labels(ax)[j].get_text()) for i, j in clashes]
