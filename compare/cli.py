@@ -118,6 +118,8 @@ def _announce_compilation() -> None:
 def cmd_compile(args: argparse.Namespace) -> int:
     from reduced.precompile import compile_kernels
 
+    print("xval: compiling the reduced solver's kernels into numba's cache (one to three minutes on 2 cores, "
+          "once per install) ...", file=sys.stderr, flush=True)
     seconds = compile_kernels(processes=args.processes)
     print("compiled the reduced solver's kernels into numba's cache: "
           + ", ".join(f"{group} {s:.1f} s" for group, s in seconds.items()))
