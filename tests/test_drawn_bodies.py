@@ -215,20 +215,16 @@ def _overlap(a, b) -> float:
 
 
 @pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
-def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, monkeypatch):
+def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, strips):
     """The drawing's labels (joints, bodies, centres of mass, elements) as ``xval draw`` saves
     them: no two share a pixel. Before
     labels were moved apart, the Andrews squeezer's 'O (input, …)' covered body1's and body2's
     labels, and the slotted lever's 'O2 (input, …)' its crank's. The figure is caught as it is
-    saved (the drawing itself is not replaced)."""
-    import compare.plots
+    saved (the ``strips`` fixture; the drawing itself is not replaced)."""
     from compare.draw import _labels, draw_scene, label_boxes
 
-    saved = []
-    original = compare.plots._save
-    monkeypatch.setattr(compare.plots, "_save", lambda fig, p, *a, **k: (saved.append(fig), original(fig, p, *a, **k)))
     draw_scene(load_scene(path), tmp_path / "linkage.png")
-    [ax] = [a for a in saved[0].axes if _labels(a)]
+    [ax] = [a for a in strips[0].axes if _labels(a)]
     boxes = label_boxes(ax)
     clashes = [(i, j) for i in range(len(boxes)) for j in range(i) if _overlap(boxes[i], boxes[j]) > 0.0]
     assert not clashes, [(_labels(ax)[i].get_text(), _labels(ax)[j].get_text()) for i, j in clashes]
