@@ -31,6 +31,7 @@ from reduced.scenefile import default_scene_path, load_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
                      check_folder, signals_as_exceptions, write_file)
+from .report import JOINTS_BY_DEFAULT
 from .sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
@@ -445,7 +446,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
     p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
                    help="the joints whose coordinate and rate the CSVs and report.json carry, with the input's "
-                        "(default: every joint of a scene of at most 12 joints, else the input's alone)")
+                        f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
+                        "alone)")
     _add_comparison_arguments(p)
     p.set_defaults(func=cmd_run)
 

@@ -458,25 +458,10 @@ def declutter_labels(ax) -> None:
 # -- configurations along a run: the mechanism strip and the animation of ``xval run`` ----
 
 def configuration_at(joints, t: float) -> np.ndarray:
-    """The general coordinates x (shape (n,)) of a JointTrajectory at time t (s).
-
-    Cubic Hermite interpolation from the samples' x and ẋ on the interval containing t
-    (O(h⁴); at ≤ 1 ms samples far below a pixel), clamped to the run's span. At a repeated
-    time (a coordinate switch) the later sample is used.
-    """
-    T = np.asarray(joints.t, dtype=float)
-    X = np.asarray(joints.x, dtype=float)
-    V = np.asarray(joints.xdot, dtype=float)
-    t = float(np.clip(t, T[0], T[-1]))
-    k = int(np.searchsorted(T, t, side="right")) - 1
-    k = min(max(k, 0), len(T) - 2) if len(T) > 1 else 0
-    if len(T) == 1 or T[k + 1] <= T[k]:
-        return X[min(k + 1, len(T) - 1)].copy()
-    h = T[k + 1] - T[k]
-    s = (t - T[k]) / h
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    return h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+    """The general coordinates x (shape (n,)) of a JointTrajectory at time t (s), clamped to the
+    run's span (:meth:`reduced.partition.JointTrajectory.interpolate`: cubic Hermite, O(h⁴); at
+    ≤ 1 ms samples far below a pixel)."""
+    return joints.interpolate(t)[0][0]
 
 
 def _checked_system(scene, *runs) -> LoopSystem:

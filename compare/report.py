@@ -154,6 +154,12 @@ def joint_unit(scene: Scene, name: str) -> str:
     return "m" if isinstance(scene.mechanism.linkage.joint_map[name], PrismaticJoint) else "rad"
 
 
+def _joint_rows(scene: Scene, names: Sequence[str]) -> np.ndarray:
+    """(len(names), n): each named joint's row u = row·x (:attr:`reduced.loops.LoopSystem.joint_rows`)."""
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    return np.array([system.joint_row(name) for name in names]).reshape(len(names), system.n)
+
+
 def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
                  names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Each named joint's own coordinate u and rate u̇ at the samples ``t`` of the engine's input
@@ -161,41 +167,26 @@ def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
     poses and rates (:attr:`reduced.loops.LoopSystem.joint_rows`: θ_b − θ_a of a revolute joint,
     cut or not; s of a prismatic one). A time the trajectory repeats (a load edge) takes the
     joints' first sample there: positions and rates are continuous."""
-    system = loops.compile_linkage(scene.mechanism.linkage)
-    rows = np.array([system.joint_row(name) for name in names]).reshape(len(names), system.n)
+    rows = _joint_rows(scene, names)
     index = np.minimum(np.searchsorted(joints.t, t, side="left"), len(joints.t) - 1)
     if not np.array_equal(joints.t[index], t):
         raise ValueError("the engine's joint samples are not at its trajectory's times")
     return joints.x[index] @ rows.T, joints.xdot[index] @ rows.T
 
 
-def _hermite(t: np.ndarray, u: np.ndarray, v: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The cubic Hermite interpolant of samples (u, u̇ = v) at times t and its derivative,
-    evaluated at ``at`` (a repeated time keeps its last sample); columns interpolated together."""
-    keep = np.append(np.diff(t) > 0, True)
-    t, u, v = t[keep], u[keep], v[keep]
-    i = np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 2)
-    h = (t[i + 1] - t[i])[:, None]
-    s = ((at - t[i])[:, None]) / h
-    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, 6 * s - 6 * s**2, 3 * s**2 - 2 * s
-    value = h00 * u[i] + h10 * h * v[i] + h01 * u[i + 1] + h11 * h * v[i + 1]
-    rate = (d00 * u[i] + d01 * u[i + 1]) / h + d10 * v[i] + d11 * v[i + 1]
-    return value, rate
-
-
 def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     """Per named joint: its type, unit, whether it is cut, each engine's range of u and largest
     |u̇|, and the largest differences MuJoCo − reduced of u and u̇ on MuJoCo's samples (the
-    reference interpolated there by the cubic Hermite polynomial of its u and u̇ samples, and
-    u̇ by its derivative)."""
+    reference's body poses interpolated there: :meth:`reduced.partition.JointTrajectory.interpolate`)."""
     linkage = c.scene.mechanism.linkage
     out = []
     ref_t, mj_t = c.reduced.trajectory.t, c.mujoco.trajectory.t
     ru, rv = joint_values(c.scene, c.reduced.diagnostics["joints"], ref_t, names)
     mu, mv = joint_values(c.scene, c.mujoco.diagnostics["joints"], mj_t, names)
     inside = (mj_t >= ref_t[0]) & (mj_t <= ref_t[-1])
-    u_ref, v_ref = _hermite(ref_t, ru, rv, mj_t[inside])
+    x_ref, xdot_ref = c.reduced.diagnostics["joints"].interpolate(mj_t[inside])
+    rows = _joint_rows(c.scene, names)
+    u_ref, v_ref = x_ref @ rows.T, xdot_ref @ rows.T
     du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
     for k, name in enumerate(names):
         engines = {}

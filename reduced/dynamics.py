@@ -246,6 +246,8 @@ class MechanismModel:
         self.system = loops.compile_linkage(scene.mechanism.linkage)
         self.effects: tuple[str, ...] = scene.effects
         self.load = scene.load
+        # the edges of the load pieces (:func:`piece_edges`): the kernels' ``load`` is a piece's index
+        self.piece_edges = piece_edges(scene)
         self.arrays = build_arrays(scene, self.system)
         self.x0 = np.array(scene.x0, dtype=float)
         drive = self.system.drive
@@ -312,7 +314,3 @@ class MechanismModel:
         """Times (s) where the applied loads jump: the input's and the timed forces'."""
         return self.scene.load_edges
 
-    @property
-    def piece_edges(self) -> np.ndarray:
-        """The edges of the load pieces (:func:`piece_edges`); the kernels' ``load`` is a piece's index."""
-        return piece_edges(self.scene)

@@ -64,6 +64,27 @@ class JointTrajectory:
     coordinate: np.ndarray
     mode: np.ndarray
 
+    def interpolate(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """x and ẋ at ``times`` (s, clamped to the run's span), shapes (len(times), m): the cubic
+        Hermite interpolant of the samples' x and ẋ on the interval holding each time (O(h⁴)) and
+        its derivative. At a repeated time (a coordinate switch, a load edge) the later sample
+        is used."""
+        T = np.asarray(self.t, dtype=float)
+        X, V = np.asarray(self.x, dtype=float), np.asarray(self.xdot, dtype=float)
+        times = np.clip(np.atleast_1d(np.asarray(times, dtype=float)), T[0], T[-1])
+        if len(T) == 1:
+            return np.repeat(X, len(times), axis=0), np.repeat(V, len(times), axis=0)
+        k = np.clip(np.searchsorted(T, times, side="right") - 1, 0, len(T) - 2)
+        h = T[k + 1] - T[k]
+        flat = h <= 0.0  # the last two samples at one time: the later one
+        h = np.where(flat, 1.0, h)[:, None]
+        s = np.where(flat, 1.0, (times - T[k]) / h[:, 0])[:, None]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, 6 * s - 6 * s**2, 3 * s**2 - 2 * s
+        x = h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+        xdot = np.where(flat[:, None], V[k + 1], (d00 * X[k] + d01 * X[k + 1]) / h + d10 * V[k] + d11 * V[k + 1])
+        return x, xdot
+
 
 class Chart:
     """Eksergian's equation in one independent coordinate: a Python view of a compiled chart
@@ -240,7 +261,7 @@ def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.
     """Edges (p+1,) of the smooth pieces of [t0, horizon] and each one's ``load``, its index
     among the model's load pieces (p,)."""
     horizon = model.scene.horizon
-    edges = np.array([t0, *sorted({b for b in model.load_edges if t0 < b < horizon}), horizon])
+    edges = np.array([t0, *[b for b in model.load_edges if t0 < b < horizon], horizon])  # sorted, unique
     loads = np.array([piece_load(model, a, b) for a, b in zip(edges[:-1], edges[1:])], dtype=float)
     return edges, loads
 

@@ -25,7 +25,7 @@ hinge qpos along its tree path, a slider's s is s0 plus its slide's qpos.
 
 Effects. Only what the scene declares is built: a damper is a spatial tendon between its two
 sites with ``damping``, a spring one with ``stiffness`` and ``springlength``, a damper or spring
-on a joint a fixed tendon on the joint's coordinate (:func:`joint_tendon`), the input load
+on a joint a fixed tendon on the joint's coordinate (:func:`joint_tendons`), the input load
 a motor on the input joint (always a tree joint, hinge or slide), gravity the scene's vector
 (else zero). There are no geoms, contacts are disabled, and no joint has damping, armature,
 stiffness or friction loss. Point forces (F(q) along a fixed ground direction at a body
@@ -402,10 +402,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                              ("com_vel", mujoco.mjtSensor.mjSENS_FRAMELINVEL),
                              ("ang_vel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL)):
             spec.add_sensor(name=sensor_name(name, kind), type=sensor, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=name)
-    for e in mech.springs:
-        spec.add_sensor(name=sensor_name(e.name, "length"), type=mujoco.mjtSensor.mjSENS_TENDONPOS,
-                        objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
-    for e in mech.joint_springs:
+    for e in mech.springs + mech.joint_springs:  # every spring is a tendon: its length for the energy audit
         spec.add_sensor(name=sensor_name(e.name, "length"), type=mujoco.mjtSensor.mjSENS_TENDONPOS,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
     for name in dampers:
@@ -434,30 +431,35 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     return spec
 
 
-def joint_tendon(scene: Scene, joint: str) -> tuple[np.ndarray, float]:
-    """(coef, u0): the joint's own coordinate (:attr:`reduced.loops.LoopSystem.joint_rows`:
-    relative angle θ_b − θ_a in rad, or displacement in m) as u = u0 + coef·qpos, coef (nq,)
-    over :func:`joint_order`. The bodies turn about z only, so a body's angle is its authored
-    angle plus the hinge angles on its tree path (:func:`coordinate_map`) and u is linear in
-    qpos also for a cut joint: the coefficients are 0 or ±1, and a fixed tendon is u − u0."""
+def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
+    """For each joint of a joint element, (coef, u0): the joint's own coordinate
+    (:attr:`reduced.loops.LoopSystem.joint_rows`: relative angle θ_b − θ_a in rad, or
+    displacement in m) as u = u0 + coef·qpos, coef (nq,) over :func:`joint_order`. The bodies
+    turn about z only, so a body's angle is its authored angle plus the hinge angles on its tree
+    path (:func:`coordinate_map`) and u is linear in qpos also for a cut joint: the coefficients
+    are 0 or ±1, and a fixed tendon is u − u0."""
+    elements = scene.mechanism.joint_elements
+    if not elements:
+        return {}
     system = loops.compile_linkage(scene.mechanism.linkage)
     x0, T = coordinate_map(scene)
-    row = system.joint_row(joint)
-    return row @ T, float(row @ x0)
+    rows = {e.joint: system.joint_row(e.joint) for e in elements}
+    return {joint: (row @ T, float(row @ x0)) for joint, row in rows.items()}
 
 
 def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
     """One fixed tendon per joint damper or spring (named after it) on the joint's coordinate
-    (:func:`joint_tendon`): a damper's with ``damping`` c, a spring's with ``stiffness`` k and
+    (:func:`joint_tendons`): a damper's with ``damping`` c, a spring's with ``stiffness`` k and
     ``springlength`` u_rest − u0 (so ½ k (L − l0)² = ½ k (u − u_rest)²). A tendon, not the
     joint's own stiffness and damping: it serves a cut joint too (closed by a connect equality,
     no MuJoCo joint), and two elements on one joint stay two. Where u_rest − u0 < 0 the tendon
     is written with the opposite sign (same force and energy), since MuJoCo reads a
     springlength of −1 as "the length at qpos0". Returns the dampers' names."""
     order = joint_order(scene.mechanism.linkage)
+    tendons = joint_tendons(scene)
     dampers = []
     for e in scene.mechanism.joint_elements:
-        coef, u0 = joint_tendon(scene, e.joint)
+        coef, u0 = tendons[e.joint]
         length = e.rest - u0 if e.kind == "spring" else 0.0
         sign = -1.0 if length < 0.0 else 1.0
         tendon = spec.add_tendon(name=e.name)
@@ -568,5 +570,5 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
 __all__ = ["BASE_BODY", "ConstraintSettings", "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody",
            "assembled_angles", "build_spec", "check_joint_order", "compile_model", "coordinate_map",
            "initial_qpos_qvel", "initial_rates", "joint_order", "joint_positions", "joint_rates",
-           "joint_rates_matrix", "joint_tendon", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
+           "joint_rates_matrix", "joint_tendons", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
            "spanning_tree"]

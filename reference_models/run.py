@@ -442,7 +442,7 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
 
 def _check(scene: Scene, tol, h: float, coarse, fine) -> dict:
     """The record of one check: runs at h and h/2 compared against HALVING_FRACTION of the
-    tolerances; ``ratio`` is the largest difference over its limit."""
+    tolerances (or the failure of either run)."""
     record = {"timestep": h, "unit": scene.input_unit}
     if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
         failed = coarse if isinstance(coarse, NumericalFailure) else fine

@@ -1,7 +1,7 @@
 """Dampers and springs on a joint's own coordinate ([[joint_dampers]], [[joint_springs]]):
 a revolute joint's relative angle θ_b − θ_a (cut joints included), a prismatic joint's
 displacement. Both engines: the reduced kernel's terms (reduced/kernels/physics.py) and
-MuJoCo's fixed tendons (reference_models/build.py, joint_tendon).
+MuJoCo's fixed tendons (reference_models/build.py, joint_tendons).
 
 Oracles: each element split into two halves on the same joint gives the whole's motion (a
 four-bar, a slider-crank and a six-bar, both engines); closed forms of a one-body oscillator
