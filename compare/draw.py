@@ -412,16 +412,22 @@ def _labels(ax) -> list:
     return [t for t in ax.texts if isinstance(t, Annotation) and t.get_text() and t.anncoords == "offset points"]
 
 
+def _shared_area(a, b, pad: float = 0.0) -> float:
+    """Area (px²) display boxes ``a`` and ``b`` share, ``b`` grown by ``pad`` px on every side."""
+    return (max(0.0, min(a.x1, b.x1 + pad) - max(a.x0, b.x0 - pad))
+            * max(0.0, min(a.y1, b.y1 + pad) - max(a.y0, b.y0 - pad)))
+
+
 def declutter_labels(ax) -> None:
     """Move labels that would cover one another or a labelled mark: each label, in the order
     drawn, keeps its place if it overlaps no label placed before it and no mark (a joint, a
     centre of mass, a point: every label's anchor), else takes the nearest offset
-    (:data:`_LABEL_MOVES`) with the least overlap, inside the axes where one is. A label stays beside its anchor (at
-    most 54 points from where it was put)."""
-    ax.figure.canvas.draw()  # lays out the limits and the texts
-    renderer = ax.figure.canvas.get_renderer()
+    (:data:`_LABEL_MOVES`) with the least overlap, inside the axes where one is. A label stays
+    beside its anchor (at most 54 points from where it was put)."""
     from matplotlib.transforms import Bbox
 
+    ax.figure.canvas.draw()  # lays out the limits and the texts
+    renderer = ax.figure.canvas.get_renderer()
     frame = ax.get_window_extent(renderer)
     placed: list = []
     # the marks labels are anchored at (joints, centres of mass, points): no label covers one
@@ -429,10 +435,7 @@ def declutter_labels(ax) -> None:
              for x, y in ax.transData.transform([t.xy for t in _labels(ax) if t.xycoords == "data"])]
 
     def cost(box) -> float:
-        overlap = sum(max(0.0, min(box.x1, b.x1 + 2) - max(box.x0, b.x0 - 2))
-                      * max(0.0, min(box.y1, b.y1 + 2) - max(box.y0, b.y0 - 2)) for b in placed)
-        overlap += 0.5 * sum(max(0.0, min(box.x1, b.x1) - max(box.x0, b.x0))
-                             * max(0.0, min(box.y1, b.y1) - max(box.y0, b.y0)) for b in marks)
+        overlap = sum(_shared_area(box, b, pad=2.0) for b in placed) + 0.5 * sum(_shared_area(box, b) for b in marks)
         outside = (max(0.0, frame.x0 - box.x0) + max(0.0, box.x1 - frame.x1)
                    + max(0.0, frame.y0 - box.y0) + max(0.0, box.y1 - frame.y1))
         return overlap + 100.0 * outside
