@@ -43,6 +43,23 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
 
 
+@pytest.fixture
+def saved_figures(monkeypatch) -> list:
+    """The matplotlib figures compare.plots saves from now on (still saved, to their files), in
+    order: a test reads what a plot or drawing drew without replacing how it is drawn."""
+    import compare.plots
+
+    kept = []
+    real = compare.plots._save
+
+    def keep(fig, path):
+        real(fig, path)
+        kept.append(fig)
+
+    monkeypatch.setattr(compare.plots, "_save", keep)
+    return kept
+
+
 @pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_timeout_set_timer(item, settings):
     """pytest-timeout's thread timer, with the test's name first (its own dump shows the stacks

@@ -124,26 +124,17 @@ def test_recommendation_is_the_cheapest_of_the_real_sweep(study):
         assert recommendations[engine].measurement.wall_median_s == min(m.wall_median_s for m in meeting)
 
 
-def test_the_diagram_keeps_plain_log_labels_with_a_front(tmp_path, monkeypatch):
+def test_the_diagram_keeps_plain_log_labels_with_a_front(tmp_path, saved_figures):
     """Every label of cost.png is plain text (no mathtext parser), also after the Pareto front
     and the target are drawn: a later loglog call would put matplotlib's formatters back."""
-    import compare.plots
     from compare.cost import pareto_front
     from compare.plots import plot_work_precision
 
     configs = ladder(quick=True)
     measurements = synthetic([c for c in configs if c.engine == "reduced"][:3],
                              [(0.5, 1e-5), (0.1, 1e-6), (0.9, 1e-7)])
-    figures = []
-    real_save = compare.plots._save
-
-    def keep(fig, path):
-        real_save(fig, path)
-        figures.append(fig)
-
-    monkeypatch.setattr(compare.plots, "_save", keep)
     plot_work_precision(measurements, pareto_front(measurements), TARGET, "seed", tmp_path / "cost.png")
-    (fig,) = figures
+    (fig,) = saved_figures
     ax = fig.axes[0]
     labels = [t.get_text() for axis in (ax.xaxis, ax.yaxis)
               for t in axis.get_majorticklabels() + axis.get_minorticklabels() if t.get_text()]

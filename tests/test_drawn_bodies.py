@@ -94,30 +94,14 @@ def held(system, x0) -> JointTrajectory:
                            np.zeros(2, dtype=int), np.ones((2, 1), dtype=int))
 
 
-@pytest.fixture
-def strips(monkeypatch):
-    """The figures draw_strip saves from now on (still saved), drawn."""
-    import compare.plots
-
-    kept = []
-    real = compare.plots._save
-
-    def keep(fig, path):
-        real(fig, path)
-        kept.append(fig)
-
-    monkeypatch.setattr(compare.plots, "_save", keep)
-    return kept
-
-
 @pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
-def test_every_body_is_in_the_mechanism_strip_and_guides_are_not_pivots(path, tmp_path, strips):
+def test_every_body_is_in_the_mechanism_strip_and_guides_are_not_pivots(path, tmp_path, saved_figures):
     scene = load_scene(path)
     linkage = scene.mechanism.linkage
     system = compile_linkage(linkage)
     run = held(system, scene.x0)
     draw_strip(scene, run, run, [("peak speed", 0.2), ("largest |Δq|", 0.7)], tmp_path / "m.png")
-    (fig,) = strips
+    (fig,) = saved_figures
     tol = ON_PATH * span_of(system, scene.x0)
     r = positions(system.points, np.asarray(scene.x0, dtype=float))
     pivots = sorted(tuple(r[system.point_index(GROUND, j.point_a if j.body_a == GROUND else j.point_b)])
@@ -157,7 +141,7 @@ def scaled_lever(k: float):
 
 
 @pytest.mark.parametrize("k", [0.3, 0.4, 0.6, 0.8])
-def test_strip_tick_labels_do_not_overlap(tmp_path, strips, k):
+def test_strip_tick_labels_do_not_overlap(tmp_path, saved_figures, k):
     """The oscillating slotted lever, its lengths scaled by k, at its peak speed (q = 10.2236
     rad) and at the end of its run (q = 13.8867 rad), reached from q0 by continuation of the
     assembly: with matplotlib's default ticks, labels such as −0.125 at 0.025 m steps ran into
@@ -177,7 +161,7 @@ def test_strip_tick_labels_do_not_overlap(tmp_path, strips, k):
     run = JointTrajectory(system.coordinate_names, np.array([0.0, 1.0]), xs, np.zeros_like(xs),
                           np.zeros(2, dtype=int), np.ones((2, 1), dtype=int))
     draw_strip(scene, run, run, [("peak speed", 0.0), ("largest |Δq|", 1.0)], tmp_path / "m.png")
-    (fig,) = strips
+    (fig,) = saved_figures
     renderer = fig.canvas.get_renderer()
     assert len(fig.axes) == 2
     for ax in fig.axes:
@@ -189,14 +173,14 @@ def test_strip_tick_labels_do_not_overlap(tmp_path, strips, k):
         assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:])), [t.get_text() for t in ax.get_xticklabels()]
 
 
-def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path, strips):
+def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path, saved_figures):
     """A run held still: its peak and its largest difference are the same picture, drawn
     once, the title naming both moments; a run that moves gets one panel per moment."""
     scene = load_scene(CATALOGUE_BY_NAME["seed_fourbar"])
     system = compile_linkage(scene.mechanism.linkage)
     still = held(system, scene.x0)
     draw_strip(scene, still, still, [("peak speed", 0.2), ("largest |Δq|", 0.7)], tmp_path / "a.png")
-    (fig,) = strips
+    (fig,) = saved_figures
     (ax,) = fig.axes
     assert ax.get_title().startswith("peak speed (t = 0.2 s) and largest |Δq| (t = 0.7 s), one picture")
     from reduced.loops import assemble
@@ -206,7 +190,7 @@ def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path,
     run = JointTrajectory(system.coordinate_names, np.array([0.0, 1.0]), xs, np.zeros_like(xs),
                           np.zeros(2, dtype=int), np.ones((2, 1), dtype=int))
     draw_strip(scene, run, run, [("peak speed", 0.0), ("largest |Δq|", 1.0)], tmp_path / "b.png")
-    assert [a.get_title().split(",")[0] for a in strips[1].axes] == ["peak speed", "largest |Δq|"]
+    assert [a.get_title().split(",")[0] for a in saved_figures[1].axes] == ["peak speed", "largest |Δq|"]
 
 
 def _overlap(a, b) -> float:
@@ -215,16 +199,16 @@ def _overlap(a, b) -> float:
 
 
 @pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
-def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, strips):
+def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, saved_figures):
     """The drawing's labels (joints, bodies, centres of mass, elements) as ``xval draw`` saves
     them: no two share a pixel. Before
     labels were moved apart, the Andrews squeezer's 'O (input, …)' covered body1's and body2's
     labels, and the slotted lever's 'O2 (input, …)' its crank's. The figure is caught as it is
-    saved (the ``strips`` fixture; the drawing itself is not replaced)."""
+    saved (the ``saved_figures`` fixture of conftest.py; the drawing itself is not replaced)."""
     from compare.draw import _labels, draw_scene, label_boxes
 
     draw_scene(load_scene(path), tmp_path / "linkage.png")
-    [ax] = [a for a in strips[0].axes if _labels(a)]
+    [ax] = [a for a in saved_figures[0].axes if _labels(a)]
     boxes = label_boxes(ax)
     clashes = [(i, j) for i in range(len(boxes)) for j in range(i) if _overlap(boxes[i], boxes[j]) > 0.0]
     assert not clashes, [(_labels(ax)[i].get_text(), _labels(ax)[j].get_text()) for i, j in clashes]
