@@ -1,9 +1,45 @@
-"""Compiled (numba) kernels of the reduced solver: physics, integrators, partitioning.
+"""The reduced solver's compiled core: physics, integrators, chart switching (Cython 3).
 
-Debugging: ``NUMBA_DISABLE_JIT=1`` runs the same code as plain Python (slow, but it can be
-stepped through and printed from).
+Each module here is an ordinary Python file annotated for Cython's pure-Python mode; the
+package's build (``setup.py``, run by ``pip install``) compiles each into a C extension of the
+same name, which Python imports in preference to the source beside it. Nothing is compiled or
+cached at run time.
+
+Debugging: ``XVAL_PURE_PYTHON=1`` (set before the first import of ``reduced``) imports the
+``.py`` sources instead, where the compiled modules exist too: the same algorithms run as plain
+Python (slow: a seed run takes minutes), and can be stepped through and printed from. Where a
+module was never compiled (a checkout without ``pip install``), its source is imported anyway.
 """
 
-from ._cache import follow_the_whole_package
+import importlib.machinery
+import os
+import sys
 
-follow_the_whole_package()  # before any kernel is defined
+PURE_PYTHON = os.environ.get("XVAL_PURE_PYTHON", "") not in ("", "0")
+
+
+class _SourcesFirst(importlib.machinery.PathFinder):
+    """Finds this package's submodules among their ``.py`` sources only."""
+
+    @classmethod
+    def find_spec(cls, fullname, path=None, target=None):
+        if not fullname.startswith(__name__ + "."):
+            return None
+        name = fullname.rpartition(".")[2]
+        source = os.path.join(os.path.dirname(__file__), name + ".py")
+        if not os.path.isfile(source):
+            return None
+        return importlib.util.spec_from_file_location(fullname, source)
+
+
+if PURE_PYTHON and not any(f is _SourcesFirst for f in sys.meta_path):
+    import importlib.util
+
+    sys.meta_path.insert(0, _SourcesFirst)
+
+
+def compiled() -> bool:
+    """Whether the kernels run compiled (False: their Python sources, ``XVAL_PURE_PYTHON``)."""
+    from . import problem
+
+    return not problem.__file__.endswith(".py")

@@ -1,23 +1,65 @@
-"""What the compiled integrators see of a problem: functions of an opaque (problem, chart).
+"""What the integrators see of a problem: q̈ = f(t, q, q̇) behind one C-level interface.
 
-- ``acceleration(problem, chart, load, t, q, v) -> float``: q̈ of the chart's coordinate on
-  load piece ``load`` (its index: every load over time is constant on a piece); NaN when the
-  problem cannot be evaluated there;
-- ``stop_margin(problem, chart, t, q, v) -> float``: > 0 while the chart serves; the run ends
-  where it crosses to ≤ 0;
-- ``observe(problem, chart, out)``: what the problem records at a sample, right after the
-  sample's ``acceleration`` (``observation_size(problem)`` floats), returned with the samples;
-- ``power(problem, chart, load, v) -> (P, D)``: right after an ``acceleration``, the rates of
-  the two energy flows the integrators integrate alongside the state (the work done on the
-  system and the energy dissipated, W), for the energy audit;
-- ``mark(problem, chart) -> marked`` and ``rewind(problem, chart, marked)``: the chart's state
-  at a piece's start, and back to it, so that the piece's samples are evaluated in order from
-  its start once it is integrated.
+:class:`RightHandSide` is a compiled class whose methods the integrators call through its
+table of C function pointers (Cython's ``cpdef`` methods: a virtual call from compiled code, an
+ordinary method from Python). The integrators (:mod:`.fixed_step`, :mod:`.adaptive`) take one as
+an argument and know nothing else of the problem; the linkage chart of :mod:`.physics` is one,
+and a Python subclass is another (the integrators' order tests use closed forms written so,
+``tests/test_kernel_integrators.py``; a Python override is called through the interpreter, slow
+but the same algorithm).
 
-The integrators (:mod:`.fixed_step`, :mod:`.adaptive`) import these names and nothing else
-of the physics, which supplies them for a linkage chart (:mod:`.physics`).
+Only :meth:`acceleration` must be defined. The others default to a problem that observes
+nothing, exchanges no energy and never asks to stop:
+
+- ``acceleration(load, t, q, v)``: q̈ on load piece ``load`` (its index: the loads over time are
+  constant on a piece); NaN where the problem cannot be evaluated;
+- ``power(load, v)`` and ``dissipation(v)``: right after an ``acceleration``, the rates (W) of
+  the two energy flows the integrators integrate alongside the state: the work done on the
+  system and the energy dissipated;
+- ``stop_margin(t, q, v)``: > 0 while the problem's coordinate serves; the run ends where it
+  crosses to ≤ 0;
+- ``observation_size()`` and ``observe(out, row)``: what the problem records at a sample, right
+  after the sample's ``acceleration``, into ``out[row, :observation_size()]``;
+- ``mark()`` and ``rewind()``: remember the problem's state at a piece's start, and go back to
+  it, so that the piece's samples are evaluated in order from its start once it is integrated.
 """
 
-from .physics import acceleration, mark, observation_size, observe, power, rewind, stop_margin
+import cython
 
-__all__ = ["acceleration", "mark", "observation_size", "observe", "power", "rewind", "stop_margin"]
+
+@cython.cclass
+class RightHandSide:
+    """q̈ = f(t, q, q̇), constant-load on each piece of the load history (module docstring)."""
+
+    @cython.ccall
+    def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
+                     v: cython.double) -> cython.double:
+        raise NotImplementedError("a RightHandSide defines acceleration(load, t, q, v)")
+
+    @cython.ccall
+    def power(self, load: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        return 0.0
+
+    @cython.ccall
+    def dissipation(self, v: cython.double) -> cython.double:
+        return 0.0
+
+    @cython.ccall
+    def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
+        return 1.0
+
+    @cython.ccall
+    def observation_size(self) -> cython.Py_ssize_t:
+        return 0
+
+    @cython.ccall
+    def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
+        pass
+
+    @cython.ccall
+    def mark(self):
+        pass
+
+    @cython.ccall
+    def rewind(self):
+        pass

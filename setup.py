@@ -1,0 +1,40 @@
+"""Build of the compiled core: the reduced solver's kernels (Cython 3, pure-Python mode).
+
+The kernels are ordinary ``.py`` files annotated for Cython (``reduced/kernels``); ``pip install``
+and ``pip wheel`` compile each into a C extension of the same module name, which Python imports
+in preference to the ``.py`` beside it (``XVAL_PURE_PYTHON=1`` imports the ``.py`` instead:
+``reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
+
+Flags (the README's "Compiled core" says why): ``-ffp-contract=off`` (no fused multiply-add:
+a*b+c rounds twice, as numpy and scipy compute it, on every compiler and CPU) and no fast-math
+(IEEE semantics: NaN and inf propagate, no reassociation); Cython's ``cdivision`` gives C's IEEE
+division (x/0 is inf or NaN, as in numpy, instead of Python's ZeroDivisionError).
+``XVAL_CHECKED_BUILD=1`` builds with bounds checks on every array index (an out-of-range index
+raises IndexError instead of reading past a buffer): CI runs the kernel tests on such a build.
+"""
+
+import os
+
+from Cython.Build import cythonize
+from setuptools import Extension, setup
+
+KERNELS = ("problem", "output", "physics", "fixed_step", "adaptive", "partition")
+CHECKED = os.environ.get("XVAL_CHECKED_BUILD", "") not in ("", "0")
+
+DIRECTIVES = {
+    "language_level": 3,
+    "boundscheck": CHECKED,
+    "wraparound": False,
+    "initializedcheck": CHECKED,
+    "cdivision": True,
+    "embedsignature": True,
+}
+CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"] + (["-O0", "-g"] if CHECKED else [])
+
+extensions = [
+    Extension(f"reduced.kernels.{name}", [f"reduced/kernels/{name}.py"], extra_compile_args=CFLAGS)
+    for name in KERNELS if os.path.exists(f"reduced/kernels/{name}.pxd")
+]
+
+setup(ext_modules=cythonize(extensions, compiler_directives=DIRECTIVES, quiet=True,
+                            build_dir="build/cython-checked" if CHECKED else "build/cython"))
