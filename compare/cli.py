@@ -107,31 +107,10 @@ def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) ->
     return reduced_settings(scene, **_given(args, flags))
 
 
-def _announce_compilation() -> None:
-    """One line on stderr when this run will compile the reduced solver's kernels."""
-    from reduced.precompile import kernels_cached
-
-    if not kernels_cached():
-        print("xval: compiling the reduced solver's kernels, once for this install (about a minute on 2 "
-              "cores; `xval compile` does it ahead)", file=sys.stderr, flush=True)
-
-
-def cmd_compile(args: argparse.Namespace) -> int:
-    from reduced.precompile import compile_kernels
-
-    print("xval: compiling the reduced solver's kernels into numba's cache (one to three minutes on 2 cores, "
-          "once per install) ...", file=sys.stderr, flush=True)
-    seconds = compile_kernels(processes=args.processes)
-    print("compiled the reduced solver's kernels into numba's cache: "
-          + ", ".join(f"{group} {s:.1f} s" for group, s in seconds.items()))
-    return EXIT_OK
-
-
 def cmd_reduced(args: argparse.Namespace) -> int:
     from reduced import simulate
 
     scene = _scene(args.scene)
-    _announce_compilation()
     settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
     result = simulate(scene, settings)
     print("\n".join(reduced_lines(scene, result)))
@@ -233,7 +212,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     scene = _scene(args.scene)
     joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
-    _announce_compilation()
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print("\n".join(comparison_lines(comparison)))
@@ -247,7 +225,6 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .text import check_lines
 
     scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
-    _announce_compilation()
     failed = 0
     for scene in scenes:
         tolerances = _tolerances(scene, args)
@@ -269,7 +246,6 @@ def cmd_cost(args: argparse.Namespace) -> int:
 
     check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
     scene = _scene(args.scene)
-    _announce_compilation()
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
                                          workers=args.workers)
     print("\n".join(summary_lines(report, measurements)))
@@ -286,7 +262,6 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
     check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
-    _announce_compilation()
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
                                                            file=sys.stderr, flush=True))
     for line in table_lines(results):
@@ -334,7 +309,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
         client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
     try:
-        _announce_compilation()
         found = None
         if args.sensitivity:
             from .sensitivity import sensitivities, sensitivity_lines
@@ -537,13 +511,6 @@ def build_parser() -> argparse.ArgumentParser:
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
     p.set_defaults(func=cmd_sweep)
 
-    p = sub.add_parser("compile", help="compile the reduced solver's kernels ahead of the first run",
-                       description="Compile the reduced solver's numba kernels into numba's on-disk cache "
-                                   "(about a minute on 2 cores, once per install or after an edit of "
-                                   "reduced/kernels); without it the first run that needs them compiles them.")
-    p.add_argument("--processes", type=_int_in(1, 2), default=2,
-                   help="compile in this many processes side by side (default 2)")
-    p.set_defaults(func=cmd_compile)
     return parser
 
 

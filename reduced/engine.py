@@ -13,7 +13,7 @@ from .dynamics import MechanismModel
 from .energy import energy_audit
 from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import RKN4, solve_adaptive
-from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4, load_kernels
+from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .result import EngineResult
 from .scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
 from .trajectory import Trajectory
@@ -273,7 +273,6 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     """
     check_work(scene, settings)
     model = MechanismModel(scene)
-    load_kernels(model)  # wall_s times the integration, not the loading of its compiled code
     start = time.perf_counter()
     solution = integrate(model, settings)
     wall = time.perf_counter() - start

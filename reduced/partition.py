@@ -13,8 +13,8 @@ Inside a chart the sign of det [Φ_x; e_i] cannot change (the chart ends before 
 singularity), so it names the chart's assembly branch: the dependent coordinates are found
 by Newton's method from the predictor x + K Δx_i + ½ L Δx_i² of the chart's last
 configuration, checked against the sign, a jump too long for the predictor taken in halves
-(:mod:`reduced.kernels.physics`). The compiled runs string the charts together in compiled
-code (:mod:`reduced.kernels.partition`); :func:`integrate_partitioned` does it in Python for
+(:mod:`reduced.kernels.physics`). The compiled runs string the charts together in the compiled
+core (:mod:`reduced.kernels.partition`); :func:`integrate_partitioned` does it in Python for
 the integrators that take a Python function (scipy's).
 """
 
@@ -27,9 +27,11 @@ import numpy as np
 from . import loops
 from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
 from .errors import NumericalFailure
-from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
-from .kernels import adaptive, fixed_step, physics
+from .integrators import MAX_EVALUATIONS, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
+from .kernels import output, physics
 from .kernels import partition as compiled
+from .kernels.fixed_step import RKN4
+from .kernels.output import Samples
 from .trajectory import Trajectory
 
 HYSTERESIS = physics.HYSTERESIS  # switch when the current coordinate is less than half as well conditioned
@@ -249,12 +251,12 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
     return _solution(model, segments, switches)
 
 
-def piece_load(model: MechanismModel, start: float, end: float) -> float:
-    """The kernels' ``load`` on one smooth piece [start, end] of the load history: the index (a
-    float) of the model's load piece holding it (:func:`reduced.dynamics.piece_values` holds the
-    loads there, constant on it)."""
+def piece_load(model: MechanismModel, start: float, end: float) -> int:
+    """The kernels' ``load`` on one smooth piece [start, end] of the load history: the index of
+    the model's load piece holding it (:func:`reduced.dynamics.piece_values` holds the loads
+    there, constant on it)."""
     edges = model.piece_edges
-    return float(min(max(np.searchsorted(edges, 0.5 * (start + end), side="right") - 1, 0), len(edges) - 2))
+    return int(min(max(np.searchsorted(edges, 0.5 * (start + end), side="right") - 1, 0), len(edges) - 2))
 
 
 def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -262,7 +264,7 @@ def load_pieces(model: MechanismModel, t0: float = 0.0) -> tuple[np.ndarray, np.
     among the model's load pieces (p,)."""
     horizon = model.scene.horizon
     edges = np.array([t0, *[b for b in model.load_edges if t0 < b < horizon], horizon])  # sorted, unique
-    loads = np.array([piece_load(model, a, b) for a, b in zip(edges[:-1], edges[1:])], dtype=float)
+    loads = np.array([piece_load(model, a, b) for a, b in zip(edges[:-1], edges[1:])], dtype=np.intp)
     return edges, loads
 
 
@@ -278,30 +280,31 @@ def walk_work_spent(name: str, where: str, t: float | None, rkn4: bool = False) 
         f"Jacobian); {shorter} shortens the jumps between the positions it must close", t)
 
 
-def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart, step: float | None = None,
-                     evaluations: int = 0):
-    """The :class:`NumericalFailure` for a compiled run's status (info[0]: the time;
-    ``evaluations``: of f, by the run's count)."""
-    t = float(info[0])
+def compiled_failure(model: MechanismModel, outcome, chart, step: float | None = None) -> NumericalFailure:
+    """The :class:`NumericalFailure` for how a compiled run ended (``outcome``,
+    :class:`reduced.kernels.output.Outcome`; ``step``: an RKN run's step, None for DOP853)."""
+    t = float(outcome.fail_time) if outcome.fail_time == outcome.fail_time else 0.0
     unit = model.scene.input_unit
-    if status == fixed_step.NONFINITE:
+    status = outcome.status
+    if status == output.NONFINITE:
         return NumericalFailure("non-finite", f"the state became NaN or infinite at t = {t:.6g} s", t)
-    if status == fixed_step.SPEED:
-        return NumericalFailure("unstable", f"|q̇| = {abs(info[1]):.3g} {unit}/s exceeds {SPEED_LIMIT:.3g} "
-                                f"{unit}/s at t = {t:.6g} s: the integration is unstable at this step", t)
-    if status == fixed_step.UNSTABLE:
+    if status == output.SPEED:
+        return NumericalFailure("unstable", f"|q̇| = {abs(outcome.fail_value):.3g} {unit}/s exceeds "
+                                f"{SPEED_LIMIT:.3g} {unit}/s at t = {t:.6g} s: the integration is unstable at this step", t)
+    if status == output.UNSTABLE:
+        re, im, amplification, limit = outcome.detail
         return NumericalFailure(
             "unstable", f"the step h = {step:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
-            f"(h·λ = {info[1]:.3g}{info[2]:+.3g}j, |R| = {info[3]:.6g} > {info[4]:.6g}): the problem is "
+            f"(h·λ = {re:.3g}{im:+.3g}j, |R| = {amplification:.6g} > {limit:.6g}): the problem is "
             "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
             "the implicit Radau method", t)
-    if status == adaptive.STEP_SIZE:
-        if evaluations >= MAX_EVALUATIONS:
+    if status == output.STEP_SIZE:
+        if outcome.n_evaluations >= MAX_EVALUATIONS:
             return budget_spent("DOP853", MAX_EVALUATIONS, t, 0.0, model.scene.horizon)
         return NumericalFailure(
             "step-size", f"DOP853's step fell below the spacing of the floating-point numbers at t = {t:.6g} s: "
             "it has collapsed (an extreme speed, damper or inertia in the scene?)", t)
-    if status == fixed_step.FAILED:
+    if status == output.FAILED:
         if chart.S[physics.STATUS] == physics.WORK_SPENT:
             name = model.coordinate_names[chart.S[physics.INDEPENDENT]]
             return walk_work_spent(name, f"at t = {t:.6g} s", t, rkn4=step is not None)
@@ -310,45 +313,30 @@ def compiled_failure(model: MechanismModel, status: int, info: np.ndarray, chart
             return NumericalFailure("singular", f"Newton's method did not close the loops in the chart of {name} "
                                     f"at t = {t:.6g} s: the position is singular or unreachable", t)
         return NumericalFailure("non-finite", f"the acceleration became NaN or infinite at t = {t:.6g} s", t)
-    if status == compiled.NO_BETTER:
+    if status == output.NO_BETTER:
         return NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
-    if status == compiled.TOO_MANY_SWITCHES:
+    if status == output.TOO_MANY_SWITCHES:
         return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
-    return NumericalFailure("singular", f"the run cannot start: its coordinate cannot drive the linkage", t)
+    return NumericalFailure("singular", "the run cannot start: its coordinate cannot drive the linkage", t)
 
 
-def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None) -> list:
-    """A whole compiled run (``kernel``: :func:`reduced.kernels.partition.run_rkn4` or
+def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None) -> compiled.PartitionedRun:
+    """A whole compiled run (``kernel``: :func:`reduced.kernels.partition.run_rkn` or
     ``run_dop853``, with its ``settings`` after the start) from the scene's start over its load
-    pieces; the run's arrays, or the failure it reports raised."""
+    pieces; the run, or the failure it reports raised."""
     x0, i, rate = _start(model)
     edges, loads = load_pieces(model)
     chart = model.new_chart()
-    status, info, *run = kernel(model.arrays, chart, edges, loads, x0, i, rate, *settings)
-    if status != fixed_step.OK:
-        raise compiled_failure(model, status, info, chart, step, evaluations=run[9])
+    run = kernel(chart, edges, loads, x0, i, rate, *settings, Samples(chart.observation_size()))
+    if run.outcome.status != output.OK:
+        raise compiled_failure(model, run.outcome, chart, step)
     return run
-
-
-def load_kernels(model: MechanismModel) -> None:
-    """Load every compiled function a run calls from Python (numba's cache, ~0.3 s on first use
-    in a process), by calling each on the scene's start: a run of one step of 1 ns, a walk and
-    an evaluation. A timed run after this times the integration, not the loading."""
-    x0, i, _ = _start(model)
-    compiled.run_rkn4(model.arrays, model.new_chart(), np.array([0.0, 1e-9]), np.zeros(1), x0, i, 0.0, 1e-9,
-                      SPEED_LIMIT, True, MAX_SWITCHES)
-    chart = Chart(model, i, x0)
-    chart.walk(np.array([x0[i]]))
-    chart.switch_margin(0.0, float(x0[i]), 0.0)
-    f = chart.rhs_on_piece(0.0, model.scene.horizon)
-    f(0.0, float(x0[i]), 0.0)
-    f.rewind()
 
 
 def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:
     """The compiled RKN4 run of the scene at the largest step ``step`` (s), all charts."""
-    run = _run_compiled(model, compiled.run_rkn4, float(step), SPEED_LIMIT, check_stability, MAX_SWITCHES,
-                        step=step)
+    run = _run_compiled(model, compiled.run_rkn, RKN4, float(step), SPEED_LIMIT, check_stability,
+                        MAX_SWITCHES, step=step)
     return compiled_solution(model, run, RKN4.name, {"method": "rkn4", "step": step})
 
 
@@ -358,7 +346,7 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     further apart than ``sample_interval`` (s); a chart that meets a singular position is run
     again with the step capped to each fraction ``retry_caps`` of its span."""
     run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
-                        SPEED_LIMIT, MAX_EVALUATIONS, np.array(retry_caps, dtype=float), MAX_SWITCHES)
+                        SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES)
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 
@@ -381,22 +369,22 @@ def _solution(model: MechanismModel, segments, switches, observed=None, energy=N
         method=first.method, settings=first.settings)
 
 
-def compiled_solution(model: MechanismModel, run, method: str, settings: dict) -> PartitionedSolution:
-    """A :class:`PartitionedSolution` from the arrays of a compiled partitioned run
-    (t, value, rate, accel, segment, coordinates, starts (segments, 3, n), switches (s, 5),
-    n_steps, n_evaluations, observed (samples, observation_size), energy (samples, 2))."""
-    t, value, rate, accel, segment, coordinates, starts, switch_rows, n_steps, n_eval, observed, energy = run
+def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, method: str,
+                      settings: dict) -> PartitionedSolution:
+    """A :class:`PartitionedSolution` from a compiled partitioned run."""
+    t, value, rate, accel, observed, energy = run.samples.arrays()
+    cuts = run.segment_starts[1:]
     segments = []
-    cuts = np.flatnonzero(np.diff(segment)) + 1
     for k, rows in enumerate(np.split(np.arange(len(t)), cuts)):
-        chart = Chart(model, int(coordinates[k]), starts[k][0])
+        chart = Chart(model, int(run.coordinates[k]), run.starts[k][0])
         traj = Trajectory(t[rows], value[rows], rate[rows], accel[rows])
-        stopped = k + 1 < len(coordinates)
-        segments.append((chart, Solution(traj, method, n_steps if k == 0 else 0, n_eval if k == 0 else 0,
-                                         settings, stopped=stopped)))
+        stopped = k + 1 < len(run.coordinates)
+        first = k == 0  # the run's counts go with its first segment
+        segments.append((chart, Solution(traj, method, run.outcome.n_steps if first else 0,
+                                         run.outcome.n_evaluations if first else 0, settings, stopped=stopped)))
     names = model.coordinate_names
     switches = [Switch(float(r[0]), names[int(r[1])], names[int(r[2])], float(r[3]), float(r[4]))
-                for r in switch_rows]
+                for r in run.switches]
     return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts))
 
 

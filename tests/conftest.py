@@ -2,15 +2,13 @@
 
 Every test has ``timeout`` seconds (300, pyproject.toml [tool.pytest.ini_options]; ``--timeout``
 overrides it), a test marked ``slow`` SLOW_TIMEOUT_S. The method is "thread": a test hung in
-compiled code (numba) never returns to the interpreter, so a signal handler would never run; the
+compiled code never returns to the interpreter, so a signal handler would never run; the
 timer thread names the test, prints every thread's stack and ends the session (exit 1).
 
-Measured with the --durations of the whole suite (warm numba cache, a 2-core machine under a
-load of ~5): the slowest test not marked slow took 15.0 s (test_adaptive_kernel, seed at 1e-6),
-the slowest marked slow 31.0 s (test_compiled_vs_scipy, long_conservative). 300 s is 20× the
-first and leaves room for a kernel that a test compiles on a fresh checkout (the kernels the
-session start compiles, below, took 107–239 s a group on the same machine); SLOW_TIMEOUT_S is
-19× the second.
+Measured with the --durations of the whole suite (a 2-core machine under a load of ~5): the
+slowest test not marked slow took 15.0 s (test_adaptive_kernel, seed at 1e-6), the slowest marked
+slow 31.0 s (test_compiled_vs_scipy, long_conservative). 300 s is 20× the first; SLOW_TIMEOUT_S
+is 19× the second.
 """
 
 from __future__ import annotations
@@ -25,16 +23,15 @@ _TIMER = pytest.StashKey[threading.Timer]()
 
 
 def pytest_sessionstart(session):
-    """Compile the reduced solver's kernels before the first test when numba's cache lacks them
-    (a fresh checkout: ``xval compile``, two processes), so that no test's time limit pays for it."""
-    from numba import config
+    """Stop at once, with the fix, when the compiled core is missing: a checkout that was not
+    installed (``pip install -e .`` builds the kernels) would otherwise run every kernel as plain
+    Python (``XVAL_PURE_PYTHON``, the debug path), and the suite for hours."""
+    from reduced import kernels
 
-    from reduced.precompile import compile_kernels, kernels_cached
-
-    if not config.DISABLE_JIT and not kernels_cached():  # (without the JIT nothing compiles)
-        seconds = compile_kernels(processes=2)
-        sys.stderr.write("compiled the reduced solver's kernels before the tests: "
-                         + ", ".join(f"{k} {v:.0f} s" for k, v in seconds.items()) + "\n")
+    if not kernels.PURE_PYTHON and not kernels.compiled():
+        pytest.exit("the reduced solver's kernels are not compiled: run `pip install -e .` (or "
+                    "`python setup.py build_ext --inplace`) in the checkout; XVAL_PURE_PYTHON=1 runs them "
+                    "uncompiled on purpose", returncode=2)
 
 
 def pytest_collection_modifyitems(config, items):

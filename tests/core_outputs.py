@@ -1,20 +1,16 @@
 """The reduced solver's outputs on every shipped scene, for a regression fixture.
 
-Recorded once from the numba-compiled core (``python tests/core_outputs.py`` writes
-``tests/data/numba_core_outputs.json``), so that a core built another way (the compiled
-extension of the next step) can be held to what this one computes: peaks within 1e-10
-relative, states within 1e-9 (the change of compiler can move the order of operations and
-libm's last bits, nothing more). The fixture is labelled with the code and versions that made
-it; it is the old core's answer, not an independent truth (the physics is checked against
-closed forms, energy balances and MuJoCo elsewhere).
+``tests/data/numba_core_outputs.json`` was recorded with :func:`outputs` from the numba-compiled
+core, before it was replaced by the Cython one (the fixture's label names the commit and the
+versions; numba has left the project, so it is not recorded again), so that the compiled core
+is held to what the old one computed: peaks within 1e-10 relative, states within 1e-9 (a change
+of compiler can move the order of operations and libm's last bits, nothing more). It is the old
+core's answer, not an independent truth (the physics is checked against closed forms, energy
+balances and MuJoCo elsewhere).
 """
 
 from __future__ import annotations
 
-import json
-import platform
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -51,20 +47,3 @@ def outputs(path: Path, method: str) -> dict:
 
 def key(path: Path) -> str:
     return path.relative_to(ROOT / "scenes").as_posix()
-
-
-def record() -> dict:
-    import numba
-
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                            text=True).stdout.strip()
-    label = {"core": "numba", "numba": numba.__version__, "numpy": np.__version__,
-             "python": platform.python_version(), "machine": platform.machine(), "commit": commit}
-    runs = {f"{key(p)}:{m}": outputs(p, m) for p in shipped_scenes() for m in METHODS}
-    return {"label": label, "runs": runs}
-
-
-if __name__ == "__main__":
-    data = record()
-    FIXTURE.write_text(json.dumps(data, indent=None, separators=(",", ":")) + "\n", encoding="utf-8")
-    print(f"wrote {len(data['runs'])} runs to {FIXTURE}", file=sys.stderr)

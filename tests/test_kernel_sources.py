@@ -1,11 +1,11 @@
-"""The compiled kernels depend on their own package's sources alone.
+"""The compiled core's modules import in one direction, and nothing of the project outside it.
 
-numba freezes the module globals a kernel reads (constants, tables) into its machine code, and
-the on-disk cache of the kernels is stamped with a hash of ``reduced/kernels/`` only
-(``reduced/kernels/_cache.py``). A kernel module that imported a constant from elsewhere in the
-project would keep running the old value from the cache after that constant was edited. The
-constants both paths share (``RESTART_STEPS``, the RKN4 stability margins) therefore live in the
-kernels, and the Python paths import them from there.
+The integrators (:mod:`reduced.kernels.fixed_step`, :mod:`reduced.kernels.adaptive`) know only the
+interface of a right-hand side and the output buffers (``problem``, ``output``; DOP853 its
+tableau): nothing of linkages. The physics knows the interface and nothing of the integrators.
+Only the chart switching (``partition``) knows both. And the core imports nothing of the project
+outside ``reduced/kernels``: it is compiled on its own, and its sources are its whole behaviour.
+Read from the sources (both the ``import`` and the ``cimport`` lines of Cython's pure-Python mode).
 """
 
 from __future__ import annotations
@@ -13,25 +13,49 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 KERNELS = Path(__file__).resolve().parents[1] / "reduced" / "kernels"
 PROJECT_PACKAGES = ("reduced", "compare", "reference_models", "scenes", "benchmarks")
+# what each kernel module may import of the others
+ALLOWED = {
+    "problem": set(),
+    "output": set(),
+    "dop853_tableau": set(),
+    "fixed_step": {"problem", "output"},
+    "adaptive": {"problem", "output", "dop853_tableau"},
+    "physics": {"problem", "output"},
+    "partition": {"adaptive", "fixed_step", "output", "physics", "problem"},
+}
 
 
-def _imports_from_outside(path: Path) -> list[str]:
-    """The imports of one kernel module that reach a project module outside the kernels."""
-    outside = []
+def _imports(path: Path) -> tuple[set[str], list[str]]:
+    """The kernel modules one module imports, and its imports of project code outside the kernels."""
+    siblings, outside = set(), []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.ImportFrom):
-            if node.level >= 2 or (node.level == 0 and (node.module or "").split(".")[0] in PROJECT_PACKAGES):
-                outside.append(f"{path.name}:{node.lineno}: from {'.' * node.level}{node.module or ''} import ...")
+            module = node.module or ""
+            if module.startswith("cython.cimports."):
+                module = module[len("cython.cimports."):]
+            if node.level == 1:
+                siblings |= {module.split(".")[0]} if module else {a.name for a in node.names}
+            elif node.level == 0 and module.startswith("reduced.kernels"):
+                rest = module[len("reduced.kernels"):].lstrip(".")
+                siblings |= {rest.split(".")[0]} if rest else {a.name for a in node.names}
+            elif node.level >= 2 or (node.level == 0 and module.split(".")[0] in PROJECT_PACKAGES):
+                outside.append(f"{path.name}:{node.lineno}: from {'.' * node.level}{module} import ...")
         elif isinstance(node, ast.Import):
             outside += [f"{path.name}:{node.lineno}: import {a.name}" for a in node.names
                         if a.name.split(".")[0] in PROJECT_PACKAGES]
-    return outside
+    return siblings, outside
 
 
-def test_the_kernels_import_nothing_of_the_project_outside_their_package():
-    modules = sorted(KERNELS.glob("**/*.py"))
-    assert len(modules) >= 8  # the package is where the test thinks it is
-    outside = [line for m in modules for line in _imports_from_outside(m)]
-    assert not outside, "kernel modules importing project code the cache stamp does not cover:\n" + "\n".join(outside)
+@pytest.mark.parametrize("name", sorted(ALLOWED))
+def test_a_kernel_module_imports_only_what_its_layer_allows(name):
+    siblings, outside = _imports(KERNELS / f"{name}.py")
+    assert not outside, "kernel modules importing project code outside the compiled core:\n" + "\n".join(outside)
+    assert siblings <= ALLOWED[name], f"{name} imports {sorted(siblings - ALLOWED[name])} of the core"
+
+
+def test_every_kernel_module_is_listed():
+    assert {p.stem for p in KERNELS.glob("*.py")} - {"__init__"} == set(ALLOWED)

@@ -162,33 +162,3 @@ def test_log_tick_labels_are_matplotlib_s_in_plain_text():
                            ax.get_yticklabels() + ax.yaxis.get_minorticklabels()])
         assert [(y, plain_power(s)) for y, s in labels[0]] == labels[1]
         assert np.all([not s.startswith("$") for _, s in labels[1]])
-
-
-def test_a_timed_reduced_run_loads_no_compiled_code():
-    """EngineResult.wall_s times the integration: reduced.engine.simulate loads every compiled
-    function a run calls (reduced.partition.load_kernels) before its timer starts, else the
-    first run of a process reported ~0.3 s of loading from numba's cache as the reduced
-    solver's wall time (0.34 s against MuJoCo's 0.05 s on the seed, for a 0.03 s run). In a
-    fresh interpreter: after load_kernels, runs of every method load nothing more."""
-    code = f"""
-import gc
-from numba.core.dispatcher import Dispatcher
-from reduced.dynamics import MechanismModel
-from reduced.engine import ReducedSettings, integrate
-from reduced.partition import load_kernels
-from reduced.scenefile import load_scene
-
-def loaded():
-    return {{id(d): len(d.overloads) for d in gc.get_objects() if isinstance(d, Dispatcher)}}
-
-model = MechanismModel(load_scene({str(SEED_SCENE)!r}))
-load_kernels(model)
-before = loaded()
-for settings in (ReducedSettings(), ReducedSettings(method="rkn4"), ReducedSettings(method="radau", rtol=1e-6),
-                 ReducedSettings(method="scipy-dop853", rtol=1e-6)):
-    integrate(model, settings)
-after = loaded()
-assert after == before, [d.py_func.__name__ for d in gc.get_objects() if isinstance(d, Dispatcher)
-                         and after.get(id(d)) != before.get(id(d))]
-"""
-    modules_after(code)

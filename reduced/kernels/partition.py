@@ -1,204 +1,164 @@
-"""Coordinate partitioning in compiled code: a whole run of charts, switching at dead centres.
+"""Coordinate partitioning: a whole run of charts, switching at dead centres.
 
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
 conditioned by more than the hysteresis), then continues in the best-conditioned coordinate j
 from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i).
 :mod:`reduced.partition` documents the method; this module only strings the charts together,
-with either integrator: :func:`run_rkn4` (fixed step) or :func:`run_dop853` (adaptive).
+with either integrator: :func:`run_rkn` (fixed step, :mod:`.fixed_step`) or :func:`run_dop853`
+(adaptive, :mod:`.adaptive`). Each chart's samples are appended to one :class:`.output.Samples`,
+so the run's samples come out in one piece; :class:`PartitionedRun` says where each chart's begin.
 
-Both return (status, info, t, value, rate, accel, segment, coordinate, starts, switches,
-n_steps, n_evaluations, observed, energy): the samples of each chart's coordinate, the segment (chart
-number) of each sample, each segment's coordinate and start configuration (segments, 3, n), each
-switch as (time, old, new, c_old, c_new), and the chart's fields, x, K and L at every sample
-(:func:`.physics.observe`), and the work done and the energy dissipated since each chart's start
-at every sample (samples, 2) (J, integrated alongside the state: :func:`.physics.power`).
-info[0] is the time of a failure, info[1] its value.
+The switching happens a handful of times a run (none on most scenes): this is the one kernel
+module whose work is not in a hot loop, compiled with the others but typed only where it is free.
 """
 
-from __future__ import annotations
+from typing import NamedTuple
 
-import math
-
+import cython
 import numpy as np
-from numba import njit
 
-from . import adaptive, physics
-from .fixed_step import FAILED, NONFINITE, OK, rkn4_chart
+from . import adaptive, fixed_step, physics
+from .output import FAILED, NO_BETTER, NONFINITE, OK, SINGULAR_START, TOO_MANY_SWITCHES
 
-# statuses beyond the integrators' own (OK 0, STEP_SIZE 1, NONFINITE 2, SPEED 3, UNSTABLE 4,
-# FAILED 5)
-NO_BETTER, TOO_MANY_SWITCHES, SINGULAR_START = 6, 7, 8
-
-
-@njit(cache=True, error_model="numpy")
-def _concatenate(parts, total):
-    out = np.empty(total)
-    k = 0
-    for p in parts:
-        for j in range(p.shape[0]):
-            out[k + j] = p[j]
-        k += p.shape[0]
-    return out
+if cython.compiled:
+    from cython.cimports.reduced.kernels.output import Outcome, Samples
+else:
+    from .output import Outcome, Samples
 
 
-@njit(cache=True, error_model="numpy")
-def _concatenate_rows(parts, total, width):
-    out = np.empty((total, width))
-    k = 0
-    for p in parts:
-        for j in range(p.shape[0]):
-            for c in range(width):
-                out[k + j, c] = p[j, c]
-        k += p.shape[0]
-    return out
+class PartitionedRun(NamedTuple):
+    """A whole run: how it ended, and its samples (in ``samples``, appended chart after chart)."""
+
+    outcome: Outcome               # status, counts (over every chart), fail_time, fail_value, detail
+    samples: Samples               # t, the chart's coordinate and its rate and acceleration, observed, energy
+    segment_starts: np.ndarray     # (segments,) the index of each chart's first sample
+    coordinates: np.ndarray        # (segments,) each chart's coordinate
+    starts: np.ndarray             # (segments, 3, n) each chart's start configuration (x, K, L)
+    switches: np.ndarray           # (segments − 1, 5) each switch: time, old, new, c_old, c_new
 
 
-@njit(cache=True, error_model="numpy")
-def switch(model, chart, value, rate, info):
+def switch(chart, value: cython.double, rate: cython.double):
     """Move ``chart`` (stopped at x_i = value, rate ẋ_i) to the best-conditioned coordinate.
 
-    Returns (status, new rate); info[1:5] = (old, new, c_old, c_new) on success."""
-    if not physics.evaluate(model, chart, value):
-        return FAILED, rate
-    views = physics._views(model[1], chart[1])
-    fields, kin = views[4], views[3]
-    i = chart[0][physics.INDEPENDENT]
+    Returns (status, new rate, (old, new, c_old, c_new))."""
+    if not chart.evaluate(value):
+        return FAILED, rate, None
+    views = chart.arrays()
+    fields, kin = views["fields"], views["kin"]
+    i = int(chart.S[physics.INDEPENDENT])
     j = int(fields[physics.BEST])
-    c_old, c_new = fields[physics.CONDITIONING], fields[physics.BEST_CONDITIONING]
+    c_old, c_new = float(fields[physics.CONDITIONING]), float(fields[physics.BEST_CONDITIONING])
     if j == i:
-        return NO_BETTER, rate
-    k_j = kin[1, j]
-    x = kin[0].copy()
-    if not physics.start_chart(model, chart, x, j):
-        return FAILED, rate
-    info[1], info[2], info[3], info[4] = i, j, c_old, c_new
-    return OK, rate * k_j
+        return NO_BETTER, rate, None
+    k_j = float(kin[1, j])
+    if not chart.start(kin[0].copy(), j):
+        return FAILED, rate, None
+    return OK, rate * k_j, (i, j, c_old, c_new)
 
 
-@njit(cache=True, error_model="numpy")
-def _pieces_from(edges, loads, t):
+def _pieces_from(edges, loads, t: cython.double):
     """The load pieces of [t, edges[-1]]: edges (p+1,) starting at t and their loads (p,)."""
-    first = 0
+    first: cython.Py_ssize_t = 0
     while first < loads.shape[0] - 1 and edges[first + 1] <= t:
         first += 1
-    p = loads.shape[0] - first
-    out_edges = np.empty(p + 1)
-    out_loads = np.empty(p)
+    out_edges = np.array(edges[first:], dtype=np.float64)
     out_edges[0] = t
-    for k in range(p):
-        out_loads[k] = loads[first + k]
-        out_edges[k + 1] = edges[first + k + 1]
-    return out_edges, out_loads
+    return out_edges, np.array(loads[first:], dtype=np.intp)
 
 
-@njit(cache=True, error_model="numpy")
-def _dop853_chart(model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
-                  max_evaluations, retry_caps, info):
+def _dop853_chart(chart, steps, edges, loads, t: cython.double, value: cython.double, rate: cython.double,
+                  rtol: cython.double, sample_interval: cython.double, per_step: cython.Py_ssize_t,
+                  speed_limit: cython.double, max_evaluations: cython.Py_ssize_t, retry_caps, out: Samples):
     """One chart by DOP853 from t; a chart that meets a singular position (a trial stage past
     the reach of its coordinate, before the switch event fires) is integrated again from its
-    start with the step capped to each fraction of its span in ``retry_caps`` in turn."""
+    start with the step capped to each fraction of its span in ``retry_caps`` in turn (the
+    failed attempt's samples dropped)."""
     piece_edges, piece_loads = _pieces_from(edges, loads, t)
     span = edges[-1] - t
-    for attempt in range(retry_caps.shape[0] + 1):
-        cap = math.inf if attempt == 0 else retry_caps[attempt - 1] * span
+    first = out.n
+    for attempt in range(len(retry_caps) + 1):
+        cap = np.inf if attempt == 0 else retry_caps[attempt - 1] * span
         if attempt > 0:
-            physics.reset(model, chart)
-        (status, ts, qs, vs, accs, steps, evals, sample_evals, stopped, t_reached, fail_time,
-         fail_value, observed, energy) = adaptive.dop853_run(model, chart, piece_edges, piece_loads, value, rate, rtol, rtol,
-                                           sample_interval, per_step, speed_limit, max_evaluations, cap, True)
-        walk_failed = status == NONFINITE and chart[0][physics.STATUS] != physics.OK  # SINGULAR or WORK_SPENT
-        singular = walk_failed and chart[0][physics.STATUS] == physics.SINGULAR
-        if not singular:
+            chart.reset()
+            out.n = first
+        outcome = adaptive.dop853_run(chart, piece_edges, piece_loads, value, rate, rtol, rtol, sample_interval,
+                                      per_step, speed_limit, max_evaluations, cap, True, out, steps)
+        walk_failed = outcome.status == NONFINITE and chart.S[physics.STATUS] != physics.OK  # SINGULAR, WORK_SPENT
+        if not (walk_failed and chart.S[physics.STATUS] == physics.SINGULAR):
             break
-    if status != OK:
-        info[0], info[1] = fail_time, fail_value
-        if walk_failed:
-            status = FAILED
-    return status, stopped, ts, qs, vs, accs, observed, energy, steps, evals  # as scipy counts: not the samples
+    if walk_failed:
+        outcome.status = FAILED
+    return outcome
 
 
-@njit(cache=True, error_model="numpy")
-def _run(model, chart, edges, loads, x0, independent, rate0, adaptive_method, step, rtol, sample_interval,
-         per_step, speed_limit, stability, max_evaluations, retry_caps, max_switches):
-    n = model[1][physics.N]
-    info = np.zeros(8)
-    t_parts, q_parts, v_parts, a_parts, seg_parts = [np.empty(0)], [np.empty(0)], [np.empty(0)], [np.empty(0)], \
-        [np.empty(0)]
-    width = physics.observation_size(model)
-    o_parts = [np.empty((0, width))]
-    e_parts = [np.empty((0, 2))]
-    coordinates = [independent]
-    starts = [np.empty((3, n))]
-    switches = [np.zeros(5)]
-    if not physics.start_chart(model, chart, x0, independent):
-        return (SINGULAR_START, info, np.empty(0), np.empty(0), np.empty(0), np.empty(0),
-                np.zeros(0, np.int64), np.zeros(0, np.int64), np.empty((0, 3, n)), np.empty((0, 5)), 0, 0,
-                np.empty((0, width)), np.empty((0, 2)))
-    starts[0] = physics._views(model[1], chart[1])[1].copy()
-    t, value, rate = edges[0], x0[independent], rate0
-    total = 0
-    n_steps, n_eval = 0, 0
-    status = OK
+def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, integrate_chart,
+         max_switches: cython.Py_ssize_t, out: Samples) -> PartitionedRun:
+    """The charts from the start: ``integrate_chart(t, value, rate, evaluations_left)`` runs the
+    current chart from t and returns its :class:`Outcome`."""
+    n = int(chart.S.shape[0] - physics.S_HEADER - physics.DEPTH)
+    total = Outcome()
+    segment_starts, coordinates, starts, switches = [out.n], [independent], [], []
+    if not chart.start(np.ascontiguousarray(x0, dtype=np.float64), independent):
+        total.status = SINGULAR_START
+        return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
+                              np.empty((0, 5)))
+    starts.append(chart.arrays()["start"].copy())
+    t, value, rate = float(edges[0]), float(x0[independent]), rate0
     while True:
-        if adaptive_method:
-            status, stopped, ts, qs, vs, accs, observed, energy, steps, evals = _dop853_chart(
-                model, chart, edges, loads, t, value, rate, rtol, sample_interval, per_step, speed_limit,
-                max_evaluations - n_eval, retry_caps, info)
-        else:
-            status, stopped, ts, qs, vs, accs, observed, energy, steps, evals = rkn4_chart(
-                model, chart, edges, loads, t, value, rate, step, speed_limit, stability, True, info)
-        n_steps += steps
-        n_eval += evals
-        t_parts.append(ts)
-        q_parts.append(qs)
-        v_parts.append(vs)
-        a_parts.append(accs)
-        o_parts.append(observed)
-        e_parts.append(energy)
-        seg_parts.append(np.full(ts.shape[0], float(len(coordinates) - 1)))
-        total += ts.shape[0]
-        if status != OK or not stopped or ts[-1] >= edges[-1]:
+        outcome = integrate_chart(t, value, rate, total.n_evaluations)
+        total.n_steps += outcome.n_steps
+        total.n_evaluations += outcome.n_evaluations
+        total.n_sample_evaluations += outcome.n_sample_evaluations
+        total.status, total.stopped = outcome.status, outcome.stopped
+        total.fail_time, total.fail_value, total.detail = outcome.fail_time, outcome.fail_value, outcome.detail
+        last = out.n - 1
+        if outcome.status != OK or not outcome.stopped or last < 0 or out.t[last] >= edges[-1]:
             break
-        if len(switches) > max_switches:
-            status = TOO_MANY_SWITCHES
-            info[0] = ts[-1]
+        total.stopped = False
+        if len(switches) + 1 > max_switches:
+            total.status, total.fail_time = TOO_MANY_SWITCHES, out.t[last]
             break
-        t, value = ts[-1], qs[-1]
-        status, rate = switch(model, chart, value, vs[-1], info)
+        t, value = out.t[last], out.q[last]
+        status, rate, switched = switch(chart, value, out.v[last])
         if status != OK:
-            info[0] = t
+            total.status, total.fail_time = status, t
             break
-        info[0] = t
-        switches.append(info[:5].copy())
-        start = physics._views(model[1], chart[1])[1]
-        coordinates.append(chart[0][physics.INDEPENDENT])
-        starts.append(start.copy())
-        value = start[0, chart[0][physics.INDEPENDENT]]
-    out_starts = np.empty((len(starts), 3, n))
-    for s in range(len(starts)):
-        physics._copy(starts[s], out_starts[s])
-    out_switches = np.empty((len(switches) - 1, 5))
-    for s in range(1, len(switches)):
-        physics._copy(switches[s], out_switches[s - 1])
-    return (status, info, _concatenate(t_parts, total), _concatenate(q_parts, total),
-            _concatenate(v_parts, total), _concatenate(a_parts, total),
-            _concatenate(seg_parts, total).astype(np.int64), np.array(coordinates, dtype=np.int64), out_starts,
-            out_switches, n_steps, n_eval, _concatenate_rows(o_parts, total, width),
-            _concatenate_rows(e_parts, total, 2))
+        switches.append((t, *switched))
+        segment_starts.append(out.n)
+        coordinates.append(switched[1])
+        starts.append(chart.arrays()["start"].copy())
+        value = starts[-1][0, switched[1]]
+    total.t_reached = out.t[out.n - 1] if out.n else edges[0]
+    return PartitionedRun(total, out, np.array(segment_starts, dtype=np.intp), np.array(coordinates, dtype=np.intp),
+                          np.array(starts).reshape(-1, 3, n), np.array(switches, dtype=np.float64).reshape(-1, 5))
 
 
-def run_rkn4(model, chart, edges, loads, x0, independent, rate0, step, speed_limit, stability, max_switches):
-    """RKN4 at the largest step ``step`` (s) over [edges[0], edges[-1]] from the assembled x0
-    with ẋ_independent = rate0, switching charts as needed."""
-    return _run(model, chart, edges, loads, x0, independent, rate0, False, step, 0.0, 0.0, 0, speed_limit,
-                stability, 0, np.empty(0), max_switches)
+def run_rkn(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, tableau,
+            step: cython.double, speed_limit: cython.double, stability: cython.bint,
+            max_switches: cython.Py_ssize_t, out: Samples) -> PartitionedRun:
+    """An RKN method (``tableau``, :mod:`.fixed_step`) at the largest step ``step`` (s) over
+    [edges[0], edges[-1]] (load piece ``loads[k]`` on [edges[k], edges[k+1]]) from the assembled
+    x0 with ẋ_independent = rate0, switching charts as needed; samples appended to ``out``."""
+    def integrate_chart(t, value, rate, spent):
+        return fixed_step.rkn_chart(chart, tableau, edges, loads, t, value, rate, step, speed_limit, stability,
+                                    True, out)
+
+    return _run(chart, edges, loads, x0, independent, rate0, integrate_chart, max_switches, out)
 
 
-def run_dop853(model, chart, edges, loads, x0, independent, rate0, rtol, sample_interval, per_step,
-               speed_limit, max_evaluations, retry_caps, max_switches):
+def run_dop853(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double,
+               rtol: cython.double, sample_interval: cython.double, per_step: cython.Py_ssize_t,
+               speed_limit: cython.double, max_evaluations: cython.Py_ssize_t, retry_caps,
+               max_switches: cython.Py_ssize_t, out: Samples, steps=None) -> PartitionedRun:
     """DOP853 at rtol = atol ``rtol`` (scipy's algorithm, :mod:`.adaptive`), sampled no coarser
     than ``sample_interval`` (s), each step in at least ``per_step`` parts; ``max_evaluations`` of q̈
     in all; charts that meet a singular position retried with the step capped to the fractions
-    ``retry_caps`` (k,) of their span."""
-    return _run(model, chart, edges, loads, x0, independent, rate0, True, 0.0, rtol, sample_interval, per_step,
-                speed_limit, False, max_evaluations, retry_caps, max_switches)
+    ``retry_caps`` of their span; ``steps`` (:class:`.adaptive.Steps`), the step storage, reused
+    when given."""
+    steps = adaptive.Steps() if steps is None else steps
+
+    def integrate_chart(t, value, rate, spent):
+        return _dop853_chart(chart, steps, edges, loads, t, value, rate, rtol, sample_interval, per_step,
+                             speed_limit, max_evaluations - spent, retry_caps, out)
+
+    return _run(chart, edges, loads, x0, independent, rate0, integrate_chart, max_switches, out)
