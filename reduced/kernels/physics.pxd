@@ -77,17 +77,6 @@ cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan
 cdef Py_ssize_t _c_newton_max_iter, _c_max_walk_closures
 cdef long long _c_max_halvings
 
-cdef double lu_factor(double[:, ::1] A, long long[::1] piv)
-cdef int lu_solve(double[:, ::1] A, long long[::1] piv, double[::1] b)
-cdef int angle_trig(long long[::1] I, double[::1] x, double[:, ::1] trig)
-cdef (Py_ssize_t, Py_ssize_t, Py_ssize_t, double, double, double) _term(
-    double[::1] F, long long[::1] I, Py_ssize_t tb, Py_ssize_t t, double[::1] x, double[:, ::1] trig)
-cdef int table_positions(double[::1] F, long long[::1] I, Py_ssize_t table, double[::1] x,
-                         double[:, ::1] trig, double[:, ::1] out)
-cdef int table_rates(double[::1] F, long long[::1] I, Py_ssize_t table, double[::1] x, double[:, ::1] trig,
-                     double[::1] K, double[::1] L, bint with_l, double[:, ::1] out)
-cdef (double, double) constraints(double[::1] F, long long[::1] I, double[::1] x, double[:, ::1] trig,
-                                  double[:, ::1] A, double[::1] res)
 cdef double _nearest(double angle, double target)
 cpdef bint _dyads(double[::1] F, long long[::1] I, Py_ssize_t first, double[::1] x, double[::1] base,
                   double[:, ::1] trig, Py_ssize_t i)
@@ -98,13 +87,23 @@ cdef class Chart(RightHandSide):
     cdef double[::1] F
     cdef long long[::1] I
     cdef readonly Py_ssize_t n
-    # views of S and of W (physics.py: Chart), made once at construction
+    # views of S and of W (physics.py: Chart), made once at construction; K and L are kin's rows
     cdef long long[::1] s, piv, budget
-    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline
+    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
     cdef double[:, :, ::1] base
+    # what _term leaves (its row is returned), and what _constraints leaves
+    cdef Py_ssize_t term_g, term_a
+    cdef double term_m, term_ux, term_uy, spread
 
-    cdef int _finish(self, double[::1] x, double det)
+    cdef double _lu_factor(self)
+    cdef int _lu_solve(self, double[::1] b)
+    cdef int _angle_trig(self)
+    cdef Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
+    cdef int _table_positions(self, Py_ssize_t table)
+    cdef int _table_rates(self, Py_ssize_t table, bint with_l)
+    cdef double _constraints(self)
+    cdef int _finish(self, double det)
     cdef int _close(self, Py_ssize_t depth, double value, double reach)
     cdef int _walk(self, double value)
     cdef double _point_force(self, Py_ssize_t p, double q)

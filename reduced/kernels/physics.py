@@ -185,232 +185,6 @@ def field_count(model: Model) -> int:
     return N_FIELDS + int(model.I[N_TIMED])
 
 
-# -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) ------------------------
-
-@cython.cfunc
-def lu_factor(A: cython.double[:, ::1], piv: cython.longlong[::1]) -> cython.double:
-    """LU with partial pivoting of A (n, n) in place, U's diagonal stored as its reciprocals
-    (a solve then multiplies: its divisions were most of its latency); returns det A (0.0 if
-    singular)."""
-    n: cython.Py_ssize_t = A.shape[0]
-    k: cython.Py_ssize_t
-    r: cython.Py_ssize_t
-    c: cython.Py_ssize_t
-    p: cython.Py_ssize_t
-    det: cython.double = 1.0
-    big: cython.double
-    d: cython.double
-    inverse: cython.double
-    f: cython.double
-    swap: cython.double
-    for k in range(n):
-        p = k
-        big = fabs(A[k, k])
-        for r in range(k + 1, n):
-            if fabs(A[r, k]) > big:
-                big = fabs(A[r, k])
-                p = r
-        piv[k] = p
-        if big == 0.0:
-            return 0.0
-        if p != k:
-            det = -det
-            for c in range(n):
-                swap = A[k, c]
-                A[k, c] = A[p, c]
-                A[p, c] = swap
-        d = A[k, k]
-        det *= d
-        inverse = 1.0 / d
-        A[k, k] = inverse
-        for r in range(k + 1, n):
-            f = A[r, k] * inverse
-            A[r, k] = f
-            for c in range(k + 1, n):
-                A[r, c] -= f * A[k, c]
-    return det
-
-
-@cython.cfunc
-def lu_solve(A: cython.double[:, ::1], piv: cython.longlong[::1], b: cython.double[::1]) -> cython.int:
-    """Solve with :func:`lu_factor`'s factors; b (n,) is overwritten by the solution."""
-    n: cython.Py_ssize_t = A.shape[0]
-    k: cython.Py_ssize_t
-    r: cython.Py_ssize_t
-    c: cython.Py_ssize_t
-    p: cython.Py_ssize_t
-    s: cython.double
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            s = b[k]
-            b[k] = b[p]
-            b[p] = s
-    for r in range(n):
-        s = b[r]
-        for c in range(r):
-            s -= A[r, c] * b[c]
-        b[r] = s
-    for r in range(n - 1, -1, -1):
-        s = b[r]
-        for c in range(r + 1, n):
-            s -= A[r, c] * b[c]
-        b[r] = s * A[r, r]
-    return 0
-
-
-# -- term tables -----------------------------------------------------------------------
-
-@cython.cfunc
-def angle_trig(I: cython.longlong[::1], x: cython.double[::1], trig: cython.double[:, ::1]) -> cython.int:
-    """cos and sin of every body angle x[:n_angles] into trig (2, n)."""
-    j: cython.Py_ssize_t
-    for j in range(I[N_ANGLES]):
-        trig[0, j] = cos(x[j])
-        trig[1, j] = sin(x[j])
-    return 0
-
-
-@cython.cfunc
-@cython.inline
-def _term(F: cython.double[::1], I: cython.longlong[::1], tb: cython.Py_ssize_t, t: cython.Py_ssize_t,
-          x: cython.double[::1], trig: cython.double[:, ::1]) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t,
-                                                                       cython.Py_ssize_t, cython.double,
-                                                                       cython.double, cython.double]:
-    """Term t of the table whose header starts at tb: (row, mag index, angle index, m, u_x, u_y)
-    with u = R(θ) w (module docstring) and m = x[mag] or 1."""
-    row: cython.Py_ssize_t = I[I[tb + 4] + t]
-    g: cython.Py_ssize_t = I[I[tb + 5] + t]
-    a: cython.Py_ssize_t = I[I[tb + 6] + t]
-    wx: cython.double = F[I[tb + 3] + 2 * t]
-    wy: cython.double = F[I[tb + 3] + 2 * t + 1]
-    c: cython.double
-    s: cython.double
-    ux: cython.double
-    if a >= 0:
-        c = trig[0, a]
-        s = trig[1, a]
-        ux = wx * c - wy * s
-        wy = wx * s + wy * c
-        wx = ux
-    return row, g, a, (x[g] if g >= 0 else 1.0), wx, wy
-
-
-@cython.cfunc
-def table_positions(F: cython.double[::1], I: cython.longlong[::1], table: cython.Py_ssize_t,
-                    x: cython.double[::1], trig: cython.double[:, ::1], out: cython.double[:, ::1]) -> cython.int:
-    """r of every row of a table into out[:, 0:2] (m), leaving columns 2, 3 alone."""
-    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
-    off: cython.Py_ssize_t = I[tb + 2]
-    k: cython.Py_ssize_t
-    t: cython.Py_ssize_t
-    g: cython.Py_ssize_t
-    a: cython.Py_ssize_t
-    m: cython.double
-    ux: cython.double
-    uy: cython.double
-    for k in range(I[tb]):
-        out[k, 0] = F[off + 2 * k]
-        out[k, 1] = F[off + 2 * k + 1]
-    for t in range(I[tb + 1]):
-        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
-        out[k, 0] += m * ux
-        out[k, 1] += m * uy
-    return 0
-
-
-@cython.cfunc
-def table_rates(F: cython.double[::1], I: cython.longlong[::1], table: cython.Py_ssize_t, x: cython.double[::1],
-                trig: cython.double[:, ::1], K: cython.double[::1], L: cython.double[::1], with_l: cython.bint,
-                out: cython.double[:, ::1]) -> cython.int:
-    """K_r into out[:, 0:2] and L_r into out[:, 2:4] (γ, the part without L, unless with_l)."""
-    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
-    k: cython.Py_ssize_t
-    c: cython.Py_ssize_t
-    t: cython.Py_ssize_t
-    g: cython.Py_ssize_t
-    a: cython.Py_ssize_t
-    m: cython.double
-    ux: cython.double
-    uy: cython.double
-    md: cython.double
-    td: cython.double
-    cu: cython.double
-    cn: cython.double
-    for k in range(I[tb]):
-        for c in range(4):
-            out[k, c] = 0.0
-    for t in range(I[tb + 1]):
-        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
-        md = K[g] if g >= 0 else 0.0
-        td = K[a] if a >= 0 else 0.0
-        cu = 2.0 * md * td  # coefficient of u⊥ in L_r
-        cn = -m * td * td  # coefficient of u
-        if with_l:
-            if g >= 0:
-                cn += L[g]
-            if a >= 0:
-                cu += m * L[a]
-        out[k, 0] += md * ux - m * td * uy
-        out[k, 1] += md * uy + m * td * ux
-        out[k, 2] += cn * ux - cu * uy
-        out[k, 3] += cn * uy + cu * ux
-    return 0
-
-
-@cython.cfunc
-def constraints(F: cython.double[::1], I: cython.longlong[::1], x: cython.double[::1], trig: cython.double[:, ::1],
-                A: cython.double[:, ::1], res: cython.double[::1]) -> tuple[cython.double, cython.double]:
-    """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows).
-    Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off scale, and
-    Σ |m w| |θ| over the turning terms (m·rad): the scale of the rounding of their angles."""
-    n: cython.Py_ssize_t = I[N]
-    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
-    nl: cython.Py_ssize_t = 2 * I[tb]
-    r: cython.Py_ssize_t
-    c: cython.Py_ssize_t
-    t: cython.Py_ssize_t
-    k: cython.Py_ssize_t
-    g: cython.Py_ssize_t
-    a: cython.Py_ssize_t
-    m: cython.double
-    ux: cython.double
-    uy: cython.double
-    lever: cython.double
-    v: cython.double
-    for r in range(n - 1):
-        for c in range(n):
-            A[r, c] = 0.0
-    off: cython.Py_ssize_t = I[tb + 2]
-    scale: cython.double = 0.0
-    spread: cython.double = 0.0
-    for r in range(nl):
-        res[r] = F[off + r]
-        scale += fabs(F[off + r])
-    for t in range(I[tb + 1]):
-        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
-        res[2 * k] += m * ux
-        res[2 * k + 1] += m * uy
-        lever = fabs(m) * (fabs(ux) + fabs(uy))
-        scale += lever
-        if a >= 0:
-            A[2 * k, a] -= m * uy
-            A[2 * k + 1, a] += m * ux
-            spread += lever * fabs(x[a])
-        if g >= 0:
-            A[2 * k, g] += ux
-            A[2 * k + 1, g] += uy
-    lin: cython.Py_ssize_t = I[LINEAR]
-    for r in range(I[N_LINEAR]):
-        v = 0.0
-        for c in range(n):
-            A[nl + r, c] = F[lin + r * n + c]
-            v += F[lin + r * n + c] * x[c]
-            scale += fabs(F[lin + r * n + c] * x[c])
-        res[nl + r] = v
-    return scale, spread
-
-
 # -- closed-form dyads ------------------------------------------------------------------
 
 @cython.cfunc
@@ -532,8 +306,12 @@ class Chart(RightHandSide):
     value (1,), start, last, kin (3, n), fields (field_count), A (n, n), rhs, trig (2, n),
     norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)), both numpy
     arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
-    made once here. A chart is empty until :meth:`start`. Besides W, it owns the configuration
-    :meth:`mark` keeps (3, n) and the scratch of the B-splines (the largest degree + 1).
+    made once here: the kernels below are methods that read and write these views, and take
+    no array argument (compiled, an array argument is a 200-byte view passed by value, and a
+    view made in a call, a reference count changed atomically: together they had made an
+    evaluation 2.3 times as slow). Besides W, a chart owns the configuration :meth:`mark` keeps
+    (3, n) and the scratch of the B-splines (the largest degree + 1). A chart is empty until
+    :meth:`start`.
     """
 
     def __init__(self, model: Model):
@@ -542,10 +320,10 @@ class Chart(RightHandSide):
         self.model = Model(F, I)
         self.F = F
         self.I = I
-        n: cython.Py_ssize_t = I[N]
+        n = int(I[N])
         self.n = n
-        nfields: cython.Py_ssize_t = N_FIELDS + I[N_TIMED]
-        rows: cython.Py_ssize_t = max(int(I[MAX_ROWS]), 1)
+        nfields = N_FIELDS + int(I[N_TIMED])
+        rows = max(int(I[MAX_ROWS]), 1)
         size = 1 + 9 * n + nfields + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * rows
         self.S = np.zeros(S_HEADER + n + DEPTH, np.int64)
         self.W = np.zeros(size)
@@ -561,6 +339,8 @@ class Chart(RightHandSide):
             o += size
         (self.value, self.origin, self.last, self.kin, self.fields, self.A, self.rhs, self.trig, self.norms,
          self.x, self.guess, self.base, self.target, self.rows) = views
+        self.K = views[3][1]
+        self.L = views[3][2]
         self.marked = np.zeros((3, n))
         degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
         self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
@@ -578,43 +358,252 @@ class Chart(RightHandSide):
             o += size
         return out
 
+    # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
+
+    @cython.cfunc
+    def _lu_factor(self) -> cython.double:
+        """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
+        as its reciprocals (a solve then multiplies: its divisions were most of its latency);
+        returns det A (0.0 if singular)."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        det: cython.double = 1.0
+        big: cython.double
+        d: cython.double
+        inverse: cython.double
+        f: cython.double
+        swap: cython.double
+        for k in range(n):
+            p = k
+            big = fabs(self.A[k, k])
+            for r in range(k + 1, n):
+                if fabs(self.A[r, k]) > big:
+                    big = fabs(self.A[r, k])
+                    p = r
+            self.piv[k] = p
+            if big == 0.0:
+                return 0.0
+            if p != k:
+                det = -det
+                for c in range(n):
+                    swap = self.A[k, c]
+                    self.A[k, c] = self.A[p, c]
+                    self.A[p, c] = swap
+            d = self.A[k, k]
+            det *= d
+            inverse = 1.0 / d
+            self.A[k, k] = inverse
+            for r in range(k + 1, n):
+                f = self.A[r, k] * inverse
+                self.A[r, k] = f
+                for c in range(k + 1, n):
+                    self.A[r, c] -= f * self.A[k, c]
+        return det
+
+    @cython.cfunc
+    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
+        solution."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        s: cython.double
+        for k in range(n):
+            p = self.piv[k]
+            if p != k:
+                s = b[k]
+                b[k] = b[p]
+                b[p] = s
+        for r in range(n):
+            s = b[r]
+            for c in range(r):
+                s -= self.A[r, c] * b[c]
+            b[r] = s
+        for r in range(n - 1, -1, -1):
+            s = b[r]
+            for c in range(r + 1, n):
+                s -= self.A[r, c] * b[c]
+            b[r] = s * self.A[r, r]
+        return 0
+
+    # -- term tables -----------------------------------------------------------------------
+
+    @cython.cfunc
+    def _angle_trig(self) -> cython.int:
+        """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
+        j: cython.Py_ssize_t
+        for j in range(self.I[N_ANGLES]):
+            self.trig[0, j] = cos(self.x[j])
+            self.trig[1, j] = sin(self.x[j])
+        return 0
+
+    @cython.cfunc
+    @cython.inline
+    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
+        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
+        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
+        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
+        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
+        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
+        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
+        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
+        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
+        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
+        c: cython.double
+        s: cython.double
+        if a >= 0:
+            c = self.trig[0, a]
+            s = self.trig[1, a]
+            wx, wy = wx * c - wy * s, wx * s + wy * c
+        self.term_g = g
+        self.term_a = a
+        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
+        self.term_ux = wx
+        self.term_uy = wy
+        return row
+
+    @cython.cfunc
+    def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
+        """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        k: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        for k in range(self.I[tb]):
+            self.rows[k, 0] = self.F[off + 2 * k]
+            self.rows[k, 1] = self.F[off + 2 * k + 1]
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            self.rows[k, 0] += self.term_m * self.term_ux
+            self.rows[k, 1] += self.term_m * self.term_uy
+        return 0
+
+    @cython.cfunc
+    def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
+        """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
+        with_l), at kin's x, K and L."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        k: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        md: cython.double
+        td: cython.double
+        cu: cython.double
+        cn: cython.double
+        for k in range(self.I[tb]):
+            for c in range(4):
+                self.rows[k, c] = 0.0
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            md = self.kin[1, g] if g >= 0 else 0.0
+            td = self.kin[1, a] if a >= 0 else 0.0
+            cu = 2.0 * md * td  # coefficient of u⊥ in L_r
+            cn = -m * td * td  # coefficient of u
+            if with_l:
+                if g >= 0:
+                    cn += self.kin[2, g]
+                if a >= 0:
+                    cu += m * self.kin[2, a]
+            self.rows[k, 0] += md * ux - m * td * uy
+            self.rows[k, 1] += md * uy + m * td * ux
+            self.rows[k, 2] += cn * ux - cu * uy
+            self.rows[k, 3] += cn * uy + cu * ux
+        return 0
+
+    @cython.cfunc
+    def _constraints(self) -> cython.double:
+        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
+        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
+        scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
+        the rounding of their angles."""
+        n: cython.Py_ssize_t = self.n
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+        nl: cython.Py_ssize_t = 2 * self.I[tb]
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        lever: cython.double
+        v: cython.double
+        for r in range(n - 1):
+            for c in range(n):
+                self.A[r, c] = 0.0
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        scale: cython.double = 0.0
+        spread: cython.double = 0.0
+        for r in range(nl):
+            self.rhs[r] = self.F[off + r]
+            scale += fabs(self.F[off + r])
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, True)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            self.rhs[2 * k] += m * ux
+            self.rhs[2 * k + 1] += m * uy
+            lever = fabs(m) * (fabs(ux) + fabs(uy))
+            scale += lever
+            if a >= 0:
+                self.A[2 * k, a] -= m * uy
+                self.A[2 * k + 1, a] += m * ux
+                spread += lever * fabs(self.x[a])
+            if g >= 0:
+                self.A[2 * k, g] += ux
+                self.A[2 * k + 1, g] += uy
+        lin: cython.Py_ssize_t = self.I[LINEAR]
+        for r in range(self.I[N_LINEAR]):
+            v = 0.0
+            for c in range(n):
+                self.A[nl + r, c] = self.F[lin + r * n + c]
+                v += self.F[lin + r * n + c] * self.x[c]
+                scale += fabs(self.F[lin + r * n + c] * self.x[c])
+            self.rhs[nl + r] = v
+        self.spread = spread
+        return scale
+
     # -- one configuration ------------------------------------------------------------------
 
     @cython.cfunc
-    def _finish(self, x: cython.double[::1], det: cython.double) -> cython.int:
-        """x, K and L into kin (3, n) from the factors of A (at x, or round-off from it), and the
-        conditioning of every coordinate into the fields."""
-        F: cython.double[::1] = self.F
-        I: cython.longlong[::1] = self.I
+    def _finish(self, det: cython.double) -> cython.int:
+        """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
+        it), and the conditioning of every coordinate into the fields."""
         n: cython.Py_ssize_t = self.n
-        kin: cython.double[:, ::1] = self.kin
-        norms: cython.double[::1] = self.norms
-        fields: cython.double[::1] = self.fields
-        rows: cython.double[:, ::1] = self.rows
         j: cython.Py_ssize_t
         k: cython.Py_ssize_t
-        K: cython.double[::1] = kin[1]
-        L: cython.double[::1] = kin[2]
         for j in range(n):
-            K[j] = 0.0
-        K[n - 1] = 1.0
-        lu_solve(self.A, self.piv, K)
-        table_rates(F, I, LOOPS, x, self.trig, K, L, False, rows)
-        nl: cython.Py_ssize_t = I[TABLES + TABLE_ENTRIES * LOOPS]
+            self.kin[0, j] = self.x[j]
+        for j in range(n):
+            self.K[j] = 0.0
+        self.K[n - 1] = 1.0
+        self._lu_solve(self.K)
+        self._table_rates(LOOPS, False)
+        nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
         for k in range(nl):
-            L[2 * k] = -rows[k, 2]
-            L[2 * k + 1] = -rows[k, 3]
+            self.L[2 * k] = -self.rows[k, 2]
+            self.L[2 * k + 1] = -self.rows[k, 3]
         for j in range(2 * nl, n):
-            L[j] = 0.0
-        lu_solve(self.A, self.piv, L)
-        for j in range(n):
-            kin[0, j] = x[j]
+            self.L[j] = 0.0
+        self._lu_solve(self.L)
         # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
         product: cython.double = 1.0
         zeros: cython.Py_ssize_t = 0
         for j in range(n):
-            if norms[j] > 0.0:
-                product *= norms[j]
+            if self.norms[j] > 0.0:
+                product *= self.norms[j]
             else:
                 zeros += 1
         i: cython.Py_ssize_t = self.s[INDEPENDENT]
@@ -623,19 +612,19 @@ class Chart(RightHandSide):
         own: cython.double = 0.0
         c: cython.double
         for j in range(n):
-            if zeros > 1 or (zeros == 1 and norms[j] > 0.0):
+            if zeros > 1 or (zeros == 1 and self.norms[j] > 0.0):
                 c = 0.0
             else:
-                c = fabs(K[j]) * fabs(det) / (product / norms[j] if norms[j] > 0.0 else product)
+                c = fabs(self.K[j]) * fabs(det) / (product / self.norms[j] if self.norms[j] > 0.0 else product)
             if j == i:
                 own = c
             if c > best:
                 best = c
                 best_j = j
-        fields[CONDITIONING] = own
-        fields[BEST_CONDITIONING] = best
-        fields[BEST] = best_j
-        fields[DETERMINANT] = det
+        self.fields[CONDITIONING] = own
+        self.fields[BEST_CONDITIONING] = best
+        self.fields[BEST] = best_j
+        self.fields[DETERMINANT] = det
         return 0
 
     @cython.cfunc
@@ -646,76 +635,66 @@ class Chart(RightHandSide):
         Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
         singular, or another branch). Leaves the conditioning and det in the fields.
         """
-        F: cython.double[::1] = self.F
-        I: cython.longlong[::1] = self.I
         n: cython.Py_ssize_t = self.n
         i: cython.Py_ssize_t = self.s[INDEPENDENT]
-        A: cython.double[:, ::1] = self.A
-        res: cython.double[::1] = self.rhs
-        trig: cython.double[:, ::1] = self.trig
-        norms: cython.double[::1] = self.norms
-        x: cython.double[::1] = self.x
-        guess: cython.double[::1] = self.guess
-        base: cython.double[:, :, ::1] = self.base
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         it: cython.Py_ssize_t
         v: cython.double
         scale: cython.double
-        spread: cython.double
         largest: cython.double
-        delta: cython.double = value - base[depth, 0, i]
+        delta: cython.double = value - self.base[depth, 0, i]
         far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
         for j in range(n):
-            x[j] = base[depth, 0, j] if far else (base[depth, 0, j] + base[depth, 1, j] * delta
-                                                  + 0.5 * base[depth, 2, j] * delta * delta)
-        x[i] = value
+            self.x[j] = self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
+        self.x[i] = value
         for j in range(n):
-            guess[j] = x[j]
+            self.guess[j] = self.x[j]
         det: cython.double = 0.0
         converged: cython.bint = False
         factored: cython.bint = False  # at the polished x
-        plan: cython.Py_ssize_t = I[I[DYAD_PLAN] + i]
+        plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
         # x by closed form: taken as it is if it closes the loops
         closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
-        if closed and not _dyads(F, I, plan, x, base[depth, 0], trig, i):
+        if closed and not _dyads(self.F, self.I, plan, self.x, self.base[depth, 0], self.trig, i):
             return 1
         for it in range(_c_newton_max_iter + 1):
             if not closed:  # the closed form left trig at x
-                angle_trig(I, x, trig)
-            scale, spread = constraints(F, I, x, trig, A, res)
+                self._angle_trig()
+            scale = self._constraints()
             largest = 0.0
             for r in range(n - 1):
-                if not isfinite(res[r]):
+                if not isfinite(self.rhs[r]):
                     return 1
-                largest = max(largest, fabs(res[r]))
+                largest = max(largest, fabs(self.rhs[r]))
             for c in range(n):
                 v = 0.0
                 for r in range(n - 1):
-                    v += A[r, c] * A[r, c]
-                norms[c] = sqrt(v)
-                A[n - 1, c] = 0.0
-            A[n - 1, i] = 1.0
-            res[n - 1] = 0.0
-            det = lu_factor(A, self.piv)
+                    v += self.A[r, c] * self.A[r, c]
+                self.norms[c] = sqrt(v)
+                self.A[n - 1, c] = 0.0
+            self.A[n - 1, i] = 1.0
+            self.rhs[n - 1] = 0.0
+            det = self._lu_factor()
             if det == 0.0 or not isfinite(det):
                 return 1
             if converged or (closed and largest <= _c_closed_form_residual * scale):
                 factored = True
                 break
             closed = False  # not closed to round-off: Newton from there
-            lu_solve(A, self.piv, res)
+            self._lu_solve(self.rhs)
             for j in range(n):
-                x[j] -= res[j]
+                self.x[j] -= self.rhs[j]
             # converged: the step just taken polishes to round-off
-            converged = largest <= max(_c_newton_tol, _c_newton_round_off * spread)
+            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.spread)
         if not factored:
             return 1
         for j in range(n):
-            if not isfinite(x[j]):
+            if not isfinite(self.x[j]):
                 return 1
-        self._finish(x, det)
+        self._finish(det)
         if self.fields[CONDITIONING] < _c_singular_conditioning:
             return 1
         if self.s[SIGN] != 0 and (1 if det >= 0.0 else -1) != self.s[SIGN]:
@@ -729,12 +708,6 @@ class Chart(RightHandSide):
         or WORK_SPENT (more than MAX_WALK_CLOSURES closures)."""
         n: cython.Py_ssize_t = self.n
         i: cython.Py_ssize_t = self.s[INDEPENDENT]
-        last: cython.double[:, ::1] = self.last
-        kin: cython.double[:, ::1] = self.kin
-        guess: cython.double[::1] = self.guess
-        base: cython.double[:, :, ::1] = self.base
-        target: cython.double[::1] = self.target
-        budget: cython.longlong[::1] = self.budget
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
         delta: cython.double
@@ -744,107 +717,95 @@ class Chart(RightHandSide):
         trusted: cython.bint
         for r in range(3):
             for j in range(n):
-                base[0, r, j] = last[r, j]
-        target[0] = value
-        budget[0] = _c_max_halvings
+                self.base[0, r, j] = self.last[r, j]
+        self.target[0] = value
+        self.budget[0] = _c_max_halvings
         depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
         closures: cython.Py_ssize_t = 0
         while True:
-            delta = target[depth] - base[depth, 0, i]
+            delta = self.target[depth] - self.base[depth, 0, i]
             predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
             for j in range(n):
-                predicted = max(predicted, fabs(base[depth, 1, j] * delta)
-                                + 0.5 * fabs(base[depth, 2, j]) * delta * delta)
+                predicted = max(predicted, fabs(self.base[depth, 1, j] * delta)
+                                + 0.5 * fabs(self.base[depth, 2, j]) * delta * delta)
             failed = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
             trusted = False
-            if predicted <= _c_long_jump or predicted > _c_far_jump or budget[depth] <= 0:
+            if predicted <= _c_long_jump or predicted > _c_far_jump or self.budget[depth] <= 0:
                 if closures == _c_max_walk_closures:
                     return WORK_SPENT
                 closures += 1
-                failed = self._close(depth, target[depth], predicted) != 0
+                failed = self._close(depth, self.target[depth], predicted) != 0
                 if not failed:
                     moved = 0.0
                     for j in range(n):
-                        moved = max(moved, fabs(kin[0, j] - guess[j]))
+                        moved = max(moved, fabs(self.kin[0, j] - self.guess[j]))
                     trusted = moved <= _c_predictor_trust * predicted + _c_trusted_correction
-            if failed and budget[depth] <= 0:
+            if failed and self.budget[depth] <= 0:
                 return SINGULAR
-            if trusted or budget[depth] <= 0:
+            if trusted or self.budget[depth] <= 0:
                 if predicted > _c_long_jump:  # closed at once: the turns nearest the base's
                     for j in range(self.I[N_ANGLES]):
                         if j != i:
-                            kin[0, j] = _nearest(kin[0, j], base[depth, 0, j])
+                            self.kin[0, j] = _nearest(self.kin[0, j], self.base[depth, 0, j])
                 if depth == 0:
                     break
                 # the midpoint is reached: it is the base of the second half, one level down
                 depth -= 1
                 for r in range(3):
                     for j in range(n):
-                        base[depth, r, j] = kin[r, j]
-                budget[depth] -= 1
+                        self.base[depth, r, j] = self.kin[r, j]
+                self.budget[depth] -= 1
                 continue
             # halve: seek the midpoint first, then the target from there
             for r in range(3):
                 for j in range(n):
-                    base[depth + 1, r, j] = base[depth, r, j]
-            target[depth + 1] = base[depth, 0, i] + 0.5 * (target[depth] - base[depth, 0, i])
-            budget[depth + 1] = budget[depth] - 1
+                    self.base[depth + 1, r, j] = self.base[depth, r, j]
+            self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
+            self.budget[depth + 1] = self.budget[depth] - 1
             depth += 1
         for r in range(3):
             for j in range(n):
-                last[r, j] = kin[r, j]
+                self.last[r, j] = self.kin[r, j]
         return OK
 
     @cython.cfunc
     def _point_force(self, p: cython.Py_ssize_t, q: cython.double) -> cython.double:
         """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor, in the
         chart's spline scratch)."""
-        F: cython.double[::1] = self.F
-        I: cython.longlong[::1] = self.I
-        d: cython.double[::1] = self.spline
-        lo: cython.double = F[I[SPLINE_LO] + p]
-        hi: cython.double = F[I[SPLINE_HI] + p]
-        period: cython.double = F[I[SPLINE_PERIOD] + p]
+        lo: cython.double = self.F[self.I[SPLINE_LO] + p]
+        hi: cython.double = self.F[self.I[SPLINE_HI] + p]
+        period: cython.double = self.F[self.I[SPLINE_PERIOD] + p]
         if period > 0.0:
             q = lo + (q - lo) - period * floor((q - lo) / period)
         else:
             q = min(max(q, lo), hi)
-        t0: cython.Py_ssize_t = I[SPLINE_KNOTS] + I[I[KNOT_START] + p]
-        c0: cython.Py_ssize_t = I[SPLINE_COEF] + I[I[COEF_START] + p]
-        nc: cython.Py_ssize_t = I[I[COEF_START] + p + 1] - I[I[COEF_START] + p]
-        k: cython.Py_ssize_t = I[I[SPLINE_DEGREE] + p]
+        t0: cython.Py_ssize_t = self.I[SPLINE_KNOTS] + self.I[self.I[KNOT_START] + p]
+        c0: cython.Py_ssize_t = self.I[SPLINE_COEF] + self.I[self.I[COEF_START] + p]
+        nc: cython.Py_ssize_t = self.I[self.I[COEF_START] + p + 1] - self.I[self.I[COEF_START] + p]
+        k: cython.Py_ssize_t = self.I[self.I[SPLINE_DEGREE] + p]
         l: cython.Py_ssize_t = k
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
         left: cython.double
         alpha: cython.double
-        while l < nc - 1 and F[t0 + l + 1] <= q:
+        while l < nc - 1 and self.F[t0 + l + 1] <= q:
             l += 1
         for j in range(k + 1):
-            d[j] = F[c0 + l - k + j]
+            self.spline[j] = self.F[c0 + l - k + j]
         for r in range(1, k + 1):
             for j in range(k, r - 1, -1):
-                left = F[t0 + j + l - k]
-                alpha = (q - left) / (F[t0 + j + 1 + l - r] - left)
-                d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
-        return d[k]
+                left = self.F[t0 + j + l - k]
+                alpha = (q - left) / (self.F[t0 + j + 1 + l - r] - left)
+                self.spline[j] = (1.0 - alpha) * self.spline[j - 1] + alpha * self.spline[j]
+        return self.spline[k]
 
     @cython.cfunc
     def _coefficients(self) -> cython.int:
         """Eksergian's coefficients at the chart's kin into its fields (reduced.dynamics documents
         them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
-        F: cython.double[::1] = self.F
-        I: cython.longlong[::1] = self.I
-        kin: cython.double[:, ::1] = self.kin
-        fields: cython.double[::1] = self.fields
-        trig: cython.double[:, ::1] = self.trig
-        rows: cython.double[:, ::1] = self.rows
-        x: cython.double[::1] = kin[0]
-        K: cython.double[::1] = kin[1]
-        L: cython.double[::1] = kin[2]
-        nb: cython.Py_ssize_t = I[N_ANGLES]
-        ms: cython.Py_ssize_t = I[MASSES]
-        ins: cython.Py_ssize_t = I[INERTIAS]
+        nb: cython.Py_ssize_t = self.I[N_ANGLES]
+        ms: cython.Py_ssize_t = self.I[MASSES]
+        ins: cython.Py_ssize_t = self.I[INERTIAS]
         b: cython.Py_ssize_t
         e: cython.Py_ssize_t
         j: cython.Py_ssize_t
@@ -864,93 +825,93 @@ class Chart(RightHandSide):
         r: cython.double
         d: cython.double
         along: cython.double
-        table_rates(F, I, CENTRES, x, trig, K, L, True, rows)
+        self._table_rates(CENTRES, True)
         J: cython.double = 0.0
         zeta: cython.double = 0.0
         for b in range(nb):
-            m = F[ms + b]
-            inertia = F[ins + b]
-            J += m * (rows[b, 0] * rows[b, 0] + rows[b, 1] * rows[b, 1]) + inertia * K[b] * K[b]
-            zeta += m * (rows[b, 0] * rows[b, 2] + rows[b, 1] * rows[b, 3]) + inertia * K[b] * L[b]
+            m = self.F[ms + b]
+            inertia = self.F[ins + b]
+            J += m * (self.rows[b, 0] * self.rows[b, 0] + self.rows[b, 1] * self.rows[b, 1]) + inertia * self.K[b] * self.K[b]
+            zeta += m * (self.rows[b, 0] * self.rows[b, 2] + self.rows[b, 1] * self.rows[b, 3]) + inertia * self.K[b] * self.L[b]
         dV: cython.double = 0.0
         V: cython.double = 0.0
         damping: cython.double = 0.0
         force: cython.double = 0.0
-        if I[HAS_GRAVITY]:
-            gx = F[I[GRAVITY]]
-            gy = F[I[GRAVITY] + 1]
+        if self.I[HAS_GRAVITY]:
+            gx = self.F[self.I[GRAVITY]]
+            gy = self.F[self.I[GRAVITY] + 1]
             for b in range(nb):
-                dV -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
-            table_positions(F, I, CENTRES, x, trig, rows)
+                dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+            self._table_positions(CENTRES)
             for b in range(nb):
-                V -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
-        ne: cython.Py_ssize_t = I[N_ELEMENTS]
+                V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+        ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
         if ne:
-            table_rates(F, I, ENDS, x, trig, K, L, False, rows)
+            self._table_rates(ENDS, False)
             for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
-                rows[2 * e, 2] = rows[2 * e, 0] - rows[2 * e + 1, 0]
-                rows[2 * e, 3] = rows[2 * e, 1] - rows[2 * e + 1, 1]
-            table_positions(F, I, ENDS, x, trig, rows)
+                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+            self._table_positions(ENDS)
             for e in range(ne):
-                dx = rows[2 * e, 0] - rows[2 * e + 1, 0]
-                dy = rows[2 * e, 1] - rows[2 * e + 1, 1]
+                dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
                 length = sqrt(dx * dx + dy * dy)
-                k_d = (dx * rows[2 * e, 2] + dy * rows[2 * e, 3]) / length  # K_D = dD/dx_i
-                c = F[I[ELEMENT_COEF] + e]
-                if e < I[N_DAMPERS]:
+                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                c = self.F[self.I[ELEMENT_COEF] + e]
+                if e < self.I[N_DAMPERS]:
                     damping += c * k_d * k_d
                 else:
-                    stretch = length - F[I[ELEMENT_REST] + e]
+                    stretch = length - self.F[self.I[ELEMENT_REST] + e]
                     dV += c * stretch * k_d
                     V += 0.5 * c * stretch * stretch
-        nj: cython.Py_ssize_t = I[N_JOINT_ELEMENTS]
+        nj: cython.Py_ssize_t = self.I[N_JOINT_ELEMENTS]
         n: cython.Py_ssize_t = self.n
         rows_at: cython.Py_ssize_t
         if nj:
-            rows_at = I[JOINT_ROWS]
+            rows_at = self.I[JOINT_ROWS]
             for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
                 u = 0.0
                 k_u = 0.0
                 for j in range(n):
-                    r = F[rows_at + e * n + j]
-                    u += r * x[j]
-                    k_u += r * K[j]
-                c = F[I[JOINT_COEF] + e]
-                if e < I[N_JOINT_DAMPERS]:
+                    r = self.F[rows_at + e * n + j]
+                    u += r * self.kin[0, j]
+                    k_u += r * self.K[j]
+                c = self.F[self.I[JOINT_COEF] + e]
+                if e < self.I[N_JOINT_DAMPERS]:
                     damping += c * k_u * k_u
                 else:
-                    stretch = u - F[I[JOINT_REST] + e]
+                    stretch = u - self.F[self.I[JOINT_REST] + e]
                     dV += c * stretch * k_u
                     V += 0.5 * c * stretch * stretch
         rate: cython.double = 0.0
         curvature: cython.double = 0.0
         q: cython.double = 0.0
         for j in range(n):
-            d = F[I[DRIVE] + j]
-            rate += d * K[j]
-            curvature += d * L[j]
-            q += d * x[j]
-        nf: cython.Py_ssize_t = I[N_FORCES]
-        nt: cython.Py_ssize_t = I[N_TIMED]
+            d = self.F[self.I[DRIVE] + j]
+            rate += d * self.K[j]
+            curvature += d * self.L[j]
+            q += d * self.kin[0, j]
+        nf: cython.Py_ssize_t = self.I[N_FORCES]
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
         fd: cython.Py_ssize_t
         td: cython.Py_ssize_t
         if nf or nt:
-            table_rates(F, I, FORCE_POINTS, x, trig, K, L, False, rows)
-            fd = I[FORCE_DIR]
+            self._table_rates(FORCE_POINTS, False)
+            fd = self.I[FORCE_DIR]
             for p in range(nf):
-                along = rows[p, 0] * F[fd + 2 * p] + rows[p, 1] * F[fd + 2 * p + 1]
+                along = self.rows[p, 0] * self.F[fd + 2 * p] + self.rows[p, 1] * self.F[fd + 2 * p + 1]
                 force += self._point_force(p, q) * along
-            td = I[TIMED_DIR]
+            td = self.I[TIMED_DIR]
             for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
-                fields[N_FIELDS + p] = rows[nf + p, 0] * F[td + 2 * p] + rows[nf + p, 1] * F[td + 2 * p + 1]
-        fields[INERTIA] = J
-        fields[CENTRIFUGAL] = zeta
-        fields[POTENTIAL_GRADIENT] = dV
-        fields[DAMPING] = damping
-        fields[POTENTIAL] = V
-        fields[INPUT_RATE] = rate
-        fields[POINT_FORCE] = force
-        fields[INPUT_CURVATURE] = curvature
+                self.fields[N_FIELDS + p] = self.rows[nf + p, 0] * self.F[td + 2 * p] + self.rows[nf + p, 1] * self.F[td + 2 * p + 1]
+        self.fields[INERTIA] = J
+        self.fields[CENTRIFUGAL] = zeta
+        self.fields[POTENTIAL_GRADIENT] = dV
+        self.fields[DAMPING] = damping
+        self.fields[POTENTIAL] = V
+        self.fields[INPUT_RATE] = rate
+        self.fields[POINT_FORCE] = force
+        self.fields[INPUT_CURVATURE] = curvature
         return 0
 
     @cython.cfunc
@@ -958,14 +919,12 @@ class Chart(RightHandSide):
         """The generalized force of the loads (N·m or N) at the fields on load piece ``piece``
         (its index): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
         the piece (PIECE_VALUES)."""
-        F: cython.double[::1] = self.F
-        f: cython.double[::1] = self.fields
         nt: cython.Py_ssize_t = self.I[N_TIMED]
         row: cython.Py_ssize_t = self.I[PIECE_VALUES] + piece * (1 + nt)
         p: cython.Py_ssize_t
-        g: cython.double = F[row] * f[INPUT_RATE] + f[POINT_FORCE]
+        g: cython.double = self.F[row] * self.fields[INPUT_RATE] + self.fields[POINT_FORCE]
         for p in range(nt):
-            g += F[row + 1 + p] * f[N_FIELDS + p]
+            g += self.F[row + 1 + p] * self.fields[N_FIELDS + p]
         return g
 
     # -- the chart interface ----------------------------------------------------------------
@@ -1078,29 +1037,29 @@ class Chart(RightHandSide):
         p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
         where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
         A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i.
-        x may be the chart's own kin[0]."""
+        x is copied first (into Newton's x): it may be one of the chart's own buffers."""
         n: cython.Py_ssize_t = self.n
-        A: cython.double[:, ::1] = self.A
-        norms: cython.double[::1] = self.norms
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         v: cython.double
-        angle_trig(self.I, x, self.trig)
-        constraints(self.F, self.I, x, self.trig, A, self.rhs)
+        for c in range(n):
+            self.x[c] = x[c]
+        self._angle_trig()
+        self._constraints()
         hadamard: cython.double = 1.0
         for c in range(n):
             v = 0.0
             for r in range(n - 1):
-                v += A[r, c] * A[r, c]
-            norms[c] = sqrt(v)
-            A[n - 1, c] = row[c]
+                v += self.A[r, c] * self.A[r, c]
+            self.norms[c] = sqrt(v)
+            self.A[n - 1, c] = row[c]
             hadamard *= sqrt(v + row[c] * row[c])
-        det: cython.double = lu_factor(A, self.piv)
+        det: cython.double = self._lu_factor()
         self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
         if det == 0.0 or not isfinite(det) or fabs(det) < _c_singular_conditioning * hadamard:
             self.s[STATUS] = SINGULAR
             return False
-        self._finish(x, det)
+        self._finish(det)
         self._coefficients()
         return True
 
@@ -1108,20 +1067,18 @@ class Chart(RightHandSide):
     def start(self, x: cython.double[::1], independent: cython.Py_ssize_t) -> cython.bint:
         """Make this a chart of coordinate ``independent`` starting at the assembled x (n,): its
         K, L there and the sign of its det A. Returns True on success (False: singular). x may
-        be one of the chart's own buffers (its kin[0], at a switch): it is copied first."""
+        be one of the chart's own buffers (its kin[0], at a switch): :meth:`kinematics_at`
+        copies it first."""
         n: cython.Py_ssize_t = self.n
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
-        start: cython.double[::1] = self.x  # Newton's iterate, unused by kinematics_at
-        for j in range(n):
-            start[j] = x[j]
         self.s[INDEPENDENT] = independent
         self.s[SIGN] = 0
         self.s[STATUS] = OK
         for j in range(n):
             self.guess[j] = 0.0
         self.guess[independent] = 1.0
-        if not self.kinematics_at(start, self.guess) or self.fields[CONDITIONING] < _c_singular_conditioning:
+        if not self.kinematics_at(x, self.guess) or self.fields[CONDITIONING] < _c_singular_conditioning:
             self.s[STATUS] = SINGULAR
             return False
         self.s[SIGN] = 1 if self.fields[DETERMINANT] >= 0.0 else -1
@@ -1129,7 +1086,7 @@ class Chart(RightHandSide):
             for j in range(n):
                 self.last[r, j] = self.kin[r, j]
                 self.origin[r, j] = self.kin[r, j]
-        self.value[0] = start[independent]
+        self.value[0] = self.x[independent]  # x's, copied by kinematics_at
         self.s[VALID] = 1
         return True
 
