@@ -99,7 +99,7 @@ cdef class Chart(RightHandSide):
     cdef double _lu_factor(self)
     cdef int _lu_solve(self, double[::1] b)
     cdef int _angle_trig(self)
-    cdef Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
+    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
     cdef int _table_positions(self, Py_ssize_t table)
     cdef int _table_rates(self, Py_ssize_t table, bint with_l)
     cdef double _constraints(self)
