@@ -95,3 +95,18 @@ def test_rewind_continues_from_the_mark():
     assert stayed.evaluate(x0[0] + 0.35) and wandered.evaluate(x0[0] + 0.35)
     np.testing.assert_array_equal(stayed.arrays()["kin"], wandered.arrays()["kin"])
     np.testing.assert_array_equal(stayed.arrays()["fields"], wandered.arrays()["fields"])
+
+
+def test_a_chart_restarts_from_its_own_configuration():
+    """A switch restarts the chart in another coordinate from the configuration it holds (its
+    kin[0], handed to start() as it is, no copy): the same result, bit for bit, as from a copy."""
+    model = MechanismModel(load_scene(ROOT / "scenes" / "seed_fourbar.toml"))
+    x0 = np.ascontiguousarray(model.assemble(model.scene.q0))
+    own, copied = physics.Chart(model.arrays), physics.Chart(model.arrays)
+    for chart in (own, copied):
+        assert chart.start(x0, 0)
+        assert chart.evaluate(x0[0] + 0.4)
+    assert own.start(own.arrays()["kin"][0], 1)
+    assert copied.start(copied.arrays()["kin"][0].copy(), 1)
+    for name in ("start", "kin", "fields", "value"):
+        np.testing.assert_array_equal(own.arrays()[name], copied.arrays()[name])
