@@ -261,9 +261,8 @@ class MechanismModel:
         return self.system.coordinate_names
 
     def new_chart(self) -> physics.Chart:
-        """Empty kernel chart state sized for this model."""
-        I = self.arrays.I
-        return physics.new_chart(int(I[physics.N]), int(I[physics.MAX_ROWS]), int(I[physics.N_TIMED]))
+        """An empty compiled chart of this model (:meth:`physics.Chart.start` starts it)."""
+        return physics.Chart(self.arrays)
 
     def assemble(self, q: float) -> np.ndarray:
         """The configuration at input q (rad or m): the scene's own at q0, else Newton from it."""
@@ -281,10 +280,10 @@ class MechanismModel:
         chart.S[physics.INDEPENDENT] = -1
         x = np.ascontiguousarray(x, dtype=float)
         row = np.ascontiguousarray(self.system.drive if row is None else row, dtype=float)
-        if not physics.kinematics_at(self.arrays, chart, x, row):
+        if not chart.kinematics_at(x, row):
             raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot drive the "
                                                f"linkage at q = {self.system.drive @ x:.15g} {self.scene.input_unit}")
-        views = physics.chart_arrays(self.arrays, chart)
+        views = chart.arrays()
         return coefficients_from(views["fields"], views["kin"])
 
     def coefficients(self, q: float) -> Coefficients:
@@ -293,12 +292,12 @@ class MechanismModel:
         alone, as :meth:`assemble` does, does not reach half a turn away)."""
         i = self.input_coordinate
         chart = self.new_chart()
-        if i is None or not physics.start_chart(self.arrays, chart, self.x0, i):
+        if i is None or not chart.start(np.ascontiguousarray(self.x0, dtype=float), i):
             return self.coefficients_at(self.assemble(q))
-        if not physics.evaluate(self.arrays, chart, float(q)):
+        if not chart.evaluate(float(q)):
             raise NumericalFailure("singular", f"the input's chart cannot be followed from q0 to q = {q:.15g} "
                                                f"{self.scene.input_unit}: a dead centre or an unreachable position")
-        views = physics.chart_arrays(self.arrays, chart)
+        views = chart.arrays()
         return coefficients_from(views["fields"], views["kin"])
 
     def generalized_inertia(self, q: float) -> float:

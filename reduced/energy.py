@@ -5,7 +5,8 @@ point forces over q and over t ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit
 dissipation ∫ Σ b K_D² ẋ_i² dt.
 
 The compiled runs integrate the two power integrals alongside the state, with the
-integrator's own stages and weights (:func:`reduced.kernels.physics.power`): DOP853's
+integrator's own stages and weights (:meth:`reduced.kernels.physics.Chart.power` and
+:meth:`~reduced.kernels.physics.Chart.dissipation`): DOP853's
 order-8 quadrature and dense output, RKN4's order-4 weights of q̇. Nothing is evaluated
 again. scipy's runs (the independent cross-check) have no such by-product: their integrals
 are taken by 3-point Gauss-Legendre quadrature on each sample interval of the chart's quintic

@@ -97,10 +97,10 @@ class Chart:
         self.independent = independent
         self.name = model.coordinate_names[independent]
         self.state = model.new_chart()
-        if not physics.start_chart(model.arrays, self.state, np.ascontiguousarray(x, dtype=float), independent):
+        if not self.state.start(np.ascontiguousarray(x, dtype=float), independent):
             raise NumericalFailure("singular", f"{self.name} cannot drive the linkage at its start "
                                               f"({self.name} = {x[independent]:.15g})")
-        self._views = physics.chart_arrays(model.arrays, self.state)
+        self._views = self.state.arrays()
 
     @property
     def start(self) -> Kinematics:
@@ -109,10 +109,10 @@ class Chart:
 
     def reset(self) -> None:
         """Walk again from the chart's start."""
-        physics.reset(self.model.arrays, self.state)
+        self.state.reset()
 
     def _evaluate(self, value: float) -> None:
-        if not physics.evaluate(self.model.arrays, self.state, float(value)):
+        if not self.state.evaluate(float(value)):
             if self.state.S[physics.STATUS] == physics.WORK_SPENT:
                 raise walk_work_spent(self.name, f"to {self.name} = {value:.15g}", None)
             raise NumericalFailure("singular", f"Newton's method did not close the loops with {self.name} = "
@@ -132,10 +132,10 @@ class Chart:
     def walk(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """From the chart's start, the coefficient fields (m, field_count) and kinematics
         (m, 3, n) at each of ``values`` in turn (compiled)."""
-        values = np.array(values, dtype=float)  # a writable copy: a read-only array is another type to compile
+        values = np.array(values, dtype=float)  # a C-contiguous float64 copy, as the kernel takes
         fields = np.empty((len(values), physics.field_count(self.model.arrays)))
         kin = np.empty((len(values), 3, len(self.model.coordinate_names)))
-        done = physics.walk(self.model.arrays, self.state, values, fields, kin)
+        done = self.state.walk(values, fields, kin)
         if done < len(values) and self.state.S[physics.STATUS] == physics.WORK_SPENT:
             raise walk_work_spent(self.name, f"to {self.name} = {values[done]:.15g}", None)
         if done < len(values):
@@ -145,23 +145,23 @@ class Chart:
 
     def rhs_on_piece(self, start: float, end: float):
         """ẍ_i = f(t, x_i, ẋ_i) on one smooth piece of the load history (a Python function)."""
-        load = piece_load(self.model, start, end)
-        arrays, state = self.model.arrays, self.state
-        marked = physics.mark(arrays, state)
+        load = int(piece_load(self.model, start, end))
+        state = self.state
+        state.mark()
 
         def f(t: float, value: float, rate: float) -> float:
-            a = physics.acceleration(arrays, state, load, t, value, rate)
+            a = state.acceleration(load, t, value, rate)
             if a != a and state.S[physics.STATUS] != physics.OK:  # SINGULAR or WORK_SPENT
                 self._evaluate(value)  # raises with the reason
             return a
 
-        f.rewind = lambda: physics.rewind(arrays, state, marked)  # as the compiled DOP853 does
+        f.rewind = state.rewind  # as the compiled DOP853 does
         return f
 
     def switch_margin(self, t: float, value: float, rate: float) -> float:
         """> 0 while this coordinate is good enough; ≤ 0 when another is clearly better."""
         self._evaluate(value)
-        return physics.stop_margin(self.model.arrays, self.state, t, value, rate)
+        return self.state.stop_margin(t, value, rate)
 
     def conditioning(self, value: float) -> tuple[float, float, int]:
         """(c_i, max_j c_j, argmax_j) at x_i = value."""

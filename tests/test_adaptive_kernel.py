@@ -92,12 +92,12 @@ class Case:
 
     def chart(self):
         """A fresh chart of the coordinate, started at x0 (the kernel and scipy each get one)."""
-        chart = self.model.new_chart()
-        assert physics.start_chart(self.arrays, chart, np.ascontiguousarray(self.x0), self.independent)
+        chart = physics.Chart(self.arrays)
+        assert chart.start(np.ascontiguousarray(self.x0), self.independent)
         return chart
 
     def margin(self, q: float) -> float:
-        return physics.stop_margin(self.arrays, self.chart(), 0.0, q, 0.0)
+        return self.chart().stop_margin(0.0, q, 0.0)
 
     def run(self, *, chart=None, **kw) -> K.RunResult:
         return K.run(self.arrays, self.chart() if chart is None else chart, self.edges, self.loads,
@@ -149,15 +149,15 @@ def rhs_factory(case: Case, chart):
     """solve_adaptive's rhs_on_piece with the compiled acceleration on ``chart``."""
     def rhs_on_piece(start, end):
         p = int(np.searchsorted(case.edges, start, side="right") - 1)
-        load = float(case.loads[p])
-        return lambda t, q, v: physics.acceleration(case.arrays, chart, load, t, q, v)
+        load = int(case.loads[p])
+        return lambda t, q, v: chart.acceleration(load, t, q, v)
     return rhs_on_piece
 
 
 def adaptive(case: Case, rtol: float, *, use_stop=False, **kw):
     """reduced.integrators.solve_adaptive (xval's scipy path) on a fresh chart."""
     chart = case.chart()
-    stop = (lambda t, q, v: physics.stop_margin(case.arrays, chart, t, q, v)) if use_stop else None
+    stop = chart.stop_margin if use_stop else None
     return solve_adaptive(rhs_factory(case, chart), (case.edges[0], case.edges[-1]), case.q0, case.v0,
                           rtol=rtol, breakpoints=tuple(case.edges[1:-1]), stop=stop,
                           **{"max_step": case.max_step, **kw})
@@ -173,19 +173,18 @@ def scipy_pieces(case: Case, rtol, *, use_stop=False):
     walk histories); DOP853's error estimate amplifies such a difference into step sizes
     5e-6 relative apart one piece later. With the same history, the same bits."""
     chart = case.chart()
-    arrays = case.arrays
     y = np.array([case.q0, case.v0])
     sols = []
     for p in range(len(case.loads)):
-        load = float(case.loads[p])
+        load = int(case.loads[p])
 
         def fun(t, s, load=load):
-            return np.array([s[1], physics.acceleration(arrays, chart, load, t, s[0], s[1])])
+            return np.array([s[1], chart.acceleration(load, t, s[0], s[1])])
 
         events = None
         if use_stop:
             def event(t, s):
-                return physics.stop_margin(arrays, chart, t, s[0], s[1])
+                return chart.stop_margin(t, s[0], s[1])
             event.terminal, event.direction = True, -1
             events = [event]
         first_step = None
@@ -197,7 +196,7 @@ def scipy_pieces(case: Case, rtol, *, use_stop=False):
         assert sol.success
         sols.append(sol)
         for j in range(sol.t.size):  # the samples' q̈ (ALL_STEPS: the step times)
-            physics.acceleration(arrays, chart, load, sol.t[j], sol.y[0, j], sol.y[1, j])
+            chart.acceleration(load, sol.t[j], sol.y[0, j], sol.y[1, j])
         y = sol.y[:, -1]
         if sol.status == 1:
             break

@@ -178,11 +178,11 @@ def test_a_chart_started_at_a_fold_follows_it_back(back):
 
     model = MechanismModel(load_scene(default_scene_path()))
     crank = model.new_chart()
-    assert physics.start_chart(model.arrays, crank, np.ascontiguousarray(model.x0), 0)
-    kin = physics.chart_arrays(model.arrays, crank)["kin"]
+    assert crank.start(np.ascontiguousarray(model.x0), 0)
+    kin = crank.arrays()["kin"]
 
     def crank_at(q):
-        assert physics.evaluate(model.arrays, crank, q)
+        assert crank.evaluate(q)
         return kin[1][1], kin[0].copy()  # dφ1/dq and x
 
     qs = model.x0[0] + np.linspace(0.0, 2 * math.pi, 721)
@@ -196,12 +196,12 @@ def test_a_chart_started_at_a_fold_follows_it_back(back):
             break
         lo, hi = (mid, hi) if rate > 0 else (lo, mid)
     arrays = without_dyad_plans(model)
-    chart = model.new_chart()
-    assert physics.start_chart(arrays, chart, np.ascontiguousarray(x), 1)
-    walked = physics.chart_arrays(arrays, chart)["kin"]
+    chart = physics.Chart(arrays)
+    assert chart.start(np.ascontiguousarray(x), 1)
+    walked = chart.arrays()["kin"]
     assert abs(walked[1][0]) > 1e7  # K of the crank: the fold
-    assert physics.evaluate(arrays, chart, x[1] - back)
+    assert chart.evaluate(x[1] - back)
     there = walked[0].copy()
     assert abs(crank_at(there[0])[1][1] - (x[1] - back)) <= 2e-7
-    assert physics.evaluate(arrays, chart, x[1])
+    assert chart.evaluate(x[1])
     assert np.max(np.abs(walked[0] - x)) <= 2e-7

@@ -6,8 +6,8 @@ physics.constraints) every closure of a slider mechanism came out untrusted, and
 run of the driven slider-crank was still going after 22 minutes. Each walk is now bounded by
 physics.MAX_WALK_CLOSURES and spending it fails the run with its reason.
 
-Here the same fault is put into the kernels run as plain Python (``NUMBA_DISABLE_JIT=1``, in a
-subprocess: numba reads the variable at import), with the bound lowered to 200 closures so that
+Here the same fault is put into the kernels run as plain Python (``XVAL_PURE_PYTHON=1``, in a
+subprocess: the package reads the variable at import), with the bound lowered to 200 closures so that
 plain Python reaches it in seconds: every method must stop with a NumericalFailure that names
 the walk's bound and the setting to change; without the bound the probe was still running after
 90 s. (Compiled, with the fault planted in the source and the shipped bound of 20 000, the
@@ -26,9 +26,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PROBE = """
 import dataclasses, json, time, warnings
-from numba import config
-assert config.DISABLE_JIT
 warnings.simplefilter("ignore")
+from reduced.kernels import compiled
+assert not compiled()
 from reduced import MechanismModel, ReducedSettings, load_scene, simulate
 from reduced.errors import NumericalFailure
 from reduced.kernels import physics
@@ -37,18 +37,20 @@ scene = dataclasses.replace(load_scene("scenes/mechanisms/slider_crank_driven_sl
 names = MechanismModel(scene).coordinate_names
 sliders = [j for j, name in enumerate(names) if name.endswith(".s")]
 assert sliders
-right = physics.constraints
+right = physics.Chart._constraints
 
-def wrong_rows(F, I, x, trig, A, res):
+def wrong_rows(chart):
     # the fault: each slider column's entries of a loop's two rows (x, y) swapped
-    out = right(F, I, x, trig, A, res)
-    for k in range(I[physics.TABLES + physics.TABLE_ENTRIES * physics.LOOPS]):
+    out = right(chart)
+    A = chart.A
+    for k in range(chart.I[physics.TABLES + physics.TABLE_ENTRIES * physics.LOOPS]):
         for g in sliders:
             A[2 * k, g], A[2 * k + 1, g] = A[2 * k + 1, g], A[2 * k, g]
     return out
 
-physics.constraints = wrong_rows
-physics.MAX_WALK_CLOSURES = 200
+physics.Chart._constraints = wrong_rows
+physics.MAX_WALK_CLOSURES = 200  # the bound the messages name
+physics._c_max_walk_closures = 200  # the bound the walk reads
 out = {}
 for method in ("dop853", "rkn4", "scipy-dop853"):
     start = time.perf_counter()
@@ -62,7 +64,7 @@ print(json.dumps(out))
 
 
 def test_a_walk_that_cannot_settle_fails_with_its_reason():
-    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    env = {**os.environ, "XVAL_PURE_PYTHON": "1"}
     done = subprocess.run([sys.executable, "-c", PROBE], cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]

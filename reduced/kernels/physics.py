@@ -1,9 +1,11 @@
-"""Compiled kinematics and Eksergian coefficients of a one-DOF planar linkage (numba).
+"""Kinematics and Eksergian coefficients of a one-DOF planar linkage, compiled (Cython).
 
-The one implementation of the reduced model's physics. Everything here works on plain
-arrays (:class:`Model`, :class:`Chart`), so that the integrators' loops run without a Python
-object; :mod:`reduced.dynamics` builds the arrays from a scene and wraps these functions for
-Python callers. Debug with ``NUMBA_DISABLE_JIT=1``: the same functions then run as Python.
+The one implementation of the reduced model's physics. A scene's model is two plain arrays
+(:class:`Model`), and a chart (:class:`Chart`) is a compiled object holding its state in two
+more and the integrators' interface (:class:`.problem.RightHandSide`), so that the integrators'
+loops run without a Python object; :mod:`reduced.dynamics` builds the arrays from a scene and
+wraps the chart for Python callers. Debug with ``XVAL_PURE_PYTHON=1``: this file then runs as
+plain Python (:mod:`reduced.kernels`).
 
 Term tables (:mod:`reduced.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
 with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
@@ -21,20 +23,31 @@ K = dx/dx_i and L = d²x/dx_i² solve
 
 with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
 c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|.
-"""
 
-from __future__ import annotations
+Compiled: the integer constants of the packed layout (below) are C constants declared in
+``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
+``if not cython.compiled`` here defines them for plain Python, and
+``tests/test_physics_port.py`` checks that the two agree); the numerical constants are Python
+names with a C copy each (``_c_…``) that the kernels read. The arithmetic keeps the order of
+every expression (the build does not contract a*b+c or reassociate), so that it gives the same
+numbers as plain Python, and as the numba core it replaced: compared on every shipped scene and
+the tests' timed-force and joint-element scenes, with and without dyad plans (24 624
+evaluations along, back and in long jumps), not one bit differed.
+"""
 
 import math
 from typing import NamedTuple
 
+import cython
 import numpy as np
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic, overload
-from numba.np.arrayobj import make_array, populate_array
 
-from ._options import NO_RUNTIME, RUNTIME
+if cython.compiled:
+    from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.reduced.kernels.problem import RightHandSide
+else:
+    from math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+
+    from reduced.kernels.problem import RightHandSide
 
 # Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
 # is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
@@ -83,318 +96,6 @@ FAR_JUMP = 200.0
 # well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
 HYSTERESIS = 0.5
 
-# -- the packed layout -------------------------------------------------------------------
-# A model is two flat arrays, F (float64) and I (int64); a chart two more, S (int64) and W
-# (float64). Few, flat arguments keep numba's compile time small (a named tuple of thirty
-# arrays costs ~0.5 s of compilation per function that takes it).
-#
-# I[0:HEADER] is the header: counts, then offsets of each array in F (or in I).
-N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
-(DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
- SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
-# Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
-# step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
-# (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ the
-# angle of W).
-DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
-# Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
-# the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
-# and rest values (count,).
-N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
-# Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
-# in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and of
-# the loads on each piece of the run's load history (pieces, 1 + count): the input load, then
-# each timed force's value. The integrators pass a piece's index as its ``load``.
-N_TIMED, TIMED_DIR, PIECE_VALUES = range(32, 35)
-# Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
-# offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
-LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
-TABLES = 35
-TABLE_ENTRIES = 7
-HEADER = TABLES + 4 * TABLE_ENTRIES
-
-# S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
-# holds chart.value), then the pivots (n) and the walk's halving budgets (DEPTH).
-INDEPENDENT, SIGN, STATUS, VALID = range(4)
-S_HEADER = 4
-# S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
-OK, SINGULAR, WORK_SPENT = 0, 1, 2
-# fields: the coefficients at the memo's value, with respect to x_i
-(INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
- INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
-N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
-DEPTH = MAX_HALVINGS + 2
-
-
-class Model(NamedTuple):
-    """A scene's reduced model, packed (built by :func:`reduced.dynamics.build_arrays`)."""
-
-    F: np.ndarray
-    I: np.ndarray
-
-
-class Chart(NamedTuple):
-    """One chart's state (mutable): S int64, W float64 (layout in :func:`_views`)."""
-
-    S: np.ndarray
-    W: np.ndarray
-
-
-def new_chart(n: int, rows: int, timed: int = 0) -> Chart:
-    """An empty chart for a model of n coordinates whose largest table has ``rows`` rows and
-    with ``timed`` timed forces."""
-    size = 1 + 9 * n + N_FIELDS + timed + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * max(rows, 1)
-    return Chart(np.zeros(S_HEADER + n + DEPTH, np.int64), np.zeros(size))
-
-
-def _view(W, offset, shape):
-    """W (C-contiguous) flattened, [offset:offset + prod(shape)], as a C-contiguous view of that
-    shape (reshape in Python; in compiled code, :func:`_compiled_view`)."""
-    size = 1
-    for s in shape:
-        size *= s
-    return W.reshape(-1)[offset:offset + size].reshape(shape)
-
-
-@intrinsic
-def _compiled_view(typingctx, W, offset, shape):
-    """:func:`_view` with the array header built inline, unchecked: numba's ``reshape`` calls a
-    C helper on every use (25 ns, most of an evaluation's overhead: the chart's views are taken
-    several times per evaluation), and a strided view has a non-contiguous type, on which
-    ravel() copies."""
-    if W.layout != "C":  # the view is computed from the data pointer: only a C-contiguous W has one
-        raise TypeError(f"_view of a {W.layout}-layout array: only C-contiguous arrays have flat views")
-    sig = types.Array(W.dtype, len(shape), "C")(W, offset, shape)
-
-    def codegen(context, builder, signature, args):
-        source_type = signature.args[0]
-        source = make_array(source_type)(context, builder, value=args[0])
-        view = make_array(signature.return_type)(context, builder)
-        dims = cgutils.unpack_tuple(builder, args[2])
-        itemsize = context.get_constant(types.intp, context.get_abi_sizeof(
-            context.get_data_type(source_type.dtype)))
-        strides = [itemsize]
-        for d in reversed(dims[1:]):
-            strides.insert(0, builder.mul(strides[0], d))
-        # no meminfo: the view is not reference-counted (an atomic increment and decrement per
-        # view, 14 views per call of _views), so it must not outlive W: kernels only use
-        # views while W is alive in their caller, and never return one
-        null = cgutils.get_null_value(source.meminfo.type)
-        populate_array(view, data=builder.gep(source.data, [args[1]]), shape=dims, strides=strides,
-                       itemsize=itemsize, meminfo=null, parent=cgutils.get_null_value(source.parent.type))
-        return view._getvalue()
-
-    return sig, codegen
-
-
-@overload(_view, jit_options=RUNTIME)
-def _view_overload(W, offset, shape):
-    return lambda W, offset, shape: _compiled_view(W, offset, shape)
-
-
-@njit(cache=True, error_model="numpy", **RUNTIME)
-def _views(I, W):
-    """Views into W: value (1,), start, last, kin (3, n), fields, A (n, n), rhs, trig (2, n),
-    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)."""
-    n = I[N]
-    o = 0
-    value = _view(W, o, (1,))
-    o += 1
-    start = _view(W, o, (3, n))
-    o += 3 * n
-    last = _view(W, o, (3, n))
-    o += 3 * n
-    kin = _view(W, o, (3, n))
-    o += 3 * n
-    fields = _view(W, o, (N_FIELDS + I[N_TIMED],))
-    o += N_FIELDS + I[N_TIMED]
-    A = _view(W, o, (n, n))
-    o += n * n
-    rhs = _view(W, o, (n,))
-    o += n
-    trig = _view(W, o, (2, n))
-    o += 2 * n
-    norms = _view(W, o, (n,))
-    o += n
-    x = _view(W, o, (n,))
-    o += n
-    guess = _view(W, o, (n,))
-    o += n
-    base = _view(W, o, (DEPTH, 3, n))
-    o += DEPTH * 3 * n
-    target = _view(W, o, (DEPTH,))
-    o += DEPTH
-    rows = _view(W, o, (max(I[MAX_ROWS], 1), 4))
-    return value, start, last, kin, fields, A, rhs, trig, norms, x, guess, base, target, rows
-
-
-# -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) ------------------------
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def lu_factor(A, piv):
-    """LU with partial pivoting of A (n, n) in place, U's diagonal stored as its reciprocals
-    (a solve then multiplies: its divisions were most of its latency); returns det A (0.0 if
-    singular)."""
-    n = A.shape[0]
-    det = 1.0
-    for k in range(n):
-        p = k
-        big = abs(A[k, k])
-        for r in range(k + 1, n):
-            if abs(A[r, k]) > big:
-                big = abs(A[r, k])
-                p = r
-        piv[k] = p
-        if big == 0.0:
-            return 0.0
-        if p != k:
-            det = -det
-            for c in range(n):
-                A[k, c], A[p, c] = A[p, c], A[k, c]
-        d = A[k, k]
-        det *= d
-        inverse = 1.0 / d
-        A[k, k] = inverse
-        for r in range(k + 1, n):
-            f = A[r, k] * inverse
-            A[r, k] = f
-            for c in range(k + 1, n):
-                A[r, c] -= f * A[k, c]
-    return det
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def lu_solve(A, piv, b):
-    """Solve with :func:`lu_factor`'s factors; b (n,) is overwritten by the solution."""
-    n = A.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            b[k], b[p] = b[p], b[k]
-    for r in range(n):
-        s = b[r]
-        for c in range(r):
-            s -= A[r, c] * b[c]
-        b[r] = s
-    for r in range(n - 1, -1, -1):
-        s = b[r]
-        for c in range(r + 1, n):
-            s -= A[r, c] * b[c]
-        b[r] = s * A[r, r]
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _copy(src, dst):
-    """dst[:] = src for two C-contiguous arrays of the same shape (an explicit loop: numba types
-    a slice assignment in seconds, this in milliseconds; flat views by :func:`_view`, since
-    ravel() goes through reshape's C helper, 25 ns a call, twice per step of a walk)."""
-    a = _view(src, 0, (src.size,))
-    b = _view(dst, 0, (dst.size,))
-    for k in range(a.shape[0]):
-        b[k] = a[k]
-
-
-# -- term tables -----------------------------------------------------------------------
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def angle_trig(I, x, trig):
-    """cos and sin of every body angle x[:n_angles] into trig (2, n)."""
-    for j in range(I[N_ANGLES]):
-        trig[0, j] = math.cos(x[j])
-        trig[1, j] = math.sin(x[j])
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _term(F, I, tb, t, x, trig):
-    """Term t of the table whose header starts at tb: (row, mag index, angle index, m, u_x, u_y)
-    with u = R(θ) w (module docstring) and m = x[mag] or 1."""
-    row, g, a = I[I[tb + 4] + t], I[I[tb + 5] + t], I[I[tb + 6] + t]
-    wx, wy = F[I[tb + 3] + 2 * t], F[I[tb + 3] + 2 * t + 1]
-    if a >= 0:
-        c, s = trig[0, a], trig[1, a]
-        wx, wy = wx * c - wy * s, wx * s + wy * c
-    return row, g, a, (x[g] if g >= 0 else 1.0), wx, wy
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def table_positions(F, I, table, x, trig, out):
-    """r of every row of a table into out[:, 0:2] (m), leaving columns 2, 3 alone."""
-    tb = TABLES + TABLE_ENTRIES * table
-    off = I[tb + 2]
-    for k in range(I[tb]):
-        out[k, 0] = F[off + 2 * k]
-        out[k, 1] = F[off + 2 * k + 1]
-    for t in range(I[tb + 1]):
-        k, _, _, m, ux, uy = _term(F, I, tb, t, x, trig)
-        out[k, 0] += m * ux
-        out[k, 1] += m * uy
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def table_rates(F, I, table, x, trig, K, L, with_l, out):
-    """K_r into out[:, 0:2] and L_r into out[:, 2:4] (γ, the part without L, unless with_l)."""
-    tb = TABLES + TABLE_ENTRIES * table
-    for k in range(I[tb]):
-        for c in range(4):
-            out[k, c] = 0.0
-    for t in range(I[tb + 1]):
-        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
-        md = K[g] if g >= 0 else 0.0
-        td = K[a] if a >= 0 else 0.0
-        cu = 2.0 * md * td  # coefficient of u⊥ in L_r
-        cn = -m * td * td  # coefficient of u
-        if with_l:
-            if g >= 0:
-                cn += L[g]
-            if a >= 0:
-                cu += m * L[a]
-        out[k, 0] += md * ux - m * td * uy
-        out[k, 1] += md * uy + m * td * ux
-        out[k, 2] += cn * ux - cu * uy
-        out[k, 3] += cn * uy + cu * ux
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def constraints(F, I, x, trig, A, res):
-    """Φ(x) into res[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows).
-    Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off scale, and
-    Σ |m w| |θ| over the turning terms (m·rad): the scale of the rounding of their angles."""
-    n = I[N]
-    tb = TABLES + TABLE_ENTRIES * LOOPS
-    nl = 2 * I[tb]
-    for r in range(n - 1):
-        for c in range(n):
-            A[r, c] = 0.0
-    off = I[tb + 2]
-    scale = 0.0
-    spread = 0.0
-    for r in range(nl):
-        res[r] = F[off + r]
-        scale += abs(F[off + r])
-    for t in range(I[tb + 1]):
-        k, g, a, m, ux, uy = _term(F, I, tb, t, x, trig)
-        res[2 * k] += m * ux
-        res[2 * k + 1] += m * uy
-        lever = abs(m) * (abs(ux) + abs(uy))
-        scale += lever
-        if a >= 0:
-            A[2 * k, a] -= m * uy
-            A[2 * k + 1, a] += m * ux
-            spread += lever * abs(x[a])
-        if g >= 0:
-            A[2 * k, g] += ux
-            A[2 * k + 1, g] += uy
-    lin = I[LINEAR]
-    for r in range(I[N_LINEAR]):
-        v = 0.0
-        for c in range(n):
-            A[nl + r, c] = F[lin + r * n + c]
-            v += F[lin + r * n + c] * x[c]
-            scale += abs(F[lin + r * n + c] * x[c])
-        res[nl + r] = v
-    return scale, spread
-
-
 # -- closed-form dyads ------------------------------------------------------------------
 
 # cos ψ beyond ±1 by round-off is a flat dyad (the circles touch), beyond this no assembly.
@@ -410,14 +111,94 @@ CLOSED_FORM_RESIDUAL = 64 * 2.220446049250313e-16
 CLOSED_FORM_REACH = 0.5
 
 
-@njit(cache=True, error_model="numpy", **NO_RUNTIME, inline="always")
-def _nearest(angle, target):
+# -- the packed layout -------------------------------------------------------------------
+# A model is two flat arrays, F (float64) and I (int64); a chart holds two more, S (int64) and
+# W (float64), and typed views of their parts (:class:`Chart`).
+#
+# I[0:HEADER] is the header: counts, then offsets of each array in F (or in I).
+# Compiled, these are the C constants of physics.pxd (module docstring): keep both in step.
+if not cython.compiled:
+    N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
+    (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
+     SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
+    # Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
+    # step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
+    # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ
+    # the angle of W).
+    DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
+    # Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
+    # the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
+    # and rest values (count,).
+    N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
+    # Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
+    # in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and
+    # of the loads on each piece of the run's load history (pieces, 1 + count): the input load,
+    # then each timed force's value. The integrators pass a piece's index as its ``load``.
+    N_TIMED, TIMED_DIR, PIECE_VALUES = range(32, 35)
+    # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
+    # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
+    LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
+    TABLES = 35
+    TABLE_ENTRIES = 7
+    HEADER = TABLES + 4 * TABLE_ENTRIES
+
+    # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
+    # holds the chart's value), then the pivots (n) and the walk's halving budgets (DEPTH).
+    INDEPENDENT, SIGN, STATUS, VALID = range(4)
+    S_HEADER = 4
+    # S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
+    OK, SINGULAR, WORK_SPENT = 0, 1, 2
+    # fields: the coefficients at the memo's value, with respect to x_i
+    (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
+     INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
+    N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
+    DEPTH = MAX_HALVINGS + 2
+
+# C copies of the numerical constants above, which the kernels read (compiled, a module's
+# Python name costs a dictionary lookup and an unboxing at every use). Plain Python reads them
+# too: a test that changes a bound changes the copy (tests/test_work_bounds.py).
+_c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
+_c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
+_c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
+_c_singular_conditioning = cython.declare(cython.double, SINGULAR_CONDITIONING)
+_c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
+_c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
+_c_max_halvings = cython.declare(cython.longlong, MAX_HALVINGS)
+_c_max_walk_closures = cython.declare(cython.Py_ssize_t, MAX_WALK_CLOSURES)
+_c_long_jump = cython.declare(cython.double, LONG_JUMP)
+_c_far_jump = cython.declare(cython.double, FAR_JUMP)
+_c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
+_c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
+_c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
+_c_pi = cython.declare(cython.double, math.pi)
+_c_nan = cython.declare(cython.double, math.nan)
+
+
+class Model(NamedTuple):
+    """A scene's reduced model, packed (built by :func:`reduced.dynamics.build_arrays`)."""
+
+    F: np.ndarray
+    I: np.ndarray
+
+
+def field_count(model: Model) -> int:
+    """Length of a chart's fields: N_FIELDS, then one per timed force."""
+    return N_FIELDS + int(model.I[N_TIMED])
+
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+@cython.cfunc
+@cython.inline
+def _nearest(angle: cython.double, target: cython.double) -> cython.double:
     """angle + 2πk closest to target (rad)."""
-    return target + (angle - target) - 2.0 * math.pi * math.floor((angle - target) / (2.0 * math.pi) + 0.5)
+    return target + (angle - target) - 2.0 * _c_pi * floor((angle - target) / (2.0 * _c_pi) + 0.5)
 
 
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _dyads(F, I, first, x, base, trig, i):
+@cython.ccall
+def _dyads(F: cython.double[::1], I: cython.longlong[::1], first: cython.Py_ssize_t, x: cython.double[::1],
+           base: cython.double[::1], trig: cython.double[:, ::1], i: cython.Py_ssize_t) -> cython.bint:
     """The dependent angles of x by closed form, loop after loop of the plan that starts at step
     ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
     the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
@@ -432,522 +213,902 @@ def _dyads(F, I, first, x, base, trig, i):
     The cos and sin of every angle (the chart's coordinate i and the solved ones: with a plan,
     all) go into trig (2, n) as they are computed, as :func:`angle_trig` would compute them.
     Returns False where the circles do not meet (no closed loop)."""
-    tb = TABLES + TABLE_ENTRIES * LOOPS
-    n_loops = I[tb]
-    trig[0, i] = math.cos(x[i])
-    trig[1, i] = math.sin(x[i])
+    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+    n_loops: cython.Py_ssize_t = I[tb]
+    step: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    a: cython.Py_ssize_t
+    b: cython.Py_ssize_t
+    w: cython.Py_ssize_t
+    t: cython.Py_ssize_t
+    g: cython.Py_ssize_t
+    wax: cython.double
+    way: cython.double
+    wbx: cython.double
+    wby: cython.double
+    phi_a: cython.double
+    phi_b: cython.double
+    dx: cython.double
+    dy: cython.double
+    ux: cython.double
+    uy: cython.double
+    c: cython.double
+    sn: cython.double
+    d2: cython.double
+    ra2: cython.double
+    cos_psi: cython.double
+    sin_psi: cython.double
+    last: cython.double
+    norm: cython.double
+    ra: cython.double
+    qx: cython.double
+    qy: cython.double
+    rq: cython.double
+    trig[0, i] = cos(x[i])
+    trig[1, i] = sin(x[i])
     for step in range(first, first + n_loops):
-        k, a, b = I[I[DYAD_STEPS] + 3 * step], I[I[DYAD_STEPS] + 3 * step + 1], I[I[DYAD_STEPS] + 3 * step + 2]
+        k = I[I[DYAD_STEPS] + 3 * step]
+        a = I[I[DYAD_STEPS] + 3 * step + 1]
+        b = I[I[DYAD_STEPS] + 3 * step + 2]
         w = I[DYAD_W] + 6 * step
         wax, way, wbx, wby, phi_a, phi_b = F[w], F[w + 1], F[w + 2], F[w + 3], F[w + 4], F[w + 5]
-        dx, dy = -F[I[tb + 2] + 2 * k], -F[I[tb + 2] + 2 * k + 1]
+        dx = -F[I[tb + 2] + 2 * k]
+        dy = -F[I[tb + 2] + 2 * k + 1]
         for t in range(I[tb + 1]):
             g = I[I[tb + 6] + t]
             if I[I[tb + 4] + t] != k or g == a or g == b:
                 continue
-            ux, uy = F[I[tb + 3] + 2 * t], F[I[tb + 3] + 2 * t + 1]
+            ux = F[I[tb + 3] + 2 * t]
+            uy = F[I[tb + 3] + 2 * t + 1]
             if g >= 0:  # a known angle: i's or solved by an earlier step
-                c, sn = trig[0, g], trig[1, g]
+                c = trig[0, g]
+                sn = trig[1, g]
                 ux, uy = ux * c - uy * sn, ux * sn + uy * c
             dx -= ux
             dy -= uy
         d2 = dx * dx + dy * dy
         ra2 = wax * wax + way * way
-        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * math.sqrt(d2 * ra2))
-        if not abs(cos_psi) <= 1.0 + DYAD_ROUND_OFF:
+        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * sqrt(d2 * ra2))
+        if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
             return False
         # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
         # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
-        last = math.sin(base[b] + phi_b - base[a] - phi_a)
+        last = sin(base[b] + phi_b - base[a] - phi_a)
         cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
-        sin_psi = math.sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -math.sqrt(1.0 - cos_psi * cos_psi)
+        sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
         # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
-        norm = math.sqrt(d2)
+        norm = sqrt(d2)
         ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
-        ra = math.sqrt(ra2)
+        ra = sqrt(ra2)
         c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
-        x[a] = _nearest(math.atan2(uy, ux) - phi_a, x[a])
-        trig[0, a], trig[1, a] = c, sn
+        x[a] = _nearest(atan2(uy, ux) - phi_a, x[a])
+        trig[0, a] = c
+        trig[1, a] = sn
         qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
-        x[b] = _nearest(math.atan2(qy, qx) - phi_b, x[b])
-        rq = math.sqrt(qx * qx + qy * qy) * math.sqrt(wbx * wbx + wby * wby)
+        x[b] = _nearest(atan2(qy, qx) - phi_b, x[b])
+        rq = sqrt(qx * qx + qy * qy) * sqrt(wbx * wbx + wby * wby)
         if rq > 0.0:
-            trig[0, b], trig[1, b] = (qx * wbx + qy * wby) / rq, (qy * wbx - qx * wby) / rq
+            trig[0, b] = (qx * wbx + qy * wby) / rq
+            trig[1, b] = (qy * wbx - qx * wby) / rq
         else:
-            trig[0, b], trig[1, b] = math.cos(x[b]), math.sin(x[b])
+            trig[0, b] = cos(x[b])
+            trig[1, b] = sin(x[b])
     return True
 
 
-# -- one configuration of a chart --------------------------------------------------------
+# -- the chart -------------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _finish(F, I, S, W, x, det, out):
-    """x, K and L into out (3, n) from the factors of A (at x, or round-off from it), and the
-    conditioning of every coordinate into the fields."""
-    n = I[N]
-    _, _, _, _, fields, A, _, trig, norms, _, _, _, _, rows = _views(I, W)
-    piv = S[S_HEADER:S_HEADER + n]
-    K = out[1]
-    for j in range(n):
-        K[j] = 0.0
-    K[n - 1] = 1.0
-    lu_solve(A, piv, K)
-    L = out[2]
-    table_rates(F, I, LOOPS, x, trig, K, L, False, rows)
-    nl = I[TABLES + TABLE_ENTRIES * LOOPS]
-    for k in range(nl):
-        L[2 * k] = -rows[k, 2]
-        L[2 * k + 1] = -rows[k, 3]
-    for j in range(2 * nl, n):
-        L[j] = 0.0
-    lu_solve(A, piv, L)
-    for j in range(n):
-        out[0, j] = x[j]
-    # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
-    product = 1.0
-    zeros = 0
-    for j in range(n):
-        if norms[j] > 0.0:
-            product *= norms[j]
-        else:
-            zeros += 1
-    i = S[INDEPENDENT]
-    best, best_j, own = 0.0, 0, 0.0
-    for j in range(n):
-        if zeros > 1 or (zeros == 1 and norms[j] > 0.0):
-            c = 0.0
-        else:
-            c = abs(K[j]) * abs(det) / (product / norms[j] if norms[j] > 0.0 else product)
-        if j == i:
-            own = c
-        if c > best:
-            best, best_j = c, j
-    fields[CONDITIONING] = own
-    fields[BEST_CONDITIONING] = best
-    fields[BEST] = best_j
-    fields[DETERMINANT] = det
+@cython.final
+@cython.cclass
+class Chart(RightHandSide):
+    """One chart of a model: its state, q̈ in its coordinate, its walk (compiled).
 
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _close(F, I, S, W, base, value, reach, out):
-    """Newton from base's predictor (rows x, K, L) to x_i = value, whose predicted motion
-    max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into out (3, n).
-
-    Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
-    singular, or another branch). Leaves the conditioning and det in the fields.
+    ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
+    SIGN, STATUS, VALID, the pivots (n), the walk's halving budgets (DEPTH)) and W (float64:
+    value (1,), start, last, kin (3, n), fields (field_count), A (n, n), rhs, trig (2, n),
+    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)), both numpy
+    arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
+    made once here (the start view is ``origin``: ``start`` is the method). The kernels below
+    are methods that read and write these views and take no array argument (compiled, an array
+    argument is a 200-byte view passed by value, and a view made in a call changes a reference
+    count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
+    as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
+    scratch of the B-splines (the largest degree + 1). A chart is empty until :meth:`start`.
     """
-    n = I[N]
-    i = S[INDEPENDENT]
-    _, _, _, _, fields, A, res, trig, norms, x, guess, _, _, _ = _views(I, W)
-    piv = S[S_HEADER:S_HEADER + n]
-    delta = value - base[0, i]
-    far = reach > FAR_JUMP  # from the base's configuration (FAR_JUMP)
-    for j in range(n):
-        x[j] = base[0, j] if far else base[0, j] + base[1, j] * delta + 0.5 * base[2, j] * delta * delta
-    x[i] = value
-    _copy(x, guess)
-    det = 0.0
-    converged = False
-    factored = False  # at the polished x
-    plan = I[I[DYAD_PLAN] + i]
-    closed = plan >= 0 and (reach <= CLOSED_FORM_REACH or far)  # x by closed form: taken as it is if it closes the loops
-    if closed and not _dyads(F, I, plan, x, base[0], trig, i):
-        return 1
-    for _ in range(NEWTON_MAX_ITER + 1):
-        if not closed:  # the closed form left trig at x
-            angle_trig(I, x, trig)
-        scale, spread = constraints(F, I, x, trig, A, res)
-        largest = 0.0
+
+    def __init__(self, model: Model):
+        F = np.ascontiguousarray(model.F, dtype=np.float64)
+        I = np.ascontiguousarray(model.I, dtype=np.int64)
+        self.model = Model(F, I)
+        self.F = F
+        self.I = I
+        n = int(I[N])
+        self.n = n
+        nfields = N_FIELDS + int(I[N_TIMED])
+        rows = max(int(I[MAX_ROWS]), 1)
+        size = 1 + 9 * n + nfields + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * rows
+        self.S = np.zeros(S_HEADER + n + DEPTH, np.int64)
+        self.W = np.zeros(size)
+        self.s = self.S
+        self.piv = self.S[S_HEADER:S_HEADER + n]
+        self.budget = self.S[S_HEADER + n:S_HEADER + n + DEPTH]
+        views = []
+        o = 0
+        for shape in ((1,), (3, n), (3, n), (3, n), (nfields,), (n, n), (n,), (2, n), (n,), (n,), (n,),
+                      (DEPTH, 3, n), (DEPTH,), (rows, 4)):
+            size = int(np.prod(shape))
+            views.append(self.W[o:o + size].reshape(shape))
+            o += size
+        (self.value, self.origin, self.last, self.kin, self.fields, self.A, self.rhs, self.trig, self.norms,
+         self.x, self.guess, self.base, self.target, self.rows) = views
+        self.K = views[3][1]
+        self.L = views[3][2]
+        self.marked = np.zeros((3, n))
+        degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
+        self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
+
+    def arrays(self) -> dict:
+        """Named numpy views of the chart's state (Python callers): value (1,), start, last,
+        kin (3, n: x, K, L) and fields (field_count,); they follow every later evaluation."""
+        o = 0
+        out = {}
+        n = int(self.n)
+        for name, shape in (("value", (1,)), ("start", (3, n)), ("last", (3, n)), ("kin", (3, n)),
+                            ("fields", (field_count(self.model),))):
+            size = int(np.prod(shape))
+            out[name] = self.W[o:o + size].reshape(shape)
+            o += size
+        return out
+
+    # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
+
+    @cython.cfunc
+    def _lu_factor(self) -> cython.double:
+        """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
+        as its reciprocals (a solve then multiplies: its divisions were most of its latency);
+        returns det A (0.0 if singular)."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        det: cython.double = 1.0
+        big: cython.double
+        d: cython.double
+        inverse: cython.double
+        f: cython.double
+        swap: cython.double
+        for k in range(n):
+            p = k
+            big = fabs(self.A[k, k])
+            for r in range(k + 1, n):
+                if fabs(self.A[r, k]) > big:
+                    big = fabs(self.A[r, k])
+                    p = r
+            self.piv[k] = p
+            if big == 0.0:
+                return 0.0
+            if p != k:
+                det = -det
+                for c in range(n):
+                    swap = self.A[k, c]
+                    self.A[k, c] = self.A[p, c]
+                    self.A[p, c] = swap
+            d = self.A[k, k]
+            det *= d
+            inverse = 1.0 / d
+            self.A[k, k] = inverse
+            for r in range(k + 1, n):
+                f = self.A[r, k] * inverse
+                self.A[r, k] = f
+                for c in range(k + 1, n):
+                    self.A[r, c] -= f * self.A[k, c]
+        return det
+
+    @cython.cfunc
+    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
+        solution."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        s: cython.double
+        for k in range(n):
+            p = self.piv[k]
+            if p != k:
+                s = b[k]
+                b[k] = b[p]
+                b[p] = s
+        for r in range(n):
+            s = b[r]
+            for c in range(r):
+                s -= self.A[r, c] * b[c]
+            b[r] = s
+        for r in range(n - 1, -1, -1):
+            s = b[r]
+            for c in range(r + 1, n):
+                s -= self.A[r, c] * b[c]
+            b[r] = s * self.A[r, r]
+        return 0
+
+    # -- term tables -----------------------------------------------------------------------
+
+    @cython.cfunc
+    def _angle_trig(self) -> cython.int:
+        """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
+        j: cython.Py_ssize_t
+        for j in range(self.I[N_ANGLES]):
+            self.trig[0, j] = cos(self.x[j])
+            self.trig[1, j] = sin(self.x[j])
+        return 0
+
+    @cython.cfunc
+    @cython.inline
+    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
+        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
+        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
+        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
+        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
+        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
+        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
+        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
+        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
+        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
+        c: cython.double
+        s: cython.double
+        if a >= 0:
+            c = self.trig[0, a]
+            s = self.trig[1, a]
+            wx, wy = wx * c - wy * s, wx * s + wy * c
+        self.term_g = g
+        self.term_a = a
+        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
+        self.term_ux = wx
+        self.term_uy = wy
+        return row
+
+    @cython.cfunc
+    def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
+        """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        k: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        for k in range(self.I[tb]):
+            self.rows[k, 0] = self.F[off + 2 * k]
+            self.rows[k, 1] = self.F[off + 2 * k + 1]
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            self.rows[k, 0] += self.term_m * self.term_ux
+            self.rows[k, 1] += self.term_m * self.term_uy
+        return 0
+
+    @cython.cfunc
+    def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
+        """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
+        with_l), at kin's x, K and L."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        k: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        md: cython.double
+        td: cython.double
+        cu: cython.double
+        cn: cython.double
+        for k in range(self.I[tb]):
+            for c in range(4):
+                self.rows[k, c] = 0.0
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            md = self.kin[1, g] if g >= 0 else 0.0
+            td = self.kin[1, a] if a >= 0 else 0.0
+            cu = 2.0 * md * td  # coefficient of u⊥ in L_r
+            cn = -m * td * td  # coefficient of u
+            if with_l:
+                if g >= 0:
+                    cn += self.kin[2, g]
+                if a >= 0:
+                    cu += m * self.kin[2, a]
+            self.rows[k, 0] += md * ux - m * td * uy
+            self.rows[k, 1] += md * uy + m * td * ux
+            self.rows[k, 2] += cn * ux - cu * uy
+            self.rows[k, 3] += cn * uy + cu * ux
+        return 0
+
+    @cython.cfunc
+    def _constraints(self) -> cython.double:
+        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
+        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
+        scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
+        the rounding of their angles."""
+        n: cython.Py_ssize_t = self.n
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+        nl: cython.Py_ssize_t = 2 * self.I[tb]
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        lever: cython.double
+        v: cython.double
         for r in range(n - 1):
-            if not math.isfinite(res[r]):
+            for c in range(n):
+                self.A[r, c] = 0.0
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        scale: cython.double = 0.0
+        spread: cython.double = 0.0
+        for r in range(nl):
+            self.rhs[r] = self.F[off + r]
+            scale += fabs(self.F[off + r])
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, True)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            self.rhs[2 * k] += m * ux
+            self.rhs[2 * k + 1] += m * uy
+            lever = fabs(m) * (fabs(ux) + fabs(uy))
+            scale += lever
+            if a >= 0:
+                self.A[2 * k, a] -= m * uy
+                self.A[2 * k + 1, a] += m * ux
+                spread += lever * fabs(self.x[a])
+            if g >= 0:
+                self.A[2 * k, g] += ux
+                self.A[2 * k + 1, g] += uy
+        lin: cython.Py_ssize_t = self.I[LINEAR]
+        for r in range(self.I[N_LINEAR]):
+            v = 0.0
+            for c in range(n):
+                self.A[nl + r, c] = self.F[lin + r * n + c]
+                v += self.F[lin + r * n + c] * self.x[c]
+                scale += fabs(self.F[lin + r * n + c] * self.x[c])
+            self.rhs[nl + r] = v
+        self.spread = spread
+        return scale
+
+    # -- one configuration ------------------------------------------------------------------
+
+    @cython.cfunc
+    def _finish(self, det: cython.double) -> cython.int:
+        """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
+        it), and the conditioning of every coordinate into the fields."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        for j in range(n):
+            self.kin[0, j] = self.x[j]
+        for j in range(n):
+            self.K[j] = 0.0
+        self.K[n - 1] = 1.0
+        self._lu_solve(self.K)
+        self._table_rates(LOOPS, False)
+        nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        for k in range(nl):
+            self.L[2 * k] = -self.rows[k, 2]
+            self.L[2 * k + 1] = -self.rows[k, 3]
+        for j in range(2 * nl, n):
+            self.L[j] = 0.0
+        self._lu_solve(self.L)
+        # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
+        product: cython.double = 1.0
+        zeros: cython.Py_ssize_t = 0
+        for j in range(n):
+            if self.norms[j] > 0.0:
+                product *= self.norms[j]
+            else:
+                zeros += 1
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        best: cython.double = 0.0
+        best_j: cython.Py_ssize_t = 0
+        own: cython.double = 0.0
+        c: cython.double
+        for j in range(n):
+            if zeros > 1 or (zeros == 1 and self.norms[j] > 0.0):
+                c = 0.0
+            else:
+                c = fabs(self.K[j]) * fabs(det) / (product / self.norms[j] if self.norms[j] > 0.0 else product)
+            if j == i:
+                own = c
+            if c > best:
+                best = c
+                best_j = j
+        self.fields[CONDITIONING] = own
+        self.fields[BEST_CONDITIONING] = best
+        self.fields[BEST] = best_j
+        self.fields[DETERMINANT] = det
+        return 0
+
+    @cython.cfunc
+    def _close(self, depth: cython.Py_ssize_t, value: cython.double, reach: cython.double) -> cython.int:
+        """Newton from the predictor of base[depth] (rows x, K, L) to x_i = value, whose predicted
+        motion max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into kin (3, n).
+
+        Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
+        singular, or another branch). Leaves the conditioning and det in the fields.
+        """
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        it: cython.Py_ssize_t
+        v: cython.double
+        scale: cython.double
+        largest: cython.double
+        delta: cython.double = value - self.base[depth, 0, i]
+        far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
+        for j in range(n):
+            self.x[j] = self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
+        self.x[i] = value
+        for j in range(n):
+            self.guess[j] = self.x[j]
+        det: cython.double = 0.0
+        converged: cython.bint = False
+        factored: cython.bint = False  # at the polished x
+        plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
+        # x by closed form: taken as it is if it closes the loops
+        closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
+        if closed and not _dyads(self.F, self.I, plan, self.x, self.base[depth, 0], self.trig, i):
+            return 1
+        for it in range(_c_newton_max_iter + 1):
+            if not closed:  # the closed form left trig at x
+                self._angle_trig()
+            scale = self._constraints()
+            largest = 0.0
+            for r in range(n - 1):
+                if not isfinite(self.rhs[r]):
+                    return 1
+                largest = max(largest, fabs(self.rhs[r]))
+            for c in range(n):
+                v = 0.0
+                for r in range(n - 1):
+                    v += self.A[r, c] * self.A[r, c]
+                self.norms[c] = sqrt(v)
+                self.A[n - 1, c] = 0.0
+            self.A[n - 1, i] = 1.0
+            self.rhs[n - 1] = 0.0
+            det = self._lu_factor()
+            if det == 0.0 or not isfinite(det):
                 return 1
-            largest = max(largest, abs(res[r]))
+            if converged or (closed and largest <= _c_closed_form_residual * scale):
+                factored = True
+                break
+            closed = False  # not closed to round-off: Newton from there
+            self._lu_solve(self.rhs)
+            for j in range(n):
+                self.x[j] -= self.rhs[j]
+            # converged: the step just taken polishes to round-off
+            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.spread)
+        if not factored:
+            return 1
+        for j in range(n):
+            if not isfinite(self.x[j]):
+                return 1
+        self._finish(det)
+        if self.fields[CONDITIONING] < _c_singular_conditioning:
+            return 1
+        if self.s[SIGN] != 0 and (1 if det >= 0.0 else -1) != self.s[SIGN]:
+            return 1
+        return 0
+
+    @cython.cfunc
+    def _walk(self, value: cython.double) -> cython.int:
+        """Continue the chart from its last configuration to x_i = value, halving untrusted
+        jumps; the result in kin and last. Returns OK, SINGULAR (no closure within the halvings)
+        or WORK_SPENT (more than MAX_WALK_CLOSURES closures)."""
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        delta: cython.double
+        predicted: cython.double
+        moved: cython.double
+        failed: cython.bint
+        trusted: cython.bint
+        for r in range(3):
+            for j in range(n):
+                self.base[0, r, j] = self.last[r, j]
+        self.target[0] = value
+        self.budget[0] = _c_max_halvings
+        depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
+        closures: cython.Py_ssize_t = 0
+        while True:
+            delta = self.target[depth] - self.base[depth, 0, i]
+            predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
+            for j in range(n):
+                predicted = max(predicted, fabs(self.base[depth, 1, j] * delta)
+                                + 0.5 * fabs(self.base[depth, 2, j]) * delta * delta)
+            failed = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
+            trusted = False
+            if predicted <= _c_long_jump or predicted > _c_far_jump or self.budget[depth] <= 0:
+                if closures == _c_max_walk_closures:
+                    return WORK_SPENT
+                closures += 1
+                failed = self._close(depth, self.target[depth], predicted) != 0
+                if not failed:
+                    moved = 0.0
+                    for j in range(n):
+                        moved = max(moved, fabs(self.kin[0, j] - self.guess[j]))
+                    trusted = moved <= _c_predictor_trust * predicted + _c_trusted_correction
+            if failed and self.budget[depth] <= 0:
+                return SINGULAR
+            if trusted or self.budget[depth] <= 0:
+                if predicted > _c_long_jump:  # closed at once: the turns nearest the base's
+                    for j in range(self.I[N_ANGLES]):
+                        if j != i:
+                            self.kin[0, j] = _nearest(self.kin[0, j], self.base[depth, 0, j])
+                if depth == 0:
+                    break
+                # the midpoint is reached: it is the base of the second half, one level down
+                depth -= 1
+                for r in range(3):
+                    for j in range(n):
+                        self.base[depth, r, j] = self.kin[r, j]
+                self.budget[depth] -= 1
+                continue
+            # halve: seek the midpoint first, then the target from there
+            for r in range(3):
+                for j in range(n):
+                    self.base[depth + 1, r, j] = self.base[depth, r, j]
+            self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
+            self.budget[depth + 1] = self.budget[depth] - 1
+            depth += 1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+        return OK
+
+    @cython.cfunc
+    def _point_force(self, p: cython.Py_ssize_t, q: cython.double) -> cython.double:
+        """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor, in the
+        chart's spline scratch)."""
+        lo: cython.double = self.F[self.I[SPLINE_LO] + p]
+        hi: cython.double = self.F[self.I[SPLINE_HI] + p]
+        period: cython.double = self.F[self.I[SPLINE_PERIOD] + p]
+        if period > 0.0:
+            q = lo + (q - lo) - period * floor((q - lo) / period)
+        else:
+            q = min(max(q, lo), hi)
+        t0: cython.Py_ssize_t = self.I[SPLINE_KNOTS] + self.I[self.I[KNOT_START] + p]
+        c0: cython.Py_ssize_t = self.I[SPLINE_COEF] + self.I[self.I[COEF_START] + p]
+        nc: cython.Py_ssize_t = self.I[self.I[COEF_START] + p + 1] - self.I[self.I[COEF_START] + p]
+        k: cython.Py_ssize_t = self.I[self.I[SPLINE_DEGREE] + p]
+        l: cython.Py_ssize_t = k
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        left: cython.double
+        alpha: cython.double
+        while l < nc - 1 and self.F[t0 + l + 1] <= q:
+            l += 1
+        for j in range(k + 1):
+            self.spline[j] = self.F[c0 + l - k + j]
+        for r in range(1, k + 1):
+            for j in range(k, r - 1, -1):
+                left = self.F[t0 + j + l - k]
+                alpha = (q - left) / (self.F[t0 + j + 1 + l - r] - left)
+                self.spline[j] = (1.0 - alpha) * self.spline[j - 1] + alpha * self.spline[j]
+        return self.spline[k]
+
+    @cython.cfunc
+    def _coefficients(self) -> cython.int:
+        """Eksergian's coefficients at the chart's kin into its fields (reduced.dynamics documents
+        them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
+        nb: cython.Py_ssize_t = self.I[N_ANGLES]
+        ms: cython.Py_ssize_t = self.I[MASSES]
+        ins: cython.Py_ssize_t = self.I[INERTIAS]
+        b: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        m: cython.double
+        inertia: cython.double
+        gx: cython.double
+        gy: cython.double
+        dx: cython.double
+        dy: cython.double
+        length: cython.double
+        k_d: cython.double
+        c: cython.double
+        stretch: cython.double
+        u: cython.double
+        k_u: cython.double
+        r: cython.double
+        d: cython.double
+        along: cython.double
+        self._table_rates(CENTRES, True)
+        J: cython.double = 0.0
+        zeta: cython.double = 0.0
+        for b in range(nb):
+            m = self.F[ms + b]
+            inertia = self.F[ins + b]
+            J += m * (self.rows[b, 0] * self.rows[b, 0] + self.rows[b, 1] * self.rows[b, 1]) + inertia * self.K[b] * self.K[b]
+            zeta += m * (self.rows[b, 0] * self.rows[b, 2] + self.rows[b, 1] * self.rows[b, 3]) + inertia * self.K[b] * self.L[b]
+        dV: cython.double = 0.0
+        V: cython.double = 0.0
+        damping: cython.double = 0.0
+        force: cython.double = 0.0
+        if self.I[HAS_GRAVITY]:
+            gx = self.F[self.I[GRAVITY]]
+            gy = self.F[self.I[GRAVITY] + 1]
+            for b in range(nb):
+                dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+            self._table_positions(CENTRES)
+            for b in range(nb):
+                V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+        ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
+        if ne:
+            self._table_rates(ENDS, False)
+            for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
+                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+            self._table_positions(ENDS)
+            for e in range(ne):
+                dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+                length = sqrt(dx * dx + dy * dy)
+                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                c = self.F[self.I[ELEMENT_COEF] + e]
+                if e < self.I[N_DAMPERS]:
+                    damping += c * k_d * k_d
+                else:
+                    stretch = length - self.F[self.I[ELEMENT_REST] + e]
+                    dV += c * stretch * k_d
+                    V += 0.5 * c * stretch * stretch
+        nj: cython.Py_ssize_t = self.I[N_JOINT_ELEMENTS]
+        n: cython.Py_ssize_t = self.n
+        rows_at: cython.Py_ssize_t
+        if nj:
+            rows_at = self.I[JOINT_ROWS]
+            for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
+                u = 0.0
+                k_u = 0.0
+                for j in range(n):
+                    r = self.F[rows_at + e * n + j]
+                    u += r * self.kin[0, j]
+                    k_u += r * self.K[j]
+                c = self.F[self.I[JOINT_COEF] + e]
+                if e < self.I[N_JOINT_DAMPERS]:
+                    damping += c * k_u * k_u
+                else:
+                    stretch = u - self.F[self.I[JOINT_REST] + e]
+                    dV += c * stretch * k_u
+                    V += 0.5 * c * stretch * stretch
+        rate: cython.double = 0.0
+        curvature: cython.double = 0.0
+        q: cython.double = 0.0
+        for j in range(n):
+            d = self.F[self.I[DRIVE] + j]
+            rate += d * self.K[j]
+            curvature += d * self.L[j]
+            q += d * self.kin[0, j]
+        nf: cython.Py_ssize_t = self.I[N_FORCES]
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        fd: cython.Py_ssize_t
+        td: cython.Py_ssize_t
+        if nf or nt:
+            self._table_rates(FORCE_POINTS, False)
+            fd = self.I[FORCE_DIR]
+            for p in range(nf):
+                along = self.rows[p, 0] * self.F[fd + 2 * p] + self.rows[p, 1] * self.F[fd + 2 * p + 1]
+                force += self._point_force(p, q) * along
+            td = self.I[TIMED_DIR]
+            for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
+                self.fields[N_FIELDS + p] = self.rows[nf + p, 0] * self.F[td + 2 * p] + self.rows[nf + p, 1] * self.F[td + 2 * p + 1]
+        self.fields[INERTIA] = J
+        self.fields[CENTRIFUGAL] = zeta
+        self.fields[POTENTIAL_GRADIENT] = dV
+        self.fields[DAMPING] = damping
+        self.fields[POTENTIAL] = V
+        self.fields[INPUT_RATE] = rate
+        self.fields[POINT_FORCE] = force
+        self.fields[INPUT_CURVATURE] = curvature
+        return 0
+
+    @cython.cfunc
+    def _applied(self, piece: cython.Py_ssize_t) -> cython.double:
+        """The generalized force of the loads (N·m or N) at the fields on load piece ``piece``
+        (its index): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
+        the piece (PIECE_VALUES)."""
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        row: cython.Py_ssize_t = self.I[PIECE_VALUES] + piece * (1 + nt)
+        p: cython.Py_ssize_t
+        g: cython.double = self.F[row] * self.fields[INPUT_RATE] + self.fields[POINT_FORCE]
+        for p in range(nt):
+            g += self.F[row + 1 + p] * self.fields[N_FIELDS + p]
+        return g
+
+    # -- the chart interface ----------------------------------------------------------------
+
+    @cython.ccall
+    def evaluate(self, value: cython.double) -> cython.bint:
+        """The chart's configuration and coefficients at x_i = value (memoized): True on success,
+        else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
+        reach of the walk) or WORK_SPENT (the walk needed more than MAX_WALK_CLOSURES closures)."""
+        if self.s[VALID] == 1 and self.value[0] == value:
+            return True
+        self.s[VALID] = 0
+        status: cython.int = self._walk(value)
+        if status != OK:
+            self.s[STATUS] = status
+            return False
+        self._coefficients()
+        self.value[0] = value
+        self.s[VALID] = 1
+        return True
+
+    @cython.ccall
+    def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
+                     v: cython.double) -> cython.double:
+        """ẍ_i at x_i = q, ẋ_i = v from Eksergian's equation on load piece ``load`` (its index:
+        the loads over time are constant on it, :meth:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² −
+        dV/dx_i) / 𝔍. NaN when the configuration cannot be found (S[STATUS] says why)."""
+        if not self.evaluate(q):
+            return _c_nan
+        Q: cython.double = self._applied(load) - self.fields[DAMPING] * v
+        return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
+
+    @cython.ccall
+    def power(self, load: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """P = Q_applied ẋ_i (W) at the configuration last evaluated, right after its
+        :meth:`acceleration`: the power of the input load and of the point forces over q and t
+        on load piece ``load``; the energy audit integrates it."""
+        return self._applied(load) * v
+
+    @cython.ccall
+    def dissipation(self, v: cython.double) -> cython.double:
+        """D = Σ b K_D² ẋ_i² (W), the dampers' dissipation rate at the configuration last
+        evaluated, right after its :meth:`acceleration`."""
+        return self.fields[DAMPING] * v * v
+
+    @cython.ccall
+    def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
+        """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
+        than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1.0
+        return self.fields[CONDITIONING] - _c_hysteresis * self.fields[BEST_CONDITIONING]
+
+    @cython.ccall
+    def observation_size(self) -> cython.Py_ssize_t:
+        """Length of :meth:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
+        return N_FIELDS + self.I[N_TIMED] + 3 * self.n
+
+    @cython.ccall
+    def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
+        """The configuration last evaluated, into out[row, :observation_size()]: its coefficient
+        fields, then x, K and L (n each) — what the outputs and the energy audit need at a
+        sample, recorded where the integrator evaluated it instead of walked to again."""
+        n: cython.Py_ssize_t = self.n
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for k in range(nf):
+            out[row, k] = self.fields[k]
+        for r in range(3):
+            for j in range(n):
+                out[row, nf + r * n + j] = self.kin[r, j]
+
+    @cython.ccall
+    def mark(self):
+        """Keep the chart's last configuration (x, K, L) for :meth:`rewind`."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.marked[r, j] = self.last[r, j]
+
+    @cython.ccall
+    def rewind(self):
+        """Continue the chart's walk from the configuration :meth:`mark` kept. The integrators
+        walk a piece's samples this way, forwards from its start in short jumps, rather than back
+        from its end in one walk of hundreds of rad (halved down to :data:`LONG_JUMP`)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.marked[r, j]
+        self.s[VALID] = 0
+
+    @cython.ccall
+    def reset(self):
+        """Back to the chart's start configuration (a new walk along the chart)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.origin[r, j]
+        self.s[VALID] = 0
+        self.s[STATUS] = OK
+
+    @cython.ccall
+    def kinematics_at(self, x: cython.double[::1], row: cython.double[::1]) -> cython.bint:
+        """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
+        p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
+        where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
+        A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i.
+        x is copied first (into Newton's x): it may be one of the chart's own buffers."""
+        n: cython.Py_ssize_t = self.n
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        v: cython.double
+        for c in range(n):
+            self.x[c] = x[c]
+        self._angle_trig()
+        self._constraints()
+        hadamard: cython.double = 1.0
         for c in range(n):
             v = 0.0
             for r in range(n - 1):
-                v += A[r, c] * A[r, c]
-            norms[c] = math.sqrt(v)
-            A[n - 1, c] = 0.0
-        A[n - 1, i] = 1.0
-        res[n - 1] = 0.0
-        det = lu_factor(A, piv)
-        if det == 0.0 or not math.isfinite(det):
-            return 1
-        if converged or (closed and largest <= CLOSED_FORM_RESIDUAL * scale):
-            factored = True
-            break
-        closed = False  # not closed to round-off: Newton from there
-        lu_solve(A, piv, res)
-        for j in range(n):
-            x[j] -= res[j]
-        # converged: the step just taken polishes to round-off
-        converged = largest <= max(NEWTON_TOL, NEWTON_ROUND_OFF * spread)
-    if not factored:
-        return 1
-    for j in range(n):
-        if not math.isfinite(x[j]):
-            return 1
-    _finish(F, I, S, W, x, det, out)
-    if fields[CONDITIONING] < SINGULAR_CONDITIONING:
-        return 1
-    if S[SIGN] != 0 and (1 if det >= 0.0 else -1) != S[SIGN]:
-        return 1
-    return 0
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _walk(F, I, S, W, value):
-    """Continue the chart from its last configuration to x_i = value, halving untrusted
-    jumps; the result in kin and last. Returns OK, SINGULAR (no closure within the halvings)
-    or WORK_SPENT (more than MAX_WALK_CLOSURES closures)."""
-    n = I[N]
-    i = S[INDEPENDENT]
-    _, _, last, kin, _, _, _, _, _, _, guess, base, target, _ = _views(I, W)
-    budget = S[S_HEADER + n:S_HEADER + n + DEPTH]
-    _copy(last, base[0])
-    target[0] = value
-    budget[0] = MAX_HALVINGS
-    depth = 0  # base[d] is the configuration from which target[d] is sought
-    closures = 0
-    while True:
-        delta = target[depth] - base[depth, 0, i]
-        predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
-        for j in range(n):
-            predicted = max(predicted, abs(base[depth, 1, j] * delta) + 0.5 * abs(base[depth, 2, j]) * delta * delta)
-        failed = trusted = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
-        if predicted <= LONG_JUMP or predicted > FAR_JUMP or budget[depth] <= 0:
-            if closures == MAX_WALK_CLOSURES:
-                return WORK_SPENT
-            closures += 1
-            failed = _close(F, I, S, W, base[depth], target[depth], predicted, kin) != 0
-            if not failed:
-                moved = 0.0
-                for j in range(n):
-                    moved = max(moved, abs(kin[0, j] - guess[j]))
-                trusted = moved <= PREDICTOR_TRUST * predicted + TRUSTED_CORRECTION
-        if failed and budget[depth] <= 0:
-            return SINGULAR
-        if trusted or budget[depth] <= 0:
-            if predicted > LONG_JUMP:  # closed at once: the turns nearest the base's
-                for j in range(I[N_ANGLES]):
-                    if j != i:
-                        kin[0, j] = _nearest(kin[0, j], base[depth, 0, j])
-            if depth == 0:
-                break
-            # the midpoint is reached: it is the base of the second half, one level down
-            depth -= 1
-            _copy(kin, base[depth])
-            budget[depth] -= 1
-            continue
-        # halve: seek the midpoint first, then the target from there
-        _copy(base[depth], base[depth + 1])
-        target[depth + 1] = base[depth, 0, i] + 0.5 * (target[depth] - base[depth, 0, i])
-        budget[depth + 1] = budget[depth] - 1
-        depth += 1
-    _copy(kin, last)
-    return OK
-
-
-@njit(cache=True, error_model="numpy", **RUNTIME)
-def point_force_value(F, I, p, q):
-    """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor)."""
-    lo, hi, period = F[I[SPLINE_LO] + p], F[I[SPLINE_HI] + p], F[I[SPLINE_PERIOD] + p]
-    if period > 0.0:
-        q = lo + (q - lo) - period * math.floor((q - lo) / period)
-    else:
-        q = min(max(q, lo), hi)
-    t0 = I[SPLINE_KNOTS] + I[I[KNOT_START] + p]
-    c0 = I[SPLINE_COEF] + I[I[COEF_START] + p]
-    nc = I[I[COEF_START] + p + 1] - I[I[COEF_START] + p]
-    k = I[I[SPLINE_DEGREE] + p]
-    l = k
-    while l < nc - 1 and F[t0 + l + 1] <= q:
-        l += 1
-    d = np.empty(k + 1)
-    for j in range(k + 1):
-        d[j] = F[c0 + l - k + j]
-    for r in range(1, k + 1):
-        for j in range(k, r - 1, -1):
-            left = F[t0 + j + l - k]
-            alpha = (q - left) / (F[t0 + j + 1 + l - r] - left)
-            d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
-    return d[k]
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _coefficients(F, I, S, W):
-    """Eksergian's coefficients at the chart's kin into its fields (reduced.dynamics documents
-    them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
-    _, _, _, kin, fields, _, _, trig, _, _, _, _, _, rows = _views(I, W)
-    x, K, L = kin[0], kin[1], kin[2]
-    nb = I[N_ANGLES]
-    ms, ins = I[MASSES], I[INERTIAS]
-    table_rates(F, I, CENTRES, x, trig, K, L, True, rows)
-    J, zeta = 0.0, 0.0
-    for b in range(nb):
-        m, inertia = F[ms + b], F[ins + b]
-        J += m * (rows[b, 0] * rows[b, 0] + rows[b, 1] * rows[b, 1]) + inertia * K[b] * K[b]
-        zeta += m * (rows[b, 0] * rows[b, 2] + rows[b, 1] * rows[b, 3]) + inertia * K[b] * L[b]
-    dV, V, damping, force = 0.0, 0.0, 0.0, 0.0
-    if I[HAS_GRAVITY]:
-        gx, gy = F[I[GRAVITY]], F[I[GRAVITY] + 1]
-        for b in range(nb):
-            dV -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
-        table_positions(F, I, CENTRES, x, trig, rows)
-        for b in range(nb):
-            V -= F[ms + b] * (gx * rows[b, 0] + gy * rows[b, 1])
-    ne = I[N_ELEMENTS]
-    if ne:
-        table_rates(F, I, ENDS, x, trig, K, L, False, rows)
-        for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
-            rows[2 * e, 2] = rows[2 * e, 0] - rows[2 * e + 1, 0]
-            rows[2 * e, 3] = rows[2 * e, 1] - rows[2 * e + 1, 1]
-        table_positions(F, I, ENDS, x, trig, rows)
-        for e in range(ne):
-            dx = rows[2 * e, 0] - rows[2 * e + 1, 0]
-            dy = rows[2 * e, 1] - rows[2 * e + 1, 1]
-            length = math.sqrt(dx * dx + dy * dy)
-            k_d = (dx * rows[2 * e, 2] + dy * rows[2 * e, 3]) / length  # K_D = dD/dx_i
-            c = F[I[ELEMENT_COEF] + e]
-            if e < I[N_DAMPERS]:
-                damping += c * k_d * k_d
-            else:
-                stretch = length - F[I[ELEMENT_REST] + e]
-                dV += c * stretch * k_d
-                V += 0.5 * c * stretch * stretch
-    nj = I[N_JOINT_ELEMENTS]
-    if nj:
-        n = I[N]
-        rows_at = I[JOINT_ROWS]
-        for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
-            u, k_u = 0.0, 0.0
-            for j in range(n):
-                r = F[rows_at + e * n + j]
-                u += r * x[j]
-                k_u += r * K[j]
-            c = F[I[JOINT_COEF] + e]
-            if e < I[N_JOINT_DAMPERS]:
-                damping += c * k_u * k_u
-            else:
-                stretch = u - F[I[JOINT_REST] + e]
-                dV += c * stretch * k_u
-                V += 0.5 * c * stretch * stretch
-    rate, curvature, q = 0.0, 0.0, 0.0
-    for j in range(I[N]):
-        d = F[I[DRIVE] + j]
-        rate += d * K[j]
-        curvature += d * L[j]
-        q += d * x[j]
-    nf, nt = I[N_FORCES], I[N_TIMED]
-    if nf or nt:
-        table_rates(F, I, FORCE_POINTS, x, trig, K, L, False, rows)
-        fd = I[FORCE_DIR]
-        for p in range(nf):
-            along = rows[p, 0] * F[fd + 2 * p] + rows[p, 1] * F[fd + 2 * p + 1]
-            force += point_force_value(F, I, p, q) * along
-        td = I[TIMED_DIR]
-        for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
-            fields[N_FIELDS + p] = rows[nf + p, 0] * F[td + 2 * p] + rows[nf + p, 1] * F[td + 2 * p + 1]
-    fields[INERTIA] = J
-    fields[CENTRIFUGAL] = zeta
-    fields[POTENTIAL_GRADIENT] = dV
-    fields[DAMPING] = damping
-    fields[POTENTIAL] = V
-    fields[INPUT_RATE] = rate
-    fields[POINT_FORCE] = force
-    fields[INPUT_CURVATURE] = curvature
-
-
-# -- the chart interface -------------------------------------------------------------------
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def evaluate(model, chart, value):
-    """The chart's configuration and coefficients at x_i = value (memoized): True on success,
-    else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
-    reach of the walk) or WORK_SPENT (the walk needed more than MAX_WALK_CLOSURES closures)."""
-    F, I = model
-    S, W = chart
-    if S[VALID] == 1 and W[0] == value:
+                v += self.A[r, c] * self.A[r, c]
+            self.norms[c] = sqrt(v)
+            self.A[n - 1, c] = row[c]
+            hadamard *= sqrt(v + row[c] * row[c])
+        det: cython.double = self._lu_factor()
+        self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
+        if det == 0.0 or not isfinite(det) or fabs(det) < _c_singular_conditioning * hadamard:
+            self.s[STATUS] = SINGULAR
+            return False
+        self._finish(det)
+        self._coefficients()
         return True
-    S[VALID] = 0
-    status = _walk(F, I, S, W, value)
-    if status != OK:
-        S[STATUS] = status
-        return False
-    _coefficients(F, I, S, W)
-    W[0] = value
-    S[VALID] = 1
-    return True
 
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def _applied(F, I, f, piece):
-    """The generalized force of the loads (N·m or N) at fields f on load piece ``piece`` (its
-    index, a float): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
-    the piece (PIECE_VALUES)."""
-    nt = I[N_TIMED]
-    row = I[PIECE_VALUES] + int(piece) * (1 + nt)
-    g = F[row] * f[INPUT_RATE] + f[POINT_FORCE]
-    for p in range(nt):
-        g += F[row + 1 + p] * f[N_FIELDS + p]
-    return g
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def acceleration(model, chart, load, t, value, rate):
-    """ẍ_i from Eksergian's equation on load piece ``load`` (its index: the loads over time are
-    constant on it, :func:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² − dV/dx_i) / 𝔍. NaN when the
-    configuration cannot be found (the chart's S[STATUS] says why)."""
-    if not evaluate(model, chart, value):
-        return math.nan
-    f = _views(model[1], chart[1])[4]
-    Q = _applied(model[0], model[1], f, load) - f[DAMPING] * rate
-    return (Q - f[CENTRIFUGAL] * rate * rate - f[POTENTIAL_GRADIENT]) / f[INERTIA]
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def power(model, chart, load, rate):
-    """(P, D) at the configuration last evaluated, right after its ``acceleration``: the power
-    P = Q_applied ẋ_i of the input load and the point forces over q and t on load piece ``load``
-    (W) and the dampers' dissipation rate D = Σ b K_D² ẋ_i² (W); the energy audit integrates both."""
-    f = _views(model[1], chart[1])[4]
-    return _applied(model[0], model[1], f, load) * rate, f[DAMPING] * rate * rate
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def observation_size(model):
-    """Length of :func:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
-    return N_FIELDS + model[1][N_TIMED] + 3 * model[1][N]
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def observe(model, chart, out):
-    """The chart's configuration last evaluated, into ``out`` (:func:`observation_size`,): its
-    coefficient fields, then x, K and L (n each) — what the outputs and the energy audit need
-    at a sample, recorded where the integrator evaluated it instead of walked to again."""
-    views = _views(model[1], chart[1])
-    fields, kin = views[4], views[3]
-    n = model[1][N]
-    nf = N_FIELDS + model[1][N_TIMED]
-    for k in range(nf):
-        out[k] = fields[k]
-    for r in range(3):
+    @cython.ccall
+    def start(self, x: cython.double[::1], independent: cython.Py_ssize_t) -> cython.bint:
+        """Make this a chart of coordinate ``independent`` starting at the assembled x (n,): its
+        K, L there and the sign of its det A. Returns True on success (False: singular). x may
+        be one of the chart's own buffers (its kin[0], at a switch): :meth:`kinematics_at`
+        copies it first."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        self.s[INDEPENDENT] = independent
+        self.s[SIGN] = 0
+        self.s[STATUS] = OK
         for j in range(n):
-            out[nf + r * n + j] = kin[r, j]
+            self.guess[j] = 0.0
+        self.guess[independent] = 1.0
+        if not self.kinematics_at(x, self.guess) or self.fields[CONDITIONING] < _c_singular_conditioning:
+            self.s[STATUS] = SINGULAR
+            return False
+        self.s[SIGN] = 1 if self.fields[DETERMINANT] >= 0.0 else -1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+                self.origin[r, j] = self.kin[r, j]
+        self.value[0] = self.x[independent]  # x's, copied by kinematics_at
+        self.s[VALID] = 1
+        return True
 
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def stop_margin(model, chart, t, value, rate):
-    """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
-    than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
-    if not evaluate(model, chart, value):
-        return -1.0
-    f = _views(model[1], chart[1])[4]
-    return f[CONDITIONING] - HYSTERESIS * f[BEST_CONDITIONING]
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def kinematics_at(model, chart, x, row):
-    """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
-    p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
-    where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
-    A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i."""
-    F, I = model
-    S, W = chart
-    n = I[N]
-    _, _, _, kin, _, A, res, trig, norms, _, _, _, _, _ = _views(I, W)
-    angle_trig(I, x, trig)
-    constraints(F, I, x, trig, A, res)
-    hadamard = 1.0
-    for c in range(n):
-        v = 0.0
-        for r in range(n - 1):
-            v += A[r, c] * A[r, c]
-        norms[c] = math.sqrt(v)
-        A[n - 1, c] = row[c]
-        hadamard *= math.sqrt(v + row[c] * row[c])
-    det = lu_factor(A, S[S_HEADER:S_HEADER + n])
-    S[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
-    if det == 0.0 or not math.isfinite(det) or abs(det) < SINGULAR_CONDITIONING * hadamard:
-        S[STATUS] = SINGULAR
-        return False
-    _finish(F, I, S, W, x, det, kin)
-    _coefficients(F, I, S, W)
-    return True
-
-
-@njit(cache=True, error_model="numpy", **RUNTIME)
-def start_chart(model, chart, x, independent):
-    """Make ``chart`` a chart of coordinate ``independent`` starting at the assembled x (n,):
-    its K, L there and the sign of its det A. Returns True on success (False: singular)."""
-    F, I = model
-    S, W = chart
-    n = I[N]
-    _, start, last, kin, fields, _, _, _, _, _, guess, _, _, _ = _views(I, W)
-    S[INDEPENDENT] = independent
-    S[SIGN] = 0
-    S[STATUS] = OK
-    for j in range(n):
-        guess[j] = 0.0
-    guess[independent] = 1.0
-    if not kinematics_at(model, chart, x, guess.copy()) or fields[CONDITIONING] < SINGULAR_CONDITIONING:
-        S[STATUS] = SINGULAR
-        return False
-    S[SIGN] = 1 if fields[DETERMINANT] >= 0.0 else -1
-    _copy(kin, last)
-    _copy(kin, start)
-    W[0] = x[independent]
-    S[VALID] = 1
-    return True
-
-
-@njit(cache=True, error_model="numpy", **RUNTIME)
-def mark(model, chart):
-    """A copy (3, n) of the chart's last configuration (x, K, L), for :func:`rewind`."""
-    last = _views(model[1], chart[1])[2]
-    marked = np.empty((3, model[1][N]))
-    _copy(last, marked)
-    return marked
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def rewind(model, chart, marked):
-    """Continue the chart's walk from the configuration :func:`mark` took. The integrators
-    walk a piece's samples this way, forwards from its start in short jumps, rather than back
-    from its end in one walk of hundreds of rad (halved down to :data:`LONG_JUMP`)."""
-    S, W = chart
-    last = _views(model[1], W)[2]
-    _copy(marked, last)
-    S[VALID] = 0
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def reset(model, chart):
-    """Back to the chart's start configuration (a new walk along the chart)."""
-    rewind(model, chart, _views(model[1], chart[1])[1])
-    chart[0][STATUS] = OK
-
-
-@njit(cache=True, error_model="numpy", **NO_RUNTIME)
-def walk(model, chart, values, fields, kin):
-    """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, field_count) and
-    kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
-    reset(model, chart)
-    views = _views(model[1], chart[1])
-    for s in range(values.shape[0]):
-        if not evaluate(model, chart, values[s]):
-            return s
-        _copy(views[4], fields[s])
-        _copy(views[3], kin[s])
-    return values.shape[0]
-
-
-def field_count(model: Model) -> int:
-    """Length of a chart's fields: N_FIELDS, then one per timed force."""
-    return N_FIELDS + int(model.I[N_TIMED])
-
-
-def chart_arrays(model: Model, chart: Chart) -> dict[str, np.ndarray]:
-    """Named views of a chart's state (Python callers): start, last, kin, fields."""
-    value, start, last, kin, fields = getattr(_views, "py_func", _views)(model.I, chart.W)[:5]
-    return {"value": value, "start": start, "last": last, "kin": kin, "fields": fields}
+    @cython.ccall
+    def walk(self, values: cython.double[::1], fields: cython.double[:, ::1],
+             kin: cython.double[:, :, ::1]) -> cython.Py_ssize_t:
+        """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, field_count)
+        and kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
+        s: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        self.reset()
+        for s in range(values.shape[0]):
+            if not self.evaluate(values[s]):
+                return s
+            for k in range(nf):
+                fields[s, k] = self.fields[k]
+            for r in range(3):
+                for j in range(self.n):
+                    kin[s, r, j] = self.kin[r, j]
+        return values.shape[0]
