@@ -95,7 +95,7 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
          max_switches: cython.Py_ssize_t, out: Samples) -> PartitionedRun:
     """The charts from the start: ``integrate_chart(t, value, rate, evaluations_left)`` runs the
     current chart from t and returns its :class:`Outcome`."""
-    n = int(chart.S.shape[0] - physics.S_HEADER - physics.DEPTH)
+    n = int(chart.n)
     total = Outcome()
     segment_starts, coordinates, starts, switches = [out.n], [independent], [], []
     if not chart.start(np.ascontiguousarray(x0, dtype=np.float64), independent):
