@@ -27,9 +27,10 @@ import numpy as np
 from . import loops
 from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
 from .errors import NumericalFailure
-from .integrators import MAX_EVALUATIONS, RKN4, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
+from .integrators import MAX_EVALUATIONS, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
 from .kernels import adaptive, fixed_step, physics
 from .kernels import partition as compiled
+from .kernels.fixed_step import RKN4
 from .trajectory import Trajectory
 
 HYSTERESIS = physics.HYSTERESIS  # switch when the current coordinate is less than half as well conditioned
