@@ -109,7 +109,7 @@ class _NumpyInKernelOrder:
 
         x = self._np.asarray(x)
         if x.shape == (2,) and not args and not kwargs:
-            return _norm2.py_func(float(x[0]), float(x[1]))
+            return _norm2(float(x[0]), float(x[1]))
         return self._np.linalg.norm(x, *args, **kwargs)
 
     def dot(self, a, b):
@@ -119,7 +119,7 @@ class _NumpyInKernelOrder:
         a, b = np_.asarray(a), np_.asarray(b)
         if a.ndim == 2 and b.ndim == 1 and a.shape[0] == 2:  # K[:s].T · a[:s]
             out = np_.empty(2)
-            _dot_kt.py_func(a.T, b, b.shape[0], out)
+            _dot_kt(np_.ascontiguousarray(a.T), np_.ascontiguousarray(b, dtype=float), b.shape[0], out)
             return out
         if a.ndim == 2 and b.ndim == 2 and b.shape[1] == 2:  # D · K, each entry summed over j in turn
             out = np_.empty((a.shape[0], 2))
