@@ -13,7 +13,7 @@ cdef class Steps:
     cpdef grow(self, Py_ssize_t keep)
 
 
-cpdef double _norm2(double x0, double x1)
+cpdef double _norm2(double x0, double x1) noexcept
 cpdef _dot_kt(double[:, ::1] K, double[::1] a, Py_ssize_t s, double[::1] out)
 cpdef Outcome dop853_run(RightHandSide rhs, double[::1] piece_edges, Py_ssize_t[::1] piece_load, double q0,
                          double v0, double rtol, double atol, double sample_interval, Py_ssize_t per_step,

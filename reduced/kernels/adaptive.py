@@ -161,6 +161,7 @@ class Steps:
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(check=False)
 def _pymin(a: cython.double, b: cython.double) -> cython.double:
     """Python's min(a, b): a unless b < a (NaN handling as in Python)."""
     return b if b < a else a
@@ -168,6 +169,7 @@ def _pymin(a: cython.double, b: cython.double) -> cython.double:
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(check=False)
 def _pymax(a: cython.double, b: cython.double) -> cython.double:
     """Python's max(a, b): a unless b > a."""
     return b if b > a else a
@@ -175,6 +177,7 @@ def _pymax(a: cython.double, b: cython.double) -> cython.double:
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(check=False)
 def _npmax(a: cython.double, b: cython.double) -> cython.double:
     """np.maximum(a, b) of two floats (NaN if either is)."""
     if a != a or b != b:
@@ -282,6 +285,7 @@ def _brentq_stop(rhs: RightHandSide, xa: cython.double, xb: cython.double, t_old
 
 
 @cython.ccall
+@cython.exceptval(check=False)
 def _norm2(x0: cython.double, x1: cython.double) -> cython.double:
     """np.linalg.norm((x0, x1)) summed plainly (numpy: sqrt(x.dot(x)), by the BLAS).
     (cpdef: tests/helpers.py sums scipy's norm with it.)"""
@@ -290,6 +294,7 @@ def _norm2(x0: cython.double, x1: cython.double) -> cython.double:
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(check=False)
 def _rms2(x0: cython.double, x1: cython.double) -> cython.double:
     """scipy's norm of (x0, x1): np.linalg.norm(x) / x.size ** 0.5."""
     return _norm2(x0, x1) / _SQRT_N
@@ -616,6 +621,7 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(check=False)
 def _parts(h: cython.double, sample_interval: cython.double, per_step: cython.Py_ssize_t) -> cython.Py_ssize_t:
     """Equal parts a step of h (s) is cut into for sampling: max(per_step, ⌈h / sample_interval⌉)."""
     return max(per_step, cython.cast(cython.Py_ssize_t, ceil(h / sample_interval)))

@@ -70,6 +70,10 @@ STABILITY_MARGIN = 1e-6
 # method grows it GROWTH_EXCESS (10 %) per step faster than the problem does.
 GROWING = 1e-6
 GROWTH_EXCESS = 0.1
+_CHECK_EVERY = cython.declare(cython.Py_ssize_t, STABILITY_CHECK_EVERY)  # C copies for the kernel
+_STABILITY_MARGIN = cython.declare(cython.double, STABILITY_MARGIN)
+_GROWING = cython.declare(cython.double, GROWING)
+_GROWTH_EXCESS = cython.declare(cython.double, GROWTH_EXCESS)
 
 
 @cython.cclass
@@ -182,9 +186,9 @@ def amplification_limit(zr: cython.double, zi: cython.double) -> cython.double:
     """The largest |R(z)| allowed for the mode z = zr + i zi = hλ: 1 + STABILITY_MARGIN where
     the mode does not grow in the problem, |e^z| (1 + GROWTH_EXCESS) where it does
     (Re z > GROWING |z|)."""
-    if zr > GROWING * hypot(zr, zi):
-        return exp(min(zr, 700.0)) * (1.0 + GROWTH_EXCESS)
-    return 1.0 + STABILITY_MARGIN
+    if zr > _GROWING * hypot(zr, zi):
+        return exp(min(zr, 700.0)) * (1.0 + _GROWTH_EXCESS)
+    return 1.0 + _STABILITY_MARGIN
 
 
 @cython.ccall
@@ -365,7 +369,7 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
         outcome.t_reached = start
         for m in range(n):
             t = start + m * h
-            if stability and n_steps % STABILITY_CHECK_EVERY == 0:
+            if stability and n_steps % _CHECK_EVERY == 0:
                 status = check_stability(rhs, load, t, q, v, h, outcome)
                 n_eval += 3
                 if status != OK:
