@@ -282,25 +282,33 @@ def test_dop853_error_is_proportional_to_rtol():
         assert abs(observed_order(RTOLS, errors) - 1.0) <= 0.1
 
 
+SCIPY_CASES = {  # f(t, q, q̇, u), q0, q̇0, the rejected steps it has at rtol 1e-6 and 1e-10
+    "damped, forced": (lambda t, q, v, u: -q - 0.3 * v + u, 0.5, 1.0, (0, 0)),
+    "van der Pol, mu = 5": (lambda t, q, v, u: 5.0 * (1.0 - q * q) * v - q, 2.0, 0.0, (7, 14)),
+}
+
+
 @pytest.mark.parametrize("rtol", [1e-6, 1e-10])
-def test_dop853_steps_and_values_equal_scipy(rtol):
-    """q̈ = −q − 0.3 q̇ + 2 from (0.5, 1) over 10 s: with each step one sample (per_step 1, no
-    interval) the samples are the accepted steps. scipy's solve_ivp(method="DOP853") summed in
-    the kernel's order (helpers.scipy_in_kernel_order) takes the same steps to the bit, reaches
-    the same states to the bit and counts the same evaluations (dense output on: 3 more per
-    step)."""
-    f = (lambda t, q, v, u: -q - 0.3 * v + u)
+@pytest.mark.parametrize("case", list(SCIPY_CASES))
+def test_dop853_steps_and_values_equal_scipy(case, rtol):
+    """Over 10 s, with each step one sample (per_step 1, no interval) the samples are the accepted
+    steps. scipy's solve_ivp(method="DOP853") summed in the kernel's order
+    (helpers.scipy_in_kernel_order) takes the same steps to the bit, reaches the same states to
+    the bit and counts the same evaluations (2 to start, 12 per attempt, 3 per dense output):
+    on a smooth linear problem and on van der Pol's, where steps are rejected (the count
+    asserted: the step control's rejection path is compared too)."""
+    f, q0, v0, rejected = SCIPY_CASES[case]
     rhs = ClosedForm(f, values=(2.0,))
-    outcome, t, q, v, a, _ = run_dop853(rhs, [0.0, 10.0], 0.5, 1.0, rtol=rtol, per_step=1,
-                                        sample_interval=math.inf)
+    outcome, t, q, v, a, _ = run_dop853(rhs, [0.0, 10.0], q0, v0, rtol=rtol, per_step=1, sample_interval=math.inf)
     with scipy_in_kernel_order():
-        sol = solve_ivp(lambda tt, y: np.array([y[1], f(tt, y[0], y[1], 2.0)]), (0.0, 10.0), [0.5, 1.0],
+        sol = solve_ivp(lambda tt, y: np.array([y[1], f(tt, y[0], y[1], 2.0)]), (0.0, 10.0), [q0, v0],
                         method="DOP853", rtol=rtol, atol=rtol, dense_output=True)
     np.testing.assert_array_equal(t, sol.t)
     np.testing.assert_array_equal(q, sol.y[0])
     np.testing.assert_array_equal(v, sol.y[1])
     assert outcome.n_steps == len(sol.t) - 1 and outcome.n_evaluations == sol.nfev
     assert outcome.n_sample_evaluations == len(t)
+    assert (outcome.n_evaluations - 2 - 15 * outcome.n_steps) / 12 == rejected[0 if rtol == 1e-6 else 1]
 
 
 def test_dop853_samples_cut_every_step_no_coarser_than_the_interval():
