@@ -155,6 +155,17 @@ def test_tableau_satisfies_the_full_fourth_order_conditions():
     assert max(abs(r) for r in RKN4_AS_PRINTED.order_condition_residuals().values()) < 1e-15
 
 
+def test_a_pickled_tableau_runs_the_same():
+    """A tableau crosses to a sweep's worker processes by pickle: the copy gives the same run."""
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(RKN4_AS_PRINTED))
+    assert (copy.name, copy.order, copy.stages) == (RKN4_AS_PRINTED.name, 3, 4)
+    for x, y in zip(run_rkn(harmonic(), [0.0, 1.0], 1.0, 0.0, 0.1, tableau=copy)[1:],
+                    run_rkn(harmonic(), [0.0, 1.0], 1.0, 0.0, 0.1, tableau=RKN4_AS_PRINTED)[1:]):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_a_tableau_the_kernel_cannot_run_is_refused():
     """The kernel reuses f at a step's end as the next first stage: c[0] must be 0; an implicit
     (non-strictly lower triangular) table is not explicit."""

@@ -120,6 +120,14 @@ class RKNTableau:
     def __repr__(self):
         return f"RKNTableau({self.name!r}, order={self.order}, stages={self.stages})"
 
+    def __reduce__(self):
+        """Pickled as its constructor's arguments (a sweep's workers receive the settings)."""
+        a, abar = np.asarray(self.a), np.asarray(self.abar)
+        return (RKNTableau, (self.name, self.order, tuple(np.asarray(self.c)),
+                             tuple(tuple(abar[i, :i]) for i in range(self.stages)),
+                             tuple(tuple(a[i, :i]) for i in range(self.stages)),
+                             tuple(np.asarray(self.bbar)), tuple(np.asarray(self.b)), self.denominator))
+
     def weights(self):
         """The update's weights as floats: (bbar, b), each (s,) (numerators / denominator)."""
         return np.asarray(self.bbar) / self.denominator, np.asarray(self.b) / self.denominator
