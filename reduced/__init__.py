@@ -11,8 +11,8 @@ import importlib
 _HOMES = {
     "Coefficients": "dynamics", "MechanismModel": "dynamics",
     "FailureReason": "errors", "IgnoredSettingWarning": "errors", "NumericalFailure": "errors",
-    "RKN4": "integrators", "RKN4_AS_PRINTED": "integrators", "RKNTableau": "integrators",
-    "Solution": "integrators", "solve_adaptive": "integrators", "solve_fixed_step": "integrators",
+    "RKN4": "kernels.fixed_step", "RKN4_AS_PRINTED": "kernels.fixed_step", "RKNTableau": "kernels.fixed_step",
+    "Solution": "integrators", "solve_adaptive": "integrators",
     "AssemblyError": "linkage", "FourBar": "linkage", "Kinematics": "linkage", "SingularPositionError": "linkage",
     "JointTrajectory": "partition",
     "EngineResult": "result", "EnergyAudit": "result",

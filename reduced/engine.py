@@ -12,7 +12,8 @@ import numpy as np
 from .dynamics import MechanismModel
 from .energy import energy_audit
 from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
-from .integrators import RKN4, solve_adaptive
+from .integrators import solve_adaptive
+from .kernels.fixed_step import RKN4
 from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .result import EngineResult
 from .scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene

@@ -1,9 +1,11 @@
-"""Integrators for q̈ = f(t, q, q̇): a fixed-step Runge-Kutta-Nyström method and an
-adaptive reference (scipy's DOP853). They know nothing about linkages.
+"""The adaptive reference through scipy (``solve_ivp``, DOP853 by default) for q̈ = f(t, q, q̇),
+the cross-check of the compiled kernels; it knows nothing about linkages. The fixed-step RKN
+methods (RKN4, its tableau, the printed variant) live in :mod:`.kernels.fixed_step` only: one
+implementation, compiled.
 
-Both take ``rhs_on_piece(start, end) -> f``, a factory that returns the acceleration
-function valid on one smooth piece of the load history, and the ``breakpoints`` where
-the loads jump. Every breakpoint is a step boundary, and every stage of a step
+:func:`solve_adaptive` takes ``rhs_on_piece(start, end) -> f``, a factory that returns the
+acceleration function valid on one smooth piece of the load history, and the ``breakpoints``
+where the loads jump. Every breakpoint is a step boundary, and every stage of a step
 evaluates the piece that contains the step (seed-notes erratum 5, README).
 """
 
@@ -16,10 +18,8 @@ from typing import Callable
 import numpy as np
 
 from .errors import NumericalFailure
-# The kernels hold the rules both paths follow (numba freezes a kernel's globals, and its cache
-# is stamped with the kernels' own sources only)
+# The compiled kernel holds the restart rule both paths follow
 from .kernels.adaptive import RESTART_STEPS
-from .kernels.fixed_step import STABILITY_CHECK_EVERY, amplification_limit, rk4_amplification
 from .trajectory import Trajectory
 
 # the error estimators' orders, as select_initial_step takes them (scipy's RK and Radau classes)
@@ -94,90 +94,6 @@ def budget_spent(method: str, budget: int, t: float, t0: float, t_end: float) ->
         "collapsed (an extreme speed, damper or inertia in the scene?)", float(t))
 
 
-def _check_step_stability(f: Acceleration, t: float, q: float, v: float, h: float) -> int:
-    """Raise if a mode of the linearization grows faster in the method than in the problem.
-
-    The Jacobian of (q, q̇) ↦ (q̇, f) is [[0, 1], [f_q, f_q̇]], estimated by one-sided
-    differences (two extra f evaluations). A mode λ grows by |e^{hλ}| per step in the exact
-    solution and by |R(hλ)| in the method. A damped or undamped mode (Re hλ ≤ GROWING·|hλ|:
-    an undamped one has Re hλ = ±round-off from the differences) is refused when
-    |R(hλ)| > 1 + STABILITY_MARGIN (RK4 keeps |R(iy)| ≤ 1 only for |y| ≤ 2√2); a growing mode
-    (e.g. an inverted pendulum) when |R(hλ)| > |e^{hλ}| (1 + GROWTH_EXCESS): the method then
-    grows it faster than the problem does, by more than its O(|hλ|⁵) accuracy.
-    """
-    f0 = f(t, q, v)
-    dq = 1e-7 * max(1.0, abs(q))
-    dv = 1e-7 * max(1.0, abs(v))
-    f_q = (f(t, q + dq, v) - f0) / dq
-    f_v = (f(t, q, v + dv) - f0) / dv
-    for lam in np.roots([1.0, -f_v, -f_q]):  # λ² − f_q̇ λ − f_q = 0
-        z = complex(h * lam)
-        amplification = rk4_amplification(z)
-        limit = amplification_limit(z)
-        if amplification > limit:
-            raise NumericalFailure(
-                "unstable", f"the step h = {h:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
-                f"(h·λ = {z.real:.3g}{z.imag:+.3g}j, |R| = {amplification:.6g} > {limit:.6g}): the problem is "
-                "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
-                "the implicit Radau method", t)
-    return 3
-
-
-@dataclass(frozen=True)
-class RKNTableau:
-    """An explicit Runge-Kutta-Nyström method for q̈ = f(t, q, q̇).
-
-    Stage i:  Q_i = q + c_i h q̇ + h² Σ_j abar[i][j] k_j,  V_i = q̇ + h Σ_j a[i][j] k_j,
-              k_i = f(t + c_i h, Q_i, V_i);
-    update:   q⁺ = q + h q̇ + h² Σ bbar_i k_i,  q̇⁺ = q̇ + h Σ b_i k_i.
-    """
-
-    name: str
-    order: int
-    c: tuple[float, ...]
-    abar: tuple[tuple[float, ...], ...]
-    a: tuple[tuple[float, ...], ...]
-    bbar: tuple[float, ...]
-    b: tuple[float, ...]
-
-    def order_condition_residuals(self) -> dict[str, float]:
-        """Residuals of the quadrature conditions up to order 4 (zero for a sound table)."""
-        c, b, bb = np.array(self.c), np.array(self.b), np.array(self.bbar)
-        return {
-            "sum b = 1": b.sum() - 1.0,
-            "b·c = 1/2": b @ c - 0.5,
-            "b·c² = 1/3": b @ c**2 - 1 / 3,
-            "b·c³ = 1/4": b @ c**3 - 0.25,
-            "sum bbar = 1/2": bb.sum() - 0.5,
-            "bbar·c = 1/6": bb @ c - 1 / 6,
-            "bbar·c² = 1/12": bb @ c**2 - 1 / 12,
-            "rows of a sum to c": max(abs(sum(r) - ci) for r, ci in zip(self.a, c)),
-            "rows of abar sum to c²/2": max(abs(sum(r) - ci * ci / 2) for r, ci in zip(self.abar, c)),
-        }
-
-
-# The seed's method with errata 1 and 2 corrected: Abramowitz & Stegun 25.5.20.
-RKN4 = RKNTableau(
-    name="RKN4 (Abramowitz & Stegun 25.5.20)", order=4,
-    c=(0.0, 0.5, 0.5, 1.0),
-    abar=((), (1 / 8,), (1 / 8, 0.0), (0.0, 0.0, 1 / 2)),
-    a=((), (1 / 2,), (0.0, 1 / 2), (0.0, 0.0, 1.0)),
-    bbar=(1 / 6, 1 / 6, 1 / 6, 0.0),
-    b=(1 / 6, 1 / 3, 1 / 3, 1 / 6),
-)
-
-# The third stage as printed in the seed (m2 in the position argument): third order
-# whenever f depends on q. Kept to show the erratum in a test, never used by default.
-RKN4_AS_PRINTED = RKNTableau(
-    name="RKN as printed in the seed", order=3,
-    c=RKN4.c, abar=((), (1 / 8,), (0.0, 1 / 8), (0.0, 0.0, 1 / 2)),
-    a=RKN4.a, bbar=RKN4.bbar, b=RKN4.b,
-)
-
-for _name, _residual in RKN4.order_condition_residuals().items():
-    assert abs(_residual) < 1e-15, f"RKN4 violates {_name}"
-
-
 @dataclass(frozen=True)
 class Solution:
     """A finished run: the trajectory and what it cost."""
@@ -209,74 +125,6 @@ def _check_state(t: float, q: float, v: float, speed_limit: float, *, initial: b
             (f"|q̇| = {abs(v):.3g} rad/s exceeds {speed_limit:.3g} rad/s at t = {t:.6g} s: "
              "the integration is unstable at this step")
         raise NumericalFailure("unstable", what, t)
-
-
-def solve_fixed_step(rhs_on_piece: PieceFactory, t_span: tuple[float, float], q0: float, qdot0: float,
-                     step: float, *, breakpoints: tuple[float, ...] = (), tableau: RKNTableau = RKN4,
-                     speed_limit: float = 1e6, stop: StopCondition | None = None,
-                     check_stability: bool = True) -> Solution:
-    """Integrate with a fixed-step RKN method; each piece gets a whole number of equal steps.
-
-    Parameters
-    ----------
-    step : float
-        Largest step (s); a piece of length ℓ uses ⌈ℓ/step⌉ equal steps.
-    speed_limit : float
-        |q̇| (rad/s) beyond which the run is declared unstable rather than returned.
-    stop : callable, optional
-        g(t, q, q̇), checked after every step; the run ends at the first step where g ≤ 0.
-    check_stability : bool
-        Check every ``STABILITY_CHECK_EVERY`` steps that the step is inside the stability
-        region of the locally linearized problem (RK4's stability function).
-
-    Raises
-    ------
-    NumericalFailure
-        On a step outside the stability region, a non-finite state, a runaway speed, or a
-        singular position.
-    """
-    if not step > 0.0:
-        raise ValueError("step must be positive")
-    c, abar, a, bbar, b = tableau.c, tableau.abar, tableau.a, tableau.bbar, tableau.b
-    if c[0] != 0.0:
-        raise ValueError("the driver reuses f at the end of a step as the next first stage (c[0] = 0)")
-    _check_state(t_span[0], q0, qdot0, speed_limit, initial=True)
-    ns = len(c)
-    ts, qs, vs, accs = [], [], [], []
-    q, v = float(q0), float(qdot0)
-    n_steps = n_eval = 0
-    k = [0.0] * ns
-    for start, end in pieces(*t_span, breakpoints):
-        f = rhs_on_piece(start, end)
-        n = max(1, math.ceil((end - start) / step - 1e-9))
-        h = (end - start) / n
-        # A piece's first sample repeats the previous piece's last time with q̈ on this side.
-        accel = f(start, q, v)
-        n_eval += 1
-        ts.append(start), qs.append(q), vs.append(v), accs.append(accel)
-        for m in range(n):
-            t = start + m * h
-            if check_stability and n_steps % STABILITY_CHECK_EVERY == 0:
-                n_eval += _check_step_stability(f, t, q, v, h)
-            k[0] = accel
-            for i in range(1, ns):
-                Q = q + c[i] * h * v + h * h * sum(abar[i][j] * k[j] for j in range(i))
-                V = v + h * sum(a[i][j] * k[j] for j in range(i))
-                k[i] = f(t + c[i] * h, Q, V)
-            q, v = (q + h * v + h * h * sum(bb * kk for bb, kk in zip(bbar, k)),
-                    v + h * sum(bi * kk for bi, kk in zip(b, k)))
-            t_next = end if m + 1 == n else start + (m + 1) * h
-            _check_state(t_next, q, v, speed_limit)
-            accel = f(t_next, q, v)  # also the first stage of the next step
-            n_eval += ns
-            n_steps += 1
-            ts.append(t_next), qs.append(q), vs.append(v), accs.append(accel)
-            if stop is not None and stop(t_next, q, v) <= 0.0:
-                traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
-                return Solution(traj, tableau.name, n_steps, n_eval, {"method": "rkn4", "step": step},
-                                stopped=True)
-    traj = Trajectory(np.array(ts), np.array(qs), np.array(vs), np.array(accs))
-    return Solution(traj, tableau.name, n_steps, n_eval, {"method": "rkn4", "step": step})
 
 
 def _hermite(t0, t1, y0, y1, a0, a1, times):

@@ -1,4 +1,5 @@
-"""Scene builders shared by the tests (real scenes, built from the seed file)."""
+"""Shared by the tests: scene builders (real scenes, built from the seed file), scipy summed in the
+compiled DOP853's order, and closed-form problems for the compiled integrators (ClosedForm)."""
 
 from __future__ import annotations
 
@@ -6,9 +7,11 @@ import re
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from reduced import Scene, scene_from_dict
+from reduced.kernels.problem import RightHandSide
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED_SCENE = ROOT / "scenes" / "seed_fourbar.toml"
@@ -109,7 +112,7 @@ class _NumpyInKernelOrder:
 
         x = self._np.asarray(x)
         if x.shape == (2,) and not args and not kwargs:
-            return _norm2.py_func(float(x[0]), float(x[1]))
+            return _norm2(float(x[0]), float(x[1]))
         return self._np.linalg.norm(x, *args, **kwargs)
 
     def dot(self, a, b):
@@ -119,7 +122,7 @@ class _NumpyInKernelOrder:
         a, b = np_.asarray(a), np_.asarray(b)
         if a.ndim == 2 and b.ndim == 1 and a.shape[0] == 2:  # K[:s].T · a[:s]
             out = np_.empty(2)
-            _dot_kt.py_func(a.T, b, b.shape[0], out)
+            _dot_kt(np_.ascontiguousarray(a.T), np_.ascontiguousarray(b, dtype=float), b.shape[0], out)
             return out
         if a.ndim == 2 and b.ndim == 2 and b.shape[1] == 2:  # D · K, each entry summed over j in turn
             out = np_.empty((a.shape[0], 2))
@@ -209,3 +212,61 @@ def spawn():
         if proc.poll() is None:
             proc.kill()
         proc.wait(timeout=60)
+
+
+class ClosedForm(RightHandSide):
+    """A closed-form problem for the compiled integrators (reduced.kernels.fixed_step, .adaptive):
+    q̈ = f(t, q, q̇, u) with u = values[load] constant on each load piece; the energy flows
+    P = power(u, q̇) (default u q̇: u a force doing work) and D = dissipation(q̇) (default 0);
+    the stop margin stop(t, q, q̇) (default: never). A Python subclass of RightHandSide: the
+    kernels call it through the interpreter (about 1 µs an evaluation), so keep runs short."""
+
+    def __init__(self, f, values=(0.0,), *, power=None, dissipation=None, stop=None):
+        self.f, self.values = f, [float(u) for u in values]
+        self._power, self._dissipation, self._stop = power, dissipation, stop
+
+    def acceleration(self, load, t, q, v):
+        return self.f(t, q, v, self.values[load])
+
+    def power(self, load, v):
+        return self.values[load] * v if self._power is None else self._power(self.values[load], v)
+
+    def dissipation(self, v):
+        return 0.0 if self._dissipation is None else self._dissipation(v)
+
+    def stop_margin(self, t, q, v):
+        return 1.0 if self._stop is None else self._stop(t, q, v)
+
+
+def run_rkn(rhs, edges, q0, v0, step, *, tableau=None, loads=None, t0=None, speed_limit=1e6, stability=True,
+            use_stop=False):
+    """rkn_chart from edges[0] (or t0) on the pieces ``edges`` (load k on piece k unless given):
+    (Outcome, t, q, v, a, energy (m, 2))."""
+    from reduced.kernels.fixed_step import RKN4, rkn_chart
+    from reduced.kernels.output import Samples
+
+    edges = np.ascontiguousarray(edges, dtype=float)
+    loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)
+    out = Samples(rhs.observation_size())
+    outcome = rkn_chart(rhs, RKN4 if tableau is None else tableau, edges, loads,
+                        float(edges[0] if t0 is None else t0), float(q0), float(v0), float(step),
+                        float(speed_limit), stability, use_stop, out)
+    t, q, v, a, _, energy = out.arrays()
+    return outcome, t, q, v, a, energy
+
+
+def run_dop853(rhs, edges, q0, v0, *, rtol=1e-12, atol=None, loads=None, sample_interval=0.05, per_step=4,
+               speed_limit=1e6, max_evaluations=1_000_000, max_step=np.inf, use_stop=False, steps=None):
+    """dop853_run on the pieces ``edges`` (load k on piece k unless given):
+    (Outcome, t, q, v, a, energy (m, 2))."""
+    from reduced.kernels.adaptive import Steps, dop853_run
+    from reduced.kernels.output import Samples
+
+    edges = np.ascontiguousarray(edges, dtype=float)
+    loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)
+    out = Samples(rhs.observation_size())
+    outcome = dop853_run(rhs, edges, loads, float(q0), float(v0), rtol, rtol if atol is None else atol,
+                         sample_interval, per_step, speed_limit, max_evaluations, max_step, use_stop, out,
+                         Steps() if steps is None else steps)
+    t, q, v, a, _, energy = out.arrays()
+    return outcome, t, q, v, a, energy

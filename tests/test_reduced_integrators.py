@@ -1,4 +1,6 @@
-"""Integrators: measured convergence order, load edges, stability detection, peak location."""
+"""Integrators on real scenes: measured convergence order, load edges, peak location, RKN4's error
+estimate, settings, the scipy path's failures. (The compiled kernels on closed forms: order, the
+tableau and its printed erratum, load edges, stability: tests/test_kernel_integrators.py.)"""
 
 from __future__ import annotations
 
@@ -10,8 +12,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from reduced import (RKN4, RKN4_AS_PRINTED, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene,
-                     scene_from_dict, simulate, solve_adaptive, solve_fixed_step)
+from reduced import (RKN4, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene, scene_from_dict,
+                     simulate, solve_adaptive)
 from reduced.integrators import MAX_EVALUATIONS
 from reduced.scenefile import hard_scene_dir
 
@@ -29,52 +31,10 @@ def constant_piece(f):
     return lambda start, end: f
 
 
-def final_error(f, exact, t_end, steps, tableau=RKN4, q0=1.0, v0=0.0):
-    """Largest |q − q_exact| over the samples of each run."""
-    errors = []
-    for h in steps:
-        tr = solve_fixed_step(constant_piece(f), (0.0, t_end), q0, v0, h, tableau=tableau).trajectory
-        errors.append(float(np.max(np.abs(tr.q - exact(tr.t)))))
-    return errors
-
-
-STEPS = [0.1, 0.05, 0.025, 0.0125]
-
-
 def assert_order(steps, errors, tableau=RKN4):
     """The fitted slope is the method's declared order ± 0.2."""
     slope = observed_order(steps, errors)
     assert abs(slope - tableau.order) <= 0.2, f"fitted order {slope:.2f}, declared {tableau.order}"
-
-
-def test_rkn4_is_fourth_order_on_harmonic_oscillator():
-    """q̈ = −q, q = cos t. Order 4 ± 0.2: the errors (1e-6 … 1e-10) sit far above round-off."""
-    errors = final_error(lambda t, q, v: -q, np.cos, 10.0, STEPS)
-    assert_order(STEPS, errors)
-
-
-def test_rkn4_is_fourth_order_when_f_depends_on_velocity():
-    """Damped oscillator q̈ = −q − 0.5 q̇, q(0) = 1, q̇(0) = 0 (closed form below)."""
-    w = np.sqrt(1 - 0.25 ** 2)
-
-    def exact(t):
-        return np.exp(-0.25 * t) * (np.cos(w * t) + 0.25 / w * np.sin(w * t))
-
-    errors = final_error(lambda t, q, v: -q - 0.5 * v, exact, 10.0, STEPS)
-    assert_order(STEPS, errors)
-
-
-def test_rkn4_is_fourth_order_when_f_is_nonlinear_in_velocity():
-    """q̈ = −q̇², q = ln(1 + t): the centrifugal term ζ q̇² makes the mechanism's f quadratic in q̇."""
-    errors = final_error(lambda t, q, v: -v * v, lambda t: np.log1p(t), 2.0, STEPS, q0=0.0, v0=1.0)
-    assert_order(STEPS, errors)
-
-
-def test_printed_seed_method_is_only_third_order():
-    """seed-notes erratum 2, README: with m2 in the third stage's position argument the method drops
-    to order 3 whenever f depends on q."""
-    errors = final_error(lambda t, q, v: -q, np.cos, 10.0, STEPS, tableau=RKN4_AS_PRINTED)
-    assert_order(STEPS, errors, RKN4_AS_PRINTED)
 
 
 # The reference for convergence studies is sampled every 0.25 ms: its quintic Hermite
@@ -147,138 +107,6 @@ def test_peak_is_located_between_samples(seed_reference):
     assert abs(coarse.peak.omega - truth) < 1e-3 * abs(largest_sample - truth)
     assert abs(coarse.peak.omega - truth) < 1e-7 * truth
     assert seed_reference.peak.time not in set(seed_reference.trajectory.t)
-
-
-def test_unstable_step_is_detected_not_returned():
-    with pytest.raises(NumericalFailure) as info:
-        solve_fixed_step(constant_piece(lambda t, q, v: -1e8 * q), (0.0, 1.0), 1.0, 0.0, 0.01)
-    assert info.value.reason == "unstable"
-
-
-def test_runaway_is_detected_without_the_stability_check():
-    with pytest.raises(NumericalFailure) as info:
-        solve_fixed_step(constant_piece(lambda t, q, v: -1e8 * q), (0.0, 1.0), 1.0, 0.0, 0.01,
-                         check_stability=False)
-    assert info.value.reason in ("unstable", "non-finite")
-
-
-# ---------------------------------------------------------------------------
-# Tableau, erratum 2, load edges and stability: independent checks
-# ---------------------------------------------------------------------------
-
-
-def special_rkn_condition(tableau) -> float:
-    """Σ_i b_i Σ_j ā_ij c_j − 1/24: the one fourth-order condition of a Nyström method for
-    q̈ = f(q) that does not follow from the quadrature conditions and the row sums
-    Σ_j ā_ij = c_i²/2 (expand the q̇ update to h⁴: the f_q f_q q̇ term has coefficient 1/24;
-    Hairer, Nørsett & Wanner I, §II.14). Written here from the tableau's entries, independently
-    of :meth:`RKNTableau.order_condition_residuals`."""
-    return sum(tableau.b[i] * sum(tableau.abar[i][j] * tableau.c[j] for j in range(i))
-               for i in range(len(tableau.c))) - 1 / 24
-
-
-def classical_rk_conditions(tableau) -> list[float]:
-    """The eight order-4 conditions of the Runge-Kutta method (a, b, c) that updates q̇:
-    when f depends on q̇ only, RKN reduces to it. Residuals, zero for classical RK4."""
-    a = np.zeros((4, 4))
-    for i, row in enumerate(tableau.a):
-        a[i, :len(row)] = row
-    b, c = np.array(tableau.b), np.array(tableau.c)
-    return [b.sum() - 1, b @ c - 1 / 2, b @ c**2 - 1 / 3, b @ c**3 - 1 / 4, b @ a @ c - 1 / 6,
-            (b * c) @ a @ c - 1 / 8, b @ a @ c**2 - 1 / 12, b @ a @ a @ c - 1 / 24]
-
-
-def test_tableau_satisfies_the_full_fourth_order_conditions():
-    """Exact rationals 1/8, 1/6, 1/3… in float64: each residual is a few ulps of 1/24, so
-    1e-15. The printed variant misses Σ b ā c = 1/24 by exactly 1/16 − 1/24 = 1/48, which
-    the package's own quadrature-condition list cannot see (it holds for both tables)."""
-    assert abs(special_rkn_condition(RKN4)) < 1e-15
-    assert max(abs(r) for r in classical_rk_conditions(RKN4)) < 1e-15
-    assert special_rkn_condition(RKN4_AS_PRINTED) == pytest.approx(1 / 48, abs=1e-15)
-
-
-def test_printed_method_is_fourth_order_when_f_does_not_depend_on_q():
-    """Erratum 2 is in the position argument of the third stage only: on q̈ = −q̇² (f free of
-    q) the printed method gives the same numbers as RKN4 and the same order 4 (± 0.2)."""
-    f, exact = (lambda t, q, v: -v * v), (lambda t: np.log1p(t))
-    printed = final_error(f, exact, 2.0, STEPS, tableau=RKN4_AS_PRINTED, q0=0.0, v0=1.0)
-    corrected = final_error(f, exact, 2.0, STEPS, q0=0.0, v0=1.0)
-    assert_order(STEPS, printed, RKN4)
-    np.testing.assert_allclose(printed, corrected, rtol=1e-12, atol=0)  # same arithmetic, round-off
-
-
-# q̈ = −q + P for t < t_e, −q after; q(0) = q̇(0) = 0. Closed form:
-# q = P (1 − cos t) before the edge, A cos(t − t_e) + B sin(t − t_e) after it, with
-# A = P (1 − cos t_e), B = P sin t_e (q and q̇ continuous at t_e).
-EDGE, PULSE = 0.3037, 2.0
-EDGE_STEPS = [0.04, 0.02, 0.01, 0.005]  # t_e/h = 7.6, 15.2, 30.4, 60.7: never a whole number
-
-
-def pulse_exact(t):
-    t = np.asarray(t)
-    after = PULSE * (1 - np.cos(EDGE)) * np.cos(t - EDGE) + PULSE * np.sin(EDGE) * np.sin(t - EDGE)
-    return np.where(t < EDGE, PULSE * (1 - np.cos(t)), after)
-
-
-def pulse_errors(rhs_on_piece, breakpoints):
-    errors = []
-    for h in EDGE_STEPS:
-        tr = solve_fixed_step(rhs_on_piece, (0.0, 1.0), 0.0, 0.0, h, breakpoints=breakpoints).trajectory
-        errors.append(float(np.max(np.abs(tr.q - pulse_exact(tr.t)))))
-    return errors
-
-
-def test_step_boundary_on_a_load_edge_keeps_fourth_order_closed_form():
-    """With the edge as a breakpoint (and each piece's own constant load) the driver gives
-    order 4 ± 0.2 against the closed form (measured 3.96; errors 6e-9 … 2e-12, above the
-    ~1e-15 round-off). The same load evaluated pointwise with no breakpoint lets one step
-    straddle the jump, and the order collapses (measured ~1.1, erratic): the bound 2.5
-    separates the two behaviours by a wide margin."""
-    def on_piece(start, end):
-        value = PULSE if 0.5 * (start + end) < EDGE else 0.0
-        return lambda t, q, v: -q + value
-
-    def pointwise(start, end):
-        return lambda t, q, v: -q + (PULSE if t < EDGE else 0.0)
-
-    with_edge = pulse_errors(on_piece, (EDGE,))
-    assert_order(EDGE_STEPS, with_edge)
-    straddling = pulse_errors(pointwise, ())
-    assert observed_order(EDGE_STEPS, straddling) < 2.5
-    assert min(straddling) > 100 * max(with_edge)
-
-
-def test_stability_check_rejects_a_damped_stiff_step_before_it_is_taken():
-    """q̈ = −1e4 q − 50 q̇: λ = −25 ± 96.8i, h·λ = −0.75 ± 2.9i at h = 0.03 s, |R| = 1.24 > 1.
-    With the speed limit out of the way the linearized check alone must fire, at t = 0."""
-    f = constant_piece(lambda t, q, v: -1e4 * q - 50.0 * v)
-    with pytest.raises(NumericalFailure) as info:
-        solve_fixed_step(f, (0.0, 0.3), 1.0, 0.0, 0.03, speed_limit=1e300)
-    assert info.value.reason == "unstable" and info.value.time == 0.0
-    # Inside the stability region (h·λ = −0.025 ± 0.097i at 1 ms) no failure is raised.
-    solve_fixed_step(f, (0.0, 0.3), 1.0, 0.0, 1e-3, speed_limit=1e300)
-
-
-def test_undamped_step_outside_the_stability_interval_is_detected():
-    """q̈ = −1e4 q (ω = 100 rad/s) at h = 0.03 s: hω = 3 > 2√2, |R(3i)| = 1.5 per step; over
-    0.3 s the amplitude grows ~13× (the exact motion stays within √(1 + 1e-4) ≈ 1)."""
-    with pytest.raises(NumericalFailure) as info:
-        solve_fixed_step(constant_piece(lambda t, q, v: -1e4 * q), (0.0, 0.3), 1.0, 1.0, 0.03,
-                         speed_limit=1e300)
-    assert info.value.reason == "unstable" and info.value.time == 0.0
-    # Inside the interval (hω = 2.7 at h = 0.027 s) the undamped mode is accepted.
-    solve_fixed_step(constant_piece(lambda t, q, v: -1e4 * q), (0.0, 0.3), 1.0, 1.0, 0.027,
-                     speed_limit=1e300)
-
-
-def test_a_physically_growing_mode_is_not_refused():
-    """q̈ = 100 q (λ = ±10, an inverted pendulum) at h = 0.01 s: the growing mode has
-    R(0.1) = 1.10517 < e^0.1 = 1.10517 (by 8e-8 per step): the method follows the physics and
-    no instability is reported; after 100 steps q matches cosh(10) to 3e-6 relative
-    (measured; 100 × 8e-8 / 1.1 × ½ of the two modes), bound 1e-5."""
-    tr = solve_fixed_step(constant_piece(lambda t, q, v: 100.0 * q), (0.0, 1.0), 1.0, 0.0, 0.01,
-                          speed_limit=1e300).trajectory
-    assert tr.q[-1] == pytest.approx(np.cosh(10.0), rel=1e-5)
 
 
 # ---------------------------------------------------------------------------
@@ -411,11 +239,11 @@ def test_overflowing_acceleration_is_non_finite():
 
 
 def test_initial_speed_beyond_the_limit_is_refused_at_once():
-    for solve in (solve_adaptive, lambda *a: solve_fixed_step(*a, 1e-3)):
-        with pytest.raises(NumericalFailure) as info:
-            solve(constant_piece(lambda t, q, v: 0.0), (0.0, 1.0), 0.0, 1e308)
-        assert info.value.reason == "unstable" and info.value.time == 0.0
-        assert "initial speed" in str(info.value)
+    """(The compiled kernels' SPEED at t0: tests/test_kernel_integrators.py.)"""
+    with pytest.raises(NumericalFailure) as info:
+        solve_adaptive(constant_piece(lambda t, q, v: 0.0), (0.0, 1.0), 0.0, 1e308)
+    assert info.value.reason == "unstable" and info.value.time == 0.0
+    assert "initial speed" in str(info.value)
 
 
 def test_energy_imbalance_beyond_the_bound_is_a_failure(monkeypatch):
@@ -469,17 +297,3 @@ def test_energy_gate_has_an_absolute_floor(patch):
     assert result.diagnostics["energy_scale_J"] > 1.0
 
 
-def test_a_growing_oscillation_resolved_by_the_step_is_not_refused():
-    """q̈ = 2a q̇ − (a² + b²) q: modes λ = a ± ib grow. With h = 4 ms, a = 42.25, b = 56 (hλ =
-    0.169 + 0.224j, the local mode the seed shows at h = 4 ms), |R(hλ)| exceeds e^{0.169} by
-    O(|hλ|⁵) ~ 1e-5, an accuracy defect, not instability: the run is not refused and matches
-    q = e^{at} cos(bt) to RK4's accuracy (10 steps: measured error 1.8e-4 of e^{at}; bound 1e-3).
-    A method that grows the mode much faster than the problem still is refused (h = 40 ms)."""
-    a, b = 42.25, 56.0
-    f = constant_piece(lambda t, q, v: 2 * a * v - (a * a + b * b) * q)
-    tr = solve_fixed_step(f, (0.0, 0.04), 1.0, a, 0.004, speed_limit=1e300).trajectory
-    exact = np.exp(a * tr.t) * np.cos(b * tr.t)
-    assert np.max(np.abs(tr.q - exact) / np.exp(a * tr.t)) < 1e-3
-    with pytest.raises(NumericalFailure) as info:
-        solve_fixed_step(f, (0.0, 0.4), 1.0, a, 0.04, speed_limit=1e300)
-    assert info.value.reason == "unstable"
