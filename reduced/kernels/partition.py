@@ -1,3 +1,5 @@
+# cython: wraparound=True
+# (the chart switching indexes Python arrays from their end; it has no hot loop)
 """Coordinate partitioning: a whole run of charts, switching at dead centres.
 
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
