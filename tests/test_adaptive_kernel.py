@@ -17,8 +17,7 @@ Scenes:
   margin falls through 0 in piece 2: the coordinate switch, the stop event. Without the stop
   event the chart is walked past the limit and the acceleration is NaN.
 
-Fast: a few seconds after numba has compiled (compiling the kernel and the physics cold costs
-about a minute once; numba caches them on disk).
+Fast: a few seconds.
 """
 
 from __future__ import annotations
@@ -32,12 +31,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-pytest.importorskip("numba")
-
 from reduced import MechanismModel, default_scene_path, load_scene, scene_from_dict  # noqa: E402
 from reduced.errors import NumericalFailure  # noqa: E402
 from reduced.integrators import restart, solve_adaptive  # noqa: E402
 from reduced.kernels import adaptive as K  # noqa: E402
+from reduced.kernels import output  # noqa: E402
 from reduced.kernels import physics  # noqa: E402
 from reduced.partition import _start, load_pieces  # noqa: E402
 from reduced.scenefile import hard_scene_dir  # noqa: E402
@@ -100,7 +98,7 @@ class Case:
         return self.chart().stop_margin(0.0, q, 0.0)
 
     def run(self, *, chart=None, **kw) -> K.RunResult:
-        return K.run(self.arrays, self.chart() if chart is None else chart, self.edges, self.loads,
+        return K.run(self.chart() if chart is None else chart, self.edges, self.loads,
                      self.q0, self.v0, **{"max_step": self.max_step, **kw})
 
 
@@ -214,7 +212,7 @@ def test_steps_states_and_evaluations_equal_scipy(rtol, name):
     case = make()
     r = case.run(rtol=rtol, use_stop=use_stop, **ALL_STEPS)
     sols = scipy_pieces(case, rtol, use_stop=use_stop)
-    assert r.status == K.OK
+    assert r.status == output.OK
     t_ref = np.concatenate([s.t for s in sols])
     y_ref = np.concatenate([s.y for s in sols], axis=1)
     assert r.t.shape == t_ref.shape
@@ -269,7 +267,7 @@ def test_samples_equal_xval_dense_samples(rtol, name, interval):
     r = case.run(rtol=rtol, sample_interval=interval, per_step=4, use_stop=use_stop)
     ref = adaptive(case, rtol, use_stop=use_stop, sample_interval=interval)
     traj = ref.trajectory
-    assert r.status == K.OK and r.stopped == ref.stopped == use_stop
+    assert r.status == output.OK and r.stopped == ref.stopped == use_stop
     assert r.t.shape == traj.t.shape
     np.testing.assert_allclose(r.t, traj.t, rtol=RTOL_EQUAL, atol=0)
     np.testing.assert_allclose(r.q, traj.q, rtol=RTOL_EQUAL, atol=ATOL_EQUAL)
@@ -346,7 +344,7 @@ def test_nonfinite_acceleration():
     case = swing()
     chart = case.chart()
     r = case.run(chart=chart, rtol=1e-9)
-    assert r.status == K.NONFINITE
+    assert r.status == output.NONFINITE
     assert chart.S[physics.STATUS] == physics.SINGULAR
     with pytest.raises(NumericalFailure) as exc:
         adaptive(case, 1e-9)
@@ -359,7 +357,7 @@ def test_nonfinite_acceleration():
 def test_step_size_when_budget_spent():
     case = seed()
     r = case.run(rtol=1e-9, max_evaluations=50)
-    assert r.status == K.STEP_SIZE
+    assert r.status == output.STEP_SIZE
     assert r.n_evaluations == 50
     with pytest.raises(NumericalFailure) as exc:
         adaptive(case, 1e-9, max_evaluations=50)
@@ -370,7 +368,7 @@ def test_step_size_when_budget_spent():
 def test_speed_limit():
     case = seed()
     r = case.run(rtol=1e-9, speed_limit=0.5)
-    assert r.status == K.SPEED
+    assert r.status == output.SPEED
     assert abs(r.fail_value) > 0.5
     with pytest.raises(NumericalFailure) as exc:
         adaptive(case, 1e-9, speed_limit=0.5)
@@ -380,7 +378,7 @@ def test_speed_limit():
     initial = moving.run(speed_limit=1.0)
     # checked before any evaluation, as solve_adaptive does (a check of the first sample would
     # give the same status and time)
-    assert (initial.status, initial.fail_time, initial.t.size) == (K.SPEED, 0.0, 0)
+    assert (initial.status, initial.fail_time, initial.t.size) == (output.SPEED, 0.0, 0)
     assert (initial.n_evaluations, initial.n_sample_evaluations) == (0, 0)
     with pytest.raises(NumericalFailure) as exc:
         adaptive(moving, 1e-9, speed_limit=1.0)
