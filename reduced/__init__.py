@@ -1,7 +1,7 @@
 """Reduced solver: Eksergian's equation 𝔍(q) q̈ + ζ(q) q̇² + dV/dq = Q for one-DOF linkages.
 
 The names below load their submodule on first use (PEP 562), so that ``import reduced.scene``
-or ``reduced.errors`` does not load numba and the compiled kernels.
+or ``reduced.errors`` does not load the compiled kernels.
 """
 
 from __future__ import annotations

@@ -352,7 +352,7 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
 
 def _solution(model: MechanismModel, segments, switches, observed=None, energy=None) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
-    (:func:`reduced.kernels.physics.observe`), or None to walk each chart to its samples;
+    (:meth:`reduced.kernels.physics.Chart.observe`), or None to walk each chart to its samples;
     ``energy``: per segment, the energy flows the compiled run integrated (or None)."""
     n = len(model.coordinate_names)
     if observed is None:

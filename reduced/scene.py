@@ -210,8 +210,8 @@ MUJOCO_MAX_ITERATIONS = 10_000
 REDUCED_METHODS = ("dop853", "rkn4", "radau", "scipy-dop853")
 
 # The engines' default settings, written once: ReducedSettings and MujocoSettings take them as
-# their defaults and the command line's help prints them (this module loads neither numba nor
-# MuJoCo). Why these values: reduced.engine (accuracy requests) and reference_models.run.
+# their defaults and the command line's help prints them (this module loads neither the compiled
+# core nor MuJoCo). Why these values: reduced.engine (accuracy requests) and reference_models.run.
 REDUCED_DEFAULT_METHOD = "dop853"
 REDUCED_DEFAULT_RTOL = {"dop853": 1e-12, "scipy-dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
 REDUCED_DEFAULT_STEP = 5e-4  # s, RKN4

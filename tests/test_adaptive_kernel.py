@@ -1,8 +1,8 @@
 """The compiled DOP853 driver (reduced.kernels.adaptive) against scipy on real scenes.
 
-The kernel calls the compiled physics (``reduced.kernels.problem``: Eksergian's equation in one
-chart of a linkage); scipy's side calls the same njit ``acceleration`` and ``stop_margin`` from
-Python, so any difference is the integrator's. A chart is mutable (its Newton walk starts from
+The kernel calls the compiled physics (a ``reduced.kernels.physics.Chart``, the
+``RightHandSide`` of Eksergian's equation in one chart of a linkage); scipy's side calls the same
+chart's ``acceleration`` and ``stop_margin`` from Python, so any difference is the integrator's. A chart is mutable (its Newton walk starts from
 the last configuration), so every run, the kernel's and scipy's, gets a FRESH chart started
 identically (:func:`Case.chart`).
 

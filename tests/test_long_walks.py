@@ -1,6 +1,6 @@
 """Walks of a chart over hundreds of radians, as a piece's samples are walked to from its end.
 
-Not in test_reduced_kinematics.py, which test_no_jit runs as plain Python: these walks and runs
+Not in test_reduced_kinematics.py, which test_pure_python runs uncompiled: these walks and runs
 take minutes there."""
 
 from __future__ import annotations

@@ -188,7 +188,7 @@ def test_the_restart_after_the_pulse_keeps_the_step_of_before(method):
                                   SEED_SCENE.parent / "hard" / "dead_centre.toml"], ids=lambda p: p.stem)
 def test_the_fields_a_run_records_at_its_samples_are_a_walk_to_them(method, path):
     """The compiled runs record each sample's coefficient fields where they evaluate it
-    (reduced.kernels.physics.observe), for the outputs and the energy audit, instead of walking
+    (reduced.kernels.physics.Chart.observe), for the outputs and the energy audit, instead of walking
     every chart to its samples again: the same fields as that walk (the chart's own path, from
     its start), to round-off. Measured ≤ 2.6e-13 of each field's largest value (DOP853 on the
     seed; the slider-crank and the 7 charts of dead_centre ≤ 4.5e-14). Bound 1e-12."""

@@ -35,6 +35,9 @@ class _SourcesFirst(importlib.machinery.PathFinder):
 if PURE_PYTHON and not any(f is _SourcesFirst for f in sys.meta_path):
     import importlib.util
 
+    if importlib.util.find_spec("cython") is None:  # the sources' annotations come from Cython's shadow module
+        raise ImportError("XVAL_PURE_PYTHON=1 runs the kernels' sources, which import Cython's pure-Python "
+                          "module: pip install cython (the `test` extra has it)")
     sys.meta_path.insert(0, _SourcesFirst)
 
 

@@ -186,6 +186,7 @@ def _npmax(a: cython.double, b: cython.double) -> cython.double:
 
 
 @cython.cfunc
+@cython.exceptval(check=False)
 def _dense_eval(t: cython.double, t_old: cython.double, h: cython.double, y_old0: cython.double,
                 y_old1: cython.double, F: cython.double[:, :, ::1], j: cython.Py_ssize_t,
                 c: cython.Py_ssize_t) -> tuple[cython.double, cython.double]:
@@ -513,8 +514,8 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
     g_new: cython.double
     min_step: cython.double
     step_rejected: cython.bint
-    h: cython.double
-    t_new: cython.double
+    h: cython.double = 0.0      # (set by every accepted attempt: gcc cannot see it)
+    t_new: cython.double = t
     t_old: cython.double
     yn0: cython.double = 0.0
     yn1: cython.double = 0.0
@@ -718,6 +719,12 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
     if out.width != rhs.observation_size():
         raise ValueError(f"Samples width {out.width} != the problem's observation_size() "
                          f"{rhs.observation_size()}")
+    if piece_load.shape[0] < 1 or piece_edges.shape[0] != piece_load.shape[0] + 1:
+        raise ValueError(f"{piece_edges.shape[0]} edges for {piece_load.shape[0]} load pieces: one more edge "
+                         "than pieces, at least one piece")
+    if not (rtol > 0.0 and atol > 0.0 and sample_interval > 0.0 and per_step >= 1):
+        raise ValueError(f"rtol {rtol}, atol {atol}, sample_interval {sample_interval} positive; per_step "
+                         f"{per_step} at least 1")
     outcome: Outcome = Outcome()
     K: cython.double[:, ::1] = np.empty((_NSE, 2))
     P: cython.double[:, ::1] = np.empty((_NSE, 2))

@@ -297,6 +297,11 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
                          f"{rhs.observation_size()}")
     if tableau.c[0] != 0.0:
         raise ValueError("the kernel reuses f at a step's end as the next first stage: c[0] must be 0")
+    if loads.shape[0] < 1 or edges.shape[0] != loads.shape[0] + 1:
+        raise ValueError(f"{edges.shape[0]} edges for {loads.shape[0]} load pieces: one more edge than pieces, "
+                         "at least one piece")
+    if not step > 0.0:
+        raise ValueError(f"step {step}: positive and finite")
     npieces: cython.Py_ssize_t = loads.shape[0]
     s: cython.Py_ssize_t = tableau.stages
     first: cython.Py_ssize_t = 0

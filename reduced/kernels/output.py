@@ -4,8 +4,8 @@ A :class:`Samples` holds time, q, q̇, q̈, what the problem observed (:class:`.
 and the two energy flows (the work done on the system and the energy dissipated since the
 run's start, J) of every sample, in arrays that grow by doubling. An integrator reserves room
 for a piece's samples before it writes them (:meth:`Samples.reserve`), never per step: a run
-reallocates O(log m) times for m samples, and a :class:`Samples` reused across runs (a sweep's
-variants) not at all once it is large enough. Several charts of one run append to the same
+reallocates O(log m) times for m samples (a :class:`Samples` may be cleared and reused across
+runs, and then reallocates only while it grows). Several charts of one run append to the same
 buffers, so a run's samples come out in one piece.
 """
 

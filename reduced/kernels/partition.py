@@ -155,7 +155,7 @@ def run_dop853(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: c
     """DOP853 at rtol = atol ``rtol`` (scipy's algorithm, :mod:`.adaptive`), sampled no coarser
     than ``sample_interval`` (s), each step in at least ``per_step`` parts; ``max_evaluations`` of q̈
     in all; charts that meet a singular position retried with the step capped to the fractions
-    ``retry_caps`` of their span; ``steps`` (:class:`.adaptive.Steps`), the step storage, reused
+    ``retry_caps`` of their span; ``steps`` (:class:`.adaptive.Steps`), the step storage (may be reused), taken
     when given."""
     steps = adaptive.Steps() if steps is None else steps
 

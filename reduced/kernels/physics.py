@@ -938,6 +938,8 @@ class Chart(RightHandSide):
         reach of the walk) or WORK_SPENT (the walk needed more than MAX_WALK_CLOSURES closures)."""
         if self.s[VALID] == 1 and self.value[0] == value:
             return True
+        if self.s[INDEPENDENT] < 0:
+            raise ValueError("a chart without a coordinate (kinematics_at's) cannot be evaluated: start() it first")
         self.s[VALID] = 0
         status: cython.int = self._walk(value)
         if status != OK:
@@ -995,6 +997,9 @@ class Chart(RightHandSide):
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
         j: cython.Py_ssize_t
+        if not (0 <= row < out.shape[0] and out.shape[1] >= nf + 3 * n):
+            raise IndexError(f"observe: row {row} of an array of shape ({out.shape[0]}, {out.shape[1]}) "
+                             f"(rows of {nf + 3 * n} values)")
         for k in range(nf):
             out[row, k] = self.fields[k]
         for r in range(3):
@@ -1044,6 +1049,8 @@ class Chart(RightHandSide):
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         v: cython.double
+        if x.shape[0] != n or row.shape[0] != n:
+            raise ValueError(f"kinematics_at: x and row of {n} coordinates, not {x.shape[0]} and {row.shape[0]}")
         for c in range(n):
             self.x[c] = x[c]
         self._angle_trig()
@@ -1074,6 +1081,9 @@ class Chart(RightHandSide):
         n: cython.Py_ssize_t = self.n
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
+        if x.shape[0] != n or not 0 <= independent < n:
+            raise ValueError(f"start: x of {n} coordinates (not {x.shape[0]}) and a coordinate in [0, {n}), "
+                             f"not {independent}")
         self.s[INDEPENDENT] = independent
         self.s[SIGN] = 0
         self.s[STATUS] = OK
@@ -1102,6 +1112,10 @@ class Chart(RightHandSide):
         r: cython.Py_ssize_t
         j: cython.Py_ssize_t
         nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        m: cython.Py_ssize_t = values.shape[0]
+        if not (fields.shape[0] >= m and fields.shape[1] >= nf and kin.shape[0] >= m and kin.shape[1] == 3
+                and kin.shape[2] == self.n):
+            raise ValueError(f"walk: fields ({m}, ≥{nf}) and kin ({m}, 3, {self.n}) for {m} values")
         self.reset()
         for s in range(values.shape[0]):
             if not self.evaluate(values[s]):
