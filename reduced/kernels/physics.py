@@ -336,7 +336,7 @@ class Chart(RightHandSide):
         o = 0
         for shape in ((1,), (3, n), (3, n), (3, n), (nfields,), (n, n), (n,), (2, n), (n,), (n,), (n,),
                       (DEPTH, 3, n), (DEPTH,), (rows, 4)):
-            size = int(np.prod(shape))
+            size = math.prod(shape)
             views.append(self.W[o:o + size].reshape(shape))
             o += size
         (self.value, self.origin, self.last, self.kin, self.fields, self.A, self.rhs, self.trig, self.norms,
@@ -355,7 +355,7 @@ class Chart(RightHandSide):
         n = int(self.n)
         for name, shape in (("value", (1,)), ("start", (3, n)), ("last", (3, n)), ("kin", (3, n)),
                             ("fields", (field_count(self.model),))):
-            size = int(np.prod(shape))
+            size = math.prod(shape)
             out[name] = self.W[o:o + size].reshape(shape)
             o += size
         return out
