@@ -1,9 +1,9 @@
 """Build of the compiled core: the reduced solver's kernels (Cython 3, pure-Python mode).
 
-The kernels are ordinary ``.py`` files annotated for Cython (``reduced/kernels``); ``pip install``
+The kernels are ordinary ``.py`` files annotated for Cython (``xval/reduced/kernels``); ``pip install``
 and ``pip wheel`` compile each into a C extension of the same module name, which Python imports
 in preference to the ``.py`` beside it (``XVAL_PURE_PYTHON=1`` imports the ``.py`` instead:
-``reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
+``xval/reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
 
 Flags (the README's "Compiled core" says why): ``-ffp-contract=off`` (no fused multiply-add:
 a*b+c rounds twice, as numpy and scipy compute it, on every compiler and CPU) and no fast-math
@@ -44,11 +44,11 @@ CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"] + (["-O0", "-g"] if CHEC
 
 # Cython's support code (memoryviews: ~25 000 lines of C) compiled once, in a module of its own
 # that the kernels import, rather than into each of them (5 s of gcc per kernel)
-SHARED = "reduced.kernels._cython"
+SHARED = "xval.reduced.kernels._cython"
 
 extensions = [Extension(SHARED, sources=[], extra_compile_args=CFLAGS)] + [
-    Extension(f"reduced.kernels.{name}", [f"reduced/kernels/{name}.py"], extra_compile_args=CFLAGS)
-    for name in KERNELS if os.path.exists(f"reduced/kernels/{name}.pxd")
+    Extension(f"xval.reduced.kernels.{name}", [f"xval/reduced/kernels/{name}.py"], extra_compile_args=CFLAGS)
+    for name in KERNELS if os.path.exists(f"xval/reduced/kernels/{name}.pxd")
 ]
 
 setup(cmdclass={"build_ext": ParallelBuildExt},

@@ -12,14 +12,14 @@ The issue's targets, as written:
 
 The sweep: ``scenes/seed_fourbar.toml`` with ``dampers.0.coefficient=40:70:25`` ×
 ``bodies.coupler.mass=35:45:40`` (1 000 variants; the nominal 55 N·s/m and 40 kg inside the
-ranges), made by the package's own ``compare.sweep_spec`` (``load_sweep``, ``spec_from_args``,
-``check``, ``variant_values``, ``apply``) and ``reduced.scenefile.scene_from_dict``, as
+ranges), made by the package's own ``xval.compare.sweep_spec`` (``load_sweep``, ``spec_from_args``,
+``check``, ``variant_values``, ``apply``) and ``xval.reduced.scenefile.scene_from_dict``, as
 ``xval sweep`` makes them.
 
 What is timed (``time.perf_counter``, wall; the machine is small and shared, so every figure
 is one run unless said otherwise, and none is asserted):
 
-1. Accuracy first: on the nominal scene, DOP853 (``reduced.engine.simulate``) at rtol 1e-9,
+1. Accuracy first: on the nominal scene, DOP853 (``xval.reduced.engine.simulate``) at rtol 1e-9,
    1e-10, 1e-11 against rtol 1e-13, relative error of ``EngineResult.peak.omega`` (the peak
    located between samples); the loosest rtol within 1e-8 is the first candidate (checked at the
    grid's four corners too). The nominal scene is not enough: every variant's peak is then
@@ -29,14 +29,14 @@ is one run unless said otherwise, and none is asserted):
    until one holds on every variant; that one is timed. The 1 000 variants: (a) serially in
    this process: building every scene (``apply`` + ``scene_from_dict``) and
    ``simulate(scene, settings)`` of each (a NumericalFailure caught and counted), timed apart
-   and together; (b) over both cores with ``compare.pool.ordered_map`` (the sweep's pool) in
-   chunks of ``compare.sweep.chunk_size`` variants, each worker building and simulating its
+   and together; (b) over both cores with ``xval.compare.pool.ordered_map`` (the sweep's pool) in
+   chunks of ``xval.compare.sweep.chunk_size`` variants, each worker building and simulating its
    variants, pool start-up included. Printed: seconds, ms per variant, ratio to 2 s. A split of one
    variant's time (median over a few variants): scene build, ``MechanismModel``,
-   ``reduced.engine.integrate`` (what ``EngineResult.wall_s`` times), ``energy_audit``, the
+   ``xval.reduced.engine.integrate`` (what ``EngineResult.wall_s`` times), ``energy_audit``, the
    peak search, and the rest of ``simulate``.
 2. MuJoCo on a subset of the same variants (every k-th; the whole 1 000 would take minutes):
-   (a) ours, ``reference_models.run.simulate_mujoco(scene, compare.settings.mujoco_settings
+   (a) ours, ``xval.reference_models.run.simulate_mujoco(scene, xval.compare.settings.mujoco_settings
    (scene))`` per variant, the settings ``xval sweep`` uses (an automatic timestep: a run at h
    and one at h/2 compared, h halved until they agree; the finer run is the result), serially,
    and over two processes with ``ordered_map``; (b) bare ``mujoco.rollout.rollout`` on the same
@@ -63,7 +63,7 @@ is one run unless said otherwise, and none is asserted):
    ``--scheduler`` on a ``distributed.LocalCluster(n_workers=2, threads_per_worker=1,
    processes=True)`` started here; ``sweep.csv`` rows compared as text after dropping the
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
-   time-based columns of ``compare.sweep.FIGURE_COLUMNS``). Exit status 1 if any row differs.
+   time-based columns of ``xval.compare.sweep.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
     python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
                                [--reduced-sizes 1000,10000,100000]
@@ -95,12 +95,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from compare.pool import ordered_map  # noqa: E402
-from compare.sweep import chunk_size  # noqa: E402
-from compare.sweep_spec import (ENGINE_CHOICES, Engines, apply, check, count, load_sweep, spec_from_args,  # noqa: E402
+from xval.compare.pool import ordered_map  # noqa: E402
+from xval.compare.sweep import chunk_size  # noqa: E402
+from xval.compare.sweep_spec import (ENGINE_CHOICES, Engines, apply, check, count, load_sweep, spec_from_args,  # noqa: E402
                                 variant_values)
-from reduced import ReducedSettings, default_scene_path  # noqa: E402
-from reduced.scenefile import scene_from_dict  # noqa: E402
+from xval.reduced import ReducedSettings, default_scene_path  # noqa: E402
+from xval.reduced.scenefile import scene_from_dict  # noqa: E402
 
 DAMPER, MASS = "dampers.0.coefficient", "bodies.coupler.mass"
 DAMPER_RANGE, MASS_RANGE = (40.0, 70.0), (35.0, 45.0)
@@ -133,7 +133,7 @@ def make_spec(path: Path, n: int):
 
 
 def build(data, values, source):
-    with warnings.catch_warnings():  # as compare.sweep.run_variant
+    with warnings.catch_warnings():  # as xval.compare.sweep.run_variant
         warnings.simplefilter("ignore")
         return scene_from_dict(apply(data, values), source)
 
@@ -144,15 +144,15 @@ _W: dict = {}
 
 
 def _init(data, source, settings):
-    from compare.pool import ignore_interrupts
+    from xval.compare.pool import ignore_interrupts
 
     ignore_interrupts()
     _W.update(data=data, source=source, settings=settings)
 
 
 def _reduced_chunk(values_list):
-    from reduced.engine import simulate
-    from reduced.errors import NumericalFailure
+    from xval.reduced.engine import simulate
+    from xval.reduced.errors import NumericalFailure
 
     out = []
     for v in values_list:
@@ -171,7 +171,7 @@ def pool_peaks(values, data, source, settings):
 
 
 def _mujoco_chunk(values_list):
-    from reference_models.run import simulate_mujoco
+    from xval.reference_models.run import simulate_mujoco
 
     return [simulate_mujoco(build(_W["data"], v, _W["source"]), _W["settings"]).peak.omega for v in values_list]
 
@@ -183,10 +183,10 @@ def chunks(items, size):
 # -- part 1: the reduced engine ---------------------------------------------------------------
 
 def part1(path: Path, n: int) -> ReducedSettings:
-    from reduced.dynamics import MechanismModel
-    from reduced.energy import energy_audit
-    from reduced.engine import integrate, simulate
-    from reduced.errors import NumericalFailure
+    from xval.reduced.dynamics import MechanismModel
+    from xval.reduced.energy import energy_audit
+    from xval.reduced.engine import integrate, simulate
+    from xval.reduced.errors import NumericalFailure
 
     data, spec = make_spec(path, n)
     nominal = scene_from_dict({k: v for k, v in data.items() if k != "sweep"}, str(path))
@@ -285,7 +285,7 @@ def part1(path: Path, n: int) -> ReducedSettings:
             (f"(b) 2 processes, ordered_map, chunks of {size}", t_pool)]
     for label, t in rows:
         print(f"   {label:40s} {t:10.2f} {t / n * 1e3:11.2f} {t / 2.0:12.1f}x")
-    print(f"   of (a)'s simulate(): EngineResult.wall_s (reduced.engine.integrate) sums to {t_wall_s:.2f} s "
+    print(f"   of (a)'s simulate(): EngineResult.wall_s (xval.reduced.engine.integrate) sums to {t_wall_s:.2f} s "
           f"({t_wall_s / t_sim:.0%})")
     print(f"   peaks of (b) identical to (a): {'yes' if same else 'NO'}")
 
@@ -326,9 +326,9 @@ def part2(path: Path, n: int, subset: int) -> None:
     import mujoco
     from mujoco import rollout
 
-    from compare.settings import mujoco_settings
-    from reference_models.build import initial_qpos_qvel
-    from reference_models.run import _at_timestep, build_model, control_sequence, simulate_mujoco
+    from xval.compare.settings import mujoco_settings
+    from xval.reference_models.build import initial_qpos_qvel
+    from xval.reference_models.run import _at_timestep, build_model, control_sequence, simulate_mujoco
 
     data, spec = make_spec(path, n)
     values = list(variant_values(spec))
@@ -382,7 +382,7 @@ def part2(path: Path, n: int, subset: int) -> None:
     def batch(h, entries):
         models = [mm for _, mm in entries]
         states, ctrls = [], []
-        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as reference_models.run._n_steps
+        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as xval.reference_models.run._n_steps
         for s, mm in entries:
             d = mujoco.MjData(mm)
             qpos0, qvel0 = initial_qpos_qvel(s)
@@ -441,7 +441,7 @@ def part2(path: Path, n: int, subset: int) -> None:
 
 def xval_command() -> list[str]:
     exe = Path(sys.executable).with_name("xval")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "compare.cli"]
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "xval.compare.cli"]
 
 
 def _tree(pid: int) -> list[int]:

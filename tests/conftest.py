@@ -26,7 +26,7 @@ def pytest_sessionstart(session):
     """Stop at once, with the fix, when the compiled core is missing: a checkout that was not
     installed (``pip install -e .`` builds the kernels) would otherwise run every kernel as plain
     Python (``XVAL_PURE_PYTHON``, the debug path), and the suite for hours."""
-    from reduced import kernels
+    from xval.reduced import kernels
 
     if not kernels.PURE_PYTHON and not kernels.compiled():
         pytest.exit("the reduced solver's kernels are not compiled: run `pip install -e .` (or "
@@ -42,18 +42,18 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture
 def saved_figures(monkeypatch) -> list:
-    """The matplotlib figures compare.plots saves from now on (still saved, to their files), in
+    """The matplotlib figures xval.compare.plots saves from now on (still saved, to their files), in
     order: a test reads what a plot or drawing drew without replacing how it is drawn."""
-    import compare.plots
+    import xval.compare.plots
 
     kept = []
-    real = compare.plots._save
+    real = xval.compare.plots._save
 
     def keep(fig, path):
         real(fig, path)
         kept.append(fig)
 
-    monkeypatch.setattr(compare.plots, "_save", keep)
+    monkeypatch.setattr(xval.compare.plots, "_save", keep)
     return kept
 
 

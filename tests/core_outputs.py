@@ -31,8 +31,8 @@ def outputs(path: Path, method: str) -> dict:
     (q, q̇) at N_TIMES times over the horizon (the run's own interpolant), or its failure.
     The run's own accuracy check is off (``check_error=False``), so that RKN4 at its default
     step records a trajectory on the hard scenes too, where its estimate refuses the run."""
-    from compare.settings import reduced_settings
-    from reduced import NumericalFailure, load_scene, simulate
+    from xval.compare.settings import reduced_settings
+    from xval.reduced import NumericalFailure, load_scene, simulate
 
     scene = load_scene(path)
     try:

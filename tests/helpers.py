@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reduced import Scene, scene_from_dict
-from reduced.kernels.problem import RightHandSide
+from xval.reduced import Scene, scene_from_dict
+from xval.reduced.kernels.problem import RightHandSide
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED_SCENE = ROOT / "scenes" / "seed_fourbar.toml"
@@ -69,7 +69,7 @@ def coefficients_along(model, qs) -> list:
     near q0 (MechanismModel.assemble is Newton from x0 and does not converge half a revolution
     away). Not the walked chart's own coefficients: those come from A factored before Newton's
     last step, up to ~1e-10 of V from the ones at the x it returns. The input must be a coordinate."""
-    from reduced.partition import Chart
+    from xval.reduced.partition import Chart
 
     chart = Chart(model, model.input_coordinate, model.x0)
     return [model.coefficients_at(chart.kinematics(float(q)).x) for q in qs]
@@ -89,7 +89,7 @@ def short_seed_file(folder: Path, horizon: str = "0.3") -> Path:
 class _NumpyInKernelOrder:
     """numpy, but for the sums of scipy's DOP853 on a 2-vector state: np.dot of the stages
     (2 × s by s) and of the dense output (D by K) and np.linalg.norm of a 2-vector, summed in the
-    compiled kernel's fixed order (reduced.kernels.adaptive: _dot_kt, _dense_coefficients,
+    compiled kernel's fixed order (xval.reduced.kernels.adaptive: _dot_kt, _dense_coefficients,
     _norm2). numpy hands these to the BLAS, whose order depends on the CPU (OpenBLAS picks its
     kernels at run time: on an AMD EPYC 1085 of 2000 random 2 × s products differ from the
     kernel's order in the last bit, and DOP853 at rtol 1e-12 turns such bits into other steps).
@@ -108,7 +108,7 @@ class _NumpyInKernelOrder:
         return getattr(self._np, name)
 
     def _norm(self, x, *args, **kwargs):
-        from reduced.kernels.adaptive import _norm2
+        from xval.reduced.kernels.adaptive import _norm2
 
         x = self._np.asarray(x)
         if x.shape == (2,) and not args and not kwargs:
@@ -116,7 +116,7 @@ class _NumpyInKernelOrder:
         return self._np.linalg.norm(x, *args, **kwargs)
 
     def dot(self, a, b):
-        from reduced.kernels.adaptive import _dot_kt
+        from xval.reduced.kernels.adaptive import _dot_kt
 
         np_ = self._np
         a, b = np_.asarray(a), np_.asarray(b)
@@ -153,8 +153,8 @@ def scipy_in_kernel_order():
 
 def without_dyad_plans(model):
     """``model``'s kernel arrays with every chart's dyad plan switched off: Newton's method alone
-    closes the loops (reduced.kernels.physics._close)."""
-    from reduced.kernels import physics
+    closes the loops (xval.reduced.kernels.physics._close)."""
+    from xval.reduced.kernels import physics
 
     I = model.arrays.I.copy()
     start = int(I[physics.DYAD_PLAN])
@@ -215,7 +215,7 @@ def spawn():
 
 
 class ClosedForm(RightHandSide):
-    """A closed-form problem for the compiled integrators (reduced.kernels.fixed_step, .adaptive):
+    """A closed-form problem for the compiled integrators (xval.reduced.kernels.fixed_step, .adaptive):
     q̈ = f(t, q, q̇, u) with u = values[load] constant on each load piece; the energy flows
     P = power(u, q̇) (default u q̇: u a force doing work) and D = dissipation(q̇) (default 0);
     the stop margin stop(t, q, q̇) (default: never). A Python subclass of RightHandSide: the
@@ -242,8 +242,8 @@ def run_rkn(rhs, edges, q0, v0, step, *, tableau=None, loads=None, t0=None, spee
             use_stop=False):
     """rkn_chart from edges[0] (or t0) on the pieces ``edges`` (load k on piece k unless given):
     (Outcome, t, q, v, a, energy (m, 2))."""
-    from reduced.kernels.fixed_step import RKN4, rkn_chart
-    from reduced.kernels.output import Samples
+    from xval.reduced.kernels.fixed_step import RKN4, rkn_chart
+    from xval.reduced.kernels.output import Samples
 
     edges = np.ascontiguousarray(edges, dtype=float)
     loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)
@@ -259,8 +259,8 @@ def run_dop853(rhs, edges, q0, v0, *, rtol=1e-12, atol=None, loads=None, sample_
                speed_limit=1e6, max_evaluations=1_000_000, max_step=np.inf, use_stop=False, steps=None):
     """dop853_run on the pieces ``edges`` (load k on piece k unless given):
     (Outcome, t, q, v, a, energy (m, 2))."""
-    from reduced.kernels.adaptive import Steps, dop853_run
-    from reduced.kernels.output import Samples
+    from xval.reduced.kernels.adaptive import Steps, dop853_run
+    from xval.reduced.kernels.output import Samples
 
     edges = np.ascontiguousarray(edges, dtype=float)
     loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)

@@ -28,8 +28,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from reduced import loops
-from reduced.scenefile import load_scene
+from xval.reduced import loops
+from xval.reduced.scenefile import load_scene
 
 SCENE = Path(__file__).resolve().parent.parent / "scenes" / "mechanisms" / "andrews_squeezer.toml"
 
@@ -251,10 +251,10 @@ def test_the_reduced_engine_meets_the_published_solution(andrews):
     reference, every angle to 1e-9 and every rate to 2e-7 relative, after mapping our absolute
     frame angles x (result.diagnostics["joints"].x, in the order of the scene's bodies) to the
     published (β, Θ, γ, Φ, δ, Ω, ε). Needs the reduced engine ported to general linkages."""
-    import reduced
+    import xval.reduced
 
     scene, linkage, system = andrews
-    result = reduced.simulate(scene, reduced.ReducedSettings(method="dop853", rtol=1e-13))
+    result = xval.reduced.simulate(scene, xval.reduced.ReducedSettings(method="dop853", rtol=1e-13))
     joints = result.diagnostics["joints"]
     assert tuple(joints.names) == system.coordinate_names
     assert joints.t[-1] == pytest.approx(HORIZON, abs=1e-15)

@@ -17,17 +17,17 @@ from pathlib import Path
 
 import pytest
 
-import compare.cost
-import compare.draw
-import compare.report
-import compare.run
-import compare.stress
-import compare.sweep
-import reference_models
-from compare import cli
-from compare.cli import main
-from compare.cost import worker_count
-from reduced import scene_from_dict
+import xval.compare.cost
+import xval.compare.draw
+import xval.compare.report
+import xval.compare.run
+import xval.compare.stress
+import xval.compare.sweep
+import xval.reference_models
+from xval.compare import cli
+from xval.compare.cli import main
+from xval.compare.cost import worker_count
+from xval.reduced import scene_from_dict
 
 from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
@@ -47,9 +47,9 @@ def no_work(monkeypatch):
     """Any computation fails the test: destinations must be refused before it starts."""
     def computed(*args, **kwargs):
         raise AssertionError("work started before the destination was checked")
-    for module, name in ((compare.run, "compare_engines"), (compare.cost, "ground_truth"),
-                         (compare.stress, "run_catalogue"), (reference_models, "build_model"),
-                         (compare.sweep, "run_sweep"), (compare.draw, "draw_scene")):
+    for module, name in ((xval.compare.run, "compare_engines"), (xval.compare.cost, "ground_truth"),
+                         (xval.compare.stress, "run_catalogue"), (xval.reference_models, "build_model"),
+                         (xval.compare.sweep, "run_sweep"), (xval.compare.draw, "draw_scene")):
         monkeypatch.setattr(module, name, computed)
 
 
@@ -164,7 +164,7 @@ def test_a_signal_stops_cleanly_and_leaves_nothing(signum, status, line, tmp_pat
     def signalled(*args, **kwargs):
         os.kill(os.getpid(), signum)
         raise AssertionError("the signal did not stop the run")
-    monkeypatch.setattr(compare.run, "compare_engines", signalled)
+    monkeypatch.setattr(xval.compare.run, "compare_engines", signalled)
     previous = signal.getsignal(signal.SIGTERM)
     assert main(["run", str(SEED_SCENE), "--out", str(tmp_path / "out")]) == status
     assert capsys.readouterr().err == line + "\n"
@@ -186,19 +186,19 @@ def test_failed_gate_exits_1_and_still_writes_the_report(tmp_path, capsys):
     report = json.loads((out / "report.json").read_text())
     assert report["gate"]["passed"] is False and report["scene"]["name"] == data["name"]
     assert not Path(report["scene"]["source"]).is_absolute()
-    assert all((out / name).stat().st_size > 0 for name in compare.report.REPORT_FILES)
+    assert all((out / name).stat().st_size > 0 for name in xval.compare.report.REPORT_FILES)
 
 
 def test_long_names_are_cut_in_titles():
-    from compare.plots import NAME_CHARS, short_name
+    from xval.compare.plots import NAME_CHARS, short_name
 
     assert short_name("x" * 10**6) == "x" * (NAME_CHARS - 1) + "…"
     assert short_name("a\nb  c") == "a b c" and short_name("seed_fourbar") == "seed_fourbar"
 
 
 def test_entry_point_smoke(tmp_path):
-    """The one subprocess: ``python -m compare.cli`` runs, exits 2 with one line on a bad -o."""
-    proc = subprocess.run([sys.executable, "-m", "compare.cli", "export-mjcf", "-o", ""], capture_output=True,
+    """The one subprocess: ``python -m xval.compare.cli`` runs, exits 2 with one line on a bad -o."""
+    proc = subprocess.run([sys.executable, "-m", "xval.compare.cli", "export-mjcf", "-o", ""], capture_output=True,
                           text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 2 and proc.stderr == "xval: error: -o is empty: give a file name\n"
     assert list(tmp_path.iterdir()) == []
@@ -231,10 +231,10 @@ def _options():
 def _resolved_defaults() -> dict[str, list[str]]:
     """Flag -> the defaults the settings resolve to when neither the flag nor the scene gives
     one, as the help should print them; taken from the settings objects, not the CLI."""
-    from compare.sweep_spec import spec_from_args
-    from reduced import ReducedSettings
+    from xval.compare.sweep_spec import spec_from_args
+    from xval.reduced import ReducedSettings
 
-    mj = reference_models.MujocoSettings()
+    mj = xval.reference_models.MujocoSettings()
     rtols = [f"{ReducedSettings(method=m).rtol:g} (" for m in ("dop853", "rkn4", "radau", "scipy-dop853")]
     step = [f"{ReducedSettings(method='rkn4').step:g}"]
     method = [ReducedSettings().method]
@@ -281,13 +281,13 @@ def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, sp
     the group left, no staging folder, and the folder as it was unless the run said it wrote."""
     import time
 
-    from compare.output import STAGING_PREFIX
+    from xval.compare.output import STAGING_PREFIX
 
     scene = short_seed_file(tmp_path)
     old = tmp_path / "old"
     for _ in range(2):  # the second run, with warm caches, is as long as the runs below
         start = time.monotonic()
-        first = subprocess.run([sys.executable, "-m", "compare.cli", "run", str(scene), "--out", str(old)],
+        first = subprocess.run([sys.executable, "-m", "xval.compare.cli", "run", str(scene), "--out", str(old)],
                                capture_output=True, text=True, timeout=300)
         length = time.monotonic() - start
         assert first.returncode == 0, first.stderr
@@ -297,7 +297,7 @@ def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, sp
     for fraction in (0.03, 0.3, 0.6, 0.8, 0.9, 0.97, 1.1):
         out = tmp_path / f"out-{fraction}"
         shutil.copytree(old, out)
-        proc = spawn([sys.executable, "-m", "compare.cli", "run", str(scene), "--out", str(out)],
+        proc = spawn([sys.executable, "-m", "xval.compare.cli", "run", str(scene), "--out", str(out)],
                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
         time.sleep(fraction * length)
         with contextlib.suppress(ProcessLookupError):

@@ -8,14 +8,14 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-import compare.report
-from compare.cli import main
-from compare.diff import compare_trajectories, gate
-from compare.output import MANIFEST_FILE
-from compare.report import REPORT_FILES, write_outputs
-from compare.run import compare_engines
-from reduced import Trajectory, load_scene
-from reduced.scene import Tolerances
+import xval.compare.report
+from xval.compare.cli import main
+from xval.compare.diff import compare_trajectories, gate
+from xval.compare.output import MANIFEST_FILE
+from xval.compare.report import REPORT_FILES, write_outputs
+from xval.compare.run import compare_engines
+from xval.reduced import Trajectory, load_scene
+from xval.reduced.scene import Tolerances
 
 from helpers import SEED_SCENE
 
@@ -146,7 +146,7 @@ def test_failed_run_leaves_the_output_folder_as_it_was(seed_comparison, tmp_path
     def failing_plot(c, path):
         path.write_bytes(b"\x89PNG half")
         raise error
-    monkeypatch.setitem(compare.report.PLOTS, "energy.png", failing_plot)
+    monkeypatch.setitem(xval.compare.report.PLOTS, "energy.png", failing_plot)
     with pytest.raises(type(error)):
         write_outputs(seed_comparison, out)
     assert {p.name: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before

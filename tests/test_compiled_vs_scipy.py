@@ -18,7 +18,7 @@ import warnings
 import numpy as np
 import pytest
 
-from reduced import ReducedSettings, load_scene, simulate
+from xval.reduced import ReducedSettings, load_scene, simulate
 
 from helpers import ROOT, scipy_in_kernel_order
 

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import pytest
 
-from compare.run import compare_engines
-from reduced import ReducedSettings
-from reduced.scene import Tolerances
-from reference_models import MujocoSettings
+from xval.compare.run import compare_engines
+from xval.reduced import ReducedSettings
+from xval.reduced.scene import Tolerances
+from xval.reference_models import MujocoSettings
 
 from helpers import seed_dict, variant
 

@@ -1,7 +1,7 @@
 """RKN4's two error estimates against the true error, tightly enough to see their constants.
 
 The step-doubling estimate of the error of y_h is |y_h − y_2h| / (2⁴ − 1); when the run at 2h is
-outside RKN4's stability region it is 2⁴ |y_h − y_h/2| / (2⁴ − 1) instead (reduced.engine,
+outside RKN4's stability region it is 2⁴ |y_h − y_h/2| / (2⁴ − 1) instead (xval.reduced.engine,
 ``estimate_error``). Both are asymptotically exact for a fourth-order method, so on a problem in
 the asymptotic range the ratio estimate / true error is close to 1. True error: the largest
 |q − q_ref| over the run's samples, q_ref from DOP853 at rtol 1e-12 (its own error, ~1e-11 rad,
@@ -19,10 +19,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compare import cli
+from xval.compare import cli
 from helpers import variant
-from reduced import NumericalFailure, ReducedSettings, load_scene, simulate
-from reduced.scenefile import hard_scene_dir
+from xval.reduced import NumericalFailure, ReducedSettings, load_scene, simulate
+from xval.reduced.scenefile import hard_scene_dir
 
 REFERENCE = ReducedSettings(method="dop853", rtol=1e-12, sample_interval=2.5e-4)
 STIFF_DAMPER = hard_scene_dir() / "stiff_damper.toml"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from reduced import ReducedSettings, scene_from_dict, simulate
+from xval.reduced import ReducedSettings, scene_from_dict, simulate
 
 GRAVITY = [0.0, -9.81]  # gravity makes the masses and centres of mass matter as well as the inertias
 SHORTHAND = {

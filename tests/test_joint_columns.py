@@ -18,12 +18,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from compare import report
-from compare.cli import main
-from compare.run import compare_engines
-from reduced import ReducedSettings, scene_from_dict
-from reduced.mechanism import GROUND, PrismaticJoint
-from reference_models import MujocoSettings, build_model, joint_positions
+from xval.compare import report
+from xval.compare.cli import main
+from xval.compare.run import compare_engines
+from xval.reduced import ReducedSettings, scene_from_dict
+from xval.reduced.mechanism import GROUND, PrismaticJoint
+from xval.reference_models import MujocoSettings, build_model, joint_positions
 
 from helpers import ROOT
 

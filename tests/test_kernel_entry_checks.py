@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from helpers import ClosedForm, run_dop853, run_rkn
-from reduced import MechanismModel, default_scene_path, load_scene
-from reduced.kernels import physics
+from xval.reduced import MechanismModel, default_scene_path, load_scene
+from xval.reduced.kernels import physics
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,10 @@
 """The compiled core's modules import in one direction, and nothing of the project outside it.
 
-The integrators (:mod:`reduced.kernels.fixed_step`, :mod:`reduced.kernels.adaptive`) know only the
+The integrators (:mod:`xval.reduced.kernels.fixed_step`, :mod:`xval.reduced.kernels.adaptive`) know only the
 interface of a right-hand side and the output buffers (``problem``, ``output``; DOP853 its
 tableau): nothing of linkages. The physics knows the interface and nothing of the integrators.
 Only the chart switching (``partition``) knows both. And the core imports nothing of the project
-outside ``reduced/kernels``: it is compiled on its own, and its sources are its whole behaviour.
+outside ``xval/reduced/kernels``: it is compiled on its own, and its sources are its whole behaviour.
 Read from the sources (both the ``import`` and the ``cimport`` lines of Cython's pure-Python mode).
 """
 
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-KERNELS = Path(__file__).resolve().parents[1] / "reduced" / "kernels"
-PROJECT_PACKAGES = ("reduced", "compare", "reference_models", "scenes", "benchmarks")
+KERNELS = Path(__file__).resolve().parents[1] / "xval" / "reduced" / "kernels"
+PROJECT_PACKAGES = ("xval", "scenes", "benchmarks")
 # what each kernel module may import of the others
 ALLOWED = {
     "problem": set(),
@@ -39,8 +39,8 @@ def _imports(path: Path) -> tuple[set[str], list[str]]:
                 module = module[len("cython.cimports."):]
             if node.level == 1:
                 siblings |= {module.split(".")[0]} if module else {a.name for a in node.names}
-            elif node.level == 0 and module.startswith("reduced.kernels"):
-                rest = module[len("reduced.kernels"):].lstrip(".")
+            elif node.level == 0 and module.startswith("xval.reduced.kernels"):
+                rest = module[len("xval.reduced.kernels"):].lstrip(".")
                 siblings |= {rest.split(".")[0]} if rest else {a.name for a in node.names}
             elif node.level >= 2 or (node.level == 0 and module.split(".")[0] in PROJECT_PACKAGES):
                 outside.append(f"{path.name}:{node.lineno}: from {'.' * node.level}{module} import ...")

@@ -2,7 +2,7 @@
 ``xval run``, on JointTrajectory objects built here from the loop kinematics.
 
 The engines are not run: the runs are the Watt II six-bar (two loops) assembled by Newton's
-method (reduced.loops.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
+method (xval.reduced.loops.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
 "MuJoCo" run is the same motion shifted by a small known Δq(t), or with its second loop
 put in the other assembly mode part-way; the oracles are those constructions.
 """
@@ -20,14 +20,14 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from compare.diff import ModeCheck, compare_modes, compare_trajectories, gate
-from compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
-from compare.plots import strip_moments
-from compare.text import gate_lines
-from reduced.loops import assemble, assembly_modes, coefficients, compile_linkage
-from reduced.partition import JointTrajectory
-from reduced.scene import Tolerances
-from reduced.trajectory import Trajectory
+from xval.compare.diff import ModeCheck, compare_modes, compare_trajectories, gate
+from xval.compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
+from xval.compare.plots import strip_moments
+from xval.compare.text import gate_lines
+from xval.reduced.loops import assemble, assembly_modes, coefficients, compile_linkage
+from xval.reduced.partition import JointTrajectory
+from xval.reduced.scene import Tolerances
+from xval.reduced.trajectory import Trajectory
 
 from test_draw import watt_ii_scene
 
@@ -158,24 +158,24 @@ def test_strip_moments_are_the_peak_and_the_largest_difference(runs, scene):
 def test_strip_overlays_both_engines_at_the_moments(tmp_path, monkeypatch, scene, runs):
     """Panel k draws the reduced run solid and MuJoCo's dashed, each at its own
     configuration at that moment; the title gives both q in the input's unit."""
-    import compare.plots
+    import xval.compare.plots
 
     (ref_j, _), (oth_j, _) = runs
     figures = []
-    real_save = compare.plots._save
+    real_save = xval.compare.plots._save
 
     def keep(fig, path):
         figures.append([(ax.get_title(), [(l.get_linestyle(), l.get_xydata().copy()) for l in ax.lines])
                         for ax in fig.axes])
         real_save(fig, path)
 
-    monkeypatch.setattr(compare.plots, "_save", keep)
+    monkeypatch.setattr(xval.compare.plots, "_save", keep)
     out = tmp_path / "mechanism.png"
     draw_strip(scene, ref_j, oth_j, [("peak speed", 0.3), ("largest |Δq|", 0.5)], out)
     assert out.read_bytes()[:8] == PNG_SIGNATURE
     assert struct.unpack(">II", out.read_bytes()[16:24]) == (990, 462)  # 9 × 4.2 in at 110 dpi
     system = compile_linkage(scene.mechanism.linkage)
-    from reduced.loops import positions
+    from xval.reduced.loops import positions
 
     (panels,) = figures
     for (title, lines), t in zip(panels, (0.3, 0.5)):
@@ -209,14 +209,14 @@ def test_animation_is_a_gif_with_one_frame_per_step(tmp_path, scene, runs):
 
 
 def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatch):
-    import compare.draw
-    from compare.report import ANIMATION_FILE, REPORT_FILES, report_files, resolve_animation
+    import xval.compare.draw
+    from xval.compare.report import ANIMATION_FILE, REPORT_FILES, report_files, resolve_animation
 
     assert resolve_animation(False) is False
     assert resolve_animation(True) is True
     assert report_files(True) == REPORT_FILES[:-1] + (ANIMATION_FILE, "report.json")
     assert "mechanism.png" in REPORT_FILES
-    monkeypatch.setattr(compare.draw, "gif_writer_available", lambda: False)
+    monkeypatch.setattr(xval.compare.draw, "gif_writer_available", lambda: False)
     with pytest.warns(UserWarning, match="--animate: matplotlib's PillowWriter is not available"):
         assert resolve_animation(True) is False
 
@@ -224,8 +224,8 @@ def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatc
 # -- the report of a comparison, without the engines ------------------------------------
 
 def engine_result(engine, joints, trajectory, violation=0.0):
-    from reduced.result import EngineResult
-    from reduced.trajectory import Peak
+    from xval.reduced.result import EngineResult
+    from xval.reduced.trajectory import Peak
 
     t = trajectory.t
     k = int(np.argmax(np.abs(trajectory.qdot)))
@@ -241,7 +241,7 @@ def engine_result(engine, joints, trajectory, violation=0.0):
                         len(t), 4 * len(t), settings, diagnostics)
 
 
-from reduced.result import EnergyAudit  # noqa: E402
+from xval.reduced.result import EnergyAudit  # noqa: E402
 
 
 def slider_run(scene, t, shift=0.0):
@@ -261,7 +261,7 @@ def slider_run(scene, t, shift=0.0):
 
 
 def comparison_of(scene, reference, other):
-    """What compare.run.judge builds, from two constructed runs (the engines not run)."""
+    """What xval.compare.run.judge builds, from two constructed runs (the engines not run)."""
     (rj, rt), (oj, ot) = reference, other
     diff = compare_trajectories(rt, ot, horizon=float(rt.t[-1]))
     modes = compare_modes(rj, oj)
@@ -277,8 +277,8 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     mode per loop; write_outputs writes every file, the strip and (asked for) the GIF."""
     import json
 
-    from compare.report import ANIMATION_FILE, REPORT_FILES, report_dict, write_outputs
-    from compare.text import comparison_lines
+    from xval.compare.report import ANIMATION_FILE, REPORT_FILES, report_dict, write_outputs
+    from xval.compare.text import comparison_lines
     from test_draw import slider_crank_scene
 
     scene = slider_crank_scene(0.4, prismatic_input=True)
@@ -297,9 +297,9 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]
-    import compare.draw
+    import xval.compare.draw
 
-    monkeypatch.setattr(compare.draw, "ANIMATION_FRAMES", 4)  # a short GIF: this test is about the set
+    monkeypatch.setattr(xval.compare.draw, "ANIMATION_FRAMES", 4)  # a short GIF: this test is about the set
     paths = write_outputs(c, tmp_path / "out", animate=True)
     assert sorted(p.name for p in paths) == sorted(REPORT_FILES + (ANIMATION_FILE,))
     header = (tmp_path / "out" / "reduced.csv").read_text().split("\n")[0].split(",")
@@ -315,8 +315,8 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
     other_j, other_t = watt_run(scene, t, second_mode=-1)
     wrong_j = dataclasses.replace(right[0], x=np.vstack([right[0].x[:60], other_j.x[60:]]),
                                   mode=np.vstack([right[0].mode[:60], other_j.mode[60:]]))
-    from compare.report import report_dict
-    from compare.text import comparison_lines
+    from xval.compare.report import report_dict
+    from xval.compare.text import comparison_lines
 
     c = comparison_of(scene, right, (wrong_j, right[1]))
     assert not c.gate.passed
@@ -327,9 +327,9 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
 
 
 def test_command_lines_of_a_slider_driven_scene_give_metres():
-    """What ``xval reduced``, ``xval mujoco`` and ``xval check`` print (compare.text) names
+    """What ``xval reduced``, ``xval mujoco`` and ``xval check`` print (xval.compare.text) names
     the input joint and gives its unit."""
-    from compare.text import check_lines, mujoco_lines, reduced_lines
+    from xval.compare.text import check_lines, mujoco_lines, reduced_lines
     from test_draw import slider_crank_scene
 
     scene = slider_crank_scene(0.4, prismatic_input=True)
@@ -355,7 +355,7 @@ def test_command_lines_of_a_slider_driven_scene_give_metres():
 def test_run_refuses_a_folder_where_an_output_goes_before_any_work(tmp_path, monkeypatch, capsys, animate):
     """``xval run [--animate]`` checks every file it will write (mechanism.png, and
     mechanism.gif when animating) before reading the scene."""
-    from compare import cli
+    from xval.compare import cli
 
     monkeypatch.setattr(cli, "_scene", lambda path: pytest.fail("the scene was read"))
     out = tmp_path / "out"

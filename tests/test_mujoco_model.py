@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
-from reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
+from xval.reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
+from xval.reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
                               joint_positions, joint_rates, mjcf_text, simulate_mujoco)
 
 from helpers import SEED_SCENE, conservative, variant
@@ -73,7 +73,7 @@ def _mjb(model: mujoco.MjModel) -> bytes:
 def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
     """The automatic timestep's finer models are the coarse one's spec set to their step
     (set_timestep), not built anew: byte for byte the model build_model makes there."""
-    from reference_models.run import _at_timestep
+    from xval.reference_models.run import _at_timestep
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -88,7 +88,7 @@ def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
 def test_kinetic_energy_matches_generalized_inertia(seed):
     """½ q̇ᵀ M q̇ from MuJoCo at a loop-consistent velocity equals ½ 𝔍(q) q̇² over a full turn.
 
-    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (reduced.loops: K on the centres of
+    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (xval.reduced.loops: K on the centres of
     mass; the pivoted crank and rocker by their pivot inertias), not from the reduced engine's
     dynamics. Both are sums of the same few products in float64 (measured ≤ 3.1e-15 relative);
     1e-10 is the issue's bound and leaves room for the trigonometry on either side.

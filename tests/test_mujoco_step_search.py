@@ -16,10 +16,10 @@ import tomllib
 
 import pytest
 
-from compare.run import compare_engines, override_tolerances
-from reduced import FailureReason, NumericalFailure, scene_from_dict
-from reference_models import simulate_mujoco
-from reference_models.run import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
+from xval.compare.run import compare_engines, override_tolerances
+from xval.reduced import FailureReason, NumericalFailure, scene_from_dict
+from xval.reference_models import simulate_mujoco
+from xval.reference_models.run import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
 
 from helpers import ROOT, variant
 

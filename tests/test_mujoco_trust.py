@@ -10,11 +10,11 @@ import mujoco
 import numpy as np
 import pytest
 
-import reference_models.run as mj_run
-from compare.diff import compare_trajectories, gate
-from reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
-from reduced.errors import FailureReason
-from reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
+import xval.reference_models.run as mj_run
+from xval.compare.diff import compare_trajectories, gate
+from xval.reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
+from xval.reduced.errors import FailureReason
+from xval.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
 from helpers import SEED_SCENE, seed_dict, variant
@@ -289,9 +289,9 @@ def test_no_step_meeting_the_tolerance_is_a_clear_failure():
 def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
     """uᵀ M u from MuJoCo's own mass matrix and loop Jacobian (u: joint rates with the crank at
     1 rad/s), the floor of MuJoCo's energy gate, is 𝔍(q0) = Σ m |K_G|² + I K_θ² from the loop
-    kinematics (reduced.loops): two independent routes to the same number (measured ≤ 2e-15
+    kinematics (xval.reduced.loops): two independent routes to the same number (measured ≤ 2e-15
     relative); bound 1e-12 relative, over the revolution and on both branches."""
-    from reference_models.run import check_initial_state
+    from xval.reference_models.run import check_initial_state
 
     for q0 in np.linspace(0.0, 2 * np.pi, 7)[:-1]:
         data = seed_dict()
@@ -307,7 +307,7 @@ def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
 
 
 def _generalized_inertia(scene) -> float:
-    """𝔍 at x0 from reduced.loops alone (K on the centres of mass), kg·m²."""
+    """𝔍 at x0 from xval.reduced.loops alone (K on the centres of mass), kg·m²."""
     linkage = scene.mechanism.linkage
     system = loops.compile_linkage(linkage)
     x = np.asarray(scene.x0)

@@ -1,4 +1,4 @@
-"""The output writer's guarantees (compare/output.py), each under the fault it is meant to survive.
+"""The output writer's guarantees (xval/compare/output.py), each under the fault it is meant to survive.
 
 Faults are real: exceptions raised by a writer part-way, a directory in the way, a second
 process writing the same folder, SIGINT and SIGTERM sent to a process while it writes.
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from compare import output
-from compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
+from xval.compare import output
+from xval.compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
 
 from helpers import interruptible, spawn  # noqa: F401 - fixtures
 
@@ -252,7 +252,7 @@ def test_json_is_strict_and_paths_are_not_absolute(tmp_path, monkeypatch):
 CHILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from compare.output import Terminated, signals_as_exceptions, write_folder
+    from xval.compare.output import Terminated, signals_as_exceptions, write_folder
     out, ready, tag = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
     names = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
 
@@ -332,7 +332,7 @@ def test_sigterm_while_writing_leaves_no_partial_folder(old_folder, spawn):
 FORKING_CHILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from compare.output import Terminated, signals_as_exceptions, write_folder
+    from xval.compare.output import Terminated, signals_as_exceptions, write_folder
     out, started = Path(sys.argv[1]), Path(sys.argv[2])
     names = [f"plot{i}.png" for i in range(6)]
 

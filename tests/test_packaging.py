@@ -13,7 +13,7 @@ import zipfile
 
 import pytest
 
-from reduced.scenefile import default_scene_path, hard_scene_dir, scenes_dir
+from xval.reduced.scenefile import default_scene_path, hard_scene_dir, scenes_dir
 
 from helpers import ROOT
 
@@ -21,7 +21,7 @@ REPO_SCENES = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "scenes").r
 
 
 def test_scene_folders_come_from_the_scenes_package():
-    assert scenes_dir() == importlib.resources.files("scenes")
+    assert scenes_dir() == importlib.resources.files("xval.scenes")
     assert default_scene_path().is_file() and default_scene_path().parent == scenes_dir()
     shipped = sorted(p.relative_to(scenes_dir().parent).as_posix() for p in scenes_dir().rglob("*.toml"))
     assert shipped == REPO_SCENES and hard_scene_dir().name == "hard"
@@ -30,27 +30,31 @@ def test_scene_folders_come_from_the_scenes_package():
 @pytest.mark.slow
 def test_wheel_contains_every_scene(tmp_path):
     """Build a wheel from a copy of the sources (the checkout stays clean) and list it. pip builds
-    in an isolated environment with the setuptools that pyproject.toml asks for."""
+    in an isolated environment with the setuptools and Cython that pyproject.toml asks for. Everything
+    installs under the one name ``xval``: nothing else at the top of the wheel but its metadata."""
     src = tmp_path / "src"
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "setup.py"):
         shutil.copy2(ROOT / name, src / name if src.exists() else (src.mkdir() or src / name))
-    for package in ("reduced", "reference_models", "compare", "scenes"):
-        shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__"))
+    for package in ("xval", "scenes"):
+        shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.c"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
                     "-w", str(tmp_path / "dist"), str(src)], check=True, capture_output=True, timeout=300)
     (wheel,) = (tmp_path / "dist").glob("xval-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    assert "scenes/__init__.py" in names
-    assert [n for n in REPO_SCENES if n not in names] == []
-    assert "scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
+    assert {n.split("/")[0] for n in names} == {"xval", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
+                                                + ".dist-info"}
+    assert "xval/scenes/__init__.py" in names
+    assert [n for n in REPO_SCENES if "xval/" + n not in names] == []
+    assert "xval/scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
+    assert any(n.startswith("xval/reduced/kernels/physics.") and n.endswith(".so") for n in names)
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    code = ("from reduced.scenefile import default_scene_path, hard_scene_dir, load_scene; "
+    code = ("from xval.reduced.scenefile import default_scene_path, hard_scene_dir, load_scene; "
             "print(default_scene_path()); print(load_scene(default_scene_path()).name); "
             "print(len([load_scene(p) for p in hard_scene_dir().glob('*.toml')]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           cwd=tmp_path, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"}, check=True)
     path, name, n_hard = proc.stdout.split("\n")[:3]
-    assert path == str(site / "scenes" / "seed_fourbar.toml") and name == "seed_fourbar"
+    assert path == str(site / "xval" / "scenes" / "seed_fourbar.toml") and name == "seed_fourbar"
     assert int(n_hard) == sum(n.startswith("scenes/hard/") for n in REPO_SCENES)

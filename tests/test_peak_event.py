@@ -1,6 +1,6 @@
 """The peak is one event, the same in every output: a run's largest |q̇| with its sign and
 time; in a comparison, the reduced run's, and MuJoCo's local extremum of q̇ of the same sign
-nearest in time to it (reduced/trajectory.py). A peak that is the last sample with the speed
+nearest in time to it (xval/reduced/trajectory.py). A peak that is the last sample with the speed
 still rising is said to be so in the tables, report.json and the plots.
 
 Synthetic trajectories have closed forms (oracles written here); the catalogue's driven
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from compare.diff import compare_trajectories
-from compare.report import report_dict
-from compare.run import compare_engines
-from compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
-from reduced import Trajectory, load_scene
+from xval.compare.diff import compare_trajectories
+from xval.compare.report import report_dict
+from xval.compare.run import compare_engines
+from xval.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
+from xval.reduced import Trajectory, load_scene
 
 from helpers import SEED_SCENE, variant
 
@@ -91,10 +91,10 @@ def dots(figure) -> list[tuple[float, float]]:
 
 
 def saved(monkeypatch) -> list:
-    import compare.plots
+    import xval.compare.plots
 
     kept = []
-    monkeypatch.setattr(compare.plots, "_save", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(xval.compare.plots, "_save", lambda fig, path: kept.append(fig))
     return kept
 
 
@@ -104,7 +104,7 @@ def test_the_driven_slider_s_peak_is_one_event_in_every_output(driven_slider, mo
     The comparison pairs the sixth in both, and report.json and the plot's dots say the same
     event (they once gave MuJoCo's own). Measured time difference of the pair 9.9e-6 s (MuJoCo
     at 0.25 ms steps); bound 5e-5 s, against 0.03 s between cycles."""
-    from compare.plots import plot_trajectories
+    from xval.compare.plots import plot_trajectories
 
     c = driven_slider
     d = c.diff
@@ -142,7 +142,7 @@ def from_rest():
 
 
 def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monkeypatch, tmp_path):
-    from compare.plots import plot_mechanism_strip, plot_trajectories
+    from xval.compare.plots import plot_mechanism_strip, plot_trajectories
 
     c = from_rest
     d = c.diff
@@ -160,7 +160,7 @@ def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monke
 
 
 def test_the_seed_s_peak_is_not_flagged(monkeypatch, tmp_path):
-    from compare.plots import plot_trajectories
+    from xval.compare.plots import plot_trajectories
 
     c = compare_engines(load_scene(SEED_SCENE))
     assert not c.diff.peak_still_rising and not c.diff.peak_other.still_rising

@@ -1,4 +1,4 @@
-"""The compiled physics (reduced/kernels/physics.py, Cython) and its plain-Python source agree.
+"""The compiled physics (xval/reduced/kernels/physics.py, Cython) and its plain-Python source agree.
 
 physics.py is compiled by the package's build and runs as plain Python under
 ``XVAL_PURE_PYTHON=1`` (the debug path). Its integer layout constants live twice: C constants in
@@ -19,8 +19,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from reduced import MechanismModel, load_scene
-from reduced.kernels import compiled, physics
+from xval.reduced import MechanismModel, load_scene
+from xval.reduced.kernels import compiled, physics
 
 from helpers import ROOT
 
@@ -29,7 +29,7 @@ needs_compiled = pytest.mark.skipif(not compiled(), reason="the kernels run as p
 
 def source_module():
     """physics.py loaded from its source as plain Python (a module of another name)."""
-    spec = importlib.util.spec_from_file_location("physics_source", ROOT / "reduced" / "kernels" / "physics.py")
+    spec = importlib.util.spec_from_file_location("physics_source", ROOT / "xval" / "reduced" / "kernels" / "physics.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

@@ -14,9 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from compare.plots import DATA_MARGIN, plot_differences, tolerance_band
-from compare.run import compare_engines, judge
-from reduced import load_scene
+from xval.compare.plots import DATA_MARGIN, plot_differences, tolerance_band
+from xval.compare.run import compare_engines, judge
+from xval.reduced import load_scene
 
 from helpers import SEED_SCENE
 
@@ -28,10 +28,10 @@ def seed():
 
 def drawn(c, monkeypatch, tmp_path):
     """The figure plot_differences saves for ``c``."""
-    import compare.plots
+    import xval.compare.plots
 
     kept = []
-    monkeypatch.setattr(compare.plots, "_save", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(xval.compare.plots, "_save", lambda fig, path: kept.append(fig))
     plot_differences(c, tmp_path / "d.png")
     (fig,) = kept
     fig.canvas.draw()

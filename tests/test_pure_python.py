@@ -1,6 +1,6 @@
 """The kernels run uncompiled with ``XVAL_PURE_PYTHON=1`` (the README's way to debug them).
 
-The switch makes ``reduced.kernels`` import its ``.py`` sources even where the compiled modules
+The switch makes ``xval.reduced.kernels`` import its ``.py`` sources even where the compiled modules
 sit beside them. Run in a subprocess (the switch is read at import): the kinematics tests (closed
 form against the general path against finite differences) and a short run of each compiled
 integrator on the seed, whose results must be those of the compiled kernels in this process.
@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parent.parent
 SHORT_RUNS = {"rkn4": {"step": 1e-3, "check_error": False}, "dop853": {"rtol": 1e-8}}
 PROBE = f"""
 import dataclasses, json, warnings
-from reduced import kernels
-from reduced.kernels import adaptive, fixed_step, output, partition, physics, problem
-from reduced import load_scene, default_scene_path, simulate, ReducedSettings
+from xval.reduced import kernels
+from xval.reduced.kernels import adaptive, fixed_step, output, partition, physics, problem
+from xval.reduced import load_scene, default_scene_path, simulate, ReducedSettings
 assert kernels.PURE_PYTHON and not kernels.compiled()
 assert all(m.__file__.endswith(".py") for m in (adaptive, fixed_step, output, partition, physics, problem))
 warnings.simplefilter("ignore")
@@ -45,7 +45,7 @@ def _uncompiled(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_this_session_runs_the_compiled_kernels():
-    from reduced import kernels
+    from xval.reduced import kernels
 
     assert kernels.compiled() and not kernels.PURE_PYTHON
 
@@ -59,7 +59,7 @@ def test_the_kinematics_tests_pass_uncompiled():
 def test_short_runs_uncompiled_equal_the_compiled_ones():
     """Same operations in the same order, and the C build contracts nothing (-ffp-contract=off):
     equal to round-off, 1e-13 relative (seen: equal bit for bit)."""
-    from reduced import ReducedSettings, default_scene_path, load_scene, simulate
+    from xval.reduced import ReducedSettings, default_scene_path, load_scene, simulate
 
     done = _uncompiled("-c", PROBE)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -12,14 +12,14 @@ import tomllib
 import numpy as np
 import pytest
 
-from reduced import (RKN4, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene, scene_from_dict,
+from xval.reduced import (RKN4, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene, scene_from_dict,
                      simulate, solve_adaptive)
-from reduced.integrators import MAX_EVALUATIONS
-from reduced.scenefile import hard_scene_dir
+from xval.reduced.integrators import MAX_EVALUATIONS
+from xval.reduced.scenefile import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 
-simulate_module = importlib.import_module("reduced.engine")  # the package's `simulate` is the function
+simulate_module = importlib.import_module("xval.reduced.engine")  # the package's `simulate` is the function
 
 
 def observed_order(steps, errors) -> float:
@@ -185,7 +185,7 @@ def test_settings_the_method_ignores_are_reported(kwargs, ignored):
         ReducedSettings(**kwargs)
 
 
-@pytest.mark.filterwarnings("error::reduced.IgnoredSettingWarning")
+@pytest.mark.filterwarnings("error::xval.reduced.IgnoredSettingWarning")
 def test_settings_the_method_uses_raise_no_warning():
     ReducedSettings(method="rkn4", step=1e-3, rtol=1e-3)
     ReducedSettings(method="dop853", rtol=1e-9, sample_interval=1e-4)

@@ -1,9 +1,9 @@
 """Kinematics: closed-form, compiled general and finite-difference K, L agree; the seed's 𝔍 and ζ.
 
-The four-bar's closed form (:class:`reduced.linkage.FourBar`) and the dyad closed form written
-below are the oracles of the compiled general path (:mod:`reduced.kernels.physics`, through
-:class:`reduced.dynamics.MechanismModel` and :class:`reduced.partition.Chart`); the pure-numpy
-loop equations of :mod:`reduced.loops` are a third, independent evaluation of K and L."""
+The four-bar's closed form (:class:`xval.reduced.linkage.FourBar`) and the dyad closed form written
+below are the oracles of the compiled general path (:mod:`xval.reduced.kernels.physics`, through
+:class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.partition.Chart`); the pure-numpy
+loop equations of :mod:`xval.reduced.loops` are a third, independent evaluation of K and L."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from reduced import FourBar, MechanismModel, SceneError, load_scene, scene_from_dict
-from reduced import loops
-from reduced.partition import Chart
-from reduced.scene import FourBarGeometry
+from xval.reduced import FourBar, MechanismModel, SceneError, load_scene, scene_from_dict
+from xval.reduced import loops
+from xval.reduced.partition import Chart
+from xval.reduced.scene import FourBarGeometry
 
 from helpers import SEED_SCENE, coefficients_along, seed_dict, variant
 
@@ -116,9 +116,9 @@ def test_every_chart_matches_the_dyad_closed_form_and_newton():
     """With q, φ1 or φ2 as the chart's coordinate, the compiled chart (started at the closed
     form's configuration, then walked 0.02 rad along its coordinate) lands where the dyad's
     closed form puts the linkage (round-off), with the K, L of the pure-numpy loop equations
-    (:func:`reduced.loops.coefficients` with that coordinate driving, at the same x) and, for
+    (:func:`xval.reduced.loops.coefficients` with that coordinate driving, at the same x) and, for
     q, of the four-bar closed form (bounds 1e-10, 1e-9: the walked x is Newton's, ~1e-12 from
-    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), reduced.loops and
+    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), xval.reduced.loops and
     the compiled chart agree."""
     g = SEED
     linkage = FourBar(g)
@@ -232,5 +232,5 @@ def test_scene_that_cannot_assemble_names_the_discriminant():
     data = seed_dict()
     data["linkage"]["c3"] = 0.05
     with pytest.raises(SceneError, match="discriminant"):
-        from reduced import scene_from_dict
+        from xval.reduced import scene_from_dict
         scene_from_dict(data)

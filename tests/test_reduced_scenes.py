@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from compare import cli
-from reduced import SceneError, default_scene_path, load_scene, scene_from_dict
+from xval.compare import cli
+from xval.reduced import SceneError, default_scene_path, load_scene, scene_from_dict
 
 from helpers import SEED_SCENE, seed_dict
 

@@ -18,9 +18,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from compare.settings import gate_tolerances, mujoco_settings, reduced_settings
-from reduced import SceneError, load_scene, scene_from_dict
-from reduced.loads import PulseTorque
+from xval.compare.settings import gate_tolerances, mujoco_settings, reduced_settings
+from xval.reduced import SceneError, load_scene, scene_from_dict
+from xval.reduced.loads import PulseTorque
 from helpers import DELETE, patched, seed_dict
 
 # [tolerances] (README: "Scene files"): the documented default of each key, and a value that is not.
@@ -102,7 +102,7 @@ def _compiled(model) -> dict:
 
 @pytest.mark.parametrize("key", sorted(MUJOCO) + ["(no table)"])
 def test_mujoco_settings_left_out_take_their_documented_defaults(key):
-    from reference_models.run import build_model
+    from xval.reference_models.run import build_model
 
     data = seed_dict()
     if key == "(no table)":

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from compare import cli
-from reduced import SceneError, load_scene
+from xval.compare import cli
+from xval.reduced import SceneError, load_scene
 
 BAD = sorted((Path(__file__).parent / "data" / "bad_scenes").glob("*.toml"))
 

@@ -1,4 +1,4 @@
-"""Local sensitivities d(peak |ω|)/dp (compare.sensitivity, ``xval sweep --sensitivity``).
+"""Local sensitivities d(peak |ω|)/dp (xval.compare.sensitivity, ``xval sweep --sensitivity``).
 
 Oracle: the same derivative by central differences at a step ten times the module's and more
 (1e-3 of the nominal value), Richardson-extrapolated, whose own truncation is estimated from its
@@ -17,10 +17,10 @@ import json
 
 import pytest
 
-from compare.cli import main
-from compare.sensitivity import Sensitivity, _peak, sensitivities
-from compare.sweep_spec import load_sweep, spec_from_args
-from reduced import default_scene_path
+from xval.compare.cli import main
+from xval.compare.sensitivity import Sensitivity, _peak, sensitivities
+from xval.compare.sweep_spec import load_sweep, spec_from_args
+from xval.reduced import default_scene_path
 
 KEYS = ["dampers.0.coefficient=40:70:2", "bodies.coupler.mass=35:45:2"]
 
@@ -78,7 +78,7 @@ def test_a_sensitivity_needs_a_positive_step():
 def test_a_failed_run_near_the_nominal_value_is_a_numerical_failure_naming_the_key(seed):
     """A run that fails (here RKN4 at a step far too large for its own error estimate) is a
     numerical failure (exit 1), not bad input, and names the key and value that needed it."""
-    from reduced.errors import NumericalFailure
+    from xval.reduced.errors import NumericalFailure
 
     data, path = seed
     coarse = {**data, "reduced": {"method": "rkn4", "step": 0.05}}

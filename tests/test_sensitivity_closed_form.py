@@ -1,4 +1,4 @@
-"""``--sensitivity`` against a derivative known in closed form (compare.sensitivity).
+"""``--sensitivity`` against a derivative known in closed form (xval.compare.sensitivity).
 
 A parallelogram four-bar (crank and rocker of equal length 0.5 m, coupler as long as the ground)
 keeps its coupler parallel to the ground, so 𝔍 is constant:
@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import math
 
-from compare.sensitivity import sensitivities
-from compare.sweep_spec import spec_from_args
-from reduced import scene_from_dict, simulate
+from xval.compare.sensitivity import sensitivities
+from xval.compare.sweep_spec import spec_from_args
+from xval.reduced import scene_from_dict, simulate
 
 T, D = 0.05, 0.5  # N·m, s
 MASS, X, PIVOT, I_G = 1.0, 1.0, 0.9, 1e-6  # crank: kg, m, m, kg·m²

@@ -27,8 +27,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from reduced import ReducedSettings, scene_from_dict, simulate
-from reference_models import MujocoSettings, simulate_mujoco
+from xval.reduced import ReducedSettings, scene_from_dict, simulate
+from xval.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT
 

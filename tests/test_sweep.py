@@ -1,8 +1,8 @@
-"""xval sweep (compare.sweep): rows equal to xval run's report on the same variant scene, rows in
+"""xval sweep (xval.compare.sweep): rows equal to xval run's report on the same variant scene, rows in
 variant order from a pool, Monte Carlo reproducible with its seed, bad specifications refused up
 front naming the key, invalid and failed variants counted without stopping the sweep, exit status,
 and the output folder left as it was by an interrupted sweep. Reduced-only sweeps (``--engines
-reduced``): rows equal to reduced.engine.simulate with the settings the comparison would give it,
+reduced``): rows equal to xval.reduced.engine.simulate with the settings the comparison would give it,
 MuJoCo neither run nor imported, exit status 1 on a variant failing the reduced engine's own
 checks, exactly the files sweep_files lists, the [sweep] table's engines and the flag over it, and
 bad values refused. Short scenes (the seed with a 0.3 s horizon) and 2-4 variants."""
@@ -20,12 +20,12 @@ from dataclasses import replace
 
 import pytest
 
-from compare import sweep as sweep_module
-from compare.cli import main
-from compare.output import MANIFEST_FILE
-from compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
-from compare.sweep_spec import Engines, spec_from_args
-from reduced.scenefile import default_scene_path
+from xval.compare import sweep as sweep_module
+from xval.compare.cli import main
+from xval.compare.output import MANIFEST_FILE
+from xval.compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
+from xval.compare.sweep_spec import Engines, spec_from_args
+from xval.reduced.scenefile import default_scene_path
 
 from helpers import ROOT, interruptible, short_seed_file  # noqa: F401 - fixture
 
@@ -178,11 +178,11 @@ def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, t
     """sweep_worst_differences.png: xval run's differences plot of the row with the largest
     peak-ω difference against its tolerance, from a run again of that variant (the plot's
     comparison has the row's peaks) and named in the plot's subtitle."""
-    import compare.plots
+    import xval.compare.plots
 
     drawn = []
-    real = compare.plots.plot_differences
-    monkeypatch.setattr(compare.plots, "plot_differences",
+    real = xval.compare.plots.plot_differences
+    monkeypatch.setattr(xval.compare.plots, "plot_differences",
                         lambda c, path, subtitle=None: (drawn.append((c, subtitle)), real(c, path, subtitle))[1])
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "bodies.coupler.mass=[35, 45, 40]",
                                 "--workers", "2")
@@ -199,18 +199,18 @@ def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, t
 
 
 def test_without_a_compared_variant_the_worst_plot_says_so(tmp_path):
-    from compare.sweep import Summary, plot_worst
+    from xval.compare.sweep import Summary, plot_worst
 
     plot_worst({}, "<none>", Summary(keys=()), tmp_path / "worst.png")
     assert (tmp_path / "worst.png").stat().st_size > 0
 
 
 def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, capsys, monkeypatch):
-    from reduced.errors import NumericalFailure
+    from xval.reduced.errors import NumericalFailure
 
-    import compare.run
+    import xval.compare.run
 
-    original, calls = compare.run.compare_engines, []
+    original, calls = xval.compare.run.compare_engines, []
 
     def flaky(scene, **kwargs):  # the second variant's engines fail
         calls.append(scene)
@@ -218,7 +218,7 @@ def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, 
             raise NumericalFailure("unstable", "planted")
         return original(scene, **kwargs)
 
-    monkeypatch.setattr(compare.run, "compare_engines", flaky)
+    monkeypatch.setattr(xval.compare.run, "compare_engines", flaky)
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "torque.value=[250, 240, 245]",
                                 "--workers", "1")
     rows = _rows(tmp_path / "sw")
@@ -268,8 +268,8 @@ def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypat
     import multiprocessing
     import time
 
-    from compare.sweep import run_rows
-    from compare.sweep_spec import spec_from_args
+    from xval.compare.sweep import run_rows
+    from xval.compare.sweep_spec import spec_from_args
 
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("needs forked workers to see the patched variant runner")
@@ -293,18 +293,18 @@ def _header(out):
 
 
 def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tmp_path, capsys, monkeypatch):
-    """Each row's reduced figures are those of reduced.engine.simulate with the scene's reduced
-    settings as compare.settings resolves them; MuJoCo and the comparison are not run (the
+    """Each row's reduced figures are those of xval.reduced.engine.simulate with the scene's reduced
+    settings as xval.compare.settings resolves them; MuJoCo and the comparison are not run (the
     comparison is planted to fail: a variant that ran it would be a failed row)."""
-    import compare.run
-    from compare.settings import reduced_settings
-    from reduced.engine import simulate
-    from reduced.scenefile import load_scene
+    import xval.compare.run
+    from xval.compare.settings import reduced_settings
+    from xval.reduced.engine import simulate
+    from xval.reduced.scenefile import load_scene
 
     def no_comparison(*args, **kwargs):
         raise AssertionError("a reduced-only sweep ran the comparison")
 
-    monkeypatch.setattr(compare.run, "compare_engines", no_comparison)
+    monkeypatch.setattr(xval.compare.run, "compare_engines", no_comparison)
     short_scene.write_text(short_scene.read_text() + '\n[reduced]\nrtol = 1e-10\n')  # its own settings, used
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "dampers.0.coefficient=[50, 60.5]",
                                 "--engines", "reduced", "--workers", "1")
@@ -341,7 +341,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
 
 def test_a_reduced_only_variant_does_not_import_mujoco(tmp_path):
     """The memory target's premise: a worker running reduced-only variants never loads MuJoCo."""
-    code = ("import sys\nfrom compare.sweep import run_variant\nfrom compare.sweep_spec import Engines, load_sweep\n"
+    code = ("import sys\nfrom xval.compare.sweep import run_variant\nfrom xval.compare.sweep_spec import Engines, load_sweep\n"
             f"data, _ = load_sweep({str(short_seed_file(tmp_path))!r})\n"
             "row = run_variant(0, {'torque.value': 240.0}, data, 'short.toml', engines=Engines.REDUCED)\n"
             "print(row['status'], 'mujoco' in sys.modules, 'reference_models' in sys.modules)\n")
@@ -421,8 +421,8 @@ def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
 
     from matplotlib.figure import Figure
 
-    from compare.sweep import PLOTS, WORST_PLOT, columns, plot_files
-    from compare.sweep_spec import variant_values
+    from xval.compare.sweep import PLOTS, WORST_PLOT, columns, plot_files
+    from xval.compare.sweep_spec import variant_values
     from test_startup import text_outside
 
     spec = replace(spec_from_args(varies, samples=200 if "normal" in varies[0] else None), engines=engines)

@@ -1,4 +1,4 @@
-"""xval sweep --scheduler (compare.sweep on a Dask cluster, the optional ``distributed`` extra):
+"""xval sweep --scheduler (xval.compare.sweep on a Dask cluster, the optional ``distributed`` extra):
 on a local cluster of two worker processes the rows are the same, in the same order, as a local
 run's (apart from wall times); a bad address, Dask missing, and --workers with --scheduler are
 refused with one line, exit 2, before any work; a local sweep imports no Dask. Short scenes (the seed with a 0.3 s horizon) and
@@ -13,9 +13,9 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from compare import sweep as sweep_module  # noqa: E402
-from compare.cli import main  # noqa: E402
-from compare.sweep import CSV_FILE, read_rows  # noqa: E402
+from xval.compare import sweep as sweep_module  # noqa: E402
+from xval.compare.cli import main  # noqa: E402
+from xval.compare.sweep import CSV_FILE, read_rows  # noqa: E402
 
 from helpers import short_seed_file  # noqa: E402
 
@@ -83,7 +83,7 @@ def test_scheduler_without_dask_or_with_workers_is_refused(short_scene, tmp_path
 
 
 def test_a_local_sweep_imports_no_dask(short_scene, tmp_path):
-    code = ("import sys; from compare.cli import main; "
+    code = ("import sys; from xval.compare.cli import main; "
             f"status = main(['sweep', {str(short_scene)!r}, '--vary', 'dampers.0.coefficient=[50]', '--workers', '1', "
             f"'--out', {str(tmp_path / 'sw')!r}]); "
             "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
@@ -148,7 +148,7 @@ def test_a_service_that_is_not_a_scheduler_is_one_line_exit_2_within_the_timeout
     out, timings = tmp_path / "sw", tmp_path / "timings"
     with _Service(kind) as service:
         address = f"127.0.0.1:{service.port}"
-        code = ("import sys, time, compare.sweep as s; s.CONNECT_TIMEOUT_S = 2.0; from compare.cli import main\n"
+        code = ("import sys, time, xval.compare.sweep as s; s.CONNECT_TIMEOUT_S = 2.0; from xval.compare.cli import main\n"
                 "took = []\n"
                 f"for address in ('tcp://127.0.0.1:9', {address!r}):\n"
                 "    start = time.monotonic()\n"

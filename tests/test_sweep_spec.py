@@ -1,4 +1,4 @@
-"""Sweep specifications (compare.sweep_spec): parsing, the grid's order, the seeded Monte Carlo
+"""Sweep specifications (xval.compare.sweep_spec): parsing, the grid's order, the seeded Monte Carlo
 sample, variants as deep copies, refusals naming the key, and the [sweep] table of a scene file."""
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from compare.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError, Variant,
+from xval.compare.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError, Variant,
                                 check, count, load_sweep, parse_vary, spec_from_args, spec_from_table, variants)
-from reduced.scene import SceneError
-from reduced.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.reduced.scene import SceneError
+from xval.reduced.scenefile import default_scene_path, load_scene, scene_from_dict
 
 SEED_TEXT = default_scene_path().read_text()
 SWEEP_TABLE = """

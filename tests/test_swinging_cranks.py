@@ -20,8 +20,8 @@ import math
 import numpy as np
 import pytest
 
-from compare.run import compare_engines
-from reduced import ReducedSettings, SceneError, scene_from_dict, simulate
+from xval.compare.run import compare_engines
+from xval.reduced import ReducedSettings, SceneError, scene_from_dict, simulate
 
 N_SCENES = 8
 SLACK = 1e-9  # m

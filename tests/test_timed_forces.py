@@ -17,10 +17,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from reduced import ReducedSettings, scene_from_dict, simulate
-from reduced.scene import SceneError
-from reference_models import MujocoSettings, simulate_mujoco
-from reference_models.run import grid_timestep
+from xval.reduced import ReducedSettings, scene_from_dict, simulate
+from xval.reduced.scene import SceneError
+from xval.reference_models import MujocoSettings, simulate_mujoco
+from xval.reference_models.run import grid_timestep
 
 from helpers import ROOT
 

@@ -3,7 +3,7 @@
 Scenes drawn by the seeded generator ``tests/valid_scenes.py`` (four-bars in the shorthand,
 Grashof and swinging; slider-cranks driven at the crank or the slider; Watt II and Stephenson
 III six-bars, some near a toggle; with or without gravity, springs, dampers, point forces and
-constant, pulse or table loads) go through :func:`compare.run.compare_engines` with no
+constant, pulse or table loads) go through :func:`xval.compare.run.compare_engines` with no
 [mujoco] timestep: the automatic step and the gate's tolerances (the defaults, or the draw's).
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import pytest
 
-from compare.run import compare_engines
-from reduced import scene_from_dict
+from xval.compare.run import compare_engines
+from xval.reduced import scene_from_dict
 
 from valid_scenes import TOGGLE_KINDS, generate
 

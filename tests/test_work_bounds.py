@@ -27,11 +27,11 @@ ROOT = Path(__file__).resolve().parent.parent
 PROBE = """
 import dataclasses, json, time, warnings
 warnings.simplefilter("ignore")
-from reduced.kernels import compiled
+from xval.reduced.kernels import compiled
 assert not compiled()
-from reduced import MechanismModel, ReducedSettings, load_scene, simulate
-from reduced.errors import NumericalFailure
-from reduced.kernels import physics
+from xval.reduced import MechanismModel, ReducedSettings, load_scene, simulate
+from xval.reduced.errors import NumericalFailure
+from xval.reduced.kernels import physics
 
 scene = dataclasses.replace(load_scene("scenes/mechanisms/slider_crank_driven_slider.toml"), horizon=0.05)
 names = MechanismModel(scene).coordinate_names

@@ -1,0 +1,27 @@
+"""The import map's contracts hold (pyproject.toml [tool.importlinter]; docs/architecture.md).
+
+import-linter builds the graph of every import inside ``xval`` (function-local ones included)
+and checks the contracts: the engines independent of each other, neither importing the
+comparison above them, nothing importing the command line, and the compiled core's layers.
+Run as ``lint-imports`` in a subprocess, from the checkout (it reads pyproject.toml there).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_the_import_contracts_hold():
+    lint = shutil.which("lint-imports", path=str(Path(sys.executable).parent))
+    if lint is None:
+        pytest.fail("lint-imports is not installed: the `test` extra has import-linter")
+    done = subprocess.run([lint, "--no-cache"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert "0 broken" in done.stdout and "4 kept" in done.stdout, done.stdout[-2000:]

@@ -1,0 +1,587 @@
+"""The ``xval`` command line.
+
+Exit status: 0 success; 1 a gate or check failed or a run failed numerically; 2 bad input
+(including an output path that cannot be written, checked before any work); 130 interrupted
+(Ctrl-C); 143 terminated (SIGTERM). Errors are one line on stderr, never a traceback; an
+interrupted or failed run leaves its output folder as it was (:mod:`xval.compare.output`).
+Warnings raised while settings are resolved or engines run (a setting the method ignores, a
+load edge off MuJoCo's step grid) are printed as one line each, ``xval: warning: ...``.
+
+Engine flags default to None: only the flags given override the scene's [reduced] and
+[mujoco] tables, which override each engine's own defaults.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import sys
+import warnings
+from typing import TYPE_CHECKING
+
+# Only what parsing and error reporting need is imported here; each command imports its
+# engine (the reduced solver, MuJoCo, matplotlib) when it runs.
+from xval.reduced.errors import NumericalFailure
+from xval.reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
+                           REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
+                           SceneError)
+from xval.reduced.scenefile import default_scene_path, load_scene
+
+from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
+                     check_folder, signals_as_exceptions, write_file)
+from .report import JOINTS_BY_DEFAULT
+from .sweep_spec import ENGINE_CHOICES
+from .text import mujoco_lines, reduced_lines
+
+if TYPE_CHECKING:
+    from xval.reduced import ReducedSettings
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+MAX_REPEATS = 1000
+MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
+
+
+class UsageError(ValueError):
+    """Bad command-line input (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _scene(path: str | None):
+    return load_scene(path if path else default_scene_path())
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if value != value or abs(value) == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def _int_in(low: int, high: int):
+    """An argparse type: a whole number in [low, high]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be between {low} and {high}, got {value}")
+        return value
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+def _given(args: argparse.Namespace, names: dict[str, str]) -> dict:
+    """The flags the user gave (not None), keyed by setting name; lists become tuples."""
+    out = {}
+    for flag, name in names.items():
+        value = getattr(args, flag, None)
+        if value is not None:
+            out[name] = tuple(value) if isinstance(value, list) else value
+    return out
+
+
+def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) -> ReducedSettings:
+    """Reduced settings: the flags given over the scene's [reduced] table over the defaults."""
+    from .settings import reduced_settings
+
+    return reduced_settings(scene, **_given(args, flags))
+
+
+def cmd_reduced(args: argparse.Namespace) -> int:
+    from xval.reduced import simulate
+
+    scene = _scene(args.scene)
+    settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
+    result = simulate(scene, settings)
+    print("\n".join(reduced_lines(scene, result)))
+    return EXIT_OK
+
+
+def _mujoco_settings(args: argparse.Namespace, scene):
+    """MuJoCo settings: command-line flags over the scene's [mujoco] table over the defaults."""
+    from .settings import mujoco_settings
+
+    names = ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact")
+    return mujoco_settings(scene, **_given(args, {n: n for n in names}))
+
+
+def cmd_mujoco(args: argparse.Namespace) -> int:
+    from xval.reference_models import simulate_mujoco
+
+    scene = _scene(args.scene)
+    settings = _mujoco_settings(args, scene)
+    result = simulate_mujoco(scene, settings)
+    print("\n".join(mujoco_lines(scene, result)))
+    return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
+
+
+def cmd_export_mjcf(args: argparse.Namespace) -> int:
+    from xval.reference_models import mjcf_text
+
+    check_file(args.output, flag="-o")  # before any work
+    scene = _scene(args.scene)
+    xml = mjcf_text(scene, _mujoco_settings(args, scene))
+    path = write_file(args.output, xml, flag="-o")
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+def cmd_draw(args: argparse.Namespace) -> int:
+    from .draw import drawing_format, write_drawing
+
+    target = check_file(args.out, flag="--out")  # before any work
+    drawing_format(args.out)  # .png, .pdf or .svg, before any work too
+    scene = _scene(args.scene)
+    path = write_drawing(scene, target)
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _rtol_defaults() -> str:
+    """The reduced methods' default tolerances, e.g. ``1e-12 (dop853, radau, scipy-dop853), 1e-05 (rkn4)``."""
+    by_value: dict[float, list[str]] = {}
+    for method in REDUCED_METHODS:
+        by_value.setdefault(REDUCED_DEFAULT_RTOL[method], []).append(method)
+    return ", ".join(f"{value:g} ({', '.join(sorted(methods))})" for value, methods in by_value.items())
+
+
+def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
+    # Every default printed here is the settings' own (xval.reduced.scene holds the values).
+    g = p.add_argument_group("MuJoCo settings")
+    g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
+                   help=f"MuJoCo integrator (default: the scene's [mujoco] table, else {MUJOCO_DEFAULT_INTEGRATOR})")
+    g.add_argument("--timestep", type=_positive, default=None,
+                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else chosen from the scene: "
+                        "load edges on the step grid, confirmed by step halving)")
+    g.add_argument("--solref", type=_finite, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
+                   help="loop constraint solref (default: 2*timestep, 1)")
+    g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
+                   default=None, help="loop constraint solimp (default "
+                                      f"{' '.join(f'{v:g}' for v in MUJOCO_DEFAULT_SOLIMP)})")
+    g.add_argument("--iterations", type=_int_in(1, MUJOCO_MAX_ITERATIONS), default=None,
+                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} "
+                        f"(default {MUJOCO_DEFAULT_ITERATIONS})")
+    g.add_argument("--tolerance", type=_positive, default=None,
+                   help=f"constraint solver tolerance (default {MUJOCO_DEFAULT_TOLERANCE:g})")
+    g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
+                   help="disable refsafe (allows solref time constants below 2*timestep)")
+    g.add_argument("--diagexact", action="store_const", const=True, default=None,
+                   help="enable MuJoCo's exact constraint-diagonal flag")
+
+
+def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
+    """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
+    return _reduced_settings(args, scene, {"reference": "method", "reference_rtol": "rtol",
+                                           "reference_step": "step"})
+
+
+def _tolerances(scene, args: argparse.Namespace):
+    from .settings import gate_tolerances
+
+    return gate_tolerances(scene, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+                           omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .report import joint_columns, report_files, resolve_animation, write_outputs
+    from .text import comparison_lines
+
+    animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
+    check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
+    from .run import compare_engines
+
+    scene = _scene(args.scene)
+    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+    comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
+                                 tolerances=_tolerances(scene, args))
+    print("\n".join(comparison_lines(comparison)))
+    paths = write_outputs(comparison, args.out, animate=animate, joints=joints)
+    print(f"wrote {len(paths)} files to {args.out}/")
+    return EXIT_OK if comparison.gate.passed else EXIT_FAILED
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from .run import compare_engines
+    from .text import check_lines
+
+    scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
+    failed = 0
+    for scene in scenes:
+        tolerances = _tolerances(scene, args)
+        try:
+            c = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
+                                tolerances=tolerances)
+        except NumericalFailure as exc:
+            failed += 1
+            print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")
+            continue
+        failed += not c.gate.passed
+        print("\n".join(check_lines(c)))
+    print(f"{len(scenes) - failed} passed, {failed} failed")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def cmd_cost(args: argparse.Namespace) -> int:
+    from .cost import COST_FILES, study, summary_lines, write_cost_outputs
+
+    check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
+    scene = _scene(args.scene)
+    report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
+                                         workers=args.workers)
+    print("\n".join(summary_lines(report, measurements)))
+    paths = write_cost_outputs(report, measurements, args.out, target)
+    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    return EXIT_OK
+
+
+def cmd_stress(args: argparse.Namespace) -> int:
+    from .stress import CATALOGUE, STRESS_FILES, run_catalogue, table_lines, write_stress
+
+    cases = CATALOGUE if not args.case else [c for c in CATALOGUE if c.name in args.case]
+    unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
+    if unknown:
+        raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
+    check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
+    results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
+                                                           file=sys.stderr, flush=True))
+    for line in table_lines(results):
+        print(line)
+    [path] = write_stress(results, args.out)
+    print(f"wrote {path}")
+    return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .sweep import run_sweep, summary_lines, sweep_files
+    from .sweep_spec import check, load_sweep, spec_from_args
+
+    if args.scheduler is not None:
+        from .sweep import require_dask
+
+        if args.workers is not None:
+            raise UsageError("--workers and --scheduler: the Dask cluster's workers run the sweep; give one of them")
+        require_dask()  # before any work: one line naming the extra to install
+    path = args.scene if args.scene else str(default_scene_path())
+    data, table_spec = load_sweep(path)
+    if args.vary:
+        spec = spec_from_args(args.vary, args.samples, args.seed)
+    elif table_spec is None:
+        raise UsageError(f"{path}: nothing to sweep: give --vary KEY=SPEC or a [sweep] table in the scene file")
+    elif args.samples is not None or args.seed is not None:
+        raise UsageError("--samples and --seed go with --vary (the scene's [sweep] table has its own)")
+    else:
+        spec = table_spec
+    if args.engines is not None:  # the flag overrides the table's engines only when given
+        spec = replace(spec, engines=args.engines)
+    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
+    if args.resume:
+        from .sweep import journaled_rows
+
+        if args.keep_trajectories:
+            raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
+        journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
+    client = None
+    if args.scheduler is not None:
+        from .sweep import connect
+
+        client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
+    try:
+        found = None
+        if args.sensitivity:
+            from .sensitivity import sensitivities, sensitivity_lines
+
+            items = sensitivities(data, spec, path)
+            print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
+            found = [s.as_dict() for s in items]
+        summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
+                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
+                                   resume=args.resume)
+    finally:
+        if client is not None:
+            client.close()
+    print("\n".join(summary_lines(summary)))
+    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    return EXIT_FAILED if summary.failed_any else EXIT_OK
+
+
+def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("reduced reference")
+    g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
+                   help="reduced solver used as the reference (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_METHOD})")
+    g.add_argument("--reference-rtol", type=_positive, default=None,
+                   help="accuracy requested of the reference (default: the scene's [reduced] table, else "
+                        f"{_rtol_defaults()})")
+    g.add_argument("--reference-step", type=_positive, default=None,
+                   help="step of an rkn4 reference in s (default: the scene's [reduced] table, else "
+                        f"{REDUCED_DEFAULT_STEP:g})")
+
+
+def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("gate tolerances (override the scene's [tolerances] table)")
+    g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of the peak input speed")
+    g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad (m for a prismatic input)")
+    g.add_argument("--omega-atol", type=_positive, default=None, help="max |dqdot| in rad/s (m/s for a prismatic input)")
+    g.add_argument("--omega-vs-q-atol", type=_positive, default=None,
+                   help="max |dqdot| at equal input position, rad/s or m/s (phase-free)")
+
+
+def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
+    _add_reference_arguments(p)
+    _add_mujoco_arguments(p)
+    _add_tolerance_arguments(p)
+
+
+def _add_scene_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", nargs="?", default=None,
+                   help="scene TOML file (default: scenes/seed_fourbar.toml, the seed example)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="xval",
+        description="Solve a one-DOF mechanism two ways (Eksergian's equation and MuJoCo) and "
+                    "say how far apart they are.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("reduced", help="solve the scene's Eksergian equation",
+                       description="Solve the scene's Eksergian equation; print the peak speed of the "
+                                   "input joint (rad/s or m/s), its time and the energy residual.")
+    _add_scene_argument(p)
+    p.add_argument("--method", choices=REDUCED_METHODS, default=None,
+                   help="adaptive DOP853 or fixed-step RKN4 (both compiled), implicit Radau, or scipy's "
+                        "DOP853 on the same equation as a cross-check (default: the scene's [reduced] "
+                        f"table, else {REDUCED_DEFAULT_METHOD})")
+    p.add_argument("--rtol", type=_positive, default=None,
+                   help=f"accuracy requested (default: the scene's, else {_rtol_defaults()})")
+    p.add_argument("--step", type=_positive, default=None,
+                   help=f"step of RKN4 in s (default: the scene's, else {REDUCED_DEFAULT_STEP:g})")
+    p.set_defaults(func=cmd_reduced)
+
+    p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
+                       description="Run the scene's MuJoCo model (open chain closed by an equality "
+                                   "constraints); print the peak speed of the input joint, its "
+                                   "time, the largest loop-constraint violation and the energy residual.")
+    _add_scene_argument(p)
+    _add_mujoco_arguments(p)
+    p.set_defaults(func=cmd_mujoco)
+
+    p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
+                       description="Write the scene's MuJoCo model as a human-readable MJCF file "
+                                   "that MuJoCo loads on its own.")
+    _add_scene_argument(p)
+    p.add_argument("-o", "--output", required=True, help="MJCF file to write")
+    _add_mujoco_arguments(p)
+    p.set_defaults(func=cmd_export_mjcf)
+
+    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
+                       description="Draw the scene's linkage assembled at q0 in its assembly mode: "
+                                   "bodies, revolute and prismatic joints, ground pivots, dampers, "
+                                   "springs, point forces and centres of mass, labelled, lengths in m. "
+                                   "Check a scene's geometry before running it.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="linkage.png",
+                   help="file to write, in the format its suffix names: .png, .pdf or .svg (default ./linkage.png)")
+    p.set_defaults(func=cmd_draw)
+
+    p = sub.add_parser("run", help="run both engines, compare, write report and plots",
+                       description="Run the scene through the reduced solver and MuJoCo, print a "
+                                   "table of both results and their differences, and write "
+                                   "report.json, reduced.csv, mujoco.csv and PNG plots (with a strip of "
+                                   "the mechanism at the peak speed and at the largest disagreement, "
+                                   "both engines overlaid) into --out.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="xval-out",
+                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    p.add_argument("--animate", action="store_true",
+                   help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
+    p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
+                   help="the joints whose coordinate and rate the CSVs and report.json carry, with the input's "
+                        f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
+                        "alone)")
+    _add_comparison_arguments(p)
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",
+                       description="Run both engines on each scene and compare the differences "
+                                   "against the scene's [tolerances] (flags override). Exit 0 when "
+                                   "every scene passes, 1 when any fails, 2 on bad input.")
+    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
+    _add_comparison_arguments(p)
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",
+                       description="Sweep both engines over steps, tolerances, MuJoCo integrators and "
+                                   "constraint softness; measure errors against the reduced truth "
+                                   "(DOP853 rtol 1e-12) and the median wall time of the simulation; "
+                                   "write cost.png (work-precision diagram), cost.csv and cost.json; "
+                                   "recommend the cheapest configuration of each engine for the target.")
+    _add_scene_argument(p)
+    p.add_argument("--out", default="xval-cost",
+                   help="output folder, created if absent in an existing folder (default ./xval-cost: each command its own, as a folder holds one run)")
+    p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
+    p.add_argument("--target", type=_positive, default=None,
+                   help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
+    p.add_argument("--repeats", type=_int_in(1, MAX_REPEATS), default=None,
+                   help="timed runs per configuration (default 3)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores)")
+    p.set_defaults(func=cmd_cost)
+
+    p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
+                       description="Run every hard case (dead centres, near change point, stiff damper, "
+                                   "long conservative run, fast crank, off-grid pulse edge, gravity) "
+                                   "through both engines; print a table of each engine's status, "
+                                   "differences, constraint violation, energy drift and wall time; "
+                                   "write stress.json. Exit 1 if any case does not behave as expected.")
+    p.add_argument("--out", default="xval-stress",
+                   help="output folder, created if absent in an existing folder (default ./xval-stress: each command its own, as a folder holds one run)")
+    p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    p.set_defaults(func=cmd_stress)
+
+    p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
+                       description="Run variants of the scene (numbers of the scene file varied over a grid "
+                                   "or a Monte Carlo sample) through both engines and the gate, as xval run "
+                                   "does (the scene's own settings and tolerances), in parallel; write "
+                                   "sweep.csv and sweep.json (one row per variant: its status, the varied values, "
+                                   "report.json's diff and gate figures, both engines' peaks and times), plots, "
+                                   "and print a summary. With --engines reduced, only the reduced solver runs "
+                                   "(its own error and energy checks, no MuJoCo, no gate). Variants that cannot be "
+                                   "assembled (invalid) or whose engines fail numerically (failed) are counted "
+                                   "rows. Exit 1 if any variant fails the gate or numerically or none is valid, 2 on bad input "
+                                   "(checked before any run).")
+    _add_scene_argument(p)
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC",
+                   help="a dotted key of the scene file (bodies.coupler.mass, dampers.0.coefficient, "
+                        "linkage.c2, mujoco.timestep, tolerances.peak_omega_rtol...) and its values: lo:hi:n, "
+                        "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
+                        "sample. Without --vary: the scene file's [sweep] table; when both are given, "
+                        "--vary wins and the table is ignored")
+    p.add_argument("--engines", choices=ENGINE_CHOICES, default=None,
+                   help="what runs on each variant: both (the reduced solver and MuJoCo, compared and gated) or "
+                        "reduced (the reduced solver alone with the settings the comparison gives it; sweep.csv "
+                        "has no diff, gate or mujoco columns, no gate map or worst-differences plot). Default: the "
+                        "[sweep] table's engines when the table is used, else both")
+    p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
+                   help="number of Monte Carlo variants (distributions only)")
+    p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
+                   help="seed of the Monte Carlo sample (default 0)")
+    p.add_argument("--out", default="xval-sweep",
+                   help="output folder, created if absent in an existing folder (default ./xval-sweep: each command its own, as a folder holds one run)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores); not with --scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run the variants on the Dask cluster of this scheduler (tcp://host:8786) instead of "
+                        "local processes: the same chunks of variants are its tasks and the rows are the same, "
+                        "in the same order. Needs the distributed extra (pip install 'xval[distributed]'); "
+                        "refused with --workers (the cluster's workers run the sweep); an address not "
+                        "reached within 10 s is an error (exit 2)")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="also write trajectories.csv, every variant's input trajectory from both engines "
+                        "(for small sweeps)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted sweep: the rows it finished, kept in the journal beside --out "
+                        "(OUT.sweep-journal.csv, removed when a sweep completes), are not run again; the scene "
+                        "file, keys, values and engines must be the same. Not with --keep-trajectories")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
+                        "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
+    p.set_defaults(func=cmd_sweep)
+
+    return parser
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"xval: warning: {_one_line(message)}", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def _progress_shown():
+    """The engines' progress lines (the ``xval`` loggers at INFO: MuJoCo's timestep search) on
+    stderr as ``xval: ...`` while a command runs."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("xval: %(message)s"))
+    logger = logging.getLogger("xval")
+    logger.addHandler(handler)
+    level, logger.level = logger.level, logging.INFO
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one ``xval`` command; return its exit status (see the module docstring)."""
+    received: list[int] = []
+    try:
+        with signals_as_exceptions() as received, warnings.catch_warnings():
+            warnings.simplefilter("default")  # each distinct warning once
+            warnings.showwarning = _show_warning
+            try:
+                args = build_parser().parse_args(argv)
+            except SystemExit as exc:  # --help, or a usage error already printed
+                return exc.code if isinstance(exc.code, int) else EXIT_OK
+            with _progress_shown():
+                return args.func(args)
+    except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on
+        return _failure(exc, received)
+
+
+def _failure(exc: BaseException, received: list[int]) -> int:
+    """Print the one line of what ended the command and return its exit status; raise what is
+    not an expected failure (a bug: its traceback). A signal received decides, whatever became
+    of its exception (a module interrupted while loading raises ImportError)."""
+    import signal
+
+    if isinstance(exc, KeyboardInterrupt) or (received and received[0] == signal.SIGINT):
+        print("xval: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if isinstance(exc, Terminated) or received:
+        print("xval: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    if isinstance(exc, NumericalFailure):
+        print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
+        return EXIT_FAILED
+    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError)):
+        print(f"xval: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if isinstance(exc, BrokenPipeError):  # output piped into e.g. `head`
+        sys.stderr.close()
+        return EXIT_OK
+    if isinstance(exc, OSError):  # e.g. the disk filled up while writing: the outputs are as they were
+        where = f"'{exc.filename}': " if exc.filename else ""
+        print(f"xval: error: {where}{exc.strerror or _one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    raise exc
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,124 @@
+# C-level declaration of xval/reduced/kernels/physics.py (Cython's augmenting .pxd).
+
+from xval.reduced.kernels.problem cimport RightHandSide
+
+# The integer constants of the packed layout (physics.py documents them; its block
+# `if not cython.compiled` holds the same values for plain Python: keep both in step,
+# tests/test_physics_port.py compares them). A cpdef enum: C constants, importable from Python.
+cpdef enum:
+    N = 0
+    N_ANGLES = 1
+    N_LINEAR = 2
+    N_DAMPERS = 3
+    N_ELEMENTS = 4
+    N_FORCES = 5
+    HAS_GRAVITY = 6
+    MAX_ROWS = 7
+    DRIVE = 8
+    MASSES = 9
+    INERTIAS = 10
+    GRAVITY = 11
+    ELEMENT_COEF = 12
+    ELEMENT_REST = 13
+    FORCE_DIR = 14
+    LINEAR = 15
+    SPLINE_KNOTS = 16
+    SPLINE_COEF = 17
+    SPLINE_LO = 18
+    SPLINE_HI = 19
+    SPLINE_PERIOD = 20
+    KNOT_START = 21
+    COEF_START = 22
+    SPLINE_DEGREE = 23
+    DYAD_PLAN = 24
+    DYAD_STEPS = 25
+    DYAD_W = 26
+    N_JOINT_ELEMENTS = 27
+    N_JOINT_DAMPERS = 28
+    JOINT_ROWS = 29
+    JOINT_COEF = 30
+    JOINT_REST = 31
+    N_TIMED = 32
+    TIMED_DIR = 33
+    PIECE_VALUES = 34
+    LOOPS = 0
+    CENTRES = 1
+    ENDS = 2
+    FORCE_POINTS = 3
+    TABLES = 35
+    TABLE_ENTRIES = 7
+    HEADER = 63
+    INDEPENDENT = 0
+    SIGN = 1
+    STATUS = 2
+    VALID = 3
+    S_HEADER = 4
+    OK = 0
+    SINGULAR = 1
+    WORK_SPENT = 2
+    INERTIA = 0
+    CENTRIFUGAL = 1
+    POTENTIAL_GRADIENT = 2
+    DAMPING = 3
+    POTENTIAL = 4
+    INPUT_RATE = 5
+    POINT_FORCE = 6
+    INPUT_CURVATURE = 7
+    CONDITIONING = 8
+    BEST_CONDITIONING = 9
+    BEST = 10
+    DETERMINANT = 11
+    N_FIELDS = 12
+    DEPTH = 32
+
+cdef double _c_newton_tol, _c_newton_round_off, _c_singular_conditioning, _c_predictor_trust
+cdef double _c_trusted_correction, _c_long_jump, _c_far_jump, _c_hysteresis, _c_dyad_round_off
+cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan
+cdef Py_ssize_t _c_newton_max_iter, _c_max_walk_closures
+cdef long long _c_max_halvings
+
+cdef double _nearest(double angle, double target)
+cpdef bint _dyads(double[::1] F, long long[::1] I, Py_ssize_t first, double[::1] x, double[::1] base,
+                  double[:, ::1] trig, Py_ssize_t i)
+
+
+cdef class Chart(RightHandSide):
+    cdef readonly object model, S, W
+    cdef double[::1] F
+    cdef long long[::1] I
+    cdef readonly Py_ssize_t n
+    # views of S and of W (physics.py: Chart), made once at construction; K and L are kin's rows
+    cdef long long[::1] s, piv, budget
+    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L
+    cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
+    cdef double[:, :, ::1] base
+    # what _term leaves (its row is returned), and what _constraints leaves
+    cdef Py_ssize_t term_g, term_a
+    cdef double term_m, term_ux, term_uy, spread
+
+    cdef double _lu_factor(self)
+    cdef int _lu_solve(self, double[::1] b)
+    cdef int _angle_trig(self)
+    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
+    cdef int _table_positions(self, Py_ssize_t table)
+    cdef int _table_rates(self, Py_ssize_t table, bint with_l)
+    cdef double _constraints(self)
+    cdef int _finish(self, double det)
+    cdef int _close(self, Py_ssize_t depth, double value, double reach)
+    cdef int _walk(self, double value)
+    cdef double _point_force(self, Py_ssize_t p, double q)
+    cdef int _coefficients(self)
+    cdef double _applied(self, Py_ssize_t piece)
+    cpdef bint evaluate(self, double value)
+    cpdef double acceleration(self, Py_ssize_t load, double t, double q, double v)
+    cpdef double power(self, Py_ssize_t load, double v)
+    cpdef double dissipation(self, double v)
+    cpdef double stop_margin(self, double t, double q, double v)
+    cpdef Py_ssize_t observation_size(self)
+    cpdef observe(self, double[:, ::1] out, Py_ssize_t row)
+    cpdef mark(self)
+    cpdef rewind(self)
+    cpdef reset(self)
+    cpdef bint kinematics_at(self, double[::1] x, double[::1] row)
+    cpdef bint start(self, double[::1] x, Py_ssize_t independent)
+    cpdef Py_ssize_t walk(self, double[::1] values, double[:, ::1] fields, double[:, :, ::1] kin)

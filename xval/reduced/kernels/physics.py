@@ -1,0 +1,1128 @@
+"""Kinematics and Eksergian coefficients of a one-DOF planar linkage, compiled (Cython).
+
+The one implementation of the reduced model's physics. A scene's model is two plain arrays
+(:class:`Model`), and a chart (:class:`Chart`) is a compiled object holding its state in two
+more and the integrators' interface (:class:`.problem.RightHandSide`), so that the integrators'
+loops run without a Python object; :mod:`xval.reduced.dynamics` builds the arrays from a scene and
+wraps the chart for Python callers. Debug with ``XVAL_PURE_PYTHON=1``: this file then runs as
+plain Python (:mod:`xval.reduced.kernels`).
+
+Term tables (:mod:`xval.reduced.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
+With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
+
+    ∂r/∂x[angle] = m u⊥,  ∂r/∂x[mag] = u,
+    K_r = ṁ u + m θ̇ u⊥,  L_r = m̈ u + (2 ṁ θ̇ + m θ̈) u⊥ − m θ̇² u     (ṁ = K[mag], θ̇ = K[angle], …)
+
+A chart integrates in one coordinate x_i. Its configuration at x_i = value is found in closed
+form where the chart's loops are RRR dyads (:func:`_dyads`), else by Newton's method on
+A = [Φ_x; e_i] from the quadratic predictor x + K Δ + ½ L Δ² of the chart's last configuration;
+K = dx/dx_i and L = d²x/dx_i² solve
+
+    A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
+
+with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
+c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|.
+
+Compiled: the integer constants of the packed layout (below) are C constants declared in
+``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
+``if not cython.compiled`` here defines them for plain Python, and
+``tests/test_physics_port.py`` checks that the two agree); the numerical constants are Python
+names with a C copy each (``_c_…``) that the kernels read. The arithmetic keeps the order of
+every expression (the build does not contract a*b+c or reassociate), so that it gives the same
+numbers as plain Python, and as the numba core it replaced: compared on every shipped scene and
+the tests' timed-force and joint-element scenes, with and without dyad plans (24 624
+evaluations along, back and in long jumps), not one bit differed.
+"""
+
+import math
+from typing import NamedTuple
+
+import cython
+import numpy as np
+
+if cython.compiled:
+    from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.xval.reduced.kernels.problem import RightHandSide
+else:
+    from math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+
+    from xval.reduced.kernels.problem import RightHandSide
+
+# Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
+# is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
+# K, L and the coefficients are those of the x returned, whatever the walk's history (with the
+# factors of the iterate before, f(t, q, q̇) varied by 4e-12 relative with the previous call,
+# and DOP853's steps with it). From the quadratic predictor: 2 steps, 3 factorizations.
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 20
+# A loop's residual cannot fall below the rounding of its angles: ε|θ| of each term's lever
+# |m w|. Newton's tolerance is never below NEWTON_ROUND_OFF × Σ |m w| |θ| (4 ulps of it): at
+# |θ| ≈ 1e4 rad and 1 m that is 1e-11 m. Without it a drag link coasting at 100 rad/s failed
+# after 75 s (7 400 rad), reported as a singular position. Below ~1 000 rad·m it is NEWTON_TOL.
+NEWTON_ROUND_OFF = 4 * 2.220446049250313e-16
+# Below this conditioning a coordinate cannot drive the linkage (a dead-centre position).
+SINGULAR_CONDITIONING = 1e-9
+# A Newton correction larger than PREDICTOR_TRUST × the predicted motion |K Δ| (plus
+# TRUSTED_CORRECTION, rad or m) means the jump was too long for the predictor: it is taken in
+# halves, at most MAX_HALVINGS deep.
+PREDICTOR_TRUST = 0.25
+TRUSTED_CORRECTION = 1e-9
+MAX_HALVINGS = 30
+# The halvings of one walk may nest MAX_HALVINGS deep, a tree of up to 2^30 closures: a walk
+# whose closures keep failing (seen: a prismatic column of Φ_x written into the wrong row, where
+# Newton never converges) would spin for hours. A walk that needs more than MAX_WALK_CLOSURES
+# closures fails instead (S[STATUS] = WORK_SPENT), and the run with it. Measured: at most 2
+# closures in one walk on every shipped scene with dop853, rkn4 and scipy-dop853; 61 in the
+# tests' walks (a chart started at a fold, tests/test_long_walks.py). With the fault planted, a
+# walk spent the 20 000 in 0.07 s, and the runs that had spun failed in under 0.1 s.
+MAX_WALK_CLOSURES = 20_000
+# Beyond a predicted motion of LONG_JUMP (rad, or m) the quadratic predictor cannot tell a
+# dependent angle's turn, and the closure nearest to it can be whole turns away: a jump that long
+# is halved without trying it. (Closed at once, walks of hundreds of rad had left a crank-rocker's
+# coupler and rocker at thousands of rad, where round-off no longer let the loops close; taking
+# each angle's turn nearest its base instead put a drag link's rotating angles whole turns off,
+# and a force tabulated on q of a dependent input read there: 8e-2 rad of error at rtol 1e-6.)
+# Beyond FAR_JUMP a jump is no motion of the run but a trial stage of a blown-up step (seen at
+# 4e5 to 3e7 rad at loose rtol, a step the solver then rejects): walked in halves it cost
+# seconds to minutes an evaluation, so it is closed at once, each dependent angle on the turn
+# nearest its base. A walk of FAR_JUMP costs ~100 closures. Such a jump starts from the base's
+# configuration with only x_i moved, not from the predictor: K Δ + ½ L Δ² put the dependent
+# angles of a 3e7-rad jump near 1e15 rad, where their rounding alone is 0.1 rad and Newton's
+# round-off floor (NEWTON_ROUND_OFF) let configurations 1e-2 rad off pass as closed.
+LONG_JUMP = 2.0
+FAR_JUMP = 200.0
+# Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
+# well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
+HYSTERESIS = 0.5
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+# cos ψ beyond ±1 by round-off is a flat dyad (the circles touch), beyond this no assembly.
+DYAD_ROUND_OFF = 1e-12
+# A closed-form configuration is taken as it is when every residual is within this many ε of
+# the loop's size (the sum of its terms' magnitudes): near a flat dyad acos loses digits (ψ to
+# ~1e-8), and the residual, though ≤ NEWTON_TOL, would leave x off by NEWTON_TOL / σ_min(Φ_x);
+# there Newton polishes it as it polishes its own iterates.
+CLOSED_FORM_RESIDUAL = 64 * 2.220446049250313e-16
+# The closed form gives each angle modulo 2π; the turn is the predictor's. Beyond this predicted
+# motion (rad) the predictor cannot tell the turn (a walk back over a whole piece: hundreds of
+# rad), and the configuration is left to Newton's method and the walk's halving, which follow it.
+CLOSED_FORM_REACH = 0.5
+
+
+# -- the packed layout -------------------------------------------------------------------
+# A model is two flat arrays, F (float64) and I (int64); a chart holds two more, S (int64) and
+# W (float64), and typed views of their parts (:class:`Chart`).
+#
+# I[0:HEADER] is the header: counts, then offsets of each array in F (or in I).
+# Compiled, these are the C constants of physics.pxd (module docstring): keep both in step.
+if not cython.compiled:
+    N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
+    (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
+     SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
+    # Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
+    # step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
+    # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ
+    # the angle of W).
+    DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
+    # Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
+    # the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
+    # and rest values (count,).
+    N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
+    # Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
+    # in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and
+    # of the loads on each piece of the run's load history (pieces, 1 + count): the input load,
+    # then each timed force's value. The integrators pass a piece's index as its ``load``.
+    N_TIMED, TIMED_DIR, PIECE_VALUES = range(32, 35)
+    # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
+    # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
+    LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
+    TABLES = 35
+    TABLE_ENTRIES = 7
+    HEADER = TABLES + 4 * TABLE_ENTRIES
+
+    # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
+    # holds the chart's value), then the pivots (n) and the walk's halving budgets (DEPTH).
+    INDEPENDENT, SIGN, STATUS, VALID = range(4)
+    S_HEADER = 4
+    # S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
+    OK, SINGULAR, WORK_SPENT = 0, 1, 2
+    # fields: the coefficients at the memo's value, with respect to x_i
+    (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
+     INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
+    N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
+    DEPTH = MAX_HALVINGS + 2
+
+# C copies of the numerical constants above, which the kernels read (compiled, a module's
+# Python name costs a dictionary lookup and an unboxing at every use). Plain Python reads them
+# too: a test that changes a bound changes the copy (tests/test_work_bounds.py).
+_c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
+_c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
+_c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
+_c_singular_conditioning = cython.declare(cython.double, SINGULAR_CONDITIONING)
+_c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
+_c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
+_c_max_halvings = cython.declare(cython.longlong, MAX_HALVINGS)
+_c_max_walk_closures = cython.declare(cython.Py_ssize_t, MAX_WALK_CLOSURES)
+_c_long_jump = cython.declare(cython.double, LONG_JUMP)
+_c_far_jump = cython.declare(cython.double, FAR_JUMP)
+_c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
+_c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
+_c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
+_c_pi = cython.declare(cython.double, math.pi)
+_c_nan = cython.declare(cython.double, math.nan)
+
+
+class Model(NamedTuple):
+    """A scene's reduced model, packed (built by :func:`xval.reduced.dynamics.build_arrays`)."""
+
+    F: np.ndarray
+    I: np.ndarray
+
+
+def field_count(model: Model) -> int:
+    """Length of a chart's fields: N_FIELDS, then one per timed force."""
+    return N_FIELDS + int(model.I[N_TIMED])
+
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+@cython.cfunc
+@cython.inline
+def _nearest(angle: cython.double, target: cython.double) -> cython.double:
+    """angle + 2πk closest to target (rad)."""
+    return target + (angle - target) - 2.0 * _c_pi * floor((angle - target) / (2.0 * _c_pi) + 0.5)
+
+
+@cython.ccall
+def _dyads(F: cython.double[::1], I: cython.longlong[::1], first: cython.Py_ssize_t, x: cython.double[::1],
+           base: cython.double[::1], trig: cython.double[:, ::1], i: cython.Py_ssize_t) -> cython.bint:
+    """The dependent angles of x by closed form, loop after loop of the plan that starts at step
+    ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
+    the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
+
+        R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
+
+    two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
+    (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
+    ``base`` (n,) is taken: the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart
+    (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b follows from
+    R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the predictor's).
+    The cos and sin of every angle (the chart's coordinate i and the solved ones: with a plan,
+    all) go into trig (2, n) as they are computed, as :func:`angle_trig` would compute them.
+    Returns False where the circles do not meet (no closed loop)."""
+    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+    n_loops: cython.Py_ssize_t = I[tb]
+    step: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    a: cython.Py_ssize_t
+    b: cython.Py_ssize_t
+    w: cython.Py_ssize_t
+    t: cython.Py_ssize_t
+    g: cython.Py_ssize_t
+    wax: cython.double
+    way: cython.double
+    wbx: cython.double
+    wby: cython.double
+    phi_a: cython.double
+    phi_b: cython.double
+    dx: cython.double
+    dy: cython.double
+    ux: cython.double
+    uy: cython.double
+    c: cython.double
+    sn: cython.double
+    d2: cython.double
+    ra2: cython.double
+    cos_psi: cython.double
+    sin_psi: cython.double
+    last: cython.double
+    norm: cython.double
+    ra: cython.double
+    qx: cython.double
+    qy: cython.double
+    rq: cython.double
+    trig[0, i] = cos(x[i])
+    trig[1, i] = sin(x[i])
+    for step in range(first, first + n_loops):
+        k = I[I[DYAD_STEPS] + 3 * step]
+        a = I[I[DYAD_STEPS] + 3 * step + 1]
+        b = I[I[DYAD_STEPS] + 3 * step + 2]
+        w = I[DYAD_W] + 6 * step
+        wax, way, wbx, wby, phi_a, phi_b = F[w], F[w + 1], F[w + 2], F[w + 3], F[w + 4], F[w + 5]
+        dx = -F[I[tb + 2] + 2 * k]
+        dy = -F[I[tb + 2] + 2 * k + 1]
+        for t in range(I[tb + 1]):
+            g = I[I[tb + 6] + t]
+            if I[I[tb + 4] + t] != k or g == a or g == b:
+                continue
+            ux = F[I[tb + 3] + 2 * t]
+            uy = F[I[tb + 3] + 2 * t + 1]
+            if g >= 0:  # a known angle: i's or solved by an earlier step
+                c = trig[0, g]
+                sn = trig[1, g]
+                ux, uy = ux * c - uy * sn, ux * sn + uy * c
+            dx -= ux
+            dy -= uy
+        d2 = dx * dx + dy * dy
+        ra2 = wax * wax + way * way
+        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * sqrt(d2 * ra2))
+        if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
+            return False
+        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
+        # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
+        last = sin(base[b] + phi_b - base[a] - phi_a)
+        cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
+        sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
+        # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
+        norm = sqrt(d2)
+        ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
+        ra = sqrt(ra2)
+        c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
+        x[a] = _nearest(atan2(uy, ux) - phi_a, x[a])
+        trig[0, a] = c
+        trig[1, a] = sn
+        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
+        x[b] = _nearest(atan2(qy, qx) - phi_b, x[b])
+        rq = sqrt(qx * qx + qy * qy) * sqrt(wbx * wbx + wby * wby)
+        if rq > 0.0:
+            trig[0, b] = (qx * wbx + qy * wby) / rq
+            trig[1, b] = (qy * wbx - qx * wby) / rq
+        else:
+            trig[0, b] = cos(x[b])
+            trig[1, b] = sin(x[b])
+    return True
+
+
+# -- the chart -------------------------------------------------------------------------------
+
+@cython.final
+@cython.cclass
+class Chart(RightHandSide):
+    """One chart of a model: its state, q̈ in its coordinate, its walk (compiled).
+
+    ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
+    SIGN, STATUS, VALID, the pivots (n), the walk's halving budgets (DEPTH)) and W (float64:
+    value (1,), start, last, kin (3, n), fields (field_count), A (n, n), rhs, trig (2, n),
+    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)), both numpy
+    arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
+    made once here (the start view is ``origin``: ``start`` is the method). The kernels below
+    are methods that read and write these views and take no array argument (compiled, an array
+    argument is a 200-byte view passed by value, and a view made in a call changes a reference
+    count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
+    as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
+    scratch of the B-splines (the largest degree + 1). A chart is empty until :meth:`start`.
+    """
+
+    def __init__(self, model: Model):
+        F = np.ascontiguousarray(model.F, dtype=np.float64)
+        I = np.ascontiguousarray(model.I, dtype=np.int64)
+        self.model = Model(F, I)
+        self.F = F
+        self.I = I
+        n = int(I[N])
+        self.n = n
+        nfields = N_FIELDS + int(I[N_TIMED])
+        rows = max(int(I[MAX_ROWS]), 1)
+        size = 1 + 9 * n + nfields + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * rows
+        self.S = np.zeros(S_HEADER + n + DEPTH, np.int64)
+        self.W = np.zeros(size)
+        self.s = self.S
+        self.piv = self.S[S_HEADER:S_HEADER + n]
+        self.budget = self.S[S_HEADER + n:S_HEADER + n + DEPTH]
+        views = []
+        o = 0
+        for shape in ((1,), (3, n), (3, n), (3, n), (nfields,), (n, n), (n,), (2, n), (n,), (n,), (n,),
+                      (DEPTH, 3, n), (DEPTH,), (rows, 4)):
+            size = math.prod(shape)
+            views.append(self.W[o:o + size].reshape(shape))
+            o += size
+        (self.value, self.origin, self.last, self.kin, self.fields, self.A, self.rhs, self.trig, self.norms,
+         self.x, self.guess, self.base, self.target, self.rows) = views
+        self.K = views[3][1]
+        self.L = views[3][2]
+        self.marked = np.zeros((3, n))
+        degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
+        self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
+
+    def arrays(self) -> dict:
+        """Named numpy views of the chart's state (Python callers): value (1,), start, last,
+        kin (3, n: x, K, L) and fields (field_count,); they follow every later evaluation."""
+        o = 0
+        out = {}
+        n = int(self.n)
+        for name, shape in (("value", (1,)), ("start", (3, n)), ("last", (3, n)), ("kin", (3, n)),
+                            ("fields", (field_count(self.model),))):
+            size = math.prod(shape)
+            out[name] = self.W[o:o + size].reshape(shape)
+            o += size
+        return out
+
+    # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
+
+    @cython.cfunc
+    def _lu_factor(self) -> cython.double:
+        """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
+        as its reciprocals (a solve then multiplies: its divisions were most of its latency);
+        returns det A (0.0 if singular)."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        det: cython.double = 1.0
+        big: cython.double
+        d: cython.double
+        inverse: cython.double
+        f: cython.double
+        swap: cython.double
+        for k in range(n):
+            p = k
+            big = fabs(self.A[k, k])
+            for r in range(k + 1, n):
+                if fabs(self.A[r, k]) > big:
+                    big = fabs(self.A[r, k])
+                    p = r
+            self.piv[k] = p
+            if big == 0.0:
+                return 0.0
+            if p != k:
+                det = -det
+                for c in range(n):
+                    swap = self.A[k, c]
+                    self.A[k, c] = self.A[p, c]
+                    self.A[p, c] = swap
+            d = self.A[k, k]
+            det *= d
+            inverse = 1.0 / d
+            self.A[k, k] = inverse
+            for r in range(k + 1, n):
+                f = self.A[r, k] * inverse
+                self.A[r, k] = f
+                for c in range(k + 1, n):
+                    self.A[r, c] -= f * self.A[k, c]
+        return det
+
+    @cython.cfunc
+    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
+        solution."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        s: cython.double
+        for k in range(n):
+            p = self.piv[k]
+            if p != k:
+                s = b[k]
+                b[k] = b[p]
+                b[p] = s
+        for r in range(n):
+            s = b[r]
+            for c in range(r):
+                s -= self.A[r, c] * b[c]
+            b[r] = s
+        for r in range(n - 1, -1, -1):
+            s = b[r]
+            for c in range(r + 1, n):
+                s -= self.A[r, c] * b[c]
+            b[r] = s * self.A[r, r]
+        return 0
+
+    # -- term tables -----------------------------------------------------------------------
+
+    @cython.cfunc
+    def _angle_trig(self) -> cython.int:
+        """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
+        j: cython.Py_ssize_t
+        for j in range(self.I[N_ANGLES]):
+            self.trig[0, j] = cos(self.x[j])
+            self.trig[1, j] = sin(self.x[j])
+        return 0
+
+    @cython.cfunc
+    @cython.inline
+    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
+        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
+        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
+        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
+        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
+        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
+        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
+        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
+        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
+        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
+        c: cython.double
+        s: cython.double
+        if a >= 0:
+            c = self.trig[0, a]
+            s = self.trig[1, a]
+            wx, wy = wx * c - wy * s, wx * s + wy * c
+        self.term_g = g
+        self.term_a = a
+        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
+        self.term_ux = wx
+        self.term_uy = wy
+        return row
+
+    @cython.cfunc
+    def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
+        """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        k: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        for k in range(self.I[tb]):
+            self.rows[k, 0] = self.F[off + 2 * k]
+            self.rows[k, 1] = self.F[off + 2 * k + 1]
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            self.rows[k, 0] += self.term_m * self.term_ux
+            self.rows[k, 1] += self.term_m * self.term_uy
+        return 0
+
+    @cython.cfunc
+    def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
+        """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
+        with_l), at kin's x, K and L."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        k: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        md: cython.double
+        td: cython.double
+        cu: cython.double
+        cn: cython.double
+        for k in range(self.I[tb]):
+            for c in range(4):
+                self.rows[k, c] = 0.0
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            md = self.kin[1, g] if g >= 0 else 0.0
+            td = self.kin[1, a] if a >= 0 else 0.0
+            cu = 2.0 * md * td  # coefficient of u⊥ in L_r
+            cn = -m * td * td  # coefficient of u
+            if with_l:
+                if g >= 0:
+                    cn += self.kin[2, g]
+                if a >= 0:
+                    cu += m * self.kin[2, a]
+            self.rows[k, 0] += md * ux - m * td * uy
+            self.rows[k, 1] += md * uy + m * td * ux
+            self.rows[k, 2] += cn * ux - cu * uy
+            self.rows[k, 3] += cn * uy + cu * ux
+        return 0
+
+    @cython.cfunc
+    def _constraints(self) -> cython.double:
+        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
+        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
+        scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
+        the rounding of their angles."""
+        n: cython.Py_ssize_t = self.n
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+        nl: cython.Py_ssize_t = 2 * self.I[tb]
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        lever: cython.double
+        v: cython.double
+        for r in range(n - 1):
+            for c in range(n):
+                self.A[r, c] = 0.0
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        scale: cython.double = 0.0
+        spread: cython.double = 0.0
+        for r in range(nl):
+            self.rhs[r] = self.F[off + r]
+            scale += fabs(self.F[off + r])
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, True)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            self.rhs[2 * k] += m * ux
+            self.rhs[2 * k + 1] += m * uy
+            lever = fabs(m) * (fabs(ux) + fabs(uy))
+            scale += lever
+            if a >= 0:
+                self.A[2 * k, a] -= m * uy
+                self.A[2 * k + 1, a] += m * ux
+                spread += lever * fabs(self.x[a])
+            if g >= 0:
+                self.A[2 * k, g] += ux
+                self.A[2 * k + 1, g] += uy
+        lin: cython.Py_ssize_t = self.I[LINEAR]
+        for r in range(self.I[N_LINEAR]):
+            v = 0.0
+            for c in range(n):
+                self.A[nl + r, c] = self.F[lin + r * n + c]
+                v += self.F[lin + r * n + c] * self.x[c]
+                scale += fabs(self.F[lin + r * n + c] * self.x[c])
+            self.rhs[nl + r] = v
+        self.spread = spread
+        return scale
+
+    # -- one configuration ------------------------------------------------------------------
+
+    @cython.cfunc
+    def _finish(self, det: cython.double) -> cython.int:
+        """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
+        it), and the conditioning of every coordinate into the fields."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        for j in range(n):
+            self.kin[0, j] = self.x[j]
+        for j in range(n):
+            self.K[j] = 0.0
+        self.K[n - 1] = 1.0
+        self._lu_solve(self.K)
+        self._table_rates(LOOPS, False)
+        nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        for k in range(nl):
+            self.L[2 * k] = -self.rows[k, 2]
+            self.L[2 * k + 1] = -self.rows[k, 3]
+        for j in range(2 * nl, n):
+            self.L[j] = 0.0
+        self._lu_solve(self.L)
+        # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
+        product: cython.double = 1.0
+        zeros: cython.Py_ssize_t = 0
+        for j in range(n):
+            if self.norms[j] > 0.0:
+                product *= self.norms[j]
+            else:
+                zeros += 1
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        best: cython.double = 0.0
+        best_j: cython.Py_ssize_t = 0
+        own: cython.double = 0.0
+        c: cython.double
+        for j in range(n):
+            if zeros > 1 or (zeros == 1 and self.norms[j] > 0.0):
+                c = 0.0
+            else:
+                c = fabs(self.K[j]) * fabs(det) / (product / self.norms[j] if self.norms[j] > 0.0 else product)
+            if j == i:
+                own = c
+            if c > best:
+                best = c
+                best_j = j
+        self.fields[CONDITIONING] = own
+        self.fields[BEST_CONDITIONING] = best
+        self.fields[BEST] = best_j
+        self.fields[DETERMINANT] = det
+        return 0
+
+    @cython.cfunc
+    def _close(self, depth: cython.Py_ssize_t, value: cython.double, reach: cython.double) -> cython.int:
+        """Newton from the predictor of base[depth] (rows x, K, L) to x_i = value, whose predicted
+        motion max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into kin (3, n).
+
+        Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
+        singular, or another branch). Leaves the conditioning and det in the fields.
+        """
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        it: cython.Py_ssize_t
+        v: cython.double
+        scale: cython.double
+        largest: cython.double
+        delta: cython.double = value - self.base[depth, 0, i]
+        far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
+        for j in range(n):
+            self.x[j] = self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
+        self.x[i] = value
+        for j in range(n):
+            self.guess[j] = self.x[j]
+        det: cython.double = 0.0
+        converged: cython.bint = False
+        factored: cython.bint = False  # at the polished x
+        plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
+        # x by closed form: taken as it is if it closes the loops
+        closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
+        if closed and not _dyads(self.F, self.I, plan, self.x, self.base[depth, 0], self.trig, i):
+            return 1
+        for it in range(_c_newton_max_iter + 1):
+            if not closed:  # the closed form left trig at x
+                self._angle_trig()
+            scale = self._constraints()
+            largest = 0.0
+            for r in range(n - 1):
+                if not isfinite(self.rhs[r]):
+                    return 1
+                largest = max(largest, fabs(self.rhs[r]))
+            for c in range(n):
+                v = 0.0
+                for r in range(n - 1):
+                    v += self.A[r, c] * self.A[r, c]
+                self.norms[c] = sqrt(v)
+                self.A[n - 1, c] = 0.0
+            self.A[n - 1, i] = 1.0
+            self.rhs[n - 1] = 0.0
+            det = self._lu_factor()
+            if det == 0.0 or not isfinite(det):
+                return 1
+            if converged or (closed and largest <= _c_closed_form_residual * scale):
+                factored = True
+                break
+            closed = False  # not closed to round-off: Newton from there
+            self._lu_solve(self.rhs)
+            for j in range(n):
+                self.x[j] -= self.rhs[j]
+            # converged: the step just taken polishes to round-off
+            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.spread)
+        if not factored:
+            return 1
+        for j in range(n):
+            if not isfinite(self.x[j]):
+                return 1
+        self._finish(det)
+        if self.fields[CONDITIONING] < _c_singular_conditioning:
+            return 1
+        if self.s[SIGN] != 0 and (1 if det >= 0.0 else -1) != self.s[SIGN]:
+            return 1
+        return 0
+
+    @cython.cfunc
+    def _walk(self, value: cython.double) -> cython.int:
+        """Continue the chart from its last configuration to x_i = value, halving untrusted
+        jumps; the result in kin and last. Returns OK, SINGULAR (no closure within the halvings)
+        or WORK_SPENT (more than MAX_WALK_CLOSURES closures)."""
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        delta: cython.double
+        predicted: cython.double
+        moved: cython.double
+        failed: cython.bint
+        trusted: cython.bint
+        for r in range(3):
+            for j in range(n):
+                self.base[0, r, j] = self.last[r, j]
+        self.target[0] = value
+        self.budget[0] = _c_max_halvings
+        depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
+        closures: cython.Py_ssize_t = 0
+        while True:
+            delta = self.target[depth] - self.base[depth, 0, i]
+            predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
+            for j in range(n):
+                predicted = max(predicted, fabs(self.base[depth, 1, j] * delta)
+                                + 0.5 * fabs(self.base[depth, 2, j]) * delta * delta)
+            failed = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
+            trusted = False
+            if predicted <= _c_long_jump or predicted > _c_far_jump or self.budget[depth] <= 0:
+                if closures == _c_max_walk_closures:
+                    return WORK_SPENT
+                closures += 1
+                failed = self._close(depth, self.target[depth], predicted) != 0
+                if not failed:
+                    moved = 0.0
+                    for j in range(n):
+                        moved = max(moved, fabs(self.kin[0, j] - self.guess[j]))
+                    trusted = moved <= _c_predictor_trust * predicted + _c_trusted_correction
+            if failed and self.budget[depth] <= 0:
+                return SINGULAR
+            if trusted or self.budget[depth] <= 0:
+                if predicted > _c_long_jump:  # closed at once: the turns nearest the base's
+                    for j in range(self.I[N_ANGLES]):
+                        if j != i:
+                            self.kin[0, j] = _nearest(self.kin[0, j], self.base[depth, 0, j])
+                if depth == 0:
+                    break
+                # the midpoint is reached: it is the base of the second half, one level down
+                depth -= 1
+                for r in range(3):
+                    for j in range(n):
+                        self.base[depth, r, j] = self.kin[r, j]
+                self.budget[depth] -= 1
+                continue
+            # halve: seek the midpoint first, then the target from there
+            for r in range(3):
+                for j in range(n):
+                    self.base[depth + 1, r, j] = self.base[depth, r, j]
+            self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
+            self.budget[depth + 1] = self.budget[depth] - 1
+            depth += 1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+        return OK
+
+    @cython.cfunc
+    def _point_force(self, p: cython.Py_ssize_t, q: cython.double) -> cython.double:
+        """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor, in the
+        chart's spline scratch)."""
+        lo: cython.double = self.F[self.I[SPLINE_LO] + p]
+        hi: cython.double = self.F[self.I[SPLINE_HI] + p]
+        period: cython.double = self.F[self.I[SPLINE_PERIOD] + p]
+        if period > 0.0:
+            q = lo + (q - lo) - period * floor((q - lo) / period)
+        else:
+            q = min(max(q, lo), hi)
+        t0: cython.Py_ssize_t = self.I[SPLINE_KNOTS] + self.I[self.I[KNOT_START] + p]
+        c0: cython.Py_ssize_t = self.I[SPLINE_COEF] + self.I[self.I[COEF_START] + p]
+        nc: cython.Py_ssize_t = self.I[self.I[COEF_START] + p + 1] - self.I[self.I[COEF_START] + p]
+        k: cython.Py_ssize_t = self.I[self.I[SPLINE_DEGREE] + p]
+        l: cython.Py_ssize_t = k
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        left: cython.double
+        alpha: cython.double
+        while l < nc - 1 and self.F[t0 + l + 1] <= q:
+            l += 1
+        for j in range(k + 1):
+            self.spline[j] = self.F[c0 + l - k + j]
+        for r in range(1, k + 1):
+            for j in range(k, r - 1, -1):
+                left = self.F[t0 + j + l - k]
+                alpha = (q - left) / (self.F[t0 + j + 1 + l - r] - left)
+                self.spline[j] = (1.0 - alpha) * self.spline[j - 1] + alpha * self.spline[j]
+        return self.spline[k]
+
+    @cython.cfunc
+    def _coefficients(self) -> cython.int:
+        """Eksergian's coefficients at the chart's kin into its fields (xval.reduced.dynamics documents
+        them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
+        nb: cython.Py_ssize_t = self.I[N_ANGLES]
+        ms: cython.Py_ssize_t = self.I[MASSES]
+        ins: cython.Py_ssize_t = self.I[INERTIAS]
+        b: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        m: cython.double
+        inertia: cython.double
+        gx: cython.double
+        gy: cython.double
+        dx: cython.double
+        dy: cython.double
+        length: cython.double
+        k_d: cython.double
+        c: cython.double
+        stretch: cython.double
+        u: cython.double
+        k_u: cython.double
+        r: cython.double
+        d: cython.double
+        along: cython.double
+        self._table_rates(CENTRES, True)
+        J: cython.double = 0.0
+        zeta: cython.double = 0.0
+        for b in range(nb):
+            m = self.F[ms + b]
+            inertia = self.F[ins + b]
+            J += m * (self.rows[b, 0] * self.rows[b, 0] + self.rows[b, 1] * self.rows[b, 1]) + inertia * self.K[b] * self.K[b]
+            zeta += m * (self.rows[b, 0] * self.rows[b, 2] + self.rows[b, 1] * self.rows[b, 3]) + inertia * self.K[b] * self.L[b]
+        dV: cython.double = 0.0
+        V: cython.double = 0.0
+        damping: cython.double = 0.0
+        force: cython.double = 0.0
+        if self.I[HAS_GRAVITY]:
+            gx = self.F[self.I[GRAVITY]]
+            gy = self.F[self.I[GRAVITY] + 1]
+            for b in range(nb):
+                dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+            self._table_positions(CENTRES)
+            for b in range(nb):
+                V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+        ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
+        if ne:
+            self._table_rates(ENDS, False)
+            for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
+                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+            self._table_positions(ENDS)
+            for e in range(ne):
+                dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+                length = sqrt(dx * dx + dy * dy)
+                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                c = self.F[self.I[ELEMENT_COEF] + e]
+                if e < self.I[N_DAMPERS]:
+                    damping += c * k_d * k_d
+                else:
+                    stretch = length - self.F[self.I[ELEMENT_REST] + e]
+                    dV += c * stretch * k_d
+                    V += 0.5 * c * stretch * stretch
+        nj: cython.Py_ssize_t = self.I[N_JOINT_ELEMENTS]
+        n: cython.Py_ssize_t = self.n
+        rows_at: cython.Py_ssize_t
+        if nj:
+            rows_at = self.I[JOINT_ROWS]
+            for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
+                u = 0.0
+                k_u = 0.0
+                for j in range(n):
+                    r = self.F[rows_at + e * n + j]
+                    u += r * self.kin[0, j]
+                    k_u += r * self.K[j]
+                c = self.F[self.I[JOINT_COEF] + e]
+                if e < self.I[N_JOINT_DAMPERS]:
+                    damping += c * k_u * k_u
+                else:
+                    stretch = u - self.F[self.I[JOINT_REST] + e]
+                    dV += c * stretch * k_u
+                    V += 0.5 * c * stretch * stretch
+        rate: cython.double = 0.0
+        curvature: cython.double = 0.0
+        q: cython.double = 0.0
+        for j in range(n):
+            d = self.F[self.I[DRIVE] + j]
+            rate += d * self.K[j]
+            curvature += d * self.L[j]
+            q += d * self.kin[0, j]
+        nf: cython.Py_ssize_t = self.I[N_FORCES]
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        fd: cython.Py_ssize_t
+        td: cython.Py_ssize_t
+        if nf or nt:
+            self._table_rates(FORCE_POINTS, False)
+            fd = self.I[FORCE_DIR]
+            for p in range(nf):
+                along = self.rows[p, 0] * self.F[fd + 2 * p] + self.rows[p, 1] * self.F[fd + 2 * p + 1]
+                force += self._point_force(p, q) * along
+            td = self.I[TIMED_DIR]
+            for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
+                self.fields[N_FIELDS + p] = self.rows[nf + p, 0] * self.F[td + 2 * p] + self.rows[nf + p, 1] * self.F[td + 2 * p + 1]
+        self.fields[INERTIA] = J
+        self.fields[CENTRIFUGAL] = zeta
+        self.fields[POTENTIAL_GRADIENT] = dV
+        self.fields[DAMPING] = damping
+        self.fields[POTENTIAL] = V
+        self.fields[INPUT_RATE] = rate
+        self.fields[POINT_FORCE] = force
+        self.fields[INPUT_CURVATURE] = curvature
+        return 0
+
+    @cython.cfunc
+    def _applied(self, piece: cython.Py_ssize_t) -> cython.double:
+        """The generalized force of the loads (N·m or N) at the fields on load piece ``piece``
+        (its index): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
+        the piece (PIECE_VALUES)."""
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        row: cython.Py_ssize_t = self.I[PIECE_VALUES] + piece * (1 + nt)
+        p: cython.Py_ssize_t
+        g: cython.double = self.F[row] * self.fields[INPUT_RATE] + self.fields[POINT_FORCE]
+        for p in range(nt):
+            g += self.F[row + 1 + p] * self.fields[N_FIELDS + p]
+        return g
+
+    # -- the chart interface ----------------------------------------------------------------
+
+    @cython.ccall
+    def evaluate(self, value: cython.double) -> cython.bint:
+        """The chart's configuration and coefficients at x_i = value (memoized): True on success,
+        else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
+        reach of the walk) or WORK_SPENT (the walk needed more than MAX_WALK_CLOSURES closures)."""
+        if self.s[VALID] == 1 and self.value[0] == value:
+            return True
+        if self.s[INDEPENDENT] < 0:
+            raise ValueError("a chart without a coordinate (kinematics_at's) cannot be evaluated: start() it first")
+        self.s[VALID] = 0
+        status: cython.int = self._walk(value)
+        if status != OK:
+            self.s[STATUS] = status
+            return False
+        self._coefficients()
+        self.value[0] = value
+        self.s[VALID] = 1
+        return True
+
+    @cython.ccall
+    def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
+                     v: cython.double) -> cython.double:
+        """ẍ_i at x_i = q, ẋ_i = v from Eksergian's equation on load piece ``load`` (its index:
+        the loads over time are constant on it, :meth:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² −
+        dV/dx_i) / 𝔍. NaN when the configuration cannot be found (S[STATUS] says why)."""
+        if not self.evaluate(q):
+            return _c_nan
+        Q: cython.double = self._applied(load) - self.fields[DAMPING] * v
+        return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
+
+    @cython.ccall
+    def power(self, load: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """P = Q_applied ẋ_i (W) at the configuration last evaluated, right after its
+        :meth:`acceleration`: the power of the input load and of the point forces over q and t
+        on load piece ``load``; the energy audit integrates it."""
+        return self._applied(load) * v
+
+    @cython.ccall
+    def dissipation(self, v: cython.double) -> cython.double:
+        """D = Σ b K_D² ẋ_i² (W), the dampers' dissipation rate at the configuration last
+        evaluated, right after its :meth:`acceleration`."""
+        return self.fields[DAMPING] * v * v
+
+    @cython.ccall
+    def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
+        """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
+        than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1.0
+        return self.fields[CONDITIONING] - _c_hysteresis * self.fields[BEST_CONDITIONING]
+
+    @cython.ccall
+    def observation_size(self) -> cython.Py_ssize_t:
+        """Length of :meth:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
+        return N_FIELDS + self.I[N_TIMED] + 3 * self.n
+
+    @cython.ccall
+    def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
+        """The configuration last evaluated, into out[row, :observation_size()]: its coefficient
+        fields, then x, K and L (n each) — what the outputs and the energy audit need at a
+        sample, recorded where the integrator evaluated it instead of walked to again."""
+        n: cython.Py_ssize_t = self.n
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        if not (0 <= row < out.shape[0] and out.shape[1] >= nf + 3 * n):
+            raise IndexError(f"observe: row {row} of an array of shape ({out.shape[0]}, {out.shape[1]}) "
+                             f"(rows of {nf + 3 * n} values)")
+        for k in range(nf):
+            out[row, k] = self.fields[k]
+        for r in range(3):
+            for j in range(n):
+                out[row, nf + r * n + j] = self.kin[r, j]
+
+    @cython.ccall
+    def mark(self):
+        """Keep the chart's last configuration (x, K, L) for :meth:`rewind`."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.marked[r, j] = self.last[r, j]
+
+    @cython.ccall
+    def rewind(self):
+        """Continue the chart's walk from the configuration :meth:`mark` kept. The integrators
+        walk a piece's samples this way, forwards from its start in short jumps, rather than back
+        from its end in one walk of hundreds of rad (halved down to :data:`LONG_JUMP`)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.marked[r, j]
+        self.s[VALID] = 0
+
+    @cython.ccall
+    def reset(self):
+        """Back to the chart's start configuration (a new walk along the chart)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.origin[r, j]
+        self.s[VALID] = 0
+        self.s[STATUS] = OK
+
+    @cython.ccall
+    def kinematics_at(self, x: cython.double[::1], row: cython.double[::1]) -> cython.bint:
+        """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
+        p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
+        where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
+        A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i.
+        x is copied first (into Newton's x): it may be one of the chart's own buffers."""
+        n: cython.Py_ssize_t = self.n
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        v: cython.double
+        if x.shape[0] != n or row.shape[0] != n:
+            raise ValueError(f"kinematics_at: x and row of {n} coordinates, not {x.shape[0]} and {row.shape[0]}")
+        for c in range(n):
+            self.x[c] = x[c]
+        self._angle_trig()
+        self._constraints()
+        hadamard: cython.double = 1.0
+        for c in range(n):
+            v = 0.0
+            for r in range(n - 1):
+                v += self.A[r, c] * self.A[r, c]
+            self.norms[c] = sqrt(v)
+            self.A[n - 1, c] = row[c]
+            hadamard *= sqrt(v + row[c] * row[c])
+        det: cython.double = self._lu_factor()
+        self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
+        if det == 0.0 or not isfinite(det) or fabs(det) < _c_singular_conditioning * hadamard:
+            self.s[STATUS] = SINGULAR
+            return False
+        self._finish(det)
+        self._coefficients()
+        return True
+
+    @cython.ccall
+    def start(self, x: cython.double[::1], independent: cython.Py_ssize_t) -> cython.bint:
+        """Make this a chart of coordinate ``independent`` starting at the assembled x (n,): its
+        K, L there and the sign of its det A. Returns True on success (False: singular). x may
+        be one of the chart's own buffers (its kin[0], at a switch): :meth:`kinematics_at`
+        copies it first."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        if x.shape[0] != n or not 0 <= independent < n:
+            raise ValueError(f"start: x of {n} coordinates (not {x.shape[0]}) and a coordinate in [0, {n}), "
+                             f"not {independent}")
+        self.s[INDEPENDENT] = independent
+        self.s[SIGN] = 0
+        self.s[STATUS] = OK
+        for j in range(n):
+            self.guess[j] = 0.0
+        self.guess[independent] = 1.0
+        if not self.kinematics_at(x, self.guess) or self.fields[CONDITIONING] < _c_singular_conditioning:
+            self.s[STATUS] = SINGULAR
+            return False
+        self.s[SIGN] = 1 if self.fields[DETERMINANT] >= 0.0 else -1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+                self.origin[r, j] = self.kin[r, j]
+        self.value[0] = self.x[independent]  # x's, copied by kinematics_at
+        self.s[VALID] = 1
+        return True
+
+    @cython.ccall
+    def walk(self, values: cython.double[::1], fields: cython.double[:, ::1],
+             kin: cython.double[:, :, ::1]) -> cython.Py_ssize_t:
+        """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, field_count)
+        and kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
+        s: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        m: cython.Py_ssize_t = values.shape[0]
+        if not (fields.shape[0] >= m and fields.shape[1] >= nf and kin.shape[0] >= m and kin.shape[1] == 3
+                and kin.shape[2] == self.n):
+            raise ValueError(f"walk: fields ({m}, ≥{nf}) and kin ({m}, 3, {self.n}) for {m} values")
+        self.reset()
+        for s in range(values.shape[0]):
+            if not self.evaluate(values[s]):
+                return s
+            for k in range(nf):
+                fields[s, k] = self.fields[k]
+            for r in range(3):
+                for j in range(self.n):
+                    kin[s, r, j] = self.kin[r, j]
+        return values.shape[0]

@@ -1,0 +1,510 @@
+"""Loop kinematics of a general planar one-DOF linkage, on plain arrays.
+
+Coordinates x (shape (n,)): the absolute angle (rad) of each moving body's frame, in the
+order of :attr:`Linkage.moving`, then the displacement s (m) of each prismatic joint, in
+the order the joints are declared.
+
+Every point, and every loop-closure vector, is a row of a :class:`TermTable`,
+
+    r(x) = offset + Σ_t m_t e(θ_t),   m_t = coef_t · (x[mag_t] if mag_t ≥ 0 else 1),
+                                       θ_t = (x[angle_t] if angle_t ≥ 0 else 0) + phase_t,
+
+built from the spanning tree (the path from ground to the body): a revolute tree joint adds
+the rotating vector of the child's point, a prismatic one adds s e(θ + direction), a term
+whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows):
+
+- two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
+  always revolute: :class:`~xval.reduced.mechanism.Linkage` takes prismatic joints into the tree
+  first and refuses a loop of prismatic joints only, so a prismatic joint is never cut;
+- one linear row per prismatic joint: θ_b − θ_a = 0, the slider keeps its angle.
+
+The input joint adds the driving row c·x = q: c picks s for a prismatic input and
+θ_b − θ_a for a revolute one (θ of ground is 0), so a revolute between two moving bodies is
+driven by its relative angle without a coordinate of its own. With A = [Φ_x; c]:
+
+    A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ_t θ̇_t e⊥(θ_t) − m_t θ̇_t² e(θ_t),
+
+the part of d²Φ/dq² that does not contain L (ṁ = coef K[mag], θ̇ = K[angle]); the linear
+rows contribute nothing to γ. No finite differences anywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+
+from .errors import NumericalFailure
+from .mechanism import GROUND, Linkage, PrismaticJoint
+
+# Below this reciprocal condition number (smallest/largest singular value) of [Φ_x; c] the
+# input coordinate cannot drive the linkage: a dead-centre or change point.
+SINGULAR_RCOND = 1e-9
+
+
+class AssemblyError(ValueError):
+    """The linkage cannot be assembled at the requested input from the given guess."""
+
+
+@dataclass(frozen=True)
+class TermTable:
+    """Rows of phasor sums in the plane; plain arrays only (see the module docstring).
+
+    offset : (rows, 2) float, m
+    row, coef, mag, angle, phase : (terms,) — the row each term adds to, its coefficient
+        (m, or dimensionless when mag ≥ 0), the coordinate scaling it (−1: none), the
+        coordinate of its angle (−1: the ground's, 0) and its phase (rad).
+    """
+
+    offset: np.ndarray
+    row: np.ndarray
+    coef: np.ndarray
+    mag: np.ndarray
+    angle: np.ndarray
+    phase: np.ndarray
+
+    @property
+    def rows(self) -> int:
+        return self.offset.shape[0]
+
+    @cached_property
+    def masks(self) -> tuple[np.ndarray, np.ndarray]:
+        """(has_mag, has_angle): the terms whose magnitude, and whose angle, is a coordinate."""
+        return self.mag >= 0, self.angle >= 0
+
+    def jacobian_index(self, n: int) -> np.ndarray:
+        """Flat positions in a (2·rows, n) array of the Jacobian entries :func:`jacobian` sums."""
+        cache = self.__dict__.setdefault("_jacobian_index", {})  # derived once per n (frozen value)
+        if n not in cache:
+            has_mag, has_angle = self.masks
+            a, ka = self.angle[has_angle], self.row[has_angle]
+            g, kg = self.mag[has_mag], self.row[has_mag]
+            cache[n] = np.concatenate([2 * ka * n + a, (2 * ka + 1) * n + a, 2 * kg * n + g, (2 * kg + 1) * n + g])
+        return cache[n]
+
+
+@dataclass(frozen=True)
+class LoopSystem:
+    """The compiled kinematics of a :class:`~xval.reduced.mechanism.Linkage` (plain arrays).
+
+    coordinate_names : (n,) names, ``"<body>.angle"`` or ``"<joint>.s"``
+    loops : TermTable of the loop-closure vectors (2 constraint rows each)
+    linear, linear_rhs : (k, n), (k,) — the linear constraints linear·x = linear_rhs
+    drive : (n,) — the input coordinate q = drive·x
+    points : TermTable with one row per named point, named by ``point_names`` (body, point)
+    input_unit : "rad" or "m"
+    centres : TermTable with one row per moving body: its centre of mass (m)
+    mode_pairs : (loops, 2) int — for each loop the two coordinates that close it at its
+        cut joint (:func:`assembly_mode`)
+    joint_names, joint_rows : the joints in the description's order and (joints, n) the row
+        of each one's own coordinate u = row·x: a revolute joint's relative angle θ_b − θ_a
+        (rad; also of a cut joint), a prismatic joint's displacement s (m)
+    """
+
+    coordinate_names: tuple[str, ...]
+    loops: TermTable
+    linear: np.ndarray
+    linear_rhs: np.ndarray
+    drive: np.ndarray
+    points: TermTable
+    point_names: tuple[tuple[str, str], ...]
+    input_unit: str
+    centres: TermTable
+    mode_pairs: np.ndarray
+    joint_names: tuple[str, ...]
+    joint_rows: np.ndarray
+
+    def joint_row(self, name: str) -> np.ndarray:
+        """(n,) the row of joint ``name``'s own coordinate (:attr:`joint_rows`)."""
+        return self.joint_rows[self.joint_names.index(name)]
+
+    @property
+    def n(self) -> int:
+        return len(self.coordinate_names)
+
+    def point_index(self, body: str, point: str) -> int:
+        """Row of (body, point) in :attr:`points`."""
+        try:
+            return self.point_names.index((body, point))
+        except ValueError:
+            raise KeyError(f"no point {point!r} on body {body!r}") from None
+
+    def coordinate(self, name: str) -> int:
+        """Index of the coordinate called ``name``."""
+        return self.coordinate_names.index(name)
+
+    def driven_by(self, index: int) -> "LoopSystem":
+        """The same linkage with coordinate x[index] as the input (coordinate partitioning):
+        :func:`assemble` then holds x[index] = q and :func:`coefficients` gives dx/dx[index]."""
+        drive = np.zeros(self.n)
+        drive[index] = 1.0
+        unit = "rad" if self.coordinate_names[index].endswith(".angle") else "m"
+        return replace(self, drive=drive, input_unit=unit)
+
+
+# -- evaluation on plain arrays (the hot path) -----------------------------------------
+
+def _term_values(t: TermTable, x: np.ndarray):
+    """Each term's magnitude m and the cos, sin of its angle θ (module docstring)."""
+    has_mag, has_angle = t.masks
+    m = t.coef * np.where(has_mag, x[t.mag], 1.0)
+    th = np.where(has_angle, x[t.angle], 0.0) + t.phase
+    return m, np.cos(th), np.sin(th), has_mag, has_angle
+
+
+def _row_sums(t: TermTable, x_part: np.ndarray, y_part: np.ndarray) -> np.ndarray:
+    """Σ over each row's terms of (x_part, y_part), shape (rows, 2). np.bincount: a tenth of
+    np.add.at's cost on these small tables, the general path's hot loop."""
+    return np.column_stack([np.bincount(t.row, x_part, minlength=t.rows),
+                            np.bincount(t.row, y_part, minlength=t.rows)])
+
+
+def positions(t: TermTable, x: np.ndarray) -> np.ndarray:
+    """r(x) of every row, shape (rows, 2) (m)."""
+    m, c, s, _, _ = _term_values(t, x)
+    return t.offset + _row_sums(t, m * c, m * s)
+
+
+def jacobian(t: TermTable, x: np.ndarray) -> np.ndarray:
+    """∂r/∂x of every row, shape (2·rows, n): rows 2k, 2k+1 are the x, y of row k."""
+    return _jacobian(t, x, _term_values(t, x))
+
+
+def _jacobian(t: TermTable, x: np.ndarray, values) -> np.ndarray:
+    m, c, s, has_mag, has_angle = values
+    n = len(x)
+    value = np.concatenate([-(m * s)[has_angle], (m * c)[has_angle], (t.coef * c)[has_mag], (t.coef * s)[has_mag]])
+    return np.bincount(t.jacobian_index(n), value, minlength=2 * t.rows * n).reshape(2 * t.rows, n)
+
+
+def rates(t: TermTable, x: np.ndarray, K: np.ndarray, L: np.ndarray | None = None):
+    """K_r = dr/dq and L_r = d²r/dq² of every row, each shape (rows, 2).
+
+    With L = None, L_r is γ: the part of d²r/dq² without L (m/rad², or m/m² for a
+    displacement input).
+    """
+    m, c, s, has_mag, has_angle = _term_values(t, x)
+    md = t.coef * np.where(has_mag, K[t.mag], 0.0)
+    thd = np.where(has_angle, K[t.angle], 0.0)
+    kx = md * c - m * thd * s
+    ky = md * s + m * thd * c
+    lx = -2.0 * md * thd * s - m * thd * thd * c
+    ly = 2.0 * md * thd * c - m * thd * thd * s
+    if L is not None:
+        mdd = t.coef * np.where(has_mag, L[t.mag], 0.0)
+        thdd = np.where(has_angle, L[t.angle], 0.0)
+        lx += mdd * c - m * thdd * s
+        ly += mdd * s + m * thdd * c
+    return _row_sums(t, kx, ky), _row_sums(t, lx, ly)
+
+
+def constraint_residual(system: LoopSystem, x: np.ndarray) -> np.ndarray:
+    """Φ(x): the loop vectors (m) then the linear rows (rad), shape (n − 1,)."""
+    return np.concatenate([positions(system.loops, x).ravel(),
+                           system.linear @ x - system.linear_rhs])
+
+
+def residual_and_jacobian(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Φ(x) and Φ_x together, from one evaluation of the terms (Newton's inner loop)."""
+    t = system.loops
+    values = _term_values(t, x)
+    m, c, s = values[:3]
+    residual = np.concatenate([(t.offset + _row_sums(t, m * c, m * s)).ravel(),
+                               system.linear @ x - system.linear_rhs])
+    return residual, np.vstack([_jacobian(t, x, values), system.linear])
+
+
+def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
+    """Φ_x, shape (n − 1, n)."""
+    return np.vstack([jacobian(system.loops, x), system.linear])
+
+
+def _rcond(A: np.ndarray) -> float:
+    sv = np.linalg.svd(A, compute_uv=False)
+    return float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+
+
+# -- position, velocity and acceleration -----------------------------------------------
+
+def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e-12,
+             max_iter: int = 50) -> np.ndarray:
+    """All coordinates x with the loops closed and the input coordinate equal to q.
+
+    Newton's method on (Φ(x), drive·x − q) = 0 from ``guess`` (shape (n,)); the assembly
+    found is the one the guess leads to. Converged when every residual is ≤ ``tol`` (m or
+    rad), followed by one more step to reach round-off.
+
+    Raises
+    ------
+    AssemblyError
+        Non-finite input, a singular Jacobian on the way (dead-centre or change point), or
+        no convergence in ``max_iter`` iterations (the loops cannot close at this q, or the
+        guess is too far from an assembly).
+    """
+    x = np.array(guess, dtype=float)
+    if x.shape != (system.n,):
+        raise AssemblyError(f"the guess has shape {x.shape}, expected ({system.n},) "
+                            f"for coordinates {', '.join(system.coordinate_names)}")
+    if not (math.isfinite(q) and np.all(np.isfinite(x))):
+        raise AssemblyError(f"q = {q} and the guess must be finite")
+    polished = False
+    for iteration in range(1, max_iter + 1):
+        F = np.append(constraint_residual(system, x), system.drive @ x - q)
+        if not np.all(np.isfinite(F)):
+            raise AssemblyError(f"Newton's method diverged at q = {q:.15g} {system.input_unit} "
+                                f"(non-finite residual at iteration {iteration}): start from "
+                                f"another guess")
+        if polished:
+            return x
+        converged = np.max(np.abs(F)) <= tol
+        A = np.vstack([constraint_jacobian(system, x), system.drive])
+        if _rcond(A) < SINGULAR_RCOND:
+            if converged:
+                return x
+            raise AssemblyError(f"the loop Jacobian is singular at q = {q:.15g} {system.input_unit} "
+                                f"during assembly (a dead-centre or change point): start from "
+                                f"another guess")
+        x = x - np.linalg.solve(A, F)
+        polished = converged
+    F = np.append(constraint_residual(system, x), system.drive @ x - q)
+    raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: largest "
+                        f"residual {np.max(np.abs(F)):.3g} after {max_iter} Newton iterations "
+                        f"(the lengths cannot meet there, or the guess is too far from an assembly)")
+
+
+def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """K = dx/dq and L = d²x/dq² at an assembled x, each shape (n,).
+
+    Raises NumericalFailure(SINGULAR) where q cannot drive the linkage.
+    """
+    A = np.vstack([constraint_jacobian(system, x), system.drive])
+    if _rcond(A) < SINGULAR_RCOND:
+        raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot "
+                                           f"drive the linkage at q = {system.drive @ x:.15g} "
+                                           f"{system.input_unit}")
+    rhs = np.zeros(system.n)
+    rhs[-1] = 1.0
+    K = np.linalg.solve(A, rhs)
+    _, gamma = rates(system.loops, x, K)
+    rhs = np.zeros(system.n)
+    rhs[:gamma.size] = -gamma.ravel()
+    L = np.linalg.solve(A, rhs)
+    return K, L
+
+
+def point_kinematics(system: LoopSystem, x: np.ndarray, K: np.ndarray, L: np.ndarray):
+    """r, K_r = dr/dq and L_r = d²r/dq² of every named point, each shape (points, 2)."""
+    kr, lr = rates(system.points, x, K, L)
+    return positions(system.points, x), kr, lr
+
+
+def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
+    """The assembly mode of each configuration: one sign (±1, 0 when degenerate) per loop.
+
+    For loop k, closed at its cut joint by the coordinates u, v of :attr:`LoopSystem.mode_pairs`
+    (the joint coordinates nearest the cut on either side: a body's angle or a slider's
+    displacement), the sign of −det [∂Φ_k/∂x_u, ∂Φ_k/∂x_v]. For two links a, b meeting at
+    the cut pin P that turn about their tree joints A and B, that is the sign of the cross
+    product (P − A) × (P − B), the dyad's "elbow up or down" (+1 for the seed four-bar's
+    branch +1). It
+    changes only where that dyad is singular (a limit position), where it is 0. x has shape (n,) or
+    (samples, n); the result (loops,) or (samples, loops), int.
+    """
+    X = np.atleast_2d(np.asarray(x, dtype=float))
+    t = system.loops
+    # Every term's magnitude and angle at every sample, shape (samples, terms).
+    m = t.coef * np.where(t.mag >= 0, X[:, np.maximum(t.mag, 0)], 1.0)
+    th = np.where(t.angle >= 0, X[:, np.maximum(t.angle, 0)], 0.0) + t.phase
+    c, sn = np.cos(th), np.sin(th)
+    out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
+    for k, (u, v) in enumerate(system.mode_pairs):
+        def column(i):
+            """∂(loop k)/∂x_i at every sample: (x, y), each shape (samples,)."""
+            by_angle = (t.row == k) & (t.angle == i)
+            by_mag = (t.row == k) & (t.mag == i)
+            jx = -(m[:, by_angle] * sn[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * c[:, by_mag]).sum(axis=1)
+            jy = (m[:, by_angle] * c[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * sn[:, by_mag]).sum(axis=1)
+            return jx, jy
+        (ux, uy), (vx, vy) = column(u), column(v)
+        det = ux * vy - vx * uy
+        # At the dyad's limit position (|sin| of the angle between the columns below
+        # SINGULAR_RCOND) the sign is round-off: the mode is 0 there, not ±1.
+        degenerate = np.abs(det) <= SINGULAR_RCOND * np.hypot(ux, uy) * np.hypot(vx, vy)
+        out[:, k] = np.where(degenerate, 0, -np.sign(det)).astype(int)
+    return out[0] if np.ndim(x) == 1 else out
+
+
+def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
+    """:func:`assembly_modes` of one configuration, as a tuple."""
+    return tuple(int(v) for v in assembly_modes(system, np.asarray(x, dtype=float)))
+
+
+def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = 1e-9) -> int:
+    """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF."""
+    sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
+    return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
+
+
+def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
+    """For each coordinate as the independent one, |det Φ_dep| / Π ‖columns of Φ_dep‖.
+
+    Between 0 (that coordinate cannot drive the linkage here) and 1 (the other columns
+    orthogonal); the same measure as :meth:`xval.reduced.linkage.LoopLinkage.conditioning`.
+    Shape (n,).
+    """
+    J = constraint_jacobian(system, x)
+    n = system.n
+    out = np.empty(n)
+    for i in range(n):
+        Jd = np.delete(J, i, axis=1)
+        norms = np.prod(np.linalg.norm(Jd, axis=0))
+        out[i] = abs(np.linalg.det(Jd)) / norms if norms > 0 else 0.0
+    return out
+
+
+# -- building the tables from a description --------------------------------------------
+
+class _Sum:
+    """A phasor sum under construction: offset and terms (coef, mag, angle, phase)."""
+
+    def __init__(self, offset=(0.0, 0.0), terms=()):
+        self.offset = (float(offset[0]), float(offset[1]))
+        self.terms = list(terms)
+
+    def add(self, coef: float, mag: int, angle: int, phase: float) -> "_Sum":
+        if angle < 0 and mag < 0:  # a constant vector
+            return _Sum((self.offset[0] + coef * math.cos(phase),
+                         self.offset[1] + coef * math.sin(phase)), self.terms)
+        return _Sum(self.offset, self.terms + [(coef, mag, angle, phase)])
+
+    def rotated(self, vector, angle: int) -> "_Sum":
+        """Plus R(θ) vector, θ = x[angle] (or 0 for ground)."""
+        u, v = vector
+        if u == 0.0 and v == 0.0:
+            return self
+        return self.add(math.hypot(u, v), -1, angle, math.atan2(v, u))
+
+    def minus(self, other: "_Sum") -> "_Sum":
+        return _Sum((self.offset[0] - other.offset[0], self.offset[1] - other.offset[1]),
+                    self.terms + [(-c, m, a, p) for c, m, a, p in other.terms])
+
+
+def _table(sums: list[_Sum]) -> TermTable:
+    terms = [(k,) + t for k, s in enumerate(sums) for t in s.terms]
+    cols = list(zip(*terms)) if terms else [(), (), (), (), ()]
+    return TermTable(offset=np.array([s.offset for s in sums], dtype=float).reshape(-1, 2),
+                     row=np.array(cols[0], dtype=np.intp), coef=np.array(cols[1], dtype=float),
+                     mag=np.array(cols[2], dtype=np.intp), angle=np.array(cols[3], dtype=np.intp),
+                     phase=np.array(cols[4], dtype=float))
+
+
+def compile_linkage(linkage: Linkage) -> LoopSystem:
+    """The term tables, linear rows and driving row of a checked linkage."""
+    bodies = linkage.body_map
+    joints = linkage.joint_map
+    prismatic = [j.name for j in linkage.joints if isinstance(j, PrismaticJoint)]
+    angle = {b: i for i, b in enumerate(linkage.moving)}
+    angle[GROUND] = -1
+    disp = {name: len(linkage.moving) + k for k, name in enumerate(prismatic)}
+    n = len(linkage.moving) + len(prismatic)
+    names = tuple(f"{b}.angle" for b in linkage.moving) + tuple(f"{j}.s" for j in prismatic)
+
+    # r_B(p) = base[B] + R(θ_B)(p − anchor[B])
+    base = {GROUND: _Sum()}
+    anchor = {GROUND: (0.0, 0.0)}
+
+    def point(body: str, name: str) -> _Sum:
+        px, py = bodies[body].points[name]
+        ax, ay = anchor[body]
+        return base[body].rotated((px - ax, py - ay), angle[body])
+
+    def relative_angle(body_a: str, body_b: str) -> np.ndarray:
+        """The row r with r·x = θ_b − θ_a (θ of ground is 0)."""
+        row = np.zeros(n)
+        if angle[body_b] >= 0:
+            row[angle[body_b]] += 1.0
+        if angle[body_a] >= 0:
+            row[angle[body_a]] -= 1.0
+        return row
+
+    linear_rows = []  # θ_b − θ_a = 0 for each prismatic joint: the slider keeps its angle
+
+    for edge in linkage.tree:
+        jt = joints[edge.joint]
+        child_is_b = jt.body_b == edge.body
+        own, other = ("b", "a") if child_is_b else ("a", "b")
+        if isinstance(jt, PrismaticJoint):
+            linear_rows.append(relative_angle(jt.body_a, jt.body_b))
+            # point_b = point_a + s e(θ_a + direction); θ_a is the child's or the parent's.
+            sign = 1.0 if child_is_b else -1.0
+            base[edge.body] = point(edge.parent, getattr(jt, f"point_{other}")).add(
+                sign, disp[jt.name], angle[jt.body_a], jt.direction_a)
+        else:
+            base[edge.body] = point(edge.parent, getattr(jt, f"point_{other}"))
+        anchor[edge.body] = bodies[edge.body].points[getattr(jt, f"point_{own}")]
+
+    up = {e.body: e for e in linkage.tree}
+
+    def coordinates_below(body: str) -> list[int]:
+        """The coordinates of the tree joints from ``body`` down to ground, nearest first."""
+        out = []
+        while body != GROUND:
+            e = up[body]
+            jt = joints[e.joint]
+            out.append(disp[jt.name] if isinstance(jt, PrismaticJoint) else angle[e.body])
+            body = e.parent
+        return out
+
+    inp = joints[linkage.input_joint]
+    # The input's own coordinate never names a mode: q is given, so the mode is the sign of a
+    # pair of dependent coordinates, which changes only where q cannot drive the loop.
+    driven = {disp[inp.name]} if isinstance(inp, PrismaticJoint) else {
+        angle[b] for b in (inp.body_a, inp.body_b) if angle[b] >= 0 and GROUND in (inp.body_a, inp.body_b)}
+    loops, mode_pairs = [], []
+    for name in linkage.cut_joints:
+        jt = joints[name]
+        assert not isinstance(jt, PrismaticJoint), "Linkage never cuts a prismatic joint"
+        loops.append(point(jt.body_a, jt.point_a).minus(point(jt.body_b, jt.point_b)))
+        full_a, full_b = coordinates_below(jt.body_a), coordinates_below(jt.body_b)
+        side_a = [c for c in full_a if c not in driven]
+        side_b = [c for c in full_b if c not in driven]
+        if side_a and side_b:
+            pair = (side_a[0], side_b[0])
+        else:  # the cut joint is on ground or on the input body: the two nearest on the other side
+            side = (side_a or side_b) + [c for c in full_a + full_b if c not in side_a + side_b]
+            pair = (side[0], side[1])
+        mode_pairs.append(pair)
+
+    def centre(body: str) -> _Sum:
+        cx, cy = bodies[body].com
+        ax, ay = anchor[body]
+        return base[body].rotated((cx - ax, cy - ay), angle[body])
+
+    inp = joints[linkage.input_joint]
+    if isinstance(inp, PrismaticJoint):
+        drive = np.zeros(n)
+        drive[disp[inp.name]] = 1.0
+        unit = "m"
+    else:  # a revolute's coordinate is its relative angle, also between two moving bodies
+        drive = relative_angle(inp.body_a, inp.body_b)
+        unit = "rad"
+
+    def joint_row(jt) -> np.ndarray:
+        if isinstance(jt, PrismaticJoint):
+            row = np.zeros(n)
+            row[disp[jt.name]] = 1.0
+            return row
+        return relative_angle(jt.body_a, jt.body_b)
+
+    point_names = tuple((b.name, p) for b in linkage.bodies for p in b.points)
+    return LoopSystem(joint_names=tuple(j.name for j in linkage.joints),
+                      joint_rows=np.array([joint_row(j) for j in linkage.joints], dtype=float).reshape(-1, n),
+                      coordinate_names=names, loops=_table(loops),
+                      linear=np.array(linear_rows, dtype=float).reshape(-1, n),
+                      linear_rhs=np.zeros(len(linear_rows)), drive=drive,
+                      points=_table([point(b, p) for b, p in point_names]),
+                      point_names=point_names, input_unit=unit,
+                      centres=_table([centre(b) for b in linkage.moving]),
+                      mode_pairs=np.array(mode_pairs, dtype=np.intp).reshape(-1, 2))

@@ -1,0 +1,757 @@
+"""Reading scenes: TOML text into a validated :class:`~xval.reduced.scene.Scene`.
+
+A malformed scene raises :class:`~xval.reduced.scene.SceneError` with one message that names the
+offending key and the reason; nothing else in the package raises on bad input. Every number
+lies in the range of its kind (:data:`~xval.reduced.scene.LIMITS`, one table for both engines); the
+linkage is checked as a graph (:class:`~xval.reduced.mechanism.Linkage`) and assembled at q0 by
+Newton's method from the scene's guess (:func:`~xval.reduced.loops.assemble`). How far the scene
+moves is not judged here: a bound on the motion cannot be tight (on a swinging crank one was 500
+times the truth), so the engines' work budgets stop a run that turns out too long, naming the
+setting to change.
+
+Two forms of ``[linkage]``: ``type = "planar"``, the general description (bodies with named
+points, revolute and prismatic joints, an input joint), and ``type = "four_bar"``, the seed's
+shorthand (c1…c4 and a branch), expanded here into the general description with the bodies
+crank, coupler, rocker; points O1, A, B, O3, G (a centre of mass) and ``damper<k>`` /
+``spring<k>`` (the ends of the k-th damper or spring); joints O1, A, B, O3, input O1.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import math
+import os
+import stat
+import tomllib
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import loops
+from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
+from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
+                        PrismaticJoint, RevoluteJoint, TimedForce)
+from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
+
+FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
+FOUR_BAR_PIVOTS = {"crank": "O1", "rocker": "O3"}  # the links that turn about a fixed pivot
+COM = "G"  # the four-bar expansion's name for a centre of mass given in the scene
+LINKAGE_TYPES = ("planar", "four_bar")
+JOINT_TYPES = ("revolute", "prismatic")
+# The Newton assembly of the four-bar shorthand must land on the closed form's configuration:
+# both are exact to round-off (~1e-15 rad), so anything above this is another assembly.
+SAME_ASSEMBLY_RAD = 1e-9
+
+
+class _Table:
+    """A TOML table being read: tracks used keys so unknown ones can be reported."""
+
+    def __init__(self, data: Any, path: str):
+        if not isinstance(data, dict):
+            raise SceneError(f"'{path}' must be a table, got {_type_name(data)}")
+        self.data = data
+        self.path = path
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+    def raw(self, name: str, default: Any = ...) -> Any:
+        self.used.add(name)
+        if name not in self.data:
+            if default is ...:
+                raise SceneError(f"missing key '{self.key(name)}'")
+            return default
+        return self.data[name]
+
+    def number(self, name: str, default: Any = ..., *, positive: bool = False,
+               nonnegative: bool = False, kind: str | None = None) -> float:
+        value = self.raw(name, default)
+        if value is default and default is not ...:
+            return value
+        return _number(value, self.key(name), positive=positive, nonnegative=nonnegative, kind=kind)
+
+    def point(self, name: str, default: Any = ..., *, kind: str = "position") -> tuple[float, float]:
+        value = self.raw(name, default)
+        if value is default and default is not ...:
+            return value
+        return _point(value, self.key(name), kind=kind)
+
+    def string(self, name: str, default: Any = ...) -> str:
+        value = self.raw(name, default)
+        if not isinstance(value, str):
+            raise SceneError(f"'{self.key(name)}' must be a string, got {_type_name(value)}")
+        return value
+
+    def choice(self, name: str, options: tuple[str, ...]) -> str:
+        """A string that must be one of ``options``."""
+        value = self.string(name)
+        if value not in options:
+            raise SceneError(f"'{self.key(name)}' must be one of {', '.join(options)}, got \"{value}\"")
+        return value
+
+    def table(self, name: str) -> "_Table":
+        return _Table(self.raw(name), self.key(name))
+
+    def close(self) -> None:
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            raise SceneError(f"unknown key '{self.key(unknown[0])}'")
+
+
+def _type_name(value: Any) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "an array", dict: "a table"}.get(type(value), type(value).__name__)
+
+
+def _number(value: Any, key: str, *, positive: bool = False, nonnegative: bool = False,
+            kind: str | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"'{key}' must be a number, got {_type_name(value)}")
+    try:
+        value = float(value)
+    except OverflowError:  # a TOML integer beyond the float range
+        raise SceneError(f"'{key}' must be finite, got an integer of about"
+                         f" {int(value.bit_length() * math.log10(2)) + 1} digits") from None
+    if not math.isfinite(value):
+        raise SceneError(f"'{key}' must be finite, got {value}")
+    if positive and value <= 0.0:
+        raise SceneError(f"'{key}' must be positive, got {value}")
+    if nonnegative and value < 0.0:
+        raise SceneError(f"'{key}' must not be negative, got {value}")
+    if kind is not None:
+        _check_range(value, key, LIMITS[kind])
+    return value
+
+
+def _check_range(value: float, key: str, r: Range, what: str = "") -> None:
+    inside = r.low <= value <= r.high if r.low else abs(value) <= r.high
+    if not inside:
+        raise SceneError(f"'{key}'{what} = {value:g} is out of range: {r.kind} must be in {r.text()}")
+
+
+def _point(value: Any, key: str, *, kind: str = "position") -> tuple[float, float]:
+    if not isinstance(value, list) or len(value) != 2:
+        raise SceneError(f"'{key}' must be an array of two numbers [x, y]")
+    return (_number(value[0], f"{key}[0]", kind=kind), _number(value[1], f"{key}[1]", kind=kind))
+
+
+def _text(t: "_Table", name: str, default: str, limit: int) -> str:
+    """A one-line, printable string of at most ``limit`` characters (names stay plain text)."""
+    value = t.string(name, default)
+    if len(value) > limit:
+        raise SceneError(f"'{t.key(name)}' has {len(value)} characters; at most {limit}")
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        raise SceneError(f"'{t.key(name)}' must be printable text, got the control character {bad!r}")
+    return value
+
+
+def _count(items: list, key: str, limit: int, what: str) -> None:
+    if len(items) > limit:
+        raise SceneError(f"'{key}' has {len(items)} {what}; at most {limit}")
+
+
+def _parse_profile(t: _Table, kind: str) -> TorqueProfile:
+    """A load over time on the input joint: constant, pulse or table; values of ``kind``
+    (torque in N·m on a revolute input, force in N on a prismatic one)."""
+    profile_type = t.string("type")
+    if profile_type == "constant":
+        profile = ConstantTorque(t.number("value", kind=kind))
+    elif profile_type == "pulse":
+        profile = PulseTorque(amplitude=t.number("value", kind=kind),
+                              start=t.number("start", 0.0, nonnegative=True, kind="time"),
+                              duration=t.number("duration", nonnegative=True, kind="time"))
+    elif profile_type == "table":
+        ts, vs = _table_pair(t, "times", "values", "time", kind)
+        if any(b <= a for a, b in zip(ts, ts[1:])):
+            raise SceneError(f"'{t.key('times')}' must be strictly increasing")
+        profile = PiecewiseConstantTorque(times=ts, values=vs)
+    else:
+        raise SceneError(f"'{t.key('type')}' must be \"constant\", \"pulse\" or \"table\", got \"{profile_type}\"")
+    t.close()
+    return profile
+
+
+def _table_pair(t: _Table, first: str, second: str, kind_first: str, kind_second: str):
+    xs, ys = t.raw(first), t.raw(second)
+    if not isinstance(xs, list) or not isinstance(ys, list):
+        raise SceneError(f"'{t.key(first)}' and '{t.key(second)}' must be arrays")
+    if len(xs) != len(ys) or not xs:
+        raise SceneError(f"'{t.key(first)}' and '{t.key(second)}' must have the same, non-zero length")
+    if len(xs) > MAX_TABLE_ENTRIES:
+        raise SceneError(f"'{t.key(first)}' has {len(xs)} entries; at most {MAX_TABLE_ENTRIES}")
+    return (tuple(_number(v, f"{t.key(first)}[{i}]", kind=kind_first) for i, v in enumerate(xs)),
+            tuple(_number(v, f"{t.key(second)}[{i}]", kind=kind_second) for i, v in enumerate(ys)))
+
+
+def _array_of_tables(top: _Table, name: str, limit: int = MAX_ELEMENTS) -> list[_Table]:
+    items = top.raw(name, [])
+    if not isinstance(items, list):
+        raise SceneError(f"'{name}' must be an array of tables ([[{name}]])")
+    _count(items, name, limit, "entries")
+    return [_Table(item, f"{name}[{i}]") for i, item in enumerate(items)]
+
+
+def _name_key(value: str, key: str) -> str:
+    if not value or len(value) > MAX_NAME_CHARS or not all(c.isalnum() or c in "_-" for c in value):
+        raise SceneError(f"'{key}' = {value!r} is not a usable name: letters, digits, '_' and '-', "
+                         f"1 to {MAX_NAME_CHARS} characters")
+    return value
+
+
+def _point_ref(t: _Table, name: str) -> tuple[str, str]:
+    """A ``"body.point"`` reference."""
+    value = t.string(name)
+    parts = value.split(".")
+    if len(parts) != 2 or not all(parts):
+        raise SceneError(f"'{t.key(name)}' must name a point as \"body.point\", got \"{value}\"")
+    return parts[0], parts[1]
+
+
+# -- the general description ----------------------------------------------------------
+
+def _parse_planar_body(t: _Table, name: str) -> Body:
+    """``[bodies.<name>]``: points, and mass, com, inertia (or pivot_inertia about a point)."""
+    pts = t.raw("points", {} if name == GROUND else ...)
+    if not isinstance(pts, dict):
+        raise SceneError(f"'{t.key('points')}' must be a table of named points {{ A = [x, y], ... }}")
+    points = {}
+    for point_name, value in pts.items():
+        key = f"{t.key('points')}.{point_name}"
+        points[_name_key(point_name, key)] = _point(value, key)
+    if name == GROUND:
+        t.close()
+        if not points:
+            raise SceneError(f"'{t.key('points')}' is empty: give the ground's fixed points")
+        return Body(GROUND, points)
+    if not points:
+        raise SceneError(f"'{t.key('points')}' is empty: a body needs the points its joints use")
+    if t.has("pivot_inertia"):
+        for other in ("mass", "com", "inertia"):
+            if t.has(other):
+                raise SceneError(f"'{t.key(other)}' conflicts with '{t.key('pivot_inertia')}': give mass, com "
+                                 "and inertia, or pivot_inertia and pivot")
+        inertia = t.number("pivot_inertia", positive=True, kind="inertia")
+        pivot = t.string("pivot")
+        if pivot not in points:
+            raise SceneError(f"'{t.key('pivot')}' = \"{pivot}\" is not one of the body's points")
+        t.close()
+        return Body(name, points, mass=0.0, com=points[pivot], inertia=inertia)
+    mass = t.number("mass", positive=True, kind="mass")
+    com = t.point("com")
+    inertia = t.number("inertia", positive=True, kind="inertia")
+    t.close()
+    return Body(name, points, mass=mass, com=com, inertia=inertia)
+
+
+def _parse_joint(t: _Table):
+    name = _name_key(t.string("name"), t.key("name"))
+    kind = t.choice("type", JOINT_TYPES)
+    body_a, point_a = _point_ref(t, "a")
+    body_b, point_b = _point_ref(t, "b")
+    if kind == "revolute":
+        joint = _mechanism_value(t.path, lambda: RevoluteJoint(name, body_a, point_a, body_b, point_b))
+    else:
+        direction = t.number("direction", kind="angle")
+        joint = _mechanism_value(t.path, lambda: PrismaticJoint(name, body_a, point_a, direction, body_b, point_b))
+    t.close()
+    return joint
+
+
+def _line_law(t: _Table, kind: str) -> tuple[float, float]:
+    """(coefficient, rest length) of a damper (b, 0) or a spring (k, D0); closes the table."""
+    if kind == "damper":
+        coefficient, rest = t.number("coefficient", positive=True, kind="damping"), 0.0
+    else:
+        coefficient = t.number("stiffness", positive=True, kind="stiffness")
+        rest = t.number("rest_length", nonnegative=True, kind="position")
+    t.close()
+    return coefficient, rest
+
+
+def _parse_line_elements(top: _Table) -> list[LineElement]:
+    out = []
+    for kind, table in (("damper", "dampers"), ("spring", "springs")):
+        for k, t in enumerate(_array_of_tables(top, table)):
+            body_a, point_a = _point_ref(t, "a")
+            body_b, point_b = _point_ref(t, "b")
+            name = _name_key(t.string("name", f"{kind}{k}"), t.key("name"))
+            coefficient, rest = _line_law(t, kind)
+            out.append(_mechanism_value(t.path, lambda: LineElement(kind, name, body_a, point_a, body_b,
+                                                                     point_b, coefficient, rest)))
+    return out
+
+
+def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
+    """``[[joint_dampers]]`` (joint, coefficient) and ``[[joint_springs]]`` (joint, stiffness,
+    rest_angle on a revolute joint or rest_displacement on a prismatic one): elements on the
+    joint's own coordinate, in N·m·s/rad and N·m/rad on a revolute joint, N·s/m and N/m on a
+    prismatic one."""
+    out = []
+    joints = linkage.joint_map
+    for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
+        for k, t in enumerate(_array_of_tables(top, table)):
+            joint = t.string("joint")
+            if joint not in joints:
+                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+            name = _name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
+            revolute = not isinstance(joints[joint], PrismaticJoint)
+            rest = 0.0
+            if kind == "damper":
+                coefficient = t.number("coefficient", positive=True,
+                                       kind="rotational damping" if revolute else "damping")
+            else:
+                coefficient = t.number("stiffness", positive=True,
+                                       kind="rotational stiffness" if revolute else "stiffness")
+                rest_key, other = (("rest_angle", "rest_displacement") if revolute
+                                   else ("rest_displacement", "rest_angle"))
+                if t.has(other):
+                    raise SceneError(f"'{t.key(other)}' does not fit the {'revolute' if revolute else 'prismatic'} "
+                                     f"joint '{joint}': give '{rest_key}' ({'rad' if revolute else 'm'})")
+                rest = t.number(rest_key, kind="angle" if revolute else "position")
+            t.close()
+            out.append(_mechanism_value(t.path, lambda: JointElement(kind, name, joint, coefficient, rest)))
+    return out
+
+
+def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
+    out = []
+    for k, t in enumerate(_array_of_tables(top, "point_forces")):
+        body, point = _point_ref(t, "point")
+        name = _name_key(t.string("name", f"force{k}"), t.key("name"))
+        direction = t.number("direction", kind="angle")
+        coordinate, values = _table_pair(t, "q", "values", input_kind, "force")
+        if len(coordinate) < 2:
+            raise SceneError(f"'{t.key('q')}' needs two or more entries")
+        if any(b <= a for a, b in zip(coordinate, coordinate[1:])):
+            raise SceneError(f"'{t.key('q')}' must be strictly increasing")
+        period = t.number("period", None, positive=True)
+        t.close()
+        out.append(_mechanism_value(t.path, lambda: PointForce(name, body, point, direction, coordinate,
+                                                               values, period)))
+    return out
+
+
+def _parse_timed_forces(top: _Table) -> list[TimedForce]:
+    """``[[timed_forces]]``: point, direction (rad, ground frame), optional name, and the load
+    over time as the input's ``[torque]`` gives it (type constant, pulse or table; values in N)."""
+    out = []
+    for k, t in enumerate(_array_of_tables(top, "timed_forces")):
+        body, point = _point_ref(t, "point")
+        name = _name_key(t.string("name", f"timed_force{k}"), t.key("name"))
+        direction = t.number("direction", kind="angle")
+        profile = _parse_profile(t, "force")  # closes the table
+        out.append(_mechanism_value(t.path, lambda: TimedForce(name, body, point, direction, profile)))
+    return out
+
+
+def _mechanism_value(key: str, build):
+    """Build a mechanism value; its MechanismError becomes a SceneError naming ``key``."""
+    try:
+        return build()
+    except MechanismError as exc:
+        raise SceneError(f"'{key}': {exc}") from None
+
+
+def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry | None]:
+    input_joint = link.string("input")
+    link.close()
+    bodies_t = top.table("bodies")
+    names = list(bodies_t.data)
+    _count([n for n in names if n != GROUND], "bodies", MAX_BODIES, "moving bodies")
+    bodies = [_parse_planar_body(bodies_t.table(_name_key(n, bodies_t.key(n))), n) for n in names]
+    bodies_t.close()
+    joints_t = _array_of_tables(top, "joints", MAX_JOINTS)
+    if not joints_t:
+        raise SceneError("missing key 'joints': a planar linkage needs [[joints]]")
+    joints = [_parse_joint(t) for t in joints_t]
+    joint_names = [j.name for j in joints]
+    if input_joint not in joint_names:
+        raise SceneError(f"'linkage.input' = \"{input_joint}\" is not one of the joints: {', '.join(joint_names)}")
+    linkage = _mechanism_value("joints", lambda: Linkage(bodies, joints, input_joint))
+    input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
+    elements = _parse_line_elements(top)
+    forces = _parse_point_forces(top, input_kind)
+    joint_elements = _parse_joint_elements(top, linkage)
+    timed = _parse_timed_forces(top)
+    _count(elements + forces + joint_elements + timed,
+           "dampers, springs, joint_dampers, joint_springs, point_forces and timed_forces", MAX_ELEMENTS,
+           "entries together")
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
+
+
+# -- the four-bar shorthand ------------------------------------------------------------
+
+def _parse_four_bar_geometry(t: _Table) -> FourBarGeometry:
+    lengths = [t.number(f"c{i}", positive=True, kind="length") for i in (1, 2, 3, 4)]
+    branch = t.raw("branch")
+    if isinstance(branch, bool) or branch not in (1, -1):
+        raise SceneError(f"'{t.key('branch')}' must be 1 or -1 (the sign of ± in the φ1 formula)")
+    t.close()
+    return FourBarGeometry(*lengths, branch=int(branch))
+
+
+def _parse_four_bar_body(t: _Table, name: str, needs_mass: bool) -> tuple[float, tuple | None, float]:
+    """(mass, com, inertia about the com) of a four-bar link; mass 0 and com None for a link
+    given by its inertia about its fixed pivot alone."""
+    grounded = name in FOUR_BAR_PIVOTS
+    mass = t.number("mass", None, positive=True, kind="mass")
+    com = t.point("com", None)
+    centroidal = t.number("inertia", None, positive=True, kind="inertia")
+    pivot = t.number("pivot_inertia", None, positive=True, kind="inertia") if grounded else None
+    if not grounded and t.has("pivot_inertia"):
+        raise SceneError(f"'{t.key('pivot_inertia')}' is not allowed: the {name} has no fixed pivot;"
+                         " give mass, inertia and com")
+    t.close()
+    if pivot is None:
+        missing = [k for k, v in (("mass", mass), ("inertia", centroidal), ("com", com)) if v is None]
+        if missing:
+            hint = " (or pivot_inertia)" if grounded else ""
+            raise SceneError(f"missing key '{t.key(missing[0])}'{hint}")
+    else:
+        if centroidal is not None:
+            raise SceneError(f"'{t.key('inertia')}' conflicts with '{t.key('pivot_inertia')}': give one")
+        if (mass is None) != (com is None):
+            raise SceneError(f"'{t.key('mass')}' and '{t.key('com')}' go together")
+        if mass is not None:
+            centroidal = pivot - mass * (com[0] ** 2 + com[1] ** 2)
+            if centroidal <= 0.0:
+                raise SceneError(f"'{t.key('pivot_inertia')}' = {pivot} is smaller than mass·|com|²;"
+                                 " the centroidal inertia would not be positive")
+            _check_range(centroidal, t.key("pivot_inertia"), LIMITS["inertia"], " − mass·|com|²")
+    if needs_mass and (mass is None or com is None):
+        missing = " and ".join(f"'{t.key(k)}'" for k, v in (("mass", mass), ("com", com)) if v is None)
+        raise SceneError(f"missing {'keys' if ' and ' in missing else 'key'} {missing}:"
+                         " gravity needs the mass and centre of mass of every moving link")
+    if mass is None:
+        return 0.0, None, pivot
+    return mass, com, centroidal
+
+
+def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechanism, FourBarGeometry]:
+    """The shorthand, expanded into the general description (module docstring)."""
+    g = _parse_four_bar_geometry(link)
+    points = {GROUND: {"O1": (0.0, 0.0), "O3": (g.c4, 0.0)},
+              "crank": {"O1": (0.0, 0.0), "A": (g.c1, 0.0)},
+              "coupler": {"A": (0.0, 0.0), "B": (g.c2, 0.0)},
+              "rocker": {"O3": (0.0, 0.0), "B": (g.c3, 0.0)}}
+    bodies_t = top.table("bodies")
+    mass_properties = {}
+    for name in FOUR_BAR_BODIES:
+        mass, com, inertia = _parse_four_bar_body(bodies_t.table(name), name, needs_mass)
+        if com is None:  # its inertia about the fixed pivot, at the pivot
+            com = points[name][FOUR_BAR_PIVOTS[name]]
+        else:
+            points[name][COM] = com
+        mass_properties[name] = (mass, com, inertia)
+    bodies_t.close()
+    elements = []
+    for kind, table in (("damper", "dampers"), ("spring", "springs")):
+        for k, t in enumerate(_array_of_tables(top, table)):
+            body = t.string("body")
+            if body not in FOUR_BAR_BODIES:
+                raise SceneError(f"'{t.key('body')}' must be one of {', '.join(FOUR_BAR_BODIES)}, got \"{body}\"")
+            name = f"{kind}{k}"
+            points[GROUND][name] = t.point("ground_point")
+            points[body][name] = t.point("body_point")
+            coefficient, rest = _line_law(t, kind)
+            elements.append(LineElement(kind, name, GROUND, name, body, name, coefficient, rest))
+    bodies = [Body(GROUND, points[GROUND])] + [
+        Body(name, points[name], *mass_properties[name]) for name in FOUR_BAR_BODIES]
+    joints = [RevoluteJoint("O1", GROUND, "O1", "crank", "O1"),
+              RevoluteJoint("A", "crank", "A", "coupler", "A"),
+              RevoluteJoint("B", "coupler", "B", "rocker", "B"),
+              RevoluteJoint("O3", GROUND, "O3", "rocker", "O3")]
+    linkage = Linkage(bodies, joints, "O1")
+    joint_elements = _parse_joint_elements(top, linkage)
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements)), g
+
+
+# -- the scene -------------------------------------------------------------------------
+
+def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
+    """Build and validate a :class:`Scene` from parsed TOML data."""
+    top = _Table(dict(data), "")
+    stem = "".join(c if c.isprintable() else "?" for c in Path(source).stem[:MAX_NAME_CHARS])
+    name = _text(top, "name", stem if source != "<memory>" else "scene", MAX_NAME_CHARS)
+    description = _text(top, "description", "", MAX_DESCRIPTION_CHARS)
+    gravity = top.point("gravity", None, kind="gravity")
+
+    link = top.table("linkage")
+    kind = link.string("type", "four_bar")
+    if kind not in LINKAGE_TYPES:
+        raise SceneError(f"'linkage.type' must be \"planar\" or \"four_bar\", got \"{kind}\"")
+    link.used.add("type")
+    if kind == "four_bar":
+        mechanism, four_bar = _parse_four_bar(top, link, needs_mass=gravity is not None)
+    else:
+        mechanism, four_bar = _parse_planar(top, link)
+    linkage = mechanism.linkage
+    prismatic_input = isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint)
+
+    load_key, other_key = ("force", "torque") if prismatic_input else ("torque", "force")
+    if top.has(other_key):
+        raise SceneError(f"'{other_key}' does not fit the {'prismatic' if prismatic_input else 'revolute'} "
+                         f"input joint '{linkage.input_joint}': give [{load_key}] "
+                         f"({'N' if prismatic_input else 'N·m'})")
+    load = _parse_profile(top.table(load_key), load_key) if top.has(load_key) else None
+    top.used.add(load_key)
+
+    init = top.table("initial")
+    q0 = init.number("q", kind="position" if prismatic_input else "angle")
+    qdot0 = init.number("qdot", 0.0, kind="speed")
+    guess_t = init.table("guess") if init.has("guess") else None
+    mode = init.raw("mode", None)
+    init.used.add("guess")
+
+    sim = top.table("simulation")
+    horizon = sim.number("horizon", positive=True, kind="horizon")
+    sim.close()
+
+    tolerances = Tolerances()
+    if top.has("tolerances"):
+        tol = top.table("tolerances")
+        tolerances = Tolerances(
+            peak_omega_rtol=tol.number("peak_omega_rtol", Tolerances.peak_omega_rtol, positive=True),
+            peak_omega_atol=tol.number("peak_omega_atol", Tolerances.peak_omega_atol, positive=True),
+            q_atol=tol.number("q_atol", Tolerances.q_atol, positive=True),
+            omega_atol=tol.number("omega_atol", Tolerances.omega_atol, positive=True),
+            omega_vs_q_atol=tol.number("omega_vs_q_atol", None, positive=True),
+        )
+        tol.close()
+    mujoco = _parse_mujoco(top.table("mujoco")) if top.has("mujoco") else {}
+    reduced = _parse_reduced(top.table("reduced")) if top.has("reduced") else {}
+    if top.has("sweep"):
+        _check_sweep(top.raw("sweep"), source)
+    top.used.update(("mujoco", "reduced", "sweep"))
+    top.close()
+    for key, table in (("mujoco.timestep", mujoco), ("reduced.step", reduced)):
+        step = table.get(key.split(".")[1])
+        if step is not None and step > horizon:
+            raise SceneError(f"'{key}' = {step:g} s is longer than 'simulation.horizon' = {horizon:g} s")
+
+    system = loops.compile_linkage(linkage)
+    if four_bar is not None:
+        if guess_t is not None or mode is not None:
+            raise SceneError("'initial.guess' and 'initial.mode' are for a planar linkage: the four-bar "
+                             "shorthand assembles on 'linkage.branch'")
+        init.close()
+        x0 = _assemble_four_bar(system, four_bar, q0)
+    else:
+        guess = _parse_guess(guess_t, system, linkage) if guess_t is not None else np.zeros(system.n)
+        init.close()
+        x0 = _assemble(system, q0, guess, mode)
+    _check_start(system, x0, q0, qdot0)
+
+    scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
+                  q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
+                  mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
+                  mujoco=mujoco, reduced=reduced, source=source, four_bar=four_bar)
+    return scene
+
+
+def _parse_guess(t: _Table, system, linkage: Linkage) -> np.ndarray:
+    """``initial.guess``: body angles (rad) by body name, slider displacements (m) by joint
+    name; a coordinate not given starts at 0."""
+    guess = np.zeros(system.n)
+    for key in list(t.data):
+        coordinate = f"{key}.angle" if key in linkage.moving else f"{key}.s"
+        if coordinate not in system.coordinate_names:
+            raise SceneError(f"'{t.key(key)}': the guess names a moving body (its angle, rad) or a prismatic "
+                             f"joint (its displacement, m); \"{key}\" is neither")
+        guess[system.coordinate(coordinate)] = t.number(key, kind="angle" if key in linkage.moving else "position")
+    t.close()
+    return guess
+
+
+def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
+    """Newton from the guess; the loop Jacobian's rank and the asked mode are checked."""
+    try:
+        x0 = loops.assemble(system, q0, guess)
+    except loops.AssemblyError as exc:
+        raise SceneError(f"'initial.q' = {q0:g}: {exc}") from None
+    rank = loops.jacobian_rank(system, x0)
+    if rank != system.n - 1:
+        raise SceneError(f"'initial.q' = {q0:g}: the loop Jacobian has rank {rank} at the assembled "
+                         f"configuration, not {system.n - 1}: the linkage has {system.n - rank} degrees "
+                         "of freedom there (redundant or parallel joints)")
+    found = loops.assembly_mode(system, x0)
+    if mode is not None:
+        if (not isinstance(mode, list) or len(mode) != len(found)
+                or any(isinstance(v, bool) or v not in (1, -1) for v in mode)):
+            raise SceneError(f"'initial.mode' must be an array of {len(found)} signs (1 or -1), one per loop")
+        if tuple(mode) != found:
+            raise SceneError(f"'initial.guess' assembles in mode {list(found)}, not the 'initial.mode' "
+                             f"{list(mode)} asked for: start the guess nearer that assembly")
+    return x0
+
+
+def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
+    """Newton from the closed form's assembly on the scene's branch, checked to stay there."""
+    from .linkage import AssemblyError as ClosedFormError, FourBar
+
+    try:
+        q, phi1, phi2 = FourBar(g).assemble(q0)
+    except ClosedFormError as exc:
+        raise SceneError(f"'initial.q' = {q0}: {exc}") from None
+    guess = np.array([q, phi1, phi2 + math.pi])  # the rocker's frame points O3 → B
+    try:
+        x0 = loops.assemble(system, q0, guess)
+    except loops.AssemblyError as exc:
+        raise SceneError(f"'initial.q' = {q0}: {exc}") from None
+    gap = float(np.max(np.abs(np.angle(np.exp(1j * (x0 - guess))))))
+    if not gap <= SAME_ASSEMBLY_RAD:
+        raise SceneError(f"'initial.q' = {q0}: the general description assembles {gap:.3g} rad away from the "
+                         f"four-bar closed form on branch {g.branch}")
+    return x0
+
+
+def _check_start(system, x0: np.ndarray, q0: float, qdot0: float) -> None:
+    if qdot0 == 0.0:
+        return
+    driving = np.vstack([loops.constraint_jacobian(system, x0), system.drive])
+    sv = np.linalg.svd(driving, compute_uv=False)
+    if sv[-1] < loops.SINGULAR_RCOND * sv[0]:
+        raise SceneError(f"'initial.qdot' = {qdot0}: the input joint is at a dead centre at q = {q0}, "
+                         "where its speed must be zero")
+
+
+def _parse_mujoco(t: _Table) -> dict[str, Any]:
+    """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers),
+    iterations, tolerance, refsafe and diagexact (booleans)."""
+    out: dict[str, Any] = {}
+    if t.has("integrator"):
+        out["integrator"] = t.choice("integrator", MUJOCO_INTEGRATORS)
+    if t.has("timestep"):
+        out["timestep"] = t.number("timestep", positive=True, kind="step")
+    if t.has("tolerance"):
+        out["tolerance"] = t.number("tolerance", positive=True)
+    if t.has("iterations"):
+        value = t.raw("iterations")
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MUJOCO_MAX_ITERATIONS:
+            raise SceneError(f"'{t.key('iterations')}' must be a whole number from 1 to {MUJOCO_MAX_ITERATIONS}")
+        out["iterations"] = value
+    for name in ("refsafe", "diagexact"):
+        if t.has(name):
+            value = t.raw(name)
+            if not isinstance(value, bool):
+                raise SceneError(f"'{t.key(name)}' must be true or false, got {_type_name(value)}")
+            out[name] = value
+    for name, size in (("solref", 2), ("solimp", 5)):
+        if t.has(name):
+            value = t.raw(name)
+            if not isinstance(value, list) or len(value) != size:
+                raise SceneError(f"'{t.key(name)}' must be an array of {size} numbers")
+            out[name] = tuple(_number(v, f"{t.key(name)}[{i}]") for i, v in enumerate(value))
+    t.close()
+    return out
+
+
+def _check_sweep(table: Any, source: str) -> None:
+    """The optional [sweep] table (a family of variants of this scene, ``xval sweep``): read by
+    :func:`xval.compare.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
+    does not use it; whether its keys fit the scene is checked when the sweep runs."""
+    from xval.compare.sweep_spec import SweepSpecError, spec_from_table
+
+    try:
+        spec_from_table(table, source="")
+    except SweepSpecError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _parse_reduced(t: _Table) -> dict[str, Any]:
+    """Optional [reduced] table: the reference method, rtol, step (s)."""
+    out: dict[str, Any] = {}
+    if t.has("method"):
+        out["method"] = t.choice("method", REDUCED_METHODS)
+    if t.has("rtol"):
+        out["rtol"] = t.number("rtol", positive=True)
+    if t.has("step"):
+        out["step"] = t.number("step", positive=True, kind="step")
+    t.close()
+    return out
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file.
+
+    The file must be a regular file of at most ``MAX_SCENE_BYTES`` bytes of UTF-8 text (a
+    byte-order mark is accepted). Every message starts with the file's path.
+
+    Raises
+    ------
+    SceneError
+        If the file is missing, too large, not UTF-8, not valid TOML, or describes an invalid scene.
+    """
+    path = Path(path)
+    data = _parse_toml(_read_text(path), path)
+    try:
+        return scene_from_dict(data, source=str(path))
+    except SceneError as exc:
+        raise SceneError(f"{path}: {exc}") from None
+
+
+def _read_text(path: Path) -> str:
+    """The file's text: regular files only, at most MAX_SCENE_BYTES read, UTF-8 with or without BOM."""
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused below.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise SceneError(f"cannot read scene file '{path}': {exc.strerror}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+        raise SceneError(f"cannot read scene file '{path}': it is {what}")
+    with os.fdopen(fd, "rb") as f:
+        try:
+            raw = f.read(MAX_SCENE_BYTES + 1)
+        except OSError as exc:
+            raise SceneError(f"cannot read scene file '{path}': {exc.strerror}") from None
+    if len(raw) > MAX_SCENE_BYTES:
+        raise SceneError(f"'{path}' is larger than {MAX_SCENE_BYTES} bytes; a scene is a short text file")
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise SceneError(f"'{path}' is UTF-16 text (byte-order mark); save it as UTF-8")
+    try:
+        return raw.decode("utf-8-sig")  # strips a UTF-8 byte-order mark
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"'{path}' is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start});"
+                         " save it as UTF-8") from None
+
+
+def _parse_toml(text: str, path: Path) -> dict[str, Any]:
+    """``tomllib.loads`` with its errors as one-line SceneErrors naming the file."""
+    try:
+        return tomllib.loads(text)
+    except ValueError as exc:  # TOMLDecodeError, or an integer past Python's 4300-digit limit
+        raise SceneError(f"'{path}' is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"'{path}' is not a usable scene: its arrays or tables are nested too deeply") from None
+
+
+def scenes_dir() -> Path:
+    """Folder of the scenes shipped with the project (``seed_fourbar.toml``, ``hard/``).
+
+    The scenes are the package data of the ``xval.scenes`` package (the repository's
+    ``scenes/`` folder), found with importlib.resources, so an installed wheel finds them as well
+    as a source checkout.
+    """
+    root = importlib.resources.files("xval.scenes")
+    if not isinstance(root, Path):  # e.g. imported from a zip file
+        raise SceneError(f"the shipped scenes are not files on disk ({root}); install xval unzipped")
+    return root
+
+
+def default_scene_path() -> Path:
+    """Path of the seed four-bar scene shipped with the project."""
+    return scenes_dir() / "seed_fourbar.toml"
+
+
+def hard_scene_dir() -> Path:
+    """Folder of the hard-case catalogue (``xval stress``)."""
+    return scenes_dir() / "hard"
