@@ -1,14 +1,56 @@
 """xval: the dynamics of one-DOF planar linkages solved independent ways, and how far apart they are.
 
-Subpackages: :mod:`xval.reduced` (Eksergian's equation, the exact reference, with its compiled
-core), :mod:`xval.reference_models` (the same mechanism in MuJoCo), :mod:`xval.compare` (the
-comparison, the gate, the studies and the command line ``xval``); the shipped scenes are
-:mod:`xval.scenes`' package data.
+The API (each name loads its module on first use, so ``import xval`` is light):
+
+- scenes: :func:`load_scene` (a file, or a shipped scene by name), :func:`scene_from_string`,
+  :func:`scene_from_dict`, :func:`catalogue` (the shipped scenes by name), :class:`Scene`;
+- engines: :func:`simulate` (the engine is the one whose settings are given),
+  :class:`ReducedSettings` (Eksergian's equation, the exact reference), :class:`MujocoSettings`,
+  and the scene's own settings of each, :func:`reduced_settings`, :func:`mujoco_settings`;
+- comparison: :func:`compare_results` (two results of one scene; the name `compare` is the
+  subpackage), :func:`check` (both engines and the
+  gate, as ``xval check``), :class:`Comparison`, :class:`Tolerances`;
+- results: :class:`EngineResult` (trajectory, peak, energy audit, wall time), :class:`Trajectory`,
+  :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
+  cannot meet its accuracy, with the reason).
+
+Subpackages: :mod:`xval.reduced` (the Eksergian engine and its compiled core),
+:mod:`xval.reference_models` (the same mechanism in MuJoCo), :mod:`xval.compare` (comparison,
+gate, studies, plots and the command line ``xval``); the shipped scenes are package data of
+:mod:`xval.scenes`.
 """
 
+from __future__ import annotations
+
+import importlib
 from importlib.metadata import PackageNotFoundError, version
 
 try:
     __version__ = version("xval")
 except PackageNotFoundError:  # a checkout that was never installed
     __version__ = "0+unknown"
+
+_HOMES = {
+    **{name: "xval.api" for name in ("Comparison", "EngineResult", "MujocoSettings", "ReducedSettings", "Scene",
+                                     "SceneError", "Tolerances", "check", "compare_results", "load_scene", "mujoco_settings",
+                                     "reduced_settings", "scene_from_dict", "scene_from_string", "catalogue",
+                                     "simulate")},
+    "NumericalFailure": "xval.reduced.errors",
+    "Trajectory": "xval.reduced.trajectory",
+    "Peak": "xval.reduced.trajectory",
+}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'xval' has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

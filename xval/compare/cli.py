@@ -27,7 +27,7 @@ from xval.reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERAT
                            MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
                            REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
                            SceneError)
-from xval.reduced.scenefile import default_scene_path, load_scene
+from xval.reduced.scenefile import catalogue, default_scene_path, load_scene, resolve_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
                      check_folder, signals_as_exceptions, write_file)
@@ -55,7 +55,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _scene(path: str | None):
-    return load_scene(path if path else default_scene_path())
+    return load_scene(resolve_scene(path) if path else default_scene_path())
 
 
 def _finite(text: str) -> float:
@@ -107,6 +107,18 @@ def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) ->
     return reduced_settings(scene, **_given(args, flags))
 
 
+def cmd_scenes(args: argparse.Namespace) -> int:
+    """The shipped scenes, a line each: the name a command takes, and where the file lies."""
+    preferred: dict = {}
+    for name, path in catalogue().items():  # a bare file name, where it is unique, over the full name
+        if path not in preferred or "/" in preferred[path]:
+            preferred[path] = name
+    width = max(len(name) for name in preferred.values())
+    for path, name in sorted(preferred.items()):
+        print(f"{name:{width}s}  {path}")
+    return EXIT_OK
+
+
 def cmd_reduced(args: argparse.Namespace) -> int:
     from xval.reduced import simulate
 
@@ -138,10 +150,10 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
     from xval.reference_models import mjcf_text
 
-    check_file(args.output, flag="-o")  # before any work
+    check_file(args.out, flag="-o")  # before any work
     scene = _scene(args.scene)
     xml = mjcf_text(scene, _mujoco_settings(args, scene))
-    path = write_file(args.output, xml, flag="-o")
+    path = write_file(args.out, xml, flag="-o")
     print(f"wrote {path}")
     return EXIT_OK
 
@@ -224,7 +236,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .run import compare_engines
     from .text import check_lines
 
-    scenes = [load_scene(path) for path in args.scenes]  # all bad input is reported before any run
+    scenes = [load_scene(resolve_scene(path)) for path in args.scenes]  # all bad input is reported before any run
     failed = 0
     for scene in scenes:
         tolerances = _tolerances(scene, args)
@@ -283,7 +295,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         if args.workers is not None:
             raise UsageError("--workers and --scheduler: the Dask cluster's workers run the sweep; give one of them")
         require_dask()  # before any work: one line naming the extra to install
-    path = args.scene if args.scene else str(default_scene_path())
+    path = str(resolve_scene(args.scene)) if args.scene else str(default_scene_path())
     data, table_spec = load_sweep(path)
     if args.vary:
         spec = spec_from_args(args.vary, args.samples, args.seed)
@@ -357,7 +369,14 @@ def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
 
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", default=None,
-                   help="scene TOML file (default: scenes/seed_fourbar.toml, the seed example)")
+                   help="scene TOML file, or the name of a shipped scene when no such file exists (`xval scenes` "
+                        "lists them; default: seed_fourbar, the seed example)")
+
+
+def _version() -> str:
+    import xval
+
+    return xval.__version__
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -365,7 +384,13 @@ def build_parser() -> argparse.ArgumentParser:
         prog="xval",
         description="Solve a one-DOF mechanism two ways (Eksergian's equation and MuJoCo) and "
                     "say how far apart they are.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("scenes", help="list the shipped scenes, by the names every command accepts",
+                       description="List the shipped scenes (the seed, the mechanism catalogue, the hard cases): "
+                                   "the name any command takes in place of a scene file, and the file.")
+    p.set_defaults(func=cmd_scenes)
 
     p = sub.add_parser("reduced", help="solve the scene's Eksergian equation",
                        description="Solve the scene's Eksergian equation; print the peak speed of the "
@@ -393,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Write the scene's MuJoCo model as a human-readable MJCF file "
                                    "that MuJoCo loads on its own.")
     _add_scene_argument(p)
-    p.add_argument("-o", "--output", required=True, help="MJCF file to write")
+    p.add_argument("-o", "--out", required=True, help="MJCF file to write")
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
 
@@ -403,7 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "springs, point forces and centres of mass, labelled, lengths in m. "
                                    "Check a scene's geometry before running it.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="linkage.png",
+    p.add_argument("-o", "--out", default="linkage.png",
                    help="file to write, in the format its suffix names: .png, .pdf or .svg (default ./linkage.png)")
     p.set_defaults(func=cmd_draw)
 
@@ -414,7 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "the mechanism at the peak speed and at the largest disagreement, "
                                    "both engines overlaid) into --out.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="xval-out",
+    p.add_argument("-o", "--out", default="xval-out",
                    help="output folder, created if absent in an existing folder (default ./xval-out)")
     p.add_argument("--animate", action="store_true",
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
@@ -429,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run both engines on each scene and compare the differences "
                                    "against the scene's [tolerances] (flags override). Exit 0 when "
                                    "every scene passes, 1 when any fails, 2 on bad input.")
-    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
+    p.add_argument("scenes", nargs="+", metavar="SCENE",
+                   help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them)")
     _add_comparison_arguments(p)
     p.set_defaults(func=cmd_check)
 
@@ -440,7 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write cost.png (work-precision diagram), cost.csv and cost.json; "
                                    "recommend the cheapest configuration of each engine for the target.")
     _add_scene_argument(p)
-    p.add_argument("--out", default="xval-cost",
+    p.add_argument("-o", "--out", default="xval-cost",
                    help="output folder, created if absent in an existing folder (default ./xval-cost: each command its own, as a folder holds one run)")
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
@@ -457,7 +483,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "through both engines; print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
-    p.add_argument("--out", default="xval-stress",
+    p.add_argument("-o", "--out", default="xval-stress",
                    help="output folder, created if absent in an existing folder (default ./xval-stress: each command its own, as a folder holds one run)")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
@@ -489,7 +515,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
                    help="seed of the Monte Carlo sample (default 0)")
-    p.add_argument("--out", default="xval-sweep",
+    p.add_argument("-o", "--out", default="xval-sweep",
                    help="output folder, created if absent in an existing folder (default ./xval-sweep: each command its own, as a folder holds one run)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores); not with --scheduler")
@@ -545,6 +571,10 @@ def main(argv: list[str] | None = None) -> int:
         with signals_as_exceptions() as received, warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
             warnings.showwarning = _show_warning
+            argv = sys.argv[1:] if argv is None else argv
+            if not argv:  # `xval` alone: what it can do
+                build_parser().print_help()
+                return EXIT_OK
             try:
                 args = build_parser().parse_args(argv)
             except SystemExit as exc:  # --help, or a usage error already printed

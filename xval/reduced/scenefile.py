@@ -755,3 +755,34 @@ def default_scene_path() -> Path:
 def hard_scene_dir() -> Path:
     """Folder of the hard-case catalogue (``xval stress``)."""
     return scenes_dir() / "hard"
+
+
+def catalogue() -> dict[str, Path]:
+    """The shipped scenes by name: each file's path under :func:`scenes_dir` without ``.toml``
+    (``seed_fourbar``, ``mechanisms/watt2_sixbar``, ``hard/gravity``), and also its bare file name
+    (``watt2_sixbar``) where no other shipped scene has that name. Sorted by the full names."""
+    root = scenes_dir()
+    full = {p.relative_to(root).with_suffix("").as_posix(): p for p in sorted(root.rglob("*.toml"))}
+    stems: dict[str, list[str]] = {}
+    for name in full:
+        stems.setdefault(name.rpartition("/")[2], []).append(name)
+    short = {stem: full[names[0]] for stem, names in stems.items() if len(names) == 1 and stem not in full}
+    return {**full, **short}
+
+
+def resolve_scene(name: str | Path) -> Path:
+    """The scene file a command line names: a file that exists (relative to the working folder, or
+    absolute) is taken as it is; otherwise a name of the shipped :func:`catalogue`.
+
+    Raises
+    ------
+    SceneError
+        If it is neither.
+    """
+    path = Path(name)
+    if path.exists():
+        return path
+    found = catalogue().get(str(name).removesuffix(".toml"))
+    if found is None:
+        raise SceneError(f"'{name}': no such scene file, nor a shipped scene of that name (`xval scenes` lists them)")
+    return found

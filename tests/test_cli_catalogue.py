@@ -1,0 +1,72 @@
+"""The command line's front door: `xval` alone, `--version`, and the shipped scenes by name.
+
+`xval scenes` lists the catalogue; every command takes a listed name where it takes a scene file,
+but a file of that name in the working folder comes first.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from xval.compare.cli import main
+from xval.reduced.scene import SceneError
+from xval.reduced.scenefile import catalogue, resolve_scene, scenes_dir
+
+from helpers import SEED_SCENE
+
+
+def test_xval_alone_prints_its_help_and_succeeds(capsys):
+    assert main([]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: xval") and "scenes" in out and "run" in out
+
+
+def test_version_is_the_installed_distributions(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"xval {importlib.metadata.version('xval')}"
+
+
+def test_scenes_lists_every_shipped_file_once_by_a_name_that_finds_it(capsys):
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    listed = {}
+    for line in lines:
+        name, path = re.split(r"\s{2,}", line.strip())
+        listed[name] = Path(path)
+    assert sorted(listed.values()) == sorted(scenes_dir().rglob("*.toml"))  # each file once
+    assert len(set(listed)) == len(lines)
+    for name, path in listed.items():
+        assert resolve_scene(name) == path
+    assert listed["watt2_sixbar"].parent.name == "mechanisms"  # a unique file name is shown bare
+    assert listed["seed_fourbar"] == scenes_dir() / "seed_fourbar.toml"  # and a shared one by its folder
+    assert listed["mechanisms/seed_fourbar"] == scenes_dir() / "mechanisms" / "seed_fourbar.toml"
+
+
+def test_a_command_takes_a_shipped_scene_by_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["export-mjcf", "watt2_sixbar", "-o", "watt.xml"]) == 0
+    assert main(["export-mjcf", str(scenes_dir() / "mechanisms" / "watt2_sixbar.toml"), "-o", "file.xml"]) == 0
+    assert (tmp_path / "watt.xml").read_text() == (tmp_path / "file.xml").read_text()
+
+
+def test_a_file_in_the_working_folder_comes_before_the_catalogue(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(SEED_SCENE, tmp_path / "watt2_sixbar")
+    assert resolve_scene("watt2_sixbar") == Path("watt2_sixbar")
+    assert catalogue()["watt2_sixbar"] != Path("watt2_sixbar")
+
+
+def test_an_unknown_name_is_one_line_naming_it(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SceneError, match="xval scenes"):
+        resolve_scene("no_such_scene")
+    assert main(["reduced", "no_such_scene"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'no_such_scene'" in err[0] and "xval scenes" in err[0]
+    assert not list(tmp_path.iterdir())
+
