@@ -385,6 +385,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Solve a one-DOF mechanism two ways (Eksergian's equation and MuJoCo) and "
                     "say how far apart they are.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("-q", "--quiet", action="store_true",
+                      help="no progress lines on stderr (warnings and errors still), e.g. `xval -q check ...`")
+    talk.add_argument("-v", "--verbose", action="store_true",
+                      help="more progress lines: each engine run's method, steps and time")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     p = sub.add_parser("scenes", help="list the shipped scenes, by the names every command accepts",
@@ -549,19 +554,20 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 @contextlib.contextmanager
-def _progress_shown():
-    """The engines' progress lines (the ``xval`` loggers at INFO: MuJoCo's timestep search) on
-    stderr as ``xval: ...`` while a command runs."""
+def _progress_shown(level: int = logging.INFO):
+    """The engines' progress lines (the ``xval`` loggers: MuJoCo's timestep search at INFO, each
+    engine run's cost at DEBUG) on stderr as ``xval: ...`` while a command runs, from ``level`` up
+    (``--quiet``: warnings only; ``--verbose``: DEBUG)."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("xval: %(message)s"))
     logger = logging.getLogger("xval")
     logger.addHandler(handler)
-    level, logger.level = logger.level, logging.INFO
+    previous, logger.level = logger.level, level
     try:
         yield
     finally:
         logger.removeHandler(handler)
-        logger.setLevel(level)
+        logger.setLevel(previous)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -579,7 +585,8 @@ def main(argv: list[str] | None = None) -> int:
                 args = build_parser().parse_args(argv)
             except SystemExit as exc:  # --help, or a usage error already printed
                 return exc.code if isinstance(exc.code, int) else EXIT_OK
-            with _progress_shown():
+            level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
+            with _progress_shown(level):
                 return args.func(args)
     except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on
         return _failure(exc, received)

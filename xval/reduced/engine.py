@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 import warnings
@@ -18,6 +19,8 @@ from .partition import PartitionedSolution, integrate_dop853, integrate_partitio
 from .result import EngineResult
 from .scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
 from .trajectory import Trajectory
+
+_log = logging.getLogger("xval.reduced")  # a run's cost, at DEBUG (`xval --verbose`)
 
 METHODS = REDUCED_METHODS  # listed once, in xval.reduced.scene
 ADAPTIVE = ("dop853", "scipy-dop853", "radau")
@@ -277,6 +280,8 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     start = time.perf_counter()
     solution = integrate(model, settings)
     wall = time.perf_counter() - start
+    _log.debug("reduced %s on %s: %d steps, %d evaluations of q̈, %.3g s", solution.method, scene.name,
+               solution.n_steps, solution.n_evaluations, wall)
     trajectory = solution.trajectory
     diagnostics = {"effects": list(model.effects), "joints": solution.joints,
                    "switches": [asdict(s) for s in solution.switches]}

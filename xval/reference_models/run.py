@@ -384,11 +384,15 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
             if settings.timestep is None:
                 settings = replace(settings, timestep=float(handles.model.opt.timestep))
             _check_handles(scene, handles, settings)
-            return _run(scene, settings, handles)
-        if settings.timestep is not None:
+            result = _run(scene, settings, handles)
+        elif settings.timestep is not None:
             _check_work(scene, settings.timestep)
-            return _run(scene, settings, build_model(scene, settings))
-        return _automatic(scene, settings)
+            result = _run(scene, settings, build_model(scene, settings))
+        else:
+            result = _automatic(scene, settings)
+    _log.debug("MuJoCo %s at h = %.4g s on %s: %d steps, %.3g s", result.settings.get("integrator"), result.settings["timestep"],
+               scene.name, result.n_steps, result.wall_s)
+    return result
 
 
 def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:

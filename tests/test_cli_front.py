@@ -1,4 +1,5 @@
-"""The command line's front door: `xval` alone, `--version`, and the shipped scenes by name.
+"""The command line's front door: `xval` alone, `--version`, `--quiet`/`--verbose`, and the
+shipped scenes by name.
 
 `xval scenes` lists the catalogue; every command takes a listed name where it takes a scene file,
 but a file of that name in the working folder comes first.
@@ -70,3 +71,32 @@ def test_an_unknown_name_is_one_line_naming_it(capsys, tmp_path, monkeypatch):
     assert len(err) == 1 and "'no_such_scene'" in err[0] and "xval scenes" in err[0]
     assert not list(tmp_path.iterdir())
 
+
+
+def tight_seed(folder: Path) -> Path:
+    """The seed, 0.5 s of it, with a q tolerance that MuJoCo's automatic step meets only after
+    halvings: its search then prints a progress line per failed check."""
+    text = SEED_SCENE.read_text()
+    text = re.sub(r"(?m)^q_atol = .*$", "q_atol = 1e-7", text)
+    text = re.sub(r"(?m)^horizon = .*$", "horizon = 0.5", text)
+    path = folder / "tight.toml"
+    path.write_text(text)
+    return path
+
+
+def test_progress_lines_by_default_none_with_quiet(tmp_path, capsys):
+    scene = str(tight_seed(tmp_path))
+    assert main(["mujoco", scene]) == 0
+    progress = [line for line in capsys.readouterr().err.splitlines() if line.startswith("xval: MuJoCo timestep")]
+    assert progress
+    assert main(["-q", "mujoco", scene]) == 0
+    assert "xval:" not in capsys.readouterr().err
+
+
+def test_verbose_adds_each_engine_runs_cost(capsys):
+    assert main(["reduced", "seed_fourbar"]) == 0
+    assert "evaluations of q̈" not in capsys.readouterr().err
+    assert main(["--verbose", "reduced", "seed_fourbar"]) == 0
+    (line,) = [line for line in capsys.readouterr().err.splitlines() if "evaluations of q̈" in line]
+    assert line.startswith("xval: reduced DOP853 on seed_fourbar: 604 steps, 10864 evaluations")
+    assert main(["-q", "-v", "reduced"]) == 2  # one or the other
