@@ -97,8 +97,8 @@ sys.path.insert(0, str(ROOT))
 
 from xval.compare.pool import ordered_map  # noqa: E402
 from xval.compare.sweep import chunk_size  # noqa: E402
-from xval.compare.sweep_spec import (ENGINE_CHOICES, Engines, apply, check, count, load_sweep, spec_from_args,  # noqa: E402
-                                variant_values)
+from xval.reduced.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
+from xval.compare.sweep_scene import check, load_sweep  # noqa: E402
 from xval.reduced import ReducedSettings, default_scene_path  # noqa: E402
 from xval.reduced.scenefile import scene_from_dict  # noqa: E402
 

@@ -2,7 +2,10 @@
 
 import-linter builds the graph of every import inside ``xval`` (function-local ones included)
 and checks the contracts: the engines independent of each other, neither importing the
-comparison above them, nothing importing the command line, and the compiled core's layers.
+comparison above them, nothing importing the command line, the scene format over the sweep
+language, the compiled core's layers, and no import cycle among the modules of the engines or
+of the comparison. (Planted: ``xval.reduced.engine`` importing ``xval.compare.text`` fails the
+second; ``xval.compare.plots`` importing ``xval.compare.draw`` at its top, the last.)
 Run as ``lint-imports`` in a subprocess, from the checkout (it reads pyproject.toml there).
 """
 
@@ -24,4 +27,4 @@ def test_the_import_contracts_hold():
         pytest.fail("lint-imports is not installed: the `test` extra has import-linter")
     done = subprocess.run([lint, "--no-cache"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
-    assert "0 broken" in done.stdout and "4 kept" in done.stdout, done.stdout[-2000:]
+    assert "0 broken" in done.stdout and "7 kept" in done.stdout, done.stdout[-2000:]

@@ -231,7 +231,7 @@ def _options():
 def _resolved_defaults() -> dict[str, list[str]]:
     """Flag -> the defaults the settings resolve to when neither the flag nor the scene gives
     one, as the help should print them; taken from the settings objects, not the CLI."""
-    from xval.compare.sweep_spec import spec_from_args
+    from xval.reduced.sweep_spec import spec_from_args
     from xval.reduced import ReducedSettings
 
     mj = xval.reference_models.MujocoSettings()

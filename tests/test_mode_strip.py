@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from xval.compare.diff import ModeCheck, compare_modes, compare_trajectories, gate
 from xval.compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
-from xval.compare.plots import strip_moments
+from xval.compare.draw import strip_moments
 from xval.compare.text import gate_lines
 from xval.reduced.loops import assemble, assembly_modes, coefficients, compile_linkage
 from xval.reduced.partition import JointTrajectory

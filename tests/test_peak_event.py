@@ -142,7 +142,8 @@ def from_rest():
 
 
 def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monkeypatch, tmp_path):
-    from xval.compare.plots import plot_mechanism_strip, plot_trajectories
+    from xval.compare.draw import plot_mechanism_strip
+    from xval.compare.plots import plot_trajectories
 
     c = from_rest
     d = c.diff

@@ -19,7 +19,8 @@ import pytest
 
 from xval.compare.cli import main
 from xval.compare.sensitivity import Sensitivity, _peak, sensitivities
-from xval.compare.sweep_spec import load_sweep, spec_from_args
+from xval.reduced.sweep_spec import spec_from_args
+from xval.compare.sweep_scene import load_sweep
 from xval.reduced import default_scene_path
 
 KEYS = ["dampers.0.coefficient=40:70:2", "bodies.coupler.mass=35:45:2"]

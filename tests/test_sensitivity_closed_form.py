@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 from xval.compare.sensitivity import sensitivities
-from xval.compare.sweep_spec import spec_from_args
+from xval.reduced.sweep_spec import spec_from_args
 from xval.reduced import scene_from_dict, simulate
 
 T, D = 0.05, 0.5  # N·m, s

@@ -102,7 +102,7 @@ def text_outside(fig) -> list[str]:
 
 
 def test_every_plot_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch, comparison):
-    from xval.compare.plots import PLOTS
+    from xval.compare.report import PLOTS
 
     kept = saved_figures(monkeypatch)
     for name, plot in PLOTS.items():

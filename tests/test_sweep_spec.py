@@ -10,8 +10,9 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.compare.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError, Variant,
-                                check, count, load_sweep, parse_vary, spec_from_args, spec_from_table, variants)
+from xval.reduced.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError,
+                                     Variant, count, parse_vary, spec_from_args, spec_from_table, variants)
+from xval.compare.sweep_scene import check, load_sweep
 from xval.reduced.scene import SceneError
 from xval.reduced.scenefile import default_scene_path, load_scene, scene_from_dict
 

@@ -32,7 +32,7 @@ from xval.reduced.scenefile import catalogue, default_scene_path, load_scene, re
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
                      check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
-from .sweep_spec import ENGINE_CHOICES
+from xval.reduced.sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
 if TYPE_CHECKING:
@@ -287,7 +287,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .sweep import run_sweep, summary_lines, sweep_files
-    from .sweep_spec import check, load_sweep, spec_from_args
+    from xval.reduced.sweep_spec import spec_from_args
+
+    from .sweep_scene import check, load_sweep
 
     if args.scheduler is not None:
         from .sweep import require_dask

@@ -22,12 +22,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from xval.reduced.loads import TabulatedForce
 from xval.reduced.loops import LoopSystem, compile_linkage, positions
 from xval.reduced.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
+
+from .text import STILL_RISING
+
+if TYPE_CHECKING:
+    from .run import Comparison
 
 PLAIN = {"parse_math": False}
 BODY_COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:brown", "tab:purple", "tab:olive",
@@ -627,3 +633,20 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
         return []
 
     FuncAnimation(fig, show, frames=len(times), blit=False).save(str(path), writer=PillowWriter(fps=fps))
+
+
+def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
+    """The moments the mechanism strip shows: the reduced run's peak speed (the compared
+    peak, ``diff.t_peak_reference``, said to be at the end of the horizon when it is) and the
+    sample of largest |Δq| (s). (The strip draws moments that look the same as one panel.)"""
+    d = c.diff
+    peak = "peak speed" + (f" ({STILL_RISING})" if d.peak_still_rising else "")
+    worst = float(d.times[int(np.argmax(np.abs(d.dq)))]) if len(d.times) else d.span_end
+    return [(peak, float(d.t_peak_reference)), ("largest |Δq|", worst)]
+
+
+def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
+    """The mechanism at the peak speed and at the largest disagreement, both engines
+    overlaid (:func:`draw_strip`)."""
+    draw_strip(c.scene, c.reduced.diagnostics["joints"], c.mujoco.diagnostics["joints"],
+               strip_moments(c), path)

@@ -284,35 +284,6 @@ def plot_energy(c: "Comparison", path: Path) -> None:
     _save(fig, path)
 
 
-def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
-    """The moments the mechanism strip shows: the reduced run's peak speed (the compared
-    peak, ``diff.t_peak_reference``, said to be at the end of the horizon when it is) and the
-    sample of largest |Δq| (s). (The strip draws moments that look the same as one panel.)"""
-    d = c.diff
-    peak = "peak speed" + (f" ({STILL_RISING})" if d.peak_still_rising else "")
-    worst = float(d.times[int(np.argmax(np.abs(d.dq)))]) if len(d.times) else d.span_end
-    return [(peak, float(d.t_peak_reference)), ("largest |Δq|", worst)]
-
-
-def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
-    """The mechanism at the peak speed and at the largest disagreement, both engines
-    overlaid (:func:`xval.compare.draw.draw_strip`)."""
-    from .draw import draw_strip
-
-    draw_strip(c.scene, c.reduced.diagnostics["joints"], c.mujoco.diagnostics["joints"],
-               strip_moments(c), path)
-
-
-PLOTS = {
-    "trajectories.png": plot_trajectories,
-    "differences.png": plot_differences,
-    "omega_vs_q.png": plot_omega_vs_q,
-    "constraint_violation.png": plot_constraint_violation,
-    "energy.png": plot_energy,
-    "mechanism.png": plot_mechanism_strip,
-}
-
-
 SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
 # One colour per MuJoCo integrator, in the order xval.reduced.scene lists them (the one list of names).
 INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab:brown", "tab:orange",

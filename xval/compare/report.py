@@ -39,13 +39,24 @@ from xval.reduced.scene import Scene
 from xval.reduced.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
-from .plots import PLOTS
+from .draw import plot_mechanism_strip
+from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_omega_vs_q,
+                    plot_trajectories)
 if TYPE_CHECKING:
     from xval.reduced.partition import JointTrajectory
 
     from .run import Comparison
 
 SCHEMA_VERSION = 3
+# The figures a run writes, by file (each function takes the Comparison and the path).
+PLOTS = {
+    "trajectories.png": plot_trajectories,
+    "differences.png": plot_differences,
+    "omega_vs_q.png": plot_omega_vs_q,
+    "constraint_violation.png": plot_constraint_violation,
+    "energy.png": plot_energy,
+    "mechanism.png": plot_mechanism_strip,
+}
 REPORT_FILES = ("reduced.csv", "mujoco.csv", *PLOTS, "report.json")  # in the order they are committed
 ANIMATION_FILE = "mechanism.gif"
 

@@ -21,7 +21,8 @@ import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from .sweep_spec import SWEEP_TABLE, SweepSpec, SweepSpecError, apply, nominal_values
+from xval.reduced.sweep_spec import SWEEP_TABLE, SweepSpec, SweepSpecError, apply
+from xval.compare.sweep_scene import nominal_values
 
 # The peak's relative accuracy against rtol: DOP853 at rtol 1e-11 and 1e-12 differ by 4.1e-11 in
 # peak ω on the seed (benchmarks/results/compiled_core.txt), about 10 × rtol.

@@ -68,7 +68,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 
 from .output import json_text, plain, portable_source, write_folder
 from .pool import ignore_interrupts, ordered_map
-from .sweep_spec import Engines, SweepSpec, count, variant_values
+from xval.reduced.sweep_spec import Engines, SweepSpec, count, variant_values
 
 STATUSES = ("passed", "gate_failed", "failed", "invalid")
 """A variant's status: every check that ran passed (both engines and the gate; reduced-only:
@@ -188,7 +188,7 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
     from xval.reduced.scene import SceneError
     from xval.reduced.scenefile import scene_from_dict
 
-    from .sweep_spec import apply
+    from xval.reduced.sweep_spec import apply
 
     row: dict[str, Any] = {"index": index, "status": "", "reason": "", **values}
     start = time.perf_counter()
@@ -657,7 +657,7 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
     variant ran through both."""
     from .plots import PLAIN, _save, new_figure, plot_differences
     from .run import compare_engines
-    from .sweep_spec import apply
+    from xval.reduced.sweep_spec import apply
     from xval.reduced.scenefile import scene_from_dict
 
     worst = summary.worst

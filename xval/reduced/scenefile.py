@@ -32,6 +32,7 @@ from . import loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
+from xval.reduced.sweep_spec import SweepSpecError, spec_from_table
 from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
@@ -654,10 +655,8 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
 
 def _check_sweep(table: Any, source: str) -> None:
     """The optional [sweep] table (a family of variants of this scene, ``xval sweep``): read by
-    :func:`xval.compare.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
+    :func:`xval.reduced.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
     does not use it; whether its keys fit the scene is checked when the sweep runs."""
-    from xval.compare.sweep_spec import SweepSpecError, spec_from_table
-
     try:
         spec_from_table(table, source="")
     except SweepSpecError as exc:

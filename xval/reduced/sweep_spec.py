@@ -6,7 +6,7 @@ name, entries of an array by their index from 0 (``bodies.coupler.mass``,
 ``dampers.0.coefficient``, ``linkage.c2``, ``torque.value``, ``initial.qdot``,
 ``bodies.coupler.com.1``, ``mujoco.timestep``, ``reduced.rtol``). A key need not be written in
 the file if the scene format accepts it there (``initial.qdot``, ``mujoco.timestep`` — a missing
-table is created); :func:`check` tells which.
+table is created); :func:`xval.compare.sweep_scene.check` tells which.
 
 SPEC, the values of one key (:func:`parse_vary` reads ``KEY=SPEC``):
 
@@ -40,12 +40,14 @@ The same in a scene file, a ``[sweep]`` table (:func:`spec_from_table`)::
 
 ``vary`` may also be an inline table (``vary = { "linkage.c2" = "0.8:1.0:5" }``); a bare dotted
 key (``bodies.coupler.mass = "..."`` without quotes) is TOML for nested tables and is read as
-the same KEY. The scene itself ignores its ``[sweep]`` table; variants do not carry it.
+the same KEY. The scene itself ignores its ``[sweep]`` table; variants do not carry it. The scene
+format reads the table with :func:`spec_from_table` (a bad table makes the file invalid).
 
 Everything is refused up front, before any work, by :class:`SweepSpecError` (a ValueError, one
 line naming the key): an unknown ``engines``, a malformed SPEC, lo > hi, n < 1, sigma < 0, a
 non-finite number, a key given twice, grids mixed with distributions, a missing or needless
-``samples``, too many variants (the specification, where defined); and, against the scene (:func:`check`), an unknown
+``samples``, too many variants (the specification, where defined); and, against the scene
+(:func:`xval.compare.sweep_scene.check`), an unknown
 key, a key whose value is not a number (``linkage.type``), and a value that makes the scene
 invalid at the nominal scene or at an extreme of a key (a grid's smallest and largest values,
 ``uniform``'s bounds, ``normal``'s mu ± 4 sigma, not clipped: a normal distribution whose
@@ -60,12 +62,10 @@ import math
 import re
 from dataclasses import dataclass
 from enum import Enum
-from pathlib import Path
 from typing import Any, Iterator, Mapping, NamedTuple, Union
 
 import numpy as np
 
-from xval.reduced.scene import SceneError
 
 MAX_VARIANTS = 1_000_000
 """The most variants a sweep may have (a grid's product, or ``samples``)."""
@@ -388,24 +388,13 @@ def spec_from_table(table: Any, source: str = "<memory>") -> SweepSpec:
         raise SweepSpecError(f"{source}: {exc}" if source else str(exc)) from None
 
 
-def load_sweep(path: str | Path) -> tuple[dict[str, Any], SweepSpec | None]:
-    """A scene file's TOML data and the specification of its ``[sweep]`` table (None without
-    one). The file is read as :func:`xval.reduced.scenefile.load_scene` reads it (SceneError)."""
-    from xval.reduced.scenefile import _parse_toml, _read_text
-
-    path = Path(path)
-    data = _parse_toml(_read_text(path), path)
-    spec = spec_from_table(data[SWEEP_TABLE], str(path)) if SWEEP_TABLE in data else None
-    return data, spec
-
-
 # -- applying ----------------------------------------------------------------------------
 
-_MISSING = object()
+MISSING = object()  # a key the data does not give (lookup)
 
 
-def _lookup(data: Mapping[str, Any], key: str) -> Any:
-    """The value at ``key``, ``_MISSING`` if a table on the way lacks it (the format may still
+def lookup(data: Mapping[str, Any], key: str) -> Any:
+    """The value at ``key``, ``MISSING`` if a table on the way lacks it (the format may still
     accept it); SweepSpecError if the path cannot exist (through a number, past an array)."""
     node: Any = data
     parts = split_key(key)
@@ -413,7 +402,7 @@ def _lookup(data: Mapping[str, Any], key: str) -> Any:
         where = ".".join(parts[:depth]) or "the scene"
         if isinstance(node, dict):
             if part not in node:
-                return _MISSING
+                return MISSING
             node = node[part]
         elif isinstance(node, list):
             if not part.isdigit():
@@ -499,67 +488,3 @@ def variants(data: Mapping[str, Any], spec: SweepSpec) -> Iterator[Variant]:
     """The variants of the scene file's ``data`` (parsed TOML), one at a time."""
     for i, values in enumerate(variant_values(spec)):
         yield Variant(i, values, apply(data, values))
-
-
-# -- checking against the scene ----------------------------------------------------------
-
-def check(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") -> None:
-    """Refuse, before any work, a specification that does not fit the scene ``data``.
-
-    Each key must lead to a number of the scene, or to a place the scene format accepts one;
-    the scene is built (:func:`xval.reduced.scenefile.scene_from_dict`) at the nominal values (as
-    written; a key the file does not give at its spec's centre) and at each key's extremes
-    (the others nominal). Raises SweepSpecError naming the key (with ``source`` in front);
-    a SceneError of the scene as written propagates unchanged.
-    """
-    from xval.reduced.scenefile import scene_from_dict
-
-    prefix = f"{source}: " if source else ""
-    base = {k: v for k, v in data.items() if k != SWEEP_TABLE}
-    scene_from_dict(base, source)  # the scene as written: its own errors are not the sweep's
-    given = nominal_values(base, spec, source)
-    nominal = {k: v for k, v in given.items() if _lookup(base, k) is _MISSING}
-    for key, value in nominal.items():  # each key the file does not give, alone
-        _build(base, {key: value}, key, f"{value:g} (its nominal value)", prefix, source)
-    _build(base, nominal, None, "", prefix, source)
-    for v in spec.varies:
-        for value, which in v.extremes:
-            _build(base, {**nominal, v.key: value}, v.key, f"{value:g} ({which})", prefix, source)
-
-
-def nominal_values(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") -> dict[str, float]:
-    """Each varied key's nominal value: the scene's own, or its spec's centre where the file
-    does not give it. SweepSpecError (naming the key) where the scene has no number there."""
-    prefix = f"{source}: " if source else ""
-    nominal: dict[str, float] = {}
-    for v in spec.varies:
-        try:
-            current = _lookup(data, v.key)
-        except SweepSpecError as exc:
-            raise SweepSpecError(prefix + str(exc)) from None
-        if current is _MISSING:
-            nominal[v.key] = v.centre
-        elif isinstance(current, bool) or not isinstance(current, (int, float)):
-            shown = f" \"{current}\"" if isinstance(current, str) else ""
-            raise SweepSpecError(f"{prefix}sweep key '{v.key}' is not a number: the scene has a "
-                                 f"{_type_name(current)}{shown} there")
-        else:
-            nominal[v.key] = float(current)
-    return nominal
-
-
-def _build(base: dict, values: dict[str, float], key: str | None, shown: str, prefix: str, source: str) -> None:
-    from xval.reduced.scenefile import scene_from_dict
-
-    try:
-        scene_from_dict(apply(base, values), source)
-    except SceneError as exc:
-        message = str(exc)
-        if key is None:
-            keys = ", ".join(f"'{k}'" for k in values)
-            raise SweepSpecError(f"{prefix}sweep keys {keys} at their nominal values make the scene invalid: "
-                                 f"{message}") from None
-        if message.startswith("unknown key"):
-            raise SweepSpecError(f"{prefix}unknown key '{key}': the scene does not give it and the scene format "
-                                 f"does not accept it there ({message})") from None
-        raise SweepSpecError(f"{prefix}sweep key '{key}' = {shown} makes the scene invalid: {message}") from None
