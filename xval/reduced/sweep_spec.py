@@ -30,13 +30,18 @@ alone, with its own error and energy checks; no MuJoCo, no comparison, no gate).
 The same in a scene file, a ``[sweep]`` table (:func:`spec_from_table`)::
 
     [sweep]
-    samples = 100                  # Monte Carlo only
-    seed = 1                       # optional, default 0
     engines = "reduced"            # optional, "both" (default) or "reduced"
     [sweep.vary]                   # KEY = SPEC, in the order of the sweep
     "dampers.0.coefficient" = "40:70:7"
-    "bodies.coupler.mass" = "normal(40, 2)"
     "linkage.c2" = [0.85, 0.9, 0.95]   # a TOML array of numbers is a list grid
+
+or, for Monte Carlo (distributions only)::
+
+    [sweep]
+    samples = 100
+    seed = 1                       # optional, default 0
+    [sweep.vary]
+    "bodies.coupler.mass" = "normal(40, 2)"
 
 ``vary`` may also be an inline table (``vary = { "linkage.c2" = "0.8:1.0:5" }``); a bare dotted
 key (``bodies.coupler.mass = "..."`` without quotes) is TOML for nested tables and is read as
