@@ -771,17 +771,21 @@ def catalogue() -> dict[str, Path]:
 
 def resolve_scene(name: str | Path) -> Path:
     """The scene file a command line names: a file that exists (relative to the working folder, or
-    absolute) is taken as it is; otherwise a name of the shipped :func:`catalogue`.
+    absolute) is taken as it is; otherwise a name of the shipped :func:`catalogue`; otherwise, a
+    name ending in ``.toml`` or an absolute path is returned as it is (reading it then says the
+    file does not exist).
 
     Raises
     ------
     SceneError
-        If it is neither.
+        If it is none of these.
     """
     path = Path(name)
     if path.exists():
         return path
     found = catalogue().get(str(name).removesuffix(".toml"))
-    if found is None:
-        raise SceneError(f"'{name}': no such scene file, nor a shipped scene of that name (`xval scenes` lists them)")
-    return found
+    if found is not None:
+        return found
+    if path.suffix == ".toml" or path.is_absolute():  # a file, surely: reading it says what is wrong
+        return path
+    raise SceneError(f"'{name}': no such scene file, nor a shipped scene of that name (`xval scenes` lists them)")
