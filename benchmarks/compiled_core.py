@@ -51,7 +51,8 @@ from common import median_time  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from xval.reduced import ReducedSettings, default_scene_path, load_scene  # noqa: E402
+from xval.reduced import ReducedSettings  # noqa: E402
+from xval.scenefile import default_scene_path, load_scene
 from xval.reduced.dynamics import MechanismModel  # noqa: E402
 
 

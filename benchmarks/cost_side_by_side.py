@@ -28,7 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import median_time  # noqa: E402
 
 from xval.compare.cost import HARD, Config, ground_truth, measure  # noqa: E402
-from xval.reduced import ReducedSettings, default_scene_path, load_scene  # noqa: E402
+from xval.reduced import ReducedSettings  # noqa: E402
+from xval.scenefile import default_scene_path, load_scene
 from xval.reference_models import (MujocoSettings, build_model, compile_model, control_sequence,  # noqa: E402
                               initial_qpos_qvel, simulate_mujoco)
 

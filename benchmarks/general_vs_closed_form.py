@@ -7,9 +7,9 @@ Three rows per scene, whichever can run:
   :class:`xval.reduced.dynamics.MechanismModel` in the input coordinate (the compiled kernel, called
   once per f from Python, as scipy's integrators call it);
 - ``closed form``: Eksergian's equation written here from the four-bar closed form
-  (:meth:`xval.reduced.linkage.FourBar.kinematics`) and the bodies' geometry (``scene.four_bar``
+  (:meth:`xval.four_bar.FourBar.kinematics`) and the bodies' geometry (``scene.four_bar``
   scenes only: the shorthand seed, scenes/seed_fourbar.toml; no point forces);
-- ``loops``: Eksergian's equation written here directly on :mod:`xval.reduced.loops` (Newton from the
+- ``loops``: Eksergian's equation written here directly on :mod:`xval.kinematics` (Newton from the
   previous configuration, K and L, masses, springs, dampers, gravity, point forces and the input
   load: everything on plain arrays, no model object), a floor for what the general path costs
   in Python and a check of the engine row's value (the two must agree).
@@ -35,9 +35,9 @@ from typing import Callable
 
 import numpy as np
 
-from xval.reduced import loops
-from xval.reduced.loads import TabulatedForce
-from xval.reduced.scenefile import default_scene_path, load_scene
+from xval import kinematics as loops
+from xval.loads import TabulatedForce
+from xval.scenefile import default_scene_path, load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
@@ -64,7 +64,7 @@ def closed_form_f(scene) -> F:
     """The four-bar closed form's f (scene.four_bar scenes only): body frames crank at O1 turning
     with q, coupler at A = c1 e(q) turning with φ1, rocker at O3 = (c4, 0) turning with φ2 + π;
     a body point p is r = o + R(θ) p, K_r = K_o + θ' (R p)⊥, L_r = L_o + θ'' (R p)⊥ − θ'² R p."""
-    from xval.reduced.linkage import FourBar
+    from xval.four_bar import FourBar
 
     if scene.four_bar is None or scene.mechanism.point_forces:
         raise ValueError("not a four-bar shorthand scene without point forces")
@@ -114,7 +114,7 @@ def closed_form_f(scene) -> F:
 
 
 def loops_f(scene) -> F:
-    """Eksergian's equation on xval.reduced.loops' plain arrays (see the module docstring)."""
+    """Eksergian's equation on xval.kinematics' plain arrays (see the module docstring)."""
     mech = scene.mechanism
     linkage = mech.linkage
     system = loops.compile_linkage(linkage)

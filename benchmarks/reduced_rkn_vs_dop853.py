@@ -19,7 +19,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import largest_passing, median_time  # noqa: E402
 
-from xval.reduced import MechanismModel, ReducedSettings, default_scene_path, load_scene  # noqa: E402
+from xval.reduced import MechanismModel, ReducedSettings  # noqa: E402
+from xval.scenefile import default_scene_path, load_scene
 from xval.reduced.engine import integrate  # noqa: E402
 
 

@@ -13,7 +13,7 @@ The issue's targets, as written:
 The sweep: ``scenes/seed_fourbar.toml`` with ``dampers.0.coefficient=40:70:25`` ×
 ``bodies.coupler.mass=35:45:40`` (1 000 variants; the nominal 55 N·s/m and 40 kg inside the
 ranges), made by the package's own ``xval.compare.sweep_spec`` (``load_sweep``, ``spec_from_args``,
-``check``, ``variant_values``, ``apply``) and ``xval.reduced.scenefile.scene_from_dict``, as
+``check``, ``variant_values``, ``apply``) and ``xval.scenefile.scene_from_dict``, as
 ``xval sweep`` makes them.
 
 What is timed (``time.perf_counter``, wall; the machine is small and shared, so every figure
@@ -97,10 +97,11 @@ sys.path.insert(0, str(ROOT))
 
 from xval.compare.pool import ordered_map  # noqa: E402
 from xval.compare.sweep import chunk_size  # noqa: E402
-from xval.reduced.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
+from xval.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
 from xval.compare.sweep_scene import check, load_sweep  # noqa: E402
-from xval.reduced import ReducedSettings, default_scene_path  # noqa: E402
-from xval.reduced.scenefile import scene_from_dict  # noqa: E402
+from xval.reduced import ReducedSettings  # noqa: E402
+from xval.scenefile import default_scene_path
+from xval.scenefile import scene_from_dict  # noqa: E402
 
 DAMPER, MASS = "dampers.0.coefficient", "bodies.coupler.mass"
 DAMPER_RANGE, MASS_RANGE = (40.0, 70.0), (35.0, 45.0)
@@ -152,7 +153,7 @@ def _init(data, source, settings):
 
 def _reduced_chunk(values_list):
     from xval.reduced.engine import simulate
-    from xval.reduced.errors import NumericalFailure
+    from xval.errors import NumericalFailure
 
     out = []
     for v in values_list:
@@ -186,7 +187,7 @@ def part1(path: Path, n: int) -> ReducedSettings:
     from xval.reduced.dynamics import MechanismModel
     from xval.reduced.energy import energy_audit
     from xval.reduced.engine import integrate, simulate
-    from xval.reduced.errors import NumericalFailure
+    from xval.errors import NumericalFailure
 
     data, spec = make_spec(path, n)
     nominal = scene_from_dict({k: v for k, v in data.items() if k != "sweep"}, str(path))

@@ -32,7 +32,9 @@ def outputs(path: Path, method: str) -> dict:
     The run's own accuracy check is off (``check_error=False``), so that RKN4 at its default
     step records a trajectory on the hard scenes too, where its estimate refuses the run."""
     from xval.compare.settings import reduced_settings
-    from xval.reduced import NumericalFailure, load_scene, simulate
+    from xval.errors import NumericalFailure
+    from xval.scenefile import load_scene
+    from xval.reduced import simulate
 
     scene = load_scene(path)
     try:

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval.reduced import Scene, scene_from_dict
+from xval.scene import Scene
+from xval.scenefile import scene_from_dict
 from xval.reduced.kernels.problem import RightHandSide
 
 ROOT = Path(__file__).resolve().parent.parent

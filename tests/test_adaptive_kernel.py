@@ -31,14 +31,15 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from xval.reduced import MechanismModel, default_scene_path, load_scene, scene_from_dict  # noqa: E402
-from xval.reduced.errors import NumericalFailure  # noqa: E402
+from xval.reduced import MechanismModel  # noqa: E402
+from xval.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.errors import NumericalFailure  # noqa: E402
 from xval.reduced.integrators import restart, solve_adaptive  # noqa: E402
 from xval.reduced.kernels import adaptive as K  # noqa: E402
 from xval.reduced.kernels import output  # noqa: E402
 from xval.reduced.kernels import physics  # noqa: E402
 from xval.reduced.partition import _start, load_pieces  # noqa: E402
-from xval.reduced.scenefile import hard_scene_dir  # noqa: E402
+from xval.scenefile import hard_scene_dir  # noqa: E402
 
 from helpers import scipy_in_kernel_order, without_dyad_plans  # noqa: E402
 

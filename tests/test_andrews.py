@@ -28,8 +28,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from xval.reduced import loops
-from xval.reduced.scenefile import load_scene
+from xval import kinematics as loops
+from xval.scenefile import load_scene
 
 SCENE = Path(__file__).resolve().parent.parent / "scenes" / "mechanisms" / "andrews_squeezer.toml"
 

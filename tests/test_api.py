@@ -14,7 +14,8 @@ import pytest
 
 import xval
 from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings, load_scene as load_file, simulate as simulate_reduced
+from xval.reduced import ReducedSettings, simulate as simulate_reduced
+from xval.scenefile import load_scene as load_file
 from xval.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT, SEED_SCENE

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from xval.reduced import ReducedSettings, load_scene, simulate
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))

@@ -27,7 +27,7 @@ import xval.reference_models
 from xval.compare import cli
 from xval.compare.cli import main
 from xval.compare.cost import worker_count
-from xval.reduced import scene_from_dict
+from xval.scenefile import scene_from_dict
 
 from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
@@ -231,7 +231,7 @@ def _options():
 def _resolved_defaults() -> dict[str, list[str]]:
     """Flag -> the defaults the settings resolve to when neither the flag nor the scene gives
     one, as the help should print them; taken from the settings objects, not the CLI."""
-    from xval.reduced.sweep_spec import spec_from_args
+    from xval.sweep_spec import spec_from_args
     from xval.reduced import ReducedSettings
 
     mj = xval.reference_models.MujocoSettings()

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from xval.compare.cli import main
-from xval.reduced.scene import SceneError
-from xval.reduced.scenefile import catalogue, resolve_scene, scenes_dir
+from xval.scene import SceneError
+from xval.scenefile import catalogue, resolve_scene, scenes_dir
 
 from helpers import SEED_SCENE
 

@@ -14,8 +14,9 @@ from xval.compare.diff import compare_trajectories, gate
 from xval.compare.output import MANIFEST_FILE
 from xval.compare.report import REPORT_FILES, write_outputs
 from xval.compare.run import compare_engines
-from xval.reduced import Trajectory, load_scene
-from xval.reduced.scene import Tolerances
+from xval.trajectory import Trajectory
+from xval.scenefile import load_scene
+from xval.scene import Tolerances
 
 from helpers import SEED_SCENE
 

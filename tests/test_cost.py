@@ -12,7 +12,7 @@ import pytest
 
 from xval.compare.cost import (Measurement, cheapest_meeting, converges, cost_report, ground_truth, ladder,
                           recommend, sweep, write_cost_outputs)
-from xval.reduced import load_scene
+from xval.scenefile import load_scene
 
 from helpers import SEED_SCENE
 

@@ -15,7 +15,7 @@ import pytest
 
 from xval.compare.run import compare_engines
 from xval.reduced import ReducedSettings
-from xval.reduced.scene import Tolerances
+from xval.scene import Tolerances
 from xval.reference_models import MujocoSettings
 
 from helpers import seed_dict, variant

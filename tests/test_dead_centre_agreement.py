@@ -18,7 +18,9 @@ import numpy as np
 import pytest
 
 from xval.compare.run import compare_engines
-from xval.reduced import FourBar, MechanismModel, scene_from_dict, simulate
+from xval.four_bar import FourBar
+from xval.reduced import MechanismModel, simulate
+from xval.scenefile import scene_from_dict
 from xval.reduced.partition import Chart
 
 # q0 = 2.379 rad is within the hysteresis of a dead centre: the run starts in a φ chart and never

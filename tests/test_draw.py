@@ -18,9 +18,9 @@ import pytest
 from xval.compare import cli
 from xval.compare.cli import main
 from xval.compare.draw import draw_linkage, draw_scene, mode_text
-from xval.reduced import load_scene
-from xval.reduced.loops import assemble, compile_linkage
-from xval.reduced.scenefile import scene_from_dict
+from xval.scenefile import load_scene
+from xval.kinematics import assemble, compile_linkage
+from xval.scenefile import scene_from_dict
 
 from helpers import SEED_SCENE
 
@@ -170,7 +170,7 @@ def test_slider_crank_block_spring_and_gas_force(q0):
     assert np.allclose(gas.xy, piston, rtol=0.0, atol=ROUND_OFF)  # the arrow ends on the piston
     # F(q) along (cos π, sin π) = −x: a positive value pushes the piston left, so the tail
     # lies to its right; a negative one the other way round.
-    from xval.reduced.loads import TabulatedForce
+    from xval.loads import TabulatedForce
 
     value = TabulatedForce((0.0, 1.0, 2.0, 3.0), (0.0, 500.0, -300.0, 0.0))(q0)
     tail = np.array(gas.xyann)

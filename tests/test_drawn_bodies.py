@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from xval.compare.draw import draw_linkage, draw_strip
-from xval.reduced import load_scene
-from xval.reduced.loops import compile_linkage, positions
-from xval.reduced.mechanism import GROUND, PrismaticJoint
-from xval.reduced.partition import JointTrajectory
+from xval.scenefile import load_scene
+from xval.kinematics import compile_linkage, positions
+from xval.mechanism import GROUND, PrismaticJoint
+from xval.trajectory import JointTrajectory
 
 CATALOGUE = sorted((Path(__file__).resolve().parent.parent / "scenes" / "mechanisms").glob("*.toml"))
 CATALOGUE_BY_NAME = {p.stem: p for p in CATALOGUE}
@@ -129,7 +129,7 @@ def scaled_lever(k: float):
     import copy
     import tomllib
 
-    from xval.reduced.scenefile import scene_from_dict
+    from xval.scenefile import scene_from_dict
 
     data = copy.deepcopy(tomllib.loads(CATALOGUE_BY_NAME["oscillating_slotted_lever"].read_text(encoding="utf-8")))
     for body in data["bodies"].values():
@@ -147,7 +147,7 @@ def test_strip_tick_labels_do_not_overlap(tmp_path, saved_figures, k):
     assembly: with matplotlib's default ticks, labels such as −0.125 at 0.025 m steps ran into
     each other in one panel or the other at each of these scales (found by scanning k from 0.2
     to 1.2). The labels drawn stand apart."""
-    from xval.reduced.loops import assemble
+    from xval.kinematics import assemble
 
     scene = scaled_lever(k)
     system = compile_linkage(scene.mechanism.linkage)
@@ -183,7 +183,7 @@ def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path,
     (fig,) = saved_figures
     (ax,) = fig.axes
     assert ax.get_title().startswith("peak speed (t = 0.2 s) and largest |Δq| (t = 0.7 s), one picture")
-    from xval.reduced.loops import assemble
+    from xval.kinematics import assemble
 
     moved = assemble(system, scene.q0 + 1.0, np.asarray(scene.x0, dtype=float))
     xs = np.array([scene.x0, moved], dtype=float)

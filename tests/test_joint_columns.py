@@ -21,8 +21,9 @@ import pytest
 from xval.compare import report
 from xval.compare.cli import main
 from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings, scene_from_dict
-from xval.reduced.mechanism import GROUND, PrismaticJoint
+from xval.reduced import ReducedSettings
+from xval.scenefile import scene_from_dict
+from xval.mechanism import GROUND, PrismaticJoint
 from xval.reference_models import MujocoSettings, build_model, joint_positions
 
 from helpers import ROOT

@@ -18,8 +18,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, loops, scene_from_dict, simulate
-from xval.reduced.scene import SceneError
+from xval import kinematics as loops
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import scene_from_dict
+from xval.scene import SceneError
 from xval.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT

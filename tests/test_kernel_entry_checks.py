@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from helpers import ClosedForm, run_dop853, run_rkn
-from xval.reduced import MechanismModel, default_scene_path, load_scene
+from xval.reduced import MechanismModel
+from xval.scenefile import default_scene_path, load_scene
 from xval.reduced.kernels import physics
 
 

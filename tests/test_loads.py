@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.reduced.loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TabulatedForce
+from xval.loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TabulatedForce
 
 PROFILES = [ConstantTorque(3.0), PulseTorque(250.0, 0.5, 1.0),
             PiecewiseConstantTorque((0.0, 1.0, 2.0), (1.0, -2.0, 5.0))]
@@ -47,7 +47,7 @@ def _periodic_force_scene(tmp_path, values, period=6.0, q=(0.0, 2.0, 4.0, 6.0)):
     """The planar seed with a periodic point force on the coupler, written as a scene file."""
     import tomllib
 
-    from xval.reduced.scenefile import scenes_dir
+    from xval.scenefile import scenes_dir
 
     text = (scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text()
     tomllib.loads(text)  # the base parses
@@ -63,7 +63,7 @@ def test_a_periodic_table_whose_ends_disagree_is_refused(tmp_path, capsys):
     key. A table that ends on its first value, or one period short, is accepted, and F at the
     table's points is the table's value (interpolating spline; the period's end is the start)."""
     from xval.compare.cli import main
-    from xval.reduced import load_scene
+    from xval.scenefile import load_scene
 
     path = _periodic_force_scene(tmp_path, [0.0, 1000.0, 3000.0, 5000.0])
     assert main(["reduced", str(path)]) == 2

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from xval.reduced import SceneError, scene_from_dict
+from xval.scene import SceneError
+from xval.scenefile import scene_from_dict
 
 # A valid planar four-bar: ground O1 (0,0), O3 (1,0); crank 0.5, coupler 0.9, rocker 0.7.
 BASE_TOML = """

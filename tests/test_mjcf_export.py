@@ -1,7 +1,7 @@
 """The exported MJCF stands on its own: MuJoCo loads it with the loop closed (issue 11).
 
 Every check here reads the file with MuJoCo alone (``mujoco.MjModel.from_xml_string``, no
-xval code) and judges it against the four-bar's closed-form assembly (``xval.reduced.linkage``),
+xval code) and judges it against the four-bar's closed-form assembly (``xval.four_bar``),
 an oracle independent of the MuJoCo builder. The loop gap is measured between the sites at B
 on the coupler and on the rocker, which sit at the link lengths c2, c3 in each body's frame:
 unlike the connect's own residual (MuJoCo places the rocker's anchor where B is at qpos0, so
@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.reduced import load_scene, scene_from_dict
-from xval.reduced.linkage import FourBar
+from xval.scenefile import load_scene, scene_from_dict
+from xval.four_bar import FourBar
 from xval.reference_models import BASE_BODY, HOME_KEY, MujocoSettings, build_model, mjcf_text
 
 from helpers import SEED_SCENE, seed_dict

@@ -2,7 +2,7 @@
 ``xval run``, on JointTrajectory objects built here from the loop kinematics.
 
 The engines are not run: the runs are the Watt II six-bar (two loops) assembled by Newton's
-method (xval.reduced.loops.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
+method (xval.kinematics.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
 "MuJoCo" run is the same motion shifted by a small known Δq(t), or with its second loop
 put in the other assembly mode part-way; the oracles are those constructions.
 """
@@ -24,10 +24,10 @@ from xval.compare.diff import ModeCheck, compare_modes, compare_trajectories, ga
 from xval.compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
 from xval.compare.draw import strip_moments
 from xval.compare.text import gate_lines
-from xval.reduced.loops import assemble, assembly_modes, coefficients, compile_linkage
-from xval.reduced.partition import JointTrajectory
-from xval.reduced.scene import Tolerances
-from xval.reduced.trajectory import Trajectory
+from xval.kinematics import assemble, assembly_modes, coefficients, compile_linkage
+from xval.trajectory import JointTrajectory
+from xval.scene import Tolerances
+from xval.trajectory import Trajectory
 
 from test_draw import watt_ii_scene
 
@@ -175,7 +175,7 @@ def test_strip_overlays_both_engines_at_the_moments(tmp_path, monkeypatch, scene
     assert out.read_bytes()[:8] == PNG_SIGNATURE
     assert struct.unpack(">II", out.read_bytes()[16:24]) == (990, 462)  # 9 × 4.2 in at 110 dpi
     system = compile_linkage(scene.mechanism.linkage)
-    from xval.reduced.loops import positions
+    from xval.kinematics import positions
 
     (panels,) = figures
     for (title, lines), t in zip(panels, (0.3, 0.5)):
@@ -224,8 +224,8 @@ def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatc
 # -- the report of a comparison, without the engines ------------------------------------
 
 def engine_result(engine, joints, trajectory, violation=0.0):
-    from xval.reduced.result import EngineResult
-    from xval.reduced.trajectory import Peak
+    from xval.results import EngineResult
+    from xval.trajectory import Peak
 
     t = trajectory.t
     k = int(np.argmax(np.abs(trajectory.qdot)))
@@ -241,7 +241,7 @@ def engine_result(engine, joints, trajectory, violation=0.0):
                         len(t), 4 * len(t), settings, diagnostics)
 
 
-from xval.reduced.result import EnergyAudit  # noqa: E402
+from xval.results import EnergyAudit  # noqa: E402
 
 
 def slider_run(scene, t, shift=0.0):

@@ -1,7 +1,7 @@
 """The MuJoCo model of any planar linkage (issue 11): slider-cranks, a two-loop six-bar, the seed.
 
 Oracles independent of the MuJoCo builder and of the reduced engine's dynamics: the loop
-kinematics of :mod:`xval.reduced.loops` (positions, K = dx/dq on ``system.centres``) give the
+kinematics of :mod:`xval.kinematics` (positions, K = dx/dq on ``system.centres``) give the
 kinetic energy ½ 𝔍 q̇² with 𝔍 = Σ m |K_G|² + I K_θ², summed here by hand, and the exported
 MJCF is read by MuJoCo alone (``MjModel.from_xml_string``).
 """
@@ -16,7 +16,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.reduced import load_scene, loops, scene_from_dict
+from xval.scenefile import load_scene, scene_from_dict
+from xval import kinematics as loops
 from xval.reduced.dynamics import MechanismModel
 from xval.reference_models import (HOME_KEY, MujocoSettings, build_model, coordinate_map, joint_order, mjcf_text,
                               simulate_mujoco)
@@ -326,12 +327,12 @@ def test_general_seed_agrees_with_the_shorthand():
 @pytest.mark.parametrize("name", ["slider_crank", "slider_driven"])
 def test_point_force_is_the_tabulated_force_at_every_rk4_stage(name):
     """The callback's generalized force does the virtual power F(q) u·K_P of the loop kinematics
-    (K_P = dP/dq from xval.reduced.loops on the point, not MuJoCo), and RK4 calls it once per stage
+    (K_P = dP/dq from xval.kinematics on the point, not MuJoCo), and RK4 calls it once per stage
     (four times per step) at that stage's own state (four different q).
 
     Measured: the two virtual powers agree to 5.4e-17 of Σ max|F|·|K_P|; bound 1e-15 (20x).
     """
-    from xval.reduced.loads import TabulatedForce
+    from xval.loads import TabulatedForce
     from xval.reference_models import point_force_callback
     from xval.reference_models.run import _Layout
 

@@ -8,7 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
+from xval.errors import NumericalFailure
+from xval import kinematics as loops
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import load_scene, scene_from_dict
 from xval.reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
                               joint_positions, joint_rates, mjcf_text, simulate_mujoco)
 
@@ -88,7 +91,7 @@ def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
 def test_kinetic_energy_matches_generalized_inertia(seed):
     """½ q̇ᵀ M q̇ from MuJoCo at a loop-consistent velocity equals ½ 𝔍(q) q̇² over a full turn.
 
-    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (xval.reduced.loops: K on the centres of
+    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (xval.kinematics: K on the centres of
     mass; the pivoted crank and rocker by their pivot inertias), not from the reduced engine's
     dynamics. Both are sums of the same few products in float64 (measured ≤ 3.1e-15 relative);
     1e-10 is the issue's bound and leaves room for the trigonometry on either side.

@@ -17,7 +17,8 @@ import tomllib
 import pytest
 
 from xval.compare.run import compare_engines, override_tolerances
-from xval.reduced import FailureReason, NumericalFailure, scene_from_dict
+from xval.errors import FailureReason, NumericalFailure
+from xval.scenefile import scene_from_dict
 from xval.reference_models import simulate_mujoco
 from xval.reference_models.run import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
 

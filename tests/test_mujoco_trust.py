@@ -12,8 +12,11 @@ import pytest
 
 import xval.reference_models.run as mj_run
 from xval.compare.diff import compare_trajectories, gate
-from xval.reduced import NumericalFailure, ReducedSettings, load_scene, loops, scene_from_dict, simulate
-from xval.reduced.errors import FailureReason
+from xval.errors import NumericalFailure
+from xval import kinematics as loops
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import load_scene, scene_from_dict
+from xval.errors import FailureReason
 from xval.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
@@ -289,7 +292,7 @@ def test_no_step_meeting_the_tolerance_is_a_clear_failure():
 def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
     """uᵀ M u from MuJoCo's own mass matrix and loop Jacobian (u: joint rates with the crank at
     1 rad/s), the floor of MuJoCo's energy gate, is 𝔍(q0) = Σ m |K_G|² + I K_θ² from the loop
-    kinematics (xval.reduced.loops): two independent routes to the same number (measured ≤ 2e-15
+    kinematics (xval.kinematics): two independent routes to the same number (measured ≤ 2e-15
     relative); bound 1e-12 relative, over the revolution and on both branches."""
     from xval.reference_models.run import check_initial_state
 
@@ -307,7 +310,7 @@ def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
 
 
 def _generalized_inertia(scene) -> float:
-    """𝔍 at x0 from xval.reduced.loops alone (K on the centres of mass), kg·m²."""
+    """𝔍 at x0 from xval.kinematics alone (K on the centres of mass), kg·m²."""
     linkage = scene.mechanism.linkage
     system = loops.compile_linkage(linkage)
     x = np.asarray(scene.x0)

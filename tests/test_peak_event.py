@@ -1,6 +1,6 @@
 """The peak is one event, the same in every output: a run's largest |q̇| with its sign and
 time; in a comparison, the reduced run's, and MuJoCo's local extremum of q̇ of the same sign
-nearest in time to it (xval/reduced/trajectory.py). A peak that is the last sample with the speed
+nearest in time to it (xval/trajectory.py). A peak that is the last sample with the speed
 still rising is said to be so in the tables, report.json and the plots.
 
 Synthetic trajectories have closed forms (oracles written here); the catalogue's driven
@@ -20,7 +20,8 @@ from xval.compare.diff import compare_trajectories
 from xval.compare.report import report_dict
 from xval.compare.run import compare_engines
 from xval.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
-from xval.reduced import Trajectory, load_scene
+from xval.trajectory import Trajectory
+from xval.scenefile import load_scene
 
 from helpers import SEED_SCENE, variant
 

@@ -19,7 +19,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel, load_scene
+from xval.reduced import MechanismModel
+from xval.scenefile import load_scene
 from xval.reduced.kernels import compiled, physics
 
 from helpers import ROOT

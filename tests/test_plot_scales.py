@@ -16,7 +16,7 @@ import pytest
 
 from xval.compare.plots import DATA_MARGIN, plot_differences, tolerance_band
 from xval.compare.run import compare_engines, judge
-from xval.reduced import load_scene
+from xval.scenefile import load_scene
 
 from helpers import SEED_SCENE
 

@@ -8,7 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel, ReducedSettings, Scene, load_scene, scene_from_dict, simulate
+from xval.reduced import MechanismModel, ReducedSettings, simulate
+from xval.scene import Scene
+from xval.scenefile import load_scene, scene_from_dict
 
 from helpers import SEED_SCENE, coefficients_along, conservative, seed_dict, variant
 

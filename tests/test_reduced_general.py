@@ -1,7 +1,7 @@
 """The reduced engine on the general description: kinematics, dynamics, partitioning, energy.
 
 The engine runs one compiled implementation for every linkage (xval.reduced.kernels.physics). The
-four-bar closed form (xval.reduced.linkage.FourBar) is its independent oracle: the seed's Eksergian
+four-bar closed form (xval.four_bar.FourBar) is its independent oracle: the seed's Eksergian
 coefficients and right-hand side are written out here from the closed form's x, K, L and the
 bodies' geometry, and compared with the engine's.
 """
@@ -17,9 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval.reduced import FourBar, MechanismModel, ReducedSettings, load_scene, scene_from_dict, simulate
+from xval.four_bar import FourBar
+from xval.reduced import MechanismModel, ReducedSettings, simulate
+from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import solve_adaptive
-from xval.reduced.loops import assemble
+from xval.kinematics import assemble
 from xval.reduced.partition import Chart, conditioning
 
 from helpers import ROOT, SEED_SCENE
@@ -101,7 +103,7 @@ def closed_form_coefficients(scene, q: float) -> dict:
     closed form's x, K, L (:meth:`FourBar.kinematics`) and the bodies' geometry: body frames
     crank at O1 turning with q, coupler at A = c1 e(q) turning with φ1, rocker at O3 = (c4, 0)
     turning with φ2 + π; a point p of a body is r = o + R(θ) p, K_r = K_o + θ' (R p)⊥,
-    L_r = L_o + θ'' (R p)⊥ − θ'² R p. No xval.reduced.loops, no kernel."""
+    L_r = L_o + θ'' (R p)⊥ − θ'² R p. No xval.kinematics, no kernel."""
     g = scene.four_bar
     kin = FourBar(g).kinematics(q)
     x, K, L = kin.x, kin.K, kin.L
@@ -237,7 +239,7 @@ FD_STEP = 5e-4
 
 def _fd_check(model, x0, index):
     """K and L of the compiled chart of coordinate ``index`` at x0 against Richardson-extrapolated
-    central differences of positions assembled by xval.reduced.loops' Newton (numpy) with that
+    central differences of positions assembled by xval.kinematics' Newton (numpy) with that
     coordinate driving."""
     driven = model.system.driven_by(index)
     value = x0[index]

@@ -12,10 +12,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import (RKN4, IgnoredSettingWarning, NumericalFailure, ReducedSettings, load_scene, scene_from_dict,
-                     simulate, solve_adaptive)
+from xval.reduced import RKN4, ReducedSettings, simulate, solve_adaptive
+from xval.errors import IgnoredSettingWarning, NumericalFailure
+from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import MAX_EVALUATIONS
-from xval.reduced.scenefile import hard_scene_dir
+from xval.scenefile import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 
@@ -185,7 +186,7 @@ def test_settings_the_method_ignores_are_reported(kwargs, ignored):
         ReducedSettings(**kwargs)
 
 
-@pytest.mark.filterwarnings("error::xval.reduced.IgnoredSettingWarning")
+@pytest.mark.filterwarnings("error::xval.errors.IgnoredSettingWarning")
 def test_settings_the_method_uses_raise_no_warning():
     ReducedSettings(method="rkn4", step=1e-3, rtol=1e-3)
     ReducedSettings(method="dop853", rtol=1e-9, sample_interval=1e-4)

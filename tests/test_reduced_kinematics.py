@@ -1,9 +1,9 @@
 """Kinematics: closed-form, compiled general and finite-difference K, L agree; the seed's 𝔍 and ζ.
 
-The four-bar's closed form (:class:`xval.reduced.linkage.FourBar`) and the dyad closed form written
+The four-bar's closed form (:class:`xval.four_bar.FourBar`) and the dyad closed form written
 below are the oracles of the compiled general path (:mod:`xval.reduced.kernels.physics`, through
 :class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.partition.Chart`); the pure-numpy
-loop equations of :mod:`xval.reduced.loops` are a third, independent evaluation of K and L."""
+loop equations of :mod:`xval.kinematics` are a third, independent evaluation of K and L."""
 
 from __future__ import annotations
 
@@ -12,10 +12,13 @@ import math
 import numpy as np
 import pytest
 
-from xval.reduced import FourBar, MechanismModel, SceneError, load_scene, scene_from_dict
-from xval.reduced import loops
+from xval.four_bar import FourBar
+from xval.reduced import MechanismModel
+from xval.scene import SceneError
+from xval.scenefile import load_scene, scene_from_dict
+from xval import kinematics as loops
 from xval.reduced.partition import Chart
-from xval.reduced.scene import FourBarGeometry
+from xval.scene import FourBarGeometry
 
 from helpers import SEED_SCENE, coefficients_along, seed_dict, variant
 
@@ -116,9 +119,9 @@ def test_every_chart_matches_the_dyad_closed_form_and_newton():
     """With q, φ1 or φ2 as the chart's coordinate, the compiled chart (started at the closed
     form's configuration, then walked 0.02 rad along its coordinate) lands where the dyad's
     closed form puts the linkage (round-off), with the K, L of the pure-numpy loop equations
-    (:func:`xval.reduced.loops.coefficients` with that coordinate driving, at the same x) and, for
+    (:func:`xval.kinematics.coefficients` with that coordinate driving, at the same x) and, for
     q, of the four-bar closed form (bounds 1e-10, 1e-9: the walked x is Newton's, ~1e-12 from
-    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), xval.reduced.loops and
+    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), xval.kinematics and
     the compiled chart agree."""
     g = SEED
     linkage = FourBar(g)
@@ -232,5 +235,5 @@ def test_scene_that_cannot_assemble_names_the_discriminant():
     data = seed_dict()
     data["linkage"]["c3"] = 0.05
     with pytest.raises(SceneError, match="discriminant"):
-        from xval.reduced import scene_from_dict
+        from xval.scenefile import scene_from_dict
         scene_from_dict(data)

@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 
 from xval.compare import cli
-from xval.reduced import SceneError, default_scene_path, load_scene, scene_from_dict
+from xval.scene import SceneError
+from xval.scenefile import default_scene_path, load_scene, scene_from_dict
 
 from helpers import SEED_SCENE, seed_dict
 

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from xval.compare.settings import gate_tolerances, mujoco_settings, reduced_settings
-from xval.reduced import SceneError, load_scene, scene_from_dict
-from xval.reduced.loads import PulseTorque
+from xval.scene import SceneError
+from xval.scenefile import load_scene, scene_from_dict
+from xval.loads import PulseTorque
 from helpers import DELETE, patched, seed_dict
 
 # [tolerances] (README: "Scene files"): the documented default of each key, and a value that is not.

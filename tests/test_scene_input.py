@@ -2,7 +2,7 @@
 text its one-line message must carry. Families: values out of their physical range, derived
 quantities out of range, names and descriptions, sizes, and files that are not UTF-8 TOML text.
 
-The ranges are xval.reduced.scene.LIMITS, one table for both engines; the corners of that table are
+The ranges are xval.scene.LIMITS, one table for both engines; the corners of that table are
 checked against MuJoCo's own compiler below (no mock: the model is built and compiled).
 """
 
@@ -15,8 +15,9 @@ import os
 import pytest
 
 from xval.compare import cli
-from xval.reduced import SceneError, load_scene, scene_from_dict
-from xval.reduced.scene import LIMITS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES
+from xval.scene import SceneError
+from xval.scenefile import load_scene, scene_from_dict
+from xval.scene import LIMITS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES
 
 from helpers import DELETE, SEED_SCENE, patched
 
@@ -130,7 +131,7 @@ def test_point_force_beyond_the_force_range_is_refused():
     """The planar seed with a tabulated point force of 1e308 N on the coupler."""
     import tomllib
 
-    from xval.reduced.scenefile import scenes_dir
+    from xval.scenefile import scenes_dir
 
     data = tomllib.loads((scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text())
     data["point_forces"] = [{"point": "coupler.B", "direction": 0.0, "q": [0.0, 1.0], "values": [HUGE, 0.0]}]
@@ -183,7 +184,7 @@ def test_below_the_inertia_range_mujoco_itself_refuses():
     scene is built past the validator (dataclasses.replace) to reach MuJoCo's compiler."""
     from xval.reference_models.run import build_model
 
-    from xval.reduced.mechanism import Linkage
+    from xval.mechanism import Linkage
 
     scene = scene_from_dict(patched({}))
     linkage = scene.mechanism.linkage

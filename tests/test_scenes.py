@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from xval.compare import cli
-from xval.reduced import SceneError, load_scene
+from xval.scene import SceneError
+from xval.scenefile import load_scene
 
 BAD = sorted((Path(__file__).parent / "data" / "bad_scenes").glob("*.toml"))
 

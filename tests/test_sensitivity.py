@@ -19,9 +19,9 @@ import pytest
 
 from xval.compare.cli import main
 from xval.compare.sensitivity import Sensitivity, _peak, sensitivities
-from xval.reduced.sweep_spec import spec_from_args
+from xval.sweep_spec import spec_from_args
 from xval.compare.sweep_scene import load_sweep
-from xval.reduced import default_scene_path
+from xval.scenefile import default_scene_path
 
 KEYS = ["dampers.0.coefficient=40:70:2", "bodies.coupler.mass=35:45:2"]
 
@@ -79,7 +79,7 @@ def test_a_sensitivity_needs_a_positive_step():
 def test_a_failed_run_near_the_nominal_value_is_a_numerical_failure_naming_the_key(seed):
     """A run that fails (here RKN4 at a step far too large for its own error estimate) is a
     numerical failure (exit 1), not bad input, and names the key and value that needed it."""
-    from xval.reduced.errors import NumericalFailure
+    from xval.errors import NumericalFailure
 
     data, path = seed
     coarse = {**data, "reduced": {"method": "rkn4", "step": 0.05}}

@@ -21,8 +21,9 @@ from __future__ import annotations
 import math
 
 from xval.compare.sensitivity import sensitivities
-from xval.reduced.sweep_spec import spec_from_args
-from xval.reduced import scene_from_dict, simulate
+from xval.sweep_spec import spec_from_args
+from xval.scenefile import scene_from_dict
+from xval.reduced import simulate
 
 T, D = 0.05, 0.5  # N·m, s
 MASS, X, PIVOT, I_G = 1.0, 1.0, 0.9, 1e-6  # crank: kg, m, m, kg·m²

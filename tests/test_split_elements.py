@@ -27,7 +27,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, scene_from_dict, simulate
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import scene_from_dict
 from xval.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT

@@ -49,7 +49,7 @@ def test_run_does_not_load_pyplot(tmp_path):
 @pytest.fixture(scope="module", params=[SEED_SCENE, SLIDER_SCENE], ids=["seed", "slider"])
 def comparison(request):
     from xval.compare.run import compare_engines
-    from xval.reduced import load_scene
+    from xval.scenefile import load_scene
 
     return compare_engines(load_scene(request.param))
 
@@ -127,7 +127,7 @@ def test_a_subtitle_of_the_differences_plot_is_not_cut_off(tmp_path, monkeypatch
 
 def test_the_drawing_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch):
     from xval.compare.draw import draw_scene
-    from xval.reduced import load_scene
+    from xval.scenefile import load_scene
 
     kept = saved_figures(monkeypatch)
     # Not the slider crank: its slider's label runs off the right edge, with tight_layout too

@@ -16,10 +16,11 @@ import pytest
 
 from xval.compare.diff import compare_modes, compare_trajectories
 from xval.compare.stress import CATALOGUE, CaseResult, run_case
-from xval.reduced import ReducedSettings, load_scene, simulate
-from xval.reduced.linkage import FourBar
-from xval.reduced.loads import PulseTorque
-from xval.reduced.partition import JointTrajectory
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import load_scene
+from xval.four_bar import FourBar
+from xval.loads import PulseTorque
+from xval.trajectory import JointTrajectory
 from xval.reference_models import MujocoSettings, build_model, simulate_mujoco
 
 CASES = [c.name for c in CATALOGUE]
@@ -195,7 +196,7 @@ def test_fast_crank_peak_is_the_high_accuracy_value(results):
 
 def test_mode_jump_is_detected():
     """Put part of a trajectory in the other assembly mode: the check reports it on the loop."""
-    from xval.reduced.loops import assemble, assembly_modes, compile_linkage, positions
+    from xval.kinematics import assemble, assembly_modes, compile_linkage, positions
 
     scene = load_scene(BY_NAME["near_change_point"].path)
     system = compile_linkage(scene.mechanism.linkage)

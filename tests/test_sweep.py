@@ -24,8 +24,8 @@ from xval.compare import sweep as sweep_module
 from xval.compare.cli import main
 from xval.compare.output import MANIFEST_FILE
 from xval.compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
-from xval.reduced.sweep_spec import Engines, spec_from_args
-from xval.reduced.scenefile import default_scene_path
+from xval.sweep_spec import Engines, spec_from_args
+from xval.scenefile import default_scene_path
 
 from helpers import ROOT, interruptible, short_seed_file  # noqa: F401 - fixture
 
@@ -206,7 +206,7 @@ def test_without_a_compared_variant_the_worst_plot_says_so(tmp_path):
 
 
 def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, capsys, monkeypatch):
-    from xval.reduced.errors import NumericalFailure
+    from xval.errors import NumericalFailure
 
     import xval.compare.run
 
@@ -269,7 +269,7 @@ def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypat
     import time
 
     from xval.compare.sweep import run_rows
-    from xval.reduced.sweep_spec import spec_from_args
+    from xval.sweep_spec import spec_from_args
 
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("needs forked workers to see the patched variant runner")
@@ -299,7 +299,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
     import xval.compare.run
     from xval.compare.settings import reduced_settings
     from xval.reduced.engine import simulate
-    from xval.reduced.scenefile import load_scene
+    from xval.scenefile import load_scene
 
     def no_comparison(*args, **kwargs):
         raise AssertionError("a reduced-only sweep ran the comparison")
@@ -341,7 +341,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
 
 def test_a_reduced_only_variant_does_not_import_mujoco(tmp_path):
     """The memory target's premise: a worker running reduced-only variants never loads MuJoCo."""
-    code = ("import sys\nfrom xval.compare.sweep import run_variant\nfrom xval.reduced.sweep_spec import Engines\nfrom xval.compare.sweep_scene import load_sweep\n"
+    code = ("import sys\nfrom xval.compare.sweep import run_variant\nfrom xval.sweep_spec import Engines\nfrom xval.compare.sweep_scene import load_sweep\n"
             f"data, _ = load_sweep({str(short_seed_file(tmp_path))!r})\n"
             "row = run_variant(0, {'torque.value': 240.0}, data, 'short.toml', engines=Engines.REDUCED)\n"
             "print(row['status'], 'mujoco' in sys.modules, 'reference_models' in sys.modules)\n")
@@ -422,7 +422,7 @@ def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
     from matplotlib.figure import Figure
 
     from xval.compare.sweep import PLOTS, WORST_PLOT, columns, plot_files
-    from xval.reduced.sweep_spec import variant_values
+    from xval.sweep_spec import variant_values
     from test_startup import text_outside
 
     spec = replace(spec_from_args(varies, samples=200 if "normal" in varies[0] else None), engines=engines)

@@ -10,11 +10,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError,
+from xval.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError,
                                      Variant, count, parse_vary, spec_from_args, spec_from_table, variants)
 from xval.compare.sweep_scene import check, load_sweep
-from xval.reduced.scene import SceneError
-from xval.reduced.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.scene import SceneError
+from xval.scenefile import default_scene_path, load_scene, scene_from_dict
 
 SEED_TEXT = default_scene_path().read_text()
 SWEEP_TABLE = """

@@ -21,7 +21,9 @@ import numpy as np
 import pytest
 
 from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings, SceneError, scene_from_dict, simulate
+from xval.reduced import ReducedSettings, simulate
+from xval.scene import SceneError
+from xval.scenefile import scene_from_dict
 
 N_SCENES = 8
 SLACK = 1e-9  # m

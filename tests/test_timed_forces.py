@@ -17,8 +17,9 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, scene_from_dict, simulate
-from xval.reduced.scene import SceneError
+from xval.reduced import ReducedSettings, simulate
+from xval.scenefile import scene_from_dict
+from xval.scene import SceneError
 from xval.reference_models import MujocoSettings, simulate_mujoco
 from xval.reference_models.run import grid_timestep
 

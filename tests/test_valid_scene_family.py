@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from xval.compare.run import compare_engines
-from xval.reduced import scene_from_dict
+from xval.scenefile import scene_from_dict
 
 from valid_scenes import TOGGLE_KINDS, generate
 

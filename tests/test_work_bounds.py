@@ -29,8 +29,9 @@ import dataclasses, json, time, warnings
 warnings.simplefilter("ignore")
 from xval.reduced.kernels import compiled
 assert not compiled()
-from xval.reduced import MechanismModel, ReducedSettings, load_scene, simulate
-from xval.reduced.errors import NumericalFailure
+from xval.reduced import MechanismModel, ReducedSettings, simulate
+from xval.scenefile import load_scene
+from xval.errors import NumericalFailure
 from xval.reduced.kernels import physics
 
 scene = dataclasses.replace(load_scene("scenes/mechanisms/slider_crank_driven_slider.toml"), horizon=0.05)

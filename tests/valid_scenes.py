@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from xval.reduced import SceneError, scene_from_dict
+from xval.scene import SceneError
+from xval.scenefile import scene_from_dict
 
 KINDS = ("four_bar", "four_bar_swing", "slider_crank", "slider_driven", "watt2", "stephenson3")
 # six-bars started just before their dyad's near-toggle, turning towards it (not in KINDS: ask for them)

@@ -35,9 +35,9 @@ _HOMES = {
                                      "SceneError", "Tolerances", "check", "compare_results", "load_scene", "mujoco_settings",
                                      "reduced_settings", "scene_from_dict", "scene_from_string", "catalogue",
                                      "simulate")},
-    "NumericalFailure": "xval.reduced.errors",
-    "Trajectory": "xval.reduced.trajectory",
-    "Peak": "xval.reduced.trajectory",
+    "NumericalFailure": "xval.errors",
+    "Trajectory": "xval.trajectory",
+    "Peak": "xval.trajectory",
 }
 
 __all__ = sorted(_HOMES)

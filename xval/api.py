@@ -9,9 +9,9 @@ from pathlib import Path
 from xval.compare.run import Comparison, compare_engines, judge
 from xval.compare.settings import mujoco_settings, reduced_settings
 from xval.reduced.engine import ReducedSettings, simulate as _simulate_reduced
-from xval.reduced.result import EngineResult
-from xval.reduced.scene import Scene, SceneError, Tolerances
-from xval.reduced.scenefile import _parse_toml, catalogue, load_scene as _load_file, resolve_scene, scene_from_dict
+from xval.results import EngineResult
+from xval.scene import Scene, SceneError, Tolerances
+from xval.scenefile import _parse_toml, catalogue, load_scene as _load_file, resolve_scene, scene_from_dict
 from xval.reference_models import MujocoSettings, simulate_mujoco
 
 Settings = ReducedSettings | MujocoSettings

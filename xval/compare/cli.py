@@ -22,17 +22,17 @@ from typing import TYPE_CHECKING
 
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
-from xval.reduced.errors import NumericalFailure
-from xval.reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+from xval.errors import NumericalFailure
+from xval.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
                            MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
                            REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
                            SceneError)
-from xval.reduced.scenefile import catalogue, default_scene_path, load_scene, resolve_scene
+from xval.scenefile import catalogue, default_scene_path, load_scene, resolve_scene
 
 from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
                      check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
-from xval.reduced.sweep_spec import ENGINE_CHOICES
+from xval.sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
 if TYPE_CHECKING:
@@ -178,7 +178,7 @@ def _rtol_defaults() -> str:
 
 
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
-    # Every default printed here is the settings' own (xval.reduced.scene holds the values).
+    # Every default printed here is the settings' own (xval.scene holds the values).
     g = p.add_argument_group("MuJoCo settings")
     g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
                    help=f"MuJoCo integrator (default: the scene's [mujoco] table, else {MUJOCO_DEFAULT_INTEGRATOR})")
@@ -287,7 +287,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .sweep import run_sweep, summary_lines, sweep_files
-    from xval.reduced.sweep_spec import spec_from_args
+    from xval.sweep_spec import spec_from_args
 
     from .sweep_scene import check, load_sweep
 

@@ -17,7 +17,10 @@ import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from xval.reduced import NumericalFailure, ReducedSettings, Scene, Trajectory, simulate
+from xval.errors import NumericalFailure
+from xval.reduced import ReducedSettings, simulate
+from xval.scene import Scene
+from xval.trajectory import Trajectory
 from xval.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from .diff import compare_trajectories

@@ -13,11 +13,11 @@ is evaluated there through its quintic Hermite interpolant (O(h⁶) in q, O(h⁵
 ≤ 1 ms sample spacing: below 1e-10 rad on the seed scene), so the compared engine's samples
 are used as they are and the interpolation adds less error than either engine makes.
 
-The compared peak, one event in both runs (:class:`xval.reduced.trajectory.Peak`, defined once in
-:mod:`xval.reduced.trajectory`): the reference's largest |ω| within the span, with its sign and
-time (:meth:`~xval.reduced.trajectory.Trajectory.peak_angular_velocity`), and the other engine's
+The compared peak, one event in both runs (:class:`xval.trajectory.Peak`, defined once in
+:mod:`xval.trajectory`): the reference's largest |ω| within the span, with its sign and
+time (:meth:`~xval.trajectory.Trajectory.peak_angular_velocity`), and the other engine's
 local extremum of ω of the same sign nearest in time to it
-(:meth:`~xval.reduced.trajectory.Trajectory.extremum_near`). A conservative swing has several
+(:meth:`~xval.trajectory.Trajectory.extremum_near`). A conservative swing has several
 extremes of |ω| equal to round-off, of both signs; pairing by sign and time keeps both engines
 on the same one, so the peak-time difference is the difference of the two reported times. A
 peak flagged ``still_rising`` is the span's last sample with |ω| still rising: the horizon
@@ -42,9 +42,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from xval.reduced.errors import FailureReason, NumericalFailure
-from xval.reduced.scene import Tolerances
-from xval.reduced.trajectory import Peak, Trajectory
+from xval.errors import FailureReason, NumericalFailure
+from xval.scene import Tolerances
+from xval.trajectory import Peak, Trajectory
 
 SLOW_FRACTION = 0.01
 ANGLE_MATCH = 1e-9  # per unit of q (rad or m): Newton's residual below which q_ref(t*) = q_k is accepted

@@ -9,7 +9,7 @@ block, dampers as dashed lines and springs as zigzags with their coefficients, p
 direction (ending at the point they act on), centres of mass as crossed circles; the title
 gives q0 with its unit, the assembly mode (one sign per loop) and gravity. ``xval draw`` moves
 labels apart (:func:`declutter_labels`). Every position
-is taken from the compiled loop kinematics (:mod:`xval.reduced.loops`) at the general
+is taken from the compiled loop kinematics (:mod:`xval.kinematics`) at the general
 coordinates x (``scene.x0`` for ``xval draw``); nothing is recomputed here. Lengths in m,
 equal axis scales.
 
@@ -26,9 +26,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from xval.reduced.loads import TabulatedForce
-from xval.reduced.loops import LoopSystem, compile_linkage, positions
-from xval.reduced.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
+from xval.loads import TabulatedForce
+from xval.kinematics import LoopSystem, compile_linkage, positions
+from xval.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
 
 from .text import STILL_RISING
 

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from xval.reduced.scene import MUJOCO_INTEGRATORS
+from xval.scene import MUJOCO_INTEGRATORS
 
 from .text import STILL_RISING
 
@@ -285,7 +285,7 @@ def plot_energy(c: "Comparison", path: Path) -> None:
 
 
 SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
-# One colour per MuJoCo integrator, in the order xval.reduced.scene lists them (the one list of names).
+# One colour per MuJoCo integrator, in the order xval.scene lists them (the one list of names).
 INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab:brown", "tab:orange",
                                                    "tab:olive", "tab:pink")))
 

@@ -32,18 +32,18 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from xval.reduced import loops
-from xval.reduced.mechanism import PrismaticJoint
-from xval.reduced.result import EngineResult
-from xval.reduced.scene import Scene
-from xval.reduced.trajectory import Peak
+from xval import kinematics as loops
+from xval.mechanism import PrismaticJoint
+from xval.results import EngineResult
+from xval.scene import Scene
+from xval.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
 from .draw import plot_mechanism_strip
 from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_omega_vs_q,
                     plot_trajectories)
 if TYPE_CHECKING:
-    from xval.reduced.partition import JointTrajectory
+    from xval.trajectory import JointTrajectory
 
     from .run import Comparison
 
@@ -166,7 +166,7 @@ def joint_unit(scene: Scene, name: str) -> str:
 
 
 def _joint_rows(scene: Scene, names: Sequence[str]) -> np.ndarray:
-    """(len(names), n): each named joint's row u = row·x (:attr:`xval.reduced.loops.LoopSystem.joint_rows`)."""
+    """(len(names), n): each named joint's row u = row·x (:attr:`xval.kinematics.LoopSystem.joint_rows`)."""
     system = loops.compile_linkage(scene.mechanism.linkage)
     return np.array([system.joint_row(name) for name in names]).reshape(len(names), system.n)
 
@@ -175,7 +175,7 @@ def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
                  names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Each named joint's own coordinate u and rate u̇ at the samples ``t`` of the engine's input
     trajectory, shapes (len(t), len(names)): u = row·x and u̇ = row·ẋ from the engine's body
-    poses and rates (:attr:`xval.reduced.loops.LoopSystem.joint_rows`: θ_b − θ_a of a revolute joint,
+    poses and rates (:attr:`xval.kinematics.LoopSystem.joint_rows`: θ_b − θ_a of a revolute joint,
     cut or not; s of a prismatic one). A time the trajectory repeats (a load edge) takes the
     joints' first sample there: positions and rates are continuous."""
     rows = _joint_rows(scene, names)

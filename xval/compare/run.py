@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from xval.reduced import EngineResult, ReducedSettings, Scene, simulate
-from xval.reduced.scene import Tolerances
+from xval.results import EngineResult
+from xval.reduced import ReducedSettings, simulate
+from xval.scene import Scene
+from xval.scene import Tolerances
 from xval.reference_models import MujocoSettings, simulate_mujoco
 
 from .settings import mujoco_settings, reduced_settings

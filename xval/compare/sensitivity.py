@@ -21,7 +21,7 @@ import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from xval.reduced.sweep_spec import SWEEP_TABLE, SweepSpec, SweepSpecError, apply
+from xval.sweep_spec import SWEEP_TABLE, SweepSpec, SweepSpecError, apply
 from xval.compare.sweep_scene import nominal_values
 
 # The peak's relative accuracy against rtol: DOP853 at rtol 1e-11 and 1e-12 differ by 4.1e-11 in
@@ -52,8 +52,10 @@ class Sensitivity:
 
 
 def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str) -> float:
-    from xval.reduced import SceneError, scene_from_dict, simulate
-    from xval.reduced.errors import NumericalFailure
+    from xval.scene import SceneError
+    from xval.scenefile import scene_from_dict
+    from xval.reduced import simulate
+    from xval.errors import NumericalFailure
 
     from .settings import reduced_settings
 
@@ -77,7 +79,7 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
     Raises SweepSpecError naming the key when the scene is invalid at p0 ± 2h, NumericalFailure
     (naming it too) when its run fails there.
     """
-    from xval.reduced import scene_from_dict
+    from xval.scenefile import scene_from_dict
 
     from .settings import reduced_settings
 

@@ -14,8 +14,9 @@ from typing import Any, Callable, Mapping, TypeVar
 
 from dataclasses import replace
 
-from xval.reduced import ReducedSettings, Scene, SceneError
-from xval.reduced.scene import Tolerances
+from xval.reduced import ReducedSettings
+from xval.scene import Scene, SceneError
+from xval.scene import Tolerances
 
 S = TypeVar("S")
 

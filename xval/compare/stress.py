@@ -17,12 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
-from xval.reduced import NumericalFailure, ReducedSettings, Scene, load_scene, simulate
-from xval.reduced.loads import PulseTorque
-from xval.reduced.scenefile import scenes_dir
+from xval.errors import NumericalFailure
+from xval.reduced import ReducedSettings, simulate
+from xval.scene import Scene
+from xval.scenefile import load_scene
+from xval.loads import PulseTorque
+from xval.scenefile import scenes_dir
 from xval.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
-from xval.reduced.result import EngineResult
+from xval.results import EngineResult
 
 from .diff import compare_trajectories
 from .run import Comparison, judge

@@ -1,7 +1,7 @@
 """``xval sweep``: a family of scenes through both engines, one summary row per variant.
 
 A sweep (:mod:`xval.compare.sweep_spec`) makes variants of one scene file. Each variant is built
-with :func:`xval.reduced.scenefile.scene_from_dict` and run through :func:`xval.compare.run.compare_engines`
+with :func:`xval.scenefile.scene_from_dict` and run through :func:`xval.compare.run.compare_engines`
 with the scene's own settings and tolerances (the same code path and settings as ``xval run``
 without engine flags). A variant that cannot be assembled is a row with status ``invalid``, one
 whose engines fail numerically a row with status ``failed``; both are counted and the sweep goes
@@ -68,7 +68,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 
 from .output import json_text, plain, portable_source, write_folder
 from .pool import ignore_interrupts, ordered_map
-from xval.reduced.sweep_spec import Engines, SweepSpec, count, variant_values
+from xval.sweep_spec import Engines, SweepSpec, count, variant_values
 
 STATUSES = ("passed", "gate_failed", "failed", "invalid")
 """A variant's status: every check that ran passed (both engines and the gate; reduced-only:
@@ -184,11 +184,11 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
     """One variant's row: built from ``data`` with ``values`` applied, run through both engines
     and gated (as ``xval run``), or with ``engines`` REDUCED through the reduced engine alone;
     invalid and failed variants are rows too."""
-    from xval.reduced.errors import NumericalFailure
-    from xval.reduced.scene import SceneError
-    from xval.reduced.scenefile import scene_from_dict
+    from xval.errors import NumericalFailure
+    from xval.scene import SceneError
+    from xval.scenefile import scene_from_dict
 
-    from xval.reduced.sweep_spec import apply
+    from xval.sweep_spec import apply
 
     row: dict[str, Any] = {"index": index, "status": "", "reason": "", **values}
     start = time.perf_counter()
@@ -657,8 +657,8 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
     variant ran through both."""
     from .plots import PLAIN, _save, new_figure, plot_differences
     from .run import compare_engines
-    from xval.reduced.sweep_spec import apply
-    from xval.reduced.scenefile import scene_from_dict
+    from xval.sweep_spec import apply
+    from xval.scenefile import scene_from_dict
 
     worst = summary.worst
     if worst is None:
@@ -946,7 +946,7 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     used = dask_threads(client) if client is not None else worker_count(workers, n)
     if client is None and workers is not None and used < workers and used < n:
         warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
-    from xval.reduced.scenefile import scene_from_dict
+    from xval.scenefile import scene_from_dict
 
     speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
     summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)

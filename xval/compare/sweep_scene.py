@@ -1,7 +1,7 @@
 """A sweep's specification against the scene it varies: read a scene file with its ``[sweep]``
 table, and refuse up front a specification that does not fit the scene (every key must lead to
 a number of the scene, every extreme must give a valid scene). The specification language itself
-(keys, grids, distributions, the table's own keys) is :mod:`xval.reduced.sweep_spec`, part of the
+(keys, grids, distributions, the table's own keys) is :mod:`xval.sweep_spec`, part of the
 scene format; this module builds scenes with it, so it sits above the scene format."""
 
 from __future__ import annotations
@@ -9,15 +9,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-from xval.reduced.scene import SceneError
-from xval.reduced.scenefile import _parse_toml, _read_text, scene_from_dict
-from xval.reduced.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, _type_name, apply, lookup,
+from xval.scene import SceneError
+from xval.scenefile import _parse_toml, _read_text, scene_from_dict
+from xval.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, _type_name, apply, lookup,
                                      spec_from_table)
 
 
 def load_sweep(path: str | Path) -> tuple[dict[str, Any], SweepSpec | None]:
     """A scene file's TOML data and the specification of its ``[sweep]`` table (None without
-    one). The file is read as :func:`xval.reduced.scenefile.load_scene` reads it (SceneError)."""
+    one). The file is read as :func:`xval.scenefile.load_scene` reads it (SceneError)."""
     path = Path(path)
     data = _parse_toml(_read_text(path), path)
     spec = spec_from_table(data[SWEEP_TABLE], str(path)) if SWEEP_TABLE in data else None
@@ -30,7 +30,7 @@ def check(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") ->
     """Refuse, before any work, a specification that does not fit the scene ``data``.
 
     Each key must lead to a number of the scene, or to a place the scene format accepts one;
-    the scene is built (:func:`xval.reduced.scenefile.scene_from_dict`) at the nominal values (as
+    the scene is built (:func:`xval.scenefile.scene_from_dict`) at the nominal values (as
     written; a key the file does not give at its spec's centre) and at each key's extremes
     (the others nominal). Raises SweepSpecError naming the key (with ``source`` in front);
     a SceneError of the scene as written propagates unchanged.

@@ -44,7 +44,7 @@ STILL_RISING = "at the end of the horizon, still rising"
 
 
 def peak_text(peak, unit: str) -> str:
-    """A run's peak (:class:`xval.reduced.trajectory.Peak`) as every table writes it: signed q̇ in
+    """A run's peak (:class:`xval.trajectory.Peak`) as every table writes it: signed q̇ in
     ``unit``/s, its time, and when it is the horizon's end with |q̇| still rising, that."""
     return (f"{peak.omega:+.10g} {unit}/s at t = {peak.time:.10g} s"
             + (f", {STILL_RISING}" if peak.still_rising else ""))

@@ -1,7 +1,8 @@
 """Reduced solver: Eksergian's equation 𝔍(q) q̈ + ζ(q) q̇² + dV/dq = Q for one-DOF linkages.
 
-The names below load their submodule on first use (PEP 562), so that ``import xval.reduced.scene``
-or ``xval.reduced.errors`` does not load the compiled kernels.
+The engine's own names, loaded from their submodule on first use (PEP 562). What it shares with
+the MuJoCo engine (scenes, mechanisms and their kinematics, results, errors) lives in the
+engine-neutral modules of :mod:`xval` (``xval.scene``, ``xval.mechanism``, ``xval.results``, ...).
 """
 
 from __future__ import annotations
@@ -10,16 +11,9 @@ import importlib
 
 _HOMES = {
     "Coefficients": "dynamics", "MechanismModel": "dynamics",
-    "FailureReason": "errors", "IgnoredSettingWarning": "errors", "NumericalFailure": "errors",
     "RKN4": "kernels.fixed_step", "RKN4_AS_PRINTED": "kernels.fixed_step", "RKNTableau": "kernels.fixed_step",
     "Solution": "integrators", "solve_adaptive": "integrators",
-    "AssemblyError": "linkage", "FourBar": "linkage", "Kinematics": "linkage", "SingularPositionError": "linkage",
-    "JointTrajectory": "partition",
-    "EngineResult": "result", "EnergyAudit": "result",
-    "Scene": "scene", "SceneError": "scene",
-    "default_scene_path": "scenefile", "load_scene": "scenefile", "scene_from_dict": "scenefile",
     "ReducedSettings": "engine", "simulate": "engine",
-    "Peak": "trajectory", "Trajectory": "trajectory",
 }
 
 __all__ = sorted(_HOMES)
@@ -28,7 +22,7 @@ __all__ = sorted(_HOMES)
 def __getattr__(name: str):
     home = _HOMES.get(name)
     if home is None:
-        raise AttributeError(f"module 'reduced' has no attribute {name!r}")
+        raise AttributeError(f"module 'xval.reduced' has no attribute {name!r}")
     value = getattr(importlib.import_module(f".{home}", __name__), name)
     globals()[name] = value
     return value

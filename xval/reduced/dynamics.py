@@ -8,7 +8,7 @@
     Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P + Σ F_r(t) e_r·K_R − Σ b_d K_Dd² ẋ_i − Σ c_j K_uj² ẋ_i
 
 (D = |r_a − r_b| between a line element's points, K_D = dD/dx_i; u = row·x a joint element's
-joint coordinate, relative angle or displacement, K_u = row·K: :class:`xval.reduced.mechanism.JointElement`.)
+joint coordinate, relative angle or displacement, K_u = row·K: :class:`xval.mechanism.JointElement`.)
 
 x_i is the chart's independent coordinate (any joint coordinate: a body angle or a slider
 displacement, :mod:`xval.reduced.partition`); every K and L is a derivative with respect to it.
@@ -28,13 +28,13 @@ from typing import Callable
 
 import numpy as np
 
-from . import loops
-from .errors import NumericalFailure
+from xval import kinematics as loops
+from xval.errors import NumericalFailure
 from .kernels import physics
 from .kernels.physics import Model
-from .linkage import Kinematics
-from .loads import TabulatedForce
-from .scene import Scene
+from xval.four_bar import Kinematics
+from xval.loads import TabulatedForce
+from xval.scene import Scene
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
 
 def piece_edges(scene: Scene) -> np.ndarray:
     """The edges (p+1,) of the run's load pieces, s: 0, every load edge inside the horizon
-    (:attr:`xval.reduced.scene.Scene.load_edges`), the horizon."""
+    (:attr:`xval.scene.Scene.load_edges`), the horizon."""
     horizon = scene.horizon
     return np.array([0.0, *[b for b in scene.load_edges if 0.0 < b < horizon], horizon])
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from .dynamics import MechanismModel
 from .kernels import physics
-from .result import EnergyAudit
+from xval.results import EnergyAudit
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(3)
 

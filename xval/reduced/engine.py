@@ -12,17 +12,17 @@ import numpy as np
 
 from .dynamics import MechanismModel
 from .energy import energy_audit
-from .errors import FailureReason, IgnoredSettingWarning, NumericalFailure
+from xval.errors import FailureReason, IgnoredSettingWarning, NumericalFailure
 from .integrators import solve_adaptive
 from .kernels.fixed_step import RKN4
 from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
-from .result import EngineResult
-from .scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
-from .trajectory import Trajectory
+from xval.results import EngineResult
+from xval.scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
+from xval.trajectory import Trajectory
 
 _log = logging.getLogger("xval.reduced")  # a run's cost, at DEBUG (`xval --verbose`)
 
-METHODS = REDUCED_METHODS  # listed once, in xval.reduced.scene
+METHODS = REDUCED_METHODS  # listed once, in xval.scene
 ADAPTIVE = ("dop853", "scipy-dop853", "radau")
 SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by scipy's solve_ivp
 
@@ -33,7 +33,7 @@ SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by
 # that passes cannot use up a gate. Its default step is the largest halving of 1 ms that
 # meets it on the seed scene: the estimate there is 2.4e-5 at 1 ms (failing) and 5.7e-7 at
 # 0.5 ms (the true largest errors: 8.6e-6 and 7.2e-8 of the peak speed).
-# The values live in xval.reduced.scene (the command line's help prints them from there).
+# The values live in xval.scene (the command line's help prints them from there).
 DEFAULT_RTOL = REDUCED_DEFAULT_RTOL
 DEFAULT_STEP = REDUCED_DEFAULT_STEP  # s, RKN4
 DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples

@@ -17,10 +17,10 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import NumericalFailure
+from xval.errors import NumericalFailure
 # The compiled kernel holds the restart rule both paths follow
 from .kernels.adaptive import RESTART_STEPS
-from .trajectory import Trajectory
+from xval.trajectory import Trajectory
 
 # the error estimators' orders, as select_initial_step takes them (scipy's RK and Radau classes)
 ESTIMATOR_ORDER = {"DOP853": 7, "RK45": 4, "RK23": 2, "Radau": 3}

@@ -1,6 +1,6 @@
 """Build the MuJoCo model of any scene's planar linkage with ``mujoco.MjSpec``.
 
-Tree. The linkage's spanning tree (:attr:`xval.reduced.mechanism.Linkage.tree`, parents first)
+Tree. The linkage's spanning tree (:attr:`xval.mechanism.Linkage.tree`, parents first)
 becomes MuJoCo's body tree: every chain hangs from one fixed body ``base`` under
 ``<worldbody>`` (readers such as Pinocchio's keep only the first body tree there), which
 holds the ground points as sites. Each moving body's MuJoCo frame IS the description's body
@@ -15,7 +15,7 @@ ground) and ``anchor`` its point on body1, in body1's frame (as menagerie's Cass
 Robotiq 2F-85 do); solref/solimp from the settings.
 
 Pose. The model is authored in the scene's assembled configuration ``scene.x0`` (the
-coordinates of :class:`xval.reduced.loops.LoopSystem`): each child is placed in its parent's
+coordinates of :class:`xval.kinematics.LoopSystem`): each child is placed in its parent's
 frame from the joint's two points and the relative angle at x0, every hinge and slide has
 ``ref`` 0, so ``qpos = 0`` is the assembly, MuJoCo's default state and every reader that
 starts from the zero configuration see every loop closed, and MuJoCo's anchor on body2
@@ -50,11 +50,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from xval.reduced import loops
-from xval.reduced.mechanism import GROUND, Linkage, PrismaticJoint
-from xval.reduced.scene import MUJOCO_INTEGRATORS, Scene
+from xval import kinematics as loops
+from xval.mechanism import GROUND, Linkage, PrismaticJoint
+from xval.scene import MUJOCO_INTEGRATORS, Scene
 
-# MuJoCo's enum for each integrator name (the names are listed once, in xval.reduced.scene).
+# MuJoCo's enum for each integrator name (the names are listed once, in xval.scene).
 INTEGRATOR_ENUM = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in MUJOCO_INTEGRATORS}
 BASE_BODY = "base"  # the fixed body every chain hangs from (the description's ground)
 HOME_KEY = "home"  # keyframe with the scene's initial state
@@ -185,7 +185,7 @@ def joint_order(linkage: Linkage) -> tuple[str, ...]:
 def coordinate_map(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """(x0, T) with x = x0 + T·qpos and ẋ = T·qvel: shapes (n,), (n, nq).
 
-    x are the general coordinates of :class:`xval.reduced.loops.LoopSystem` (body angles rad,
+    x are the general coordinates of :class:`xval.kinematics.LoopSystem` (body angles rad,
     slider displacements m); qpos in :func:`joint_order`.
     """
     linkage = scene.mechanism.linkage
@@ -265,7 +265,7 @@ def assembled_angles(scene: Scene) -> np.ndarray:
     x0 = np.asarray(scene.x0, dtype=float)
     if scene.four_bar is None:
         return x0
-    from xval.reduced.linkage import FourBar
+    from xval.four_bar import FourBar
 
     q, phi1, phi2 = FourBar(scene.four_bar).assemble(scene.q0)
     system = loops.compile_linkage(scene.mechanism.linkage)
@@ -278,7 +278,7 @@ def assembled_angles(scene: Scene) -> np.ndarray:
 def initial_rates(scene: Scene) -> np.ndarray:
     """ẋ0 (general rates) consistent with the loops at (x0, q̇0), shape (n,).
 
-    K of the best-conditioned coordinate x_i (:func:`xval.reduced.loops.conditioning`), scaled so
+    K of the best-conditioned coordinate x_i (:func:`xval.kinematics.conditioning`), scaled so
     drive·ẋ = q̇0; a start at a dead centre of the input (where q̇0 must be 0) is fine too.
     """
     system = loops.compile_linkage(scene.mechanism.linkage)
@@ -433,7 +433,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
 
 def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
     """For each joint of a joint element, (coef, u0): the joint's own coordinate
-    (:attr:`xval.reduced.loops.LoopSystem.joint_rows`: relative angle θ_b − θ_a in rad, or
+    (:attr:`xval.kinematics.LoopSystem.joint_rows`: relative angle θ_b − θ_a in rad, or
     displacement in m) as u = u0 + coef·qpos, coef (nq,) over :func:`joint_order`. The bodies
     turn about z only, so a body's angle is its authored angle plus the hinge angles on its tree
     path (:func:`coordinate_map`) and u is linear in qpos also for a cut joint: the coefficients

@@ -30,25 +30,25 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from xval.reduced.errors import FailureReason, NumericalFailure
-from xval.reduced.partition import JointTrajectory
-from xval.reduced.result import EnergyAudit, EngineResult
-from xval.reduced import loops
-from xval.reduced.loads import TabulatedForce
-from xval.reduced.mechanism import PrismaticJoint
-from xval.reduced.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
+from xval.errors import FailureReason, NumericalFailure
+from xval.trajectory import JointTrajectory
+from xval.results import EnergyAudit, EngineResult
+from xval import kinematics as loops
+from xval.loads import TabulatedForce
+from xval.mechanism import PrismaticJoint
+from xval.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
                            MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene)
-from xval.reduced.trajectory import Trajectory
+from xval.trajectory import Trajectory
 
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
                     compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, set_timestep,
                     sensor_name, site_name)
 
-INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in xval.reduced.scene
+INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in xval.scene
 
 _log = logging.getLogger("xval.mujoco")  # progress of the automatic step search
 
-MAX_ITERATIONS = MUJOCO_MAX_ITERATIONS  # xval.reduced.scene says why
+MAX_ITERATIONS = MUJOCO_MAX_ITERATIONS  # xval.scene says why
 # Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
 # of the horizon, and not below TIMESTEP_FLOOR) that puts every load edge on the step grid; a
 # run at h and one at h/2 must differ by at most HALVING_FRACTION of the tolerances. The first
@@ -135,7 +135,7 @@ class MujocoSettings:
         its automatic 0.5 ms: 3.2e-5), so a balance 5 % off fails.
     """
 
-    integrator: str = MUJOCO_DEFAULT_INTEGRATOR  # the defaults' values: xval.reduced.scene
+    integrator: str = MUJOCO_DEFAULT_INTEGRATOR  # the defaults' values: xval.scene
     timestep: float | None = None
     solref: tuple[float, float] | None = None  # None: (2·timestep, 1.0)
     solimp: tuple[float, float, float, float, float] = MUJOCO_DEFAULT_SOLIMP

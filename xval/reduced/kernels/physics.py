@@ -7,7 +7,7 @@ loops run without a Python object; :mod:`xval.reduced.dynamics` builds the array
 wraps the chart for Python callers. Debug with ``XVAL_PURE_PYTHON=1``: this file then runs as
 plain Python (:mod:`xval.reduced.kernels`).
 
-Term tables (:mod:`xval.reduced.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+Term tables (:mod:`xval.kinematics`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
 with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
 With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
 

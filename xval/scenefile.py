@@ -1,10 +1,10 @@
-"""Reading scenes: TOML text into a validated :class:`~xval.reduced.scene.Scene`.
+"""Reading scenes: TOML text into a validated :class:`~xval.scene.Scene`.
 
-A malformed scene raises :class:`~xval.reduced.scene.SceneError` with one message that names the
+A malformed scene raises :class:`~xval.scene.SceneError` with one message that names the
 offending key and the reason; nothing else in the package raises on bad input. Every number
-lies in the range of its kind (:data:`~xval.reduced.scene.LIMITS`, one table for both engines); the
-linkage is checked as a graph (:class:`~xval.reduced.mechanism.Linkage`) and assembled at q0 by
-Newton's method from the scene's guess (:func:`~xval.reduced.loops.assemble`). How far the scene
+lies in the range of its kind (:data:`~xval.scene.LIMITS`, one table for both engines); the
+linkage is checked as a graph (:class:`~xval.mechanism.Linkage`) and assembled at q0 by
+Newton's method from the scene's guess (:func:`~xval.kinematics.assemble`). How far the scene
 moves is not judged here: a bound on the motion cannot be tight (on a swinging crank one was 500
 times the truth), so the engines' work budgets stop a run that turns out too long, naming the
 setting to change.
@@ -28,11 +28,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from . import loops
+from . import kinematics as loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
-from xval.reduced.sweep_spec import SweepSpecError, spec_from_table
+from xval.sweep_spec import SweepSpecError, spec_from_table
 from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
@@ -594,7 +594,7 @@ def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
 
 def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
     """Newton from the closed form's assembly on the scene's branch, checked to stay there."""
-    from .linkage import AssemblyError as ClosedFormError, FourBar
+    from .four_bar import AssemblyError as ClosedFormError, FourBar
 
     try:
         q, phi1, phi2 = FourBar(g).assemble(q0)
@@ -655,7 +655,7 @@ def _parse_mujoco(t: _Table) -> dict[str, Any]:
 
 def _check_sweep(table: Any, source: str) -> None:
     """The optional [sweep] table (a family of variants of this scene, ``xval sweep``): read by
-    :func:`xval.reduced.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
+    :func:`xval.sweep_spec.spec_from_table`, its errors as SceneErrors. The scene itself
     does not use it; whether its keys fit the scene is checked when the sweep runs."""
     try:
         spec_from_table(table, source="")

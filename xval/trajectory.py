@@ -188,3 +188,42 @@ class Trajectory:
         """The trajectory at new sample times (interpolated)."""
         q, v, a = self.interpolate(times)
         return Trajectory(np.asarray(times, dtype=float), q, v, a)
+
+
+@dataclass(frozen=True)
+class JointTrajectory:
+    """Every joint coordinate along a run, in the coordinates of :class:`xval.kinematics.LoopSystem`.
+
+    names (m,) its coordinate names; t (n,) s; x (n, m) rad or m (angles unwrapped);
+    xdot (n, m) rad/s or m/s; coordinate (n,) index of the independent coordinate used at
+    each sample (−1 for an engine without charts, MuJoCo); mode (n, loops) int, the
+    assembly mode (:func:`xval.kinematics.assembly_modes`) at each sample.
+    """
+
+    names: tuple[str, ...]
+    t: np.ndarray
+    x: np.ndarray
+    xdot: np.ndarray
+    coordinate: np.ndarray
+    mode: np.ndarray
+
+    def interpolate(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """x and ẋ at ``times`` (s, clamped to the run's span), shapes (len(times), m): the cubic
+        Hermite interpolant of the samples' x and ẋ on the interval holding each time (O(h⁴)) and
+        its derivative. At a repeated time (a coordinate switch, a load edge) the later sample
+        is used."""
+        T = np.asarray(self.t, dtype=float)
+        X, V = np.asarray(self.x, dtype=float), np.asarray(self.xdot, dtype=float)
+        times = np.clip(np.atleast_1d(np.asarray(times, dtype=float)), T[0], T[-1])
+        if len(T) == 1:
+            return np.repeat(X, len(times), axis=0), np.repeat(V, len(times), axis=0)
+        k = np.clip(np.searchsorted(T, times, side="right") - 1, 0, len(T) - 2)
+        h = T[k + 1] - T[k]
+        flat = h <= 0.0  # the last two samples at one time: the later one
+        h = np.where(flat, 1.0, h)[:, None]
+        s = np.where(flat, 1.0, (times - T[k]) / h[:, 0])[:, None]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, 6 * s - 6 * s**2, 3 * s**2 - 2 * s
+        x = h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+        xdot = np.where(flat[:, None], V[k + 1], (d00 * X[k] + d01 * X[k + 1]) / h + d10 * V[k] + d11 * V[k + 1])
+        return x, xdot

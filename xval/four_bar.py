@@ -107,7 +107,7 @@ class FourBar:
 
 
     def conditioning(self, x: np.ndarray) -> np.ndarray:
-        """The conditioning of each coordinate (:func:`xval.reduced.loops.conditioning`) for the four-bar:
+        """The conditioning of each coordinate (:func:`xval.kinematics.conditioning`) for the four-bar:
         (|sin(φ2 − φ1)|, |sin(φ2 − q)|, |sin(φ1 − q)|) for q, φ1, φ2 independent."""
         q, p1, p2 = x[0], x[1], x[2]
         return np.array([abs(math.sin(p2 - p1)), abs(math.sin(p2 - q)), abs(math.sin(p1 - q))])

@@ -14,7 +14,7 @@ the rotating vector of the child's point, a prismatic one adds s e(θ + directio
 whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows):
 
 - two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
-  always revolute: :class:`~xval.reduced.mechanism.Linkage` takes prismatic joints into the tree
+  always revolute: :class:`~xval.mechanism.Linkage` takes prismatic joints into the tree
   first and refuses a loop of prismatic joints only, so a prismatic joint is never cut;
 - one linear row per prismatic joint: θ_b − θ_a = 0, the slider keeps its angle.
 
@@ -87,7 +87,7 @@ class TermTable:
 
 @dataclass(frozen=True)
 class LoopSystem:
-    """The compiled kinematics of a :class:`~xval.reduced.mechanism.Linkage` (plain arrays).
+    """The compiled kinematics of a :class:`~xval.mechanism.Linkage` (plain arrays).
 
     coordinate_names : (n,) names, ``"<body>.angle"`` or ``"<joint>.s"``
     loops : TermTable of the loop-closure vectors (2 constraint rows each)
@@ -351,7 +351,7 @@ def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """For each coordinate as the independent one, |det Φ_dep| / Π ‖columns of Φ_dep‖.
 
     Between 0 (that coordinate cannot drive the linkage here) and 1 (the other columns
-    orthogonal); the same measure as :meth:`xval.reduced.linkage.LoopLinkage.conditioning`.
+    orthogonal); the same measure as :meth:`xval.four_bar.LoopLinkage.conditioning`.
     Shape (n,).
     """
     J = constraint_jacobian(system, x)

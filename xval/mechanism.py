@@ -12,7 +12,7 @@ given over time (:class:`TimedForce`). Both engines build from a :class:`Mechani
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
 the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
 spanning tree from ground and the cut joints, one per independent loop. The numeric loop
-kinematics built from it are in :mod:`xval.reduced.loops`.
+kinematics built from it are in :mod:`xval.kinematics`.
 """
 
 from __future__ import annotations
@@ -478,7 +478,7 @@ class TimedForce:
     """A force of magnitude F(t) along a fixed direction of the plane, applied at a point: a
     pressure history on a piston while the crank is the input.
 
-    ``profile`` is one of the input load's profiles (:mod:`xval.reduced.loads`: constant, pulse,
+    ``profile`` is one of the input load's profiles (:mod:`xval.loads`: constant, pulse,
     table; piecewise constant in t, its values in N), ``direction`` rad in the ground frame; the
     force is F(t) (cos, sin)(direction) (N). Its edges are load edges: the reduced integrators
     stop at them and MuJoCo's automatic timestep puts them on its step grid.
@@ -488,14 +488,14 @@ class TimedForce:
     body: str
     point: str
     direction: float
-    profile: object  # xval.reduced.loads.TorqueProfile (not imported here: loads needs numpy only)
+    profile: object  # xval.loads.TorqueProfile (not imported here: loads needs numpy only)
 
     def __post_init__(self):
         _name(self.name, "timed force name")
         if not math.isfinite(float(self.direction)):
             raise MechanismError(f"timed force {self.name!r}: direction must be finite, got {self.direction}")
         if not hasattr(self.profile, "edges") or not hasattr(self.profile, "sample"):
-            raise MechanismError(f"timed force {self.name!r}: profile must be a load profile (xval.reduced.loads), "
+            raise MechanismError(f"timed force {self.name!r}: profile must be a load profile (xval.loads), "
                                  f"got {type(self.profile).__name__}")
         object.__setattr__(self, "direction", float(self.direction))
 

@@ -3,7 +3,7 @@
 Every length is in m, angle in rad, mass in kg, inertia in kg·m², torque in N·m, force in N,
 damping in N·s/m, stiffness in N/m, time in s; the input coordinate q is an angle (rad) or a
 slider displacement (m), as its joint says. The README documents the format; the parser is
-:mod:`xval.reduced.scenefile`, the mechanism description :mod:`xval.reduced.mechanism`.
+:mod:`xval.scenefile`, the mechanism description :mod:`xval.mechanism`.
 """
 
 from __future__ import annotations
@@ -138,8 +138,8 @@ class Scene:
     gravity : (gx, gy) m/s², or None.
     q0, qdot0 : the input coordinate and its rate at t = 0 (rad or m; per s).
     x0 : the configuration assembled at q0 (the coordinates of
-        :class:`xval.reduced.loops.LoopSystem`: body angles in rad, slider displacements in m).
-    mode : its assembly mode, one sign per loop (:func:`xval.reduced.loops.assembly_mode`).
+        :class:`xval.kinematics.LoopSystem`: body angles in rad, slider displacements in m).
+    mode : its assembly mode, one sign per loop (:func:`xval.kinematics.assembly_mode`).
     four_bar : the four-bar shorthand's geometry when the scene used it (enables the
         closed-form fast path, checked against the general one); else None.
     """
