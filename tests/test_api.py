@@ -80,3 +80,16 @@ def test_compare_results_and_check_are_the_comparison_and_the_gate(scene):
     assert figures(by_api)[1:] == figures(xval.compare_results(scene, reduced, mujoco, tolerances=scene.tolerances))[1:]
     tight = dataclasses.replace(scene.tolerances, q_atol=1e-12)
     assert not xval.compare_results(scene, reduced, mujoco, tolerances=tight).gate.passed
+
+
+def test_results_are_read_only_arrays(scene):
+    """A result cannot be changed by accident after the run (its arrays are the run's record)."""
+    for result in (xval.simulate(scene), xval.simulate(scene, xval.MujocoSettings(timestep=1e-3))):
+        joints = result.diagnostics["joints"]
+        arrays = (result.trajectory.t, result.trajectory.q, result.trajectory.qdot, result.trajectory.qddot,
+                  result.audit.kinetic, result.audit.potential, result.audit.torque_work,
+                  result.audit.damper_dissipation, joints.t, joints.x, joints.xdot, joints.mode)
+        for a in arrays:
+            assert not a.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            joints.x[0, 0] = 0.0

@@ -10,8 +10,8 @@ The API (each name loads its module on first use, so ``import xval`` is light):
 - comparison: :func:`compare_results` (two results of one scene; the name `compare` is the
   subpackage), :func:`check` (both engines and the
   gate, as ``xval check``), :class:`Comparison`, :class:`Tolerances`;
-- results: :class:`EngineResult` (trajectory, peak, energy audit, wall time), :class:`Trajectory`,
-  :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
+- results: :class:`EngineResult` (trajectory, peak, energy audit, wall time; every array of a
+  result is read-only), :class:`Trajectory`, :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
   cannot meet its accuracy, with the reason).
 
 Subpackages: :mod:`xval.reduced` (the Eksergian engine and its compiled core),

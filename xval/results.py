@@ -22,6 +22,12 @@ class EnergyAudit:
     torque_work: np.ndarray
     damper_dissipation: np.ndarray
 
+    def __post_init__(self) -> None:
+        for name in ("t", "kinetic", "potential", "torque_work", "damper_dissipation"):  # read-only results
+            a = np.array(getattr(self, name), dtype=float, copy=True)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
     @property
     def residual(self) -> np.ndarray:
         total = self.kinetic + self.potential

@@ -207,6 +207,13 @@ class JointTrajectory:
     coordinate: np.ndarray
     mode: np.ndarray
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "names", tuple(self.names))
+        for name in ("t", "x", "xdot", "coordinate", "mode"):  # results are read-only, as Trajectory's
+            a = np.array(getattr(self, name), copy=True)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
     def interpolate(self, times) -> tuple[np.ndarray, np.ndarray]:
         """x and ẋ at ``times`` (s, clamped to the run's span), shapes (len(times), m): the cubic
         Hermite interpolant of the samples' x and ẋ on the interval holding each time (O(h⁴)) and
