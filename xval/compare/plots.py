@@ -118,7 +118,8 @@ def _save(fig, path: Path) -> None:
     or pdf and svg for ``xval draw``). PNG at zlib level 1: a third less time compressing than
     the default 6, for files ~6 % larger (plots are mostly white)."""
     fmt = Path(path).suffix.lower().lstrip(".")
-    fig.savefig(path, dpi=DPI, format=fmt, **({"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}))
+    with open(path, "wb") as f:  # closed however savefig ends (a signal mid-write left PIL's file open)
+        fig.savefig(f, dpi=DPI, format=fmt, **({"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}))
 
 
 def _units(c: "Comparison") -> tuple[str, str]:
