@@ -369,6 +369,13 @@ def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
     _add_tolerance_arguments(p)
 
 
+def _add_out_folder(p: argparse.ArgumentParser, default: str) -> None:
+    """-o/--out of a command that writes a folder of files (each command its own default)."""
+    p.add_argument("-o", "--out", default=default,
+                   help=f"output folder, created if absent in an existing folder (default ./{default}: each "
+                        "command its own, as a folder holds one run)")
+
+
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="scene TOML file, or the name of a shipped scene when no such file exists (`xval scenes` "
@@ -446,8 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "the mechanism at the peak speed and at the largest disagreement, "
                                    "both engines overlaid) into --out.")
     _add_scene_argument(p)
-    p.add_argument("-o", "--out", default="xval-out",
-                   help="output folder, created if absent in an existing folder (default ./xval-out)")
+    _add_out_folder(p, "xval-out")
     p.add_argument("--animate", action="store_true",
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
     p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
@@ -473,8 +479,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write cost.png (work-precision diagram), cost.csv and cost.json; "
                                    "recommend the cheapest configuration of each engine for the target.")
     _add_scene_argument(p)
-    p.add_argument("-o", "--out", default="xval-cost",
-                   help="output folder, created if absent in an existing folder (default ./xval-cost: each command its own, as a folder holds one run)")
+    _add_out_folder(p, "xval-cost")
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
@@ -490,8 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "through both engines; print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
-    p.add_argument("-o", "--out", default="xval-stress",
-                   help="output folder, created if absent in an existing folder (default ./xval-stress: each command its own, as a folder holds one run)")
+    _add_out_folder(p, "xval-stress")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
 
@@ -522,8 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
                    help="seed of the Monte Carlo sample (default 0)")
-    p.add_argument("-o", "--out", default="xval-sweep",
-                   help="output folder, created if absent in an existing folder (default ./xval-sweep: each command its own, as a folder holds one run)")
+    _add_out_folder(p, "xval-sweep")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores); not with --scheduler")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,

@@ -29,14 +29,14 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import INFINITY, NAN, ceil, copysign, fabs, isfinite, nextafter, pow, sqrt
-    from cython.cimports.xval.reduced.kernels.output import Outcome, Samples
+    from cython.cimports.xval.reduced.kernels.output import Outcome, Samples, check_run
     from cython.cimports.xval.reduced.kernels.problem import RightHandSide
 else:
     from math import ceil, copysign, fabs, isfinite, nextafter, pow, sqrt
     from math import inf as INFINITY
     from math import nan as NAN
 
-    from xval.reduced.kernels.output import Outcome, Samples
+    from xval.reduced.kernels.output import Outcome, Samples, check_run
     from xval.reduced.kernels.problem import RightHandSide
 
 from xval.reduced.kernels import dop853_tableau as _coef
@@ -716,12 +716,7 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
     stay appended; a piece's samples are appended only once they pass the checks (non-finite,
     speed).
     """
-    if out.width != rhs.observation_size():
-        raise ValueError(f"Samples width {out.width} != the problem's observation_size() "
-                         f"{rhs.observation_size()}")
-    if piece_load.shape[0] < 1 or piece_edges.shape[0] != piece_load.shape[0] + 1:
-        raise ValueError(f"{piece_edges.shape[0]} edges for {piece_load.shape[0]} load pieces: one more edge "
-                         "than pieces, at least one piece")
+    check_run(out, rhs.observation_size(), piece_edges.shape[0], piece_load.shape[0])
     if not (rtol > 0.0 and atol > 0.0 and sample_interval > 0.0 and per_step >= 1):
         raise ValueError(f"rtol {rtol}, atol {atol}, sample_interval {sample_interval} positive; per_step "
                          f"{per_step} at least 1")

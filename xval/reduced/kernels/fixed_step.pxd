@@ -1,6 +1,6 @@
 # C-level declaration of xval/reduced/kernels/fixed_step.py (Cython's augmenting .pxd).
 
-from xval.reduced.kernels.output cimport Outcome, Samples
+from xval.reduced.kernels.output cimport Outcome, Samples, check_run
 from xval.reduced.kernels.problem cimport RightHandSide
 
 

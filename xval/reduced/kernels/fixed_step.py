@@ -40,12 +40,12 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import atan2, ceil, cos, exp, fabs, hypot, isfinite, pow, sin
-    from cython.cimports.xval.reduced.kernels.output import Outcome, Samples
+    from cython.cimports.xval.reduced.kernels.output import Outcome, Samples, check_run
     from cython.cimports.xval.reduced.kernels.problem import RightHandSide
 else:
     from math import atan2, ceil, cos, exp, fabs, hypot, isfinite, pow, sin
 
-    from xval.reduced.kernels.output import Outcome, Samples
+    from xval.reduced.kernels.output import Outcome, Samples, check_run
     from xval.reduced.kernels.problem import RightHandSide
 
 from xval.reduced.kernels import output as _output
@@ -292,14 +292,9 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
     the samples before it stay appended.
     """
     outcome: Outcome = Outcome()
-    if out.width != rhs.observation_size():
-        raise ValueError(f"Samples width {out.width} != the problem's observation_size() "
-                         f"{rhs.observation_size()}")
+    check_run(out, rhs.observation_size(), edges.shape[0], loads.shape[0])
     if tableau.c[0] != 0.0:
         raise ValueError("the kernel reuses f at a step's end as the next first stage: c[0] must be 0")
-    if loads.shape[0] < 1 or edges.shape[0] != loads.shape[0] + 1:
-        raise ValueError(f"{edges.shape[0]} edges for {loads.shape[0]} load pieces: one more edge than pieces, "
-                         "at least one piece")
     if not step > 0.0:
         raise ValueError(f"step {step}: positive and finite")
     npieces: cython.Py_ssize_t = loads.shape[0]

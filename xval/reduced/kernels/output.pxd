@@ -15,3 +15,6 @@ cdef class Outcome:
     cdef public Py_ssize_t n_steps, n_evaluations, n_sample_evaluations
     cdef public double t_reached, fail_time, fail_value
     cdef public double[::1] detail
+
+
+cpdef check_run(Samples out, Py_ssize_t width, Py_ssize_t edges, Py_ssize_t pieces)

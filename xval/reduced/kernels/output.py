@@ -73,14 +73,10 @@ class Samples:
         while capacity < self.n + extra:
             capacity *= 2
         n = self.n
-        t, q, v, a, observed, energy = self.arrays()
-        self._allocate(capacity)
-        np.asarray(self.t)[:n] = t
-        np.asarray(self.q)[:n] = q
-        np.asarray(self.v)[:n] = v
-        np.asarray(self.a)[:n] = a
-        np.asarray(self.observed)[:n, :self.width] = observed
-        np.asarray(self.energy)[:n] = energy
+        held = [np.asarray(b)[:n] for b in (self.t, self.q, self.v, self.a, self.observed, self.energy)]
+        self._allocate(capacity)  # then each held sample copied once, into the new buffers
+        for b, values in zip((self.t, self.q, self.v, self.a, self.observed, self.energy), held):
+            np.asarray(b)[:n] = values
 
     @cython.ccall
     def clear(self):
@@ -92,3 +88,14 @@ class Samples:
         n = self.n
         return (np.array(self.t[:n]), np.array(self.q[:n]), np.array(self.v[:n]), np.array(self.a[:n]),
                 np.array(self.observed[:n, :self.width]), np.array(self.energy[:n]))
+
+
+@cython.ccall
+def check_run(out: Samples, width: cython.Py_ssize_t, edges: cython.Py_ssize_t, pieces: cython.Py_ssize_t):
+    """What an integrator's loops trust, checked once at its entry (they run without bounds
+    checks): ``out`` holds rows of the problem's ``width`` observed values, and the load history
+    has one more edge than pieces, at least one piece. ValueError otherwise."""
+    if out.width != width:
+        raise ValueError(f"Samples width {out.width} != the problem's observation_size() {width}")
+    if pieces < 1 or edges != pieces + 1:
+        raise ValueError(f"{edges} edges for {pieces} load pieces: one more edge than pieces, at least one piece")
