@@ -73,10 +73,15 @@ class Samples:
         while capacity < self.n + extra:
             capacity *= 2
         n = self.n
-        held = [np.asarray(b)[:n] for b in (self.t, self.q, self.v, self.a, self.observed, self.energy)]
+        t, q, v, a = np.asarray(self.t), np.asarray(self.q), np.asarray(self.v), np.asarray(self.a)
+        observed, energy = np.asarray(self.observed), np.asarray(self.energy)
         self._allocate(capacity)  # then each held sample copied once, into the new buffers
-        for b, values in zip((self.t, self.q, self.v, self.a, self.observed, self.energy), held):
-            np.asarray(b)[:n] = values
+        np.asarray(self.t)[:n] = t[:n]
+        np.asarray(self.q)[:n] = q[:n]
+        np.asarray(self.v)[:n] = v[:n]
+        np.asarray(self.a)[:n] = a[:n]
+        np.asarray(self.observed)[:n] = observed[:n]
+        np.asarray(self.energy)[:n] = energy[:n]
 
     @cython.ccall
     def clear(self):
