@@ -95,8 +95,8 @@ def _dop853_chart(chart, steps, edges, loads, t: cython.double, value: cython.do
 
 def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, integrate_chart,
          max_switches: cython.Py_ssize_t, out: Samples) -> PartitionedRun:
-    """The charts from the start: ``integrate_chart(t, value, rate, evaluations_left)`` runs the
-    current chart from t and returns its :class:`Outcome`."""
+    """The charts from the start: ``integrate_chart(t, value, rate, spent)`` runs the current chart
+    from t (``spent``: the evaluations of q̈ the run has used so far) and returns its :class:`Outcome`."""
     n = int(chart.n)
     total = Outcome()
     segment_starts, coordinates, starts, switches = [out.n], [independent], [], []
