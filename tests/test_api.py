@@ -60,7 +60,7 @@ def test_simulate_runs_the_engine_whose_settings_it_is_given(scene):
     assert default.peak.omega == simulate_reduced(scene, xval.reduced_settings(scene)).peak.omega
     mujoco = xval.simulate(scene, xval.MujocoSettings(timestep=1e-3))
     assert mujoco.trajectory.q.tobytes() == simulate_mujoco(scene, MujocoSettings(timestep=1e-3)).trajectory.q.tobytes()
-    with pytest.raises(TypeError, match="ReducedSettings or MujocoSettings"):
+    with pytest.raises(TypeError, match="settings of an engine .ReducedSettings, MujocoSettings"):
         xval.simulate(scene, {"rtol": 1e-6})
 
 

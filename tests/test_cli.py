@@ -26,8 +26,12 @@ import xval.compare.sweep
 import xval.reference_models
 from xval.compare import cli
 from xval.compare.cli import main
+from xval.compare.output import check_folder
 from xval.compare.cost import worker_count
 from xval.scenefile import scene_from_dict
+from xval.reduced.settings import ReducedSettings
+from xval.reference_models.settings import MujocoSettings
+from xval.settings import given_flags
 
 from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
@@ -127,16 +131,15 @@ def test_only_the_flags_given_override_the_scene():
     scene = scene_from_dict(data)
     parser = cli.build_parser()
     plain = parser.parse_args(["run"])
-    assert cli._given(plain, {n: n for n in ("integrator", "timestep", "iterations", "solimp")}) == {}
-    assert cli._given(plain, {"reference": "method", "reference_rtol": "rtol", "reference_step": "step"}) == {}
+    assert given_flags(plain, MujocoSettings) == {}
+    assert given_flags(plain, ReducedSettings, prefix=cli.REFERENCE_PREFIX) == {}
     settings = cli._mujoco_settings(parser.parse_args(["run", "--integrator", "rk4"]), scene)
     assert (settings.integrator, settings.timestep) == ("rk4", 5e-4)  # flag over table, table kept
     reduced = parser.parse_args(["reduced"])
     assert (reduced.method, reduced.rtol, reduced.step) == (None, None, None)
     data["reduced"] = {"method": "radau"}
     scene = scene_from_dict(data)
-    flags = {"method": "method", "rtol": "rtol", "step": "step"}
-    settings = cli._reduced_settings(parser.parse_args(["reduced", "--rtol", "1e-9"]), scene, flags)
+    settings = cli._settings("reduced", parser.parse_args(["reduced", "--rtol", "1e-9"]), scene)
     assert (settings.method, settings.rtol) == ("radau", 1e-9)
 
 
@@ -240,8 +243,8 @@ def _resolved_defaults() -> dict[str, list[str]]:
     method = [ReducedSettings().method]
     assert mj.timestep is None  # chosen from the scene: the help must say so, with no number
     return {"--integrator": [mj.integrator], "--timestep": ["chosen from the scene"],
-            "--solimp": [" ".join(f"{v:g}" for v in mj.solimp)], "--iterations": [f"default {mj.iterations}"],
-            "--tolerance": [f"{mj.tolerance:g}"], "--reference": method, "--method": method,
+            "--solimp": [", ".join(f"{v:g}" for v in mj.solimp)], "--iterations": [f"else {mj.iterations}"],
+            "--tolerance": [f"{mj.tolerance:g}"], "--reference-method": method, "--method": method,
             "--reference-rtol": rtols, "--rtol": rtols, "--reference-step": step, "--step": step,
             "--seed": [f"default {spec_from_args(['a.b=1,2']).seed}"]}
 
@@ -319,3 +322,26 @@ def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, sp
         else:
             assert now == before, f"at {fraction:.2f} of the run the folder changed"
     assert sum(not wrote for _, _, wrote in outcomes) >= 3, outcomes  # most signals came during the run
+
+
+def test_the_default_output_folder_is_xval_out_and_the_scene(tmp_path, monkeypatch, capsys):
+    """Without -o, a command writes into xval-out/<scene file's stem>[-cost|-sweep] (stress, which
+    has no scene: xval-out/stress); xval-out is created with the outputs, never on bad input."""
+    from xval.compare.output import write_folder
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "press.toml").write_text(SEED_SCENE.read_text(encoding="utf-8"), encoding="utf-8")
+    parser = cli.build_parser()
+    for argv, expected in ((["run"], "xval-out/seed_fourbar"), (["run", "press.toml"], "xval-out/press"),
+                           (["run", "watt2_sixbar"], "xval-out/watt2_sixbar"),
+                           (["cost", "press.toml"], "xval-out/press-cost"), (["stress"], "xval-out/stress"),
+                           (["sweep", "press.toml"], "xval-out/press-sweep"), (["run", "-o", "mine"], "mine")):
+        args = parser.parse_args(argv)
+        assert cli._out_folder(args, getattr(args, "scene", None)) == expected, argv
+    (tmp_path / "bad.toml").write_text('name = "x"\n', encoding="utf-8")
+    assert main(["run", "bad.toml"]) == 2 and "missing key 'linkage'" in one_error_line(capsys)
+    assert not (tmp_path / "xval-out").exists()  # bad input leaves nothing behind
+    with pytest.raises(cli.OutputError, match="does not exist"):
+        check_folder("elsewhere/press")  # only the default root may be missing
+    [path] = write_folder("xval-out/press", {"a.txt": lambda p: p.write_text("a")})
+    assert path == Path("xval-out/press/a.txt") and path.read_text() == "a"

@@ -16,7 +16,9 @@ import tomllib
 
 import pytest
 
-from xval.compare.run import compare_engines, override_tolerances
+from dataclasses import replace
+
+from xval.compare.run import compare_engines
 from xval.errors import FailureReason, NumericalFailure
 from xval.scenefile import scene_from_dict
 from xval.reference_models import simulate_mujoco
@@ -75,7 +77,7 @@ def test_the_step_is_chosen_for_the_gate_tolerances():
     """stephenson3_sixbar without its fixed step, gated at q 1e-6 rad and ω 1e-3 rad/s: the step
     chosen for the file's tolerances failed it (Δω 2.2e-3 rad/s); chosen for these, it passes."""
     scene = scene_from_dict(_load("stephenson3_sixbar.toml", simulation={"horizon": 0.25}))
-    tight = override_tolerances(scene.tolerances, q_atol=1e-6, omega_atol=1e-3)
+    tight = replace(scene.tolerances, q_atol=1e-6, omega_atol=1e-3)
     c = compare_engines(scene, tolerances=tight)
     assert c.gate.passed, c.gate.failures
     assert c.mujoco.settings["timestep_check"][-1]["limits"][1] == pytest.approx(0.25 * 1e-3)
@@ -86,7 +88,7 @@ def test_a_fixed_step_that_fails_the_gate_is_named():
         data = tomllib.load(f)
     data["simulation"]["horizon"] = 0.25
     scene = scene_from_dict(data)
-    tight = override_tolerances(scene.tolerances, q_atol=1e-7, omega_atol=1e-4)
+    tight = replace(scene.tolerances, q_atol=1e-7, omega_atol=1e-4)
     c = compare_engines(scene, tolerances=tight)
     assert not c.gate.passed
     assert "[mujoco] timestep" in c.gate.failures[-1]

@@ -160,9 +160,9 @@ def test_off_grid_edge_error_is_first_order_in_the_misplacement():
     for delta in deltas:
         s = replace(scene, load=replace(scene.load, duration=1.0 + delta))
         assert isinstance(s.load, PulseTorque)
-        reference = simulate(s, ReducedSettings(**s.reduced))
+        reference = simulate(s, ReducedSettings(**s.engine_table("reduced")))
         with pytest.warns(UserWarning, match="not a multiple of the timestep"):
-            other = simulate_mujoco(s, MujocoSettings(**s.mujoco))
+            other = simulate_mujoco(s, MujocoSettings(**s.engine_table("mujoco")))
         errors.append(compare_trajectories(reference.trajectory, other.trajectory).q_max_abs)
     slope = np.polyfit(np.log(deltas), np.log(errors), 1)[0]
     assert slope == pytest.approx(1.0, abs=0.05)

@@ -156,14 +156,14 @@ def test_a_key_the_file_does_not_give_is_created(seed_data):
     out = list(variants(seed_data, spec))
     assert "mujoco" not in seed_data and "reduced" not in seed_data
     scene = scene_from_dict(out[0].data)
-    assert scene.mujoco["timestep"] == 0.0005 and scene.reduced["rtol"] == 1e-9
+    assert scene.engine_table("mujoco")["timestep"] == 0.0005 and scene.engine_table("reduced")["rtol"] == 1e-9
 
 
 def test_integral_values_fit_integer_keys(seed_data):
     spec = spec_from_args(["mujoco.iterations=10:50:5"])
     check(seed_data, spec, "seed")
     v = next(variants(seed_data, spec))
-    assert v.data["mujoco"]["iterations"] == 10 and scene_from_dict(v.data).mujoco["iterations"] == 10
+    assert v.data["mujoco"]["iterations"] == 10 and scene_from_dict(v.data).engine_table("mujoco")["iterations"] == 10
 
 
 def test_variants_do_not_carry_the_sweep_table():

@@ -8,11 +8,12 @@ from pathlib import Path
 
 from xval.compare.run import Comparison, compare_engines, judge
 from xval.compare.settings import mujoco_settings, reduced_settings
-from xval.reduced.engine import ReducedSettings, simulate as _simulate_reduced
+from xval.reduced.settings import ReducedSettings
+from xval.reference_models.settings import MujocoSettings
+from xval.registry import engine_of
 from xval.results import EngineResult
 from xval.scene import Scene, SceneError, Tolerances
 from xval.scenefile import _parse_toml, catalogue, load_scene as _load_file, resolve_scene, scene_from_dict
-from xval.reference_models import MujocoSettings, simulate_mujoco
 
 Settings = ReducedSettings | MujocoSettings
 
@@ -36,23 +37,20 @@ def scene_from_string(text: str, *, source: str = "<string>") -> Scene:
 
 def simulate(scene: Scene, settings: Settings | None = None) -> EngineResult:
     """Run one engine on ``scene``: the one whose settings are given (:class:`ReducedSettings`,
-    Eksergian's equation; :class:`MujocoSettings`, MuJoCo), by default the reduced engine with
-    the scene's own ``[reduced]`` table over the defaults.
+    Eksergian's equation; :class:`MujocoSettings`, MuJoCo; any engine of
+    :data:`xval.registry.ENGINES`), by default the reduced engine with the scene's own
+    ``[reduced]`` table over the defaults.
 
     Raises
     ------
     NumericalFailure
         If the run cannot meet its accuracy (the reason says why and what to change).
     TypeError
-        If ``settings`` is neither engine's.
+        If ``settings`` are no engine's.
     """
     if settings is None:
         settings = reduced_settings(scene)
-    if isinstance(settings, ReducedSettings):
-        return _simulate_reduced(scene, settings)
-    if isinstance(settings, MujocoSettings):
-        return simulate_mujoco(scene, settings)
-    raise TypeError(f"simulate: settings of an engine (ReducedSettings or MujocoSettings), not {type(settings).__name__}")
+    return engine_of(settings).simulate(scene, settings)
 
 
 def compare_results(scene: Scene, reference: EngineResult, other: EngineResult, *,

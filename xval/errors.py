@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from enum import Enum
+from typing import Any
 
 
 class FailureReason(str, Enum):
@@ -41,3 +42,9 @@ class NumericalFailure(RuntimeError):
 
 class IgnoredSettingWarning(UserWarning):
     """A setting was given that the chosen method does not use (it has no effect)."""
+
+
+def type_name(value: Any) -> str:
+    """A TOML value's type in words, for messages: "a boolean", "an integer", "an array", ..."""
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "an array", dict: "a table"}.get(type(value), type(value).__name__)

@@ -115,11 +115,17 @@ class Tolerances:
     round-off.
     """
 
-    peak_omega_rtol: float = 1e-4
-    peak_omega_atol: float = 1e-9  # rad/s
-    q_atol: float = 1e-3
-    omega_atol: float = 1e-1
-    omega_vs_q_atol: float | None = None  # max |Δω| at equal q (rad/s); None: not checked
+    peak_omega_rtol: float = field(default=1e-4, metadata={
+        "unit": "", "help": "relative difference allowed in the peak input speed"})
+    peak_omega_atol: float = field(default=1e-9, metadata={
+        "unit": "rad/s (m/s)", "help": "absolute floor of the peak's bound: |Δ peak| ≤ rtol·|peak| + atol"})
+    q_atol: float = field(default=1e-3, metadata={
+        "unit": "rad (m)", "help": "largest |Δq| of the input coordinate over the run"})
+    omega_atol: float = field(default=1e-1, metadata={
+        "unit": "rad/s (m/s)", "help": "largest |Δq̇| over the run"})
+    omega_vs_q_atol: float | None = field(default=None, metadata={
+        "unit": "rad/s (m/s)", "help": "largest |Δq̇| at equal input position (phase-free); not checked when "
+                                       "absent"})
 
     def peak_bound(self, peak: float) -> float:
         """The largest |Δ peak ω| allowed for a peak of magnitude ``peak`` (rad/s)."""
@@ -140,6 +146,9 @@ class Scene:
     x0 : the configuration assembled at q0 (the coordinates of
         :class:`xval.kinematics.LoopSystem`: body angles in rad, slider displacements in m).
     mode : its assembly mode, one sign per loop (:func:`xval.kinematics.assembly_mode`).
+    tolerances : the gate's tolerances.
+    engine_tables : the settings the scene asks each engine for, by engine name (its table of
+        the scene file, ``[reduced]``, ``[mujoco]``): the keys given, each already checked.
     four_bar : the four-bar shorthand's geometry when the scene used it (enables the
         closed-form fast path, checked against the general one); else None.
     """
@@ -155,10 +164,14 @@ class Scene:
     mode: tuple[int, ...]
     horizon: float
     tolerances: Tolerances = field(default_factory=Tolerances)
-    mujoco: Mapping[str, Any] = field(default_factory=dict)  # settings this scene asks MuJoCo for
-    reduced: Mapping[str, Any] = field(default_factory=dict)  # settings for the reduced reference
+    engine_tables: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     source: str = "<memory>"
     four_bar: FourBarGeometry | None = None
+
+    def engine_table(self, engine: str) -> Mapping[str, Any]:
+        """The settings this scene asks the engine ``engine`` for (its table of the scene file:
+        the keys given, each checked on its own; the engine's ``Settings`` resolve them)."""
+        return self.engine_tables.get(engine, {})
 
     @property
     def input_is_prismatic(self) -> bool:
@@ -200,22 +213,3 @@ class Scene:
 # Every effect a scene can declare, in the order reports list them.
 EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "point-force", "timed-force",
            "gravity")
-
-
-MUJOCO_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
-# MuJoCo's constraint-solver iterations per step: Newton on a loop's rows converges in a handful;
-# 10 000 already means a solver that is not converging, and keeps the binding's C int (2**31
-# raises a TypeError there) far away. One limit for the scene file, the CLI and MujocoSettings.
-MUJOCO_MAX_ITERATIONS = 10_000
-REDUCED_METHODS = ("dop853", "rkn4", "radau", "scipy-dop853")
-
-# The engines' default settings, written once: ReducedSettings and MujocoSettings take them as
-# their defaults and the command line's help prints them (this module loads neither the compiled
-# core nor MuJoCo). Why these values: xval.reduced.engine (accuracy requests) and xval.reference_models.run.
-REDUCED_DEFAULT_METHOD = "dop853"
-REDUCED_DEFAULT_RTOL = {"dop853": 1e-12, "scipy-dop853": 1e-12, "radau": 1e-12, "rkn4": 1e-5}
-REDUCED_DEFAULT_STEP = 5e-4  # s, RKN4
-MUJOCO_DEFAULT_INTEGRATOR = "rk4"
-MUJOCO_DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-MUJOCO_DEFAULT_ITERATIONS = 100
-MUJOCO_DEFAULT_TOLERANCE = 1e-12

@@ -18,6 +18,7 @@ crank, coupler, rocker; points O1, A, B, O3, G (a centre of mass) and ``damper<k
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.resources
 import math
 import os
@@ -28,12 +29,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .errors import type_name
 from . import kinematics as loops
 from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
-from xval.sweep_spec import SweepSpecError, spec_from_table
-from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, REDUCED_METHODS, FourBarGeometry, Range, Scene, SceneError, Tolerances
+from .registry import ENGINES
+from .settings import finite_number, options, read_table
+from .sweep_spec import SweepSpecError, spec_from_table
+from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, FourBarGeometry, Range, Scene, SceneError, Tolerances
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
 FOUR_BAR_PIVOTS = {"crank": "O1", "rocker": "O3"}  # the links that turn about a fixed pivot
@@ -50,7 +54,7 @@ class _Table:
 
     def __init__(self, data: Any, path: str):
         if not isinstance(data, dict):
-            raise SceneError(f"'{path}' must be a table, got {_type_name(data)}")
+            raise SceneError(f"'{path}' must be a table, got {type_name(data)}")
         self.data = data
         self.path = path
         self.used: set[str] = set()
@@ -85,7 +89,7 @@ class _Table:
     def string(self, name: str, default: Any = ...) -> str:
         value = self.raw(name, default)
         if not isinstance(value, str):
-            raise SceneError(f"'{self.key(name)}' must be a string, got {_type_name(value)}")
+            raise SceneError(f"'{self.key(name)}' must be a string, got {type_name(value)}")
         return value
 
     def choice(self, name: str, options: tuple[str, ...]) -> str:
@@ -104,22 +108,9 @@ class _Table:
             raise SceneError(f"unknown key '{self.key(unknown[0])}'")
 
 
-def _type_name(value: Any) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
-            list: "an array", dict: "a table"}.get(type(value), type(value).__name__)
-
-
 def _number(value: Any, key: str, *, positive: bool = False, nonnegative: bool = False,
             kind: str | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"'{key}' must be a number, got {_type_name(value)}")
-    try:
-        value = float(value)
-    except OverflowError:  # a TOML integer beyond the float range
-        raise SceneError(f"'{key}' must be finite, got an integer of about"
-                         f" {int(value.bit_length() * math.log10(2)) + 1} digits") from None
-    if not math.isfinite(value):
-        raise SceneError(f"'{key}' must be finite, got {value}")
+    value = finite_number(value, key)
     if positive and value <= 0.0:
         raise SceneError(f"'{key}' must be positive, got {value}")
     if nonnegative and value < 0.0:
@@ -517,24 +508,16 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     tolerances = Tolerances()
     if top.has("tolerances"):
         tol = top.table("tolerances")
-        tolerances = Tolerances(
-            peak_omega_rtol=tol.number("peak_omega_rtol", Tolerances.peak_omega_rtol, positive=True),
-            peak_omega_atol=tol.number("peak_omega_atol", Tolerances.peak_omega_atol, positive=True),
-            q_atol=tol.number("q_atol", Tolerances.q_atol, positive=True),
-            omega_atol=tol.number("omega_atol", Tolerances.omega_atol, positive=True),
-            omega_vs_q_atol=tol.number("omega_vs_q_atol", None, positive=True),
-        )
+        tolerances = Tolerances(**{f.name: tol.number(f.name, f.default, positive=True)
+                                   for f in dataclasses.fields(Tolerances)})
         tol.close()
-    mujoco = _parse_mujoco(top.table("mujoco")) if top.has("mujoco") else {}
-    reduced = _parse_reduced(top.table("reduced")) if top.has("reduced") else {}
+    engine_tables = {name: read_table(engine.settings, top.raw(name), name)
+                     for name, engine in ENGINES.items() if top.has(name)}
     if top.has("sweep"):
         _check_sweep(top.raw("sweep"), source)
-    top.used.update(("mujoco", "reduced", "sweep"))
+    top.used.add("sweep")
     top.close()
-    for key, table in (("mujoco.timestep", mujoco), ("reduced.step", reduced)):
-        step = table.get(key.split(".")[1])
-        if step is not None and step > horizon:
-            raise SceneError(f"'{key}' = {step:g} s is longer than 'simulation.horizon' = {horizon:g} s")
+    _check_steps(engine_tables, horizon)
 
     system = loops.compile_linkage(linkage)
     if four_bar is not None:
@@ -552,7 +535,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
                   mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
-                  mujoco=mujoco, reduced=reduced, source=source, four_bar=four_bar)
+                  engine_tables=engine_tables, source=source, four_bar=four_bar)
     return scene
 
 
@@ -622,35 +605,13 @@ def _check_start(system, x0: np.ndarray, q0: float, qdot0: float) -> None:
                          "where its speed must be zero")
 
 
-def _parse_mujoco(t: _Table) -> dict[str, Any]:
-    """Optional [mujoco] table: integrator, timestep (s), solref (2 numbers), solimp (5 numbers),
-    iterations, tolerance, refsafe and diagexact (booleans)."""
-    out: dict[str, Any] = {}
-    if t.has("integrator"):
-        out["integrator"] = t.choice("integrator", MUJOCO_INTEGRATORS)
-    if t.has("timestep"):
-        out["timestep"] = t.number("timestep", positive=True, kind="step")
-    if t.has("tolerance"):
-        out["tolerance"] = t.number("tolerance", positive=True)
-    if t.has("iterations"):
-        value = t.raw("iterations")
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MUJOCO_MAX_ITERATIONS:
-            raise SceneError(f"'{t.key('iterations')}' must be a whole number from 1 to {MUJOCO_MAX_ITERATIONS}")
-        out["iterations"] = value
-    for name in ("refsafe", "diagexact"):
-        if t.has(name):
-            value = t.raw(name)
-            if not isinstance(value, bool):
-                raise SceneError(f"'{t.key(name)}' must be true or false, got {_type_name(value)}")
-            out[name] = value
-    for name, size in (("solref", 2), ("solimp", 5)):
-        if t.has(name):
-            value = t.raw(name)
-            if not isinstance(value, list) or len(value) != size:
-                raise SceneError(f"'{t.key(name)}' must be an array of {size} numbers")
-            out[name] = tuple(_number(v, f"{t.key(name)}[{i}]") for i, v in enumerate(value))
-    t.close()
-    return out
+def _check_steps(engine_tables: dict[str, dict[str, Any]], horizon: float) -> None:
+    """A time step in an engine's table (an option ``within_horizon``) is at most the horizon."""
+    for name, table in engine_tables.items():
+        for o in options(ENGINES[name].settings):
+            step = table.get(o.name)
+            if o.within_horizon and step is not None and step > horizon:
+                raise SceneError(f"'{name}.{o.name}' = {step:g} s is longer than 'simulation.horizon' = {horizon:g} s")
 
 
 def _check_sweep(table: Any, source: str) -> None:
@@ -661,19 +622,6 @@ def _check_sweep(table: Any, source: str) -> None:
         spec_from_table(table, source="")
     except SweepSpecError as exc:
         raise SceneError(str(exc)) from None
-
-
-def _parse_reduced(t: _Table) -> dict[str, Any]:
-    """Optional [reduced] table: the reference method, rtol, step (s)."""
-    out: dict[str, Any] = {}
-    if t.has("method"):
-        out["method"] = t.choice("method", REDUCED_METHODS)
-    if t.has("rtol"):
-        out["rtol"] = t.number("rtol", positive=True)
-    if t.has("step"):
-        out["step"] = t.number("step", positive=True, kind="step")
-    t.close()
-    return out
 
 
 def load_scene(path: str | Path) -> Scene:

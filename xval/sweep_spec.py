@@ -71,6 +71,8 @@ from typing import Any, Iterator, Mapping, NamedTuple, Union
 
 import numpy as np
 
+from .errors import type_name
+
 
 MAX_VARIANTS = 1_000_000
 """The most variants a sweep may have (a grid's product, or ``samples``)."""
@@ -416,12 +418,8 @@ def lookup(data: Mapping[str, Any], key: str) -> Any:
                 raise SweepSpecError(f"unknown key '{key}': '{where}' has {len(node)} entries (indices from 0)")
             node = node[int(part)]
         else:
-            raise SweepSpecError(f"unknown key '{key}': '{where}' is a {_type_name(node)}, not a table or array")
+            raise SweepSpecError(f"unknown key '{key}': '{where}' is {type_name(node)}, not a table or array")
     return node
-
-
-def _type_name(value: Any) -> str:
-    return {bool: "boolean", str: "string", list: "array", dict: "table"}.get(type(value), type(value).__name__)
 
 
 def _toml_value(value: float) -> int | float:

@@ -14,6 +14,7 @@ Engine flags default to None: only the flags given override the scene's [reduced
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 import contextlib
 import logging
 import sys
@@ -23,14 +24,13 @@ from typing import TYPE_CHECKING
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
 from xval.errors import NumericalFailure
-from xval.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
-                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS,
-                           REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS,
-                           SceneError)
+from xval.registry import ENGINES
+from xval.scene import SceneError
+from xval.settings import add_flags, given_flags
 from xval.scenefile import catalogue, default_scene_path, load_scene, resolve_scene
 
-from .output import (EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated, check_file,
-                     check_folder, signals_as_exceptions, write_file)
+from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
+                     check_file, check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
 from xval.sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
@@ -41,6 +41,7 @@ if TYPE_CHECKING:
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_REPEATS = 1000
 MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
+REFERENCE_PREFIX = "reference-"  # the comparisons' flags of the reduced reference: --reference-method, ...
 
 
 class UsageError(ValueError):
@@ -90,21 +91,12 @@ def _int_in(low: int, high: int):
     return parse
 
 
-def _given(args: argparse.Namespace, names: dict[str, str]) -> dict:
-    """The flags the user gave (not None), keyed by setting name; lists become tuples."""
-    out = {}
-    for flag, name in names.items():
-        value = getattr(args, flag, None)
-        if value is not None:
-            out[name] = tuple(value) if isinstance(value, list) else value
-    return out
+def _settings(engine: str, args: argparse.Namespace, scene, prefix: str = ""):
+    """An engine's settings: the flags given (``--PREFIXNAME``) over the scene's table over the
+    defaults."""
+    from .settings import engine_settings
 
-
-def _reduced_settings(args: argparse.Namespace, scene, flags: dict[str, str]) -> ReducedSettings:
-    """Reduced settings: the flags given over the scene's [reduced] table over the defaults."""
-    from .settings import reduced_settings
-
-    return reduced_settings(scene, **_given(args, flags))
+    return engine_settings(engine, scene, **given_flags(args, ENGINES[engine].settings, prefix=prefix))
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -123,18 +115,14 @@ def cmd_reduced(args: argparse.Namespace) -> int:
     from xval.reduced import simulate
 
     scene = _scene(args.scene)
-    settings = _reduced_settings(args, scene, {"method": "method", "rtol": "rtol", "step": "step"})
+    settings = _settings("reduced", args, scene)
     result = simulate(scene, settings)
     print("\n".join(reduced_lines(scene, result)))
     return EXIT_OK
 
 
 def _mujoco_settings(args: argparse.Namespace, scene):
-    """MuJoCo settings: command-line flags over the scene's [mujoco] table over the defaults."""
-    from .settings import mujoco_settings
-
-    names = ("integrator", "timestep", "solref", "solimp", "iterations", "tolerance", "refsafe", "diagexact")
-    return mujoco_settings(scene, **_given(args, {n: n for n in names}))
+    return _settings("mujoco", args, scene)
 
 
 def cmd_mujoco(args: argparse.Namespace) -> int:
@@ -169,42 +157,13 @@ def cmd_draw(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _rtol_defaults() -> str:
-    """The reduced methods' default tolerances, e.g. ``1e-12 (dop853, radau, scipy-dop853), 1e-05 (rkn4)``."""
-    by_value: dict[float, list[str]] = {}
-    for method in REDUCED_METHODS:
-        by_value.setdefault(REDUCED_DEFAULT_RTOL[method], []).append(method)
-    return ", ".join(f"{value:g} ({', '.join(sorted(methods))})" for value, methods in by_value.items())
-
-
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
-    # Every default printed here is the settings' own (xval.scene holds the values).
-    g = p.add_argument_group("MuJoCo settings")
-    g.add_argument("--integrator", choices=MUJOCO_INTEGRATORS, default=None,
-                   help=f"MuJoCo integrator (default: the scene's [mujoco] table, else {MUJOCO_DEFAULT_INTEGRATOR})")
-    g.add_argument("--timestep", type=_positive, default=None,
-                   help="MuJoCo timestep in s (default: the scene's [mujoco] table, else chosen from the scene: "
-                        "load edges on the step grid, confirmed by step halving)")
-    g.add_argument("--solref", type=_finite, nargs=2, metavar=("TIMECONST", "DAMPRATIO"), default=None,
-                   help="loop constraint solref (default: 2*timestep, 1)")
-    g.add_argument("--solimp", type=_finite, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
-                   default=None, help="loop constraint solimp (default "
-                                      f"{' '.join(f'{v:g}' for v in MUJOCO_DEFAULT_SOLIMP)})")
-    g.add_argument("--iterations", type=_int_in(1, MUJOCO_MAX_ITERATIONS), default=None,
-                   help=f"constraint solver iterations, 1 to {MUJOCO_MAX_ITERATIONS} "
-                        f"(default {MUJOCO_DEFAULT_ITERATIONS})")
-    g.add_argument("--tolerance", type=_positive, default=None,
-                   help=f"constraint solver tolerance (default {MUJOCO_DEFAULT_TOLERANCE:g})")
-    g.add_argument("--no-refsafe", dest="refsafe", action="store_const", const=False, default=None,
-                   help="disable refsafe (allows solref time constants below 2*timestep)")
-    g.add_argument("--diagexact", action="store_const", const=True, default=None,
-                   help="enable MuJoCo's exact constraint-diagonal flag")
+    add_flags(p, ENGINES["mujoco"].settings, title="MuJoCo settings", table="mujoco")
 
 
 def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
     """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
-    return _reduced_settings(args, scene, {"reference": "method", "reference_rtol": "rtol",
-                                           "reference_step": "step"})
+    return _settings("reduced", args, scene, prefix=REFERENCE_PREFIX)
 
 
 def _tolerances(scene, args: argparse.Namespace):
@@ -342,16 +301,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("reduced reference")
-    g.add_argument("--reference", choices=REDUCED_METHODS, default=None,
-                   help="reduced solver used as the reference (default: the scene's [reduced] table, else "
-                        f"{REDUCED_DEFAULT_METHOD})")
-    g.add_argument("--reference-rtol", type=_positive, default=None,
-                   help="accuracy requested of the reference (default: the scene's [reduced] table, else "
-                        f"{_rtol_defaults()})")
-    g.add_argument("--reference-step", type=_positive, default=None,
-                   help="step of an rkn4 reference in s (default: the scene's [reduced] table, else "
-                        f"{REDUCED_DEFAULT_STEP:g})")
+    add_flags(p, ENGINES["reduced"].settings, title="reduced reference", prefix=REFERENCE_PREFIX, table="reduced")
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
@@ -370,10 +320,22 @@ def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_out_folder(p: argparse.ArgumentParser, default: str) -> None:
-    """-o/--out of a command that writes a folder of files (each command its own default)."""
-    p.add_argument("-o", "--out", default=default,
-                   help=f"output folder, created if absent in an existing folder (default ./{default}: each "
-                        "command its own, as a folder holds one run)")
+    """-o/--out of a command that writes a folder of files; ``default`` is the folder's name in
+    ``xval-out/`` when none is given, with ``{scene}`` the scene's name (:func:`_out_folder`)."""
+    shown = f"{DEFAULT_ROOT}/{default.format(scene='SCENE')}"
+    p.add_argument("-o", "--out", default=None,
+                   help=f"output folder, created if absent in an existing folder (default {shown}, SCENE the "
+                        "scene's file name without .toml: a folder holds one run)")
+    p.set_defaults(out_default=default)
+
+
+def _out_folder(args: argparse.Namespace, scene: str | None = None) -> str:
+    """The output folder: ``--out`` if given, else ``xval-out/`` and the command's default name
+    for the scene argument ``scene`` (a file's or catalogue name's stem; the seed without one)."""
+    if args.out is not None:
+        return args.out
+    stem = Path(str(resolve_scene(scene) if scene else default_scene_path())).stem
+    return str(DEFAULT_ROOT / args.out_default.format(scene=stem))
 
 
 def _add_scene_argument(p: argparse.ArgumentParser) -> None:
@@ -410,14 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Solve the scene's Eksergian equation; print the peak speed of the "
                                    "input joint (rad/s or m/s), its time and the energy residual.")
     _add_scene_argument(p)
-    p.add_argument("--method", choices=REDUCED_METHODS, default=None,
-                   help="adaptive DOP853 or fixed-step RKN4 (both compiled), implicit Radau, or scipy's "
-                        "DOP853 on the same equation as a cross-check (default: the scene's [reduced] "
-                        f"table, else {REDUCED_DEFAULT_METHOD})")
-    p.add_argument("--rtol", type=_positive, default=None,
-                   help=f"accuracy requested (default: the scene's, else {_rtol_defaults()})")
-    p.add_argument("--step", type=_positive, default=None,
-                   help=f"step of RKN4 in s (default: the scene's, else {REDUCED_DEFAULT_STEP:g})")
+    add_flags(p, ENGINES["reduced"].settings, title="reduced solver settings", table="reduced")
     p.set_defaults(func=cmd_reduced)
 
     p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
@@ -453,7 +408,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "the mechanism at the peak speed and at the largest disagreement, "
                                    "both engines overlaid) into --out.")
     _add_scene_argument(p)
-    _add_out_folder(p, "xval-out")
+    _add_out_folder(p, "{scene}")
     p.add_argument("--animate", action="store_true",
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
     p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
@@ -479,7 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write cost.png (work-precision diagram), cost.csv and cost.json; "
                                    "recommend the cheapest configuration of each engine for the target.")
     _add_scene_argument(p)
-    _add_out_folder(p, "xval-cost")
+    _add_out_folder(p, "{scene}-cost")
     p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
     p.add_argument("--target", type=_positive, default=None,
                    help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
@@ -495,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "through both engines; print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
-    _add_out_folder(p, "xval-stress")
+    _add_out_folder(p, "stress")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.set_defaults(func=cmd_stress)
 
@@ -526,7 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
                    help="seed of the Monte Carlo sample (default 0)")
-    _add_out_folder(p, "xval-sweep")
+    _add_out_folder(p, "{scene}-sweep")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores); not with --scheduler")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
@@ -591,6 +546,8 @@ def main(argv: list[str] | None = None) -> int:
             except SystemExit as exc:  # --help, or a usage error already printed
                 return exc.code if isinstance(exc.code, int) else EXIT_OK
             level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
+            if hasattr(args, "out_default"):
+                args.out = _out_folder(args, getattr(args, "scene", None))
             with _progress_shown(level):
                 return args.func(args)
     except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on

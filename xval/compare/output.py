@@ -162,6 +162,8 @@ def _check_folder(out: Path, names: Iterable[str], flag: str) -> Path:
             _refuse_non_regular(out / name, flag)
     else:
         parent = out.parent
+        if parent == DEFAULT_ROOT and not parent.exists() and not parent.is_symlink():
+            parent = Path(".")  # the default folder's root is created with the outputs (write_folder)
         # A path below a file ("file.txt/out") fails here: its parent is not a folder.
         _check_parent(parent, flag, shown)
     return out
@@ -447,13 +449,19 @@ def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, wor
                 os.close(read_end)
 
 
+# The commands' output folders are xval-out/<scene>/ by default: this folder, in the working
+# folder, is the one missing parent that a folder check accepts and a write creates.
+DEFAULT_ROOT = Path("xval-out")
+
+
 def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
                  flag: str = "--out", workers: int = 1, one_run: bool = False) -> list[Path]:
     """Write a set of files into the folder ``path``, all or nothing.
 
     Parameters
     ----------
-    path : the output folder; it is created if absent (its parent must exist).
+    path : the output folder; it is created if absent (its parent must exist, or be
+        :data:`DEFAULT_ROOT`, which is then created too).
     files : file name -> function that writes that file at the path it is given (a staging
         path, not the final one). Files are committed in this order.
     workers : how many processes write the files (:func:`_run_writers`); 1, here only.
@@ -482,6 +490,8 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
     existed = out.is_dir()
     staging = None
     try:
+        if out.parent == DEFAULT_ROOT:
+            out.parent.mkdir(exist_ok=True)  # the commands' default root; left, empty, if the write fails
         with _signals_blocked():  # a signal now comes once staging is set, and so is cleaned up
             staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out if existed else out.parent))
         content = staging / "set"

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from xval.scene import MUJOCO_INTEGRATORS
+from xval.reference_models.settings import INTEGRATORS as MUJOCO_INTEGRATORS
 
 from .text import STILL_RISING
 

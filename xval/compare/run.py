@@ -66,14 +66,8 @@ def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -
             or not any(f.startswith(accuracy) for f in verdict.failures)):
         return verdict
     h = run.settings["timestep"]
-    source = ("the scene's [mujoco] timestep" if scene.mujoco.get("timestep") == h
+    source = ("the scene's [mujoco] timestep" if scene.engine_table("mujoco").get("timestep") == h
               else "the settings (--timestep)")
     note = (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
             f"without it the step is chosen automatically for them")
     return replace(verdict, failures=(*verdict.failures, note))
-
-
-def override_tolerances(base: Tolerances, **overrides: float | None) -> Tolerances:
-    """``base`` with any non-None override applied (see :func:`xval.compare.settings.gate_tolerances`,
-    which the commands use)."""
-    return replace(base, **{k: v for k, v in overrides.items() if v is not None})

@@ -9,9 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
+from xval.errors import type_name
 from xval.scene import SceneError
 from xval.scenefile import _parse_toml, _read_text, scene_from_dict
-from xval.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, _type_name, apply, lookup,
+from xval.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, apply, lookup,
                                      spec_from_table)
 
 
@@ -62,8 +63,8 @@ def nominal_values(data: Mapping[str, Any], spec: SweepSpec, source: str = "<mem
             nominal[v.key] = v.centre
         elif isinstance(current, bool) or not isinstance(current, (int, float)):
             shown = f" \"{current}\"" if isinstance(current, str) else ""
-            raise SweepSpecError(f"{prefix}sweep key '{v.key}' is not a number: the scene has a "
-                                 f"{_type_name(current)}{shown} there")
+            raise SweepSpecError(f"{prefix}sweep key '{v.key}' is not a number: the scene has "
+                                 f"{type_name(current)}{shown} there")
         else:
             nominal[v.key] = float(current)
     return nominal

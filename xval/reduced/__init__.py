@@ -13,7 +13,7 @@ _HOMES = {
     "Coefficients": "dynamics", "MechanismModel": "dynamics",
     "RKN4": "kernels.fixed_step", "RKN4_AS_PRINTED": "kernels.fixed_step", "RKNTableau": "kernels.fixed_step",
     "Solution": "integrators", "solve_adaptive": "integrators",
-    "ReducedSettings": "engine", "simulate": "engine",
+    "ReducedSettings": "settings", "Settings": "settings", "simulate": "engine",
 }
 
 __all__ = sorted(_HOMES)

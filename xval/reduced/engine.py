@@ -5,39 +5,22 @@ from __future__ import annotations
 import logging
 import math
 import time
-import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from .dynamics import MechanismModel
 from .energy import energy_audit
-from xval.errors import FailureReason, IgnoredSettingWarning, NumericalFailure
+from xval.errors import FailureReason, NumericalFailure
 from .integrators import solve_adaptive
 from .kernels.fixed_step import RKN4
 from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
+from .settings import ReducedSettings
 from xval.results import EngineResult
-from xval.scene import REDUCED_DEFAULT_METHOD, REDUCED_DEFAULT_RTOL, REDUCED_DEFAULT_STEP, REDUCED_METHODS, Scene
+from xval.scene import Scene
 from xval.trajectory import Trajectory
 
 _log = logging.getLogger("xval.reduced")  # a run's cost, at DEBUG (`xval --verbose`)
-
-METHODS = REDUCED_METHODS  # listed once, in xval.scene
-ADAPTIVE = ("dop853", "scipy-dop853", "radau")
-SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by scipy's solve_ivp
-
-# Default accuracy requests. The adaptive methods are the reference: 1e-12 (scipy's floor is
-# 100 ε ≈ 2.2e-14). RKN4's error is estimated by step doubling and judged against
-# rtol × the run's largest |q̇| (and |q|, each at least 1). RKN4's default, 1e-5, is a tenth
-# of the tightest shipped comparison tolerance (peak_omega_rtol 1e-4), so an RKN4 reference
-# that passes cannot use up a gate. Its default step is the largest halving of 1 ms that
-# meets it on the seed scene: the estimate there is 2.4e-5 at 1 ms (failing) and 5.7e-7 at
-# 0.5 ms (the true largest errors: 8.6e-6 and 7.2e-8 of the peak speed).
-# The values live in xval.scene (the command line's help prints them from there).
-DEFAULT_RTOL = REDUCED_DEFAULT_RTOL
-DEFAULT_STEP = REDUCED_DEFAULT_STEP  # s, RKN4
-DEFAULT_SAMPLE_INTERVAL = 1e-3  # s, largest spacing of the adaptive methods' samples
-RTOL_RANGE = (100 * np.finfo(float).eps, 0.1)  # scipy raises rtol below 100 ε to it, with a warning
 
 # Work refused up front. Measured: a sample costs ~100 µs (RKN4 on the seed: integration,
 # joint angles, energy audit; DOP853 on long_conservative: 142 000 samples in 14 s) and
@@ -60,71 +43,7 @@ ENERGY_FACTOR = {"dop853": 1000.0, "scipy-dop853": 1000.0, "radau": 1000.0, "rkn
 ENERGY_FLOOR = 1e-8
 
 
-@dataclass(frozen=True)
-class ReducedSettings:
-    """How to integrate Eksergian's equation.
-
-    A field left at None takes its method's default; a field given that the method does not
-    use raises an :class:`IgnoredSettingWarning` (``given`` lists the fields that were set).
-
-    method : "dop853" (adaptive reference, compiled), "rkn4" (the seed's fixed-step method,
-        corrected, compiled), "radau" (implicit, for stiff dampers; scipy) or "scipy-dop853"
-        (scipy's DOP853 on the same compiled equation: an independent check of the compiled
-        integrator).
-    rtol : the accuracy requested. Adaptive methods: their relative (and absolute) tolerance
-        (default 1e-12). RKN4: the largest step-doubling error estimate allowed, relative to
-        the run's largest |q| (rad) and |q̇| (rad/s), each at least 1 (default 1e-5).
-        Within [100 ε, 0.1].
-    step : RKN4's largest step (s); default 5e-4.
-    sample_interval : largest spacing (s) of the adaptive methods' samples; default 1e-3.
-    check_error : raise when the run's error estimate or energy balance is beyond its
-        bound (True); False records them only (for cost studies of coarse settings).
-    """
-
-    method: str = REDUCED_DEFAULT_METHOD
-    rtol: float | None = None
-    step: float | None = None
-    sample_interval: float | None = None
-    check_error: bool = True
-    given: frozenset = field(default=frozenset(), init=False, compare=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"ReducedSettings.method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if not isinstance(self.check_error, bool):
-            raise ValueError(f"ReducedSettings.check_error must be True or False, got {self.check_error!r}")
-        given = frozenset(n for n in ("rtol", "step", "sample_interval") if getattr(self, n) is not None)
-        for name in given:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-                raise ValueError(f"ReducedSettings.{name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"ReducedSettings.{name} must be positive and finite, got {value!r}")
-        if "rtol" in given and not RTOL_RANGE[0] <= self.rtol <= RTOL_RANGE[1]:
-            raise ValueError(f"ReducedSettings.rtol must be within [{RTOL_RANGE[0]:.3g}, {RTOL_RANGE[1]:g}] "
-                             f"(below 100 machine epsilons no method can honour it), got {self.rtol!r}")
-        ignored = [n for n in sorted(given)
-                   if (n == "step" and self.method in ADAPTIVE) or (n == "sample_interval" and self.method == "rkn4")]
-        if ignored:
-            warnings.warn(f"{', '.join(ignored)} has no effect with method {self.method!r}"
-                          + (" (RKN4 samples every step)" if self.method == "rkn4" else
-                             " (an adaptive method chooses its own steps; use rtol)"),
-                          IgnoredSettingWarning, stacklevel=3)
-        object.__setattr__(self, "given", given)
-        object.__setattr__(self, "rtol", float(self.rtol) if "rtol" in given else DEFAULT_RTOL[self.method])
-        if self.method == "rkn4":
-            object.__setattr__(self, "step", float(self.step) if "step" in given else DEFAULT_STEP)
-            object.__setattr__(self, "sample_interval", None)
-        else:
-            object.__setattr__(self, "step", None)
-            object.__setattr__(self, "sample_interval", float(self.sample_interval) if "sample_interval" in given
-                               else DEFAULT_SAMPLE_INTERVAL)
-
-    def as_dict(self) -> dict:
-        """The resolved settings (what the run used), for reports."""
-        return {"method": self.method, "rtol": self.rtol, "step": self.step,
-                "sample_interval": self.sample_interval, "check_error": self.check_error}
-
+SCIPY_NAMES = {"scipy-dop853": "DOP853", "radau": "Radau"}  # the methods run by scipy's solve_ivp
 
 # Caps on the adaptive step (fractions of a chart's time span) for a chart that failed at a
 # singular position. Measured: they get a fast triple rocker through (a regression test); on

@@ -1,15 +1,37 @@
-"""The MuJoCo reference model of a scene: its linkage's spanning tree closed by ``connect`` equalities."""
+"""The MuJoCo engine: a scene's linkage as MuJoCo's spanning tree closed by ``connect``
+equalities, dampers and springs as tendons, loads as actuators.
 
-from .build import (BASE_BODY, HOME_KEY, INPUT_MOTOR, ConstraintSettings, ModelHandles, assembled_angles, build_spec,
-                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, joint_positions, joint_rates,
-                    loop_angles, loop_rates, site_name)
-from .run import (INTEGRATORS, MAX_ITERATIONS, TIMESTEP_CEILING, TIMESTEP_FLOOR, MujocoSettings,
-                  OffGridEdgeWarning, build_model, check_initial_state, control_sequence, mjcf_text,
-                  grid_timestep, handles_from_mjcf, point_force_callback, simulate_mujoco)
+The engine's interface (:mod:`xval.registry`): ``Settings`` (:class:`MujocoSettings`, its
+``[mujoco]`` table and flags) and ``simulate(scene, settings) -> EngineResult``. Names load from
+their submodule on first use (PEP 562): reading the settings does not import MuJoCo.
+"""
 
-__all__ = ["BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "INTEGRATORS", "MAX_ITERATIONS",
-           "ModelHandles", "MujocoSettings", "OffGridEdgeWarning", "TIMESTEP_CEILING", "TIMESTEP_FLOOR",
-           "assembled_angles", "build_model", "build_spec", "check_initial_state", "compile_model",
-           "control_sequence", "coordinate_map", "mjcf_text", "grid_timestep", "handles_from_mjcf",
-           "initial_qpos_qvel", "joint_order", "joint_positions", "joint_rates", "loop_angles", "loop_rates",
-           "point_force_callback", "simulate_mujoco", "site_name"]
+from __future__ import annotations
+
+import importlib
+
+_HOMES = {
+    **dict.fromkeys(("BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "ModelHandles", "assembled_angles",
+                     "build_spec", "compile_model", "coordinate_map", "initial_qpos_qvel", "joint_order",
+                     "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), "build"),
+    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "OffGridEdgeWarning", "build_model", "check_initial_state",
+                     "control_sequence", "mjcf_text", "grid_timestep", "handles_from_mjcf", "point_force_callback",
+                     "simulate_mujoco"), "run"),
+    **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), "settings"),
+}
+_ALIASES = {"simulate": ("run", "simulate_mujoco")}  # the engine interface's name
+
+__all__ = sorted([*_HOMES, *_ALIASES])
+
+
+def __getattr__(name: str):
+    home, attribute = _ALIASES.get(name, (_HOMES.get(name), name))
+    if home is None:
+        raise AttributeError(f"module 'xval.reference_models' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), attribute)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

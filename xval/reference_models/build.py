@@ -52,7 +52,9 @@ import numpy as np
 
 from xval import kinematics as loops
 from xval.mechanism import GROUND, Linkage, PrismaticJoint
-from xval.scene import MUJOCO_INTEGRATORS, Scene
+from xval.scene import Scene
+
+from .settings import INTEGRATORS as MUJOCO_INTEGRATORS
 
 # MuJoCo's enum for each integrator name (the names are listed once, in xval.scene).
 INTEGRATOR_ENUM = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in MUJOCO_INTEGRATORS}

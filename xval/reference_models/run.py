@@ -23,8 +23,7 @@ import logging
 import math
 import time
 import warnings
-from dataclasses import asdict, dataclass, replace
-from numbers import Integral, Real
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -36,19 +35,16 @@ from xval.results import EnergyAudit, EngineResult
 from xval import kinematics as loops
 from xval.loads import TabulatedForce
 from xval.mechanism import PrismaticJoint
-from xval.scene import (MUJOCO_DEFAULT_INTEGRATOR, MUJOCO_DEFAULT_ITERATIONS, MUJOCO_DEFAULT_SOLIMP,
-                           MUJOCO_DEFAULT_TOLERANCE, MUJOCO_INTEGRATORS, MUJOCO_MAX_ITERATIONS, Scene)
+from xval.scene import Scene
 from xval.trajectory import Trajectory
 
+from .settings import MujocoSettings
 from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
-                    compile_model, coordinate_map, initial_qpos_qvel, joint_order, mjcf_from_spec, set_timestep,
+                    compile_model, coordinate_map, initial_qpos_qvel, mjcf_from_spec, set_timestep,
                     sensor_name, site_name)
-
-INTEGRATORS = MUJOCO_INTEGRATORS  # listed once, in xval.scene
 
 _log = logging.getLogger("xval.mujoco")  # progress of the automatic step search
 
-MAX_ITERATIONS = MUJOCO_MAX_ITERATIONS  # xval.scene says why
 # Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
 # of the horizon, and not below TIMESTEP_FLOOR) that puts every load edge on the step grid; a
 # run at h and one at h/2 must differ by at most HALVING_FRACTION of the tolerances. The first
@@ -98,112 +94,6 @@ def _warnings_kept():
         yield
     finally:
         mujoco.set_mju_user_warning(previous)
-
-
-def _finite_number(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return float(value)
-
-
-@dataclass(frozen=True)
-class MujocoSettings:
-    """Everything that changes MuJoCo's answer; recorded with every result.
-
-    The defaults are chosen for accuracy (README, "MuJoCo defaults"): RK4; the timestep
-    chosen from the scene (``timestep=None``: load edges on the step grid, confirmed by step
-    halving, see :func:`simulate_mujoco`); a hard loop constraint, solimp (0.9999, 0.9999,
-    0.001, 0.5, 2) and solref with time constant 2·timestep (the smallest that ``refsafe``
-    allows) and critical damping; Newton solver tolerance 1e-12.
-
-    Parameters
-    ----------
-    integrator : one of ``INTEGRATORS``.
-    timestep : s, finite and positive; None chooses it from the scene.
-    solref : (time constant s, damping ratio), both finite and positive; None is
-        (2·timestep, 1). MuJoCo's direct form (negative stiffness and damping) is not supported.
-    solimp : (dmin, dmax, width, midpoint, power) with mjMINIMP ≤ dmin ≤ dmax ≤ mjMAXIMP
-        (1e-4, 0.9999: MuJoCo clamps the impedance to that range), width > 0 (m),
-        0 < midpoint < 1, power ≥ 1 (MuJoCo, "Solver parameters").
-    iterations : int in [1, MAX_ITERATIONS].
-    tolerance : solver tolerance, finite ≥ 0.
-    max_constraint_violation : m; a larger loop-closure gap fails the run (constraint drift).
-    max_energy_residual : largest |energy residual| / energy scale a run may have, else it
-        fails (energy imbalance). Default 3e-3: about 12x the worst run measured over every
-        scene in scenes/ and scenes/hard/ with its own [mujoco] settings (2.55e-4,
-        long_conservative at 0.5 ms over 45 s; next fast_crank 3.9e-5 at 2e-5 s; the seed at
-        its automatic 0.5 ms: 3.2e-5), so a balance 5 % off fails.
-    """
-
-    integrator: str = MUJOCO_DEFAULT_INTEGRATOR  # the defaults' values: xval.scene
-    timestep: float | None = None
-    solref: tuple[float, float] | None = None  # None: (2·timestep, 1.0)
-    solimp: tuple[float, float, float, float, float] = MUJOCO_DEFAULT_SOLIMP
-    iterations: int = MUJOCO_DEFAULT_ITERATIONS
-    tolerance: float = MUJOCO_DEFAULT_TOLERANCE
-    refsafe: bool = True
-    diagexact: bool = False
-    max_constraint_violation: float = 1e-3  # m; beyond it the run is reported as drifted
-    max_energy_residual: float = 3e-3  # of the energy scale; beyond it the run fails
-
-    def __post_init__(self) -> None:
-        if self.integrator not in INTEGRATORS:
-            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
-        if self.timestep is not None:
-            if _finite_number(self.timestep, "timestep") <= 0.0:
-                raise ValueError(f"timestep must be positive, got {self.timestep!r}")
-        if self.solref is not None:
-            if len(self.solref) != 2:
-                raise ValueError(f"solref must be two numbers (time constant, damping ratio), got {self.solref!r}")
-            for value, name in zip(self.solref, ("time constant", "damping ratio")):
-                if _finite_number(value, f"solref {name}") <= 0.0:
-                    raise ValueError(f"solref {name} must be positive (the direct negative form is not "
-                                     f"supported), got {value!r}")
-        if len(self.solimp) != 5:
-            raise ValueError(f"solimp must be five numbers (dmin, dmax, width, midpoint, power), got {self.solimp!r}")
-        dmin, dmax, width, midpoint, power = (_finite_number(v, f"solimp {n}") for v, n in
-                                              zip(self.solimp, ("dmin", "dmax", "width", "midpoint", "power")))
-        if not mujoco.mjMINIMP <= dmin <= dmax <= mujoco.mjMAXIMP:
-            raise ValueError(f"solimp dmin, dmax must satisfy {mujoco.mjMINIMP:g} ≤ dmin ≤ dmax ≤ "
-                             f"{mujoco.mjMAXIMP:g}, got {dmin!r}, {dmax!r}")
-        if not width > 0.0:
-            raise ValueError(f"solimp width must be positive, got {width!r}")
-        if not 0.0 < midpoint < 1.0:
-            raise ValueError(f"solimp midpoint must be in (0, 1), got {midpoint!r}")
-        if not power >= 1.0:
-            raise ValueError(f"solimp power must be at least 1, got {power!r}")
-        if (isinstance(self.iterations, bool) or not isinstance(self.iterations, Integral)
-                or not 1 <= self.iterations <= MAX_ITERATIONS):
-            raise ValueError(f"iterations must be a whole number in [1, {MAX_ITERATIONS}], got {self.iterations!r}")
-        if _finite_number(self.tolerance, "tolerance") < 0.0:
-            raise ValueError(f"tolerance must be at least 0, got {self.tolerance!r}")
-        for name in ("refsafe", "diagexact"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        for name in ("max_constraint_violation", "max_energy_residual"):
-            if _finite_number(getattr(self, name), name) <= 0.0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
-
-    @property
-    def automatic(self) -> bool:
-        """True when the timestep is chosen from the scene."""
-        return self.timestep is None
-
-    @property
-    def effective_solref(self) -> tuple[float, float] | None:
-        """The loop's solref (s, 1); follows the timestep. None while the timestep is automatic
-        and solref is not given (a run records the one it used in ``result.settings``)."""
-        if self.solref is not None:
-            return tuple(self.solref)
-        return None if self.timestep is None else (2.0 * self.timestep, 1.0)
-
-    def as_dict(self) -> dict:
-        d = asdict(self)
-        solref = self.effective_solref
-        d["solref"] = None if solref is None else list(solref)
-        d["solimp"] = list(self.solimp)
-        d["mujoco_version"] = mujoco.__version__
-        return d
 
 
 def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> ModelHandles:
@@ -647,7 +537,8 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
     key = sensor_name(INPUT_MOTOR, "force")
     motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
     recorded = settings.as_dict()
-    recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False)
+    recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False,
+                    mujoco_version=mujoco.__version__)
     return EngineResult(
         engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
         wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),

@@ -1,0 +1,27 @@
+"""docs/scenes.md's tables of the engines' settings and of [tolerances] are the ones written from
+the definitions (xval.format_reference): a setting added, renamed or re-documented without
+rewriting them fails here. (Planted: editing one cell of the file's generated part, and changing
+an option's help in xval/reference_models/settings.py, each failed this test.)"""
+
+from __future__ import annotations
+
+from xval.format_reference import BEGIN, END, main, tables
+from xval.registry import ENGINES
+from xval.settings import options
+
+from helpers import ROOT
+
+SCENES_DOC = ROOT / "docs" / "scenes.md"
+
+
+def test_the_scene_format_reference_is_current(capsys):
+    assert main([str(SCENES_DOC), "--check"]) == 0, capsys.readouterr().out
+
+
+def test_every_table_option_has_its_row():
+    text = SCENES_DOC.read_text(encoding="utf-8")
+    generated = text[text.index(BEGIN):text.index(END)]
+    assert generated.strip() == f"{BEGIN}\n{tables()}".strip()
+    for name, engine in ENGINES.items():
+        for o in options(engine.settings):
+            assert (f"| `{name}.{o.name}` |" in generated) == o.table, o.name
