@@ -350,13 +350,13 @@ def part2(path: Path, n: int, subset: int) -> None:
         results.append(simulate_mujoco(s, settings))
         t_ours.append(time.perf_counter() - t0)
     ours = sum(t_ours)
-    inner_rollouts = sum(r.diagnostics["automatic_timestep_cost"]["wall_s"] if "automatic_timestep_cost"
-                         in r.diagnostics else r.wall_s for r in results)
+    inner_rollouts = sum(r.details.search_cost.wall_s if r.details.search_cost is not None else r.wall_s
+                         for r in results)
     final_rollout = sum(r.wall_s for r in results)
     steps_run = []  # per variant: every timestep its automatic choice ran
     for r in results:
-        check_list = r.settings.get("timestep_check") or []
-        steps_run.append(sorted({c["timestep"] for c in check_list} | {r.settings["timestep"]}, reverse=True))
+        check_list = r.details.timestep_checks
+        steps_run.append(sorted({c["timestep"] for c in check_list} | {r.settings.timestep}, reverse=True))
     # (a') ours, 2 processes
     size = chunk_size(m, 2)
     t0 = time.perf_counter()
@@ -378,7 +378,7 @@ def part2(path: Path, n: int, subset: int) -> None:
                 handles = _at_timestep(first, s, replace(settings, timestep=h))
             t_build += time.perf_counter() - t0
             by_step.setdefault(h, []).append((s, handles.model))
-    final_h = {r.settings["timestep"] for r in results}
+    final_h = {r.settings.timestep for r in results}
 
     def batch(h, entries):
         models = [mm for _, mm in entries]

@@ -249,13 +249,13 @@ def test_eksergians_equation_on_our_loops_reaches_the_published_solution(andrews
 def test_the_reduced_engine_meets_the_published_solution(andrews):
     """The issue's requirement: reduced.simulate (DOP853) at t = 0.03 s against the test set's
     reference, every angle to 1e-9 and every rate to 2e-7 relative, after mapping our absolute
-    frame angles x (result.diagnostics["joints"].x, in the order of the scene's bodies) to the
+    frame angles x (result.joints.x, in the order of the scene's bodies) to the
     published (β, Θ, γ, Φ, δ, Ω, ε). Needs the reduced engine ported to general linkages."""
     import xval.reduced
 
     scene, linkage, system = andrews
     result = xval.reduced.simulate(scene, xval.reduced.ReducedSettings(method="dop853", rtol=1e-13))
-    joints = result.diagnostics["joints"]
+    joints = result.joints
     assert tuple(joints.names) == system.coordinate_names
     assert joints.t[-1] == pytest.approx(HORIZON, abs=1e-15)
     eq, ev = _relative_errors(T_INV @ joints.x[-1], T_INV @ joints.xdot[-1])

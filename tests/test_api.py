@@ -85,7 +85,7 @@ def test_compare_results_and_check_are_the_comparison_and_the_gate(scene):
 def test_results_are_read_only_arrays(scene):
     """A result cannot be changed by accident after the run (its arrays are the run's record)."""
     for result in (xval.simulate(scene), xval.simulate(scene, xval.MujocoSettings(timestep=1e-3))):
-        joints = result.diagnostics["joints"]
+        joints = result.joints
         arrays = (result.trajectory.t, result.trajectory.q, result.trajectory.qdot, result.trajectory.qddot,
                   result.audit.kinetic, result.audit.potential, result.audit.torque_work,
                   result.audit.damper_dissipation, joints.t, joints.x, joints.xdot, joints.mode)

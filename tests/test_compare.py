@@ -90,7 +90,7 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
-    assert report["schema_version"] == 3
+    assert report["schema_version"] == 4
     assert report["scene"]["input_unit"] == "rad" and report["scene"]["mode"] == [1]
     assert (tmp_path / "out" / "mujoco.csv").read_text().startswith("t_s,q_rad,qdot_rad_per_s,")
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)
@@ -104,7 +104,7 @@ def test_check_passes_on_seed_and_fails_below_measured_difference(seed_compariso
     assert "1 passed, 0 failed" in capsys.readouterr().out
     # at MuJoCo's step of that run (an automatic step would be chosen for the tighter gate)
     tight = seed_comparison.diff.peak_omega_rel / 10
-    step = seed_comparison.mujoco.settings["timestep"]
+    step = seed_comparison.mujoco.settings.timestep
     assert main(["check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}", "--timestep", f"{step!r}"]) == 1
     out = capsys.readouterr().out
     assert "peak_omega_rel" in out and "> tolerance" in out and "fixed timestep" in out and "--timestep" in out

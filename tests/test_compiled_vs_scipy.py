@@ -39,7 +39,7 @@ def test_compiled_dop853_gives_scipys_trajectory(path):
         compiled = simulate(scene, ReducedSettings(method="dop853"))
         scipy = simulate(scene, ReducedSettings(method="scipy-dop853"))
     assert compiled.n_steps == scipy.n_steps
-    assert len(compiled.diagnostics["switches"]) == len(scipy.diagnostics["switches"])
+    assert len(compiled.details.switches) == len(scipy.details.switches)
     tr = compiled.trajectory
     q, qdot, _ = scipy.trajectory.interpolate(tr.t)
     scale = max(1.0, float(np.max(np.abs(tr.qdot))))

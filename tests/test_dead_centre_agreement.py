@@ -55,9 +55,9 @@ def test_reduced_run_starts_at_the_assembled_state(data, switches, q_bound):
     """The reduced trajectory's first sample is the scene's configuration, in the same turn."""
     scene = scene_from_dict(data)
     result = simulate(scene)
-    joints = result.diagnostics["joints"]
+    joints = result.joints
     assert joints.coordinate[0] != 0, "precondition: the run starts in a φ chart"
-    assert len(result.diagnostics["switches"]) == switches
+    assert len(result.details.switches) == switches
     # Round-off of the closed-form dyad solution (1e-15 rad); a wrong turn is off by 6.28.
     closed_form = FourBar(scene.four_bar).assemble(scene.q0) + np.array([0.0, 0.0, np.pi])  # rocker frame O3 → B
     np.testing.assert_allclose(joints.x[0], closed_form, rtol=0, atol=1e-12)
@@ -125,7 +125,7 @@ DOP853_PAST_CHART_REACH = {
 
 def test_default_reference_passes_a_fast_dead_centre():
     result = simulate(scene_from_dict(DOP853_PAST_CHART_REACH))
-    assert len(result.diagnostics["switches"]) == 3
+    assert len(result.details.switches) == 3
     # Radau at rtol 1e-12 measures 1.1e-12 on this scene; DOP853 elsewhere ~1e-11.
     assert result.audit.relative_residual < 1e-9
 
@@ -211,7 +211,7 @@ def test_a_good_run_near_dead_centres_passes_the_energy_gate():
     """Residual measured 1.23e-9 of 59.4 J at rtol 1e-12 (3.9e-9 at 1e-11: it no longer falls
     with rtol, the audit's floor); the bound max(1000 rtol, 1e-8) passes it, 8x above."""
     result = simulate(scene_from_dict(NEAR_DEAD_CENTRE_ENERGY))
-    assert result.diagnostics["switches"]
+    assert result.details.switches
     assert result.audit.relative_residual < 5e-9
 
 
@@ -222,5 +222,5 @@ def test_default_reference_passes_every_near_dead_centre_start():
     4.4e-10 of 559 J at rtol 1e-12; bound 5e-9, as the other near-dead-centre scene."""
     result = simulate(scene_from_dict(NEAR_DEAD_CENTRE_SINGULAR))
     assert result.trajectory.t[-1] == 2.0
-    assert result.diagnostics["switches"]
+    assert result.details.switches
     assert result.audit.relative_residual < 5e-9

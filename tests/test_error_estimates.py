@@ -41,8 +41,8 @@ def _ratios(scene, h: float) -> tuple[float, float]:
     q_ref, v_ref, _ = reference.trajectory.interpolate(result.trajectory.t)
     true_q = np.max(np.abs(result.trajectory.q - q_ref))
     true_v = np.max(np.abs(result.trajectory.qdot - v_ref))
-    estimate = result.diagnostics["error_estimate"]
-    return estimate["q_abs_rad"] / true_q, estimate["qdot_abs_rad_per_s"] / true_v
+    estimate = result.details.error_estimate
+    return estimate.q_abs / true_q, estimate.qdot_abs / true_v
 
 
 @pytest.mark.parametrize("h", [1e-3, 5e-4])

@@ -99,7 +99,7 @@ def test_rotating_dependent_angles_keep_the_start_turns():
 
     scene = scene_from_dict(drag_link(100.0, 1.0))
     r = simulate(scene, ReducedSettings())
-    joints, tr = r.diagnostics["joints"], r.trajectory
+    joints, tr = r.joints, r.trajectory
     x0 = MechanismModel(scene).x0
     assert abs(tr.q[0] - scene.q0) <= 1e-12 and np.max(np.abs(joints.x[0] - x0)) <= 1e-12
     h = np.diff(tr.t)

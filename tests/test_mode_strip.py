@@ -231,14 +231,21 @@ def engine_result(engine, joints, trajectory, violation=0.0):
     k = int(np.argmax(np.abs(trajectory.qdot)))
     kinetic = 0.5 * trajectory.qdot ** 2
     audit = EnergyAudit(t, kinetic, np.zeros_like(t), kinetic - kinetic[0], np.zeros_like(t))
-    diagnostics = {"joints": joints, "effects": ["torque"]}
+    from xval.reduced.settings import ReducedSettings
+    from xval.reference_models.settings import MujocoSettings
+    from xval.results import ConstraintViolation
+
+    from xval.reduced.engine import ReducedDetails
+    from xval.reference_models.run import MujocoDetails
+
     if engine == "mujoco":
-        diagnostics.update(times=t, constraint_violation=np.full(len(t), violation),
-                           max_constraint_violation=violation)
-    settings = ({"solver": "DOP853", "method": "dop853", "rtol": 1e-12} if engine == "reduced"
-                else {"integrator": "rk4", "timestep": 1e-3})
-    return EngineResult(engine, trajectory, Peak(float(t[k]), float(trajectory.qdot[k])), audit, 0.1,
-                        len(t), 4 * len(t), settings, diagnostics)
+        settings, violations = MujocoSettings(timestep=1e-3), ConstraintViolation(t, np.full(len(t), violation))
+        details = MujocoDetails(trajectory.q, trajectory.qdot, np.zeros_like(t), {}, (), "test")
+    else:
+        settings, violations = ReducedSettings(), None
+        details = ReducedDetails("DOP853", (), None, 1e-8, 1.0)
+    return EngineResult(engine, trajectory, joints, Peak(float(t[k]), float(trajectory.qdot[k])), audit, 0.1,
+                        len(t), 4 * len(t), settings, ("torque",), violations, details)
 
 
 from xval.results import EnergyAudit  # noqa: E402
@@ -293,7 +300,7 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert lines[0].startswith("scene: slider_crank (<memory>); input slide (m)")
     assert not any("rad" in line for line in lines), lines
     report = report_dict(c)
-    assert report["schema_version"] == 3
+    assert report["schema_version"] == 4
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]

@@ -270,15 +270,15 @@ def test_coordinate_map_inverts_the_joint_map(scene):
 def test_general_scene_runs_gated_and_balanced(name):
     scene = SCENES[name]()
     result = simulate_mujoco(scene, MujocoSettings(timestep=5e-4))
-    assert result.diagnostics["max_constraint_violation"] < 1e-6
+    assert result.constraint_violation.max < 1e-6
     assert result.audit.relative_residual < 3e-4
-    joints = result.diagnostics["joints"]
+    joints = result.joints
     system = loops.compile_linkage(scene.mechanism.linkage)
     assert joints.names == system.coordinate_names
     assert joints.x.shape == joints.xdot.shape == (len(joints.t), system.n)
-    np.testing.assert_array_equal(joints.t, result.diagnostics["times"])
-    np.testing.assert_allclose(joints.x @ system.drive, result.diagnostics["q"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(joints.xdot @ system.drive, result.diagnostics["omega"], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(joints.t, result.constraint_violation.t)
+    np.testing.assert_allclose(joints.x @ system.drive, result.details.grid_q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(joints.xdot @ system.drive, result.details.grid_qdot, rtol=0, atol=1e-12)
     assert np.all(joints.coordinate == -1)
     mode = getattr(joints, dataclasses.fields(joints)[5].name)  # "mode" (contract), "branch" before
     assert mode.shape == (len(joints.t), len(scene.mechanism.linkage.cut_joints))

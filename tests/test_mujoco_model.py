@@ -123,7 +123,7 @@ def test_kinetic_energy_matches_generalized_inertia(seed):
 
 def test_initial_state_satisfies_the_loop(seed):
     result = simulate_mujoco(seed)
-    assert result.diagnostics["constraint_violation"][0] < 1e-14
+    assert result.constraint_violation.gap[0] < 1e-14
 
 
 def test_seed_peak_within_1e_4_of_reduced_reference(seed, seed_reference):
@@ -131,7 +131,7 @@ def test_seed_peak_within_1e_4_of_reduced_reference(seed, seed_reference):
     result = simulate_mujoco(seed)
     rel = abs(result.peak.omega - seed_reference.peak.omega) / seed_reference.peak.omega
     assert rel < 1e-4
-    assert result.diagnostics["max_constraint_violation"] < 1e-4
+    assert result.constraint_violation.max < 1e-4
 
 
 def test_conservative_energy_drift_is_bounded_and_converges():
@@ -185,7 +185,7 @@ def test_off_grid_pulse_edge_warns():
         warnings.simplefilter("always")
         result = simulate_mujoco(scene, MujocoSettings(timestep=1e-3))
     assert any(issubclass(w.category, OffGridEdgeWarning) for w in caught)
-    assert result.diagnostics["edge_warnings"]
+    assert result.details.edge_warnings
 
 
 def test_no_scene_name_collides_with_a_generated_sensor_name():

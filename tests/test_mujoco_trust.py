@@ -95,7 +95,7 @@ def test_energy_imbalance_at_a_too_coarse_explicit_step_fails():
 
 def test_good_runs_are_inside_the_energy_bound_with_margin(seed_auto):
     """The seed at its automatic step: 3.2e-5 measured, ~100x inside the 3e-3 default."""
-    assert seed_auto.diagnostics["energy_relative_residual"] < 1e-4
+    assert seed_auto.audit.relative_residual < 1e-4
 
 
 # --- damper dissipation (planted bug 1 of issue 9) -------------------------------------------
@@ -130,8 +130,8 @@ def test_control_is_the_torque_at_each_steps_midpoint():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OffGridEdgeWarning)
         result = simulate_mujoco(scene, MujocoSettings(timestep=h))
-    t = result.diagnostics["times"][:-1]
-    applied = result.diagnostics["input_load"][:-1]
+    t = result.constraint_violation.t[:-1]
+    applied = result.details.input_load[:-1]
     np.testing.assert_array_equal(applied, scene.load.sample(t + 0.5 * h))
     assert np.any(scene.load.sample(t) != applied)  # the scene does tell the two apart
     assert abs(np.sum(applied) * h - 250.0 * OFF_GRID_END) <= 0.5 * h * 250.0
@@ -150,7 +150,7 @@ def test_model_exported_at_another_step_is_refused_or_run_at_its_own(seed, tmp_p
     with pytest.raises(ValueError, match="solref"):
         simulate_mujoco(seed, MujocoSettings(timestep=1e-4, solref=(0.02, 1.0)), handles=handles)
     result = simulate_mujoco(seed, handles=handles)  # automatic: the model's own step
-    assert result.settings["timestep"] == 1e-4
+    assert result.settings.timestep == 1e-4
     assert result.trajectory.t[-1] == pytest.approx(seed.horizon, abs=0.5e-4)
 
 
@@ -166,7 +166,7 @@ def test_run_that_stops_short_of_the_horizon_fails(seed):
 # --- initial state against MuJoCo's own residuals ---------------------------------------------
 
 def test_seed_initial_residuals_are_round_off(seed_auto):
-    res = seed_auto.diagnostics["initial_residuals"]
+    res = seed_auto.details.initial_residuals
     assert res["position"] < 1e-15 and res["velocity"] == 0.0
 
 
@@ -233,19 +233,19 @@ def test_unbounded_or_meaningless_work_is_refused_up_front(changes, settings, wo
 # --- automatic timestep ----------------------------------------------------------------------
 
 def test_seed_step_is_automatic_on_the_grid_and_confirmed(seed, seed_auto):
-    s = seed_auto.settings
-    assert s["timestep_automatic"] and s["timestep"] <= 1e-3
-    assert s["solref"] == [2 * s["timestep"], 1.0]  # solref follows the step
-    check = s["timestep_check"]
-    assert check[-1]["accepted"] and check[-1]["timestep"] == pytest.approx(2 * s["timestep"])
+    s, h = seed_auto.settings, seed_auto.settings.timestep
+    assert seed_auto.details.timestep_automatic and h <= 1e-3
+    assert s.effective_solref == (2 * h, 1.0)  # solref follows the step
+    check = seed_auto.details.timestep_checks
+    assert check[-1]["accepted"] and check[-1]["timestep"] == pytest.approx(2 * h)
     for edge in seed.load.edges:
-        assert abs(edge / s["timestep"] - round(edge / s["timestep"])) < 1e-9
+        assert abs(edge / h - round(edge / h)) < 1e-9
 
 
 def test_explicit_step_is_used_as_given(seed):
     r = simulate_mujoco(seed, MujocoSettings(timestep=1e-3))
-    assert r.settings["timestep"] == 1e-3 and not r.settings["timestep_automatic"]
-    assert r.settings["solref"] == [2e-3, 1.0]
+    assert r.settings.timestep == 1e-3 and not r.details.timestep_automatic
+    assert r.settings.effective_solref == (2e-3, 1.0)
 
 
 def test_grid_step_puts_an_off_grid_edge_on_the_grid():
@@ -275,7 +275,7 @@ def test_default_settings_pass_the_default_gate_where_1_ms_fails(kind):
         warnings.simplefilter("error", OffGridEdgeWarning)  # the automatic grid has the edge on it
         auto = simulate_mujoco(scene)
     assert gate(compare_trajectories(reference.trajectory, auto.trajectory), scene.tolerances).passed
-    assert auto.settings["timestep_automatic"]
+    assert auto.details.timestep_automatic
 
 
 def test_no_step_meeting_the_tolerance_is_a_clear_failure():

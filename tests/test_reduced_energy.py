@@ -181,7 +181,7 @@ def test_the_restart_after_the_pulse_keeps_the_step_of_before(method):
     data["dampers"][0]["coefficient"] = 63.25
     data["bodies"]["coupler"]["mass"] = 36.125
     result = simulate(scene_from_dict(data), ReducedSettings(method=method, check_error=False))
-    relative = float(np.max(np.abs(result.audit.residual))) / result.diagnostics["energy_scale_J"]
+    relative = float(np.max(np.abs(result.audit.residual))) / result.details.energy_scale
     assert relative <= 5e-11
 
 

@@ -73,7 +73,7 @@ INTERPOLATED_QDOT = 5e-9
 def test_seed_gives_the_numbers_of_the_engine_before_the_port(method):
     before = json.loads(BEFORE.read_text())[method]
     result = simulate(load_scene(SEED_SCENE), ReducedSettings(method=method, check_error=False))
-    tr, joints = result.trajectory, result.diagnostics["joints"]
+    tr, joints = result.trajectory, result.joints
     t_before = np.array(before["t"])
     q, qdot, _ = tr.interpolate(t_before)
     dq, dqdot = np.abs(q - before["q"]), np.abs(qdot - before["qdot"])
@@ -181,8 +181,8 @@ def test_engine_agrees_with_the_closed_form_on_the_seed():
     t = closed.t
     for scene in (shorthand, scene_from_dict(_planar_seed(simulation={"horizon": 0.4}))):
         result = simulate(scene)
-        assert result.diagnostics["joints"].names == ("crank.angle", "coupler.angle", "rocker.angle")
-        assert not result.diagnostics["switches"]
+        assert result.joints.names == ("crank.angle", "coupler.angle", "rocker.angle")
+        assert not result.details.switches
         q, v, _ = result.trajectory.interpolate(t)
         assert np.max(np.abs(q - closed.q)) <= 2e-14
         assert np.max(np.abs(v - closed.qdot)) <= 1e-13
@@ -334,9 +334,9 @@ def test_slider_driven_slider_crank_passes_its_dead_centres_and_balances_energy(
     scene = scene_from_dict(copy.deepcopy(SLIDER_CRANK))
     assert scene.input_unit == "m" and scene.four_bar is None
     result = simulate(scene)
-    switches = result.diagnostics["switches"]
-    assert switches and switches[0]["old"] == "slide.s", switches
-    joints = result.diagnostics["joints"]
+    switches = result.details.switches
+    assert switches and switches[0].old == "slide.s", switches
+    joints = result.joints
     assert joints.coordinate[0] == joints.names.index("slide.s")
     assert result.audit.max_abs_residual / result.audit.scale <= 1e-9
     # both dead centres reached: s = √((l ± r)² − e²), within the samples' spacing

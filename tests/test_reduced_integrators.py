@@ -143,9 +143,9 @@ def test_error_estimate_tracks_the_true_error_on_the_seed():
         q_ref, v_ref, _ = reference.trajectory.interpolate(result.trajectory.t)
         true_q = np.max(np.abs(result.trajectory.q - q_ref))
         true_v = np.max(np.abs(result.trajectory.qdot - v_ref))
-        estimate = result.diagnostics["error_estimate"]
-        assert 1 / 3 < estimate["q_abs_rad"] / true_q < 3, h
-        assert 1 / 3 < estimate["qdot_abs_rad_per_s"] / true_v < 3, h
+        estimate = result.details.error_estimate
+        assert 1 / 3 < estimate.q_abs / true_q < 3, h
+        assert 1 / 3 < estimate.qdot_abs / true_v < 3, h
 
 
 def test_rtol_is_the_accuracy_request_of_rkn4():
@@ -156,9 +156,9 @@ def test_rtol_is_the_accuracy_request_of_rkn4():
         simulate(scene, ReducedSettings(method="rkn4", step=1e-3))
     assert info.value.reason == "inaccurate"
     result = simulate(scene, ReducedSettings(method="rkn4", step=1e-3, rtol=1e-4))
-    estimate = result.diagnostics["error_estimate"]
-    assert estimate["tolerance"] == 1e-4 and 1e-5 < estimate["relative"] < 1e-4
-    assert estimate["qdot_scale_rad_per_s"] == pytest.approx(np.max(np.abs(result.trajectory.qdot)))
+    estimate = result.details.error_estimate
+    assert estimate.tolerance == 1e-4 and 1e-5 < estimate.relative < 1e-4
+    assert estimate.qdot_scale == pytest.approx(np.max(np.abs(result.trajectory.qdot)))
 
 
 def test_default_settings_resolve_per_method():
@@ -253,14 +253,14 @@ def test_energy_imbalance_beyond_the_bound_is_a_failure(monkeypatch):
     is an ENERGY_IMBALANCE, and with check_error off it is returned with the bound recorded."""
     scene = load_scene(SEED_SCENE)
     result = simulate(scene)
-    assert result.diagnostics["energy_bound"] == pytest.approx(1e-8)
+    assert result.details.energy_bound == pytest.approx(1e-8)
     assert result.audit.relative_residual < 1e-10
     monkeypatch.setitem(simulate_module.ENERGY_FACTOR, "dop853", 1.0)
     monkeypatch.setattr(simulate_module, "ENERGY_FLOOR", 0.0)
     with pytest.raises(NumericalFailure) as info:
         simulate(scene)
     assert info.value.reason == "energy-imbalance" and "1.0e-12" in str(info.value)
-    assert simulate(scene, ReducedSettings(check_error=False)).diagnostics["energy_bound"] == 1e-12
+    assert simulate(scene, ReducedSettings(check_error=False)).details.energy_bound == 1e-12
 
 
 @pytest.mark.slow  # ~9 s: 100 000 samples of the fine run and their energy audit
@@ -294,7 +294,7 @@ def test_energy_gate_has_an_absolute_floor(patch):
         else:
             data[key] = {**data[key], **value}
     result = simulate(scene_from_dict(data))
-    assert result.audit.max_abs_residual < 1e-9 * result.diagnostics["energy_scale_J"]
-    assert result.diagnostics["energy_scale_J"] > 1.0
+    assert result.audit.max_abs_residual < 1e-9 * result.details.energy_scale
+    assert result.details.energy_scale > 1.0
 
 

@@ -82,10 +82,10 @@ def test_dead_centre_switches_coordinate_and_stays_continuous(results):
     """Across a switch both charts describe the same instant: the angles agree to round-off
     (1e-12 rad) and the rates to 1e-9 rad/s (K of a well-conditioned chart is O(1-10))."""
     result = results("dead_centre").reduced
-    switches = result.diagnostics["switches"]
-    joints: JointTrajectory = result.diagnostics["joints"]
+    switches = result.details.switches
+    joints: JointTrajectory = result.joints
     assert len(switches) >= 2
-    assert {s["old"] for s in switches} >= {"crank.angle"}  # q hands over before its dead centre
+    assert {s.old for s in switches} >= {"crank.angle"}  # q hands over before its dead centre
     assert set(np.unique(joints.mode)) == {-1, 1}  # the mode changes at the limit, tracked
     same = np.diff(joints.t) == 0.0
     assert same.sum() == len(switches)
@@ -106,7 +106,7 @@ def test_dead_centre_switches_coordinate_and_stays_continuous(results):
 def test_start_at_dead_centre_uses_another_coordinate(results):
     scene = load_scene(BY_NAME["start_dead_centre"].path)
     result = results("start_dead_centre").reduced
-    joints = result.diagnostics["joints"]
+    joints = result.joints
     assert FourBar(scene.four_bar).conditioning(joints.x[0])[0] < 1e-9  # exactly at the limit
     assert joints.coordinate[0] != 0
     assert result.audit.relative_residual < 3e-10  # measured 2.9e-11

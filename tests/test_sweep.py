@@ -318,7 +318,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
                                                            f"coefficient = {row['dampers.0.coefficient']!r}"))
         scene = load_scene(variant)
         result = simulate(scene, reduced_settings(scene))
-        assert result.settings["rtol"] == 1e-10
+        assert result.settings.rtol == 1e-10
         assert row["reduced.peak_omega"] == result.peak.omega
         assert row["reduced.t_peak"] == result.peak.time
         assert row["reduced.energy_residual"] == result.audit.max_abs_residual

@@ -45,9 +45,9 @@ def test_the_generator_draws_this_scene():
 def test_a_step_check_after_a_failed_run_is_confirmed_before_the_gate():
     c = compare_engines(scene_from_dict(FAST_CRANK))
     assert c.gate.passed, c.gate.failures
-    check = c.mujoco.settings["timestep_check"]
+    check = c.mujoco.details.timestep_checks
     assert any(r.get("unconfirmed") for r in check)  # the 0.125 ms check was not taken alone
-    assert c.mujoco.settings["timestep"] < 6.25e-5
+    assert c.mujoco.settings.timestep < 6.25e-5
 
 
 # Six of the 42 draws of seed 2024, all of which pass `xval check` at their defaults (measured
@@ -63,7 +63,7 @@ FAMILY = {d["name"]: d for d in generate(2024, 42)}
 def test_the_defaults_pass_their_own_gate_on_a_generated_scene(name):
     c = compare_engines(scene_from_dict(FAMILY[name]))
     assert c.gate.passed, c.gate.failures
-    assert c.mujoco.settings["timestep_automatic"]
+    assert c.mujoco.details.timestep_automatic
 
 
 @pytest.mark.slow  # ~10 s: eight six-bars, some with a few halvings of MuJoCo's step

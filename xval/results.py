@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from .trajectory import Peak, Trajectory
+from .trajectory import JointTrajectory, Peak, Trajectory
 
 
 @dataclass(frozen=True)
@@ -50,15 +52,54 @@ class EnergyAudit:
 
 
 @dataclass(frozen=True)
-class EngineResult:
-    """One engine's run of one scene."""
+class ConstraintViolation:
+    """How far a run's loops open: at each time ``t`` (s), the largest ``gap`` (m) between the two
+    points of a cut joint, over the cut joints."""
 
-    engine: str  # "reduced" or "mujoco"
+    t: np.ndarray
+    gap: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("t", "gap"):  # read-only results
+            a = np.array(getattr(self, name), dtype=float, copy=True)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def max(self) -> float:
+        """The largest gap over the run (m); NaN if a gap was not finite."""
+        return float(np.max(self.gap)) if np.all(np.isfinite(self.gap)) else math.nan
+
+
+@dataclass(frozen=True)
+class EngineResult:
+    """One engine's run of one scene.
+
+    engine : the engine's name (:data:`xval.registry.ENGINES`: "reduced", "mujoco").
+    trajectory : the input coordinate q (rad, or m for a prismatic input), q̇ and q̈ over time.
+    joints : every joint's own coordinate and rate over time (:class:`JointTrajectory`).
+    peak : the largest |q̇| and its time.
+    audit : the energy balance along the run.
+    wall_s : s, the simulation only (no model building, no post-processing).
+    n_steps, n_evaluations : the integrator's steps and evaluations of the dynamics.
+    settings : the engine's ``Settings`` as the run used them (MuJoCo's automatic timestep
+        resolved to the step it chose).
+    effects : the physical effects simulated (:data:`xval.scene.EFFECTS`).
+    constraint_violation : the loops' opening over time; None for an engine whose loops are
+        closed by construction (the reduced engine solves them by Newton to round-off).
+    details : the engine's own record of the run (``xval.reduced.engine.ReducedDetails``,
+        ``xval.reference_models.run.MujocoDetails``), each with ``as_dict()``.
+    """
+
+    engine: str
     trajectory: Trajectory
+    joints: JointTrajectory
     peak: Peak
     audit: EnergyAudit
-    wall_s: float  # simulation only: no model building, no post-processing
+    wall_s: float
     n_steps: int
     n_evaluations: int
-    settings: dict
-    diagnostics: dict = field(default_factory=dict)
+    settings: Any
+    effects: tuple[str, ...] = ()
+    constraint_violation: ConstraintViolation | None = None
+    details: Any = None

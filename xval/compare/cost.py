@@ -139,7 +139,8 @@ def measure(scene: Scene, config: Config, truth: Trajectory, repeats: int) -> Me
     return Measurement(
         config, status="ok", peak_omega_rel=d.peak_omega_rel, q_max_abs=d.q_max_abs,
         omega_max_abs=d.omega_max_abs, omega_vs_q_max_abs=d.omega_vs_q_max_abs,
-        constraint_violation=result.diagnostics.get("max_constraint_violation", math.nan),
+        constraint_violation=(math.nan if result.constraint_violation is None
+                              else result.constraint_violation.max),
         wall_median_s=statistics.median(walls), repeats=len(walls), n_steps=result.n_steps,
         n_evaluations=result.n_evaluations)
 

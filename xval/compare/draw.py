@@ -648,5 +648,5 @@ def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
 def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
     """The mechanism at the peak speed and at the largest disagreement, both engines
     overlaid (:func:`draw_strip`)."""
-    draw_strip(c.scene, c.reduced.diagnostics["joints"], c.mujoco.diagnostics["joints"],
+    draw_strip(c.scene, c.reduced.joints, c.mujoco.joints,
                strip_moments(c), path)

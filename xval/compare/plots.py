@@ -251,14 +251,13 @@ def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
 
 def plot_constraint_violation(c: "Comparison", path: Path) -> None:
     fig, ax = new_figure((8, 4))
-    times = c.mujoco.diagnostics["times"]
-    violation = c.mujoco.diagnostics["constraint_violation"]
+    times, violation = c.mujoco.constraint_violation.t, c.mujoco.constraint_violation.gap
     ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="largest loop gap")
     plain_log_axis(ax.yaxis)
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("loop-closure violation (m)")
     ax.set_title(f"{short_name(c.scene.name)}: MuJoCo equality-constraint violation "
-                 f"(max {c.mujoco.diagnostics['max_constraint_violation']:.2e} m)", **PLAIN)
+                 f"(max {c.mujoco.constraint_violation.max:.2e} m)", **PLAIN)
     ax.legend(), ax.grid(alpha=0.3, which="both")
     _save(fig, path)
 

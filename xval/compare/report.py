@@ -47,7 +47,7 @@ if TYPE_CHECKING:
 
     from .run import Comparison
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 # The figures a run writes, by file (each function takes the Comparison and the path).
 PLOTS = {
     "trajectories.png": plot_trajectories,
@@ -97,14 +97,14 @@ def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
         "wall_s": result.wall_s,
         "n_steps": result.n_steps,
         "n_evaluations": result.n_evaluations,
-        "settings": result.settings,
+        "settings": result.settings.as_dict(),
+        "details": result.details.as_dict(),
         "energy_residual": result.audit.max_abs_residual,
         "energy_residual_rel": result.audit.relative_residual,
-        "effects": result.diagnostics.get("effects", []),
+        "effects": list(result.effects),
     }
-    if "max_constraint_violation" in result.diagnostics:
-        summary["max_constraint_violation"] = result.diagnostics["max_constraint_violation"]
-        summary["warnings"] = result.diagnostics.get("edge_warnings", [])
+    if result.constraint_violation is not None:
+        summary["max_constraint_violation"] = result.constraint_violation.max
     return summary
 
 
@@ -192,10 +192,10 @@ def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     linkage = c.scene.mechanism.linkage
     out = []
     ref_t, mj_t = c.reduced.trajectory.t, c.mujoco.trajectory.t
-    ru, rv = joint_values(c.scene, c.reduced.diagnostics["joints"], ref_t, names)
-    mu, mv = joint_values(c.scene, c.mujoco.diagnostics["joints"], mj_t, names)
+    ru, rv = joint_values(c.scene, c.reduced.joints, ref_t, names)
+    mu, mv = joint_values(c.scene, c.mujoco.joints, mj_t, names)
     inside = (mj_t >= ref_t[0]) & (mj_t <= ref_t[-1])
-    x_ref, xdot_ref = c.reduced.diagnostics["joints"].interpolate(mj_t[inside])
+    x_ref, xdot_ref = c.reduced.joints.interpolate(mj_t[inside])
     rows = _joint_rows(c.scene, names)
     u_ref, v_ref = x_ref @ rows.T, xdot_ref @ rows.T
     du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
@@ -220,7 +220,7 @@ def _write_csv(result: EngineResult, path: Path, unit: str = "rad", scene: Scene
     columns = [tr.t, tr.q, tr.qdot, tr.qddot]
     header = f"t_s,q_{unit},qdot_{unit}_per_s,qddot_{unit}_per_s2"
     if joints:
-        u, v = joint_values(scene, result.diagnostics["joints"], tr.t, joints)
+        u, v = joint_values(scene, result.joints, tr.t, joints)
         for k, name in enumerate(joints):
             ju = joint_unit(scene, name)
             columns += [u[:, k], v[:, k]]
@@ -248,7 +248,7 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
     if animate:
         from .draw import animate_run
 
-        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.diagnostics["joints"],
-                                                      c.mujoco.diagnostics["joints"], p)
+        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.joints,
+                                                      c.mujoco.joints, p)
     files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names)), encoding="utf-8")
     return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True)

@@ -52,7 +52,7 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
     """Compare two finished runs of ``scene`` over its whole horizon and gate them."""
     diff = compare_trajectories(reference.trajectory, other.trajectory, horizon=scene.horizon,
                                 peak_floor=peak_floor_of(tolerances))
-    modes = compare_modes(reference.diagnostics["joints"], other.diagnostics["joints"])
+    modes = compare_modes(reference.joints, other.joints)
     verdict = _name_the_fixed_step(scene, other, gate(diff, tolerances, modes, unit=scene.input_unit))
     return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, modes=modes,
                       gate=verdict)
@@ -62,10 +62,10 @@ def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -
     """A failed gate of a MuJoCo run at a fixed timestep also names where the step came from:
     the automatic step would have been chosen for the gate's tolerances, a fixed one was not."""
     accuracy = ("peak_omega_abs", "q_max_abs", "omega_max_abs", "omega_vs_q_max_abs")
-    if (run.engine != "mujoco" or run.settings.get("timestep_automatic", True)
+    if (run.engine != "mujoco" or run.details.timestep_automatic
             or not any(f.startswith(accuracy) for f in verdict.failures)):
         return verdict
-    h = run.settings["timestep"]
+    h = run.settings.timestep
     source = ("the scene's [mujoco] timestep" if scene.engine_table("mujoco").get("timestep") == h
               else "the settings (--timestep)")
     note = (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "

@@ -128,10 +128,10 @@ def run_case(case: Case) -> CaseResult:
                        span_end=diff.span_end, mode_mismatches=modes.total)
     if reduced is not None:
         figures.update(reduced_wall_s=reduced.wall_s, reduced_energy_residual=reduced.audit.relative_residual,
-                       switches=len(reduced.diagnostics["switches"]))
+                       switches=len(reduced.details.switches))
     if mujoco is not None:
         figures.update(mujoco_wall_s=mujoco.wall_s, mujoco_energy_residual=mujoco.audit.relative_residual,
-                       constraint_violation=mujoco.diagnostics["max_constraint_violation"])
+                       constraint_violation=mujoco.constraint_violation.max)
 
     if case.must_switch and reduced is not None:
         problems += _check_switches(reduced, notes)
@@ -153,15 +153,15 @@ def run_case(case: Case) -> CaseResult:
 
 
 def _check_switches(reduced, notes: list) -> list[str]:
-    switches = reduced.diagnostics["switches"]
-    joints = reduced.diagnostics["joints"]
+    switches = reduced.details.switches
+    joints = reduced.joints
     if not switches:
         return ["the reduced solver never switched coordinate"]
     same_time = np.diff(joints.t) == 0.0
     jump_x = float(np.max(np.abs(np.diff(joints.x, axis=0))[same_time])) if same_time.any() else 0.0
     jump_v = float(np.max(np.abs(np.diff(joints.xdot, axis=0))[same_time])) if same_time.any() else 0.0
     changes = int(np.sum(np.any(joints.mode[1:] != joints.mode[:-1], axis=-1)))
-    notes.append(f"{len(switches)} coordinate switches ({', '.join(sorted({s['new'] for s in switches}))}), "
+    notes.append(f"{len(switches)} coordinate switches ({', '.join(sorted({s.new for s in switches}))}), "
                  f"{changes} assembly-mode changes tracked; largest jump across a switch: "
                  f"{jump_x:.1e} (rad or m), {jump_v:.1e} (rad or m)/s")
     # Across a switch the state is the same instant seen in two charts: only round-off differs.

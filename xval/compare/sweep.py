@@ -148,7 +148,7 @@ def comparison_row(c) -> dict[str, Any]:
                 "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
     row.update(engine_row("reduced", c.reduced, c.diff.peak_reference))
     row.update(engine_row("mujoco", c.mujoco, c.diff.peak_other))
-    row["mujoco.max_constraint_violation"] = c.mujoco.diagnostics.get("max_constraint_violation")
+    row["mujoco.max_constraint_violation"] = c.mujoco.constraint_violation.max
     return row
 
 

@@ -62,9 +62,8 @@ def comparison_lines(c: "Comparison") -> list[str]:
     unit = c.scene.input_unit
     rate = f"{unit}/s"
     ref = r.settings
-    ref_label = f"{ref['solver']} " + (f"h={ref['step']:g}s" if ref["method"] == "rkn4" else f"rtol={ref['rtol']:g}")
-    mj = m.settings
-    mj_label = f"{mj['integrator']} dt={mj['timestep']:g}s"
+    ref_label = f"{r.details.solver} " + (f"h={ref.step:g}s" if ref.method == "rkn4" else f"rtol={ref.rtol:g}")
+    mj_label = f"{m.settings.integrator} dt={m.settings.timestep:g}s"
     peak_r, peak_m, peak_d = printed_pair(d.peak_omega_reference, d.peak_omega_other)
     time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
     rows = [
@@ -72,7 +71,7 @@ def comparison_lines(c: "Comparison") -> list[str]:
         (f"peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
         ("time of peak (s)", time_r, time_m, time_d),
         ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
-        ("loop violation (m)", "-", f"{m.diagnostics['max_constraint_violation']:.2e}", ""),
+        ("loop violation (m)", "-", f"{m.constraint_violation.max:.2e}", ""),
         ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
         ("compared span (s)", "", "", f"{d.span_start:g} to {d.span_end:g} (horizon {d.horizon:g})"),
         (f"max |dq| ({unit})", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
@@ -88,7 +87,7 @@ def comparison_lines(c: "Comparison") -> list[str]:
     rising = [name for name, p in (("reduced", d.peak_reference), ("MuJoCo", d.peak_other)) if p.still_rising]
     if rising:
         lines.append(f"peak: {STILL_RISING} ({' and '.join(rising)}): the horizon ends before the speed peaks")
-    lines += [f"warning: {note}" for note in m.diagnostics.get("edge_warnings", [])]
+    lines += [f"warning: {note}" for note in m.details.edge_warnings]
     return lines + gate_lines(c.gate, unit)
 
 
@@ -104,9 +103,9 @@ def gate_lines(g: GateResult, unit: str = "rad") -> list[str]:
     return [head, *(f"  {failure}" for failure in g.failures)]
 
 
-def setting_text(settings: dict, name: str, unit: str = "") -> str:
+def setting_text(settings, name: str, unit: str = "") -> str:
     """A setting as printed: ``automatic`` when unset (None), floats with ``:g``."""
-    value = settings.get(name)
+    value = getattr(settings, name)
     return "automatic" if value is None else f"{value:g}{unit}" if isinstance(value, float) else str(value)
 
 
@@ -128,15 +127,15 @@ def reduced_lines(scene, result) -> list[str]:
     energy residual and cost (q in ``scene.input_unit``)."""
     used, unit = result.settings, scene.input_unit
     lines = _scene_lines(scene) + [
-        f"solver           {used['solver']}  "
-        + (f"step = {setting_text(used, 'step', ' s')}" if used.get("method") == "rkn4"
+        f"solver           {result.details.solver}  "
+        + (f"step = {setting_text(used, 'step', ' s')}" if used.method == "rkn4"
            else f"rtol = {setting_text(used, 'rtol')}"),
         f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)"]
-    estimate = result.diagnostics.get("error_estimate")
-    if estimate:
-        lines.append(f"error estimate   {estimate['q_abs_rad']:.3e} {unit} in q, {estimate['qdot_abs_rad_per_s']:.3e} "
-                     f"{unit}/s in q̇: {estimate['relative']:.3e} of the run's scale (tolerance rtol = "
-                     f"{estimate['tolerance']:g}; {estimate['method']})")
+    estimate = result.details.error_estimate
+    if estimate is not None:
+        lines.append(f"error estimate   {estimate.q_abs:.3e} {unit} in q, {estimate.qdot_abs:.3e} "
+                     f"{unit}/s in q̇: {estimate.relative:.3e} of the run's scale (tolerance rtol = "
+                     f"{estimate.tolerance:g}; {estimate.method})")
     return lines + [_energy_line(result),
                     f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, "
                     f"{result.wall_s:.3f} s"]
@@ -147,14 +146,14 @@ def mujoco_lines(scene, result) -> list[str]:
     energy residual and cost."""
     used, unit = result.settings, scene.input_unit  # as run (an automatic timestep resolved)
     return _scene_lines(scene) + [
-        f"settings         {used.get('integrator')}, timestep {setting_text(used, 'timestep', ' s')}"
-        f"{' (automatic)' if used.get('timestep_automatic') else ''}, "
-        f"solref {tuple(used.get('solref') or ())}, solimp {tuple(used.get('solimp') or ())}, "
-        f"refsafe {'on' if used.get('refsafe') else 'off'}, diagexact {'on' if used.get('diagexact') else 'off'}, "
-        f"iterations {used.get('iterations')}, tolerance {setting_text(used, 'tolerance')}, "
-        f"MuJoCo {used.get('mujoco_version')}",
+        f"settings         {used.integrator}, timestep {setting_text(used, 'timestep', ' s')}"
+        f"{' (automatic)' if result.details.timestep_automatic else ''}, "
+        f"solref {tuple(used.effective_solref or ())}, solimp {tuple(used.solimp)}, "
+        f"refsafe {'on' if used.refsafe else 'off'}, diagexact {'on' if used.diagexact else 'off'}, "
+        f"iterations {used.iterations}, tolerance {setting_text(used, 'tolerance')}, "
+        f"MuJoCo {result.details.mujoco_version}",
         f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
-        f"loop violation   {result.diagnostics['max_constraint_violation']:.3e} m (largest over the run)",
+        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
         _energy_line(result),
         f"cost             {result.n_steps} steps, {result.wall_s:.3f} s"]
 

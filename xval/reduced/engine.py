@@ -14,7 +14,7 @@ from .energy import energy_audit
 from xval.errors import FailureReason, NumericalFailure
 from .integrators import solve_adaptive
 from .kernels.fixed_step import RKN4
-from .partition import PartitionedSolution, integrate_dop853, integrate_partitioned, integrate_rkn4
+from .partition import PartitionedSolution, Switch, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .settings import ReducedSettings
 from xval.results import EngineResult
 from xval.scene import Scene
@@ -126,6 +126,8 @@ class ErrorEstimate:
     wall_s: float
     unit: str = "rad"  # of q (the keys of as_dict keep their historical "_rad" names)
 
+    method = "step doubling (Richardson, order 4)"
+
     @property
     def relative(self) -> float:
         return max(self.q_abs / self.q_scale, self.qdot_abs / self.qdot_scale)
@@ -133,7 +135,7 @@ class ErrorEstimate:
     def as_dict(self) -> dict:
         return {"q_abs_rad": self.q_abs, "qdot_abs_rad_per_s": self.qdot_abs, "q_scale_rad": self.q_scale,
                 "qdot_scale_rad_per_s": self.qdot_scale, "relative": self.relative,
-                "tolerance": self.tolerance, "method": "step doubling (Richardson, order 4)",
+                "tolerance": self.tolerance, "method": self.method,
                 "step_s": self.step, "wall_s": self.wall_s, "unit": self.unit}
 
 
@@ -179,10 +181,9 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     -------
     EngineResult
         ``engine="reduced"``; ``wall_s`` times the integration only (not the loading of its
-        compiled code, nor RKN4's error estimate, whose time is in its diagnostics).
-        ``settings`` are the resolved settings; ``diagnostics`` hold the coordinate switches, every joint angle, RKN4's
-        ``error_estimate``, the ``energy_bound`` (relative residual allowed) and the
-        ``energy_scale_J`` it is relative to (:func:`energy_scale`).
+        compiled code, nor RKN4's error estimate, whose time is in it); ``settings`` are the
+        resolved settings; ``details`` (:class:`ReducedDetails`) hold the coordinate switches,
+        RKN4's error estimate, the energy bound and the scale it is relative to.
 
     Raises
     ------
@@ -202,11 +203,9 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     _log.debug("reduced %s on %s: %d steps, %d evaluations of q̈, %.3g s", solution.method, scene.name,
                solution.n_steps, solution.n_evaluations, wall)
     trajectory = solution.trajectory
-    diagnostics = {"effects": list(model.effects), "joints": solution.joints,
-                   "switches": [asdict(s) for s in solution.switches]}
+    estimate = None
     if settings.method == "rkn4":
         estimate = estimate_error(model, settings, solution)
-        diagnostics["error_estimate"] = estimate.as_dict()
         unit = scene.input_unit
         if settings.check_error and not estimate.relative <= settings.rtol:
             raise NumericalFailure(
@@ -218,18 +217,41 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     audit = energy_audit(model, solution)
     bound = max(ENERGY_FACTOR[settings.method] * settings.rtol, ENERGY_FLOOR)
     scale = energy_scale(audit, solution)
-    diagnostics["energy_bound"] = bound
-    diagnostics["energy_scale_J"] = scale
     if settings.check_error and not audit.max_abs_residual <= bound * scale:
         raise NumericalFailure(
             "energy-imbalance", f"the energy balance does not close: residual {audit.max_abs_residual:.3e} J, "
             f"{audit.max_abs_residual / scale:.2e} of the run's {scale:.4g} J, above the bound {bound:.1e} "
             f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol"
             + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
+    details = ReducedDetails(solver=solution.method, switches=tuple(solution.switches), error_estimate=estimate,
+                             energy_bound=bound, energy_scale=scale)
     return EngineResult(
-        engine="reduced", trajectory=trajectory, peak=trajectory.peak_angular_velocity(),
+        engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_angular_velocity(),
         audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
-        settings={**settings.as_dict(), "solver": solution.method}, diagnostics=diagnostics)
+        settings=settings, effects=tuple(model.effects), details=details)
+
+
+@dataclass(frozen=True)
+class ReducedDetails:
+    """The reduced engine's own record of a run (:attr:`EngineResult.details`).
+
+    solver : the integrator that ran ("DOP853", "RKN4", scipy's "Radau", ...).
+    switches : each change of independent coordinate at a dead centre, in time order.
+    error_estimate : RKN4's step-doubling estimate of its own error; None for the adaptive methods.
+    energy_bound : the largest relative energy residual the run may have.
+    energy_scale : J, what the residual is relative to (:func:`energy_scale`).
+    """
+
+    solver: str
+    switches: tuple[Switch, ...]
+    error_estimate: ErrorEstimate | None
+    energy_bound: float
+    energy_scale: float
+
+    def as_dict(self) -> dict:
+        return {"solver": self.solver, "switches": [asdict(s) for s in self.switches],
+                "error_estimate": None if self.error_estimate is None else self.error_estimate.as_dict(),
+                "energy_bound": self.energy_bound, "energy_scale_J": self.energy_scale}
 
 
 def energy_scale(audit, solution: PartitionedSolution) -> float:

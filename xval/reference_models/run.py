@@ -23,7 +23,8 @@ import logging
 import math
 import time
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
+from typing import Any, Mapping
 
 import mujoco
 import numpy as np
@@ -31,7 +32,7 @@ from mujoco import rollout
 
 from xval.errors import FailureReason, NumericalFailure
 from xval.trajectory import JointTrajectory
-from xval.results import EnergyAudit, EngineResult
+from xval.results import ConstraintViolation, EnergyAudit, EngineResult
 from xval import kinematics as loops
 from xval.loads import TabulatedForce
 from xval.mechanism import PrismaticJoint
@@ -249,10 +250,10 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
     coarser run's error, and the finer run is returned), else h is halved, or, after two
     checks, cut to the halving the observed order predicts (:func:`_predicted_step`), while the
     search's steps stay within MAX_SEARCH_STEPS; each failed check is logged on the
-    ``xval.mujoco`` logger (INFO) as progress. ``result.settings`` records the step used,
-    ``timestep_automatic`` and the halving evidence (``timestep_check``: per check the coarse
-    step and the differences against their limits); ``result.diagnostics
-    ["automatic_timestep_cost"]`` the runs, steps and rollout wall time the choice took. With ``handles`` (e.g. from an exported MJCF file)
+    ``xval.mujoco`` logger (INFO) as progress. ``result.settings`` have the step used;
+    ``result.details`` (:class:`MujocoDetails`) say whether it was chosen, the halving evidence
+    (per check the coarse step and the differences against their limits) and the runs, steps
+    and rollout wall time the choice took. With ``handles`` (e.g. from an exported MJCF file)
     an automatic timestep is the model's own, and every other option must match the model.
 
     Raises
@@ -280,7 +281,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
             result = _run(scene, settings, build_model(scene, settings))
         else:
             result = _automatic(scene, settings)
-    _log.debug("MuJoCo %s at h = %.4g s on %s: %d steps, %.3g s", result.settings.get("integrator"), result.settings["timestep"],
+    _log.debug("MuJoCo %s at h = %.4g s on %s: %d steps, %.3g s", result.settings.integrator, result.settings.timestep,
                scene.name, result.n_steps, result.wall_s)
     return result
 
@@ -314,10 +315,9 @@ def _automatic(scene: Scene, settings: MujocoSettings) -> EngineResult:
         evidence.append(record)
         if record["accepted"]:
             done = [r for r in runs if isinstance(r, EngineResult)]
-            fine.settings.update(timestep_automatic=True, timestep_check=evidence)
-            fine.diagnostics["automatic_timestep_cost"] = {
-                "runs": len(runs), "steps": sum(r.n_steps for r in done), "wall_s": sum(r.wall_s for r in done)}
-            return fine
+            cost = SearchCost(len(runs), sum(r.n_steps for r in done), sum(r.wall_s for r in done))
+            return replace(fine, details=replace(fine.details, timestep_automatic=True,
+                                                 timestep_checks=tuple(evidence), search_cost=cost))
         wanted = _predicted_step(evidence)
         # the next check's coarse step: the largest halving of h0 at or below the prediction
         # (load edges stay on the grid), and at least one halving finer than this check's
@@ -446,8 +446,8 @@ def _attempt(scene: Scene, settings: MujocoSettings, handles: ModelHandles, layo
 
 def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float, float, float]:
     """max |Δq|, max |Δω| on the coarse grid (every second fine state) and |Δ peak ω|."""
-    qc, wc = coarse.diagnostics["q"], coarse.diagnostics["omega"]
-    qf, wf = fine.diagnostics["q"][::2], fine.diagnostics["omega"][::2]
+    qc, wc = coarse.details.grid_q, coarse.details.grid_qdot
+    qf, wf = fine.details.grid_q[::2], fine.details.grid_qdot[::2]
     n = min(len(qc), len(qf))
     return (float(np.max(np.abs(qc[:n] - qf[:n]))), float(np.max(np.abs(wc[:n] - wf[:n]))),
             abs(coarse.peak.omega - fine.peak.omega))
@@ -536,21 +536,60 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
                                f"max_energy_residual {settings.max_energy_residual:g}", float(times[k]))
     key = sensor_name(INPUT_MOTOR, "force")
     motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
-    recorded = settings.as_dict()
-    recorded.update(timestep=h, solref=list(settings.effective_solref), timestep_automatic=False,
-                    mujoco_version=mujoco.__version__)
+    details = MujocoDetails(grid_q=q, grid_qdot=qdot.copy(), input_load=motor, initial_residuals=initial,
+                            edge_warnings=tuple(edge_notes), mujoco_version=mujoco.__version__,
+                            point_forces="mjcb_control (qfrc_applied, every RK stage)"
+                            if scene.mechanism.point_forces or scene.mechanism.timed_forces else None)
     return EngineResult(
-        engine="mujoco", trajectory=trajectory, peak=trajectory.peak_angular_velocity(), audit=audit,
-        wall_s=wall, n_steps=n_steps, n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1),
-        settings=recorded,
-        diagnostics={"max_constraint_violation": max_violation,
-                     "joints": _joint_trajectory(layout, times, x, xdot),
-                     "constraint_violation": violation, "times": times, "q": q,
-                     "omega": qdot.copy(), "input_load": motor,
-                     "initial_residuals": initial, "energy_relative_residual": audit.relative_residual,
-                     "edge_warnings": edge_notes, "effects": list(scene.effects),
-                     "point_forces": "mjcb_control (qfrc_applied, every RK stage)"
-                     if scene.mechanism.point_forces or scene.mechanism.timed_forces else None})
+        engine="mujoco", trajectory=trajectory, joints=_joint_trajectory(layout, times, x, xdot),
+        peak=trajectory.peak_angular_velocity(), audit=audit, wall_s=wall, n_steps=n_steps,
+        n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
+        effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, violation), details=details)
+
+
+@dataclass(frozen=True)
+class SearchCost:
+    """What the automatic timestep's choice took: its runs, their steps and rollout time (s)."""
+
+    runs: int
+    steps: int
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class MujocoDetails:
+    """The MuJoCo engine's own record of a run (:attr:`EngineResult.details`).
+
+    grid_q, grid_qdot : q and q̇ at every step of the grid (the trajectory adds the load edges
+        between steps); the automatic step search compares runs on them.
+    input_load : N·m or N, the input motor's force at each step.
+    initial_residuals : MuJoCo's loop residuals at the start (:func:`check_initial_state`).
+    edge_warnings : one note per load edge off the step grid.
+    mujoco_version : the MuJoCo that ran.
+    point_forces : how point forces were applied; None without them.
+    timestep_automatic : the step was chosen by the automatic search.
+    timestep_checks : that search's checks, in order: per check the coarse step and the
+        differences against their limits, or the failure (``_check``'s records).
+    search_cost : what the search took; None for a fixed timestep.
+    """
+
+    grid_q: np.ndarray
+    grid_qdot: np.ndarray
+    input_load: np.ndarray
+    initial_residuals: Mapping[str, Any]
+    edge_warnings: tuple[str, ...]
+    mujoco_version: str
+    point_forces: str | None = None
+    timestep_automatic: bool = False
+    timestep_checks: tuple[Mapping[str, Any], ...] = ()
+    search_cost: SearchCost | None = None
+
+    def as_dict(self) -> dict:
+        return {"mujoco_version": self.mujoco_version, "timestep_automatic": self.timestep_automatic,
+                "timestep_check": list(self.timestep_checks),
+                "automatic_timestep_cost": None if self.search_cost is None else asdict(self.search_cost),
+                "edge_warnings": list(self.edge_warnings), "point_forces": self.point_forces,
+                "initial_residuals": dict(self.initial_residuals)}
 
 
 @dataclass(frozen=True)
@@ -921,7 +960,7 @@ def mjcf_text(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> str:
     writes it through the one output writer, ``xval.compare.output``).
     """
     if settings.timestep is None:  # the step a run would choose, so the file reproduces it
-        settings = replace(settings, timestep=simulate_mujoco(scene, settings).settings["timestep"])
+        settings = replace(settings, timestep=simulate_mujoco(scene, settings).settings.timestep)
     return mjcf_from_spec(build_model(scene, settings).spec)
 
 
