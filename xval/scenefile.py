@@ -615,9 +615,7 @@ def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
 def _check_start(system, x0: np.ndarray, q0: float, qdot0: float) -> None:
     if qdot0 == 0.0:
         return
-    driving = np.vstack([loops.constraint_jacobian(system, x0), system.drive])
-    sv = np.linalg.svd(driving, compute_uv=False)
-    if sv[-1] < loops.SINGULAR_RCOND * sv[0]:
+    if loops.driving_conditioning(system, x0) < loops.SINGULAR_CONDITIONING:
         raise SceneError(f"'initial.qdot' = {qdot0}: the input joint is at a dead centre at q = {q0}, "
                          "where its speed must be zero")
 

@@ -261,8 +261,9 @@ class MechanismModel:
         return self.system.coordinate_names
 
     def new_chart(self) -> physics.Chart:
-        """An empty compiled chart of this model (:meth:`physics.Chart.start` starts it)."""
-        return physics.Chart(self.arrays)
+        """An empty compiled chart of this model (:meth:`physics.Chart.start` starts it), with the
+        singular-position threshold of :mod:`xval.kinematics`."""
+        return physics.Chart(self.arrays, loops.SINGULAR_CONDITIONING)
 
     def assemble(self, q: float) -> np.ndarray:
         """The configuration at input q (rad or m): the scene's own at q0, else Newton from it."""
