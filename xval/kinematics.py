@@ -59,6 +59,17 @@ class AssemblyError(ValueError):
 
 
 @dataclass(frozen=True)
+class Kinematics:
+    """All joint coordinates and their velocity and acceleration coefficients at one
+    configuration: x (n,) rad or m, K = dx/dx_i, L = d²x/dx_i² for the coordinate x_i they
+    are taken with respect to."""
+
+    x: np.ndarray
+    K: np.ndarray
+    L: np.ndarray
+
+
+@dataclass(frozen=True)
 class TermTable:
     """Rows of phasor sums in the plane; plain arrays only (see the module docstring).
 

@@ -593,7 +593,11 @@ def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
 
 
 def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
-    """Newton from the closed form's assembly on the scene's branch, checked to stay there."""
+    """Newton from the closed form's assembly on the scene's branch, checked to stay there.
+
+    The closed form, not Newton from a rough guess on the branch: that changes x0's last bits,
+    which moved the shipped runs by up to 1.7e-6, and cannot reach a limit position, a double
+    root (docs/architecture.md, "The four-bar closed form")."""
     from .four_bar import AssemblyError as ClosedFormError, FourBar
 
     try:

@@ -29,10 +29,10 @@ from typing import Callable
 import numpy as np
 
 from xval import kinematics as loops
+from xval.kinematics import Kinematics
 from xval.errors import NumericalFailure
 from .kernels import physics
 from .kernels.physics import Model
-from xval.four_bar import Kinematics
 from xval.loads import TabulatedForce
 from xval.scene import Scene
 
