@@ -245,14 +245,15 @@ def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
 # -- the singular-position measure ---------------------------------------------------------
 
 def hadamard_ratio(M: np.ndarray) -> np.ndarray | float:
-    """|det M| / Π ‖M[:, l]‖ of a square matrix M (or of each of a stack, shape (..., k, k)).
+    """det M / Π ‖M[:, l]‖ of a square matrix M (or of each of a stack, shape (..., k, k)).
 
-    Between 0 (singular) and 1 (orthogonal columns) by Hadamard's inequality; 0 when a column
-    is zero. Unchanged by scaling a column (a coordinate's unit), by rotating the plane and by
-    scaling a linkage's lengths (each column of a revolute linkage's Φ_x scales with them).
+    Its magnitude is between 0 (singular) and 1 (orthogonal columns) by Hadamard's inequality,
+    0 when a column is zero; its sign is det M's (a dyad's assembly mode). Unchanged by scaling
+    a column (a coordinate's unit), by rotating the plane and by scaling a linkage's lengths
+    (each column of a revolute linkage's Φ_x scales with them).
     """
-    norms = np.prod(np.linalg.norm(M, axis=-2), axis=-1)
-    det = np.abs(np.linalg.det(M))
+    norms = np.prod(np.sqrt(np.einsum("...ij,...ij->...j", M, M)), axis=-1)
+    det = np.linalg.det(M)
     ratio = np.divide(det, norms, out=np.zeros_like(det), where=norms > 0)
     return float(ratio) if np.ndim(ratio) == 0 else ratio
 
@@ -272,6 +273,11 @@ def dependent_jacobian(J: np.ndarray, row: np.ndarray) -> np.ndarray:
     return J[:, others] - np.outer(J[:, i], row[others] / row[i])
 
 
+def _conditioning(J: np.ndarray, row: np.ndarray) -> float:
+    """:func:`driving_conditioning` from Φ_x = J (n − 1, n) and the driving row (n,)."""
+    return abs(hadamard_ratio(dependent_jacobian(J, row)))
+
+
 def driving_conditioning(system: LoopSystem, x: np.ndarray, row: np.ndarray | None = None) -> float:
     """The conditioning of p = row·x (the input q = drive·x by default) at x: the Hadamard
     ratio of its :func:`dependent_jacobian`, between 0 (p cannot drive the linkage here) and 1.
@@ -282,7 +288,7 @@ def driving_conditioning(system: LoopSystem, x: np.ndarray, row: np.ndarray | No
     factors it solves K with; for the seed four-bar driven by its crank, |sin(φ2 − φ1)|.
     """
     J = constraint_jacobian(system, x)
-    return hadamard_ratio(dependent_jacobian(J, system.drive if row is None else row))
+    return _conditioning(J, system.drive if row is None else row)
 
 
 # -- position, velocity and acceleration -----------------------------------------------
@@ -320,7 +326,7 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
         converged = np.max(np.abs(F)) <= tol
         J = constraint_jacobian(system, x)
         A = np.vstack([J, system.drive])
-        if hadamard_ratio(dependent_jacobian(J, system.drive)) < SINGULAR_CONDITIONING:
+        if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
             if converged:
                 return x
             raise AssemblyError(f"the loop Jacobian is singular at q = {q:.15g} {system.input_unit} "
@@ -341,7 +347,7 @@ def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     """
     J = constraint_jacobian(system, x)
     A = np.vstack([J, system.drive])
-    if hadamard_ratio(dependent_jacobian(J, system.drive)) < SINGULAR_CONDITIONING:
+    if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot "
                                            f"drive the linkage at q = {system.drive @ x:.15g} "
                                            f"{system.input_unit}")
@@ -392,8 +398,8 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
         block = np.stack([np.stack([ux, vx], axis=-1), np.stack([uy, vy], axis=-1)], axis=-2)  # (samples, 2, 2)
         # At the dyad's limit position (its block's conditioning, |sin| of the angle between
         # the columns, below SINGULAR_CONDITIONING) the sign is round-off: the mode is 0 there.
-        degenerate = hadamard_ratio(block) < SINGULAR_CONDITIONING
-        out[:, k] = np.where(degenerate, 0, -np.sign(np.linalg.det(block))).astype(int)
+        ratio = hadamard_ratio(block)
+        out[:, k] = np.where(np.abs(ratio) < SINGULAR_CONDITIONING, 0, -np.sign(ratio)).astype(int)
     return out[0] if np.ndim(x) == 1 else out
 
 
@@ -416,7 +422,7 @@ def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     |det Φ_dep| / Π ‖columns of Φ_dep‖, shape (n,): between 0 (that coordinate cannot drive
     the linkage here) and 1 (the other columns orthogonal)."""
     J = constraint_jacobian(system, x)
-    return np.array([hadamard_ratio(dependent_jacobian(J, row)) for row in np.eye(system.n)])
+    return np.array([_conditioning(J, row) for row in np.eye(system.n)])
 
 
 # -- building the tables from a description --------------------------------------------
