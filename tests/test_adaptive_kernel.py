@@ -34,6 +34,7 @@ from scipy.integrate import solve_ivp
 from xval.reduced import MechanismModel  # noqa: E402
 from xval.scenefile import default_scene_path, load_scene, scene_from_dict
 from xval.errors import NumericalFailure  # noqa: E402
+from xval.kinematics import SINGULAR_CONDITIONING  # noqa: E402
 from xval.reduced.integrators import restart, solve_adaptive  # noqa: E402
 from xval.reduced.kernels import adaptive as K  # noqa: E402
 from xval.reduced.kernels import output  # noqa: E402
@@ -91,7 +92,7 @@ class Case:
 
     def chart(self):
         """A fresh chart of the coordinate, started at x0 (the kernel and scipy each get one)."""
-        chart = physics.Chart(self.arrays)
+        chart = physics.Chart(self.arrays, SINGULAR_CONDITIONING)
         assert chart.start(np.ascontiguousarray(self.x0), self.independent)
         return chart
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from xval.compare.run import compare_engines
-from xval.four_bar import FourBar
+from oracles.four_bar import FourBar
 from xval.reduced import MechanismModel, simulate
 from xval.scenefile import scene_from_dict
 from xval.reduced.partition import Chart
@@ -109,7 +109,7 @@ def test_chart_continues_the_turn_of_its_start():
 
 # A triple rocker at 9.9 rad/s: DOP853 (the default reference) tries a stage past the reach of
 # the φ2 chart (|cos α| > 1 in the dyad solution) before the switch event fires and stops with
-# SingularPositionError at t = 0.24 s; RKN4 and Radau pass (3 switches). Found on 3 of ~600
+# a singular position at t = 0.24 s; RKN4 and Radau pass (3 switches). Found on 3 of ~600
 # random valid four-bars. The fix belongs in xval/reduced/partition.py or xval/reduced/integrators.py.
 DOP853_PAST_CHART_REACH = {
     "name": "dop853_past_chart_reach",

@@ -14,7 +14,7 @@ import pytest
 from xval.reduced import MechanismModel
 from xval.scenefile import load_scene
 from xval.reduced.kernels import physics
-from xval.kinematics import assemble
+from xval.kinematics import SINGULAR_CONDITIONING, assemble
 from xval.reduced.partition import HYSTERESIS, conditioning
 
 from helpers import ROOT, without_dyad_plans
@@ -92,7 +92,7 @@ def test_a_walk_in_closed_form_equals_newtons(name):
     values = x0[i] + np.linspace(0.0, 0.5, 200)
     runs = []
     for arrays in (m.arrays, without_dyad_plans(m)):
-        chart = physics.Chart(arrays)
+        chart = physics.Chart(arrays, SINGULAR_CONDITIONING)
         assert chart.start(x0, i)
         fields = np.empty((len(values), physics.N_FIELDS))
         kin = np.empty((len(values), 3, m.system.n))

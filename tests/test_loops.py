@@ -1,6 +1,6 @@
 """Loop kinematics of the general description against closed forms and finite differences.
 
-Oracles: the four-bar closed form of xval/four_bar.py (FourBar.kinematics, an independent
+Oracles: the four-bar closed form of tests/oracles/four_bar.py (FourBar.kinematics, an independent
 implementation), the offset slider-crank's closed form x = r cos q + √(l² − (r sin q − e)²)
 and its derivatives, and central finite differences of Newton-assembled positions.
 """
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from xval.errors import FailureReason, NumericalFailure
-from xval.four_bar import FourBar
+from oracles.four_bar import FourBar
 from xval.kinematics import (AssemblyError, assemble, coefficients, compile_linkage,
                            conditioning, constraint_residual, jacobian_rank, point_kinematics)
 from xval.scene import FourBarGeometry

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from xval.reduced import MechanismModel
+from xval.kinematics import SINGULAR_CONDITIONING
 from xval.scenefile import load_scene
 from xval.reduced.kernels import compiled, physics
 
@@ -50,7 +51,7 @@ def _evaluations(module, scene_path: str) -> np.ndarray:
     forwards, back, and jumps long enough to be halved."""
     model = MechanismModel(load_scene(scene_path))
     x0 = np.ascontiguousarray(model.assemble(model.scene.q0))
-    chart = module.Chart(model.arrays)
+    chart = module.Chart(model.arrays, SINGULAR_CONDITIONING)
     assert chart.start(x0, 0)
     v0 = float(x0[0])
     values = [v0 + 0.05 * k for k in range(30)] + [v0 + 1.5 - 0.07 * k for k in range(30)] + [v0 + 7.5, v0 - 20.0]
@@ -86,7 +87,7 @@ def test_rewind_continues_from_the_mark():
     same walk from the same configuration: the same bits)."""
     model = MechanismModel(load_scene(ROOT / "scenes" / "seed_fourbar.toml"))
     x0 = np.ascontiguousarray(model.assemble(model.scene.q0))
-    stayed, wandered = physics.Chart(model.arrays), physics.Chart(model.arrays)
+    stayed, wandered = model.new_chart(), model.new_chart()
     for chart in (stayed, wandered):
         assert chart.start(x0, 0)
         assert chart.evaluate(x0[0] + 0.3)
@@ -103,7 +104,7 @@ def test_a_chart_restarts_from_its_own_configuration():
     kin[0], handed to start() as it is, no copy): the same result, bit for bit, as from a copy."""
     model = MechanismModel(load_scene(ROOT / "scenes" / "seed_fourbar.toml"))
     x0 = np.ascontiguousarray(model.assemble(model.scene.q0))
-    own, copied = physics.Chart(model.arrays), physics.Chart(model.arrays)
+    own, copied = model.new_chart(), model.new_chart()
     for chart in (own, copied):
         assert chart.start(x0, 0)
         assert chart.evaluate(x0[0] + 0.4)

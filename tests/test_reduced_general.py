@@ -1,7 +1,7 @@
 """The reduced engine on the general description: kinematics, dynamics, partitioning, energy.
 
 The engine runs one compiled implementation for every linkage (xval.reduced.kernels.physics). The
-four-bar closed form (xval.four_bar.FourBar) is its independent oracle: the seed's Eksergian
+four-bar closed form (tests/oracles/four_bar.py) is its independent oracle: the seed's Eksergian
 coefficients and right-hand side are written out here from the closed form's x, K, L and the
 bodies' geometry, and compared with the engine's.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval.four_bar import FourBar
+from oracles.four_bar import FourBar
 from xval.reduced import MechanismModel, ReducedSettings, simulate
 from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import solve_adaptive

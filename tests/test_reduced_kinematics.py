@@ -1,6 +1,6 @@
 """Kinematics: closed-form, compiled general and finite-difference K, L agree; the seed's 𝔍 and ζ.
 
-The four-bar's closed form (:class:`xval.four_bar.FourBar`) and the dyad closed form written
+The four-bar's closed form (:class:`oracles.four_bar.FourBar`) and the dyad closed form written
 below are the oracles of the compiled general path (:mod:`xval.reduced.kernels.physics`, through
 :class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.partition.Chart`); the pure-numpy
 loop equations of :mod:`xval.kinematics` are a third, independent evaluation of K and L."""
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from xval.four_bar import FourBar
+from oracles.four_bar import FourBar
 from xval.reduced import MechanismModel
 from xval.scene import SceneError
 from xval.scenefile import load_scene, scene_from_dict

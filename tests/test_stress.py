@@ -18,7 +18,7 @@ from xval.compare.diff import compare_modes, compare_trajectories
 from xval.compare.stress import CATALOGUE, CaseResult, run_case
 from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import load_scene
-from xval.four_bar import FourBar
+from oracles.four_bar import FourBar
 from xval.loads import PulseTorque
 from xval.trajectory import JointTrajectory
 from xval.reference_models import MujocoSettings, build_model, simulate_mujoco

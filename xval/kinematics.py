@@ -39,13 +39,34 @@ import numpy as np
 from .errors import NumericalFailure
 from .mechanism import GROUND, Linkage, PrismaticJoint
 
-# Below this reciprocal condition number (smallest/largest singular value) of [Φ_x; c] the
-# input coordinate cannot drive the linkage: a dead-centre or change point.
-SINGULAR_RCOND = 1e-9
+# The one singular-position threshold (docs/physics.md, "Singular positions"): below this
+# conditioning (:func:`driving_conditioning`, a Hadamard ratio between 0 and 1) a coordinate
+# cannot drive the linkage: a dead-centre or change point. Every verdict of "singular" in the
+# project compares the same measure with this value: the numpy kinematics here, the scene
+# file's checks, the reduced engine's start and its compiled core (the engine passes the value
+# in when it builds a chart, :meth:`xval.reduced.dynamics.MechanismModel.new_chart`), and the
+# assembly mode of a dyad (:func:`assembly_modes`). At c = 1e-9, K and L computed from Φ_x have
+# lost about log10(1/c) = 9 of their 16 digits (A's condition number grows as 1/c): below it
+# they are not worth integrating.
+SINGULAR_CONDITIONING = 1e-9
+# Jacobian rank (:func:`jacobian_rank`, how many degrees of freedom a configuration has) is
+# another question, answered by Φ_x's singular values: those above RANK_RTOL × the largest.
+RANK_RTOL = 1e-9
 
 
 class AssemblyError(ValueError):
     """The linkage cannot be assembled at the requested input from the given guess."""
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """All joint coordinates and their velocity and acceleration coefficients at one
+    configuration: x (n,) rad or m, K = dx/dx_i, L = d²x/dx_i² for the coordinate x_i they
+    are taken with respect to."""
+
+    x: np.ndarray
+    K: np.ndarray
+    L: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -221,9 +242,53 @@ def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     return np.vstack([jacobian(system.loops, x), system.linear])
 
 
-def _rcond(A: np.ndarray) -> float:
-    sv = np.linalg.svd(A, compute_uv=False)
-    return float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+# -- the singular-position measure ---------------------------------------------------------
+
+def hadamard_ratio(M: np.ndarray) -> np.ndarray | float:
+    """det M / Π ‖M[:, l]‖ of a square matrix M (or of each of a stack, shape (..., k, k)).
+
+    Its magnitude is between 0 (singular) and 1 (orthogonal columns) by Hadamard's inequality,
+    0 when a column is zero; its sign is det M's (a dyad's assembly mode). Unchanged by scaling
+    a column (a coordinate's unit), by rotating the plane and by scaling a linkage's lengths
+    (each column of a revolute linkage's Φ_x scales with them).
+    """
+    norms = np.prod(np.sqrt(np.einsum("...ij,...ij->...j", M, M)), axis=-1)
+    det = np.linalg.det(M)
+    ratio = np.divide(det, norms, out=np.zeros_like(det), where=norms > 0)
+    return float(ratio) if np.ndim(ratio) == 0 else ratio
+
+
+def dependent_jacobian(J: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """The loop Jacobian in the dependent coordinates when p = row·x drives the linkage,
+    shape (n − 1, n − 1).
+
+    J is Φ_x (n − 1, n). With i the coordinate of row's largest |entry| (the first of equals),
+    x_i = (p − Σ_{l≠i} row_l x_l) / row_i: the dependent coordinates are the others, and
+    column l of Φ in them is J[:, l] − (row_l / row_i) J[:, i]. For row = e_i that is Φ_x
+    without column i (Φ_dep); for a relative angle θ_b − θ_a, column a becomes J[:, a] + J[:, b].
+    """
+    row = np.asarray(row, dtype=float)
+    i = int(np.argmax(np.abs(row)))
+    others = np.arange(len(row)) != i
+    return J[:, others] - np.outer(J[:, i], row[others] / row[i])
+
+
+def _conditioning(J: np.ndarray, row: np.ndarray) -> float:
+    """:func:`driving_conditioning` from Φ_x = J (n − 1, n) and the driving row (n,)."""
+    return abs(hadamard_ratio(dependent_jacobian(J, row)))
+
+
+def driving_conditioning(system: LoopSystem, x: np.ndarray, row: np.ndarray | None = None) -> float:
+    """The conditioning of p = row·x (the input q = drive·x by default) at x: the Hadamard
+    ratio of its :func:`dependent_jacobian`, between 0 (p cannot drive the linkage here) and 1.
+
+    The one singular-position measure (module constant SINGULAR_CONDITIONING): for coordinate j,
+    |det Φ_dep| / Π ‖columns of Φ_dep‖ = |K_j| |det A| / Π_{l≠j} ‖Φ_x[:, l]‖ (Cramer's rule,
+    K w.r.t. any driving coordinate), which the compiled core evaluates at every step from the
+    factors it solves K with; for the seed four-bar driven by its crank, |sin(φ2 − φ1)|.
+    """
+    J = constraint_jacobian(system, x)
+    return _conditioning(J, system.drive if row is None else row)
 
 
 # -- position, velocity and acceleration -----------------------------------------------
@@ -259,8 +324,9 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
         if polished:
             return x
         converged = np.max(np.abs(F)) <= tol
-        A = np.vstack([constraint_jacobian(system, x), system.drive])
-        if _rcond(A) < SINGULAR_RCOND:
+        J = constraint_jacobian(system, x)
+        A = np.vstack([J, system.drive])
+        if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
             if converged:
                 return x
             raise AssemblyError(f"the loop Jacobian is singular at q = {q:.15g} {system.input_unit} "
@@ -279,8 +345,9 @@ def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     Raises NumericalFailure(SINGULAR) where q cannot drive the linkage.
     """
-    A = np.vstack([constraint_jacobian(system, x), system.drive])
-    if _rcond(A) < SINGULAR_RCOND:
+    J = constraint_jacobian(system, x)
+    A = np.vstack([J, system.drive])
+    if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot "
                                            f"drive the linkage at q = {system.drive @ x:.15g} "
                                            f"{system.input_unit}")
@@ -328,11 +395,11 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
             jy = (m[:, by_angle] * c[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * sn[:, by_mag]).sum(axis=1)
             return jx, jy
         (ux, uy), (vx, vy) = column(u), column(v)
-        det = ux * vy - vx * uy
-        # At the dyad's limit position (|sin| of the angle between the columns below
-        # SINGULAR_RCOND) the sign is round-off: the mode is 0 there, not ±1.
-        degenerate = np.abs(det) <= SINGULAR_RCOND * np.hypot(ux, uy) * np.hypot(vx, vy)
-        out[:, k] = np.where(degenerate, 0, -np.sign(det)).astype(int)
+        block = np.stack([np.stack([ux, vx], axis=-1), np.stack([uy, vy], axis=-1)], axis=-2)  # (samples, 2, 2)
+        # At the dyad's limit position (its block's conditioning, |sin| of the angle between
+        # the columns, below SINGULAR_CONDITIONING) the sign is round-off: the mode is 0 there.
+        ratio = hadamard_ratio(block)
+        out[:, k] = np.where(np.abs(ratio) < SINGULAR_CONDITIONING, 0, -np.sign(ratio)).astype(int)
     return out[0] if np.ndim(x) == 1 else out
 
 
@@ -341,27 +408,21 @@ def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
     return tuple(int(v) for v in assembly_modes(system, np.asarray(x, dtype=float)))
 
 
-def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = 1e-9) -> int:
-    """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF."""
+def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) -> int:
+    """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF.
+
+    How many degrees of freedom the configuration has, not whether a given coordinate can drive
+    it (that is :func:`driving_conditioning`): an SVD, run once per scene at assembly."""
     sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
     return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
 
 
 def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
-    """For each coordinate as the independent one, |det Φ_dep| / Π ‖columns of Φ_dep‖.
-
-    Between 0 (that coordinate cannot drive the linkage here) and 1 (the other columns
-    orthogonal); the same measure as :meth:`xval.four_bar.LoopLinkage.conditioning`.
-    Shape (n,).
-    """
+    """:func:`driving_conditioning` of each coordinate x_j as the independent one,
+    |det Φ_dep| / Π ‖columns of Φ_dep‖, shape (n,): between 0 (that coordinate cannot drive
+    the linkage here) and 1 (the other columns orthogonal)."""
     J = constraint_jacobian(system, x)
-    n = system.n
-    out = np.empty(n)
-    for i in range(n):
-        Jd = np.delete(J, i, axis=1)
-        norms = np.prod(np.linalg.norm(Jd, axis=0))
-        out[i] = abs(np.linalg.det(Jd)) / norms if norms > 0 else 0.0
-    return out
+    return np.array([_conditioning(J, row) for row in np.eye(system.n)])
 
 
 # -- building the tables from a description --------------------------------------------

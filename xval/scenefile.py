@@ -576,7 +576,11 @@ def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
 
 
 def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
-    """Newton from the closed form's assembly on the scene's branch, checked to stay there."""
+    """Newton from the closed form's assembly on the scene's branch, checked to stay there.
+
+    The closed form, not Newton from a rough guess on the branch: that changes x0's last bits,
+    which moved the shipped runs by up to 1.7e-6, and cannot reach a limit position, a double
+    root (docs/architecture.md, "The four-bar closed form")."""
     from .four_bar import AssemblyError as ClosedFormError, FourBar
 
     try:
@@ -598,9 +602,7 @@ def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
 def _check_start(system, x0: np.ndarray, q0: float, qdot0: float) -> None:
     if qdot0 == 0.0:
         return
-    driving = np.vstack([loops.constraint_jacobian(system, x0), system.drive])
-    sv = np.linalg.svd(driving, compute_uv=False)
-    if sv[-1] < loops.SINGULAR_RCOND * sv[0]:
+    if loops.driving_conditioning(system, x0) < loops.SINGULAR_CONDITIONING:
         raise SceneError(f"'initial.qdot' = {qdot0}: the input joint is at a dead centre at q = {q0}, "
                          "where its speed must be zero")
 

@@ -29,10 +29,10 @@ from typing import Callable
 import numpy as np
 
 from xval import kinematics as loops
+from xval.kinematics import Kinematics
 from xval.errors import NumericalFailure
 from .kernels import physics
 from .kernels.physics import Model
-from xval.four_bar import Kinematics
 from xval.loads import TabulatedForce
 from xval.scene import Scene
 
@@ -261,8 +261,9 @@ class MechanismModel:
         return self.system.coordinate_names
 
     def new_chart(self) -> physics.Chart:
-        """An empty compiled chart of this model (:meth:`physics.Chart.start` starts it)."""
-        return physics.Chart(self.arrays)
+        """An empty compiled chart of this model (:meth:`physics.Chart.start` starts it), with the
+        singular-position threshold of :mod:`xval.kinematics`."""
+        return physics.Chart(self.arrays, loops.SINGULAR_CONDITIONING)
 
     def assemble(self, q: float) -> np.ndarray:
         """The configuration at input q (rad or m): the scene's own at q0, else Newton from it."""

@@ -174,7 +174,7 @@ def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
     x0 = model.assemble(scene.q0)
     i = best_coordinate(model, x0)
     input_rate = Chart(model, i, x0).coefficients(float(x0[i])).input_rate
-    if scene.qdot0 != 0.0 and abs(input_rate) < 1e-12:
+    if scene.qdot0 != 0.0 and loops.driving_conditioning(model.system, x0) < loops.SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
                                f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
     return x0, i, scene.qdot0 / input_rate if scene.qdot0 != 0.0 else 0.0

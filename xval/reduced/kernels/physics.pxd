@@ -71,7 +71,7 @@ cpdef enum:
     N_FIELDS = 12
     DEPTH = 32
 
-cdef double _c_newton_tol, _c_newton_round_off, _c_singular_conditioning, _c_predictor_trust
+cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust
 cdef double _c_trusted_correction, _c_long_jump, _c_far_jump, _c_hysteresis, _c_dyad_round_off
 cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan
 cdef Py_ssize_t _c_newton_max_iter, _c_max_walk_closures
@@ -87,6 +87,8 @@ cdef class Chart(RightHandSide):
     cdef double[::1] F
     cdef long long[::1] I
     cdef readonly Py_ssize_t n
+    # below this conditioning a coordinate cannot drive the linkage (passed in: Chart.__init__)
+    cdef readonly double singular
     # views of S and of W (physics.py: Chart), made once at construction; K and L are kin's rows
     cdef long long[::1] s, piv, budget
     cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L

@@ -22,7 +22,9 @@ K = dx/dx_i and L = d²x/dx_i² solve
     A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
 
 with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
-c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|.
+c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|: the project's one
+singular-position measure (:func:`xval.kinematics.driving_conditioning`, which this core may not
+import), compared with the threshold the chart is built with (``Chart(model, singular)``).
 
 Compiled: the integer constants of the packed layout (below) are C constants declared in
 ``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
@@ -61,8 +63,6 @@ NEWTON_MAX_ITER = 20
 # |θ| ≈ 1e4 rad and 1 m that is 1e-11 m. Without it a drag link coasting at 100 rad/s failed
 # after 75 s (7 400 rad), reported as a singular position. Below ~1 000 rad·m it is NEWTON_TOL.
 NEWTON_ROUND_OFF = 4 * 2.220446049250313e-16
-# Below this conditioning a coordinate cannot drive the linkage (a dead-centre position).
-SINGULAR_CONDITIONING = 1e-9
 # A Newton correction larger than PREDICTOR_TRUST × the predicted motion |K Δ| (plus
 # TRUSTED_CORRECTION, rad or m) means the jump was too long for the predictor: it is taken in
 # halves, at most MAX_HALVINGS deep.
@@ -160,7 +160,6 @@ if not cython.compiled:
 _c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
 _c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
 _c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
-_c_singular_conditioning = cython.declare(cython.double, SINGULAR_CONDITIONING)
 _c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
 _c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
 _c_max_halvings = cython.declare(cython.longlong, MAX_HALVINGS)
@@ -314,9 +313,16 @@ class Chart(RightHandSide):
     count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
     as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
     scratch of the B-splines (the largest degree + 1). A chart is empty until :meth:`start`.
+
+    ``singular`` is the singular-position threshold: below this conditioning a coordinate cannot
+    drive the linkage (:data:`xval.kinematics.SINGULAR_CONDITIONING`, which the reduced engine
+    passes in: the compiled core imports nothing of the project outside it).
     """
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model, singular: float):
+        if not 0.0 < singular < 1.0:
+            raise ValueError(f"Chart: the singular-position threshold is a conditioning in (0, 1), not {singular}")
+        self.singular = singular
         F = np.ascontiguousarray(model.F, dtype=np.float64)
         I = np.ascontiguousarray(model.I, dtype=np.int64)
         self.model = Model(F, I)
@@ -697,7 +703,7 @@ class Chart(RightHandSide):
             if not isfinite(self.x[j]):
                 return 1
         self._finish(det)
-        if self.fields[CONDITIONING] < _c_singular_conditioning:
+        if self.fields[CONDITIONING] < self.singular:
             return 1
         if self.s[SIGN] != 0 and (1 if det >= 0.0 else -1) != self.s[SIGN]:
             return 1
@@ -1042,30 +1048,46 @@ class Chart(RightHandSide):
     def kinematics_at(self, x: cython.double[::1], row: cython.double[::1]) -> cython.bint:
         """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
         p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
-        where p cannot drive the linkage: the Hadamard ratio |det A| / Π ‖A[:, l]‖ of
-        A = [Φ_x; row] below SINGULAR_CONDITIONING. S[INDEPENDENT] should be −1 unless row is e_i.
+        where p cannot drive the linkage: its conditioning below the chart's threshold, the
+        Hadamard ratio of the dependent Jacobian (:func:`xval.kinematics.dependent_jacobian`:
+        with i the row's largest |entry|, columns Φ_x[:, l] − (row_l / row_i) Φ_x[:, i], l ≠ i),
+        |det A| / (|row_i| Π_{l≠i} ‖column l‖) with A = [Φ_x; row]; for row = e_i that is c_i.
+        S[INDEPENDENT] should be −1 unless row is e_i.
         x is copied first (into Newton's x): it may be one of the chart's own buffers."""
         n: cython.Py_ssize_t = self.n
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         v: cython.double
+        w: cython.double
+        ratio: cython.double
         if x.shape[0] != n or row.shape[0] != n:
             raise ValueError(f"kinematics_at: x and row of {n} coordinates, not {x.shape[0]} and {row.shape[0]}")
         for c in range(n):
             self.x[c] = x[c]
         self._angle_trig()
         self._constraints()
-        hadamard: cython.double = 1.0
+        i: cython.Py_ssize_t = 0  # the coordinate p replaces: the row's largest |entry|, the first of equals
+        for c in range(1, n):
+            if fabs(row[c]) > fabs(row[i]):
+                i = c
+        hadamard: cython.double = fabs(row[i])
         for c in range(n):
             v = 0.0
             for r in range(n - 1):
                 v += self.A[r, c] * self.A[r, c]
             self.norms[c] = sqrt(v)
+            if c != i:
+                ratio = row[c] / row[i] if row[i] != 0.0 else 0.0
+                v = 0.0
+                for r in range(n - 1):
+                    w = self.A[r, c] - ratio * self.A[r, i]
+                    v += w * w
+                hadamard *= sqrt(v)
+        for c in range(n):
             self.A[n - 1, c] = row[c]
-            hadamard *= sqrt(v + row[c] * row[c])
         det: cython.double = self._lu_factor()
         self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
-        if det == 0.0 or not isfinite(det) or fabs(det) < _c_singular_conditioning * hadamard:
+        if det == 0.0 or not isfinite(det) or fabs(det) < self.singular * hadamard:
             self.s[STATUS] = SINGULAR
             return False
         self._finish(det)
@@ -1090,7 +1112,7 @@ class Chart(RightHandSide):
         for j in range(n):
             self.guess[j] = 0.0
         self.guess[independent] = 1.0
-        if not self.kinematics_at(x, self.guess) or self.fields[CONDITIONING] < _c_singular_conditioning:
+        if not self.kinematics_at(x, self.guess):  # its conditioning is c_i: row e_i
             self.s[STATUS] = SINGULAR
             return False
         self.s[SIGN] = 1 if self.fields[DETERMINANT] >= 0.0 else -1

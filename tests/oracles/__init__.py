@@ -1,0 +1,1 @@
+"""Independent closed forms the tests check the general kinematics against (not shipped)."""
