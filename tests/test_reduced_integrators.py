@@ -12,7 +12,9 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import RKN4, ReducedSettings, simulate, solve_adaptive
+from xval.reduced import ReducedSettings, simulate
+from xval.reduced.integrators import solve_adaptive
+from xval.reduced.kernels.fixed_step import RKN4
 from xval.errors import IgnoredSettingWarning, NumericalFailure
 from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import MAX_EVALUATIONS

@@ -10,8 +10,9 @@ The API (each name loads its module on first use, so ``import xval`` is light):
 - comparison: :func:`compare_results` (two results of one scene; the name `compare` is the
   subpackage), :func:`check` (both engines and the
   gate, as ``xval check``), :class:`Comparison`, :class:`Tolerances`;
-- results: :class:`EngineResult` (trajectory, peak, energy audit, wall time; every array of a
-  result is read-only), :class:`Trajectory`, :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
+- results: :class:`EngineResult` (the input's trajectory, every joint's coordinate and rate,
+  peak, energy audit, the loops' opening, cost, the settings as run; every array of a result is
+  read-only), :class:`Trajectory`, :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
   cannot meet its accuracy, with the reason).
 
 Subpackages: :mod:`xval.reduced` (the Eksergian engine and its compiled core),
@@ -22,8 +23,9 @@ gate, studies, plots and the command line ``xval``); the shipped scenes are pack
 
 from __future__ import annotations
 
-import importlib
 from importlib.metadata import PackageNotFoundError, version
+
+from ._lazy import lazy_names
 
 try:
     __version__ = version("xval")
@@ -40,17 +42,4 @@ _HOMES = {
     "Peak": "xval.trajectory",
 }
 
-__all__ = sorted(_HOMES)
-
-
-def __getattr__(name: str):
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module 'xval' has no attribute {name!r}")
-    value = getattr(importlib.import_module(home), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())

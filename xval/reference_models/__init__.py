@@ -8,30 +8,16 @@ their submodule on first use (PEP 562): reading the settings does not import MuJ
 
 from __future__ import annotations
 
-import importlib
+from xval._lazy import lazy_names
 
 _HOMES = {
     **dict.fromkeys(("BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "ModelHandles", "assembled_angles",
                      "build_spec", "compile_model", "coordinate_map", "initial_qpos_qvel", "joint_order",
-                     "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), "build"),
+                     "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), ".build"),
     **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "OffGridEdgeWarning", "build_model", "check_initial_state",
                      "control_sequence", "mjcf_text", "grid_timestep", "handles_from_mjcf", "point_force_callback",
-                     "simulate_mujoco"), "run"),
-    **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), "settings"),
+                     "simulate_mujoco"), ".run"),
+    **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), ".settings"),
+    "simulate": (".run", "simulate_mujoco"),  # the engine interface's name
 }
-_ALIASES = {"simulate": ("run", "simulate_mujoco")}  # the engine interface's name
-
-__all__ = sorted([*_HOMES, *_ALIASES])
-
-
-def __getattr__(name: str):
-    home, attribute = _ALIASES.get(name, (_HOMES.get(name), name))
-    if home is None:
-        raise AttributeError(f"module 'xval.reference_models' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{home}", __name__), attribute)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())
