@@ -13,9 +13,7 @@ from xval.compare.cli import main
 from xval.compare.diff import compare_trajectories, gate
 from xval.compare.output import MANIFEST_FILE
 from xval.compare.report import REPORT_FILES, write_outputs
-from xval.compare.run import compare_engines
 from xval.trajectory import Trajectory
-from xval.scenefile import load_scene
 from xval.scene import Tolerances
 
 from helpers import SEED_SCENE
@@ -25,11 +23,6 @@ REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs
                     "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "mode_mismatches",
                     "mode_mismatch_first_times", "mode_mismatches_total", "peak_omega_reference", "peak_omega_other",
                     "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon"}
-
-
-@pytest.fixture(scope="module")
-def seed_comparison():
-    return compare_engines(load_scene(SEED_SCENE))
 
 
 def smooth_trajectory(shift: float = 0.0, n: int = 2001) -> Trajectory:
