@@ -34,6 +34,7 @@ def test_commands_without_plots_do_not_load_matplotlib(command):
     assert ("mujoco" in loaded) == (command[0] != "reduced")
 
 
+@pytest.mark.slow  # ~5 s: a whole `xval run`, plots included, in a fresh interpreter
 def test_run_does_not_load_pyplot(tmp_path):
     out = tmp_path / "out"
     code = (f"from xval.compare.cli import main; assert main(['run', {str(SEED_SCENE)!r}, '--out', {str(out)!r}]) == 0\n"
