@@ -9,7 +9,6 @@ MJCF) live with the engines.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,9 @@ from xval.errors import NumericalFailure
 from xval.mechanism import PrismaticJoint
 from xval.scenefile import default_scene_path, load_scene
 
-FOLDER = Path(__file__).resolve().parent.parent / "scenes" / "mechanisms"
+from helpers import ROOT
+
+FOLDER = ROOT / "scenes" / "mechanisms"
 EXPECTED = {  # scene: (moving bodies, loops, effects)
     "seed_fourbar": (3, 1, ("torque", "damper")),
     "slider_crank_gas": (3, 1, ("torque", "point-force")),

@@ -29,9 +29,8 @@ from xval.compare.cli import main
 from xval.compare.cost import worker_count
 from xval.scenefile import scene_from_dict
 
-from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
+from helpers import ROOT, SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def one_error_line(capsys) -> str:

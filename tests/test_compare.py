@@ -127,7 +127,7 @@ def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path, capsy
     assert not out.exists()
 
 
-@pytest.mark.slow  # end to end (~1.5 s each); tests/test_outputs.py catches the same at the writer, fast
+@pytest.mark.slow  # end to end (~1.5 s each); tests/compare/test_outputs.py catches the same at the writer, fast
 @pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt()], ids=["exception", "ctrl-c"])
 def test_failed_run_leaves_the_output_folder_as_it_was(seed_comparison, tmp_path, monkeypatch, error):
     """Issue 9, planted bug 3: a plot that fails after the CSVs are written leaves the earlier

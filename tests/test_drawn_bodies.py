@@ -9,8 +9,6 @@ what is tested is the drawing, not a run.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -20,7 +18,9 @@ from xval.kinematics import compile_linkage, positions
 from xval.mechanism import GROUND, PrismaticJoint
 from xval.trajectory import JointTrajectory
 
-CATALOGUE = sorted((Path(__file__).resolve().parent.parent / "scenes" / "mechanisms").glob("*.toml"))
+from helpers import ROOT
+
+CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
 CATALOGUE_BY_NAME = {p.stem: p for p in CATALOGUE}
 # A point is on an artist when it is within this fraction of the drawing's span of the
 # artist's path: the paths are built from the same positions, so the measured distances are

@@ -12,10 +12,10 @@ import sys
 
 import pytest
 
-from helpers import ROOT
+from helpers import DATA, ROOT
 
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
-SEED_PEAK = json.loads((ROOT / "tests" / "data" / "numba_core_outputs.json").read_text())["runs"][
+SEED_PEAK = json.loads((DATA / "numba_core_outputs.json").read_text())["runs"][
     "seed_fourbar.toml:dop853"]["peak_omega"]
 
 

@@ -21,11 +21,11 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from helpers import ROOT
+
 PROBE = """
 import dataclasses, json, time, warnings
 warnings.simplefilter("ignore")
