@@ -1,14 +1,18 @@
-"""Time limits of the tests (pytest-timeout, of the ``test`` extra): a hang fails, named.
+"""Time limits of the tests (pytest-timeout, of the ``test`` extra): a hang fails, named; and the
+runs that several test modules share, computed once per session.
 
 Every test has ``timeout`` seconds (300, pyproject.toml [tool.pytest.ini_options]; ``--timeout``
 overrides it), a test marked ``slow`` SLOW_TIMEOUT_S. The method is "thread": a test hung in
 compiled code never returns to the interpreter, so a signal handler would never run; the
 timer thread names the test, prints every thread's stack and ends the session (exit 1).
 
-Measured with the --durations of the whole suite (a 2-core machine under a load of ~5): the
-slowest test not marked slow took 15.0 s (test_adaptive_kernel, seed at 1e-6), the slowest marked
-slow 31.0 s (test_compiled_vs_scipy, long_conservative). 300 s is 20× the first; SLOW_TIMEOUT_S
-is 19× the second.
+Measured with the --durations of the whole suite (a 2-core machine under a load of ~3, 2026-11-26,
+issue 26): the slowest test not marked slow took 4.5 s (test_sweep, a row against ``xval run``),
+the slowest marked slow 65.5 s (test_packaging, building the wheel). 300 s is 66× the first;
+SLOW_TIMEOUT_S is 9× the second.
+
+The session fixtures below hold the runs that several modules read (the seed's reference and
+comparisons); a test that needs other settings keeps its own run.
 """
 
 from __future__ import annotations
