@@ -16,6 +16,7 @@ from xval.reduced.kernels.problem import RightHandSide
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED_SCENE = ROOT / "scenes" / "seed_fourbar.toml"
+DATA = ROOT / "tests" / "data"  # the tests' data files, wherever a test module sits under tests/
 
 
 def seed_dict() -> dict:

@@ -12,10 +12,10 @@ import sys
 
 import pytest
 
-from helpers import ROOT
+from helpers import DATA, ROOT
 
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
-SEED_PEAK = json.loads((ROOT / "tests" / "data" / "numba_core_outputs.json").read_text())["runs"][
+SEED_PEAK = json.loads((DATA / "numba_core_outputs.json").read_text())["runs"][
     "seed_fourbar.toml:dop853"]["peak_omega"]
 
 
@@ -50,6 +50,7 @@ def test_damper_sweep(tmp_path):
     assert peaks[2] == pytest.approx(SEED_PEAK, abs=1e-6)  # 55 N·s/m is the seed itself
 
 
+@pytest.mark.slow  # ~4 s: the example runs `xval run` on the seed, plots included, in a subprocess
 def test_read_report(tmp_path):
     out = run("read_report.py", tmp_path, str(tmp_path / "seed"))
     assert "exited 0" in out and "gate passed: True" in out

@@ -21,7 +21,7 @@ write. Assembly is computed here in closed form (dyad by dyad) and handed over a
 drawn again (any other refusal is a bug of the generator and raises).
 
 Usage: ``python tests/valid_scenes.py OUTDIR [--seed S] [--n N]`` writes N TOML files (what
-tests/test_valid_scene_family.py runs through ``compare_engines``; the full draw was run through
+tests/compare/test_valid_scene_family.py runs through ``compare_engines``; the full draw was run through
 ``xval check`` one file at a time).
 """
 

@@ -4,7 +4,7 @@ matplotlib is imported only when a plot is drawn, and pyplot never: each figure 
 ``matplotlib.figure.Figure`` on its own Agg canvas (:func:`new_figure`), so no global figure
 state is kept and nothing needs closing. The layout is fixed margins in inches
 (:func:`new_figure`), not ``tight_layout``: a layout engine makes ``savefig`` draw every
-figure twice. The margins leave room for the labels these plots carry (tests/test_startup.py
+figure twice. The margins leave room for the labels these plots carry (tests/compare/test_startup.py
 checks that no text leaves the image). Names from scene files are plain text:
 every text element that carries one is drawn with ``parse_math=False`` (a ``$...$`` in a
 name is not mathtext), and names are shortened to :data:`NAME_CHARS` characters in titles.

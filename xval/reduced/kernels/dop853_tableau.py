@@ -1,6 +1,6 @@
 """The coefficients of DOP853 (Hairer, Nørsett & Wanner), as scipy 1.17.1 has them
 (``scipy/integrate/_ivp/dop853_coefficients.py``), written out to the last bit so that the
-compiled kernel does not import scipy.integrate (~0.4 s). tests/test_adaptive_kernel.py checks
+compiled kernel does not import scipy.integrate (~0.4 s). tests/reduced/kernels/test_adaptive_kernel.py checks
 that every entry equals scipy's."""
 
 import numpy as np

@@ -29,7 +29,7 @@ import), compared with the threshold the chart is built with (``Chart(model, sin
 Compiled: the integer constants of the packed layout (below) are C constants declared in
 ``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
 ``if not cython.compiled`` here defines them for plain Python, and
-``tests/test_physics_port.py`` checks that the two agree); the numerical constants are Python
+``tests/reduced/kernels/test_physics_port.py`` checks that the two agree); the numerical constants are Python
 names with a C copy each (``_c_…``) that the kernels read. The arithmetic keeps the order of
 every expression (the build does not contract a*b+c or reassociate), so that it gives the same
 numbers as plain Python, and as the numba core it replaced: compared on every shipped scene and
@@ -74,7 +74,7 @@ MAX_HALVINGS = 30
 # Newton never converges) would spin for hours. A walk that needs more than MAX_WALK_CLOSURES
 # closures fails instead (S[STATUS] = WORK_SPENT), and the run with it. Measured: at most 2
 # closures in one walk on every shipped scene with dop853, rkn4 and scipy-dop853; 61 in the
-# tests' walks (a chart started at a fold, tests/test_long_walks.py). With the fault planted, a
+# tests' walks (a chart started at a fold, tests/reduced/test_long_walks.py). With the fault planted, a
 # walk spent the 20 000 in 0.07 s, and the runs that had spun failed in under 0.1 s.
 MAX_WALK_CLOSURES = 20_000
 # Beyond a predicted motion of LONG_JUMP (rad, or m) the quadratic predictor cannot tell a
@@ -156,7 +156,7 @@ if not cython.compiled:
 
 # C copies of the numerical constants above, which the kernels read (compiled, a module's
 # Python name costs a dictionary lookup and an unboxing at every use). Plain Python reads them
-# too: a test that changes a bound changes the copy (tests/test_work_bounds.py).
+# too: a test that changes a bound changes the copy (tests/reduced/kernels/test_work_bounds.py).
 _c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
 _c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
 _c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)

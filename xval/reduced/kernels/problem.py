@@ -5,7 +5,7 @@ table of C function pointers (Cython's ``cpdef`` methods: a virtual call from co
 ordinary method from Python). The integrators (:mod:`.fixed_step`, :mod:`.adaptive`) take one as
 an argument and know nothing else of the problem; the linkage chart of :mod:`.physics` is one,
 and a Python subclass is another (the integrators' order tests use closed forms written so,
-``tests/test_kernel_integrators.py``; a Python override is called through the interpreter, slow
+``tests/reduced/kernels/test_kernel_integrators.py``; a Python override is called through the interpreter, slow
 but the same algorithm).
 
 Only :meth:`acceleration` must be defined. The others default to a problem that observes

@@ -15,12 +15,12 @@ from xval.compare.diff import compare_trajectories, gate
 from xval.errors import NumericalFailure
 from xval import kinematics as loops
 from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import load_scene, scene_from_dict
+from xval.scenefile import scene_from_dict
 from xval.errors import FailureReason
 from xval.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
-from helpers import SEED_SCENE, seed_dict, variant
+from helpers import seed_dict, variant
 
 OFF_GRID_END = 1.00037  # s: a pulse end that is not a multiple of 1 ms
 # A non-Grashof linkage (s + l = 2.1 > p + q = 1.35) swinging fast with nothing else acting:
@@ -28,21 +28,6 @@ OFF_GRID_END = 1.00037  # s: a pulse end that is not a multiple of 1 ms
 FAST_SWING = dict(drop=("torque", "dampers"),
                   linkage={"type": "four_bar", "c1": 0.7, "c2": 0.6, "c3": 0.65, "c4": 1.5, "branch": 1},
                   initial={"q": 0.2, "qdot": 50.0})
-
-
-@pytest.fixture(scope="module")
-def seed():
-    return load_scene(SEED_SCENE)
-
-
-@pytest.fixture(scope="module")
-def seed_auto(seed):
-    return simulate_mujoco(seed)
-
-
-@pytest.fixture(scope="module")
-def seed_reduced(seed):
-    return simulate(seed, ReducedSettings(method="dop853", rtol=1e-12))
 
 
 # --- settings -------------------------------------------------------------------------------
@@ -72,12 +57,12 @@ def test_the_issues_bad_settings_are_refused():
 
 # --- energy gate ----------------------------------------------------------------------------
 
-def test_energy_imbalance_of_a_real_run_fails(seed):
+def test_energy_imbalance_of_a_real_run_fails(seed_scene):
     """Semi-implicit Euler at 1 ms on the seed: the balance is 7 % off (measured 7.1e-2 of the
     energy scale). Its loop gap (1.6 mm) would trip the drift check first, so that bound is
     relaxed to 1 cm to reach the energy gate (default bound 3e-3)."""
     with pytest.raises(NumericalFailure) as info:
-        simulate_mujoco(seed, MujocoSettings(integrator="euler", timestep=1e-3, max_constraint_violation=1e-2))
+        simulate_mujoco(seed_scene, MujocoSettings(integrator="euler", timestep=1e-3, max_constraint_violation=1e-2))
     assert info.value.reason == FailureReason.ENERGY_IMBALANCE
     assert "max_energy_residual" in str(info.value)
 
@@ -93,14 +78,14 @@ def test_energy_imbalance_at_a_too_coarse_explicit_step_fails():
     assert info.value.reason == FailureReason.ENERGY_IMBALANCE
 
 
-def test_good_runs_are_inside_the_energy_bound_with_margin(seed_auto):
+def test_good_runs_are_inside_the_energy_bound_with_margin(seed_mujoco):
     """The seed at its automatic step: 3.2e-5 measured, ~100x inside the 3e-3 default."""
-    assert seed_auto.audit.relative_residual < 1e-4
+    assert seed_mujoco.audit.relative_residual < 1e-4
 
 
 # --- damper dissipation (planted bug 1 of issue 9) -------------------------------------------
 
-def test_mujoco_damper_dissipation_matches_the_reduced_engine(seed, seed_reduced):
+def test_mujoco_damper_dissipation_matches_the_reduced_engine(seed_scene, seed_reference):
     """MuJoCo's ∫ b l̇² dt against the reduced engine's (DOP853, rtol 1e-12) over the seed run.
 
     The damper takes 28 % of the torque's work. Measured: 1.05e-4 relative at the automatic
@@ -108,7 +93,7 @@ def test_mujoco_damper_dissipation_matches_the_reduced_engine(seed, seed_reduced
     residual check pins the rest of the balance: 3.2e-5 of the scale measured, bound 1e-4.
     """
     # The energy gate is opened so that this test judges the audit on its own.
-    m, r = simulate_mujoco(seed, MujocoSettings(max_energy_residual=1.0)).audit, seed_reduced.audit
+    m, r = simulate_mujoco(seed_scene, MujocoSettings(max_energy_residual=1.0)).audit, seed_reference.audit
     assert m.damper_dissipation[-1] > 0.1 * m.torque_work[-1]  # the damper matters here
     rel = abs(m.damper_dissipation[-1] - r.damper_dissipation[-1]) / r.damper_dissipation[-1]
     assert rel < 5e-4
@@ -139,34 +124,34 @@ def test_control_is_the_torque_at_each_steps_midpoint():
 
 # --- handles against settings, horizon reached -----------------------------------------------
 
-def test_model_exported_at_another_step_is_refused_or_run_at_its_own(seed, tmp_path):
+def test_model_exported_at_another_step_is_refused_or_run_at_its_own(seed_scene, tmp_path):
     path = tmp_path / "fine.xml"
-    path.write_text(mjcf_text(seed, MujocoSettings(timestep=1e-4)), encoding='utf-8')
+    path.write_text(mjcf_text(seed_scene, MujocoSettings(timestep=1e-4)), encoding='utf-8')
     handles = handles_from_mjcf(path)
     with pytest.raises(ValueError, match=r"timestep 0\.0001 .* timestep 0\.001"):
-        simulate_mujoco(seed, MujocoSettings(timestep=1e-3), handles=handles)
+        simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-3), handles=handles)
     with pytest.raises(ValueError, match="iterations 100 .* iterations 50"):
-        simulate_mujoco(seed, MujocoSettings(timestep=1e-4, iterations=50), handles=handles)
+        simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-4, iterations=50), handles=handles)
     with pytest.raises(ValueError, match="solref"):
-        simulate_mujoco(seed, MujocoSettings(timestep=1e-4, solref=(0.02, 1.0)), handles=handles)
-    result = simulate_mujoco(seed, handles=handles)  # automatic: the model's own step
+        simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-4, solref=(0.02, 1.0)), handles=handles)
+    result = simulate_mujoco(seed_scene, handles=handles)  # automatic: the model's own step
     assert result.settings.timestep == 1e-4
-    assert result.trajectory.t[-1] == pytest.approx(seed.horizon, abs=0.5e-4)
+    assert result.trajectory.t[-1] == pytest.approx(seed_scene.horizon, abs=0.5e-4)
 
 
-def test_run_that_stops_short_of_the_horizon_fails(seed):
+def test_run_that_stops_short_of_the_horizon_fails(seed_scene):
     """The issue's case without the consistency check: a 0.1 ms model stepped 2000 times as if
     h were 1 ms ends at 0.2 s of 2 s."""
-    handles = build_model(seed, MujocoSettings(timestep=1e-4))
+    handles = build_model(seed_scene, MujocoSettings(timestep=1e-4))
     with pytest.raises(NumericalFailure) as info:
-        mj_run._run(seed, MujocoSettings(timestep=1e-3), handles)
+        mj_run._run(seed_scene, MujocoSettings(timestep=1e-3), handles)
     assert info.value.reason == FailureReason.INCOMPLETE and "short of simulation.horizon" in str(info.value)
 
 
 # --- initial state against MuJoCo's own residuals ---------------------------------------------
 
-def test_seed_initial_residuals_are_round_off(seed_auto):
-    res = seed_auto.details.initial_residuals
+def test_seed_initial_residuals_are_round_off(seed_mujoco):
+    res = seed_mujoco.details.initial_residuals
     assert res["position"] < 1e-15 and res["velocity"] == 0.0
 
 
@@ -195,17 +180,17 @@ def test_error_in_the_shared_assembly_stops_the_run(monkeypatch, plant):
 
 # --- MuJoCo's warning handler ------------------------------------------------------------------
 
-def test_warning_handler_is_the_processes_own_after_a_run(seed):
+def test_warning_handler_is_the_processes_own_after_a_run(seed_scene):
     def mine(message):
         pass
 
     before = mujoco.get_mju_user_warning()
     try:
         mujoco.set_mju_user_warning(mine)
-        simulate_mujoco(seed, MujocoSettings(timestep=1e-3))
+        simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-3))
         assert mujoco.get_mju_user_warning() is mine
         with pytest.raises(NumericalFailure):
-            simulate_mujoco(seed, MujocoSettings(integrator="euler", timestep=0.05))
+            simulate_mujoco(seed_scene, MujocoSettings(integrator="euler", timestep=0.05))
         assert mujoco.get_mju_user_warning() is mine
     finally:
         mujoco.set_mju_user_warning(before)
@@ -232,18 +217,18 @@ def test_unbounded_or_meaningless_work_is_refused_up_front(changes, settings, wo
 
 # --- automatic timestep ----------------------------------------------------------------------
 
-def test_seed_step_is_automatic_on_the_grid_and_confirmed(seed, seed_auto):
-    s, h = seed_auto.settings, seed_auto.settings.timestep
-    assert seed_auto.details.timestep_automatic and h <= 1e-3
+def test_seed_step_is_automatic_on_the_grid_and_confirmed(seed_scene, seed_mujoco):
+    s, h = seed_mujoco.settings, seed_mujoco.settings.timestep
+    assert seed_mujoco.details.timestep_automatic and h <= 1e-3
     assert s.effective_solref == (2 * h, 1.0)  # solref follows the step
-    check = seed_auto.details.timestep_checks
+    check = seed_mujoco.details.timestep_checks
     assert check[-1]["accepted"] and check[-1]["timestep"] == pytest.approx(2 * h)
-    for edge in seed.load.edges:
+    for edge in seed_scene.load.edges:
         assert abs(edge / h - round(edge / h)) < 1e-9
 
 
-def test_explicit_step_is_used_as_given(seed):
-    r = simulate_mujoco(seed, MujocoSettings(timestep=1e-3))
+def test_explicit_step_is_used_as_given(seed_scene):
+    r = simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-3))
     assert r.settings.timestep == 1e-3 and not r.details.timestep_automatic
     assert r.settings.effective_solref == (2e-3, 1.0)
 

@@ -10,7 +10,6 @@ import pytest
 
 from xval.errors import NumericalFailure
 from xval import kinematics as loops
-from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import load_scene, scene_from_dict
 from xval.reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
                               joint_positions, joint_rates, mjcf_text, simulate_mujoco)
@@ -26,18 +25,8 @@ GRAVITY_BODIES = {
 }
 
 
-@pytest.fixture(scope="module")
-def seed():
-    return load_scene(SEED_SCENE)
-
-
-@pytest.fixture(scope="module")
-def seed_reference(seed):
-    return simulate(seed, ReducedSettings(method="dop853", rtol=1e-12))
-
-
-def test_seed_model_has_exactly_the_declared_effects(seed):
-    m = build_model(seed).model
+def test_seed_model_has_exactly_the_declared_effects(seed_scene):
+    m = build_model(seed_scene).model
     assert (m.nq, m.nv, m.neq) == (3, 3, 1)
     assert m.eq_type[0] == mujoco.mjtEq.mjEQ_CONNECT
     assert m.ntendon == 1 and m.tendon_damping[0] == 55.0 and m.tendon_stiffness[0] == 0.0
@@ -88,7 +77,7 @@ def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
         assert (rebuilt.sensor_slices, rebuilt.damper_tendons) == (fresh.sensor_slices, fresh.damper_tendons)
 
 
-def test_kinetic_energy_matches_generalized_inertia(seed):
+def test_kinetic_energy_matches_generalized_inertia(seed_scene):
     """½ q̇ᵀ M q̇ from MuJoCo at a loop-consistent velocity equals ½ 𝔍(q) q̇² over a full turn.
 
     𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (xval.kinematics: K on the centres of
@@ -96,22 +85,22 @@ def test_kinetic_energy_matches_generalized_inertia(seed):
     dynamics. Both are sums of the same few products in float64 (measured ≤ 3.1e-15 relative);
     1e-10 is the issue's bound and leaves room for the trigonometry on either side.
     """
-    handles = build_model(seed)
+    handles = build_model(seed_scene)
     m, d = handles.model, mujoco.MjData(handles.model)
-    linkage = seed.mechanism.linkage
+    linkage = seed_scene.mechanism.linkage
     system = loops.compile_linkage(linkage)
     bodies = linkage.body_map
-    x0, T = coordinate_map(seed)
+    x0, T = coordinate_map(seed_scene)
     M = np.zeros((3, 3))
-    x = np.asarray(seed.x0)
-    for q in seed.q0 + np.linspace(0.0, 2 * np.pi, 61):
+    x = np.asarray(seed_scene.x0)
+    for q in seed_scene.q0 + np.linspace(0.0, 2 * np.pi, 61):
         x = loops.assemble(system, q, x)  # continuation keeps the branch
         K, _ = loops.coefficients(system, x)
         kg, _ = loops.rates(system.centres, x, K)
         inertia = sum(bodies[b].mass * float(kg[i] @ kg[i]) + bodies[b].inertia * K[i] ** 2
                       for i, b in enumerate(linkage.moving))
-        d.qpos[:] = joint_positions(seed, x)  # qpos counts from the authored (assembled) pose
-        d.qvel[:] = joint_rates(seed, K)  # q̇ = 1 rad/s
+        d.qpos[:] = joint_positions(seed_scene, x)  # qpos counts from the authored (assembled) pose
+        d.qvel[:] = joint_rates(seed_scene, K)  # q̇ = 1 rad/s
         mujoco.mj_forward(m, d)
         gap = d.site("coupler.B").xpos - d.site("rocker.B").xpos
         assert np.linalg.norm(gap) < 1e-14  # the configuration closes the loop
@@ -121,14 +110,13 @@ def test_kinetic_energy_matches_generalized_inertia(seed):
         assert kinetic == pytest.approx(0.5 * inertia, rel=1e-10)
 
 
-def test_initial_state_satisfies_the_loop(seed):
-    result = simulate_mujoco(seed)
-    assert result.constraint_violation.gap[0] < 1e-14
+def test_initial_state_satisfies_the_loop(seed_mujoco):
+    assert seed_mujoco.constraint_violation.gap[0] < 1e-14
 
 
-def test_seed_peak_within_1e_4_of_reduced_reference(seed, seed_reference):
+def test_seed_peak_within_1e_4_of_reduced_reference(seed_mujoco, seed_reference):
     """The issue's requirement for the default settings (RK4, 1 ms, hard constraint)."""
-    result = simulate_mujoco(seed)
+    result = seed_mujoco
     rel = abs(result.peak.omega - seed_reference.peak.omega) / seed_reference.peak.omega
     assert rel < 1e-4
     assert result.constraint_violation.max < 1e-4
@@ -153,27 +141,27 @@ def test_conservative_energy_drift_is_bounded_and_converges():
     assert drifts[0] / drifts[1] > 3.0
 
 
-def test_unstable_setting_is_reported_not_returned(seed):
+def test_unstable_setting_is_reported_not_returned(seed_scene):
     with pytest.raises(NumericalFailure) as info:
-        simulate_mujoco(seed, MujocoSettings(integrator="euler", timestep=0.05))
+        simulate_mujoco(seed_scene, MujocoSettings(integrator="euler", timestep=0.05))
     assert info.value.reason in ("unstable", "non-finite", "constraint-drift")
 
 
-def test_soft_default_constraint_drift_is_detected(seed):
+def test_soft_default_constraint_drift_is_detected(seed_scene):
     """MuJoCo's own default softness lets the loop open by millimetres on this scene."""
     with pytest.raises(NumericalFailure) as info:
-        simulate_mujoco(seed, MujocoSettings(timestep=1e-3, solref=(0.02, 1.0),
+        simulate_mujoco(seed_scene, MujocoSettings(timestep=1e-3, solref=(0.02, 1.0),
                                              solimp=(0.9, 0.95, 0.001, 0.5, 2.0)))
     assert info.value.reason == "constraint-drift"
 
 
-def test_exported_mjcf_loads_alone_and_reproduces_the_run(seed, tmp_path):
+def test_exported_mjcf_loads_alone_and_reproduces_the_run(seed_scene, seed_mujoco, tmp_path):
     path = tmp_path / "model.xml"
-    path.write_text(mjcf_text(seed), encoding='utf-8')
+    path.write_text(mjcf_text(seed_scene), encoding='utf-8')
     text = path.read_text()
     assert "<connect" in text and "<spatial" in text and 'damping="55"' in text
-    direct = simulate_mujoco(seed)
-    reloaded = simulate_mujoco(seed, handles=handles_from_mjcf(path))
+    direct = seed_mujoco
+    reloaded = simulate_mujoco(seed_scene, handles=handles_from_mjcf(path))
     # Same model, same arithmetic: identical to round-off.
     np.testing.assert_allclose(reloaded.trajectory.q, direct.trajectory.q, rtol=0, atol=1e-12)
     assert reloaded.peak.omega == pytest.approx(direct.peak.omega, rel=1e-12)

@@ -15,7 +15,9 @@ from pathlib import Path
 
 import pytest
 
-KERNELS = Path(__file__).resolve().parents[1] / "xval" / "reduced" / "kernels"
+from helpers import ROOT
+
+KERNELS = ROOT / "xval" / "reduced" / "kernels"
 PROJECT_PACKAGES = ("xval", "scenes", "benchmarks")
 # what each kernel module may import of the others
 ALLOWED = {

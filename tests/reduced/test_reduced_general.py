@@ -24,10 +24,10 @@ from xval.reduced.integrators import solve_adaptive
 from xval.kinematics import assemble
 from xval.reduced.partition import Chart, conditioning
 
-from helpers import ROOT, SEED_SCENE
+from helpers import DATA, ROOT, SEED_SCENE
 
 PLANAR_SEED = ROOT / "scenes" / "mechanisms" / "seed_fourbar.toml"
-BEFORE = Path(__file__).parent / "data" / "seed_reduced_before_general.json"
+BEFORE = DATA / "seed_reduced_before_general.json"
 
 
 def _planar_seed(**changes) -> dict:

@@ -354,6 +354,7 @@ FORKING_CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # ~4 s each: seven signals, each into a ~1 s forked write (the fast tests above signal one writer)
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_while_forked_writers_run_ends_all_of_them_and_changes_nothing(tmp_path, spawn, signum):
     """Issue 24: a signal to the process group while write_folder's forked writers run (a run's

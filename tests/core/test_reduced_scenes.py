@@ -3,8 +3,8 @@ broken names itself in one line; the bad-scene files through the CLI's error pat
 default scene is the seed notes' worked example (README, 'The seed notes').
 
 Each bad-scene file goes through the CLI's ``main`` in the test process (exit status 2, one
-stderr line naming the key, no traceback); tests/test_scenes.py runs the installed ``xval``
-script once as a subprocess. Extreme values, names and unreadable files: tests/test_scene_input.py.
+stderr line naming the key, no traceback); tests/core/test_scenes.py runs the installed ``xval``
+script once as a subprocess. Extreme values, names and unreadable files: tests/core/test_scene_input.py.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from xval.compare import cli
 from xval.scene import SceneError
 from xval.scenefile import default_scene_path, load_scene, scene_from_dict
 
-from helpers import SEED_SCENE, seed_dict
+from helpers import DATA, SEED_SCENE, seed_dict
 
-BAD = sorted((Path(__file__).parent / "data" / "bad_scenes").glob("*.toml"))
+BAD = sorted((DATA / "bad_scenes").glob("*.toml"))
 
 
 def expected_text(path: Path) -> str:

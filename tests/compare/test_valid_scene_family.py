@@ -42,6 +42,7 @@ def test_the_generator_draws_this_scene():
     assert generate(2024, 1)[0] == FAST_CRANK
 
 
+@pytest.mark.slow  # ~8 s: MuJoCo's step search halves five times on a 383 rad/s crank
 def test_a_step_check_after_a_failed_run_is_confirmed_before_the_gate():
     c = compare_engines(scene_from_dict(FAST_CRANK))
     assert c.gate.passed, c.gate.failures

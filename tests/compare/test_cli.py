@@ -33,9 +33,8 @@ from xval.reduced.settings import ReducedSettings
 from xval.reference_models.settings import MujocoSettings
 from xval.settings import given_flags
 
-from helpers import SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
+from helpers import ROOT, SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def one_error_line(capsys) -> str:

@@ -22,8 +22,6 @@ test runs the reduced engine (``reduced.simulate``) and needs it ported to gener
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -31,7 +29,9 @@ from scipy.integrate import solve_ivp
 from xval import kinematics as loops
 from xval.scenefile import load_scene
 
-SCENE = Path(__file__).resolve().parent.parent / "scenes" / "mechanisms" / "andrews_squeezer.toml"
+from helpers import ROOT
+
+SCENE = ROOT / "scenes" / "mechanisms" / "andrews_squeezer.toml"
 
 # Published constants (SI).
 m1, m2, m3, m4, m5, m6, m7 = 0.04325, 0.00365, 0.02373, 0.00706, 0.07050, 0.00706, 0.05498

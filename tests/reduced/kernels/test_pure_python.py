@@ -15,11 +15,11 @@ import os
 import subprocess
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+from helpers import ROOT
+
 SHORT_RUNS = {"rkn4": {"step": 1e-3, "check_error": False}, "dop853": {"rtol": 1e-8}}
 PROBE = f"""
 import dataclasses, json, warnings
@@ -52,7 +52,8 @@ def test_this_session_runs_the_compiled_kernels():
 
 
 def test_the_kinematics_tests_pass_uncompiled():
-    done = _uncompiled("-m", "pytest", "-q", "-p", "no:cacheprovider", "tests/test_reduced_kinematics.py")
+    kinematics_tests, = (ROOT / "tests").rglob("test_reduced_kinematics.py")
+    done = _uncompiled("-m", "pytest", "-q", "-p", "no:cacheprovider", str(kinematics_tests))
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert " passed" in done.stdout
 

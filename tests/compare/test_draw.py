@@ -288,7 +288,7 @@ def test_a_drawing_that_fails_midway_leaves_the_old_file(tmp_path, monkeypatch, 
 
 def test_a_bare_linkage_is_drawn_at_the_slider_crank_s_closed_form():
     """A linkage without masses or elements (draw_linkage takes a Linkage too)."""
-    from test_mechanism import slider_crank
+    from core.test_mechanism import slider_crank
 
     plt = pyplot()
     r, l, e = SLIDER["r"], SLIDER["l"], SLIDER["e"]

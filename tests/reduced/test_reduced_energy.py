@@ -15,23 +15,18 @@ from xval.scenefile import load_scene, scene_from_dict
 from helpers import SEED_SCENE, coefficients_along, conservative, seed_dict, variant
 
 
-@pytest.fixture(scope="module")
-def seed_run():
-    return simulate(load_scene(SEED_SCENE), ReducedSettings(method="dop853", rtol=1e-12))
-
-
-def test_seed_energy_residual_below_1e_8_of_the_work(seed_run):
+def test_seed_energy_residual_below_1e_8_of_the_work(seed_reference):
     """The issue's requirement. DOP853 at rtol 1e-12 and Gauss-Legendre quadrature on the
     interpolant leave ~1e-11; 1e-8 leaves room for machines and still catches a wrong term
     (a missing damper term would leave ~900 J, 0.3 of the work)."""
-    audit = seed_run.audit
+    audit = seed_reference.audit
     assert audit.max_abs_residual < 1e-8 * abs(audit.torque_work[-1])
     assert audit.damper_dissipation[-1] > 800.0  # the damper really dissipates (~880 J)
 
 
-def test_work_of_a_constant_torque_is_torque_times_angle(seed_run):
+def test_work_of_a_constant_torque_is_torque_times_angle(seed_reference):
     """Independent of the quadrature: during the pulse W = 250 N·m × (q(1 s) − q(0))."""
-    tr, audit = seed_run.trajectory, seed_run.audit
+    tr, audit = seed_reference.trajectory, seed_reference.audit
     k = int(np.flatnonzero(tr.t == 1.0)[0])
     assert audit.torque_work[k] == pytest.approx(250.0 * (tr.q[k] - tr.q[0]), rel=1e-9)
     assert audit.torque_work[-1] == pytest.approx(audit.torque_work[k], rel=1e-12)  # no work after
@@ -62,11 +57,11 @@ def test_gravity_and_spring_potential_balance_kinetic_energy():
 # ---------------------------------------------------------------------------
 
 
-def test_seed_relative_residual_meets_the_issue_requirement(seed_run):
+def test_seed_relative_residual_meets_the_issue_requirement(seed_reference):
     """audit.relative_residual < 1e-8 (the issue's figure; measured 1.2e-11 with DOP853 at
     rtol 1e-12). The scale it divides by is the torque work, checked here independently:
     the work is the largest energy in the run, 250 N·m × Δq over the pulse."""
-    audit, tr = seed_run.audit, seed_run.trajectory
+    audit, tr = seed_reference.audit, seed_reference.trajectory
     assert audit.relative_residual < 1e-8
     k = int(np.flatnonzero(tr.t == 1.0)[0])
     assert audit.scale == pytest.approx(250.0 * (tr.q[k] - tr.q[0]), rel=1e-9)

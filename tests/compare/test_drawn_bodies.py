@@ -9,8 +9,6 @@ what is tested is the drawing, not a run.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -20,7 +18,9 @@ from xval.kinematics import compile_linkage, positions
 from xval.mechanism import GROUND, PrismaticJoint
 from xval.trajectory import JointTrajectory
 
-CATALOGUE = sorted((Path(__file__).resolve().parent.parent / "scenes" / "mechanisms").glob("*.toml"))
+from helpers import ROOT
+
+CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
 CATALOGUE_BY_NAME = {p.stem: p for p in CATALOGUE}
 # A point is on an artist when it is within this fraction of the drawing's span of the
 # artist's path: the paths are built from the same positions, so the measured distances are
@@ -140,7 +140,7 @@ def scaled_lever(k: float):
     return scene_from_dict(data, "scaled_lever.toml")
 
 
-@pytest.mark.parametrize("k", [0.3, 0.4, 0.6, 0.8])
+@pytest.mark.parametrize("k", [0.3, *(pytest.param(k, marks=pytest.mark.slow) for k in (0.4, 0.6, 0.8))])  # ~1 s each
 def test_strip_tick_labels_do_not_overlap(tmp_path, saved_figures, k):
     """The oscillating slotted lever, its lengths scaled by k, at its peak speed (q = 10.2236
     rad) and at the end of its run (q = 13.8867 rad), reached from q0 by continuation of the
@@ -198,7 +198,13 @@ def _overlap(a, b) -> float:
     return max(0.0, min(a.x1, b.x1) - max(a.x0, b.x0)) * max(0.0, min(a.y1, b.y1) - max(a.y0, b.y0))
 
 
-@pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
+# ~0.5-1 s each (the drawing is rendered to measure its labels): a four-bar, a slider-crank and
+# a six-bar in the fast suite, the rest slow.
+FAST_DRAWINGS = ("seed_fourbar", "slider_crank_driven_slider", "stephenson3_sixbar")
+
+
+@pytest.mark.parametrize("path", [p if p.stem in FAST_DRAWINGS else pytest.param(p, marks=pytest.mark.slow)
+                                  for p in CATALOGUE], ids=lambda p: p.stem)
 def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, saved_figures):
     """The drawing's labels (joints, bodies, centres of mass, elements) as ``xval draw`` saves
     them: no two share a pixel. Before

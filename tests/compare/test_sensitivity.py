@@ -8,7 +8,7 @@ two steps. The two must agree within the sum of their error estimates (measured 
 Seen failing: D(2h) divided by 2h instead of 4h; a step of ε^(2/3) instead of ε^(1/3) (the
 noise term swamps the estimate). Not detectable here, and said so: the sign of the Richardson
 correction (it moves D by 1.6e-6 of the coupler mass's derivative, inside the estimates):
-tests/test_sensitivity_closed_form.py catches it against a closed-form derivative.
+tests/compare/test_sensitivity_closed_form.py catches it against a closed-form derivative.
 """
 
 from __future__ import annotations

@@ -47,7 +47,8 @@ def test_a_walk_of_hundreds_of_rad_keeps_the_dependent_angles_turns(far):
 
 # 1e-4 and 2e-3: rejected steps put trial stages at 1e4–3e7 rad; walked out in 2-rad halves they
 # took 99 s and over 4 minutes (physics.FAR_JUMP); 0.15 s and 0.16 s before and since.
-@pytest.mark.parametrize("method, rtol", [("dop853", 1e-9), ("dop853", 1e-6), ("scipy-dop853", 1e-7),
+@pytest.mark.parametrize("method, rtol", [("dop853", 1e-9), ("dop853", 1e-6),
+                                          pytest.param("scipy-dop853", 1e-7, marks=pytest.mark.slow),  # ~3 s: scipy's Python steps
                                           ("dop853", 1e-4), ("dop853", 2e-3)])
 def test_long_runs_at_loose_tolerances_sample_their_pieces(method, rtol):
     """45 s of a crank coasting at 30 rad/s (about 1 350 rad) in one load piece. These runs
@@ -112,6 +113,7 @@ def test_rotating_dependent_angles_keep_the_start_turns():
     assert np.max(np.abs(turned - integral)) <= 1e-2, turned - integral
 
 
+@pytest.mark.slow  # ~3 s: 110 s of motion, 12 000 rad
 def test_loops_close_at_angles_of_ten_thousand_rad():
     """The drag link at ~110 rad/s for 110 s: its angles pass 1.2e4 rad, where their rounding
     (ulp 1.8e-12 rad, times links of ~1 m) is above Newton's 1e-12: the loops could not close,
@@ -132,6 +134,7 @@ def test_loops_close_at_angles_of_ten_thousand_rad():
     assert np.max(np.abs(last - first)) <= 1e-3 * np.max(np.abs(first))
 
 
+@pytest.mark.slow  # ~1.5 s: the reference is RKN4 at 5e-5 s
 def test_a_point_force_on_a_dependent_input_sees_its_true_angle():
     """The catalogue's drag link (its chart the coupler's, the crank's angle solved) with a force
     tabulated on q over 0–120 rad (not periodic). A piece's samples used to be walked to back

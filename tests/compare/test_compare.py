@@ -13,9 +13,7 @@ from xval.compare.cli import main
 from xval.compare.diff import compare_trajectories, gate
 from xval.compare.output import MANIFEST_FILE
 from xval.compare.report import REPORT_FILES, write_outputs
-from xval.compare.run import compare_engines
 from xval.trajectory import Trajectory
-from xval.scenefile import load_scene
 from xval.scene import Tolerances
 
 from helpers import SEED_SCENE
@@ -25,11 +23,6 @@ REPORT_DIFF_KEYS = {"peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs
                     "omega_max_abs", "omega_rms", "omega_vs_q_max_abs", "mode_mismatches",
                     "mode_mismatch_first_times", "mode_mismatches_total", "peak_omega_reference", "peak_omega_other",
                     "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon"}
-
-
-@pytest.fixture(scope="module")
-def seed_comparison():
-    return compare_engines(load_scene(SEED_SCENE))
 
 
 def smooth_trajectory(shift: float = 0.0, n: int = 2001) -> Trajectory:
@@ -134,7 +127,7 @@ def test_bad_scene_exits_2_with_one_line_and_no_outputs(command, tmp_path, capsy
     assert not out.exists()
 
 
-@pytest.mark.slow  # end to end (~1.5 s each); tests/test_outputs.py catches the same at the writer, fast
+@pytest.mark.slow  # end to end (~1.5 s each); tests/compare/test_outputs.py catches the same at the writer, fast
 @pytest.mark.parametrize("error", [RuntimeError("plot failed"), KeyboardInterrupt()], ids=["exception", "ctrl-c"])
 def test_failed_run_leaves_the_output_folder_as_it_was(seed_comparison, tmp_path, monkeypatch, error):
     """Issue 9, planted bug 3: a plot that fails after the CSVs are written leaves the earlier

@@ -1,7 +1,7 @@
 """The bad-scene files: each has its own message; the console script's error path, once.
 
 Each file's message and exit status through ``xval reduced FILE`` are checked in-process in
-tests/test_reduced_scenes.py (``test_cli_main_reports_the_bad_key_in_one_line``); here a single
+tests/core/test_reduced_scenes.py (``test_cli_main_reports_the_bad_key_in_one_line``); here a single
 subprocess runs the installed ``xval`` script to show that the entry point maps a SceneError to
 exit status 2 and one line, as ``main`` does in-process.
 """
@@ -19,7 +19,9 @@ from xval.compare import cli
 from xval.scene import SceneError
 from xval.scenefile import load_scene
 
-BAD = sorted((Path(__file__).parent / "data" / "bad_scenes").glob("*.toml"))
+from helpers import DATA
+
+BAD = sorted((DATA / "bad_scenes").glob("*.toml"))
 
 
 def test_each_bad_scene_has_its_own_message():

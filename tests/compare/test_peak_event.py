@@ -10,7 +10,6 @@ slider and a seed variant driven from rest run through both engines.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,9 +20,8 @@ from xval.compare.report import report_dict
 from xval.compare.run import compare_engines
 from xval.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
 from xval.trajectory import Trajectory
-from xval.scenefile import load_scene
 
-from helpers import SEED_SCENE, variant
+from helpers import variant
 
 T = np.linspace(0.0, 2.0, 2001)  # 1 ms samples
 W = 0.01  # s², width² of the Gaussian bumps below
@@ -80,11 +78,6 @@ def test_a_speed_rising_to_the_end_is_flagged_and_a_turning_one_is_not():
     assert not turning.peak_angular_velocity().still_rising
 
 
-@pytest.fixture(scope="module")
-def driven_slider():
-    return compare_engines(load_scene(Path(SEED_SCENE).parent / "mechanisms" / "slider_crank_driven_slider.toml"))
-
-
 def dots(figure) -> list[tuple[float, float]]:
     """The single-point 'o' markers of a figure's axes: (t, q̇) of each."""
     return [tuple(line.get_xydata()[0]) for ax in figure.axes for line in ax.lines
@@ -99,7 +92,7 @@ def saved(monkeypatch) -> list:
     return kept
 
 
-def test_the_driven_slider_s_peak_is_one_event_in_every_output(driven_slider, monkeypatch, tmp_path):
+def test_the_driven_slider_s_peak_is_one_event_in_every_output(slider_driven_comparison, monkeypatch, tmp_path):
     """slider_crank_driven_slider's cycles peak within 3e-5 of each other: MuJoCo's own
     largest |q̇| is the first cycle's (t = 0.0189 s), the reduced run's the sixth (0.166 s).
     The comparison pairs the sixth in both, and report.json and the plot's dots say the same
@@ -107,7 +100,7 @@ def test_the_driven_slider_s_peak_is_one_event_in_every_output(driven_slider, mo
     at 0.25 ms steps); bound 5e-5 s, against 0.03 s between cycles."""
     from xval.compare.plots import plot_trajectories
 
-    c = driven_slider
+    c = slider_driven_comparison
     d = c.diff
     assert abs(c.mujoco.peak.time - d.t_peak_reference) > 0.1  # the case this is about
     assert d.t_peak_abs < 5e-5 and np.sign(d.peak_omega_other) == np.sign(d.peak_omega_reference)
@@ -121,9 +114,9 @@ def test_the_driven_slider_s_peak_is_one_event_in_every_output(driven_slider, mo
     assert dots(kept[0]) == [(d.t_peak_reference, d.peak_omega_reference), (d.t_peak_other, d.peak_omega_other)]
 
 
-def test_every_table_prints_the_peak_signed_under_one_label(driven_slider):
+def test_every_table_prints_the_peak_signed_under_one_label(slider_driven_comparison):
     """xval reduced, xval mujoco and xval run print the peak signed, under 'peak qdot'."""
-    c = driven_slider
+    c = slider_driven_comparison
     d = c.diff
     rows = {line.split("  ")[0]: line.split() for line in comparison_lines(c)}
     peak = rows["peak qdot (m/s)"]
@@ -161,10 +154,10 @@ def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monke
     assert any(STILL_RISING in ax.get_title() for ax in kept[1].axes)
 
 
-def test_the_seed_s_peak_is_not_flagged(monkeypatch, tmp_path):
+def test_the_seed_s_peak_is_not_flagged(seed_comparison, monkeypatch, tmp_path):
     from xval.compare.plots import plot_trajectories
 
-    c = compare_engines(load_scene(SEED_SCENE))
+    c = seed_comparison
     assert not c.diff.peak_still_rising and not c.diff.peak_other.still_rising
     assert not any(STILL_RISING in line for line in comparison_lines(c) + reduced_lines(c.scene, c.reduced))
     assert report_dict(c)["reduced"]["peak_still_rising"] is False

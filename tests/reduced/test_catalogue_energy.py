@@ -13,14 +13,14 @@ with a cubic (C²) force spline the gas slider-crank measured 1.7e-9.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import pytest
 
 from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+from helpers import ROOT
+
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
 HORIZON = 0.05  # s: the general path costs ~0.45 ms per evaluation; every scene moves by then
 ENERGY_BOUND = 1e-9

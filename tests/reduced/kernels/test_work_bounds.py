@@ -21,9 +21,11 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+import pytest
+
+from helpers import ROOT
+
 PROBE = """
 import dataclasses, json, time, warnings
 warnings.simplefilter("ignore")
@@ -64,6 +66,7 @@ print(json.dumps(out))
 """
 
 
+@pytest.mark.slow  # ~3 s: the kernels uncompiled (XVAL_PURE_PYTHON), in a subprocess
 def test_a_walk_that_cannot_settle_fails_with_its_reason():
     env = {**os.environ, "XVAL_PURE_PYTHON": "1"}
     done = subprocess.run([sys.executable, "-c", PROBE], cwd=ROOT, env=env, capture_output=True, text=True,

@@ -15,15 +15,7 @@ import numpy as np
 import pytest
 
 from xval.compare.plots import DATA_MARGIN, plot_differences, tolerance_band
-from xval.compare.run import compare_engines, judge
-from xval.scenefile import load_scene
-
-from helpers import SEED_SCENE
-
-
-@pytest.fixture(scope="module")
-def seed():
-    return compare_engines(load_scene(SEED_SCENE))
+from xval.compare.run import judge
 
 
 def drawn(c, monkeypatch, tmp_path):
@@ -62,12 +54,12 @@ def test_the_tolerance_band_is_drawn_within_a_decade_only():
     assert tolerance_band(0.0, 1e-3, "rad") == (False, "gate tolerance ±0.001 rad: off scale, every difference is 0")
 
 
-def test_the_seed_s_differences_fill_their_axes_and_the_tolerances_are_named(seed, monkeypatch, tmp_path):
+def test_the_seed_s_differences_fill_their_axes_and_the_tolerances_are_named(seed_comparison, monkeypatch, tmp_path):
     """Each axis spans its data plus DATA_MARGIN (8 %) of their range at each end, so the data
     fill at least 1/(1 + 2·0.08) of it; no band is drawn and the legend names the tolerance off
     scale. (The old axes were ±tolerance: the data filled 0.3 % and 0.6 % of them.)"""
-    fig = drawn(seed, monkeypatch, tmp_path)
-    d = seed.diff
+    fig = drawn(seed_comparison, monkeypatch, tmp_path)
+    d = seed_comparison.diff
     for ax, values, ratio in zip(fig.axes, (d.dq, d.domega), ("171×", "80×")):
         low, high = ax.get_ylim()
         assert low <= values.min() and values.max() <= high
@@ -76,12 +68,12 @@ def test_the_seed_s_differences_fill_their_axes_and_the_tolerances_are_named(see
         assert any(f"off scale, {ratio} the largest difference" in text for text in legend_texts(ax))
 
 
-def test_a_tolerance_within_a_decade_is_a_band_on_the_scale_of_the_data(seed, monkeypatch, tmp_path):
+def test_a_tolerance_within_a_decade_is_a_band_on_the_scale_of_the_data(seed_comparison, monkeypatch, tmp_path):
     """Tolerances set to 3.4× and 2.4× the seed's largest differences: each is a band from
     −tol to +tol, inside the axis, which spans the band plus its margin."""
-    d = seed.diff
-    tol = replace(seed.gate.tolerances, q_atol=2e-5, omega_atol=3e-3)
-    c = judge(seed.scene, seed.reduced, seed.mujoco, tol)
+    d = seed_comparison.diff
+    tol = replace(seed_comparison.gate.tolerances, q_atol=2e-5, omega_atol=3e-3)
+    c = judge(seed_comparison.scene, seed_comparison.reduced, seed_comparison.mujoco, tol)
     fig = drawn(c, monkeypatch, tmp_path)
     for ax, values, limit in zip(fig.axes, (d.dq, d.domega), (2e-5, 3e-3)):
         assert np.max(np.abs(values)) * 10 >= limit  # within a decade: drawn

@@ -255,7 +255,7 @@ def test_only_regular_files_are_read(tmp_path, capsys, where):
 
 # Scenes that a bound on their motion once refused (it could not be tight: 500x the truth on a
 # swinging crank): they are valid input now, and a run that turns out too long is stopped by
-# its engine's work budget (tests/test_swinging_cranks.py, test_reduced_integrators.py).
+# its engine's work budget (tests/compare/test_swinging_cranks.py, test_reduced_integrators.py).
 TINY_INERTIAS = {"bodies.crank.pivot_inertia": 1e-9, "bodies.rocker.pivot_inertia": 1e-9,
                  "bodies.coupler.inertia": 1e-9, "bodies.coupler.mass": 1e-6}
 ONCE_REFUSED = {

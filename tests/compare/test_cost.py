@@ -32,6 +32,7 @@ def by_series(measurements, name):
     return [m for m in measurements if m.config.series == name]
 
 
+@pytest.mark.slow  # each test of the work-precision study (its fixture ~3 s); the diagram's test stays fast
 def test_truth_is_checked_and_accurate(study):
     _, truth, _, _ = study
     # rtol 1e-12 against 1e-11: the truth is good to ~1e-11 in peak ω (the looser run's error).
@@ -39,6 +40,7 @@ def test_truth_is_checked_and_accurate(study):
     assert truth.error["q_max_abs"] < 1e-8
 
 
+@pytest.mark.slow
 def test_quick_sweep_writes_outputs(study, tmp_path):
     scene, truth, measurements, recommendations = study
     report = cost_report(scene, truth, measurements, recommendations, repeats=1)
@@ -54,6 +56,7 @@ def test_quick_sweep_writes_outputs(study, tmp_path):
     assert all(m.ok for m in measurements)  # every configuration in the quick ladder is stable
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("series", ["RKN4", "DOP853", "MuJoCo rk4 (hard)", "MuJoCo euler (hard)",
                                     "MuJoCo implicitfast (hard)", "MuJoCo implicit (hard)"])
 def test_error_falls_with_step_in_convergent_series(study, series):
@@ -65,6 +68,7 @@ def test_error_falls_with_step_in_convergent_series(study, series):
     assert converges(points, max(truth.error["q_max_abs"], 1e-13), "q_max_abs")
 
 
+@pytest.mark.slow
 def test_mujoco_default_softness_is_an_accuracy_floor(study):
     """With MuJoCo's default solref/solimp the RK4 error does not fall with the step: the
     soft loop constraint, not the integrator, limits accuracy (about 2.6e-2 in peak ω)."""
@@ -75,6 +79,7 @@ def test_mujoco_default_softness_is_an_accuracy_floor(study):
     assert max(m.peak_omega_rel for m in hard) < 1e-4
 
 
+@pytest.mark.slow
 def test_recommendations_meet_their_target_when_rerun(study):
     _, _, _, recommendations = study
     for engine in ("reduced", "mujoco"):
@@ -84,6 +89,7 @@ def test_recommendations_meet_their_target_when_rerun(study):
         assert r.confirmed.peak_omega_rel <= TARGET
 
 
+@pytest.mark.slow
 def test_unreachable_target_is_said_plainly(study):
     scene, truth, measurements, _ = study
     recs = recommend(scene, measurements, truth, 1e-15, repeats=1)
@@ -96,6 +102,7 @@ def synthetic(configs, walls_errors) -> list[Measurement]:
             for c, (w, e) in zip(configs, walls_errors)]
 
 
+@pytest.mark.slow
 def test_the_cheapest_configuration_meeting_the_target_is_chosen(study):
     """Issue 9, planted bug 2 (the most expensive one recommended). Of four reduced and four
     MuJoCo configurations, three of each meet the target at different costs; the cheapest
@@ -116,6 +123,7 @@ def test_the_cheapest_configuration_meeting_the_target_is_chosen(study):
     assert recs["mujoco"].measurement.config == mujoco[1]
 
 
+@pytest.mark.slow
 def test_recommendation_is_the_cheapest_of_the_real_sweep(study):
     _, _, measurements, recommendations = study
     for engine in ("reduced", "mujoco"):

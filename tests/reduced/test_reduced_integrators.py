@@ -1,6 +1,6 @@
 """Integrators on real scenes: measured convergence order, load edges, peak location, RKN4's error
 estimate, settings, the scipy path's failures. (The compiled kernels on closed forms: order, the
-tableau and its printed erratum, load edges, stability: tests/test_kernel_integrators.py.)"""
+tableau and its printed erratum, load edges, stability: tests/reduced/kernels/test_kernel_integrators.py.)"""
 
 from __future__ import annotations
 
@@ -242,7 +242,7 @@ def test_overflowing_acceleration_is_non_finite():
 
 
 def test_initial_speed_beyond_the_limit_is_refused_at_once():
-    """(The compiled kernels' SPEED at t0: tests/test_kernel_integrators.py.)"""
+    """(The compiled kernels' SPEED at t0: tests/reduced/kernels/test_kernel_integrators.py.)"""
     with pytest.raises(NumericalFailure) as info:
         solve_adaptive(constant_piece(lambda t, q, v: 0.0), (0.0, 1.0), 0.0, 1e308)
     assert info.value.reason == "unstable" and info.value.time == 0.0

@@ -9,7 +9,6 @@ MJCF) live with the engines.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,9 @@ from xval.errors import NumericalFailure
 from xval.mechanism import PrismaticJoint
 from xval.scenefile import default_scene_path, load_scene
 
-FOLDER = Path(__file__).resolve().parent.parent / "scenes" / "mechanisms"
+from helpers import ROOT
+
+FOLDER = ROOT / "scenes" / "mechanisms"
 EXPECTED = {  # scene: (moving bodies, loops, effects)
     "seed_fourbar": (3, 1, ("torque", "damper")),
     "slider_crank_gas": (3, 1, ("torque", "point-force")),
@@ -82,7 +83,12 @@ def test_each_scene_loads_and_says_where_it_comes_from(name):
     assert loops.jacobian_rank(system, np.array(scene.x0)) == system.n - 1
 
 
-@pytest.mark.parametrize("name", NAMES)
+# ~1 s each: a Newton assembly at each of the turn's samples. The fast suite keeps a four-bar, a
+# six-bar and the slider-driven slider-crank (its modes flip at the dead centres); the rest are slow.
+FAST_TURNS = ("seed_fourbar", "watt2_sixbar", "slider_crank_driven_slider")
+
+
+@pytest.mark.parametrize("name", [n if n in FAST_TURNS else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
 def test_the_crank_turns_fully_in_the_scenes_assembly_mode(name):
     """A full turn of the crank closes every loop, keeps the scene's assembly mode throughout and
     returns to x0 (plus one turn of the crank). The mode is a property of the input: it may
@@ -154,6 +160,7 @@ def test_k_and_l_agree_with_finite_differences(name):
     assert worst_k < K_RTOL and worst_l < L_RTOL, (worst_k, worst_l)
 
 
+@pytest.mark.slow  # ~1 s: a turn assembled by Newton, and a bisection at each dead centre
 def test_the_slider_driven_slider_crank_must_pass_dead_centres():
     """The piston's displacement cannot drive the linkage at two crank angles per turn (the
     dead centres: coefficients raise SINGULAR there), and the flywheel's kinetic energy at the

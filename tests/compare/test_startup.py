@@ -11,8 +11,6 @@ import pytest
 
 from helpers import ROOT, SEED_SCENE
 
-SLIDER_SCENE = ROOT / "scenes" / "mechanisms" / "slider_crank_driven_slider.toml"
-
 
 def modules_after(code: str) -> set[str]:
     """The top-level module names loaded after running ``code`` in a fresh interpreter."""
@@ -36,6 +34,7 @@ def test_commands_without_plots_do_not_load_matplotlib(command):
     assert ("mujoco" in loaded) == (command[0] != "reduced")
 
 
+@pytest.mark.slow  # ~5 s: a whole `xval run`, plots included, in a fresh interpreter
 def test_run_does_not_load_pyplot(tmp_path):
     out = tmp_path / "out"
     code = (f"from xval.compare.cli import main; assert main(['run', {str(SEED_SCENE)!r}, '--out', {str(out)!r}]) == 0\n"
@@ -46,12 +45,9 @@ def test_run_does_not_load_pyplot(tmp_path):
 
 # ---------------------------------------------------------------- the figures themselves
 
-@pytest.fixture(scope="module", params=[SEED_SCENE, SLIDER_SCENE], ids=["seed", "slider"])
+@pytest.fixture(params=["seed_comparison", "slider_driven_comparison"], ids=["seed", "slider"])
 def comparison(request):
-    from xval.compare.run import compare_engines
-    from xval.scenefile import load_scene
-
-    return compare_engines(load_scene(request.param))
+    return request.getfixturevalue(request.param)
 
 
 def saved_figures(monkeypatch) -> list:

@@ -65,7 +65,8 @@ def _max_dq(a, b) -> float:
     return float(np.max(np.abs(b.trajectory.interpolate(a.trajectory.t)[0] - a.trajectory.q)))
 
 
-@pytest.fixture(scope="module", params=list(CASES))
+# ~1-1.5 s each (three scenes, both engines): the four-bar in the fast suite, the others slow
+@pytest.fixture(scope="module", params=[n if n == "four_bar" else pytest.param(n, marks=pytest.mark.slow) for n in CASES])
 def runs(request):
     name = request.param
     mujoco = MujocoSettings(integrator="rk4", timestep=CASES[name][2])
@@ -119,6 +120,7 @@ def test_every_edge_is_a_stop_and_on_mujocos_grid(runs):
 
 # -- a constant timed force is a constant F(q) point force ----------------------------------------
 
+@pytest.mark.slow  # ~2 s: four runs of the six-bar
 def test_constant_timed_force_is_a_constant_point_force():
     """Both engines, the six-bar: the same force given over t (constant) and over q (a table of two
     equal values): the same equations, so the same motion to round-off (measured 0 and 0)."""
