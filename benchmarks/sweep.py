@@ -63,7 +63,7 @@ is one run unless said otherwise, and none is asserted):
    ``--scheduler`` on a ``distributed.LocalCluster(n_workers=2, threads_per_worker=1,
    processes=True)`` started here; ``sweep.csv`` rows compared as text after dropping the
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
-   time-based columns of ``xval.compare.sweep.FIGURE_COLUMNS``). Exit status 1 if any row differs.
+   time-based columns of ``xval.compare.sweep_table.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
     python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
                                [--reduced-sizes 1000,10000,100000]
