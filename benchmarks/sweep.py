@@ -63,7 +63,7 @@ is one run unless said otherwise, and none is asserted):
    ``--scheduler`` on a ``distributed.LocalCluster(n_workers=2, threads_per_worker=1,
    processes=True)`` started here; ``sweep.csv`` rows compared as text after dropping the
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
-   time-based columns of ``xval.compare.sweep.FIGURE_COLUMNS``). Exit status 1 if any row differs.
+   time-based columns of ``xval.compare.sweep_table.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
     python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
                                [--reduced-sizes 1000,10000,100000]
@@ -329,7 +329,8 @@ def part2(path: Path, n: int, subset: int) -> None:
 
     from xval.compare.settings import mujoco_settings
     from xval.reference_models.build import initial_qpos_qvel
-    from xval.reference_models.run import _at_timestep, build_model, control_sequence, simulate_mujoco
+    from xval.reference_models.loads import control_sequence
+    from xval.reference_models.run import _at_timestep, build_model, simulate_mujoco
 
     data, spec = make_spec(path, n)
     values = list(variant_values(spec))
@@ -383,7 +384,7 @@ def part2(path: Path, n: int, subset: int) -> None:
     def batch(h, entries):
         models = [mm for _, mm in entries]
         states, ctrls = [], []
-        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as xval.reference_models.run._n_steps
+        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as xval.reference_models.timestep.step_count
         for s, mm in entries:
             d = mujoco.MjData(mm)
             qpos0, qvel0 = initial_qpos_qvel(s)

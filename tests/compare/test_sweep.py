@@ -23,7 +23,9 @@ import pytest
 from xval.compare import sweep as sweep_module
 from xval.compare.cli import main
 from xval.compare.output import MANIFEST_FILE
-from xval.compare.sweep import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows, sweep_files
+from xval.compare.sweep import sweep_files
+from xval.compare.sweep_journal import journal_path
+from xval.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows
 from xval.sweep_spec import Engines, spec_from_args
 from xval.scenefile import default_scene_path
 
@@ -199,7 +201,8 @@ def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, t
 
 
 def test_without_a_compared_variant_the_worst_plot_says_so(tmp_path):
-    from xval.compare.sweep import Summary, plot_worst
+    from xval.compare.sweep_plots import plot_worst
+    from xval.compare.sweep_summary import Summary
 
     plot_worst({}, "<none>", Summary(keys=()), tmp_path / "worst.png")
     assert (tmp_path / "worst.png").stat().st_size > 0
@@ -256,10 +259,10 @@ def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path,
     status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
     assert status == 130 and "interrupted" in err
     assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
-    assert len(sweep_module.journal_path(out).read_text().splitlines()) == 2 + 1  # variant 0's row, beside
+    assert len(journal_path(out).read_text().splitlines()) == 2 + 1  # variant 0's row, beside
     monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
     status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
-    assert status == 130 and not sweep_module.journal_path(out).exists()  # no row: no journal left
+    assert status == 130 and not journal_path(out).exists()  # no row: no journal left
 
 
 def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypatch):
@@ -421,7 +424,8 @@ def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
 
     from matplotlib.figure import Figure
 
-    from xval.compare.sweep import PLOTS, WORST_PLOT, columns, plot_files
+    from xval.compare.sweep_plots import PLOTS, WORST_PLOT, plot_files
+    from xval.compare.sweep_table import columns
     from xval.sweep_spec import variant_values
     from test_startup import text_outside
 
@@ -482,7 +486,7 @@ def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(s
     out = tmp_path / "sw"
     out.mkdir()
     (out / "sweep.csv").write_text("old\n")
-    journal = sweep_module.journal_path(out)
+    journal = journal_path(out)
     assert journal.parent == tmp_path and journal.name == "sw.sweep-journal.csv"
     real_run_variant, ran, fired = sweep_module.run_variant, [], []
 
@@ -510,7 +514,7 @@ def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(s
 def test_resume_needs_the_journal_of_the_same_sweep(short_scene, tmp_path, capsys):
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
     assert status == 2 and printed == "" and "nothing to resume" in err and err.count("\n") == 1, err
-    sweep_module.journal_path(tmp_path / "sw").write_text("# xval sweep journal 0\nindex,status\n0,passed\n")
+    journal_path(tmp_path / "sw").write_text("# xval sweep journal 0\nindex,status\n0,passed\n")
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
     assert status == 2 and printed == "" and "journal of another sweep" in err and err.count("\n") == 1, err
     assert not (tmp_path / "sw").exists()

@@ -14,8 +14,9 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from xval.compare import sweep as sweep_module  # noqa: E402
+from xval.compare import sweep_dask  # noqa: E402
 from xval.compare.cli import main  # noqa: E402
-from xval.compare.sweep import CSV_FILE, read_rows  # noqa: E402
+from xval.compare.sweep_table import CSV_FILE, read_rows  # noqa: E402
 
 from helpers import short_seed_file  # noqa: E402
 
@@ -64,7 +65,7 @@ def test_a_dask_run_gives_the_rows_of_a_local_run_in_the_same_order(cluster, sho
 def test_an_unreachable_scheduler_is_one_line_exit_2_before_any_work(short_scene, tmp_path, capsys, monkeypatch):
     ran = []
     monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: ran.append(a))
-    monkeypatch.setattr(sweep_module, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(sweep_dask, "CONNECT_TIMEOUT_S", 1.0)
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9")
     assert status == 2 and printed == ""
     assert err.count("\n") == 1 and err.startswith("xval: error: --scheduler tcp://127.0.0.1:9: cannot connect"), err
@@ -148,7 +149,7 @@ def test_a_service_that_is_not_a_scheduler_is_one_line_exit_2_within_the_timeout
     out, timings = tmp_path / "sw", tmp_path / "timings"
     with _Service(kind) as service:
         address = f"127.0.0.1:{service.port}"
-        code = ("import sys, time, xval.compare.sweep as s; s.CONNECT_TIMEOUT_S = 2.0; from xval.compare.cli import main\n"
+        code = ("import sys, time, xval.compare.sweep_dask as s; s.CONNECT_TIMEOUT_S = 2.0; from xval.compare.cli import main\n"
                 "took = []\n"
                 f"for address in ('tcp://127.0.0.1:9', {address!r}):\n"
                 "    start = time.monotonic()\n"

@@ -334,7 +334,7 @@ def test_point_force_is_the_tabulated_force_at_every_rk4_stage(name):
     """
     from xval.loads import TabulatedForce
     from xval.reference_models import point_force_callback
-    from xval.reference_models.run import _Layout
+    from xval.reference_models.layout import Layout as _Layout
 
     scene = SCENES[name]()
     handles = build_model(scene, MujocoSettings(timestep=STEP))

@@ -22,7 +22,7 @@ from xval.compare.run import compare_engines
 from xval.errors import FailureReason, NumericalFailure
 from xval.scenefile import scene_from_dict
 from xval.reference_models import simulate_mujoco
-from xval.reference_models.run import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
+from xval.reference_models.timestep import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
 
 from helpers import ROOT, variant
 

@@ -245,13 +245,14 @@ def cmd_stress(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from .sweep import run_sweep, summary_lines, sweep_files
+    from .sweep import run_sweep, sweep_files
+    from .sweep_summary import summary_lines
     from xval.sweep_spec import spec_from_args
 
     from .sweep_scene import check, load_sweep
 
     if args.scheduler is not None:
-        from .sweep import require_dask
+        from .sweep_dask import require_dask
 
         if args.workers is not None:
             raise UsageError("--workers and --scheduler: the Dask cluster's workers run the sweep; give one of them")
@@ -271,14 +272,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
     if args.resume:
-        from .sweep import journaled_rows
+        from .sweep_journal import journaled_rows
 
         if args.keep_trajectories:
             raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
         journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
     client = None
     if args.scheduler is not None:
-        from .sweep import connect
+        from .sweep_dask import connect
 
         client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
     try:

@@ -14,9 +14,10 @@ _HOMES = {
     **dict.fromkeys(("BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "ModelHandles", "assembled_angles",
                      "build_spec", "compile_model", "coordinate_map", "initial_qpos_qvel", "joint_order",
                      "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), ".build"),
-    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "OffGridEdgeWarning", "build_model", "check_initial_state",
-                     "control_sequence", "mjcf_text", "grid_timestep", "handles_from_mjcf", "point_force_callback",
+    **dict.fromkeys(("OffGridEdgeWarning", "build_model", "check_initial_state", "mjcf_text", "handles_from_mjcf",
                      "simulate_mujoco"), ".run"),
+    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "grid_timestep"), ".timestep"),
+    **dict.fromkeys(("control_sequence", "point_force_callback"), ".loads"),
     **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), ".settings"),
     "simulate": (".run", "simulate_mujoco"),  # the engine interface's name
 }

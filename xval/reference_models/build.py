@@ -30,7 +30,7 @@ a motor on the input joint (always a tree joint, hinge or slide), gravity the sc
 (else zero). There are no geoms, contacts are disabled, and no joint has damping, armature,
 stiffness or friction loss. Point forces (F(q) along a fixed ground direction at a body
 point) are not a model element: :mod:`xval.reference_models.run` applies them during a run through
-``mjcb_control`` (see :func:`xval.reference_models.run.point_force_callback`), so an exported MJCF
+``mjcb_control`` (see :func:`xval.reference_models.loads.point_force_callback`), so an exported MJCF
 of such a scene lacks them.
 
 Mass properties. A body with mass maps onto MuJoCo's ``mass``, ``ipos`` = com and I_zz =
@@ -420,12 +420,13 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         spec.add_text(name=f"point_force {pf.name}",
                       data=f"F(q) N along {pf.direction!r} rad (ground frame) at site {site_name(pf.body, pf.point)}, "
                            "tabulated over the input coordinate: not a model element; xval applies it through "
-                           "mjcb_control (xval.reference_models.run.point_force_callback)")
+                           "mjcb_control (xval.reference_models.loads.point_force_callback)")
     for tf in mech.timed_forces:
         spec.add_text(name=f"timed_force {tf.name}",
                       data=f"F(t) N along {tf.direction!r} rad (ground frame) at site {site_name(tf.body, tf.point)}, "
                            f"a {type(tf.profile).__name__} over time: not a model element; xval applies it through "
-                           "mjcb_control, held over each step at its midpoint value (xval.reference_models.run.timed_values)")
+                           "mjcb_control, held over each step at its midpoint value "
+                           "(xval.reference_models.loads.timed_values)")
 
     # The scene's initial state (the control follows the timestep: set_timestep).
     qpos0, qvel0 = initial_qpos_qvel(scene)
