@@ -66,7 +66,7 @@ def compiled_rkn4(scene, step: float):
     from xval.reduced.kernels import partition as compiled
     from xval.reduced.kernels.fixed_step import RKN4
     from xval.reduced.kernels.output import Samples
-    from xval.reduced.partition import MAX_SWITCHES, _start, load_pieces
+    from xval.reduced.charts import MAX_SWITCHES, _start, load_pieces
 
     model = MechanismModel(scene)
     x0, i, rate = _start(model)

@@ -3,7 +3,7 @@ form on the seed scene, and the general description on every catalogue mechanism
 
 Three rows per scene, whichever can run:
 
-- ``engine``: the reduced engine's own right-hand side, a :class:`xval.reduced.partition.Chart` of a
+- ``engine``: the reduced engine's own right-hand side, a :class:`xval.reduced.charts.Chart` of a
   :class:`xval.reduced.dynamics.MechanismModel` in the input coordinate (the compiled kernel, called
   once per f from Python, as scipy's integrators call it);
 - ``closed form``: Eksergian's equation written here from the four-bar closed form
@@ -47,7 +47,7 @@ F = Callable[[float, float, float], float]
 def engine_f(scene) -> F:
     """The reduced engine's q̈ = f(t, q, q̇) in the input coordinate (index 0 of a chart)."""
     from xval.reduced.dynamics import MechanismModel
-    from xval.reduced.partition import Chart
+    from xval.reduced.charts import Chart
 
     model = MechanismModel(scene)
     i = model.input_coordinate  # the input is a coordinate in every catalogue scene

@@ -32,10 +32,10 @@ def main() -> None:
 
     scene = load_scene(default_scene_path())
     model = MechanismModel(scene)
-    truth = integrate(model, ReducedSettings(method="dop853", rtol=1e-12)).trajectory.peak_angular_velocity()
+    truth = integrate(model, ReducedSettings(method="dop853", rtol=1e-12)).trajectory.peak_rate()
 
     def peak_error(settings: ReducedSettings) -> float:
-        peak = integrate(model, settings).trajectory.peak_angular_velocity()
+        peak = integrate(model, settings).trajectory.peak_rate()
         return abs(peak.omega - truth.omega) / abs(truth.omega)
 
     print(f"seed scene (truth: DOP853 rtol 1e-12, peak {truth.omega:.12g} rad/s); integration only, "

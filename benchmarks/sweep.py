@@ -305,7 +305,7 @@ def part1(path: Path, n: int) -> ReducedSettings:
         t3 = time.perf_counter()
         energy_audit(model, solution)
         t4 = time.perf_counter()
-        solution.trajectory.peak_angular_velocity()
+        solution.trajectory.peak_rate()
         t5 = time.perf_counter()
         simulate(s, settings)
         t6 = time.perf_counter()

@@ -71,7 +71,7 @@ def coefficients_along(model, qs) -> list:
     near q0 (MechanismModel.assemble is Newton from x0 and does not converge half a revolution
     away). Not the walked chart's own coefficients: those come from A factored before Newton's
     last step, up to ~1e-10 of V from the ones at the x it returns. The input must be a coordinate."""
-    from xval.reduced.partition import Chart
+    from xval.reduced.charts import Chart
 
     chart = Chart(model, model.input_coordinate, model.x0)
     return [model.coefficients_at(chart.kinematics(float(q)).x) for q in qs]

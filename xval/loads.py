@@ -2,7 +2,7 @@
 
 Each profile lists its discontinuities (``edges``) so that integrators can put a
 step boundary on each one, and can be evaluated on one smooth piece
-(:meth:`TorqueProfile.on_piece`) so that every stage inside a step sees the same
+(:meth:`LoadProfile.on_piece`) so that every stage inside a step sees the same
 side of an edge (seed-notes erratum 5, README).
 """
 
@@ -21,11 +21,12 @@ def _finite(owner: str, name: str, value: float) -> None:
         raise ValueError(f"{owner}.{name} must be finite, got {value}")
 
 
-class TorqueProfile:
-    """Base class: a right-continuous, piecewise-constant function of time."""
+class LoadProfile:
+    """Base class: the load on the input joint over time, a right-continuous, piecewise-constant
+    function: a torque (N·m) on a revolute input, a force (N) on a prismatic one."""
 
     def __call__(self, t: float) -> float:
-        """T(t) in N·m; at an edge, the value after it."""
+        """The load at t (N·m or N); at an edge, the value after it."""
         raise NotImplementedError
 
     @property
@@ -48,13 +49,13 @@ class TorqueProfile:
 
 
 @dataclass(frozen=True)
-class ConstantTorque(TorqueProfile):
+class ConstantLoad(LoadProfile):
     """T = amplitude for all t."""
 
     amplitude: float
 
     def __post_init__(self):
-        _finite("ConstantTorque", "amplitude", self.amplitude)
+        _finite("ConstantLoad", "amplitude", self.amplitude)
 
     def __call__(self, t: float) -> float:
         return self.amplitude
@@ -71,7 +72,7 @@ class ConstantTorque(TorqueProfile):
 
 
 @dataclass(frozen=True)
-class PulseTorque(TorqueProfile):
+class PulseLoad(LoadProfile):
     """T = amplitude for start ≤ t < start + duration, zero otherwise."""
 
     amplitude: float
@@ -80,10 +81,10 @@ class PulseTorque(TorqueProfile):
 
     def __post_init__(self):
         for name in ("amplitude", "start", "duration"):
-            _finite("PulseTorque", name, getattr(self, name))
+            _finite("PulseLoad", name, getattr(self, name))
         for name in ("start", "duration"):
             if getattr(self, name) < 0.0:
-                raise ValueError(f"PulseTorque.{name} must not be negative, got {getattr(self, name)}")
+                raise ValueError(f"PulseLoad.{name} must not be negative, got {getattr(self, name)}")
 
     def __call__(self, t: float) -> float:
         return self.amplitude if self.start <= t < self.start + self.duration else 0.0
@@ -101,7 +102,7 @@ class PulseTorque(TorqueProfile):
 
 
 @dataclass(frozen=True)
-class PiecewiseConstantTorque(TorqueProfile):
+class PiecewiseConstantLoad(LoadProfile):
     """T = values[i] for times[i] ≤ t < times[i+1]; zero before times[0]; the last value holds."""
 
     times: tuple[float, ...]
@@ -109,13 +110,13 @@ class PiecewiseConstantTorque(TorqueProfile):
 
     def __post_init__(self):
         if len(self.times) != len(self.values) or not self.times:
-            raise ValueError("PiecewiseConstantTorque.times and .values must have the same, non-zero length,"
+            raise ValueError("PiecewiseConstantLoad.times and .values must have the same, non-zero length,"
                              f" got {len(self.times)} and {len(self.values)}")
         for name in ("times", "values"):
             for i, v in enumerate(getattr(self, name)):
-                _finite("PiecewiseConstantTorque", f"{name}[{i}]", v)
+                _finite("PiecewiseConstantLoad", f"{name}[{i}]", v)
         if any(b <= a for a, b in zip(self.times, self.times[1:])):
-            raise ValueError("PiecewiseConstantTorque.times must be strictly increasing")
+            raise ValueError("PiecewiseConstantLoad.times must be strictly increasing")
 
     def __call__(self, t: float) -> float:
         i = bisect.bisect_right(self.times, t) - 1

@@ -488,7 +488,7 @@ class TimedForce:
     body: str
     point: str
     direction: float
-    profile: object  # xval.loads.TorqueProfile (not imported here: loads needs numpy only)
+    profile: object  # xval.loads.LoadProfile (not imported here: loads needs numpy only)
 
     def __post_init__(self):
         _name(self.name, "timed force name")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .loads import TorqueProfile
+from .loads import LoadProfile
 from .mechanism import Mechanism, PrismaticJoint
 
 
@@ -156,7 +156,7 @@ class Scene:
     name: str
     description: str
     mechanism: Mechanism
-    load: TorqueProfile | None
+    load: LoadProfile | None
     gravity: tuple[float, float] | None
     q0: float
     qdot0: float

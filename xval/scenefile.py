@@ -31,7 +31,7 @@ import numpy as np
 
 from .errors import type_name
 from . import kinematics as loops
-from .loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TorqueProfile
+from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
 from .registry import ENGINES
@@ -148,21 +148,21 @@ def _count(items: list, key: str, limit: int, what: str) -> None:
         raise SceneError(f"'{key}' has {len(items)} {what}; at most {limit}")
 
 
-def _parse_profile(t: _Table, kind: str) -> TorqueProfile:
+def _parse_profile(t: _Table, kind: str) -> LoadProfile:
     """A load over time on the input joint: constant, pulse or table; values of ``kind``
     (torque in N·m on a revolute input, force in N on a prismatic one)."""
     profile_type = t.string("type")
     if profile_type == "constant":
-        profile = ConstantTorque(t.number("value", kind=kind))
+        profile = ConstantLoad(t.number("value", kind=kind))
     elif profile_type == "pulse":
-        profile = PulseTorque(amplitude=t.number("value", kind=kind),
+        profile = PulseLoad(amplitude=t.number("value", kind=kind),
                               start=t.number("start", 0.0, nonnegative=True, kind="time"),
                               duration=t.number("duration", nonnegative=True, kind="time"))
     elif profile_type == "table":
         ts, vs = _table_pair(t, "times", "values", "time", kind)
         if any(b <= a for a, b in zip(ts, ts[1:])):
             raise SceneError(f"'{t.key('times')}' must be strictly increasing")
-        profile = PiecewiseConstantTorque(times=ts, values=vs)
+        profile = PiecewiseConstantLoad(times=ts, values=vs)
     else:
         raise SceneError(f"'{t.key('type')}' must be \"constant\", \"pulse\" or \"table\", got \"{profile_type}\"")
     t.close()

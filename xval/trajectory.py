@@ -24,7 +24,7 @@ class Peak:
 
     ``still_rising`` is True when the event is the run's last sample and |q̇| is still rising
     there (sign(q̇)·q̈ > 0): the horizon ends before the speed peaks, so the "peak" is only the
-    speed at the end. Defined by :meth:`Trajectory.peak_angular_velocity` (a run's own peak)
+    speed at the end. Defined by :meth:`Trajectory.peak_rate` (a run's own peak)
     and :meth:`Trajectory.extremum_near` (the same event in another run): every output that
     shows a peak takes it from these two.
     """
@@ -101,8 +101,9 @@ class Trajectory:
         a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
         return q, v, a
 
-    def peak_angular_velocity(self, sign: int | None = None) -> Peak:
-        """The largest |q̇| over the run, located between samples where q̈ = 0.
+    def peak_rate(self, sign: int | None = None) -> Peak:
+        """The largest |q̇| over the run (rad/s, or m/s for a prismatic input), located between
+        samples where q̈ = 0.
 
         Candidates are every sample (a maximum may sit on a load edge where q̈ jumps)
         and every root of the interpolant's q̈ (a cubic in s) inside the intervals next
@@ -148,7 +149,7 @@ class Trajectory:
 
         Candidates are the samples where sign·q̇ > 0 stops rising, each end included where
         sign·q̇ does not rise into the run from it; each is refined between samples by
-        :meth:`peak_angular_velocity` (with the sign) on its two neighbouring intervals. Of
+        :meth:`peak_rate` (with the sign) on its two neighbouring intervals. Of
         candidates equally near, the larger sign·q̇ wins. When q̇ never takes that sign, there
         is no such event: the value at ``peak.time`` is returned (so the difference of the two
         shows how far apart the runs are, and a gate on it fails).
@@ -166,7 +167,7 @@ class Trajectory:
                 found.append(Peak(float(self.qdot[k]), float(self.t[k])))
                 continue
             part = Trajectory(self.t[a:b], self.q[a:b], self.qdot[a:b], self.qddot[a:b])
-            found.append(part.peak_angular_velocity(sign=int(sign)))
+            found.append(part.peak_rate(sign=int(sign)))
         if not found:
             time = float(np.clip(peak.time, self.t[0], self.t[-1]))
             return Peak(float(self.interpolate(np.array([time]))[1][0]), time)

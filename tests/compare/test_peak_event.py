@@ -47,7 +47,7 @@ def test_the_other_run_s_event_is_the_same_sign_nearest_in_time():
     found exactly, with the same sign and time."""
     reference = bumped([(-0.01, 1.0)])
     other = bumped([(-0.01, 1.0), (0.05, 0.0)])
-    own = other.peak_angular_velocity()
+    own = other.peak_rate()
     assert own.omega == pytest.approx(1.05, abs=1e-9) and own.time == 0.0  # the other run's own largest
     d = compare_trajectories(reference, other)
     assert d.peak_omega_reference == pytest.approx(-1.01, abs=1e-9) and d.t_peak_reference == pytest.approx(1.0)
@@ -61,7 +61,7 @@ def test_an_extremum_of_the_other_sign_nearer_in_time_is_not_the_event():
     reference = bumped([(-0.01, 1.0)])
     s = 0.6
     other = Trajectory(T, np.sin(np.pi * (T - s)) / np.pi, np.cos(np.pi * (T - s)), -np.pi * np.sin(np.pi * (T - s)))
-    event = other.extremum_near(reference.peak_angular_velocity())
+    event = other.extremum_near(reference.peak_rate())
     # Refined between 1 ms samples by the quintic interpolant: measured within 1e-12 s and
     # 1e-15 of the closed form; bounds 1e-9 (time) and 1e-12 (value).
     assert event.time == pytest.approx(1.6, abs=1e-9) and event.omega == pytest.approx(-1.0, abs=1e-12)
@@ -71,11 +71,11 @@ def test_a_speed_rising_to_the_end_is_flagged_and_a_turning_one_is_not():
     """q̇ = 20 t rises to the end: its peak is the last sample, still rising, in both runs;
     q̇ = cos(πt) on [0, 2] ends on a maximum (q̈ = 0 there): not rising."""
     rising = Trajectory(T, 10 * T**2, 20 * T, np.full_like(T, 20.0))
-    peak = rising.peak_angular_velocity()
+    peak = rising.peak_rate()
     assert peak.time == 2.0 and peak.omega == 40.0 and peak.still_rising
     assert rising.extremum_near(peak).still_rising
     turning = bumped([])
-    assert not turning.peak_angular_velocity().still_rising
+    assert not turning.peak_rate().still_rising
 
 
 def dots(figure) -> list[tuple[float, float]]:

@@ -19,7 +19,7 @@ from xval.compare.stress import CATALOGUE, CaseResult, run_case
 from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import load_scene
 from oracles.four_bar import FourBar
-from xval.loads import PulseTorque
+from xval.loads import PulseLoad
 from xval.trajectory import JointTrajectory
 from xval.reference_models import MujocoSettings, build_model, simulate_mujoco
 
@@ -159,7 +159,7 @@ def test_off_grid_edge_error_is_first_order_in_the_misplacement():
     errors = []
     for delta in deltas:
         s = replace(scene, load=replace(scene.load, duration=1.0 + delta))
-        assert isinstance(s.load, PulseTorque)
+        assert isinstance(s.load, PulseLoad)
         reference = simulate(s, ReducedSettings(**s.engine_table("reduced")))
         with pytest.warns(UserWarning, match="not a multiple of the timestep"):
             other = simulate_mujoco(s, MujocoSettings(**s.engine_table("mujoco")))

@@ -12,6 +12,9 @@ import sys
 import pytest
 
 distributed = pytest.importorskip("distributed")
+# Slow (12 s of the fast suite, measured 2026-11-26): a cluster of worker processes and subprocess
+# probes of fake schedulers, for an optional extra; CI runs them (it runs every test).
+pytestmark = pytest.mark.slow
 
 from xval.compare import sweep as sweep_module  # noqa: E402
 from xval.compare import sweep_dask  # noqa: E402

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.loads import ConstantTorque, PiecewiseConstantTorque, PulseTorque, TabulatedForce
+from xval.loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, TabulatedForce
 
-PROFILES = [ConstantTorque(3.0), PulseTorque(250.0, 0.5, 1.0),
-            PiecewiseConstantTorque((0.0, 1.0, 2.0), (1.0, -2.0, 5.0))]
+PROFILES = [ConstantLoad(3.0), PulseLoad(250.0, 0.5, 1.0),
+            PiecewiseConstantLoad((0.0, 1.0, 2.0), (1.0, -2.0, 5.0))]
 
 
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: type(p).__name__)
@@ -27,14 +27,14 @@ def test_a_piece_sees_one_side_of_each_edge(profile):
 
 
 @pytest.mark.parametrize("make, field", [
-    (lambda: ConstantTorque(float("nan")), "ConstantTorque.amplitude"),
-    (lambda: PulseTorque(1.0, -0.5, 1.0), "PulseTorque.start"),
-    (lambda: PulseTorque(1.0, 0.0, -1.0), "PulseTorque.duration"),
-    (lambda: PulseTorque(float("inf"), 0.0, 1.0), "PulseTorque.amplitude"),
-    (lambda: PiecewiseConstantTorque((0.0, 1.0), (1.0,)), "PiecewiseConstantTorque.times and .values"),
-    (lambda: PiecewiseConstantTorque((), ()), "PiecewiseConstantTorque.times and .values"),
-    (lambda: PiecewiseConstantTorque((0.0, 0.0), (1.0, 2.0)), "PiecewiseConstantTorque.times must be strictly"),
-    (lambda: PiecewiseConstantTorque((0.0, 1.0), (1.0, float("nan"))), "PiecewiseConstantTorque.values[1]"),
+    (lambda: ConstantLoad(float("nan")), "ConstantLoad.amplitude"),
+    (lambda: PulseLoad(1.0, -0.5, 1.0), "PulseLoad.start"),
+    (lambda: PulseLoad(1.0, 0.0, -1.0), "PulseLoad.duration"),
+    (lambda: PulseLoad(float("inf"), 0.0, 1.0), "PulseLoad.amplitude"),
+    (lambda: PiecewiseConstantLoad((0.0, 1.0), (1.0,)), "PiecewiseConstantLoad.times and .values"),
+    (lambda: PiecewiseConstantLoad((), ()), "PiecewiseConstantLoad.times and .values"),
+    (lambda: PiecewiseConstantLoad((0.0, 0.0), (1.0, 2.0)), "PiecewiseConstantLoad.times must be strictly"),
+    (lambda: PiecewiseConstantLoad((0.0, 1.0), (1.0, float("nan"))), "PiecewiseConstantLoad.values[1]"),
 ], ids=["nan", "neg_start", "neg_duration", "inf", "lengths", "empty", "not_increasing", "nan_value"])
 def test_profiles_validate_their_fields(make, field):
     """Built directly (not from a scene), a profile still refuses what it cannot represent."""

@@ -21,7 +21,7 @@ import pytest
 from xval.compare.settings import gate_tolerances, mujoco_settings, reduced_settings
 from xval.scene import SceneError
 from xval.scenefile import load_scene, scene_from_dict
-from xval.loads import PulseTorque
+from xval.loads import PulseLoad
 from helpers import DELETE, patched, seed_dict
 
 # [tolerances] (README: "Scene files"): the documented default of each key, and a value that is not.
@@ -134,7 +134,7 @@ def test_the_top_level_and_initial_defaults(tmp_path):
     assert scene.name == "scene" and scene.description == "" and scene.gravity is None
     assert scene.qdot0 == 0.0
     assert scene.four_bar is not None and sorted(scene.mechanism.linkage.moving) == ["coupler", "crank", "rocker"]
-    assert isinstance(scene.load, PulseTorque) and scene.load.start == 0.0
+    assert isinstance(scene.load, PulseLoad) and scene.load.start == 0.0
     assert scene.mechanism.elements[0].name == "damper0"
     # a scene file's name defaults to its file name
     path = tmp_path / "my_linkage.toml"

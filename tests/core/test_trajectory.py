@@ -45,7 +45,7 @@ def test_peak_is_found_between_samples():
     """q̇ = 3 + sin(5 t) peaks at t = π/10 with 4; samples every 0.1 s miss it by up to 0.01."""
     t = np.linspace(0.0, 1.0, 11)
     tr = Trajectory(t, 3 * t - np.cos(5 * t) / 5, 3 + np.sin(5 * t), 5 * np.cos(5 * t))
-    peak = tr.peak_angular_velocity()
+    peak = tr.peak_rate()
     assert peak.time == pytest.approx(np.pi / 10, abs=1e-4)
     assert peak.omega == pytest.approx(4.0, abs=1e-6)
     assert peak.omega > np.max(tr.qdot)
@@ -54,8 +54,8 @@ def test_peak_is_found_between_samples():
 def test_signed_peak_picks_the_requested_side():
     t = np.linspace(0.0, 2 * np.pi, 201)
     tr = Trajectory(t, -np.cos(t), np.sin(t), np.cos(t))
-    assert tr.peak_angular_velocity(sign=1).omega == pytest.approx(1.0, abs=1e-9)
-    assert tr.peak_angular_velocity(sign=-1).omega == pytest.approx(-1.0, abs=1e-9)
+    assert tr.peak_rate(sign=1).omega == pytest.approx(1.0, abs=1e-9)
+    assert tr.peak_rate(sign=-1).omega == pytest.approx(-1.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("bad", ["nan", "decreasing", "shape"])

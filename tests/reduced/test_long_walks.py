@@ -13,7 +13,7 @@ import pytest
 from xval.reduced import MechanismModel
 from xval.kinematics import SINGULAR_CONDITIONING
 from xval.scenefile import load_scene
-from xval.reduced.partition import Chart
+from xval.reduced.charts import Chart
 
 from helpers import SEED_SCENE
 
@@ -33,7 +33,7 @@ def test_a_walk_of_hundreds_of_rad_keeps_the_dependent_angles_turns(far):
     ended 1.5e-2 rad off the start, its dependent angles having passed 1e15 rad.
     Measured: back to the start within 3.3e-16 rad (the closed form: round-off of angles of
     1–3 rad); bound 2e-15."""
-    from xval.reduced.partition import _start
+    from xval.reduced.charts import _start
 
     model = MechanismModel(load_scene(LONG_CONSERVATIVE))
     x0, i, _ = _start(model)

@@ -22,7 +22,7 @@ from xval.reduced import MechanismModel, ReducedSettings, simulate
 from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import solve_adaptive
 from xval.kinematics import assemble
-from xval.reduced.partition import Chart, conditioning
+from xval.reduced.charts import Chart, conditioning
 
 from helpers import DATA, ROOT, SEED_SCENE
 

@@ -2,7 +2,7 @@
 
 The four-bar's closed form (:class:`oracles.four_bar.FourBar`) and the dyad closed form written
 below are the oracles of the compiled general path (:mod:`xval.reduced.kernels.physics`, through
-:class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.partition.Chart`); the pure-numpy
+:class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.charts.Chart`); the pure-numpy
 loop equations of :mod:`xval.kinematics` are a third, independent evaluation of K and L."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from xval.reduced import MechanismModel
 from xval.scene import SceneError
 from xval.scenefile import load_scene, scene_from_dict
 from xval import kinematics as loops
-from xval.reduced.partition import Chart
+from xval.reduced.charts import Chart
 from xval.scene import FourBarGeometry
 
 from helpers import SEED_SCENE, coefficients_along, seed_dict, variant

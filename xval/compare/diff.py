@@ -15,7 +15,7 @@ are used as they are and the interpolation adds less error than either engine ma
 
 The compared peak, one event in both runs (:class:`xval.trajectory.Peak`, defined once in
 :mod:`xval.trajectory`): the reference's largest |ω| within the span, with its sign and
-time (:meth:`~xval.trajectory.Trajectory.peak_angular_velocity`), and the other engine's
+time (:meth:`~xval.trajectory.Trajectory.peak_rate`), and the other engine's
 local extremum of ω of the same sign nearest in time to it
 (:meth:`~xval.trajectory.Trajectory.extremum_near`). A conservative swing has several
 extremes of |ω| equal to round-off, of both signs; pairing by sign and time keeps both engines
@@ -138,7 +138,7 @@ def compared_peaks(reference: Trajectory, other: Trajectory, start: float, end: 
     """The compared peak on [start, end] (s), one event in both runs (module docstring): the
     reference's largest |ω| with its sign and time, and ``other``'s local extremum of ω of
     the same sign nearest in time to it."""
-    peak = reference.within(start, end).peak_angular_velocity()
+    peak = reference.within(start, end).peak_rate()
     return peak, other.within(start, end).extremum_near(peak)
 
 
@@ -235,7 +235,7 @@ class ModeCheck:
 def compare_modes(reference, other, window: float | None = None) -> ModeCheck:
     """Count, per loop, ``other``'s samples whose assembly mode differs from the reference's.
 
-    Both are :class:`~xval.reduced.partition.JointTrajectory`, whose ``mode`` has shape
+    Both are :class:`~xval.reduced.charts.JointTrajectory`, whose ``mode`` has shape
     (samples, loops) (one sign ±1 per loop, 0 where the loop's dyad is degenerate). A loop's
     mode changes legitimately where its dyad passes a limit position; samples within
     ``window`` seconds of a change of that loop's reference mode (default: twice the coarser

@@ -468,7 +468,7 @@ def declutter_labels(ax) -> None:
 
 def configuration_at(joints, t: float) -> np.ndarray:
     """The general coordinates x (shape (n,)) of a JointTrajectory at time t (s), clamped to the
-    run's span (:meth:`xval.reduced.partition.JointTrajectory.interpolate`: cubic Hermite, O(h⁴); at
+    run's span (:meth:`xval.reduced.charts.JointTrajectory.interpolate`: cubic Hermite, O(h⁴); at
     ≤ 1 ms samples far below a pixel)."""
     return joints.interpolate(t)[0][0]
 

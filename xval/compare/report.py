@@ -188,7 +188,7 @@ def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
 def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     """Per named joint: its type, unit, whether it is cut, each engine's range of u and largest
     |u̇|, and the largest differences MuJoCo − reduced of u and u̇ on MuJoCo's samples (the
-    reference's body poses interpolated there: :meth:`xval.reduced.partition.JointTrajectory.interpolate`)."""
+    reference's body poses interpolated there: :meth:`xval.reduced.charts.JointTrajectory.interpolate`)."""
     linkage = c.scene.mechanism.linkage
     out = []
     ref_t, mj_t = c.reduced.trajectory.t, c.mujoco.trajectory.t

@@ -21,7 +21,7 @@ from xval.errors import NumericalFailure
 from xval.reduced import ReducedSettings, simulate
 from xval.scene import Scene
 from xval.scenefile import load_scene
-from xval.loads import PulseTorque
+from xval.loads import PulseLoad
 from xval.scenefile import scenes_dir
 from xval.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
@@ -212,7 +212,7 @@ def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dic
     """MuJoCo's error with the edge off the grid against the same scene with the edge moved
     onto the grid (each against its own reduced reference)."""
     torque = scene.load
-    if not isinstance(torque, PulseTorque):
+    if not isinstance(torque, PulseLoad):
         return ["off-grid case needs a pulse torque"]
     h = settings.timestep
     on_grid = replace(scene, load=replace(torque, duration=round(torque.duration / h) * h))

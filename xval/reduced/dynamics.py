@@ -11,7 +11,7 @@
 joint coordinate, relative angle or displacement, K_u = row·K: :class:`xval.mechanism.JointElement`.)
 
 x_i is the chart's independent coordinate (any joint coordinate: a body angle or a slider
-displacement, :mod:`xval.reduced.partition`); every K and L is a derivative with respect to it.
+displacement, :mod:`xval.reduced.charts`); every K and L is a derivative with respect to it.
 The input q = drive·x; dq/dx_i = drive·K. Units: with x_i an angle 𝔍, ζ in kg·m², dV/dx_i and
 Q_i in N·m; with a displacement, kg and N.
 

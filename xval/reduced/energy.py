@@ -66,7 +66,7 @@ def quadrature_energy(model: MechanismModel, chart, trajectory) -> np.ndarray:
 
 
 def energy_audit(model: MechanismModel, solution) -> EnergyAudit:
-    """The energy balance of a :class:`xval.reduced.partition.PartitionedSolution` on its sample
+    """The energy balance of a :class:`xval.reduced.charts.PartitionedSolution` on its sample
     times: its recorded fields, and its integrated energy flows (or, for scipy's runs, their
     quadrature: :func:`quadrature_energy`)."""
     energy = solution.sample_energy

@@ -14,7 +14,7 @@ from .energy import energy_audit
 from xval.errors import FailureReason, NumericalFailure
 from .integrators import solve_adaptive
 from .kernels.fixed_step import RKN4
-from .partition import PartitionedSolution, Switch, integrate_dop853, integrate_partitioned, integrate_rkn4
+from .charts import PartitionedSolution, Switch, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .settings import ReducedSettings
 from xval.results import EngineResult
 from xval.scene import Scene
@@ -226,7 +226,7 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
     details = ReducedDetails(solver=solution.method, switches=tuple(solution.switches), error_estimate=estimate,
                              energy_bound=bound, energy_scale=scale)
     return EngineResult(
-        engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_angular_velocity(),
+        engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_rate(),
         audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
         settings=settings, effects=tuple(model.effects), details=details)
 

@@ -342,7 +342,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
                             if scene.mechanism.point_forces or scene.mechanism.timed_forces else None)
     return EngineResult(
         engine="mujoco", trajectory=trajectory, joints=_joint_trajectory(layout, times, x, xdot),
-        peak=trajectory.peak_angular_velocity(), audit=audit, wall_s=wall, n_steps=n_steps,
+        peak=trajectory.peak_rate(), audit=audit, wall_s=wall, n_steps=n_steps,
         n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
         effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, violation), details=details)
 

@@ -39,7 +39,7 @@ from xval.reduced.integrators import restart, solve_adaptive  # noqa: E402
 from xval.reduced.kernels import adaptive as K  # noqa: E402
 from xval.reduced.kernels import output  # noqa: E402
 from xval.reduced.kernels import physics  # noqa: E402
-from xval.reduced.partition import _start, load_pieces  # noqa: E402
+from xval.reduced.charts import _start, load_pieces  # noqa: E402
 from xval.scenefile import hard_scene_dir  # noqa: E402
 
 from helpers import scipy_in_kernel_order, without_dyad_plans  # noqa: E402

@@ -15,7 +15,7 @@ from xval.reduced import MechanismModel
 from xval.scenefile import load_scene
 from xval.reduced.kernels import physics
 from xval.kinematics import SINGULAR_CONDITIONING, assemble
-from xval.reduced.partition import HYSTERESIS, conditioning
+from xval.reduced.charts import HYSTERESIS, conditioning
 
 from helpers import ROOT, without_dyad_plans
 

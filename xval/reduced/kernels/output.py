@@ -12,7 +12,7 @@ buffers, so a run's samples come out in one piece.
 import cython
 import numpy as np
 
-# How a run ended (:attr:`Outcome.status`; ``xval.reduced.partition`` names them for users).
+# How a run ended (:attr:`Outcome.status`; ``xval.reduced.charts`` names them for users).
 OK = 0                 #: reached the end of the last piece, or the stop event ended it
 STEP_SIZE = 1          #: DOP853: its budget of evaluations spent, or the step below the spacing of floats
 NONFINITE = 2          #: a non-finite state, or q̈ not finite at a stage or sample (fail_time: where)

@@ -5,7 +5,7 @@
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
 conditioned by more than the hysteresis), then continues in the best-conditioned coordinate j
 from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i).
-:mod:`xval.reduced.partition` documents the method; this module only strings the charts together,
+:mod:`xval.reduced.charts` documents the method; this module only strings the charts together,
 with either integrator: :func:`run_rkn` (fixed step, :mod:`.fixed_step`) or :func:`run_dop853`
 (adaptive, :mod:`.adaptive`). Each chart's samples are appended to one :class:`.output.Samples`,
 so the run's samples come out in one piece; :class:`PartitionedRun` says where each chart's begin.
