@@ -52,7 +52,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from xval.reduced import ReducedSettings  # noqa: E402
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 from xval.reduced.dynamics import MechanismModel  # noqa: E402
 
 

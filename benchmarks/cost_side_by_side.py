@@ -29,7 +29,8 @@ from common import median_time  # noqa: E402
 
 from xval.compare.cost import HARD, Config, ground_truth, measure  # noqa: E402
 from xval.reduced import ReducedSettings  # noqa: E402
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 from xval.reference_models import (MujocoSettings, build_model, compile_model, control_sequence,  # noqa: E402
                               initial_qpos_qvel, simulate_mujoco)
 

@@ -37,7 +37,8 @@ import numpy as np
 
 from xval import kinematics as loops
 from xval.loads import TabulatedForce
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 
 ROOT = Path(__file__).resolve().parent.parent
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))

@@ -20,7 +20,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import largest_passing, median_time  # noqa: E402
 
 from xval.reduced import MechanismModel, ReducedSettings  # noqa: E402
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 from xval.reduced.engine import integrate  # noqa: E402
 
 

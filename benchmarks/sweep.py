@@ -100,7 +100,7 @@ from xval.compare.sweep import chunk_size  # noqa: E402
 from xval.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
 from xval.compare.sweep_scene import check, load_sweep  # noqa: E402
 from xval.reduced import ReducedSettings  # noqa: E402
-from xval.scenefile import default_scene_path
+from xval.shipped_scenes import default_scene_path
 from xval.scenefile import scene_from_dict  # noqa: E402
 
 DAMPER, MASS = "dampers.0.coefficient", "bodies.coupler.mass"

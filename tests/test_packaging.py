@@ -13,7 +13,7 @@ import zipfile
 
 import pytest
 
-from xval.scenefile import default_scene_path, hard_scene_dir, scenes_dir
+from xval.shipped_scenes import default_scene_path, hard_scene_dir, scenes_dir
 
 from helpers import ROOT
 
@@ -50,7 +50,7 @@ def test_wheel_contains_every_scene(tmp_path):
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    code = ("from xval.scenefile import default_scene_path, hard_scene_dir, load_scene; "
+    code = ("from xval.shipped_scenes import default_scene_path, hard_scene_dir; from xval.scenefile import load_scene; "
             "print(default_scene_path()); print(load_scene(default_scene_path()).name); "
             "print(len([load_scene(p) for p in hard_scene_dir().glob('*.toml')]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,

@@ -13,7 +13,9 @@ from xval.reference_models.settings import MujocoSettings
 from xval.registry import engine_of
 from xval.results import EngineResult
 from xval.scene import Scene, SceneError, Tolerances
-from xval.scenefile import _parse_toml, catalogue, load_scene as _load_file, resolve_scene, scene_from_dict
+from xval.scenefile import load_scene as _load_file, scene_from_dict
+from xval.shipped_scenes import catalogue, resolve_scene
+from xval.toml_reader import parse_toml
 
 Settings = ReducedSettings | MujocoSettings
 
@@ -32,7 +34,7 @@ def load_scene(source: str | Path) -> Scene:
 
 def scene_from_string(text: str, *, source: str = "<string>") -> Scene:
     """A scene from the text of a scene file (TOML); ``source`` names it in error messages."""
-    return scene_from_dict(_parse_toml(text, Path(source)), source=source)
+    return scene_from_dict(parse_toml(text, Path(source)), source=source)
 
 
 def simulate(scene: Scene, settings: Settings | None = None) -> EngineResult:

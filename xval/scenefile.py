@@ -19,25 +19,23 @@ crank, coupler, rocker; points O1, A, B, O3, G (a centre of mass) and ``damper<k
 from __future__ import annotations
 
 import dataclasses
-import importlib.resources
 import math
-import os
-import stat
-import tomllib
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import type_name
 from . import kinematics as loops
 from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
 from .registry import ENGINES
-from .settings import finite_number, options, read_table
+from .settings import options, read_table
 from .sweep_spec import SweepSpecError, spec_from_table
-from .scene import LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES, FourBarGeometry, Range, Scene, SceneError, Tolerances
+from .scene import (LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, FourBarGeometry,
+                    Scene, SceneError, Tolerances)
+from .toml_reader import (Table, array_of_tables, check_range, count, name_key, parse_toml, point,
+                          read_text, table_pair, text_value)
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
 FOUR_BAR_PIVOTS = {"crank": "O1", "rocker": "O3"}  # the links that turn about a fixed pivot
@@ -49,106 +47,7 @@ JOINT_TYPES = ("revolute", "prismatic")
 SAME_ASSEMBLY_RAD = 1e-9
 
 
-class _Table:
-    """A TOML table being read: tracks used keys so unknown ones can be reported."""
-
-    def __init__(self, data: Any, path: str):
-        if not isinstance(data, dict):
-            raise SceneError(f"'{path}' must be a table, got {type_name(data)}")
-        self.data = data
-        self.path = path
-        self.used: set[str] = set()
-
-    def key(self, name: str) -> str:
-        return f"{self.path}.{name}" if self.path else name
-
-    def has(self, name: str) -> bool:
-        return name in self.data
-
-    def raw(self, name: str, default: Any = ...) -> Any:
-        self.used.add(name)
-        if name not in self.data:
-            if default is ...:
-                raise SceneError(f"missing key '{self.key(name)}'")
-            return default
-        return self.data[name]
-
-    def number(self, name: str, default: Any = ..., *, positive: bool = False,
-               nonnegative: bool = False, kind: str | None = None) -> float:
-        value = self.raw(name, default)
-        if value is default and default is not ...:
-            return value
-        return _number(value, self.key(name), positive=positive, nonnegative=nonnegative, kind=kind)
-
-    def point(self, name: str, default: Any = ..., *, kind: str = "position") -> tuple[float, float]:
-        value = self.raw(name, default)
-        if value is default and default is not ...:
-            return value
-        return _point(value, self.key(name), kind=kind)
-
-    def string(self, name: str, default: Any = ...) -> str:
-        value = self.raw(name, default)
-        if not isinstance(value, str):
-            raise SceneError(f"'{self.key(name)}' must be a string, got {type_name(value)}")
-        return value
-
-    def choice(self, name: str, options: tuple[str, ...]) -> str:
-        """A string that must be one of ``options``."""
-        value = self.string(name)
-        if value not in options:
-            raise SceneError(f"'{self.key(name)}' must be one of {', '.join(options)}, got \"{value}\"")
-        return value
-
-    def table(self, name: str) -> "_Table":
-        return _Table(self.raw(name), self.key(name))
-
-    def close(self) -> None:
-        unknown = sorted(set(self.data) - self.used)
-        if unknown:
-            raise SceneError(f"unknown key '{self.key(unknown[0])}'")
-
-
-def _number(value: Any, key: str, *, positive: bool = False, nonnegative: bool = False,
-            kind: str | None = None) -> float:
-    value = finite_number(value, key)
-    if positive and value <= 0.0:
-        raise SceneError(f"'{key}' must be positive, got {value}")
-    if nonnegative and value < 0.0:
-        raise SceneError(f"'{key}' must not be negative, got {value}")
-    if kind is not None:
-        _check_range(value, key, LIMITS[kind])
-    return value
-
-
-def _check_range(value: float, key: str, r: Range, what: str = "") -> None:
-    inside = r.low <= value <= r.high if r.low else abs(value) <= r.high
-    if not inside:
-        raise SceneError(f"'{key}'{what} = {value:g} is out of range: {r.kind} must be in {r.text()}")
-
-
-def _point(value: Any, key: str, *, kind: str = "position") -> tuple[float, float]:
-    if not isinstance(value, list) or len(value) != 2:
-        raise SceneError(f"'{key}' must be an array of two numbers [x, y]")
-    return (_number(value[0], f"{key}[0]", kind=kind), _number(value[1], f"{key}[1]", kind=kind))
-
-
-def _text(t: "_Table", name: str, default: str, limit: int) -> str:
-    """A one-line, printable string of at most ``limit`` characters (names stay plain text)."""
-    value = t.string(name, default)
-    if len(value) > limit:
-        raise SceneError(f"'{t.key(name)}' has {len(value)} characters; at most {limit}")
-    bad = next((c for c in value if not c.isprintable()), None)
-    if bad is not None:
-        raise SceneError(f"'{t.key(name)}' must be printable text, got the control character {bad!r}")
-    return value
-
-
-def _count(items: list, key: str, limit: int, what: str) -> None:
-    if len(items) > limit:
-        raise SceneError(f"'{key}' has {len(items)} {what}; at most {limit}")
-
-
-def _parse_profile(t: _Table, kind: str) -> LoadProfile:
+def _parse_profile(t: Table, kind: str) -> LoadProfile:
     """A load over time on the input joint: constant, pulse or table; values of ``kind``
     (torque in N·m on a revolute input, force in N on a prismatic one)."""
     profile_type = t.string("type")
@@ -159,7 +58,7 @@ def _parse_profile(t: _Table, kind: str) -> LoadProfile:
                               start=t.number("start", 0.0, nonnegative=True, kind="time"),
                               duration=t.number("duration", nonnegative=True, kind="time"))
     elif profile_type == "table":
-        ts, vs = _table_pair(t, "times", "values", "time", kind)
+        ts, vs = table_pair(t, "times", "values", "time", kind)
         if any(b <= a for a, b in zip(ts, ts[1:])):
             raise SceneError(f"'{t.key('times')}' must be strictly increasing")
         profile = PiecewiseConstantLoad(times=ts, values=vs)
@@ -169,34 +68,7 @@ def _parse_profile(t: _Table, kind: str) -> LoadProfile:
     return profile
 
 
-def _table_pair(t: _Table, first: str, second: str, kind_first: str, kind_second: str):
-    xs, ys = t.raw(first), t.raw(second)
-    if not isinstance(xs, list) or not isinstance(ys, list):
-        raise SceneError(f"'{t.key(first)}' and '{t.key(second)}' must be arrays")
-    if len(xs) != len(ys) or not xs:
-        raise SceneError(f"'{t.key(first)}' and '{t.key(second)}' must have the same, non-zero length")
-    if len(xs) > MAX_TABLE_ENTRIES:
-        raise SceneError(f"'{t.key(first)}' has {len(xs)} entries; at most {MAX_TABLE_ENTRIES}")
-    return (tuple(_number(v, f"{t.key(first)}[{i}]", kind=kind_first) for i, v in enumerate(xs)),
-            tuple(_number(v, f"{t.key(second)}[{i}]", kind=kind_second) for i, v in enumerate(ys)))
-
-
-def _array_of_tables(top: _Table, name: str, limit: int = MAX_ELEMENTS) -> list[_Table]:
-    items = top.raw(name, [])
-    if not isinstance(items, list):
-        raise SceneError(f"'{name}' must be an array of tables ([[{name}]])")
-    _count(items, name, limit, "entries")
-    return [_Table(item, f"{name}[{i}]") for i, item in enumerate(items)]
-
-
-def _name_key(value: str, key: str) -> str:
-    if not value or len(value) > MAX_NAME_CHARS or not all(c.isalnum() or c in "_-" for c in value):
-        raise SceneError(f"'{key}' = {value!r} is not a usable name: letters, digits, '_' and '-', "
-                         f"1 to {MAX_NAME_CHARS} characters")
-    return value
-
-
-def _point_ref(t: _Table, name: str) -> tuple[str, str]:
+def _point_ref(t: Table, name: str) -> tuple[str, str]:
     """A ``"body.point"`` reference."""
     value = t.string(name)
     parts = value.split(".")
@@ -207,7 +79,7 @@ def _point_ref(t: _Table, name: str) -> tuple[str, str]:
 
 # -- the general description ----------------------------------------------------------
 
-def _parse_planar_body(t: _Table, name: str) -> Body:
+def _parse_planar_body(t: Table, name: str) -> Body:
     """``[bodies.<name>]``: points, and mass, com, inertia (or pivot_inertia about a point)."""
     pts = t.raw("points", {} if name == GROUND else ...)
     if not isinstance(pts, dict):
@@ -215,7 +87,7 @@ def _parse_planar_body(t: _Table, name: str) -> Body:
     points = {}
     for point_name, value in pts.items():
         key = f"{t.key('points')}.{point_name}"
-        points[_name_key(point_name, key)] = _point(value, key)
+        points[name_key(point_name, key)] = point(value, key)
     if name == GROUND:
         t.close()
         if not points:
@@ -241,8 +113,8 @@ def _parse_planar_body(t: _Table, name: str) -> Body:
     return Body(name, points, mass=mass, com=com, inertia=inertia)
 
 
-def _parse_joint(t: _Table):
-    name = _name_key(t.string("name"), t.key("name"))
+def _parse_joint(t: Table):
+    name = name_key(t.string("name"), t.key("name"))
     kind = t.choice("type", JOINT_TYPES)
     body_a, point_a = _point_ref(t, "a")
     body_b, point_b = _point_ref(t, "b")
@@ -255,7 +127,7 @@ def _parse_joint(t: _Table):
     return joint
 
 
-def _line_law(t: _Table, kind: str) -> tuple[float, float]:
+def _line_law(t: Table, kind: str) -> tuple[float, float]:
     """(coefficient, rest length) of a damper (b, 0) or a spring (k, D0); closes the table."""
     if kind == "damper":
         coefficient, rest = t.number("coefficient", positive=True, kind="damping"), 0.0
@@ -266,20 +138,20 @@ def _line_law(t: _Table, kind: str) -> tuple[float, float]:
     return coefficient, rest
 
 
-def _parse_line_elements(top: _Table) -> list[LineElement]:
+def _parse_line_elements(top: Table) -> list[LineElement]:
     out = []
     for kind, table in (("damper", "dampers"), ("spring", "springs")):
-        for k, t in enumerate(_array_of_tables(top, table)):
+        for k, t in enumerate(array_of_tables(top, table)):
             body_a, point_a = _point_ref(t, "a")
             body_b, point_b = _point_ref(t, "b")
-            name = _name_key(t.string("name", f"{kind}{k}"), t.key("name"))
+            name = name_key(t.string("name", f"{kind}{k}"), t.key("name"))
             coefficient, rest = _line_law(t, kind)
             out.append(_mechanism_value(t.path, lambda: LineElement(kind, name, body_a, point_a, body_b,
                                                                      point_b, coefficient, rest)))
     return out
 
 
-def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
+def _parse_joint_elements(top: Table, linkage: Linkage) -> list[JointElement]:
     """``[[joint_dampers]]`` (joint, coefficient) and ``[[joint_springs]]`` (joint, stiffness,
     rest_angle on a revolute joint or rest_displacement on a prismatic one): elements on the
     joint's own coordinate, in N·m·s/rad and N·m/rad on a revolute joint, N·s/m and N/m on a
@@ -287,11 +159,11 @@ def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
     out = []
     joints = linkage.joint_map
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
-        for k, t in enumerate(_array_of_tables(top, table)):
+        for k, t in enumerate(array_of_tables(top, table)):
             joint = t.string("joint")
             if joint not in joints:
                 raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
-            name = _name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
+            name = name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
             revolute = not isinstance(joints[joint], PrismaticJoint)
             rest = 0.0
             if kind == "damper":
@@ -311,13 +183,13 @@ def _parse_joint_elements(top: _Table, linkage: Linkage) -> list[JointElement]:
     return out
 
 
-def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
+def _parse_point_forces(top: Table, input_kind: str) -> list[PointForce]:
     out = []
-    for k, t in enumerate(_array_of_tables(top, "point_forces")):
+    for k, t in enumerate(array_of_tables(top, "point_forces")):
         body, point = _point_ref(t, "point")
-        name = _name_key(t.string("name", f"force{k}"), t.key("name"))
+        name = name_key(t.string("name", f"force{k}"), t.key("name"))
         direction = t.number("direction", kind="angle")
-        coordinate, values = _table_pair(t, "q", "values", input_kind, "force")
+        coordinate, values = table_pair(t, "q", "values", input_kind, "force")
         if len(coordinate) < 2:
             raise SceneError(f"'{t.key('q')}' needs two or more entries")
         if any(b <= a for a, b in zip(coordinate, coordinate[1:])):
@@ -329,13 +201,13 @@ def _parse_point_forces(top: _Table, input_kind: str) -> list[PointForce]:
     return out
 
 
-def _parse_timed_forces(top: _Table) -> list[TimedForce]:
+def _parse_timed_forces(top: Table) -> list[TimedForce]:
     """``[[timed_forces]]``: point, direction (rad, ground frame), optional name, and the load
     over time as the input's ``[torque]`` gives it (type constant, pulse or table; values in N)."""
     out = []
-    for k, t in enumerate(_array_of_tables(top, "timed_forces")):
+    for k, t in enumerate(array_of_tables(top, "timed_forces")):
         body, point = _point_ref(t, "point")
-        name = _name_key(t.string("name", f"timed_force{k}"), t.key("name"))
+        name = name_key(t.string("name", f"timed_force{k}"), t.key("name"))
         direction = t.number("direction", kind="angle")
         profile = _parse_profile(t, "force")  # closes the table
         out.append(_mechanism_value(t.path, lambda: TimedForce(name, body, point, direction, profile)))
@@ -350,15 +222,15 @@ def _mechanism_value(key: str, build):
         raise SceneError(f"'{key}': {exc}") from None
 
 
-def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry | None]:
+def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry | None]:
     input_joint = link.string("input")
     link.close()
     bodies_t = top.table("bodies")
     names = list(bodies_t.data)
-    _count([n for n in names if n != GROUND], "bodies", MAX_BODIES, "moving bodies")
-    bodies = [_parse_planar_body(bodies_t.table(_name_key(n, bodies_t.key(n))), n) for n in names]
+    count([n for n in names if n != GROUND], "bodies", MAX_BODIES, "moving bodies")
+    bodies = [_parse_planar_body(bodies_t.table(name_key(n, bodies_t.key(n))), n) for n in names]
     bodies_t.close()
-    joints_t = _array_of_tables(top, "joints", MAX_JOINTS)
+    joints_t = array_of_tables(top, "joints", MAX_JOINTS)
     if not joints_t:
         raise SceneError("missing key 'joints': a planar linkage needs [[joints]]")
     joints = [_parse_joint(t) for t in joints_t]
@@ -371,7 +243,7 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
     forces = _parse_point_forces(top, input_kind)
     joint_elements = _parse_joint_elements(top, linkage)
     timed = _parse_timed_forces(top)
-    _count(elements + forces + joint_elements + timed,
+    count(elements + forces + joint_elements + timed,
            "dampers, springs, joint_dampers, joint_springs, point_forces and timed_forces", MAX_ELEMENTS,
            "entries together")
     return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
@@ -379,7 +251,7 @@ def _parse_planar(top: _Table, link: _Table) -> tuple[Mechanism, FourBarGeometry
 
 # -- the four-bar shorthand ------------------------------------------------------------
 
-def _parse_four_bar_geometry(t: _Table) -> FourBarGeometry:
+def _parse_four_bar_geometry(t: Table) -> FourBarGeometry:
     lengths = [t.number(f"c{i}", positive=True, kind="length") for i in (1, 2, 3, 4)]
     branch = t.raw("branch")
     if isinstance(branch, bool) or branch not in (1, -1):
@@ -388,7 +260,7 @@ def _parse_four_bar_geometry(t: _Table) -> FourBarGeometry:
     return FourBarGeometry(*lengths, branch=int(branch))
 
 
-def _parse_four_bar_body(t: _Table, name: str, needs_mass: bool) -> tuple[float, tuple | None, float]:
+def _parse_four_bar_body(t: Table, name: str, needs_mass: bool) -> tuple[float, tuple | None, float]:
     """(mass, com, inertia about the com) of a four-bar link; mass 0 and com None for a link
     given by its inertia about its fixed pivot alone."""
     grounded = name in FOUR_BAR_PIVOTS
@@ -415,7 +287,7 @@ def _parse_four_bar_body(t: _Table, name: str, needs_mass: bool) -> tuple[float,
             if centroidal <= 0.0:
                 raise SceneError(f"'{t.key('pivot_inertia')}' = {pivot} is smaller than mass·|com|²;"
                                  " the centroidal inertia would not be positive")
-            _check_range(centroidal, t.key("pivot_inertia"), LIMITS["inertia"], " − mass·|com|²")
+            check_range(centroidal, t.key("pivot_inertia"), LIMITS["inertia"], " − mass·|com|²")
     if needs_mass and (mass is None or com is None):
         missing = " and ".join(f"'{t.key(k)}'" for k, v in (("mass", mass), ("com", com)) if v is None)
         raise SceneError(f"missing {'keys' if ' and ' in missing else 'key'} {missing}:"
@@ -425,7 +297,7 @@ def _parse_four_bar_body(t: _Table, name: str, needs_mass: bool) -> tuple[float,
     return mass, com, centroidal
 
 
-def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechanism, FourBarGeometry]:
+def _parse_four_bar(top: Table, link: Table, needs_mass: bool) -> tuple[Mechanism, FourBarGeometry]:
     """The shorthand, expanded into the general description (module docstring)."""
     g = _parse_four_bar_geometry(link)
     points = {GROUND: {"O1": (0.0, 0.0), "O3": (g.c4, 0.0)},
@@ -444,7 +316,7 @@ def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechan
     bodies_t.close()
     elements = []
     for kind, table in (("damper", "dampers"), ("spring", "springs")):
-        for k, t in enumerate(_array_of_tables(top, table)):
+        for k, t in enumerate(array_of_tables(top, table)):
             body = t.string("body")
             if body not in FOUR_BAR_BODIES:
                 raise SceneError(f"'{t.key('body')}' must be one of {', '.join(FOUR_BAR_BODIES)}, got \"{body}\"")
@@ -468,10 +340,10 @@ def _parse_four_bar(top: _Table, link: _Table, needs_mass: bool) -> tuple[Mechan
 
 def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     """Build and validate a :class:`Scene` from parsed TOML data."""
-    top = _Table(dict(data), "")
+    top = Table(dict(data), "")
     stem = "".join(c if c.isprintable() else "?" for c in Path(source).stem[:MAX_NAME_CHARS])
-    name = _text(top, "name", stem if source != "<memory>" else "scene", MAX_NAME_CHARS)
-    description = _text(top, "description", "", MAX_DESCRIPTION_CHARS)
+    name = text_value(top, "name", stem if source != "<memory>" else "scene", MAX_NAME_CHARS)
+    description = text_value(top, "description", "", MAX_DESCRIPTION_CHARS)
     gravity = top.point("gravity", None, kind="gravity")
 
     link = top.table("linkage")
@@ -539,7 +411,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     return scene
 
 
-def _parse_guess(t: _Table, system, linkage: Linkage) -> np.ndarray:
+def _parse_guess(t: Table, system, linkage: Linkage) -> np.ndarray:
     """``initial.guess``: body angles (rad) by body name, slider displacements (m) by joint
     name; a coordinate not given starts at 0."""
     guess = np.zeros(system.n)
@@ -638,104 +510,10 @@ def load_scene(path: str | Path) -> Scene:
         If the file is missing, too large, not UTF-8, not valid TOML, or describes an invalid scene.
     """
     path = Path(path)
-    data = _parse_toml(_read_text(path), path)
+    data = parse_toml(read_text(path), path)
     try:
         return scene_from_dict(data, source=str(path))
     except SceneError as exc:
         raise SceneError(f"{path}: {exc}") from None
 
 
-def _read_text(path: Path) -> str:
-    """The file's text: regular files only, at most MAX_SCENE_BYTES read, UTF-8 with or without BOM."""
-    try:
-        # O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused below.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    except OSError as exc:
-        raise SceneError(f"cannot read scene file '{path}': {exc.strerror}") from None
-    mode = os.fstat(fd).st_mode
-    if not stat.S_ISREG(mode):
-        os.close(fd)
-        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
-        raise SceneError(f"cannot read scene file '{path}': it is {what}")
-    with os.fdopen(fd, "rb") as f:
-        try:
-            raw = f.read(MAX_SCENE_BYTES + 1)
-        except OSError as exc:
-            raise SceneError(f"cannot read scene file '{path}': {exc.strerror}") from None
-    if len(raw) > MAX_SCENE_BYTES:
-        raise SceneError(f"'{path}' is larger than {MAX_SCENE_BYTES} bytes; a scene is a short text file")
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise SceneError(f"'{path}' is UTF-16 text (byte-order mark); save it as UTF-8")
-    try:
-        return raw.decode("utf-8-sig")  # strips a UTF-8 byte-order mark
-    except UnicodeDecodeError as exc:
-        raise SceneError(f"'{path}' is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start});"
-                         " save it as UTF-8") from None
-
-
-def _parse_toml(text: str, path: Path) -> dict[str, Any]:
-    """``tomllib.loads`` with its errors as one-line SceneErrors naming the file."""
-    try:
-        return tomllib.loads(text)
-    except ValueError as exc:  # TOMLDecodeError, or an integer past Python's 4300-digit limit
-        raise SceneError(f"'{path}' is not valid TOML: {exc}") from None
-    except RecursionError:
-        raise SceneError(f"'{path}' is not a usable scene: its arrays or tables are nested too deeply") from None
-
-
-def scenes_dir() -> Path:
-    """Folder of the scenes shipped with the project (``seed_fourbar.toml``, ``hard/``).
-
-    The scenes are the package data of the ``xval.scenes`` package (the repository's
-    ``scenes/`` folder), found with importlib.resources, so an installed wheel finds them as well
-    as a source checkout.
-    """
-    root = importlib.resources.files("xval.scenes")
-    if not isinstance(root, Path):  # e.g. imported from a zip file
-        raise SceneError(f"the shipped scenes are not files on disk ({root}); install xval unzipped")
-    return root
-
-
-def default_scene_path() -> Path:
-    """Path of the seed four-bar scene shipped with the project."""
-    return scenes_dir() / "seed_fourbar.toml"
-
-
-def hard_scene_dir() -> Path:
-    """Folder of the hard-case catalogue (``xval stress``)."""
-    return scenes_dir() / "hard"
-
-
-def catalogue() -> dict[str, Path]:
-    """The shipped scenes by name: each file's path under :func:`scenes_dir` without ``.toml``
-    (``seed_fourbar``, ``mechanisms/watt2_sixbar``, ``hard/gravity``), and also its bare file name
-    (``watt2_sixbar``) where no other shipped scene has that name. Sorted by the full names."""
-    root = scenes_dir()
-    full = {p.relative_to(root).with_suffix("").as_posix(): p for p in sorted(root.rglob("*.toml"))}
-    stems: dict[str, list[str]] = {}
-    for name in full:
-        stems.setdefault(name.rpartition("/")[2], []).append(name)
-    short = {stem: full[names[0]] for stem, names in stems.items() if len(names) == 1 and stem not in full}
-    return {**full, **short}
-
-
-def resolve_scene(name: str | Path) -> Path:
-    """The scene file a command line names: a file that exists (relative to the working folder, or
-    absolute) is taken as it is; otherwise a name of the shipped :func:`catalogue`; otherwise, a
-    name ending in ``.toml`` or an absolute path is returned as it is (reading it then says the
-    file does not exist).
-
-    Raises
-    ------
-    SceneError
-        If it is none of these.
-    """
-    path = Path(name)
-    if path.exists():
-        return path
-    found = catalogue().get(str(name).removesuffix(".toml"))
-    if found is not None:
-        return found
-    if path.suffix == ".toml" or path.is_absolute():  # a file, surely: reading it says what is wrong
-        return path
-    raise SceneError(f"'{name}': no such scene file, nor a shipped scene of that name (`xval scenes` lists them)")

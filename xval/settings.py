@@ -19,6 +19,7 @@ from typing import Any, Mapping
 
 from .errors import type_name
 from .scene import LIMITS, SceneError
+from .toml_reader import finite_number, number
 
 KINDS = ("choice", "number", "whole", "bool", "numbers")
 
@@ -121,14 +122,7 @@ class Option:
             if not isinstance(value, list) or len(value) != len(self.parts):
                 raise SceneError(f"'{key}' must be an array of {len(self.parts)} numbers")
             return tuple(finite_number(v, f"{key}[{i}]") for i, v in enumerate(value))
-        number = finite_number(value, key)
-        if not self.signed and number <= 0.0:
-            raise SceneError(f"'{key}' must be positive, got {number}")
-        if self.limit is not None:
-            r = LIMITS[self.limit]
-            if not (r.low <= number <= r.high if r.low else abs(number) <= r.high):
-                raise SceneError(f"'{key}' = {number:g} is out of range: {r.kind} must be in {r.text()}")
-        return number
+        return number(value, key, positive=not self.signed, kind=self.limit)
 
     def parse(self, text: str) -> Any:
         """One command-line word for this option (an ``argparse`` type)."""
@@ -263,15 +257,3 @@ def _named(parse, name: str):
     return typed
 
 
-def finite_number(value: Any, key: str) -> float:
-    """A TOML number, finite, as a float (SceneError naming ``key`` otherwise)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"'{key}' must be a number, got {type_name(value)}")
-    try:
-        number = float(value)
-    except OverflowError:  # a TOML integer beyond the float range
-        raise SceneError(f"'{key}' must be finite, got an integer of about"
-                         f" {int(value.bit_length() * math.log10(2)) + 1} digits") from None
-    if not math.isfinite(number):
-        raise SceneError(f"'{key}' must be finite, got {number}")
-    return number

@@ -16,7 +16,7 @@ import pytest
 
 from xval.compare.cli import main
 from xval.scene import SceneError
-from xval.scenefile import catalogue, resolve_scene, scenes_dir
+from xval.shipped_scenes import catalogue, resolve_scene, scenes_dir
 
 from helpers import SEED_SCENE
 

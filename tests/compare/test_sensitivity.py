@@ -21,7 +21,7 @@ from xval.compare.cli import main
 from xval.compare.sensitivity import Sensitivity, _peak, sensitivities
 from xval.sweep_spec import spec_from_args
 from xval.compare.sweep_scene import load_sweep
-from xval.scenefile import default_scene_path
+from xval.shipped_scenes import default_scene_path
 
 KEYS = ["dampers.0.coefficient=40:70:2", "bodies.coupler.mass=35:45:2"]
 

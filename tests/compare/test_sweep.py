@@ -27,7 +27,7 @@ from xval.compare.sweep import sweep_files
 from xval.compare.sweep_journal import journal_path
 from xval.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows
 from xval.sweep_spec import Engines, spec_from_args
-from xval.scenefile import default_scene_path
+from xval.shipped_scenes import default_scene_path
 
 from helpers import ROOT, interruptible, short_seed_file  # noqa: F401 - fixture
 

@@ -16,7 +16,8 @@ import pytest
 from xval import kinematics as loops
 from xval.errors import NumericalFailure
 from xval.mechanism import PrismaticJoint
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 
 from helpers import ROOT
 

@@ -47,7 +47,7 @@ def _periodic_force_scene(tmp_path, values, period=6.0, q=(0.0, 2.0, 4.0, 6.0)):
     """The planar seed with a periodic point force on the coupler, written as a scene file."""
     import tomllib
 
-    from xval.scenefile import scenes_dir
+    from xval.shipped_scenes import scenes_dir
 
     text = (scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text()
     tomllib.loads(text)  # the base parses

@@ -18,7 +18,8 @@ import pytest
 
 from xval.compare import cli
 from xval.scene import SceneError
-from xval.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.scenefile import load_scene, scene_from_dict
+from xval.shipped_scenes import default_scene_path
 
 from helpers import DATA, SEED_SCENE, seed_dict
 

@@ -17,7 +17,7 @@ import pytest
 from xval.scene import SceneError
 from xval.scenefile import load_scene, scene_from_dict
 from xval.four_bar import FourBar
-from xval.scenefile import scenes_dir
+from xval.shipped_scenes import scenes_dir
 
 from helpers import SEED_SCENE, seed_dict
 

@@ -131,7 +131,7 @@ def test_point_force_beyond_the_force_range_is_refused():
     """The planar seed with a tabulated point force of 1e308 N on the coupler."""
     import tomllib
 
-    from xval.scenefile import scenes_dir
+    from xval.shipped_scenes import scenes_dir
 
     data = tomllib.loads((scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text())
     data["point_forces"] = [{"point": "coupler.B", "direction": 0.0, "q": [0.0, 1.0], "values": [HUGE, 0.0]}]

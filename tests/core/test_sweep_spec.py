@@ -14,7 +14,8 @@ from xval.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpe
                                      Variant, count, parse_vary, spec_from_args, spec_from_table, variants)
 from xval.compare.sweep_scene import check, load_sweep
 from xval.scene import SceneError
-from xval.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.scenefile import load_scene, scene_from_dict
+from xval.shipped_scenes import default_scene_path
 
 SEED_TEXT = default_scene_path().read_text()
 SWEEP_TABLE = """

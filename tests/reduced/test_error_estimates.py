@@ -24,7 +24,7 @@ from helpers import variant
 from xval.errors import NumericalFailure
 from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import load_scene
-from xval.scenefile import hard_scene_dir
+from xval.shipped_scenes import hard_scene_dir
 
 REFERENCE = ReducedSettings(method="dop853", rtol=1e-12, sample_interval=2.5e-4)
 STIFF_DAMPER = hard_scene_dir() / "stiff_damper.toml"

@@ -181,7 +181,7 @@ def test_a_chart_started_at_a_fold_follows_it_back(back):
     independent walk), and back at the start the crank is where it started. Measured: 6.1e-8
     rad at most (x is defined there only to ε / σ_min(Φ_x), conditioning 3e-8); bound 2e-7."""
     from helpers import without_dyad_plans
-    from xval.scenefile import default_scene_path
+    from xval.shipped_scenes import default_scene_path
     from xval.reduced.kernels import physics
 
     model = MechanismModel(load_scene(default_scene_path()))

@@ -18,7 +18,7 @@ from xval.reduced.kernels.fixed_step import RKN4
 from xval.errors import IgnoredSettingWarning, NumericalFailure
 from xval.scenefile import load_scene, scene_from_dict
 from xval.reduced.integrators import MAX_EVALUATIONS
-from xval.scenefile import hard_scene_dir
+from xval.shipped_scenes import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 

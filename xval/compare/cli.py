@@ -27,7 +27,8 @@ from xval.errors import NumericalFailure
 from xval.registry import ENGINES
 from xval.scene import SceneError
 from xval.settings import add_flags, given_flags
-from xval.scenefile import catalogue, default_scene_path, load_scene, resolve_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import catalogue, default_scene_path, resolve_scene
 
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
                      check_file, check_folder, signals_as_exceptions, write_file)

@@ -22,7 +22,7 @@ from xval.reduced import ReducedSettings, simulate
 from xval.scene import Scene
 from xval.scenefile import load_scene
 from xval.loads import PulseLoad
-from xval.scenefile import scenes_dir
+from xval.shipped_scenes import scenes_dir
 from xval.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from xval.results import EngineResult

@@ -11,7 +11,8 @@ from typing import Any, Mapping
 
 from xval.errors import type_name
 from xval.scene import SceneError
-from xval.scenefile import _parse_toml, _read_text, scene_from_dict
+from xval.scenefile import scene_from_dict
+from xval.toml_reader import parse_toml, read_text
 from xval.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, apply, lookup,
                                      spec_from_table)
 
@@ -20,7 +21,7 @@ def load_sweep(path: str | Path) -> tuple[dict[str, Any], SweepSpec | None]:
     """A scene file's TOML data and the specification of its ``[sweep]`` table (None without
     one). The file is read as :func:`xval.scenefile.load_scene` reads it (SceneError)."""
     path = Path(path)
-    data = _parse_toml(_read_text(path), path)
+    data = parse_toml(read_text(path), path)
     spec = spec_from_table(data[SWEEP_TABLE], str(path)) if SWEEP_TABLE in data else None
     return data, spec
 

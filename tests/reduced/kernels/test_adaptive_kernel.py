@@ -32,7 +32,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from xval.reduced import MechanismModel  # noqa: E402
-from xval.scenefile import default_scene_path, load_scene, scene_from_dict
+from xval.scenefile import load_scene, scene_from_dict
+from xval.shipped_scenes import default_scene_path
 from xval.errors import NumericalFailure  # noqa: E402
 from xval.kinematics import SINGULAR_CONDITIONING  # noqa: E402
 from xval.reduced.integrators import restart, solve_adaptive  # noqa: E402
@@ -40,7 +41,7 @@ from xval.reduced.kernels import adaptive as K  # noqa: E402
 from xval.reduced.kernels import output  # noqa: E402
 from xval.reduced.kernels import physics  # noqa: E402
 from xval.reduced.charts import _start, load_pieces  # noqa: E402
-from xval.scenefile import hard_scene_dir  # noqa: E402
+from xval.shipped_scenes import hard_scene_dir  # noqa: E402
 
 from helpers import scipy_in_kernel_order, without_dyad_plans  # noqa: E402
 

@@ -13,7 +13,8 @@ import pytest
 
 from helpers import ClosedForm, run_dop853, run_rkn
 from xval.reduced import MechanismModel
-from xval.scenefile import default_scene_path, load_scene
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 from xval.reduced.kernels import physics
 
 

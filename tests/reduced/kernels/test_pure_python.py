@@ -25,7 +25,8 @@ PROBE = f"""
 import dataclasses, json, warnings
 from xval.reduced import kernels
 from xval.reduced.kernels import adaptive, fixed_step, output, partition, physics, problem
-from xval.scenefile import load_scene, default_scene_path
+from xval.scenefile import load_scene
+from xval.shipped_scenes import default_scene_path
 from xval.reduced import simulate, ReducedSettings
 assert kernels.PURE_PYTHON and not kernels.compiled()
 assert all(m.__file__.endswith(".py") for m in (adaptive, fixed_step, output, partition, physics, problem))
@@ -62,7 +63,8 @@ def test_short_runs_uncompiled_equal_the_compiled_ones():
     """Same operations in the same order, and the C build contracts nothing (-ffp-contract=off):
     equal to round-off, 1e-13 relative (seen: equal bit for bit)."""
     from xval.reduced import ReducedSettings, simulate
-    from xval.scenefile import default_scene_path, load_scene
+    from xval.scenefile import load_scene
+    from xval.shipped_scenes import default_scene_path
 
     done = _uncompiled("-c", PROBE)
     assert done.returncode == 0, done.stderr[-3000:]
