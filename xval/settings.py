@@ -209,15 +209,11 @@ def add_flags(parser: argparse.ArgumentParser, settings_type: type, *, title: st
         elif o.kind == "choice":
             group.add_argument(f"--{prefix}{o.flag_name}", dest=dest, choices=o.choices, default=None,
                                help=f"{o.help} {default}")
-        elif o.kind == "numbers":
-            group.add_argument(f"--{prefix}{o.flag_name}", dest=dest, type=o.parse, nargs=len(o.parts),
-                               metavar=tuple(p.upper() for p in o.parts), default=None,
-                               help=f"{o.help}{unit} {default}")
-        else:
-            kind = "whole number" if o.kind == "whole" else "number"
-            o_parse = o.parse
-            group.add_argument(f"--{prefix}{o.flag_name}", dest=dest, type=_named(o_parse, kind), default=None,
-                               help=f"{o.help}{unit} {default}")
+        else:  # numbers: each word through Option.parse, whose errors name the value
+            shape = (dict(nargs=len(o.parts), metavar=tuple(p.upper() for p in o.parts)) if o.kind == "numbers"
+                     else {})
+            group.add_argument(f"--{prefix}{o.flag_name}", dest=dest, type=o.parse, default=None,
+                               help=f"{o.help}{unit} {default}", **shape)
 
 
 def given_flags(args: argparse.Namespace, settings_type: type, *, prefix: str = "") -> dict[str, Any]:
@@ -247,13 +243,3 @@ def markdown_row(cells) -> str:
 
 def _dest(prefix: str, o: Option) -> str:
     return f"{prefix}{o.name}".replace("-", "_")
-
-
-def _named(parse, name: str):
-    def typed(text: str):
-        return parse(text)
-
-    typed.__name__ = name  # argparse names the type in its messages
-    return typed
-
-
