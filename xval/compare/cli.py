@@ -187,8 +187,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                  tolerances=_tolerances(scene, args))
     print("\n".join(comparison_lines(comparison)))
-    paths = write_outputs(comparison, args.out, animate=animate, joints=joints)
-    print(f"wrote {len(paths)} files to {args.out}/")
+    write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
+                  committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
 
@@ -221,8 +221,8 @@ def cmd_cost(args: argparse.Namespace) -> int:
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
                                          workers=args.workers)
     print("\n".join(summary_lines(report, measurements)))
-    paths = write_cost_outputs(report, measurements, args.out, target)
-    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
+    write_cost_outputs(report, measurements, args.out, target,
+                       committed=lambda paths: print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True))
     return EXIT_OK
 
 
@@ -238,8 +238,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
                                                            file=sys.stderr, flush=True))
     for line in table_lines(results):
         print(line)
-    [path] = write_stress(results, args.out)
-    print(f"wrote {path}")
+    write_stress(results, args.out, committed=lambda paths: print(f"wrote {paths[0]}", flush=True))
     return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
 
 

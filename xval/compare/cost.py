@@ -284,7 +284,8 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
     }
 
 
-def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, target: float) -> list[Path]:
+def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, target: float,
+                       committed=None) -> list[Path]:
     """cost.png, cost.csv and cost.json into ``out_dir``, as a set (:func:`xval.compare.output.write_folder`).
 
     cost.json is strict JSON: figures that were not measured (NaN) are null.
@@ -306,7 +307,7 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
         "cost.csv": write_csv,
         "cost.json": lambda p: p.write_text(json_text(report), encoding="utf-8"),
     }
-    return write_folder(out_dir, files, one_run=True)
+    return write_folder(out_dir, files, one_run=True, committed=committed)
 
 
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:

@@ -455,7 +455,8 @@ DEFAULT_ROOT = Path("xval-out")
 
 
 def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], None]], *,
-                 flag: str = "--out", workers: int = 1, one_run: bool = False) -> list[Path]:
+                 flag: str = "--out", workers: int = 1, one_run: bool = False,
+                 committed: Callable[[list[Path]], None] | None = None) -> list[Path]:
     """Write a set of files into the folder ``path``, all or nothing.
 
     Parameters
@@ -469,6 +470,9 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
         its manifest (:data:`MANIFEST_FILE`, one name a line), and the files the previous run's
         manifest lists that this set does not contain are removed in the same commit (a
         failure puts them back). Files no manifest lists are never touched.
+    committed : called with the final paths once the set is in place, while SIGINT and SIGTERM
+        are still held: a command says what it wrote there, so that a signal cannot fall between
+        the files and that line (it is delivered after both, and the exit status says it came).
 
     Returns
     -------
@@ -513,12 +517,16 @@ def write_folder(path: str | os.PathLike, files: Mapping[str, Callable[[Path], N
                     if held:
                         os.rename(out, content)
                         raise _Abandoned()
+                    if committed is not None:
+                        committed([out / name for name in files])
                     return [out / name for name in files]
                 if not out.is_dir():
                     raise OutputError(f"{flag} '{out}' appeared meanwhile and is not a folder")
             with _locked(out):
                 stale = [n for n in _previous_run(out) if n not in names] if one_run else []
                 _swap_in(content, staging / "replaced", out, names, flag, stale, held)
+            if committed is not None:
+                committed([out / name for name in files])
     finally:
         if staging is not None:
             with _signals_blocked():  # a second signal does not cut the clean-up short

@@ -229,11 +229,12 @@ def _write_csv(result: EngineResult, path: Path, unit: str = "rad", scene: Scene
 
 
 def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False,
-                  joints: Sequence[str] | None = None) -> list[Path]:
+                  joints: Sequence[str] | None = None, committed=None) -> list[Path]:
     """Write report.json, reduced.csv, mujoco.csv and the PNG plots (with the mechanism
     strip) into ``out_dir``, as a set; with ``animate``, also mechanism.gif (the caller
     checks :func:`xval.compare.draw.gif_writer_available` first). The CSVs and report.json carry
-    the coordinates of the joints :func:`joint_columns` picks from ``joints``.
+    the coordinates of the joints :func:`joint_columns` picks from ``joints``. ``committed``:
+    as :func:`xval.compare.output.write_folder`'s (the command's "wrote" line).
 
     Raises
     ------
@@ -251,4 +252,4 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
         files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.joints,
                                                       c.mujoco.joints, p)
     files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names)), encoding="utf-8")
-    return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True)
+    return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True, committed=committed)

@@ -275,7 +275,7 @@ def table_lines(results: list[CaseResult]) -> list[str]:
 STRESS_FILES = ("stress.json",)
 
 
-def write_stress(results: list[CaseResult], out_dir) -> list:
+def write_stress(results: list[CaseResult], out_dir, committed=None) -> list:
     """stress.json (one entry per case: status, problems, notes, figures) into ``out_dir``,
     through :func:`xval.compare.output.write_folder`."""
     from .output import json_text, write_folder
@@ -283,4 +283,4 @@ def write_stress(results: list[CaseResult], out_dir) -> list:
     data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
              "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
     return write_folder(out_dir, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")},
-                        one_run=True)
+                        one_run=True, committed=committed)
