@@ -1,9 +1,10 @@
 """The scene-format reference's tables, written from the definitions so that they cannot go
-stale: each engine's table (its ``Settings``' options, :mod:`xval.registry`) and the gate's
-``[tolerances]`` (the fields of :class:`xval.scene.Tolerances`).
+stale: each engine's table (its ``Settings``' options, :mod:`xval.registry`), the gate's
+``[tolerances]`` (the fields of :class:`xval.scene.Tolerances`) and the scene limits
+(:data:`xval.scene.LIMITS`).
 
 ``python -m xval.format_reference docs/scenes.md`` rewrites the part of that file between the
-markers; ``--check`` only says whether it is current (``tests/test_format_reference.py`` runs it).
+markers (two parts); ``--check`` only says whether it is current (``tests/test_format_reference.py`` runs it).
 """
 
 from __future__ import annotations
@@ -14,11 +15,13 @@ import sys
 from pathlib import Path
 
 from .registry import ENGINES
-from .scene import Tolerances
-from .settings import markdown_row, reference_rows
+from .scene import LIMITS, Tolerances
+from .settings import markdown_row, options, reference_rows
 
 BEGIN = "<!-- begin: written by `python -m xval.format_reference docs/scenes.md` -->"
 END = "<!-- end: written by xval.format_reference -->"
+LIMITS_BEGIN = "<!-- begin: the limits, written by `python -m xval.format_reference docs/scenes.md` -->"
+LIMITS_END = "<!-- end: the limits, written by xval.format_reference -->"
 
 
 def tables() -> str:
@@ -35,13 +38,27 @@ def tables() -> str:
     return "\n".join(parts) + "\n"
 
 
+def limits_table() -> str:
+    """The scene limits (:data:`xval.scene.LIMITS`): each kind's keys, range and why; an engine's
+    options of a kind (its steps) are listed with it."""
+    rows = ["| kind | keys | range | why |", "|---|---|---|---|"]
+    for kind, r in LIMITS.items():
+        keys = [f"`{k}`" for k in r.keys]
+        keys += [f"`{name}.{o.name}`" for name, engine in ENGINES.items() for o in options(engine.settings)
+                 if o.limit == kind and o.table]
+        rows.append(markdown_row((kind, ", ".join(keys), r.text(), r.why)))
+    return "\n".join(rows) + "\n"
+
+
 def rewritten(text: str) -> str:
-    """``text`` with the part between the markers replaced by :func:`tables`."""
-    head, begin, rest = text.partition(BEGIN)
-    _, end, tail = rest.partition(END)
-    if not (begin and end):
-        raise ValueError("the markers of the generated part are missing")
-    return f"{head}{BEGIN}\n{tables()}{END}{tail}"
+    """``text`` with the parts between the markers replaced by :func:`tables` and :func:`limits_table`."""
+    for begin, end, made in ((BEGIN, END, tables()), (LIMITS_BEGIN, LIMITS_END, limits_table())):
+        head, found_begin, rest = text.partition(begin)
+        _, found_end, tail = rest.partition(end)
+        if not (found_begin and found_end):
+            raise ValueError(f"the markers of a generated part are missing: {begin}")
+        text = f"{head}{begin}\n{made}{end}{tail}"
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,6 +39,7 @@ class Range:
     low: float
     high: float
     why: str
+    keys: tuple[str, ...] = ()  # the scene keys of this kind (the reference lists them; engines' steps add theirs)
 
     def __post_init__(self):
         if not 0.0 <= self.low < self.high < math.inf:
@@ -56,26 +57,43 @@ def _ranges(*items: Range) -> Mapping[str, Range]:
 # inside each) and keep the arithmetic of validation finite: mass·|com|² ≤ 1e6·2e6 kg·m², the
 # assembly discriminant is of order length⁴ ≤ 1e12 m⁴, spring energy k·D² ≤ 1e8·1e6 J.
 LIMITS: Mapping[str, Range] = _ranges(
-    Range("length", "m", 1e-3, 1e3, "link lengths c1…c4; lengths⁴ in the assembly discriminant stay ≤ 1e12"),
-    Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths"),
-    Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades"),
+    Range("length", "m", 1e-3, 1e3, "link lengths c1…c4; lengths⁴ in the assembly discriminant stay ≤ 1e12",
+          keys=("linkage.c1 … c4",)),
+    Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths",
+          keys=("points", "com", "ground_point", "body_point", "rest_length", "rest_displacement",
+                "initial.q (prismatic input)")),
+    Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades",
+          keys=("bodies.*.mass",)),
     Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m² (a pivot "
-          "inertia becomes I_zz of a 1 kg point body); 1e-9 leaves six decades"),
-    Range("damping", "N·s/m", 1e-9, 1e7, "stiff_damper uses 1e6; the seed with 1e7 ran in 2.6 s (DOP853, 9675 steps)"),
-    Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms"),
+          "inertia becomes I_zz of a 1 kg point body); 1e-9 leaves six decades",
+          keys=("inertia", "pivot_inertia", "pivot_inertia − mass·|com|²")),
+    Range("damping", "N·s/m", 1e-9, 1e7, "stiff_damper uses 1e6; the seed with 1e7 ran in 2.6 s (DOP853, 9675 steps)",
+          keys=("dampers.coefficient", "joint_dampers.coefficient (prismatic)")),
+    Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms",
+          keys=("springs.stiffness", "joint_springs.stiffness (prismatic)")),
     Range("rotational damping", "N·m·s/rad", 1e-9, 1e7, "a joint damper on a revolute joint: as a line damper "
-          "of the same coefficient acting 1 m from the pin"),
+          "of the same coefficient acting 1 m from the pin",
+          keys=("joint_dampers.coefficient (revolute)",)),
     Range("rotational stiffness", "N·m/rad", 1e-9, 1e8, "a joint spring on a revolute joint: as a line spring "
-          "of the same stiffness acting 1 m from the pin"),
-    Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m"),
+          "of the same stiffness acting 1 m from the pin",
+          keys=("joint_springs.stiffness (revolute)",)),
+    Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m",
+          keys=("torque.value(s)",)),
     Range("force", "N", 0.0, 1e7, "a force on a slider, or a tabulated point force (a gas force of 1e5 N is a "
-          "large engine's)"),
-    Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits"),
-    Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed"),
-    Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)"),
-    Range("horizon", "s", 1e-3, 1e3, "at MuJoCo's 1 ms default a 1000 s run is already 1e6 steps"),
-    Range("gravity", "m/s²", 0.0, 1e3, "about 100 g"),
-    Range("step", "s", 1e-6, 1.0, "a scene's [mujoco] timestep or [reduced] step; the hard cases use 2e-5 to 1e-3"),
+          "large engine's)",
+          keys=("force.value(s)", "point_forces.values", "timed_forces.value(s)")),
+    Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits",
+          keys=("initial.q (revolute input)", "direction", "guessed angles", "rest_angle")),
+    Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed",
+          keys=("initial.qdot",)),
+    Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)",
+          keys=("torque and timed-force start, duration, times",)),
+    Range("horizon", "s", 1e-3, 1e3, "at MuJoCo's 1 ms default a 1000 s run is already 1e6 steps",
+          keys=("simulation.horizon",)),
+    Range("gravity", "m/s²", 0.0, 1e3, "about 100 g",
+          keys=("gravity",)),
+    Range("step", "s", 1e-6, 1.0, "an engine's time step (its settings' options of this kind, at most the horizon); "
+          "the hard cases use 2e-5 to 1e-3"),
 )
 MAX_TABLE_ENTRIES = 10_000  # entries of a torque or point-force table
 MAX_BODIES = 50  # moving bodies of a linkage (Andrews' squeezer has 7); each adds a Newton column
