@@ -532,3 +532,27 @@ def test_a_long_sweep_says_so_before_it_runs_on(short_scene, tmp_path, capsys, m
     lines = [line for line in err.splitlines() if "estimated" in line]
     assert status == 0 and len(lines) == 1, err
     assert lines[0].startswith("xval: warning: this sweep is estimated to take ") and "5 variants at" in lines[0]
+
+
+def test_a_signal_while_the_sweep_says_what_it_wrote_comes_after_its_files_and_lines(tmp_path):
+    """run_sweep's ``committed`` runs with the files in place and the journal gone, while signals
+    are held: a SIGTERM sent there comes after the lines (Terminated), so a sweep never exits
+    interrupted with new files and no line, nor leaves a journal of a sweep it finished.
+    (Planted: removing the journal only after write_folder returns leaves it here.)"""
+    from xval.compare.output import Terminated, signals_as_exceptions
+    from xval.compare.sweep_scene import load_sweep
+
+    scene = short_seed_file(tmp_path)
+    data, _ = load_sweep(str(scene))
+    spec = replace(spec_from_args(["dampers.0.coefficient=[50, 60]"]), engines=Engines.REDUCED)
+    out = tmp_path / "sw"
+    said = []
+
+    def committed(summary, paths):
+        os.kill(os.getpid(), signal.SIGTERM)
+        said.append((summary.total, [p.name for p in paths]))
+
+    with pytest.raises(Terminated), signals_as_exceptions():
+        sweep_module.run_sweep(data, spec, str(scene), out, workers=1, progress=False, committed=committed)
+    assert said and said[0][0] == 2 and CSV_FILE in said[0][1]
+    assert (out / CSV_FILE).is_file() and not journal_path(out).exists()

@@ -290,14 +290,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             items = sensitivities(data, spec, path)
             print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
             found = [s.as_dict() for s in items]
-        summary, paths = run_sweep(data, spec, path, args.out, workers=args.workers,
-                                   keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
-                                   resume=args.resume)
+        def said(summary, paths) -> None:  # with the files in place, before a held signal comes
+            print("\n".join(summary_lines(summary)))
+            print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True)
+
+        summary, _ = run_sweep(data, spec, path, args.out, workers=args.workers,
+                               keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
+                               resume=args.resume, committed=said)
     finally:
         if client is not None:
             client.close()
-    print("\n".join(summary_lines(summary)))
-    print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/")
     return EXIT_FAILED if summary.failed_any else EXIT_OK
 
 

@@ -273,12 +273,14 @@ def _estimate(n_left: int, seconds_each: float, workers: int) -> None:
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
               progress: bool = True, sensitivity: list[dict] | None = None,
-              client=None, resume: bool = False) -> tuple[Summary, list[Path]]:
+              client=None, resume: bool = False,
+              committed: Callable[[Summary, list[Path]], None] | None = None) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`xval.compare.output.check_folder`);
     ``sensitivity`` (:meth:`xval.compare.sensitivity.Sensitivity.as_dict` of each key) goes into sweep.json.
     With ``client`` (:func:`xval.compare.sweep_dask.connect`) the variants run on that Dask cluster
-    instead of a local pool.
+    instead of a local pool. ``committed`` (the command's lines) is called with the summary and the
+    files once they are in place, while signals are held (:func:`xval.compare.output.write_folder`).
 
     Each finished row also goes to the journal beside ``out``
     (:func:`xval.compare.sweep_journal.journal_path`), which the commit of the files removes: an
@@ -330,9 +332,14 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
+    def in_place(paths: list[Path]) -> None:
+        journal.close(True)  # the set is committed: nothing is left to resume
+        if committed is not None:
+            committed(summary, paths)
+
     done = False
     try:
-        paths = write_folder(out, files, one_run=True)
+        paths = write_folder(out, files, one_run=True, committed=in_place)
         done = True
     finally:
         journal.close(done)
