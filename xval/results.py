@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .trajectory import JointTrajectory, Peak, Trajectory
+from .trajectory import JointTrajectory, Peak, Trajectory, freeze_arrays
 
 
 @dataclass(frozen=True)
@@ -25,10 +25,7 @@ class EnergyAudit:
     damper_dissipation: np.ndarray
 
     def __post_init__(self) -> None:
-        for name in ("t", "kinetic", "potential", "torque_work", "damper_dissipation"):  # read-only results
-            a = np.array(getattr(self, name), dtype=float, copy=True)
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+        freeze_arrays(self, ("t", "kinetic", "potential", "torque_work", "damper_dissipation"), float)
 
     @property
     def residual(self) -> np.ndarray:
@@ -60,10 +57,7 @@ class ConstraintViolation:
     gap: np.ndarray
 
     def __post_init__(self) -> None:
-        for name in ("t", "gap"):  # read-only results
-            a = np.array(getattr(self, name), dtype=float, copy=True)
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+        freeze_arrays(self, ("t", "gap"), float)
 
     @property
     def max(self) -> float:

@@ -17,6 +17,15 @@ import numpy as np
 PEAK_CANDIDATE_BAND = 0.01  # local maxima of |q̇| samples within 1 % of the largest are refined
 
 
+def freeze_arrays(value, names: tuple[str, ...], dtype=None) -> None:
+    """Set each named field of the frozen dataclass ``value`` to a read-only copy of its array
+    (results are read-only: a caller's array is neither kept nor frozen)."""
+    for name in names:
+        a = np.array(getattr(value, name), dtype=dtype, copy=True)
+        a.setflags(write=False)
+        object.__setattr__(value, name, a)
+
+
 @dataclass(frozen=True)
 class Peak:
     """The peak of a run's input rate, one event: q̇ (signed; rad/s, or m/s for a prismatic
@@ -210,10 +219,7 @@ class JointTrajectory:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "names", tuple(self.names))
-        for name in ("t", "x", "xdot", "coordinate", "mode"):  # results are read-only, as Trajectory's
-            a = np.array(getattr(self, name), copy=True)
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+        freeze_arrays(self, ("t", "x", "xdot", "coordinate", "mode"))
 
     def interpolate(self, times) -> tuple[np.ndarray, np.ndarray]:
         """x and ẋ at ``times`` (s, clamped to the run's span), shapes (len(times), m): the cubic
