@@ -127,22 +127,33 @@ class Option:
     def parse(self, text: str) -> Any:
         """One command-line word for this option (an ``argparse`` type)."""
         if self.kind == "whole":
-            try:
-                value = int(text)
-            except ValueError:
-                raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-            if not self.low <= value <= self.high:
-                raise argparse.ArgumentTypeError(f"must be between {self.low} and {self.high}, got {value}")
-            return value
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"must be finite, got {text}")
-        if self.kind == "number" and not self.signed and not value > 0.0:
-            raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-        return value
+            return parse_whole(text, self.low, self.high)
+        return parse_number(text, positive=self.kind == "number" and not self.signed)
+
+
+def parse_number(text: str, *, positive: bool = False) -> float:
+    """A command-line number, finite (and positive if asked); ``argparse.ArgumentTypeError``
+    saying why otherwise. Every numeric flag is read by this or :func:`parse_whole`."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    if positive and not value > 0.0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def parse_whole(text: str, low: int, high: int) -> int:
+    """A command-line whole number in [low, high]; ``argparse.ArgumentTypeError`` otherwise."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(f"must be between {low} and {high}, got {value}")
+    return value
 
 
 def option(default: Any, help: str, kind: str, **spec: Any) -> Any:

@@ -14,11 +14,11 @@ Engine flags default to None: only the flags given override the scene's [reduced
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 import contextlib
 import logging
 import sys
 import warnings
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 # Only what parsing and error reporting need is imported here; each command imports its
@@ -26,14 +26,14 @@ from typing import TYPE_CHECKING
 from xval.errors import NumericalFailure
 from xval.registry import ENGINES
 from xval.scene import SceneError
-from xval.settings import add_flags, given_flags
 from xval.scenefile import load_scene
+from xval.settings import add_flags, given_flags, parse_number, parse_whole
 from xval.shipped_scenes import catalogue, default_scene_path, resolve_scene
+from xval.sweep_spec import ENGINE_CHOICES
 
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
                      check_file, check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
-from xval.sweep_spec import ENGINE_CHOICES
 from .text import mujoco_lines, reduced_lines
 
 if TYPE_CHECKING:
@@ -60,33 +60,15 @@ def _scene(path: str | None):
     return load_scene(resolve_scene(path) if path else default_scene_path())
 
 
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if value != value or abs(value) == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
-    return value
-
-
 def _positive(text: str) -> float:
-    value = _finite(text)
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-    return value
+    """An argparse type: a positive number (the engines' flags read theirs the same way)."""
+    return parse_number(text, positive=True)
 
 
 def _int_in(low: int, high: int):
     """An argparse type: a whole number in [low, high]."""
     def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"must be between {low} and {high}, got {value}")
-        return value
+        return parse_whole(text, low, high)
 
     parse.__name__ = "whole number"
     return parse
