@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from numbers import Real
 
 from xval.errors import IgnoredSettingWarning
 from xval.settings import option
@@ -84,7 +85,7 @@ class ReducedSettings:
         given = frozenset(n for n in ("rtol", "step", "sample_interval") if getattr(self, n) is not None)
         for name in given:
             value = getattr(self, name)
-            if isinstance(value, bool) or not _is_number(value):
+            if isinstance(value, bool) or not isinstance(value, Real):  # numpy's numbers are Real too
                 raise ValueError(f"ReducedSettings.{name} must be a number, got {value!r}")
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"ReducedSettings.{name} must be positive and finite, got {value!r}")
@@ -112,14 +113,6 @@ class ReducedSettings:
         """The resolved settings (what the run used), for reports."""
         return {"method": self.method, "rtol": self.rtol, "step": self.step,
                 "sample_interval": self.sample_interval, "check_error": self.check_error}
-
-
-def _is_number(value) -> bool:
-    """A real number, numpy's included, without importing numpy here."""
-    try:
-        return float(value) == value and not isinstance(value, (str, bytes, complex))
-    except (TypeError, ValueError):
-        return False
 
 
 Settings = ReducedSettings  # the name every engine's settings have (xval.registry)
