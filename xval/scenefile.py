@@ -485,7 +485,7 @@ def _check_steps(engine_tables: dict[str, dict[str, Any]], horizon: float) -> No
         for o in options(ENGINES[name].settings):
             step = table.get(o.name)
             if o.within_horizon and step is not None and step > horizon:
-                raise SceneError(f"'{name}.{o.name}' = {step:g} s is longer than 'simulation.horizon' = {horizon:g} s")
+                raise SceneError(f"'{name}.{o.name}' = {step:.12g} s is longer than 'simulation.horizon' = {horizon:.12g} s")
 
 
 def _check_sweep(table: Any, source: str) -> None:
