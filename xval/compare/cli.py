@@ -129,6 +129,39 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _control(text: str):
+    """An argparse type: the input motor's control, a number or ``t:value,t:value,...``."""
+    from xval.reference_models.mjcf_import import Control
+
+    try:
+        return Control.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def cmd_import_mjcf(args: argparse.Namespace) -> int:
+    from xval.reference_models.mjcf_import import import_mjcf
+    from xval.scene_writer import scene_toml
+
+    check_file(args.out, flag="-o")  # before any work
+    imported = import_mjcf(args.model, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl,
+                           horizon=args.horizon)
+    for line in imported.warnings:
+        print(f"xval: warning: {line}", file=sys.stderr)
+    scene = imported.scene
+    where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+    header = (f"Imported by `xval import-mjcf` from {Path(args.model).name}, read at {where}.\n"
+              f"Loops closed there to {imported.closure_residual:.3g} m; Newton moved the configuration by "
+              f"{imported.polish:.3g} (rad or m).\n"
+              + "".join(f"Warning: {line}\n" for line in imported.warnings))
+    path = write_file(args.out, scene_toml(scene, header), flag="-o")
+    print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
+          f"({len(scene.mechanism.linkage.cut_joints)} closing loops), input '{scene.mechanism.linkage.input_joint}' "
+          f"at q0 = {scene.q0:.12g} {scene.input_unit}; loops closed to {imported.closure_residual:.3g} m at {where}")
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
 def cmd_draw(args: argparse.Namespace) -> int:
     from .draw import drawing_format, write_drawing
 
@@ -375,6 +408,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", required=True, help="MJCF file to write")
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_export_mjcf)
+
+    p = sub.add_parser("import-mjcf", help="read a MuJoCo model (MJCF) as a scene file",
+                       description="Read the planar one-DOF linkage of a MuJoCo model (hinges, slides, connect "
+                                   "equalities, tendons, joint springs and dampers, one motor, gravity) at a "
+                                   "keyframe or qpos0 and write it as a scene file (docs/import.md). What the "
+                                   "description cannot hold is refused with one line naming the element.")
+    p.add_argument("model", help="MJCF file")
+    p.add_argument("-o", "--out", required=True, help="scene TOML file to write")
+    p.add_argument("--input", default=None, metavar="JOINT",
+                   help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
+                        "first joint)")
+    p.add_argument("--keyframe", default=None, metavar="NAME",
+                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
+                        "control)")
+    p.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
+                   help="the motor's control over time, in its ctrl units: a number, or a table "
+                        "t:value,t:value,... (s; each value held from its time on, zero before the first); "
+                        "default the keyframe's ctrl")
+    p.add_argument("--horizon", type=_positive, default=1.0, help="the scene's simulated time (s; default 1)")
+    p.set_defaults(func=cmd_import_mjcf)
 
     p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
                        description="Draw the scene's linkage assembled at q0 in its assembly mode: "
