@@ -59,6 +59,23 @@ CLOSURE_RTOL = 1e-6
 AXIS_TOL = 1e-9
 # A joint's or anchor's position is a site's when they are this close, relative to the model's size.
 SAME_POINT_RTOL = 1e-9
+# MuJoCo's enums as plain ints: a model's arrays hold numpy integers, which `in` and dict keys do not
+# match with the enums themselves.
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+_BALL = int(mujoco.mjtJoint.mjJNT_BALL)
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+_SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+_CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+_WELD = int(mujoco.mjtEq.mjEQ_WELD)
+_EQ_JOINT = int(mujoco.mjtEq.mjEQ_JOINT)
+_EQ_TENDON = int(mujoco.mjtEq.mjEQ_TENDON)
+_WRAP_SITE = int(mujoco.mjtWrap.mjWRAP_SITE)
+_WRAP_JOINT = int(mujoco.mjtWrap.mjWRAP_JOINT)
+_TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_DYN_NONE = int(mujoco.mjtDyn.mjDYN_NONE)
+_GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
+_BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
+_OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 
 
@@ -237,9 +254,9 @@ class _Reader:
     def joints(self) -> list[int]:
         m = self.model
         for j in range(m.njnt):
-            kind = m.jnt_type[j]
-            if kind in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL):
-                what = "free" if kind == mujoco.mjtJoint.mjJNT_FREE else "ball"
+            kind = int(m.jnt_type[j])
+            if kind in (_FREE, _BALL):
+                what = "free" if kind == _FREE else "ball"
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' is a {what} joint: a planar "
                           "one-DOF linkage has hinges and slides only")
             if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
@@ -262,17 +279,17 @@ class _Reader:
 
     def plane(self, input_joint: int) -> None:
         m, d = self.model, self.data
-        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == _HINGE]
         if not hinges:
             self.fail("the model has no hinge: a closed planar linkage turns about at least one")
-        first = input_joint if m.jnt_type[input_joint] == mujoco.mjtJoint.mjJNT_HINGE else hinges[0]
+        first = input_joint if m.jnt_type[input_joint] == _HINGE else hinges[0]
         n = np.array(d.xaxis[first], dtype=float)
         n /= np.linalg.norm(n)
         for j in range(m.njnt):
             axis = d.xaxis[j] / np.linalg.norm(d.xaxis[j])
             name = self.name(mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
             first_name = self.name(mujoco.mjtObj.mjOBJ_JOINT, first, "joint")
-            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+            if m.jnt_type[j] == _HINGE:
                 if np.linalg.norm(np.cross(axis, n)) > AXIS_TOL:
                     self.fail(f"joint '{name}': its axis {np.round(axis, 6).tolist()} is not parallel to joint "
                               f"'{first_name}''s {np.round(n, 6).tolist()}: the linkage is not planar")
@@ -377,7 +394,7 @@ class _Reader:
             at_child = self.point_at(child, self.local(child, body, np.array(m.jnt_pos[j], dtype=float)), name)
             anchor = np.array(d.xanchor[j], dtype=float)
             axis = d.xaxis[j] / np.linalg.norm(d.xaxis[j])
-            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+            if m.jnt_type[j] == _HINGE:
                 at_parent = self.point_at(parent, self.world_to_group(parent, anchor), name)
                 out.append(RevoluteJoint(name, parent.name, at_parent, child.name, at_child))
                 self.joint_sign[j] = float(np.sign(axis @ self.n))
@@ -405,16 +422,16 @@ class _Reader:
         self.gaps: list[float] = []
         for e in range(m.neq):
             name = self.name(mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
-            kind = m.eq_type[e]
+            kind = int(m.eq_type[e])
             if not m.eq_active0[e]:
                 self.warnings.append(f"equality '{name}' is inactive at the start: left out")
                 continue
-            if kind != mujoco.mjtEq.mjEQ_CONNECT:
-                what = {mujoco.mjtEq.mjEQ_WELD: "a weld", mujoco.mjtEq.mjEQ_JOINT: "a joint coupling",
-                        mujoco.mjtEq.mjEQ_TENDON: "a tendon coupling"}.get(kind, "not a connect")
+            if kind != _CONNECT:
+                what = {_WELD: "a weld", _EQ_JOINT: "a joint coupling",
+                        _EQ_TENDON: "a tendon coupling"}.get(kind, "not a connect")
                 self.fail(f"equality '{name}' is {what}: only connect equalities (loop closures) have a planar "
                           "one-DOF meaning here")
-            if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+            if int(m.eq_objtype[e]) == _OBJ_SITE:
                 ends = []
                 for site in (int(m.eq_obj1id[e]), int(m.eq_obj2id[e])):
                     ends.append((self.site_point[site], np.array(d.site_xpos[site], dtype=float)))
@@ -432,7 +449,7 @@ class _Reader:
             gap = float(np.linalg.norm(w1 - w2))
             self.gaps.append(gap)
             if gap > CLOSURE_RTOL * self.scale:
-                form = ("" if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE else
+                form = ("" if int(m.eq_objtype[e]) == _OBJ_SITE else
                         "; MuJoCo puts a body-form connect's second anchor where the first one is at qpos0, so "
                         "author the model in its assembled pose or use the site form")
                 self.fail(f"connect '{name}' is open by {gap:.3g} m at the configuration read, more than "
@@ -612,7 +629,7 @@ def _input_joint(reader: _Reader, name: str | None) -> int:
             reader.fail(f"--input '{name}' is not a joint of the model (its joints: {names})")
         return j
     for a in range(m.nu):
-        if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+        if m.actuator_trntype[a] == _TRN_JOINT:
             return int(m.actuator_trnid[a][0])
     reader.warnings.append(f"no motor: the input is the first joint, "
                            f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, 0, 'joint')}' (--input names another)")
@@ -629,9 +646,9 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
         reader.fail(f"the model has {m.nu} actuators: xval's load is one motor on the input joint")
     a = 0
     name = _object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
-    motor = (m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and m.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
-             and m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
-             and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE)
+    motor = (m.actuator_trntype[a] == _TRN_JOINT and m.actuator_dyntype[a] == _DYN_NONE
+             and m.actuator_gaintype[a] == _GAIN_FIXED
+             and m.actuator_biastype[a] == _BIAS_NONE)
     if not motor:
         reader.fail(f"actuator '{name}' is not a motor on a joint (a position, velocity or other servo, or on a "
                     "tendon or site): xval's load is a force or torque given over time")
@@ -702,12 +719,12 @@ def _rates(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
         rate, k = 0.0, b
         while k != 0:
             for j in range(m.body_jntadr[k], m.body_jntadr[k] + m.body_jntnum[k]):
-                if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+                if m.jnt_type[j] == _HINGE:
                     rate += reader.joint_sign[j] * float(reader.qvel[m.jnt_dofadr[j]])
             k = int(m.body_parentid[k])
         xdot[system.coordinate(f"{body}.angle")] = rate
     for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+        if m.jnt_type[j] == _SLIDE:
             name = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
             xdot[system.coordinate(f"{name}.s")] = float(reader.qvel[m.jnt_dofadr[j]])
     del d
@@ -733,11 +750,11 @@ def _joint_coefficients(reader: _Reader, system, linkage: Linkage) -> tuple[np.n
         k = by_name[body].root
         while k != 0:
             for j in range(m.body_jntadr[k], m.body_jntadr[k] + m.body_jntnum[k]):
-                if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+                if m.jnt_type[j] == _HINGE:
                     T[system.coordinate(f"{body}.angle"), m.jnt_dofadr[j]] = reader.joint_sign[j]
             k = int(m.body_parentid[k])
     for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+        if m.jnt_type[j] == _SLIDE:
             name = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
             T[system.coordinate(f"{name}.s"), m.jnt_dofadr[j]] = 1.0
     return T, _configuration(reader, system, linkage)
@@ -778,7 +795,7 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
                         "description")
         adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
         types = [int(m.wrap_type[k]) for k in range(adr, adr + num)]
-        if all(w == mujoco.mjtWrap.mjWRAP_SITE for w in types) and num == 2:
+        if all(w == _WRAP_SITE for w in types) and num == 2:
             ends = [reader.site_point[int(m.wrap_objid[k])] for k in range(adr, adr + num)]
             (ga, pa), (gb, pb) = ends
             if ga is gb:
@@ -789,7 +806,7 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
                 lines.append(LineElement("spring", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, stiffness,
                                          float(low)))
             continue
-        if all(w == mujoco.mjtWrap.mjWRAP_JOINT for w in types):
+        if all(w == _WRAP_JOINT for w in types):
             c = np.zeros(m.nv)
             for k in range(adr, adr + num):
                 c[m.jnt_dofadr[int(m.wrap_objid[k])]] += float(m.wrap_prm[k])
