@@ -140,12 +140,10 @@ def _control(text: str):
 
 
 def cmd_import_mjcf(args: argparse.Namespace) -> int:
-    from xval.reference_models.mjcf_import import import_mjcf
     from xval.scene_writer import scene_toml
 
     check_file(args.out, flag="-o")  # before any work
-    imported = import_mjcf(args.model, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl,
-                           horizon=args.horizon)
+    imported = _import(args, args.model)
     for line in imported.warnings:
         print(f"xval: warning: {line}", file=sys.stderr)
     scene = imported.scene
@@ -207,12 +205,33 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
 
+def _is_mjcf(path: str) -> bool:
+    """A MuJoCo model (checked as written, ``xval check model.xml``) rather than a scene."""
+    return path.lower().endswith(".xml")
+
+
+def _import(args: argparse.Namespace, path: str):
+    from xval.reference_models.mjcf_import import import_mjcf
+
+    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, horizon=args.horizon)
+
+
 def cmd_check(args: argparse.Namespace) -> int:
     from .run import compare_engines
     from .text import check_lines
 
-    scenes = [load_scene(resolve_scene(path)) for path in args.scenes]  # all bad input is reported before any run
+    models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
+    scenes = [load_scene(resolve_scene(path)) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
     failed = 0
+    for path, imported in models.items():
+        from .model_check import check_lines as model_lines, check_model
+
+        for line in imported.warnings:
+            print(f"xval: warning: {path}: {line}", file=sys.stderr)
+        check = check_model(imported, tolerances=_tolerances(imported.scene, args),
+                            reduced=_reduced_reference(args, imported.scene))
+        failed += not check.passed
+        print("\n".join(model_lines(check, path)))
     for scene in scenes:
         tolerances = _tolerances(scene, args)
         try:
@@ -224,8 +243,25 @@ def cmd_check(args: argparse.Namespace) -> int:
             continue
         failed += not c.gate.passed
         print("\n".join(check_lines(c)))
-    print(f"{len(scenes) - failed} passed, {failed} failed")
+    total = len(scenes) + len(models)
+    print(f"{total - failed} passed, {failed} failed")
     return EXIT_FAILED if failed else EXIT_OK
+
+
+def _add_model_arguments(p: argparse.ArgumentParser) -> None:
+    """How a MuJoCo model (MJCF) is read as a scene: ``import-mjcf``'s flags."""
+    g = p.add_argument_group("reading a MuJoCo model (MJCF, a file ending in .xml; docs/import.md)")
+    g.add_argument("--input", default=None, metavar="JOINT",
+                   help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
+                        "first joint)")
+    g.add_argument("--keyframe", default=None, metavar="NAME",
+                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
+                        "control)")
+    g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
+                   help="the motor's control over time, in its ctrl units: a number, or a table "
+                        "t:value,t:value,... (s; each value held from its time on, zero before the first); "
+                        "default the keyframe's ctrl")
+    g.add_argument("--horizon", type=_positive, default=1.0, help="the simulated time (s; default 1)")
 
 
 def cmd_cost(args: argparse.Namespace) -> int:
@@ -416,17 +452,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "description cannot hold is refused with one line naming the element.")
     p.add_argument("model", help="MJCF file")
     p.add_argument("-o", "--out", required=True, help="scene TOML file to write")
-    p.add_argument("--input", default=None, metavar="JOINT",
-                   help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
-                        "first joint)")
-    p.add_argument("--keyframe", default=None, metavar="NAME",
-                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
-                        "control)")
-    p.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
-                   help="the motor's control over time, in its ctrl units: a number, or a table "
-                        "t:value,t:value,... (s; each value held from its time on, zero before the first); "
-                        "default the keyframe's ctrl")
-    p.add_argument("--horizon", type=_positive, default=1.0, help="the scene's simulated time (s; default 1)")
+    _add_model_arguments(p)
     p.set_defaults(func=cmd_import_mjcf)
 
     p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
@@ -458,11 +484,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",
                        description="Run both engines on each scene and compare the differences "
-                                   "against the scene's [tolerances] (flags override). Exit 0 when "
+                                   "against the scene's [tolerances] (flags override). A MuJoCo model "
+                                   "(model.xml) is run as written against the exact solution of its "
+                                   "linkage; the check says which of its settings causes the difference "
+                                   "and the cheapest options that meet the tolerances. Exit 0 when "
                                    "every scene passes, 1 when any fails, 2 on bad input.")
     p.add_argument("scenes", nargs="+", metavar="SCENE",
-                   help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them)")
+                   help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them), or MuJoCo "
+                        "models (.xml)")
     _add_comparison_arguments(p)
+    _add_model_arguments(p)
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",

@@ -125,12 +125,17 @@ class Difference:
 
 def _time_at_angle(reference: Trajectory, q_target: np.ndarray, t_guess: np.ndarray,
                    iterations: int = 8) -> np.ndarray:
-    """Solve q_ref(t) = q_target near t_guess by Newton's method (vectorized)."""
+    """Solve q_ref(t) = q_target near t_guess by Newton's method (vectorized). An iterate that
+    lands where q̇_ref = 0 (a turning point the guess was near) stays there; the caller keeps
+    only the matches that solve the equation."""
     t = t_guess.copy()
     lo, hi = reference.t[0], reference.t[-1]
     for _ in range(iterations):
         q, v, _ = reference.interpolate(t)
-        t = np.clip(t - (q - q_target) / v, lo, hi)
+        moving = v != 0.0
+        step = np.zeros_like(t)
+        step[moving] = (q[moving] - q_target[moving]) / v[moving]
+        t = np.clip(t - step, lo, hi)
     return t
 
 

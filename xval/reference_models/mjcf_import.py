@@ -124,6 +124,11 @@ class Control:
             raise ValueError("the table's times must increase strictly")
         return cls(tuple(times), tuple(values))
 
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """The control at each time (s): the value of the last entry at or before it, zero before the first."""
+        k = np.searchsorted(np.asarray(self.times), np.asarray(times, dtype=float), side="right") - 1
+        return np.where(k < 0, 0.0, np.asarray(self.values)[np.maximum(k, 0)])
+
     def load(self, gear: float) -> LoadProfile | None:
         """The load on the input joint (N·m or N): gear × control; None when it is zero throughout."""
         values = tuple(gear * v for v in self.values)
@@ -142,6 +147,10 @@ class ImportedModel:
     model : MuJoCo's compiled model of the file, as written.
     qpos, qvel : the configuration read (the keyframe's or qpos0) and its rates.
     joint_of : the scene's name of each MuJoCo hinge or slide, by MuJoCo joint name.
+    qpos_map, x_read : the scene's coordinates x = x_read + qpos_map (qpos − qpos_read) (and
+        ẋ = qpos_map qvel): every body turns about the normal, so x is affine in qpos.
+    control, gear : the motor's control over time (ctrl units) and the load per unit control
+        (gear × gain; N·m or N); None and 0 without a motor.
     closure_residual : the largest gap of a loop at the configuration read, m (before Newton).
     polish : the largest change Newton made to the configuration (rad or m).
     warnings : one line each: what was disabled or left out, and why.
@@ -152,6 +161,10 @@ class ImportedModel:
     qpos: np.ndarray = field(repr=False)
     qvel: np.ndarray = field(repr=False)
     joint_of: dict[str, str]
+    qpos_map: np.ndarray = field(repr=False)
+    x_read: np.ndarray = field(repr=False)
+    control: Control | None
+    gear: float
     keyframe: str | None
     closure_residual: float
     polish: float
@@ -568,7 +581,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     tree = reader.tree_joints()
     cuts = reader.loops()
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
-    load, gear = _load(reader, inp, control, key_ctrl)
+    load, gear, applied = _load(reader, inp, control, key_ctrl)
 
     # bodies, after every point is known
     joints = tree + cuts
@@ -615,7 +628,9 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     except SceneError as exc:
         reader.fail(str(exc))
     polish = float(np.max(np.abs(np.asarray(scene.x0) - guess)))
+    qpos_map, _ = _joint_coefficients(reader, system, linkage)
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
+                         qpos_map=qpos_map, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings))
 
@@ -641,7 +656,7 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
     if m.nu == 0:
         if control is not None:
             reader.fail("--ctrl: the model has no actuator to apply a control to")
-        return None, 0.0
+        return None, 0.0, None
     if m.nu > 1:
         reader.fail(f"the model has {m.nu} actuators: xval's load is one motor on the input joint")
     a = 0
@@ -671,7 +686,8 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
         if any(not low <= f <= high for f in forces):
             reader.fail(f"actuator '{name}': gain × control leaves its forcerange [{low:g}, {high:g}]: MuJoCo "
                         "would clamp the force, which the scene would not")
-    return Control(given.times, tuple(values)).load(gear), gear
+    applied = Control(given.times, tuple(values))
+    return applied.load(gear), gear, applied
 
 
 def _configuration(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
