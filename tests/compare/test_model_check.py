@@ -102,3 +102,18 @@ def test_cli_check_of_a_model_refuses_bad_flags(flag, capsys):
 
     assert main(["check", str(DATA / "fourbar_xz_degrees.xml"), *flag]) == 2
     assert "'nope'" in capsys.readouterr().err
+
+
+def test_cli_run_of_a_model_writes_the_report(tmp_path, capsys):
+    """`xval run model.xml`: the table of the reduced solution and the model as written, the
+    diagnosis under it, and the report folder (report.json names the model's options)."""
+    import json
+
+    from xval.compare.cli import main
+
+    out = tmp_path / "report"
+    code = main(["run", str(DATA / "fourbar_xz_degrees.xml"), "--ctrl", "0:250,1:0", "--horizon", "2", "-o", str(out)])
+    text = capsys.readouterr().out
+    assert code == 1 and "the difference comes from: the loops' softness" in text
+    report = json.loads((out / "report.json").read_text())
+    assert report["mujoco"]["settings"]["solref"] == [[0.02, 1.0]] and not report["gate"]["passed"]

@@ -195,11 +195,26 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
     from .run import compare_engines
 
-    scene = _scene(args.scene)
-    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
-    comparison = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
-                                 tolerances=_tolerances(scene, args))
-    print("\n".join(comparison_lines(comparison)))
+    if args.scene is not None and _is_mjcf(args.scene):  # the user's model as written (docs/import.md)
+        from .model_check import check_model, diagnosis_lines
+
+        imported = _import(args, args.scene)
+        for line in imported.warnings:
+            print(f"xval: warning: {args.scene}: {line}", file=sys.stderr)
+        scene = imported.scene
+        joints = joint_columns(scene, args.joints)
+        check = check_model(imported, tolerances=_tolerances(scene, args), reduced=_reduced_reference(args, scene))
+        if check.as_written.comparison is None:
+            raise check.as_written.failure
+        comparison = check.as_written.comparison
+        print("\n".join(comparison_lines(comparison)))
+        print("\n".join(line.strip() for line in diagnosis_lines(check)))
+    else:
+        scene = _scene(args.scene)
+        joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+        comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
+                                     mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
+        print("\n".join(comparison_lines(comparison)))
     write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
                   committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
@@ -480,6 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
                         "alone)")
     _add_comparison_arguments(p)
+    _add_model_arguments(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",

@@ -196,9 +196,16 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
              f"      as written:        {_figures(check.as_written, unit)}"]
     if check.as_written.comparison is not None:
         lines += [f"      {failure}" for failure in check.as_written.comparison.gate.failures]
-    lines += [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
-              f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}",
-              f"      the difference comes from: {check.cause}"]
+    return lines + diagnosis_lines(check)
+
+
+def diagnosis_lines(check: ModelCheck) -> list[str]:
+    """Each setting changed alone, the cause, and the cheapest options found (``xval run`` prints
+    these under its table)."""
+    unit = check.imported.scene.input_unit
+    lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
+             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}",
+             f"      the difference comes from: {check.cause}"]
     if check.cheapest is None:
         smallest = min(t.options.timestep for t in check.tried)
         lines.append(f"      no options tried meet the tolerances (stiff loops, RK4 and the model's integrator, steps "
@@ -214,4 +221,4 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
     return lines
 
 
-__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "ModelCheck", "Trial", "check_lines", "check_model"]
+__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]

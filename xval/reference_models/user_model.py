@@ -110,10 +110,12 @@ class ModelOptions:
 
 @dataclass(frozen=True)
 class ModelRunDetails:
-    """A user model's run (:attr:`EngineResult.details`): the options run and MuJoCo's version."""
+    """A user model's run (:attr:`EngineResult.details`): the options run and MuJoCo's version
+    (``edge_warnings``: none, a control's edges are held over the step that holds them)."""
 
     options: ModelOptions
     mujoco_version: str
+    edge_warnings: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
         return {"options": self.options.as_dict(), "mujoco_version": self.mujoco_version}
