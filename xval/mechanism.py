@@ -389,17 +389,20 @@ class LineElement:
 
 
 LINE_ELEMENT_KINDS = ("damper", "spring")
+JOINT_ELEMENT_KINDS = ("damper", "spring", "inertia")
 
 
 @dataclass(frozen=True)
 class JointElement:
-    """A damper or a spring on one joint's own coordinate u: a revolute joint's relative angle
-    θ_b − θ_a (rad), a prismatic joint's displacement s (m); the joint may be a cut joint.
+    """A damper, a spring or an inertia on one joint's own coordinate u: a revolute joint's
+    relative angle θ_b − θ_a (rad), a prismatic joint's displacement s (m); the joint may be a
+    cut joint.
 
     ``kind`` is ``"damper"`` (generalized force −c u̇ on u: a torque in N·m with c in
-    N·m·s/rad, or a force in N with c in N·s/m) or ``"spring"`` (V = ½ k (u − u0)², k in
-    N·m/rad or N/m, ``rest`` u0 in rad or m). The relative angle counts whole turns: a
-    torsion spring wound by one turn stores ½ k (2π)².
+    N·m·s/rad, or a force in N with c in N·s/m), ``"spring"`` (V = ½ k (u − u0)², k in
+    N·m/rad or N/m, ``rest`` u0 in rad or m) or ``"inertia"`` (kinetic energy ½ I u̇², I in
+    kg·m² or kg: a rotor geared to the joint, MuJoCo's ``armature``). The relative angle counts
+    whole turns: a torsion spring wound by one turn stores ½ k (2π)².
     """
 
     kind: str
@@ -411,9 +414,9 @@ class JointElement:
     def __post_init__(self):
         _name(self.name, "joint element name")
         _name(self.joint, f"joint {self.kind} {self.name!r}: joint")
-        if self.kind not in LINE_ELEMENT_KINDS:
+        if self.kind not in JOINT_ELEMENT_KINDS:
             raise MechanismError(f"joint element {self.name!r}: kind must be one of "
-                                 f"{', '.join(LINE_ELEMENT_KINDS)}, got {self.kind!r}")
+                                 f"{', '.join(JOINT_ELEMENT_KINDS)}, got {self.kind!r}")
         if not (math.isfinite(self.coefficient) and self.coefficient > 0.0):
             raise MechanismError(f"joint {self.kind} {self.name!r}: coefficient must be positive "
                                  f"and finite, got {self.coefficient}")
@@ -504,8 +507,9 @@ class TimedForce:
 class Mechanism:
     """A checked linkage with mass properties, and the dampers, springs and point forces
     acting on it (every moving body has mass and inertia, or an inertia about a fixed pivot),
-    and the dampers and springs on joints (:class:`JointElement`). Dampers and springs share
-    one namespace, line and joint elements alike (each is one tendon in MuJoCo)."""
+    and the dampers, springs and inertias on joints (:class:`JointElement`). Dampers, springs
+    and joint inertias share one namespace, line and joint elements alike (each is one tendon
+    in MuJoCo)."""
 
     linkage: Linkage
     elements: tuple[LineElement, ...] = ()
@@ -521,7 +525,7 @@ class Mechanism:
         bodies = self.linkage.body_map
         for name in self.linkage.moving:
             _check_mass(bodies[name], self.linkage.joints)
-        _unique([e.name for e in self.elements] + [e.name for e in self.joint_elements], "damper or spring")
+        _unique([e.name for e in self.elements] + [e.name for e in self.joint_elements], "damper, spring or inertia")
         joints = self.linkage.joint_map
         for e in self.joint_elements:
             if e.joint not in joints:
@@ -560,3 +564,7 @@ class Mechanism:
     @property
     def joint_springs(self) -> tuple[JointElement, ...]:
         return tuple(e for e in self.joint_elements if e.kind == "spring")
+
+    @property
+    def joint_inertias(self) -> tuple[JointElement, ...]:
+        return tuple(e for e in self.joint_elements if e.kind == "inertia")

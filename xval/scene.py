@@ -63,10 +63,10 @@ LIMITS: Mapping[str, Range] = _ranges(
           keys=("points", "com", "ground_point", "body_point", "rest_length", "rest_displacement",
                 "initial.q (prismatic input)")),
     Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades",
-          keys=("bodies.*.mass",)),
+          keys=("bodies.*.mass", "joint_inertias.inertia (prismatic)")),
     Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m² (a pivot "
           "inertia becomes I_zz of a 1 kg point body); 1e-9 leaves six decades",
-          keys=("inertia", "pivot_inertia", "pivot_inertia − mass·|com|²")),
+          keys=("inertia", "pivot_inertia", "pivot_inertia − mass·|com|²", "joint_inertias.inertia (revolute)")),
     Range("damping", "N·s/m", 1e-9, 1e7, "stiff_damper uses 1e6; the seed with 1e7 ran in 2.6 s (DOP853, 9675 steps)",
           keys=("dampers.coefficient", "joint_dampers.coefficient (prismatic)")),
     Range("stiffness", "N/m", 1e-9, 1e8, "a 1e8 N/m spring on a 1 kg·m² link at 1 m swings in 0.6 ms",
@@ -223,11 +223,12 @@ class Scene:
                    "force": self.load is not None and self.input_is_prismatic,
                    "damper": bool(m.dampers), "spring": bool(m.springs),
                    "joint-damper": bool(m.joint_dampers), "joint-spring": bool(m.joint_springs),
+                   "joint-inertia": bool(m.joint_inertias),
                    "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces),
                    "gravity": self.gravity is not None}
         return tuple(name for name in EFFECTS if present[name])
 
 
 # Every effect a scene can declare, in the order reports list them.
-EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "point-force", "timed-force",
-           "gravity")
+EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "joint-inertia", "point-force",
+           "timed-force", "gravity")

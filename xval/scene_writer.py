@@ -90,6 +90,9 @@ def scene_data(scene: Scene) -> dict[str, Any]:
         if rows:
             data[table] = rows
     joint_kinds = linkage.joint_map
+    if mech.joint_inertias:
+        data["joint_inertias"] = [{"name": e.name, "joint": e.joint, "inertia": e.coefficient}
+                                  for e in mech.joint_inertias]
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
         rows = []
         for e in mech.joint_elements:

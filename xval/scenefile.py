@@ -152,12 +152,22 @@ def _parse_line_elements(top: Table) -> list[LineElement]:
 
 
 def _parse_joint_elements(top: Table, linkage: Linkage) -> list[JointElement]:
-    """``[[joint_dampers]]`` (joint, coefficient) and ``[[joint_springs]]`` (joint, stiffness,
-    rest_angle on a revolute joint or rest_displacement on a prismatic one): elements on the
-    joint's own coordinate, in N·m·s/rad and N·m/rad on a revolute joint, N·s/m and N/m on a
+    """``[[joint_dampers]]`` (joint, coefficient), ``[[joint_springs]]`` (joint, stiffness,
+    rest_angle on a revolute joint or rest_displacement on a prismatic one) and
+    ``[[joint_inertias]]`` (joint, inertia: MuJoCo's armature): elements on the joint's own
+    coordinate, in N·m·s/rad, N·m/rad and kg·m² on a revolute joint, N·s/m, N/m and kg on a
     prismatic one."""
     out = []
     joints = linkage.joint_map
+    for k, t in enumerate(array_of_tables(top, "joint_inertias")):
+        joint = t.string("joint")
+        if joint not in joints:
+            raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+        name = name_key(t.string("name", f"joint_inertia{k}"), t.key("name"))
+        revolute = not isinstance(joints[joint], PrismaticJoint)
+        inertia = t.number("inertia", positive=True, kind="inertia" if revolute else "mass")
+        t.close()
+        out.append(_mechanism_value(t.path, lambda: JointElement("inertia", name, joint, inertia)))
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
         for k, t in enumerate(array_of_tables(top, table)):
             joint = t.string("joint")
@@ -244,7 +254,7 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
     joint_elements = _parse_joint_elements(top, linkage)
     timed = _parse_timed_forces(top)
     count(elements + forces + joint_elements + timed,
-           "dampers, springs, joint_dampers, joint_springs, point_forces and timed_forces", MAX_ELEMENTS,
+           "dampers, springs, joint_dampers, joint_springs, joint_inertias, point_forces and timed_forces", MAX_ELEMENTS,
            "entries together")
     return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
 

@@ -203,8 +203,9 @@ REFUSED = {
                                extra=LOOP + '<tendon><spatial name="belt" stiffness="1"><site site="cB"/><site site="rB"/>'
                                             '<site site="r2"/></spatial></tendon>'), "tendon 'belt' wraps"),
     "open loop": (_model(FOUR_BAR.replace('pos="1.5 0 0"', 'pos="1.6 0 0"'), extra=LOOP), "connect 'B' is open by 0.1 m"),
-    "armature": (_model(FOUR_BAR.replace('name="A" axis="0 0 1"', 'name="A" axis="0 0 1" armature="0.1"'), extra=LOOP),
-                 "joint 'A' has armature"),
+    "armature along a line": (_model(FOUR_BAR, extra=LOOP + '<tendon><spatial name="rotor" armature="0.1"><site site="cB"/>'
+                                                    '<site site="rB"/></spatial></tendon>'),
+                              "tendon 'rotor' has armature along a line"),
 }
 
 

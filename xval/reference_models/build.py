@@ -28,7 +28,7 @@ sites with ``damping``, a spring one with ``stiffness`` and ``springlength``, a 
 on a joint a fixed tendon on the joint's coordinate (:func:`joint_tendons`), the input load
 a motor on the input joint (always a tree joint, hinge or slide), gravity the scene's vector
 (else zero). There are no geoms, contacts are disabled, and no joint has damping, armature,
-stiffness or friction loss. Point forces (F(q) along a fixed ground direction at a body
+stiffness or friction loss (a joint inertia is a fixed tendon's ``armature``). Point forces (F(q) along a fixed ground direction at a body
 point) are not a model element: :mod:`xval.reference_models.run` applies them during a run through
 ``mjcb_control`` (see :func:`xval.reference_models.loads.point_force_callback`), so an exported MJCF
 of such a scene lacks them.
@@ -408,7 +408,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     for e in mech.springs + mech.joint_springs:  # every spring is a tendon: its length for the energy audit
         spec.add_sensor(name=sensor_name(e.name, "length"), type=mujoco.mjtSensor.mjSENS_TENDONPOS,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=e.name)
-    for name in dampers:
+    for name in dampers + [e.name for e in mech.joint_inertias]:  # dissipation, and an inertia's ½ I u̇²
         spec.add_sensor(name=sensor_name(name, "rate"), type=mujoco.mjtSensor.mjSENS_TENDONVEL,
                         objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name)
     for pf in mech.point_forces + mech.timed_forces:
@@ -452,11 +452,12 @@ def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
 
 
 def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
-    """One fixed tendon per joint damper or spring (named after it) on the joint's coordinate
-    (:func:`joint_tendons`): a damper's with ``damping`` c, a spring's with ``stiffness`` k and
-    ``springlength`` u_rest − u0 (so ½ k (L − l0)² = ½ k (u − u_rest)²). A tendon, not the
-    joint's own stiffness and damping: it serves a cut joint too (closed by a connect equality,
-    no MuJoCo joint), and two elements on one joint stay two. Where u_rest − u0 < 0 the tendon
+    """One fixed tendon per joint damper, spring or inertia (named after it) on the joint's
+    coordinate (:func:`joint_tendons`): a damper's with ``damping`` c, a spring's with
+    ``stiffness`` k and ``springlength`` u_rest − u0 (so ½ k (L − l0)² = ½ k (u − u_rest)²), an
+    inertia's with ``armature`` I (MuJoCo adds I JᵀJ to the mass matrix: ½ I u̇²). A tendon, not
+    the joint's own stiffness, damping and armature: it serves a cut joint too (closed by a
+    connect equality, no MuJoCo joint), and two elements on one joint stay two. Where u_rest − u0 < 0 the tendon
     is written with the opposite sign (same force and energy), since MuJoCo reads a
     springlength of −1 as "the length at qpos0". Returns the dampers' names."""
     order = joint_order(scene.mechanism.linkage)
@@ -472,6 +473,8 @@ def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
         if e.kind == "damper":
             tendon.damping = [e.coefficient, 0.0, 0.0]
             dampers.append(e.name)
+        elif e.kind == "inertia":
+            tendon.armature = e.coefficient
         else:
             tendon.stiffness = [e.coefficient, 0.0, 0.0]
             tendon.springlength = [sign * length, sign * length]

@@ -31,7 +31,8 @@ def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
 def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed) -> EnergyAudit:
     """The energy balance from MuJoCo's own quantities at every stored state.
 
-    Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² over every moving body and potential −Σ m g·r_G +
+    Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² over every moving body, and ½ I u̇² over every joint
+    inertia (a fixed tendon's armature), and potential −Σ m g·r_G +
     Σ ½ k (l − l0)² over every spring tendon, from the body and tendon sensors with the model's
     masses, inertias, stiffnesses (kinetic energy agrees with ½ q̇ᵀM q̇); the work of the motor
     ∫ u q̇_input dt (the input joint's rate; the control is constant within each step) plus the
@@ -51,6 +52,8 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
         potential -= mass * sensors[:, sl[sensor_name(name, "com_pos")]] @ gravity
     for tendon in range(model.ntendon):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon)
+        if model.tendon_armature[tendon] > 0.0:  # a joint inertia: ½ I u̇²
+            kinetic += 0.5 * model.tendon_armature[tendon] * sensors[:, sl[sensor_name(name, "rate")]][:, 0] ** 2
         if sensor_name(name, "length") in sl:
             stretch = sensors[:, sl[sensor_name(name, "length")]][:, 0] - model.tendon_lengthspring[tendon, 0]
             potential += 0.5 * model.tendon_stiffness[tendon] * stretch * stretch

@@ -21,20 +21,22 @@ close; what becomes of each element:
   the child (``b``); each ``connect`` equality (body form, with MuJoCo's second anchor, which its
   compiler places where the first one is at ``qpos0``; or site form) is a revolute joint closing a
   loop.
-- Springs and dampers: a spatial tendon between two sites with ``stiffness`` or ``damping`` is a
-  line spring or damper; a fixed tendon along one joint's coordinate (any joint, also a loop's), and
-  a joint's own ``stiffness`` and ``damping``, are joint springs and dampers.
+- Springs, dampers and inertias: a spatial tendon between two sites with ``stiffness`` or
+  ``damping`` is a line spring or damper; a fixed tendon along one joint's coordinate (any joint,
+  also a loop's), and a joint's own ``stiffness``, ``damping`` and ``armature``, are joint
+  springs, dampers and inertias.
 - The load: a motor on the input joint, ``gear`` × its control (the keyframe's ``ctrl`` or the
   one given, :class:`Control`); gravity: the option's, projected on the plane.
 
 Anything else that acts is refused with one line naming it (:class:`MjcfError`): ball and free
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
-geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature.
+geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +51,7 @@ from xval.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Me
 from xval.scene import Scene, SceneError
 from xval.scene_writer import scene_data
 from xval.scenefile import scene_from_dict
+from xval.settings import parse_number
 
 from .build import BASE_BODY
 
@@ -100,24 +103,24 @@ class Control:
 
     @classmethod
     def parse(cls, text: str) -> "Control":
+        """The command line's form (a number, or ``t:value,t:value,...``); ValueError saying why not."""
+        def number(word: str, what: str) -> float:
+            try:
+                return parse_number(word)
+            except argparse.ArgumentTypeError as exc:
+                raise ValueError(f"{what}: {exc}") from None
+
         text = text.strip()
         if ":" not in text:
-            try:
-                value = float(text)
-            except ValueError:
-                raise ValueError(f"'{text}' is not a number nor a table t:value,t:value,...") from None
-            if not math.isfinite(value):
-                raise ValueError(f"the control must be finite, got {text}")
-            return cls.constant(value)
+            return cls.constant(number(text, "the control (a number, or a table t:value,t:value,...)"))
         times, values = [], []
         for pair in text.split(","):
             parts = pair.split(":")
-            try:
-                t, v = (float(p) for p in parts)
-            except ValueError:
-                raise ValueError(f"'{pair}' is not a pair time:value (s and the control's units)") from None
-            if not (math.isfinite(t) and math.isfinite(v)) or t < 0.0:
-                raise ValueError(f"'{pair}': the time must be ≥ 0 and both numbers finite")
+            if len(parts) != 2:
+                raise ValueError(f"'{pair}' is not a pair time:value (s and the control's units)")
+            t, v = number(parts[0], f"the time of '{pair}'"), number(parts[1], f"the value of '{pair}'")
+            if t < 0.0:
+                raise ValueError(f"'{pair}': the time must be ≥ 0 s")
             times.append(t)
             values.append(v)
         if any(b <= a for a, b in zip(times, times[1:])):
@@ -275,9 +278,6 @@ class _Reader:
             if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has frictionloss: dry friction "
                           "is not part of xval's description")
-            if m.dof_armature[m.jnt_dofadr[j]] > 0.0:
-                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has armature: not yet part "
-                          "of xval's description")
             if m.jnt_limited[j]:
                 self.warnings.append(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has a range: "
                                      "xval's description has no joint limits, so the comparison holds while the "
@@ -795,15 +795,15 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
         name = _object_name(m, mujoco.mjtObj.mjOBJ_TENDON, t, "tendon")
         damping = float(m.tendon_damping[t]) if dampers_on else 0.0
         stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
+        armature = float(m.tendon_armature[t])
         if m.tendon_frictionloss[t] > 0.0:
             reader.fail(f"tendon '{name}' has frictionloss: dry friction is not part of xval's description")
-        if m.tendon_armature[t] > 0.0:
-            reader.fail(f"tendon '{name}' has armature: not yet part of xval's description")
         if m.tendon_limited[t]:
             reader.warnings.append(f"tendon '{name}' has a range: xval's description has no tendon limits, so the "
                                    "comparison holds while the motion stays inside it")
-        if damping == 0.0 and stiffness == 0.0:
-            reader.warnings.append(f"tendon '{name}' has no stiffness or damping: it exerts no force and is left out")
+        if damping == 0.0 and stiffness == 0.0 and armature == 0.0:
+            reader.warnings.append(f"tendon '{name}' has no stiffness, damping or armature: it exerts no force and is "
+                                   "left out")
             continue
         low, high = m.tendon_lengthspring[t]
         if stiffness > 0.0 and low != high:
@@ -816,6 +816,9 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
             (ga, pa), (gb, pb) = ends
             if ga is gb:
                 reader.fail(f"tendon '{name}' joins two points of one rigid body ('{ga.name}'): its length never changes")
+            if armature > 0.0:
+                reader.fail(f"tendon '{name}' has armature along a line between two points: xval's inertias act on "
+                            "one joint (a fixed tendon's or a joint's armature)")
             if damping > 0.0:
                 lines.append(LineElement("damper", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, damping))
             if stiffness > 0.0:
@@ -841,6 +844,8 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
             joint, lam = match
             u_read = float(rows[joint] @ x_read)
             length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
+            if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
+                add_joint_element("inertia", name, joint, armature)
             if damping > 0.0:
                 add_joint_element("damper", name, joint, damping)
             if stiffness > 0.0:
@@ -855,6 +860,9 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
         joint = reader.joint_of[mj_name]
         damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
+        armature = float(m.dof_armature[m.jnt_dofadr[j]])
+        if armature > 0.0:
+            add_joint_element("inertia", f"{joint}_armature", joint, armature)
         if damping > 0.0:
             add_joint_element("damper", f"{joint}_damping", joint, damping)
         if stiffness > 0.0:
