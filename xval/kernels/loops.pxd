@@ -42,4 +42,4 @@ cdef class Loops:
     cdef double _constraints(self)
     cdef double _factor_row(self, double[::1] row)
     cdef int _finish(self, double det, Py_ssize_t i)
-    cdef inline double _conditioning_of(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros)
+    cdef inline double _cramer_ratio(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros)

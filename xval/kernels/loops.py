@@ -391,7 +391,7 @@ class Loops:
         own: cython.double = 0.0
         c: cython.double
         for j in range(n):
-            c = self._conditioning_of(j, det, product, zeros)
+            c = self._cramer_ratio(j, det, product, zeros)
             if j == i:
                 own = c
             if c > best:
@@ -404,7 +404,7 @@ class Loops:
 
     @cython.cfunc
     @cython.inline
-    def _conditioning_of(self, j: cython.Py_ssize_t, det: cython.double, product: cython.double,
+    def _cramer_ratio(self, j: cython.Py_ssize_t, det: cython.double, product: cython.double,
                          zeros: cython.Py_ssize_t) -> cython.double:
         """c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖ (K solved), product the product of the nonzero
         column norms and zeros the count of zero columns."""
