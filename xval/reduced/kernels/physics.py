@@ -1,13 +1,15 @@
-"""Kinematics and Eksergian coefficients of a one-DOF planar linkage, compiled (Cython).
+"""Eksergian coefficients and the chart walk of a one-DOF planar linkage, compiled (Cython).
 
-The one implementation of the reduced model's physics. A scene's model is two plain arrays
+The one implementation of the reduced model's physics, over the linkage's compiled kinematics
+(:class:`xval.kernels.loops.Loops`: term tables, Φ and Φ_x, the LU, K, L and the conditioning,
+which a chart holds and calls). A scene's model is two plain arrays
 (:class:`Model`), and a chart (:class:`Chart`) is a compiled object holding its state in two
 more and the integrators' interface (:class:`.problem.RightHandSide`), so that the integrators'
 loops run without a Python object; :mod:`xval.reduced.dynamics` builds the arrays from a scene and
 wraps the chart for Python callers. Debug with ``XVAL_PURE_PYTHON=1``: this file then runs as
 plain Python (:mod:`xval.reduced.kernels`).
 
-Term tables (:mod:`xval.kinematics`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+Term tables (:mod:`xval.kernels.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
 with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
 With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
 
@@ -146,7 +148,7 @@ if not cython.compiled:
     HEADER = 63
 
     # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
-    # holds the chart's value), then the pivots (n) and the walk's halving budgets (DEPTH).
+    # holds the chart's value), then the walk's halving budgets (DEPTH).
     INDEPENDENT, SIGN, STATUS, VALID = range(4)
     S_HEADER = 4
     # S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
@@ -306,20 +308,22 @@ class Chart(RightHandSide):
     """One chart of a model: its state, q̈ in its coordinate, its walk (compiled).
 
     ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
-    SIGN, STATUS, VALID, the pivots (n), the walk's halving budgets (DEPTH)) and W (float64:
-    value (1,), start, last, kin (3, n), fields (field_count), A (n, n), rhs, trig (2, n),
-    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)), both numpy
+    SIGN, STATUS, VALID, the walk's halving budgets (DEPTH)) and W (float64: value (1,), start,
+    last (3, n), fields (field_count), guess (n,), base (DEPTH, 3, n), target (DEPTH,)), both numpy
     arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
     made once here (the start view is ``origin``: ``start`` is the method). The kernels below
     are methods that read and write these views and take no array argument (compiled, an array
     argument is a 200-byte view passed by value, and a view made in a call changes a reference
     count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
     as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
-    scratch of the B-splines (the largest degree + 1). A chart is empty until :meth:`start`.
+    scratch of the B-splines (the largest degree + 1), and the linkage's kinematics (``loops``, a
+    :class:`xval.kernels.loops.Loops` on the model's arrays: Newton's x, trig, A, rhs, norms, rows
+    and kin (3, n: x, K, L), which the chart views under the same names). A chart is empty until
+    :meth:`start`.
 
     ``singular`` is the singular-position threshold: below this conditioning a coordinate cannot
     drive the linkage (:data:`xval.kinematics.SINGULAR_CONDITIONING`, which the reduced engine
-    passes in: the compiled core imports nothing of the project outside it).
+    passes in: the compiled core imports nothing of the project outside it but the kinematics' kernel).
     """
 
     def __init__(self, model: Model, singular: float):
