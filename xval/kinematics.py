@@ -392,7 +392,7 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     (samples, n); the result (loops,) or (samples, loops), int.
     """
     X = np.atleast_2d(np.asarray(x, dtype=float))
-    J = system.kernel.jacobians(X)  # (samples, n − 1, n)
+    J = system.kernel.jacobians(np.ascontiguousarray(X))  # (samples, n − 1, n)
     out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
     for k, (u, v) in enumerate(system.mode_pairs):
         block = J[:, 2 * k:2 * k + 2][:, :, [u, v]]  # (samples, 2, 2): rows x, y of loop k; columns u, v

@@ -450,14 +450,26 @@ class Loops:
         self._constraints()
         return np.array(np.asarray(self.rhs)[:n - 1]), np.array(np.asarray(self.A)[:n - 1])
 
-    def jacobians(self, X) -> np.ndarray:
-        """Φ_x at each row of X (samples, n): shape (samples, n − 1, n)."""
-        n = self.n
-        out = np.empty((len(X), n - 1, n))
-        for s in range(len(X)):
-            self._load(X[s])
+    def jacobians(self, X: cython.double[:, ::1]) -> np.ndarray:
+        """Φ_x at each row of X (samples, n), C-contiguous: shape (samples, n − 1, n). A loop in C
+        over the samples (the reduced engine asks for the assembly modes of every output sample)."""
+        n: cython.Py_ssize_t = self.n
+        s: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        if X.shape[1] != n:
+            raise ValueError(f"x of {n} coordinates, not {X.shape[1]}")
+        out = np.empty((X.shape[0], n - 1, n))
+        J: cython.double[:, :, ::1] = out
+        for s in range(X.shape[0]):
+            for j in range(n):
+                self.x[j] = X[s, j]
+                self.kin[0, j] = X[s, j]
+            self._angle_trig()
             self._constraints()
-            out[s] = np.asarray(self.A)[:n - 1]
+            for r in range(n - 1):
+                for j in range(n):
+                    J[s, r, j] = self.A[r, j]
         return out
 
     def driving_conditioning(self, x, row) -> float:
