@@ -25,8 +25,11 @@ K = dx/dx_i and L = d²x/dx_i² solve
 
 with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
 c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|: the project's one
-singular-position measure (:func:`xval.kinematics.driving_conditioning`, which this core may not
-import), compared with the threshold the chart is built with (``Chart(model, singular)``).
+singular-position measure (:mod:`xval.kernels.loops` evaluates it, as
+:func:`xval.kinematics.driving_conditioning` does through it), compared with the threshold the
+chart is built with (``Chart(model, singular)``). The walk, the closed-form dyads and Eksergian's
+coefficients are this module's; the term tables, Φ, Φ_x, the LU, K, L and the conditioning are
+:class:`~xval.kernels.loops.Loops`'s C methods, moved there with their arithmetic unchanged.
 
 Compiled: the integer constants of the packed layout (below) are C constants declared in
 ``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
@@ -47,13 +50,12 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
-    from cython.cimports.xval.kernels.loops import (LINEAR, LOOPS, MAX_ROWS, N, N_ANGLES, N_LINEAR, TABLE_ENTRIES,
-                                                    TABLES, Loops)
+    from cython.cimports.xval.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from cython.cimports.xval.reduced.kernels.problem import RightHandSide
 else:
     from math import atan2, cos, fabs, floor, isfinite, sin, sqrt
 
-    from xval.kernels.loops import LINEAR, LOOPS, MAX_ROWS, N, N_ANGLES, N_LINEAR, TABLE_ENTRIES, TABLES, Loops
+    from xval.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from xval.reduced.kernels.problem import RightHandSide
 
 # Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
