@@ -1,6 +1,6 @@
-"""Build of the compiled core: the reduced solver's kernels (Cython 3, pure-Python mode).
+"""Build of the compiled core: the loop kinematics and the reduced solver's kernels (Cython 3, pure-Python mode).
 
-The kernels are ordinary ``.py`` files annotated for Cython (``xval/reduced/kernels``); ``pip install``
+The kernels are ordinary ``.py`` files annotated for Cython (``xval/kernels``, ``xval/reduced/kernels``); ``pip install``
 and ``pip wheel`` compile each into a C extension of the same module name, which Python imports
 in preference to the ``.py`` beside it (``XVAL_PURE_PYTHON=1`` imports the ``.py`` instead:
 ``xval/reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
@@ -29,7 +29,9 @@ class ParallelBuildExt(build_ext):
             self.parallel = os.cpu_count() or 1
 
 
-KERNELS = ("problem", "output", "physics", "fixed_step", "adaptive", "partition")
+# the compiled modules, by package: the mechanism layer's kinematics, the reduced engine's core
+KERNELS = {"xval.kernels": ("loops",),
+           "xval.reduced.kernels": ("problem", "output", "physics", "fixed_step", "adaptive", "partition")}
 CHECKED = os.environ.get("XVAL_CHECKED_BUILD", "") not in ("", "0")
 
 DIRECTIVES = {
@@ -44,11 +46,12 @@ CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"] + (["-O0", "-g"] if CHEC
 
 # Cython's support code (memoryviews: ~25 000 lines of C) compiled once, in a module of its own
 # that the kernels import, rather than into each of them (5 s of gcc per kernel)
-SHARED = "xval.reduced.kernels._cython"
+SHARED = "xval.kernels._cython"
 
 extensions = [Extension(SHARED, sources=[], extra_compile_args=CFLAGS)] + [
-    Extension(f"xval.reduced.kernels.{name}", [f"xval/reduced/kernels/{name}.py"], extra_compile_args=CFLAGS)
-    for name in KERNELS if os.path.exists(f"xval/reduced/kernels/{name}.pxd")
+    Extension(f"{package}.{name}", [f"{package.replace('.', '/')}/{name}.py"], extra_compile_args=CFLAGS)
+    for package, names in KERNELS.items() for name in names
+    if os.path.exists(f"{package.replace('.', '/')}/{name}.pxd")
 ]
 
 setup(cmdclass={"build_ext": ParallelBuildExt},

@@ -47,6 +47,7 @@ def test_wheel_contains_every_scene(tmp_path):
     assert [n for n in REPO_SCENES if "xval/" + n not in names] == []
     assert "xval/scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
     assert any(n.startswith("xval/reduced/kernels/physics.") and n.endswith(".so") for n in names)
+    assert any(n.startswith("xval/kernels/loops.") and n.endswith(".so") for n in names)  # the kinematics' kernel
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)

@@ -26,17 +26,24 @@ driven by its relative angle without a coordinate of its own. With A = [Φ_x; c]
 
 the part of d²Φ/dq² that does not contain L (ṁ = coef K[mag], θ̇ = K[angle]); the linear
 rows contribute nothing to γ. No finite differences anywhere.
+
+The arithmetic is compiled, once for both engines (:mod:`xval.kernels.loops`, whose source run
+as plain Python under ``XVAL_PURE_PYTHON=1`` is the slow reference): this module builds the
+tables from a description (:func:`compile_linkage`), packs them into the kernel's arrays
+(:func:`pack`) and gives Python callers its results as arrays; numpy here is plumbing, and the
+singular values of :func:`jacobian_rank`.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, replace
-from functools import cached_property
 
 import numpy as np
 
 from .errors import NumericalFailure
+from .kernels import loops as _loops
 from .mechanism import GROUND, Linkage, PrismaticJoint
 
 # The one singular-position threshold (docs/physics.md, "Singular positions"): below this
@@ -90,20 +97,90 @@ class TermTable:
     def rows(self) -> int:
         return self.offset.shape[0]
 
-    @cached_property
-    def masks(self) -> tuple[np.ndarray, np.ndarray]:
-        """(has_mag, has_angle): the terms whose magnitude, and whose angle, is a coordinate."""
-        return self.mag >= 0, self.angle >= 0
+    def kernel(self, n: int) -> _loops.Loops:
+        """The compiled kinematics of this table alone (its table :data:`_loops.LOOPS`) for
+        coordinates of length n: positions and rates (:func:`positions`, :func:`rates`)."""
+        return _cached_kernel(self, n, lambda: pack(n, n, (self,)))
 
-    def jacobian_index(self, n: int) -> np.ndarray:
-        """Flat positions in a (2·rows, n) array of the Jacobian entries :func:`jacobian` sums."""
-        cache = self.__dict__.setdefault("_jacobian_index", {})  # derived once per n (frozen value)
-        if n not in cache:
-            has_mag, has_angle = self.masks
-            a, ka = self.angle[has_angle], self.row[has_angle]
-            g, kg = self.mag[has_mag], self.row[has_mag]
-            cache[n] = np.concatenate([2 * ka * n + a, (2 * ka + 1) * n + a, 2 * kg * n + g, (2 * kg + 1) * n + g])
-        return cache[n]
+
+def _cached_kernel(owner, key, build) -> _loops.Loops:
+    """One :class:`_loops.Loops` per (owner, key) and thread, built by ``build`` once: a kernel
+    holds scratch that a call writes, so threads do not share one. Kept in the owner's
+    ``__dict__`` (frozen values: derived once, as a cached property is)."""
+    cache = owner.__dict__.setdefault("_kernels", {})
+    k = (key, threading.get_ident())
+    if k not in cache:
+        cache[k] = _loops.Loops(*build())
+    return cache[k]
+
+
+def kernel_table(table: TermTable, rows: list[int] | None = None):
+    """A :class:`TermTable` (or its rows ``rows``, in that order) as the kernel's arrays: offset
+    (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,).
+
+    A row listed twice in ``rows`` (two elements on one body point) is copied twice, each copy
+    with its own terms: every listed row k of the result is table row ``rows[k]`` whole."""
+    offset, row, coef, mag, angle, phase = (table.offset, table.row, table.coef, table.mag, table.angle,
+                                            table.phase)
+    if rows is not None:
+        terms = [np.flatnonzero(row == r) for r in rows]
+        take = np.concatenate(terms) if terms else np.zeros(0, dtype=np.int64)
+        offset = offset[np.asarray(rows, dtype=np.int64)].reshape(-1, 2)
+        row = np.repeat(np.arange(len(rows), dtype=np.int64), [len(t) for t in terms])
+        coef, mag, angle, phase = coef[take], mag[take], angle[take], phase[take]
+    w = np.column_stack([coef * np.cos(phase), coef * np.sin(phase)]).reshape(-1, 2)
+    return np.asarray(offset, dtype=float).reshape(-1, 2), w, row, mag, angle
+
+
+class Packer:
+    """Appends arrays to the flat F (float64) and I (int64) of a compiled kernel, whose first
+    ``header`` entries of I are its header (:mod:`xval.kernels.loops` documents the layout)."""
+
+    def __init__(self, header: int):
+        self.F: list[np.ndarray] = []
+        self.I: list[np.ndarray] = [np.zeros(header, dtype=np.int64)]
+        self.nf, self.ni = 0, header
+        self.header = self.I[0]
+
+    def float(self, values) -> int:
+        a = np.ascontiguousarray(values, dtype=float).ravel()
+        self.F.append(a)
+        self.nf += a.size
+        return self.nf - a.size
+
+    def int(self, values) -> int:
+        a = np.ascontiguousarray(values, dtype=np.int64).ravel()
+        self.I.append(a)
+        self.ni += a.size
+        return self.ni - a.size
+
+    def kinematics(self, n: int, n_angles: int, tables, linear: np.ndarray) -> None:
+        """The kinematics' header and arrays: n coordinates (the first n_angles of them angles),
+        the term tables (:func:`kernel_table`'s arrays; the first is the loops'), the linear
+        constraint rows (k, n)."""
+        if len(tables) > _loops.N_TABLES:
+            raise ValueError(f"at most {_loops.N_TABLES} term tables, not {len(tables)}")
+        h = self.header
+        h[_loops.N], h[_loops.N_ANGLES], h[_loops.N_LINEAR] = n, n_angles, len(linear)
+        h[_loops.MAX_ROWS] = max(len(t[0]) for t in tables)
+        h[_loops.LINEAR] = self.float(linear)
+        for k, (offset, w, row, mag, angle) in enumerate(tables):
+            tb = _loops.TABLES + _loops.TABLE_ENTRIES * k
+            h[tb], h[tb + 1] = len(offset), len(row)
+            h[tb + 2], h[tb + 3] = self.float(offset), self.float(w)
+            h[tb + 4], h[tb + 5], h[tb + 6] = self.int(row), self.int(mag), self.int(angle)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I)
+
+
+def pack(n: int, n_angles: int, tables: tuple[TermTable, ...], linear: np.ndarray | None = None):
+    """The compiled kinematics' arrays (F, I) of term tables (the first the loops') over n
+    coordinates, the first n_angles of them angles, and the linear rows (k, n)."""
+    P = Packer(_loops.KIN_HEADER)
+    P.kinematics(n, n_angles, [kernel_table(t) for t in tables],
+                 np.zeros((0, n)) if linear is None else linear)
+    return P.arrays()
 
 
 @dataclass(frozen=True)
@@ -112,7 +189,7 @@ class LoopSystem:
 
     coordinate_names : (n,) names, ``"<body>.angle"`` or ``"<joint>.s"``
     loops : TermTable of the loop-closure vectors (2 constraint rows each)
-    linear, linear_rhs : (k, n), (k,) — the linear constraints linear·x = linear_rhs
+    linear : (k, n) — the linear constraints linear·x = 0
     drive : (n,) — the input coordinate q = drive·x
     points : TermTable with one row per named point, named by ``point_names`` (body, point)
     input_unit : "rad" or "m"
@@ -127,7 +204,6 @@ class LoopSystem:
     coordinate_names: tuple[str, ...]
     loops: TermTable
     linear: np.ndarray
-    linear_rhs: np.ndarray
     drive: np.ndarray
     points: TermTable
     point_names: tuple[tuple[str, str], ...]
@@ -136,6 +212,12 @@ class LoopSystem:
     mode_pairs: np.ndarray
     joint_names: tuple[str, ...]
     joint_rows: np.ndarray
+
+    @property
+    def kernel(self) -> _loops.Loops:
+        """The compiled kinematics of the loops (:mod:`xval.kernels.loops`; table LOOPS)."""
+        n_angles = sum(name.endswith(".angle") for name in self.coordinate_names)
+        return _cached_kernel(self, None, lambda: pack(self.n, n_angles, (self.loops,), self.linear))
 
     def joint_row(self, name: str) -> np.ndarray:
         """(n,) the row of joint ``name``'s own coordinate (:attr:`joint_rows`)."""
@@ -165,39 +247,11 @@ class LoopSystem:
         return replace(self, drive=drive, input_unit=unit)
 
 
-# -- evaluation on plain arrays (the hot path) -----------------------------------------
-
-def _term_values(t: TermTable, x: np.ndarray):
-    """Each term's magnitude m and the cos, sin of its angle θ (module docstring)."""
-    has_mag, has_angle = t.masks
-    m = t.coef * np.where(has_mag, x[t.mag], 1.0)
-    th = np.where(has_angle, x[t.angle], 0.0) + t.phase
-    return m, np.cos(th), np.sin(th), has_mag, has_angle
-
-
-def _row_sums(t: TermTable, x_part: np.ndarray, y_part: np.ndarray) -> np.ndarray:
-    """Σ over each row's terms of (x_part, y_part), shape (rows, 2). np.bincount: a tenth of
-    np.add.at's cost on these small tables, the general path's hot loop."""
-    return np.column_stack([np.bincount(t.row, x_part, minlength=t.rows),
-                            np.bincount(t.row, y_part, minlength=t.rows)])
-
+# -- evaluation, compiled (xval.kernels.loops) ------------------------------------------------
 
 def positions(t: TermTable, x: np.ndarray) -> np.ndarray:
     """r(x) of every row, shape (rows, 2) (m)."""
-    m, c, s, _, _ = _term_values(t, x)
-    return t.offset + _row_sums(t, m * c, m * s)
-
-
-def jacobian(t: TermTable, x: np.ndarray) -> np.ndarray:
-    """∂r/∂x of every row, shape (2·rows, n): rows 2k, 2k+1 are the x, y of row k."""
-    return _jacobian(t, x, _term_values(t, x))
-
-
-def _jacobian(t: TermTable, x: np.ndarray, values) -> np.ndarray:
-    m, c, s, has_mag, has_angle = values
-    n = len(x)
-    value = np.concatenate([-(m * s)[has_angle], (m * c)[has_angle], (t.coef * c)[has_mag], (t.coef * s)[has_mag]])
-    return np.bincount(t.jacobian_index(n), value, minlength=2 * t.rows * n).reshape(2 * t.rows, n)
+    return t.kernel(len(x)).positions(_loops.LOOPS, x)
 
 
 def rates(t: TermTable, x: np.ndarray, K: np.ndarray, L: np.ndarray | None = None):
@@ -206,40 +260,18 @@ def rates(t: TermTable, x: np.ndarray, K: np.ndarray, L: np.ndarray | None = Non
     With L = None, L_r is γ: the part of d²r/dq² without L (m/rad², or m/m² for a
     displacement input).
     """
-    m, c, s, has_mag, has_angle = _term_values(t, x)
-    md = t.coef * np.where(has_mag, K[t.mag], 0.0)
-    thd = np.where(has_angle, K[t.angle], 0.0)
-    kx = md * c - m * thd * s
-    ky = md * s + m * thd * c
-    lx = -2.0 * md * thd * s - m * thd * thd * c
-    ly = 2.0 * md * thd * c - m * thd * thd * s
-    if L is not None:
-        mdd = t.coef * np.where(has_mag, L[t.mag], 0.0)
-        thdd = np.where(has_angle, L[t.angle], 0.0)
-        lx += mdd * c - m * thdd * s
-        ly += mdd * s + m * thdd * c
-    return _row_sums(t, kx, ky), _row_sums(t, lx, ly)
+    out = t.kernel(len(x)).rates(_loops.LOOPS, x, K, L)
+    return out[:, 0:2], out[:, 2:4]
 
 
 def constraint_residual(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """Φ(x): the loop vectors (m) then the linear rows (rad), shape (n − 1,)."""
-    return np.concatenate([positions(system.loops, x).ravel(),
-                           system.linear @ x - system.linear_rhs])
-
-
-def residual_and_jacobian(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Φ(x) and Φ_x together, from one evaluation of the terms (Newton's inner loop)."""
-    t = system.loops
-    values = _term_values(t, x)
-    m, c, s = values[:3]
-    residual = np.concatenate([(t.offset + _row_sums(t, m * c, m * s)).ravel(),
-                               system.linear @ x - system.linear_rhs])
-    return residual, np.vstack([_jacobian(t, x, values), system.linear])
+    return system.kernel.constraints(x)[0]
 
 
 def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """Φ_x, shape (n − 1, n)."""
-    return np.vstack([jacobian(system.loops, x), system.linear])
+    return system.kernel.constraints(x)[1]
 
 
 # -- the singular-position measure ---------------------------------------------------------
@@ -260,7 +292,8 @@ def hadamard_ratio(M: np.ndarray) -> np.ndarray | float:
 
 def dependent_jacobian(J: np.ndarray, row: np.ndarray) -> np.ndarray:
     """The loop Jacobian in the dependent coordinates when p = row·x drives the linkage,
-    shape (n − 1, n − 1).
+    shape (n − 1, n − 1): the definition of :func:`driving_conditioning`'s measure, |hadamard_ratio|
+    of this matrix (the compiled kernel evaluates it from its LU factors).
 
     J is Φ_x (n − 1, n). With i the coordinate of row's largest |entry| (the first of equals),
     x_i = (p − Σ_{l≠i} row_l x_l) / row_i: the dependent coordinates are the others, and
@@ -273,22 +306,18 @@ def dependent_jacobian(J: np.ndarray, row: np.ndarray) -> np.ndarray:
     return J[:, others] - np.outer(J[:, i], row[others] / row[i])
 
 
-def _conditioning(J: np.ndarray, row: np.ndarray) -> float:
-    """:func:`driving_conditioning` from Φ_x = J (n − 1, n) and the driving row (n,)."""
-    return abs(hadamard_ratio(dependent_jacobian(J, row)))
-
-
 def driving_conditioning(system: LoopSystem, x: np.ndarray, row: np.ndarray | None = None) -> float:
     """The conditioning of p = row·x (the input q = drive·x by default) at x: the Hadamard
     ratio of its :func:`dependent_jacobian`, between 0 (p cannot drive the linkage here) and 1.
 
     The one singular-position measure (module constant SINGULAR_CONDITIONING): for coordinate j,
     |det Φ_dep| / Π ‖columns of Φ_dep‖ = |K_j| |det A| / Π_{l≠j} ‖Φ_x[:, l]‖ (Cramer's rule,
-    K w.r.t. any driving coordinate), which the compiled core evaluates at every step from the
-    factors it solves K with; for the seed four-bar driven by its crank, |sin(φ2 − φ1)|.
+    K w.r.t. any driving coordinate), evaluated as |det A| / (|row_i| Π_{l≠i} ‖column l of the
+    dependent Jacobian‖) with A = [Φ_x; row] (:mod:`xval.kernels.loops`, which the reduced
+    engine's charts evaluate at every step); for the seed four-bar driven by its crank,
+    |sin(φ2 − φ1)|.
     """
-    J = constraint_jacobian(system, x)
-    return _conditioning(J, system.drive if row is None else row)
+    return system.kernel.driving_conditioning(x, system.drive if row is None else row)
 
 
 # -- position, velocity and acceleration -----------------------------------------------
@@ -299,7 +328,7 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
 
     Newton's method on (Φ(x), drive·x − q) = 0 from ``guess`` (shape (n,)); the assembly
     found is the one the guess leads to. Converged when every residual is ≤ ``tol`` (m or
-    rad), followed by one more step to reach round-off.
+    rad), followed by one more step to reach round-off (compiled: :mod:`xval.kernels.loops`).
 
     Raises
     ------
@@ -314,30 +343,21 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
                             f"for coordinates {', '.join(system.coordinate_names)}")
     if not (math.isfinite(q) and np.all(np.isfinite(x))):
         raise AssemblyError(f"q = {q} and the guess must be finite")
-    polished = False
-    for iteration in range(1, max_iter + 1):
-        F = np.append(constraint_residual(system, x), system.drive @ x - q)
-        if not np.all(np.isfinite(F)):
-            raise AssemblyError(f"Newton's method diverged at q = {q:.15g} {system.input_unit} "
-                                f"(non-finite residual at iteration {iteration}): start from "
-                                f"another guess")
-        if polished:
-            return x
-        converged = np.max(np.abs(F)) <= tol
-        J = constraint_jacobian(system, x)
-        A = np.vstack([J, system.drive])
-        if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
-            if converged:
-                return x
-            raise AssemblyError(f"the loop Jacobian is singular at q = {q:.15g} {system.input_unit} "
-                                f"during assembly (a dead-centre or change point): start from "
-                                f"another guess")
-        x = x - np.linalg.solve(A, F)
-        polished = converged
-    F = np.append(constraint_residual(system, x), system.drive @ x - q)
-    raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: largest "
-                        f"residual {np.max(np.abs(F)):.3g} after {max_iter} Newton iterations "
-                        f"(the lengths cannot meet there, or the guess is too far from an assembly)")
+    status, iteration, largest = system.kernel.assemble(float(q), x, system.drive, tol, max_iter,
+                                                        SINGULAR_CONDITIONING)
+    if status == _loops.NON_FINITE:
+        raise AssemblyError(f"Newton's method diverged at q = {q:.15g} {system.input_unit} "
+                            f"(non-finite residual at iteration {iteration}): start from "
+                            f"another guess")
+    if status == _loops.SINGULAR_JACOBIAN:
+        raise AssemblyError(f"the loop Jacobian is singular at q = {q:.15g} {system.input_unit} "
+                            f"during assembly (a dead-centre or change point): start from "
+                            f"another guess")
+    if status == _loops.NOT_CLOSED:
+        raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: largest "
+                            f"residual {largest:.3g} after {max_iter} Newton iterations "
+                            f"(the lengths cannot meet there, or the guess is too far from an assembly)")
+    return x
 
 
 def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -345,19 +365,11 @@ def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     Raises NumericalFailure(SINGULAR) where q cannot drive the linkage.
     """
-    J = constraint_jacobian(system, x)
-    A = np.vstack([J, system.drive])
-    if _conditioning(J, system.drive) < SINGULAR_CONDITIONING:
+    c, K, L = system.kernel.coefficients(x, system.drive)
+    if c < SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"dead-centre position: the input coordinate cannot "
                                            f"drive the linkage at q = {system.drive @ x:.15g} "
                                            f"{system.input_unit}")
-    rhs = np.zeros(system.n)
-    rhs[-1] = 1.0
-    K = np.linalg.solve(A, rhs)
-    _, gamma = rates(system.loops, x, K)
-    rhs = np.zeros(system.n)
-    rhs[:gamma.size] = -gamma.ravel()
-    L = np.linalg.solve(A, rhs)
     return K, L
 
 
@@ -380,22 +392,10 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     (samples, n); the result (loops,) or (samples, loops), int.
     """
     X = np.atleast_2d(np.asarray(x, dtype=float))
-    t = system.loops
-    # Every term's magnitude and angle at every sample, shape (samples, terms).
-    m = t.coef * np.where(t.mag >= 0, X[:, np.maximum(t.mag, 0)], 1.0)
-    th = np.where(t.angle >= 0, X[:, np.maximum(t.angle, 0)], 0.0) + t.phase
-    c, sn = np.cos(th), np.sin(th)
+    J = system.kernel.jacobians(np.ascontiguousarray(X))  # (samples, n − 1, n)
     out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
     for k, (u, v) in enumerate(system.mode_pairs):
-        def column(i):
-            """∂(loop k)/∂x_i at every sample: (x, y), each shape (samples,)."""
-            by_angle = (t.row == k) & (t.angle == i)
-            by_mag = (t.row == k) & (t.mag == i)
-            jx = -(m[:, by_angle] * sn[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * c[:, by_mag]).sum(axis=1)
-            jy = (m[:, by_angle] * c[:, by_angle]).sum(axis=1) + (t.coef[by_mag] * sn[:, by_mag]).sum(axis=1)
-            return jx, jy
-        (ux, uy), (vx, vy) = column(u), column(v)
-        block = np.stack([np.stack([ux, vx], axis=-1), np.stack([uy, vy], axis=-1)], axis=-2)  # (samples, 2, 2)
+        block = J[:, 2 * k:2 * k + 2][:, :, [u, v]]  # (samples, 2, 2): rows x, y of loop k; columns u, v
         # At the dyad's limit position (its block's conditioning, |sin| of the angle between
         # the columns, below SINGULAR_CONDITIONING) the sign is round-off: the mode is 0 there.
         ratio = hadamard_ratio(block)
@@ -421,8 +421,7 @@ def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """:func:`driving_conditioning` of each coordinate x_j as the independent one,
     |det Φ_dep| / Π ‖columns of Φ_dep‖, shape (n,): between 0 (that coordinate cannot drive
     the linkage here) and 1 (the other columns orthogonal)."""
-    J = constraint_jacobian(system, x)
-    return np.array([_conditioning(J, row) for row in np.eye(system.n)])
+    return system.kernel.conditioning(x)
 
 
 # -- building the tables from a description --------------------------------------------
@@ -564,7 +563,7 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
                       joint_rows=np.array([joint_row(j) for j in linkage.joints], dtype=float).reshape(-1, n),
                       coordinate_names=names, loops=_table(loops),
                       linear=np.array(linear_rows, dtype=float).reshape(-1, n),
-                      linear_rhs=np.zeros(len(linear_rows)), drive=drive,
+                      drive=drive,
                       points=_table([point(b, p) for b, p in point_names]),
                       point_names=point_names, input_unit=unit,
                       centres=_table([centre(b) for b in linkage.moving]),

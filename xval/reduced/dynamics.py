@@ -65,24 +65,6 @@ def coefficients_from(fields: np.ndarray, kin: np.ndarray) -> Coefficients:
                         f[physics.POTENTIAL], f[physics.INPUT_RATE], f[physics.POINT_FORCE])
 
 
-def _table(table: loops.TermTable, rows: list[int] | None = None):
-    """A :class:`loops.TermTable` (or its rows ``rows``, in that order) as the kernel's arrays:
-    offset (rows, 2), w (terms, 2) = coef · e(phase), row, mag, angle (terms,).
-
-    A row listed twice in ``rows`` (two elements on one body point) is copied twice, each copy
-    with its own terms: every listed row k of the result is table row ``rows[k]`` whole."""
-    offset, row, coef, mag, angle, phase = (table.offset, table.row, table.coef, table.mag, table.angle,
-                                            table.phase)
-    if rows is not None:
-        terms = [np.flatnonzero(row == r) for r in rows]
-        take = np.concatenate(terms) if terms else np.zeros(0, dtype=np.int64)
-        offset = offset[np.asarray(rows, dtype=np.int64)].reshape(-1, 2)
-        row = np.repeat(np.arange(len(rows), dtype=np.int64), [len(t) for t in terms])
-        coef, mag, angle, phase = coef[take], mag[take], angle[take], phase[take]
-    w = np.column_stack([coef * np.cos(phase), coef * np.sin(phase)]).reshape(-1, 2)
-    return np.asarray(offset, dtype=float).reshape(-1, 2), w, row, mag, angle
-
-
 def _splines(forces: tuple[TabulatedForce, ...]):
     """Each F(q) as a B-spline: knots, coefficients, degree, range and period."""
     out = []
@@ -152,33 +134,9 @@ def piece_values(scene: Scene, edges: np.ndarray) -> np.ndarray:
     return np.column_stack(columns)
 
 
-class _Packer:
-    """Appends arrays to the flat F and I of :class:`xval.reduced.kernels.physics.Model`."""
-
-    def __init__(self):
-        self.F: list[np.ndarray] = []
-        self.I: list[np.ndarray] = [np.zeros(physics.HEADER, dtype=np.int64)]
-        self.nf, self.ni = 0, physics.HEADER
-
-    def float(self, values) -> int:
-        a = np.ascontiguousarray(values, dtype=float).ravel()
-        self.F.append(a)
-        self.nf += a.size
-        return self.nf - a.size
-
-    def int(self, values) -> int:
-        a = np.ascontiguousarray(values, dtype=np.int64).ravel()
-        self.I.append(a)
-        self.ni += a.size
-        return self.ni - a.size
-
-    def model(self) -> Model:
-        return Model(np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I))
-
-
 def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
-    """The kernel arrays of a scene (:mod:`xval.reduced.kernels.physics` documents the layout): only
-    the effects it declares have rows."""
+    """The kernel arrays of a scene (:mod:`xval.reduced.kernels.physics` documents the layout, after
+    the kinematics' of :mod:`xval.kernels.loops`): only the effects it declares have rows."""
     mech = scene.mechanism
     linkage = mech.linkage
     bodies = linkage.body_map
@@ -189,15 +147,16 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     pf = mech.point_forces
     splines = _splines(tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf))
     tf = mech.timed_forces
-    tables = (_table(system.loops), _table(system.centres), _table(system.points, ends),
-              _table(system.points, [system.point_index(p.body, p.point) for p in pf + tf]))
-    P = _Packer()
-    h = P.I[0]
-    h[physics.N], h[physics.N_ANGLES] = system.n, len(linkage.moving)
-    h[physics.N_LINEAR], h[physics.N_DAMPERS] = len(system.linear), len(mech.dampers)
+    # the kinematics' tables (xval.kernels.loops): LOOPS, then physics' CENTRES, ENDS, FORCE_POINTS
+    tables = (loops.kernel_table(system.loops), loops.kernel_table(system.centres),
+              loops.kernel_table(system.points, ends),
+              loops.kernel_table(system.points, [system.point_index(p.body, p.point) for p in pf + tf]))
+    P = loops.Packer(physics.HEADER)
+    P.kinematics(system.n, len(linkage.moving), tables, system.linear)
+    h = P.header
+    h[physics.N_DAMPERS] = len(mech.dampers)
     h[physics.N_ELEMENTS], h[physics.N_FORCES] = len(elements), len(pf)
     h[physics.HAS_GRAVITY] = scene.gravity is not None
-    h[physics.MAX_ROWS] = max(len(t[0]) for t in tables)
     h[physics.DRIVE] = P.float(system.drive)
     h[physics.MASSES] = P.float([bodies[b].mass for b in linkage.moving])
     h[physics.INERTIAS] = P.float([bodies[b].inertia for b in linkage.moving])
@@ -213,7 +172,6 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.N_TIMED] = len(tf)
     h[physics.TIMED_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in tf])
     h[physics.PIECE_VALUES] = P.float(piece_values(scene, piece_edges(scene)))
-    h[physics.LINEAR] = P.float(system.linear)
     h[physics.SPLINE_KNOTS] = P.float(np.concatenate([s[0] for s in splines]) if splines else [])
     h[physics.SPLINE_COEF] = P.float(np.concatenate([s[1] for s in splines]) if splines else [])
     h[physics.SPLINE_LO] = P.float([s[3] for s in splines])
@@ -224,12 +182,7 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.SPLINE_DEGREE] = P.int([s[2] for s in splines])
     plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear))
     h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
-    for k, (offset, w, row, mag, angle) in enumerate(tables):
-        tb = physics.TABLES + physics.TABLE_ENTRIES * k
-        h[tb], h[tb + 1] = len(offset), len(row)
-        h[tb + 2], h[tb + 3] = P.float(offset), P.float(w)
-        h[tb + 4], h[tb + 5], h[tb + 6] = P.int(row), P.int(mag), P.int(angle)
-    return P.model()
+    return Model(*P.arrays())
 
 
 class MechanismModel:

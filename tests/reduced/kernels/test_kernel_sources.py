@@ -4,7 +4,9 @@ The integrators (:mod:`xval.reduced.kernels.fixed_step`, :mod:`xval.reduced.kern
 interface of a right-hand side and the output buffers (``problem``, ``output``; DOP853 its
 tableau): nothing of linkages. The physics knows the interface and nothing of the integrators.
 Only the chart switching (``partition``) knows both. And the core imports nothing of the project
-outside ``xval/reduced/kernels``: it is compiled on its own, and its sources are its whole behaviour.
+outside ``xval/reduced/kernels`` but the mechanism layer's compiled kinematics (``xval/kernels``:
+the physics cimports :class:`xval.kernels.loops.Loops`), which imports nothing of the project at
+all: both are compiled on their own, and their sources are their whole behaviour.
 Read from the sources (both the ``import`` and the ``cimport`` lines of Cython's pure-Python mode).
 """
 
@@ -18,6 +20,7 @@ import pytest
 from helpers import ROOT
 
 KERNELS = ROOT / "xval" / "reduced" / "kernels"
+MECHANISM_KERNELS = ROOT / "xval" / "kernels"
 PROJECT_PACKAGES = ("xval", "scenes", "benchmarks")
 # what each kernel module may import of the others
 ALLOWED = {
@@ -26,7 +29,7 @@ ALLOWED = {
     "dop853_tableau": set(),
     "fixed_step": {"problem", "output"},
     "adaptive": {"problem", "output", "dop853_tableau"},
-    "physics": {"problem", "output"},
+    "physics": {"problem", "output", "xval.kernels.loops"},
     "partition": {"adaptive", "fixed_step", "output", "physics", "problem"},
 }
 
@@ -41,6 +44,8 @@ def _imports(path: Path) -> tuple[set[str], list[str]]:
                 module = module[len("cython.cimports."):]
             if node.level == 1:
                 siblings |= {module.split(".")[0]} if module else {a.name for a in node.names}
+            elif node.level == 0 and module.startswith("xval.kernels.") and path.parent == KERNELS:
+                siblings.add(module)  # the mechanism layer's compiled kinematics, by its full name
             elif node.level == 0 and module.startswith("xval.reduced.kernels"):
                 rest = module[len("xval.reduced.kernels"):].lstrip(".")
                 siblings |= {rest.split(".")[0]} if rest else {a.name for a in node.names}
@@ -61,3 +66,15 @@ def test_a_kernel_module_imports_only_what_its_layer_allows(name):
 
 def test_every_kernel_module_is_listed():
     assert {p.stem for p in KERNELS.glob("*.py")} - {"__init__"} == set(ALLOWED)
+
+
+@pytest.mark.parametrize("path", sorted(set(MECHANISM_KERNELS.glob("*.py")) - {MECHANISM_KERNELS / "__init__.py"}), ids=lambda p: p.name)
+def test_the_mechanism_layers_kernels_import_nothing_of_the_project(path):
+    siblings, outside = _imports(path)
+    assert not outside and not siblings, (siblings, outside)
+
+
+def test_every_mechanism_kernel_is_built():
+    """Each kernel of xval/kernels has its .pxd (setup.py compiles the modules that have one)."""
+    assert {p.stem for p in MECHANISM_KERNELS.glob("*.pxd")} == {
+        p.stem for p in MECHANISM_KERNELS.glob("*.py")} - {"__init__"}

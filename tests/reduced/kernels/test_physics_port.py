@@ -15,6 +15,7 @@ test_long_walks.py).
 from __future__ import annotations
 
 import importlib.util
+import sys
 
 import numpy as np
 import pytest
@@ -29,21 +30,40 @@ from helpers import ROOT
 needs_compiled = pytest.mark.skipif(not compiled(), reason="the kernels run as plain Python: nothing to compare")
 
 
-def source_module():
-    """physics.py loaded from its source as plain Python (a module of another name)."""
-    spec = importlib.util.spec_from_file_location("physics_source", ROOT / "xval" / "reduced" / "kernels" / "physics.py")
+def _load_source(name: str, path):
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
+def loops_source():
+    """xval/kernels/loops.py loaded from its source as plain Python (a module of another name)."""
+    return _load_source("loops_source", ROOT / "xval" / "kernels" / "loops.py")
+
+
+def source_module():
+    """physics.py loaded from its source as plain Python (a module of another name), over the
+    kinematics' source (xval/kernels/loops.py, also plain Python: the compiled Loops's C methods
+    cannot be called from Python)."""
+    compiled_loops = sys.modules["xval.kernels.loops"]
+    sys.modules["xval.kernels.loops"] = loops_source()
+    try:
+        return _load_source("physics_source", ROOT / "xval" / "reduced" / "kernels" / "physics.py")
+    finally:
+        sys.modules["xval.kernels.loops"] = compiled_loops
+
+
 @needs_compiled
 def test_the_layout_constants_are_the_same_compiled_and_as_python():
-    source = source_module()
+    source, kinematics = source_module(), loops_source()
     names = [name for name in dir(source) if name.isupper() and isinstance(getattr(source, name), (int, float))]
     assert len(names) > 60  # every constant of the layout and the numerical ones
-    for name in names:
+    own = [name for name in names if not hasattr(kinematics, name)]
+    for name in own:
         assert getattr(physics, name) == getattr(source, name), name
+    # the kinematics' header comes first, this model's after it
+    assert min(getattr(source, name) for name in ("N_DAMPERS", "DRIVE", "PIECE_VALUES")) == kinematics.KIN_HEADER
 
 
 def _evaluations(module, scene_path: str) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The kernels run uncompiled with ``XVAL_PURE_PYTHON=1`` (the README's way to debug them).
 
-The switch makes ``xval.reduced.kernels`` import its ``.py`` sources even where the compiled modules
+The switch makes ``xval.reduced.kernels`` and ``xval.kernels`` import their ``.py`` sources even where the compiled modules
 sit beside them. Run in a subprocess (the switch is read at import): the kinematics tests (closed
 form against the general path against finite differences) and a short run of each compiled
 integrator on the seed, whose results must be those of the compiled kernels in this process.
@@ -25,11 +25,12 @@ PROBE = f"""
 import dataclasses, json, warnings
 from xval.reduced import kernels
 from xval.reduced.kernels import adaptive, fixed_step, output, partition, physics, problem
+from xval.kernels import loops
 from xval.scenefile import load_scene
 from xval.shipped_scenes import default_scene_path
 from xval.reduced import simulate, ReducedSettings
 assert kernels.PURE_PYTHON and not kernels.compiled()
-assert all(m.__file__.endswith(".py") for m in (adaptive, fixed_step, output, partition, physics, problem))
+assert all(m.__file__.endswith(".py") for m in (adaptive, fixed_step, output, partition, physics, problem, loops))
 warnings.simplefilter("ignore")
 scene = dataclasses.replace(load_scene(default_scene_path()), horizon=0.05)
 runs = {SHORT_RUNS!r}
@@ -53,8 +54,12 @@ def test_this_session_runs_the_compiled_kernels():
 
 
 def test_the_kinematics_tests_pass_uncompiled():
-    kinematics_tests, = (ROOT / "tests").rglob("test_reduced_kinematics.py")
-    done = _uncompiled("-m", "pytest", "-q", "-p", "no:cacheprovider", str(kinematics_tests))
+    """The reduced engine's (test_reduced_kinematics.py) and the mechanism layer's (test_loops.py:
+    xval.kinematics over xval/kernels/loops.py's source, the slow reference) against the closed forms."""
+    kinematics_tests = [str(p) for name in ("test_reduced_kinematics.py", "test_loops.py")
+                        for p in (ROOT / "tests").rglob(name)]
+    assert len(kinematics_tests) == 2
+    done = _uncompiled("-m", "pytest", "-q", "-p", "no:cacheprovider", *kinematics_tests)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert " passed" in done.stdout
 

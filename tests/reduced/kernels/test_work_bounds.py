@@ -2,7 +2,7 @@
 
 A walk halves a jump whose closure is untrusted, up to physics.MAX_HALVINGS deep: a tree of up to
 2^30 closures. With the slider column of Φ_x written into the wrong row (a fault planted in
-physics.constraints) every closure of a slider mechanism came out untrusted, and a 0.05 s DOP853
+the kinematics' constraints) every closure of a slider mechanism came out untrusted, and a 0.05 s DOP853
 run of the driven slider-crank was still going after 22 minutes. Each walk is now bounded by
 physics.MAX_WALK_CLOSURES and spending it fails the run with its reason.
 
@@ -35,23 +35,24 @@ from xval.reduced import MechanismModel, ReducedSettings, simulate
 from xval.scenefile import load_scene
 from xval.errors import NumericalFailure
 from xval.reduced.kernels import physics
+from xval.kernels import loops
 
 scene = dataclasses.replace(load_scene("scenes/mechanisms/slider_crank_driven_slider.toml"), horizon=0.05)
 names = MechanismModel(scene).coordinate_names
 sliders = [j for j, name in enumerate(names) if name.endswith(".s")]
 assert sliders
-right = physics.Chart._constraints
+right = loops.Loops._constraints
 
-def wrong_rows(chart):
+def wrong_rows(kernel):
     # the fault: each slider column's entries of a loop's two rows (x, y) swapped
-    out = right(chart)
-    A = chart.A
-    for k in range(chart.I[physics.TABLES + physics.TABLE_ENTRIES * physics.LOOPS]):
+    out = right(kernel)
+    A = kernel.A
+    for k in range(kernel.I[loops.TABLES + loops.TABLE_ENTRIES * loops.LOOPS]):
         for g in sliders:
             A[2 * k, g], A[2 * k + 1, g] = A[2 * k + 1, g], A[2 * k, g]
     return out
 
-physics.Chart._constraints = wrong_rows
+loops.Loops._constraints = wrong_rows
 physics.MAX_WALK_CLOSURES = 200  # the bound the messages name
 physics._c_max_walk_closures = 200  # the bound the walk reads
 out = {}

@@ -11,34 +11,9 @@ Python (slow: a seed run takes minutes), and can be stepped through and printed 
 module was never compiled (a checkout without ``pip install``), its source is imported anyway.
 """
 
-import importlib.machinery
-import os
-import sys
-
-PURE_PYTHON = os.environ.get("XVAL_PURE_PYTHON", "") not in ("", "0")
-
-
-class _SourcesFirst(importlib.machinery.PathFinder):
-    """Finds this package's submodules among their ``.py`` sources only."""
-
-    @classmethod
-    def find_spec(cls, fullname, path=None, target=None):
-        if not fullname.startswith(__name__ + "."):
-            return None
-        name = fullname.rpartition(".")[2]
-        source = os.path.join(os.path.dirname(__file__), name + ".py")
-        if not os.path.isfile(source):
-            return None
-        return importlib.util.spec_from_file_location(fullname, source)
-
-
-if PURE_PYTHON and not any(f is _SourcesFirst for f in sys.meta_path):
-    import importlib.util
-
-    if importlib.util.find_spec("cython") is None:  # the sources' annotations come from Cython's shadow module
-        raise ImportError("XVAL_PURE_PYTHON=1 runs the kernels' sources, which import Cython's pure-Python "
-                          "module: pip install cython (the `test` extra has it)")
-    sys.meta_path.insert(0, _SourcesFirst)
+# the switch and the finder of the sources are the mechanism layer's (xval.kernels), which
+# serves this package too: importing it installs the finder under XVAL_PURE_PYTHON
+from xval.kernels import PURE_PYTHON  # noqa: F401
 
 
 def compiled() -> bool:

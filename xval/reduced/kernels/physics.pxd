@@ -1,52 +1,46 @@
 # C-level declaration of xval/reduced/kernels/physics.py (Cython's augmenting .pxd).
 
+from xval.kernels.loops cimport Loops
 from xval.reduced.kernels.problem cimport RightHandSide
 
 # The integer constants of the packed layout (physics.py documents them; its block
 # `if not cython.compiled` holds the same values for plain Python: keep both in step,
-# tests/test_physics_port.py compares them). A cpdef enum: C constants, importable from Python.
+# tests/test_physics_port.py compares them). A # The linkage's kinematics come first in I (xval/kernels/loops.pxd: N, ..., the term tables,
+# KIN_HEADER entries); this model's header follows.
 cpdef enum:
-    N = 0
-    N_ANGLES = 1
-    N_LINEAR = 2
-    N_DAMPERS = 3
-    N_ELEMENTS = 4
-    N_FORCES = 5
-    HAS_GRAVITY = 6
-    MAX_ROWS = 7
-    DRIVE = 8
-    MASSES = 9
-    INERTIAS = 10
-    GRAVITY = 11
-    ELEMENT_COEF = 12
-    ELEMENT_REST = 13
-    FORCE_DIR = 14
-    LINEAR = 15
-    SPLINE_KNOTS = 16
-    SPLINE_COEF = 17
-    SPLINE_LO = 18
-    SPLINE_HI = 19
-    SPLINE_PERIOD = 20
-    KNOT_START = 21
-    COEF_START = 22
-    SPLINE_DEGREE = 23
-    DYAD_PLAN = 24
-    DYAD_STEPS = 25
-    DYAD_W = 26
-    N_JOINT_ELEMENTS = 27
-    N_JOINT_DAMPERS = 28
-    JOINT_ROWS = 29
-    JOINT_COEF = 30
-    JOINT_REST = 31
-    N_TIMED = 32
-    TIMED_DIR = 33
-    PIECE_VALUES = 34
-    LOOPS = 0
+    N_DAMPERS = 33
+    N_ELEMENTS = 34
+    N_FORCES = 35
+    HAS_GRAVITY = 36
+    DRIVE = 37
+    MASSES = 38
+    INERTIAS = 39
+    GRAVITY = 40
+    ELEMENT_COEF = 41
+    ELEMENT_REST = 42
+    FORCE_DIR = 43
+    SPLINE_KNOTS = 44
+    SPLINE_COEF = 45
+    SPLINE_LO = 46
+    SPLINE_HI = 47
+    SPLINE_PERIOD = 48
+    KNOT_START = 49
+    COEF_START = 50
+    SPLINE_DEGREE = 51
+    DYAD_PLAN = 52
+    DYAD_STEPS = 53
+    DYAD_W = 54
+    N_JOINT_ELEMENTS = 55
+    N_JOINT_DAMPERS = 56
+    JOINT_ROWS = 57
+    JOINT_COEF = 58
+    JOINT_REST = 59
+    N_TIMED = 60
+    TIMED_DIR = 61
+    PIECE_VALUES = 62
     CENTRES = 1
     ENDS = 2
     FORCE_POINTS = 3
-    TABLES = 35
-    TABLE_ENTRIES = 7
     HEADER = 63
     INDEPENDENT = 0
     SIGN = 1
@@ -89,22 +83,15 @@ cdef class Chart(RightHandSide):
     cdef readonly Py_ssize_t n
     # below this conditioning a coordinate cannot drive the linkage (passed in: Chart.__init__)
     cdef readonly double singular
-    # views of S and of W (physics.py: Chart), made once at construction; K and L are kin's rows
-    cdef long long[::1] s, piv, budget
+    # the linkage's kinematics (xval/kernels/loops.py), and its scratch under the names the
+    # methods use (x, trig, A, rhs, norms, rows, kin and its rows K, L: views of loops.B)
+    cdef readonly Loops loops
+    # views of S and of W (physics.py: Chart), made once at construction
+    cdef long long[::1] s, budget
     cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
     cdef double[:, :, ::1] base
-    # what _term leaves (its row is returned), and what _constraints leaves
-    cdef Py_ssize_t term_g, term_a
-    cdef double term_m, term_ux, term_uy, spread
 
-    cdef double _lu_factor(self)
-    cdef int _lu_solve(self, double[::1] b)
-    cdef int _angle_trig(self)
-    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
-    cdef int _table_positions(self, Py_ssize_t table)
-    cdef int _table_rates(self, Py_ssize_t table, bint with_l)
-    cdef double _constraints(self)
     cdef int _finish(self, double det)
     cdef int _close(self, Py_ssize_t depth, double value, double reach)
     cdef int _walk(self, double value)

@@ -1,13 +1,15 @@
-"""Kinematics and Eksergian coefficients of a one-DOF planar linkage, compiled (Cython).
+"""Eksergian coefficients and the chart walk of a one-DOF planar linkage, compiled (Cython).
 
-The one implementation of the reduced model's physics. A scene's model is two plain arrays
+The one implementation of the reduced model's physics, over the linkage's compiled kinematics
+(:class:`xval.kernels.loops.Loops`: term tables, Φ and Φ_x, the LU, K, L and the conditioning,
+which a chart holds and calls). A scene's model is two plain arrays
 (:class:`Model`), and a chart (:class:`Chart`) is a compiled object holding its state in two
 more and the integrators' interface (:class:`.problem.RightHandSide`), so that the integrators'
 loops run without a Python object; :mod:`xval.reduced.dynamics` builds the arrays from a scene and
 wraps the chart for Python callers. Debug with ``XVAL_PURE_PYTHON=1``: this file then runs as
 plain Python (:mod:`xval.reduced.kernels`).
 
-Term tables (:mod:`xval.kinematics`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+Term tables (:mod:`xval.kernels.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
 with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
 With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
 
@@ -23,8 +25,11 @@ K = dx/dx_i and L = d²x/dx_i² solve
 
 with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
 c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|: the project's one
-singular-position measure (:func:`xval.kinematics.driving_conditioning`, which this core may not
-import), compared with the threshold the chart is built with (``Chart(model, singular)``).
+singular-position measure (:mod:`xval.kernels.loops` evaluates it, as
+:func:`xval.kinematics.driving_conditioning` does through it), compared with the threshold the
+chart is built with (``Chart(model, singular)``). The walk, the closed-form dyads and Eksergian's
+coefficients are this module's; the term tables, Φ, Φ_x, the LU, K, L and the conditioning are
+:class:`~xval.kernels.loops.Loops`'s C methods, moved there with their arithmetic unchanged.
 
 Compiled: the integer constants of the packed layout (below) are C constants declared in
 ``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
@@ -45,10 +50,12 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.xval.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from cython.cimports.xval.reduced.kernels.problem import RightHandSide
 else:
     from math import atan2, cos, fabs, floor, isfinite, sin, sqrt
 
+    from xval.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from xval.reduced.kernels.problem import RightHandSide
 
 # Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
@@ -115,35 +122,35 @@ CLOSED_FORM_REACH = 0.5
 # A model is two flat arrays, F (float64) and I (int64); a chart holds two more, S (int64) and
 # W (float64), and typed views of their parts (:class:`Chart`).
 #
-# I[0:HEADER] is the header: counts, then offsets of each array in F (or in I).
+# I[0:KIN_HEADER] is the linkage's kinematics (:mod:`xval.kernels.loops`: counts, the linear
+# rows, the term tables, of which LOOPS is the loops'); I[KIN_HEADER:HEADER] this model's header:
+# counts, then offsets of each array in F (or in I).
 # Compiled, these are the C constants of physics.pxd (module docstring): keep both in step.
 if not cython.compiled:
-    N, N_ANGLES, N_LINEAR, N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY, MAX_ROWS = range(8)
-    (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, LINEAR, SPLINE_KNOTS, SPLINE_COEF,
-     SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(8, 24)
+    N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY = range(33, 37)
+    (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, SPLINE_KNOTS, SPLINE_COEF,
+     SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(37, 52)
     # Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
     # step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
     # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ
     # the angle of W).
-    DYAD_PLAN, DYAD_STEPS, DYAD_W = 24, 25, 26
+    DYAD_PLAN, DYAD_STEPS, DYAD_W = 52, 53, 54
     # Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
     # the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
     # and rest values (count,).
-    N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(27, 32)
+    N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(55, 60)
     # Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
     # in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and
     # of the loads on each piece of the run's load history (pieces, 1 + count): the input load,
     # then each timed force's value. The integrators pass a piece's index as its ``load``.
-    N_TIMED, TIMED_DIR, PIECE_VALUES = range(32, 35)
-    # Term tables (module docstring), 7 header entries each: rows, terms, and the offsets of
-    # offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
-    LOOPS, CENTRES, ENDS, FORCE_POINTS = range(4)
-    TABLES = 35
-    TABLE_ENTRIES = 7
-    HEADER = TABLES + 4 * TABLE_ENTRIES
+    N_TIMED, TIMED_DIR, PIECE_VALUES = range(60, 63)
+    # The kinematics' term tables besides LOOPS: the centres of mass, the line elements' end
+    # points, the points of the point and timed forces.
+    CENTRES, ENDS, FORCE_POINTS = range(1, 4)
+    HEADER = 63
 
     # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
-    # holds the chart's value), then the pivots (n) and the walk's halving budgets (DEPTH).
+    # holds the chart's value), then the walk's halving budgets (DEPTH).
     INDEPENDENT, SIGN, STATUS, VALID = range(4)
     S_HEADER = 4
     # S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
@@ -303,20 +310,22 @@ class Chart(RightHandSide):
     """One chart of a model: its state, q̈ in its coordinate, its walk (compiled).
 
     ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
-    SIGN, STATUS, VALID, the pivots (n), the walk's halving budgets (DEPTH)) and W (float64:
-    value (1,), start, last, kin (3, n), fields (field_count), A (n, n), rhs, trig (2, n),
-    norms, x, guess (n,), base (DEPTH, 3, n), target (DEPTH,), rows (MAX_ROWS, 4)), both numpy
+    SIGN, STATUS, VALID, the walk's halving budgets (DEPTH)) and W (float64: value (1,), start,
+    last (3, n), fields (field_count), guess (n,), base (DEPTH, 3, n), target (DEPTH,)), both numpy
     arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
     made once here (the start view is ``origin``: ``start`` is the method). The kernels below
     are methods that read and write these views and take no array argument (compiled, an array
     argument is a 200-byte view passed by value, and a view made in a call changes a reference
     count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
     as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
-    scratch of the B-splines (the largest degree + 1). A chart is empty until :meth:`start`.
+    scratch of the B-splines (the largest degree + 1), and the linkage's kinematics (``loops``, a
+    :class:`xval.kernels.loops.Loops` on the model's arrays: Newton's x, trig, A, rhs, norms, rows
+    and kin (3, n: x, K, L), which the chart views under the same names). A chart is empty until
+    :meth:`start`.
 
     ``singular`` is the singular-position threshold: below this conditioning a coordinate cannot
     drive the linkage (:data:`xval.kinematics.SINGULAR_CONDITIONING`, which the reduced engine
-    passes in: the compiled core imports nothing of the project outside it).
+    passes in: the compiled core imports nothing of the project outside it but the kinematics' kernel).
     """
 
     def __init__(self, model: Model, singular: float):
@@ -331,24 +340,23 @@ class Chart(RightHandSide):
         n = int(I[N])
         self.n = n
         nfields = N_FIELDS + int(I[N_TIMED])
-        rows = max(int(I[MAX_ROWS]), 1)
-        size = 1 + 9 * n + nfields + n * n + 6 * n + DEPTH * 3 * n + DEPTH + 4 * rows
-        self.S = np.zeros(S_HEADER + n + DEPTH, np.int64)
+        size = 1 + 9 * n + nfields + n + DEPTH * 3 * n + DEPTH
+        self.S = np.zeros(S_HEADER + DEPTH, np.int64)
         self.W = np.zeros(size)
         self.s = self.S
-        self.piv = self.S[S_HEADER:S_HEADER + n]
-        self.budget = self.S[S_HEADER + n:S_HEADER + n + DEPTH]
+        self.budget = self.S[S_HEADER:S_HEADER + DEPTH]
         views = []
         o = 0
-        for shape in ((1,), (3, n), (3, n), (3, n), (nfields,), (n, n), (n,), (2, n), (n,), (n,), (n,),
-                      (DEPTH, 3, n), (DEPTH,), (rows, 4)):
+        for shape in ((1,), (3, n), (3, n), (nfields,), (n,), (DEPTH, 3, n), (DEPTH,)):
             size = math.prod(shape)
             views.append(self.W[o:o + size].reshape(shape))
             o += size
-        (self.value, self.origin, self.last, self.kin, self.fields, self.A, self.rhs, self.trig, self.norms,
-         self.x, self.guess, self.base, self.target, self.rows) = views
-        self.K = views[3][1]
-        self.L = views[3][2]
+        self.value, self.origin, self.last, self.fields, self.guess, self.base, self.target = views
+        # the linkage's kinematics, and views of its scratch under the names the methods below use
+        self.loops = Loops(F, I)
+        self.x, self.trig, self.A, self.rhs = self.loops.x, self.loops.trig, self.loops.A, self.loops.rhs
+        self.norms, self.rows, self.kin = self.loops.norms, self.loops.rows, self.loops.kin
+        self.K, self.L = self.loops.K, self.loops.L
         self.marked = np.zeros((3, n))
         degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
         self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
@@ -356,282 +364,22 @@ class Chart(RightHandSide):
     def arrays(self) -> dict:
         """Named numpy views of the chart's state (Python callers): value (1,), start, last,
         kin (3, n: x, K, L) and fields (field_count,); they follow every later evaluation."""
-        o = 0
-        out = {}
         n = int(self.n)
-        for name, shape in (("value", (1,)), ("start", (3, n)), ("last", (3, n)), ("kin", (3, n)),
-                            ("fields", (field_count(self.model),))):
-            size = math.prod(shape)
-            out[name] = self.W[o:o + size].reshape(shape)
-            o += size
-        return out
-
-    # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
-
-    @cython.cfunc
-    def _lu_factor(self) -> cython.double:
-        """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
-        as its reciprocals (a solve then multiplies: its divisions were most of its latency);
-        returns det A (0.0 if singular)."""
-        n: cython.Py_ssize_t = self.n
-        k: cython.Py_ssize_t
-        r: cython.Py_ssize_t
-        c: cython.Py_ssize_t
-        p: cython.Py_ssize_t
-        det: cython.double = 1.0
-        big: cython.double
-        d: cython.double
-        inverse: cython.double
-        f: cython.double
-        swap: cython.double
-        for k in range(n):
-            p = k
-            big = fabs(self.A[k, k])
-            for r in range(k + 1, n):
-                if fabs(self.A[r, k]) > big:
-                    big = fabs(self.A[r, k])
-                    p = r
-            self.piv[k] = p
-            if big == 0.0:
-                return 0.0
-            if p != k:
-                det = -det
-                for c in range(n):
-                    swap = self.A[k, c]
-                    self.A[k, c] = self.A[p, c]
-                    self.A[p, c] = swap
-            d = self.A[k, k]
-            det *= d
-            inverse = 1.0 / d
-            self.A[k, k] = inverse
-            for r in range(k + 1, n):
-                f = self.A[r, k] * inverse
-                self.A[r, k] = f
-                for c in range(k + 1, n):
-                    self.A[r, c] -= f * self.A[k, c]
-        return det
-
-    @cython.cfunc
-    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
-        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
-        solution."""
-        n: cython.Py_ssize_t = self.n
-        k: cython.Py_ssize_t
-        r: cython.Py_ssize_t
-        c: cython.Py_ssize_t
-        p: cython.Py_ssize_t
-        s: cython.double
-        for k in range(n):
-            p = self.piv[k]
-            if p != k:
-                s = b[k]
-                b[k] = b[p]
-                b[p] = s
-        for r in range(n):
-            s = b[r]
-            for c in range(r):
-                s -= self.A[r, c] * b[c]
-            b[r] = s
-        for r in range(n - 1, -1, -1):
-            s = b[r]
-            for c in range(r + 1, n):
-                s -= self.A[r, c] * b[c]
-            b[r] = s * self.A[r, r]
-        return 0
-
-    # -- term tables -----------------------------------------------------------------------
-
-    @cython.cfunc
-    def _angle_trig(self) -> cython.int:
-        """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
-        j: cython.Py_ssize_t
-        for j in range(self.I[N_ANGLES]):
-            self.trig[0, j] = cos(self.x[j])
-            self.trig[1, j] = sin(self.x[j])
-        return 0
-
-    @cython.cfunc
-    @cython.inline
-    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
-        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
-        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
-        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
-        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
-        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
-        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
-        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
-        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
-        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
-        c: cython.double
-        s: cython.double
-        if a >= 0:
-            c = self.trig[0, a]
-            s = self.trig[1, a]
-            wx, wy = wx * c - wy * s, wx * s + wy * c
-        self.term_g = g
-        self.term_a = a
-        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
-        self.term_ux = wx
-        self.term_uy = wy
-        return row
-
-    @cython.cfunc
-    def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
-        """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
-        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
-        off: cython.Py_ssize_t = self.I[tb + 2]
-        k: cython.Py_ssize_t
-        t: cython.Py_ssize_t
-        for k in range(self.I[tb]):
-            self.rows[k, 0] = self.F[off + 2 * k]
-            self.rows[k, 1] = self.F[off + 2 * k + 1]
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            self.rows[k, 0] += self.term_m * self.term_ux
-            self.rows[k, 1] += self.term_m * self.term_uy
-        return 0
-
-    @cython.cfunc
-    def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
-        """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
-        with_l), at kin's x, K and L."""
-        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
-        k: cython.Py_ssize_t
-        c: cython.Py_ssize_t
-        t: cython.Py_ssize_t
-        g: cython.Py_ssize_t
-        a: cython.Py_ssize_t
-        m: cython.double
-        ux: cython.double
-        uy: cython.double
-        md: cython.double
-        td: cython.double
-        cu: cython.double
-        cn: cython.double
-        for k in range(self.I[tb]):
-            for c in range(4):
-                self.rows[k, c] = 0.0
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
-            md = self.kin[1, g] if g >= 0 else 0.0
-            td = self.kin[1, a] if a >= 0 else 0.0
-            cu = 2.0 * md * td  # coefficient of u⊥ in L_r
-            cn = -m * td * td  # coefficient of u
-            if with_l:
-                if g >= 0:
-                    cn += self.kin[2, g]
-                if a >= 0:
-                    cu += m * self.kin[2, a]
-            self.rows[k, 0] += md * ux - m * td * uy
-            self.rows[k, 1] += md * uy + m * td * ux
-            self.rows[k, 2] += cn * ux - cu * uy
-            self.rows[k, 3] += cn * uy + cu * ux
-        return 0
-
-    @cython.cfunc
-    def _constraints(self) -> cython.double:
-        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
-        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
-        scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
-        the rounding of their angles."""
-        n: cython.Py_ssize_t = self.n
-        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
-        nl: cython.Py_ssize_t = 2 * self.I[tb]
-        r: cython.Py_ssize_t
-        c: cython.Py_ssize_t
-        t: cython.Py_ssize_t
-        k: cython.Py_ssize_t
-        g: cython.Py_ssize_t
-        a: cython.Py_ssize_t
-        m: cython.double
-        ux: cython.double
-        uy: cython.double
-        lever: cython.double
-        v: cython.double
-        for r in range(n - 1):
-            for c in range(n):
-                self.A[r, c] = 0.0
-        off: cython.Py_ssize_t = self.I[tb + 2]
-        scale: cython.double = 0.0
-        spread: cython.double = 0.0
-        for r in range(nl):
-            self.rhs[r] = self.F[off + r]
-            scale += fabs(self.F[off + r])
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, True)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
-            self.rhs[2 * k] += m * ux
-            self.rhs[2 * k + 1] += m * uy
-            lever = fabs(m) * (fabs(ux) + fabs(uy))
-            scale += lever
-            if a >= 0:
-                self.A[2 * k, a] -= m * uy
-                self.A[2 * k + 1, a] += m * ux
-                spread += lever * fabs(self.x[a])
-            if g >= 0:
-                self.A[2 * k, g] += ux
-                self.A[2 * k + 1, g] += uy
-        lin: cython.Py_ssize_t = self.I[LINEAR]
-        for r in range(self.I[N_LINEAR]):
-            v = 0.0
-            for c in range(n):
-                self.A[nl + r, c] = self.F[lin + r * n + c]
-                v += self.F[lin + r * n + c] * self.x[c]
-                scale += fabs(self.F[lin + r * n + c] * self.x[c])
-            self.rhs[nl + r] = v
-        self.spread = spread
-        return scale
-
+        nfields = field_count(self.model)
+        views = [self.W[0:1], self.W[1:1 + 3 * n].reshape(3, n), self.W[1 + 3 * n:1 + 6 * n].reshape(3, n),
+                 self.W[1 + 6 * n:1 + 6 * n + nfields]]
+        return {"value": views[0], "start": views[1], "last": views[2], "kin": self.loops.B[-3 * n:].reshape(3, n),
+                "fields": views[3]}
     # -- one configuration ------------------------------------------------------------------
 
     @cython.cfunc
     def _finish(self, det: cython.double) -> cython.int:
         """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
-        it), and the conditioning of every coordinate into the fields."""
-        n: cython.Py_ssize_t = self.n
-        j: cython.Py_ssize_t
-        k: cython.Py_ssize_t
-        for j in range(n):
-            self.kin[0, j] = self.x[j]
-        for j in range(n):
-            self.K[j] = 0.0
-        self.K[n - 1] = 1.0
-        self._lu_solve(self.K)
-        self._table_rates(LOOPS, False)
-        nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
-        for k in range(nl):
-            self.L[2 * k] = -self.rows[k, 2]
-            self.L[2 * k + 1] = -self.rows[k, 3]
-        for j in range(2 * nl, n):
-            self.L[j] = 0.0
-        self._lu_solve(self.L)
-        # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
-        product: cython.double = 1.0
-        zeros: cython.Py_ssize_t = 0
-        for j in range(n):
-            if self.norms[j] > 0.0:
-                product *= self.norms[j]
-            else:
-                zeros += 1
-        i: cython.Py_ssize_t = self.s[INDEPENDENT]
-        best: cython.double = 0.0
-        best_j: cython.Py_ssize_t = 0
-        own: cython.double = 0.0
-        c: cython.double
-        for j in range(n):
-            if zeros > 1 or (zeros == 1 and self.norms[j] > 0.0):
-                c = 0.0
-            else:
-                c = fabs(self.K[j]) * fabs(det) / (product / self.norms[j] if self.norms[j] > 0.0 else product)
-            if j == i:
-                own = c
-            if c > best:
-                best = c
-                best_j = j
-        self.fields[CONDITIONING] = own
-        self.fields[BEST_CONDITIONING] = best
-        self.fields[BEST] = best_j
+        it), and the conditioning of every coordinate into the fields (:meth:`Loops._finish`)."""
+        self.loops._finish(det, self.s[INDEPENDENT])
+        self.fields[CONDITIONING] = self.loops.own
+        self.fields[BEST_CONDITIONING] = self.loops.best
+        self.fields[BEST] = self.loops.best_j
         self.fields[DETERMINANT] = det
         return 0
 
@@ -670,8 +418,8 @@ class Chart(RightHandSide):
             return 1
         for it in range(_c_newton_max_iter + 1):
             if not closed:  # the closed form left trig at x
-                self._angle_trig()
-            scale = self._constraints()
+                self.loops._angle_trig()
+            scale = self.loops._constraints()
             largest = 0.0
             for r in range(n - 1):
                 if not isfinite(self.rhs[r]):
@@ -685,18 +433,18 @@ class Chart(RightHandSide):
                 self.A[n - 1, c] = 0.0
             self.A[n - 1, i] = 1.0
             self.rhs[n - 1] = 0.0
-            det = self._lu_factor()
+            det = self.loops._lu_factor()
             if det == 0.0 or not isfinite(det):
                 return 1
             if converged or (closed and largest <= _c_closed_form_residual * scale):
                 factored = True
                 break
             closed = False  # not closed to round-off: Newton from there
-            self._lu_solve(self.rhs)
+            self.loops._lu_solve(self.rhs)
             for j in range(n):
                 self.x[j] -= self.rhs[j]
             # converged: the step just taken polishes to round-off
-            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.spread)
+            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.loops.spread)
         if not factored:
             return 1
         for j in range(n):
@@ -833,7 +581,7 @@ class Chart(RightHandSide):
         r: cython.double
         d: cython.double
         along: cython.double
-        self._table_rates(CENTRES, True)
+        self.loops._table_rates(CENTRES, True)
         J: cython.double = 0.0
         zeta: cython.double = 0.0
         for b in range(nb):
@@ -850,16 +598,16 @@ class Chart(RightHandSide):
             gy = self.F[self.I[GRAVITY] + 1]
             for b in range(nb):
                 dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
-            self._table_positions(CENTRES)
+            self.loops._table_positions(CENTRES)
             for b in range(nb):
                 V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
         ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
         if ne:
-            self._table_rates(ENDS, False)
+            self.loops._table_rates(ENDS, False)
             for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
                 self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
                 self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
-            self._table_positions(ENDS)
+            self.loops._table_positions(ENDS)
             for e in range(ne):
                 dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
                 dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
@@ -904,7 +652,7 @@ class Chart(RightHandSide):
         fd: cython.Py_ssize_t
         td: cython.Py_ssize_t
         if nf or nt:
-            self._table_rates(FORCE_POINTS, False)
+            self.loops._table_rates(FORCE_POINTS, False)
             fd = self.I[FORCE_DIR]
             for p in range(nf):
                 along = self.rows[p, 0] * self.F[fd + 2 * p] + self.rows[p, 1] * self.F[fd + 2 * p + 1]
@@ -1055,39 +803,16 @@ class Chart(RightHandSide):
         S[INDEPENDENT] should be −1 unless row is e_i.
         x is copied first (into Newton's x): it may be one of the chart's own buffers."""
         n: cython.Py_ssize_t = self.n
-        r: cython.Py_ssize_t
         c: cython.Py_ssize_t
-        v: cython.double
-        w: cython.double
-        ratio: cython.double
         if x.shape[0] != n or row.shape[0] != n:
             raise ValueError(f"kinematics_at: x and row of {n} coordinates, not {x.shape[0]} and {row.shape[0]}")
         for c in range(n):
             self.x[c] = x[c]
-        self._angle_trig()
-        self._constraints()
-        i: cython.Py_ssize_t = 0  # the coordinate p replaces: the row's largest |entry|, the first of equals
-        for c in range(1, n):
-            if fabs(row[c]) > fabs(row[i]):
-                i = c
-        hadamard: cython.double = fabs(row[i])
-        for c in range(n):
-            v = 0.0
-            for r in range(n - 1):
-                v += self.A[r, c] * self.A[r, c]
-            self.norms[c] = sqrt(v)
-            if c != i:
-                ratio = row[c] / row[i] if row[i] != 0.0 else 0.0
-                v = 0.0
-                for r in range(n - 1):
-                    w = self.A[r, c] - ratio * self.A[r, i]
-                    v += w * w
-                hadamard *= sqrt(v)
-        for c in range(n):
-            self.A[n - 1, c] = row[c]
-        det: cython.double = self._lu_factor()
+        self.loops._angle_trig()
+        self.loops._constraints()
+        det: cython.double = self.loops._factor_row(row)
         self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
-        if det == 0.0 or not isfinite(det) or fabs(det) < self.singular * hadamard:
+        if det == 0.0 or not isfinite(det) or fabs(det) < self.singular * self.loops.hadamard:
             self.s[STATUS] = SINGULAR
             return False
         self._finish(det)

@@ -1,0 +1,83 @@
+"""The compiled kinematics (xval/kernels/loops.py, Cython) and its plain-Python source agree.
+
+loops.py is compiled by the package's build and runs as plain Python under
+``XVAL_PURE_PYTHON=1`` (the slow reference). Its integer layout constants live twice: C constants
+in loops.pxd (a ``cpdef enum``) and, for plain Python, the ``if not cython.compiled`` block of
+loops.py. Here the source is loaded as a second, uncompiled module beside the compiled one and both
+are compared: the constants exactly, and positions, Φ, Φ_x, K, L, the conditioning and Newton's
+assembly bit for bit on several shipped mechanisms (the build does not contract or reassociate,
+and libm is the same). The kinematics themselves are checked against independent oracles
+elsewhere (the four-bar's closed form: tests/oracles/four_bar.py, test_loops.py).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from xval import kinematics
+from xval.kernels import compiled, loops
+from xval.kinematics import SINGULAR_CONDITIONING, pack
+from xval.scenefile import load_scene
+
+from helpers import ROOT
+
+needs_compiled = pytest.mark.skipif(not compiled(), reason="the kinematics run as plain Python: nothing to compare")
+
+
+def source_module():
+    """loops.py loaded from its source as plain Python (a module of another name)."""
+    spec = importlib.util.spec_from_file_location("loops_source", ROOT / "xval" / "kernels" / "loops.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@needs_compiled
+def test_the_layout_constants_are_the_same_compiled_and_as_python():
+    source = source_module()
+    names = [name for name in dir(source) if name.isupper() and isinstance(getattr(source, name), int)]
+    assert len(names) >= 14
+    for name in names:
+        assert getattr(loops, name) == getattr(source, name), name
+    assert source.KIN_HEADER == source.TABLES + source.N_TABLES * source.TABLE_ENTRIES
+
+
+def _results(module, scene_path: str) -> np.ndarray:
+    """Every output of the kernel's Python interface, flattened, along the scene's assembly:
+    Φ, Φ_x, the conditioning of each coordinate, K and L with respect to the input, the centres'
+    and points' positions and rates, and x assembled by Newton at inputs 0.05 apart."""
+    scene = load_scene(ROOT / scene_path)
+    system = kinematics.compile_linkage(scene.mechanism.linkage)
+    n_angles = sum(name.endswith(".angle") for name in system.coordinate_names)
+    kernel = module.Loops(*pack(system.n, n_angles, (system.loops, system.centres, system.points), system.linear))
+    x = np.array(scene.x0, dtype=float)
+    q0 = float(system.drive @ x)
+    out = []
+    for k in range(12):
+        status, _, _ = kernel.assemble(q0 + 0.05 * k, x, system.drive, 1e-12, 50, SINGULAR_CONDITIONING)
+        assert status == module.CLOSED
+        phi, jac = kernel.constraints(x)
+        c, K, L = kernel.coefficients(x, system.drive)
+        out += [x.copy(), phi, jac.ravel(), kernel.conditioning(x), [c], K, L]
+        for table in (1, 2):
+            out += [kernel.positions(table, x).ravel(), kernel.rates(table, x, K, L).ravel(),
+                    kernel.rates(table, x, K, None).ravel()]
+        out.append([kernel.driving_conditioning(x, system.joint_rows[-1])])
+    return np.concatenate([np.ravel(v) for v in out])
+
+
+@needs_compiled
+@pytest.mark.parametrize("scene", ["scenes/seed_fourbar.toml", "scenes/mechanisms/slider_crank_gas.toml",
+                                   "scenes/mechanisms/watt2_sixbar.toml", "scenes/mechanisms/andrews_squeezer.toml",
+                                   "scenes/mechanisms/oscillating_slotted_lever.toml"])
+def test_the_python_source_gives_the_compiled_numbers(scene):
+    """Bit for bit: a four-bar, a slider-crank (a slider's length a coordinate, a linear row), a
+    Watt six-bar (two loops), Andrews' squeezer (three loops), a slotted lever (a prismatic joint
+    between moving bodies)."""
+    ran = _results(loops, scene)
+    source = _results(source_module(), scene)
+    assert np.all(np.isfinite(ran)) and ran.size > 100
+    np.testing.assert_array_equal(ran, source)
