@@ -178,6 +178,10 @@ class Linkage:
     input_joint : str
         Name of the joint whose coordinate is the independent coordinate q (rad for a
         revolute: body_b's angle relative to body_a; m for a prismatic: its displacement).
+    tree_first : tuple of str
+        Joints to take into the spanning tree before the other revolute ones (after the input
+        and the prismatic joints), where the loops allow: a joint inertia's joints, which
+        MuJoCo holds only on a tree joint (:class:`Mechanism` passes them).
 
     Attributes (derived)
     --------------------
@@ -194,6 +198,7 @@ class Linkage:
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     input_joint: str
+    tree_first: tuple[str, ...] = ()
     moving: tuple[str, ...] = field(init=False, repr=False, compare=False)
     tree: tuple[TreeEdge, ...] = field(init=False, repr=False, compare=False)
     cut_joints: tuple[str, ...] = field(init=False, repr=False, compare=False)
@@ -201,6 +206,7 @@ class Linkage:
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
         object.__setattr__(self, "joints", tuple(self.joints))
+        object.__setattr__(self, "tree_first", tuple(self.tree_first))
         for b in self.bodies:
             if not isinstance(b, Body):
                 raise MechanismError(f"bodies must be Body values, got {type(b).__name__}")
@@ -224,6 +230,9 @@ class Linkage:
                                          f"(point_{side})")
         if self.input_joint not in {j.name for j in self.joints}:
             raise MechanismError(f"input joint {self.input_joint!r} is not one of the joints")
+        for name in self.tree_first:
+            if name not in {j.name for j in self.joints}:
+                raise MechanismError(f"tree_first: {name!r} is not one of the joints")
         touched = {j.body_a for j in self.joints} | {j.body_b for j in self.joints}
         for name in moving:
             if name not in touched:
@@ -265,8 +274,9 @@ class Linkage:
         return _cycle(self.tree, self.joint_map[cut_joint])
 
     def _spanning_tree(self, moving: tuple[str, ...]) -> tuple[tuple[TreeEdge, ...], tuple[str, ...]]:
-        """Breadth-first tree from ground taking the input joint first, then prismatic joints
-        (a maximum spanning tree with prismatic joints weighted above revolute ones): the
+        """Breadth-first tree from ground taking the input joint first, then prismatic joints,
+        then the joints of ``tree_first`` (a maximum spanning tree with prismatic joints weighted
+        above revolute ones): the
         input joint is never cut (an engine can drive it as a tree joint), and a cut joint
         is prismatic only if its loop is all prismatic (or it closes the input's loop that way,
         which :class:`Linkage` refuses like an all-prismatic loop)."""
@@ -285,7 +295,8 @@ class Linkage:
                 break
             driven = [jt for jt in candidates if jt.name == self.input_joint]
             prismatic = [jt for jt in candidates if isinstance(jt, PrismaticJoint)]
-            jt = (driven or prismatic or candidates)[0]
+            first = [jt for jt in candidates if jt.name in self.tree_first]
+            jt = (driven or prismatic or first or candidates)[0]
             frontier.remove(jt)
             child, parent = ((jt.body_b, jt.body_a) if jt.body_a in reached
                              else (jt.body_a, jt.body_b))

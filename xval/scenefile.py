@@ -224,6 +224,15 @@ def _parse_timed_forces(top: Table) -> list[TimedForce]:
     return out
 
 
+def _with_inertias_in_tree(linkage: Linkage, joint_elements: list[JointElement]) -> Linkage:
+    """The linkage with its joint inertias' joints taken into the spanning tree first (MuJoCo
+    holds an inertia only on a tree joint: :func:`xval.reference_models.build.build_spec`)."""
+    first = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
+    if not first:
+        return linkage
+    return _mechanism_value("joints", lambda: Linkage(linkage.bodies, linkage.joints, linkage.input_joint, first))
+
+
 def _mechanism_value(key: str, build):
     """Build a mechanism value; its MechanismError becomes a SceneError naming ``key``."""
     try:
@@ -252,6 +261,7 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)
     joint_elements = _parse_joint_elements(top, linkage)
+    linkage = _with_inertias_in_tree(linkage, joint_elements)
     timed = _parse_timed_forces(top)
     count(elements + forces + joint_elements + timed,
            "dampers, springs, joint_dampers, joint_springs, joint_inertias, point_forces and timed_forces", MAX_ELEMENTS,
@@ -343,6 +353,7 @@ def _parse_four_bar(top: Table, link: Table, needs_mass: bool) -> tuple[Mechanis
               RevoluteJoint("O3", GROUND, "O3", "rocker", "O3")]
     linkage = Linkage(bodies, joints, "O1")
     joint_elements = _parse_joint_elements(top, linkage)
+    linkage = _with_inertias_in_tree(linkage, joint_elements)
     return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements)), g
 
 

@@ -316,6 +316,12 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     for name in linkage.moving:
         if name in RESERVED_NAMES:
             raise ValueError(f"body name {name!r} is reserved in the MuJoCo model: rename the body")
+    for e in mech.joint_inertias:
+        if e.joint in linkage.cut_joints:
+            raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the MuJoCo model "
+                             "(the loops leave no spanning tree holding every inertia's joint): MuJoCo's tendon armature "
+                             "keeps only the mass-matrix terms of one branch, so it would not be ½ I u̇²; move the "
+                             "inertia to a joint of the tree or run the reduced engine alone")
     spec = mujoco.MjSpec()
     spec.modelname = scene.name
     opt = spec.option

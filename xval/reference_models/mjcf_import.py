@@ -597,7 +597,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
                                 "closures)" if "degrees of freedom" in str(exc) else ""))
     elements, joint_elements = _elements(reader, linkage)
+    inertias = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
     try:
+        if inertias:  # as the scene file builds it (the tree takes them first), so that its loops are the file's
+            linkage = Linkage(bodies, joints, input_name, inertias)
         mechanism = Mechanism(linkage, elements, (), joint_elements)
     except MechanismError as exc:
         reader.fail(str(exc))
@@ -747,6 +750,20 @@ def _rates(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
     return xdot
 
 
+def _one_branch(model: mujoco.MjModel, dofs: np.ndarray) -> bool:
+    """Whether the dofs lie on one path from the root (each pair ancestor and descendant)."""
+    def ancestors(dof: int) -> set[int]:
+        out = set()
+        while dof >= 0:
+            out.add(dof)
+            dof = int(model.dof_parentid[dof])
+        return out
+
+    chains = [ancestors(int(d)) for d in dofs]
+    return all(int(a) in chains[j] or int(b) in chains[i]
+               for i, a in enumerate(dofs) for j, b in enumerate(dofs))
+
+
 def _gravity(reader: _Reader):
     m = reader.model
     if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
@@ -846,6 +863,11 @@ def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], lis
             length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
             if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
                 add_joint_element("inertia", name, joint, armature)
+                if not _one_branch(m, np.flatnonzero(c)):
+                    reader.warnings.append(
+                        f"tendon '{name}': its armature couples joints of different branches, and MuJoCo keeps only "
+                        "the mass-matrix terms of one branch (ancestor pairs): the model as written does not have "
+                        "the ½ a L̇² the scene holds")
             if damping > 0.0:
                 add_joint_element("damper", name, joint, damping)
             if stiffness > 0.0:

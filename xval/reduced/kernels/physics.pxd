@@ -41,7 +41,8 @@ cpdef enum:
     CENTRES = 1
     ENDS = 2
     FORCE_POINTS = 3
-    HEADER = 63
+    N_JOINT_INERTIAS = 63
+    HEADER = 64
     INDEPENDENT = 0
     SIGN = 1
     STATUS = 2

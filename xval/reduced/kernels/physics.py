@@ -135,9 +135,10 @@ if not cython.compiled:
     # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ
     # the angle of W).
     DYAD_PLAN, DYAD_STEPS, DYAD_W = 52, 53, 54
-    # Joint elements (dampers, then springs, on a joint's own coordinate u = row·x): their count,
-    # the count of dampers among them, and the offsets in F of their rows (count, n), coefficients
-    # and rest values (count,).
+    # Joint elements (dampers, then springs, then inertias, on a joint's own coordinate u = row·x):
+    # their count, the count of dampers among them, and the offsets in F of their rows (count, n),
+    # coefficients and rest values (count,); N_JOINT_INERTIAS (last in the header), the count of
+    # inertias, the last elements.
     N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(55, 60)
     # Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
     # in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and
@@ -147,7 +148,8 @@ if not cython.compiled:
     # The kinematics' term tables besides LOOPS: the centres of mass, the line elements' end
     # points, the points of the point and timed forces.
     CENTRES, ENDS, FORCE_POINTS = range(1, 4)
-    HEADER = 63
+    N_JOINT_INERTIAS = 63
+    HEADER = 64
 
     # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
     # holds the chart's value), then the walk's halving budgets (DEPTH).
@@ -623,18 +625,25 @@ class Chart(RightHandSide):
         nj: cython.Py_ssize_t = self.I[N_JOINT_ELEMENTS]
         n: cython.Py_ssize_t = self.n
         rows_at: cython.Py_ssize_t
+        first_inertia: cython.Py_ssize_t = nj - self.I[N_JOINT_INERTIAS]
+        l_u: cython.double
         if nj:
             rows_at = self.I[JOINT_ROWS]
-            for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K
+            for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K, L_u = row·L
                 u = 0.0
                 k_u = 0.0
+                l_u = 0.0
                 for j in range(n):
                     r = self.F[rows_at + e * n + j]
                     u += r * self.kin[0, j]
                     k_u += r * self.K[j]
+                    l_u += r * self.L[j]
                 c = self.F[self.I[JOINT_COEF] + e]
                 if e < self.I[N_JOINT_DAMPERS]:
                     damping += c * k_u * k_u
+                elif e >= first_inertia:  # T = ½ c u̇² = ½ c K_u² q̇²: adds c K_u² to 𝔍 and c K_u L_u to ζ
+                    J += c * k_u * k_u
+                    zeta += c * k_u * l_u
                 else:
                     stretch = u - self.F[self.I[JOINT_REST] + e]
                     dV += c * stretch * k_u
