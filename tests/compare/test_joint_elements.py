@@ -192,7 +192,7 @@ def test_joint_element_names_share_the_line_elements_namespace():
     data = _oscillator(False, 8.0, 0.05, 0.1, 0.6, 1.0)
     data["joint_springs"][0]["name"] = "x"
     data["joint_dampers"][0]["name"] = "x"
-    with pytest.raises(SceneError, match="duplicate damper or spring name 'x'"):
+    with pytest.raises(SceneError, match="duplicate damper, spring or inertia name 'x'"):
         scene_from_dict(data)
 
 

@@ -117,3 +117,18 @@ def test_cli_run_of_a_model_writes_the_report(tmp_path, capsys):
     assert code == 1 and "the difference comes from: the loops' softness" in text
     report = json.loads((out / "report.json").read_text())
     assert report["mujoco"]["settings"]["solref"] == [[0.02, 1.0]] and not report["gate"]["passed"]
+
+
+def test_mujocos_own_defaults_need_both_changes(tmp_path):
+    """No <option> at all (Euler at 2 ms) and MuJoCo's default softness: the errors partly cancel
+    in the peak (measured 2.84e-3 off, the loop 13.8 mm open), and neither change alone meets the
+    gate (stiff loops 9.0e-4 off, a tenth of the step 3.4e-2): both are named, stiffer loops first."""
+    text = (DATA / "fourbar_xz_degrees.xml").read_text().replace(
+        '<option timestep="0.001" integrator="RK4" gravity="0 0 0"/>', '<option gravity="0 0 0"/>')
+    path = tmp_path / "defaults.xml"
+    path.write_text(text)
+    check = check_model(import_mjcf(path, control=SEED_PULSE, horizon=2.0))
+    assert check.as_written.options.integrator == "euler" and check.as_written.options.timestep == 0.002
+    assert not (check.passed or check.stiff_loops.passed or check.smaller_step.passed)
+    assert check.cause.startswith("both the loops' softness") and "stiffer loops remove more" in check.cause
+    assert check.cheapest.passed

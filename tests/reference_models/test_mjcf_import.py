@@ -220,6 +220,18 @@ def test_out_of_scope_models_are_refused_by_name(case, tmp_path):
     assert message in str(caught.value) and str(caught.value).startswith(str(path))
 
 
+def test_a_body_form_connect_authored_open_says_why(tmp_path):
+    """The seed's straight-at-qpos0 layout closed by a body-form connect: MuJoCo puts body2's anchor
+    where body1's is at qpos0, so the assembling keyframe leaves the loop open, and the message
+    says so (the site form of the same file reads: test_the_seed_written_by_hand)."""
+    text = (DATA / "fourbar_sites_keyframe.xml").read_text().replace(
+        '<connect name="B" site1="coupler_B" site2="rocker_B"/>', '<connect name="B" body1="coupler" body2="rocker" anchor="0.9 0 0"/>')
+    path = tmp_path / "body_form.xml"
+    path.write_text(text)
+    with pytest.raises(MjcfError, match="connect 'B' is open by .* MuJoCo puts a body-form connect's second anchor"):
+        import_mjcf(path, keyframe="assembled")
+
+
 def test_the_four_bar_of_the_refusals_is_accepted(tmp_path):
     """The refusals' shared model is itself valid: each refusal is its one change."""
     path = tmp_path / "ok.xml"

@@ -81,15 +81,20 @@ class ModelCheck:
 
     @property
     def cause(self) -> str:
-        """Which of the model's settings the difference comes from (the change that removes more of it)."""
-        loops, step = self.stiff_loops.excess, self.smaller_step.excess
+        """Which of the model's settings the difference comes from: the one whose change alone
+        meets the tolerances; when neither or both do, both are named, the one that removes more
+        of the difference first."""
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
-        if loops < step:
-            return "the loops' softness (the connects' solref and solimp)"
-        if step < loops:
-            return "the timestep"
-        return "both the loops' softness and the timestep"
+        loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
+        more = {loops: "stiffer loops remove", step: "a smaller step removes"}
+        if self.stiff_loops.passed != self.smaller_step.passed:
+            return loops if self.stiff_loops.passed else step
+        first, second = (loops, step) if self.stiff_loops.excess <= self.smaller_step.excess else (step, loops)
+        if self.stiff_loops.passed:
+            return f"{first} or {second}: changing either alone meets the tolerances"
+        return (f"both {first} and {second}: neither changed alone meets the tolerances ({more[first]} "
+                "more of the difference)")
 
 
 def _trial(imported: ImportedModel, reference: EngineResult, tolerances: Tolerances, label: str,
@@ -191,6 +196,8 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
     lines = [f"{status}  {source} ({where}, input '{scene.mechanism.linkage.input_joint}'): MuJoCo as written "
              f"({check.as_written.options.text()}) against the exact reduced solution, "
              f"peak {check.reference.peak.omega:.10g} {unit}/s",
+             f"      read at {where}: loops closed to {imported.closure_residual:.3g} m, Newton moved the "
+             f"configuration by {imported.polish:.3g} (rad or m)",
              f"      tolerances: peak_omega_rtol {t.peak_omega_rtol:g}, q_atol {t.q_atol:g} {unit}, "
              f"omega_atol {t.omega_atol:g} {unit}/s",
              f"      as written:        {_figures(check.as_written, unit)}"]
