@@ -357,7 +357,7 @@ def part2(path: Path, n: int, subset: int) -> None:
     steps_run = []  # per variant: every timestep its automatic choice ran
     for r in results:
         check_list = r.details.timestep_checks
-        steps_run.append(sorted({c["timestep"] for c in check_list} | {r.settings.timestep}, reverse=True))
+        steps_run.append(sorted({c.timestep for c in check_list} | {r.settings.timestep}, reverse=True))
     # (a') ours, 2 processes
     size = chunk_size(m, 2)
     t0 = time.perf_counter()

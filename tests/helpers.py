@@ -3,6 +3,7 @@ compiled DOP853's order, and closed-form problems for the compiled integrators (
 
 from __future__ import annotations
 
+import contextlib
 import re
 import tomllib
 from pathlib import Path
@@ -85,6 +86,23 @@ def short_seed_file(folder: Path, horizon: str = "0.3") -> Path:
     path = folder / "short.toml"
     path.write_text(short)
     return path
+
+
+@contextlib.contextmanager
+def plots_left_out():
+    """``xval run`` and ``xval sweep`` (in this process) write their output sets without the plots
+    while inside: for a test that reads only report.json, the CSVs or sweep.csv/sweep.json. The
+    plots take most of a short run's time (~0.3 s each, ~2 s a set); they are tested where they
+    are the subject: tests/compare/test_startup.py (every plot of a run drawn once, nothing cut
+    off), test_compare.py and test_cli.py (the whole set written), test_sweep.py (every sweep
+    plot, the worst variant's, the set written)."""
+    import xval.compare.report
+    import xval.compare.sweep
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(xval.compare.report, "PLOTS", {})
+        patch.setattr(xval.compare.sweep, "plot_files", lambda spec: ())
+        yield
 
 
 

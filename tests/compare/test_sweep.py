@@ -9,6 +9,7 @@ bad values refused. Short scenes (the seed with a 0.3 s horizon) and 2-4 variant
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -29,7 +30,7 @@ from xval.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, 
 from xval.sweep_spec import Engines, spec_from_args
 from xval.shipped_scenes import default_scene_path
 
-from helpers import ROOT, interruptible, short_seed_file  # noqa: F401 - fixture
+from helpers import ROOT, interruptible, plots_left_out, short_seed_file  # noqa: F401 - fixture
 
 SEED_TEXT = default_scene_path().read_text()
 SHORT_TEXT = re.sub(r"(?m)^horizon = 2\.0.*$", "horizon = 0.3", SEED_TEXT)
@@ -41,6 +42,13 @@ RKN4 = '\n[reduced]\nmethod = "rkn4"\n'  # its error estimate fails at steps of 
 @pytest.fixture
 def short_scene(tmp_path):
     return short_seed_file(tmp_path)
+
+
+@pytest.fixture
+def without_plots():
+    """The sweep (and ``xval run``) without their plots: for a test that reads only the rows."""
+    with plots_left_out():
+        yield
 
 
 def _sweep(capsys, scene, out, *args):
@@ -67,7 +75,8 @@ def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, 
     assert row["dampers.0.coefficient"] == 60.5
     variant = tmp_path / "variant.toml"
     variant.write_text(SHORT_TEXT.replace("coefficient = 55.0", "coefficient = 60.5"))
-    assert main(["run", str(variant), "--out", str(tmp_path / "run")]) == 0
+    with plots_left_out():  # its report.json is read
+        assert main(["run", str(variant), "--out", str(tmp_path / "run")]) == 0
     capsys.readouterr()
     report = json.loads((tmp_path / "run" / "report.json").read_text())
     for key, value in report["diff"].items():
@@ -108,9 +117,11 @@ def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys)
 def test_monte_carlo_is_reproducible_with_its_seed(short_scene, tmp_path, capsys):
     runs = {}
     for name, seed in (("a", "7"), ("b", "7"), ("c", "8")):
-        status, printed, _ = _sweep(capsys, short_scene, tmp_path / name, "--vary", "bodies.coupler.mass=normal(40, 1)",
-                                    "--vary", "dampers.0.coefficient=uniform(50, 60)", "--samples", "2",
-                                    "--seed", seed, "--workers", "1")
+        with contextlib.nullcontext() if name == "a" else plots_left_out():  # b's and c's rows are read
+            status, printed, _ = _sweep(capsys, short_scene, tmp_path / name,
+                                        "--vary", "bodies.coupler.mass=normal(40, 1)",
+                                        "--vary", "dampers.0.coefficient=uniform(50, 60)", "--samples", "2",
+                                        "--seed", seed, "--workers", "1")
         assert status == 0, printed
         runs[name] = [_without_wall(r) for r in _rows(tmp_path / name)]
     assert runs["a"] == runs["b"] and len(runs["a"]) == 2
@@ -229,6 +240,7 @@ def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, 
     assert status == 1 and "1 failed numerically" in printed
 
 
+@pytest.mark.usefixtures("without_plots")  # rows and the trajectories file are read
 def test_the_scene_files_sweep_table_and_vary_winning(short_scene, tmp_path, capsys):
     scene = tmp_path / "table.toml"
     scene.write_text(SHORT_TEXT + '\n[sweep]\n[sweep.vary]\n"torque.value" = [240, 250]\n')
@@ -386,6 +398,7 @@ def test_the_files_written_are_sweep_files(varies, samples, keep, short_scene, t
         assert {tuple(line.split(",")[:2]) for line in traj[1:]} == {("0", "reduced"), ("1", "reduced")}
 
 
+@pytest.mark.usefixtures("without_plots")  # the headers and the printed summary are read
 def test_the_sweep_tables_engines_and_the_flag_over_it(short_scene, tmp_path, capsys):
     scene = tmp_path / "table.toml"
     scene.write_text(short_scene.read_text() + '\n[sweep]\nengines = "reduced"\n[sweep.vary]\n'
@@ -481,7 +494,8 @@ def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(s
     finished rows are in a journal beside it (never inside), --resume runs only the rest and a
     completed sweep removes the journal. A real SIGINT at variant 4 of 7 (serial, in this
     process); the resumed sweep.csv equals an uninterrupted one's but for the wall times."""
-    status, _, err = _sweep(capsys, short_scene, tmp_path / "ref", *RESUMED_VARY)
+    with plots_left_out():  # the reference's rows are read
+        status, _, err = _sweep(capsys, short_scene, tmp_path / "ref", *RESUMED_VARY)
     assert status == 0, err
     out = tmp_path / "sw"
     out.mkdir()
@@ -520,6 +534,7 @@ def test_resume_needs_the_journal_of_the_same_sweep(short_scene, tmp_path, capsy
     assert not (tmp_path / "sw").exists()
 
 
+@pytest.mark.usefixtures("without_plots")  # what it says is read
 def test_a_long_sweep_says_so_before_it_runs_on(short_scene, tmp_path, capsys, monkeypatch):
     """Issue 24: 10^6 variants (hours) were accepted without a word off a terminal. The estimate
     (the second variant's time x the variants left / workers) is one warning line when over

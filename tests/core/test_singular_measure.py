@@ -131,7 +131,10 @@ def _defined_thresholds(path: Path) -> list[str]:
     """Names like SINGULAR_*, *_RCOND, *CONDITIONING*, *DETERMINANT* given a real number in a
     source file (a module constant, a compiled copy ``cython.declare(cython.double, value)``, an
     argument's default)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    text = path.read_text(encoding="utf-8")
+    if not NAMES.search(text):  # every name found matches NAMES: a file without a match has none
+        return []
+    tree = ast.parse(text)
     found = []
 
     def numeric(node) -> bool:

@@ -9,6 +9,7 @@ MJCF is read by MuJoCo alone (``MjModel.from_xml_string``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 
@@ -266,10 +267,17 @@ def test_coordinate_map_inverts_the_joint_map(scene):
 # residual ≤ 4.6e-5 of the energy scale (slider-crank with its gas force; Watt II 3.4e-6). Bounds
 # 8x and 6.5x above: a point force applied with the wrong sign or at the wrong point, or a body
 # left out of the audit, breaks the balance by far more.
+@functools.cache
+def _run(name: str):
+    """(scene, its MuJoCo run at 0.5 ms): one run per scene for the tests that read it (results
+    are frozen, their arrays read-only)."""
+    scene = SCENES[name]()
+    return scene, simulate_mujoco(scene, MujocoSettings(timestep=5e-4))
+
+
 @pytest.mark.parametrize("name", ["slider_crank", "slider_driven", "watt_ii", "slider_reversed", "seed_driven_at_a"])
 def test_general_scene_runs_gated_and_balanced(name):
-    scene = SCENES[name]()
-    result = simulate_mujoco(scene, MujocoSettings(timestep=5e-4))
+    scene, result = _run(name)
     assert result.constraint_violation.max < 1e-6
     assert result.audit.relative_residual < 3e-4
     joints = result.joints
@@ -378,7 +386,7 @@ def test_slider_input_acceleration_is_the_rate_of_its_speed():
     """A slide input's q̈ comes from MuJoCo's qacc (no sensor reads a slide's acceleration):
     against central differences of q̇ (constant force: no jumps), measured 2.6e-3 of max |q̈|
     (the differences' O(h²) error at 0.5 ms); bound 1e-2. A wrong sign or dof is off by ~2."""
-    result = simulate_mujoco(SCENES["slider_driven"](), MujocoSettings(timestep=5e-4))
+    _, result = _run("slider_driven")
     t = result.trajectory
     fd = np.gradient(t.qdot, t.t)[1:-1]
     assert np.max(np.abs(fd - t.qddot[1:-1])) < 1e-2 * np.max(np.abs(t.qddot))
@@ -404,11 +412,10 @@ def test_exported_mjcf_reruns_the_same_motion(name, tmp_path):
     runner), gives the in-memory model's run: same model, same arithmetic, so bit-identical."""
     from xval.reference_models import handles_from_mjcf
 
-    scene = SCENES[name]()
+    scene, direct = _run(name)
     settings = MujocoSettings(timestep=5e-4)
     path = tmp_path / "model.xml"
     path.write_text(mjcf_text(scene, settings), encoding="utf-8")
-    direct = simulate_mujoco(scene, settings)
     reloaded = simulate_mujoco(scene, settings, handles=handles_from_mjcf(path))
     np.testing.assert_array_equal(reloaded.trajectory.q, direct.trajectory.q)
     np.testing.assert_array_equal(reloaded.trajectory.qdot, direct.trajectory.qdot)

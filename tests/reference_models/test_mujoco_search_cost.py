@@ -21,8 +21,8 @@ from helpers import ROOT
 def _runs_and_steps(horizon: float, checks) -> tuple[int, int]:
     steps_run = []
     for i, check in enumerate(checks):
-        h = check["timestep"]
-        reused = i > 0 and h == checks[i - 1]["timestep"] / 2
+        h = check.timestep
+        reused = i > 0 and h == checks[i - 1].timestep / 2
         steps_run += ([] if reused else [h]) + [h / 2]
     return len(steps_run), sum(math.ceil(horizon / h - 1e-9) for h in steps_run)
 

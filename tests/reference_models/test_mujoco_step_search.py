@@ -22,7 +22,8 @@ from xval.compare.run import compare_engines
 from xval.errors import FailureReason, NumericalFailure
 from xval.scenefile import scene_from_dict
 from xval.reference_models import simulate_mujoco
-from xval.reference_models.timestep import MAX_SEARCH_STEPS, STEP_MARGIN, _predicted_step
+from xval.reference_models.timestep import (MAX_SEARCH_STEPS, STEP_MARGIN, CheckOutcome, FailedCheck,
+                                            MeasuredCheck, _predicted_step)
 
 from helpers import ROOT, variant
 
@@ -43,8 +44,8 @@ def _near_toggle() -> dict:
     return data
 
 
-def _record(h: float, d: float, limit: float) -> dict:
-    return {"timestep": h, "max_dq": d, "max_domega": d, "dpeak": d, "limits": [limit] * 3}
+def _record(h: float, d: float, limit: float) -> MeasuredCheck:
+    return MeasuredCheck(h, "rad", d, d, d, (limit,) * 3, CheckOutcome.EXCEEDED)
 
 
 @pytest.mark.parametrize("order", [1.0, 2.0, 4.0])
@@ -55,13 +56,33 @@ def test_the_predicted_step_follows_the_fitted_order(order):
     limit = d(1e-4) / 50.0  # met at 1e-4 · 50^(-1/p)
     evidence = [_record(4e-4, d(4e-4), limit), _record(1e-4, d(1e-4), limit)]
     expected = STEP_MARGIN * 1e-4 * 50.0 ** (-1.0 / order)
-    assert _predicted_step(evidence) == pytest.approx(expected, rel=1e-12)
-    assert evidence[-1]["order"] == pytest.approx(order, rel=1e-12)
+    step, fitted = _predicted_step(evidence)
+    assert step == pytest.approx(expected, rel=1e-12)
+    assert fitted == pytest.approx(order, rel=1e-12)
+
+
+def test_report_json_keeps_the_keys_of_each_outcome():
+    """details.timestep_check in report.json (schema 4): a measured check's differences, limits and
+    ``accepted``, ``unconfirmed`` only when true, ``order`` only when fitted; a failed one's
+    ``failure``. The typed records write what the mappings they replaced held."""
+    unconfirmed = MeasuredCheck(1.25e-4, "rad", 1e-4, 0.1, 0.2, (2.5e-3, 0.125, 0.25), CheckOutcome.UNCONFIRMED,
+                                order=2.5)
+    assert unconfirmed.as_dict() == {"timestep": 1.25e-4, "unit": "rad", "max_dq": 1e-4, "max_domega": 0.1,
+                                     "dpeak": 0.2, "limits": [2.5e-3, 0.125, 0.25], "accepted": False,
+                                     "unconfirmed": True, "order": 2.5}
+    accepted = replace(unconfirmed, outcome=CheckOutcome.ACCEPTED, order=None)
+    assert accepted.accepted and list(accepted.as_dict())[-1] == "accepted" and accepted.as_dict()["accepted"]
+    failed = FailedCheck(5e-4, "m", "unstable: MuJoCo's state is not finite")
+    assert failed.outcome is CheckOutcome.FAILED and not failed.accepted
+    assert failed.as_dict() == {"timestep": 5e-4, "unit": "m", "failure": "unstable: MuJoCo's state is not finite",
+                                "accepted": False}
+    with pytest.raises(ValueError, match="FailedCheck"):
+        MeasuredCheck(5e-4, "m", 0.0, 0.0, 0.0, (1.0,) * 3, CheckOutcome.FAILED)
 
 
 def test_no_prediction_when_the_differences_do_not_fall():
-    assert _predicted_step([_record(4e-4, 1e-3, 1e-6), _record(2e-4, 1e-3, 1e-6)]) is None
-    assert _predicted_step([_record(4e-4, 1e-3, 1e-6)]) is None
+    assert _predicted_step([_record(4e-4, 1e-3, 1e-6), _record(2e-4, 1e-3, 1e-6)]) == (None, None)
+    assert _predicted_step([_record(4e-4, 1e-3, 1e-6)]) == (None, None)
 
 
 @pytest.mark.slow  # ~15 s: 124 000 MuJoCo steps of a six-bar
@@ -70,7 +91,8 @@ def test_a_six_bar_near_its_toggle_passes_the_gate_at_the_defaults():
     h = c.mujoco.settings.timestep
     assert c.gate.passed, c.gate.failures
     assert h < 1.5625e-5 and c.mujoco.details.timestep_automatic  # below where the search stopped
-    assert any(r.get("order") for r in c.mujoco.details.timestep_checks)  # it jumped by the fitted order
+    checks = c.mujoco.details.timestep_checks
+    assert any(isinstance(r, MeasuredCheck) and r.order for r in checks)  # it jumped by the fitted order
 
 
 def test_the_step_is_chosen_for_the_gate_tolerances():
@@ -80,7 +102,7 @@ def test_the_step_is_chosen_for_the_gate_tolerances():
     tight = replace(scene.tolerances, q_atol=1e-6, omega_atol=1e-3)
     c = compare_engines(scene, tolerances=tight)
     assert c.gate.passed, c.gate.failures
-    assert c.mujoco.details.timestep_checks[-1]["limits"][1] == pytest.approx(0.25 * 1e-3)
+    assert c.mujoco.details.timestep_checks[-1].limits[1] == pytest.approx(0.25 * 1e-3)
 
 
 def test_a_fixed_step_that_fails_the_gate_is_named():

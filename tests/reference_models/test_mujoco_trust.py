@@ -17,6 +17,7 @@ from xval import kinematics as loops
 from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import scene_from_dict
 from xval.errors import FailureReason
+from xval.reference_models.timestep import CheckOutcome
 from xval.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
@@ -222,7 +223,7 @@ def test_seed_step_is_automatic_on_the_grid_and_confirmed(seed_scene, seed_mujoc
     assert seed_mujoco.details.timestep_automatic and h <= 1e-3
     assert s.effective_solref == (2 * h, 1.0)  # solref follows the step
     check = seed_mujoco.details.timestep_checks
-    assert check[-1]["accepted"] and check[-1]["timestep"] == pytest.approx(2 * h)
+    assert check[-1].outcome is CheckOutcome.ACCEPTED and check[-1].timestep == pytest.approx(2 * h)
     for edge in seed_scene.load.edges:
         assert abs(edge / h - round(edge / h)) < 1e-9
 

@@ -16,7 +16,8 @@ _HOMES = {
                      "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), ".build"),
     **dict.fromkeys(("OffGridEdgeWarning", "build_model", "check_initial_state", "mjcf_text", "handles_from_mjcf",
                      "simulate_mujoco"), ".run"),
-    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "grid_timestep"), ".timestep"),
+    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "CheckOutcome", "FailedCheck", "MeasuredCheck",
+                     "grid_timestep"), ".timestep"),
     **dict.fromkeys(("control_sequence", "point_force_callback"), ".loads"),
     **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), ".settings"),
     "simulate": (".run", "simulate_mujoco"),  # the engine interface's name

@@ -45,7 +45,7 @@ from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandl
 from .energy import energy_audit, squares_by_row
 from .layout import Layout
 from .loads import control_sequence, point_forces_installed, timed_values
-from .timestep import SearchCost, grid_timestep, search_timestep, step_count
+from .timestep import SearchCost, TimestepCheck, grid_timestep, search_timestep, step_count
 
 _log = logging.getLogger("xval.mujoco")  # each run (the step search logs its progress there too)
 
@@ -359,8 +359,9 @@ class MujocoDetails:
     mujoco_version : the MuJoCo that ran.
     point_forces : how point forces were applied; None without them.
     timestep_automatic : the step was chosen by the automatic search.
-    timestep_checks : that search's checks, in order: per check the coarse step and the
-        differences against their limits, or the failure (``_check``'s records).
+    timestep_checks : that search's checks, in order (:class:`~xval.reference_models.timestep.MeasuredCheck`:
+        the coarse step and the differences against their limits; or
+        :class:`~xval.reference_models.timestep.FailedCheck`), each with its outcome.
     search_cost : what the search took; None for a fixed timestep.
     """
 
@@ -372,12 +373,12 @@ class MujocoDetails:
     mujoco_version: str
     point_forces: str | None = None
     timestep_automatic: bool = False
-    timestep_checks: tuple[Mapping[str, Any], ...] = ()
+    timestep_checks: tuple[TimestepCheck, ...] = ()
     search_cost: SearchCost | None = None
 
     def as_dict(self) -> dict:
         return {"mujoco_version": self.mujoco_version, "timestep_automatic": self.timestep_automatic,
-                "timestep_check": list(self.timestep_checks),
+                "timestep_check": [c.as_dict() for c in self.timestep_checks],
                 "automatic_timestep_cost": None if self.search_cost is None else asdict(self.search_cost),
                 "edge_warnings": list(self.edge_warnings), "point_forces": self.point_forces,
                 "initial_residuals": dict(self.initial_residuals)}
