@@ -34,7 +34,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
+
+try:
+    import pinocchio as pin
+except ModuleNotFoundError as exc:  # the optional extra
+    raise ModuleNotFoundError("the pin engine needs Pinocchio: pip install 'xval[pin]' (the PyPI package pin)",
+                              name="pinocchio") from exc
 
 from xval import kinematics as loops
 from xval.mechanism import GROUND, PrismaticJoint, TreeEdge

@@ -24,7 +24,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from xval import kinematics as loops
@@ -34,7 +33,7 @@ from xval.results import ConstraintViolation, EnergyAudit, EngineResult
 from xval.scene import Scene
 from xval.trajectory import JointTrajectory, Trajectory
 
-from .model import PinModel, build, initial_rates
+from .model import PinModel, build, initial_rates, pin  # pin: Pinocchio, or one line saying how to install it
 from .settings import MAX_SAMPLES, PinSettings
 
 # The initial state's loop residuals (gap, m, and its rate, m/s) relative to the mechanism's

@@ -76,10 +76,10 @@ class PinSettings:
                 raise ValueError(f"PinSettings.{name} must be positive, got {getattr(self, name)!r}")
         if not 1e-14 <= self.rtol <= 0.1:
             raise ValueError(f"PinSettings.rtol must be within [1e-14, 0.1], got {self.rtol!r}")
-        if _number(self.baumgarte_kp, "baumgarte_kp") < 0.0:
-            raise ValueError(f"PinSettings.baumgarte_kp must be at least 0, got {self.baumgarte_kp!r}")
-        if self.baumgarte_kd is not None and _number(self.baumgarte_kd, "baumgarte_kd") < 0.0:
-            raise ValueError(f"PinSettings.baumgarte_kd must be at least 0, got {self.baumgarte_kd!r}")
+        if not _number(self.baumgarte_kp, "baumgarte_kp") > 0.0:
+            raise ValueError(f"PinSettings.baumgarte_kp must be positive, got {self.baumgarte_kp!r}")
+        if self.baumgarte_kd is not None and not _number(self.baumgarte_kd, "baumgarte_kd") > 0.0:
+            raise ValueError(f"PinSettings.baumgarte_kd must be positive, got {self.baumgarte_kd!r}")
         for name, high in (("proximal_iterations", 1000), ("max_evaluations", MAX_EVALUATIONS)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, Integral) or not 1 <= value <= high:
