@@ -112,12 +112,12 @@ class _Dynamics:
 
     def _kinematics(self, q: np.ndarray) -> None:
         pin.computeJointJacobians(self.pm.model, self.pm.data, q)
-        pin.updateFramePlacements(self.pm.model, self.pm.data)
 
     def _point(self, frame: int):
-        data = self.pm.data
-        return data.oMf[frame].translation[:2], pin.getFrameJacobian(self.pm.model, data, frame,
-                                                                     pin.LOCAL_WORLD_ALIGNED)[:2]
+        """The frame's position (2,) and in-plane Jacobian (2, nv) at the last :meth:`_kinematics`."""
+        model, data = self.pm.model, self.pm.data
+        return (pin.updateFramePlacement(model, data, frame).translation[:2],
+                pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[:2])
 
     def forces(self, q: np.ndarray, v: np.ndarray, load: float, timed: tuple[float, ...]):
         """(τ, load power W', dissipation D') at (q, v) with the input load and timed forces'
@@ -181,11 +181,13 @@ class _Dynamics:
             return out
         return f
 
-    def gaps(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """The largest loop gap (m) and its rate (m/s) over the cut joints at (q, v)."""
+    def gaps(self, q: np.ndarray, v: np.ndarray, *, kinematics: bool = True) -> tuple[float, float]:
+        """The largest loop gap (m) and its rate (m/s) over the cut joints at (q, v)
+        (``kinematics=False``: at the kinematics already computed at q)."""
         if not self.cut_frames:
             return 0.0, 0.0
-        self._kinematics(q)
+        if kinematics:
+            self._kinematics(q)
         gap = rate = 0.0
         for a, b in self.cut_frames:
             (pa, Ja), (pb, Jb) = self._point(a), self._point(b)
@@ -194,14 +196,14 @@ class _Dynamics:
         return gap, rate
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """Kinetic ½ vᵀ M v (M with the joint inertias' armature) and potential (gravity from
+        """(Pinocchio's kinematics at q computed here) Kinetic ½ vᵀ M v (M with the joint inertias' armature) and potential (gravity from
         Pinocchio, springs ½ k (d − d0)² and ½ k (u − u0)²), J."""
         model, data = self.pm.model, self.pm.data
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = pin.crba(model, data, q)  # the whole symmetric M (Pinocchio 4's binding), armature included
         kinetic = 0.5 * float(v @ M @ v)
         potential = float(pin.computePotentialEnergy(model, data, q))
-        self._kinematics(q)
+        if self.springs:
+            self._kinematics(q)
         for a, b, k, rest in self.springs:
             d = self._point(b)[0] - self._point(a)[0]
             potential += 0.5 * k * (math.hypot(d[0], d[1]) - rest) ** 2
@@ -220,7 +222,6 @@ class _Dynamics:
         K = K / rate if abs(rate) > 1e-6 * np.max(np.abs(K)) else K / np.max(np.abs(K))
         u = self.pm.P @ K
         M = pin.crba(self.pm.model, self.pm.data, np.zeros(self.nq))
-        M = np.triu(M) + np.triu(M, 1).T
         return float(u @ M @ u)
 
 
@@ -311,9 +312,9 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     gap, gap_rate = np.empty(len(t)), np.empty(len(t))
     for i in range(len(t)):
         tau, _, _ = dyn.forces(Q[i], V[i], load_at[i], tuple(timed_values[i]))
+        gap[i], gap_rate[i] = dyn.gaps(Q[i], V[i], kinematics=False)
         acc[i] = dyn.acceleration(Q[i], V[i], tau)
         kinetic[i], potential[i] = dyn.energy(Q[i], V[i])
-        gap[i], gap_rate[i] = dyn.gaps(Q[i], V[i])
     row = pm.input_row
     trajectory = Trajectory(t, pm.system.drive @ pm.x0 + Q @ row, V @ row, acc @ row)
     x, xdot = pm.x(Q), pm.xdot(V)
