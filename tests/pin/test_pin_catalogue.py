@@ -14,10 +14,11 @@ of the scale and the 5× covers a change of CPU, compiler or Pinocchio's arithme
 relative to max(1, max |q|), q̇ to max(1, max |q̇|) (rad or m, per s), the peak to itself, the
 energy residual to the audit's scale.
 
-Planted: dropping the damper force from the generalized forces (``tau -= (c * rate) * g`` in
-xval/pin/run.py) fails the seed's agreement (dq 4.6e-1, dpeak 7.3e-1) and its energy audit
-(the run fails with energy-imbalance); dropping the springs' ½ k (d − d0)² from the audit's
-potential fails test_audit_terms_match_the_reduced_engines on andrews_squeezer.
+Planted: dropping the dampers' force from the generalized forces (``tau -= (c * rate) * g`` in
+xval/pin/run.py) fails every test of the seed: the run itself fails its energy gate (residual
+0.34 of the scale); with that gate opened (max_energy_residual 1) its figures are dq 0.10,
+dq̇ 0.65, dpeak 0.089, audit terms 0.33, each far beyond its bound. Dropping the springs'
+½ k (d − d0)² from the audit's potential fails andrews_squeezer's runs (residual 0.65 of the scale).
 
 Cost: the 18 scenes take ~60 s of pin runs on a 2-core machine under load (fast_crank 12 s,
 long_conservative 18 s + 15 s of sampling 45 000 states), so the module is marked slow.
