@@ -163,7 +163,7 @@ def pin_lines(scene, result) -> list[str]:
     and cost."""
     used, unit = result.settings, scene.input_unit
     return _scene_lines(scene) + [
-        f"settings         {used.method}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
+        f"settings         {result.details.solver}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
         f"Kd {used.kd:g}, Pinocchio {result.details.pinocchio_version}",
         f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
         f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",

@@ -34,7 +34,7 @@ from xval.scene import Scene
 from xval.trajectory import JointTrajectory, Trajectory
 
 from .model import PinModel, build, initial_rates, pin  # pin: Pinocchio, or one line saying how to install it
-from .settings import MAX_SAMPLES, PinSettings
+from .settings import MAX_SAMPLES, SCIPY_NAMES, PinSettings
 
 # The initial state's loop residuals (gap, m, and its rate, m/s) relative to the mechanism's
 # size and its point-speed scale: the model is placed at the assembled x0 (a gap of ~1e-16 m on
@@ -270,8 +270,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
         load = 0.0 if scene.load is None else float(scene.load(mid))
         timed = tuple(float(p.profile(mid)) for p in scene.mechanism.timed_forces)
         try:
-            sol = solve_ivp(dyn.rhs(load, timed), (t0, t1), y, method=settings.method, rtol=settings.rtol,
-                            atol=settings.atol, dense_output=True)
+            sol = solve_ivp(dyn.rhs(load, timed), (t0, t1), y, method=SCIPY_NAMES[settings.method],
+                            rtol=settings.rtol, atol=settings.atol, dense_output=True)
         except _OutOfBudget:
             raise NumericalFailure(FailureReason.STEP_SIZE,
                                    f"the Pinocchio run used its {settings.max_evaluations} evaluations before "
@@ -280,7 +280,7 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
             raise NumericalFailure(FailureReason.SINGULAR, f"Pinocchio's constraintDynamics failed in "
                                    f"[{t0:g}, {t1:g}] s: {str(exc).strip().splitlines()[0]}", t0) from None
         if sol.status != 0:
-            raise NumericalFailure(FailureReason.STEP_SIZE, f"scipy's {settings.method} stopped at "
+            raise NumericalFailure(FailureReason.STEP_SIZE, f"scipy's {SCIPY_NAMES[settings.method]} stopped at "
                                    f"t = {sol.t[-1]:.6g} s: {sol.message}", float(sol.t[-1]))
         if not np.all(np.isfinite(sol.y)):
             raise NumericalFailure(FailureReason.NON_FINITE, "the Pinocchio run's state became NaN or infinite")
@@ -336,7 +336,7 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
                                f"the Pinocchio run's energy balance is off by {residual[k]:.3g} J at "
                                f"t = {t[k]:.6g} s, {residual[k] / scale:.3g} of the energy scale {scale:.6g} J, above "
                                f"[pin] max_energy_residual {settings.max_energy_residual:g}", float(t[k]))
-    details = PinDetails(solver=settings.method, pieces=len(steps), n_steps_per_piece=tuple(steps),
+    details = PinDetails(solver=SCIPY_NAMES[settings.method], pieces=len(steps), n_steps_per_piece=tuple(steps),
                          constraint_rows=3 * len(pm.constraints), baumgarte=(settings.baumgarte_kp, settings.kd),
                          proximal=(settings.proximal_mu, settings.proximal_accuracy, settings.proximal_iterations),
                          largest_gap_rate=float(np.max(gap_rate)), energy_scale=scale,

@@ -12,7 +12,8 @@ from numbers import Integral, Real
 
 from xval.settings import option
 
-METHODS = ("DOP853", "RK45", "Radau")  # scipy's solve_ivp methods offered
+METHODS = ("dop853", "rk45", "radau")  # scipy's solve_ivp methods offered (SCIPY_NAMES), named as the reduced engine's
+SCIPY_NAMES = {"dop853": "DOP853", "rk45": "RK45", "radau": "Radau"}
 DEFAULT_RTOL = 1e-10
 DEFAULT_ATOL = 1e-12
 DEFAULT_SAMPLE_INTERVAL = 1e-3
@@ -33,7 +34,7 @@ class PinSettings:
 
     Parameters
     ----------
-    method : scipy's ``solve_ivp`` method (``METHODS``), restarted at every load edge.
+    method : scipy's ``solve_ivp`` method (``METHODS``, scipy's ``SCIPY_NAMES``), restarted at every load edge.
     rtol, atol : its relative and absolute tolerances (atol in the state's units: rad, m, rad/s,
         m/s, and J for the two energy flows integrated alongside).
     sample_interval : s, the largest spacing of the samples taken from the solver's dense output.
@@ -49,7 +50,7 @@ class PinSettings:
     max_energy_residual : the largest |energy residual| / energy scale a run may have.
     """
 
-    method: str = option("DOP853", "scipy solve_ivp method", "choice", choices=METHODS)
+    method: str = option("dop853", "scipy's solve_ivp method (DOP853, RK45 or Radau)", "choice", choices=METHODS)
     rtol: float = option(DEFAULT_RTOL, "the integrator's relative tolerance", "number")
     atol: float = option(DEFAULT_ATOL, "the integrator's absolute tolerance (rad, m, rad/s, m/s, J)", "number")
     sample_interval: float = option(DEFAULT_SAMPLE_INTERVAL, "largest spacing of the samples", "number", unit="s",
