@@ -87,7 +87,8 @@ def test_joint_inertias_on_tree_joints():
 def test_an_inertia_on_a_cut_joint_is_refused_by_name():
     scene = variant(joint_inertias=[{"joint": j, "inertia": 0.1, "name": f"rotor_{j}"} for j in ("O1", "A", "B", "O3")])
     cut = scene.mechanism.linkage.cut_joints[0]
-    with pytest.raises(ValueError, match=f"joint inertia 'rotor_{cut}' is on joint '{cut}', which closes a loop") as caught:
+    words = f"joint inertia 'rotor_{cut}' is on joint '{cut}', which closes a loop"
+    with pytest.raises(ValueError, match=words) as caught:
         simulate(scene, PinSettings())
     assert "\n" not in str(caught.value)
 

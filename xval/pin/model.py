@@ -172,9 +172,9 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     angle = {GROUND: 0.0, **{b: float(x0[i]) for i, b in enumerate(linkage.moving)}}
     for e in mech.joint_inertias:
         if e.joint in linkage.cut_joints:
-            raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the Pinocchio "
-                             "model: its ½ I u̇² couples several joints' rates and Pinocchio's armature is diagonal; "
-                             "move the inertia to a joint of the tree or leave the pin engine out")
+            raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the "
+                             "Pinocchio model: its ½ I u̇² couples several joints' rates and Pinocchio's armature "
+                             "is diagonal; move the inertia to a joint of the tree or leave the pin engine out")
 
     model = pin.Model()
     model.name = scene.name

@@ -196,8 +196,9 @@ class _Dynamics:
         return gap, rate
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """(Pinocchio's kinematics at q computed here) Kinetic ½ vᵀ M v (M with the joint inertias' armature) and potential (gravity from
-        Pinocchio, springs ½ k (d − d0)² and ½ k (u − u0)²), J."""
+        """Kinetic ½ vᵀ M v (M with the joint inertias' armature) and potential (gravity from
+        Pinocchio, springs ½ k (d − d0)² and ½ k (u − u0)²), J; Pinocchio's kinematics at q
+        are computed here."""
         model, data = self.pm.model, self.pm.data
         M = pin.crba(model, data, q)  # the whole symmetric M (Pinocchio 4's binding), armature included
         kinetic = 0.5 * float(v @ M @ v)
