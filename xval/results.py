@@ -69,7 +69,7 @@ class ConstraintViolation:
 class EngineResult:
     """One engine's run of one scene.
 
-    engine : the engine's name (:data:`xval.registry.ENGINES`: "reduced", "mujoco").
+    engine : the engine's name (:data:`xval.registry.ENGINES`: "reduced", "mujoco", "pin").
     trajectory : the input coordinate q (rad, or m for a prismatic input), q̇ and q̈ over time.
     joints : every joint's own coordinate and rate over time (:class:`JointTrajectory`).
     peak : the largest |q̇| and its time.
@@ -82,7 +82,7 @@ class EngineResult:
     constraint_violation : the loops' opening over time; None for an engine whose loops are
         closed by construction (the reduced engine solves them by Newton to round-off).
     details : the engine's own record of the run (``xval.reduced.engine.ReducedDetails``,
-        ``xval.reference_models.run.MujocoDetails``), each with ``as_dict()``.
+        ``xval.reference_models.run.MujocoDetails``, ``xval.pin.run.PinDetails``), each with ``as_dict()``.
     """
 
     engine: str

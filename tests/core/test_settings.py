@@ -32,8 +32,13 @@ VALUES = {
                "iterations": (7, ["7"]), "tolerance": (1e-9, ["1e-9"]), "refsafe": (False, []),
                "diagexact": (True, []), "max_constraint_violation": (1e-4, ["1e-4"]),
                "max_energy_residual": (1e-2, ["1e-2"])},
+    "pin": {"method": ("radau", ["radau"]), "rtol": (1e-9, ["1e-9"]), "atol": (1e-11, ["1e-11"]),
+            "sample_interval": (5e-4, ["5e-4"]), "baumgarte_kp": (50.0, ["50"]), "baumgarte_kd": (10.0, ["10"]),
+            "proximal_mu": (1e-10, ["1e-10"]), "proximal_accuracy": (1e-10, ["1e-10"]),
+            "proximal_iterations": (5, ["5"]), "max_evaluations": (1000, ["1000"]),
+            "max_constraint_violation": (1e-5, ["1e-5"]), "max_energy_residual": (1e-5, ["1e-5"])},
 }
-API_ONLY = {"reduced": {"check_error"}, "mujoco": set()}  # neither a key nor a flag: cost studies set it
+API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set()}  # neither a key nor a flag: cost studies set it
 
 
 def _flag(name: str, value) -> list[str]:

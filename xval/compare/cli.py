@@ -34,7 +34,7 @@ from xval.sweep_spec import ENGINE_CHOICES
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
                      check_file, check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
-from .text import mujoco_lines, reduced_lines
+from .text import mujoco_lines, pin_lines, reduced_lines
 
 if TYPE_CHECKING:
     from xval.reduced import ReducedSettings
@@ -116,6 +116,20 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
     result = simulate_mujoco(scene, settings)
     print("\n".join(mujoco_lines(scene, result)))
     return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
+
+
+def cmd_pin(args: argparse.Namespace) -> int:
+    scene = _scene(args.scene)
+    settings = _settings("pin", args, scene)
+    try:
+        from xval.pin import simulate
+        result = simulate(scene, settings)
+    except ModuleNotFoundError as exc:
+        if exc.name != "pinocchio":
+            raise
+        raise UsageError(str(exc)) from None
+    print("\n".join(pin_lines(scene, result)))
+    return EXIT_OK
 
 
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
@@ -451,6 +465,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_argument(p)
     _add_mujoco_arguments(p)
     p.set_defaults(func=cmd_mujoco)
+
+    p = sub.add_parser("pin", help="run the scene's Pinocchio model (the extra xval[pin])",
+                       description="Run the scene's Pinocchio model (its tree's constrained dynamics, each loop "
+                                   "closed by a point constraint, integrated by scipy); print the peak speed of the "
+                                   "input joint, its time, the largest loop gap and the energy residual.")
+    _add_scene_argument(p)
+    add_flags(p, ENGINES["pin"].settings, title="Pinocchio engine settings", table="pin")
+    p.set_defaults(func=cmd_pin)
 
     p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
                        description="Write the scene's MuJoCo model as a human-readable MJCF file "

@@ -158,6 +158,19 @@ def mujoco_lines(scene, result) -> list[str]:
         f"cost             {result.n_steps} steps, {result.wall_s:.3f} s"]
 
 
+def pin_lines(scene, result) -> list[str]:
+    """What ``xval pin`` prints: the settings as run, peak input rate, loop gap, energy residual
+    and cost."""
+    used, unit = result.settings, scene.input_unit
+    return _scene_lines(scene) + [
+        f"settings         {result.details.solver}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
+        f"Kd {used.kd:g}, Pinocchio {result.details.pinocchio_version}",
+        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
+        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
+        _energy_line(result),
+        f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, {result.wall_s:.3f} s"]
+
+
 def check_lines(c: "Comparison") -> list[str]:
     """``xval check``'s lines for one scene: status and figures, then each gate failure."""
     d, t, unit = c.diff, c.gate.tolerances, c.scene.input_unit
