@@ -23,7 +23,7 @@ def no_pinocchio(monkeypatch):
     monkeypatch.setitem(sys.modules, "pinocchio", None)  # `import pinocchio` raises ModuleNotFoundError
     for name in ("xval.pin.model", "xval.pin.run"):
         monkeypatch.delitem(sys.modules, name, raising=False)
-    for name in ("simulate", "simulate_pin", "build", "PinModel", "PinDetails", "coordinate_map", "initial_rates"):
+    for name in ("simulate", "simulate_pin", "build", "PinModel", "PinDetails"):
         monkeypatch.delitem(xval.pin.__dict__, name, raising=False)
 
 

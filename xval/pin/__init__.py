@@ -14,7 +14,7 @@ from xval._lazy import lazy_names
 
 _HOMES = {
     **dict.fromkeys(("METHODS", "PinSettings", "Settings"), ".settings"),
-    **dict.fromkeys(("PinModel", "build", "coordinate_map", "initial_rates"), ".model"),
+    **dict.fromkeys(("PinModel", "build"), ".model"),
     **dict.fromkeys(("PinDetails", "simulate_pin"), ".run"),
     "simulate": (".run", "simulate_pin"),  # the engine interface's name
 }

@@ -42,7 +42,8 @@ except ModuleNotFoundError as exc:  # the optional extra
                               name="pinocchio") from exc
 
 from xval import kinematics as loops
-from xval.mechanism import GROUND, PrismaticJoint, TreeEdge
+from xval.tree_coordinates import coordinate_map, depth_first
+from xval.mechanism import GROUND, PrismaticJoint
 from xval.scene import Scene
 
 from .settings import Settings
@@ -96,64 +97,6 @@ class PinModel:
 def _se3(angle: float, xy) -> "pin.SE3":
     c, s = math.cos(angle), math.sin(angle)
     return pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([xy[0], xy[1], 0.0]))
-
-
-def depth_first(tree: tuple[TreeEdge, ...]) -> tuple[TreeEdge, ...]:
-    """The tree's edges depth-first from ground, children in the order of ``tree``: Pinocchio's
-    algorithms (its CRBA's subtrees) need a joint's descendants right after it."""
-    children: dict[str, list[TreeEdge]] = {}
-    for e in tree:
-        children.setdefault(e.parent, []).append(e)
-    order: list[TreeEdge] = []
-
-    def visit(body: str) -> None:
-        for e in children.get(body, ()):
-            order.append(e)
-            visit(e.body)
-    visit(GROUND)
-    return tuple(order)
-
-
-def coordinate_map(scene: Scene, joint_names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x0, T, P): x = x0 + T q and q = P (x − x0) for Pinocchio's q over ``joint_names``
-    (the tree joints in Pinocchio's order). T: a body's angle takes every revolute joint on its tree
-    path, a slider's s its own joint; P: a revolute joint's relative angle θ_child − θ_parent, a
-    prismatic joint's s."""
-    linkage = scene.mechanism.linkage
-    system = loops.compile_linkage(linkage)
-    joints = linkage.joint_map
-    column = {name: k for k, name in enumerate(joint_names)}
-    up = {e.body: e for e in linkage.tree}
-    T = np.zeros((system.n, len(joint_names)))
-    P = np.zeros((len(joint_names), system.n))
-    for i, body in enumerate(linkage.moving):
-        b = body
-        while b != GROUND:
-            e = up[b]
-            if not isinstance(joints[e.joint], PrismaticJoint):
-                T[i, column[e.joint]] = 1.0
-            b = e.parent
-    for e in linkage.tree:
-        k = column[e.joint]
-        if isinstance(joints[e.joint], PrismaticJoint):
-            T[system.coordinate(f"{e.joint}.s"), k] = 1.0
-            P[k, system.coordinate(f"{e.joint}.s")] = 1.0
-        else:
-            P[k, linkage.moving.index(e.body)] += 1.0
-            if e.parent != GROUND:
-                P[k, linkage.moving.index(e.parent)] -= 1.0
-    return np.asarray(scene.x0, dtype=float), T, P
-
-
-def initial_rates(scene: Scene, system: loops.LoopSystem) -> np.ndarray:
-    """ẋ0 consistent with the loops at (x0, q̇0), shape (n,): K of the best-conditioned
-    coordinate (:func:`xval.kinematics.conditioning`), scaled so that drive·ẋ = q̇0."""
-    x0 = np.asarray(scene.x0, dtype=float)
-    if scene.qdot0 == 0.0:
-        return np.zeros(system.n)
-    best = int(np.argmax(loops.conditioning(system, x0)))
-    K, _ = loops.coefficients(system.driven_by(best), x0)
-    return K * (scene.qdot0 / float(system.drive @ K))
 
 
 def build(scene: Scene, settings: Settings) -> PinModel:
@@ -242,7 +185,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
                                                                             settings.kd))
         constraint_models.append(cm)
 
-    x0_, T, P = coordinate_map(scene, names)
+    T, P = coordinate_map(linkage, tuple(names))
     column = {n: k for k, n in enumerate(names)}
     for e in mech.joint_inertias:
         model.armature[column[e.joint]] += e.coefficient
@@ -257,5 +200,5 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     pin.initConstraintDynamics(model, data, constraint_models, constraint_datas)
     p = loops.positions(system.points, x0)
     size = float(np.max(np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)))
-    return PinModel(model, data, constraint_models, constraint_datas, system, names, x0_, T, P, frames,
+    return PinModel(model, data, constraint_models, constraint_datas, system, names, x0, T, P, frames,
                     system.drive @ T, joint_coef, size)

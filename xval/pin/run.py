@@ -32,8 +32,9 @@ from xval.loads import TabulatedForce
 from xval.results import ConstraintViolation, EnergyAudit, EngineResult
 from xval.scene import Scene
 from xval.trajectory import JointTrajectory, Trajectory
+from xval.tree_coordinates import initial_rates
 
-from .model import PinModel, build, initial_rates, pin  # pin: Pinocchio, or one line saying how to install it
+from .model import PinModel, build, pin  # pin: Pinocchio, or one line saying how to install it
 from .settings import MAX_SAMPLES, SCIPY_NAMES, PinSettings
 
 # The initial state's loop residuals (gap, m, and its rate, m/s) relative to the mechanism's
@@ -255,7 +256,7 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     dyn = _Dynamics(scene, pm, settings)
     n = pm.model.nq
     q0 = np.zeros(n)
-    v0 = pm.P @ initial_rates(scene, pm.system)
+    v0 = pm.P @ initial_rates(scene.mechanism.linkage, scene.x0, scene.qdot0)
     gap0, rate0 = dyn.gaps(q0, v0)
     speed = pm.size * max(1.0, float(np.max(np.abs(v0), initial=0.0)))
     if not (gap0 <= INITIAL_RESIDUAL_REL * pm.size and rate0 <= INITIAL_RESIDUAL_REL * speed):

@@ -51,6 +51,8 @@ import mujoco
 import numpy as np
 
 from xval import kinematics as loops
+from xval import tree_coordinates as tree
+from xval.tree_coordinates import joint_order
 from xval.mechanism import GROUND, Linkage, PrismaticJoint
 from xval.scene import Scene
 
@@ -168,66 +170,16 @@ def spanning_tree(scene: Scene) -> tuple[TreeBody, ...]:
     return tuple(out)
 
 
-def joint_order(linkage: Linkage) -> tuple[str, ...]:
-    """The tree joints in MuJoCo's qpos/qvel order: depth-first over the body tree, children
-    in the order they were added (checked against the compiled model by :func:`compile_model`)."""
-    children: dict[str, list] = {}
-    for e in linkage.tree:
-        children.setdefault(e.parent, []).append(e)
-    order: list[str] = []
-
-    def visit(body: str) -> None:
-        for e in children.get(body, ()):
-            order.append(e.joint)
-            visit(e.body)
-    visit(GROUND)
-    return tuple(order)
-
-
 def coordinate_map(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(x0, T) with x = x0 + T·qpos and ẋ = T·qvel: shapes (n,), (n, nq).
-
-    x are the general coordinates of :class:`xval.kinematics.LoopSystem` (body angles rad,
-    slider displacements m); qpos in :func:`joint_order`.
-    """
-    linkage = scene.mechanism.linkage
-    system = loops.compile_linkage(linkage)
-    order = joint_order(linkage)
-    column = {name: k for k, name in enumerate(order)}
-    joints = linkage.joint_map
-    up = {e.body: e for e in linkage.tree}
-    T = np.zeros((system.n, len(order)))
-    for i, body in enumerate(linkage.moving):
-        b = body
-        while b != GROUND:
-            e = up[b]
-            if not isinstance(joints[e.joint], PrismaticJoint):
-                T[i, column[e.joint]] = 1.0
-            b = e.parent
-    for e in linkage.tree:
-        if isinstance(joints[e.joint], PrismaticJoint):
-            T[system.coordinate(f"{e.joint}.s"), column[e.joint]] = 1.0
-    return assembled_angles(scene), T
+    """(x0, T) with x = x0 + T·qpos and ẋ = T·qvel: shapes (n,), (n, nq), x0 the authored pose
+    (:func:`assembled_angles`), qpos in :func:`joint_order` (:func:`xval.tree_coordinates.coordinate_map`)."""
+    return assembled_angles(scene), tree.coordinate_map(scene.mechanism.linkage)[0]
 
 
 def joint_rates_matrix(scene: Scene) -> np.ndarray:
     """P with qvel = P·ẋ (and qpos = P·(x − x0)), shape (nq, n): a hinge's relative rate
     θ̇_child − θ̇_parent, a slide's ṡ. P·T = I."""
-    linkage = scene.mechanism.linkage
-    system = loops.compile_linkage(linkage)
-    joints = linkage.joint_map
-    edges = {e.joint: e for e in linkage.tree}
-    order = joint_order(linkage)
-    P = np.zeros((len(order), system.n))
-    for k, name in enumerate(order):
-        e = edges[name]
-        if isinstance(joints[name], PrismaticJoint):
-            P[k, system.coordinate(f"{name}.s")] = 1.0
-        else:
-            P[k, linkage.moving.index(e.body)] += 1.0
-            if e.parent != GROUND:
-                P[k, linkage.moving.index(e.parent)] -= 1.0
-    return P
+    return tree.coordinate_map(scene.mechanism.linkage)[1]
 
 
 def joint_positions(scene: Scene, x: np.ndarray) -> np.ndarray:
@@ -279,18 +231,9 @@ def assembled_angles(scene: Scene) -> np.ndarray:
 
 
 def initial_rates(scene: Scene) -> np.ndarray:
-    """ẋ0 (general rates) consistent with the loops at (x0, q̇0), shape (n,).
-
-    K of the best-conditioned coordinate x_i (:func:`xval.kinematics.conditioning`), scaled so
-    drive·ẋ = q̇0; a start at a dead centre of the input (where q̇0 must be 0) is fine too.
-    """
-    system = loops.compile_linkage(scene.mechanism.linkage)
-    x0 = assembled_angles(scene)
-    if scene.qdot0 == 0.0:
-        return np.zeros(system.n)
-    best = int(np.argmax(loops.conditioning(system, x0)))
-    K, _ = loops.coefficients(system.driven_by(best), x0)
-    return K * (scene.qdot0 / float(system.drive @ K))
+    """ẋ0 (general rates) consistent with the loops at (x0, q̇0), shape (n,)
+    (:func:`xval.tree_coordinates.initial_rates` at the authored pose)."""
+    return tree.initial_rates(scene.mechanism.linkage, assembled_angles(scene), scene.qdot0)
 
 
 def initial_qpos_qvel(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
