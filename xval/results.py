@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import FailureReason, NumericalFailure
 from .trajectory import JointTrajectory, Peak, Trajectory, freeze_arrays
 
 
@@ -46,6 +47,21 @@ class EnergyAudit:
     def relative_residual(self) -> float:
         """max |residual| / scale."""
         return self.max_abs_residual / self.scale
+
+    def gate(self, bound: float, floor: float, who: str, setting: str) -> float:
+        """The energy scale the run is judged against, max(:attr:`scale`, ``floor``) (J: a run in
+        which almost nothing moves is judged against a floor, such as ½ 𝔍0 (1 unit/s)², never
+        against a scale made of round-off); NumericalFailure (ENERGY_IMBALANCE) naming ``who``
+        ran and the ``setting`` to change when max |residual| exceeds ``bound`` × it."""
+        scale = max(self.scale, floor)
+        if not self.max_abs_residual <= bound * scale:
+            residual = np.abs(self.residual)
+            k = int(np.argmax(np.nan_to_num(residual, nan=np.inf)))
+            raise NumericalFailure(FailureReason.ENERGY_IMBALANCE,
+                                   f"{who}'s energy balance is off by {residual[k]:.3g} J at t = {self.t[k]:.6g} s, "
+                                   f"{residual[k] / scale:.3g} of the energy scale {scale:.6g} J, above {setting} "
+                                   f"{bound:g}", float(self.t[k]))
+        return scale
 
 
 @dataclass(frozen=True)
