@@ -10,7 +10,7 @@ unless overridden, the state of keyframe 0, the motor's control held at the puls
 every step whose midpoint lies inside the pulse (250 N·m for t < 1 s) and 0 after. The peak is
 max |qvel[0]| over the step boundaries (the crank's hinge, the seed's input).
 
-    python run_port.py MODEL.xml --engine c|mjx|mjwarp [--f32] [--integrator rk4|euler]
+    python run_port.py MODEL.xml --engine c|c32state|mjx|mjwarp [--f32] [--integrator rk4|euler]
         [--timestep H] [--horizon T] [--pulse VALUE DURATION] [--every N]
 
 Prints one line ``engine precision integrator h peak rel_err wall_s`` and with ``--every N``
@@ -51,12 +51,17 @@ def controls(m, n: int, value: float, duration: float) -> np.ndarray:
     return np.where(mid < duration, value, 0.0)[:, None] * np.ones((1, m.nu))
 
 
-def run_c(m, d, ctrl):
+def run_c(m, d, ctrl, round_state: bool = False):
+    """MuJoCo C; with ``round_state`` the state (qpos, qvel) is rounded to float32 after every
+    step (float32 storage of the state, every computation still in float64)."""
     import mujoco
     out = np.empty((len(ctrl), m.nv))
     for k, u in enumerate(ctrl):
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
+        if round_state:
+            d.qpos[:] = d.qpos.astype(np.float32)
+            d.qvel[:] = d.qvel.astype(np.float32)
         out[k] = d.qvel
     return out
 
@@ -97,7 +102,8 @@ def run_mjwarp(m, d, ctrl):
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("model")
-    p.add_argument("--engine", choices=("c", "mjx", "mjwarp"), default="c")
+    p.add_argument("--engine", choices=("c", "c32state", "mjx", "mjwarp"), default="c",
+                   help="c32state: MuJoCo C with the state rounded to float32 after every step")
     p.add_argument("--f32", action="store_true", help="MJX in float32 (MJWarp is float32 always)")
     p.add_argument("--integrator", choices=("rk4", "euler", "implicitfast"))
     p.add_argument("--timestep", type=float)
@@ -111,9 +117,9 @@ def main(argv=None) -> int:
     n = int(round(a.horizon / m.opt.timestep))
     ctrl = controls(m, n, *a.pulse)
     t0 = time.perf_counter()
-    if a.engine == "c":
-        qv = run_c(m, d, ctrl)
-        prec = "float64"
+    if a.engine in ("c", "c32state"):
+        qv = run_c(m, d, ctrl, round_state=a.engine == "c32state")
+        prec = "float64" if a.engine == "c" else "float64, state rounded to float32"
     elif a.engine == "mjx":
         qv = run_mjx(m, d, ctrl, a.f32)
         prec = "float32" if a.f32 else "float64"
@@ -128,7 +134,7 @@ def main(argv=None) -> int:
         for k in range(a.every - 1, n, a.every):
             print(f"  t={(k + 1) * m.opt.timestep:.4f} omega={qv[k, 0]:.10f} running_peak={running[k]:.10f}")
     peak = float(w.max())
-    print(f"{a.engine} {prec} {integ} h={m.opt.timestep:g} steps={n} peak={peak:.10f} "
+    print(f"{a.engine} ({prec}) {integ} h={m.opt.timestep:g} steps={n} peak={peak:.10f} "
           f"at_t={(int(w.argmax()) + 1) * m.opt.timestep:.4f} rel_err={abs(peak - a.exact) / a.exact:.3e} wall_s={wall:.2f}")
     return 0
 
