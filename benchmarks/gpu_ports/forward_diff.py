@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     if m.nkey:
         mujoco.mj_resetDataKeyframe(m, d, 0)
     d.ctrl[:] = a.ctrl
-    for _ in range(int(round(a.at / m.opt.timestep))):
+    for _ in range(round(a.at / m.opt.timestep)):
         mujoco.mj_step(m, d)
     mujoco.mj_forward(m, d)
 

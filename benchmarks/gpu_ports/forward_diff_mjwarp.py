@@ -22,8 +22,8 @@ def main(argv=None) -> int:
     p.add_argument("--ctrl", type=float, default=250.0)
     a = p.parse_args(argv)
     import mujoco
-    import warp as wp
     import mujoco_warp as mjw
+    import warp as wp
 
     m = mujoco.MjModel.from_xml_path(a.model)
     m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
@@ -31,7 +31,7 @@ def main(argv=None) -> int:
     if m.nkey:
         mujoco.mj_resetDataKeyframe(m, d, 0)
     d.ctrl[:] = a.ctrl
-    for _ in range(int(round(a.at / m.opt.timestep))):
+    for _ in range(round(a.at / m.opt.timestep)):
         mujoco.mj_step(m, d)
     mujoco.mj_forward(m, d)
     wp.init()

@@ -72,7 +72,7 @@ def main(argv=None) -> int:
     print(f"  MuJoCo C:                    {np.round(d.efc_aref, 9)}")
     print(f"  MJX:                         {np.round(np.asarray(dx._impl.efc_aref), 9)}")
 
-    n = int(round(a.horizon / m.opt.timestep))
+    n = round(a.horizon / m.opt.timestep)
     dc = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, dc, 0)
     for _ in range(n):

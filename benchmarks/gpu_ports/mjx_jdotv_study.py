@@ -53,7 +53,7 @@ def variants(seed_xml: str) -> dict[str, str]:
     s = seed_xml.replace('energy="enable"', 'energy="disable"')
     out = {"base": s}
     out["nodamper"] = s.replace('damping="55"', 'damping="0"')
-    out["nosensors"] = re.sub(r"<sensor>.*?</sensor>", "", s, flags=re.S)
+    out["nosensors"] = re.sub(r"<sensor>.*?</sensor>", "", s, flags=re.DOTALL)
     out["euler"] = s.replace('integrator="RK4"', 'integrator="Euler"')
     out["solimp_default"] = s.replace(' solimp="0.9999 0.9999 0.001 0.5 2"', "")
     out["solref_0.004"] = s.replace('solref="0.001 1"', 'solref="0.004 1"')
@@ -100,7 +100,7 @@ def run(xml: str, horizon: float, pulse: tuple[float, float]):
     d = mujoco.MjData(m)
     if m.nkey:
         mujoco.mj_resetDataKeyframe(m, d, 0)
-    n = int(round(horizon / m.opt.timestep))
+    n = round(horizon / m.opt.timestep)
     mid = (np.arange(n) + 0.5) * m.opt.timestep
     ctrl = np.where(mid < pulse[1], pulse[0], 0.0)
     input_dof = m.nv - 1 if m.nu == 0 else 0  # the spinner's hinge, the seed's crank
@@ -142,7 +142,8 @@ def main(argv=None) -> int:
     import mujoco
     if a.patched:
         patch_mjx_jdotv()
-    all_variants = variants(open(a.seed).read())
+    with open(a.seed) as f:
+        all_variants = variants(f.read())
     print(f"MuJoCo {mujoco.__version__}, jax {jax.__version__}, MJX {'patched (aref - Jdot v)' if a.patched else 'as shipped'}, "
           f"{'float32' if a.f32 else 'float64'}")
     print(f"{'variant':16s} {'C peak':>16s} {'MJX peak':>16s} {'rel diff':>10s} {'C end':>14s} {'MJX end':>14s} {'end diff':>10s} {'MJX s':>6s}")

@@ -86,8 +86,8 @@ def run_mjx(m, d, ctrl, f32: bool):
 
 
 def run_mjwarp(m, d, ctrl):
-    import warp as wp
     import mujoco_warp as mjw
+    import warp as wp
     wp.init()
     mw = mjw.put_model(m)
     dw = mjw.put_data(m, d)
@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     p.add_argument("--exact", type=float, default=EXACT_PEAK)
     a = p.parse_args(argv)
     m, d = load(a.model, a.integrator, a.timestep, a.iterations)
-    n = int(round(a.horizon / m.opt.timestep))
+    n = round(a.horizon / m.opt.timestep)
     ctrl = controls(m, n, *a.pulse)
     t0 = time.perf_counter()
     if a.engine in ("c", "c32state"):
