@@ -160,3 +160,30 @@ def test_pinocchio_reads_both_chains_closed_at_its_neutral_configuration(branch,
     rocker_b = data.oMf[model.getFrameId("rocker.B")].translation
     np.testing.assert_allclose(coupler_b, points(scene)[1], rtol=0, atol=CLOSURE_ATOL)
     np.testing.assert_allclose(rocker_b, points(scene)[1], rtol=0, atol=CLOSURE_ATOL)
+
+
+@pytest.mark.parametrize("version, refused", [("3.17.0", True), ("4.0.0", True), ("4.0.1", False), ("4.1.0", False),
+                                               ("10.0.0", False)])
+def test_the_engine_refuses_a_mujoco_older_than_it_needs(version, refused):
+    """The GPU ports' pip installs can load MuJoCo 3.17 or 4.0.0 under mujoco-core 4.0.1's name
+    (docs/engines-gpu-research.md): the engine checks the library loaded, by number, not text."""
+    from xval.reference_models.build import check_mujoco_version
+
+    if refused:
+        with pytest.raises(ImportError, match=f"loads {version}"):
+            check_mujoco_version(version)
+    else:
+        check_mujoco_version(version)
+
+
+def test_an_import_error_is_one_line(monkeypatch, capsys):
+    """A missing or wrong engine library is bad setup: one line and exit 2, not a traceback."""
+    from xval.compare import cli
+
+    def broken(args):
+        raise ImportError("xval's MuJoCo engine needs MuJoCo 4.0.1 or newer, but `import mujoco` loads 4.0.0")
+
+    monkeypatch.setattr(cli, "cmd_mujoco", broken)
+    assert cli.main(["mujoco"]) == 2
+    assert capsys.readouterr().err == ("xval: error: xval's MuJoCo engine needs MuJoCo 4.0.1 or newer, but "
+                                       "`import mujoco` loads 4.0.0\n")

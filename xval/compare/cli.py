@@ -676,7 +676,8 @@ def _failure(exc: BaseException, received: list[int]) -> int:
     if isinstance(exc, NumericalFailure):
         print(f"xval: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
-    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError)):
+    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError, ImportError)):
+        # ImportError: an engine's library missing or of the wrong version, said in one line
         print(f"xval: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if isinstance(exc, BrokenPipeError):  # output piped into e.g. `head`

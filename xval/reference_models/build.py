@@ -44,6 +44,7 @@ enter the joint-space mass matrix, and the choice satisfies MuJoCo's triangle in
 from __future__ import annotations
 
 import math
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -57,6 +58,27 @@ from xval.mechanism import GROUND, Linkage, PrismaticJoint
 from xval.scene import Scene
 
 from .settings import INTEGRATORS as MUJOCO_INTEGRATORS
+
+# The MuJoCo this engine needs: 4.0.0 has the sparse-Cholesky bug (docs/engines.md), and installing
+# MJX or MJWarp with pip can put MuJoCo 3.17's library in the same folder as mujoco-core 4.0.1, or
+# downgrade it, with no pip command noticing (docs/engines-gpu-research.md): the library that
+# `import mujoco` loaded is checked, not the distribution pip lists.
+MIN_MUJOCO = "4.0.1"
+
+
+def check_mujoco_version(version: str) -> None:
+    """ImportError in one line unless ``version`` (MuJoCo's, e.g. ``mujoco.__version__``) is at
+    least MIN_MUJOCO."""
+    def release(text: str) -> tuple[int, ...]:
+        return tuple(int(part) for part in re.findall(r"\d+", text)[:3])
+
+    if release(version) < release(MIN_MUJOCO):
+        raise ImportError(f"xval's MuJoCo engine needs MuJoCo {MIN_MUJOCO} or newer, but `import mujoco` loads "
+                          f"{version}: reinstall with pip install --force-reinstall 'mujoco-core>={MIN_MUJOCO}' (MJX "
+                          "and MJWarp: install them with --no-deps, docs/engines.md)")
+
+
+check_mujoco_version(mujoco.__version__)
 
 # MuJoCo's enum for each integrator name (the names are listed once, in xval.scene).
 INTEGRATOR_ENUM = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in MUJOCO_INTEGRATORS}
