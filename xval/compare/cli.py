@@ -251,6 +251,11 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
     scenes = [load_scene(resolve_scene(path)) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
+    if args.engines is not None:
+        if models:
+            raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
+                             "reduced solution alone")
+        return _check_engines(args, scenes)
     failed = 0
     for path, imported in models.items():
         from .model_check import check_lines as model_lines, check_model
@@ -274,6 +279,35 @@ def cmd_check(args: argparse.Namespace) -> int:
         print("\n".join(check_lines(c)))
     total = len(scenes) + len(models)
     print(f"{total - failed} passed, {failed} failed")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _engines(text: str) -> tuple[str, ...]:
+    """An argparse type: ``--engines``' list of engine names."""
+    from .engines import parse_engines
+
+    try:
+        return parse_engines(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _check_engines(args: argparse.Namespace, scenes: list) -> int:
+    """``xval check --engines``: each engine against the reduced reference, the outlier named."""
+    from .engines import check_engines, engines_lines
+    from .settings import engine_settings
+
+    failed = 0
+    for scene in scenes:
+        # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
+        # --rtol, are not read as its): the others run with their scene table over their defaults
+        settings = {name: (_reduced_reference(args, scene) if name == "reduced" else
+                           _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
+                    for name in args.engines}
+        check = check_engines(scene, args.engines, settings, _tolerances(scene, args))
+        failed += not check.passed
+        print("\n".join(engines_lines(check)))
+    print(f"{len(scenes) - failed} passed, {failed} failed")
     return EXIT_FAILED if failed else EXIT_OK
 
 
@@ -531,6 +565,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them), or MuJoCo "
                         "models (.xml)")
     _add_comparison_arguments(p)
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help="engines to judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin "
+                        f"(any of {', '.join(ENGINES)}; default reduced,mujoco); with three or more, the one "
+                        "farthest from the others is named when they disagree. Engines beside reduced and mujoco "
+                        "run with their scene table's settings")
     _add_model_arguments(p)
     p.set_defaults(func=cmd_check)
 
