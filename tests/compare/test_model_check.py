@@ -134,3 +134,16 @@ def test_mujocos_own_defaults_need_both_changes(tmp_path):
     assert not (check.passed or check.stiff_loops.passed or check.smaller_step.passed)
     assert check.cause.startswith("both the loops' softness") and "stiffer loops remove more" in check.cause
     assert check.cheapest.passed
+
+
+def test_cli_check_goes_on_after_a_reference_that_fails(tmp_path, capsys):
+    """A model whose reduced reference fails (RKN4 at 0.1 s misses its own error bound) is one
+    FAIL line, and the next model is still checked."""
+    from xval.compare.cli import main
+
+    other = tmp_path / "other.xml"
+    other.write_text((DATA / "fourbar_xz_degrees.xml").read_text())
+    code = main(["check", str(DATA / "fourbar_xz_degrees.xml"), str(other),
+                 "--ctrl", "0:250,1:0", "--horizon", "2", "--reference-method", "rkn4", "--reference-step", "0.1"])
+    out = capsys.readouterr().out
+    assert code == 1 and out.count("FAIL  ") == 2 and "numerical failure of the reduced reference" in out
