@@ -208,8 +208,7 @@ class _Group:
 class _Reader:
     """One pass over a compiled model at one configuration (see the module docstring)."""
 
-    def __init__(self, path: Path, model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
-                 input_name: str | None, control: Control | None, key_ctrl: np.ndarray):
+    def __init__(self, path: Path, model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray):
         self.path, self.model = path, model
         self.qpos, self.qvel = qpos, qvel
         self.warnings: list[str] = []
@@ -217,8 +216,6 @@ class _Reader:
         self.data.qpos[:] = qpos
         self.data.qvel[:] = qvel
         mujoco.mj_kinematics(model, self.data)
-        self.control, self.key_ctrl = control, key_ctrl
-        self.input_name = input_name
 
     def fail(self, message: str):
         raise MjcfError(f"{self.path}: {message}")
@@ -569,7 +566,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     path = Path(path)
     model = _load_model(path)
     qpos, qvel, key_ctrl = _state(path, model, keyframe)
-    reader = _Reader(path, model, qpos, qvel, input_joint, control, key_ctrl)
+    reader = _Reader(path, model, qpos, qvel)
     reader.check_options()
     reader.joints()
     inp = _input_joint(reader, input_joint)
@@ -699,7 +696,6 @@ def _configuration(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
     by_name = {g.name: g for g in reader.moving}
     for i, body in enumerate(linkage.moving):
         x[system.coordinate(f"{body}.angle")] = reader.angle(by_name[body])
-    joints = linkage.joint_map
     for j in linkage.joints:
         if isinstance(j, PrismaticJoint):
             world = {}
@@ -712,7 +708,6 @@ def _configuration(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
             angle_a = 0.0 if j.body_a == GROUND else x[system.coordinate(f"{j.body_a}.angle")]
             u = np.array([math.cos(angle_a + j.direction_a), math.sin(angle_a + j.direction_a)])
             x[system.coordinate(f"{j.name}.s")] = float((world["b"] - world["a"]) @ u)
-    del joints
     return x
 
 
@@ -727,7 +722,7 @@ def _origin(reader: _Reader, body: str) -> np.ndarray:
 
 def _rates(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
     """ẋ from the MuJoCo rates qvel: a body's angular rate about the normal, a slide's ṡ."""
-    m, d = reader.model, reader.data
+    m = reader.model
     xdot = np.zeros(system.n)
     if not np.any(reader.qvel):
         return xdot
@@ -746,7 +741,6 @@ def _rates(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
         if m.jnt_type[j] == _SLIDE:
             name = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
             xdot[system.coordinate(f"{name}.s")] = float(reader.qvel[m.jnt_dofadr[j]])
-    del d
     return xdot
 
 
