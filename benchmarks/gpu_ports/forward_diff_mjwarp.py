@@ -9,31 +9,20 @@ run ``forward`` and the script prints, per quantity, the largest absolute and re
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
 
+from common import state_arguments, state_at
+
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("model")
-    p.add_argument("--at", type=float, default=0.6)
-    p.add_argument("--ctrl", type=float, default=250.0)
-    a = p.parse_args(argv)
+    a = state_arguments(__doc__.splitlines()[0], argv)
     import mujoco
     import mujoco_warp as mjw
     import warp as wp
 
-    m = mujoco.MjModel.from_xml_path(a.model)
-    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    d = mujoco.MjData(m)
-    if m.nkey:
-        mujoco.mj_resetDataKeyframe(m, d, 0)
-    d.ctrl[:] = a.ctrl
-    for _ in range(round(a.at / m.opt.timestep)):
-        mujoco.mj_step(m, d)
-    mujoco.mj_forward(m, d)
+    m, d = state_at(a.model, a.at, a.ctrl)
     wp.init()
     mw = mjw.put_model(m)
     dw = mjw.put_data(m, d)

@@ -15,6 +15,8 @@ import sys
 
 import numpy as np
 
+from common import load
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -26,11 +28,7 @@ def main(argv=None) -> int:
     import mujoco_warp as mjw
     import warp as wp
 
-    m = mujoco.MjModel.from_xml_path(a.model)
-    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    d = mujoco.MjData(m)
-    if m.nkey:
-        mujoco.mj_resetDataKeyframe(m, d, 0)
+    m, d = load(a.model)
     wp.init()
     mw = mjw.put_model(m)
     h = m.opt.timestep

@@ -27,27 +27,8 @@ import sys
 
 import numpy as np
 
-MJCF = """
-<mujoco model="spinner">
-  <option timestep="0.0005" integrator="RK4" gravity="0 0 0">
-    <flag contact="disable"/>
-  </option>
-  <worldbody>
-    <body name="plate" pos="0.5 0 0">
-      <joint name="x" type="slide" axis="1 0 0"/>
-      <joint name="y" type="slide" axis="0 1 0"/>
-      <joint name="rz" type="hinge" axis="0 0 1"/>
-      <inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>
-    </body>
-  </worldbody>
-  <equality>
-    <connect name="pin" body1="plate" body2="world" anchor="-0.5 0 0" solref="0.001 1" solimp="0.9999 0.9999 0.001 0.5 2"/>
-  </equality>
-  <keyframe>
-    <key name="spin" qvel="0 5 10"/>
-  </keyframe>
-</mujoco>
-"""
+from common import SPINNER
+
 OMEGA, R = 10.0, 0.5  # rad/s, m (the keyframe's spin, the anchor's distance from the centre of mass)
 
 
@@ -60,7 +41,7 @@ def main(argv=None) -> int:
     import mujoco
     from mujoco import mjx
 
-    m = mujoco.MjModel.from_xml_string(MJCF)
+    m = mujoco.MjModel.from_xml_string(SPINNER)
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_forward(m, d)

@@ -25,30 +25,9 @@ import time
 
 import numpy as np
 
+from common import controls, load
+
 EXACT_PEAK = 34.26441306  # rad/s: the seed's exact peak (xval reduced, DOP853 at rtol 1e-12)
-
-
-def load(path: str, integrator: str | None, timestep: float | None, iterations: int | None):
-    import mujoco
-    m = mujoco.MjModel.from_xml_path(path)
-    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    if integrator is not None:
-        m.opt.integrator = {"rk4": mujoco.mjtIntegrator.mjINT_RK4,
-                            "euler": mujoco.mjtIntegrator.mjINT_EULER,
-                            "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}[integrator]
-    if timestep is not None:
-        m.opt.timestep = timestep
-    if iterations is not None:
-        m.opt.iterations = iterations
-    d = mujoco.MjData(m)
-    if m.nkey:
-        mujoco.mj_resetDataKeyframe(m, d, 0)
-    return m, d
-
-
-def controls(m, n: int, value: float, duration: float) -> np.ndarray:
-    mid = (np.arange(n) + 0.5) * m.opt.timestep
-    return np.where(mid < duration, value, 0.0)[:, None] * np.ones((1, m.nu))
 
 
 def run_c(m, d, ctrl, round_state: bool = False):
