@@ -122,7 +122,7 @@ def _cheapest_step(options: ModelOptions, horizon: float, trial, tried: list[Tri
 
     h = options.timestep
     for halvings in range(MAX_HALVINGS + 1):
-        steps = math.ceil(horizon / (h / 2 ** halvings) - 1e-9)
+        steps = replace(options, timestep=h / 2 ** halvings).steps(horizon)
         spent = sum(t.comparison.mujoco.n_steps for t in tried if t.comparison is not None)
         if steps > MAX_STEPS or steps * options.evaluations_per_step() >= budget or spent + steps > SEARCH_STEPS:
             return None

@@ -193,6 +193,16 @@ def _unique(name: str, taken: set[str]) -> str:
     return out
 
 
+def _in_plane_x(n: np.ndarray) -> np.ndarray:
+    """The x axis (else, when x is near the normal ``n``, the y axis) projected on the plane
+    normal to the unit vector ``n``, as a unit vector: a plane's, or a body's 2-D, x axis."""
+    x = np.array([1.0, 0.0, 0.0])
+    if np.linalg.norm(np.cross(x, n)) < 0.5:
+        x = np.array([0.0, 1.0, 0.0])
+    x = x - (x @ n) * n
+    return x / np.linalg.norm(x)
+
+
 @dataclass
 class _Group:
     """A rigid body of the description: a MuJoCo body with a joint and the bodies welded to it."""
@@ -264,7 +274,8 @@ class _Reader:
         self.warnings.append("contacts disabled: no two geoms of the model can collide")
 
     # -- the plane ---------------------------------------------------------------
-    def joints(self) -> list[int]:
+    def joints(self) -> None:
+        """Refuse joints the description cannot hold; warn of ranges."""
         m = self.model
         for j in range(m.njnt):
             kind = int(m.jnt_type[j])
@@ -285,7 +296,6 @@ class _Reader:
             if m.body_jntnum[b] > 1:
                 self.fail(f"body '{self.name(mujoco.mjtObj.mjOBJ_BODY, b, 'body')}' has {m.body_jntnum[b]} joints: "
                           "xval's description has one joint between two bodies (add a body between them)")
-        return list(range(m.njnt))
 
     def plane(self, input_joint: int) -> None:
         m, d = self.model, self.data
@@ -306,11 +316,7 @@ class _Reader:
             elif abs(axis @ n) > AXIS_TOL:
                 self.fail(f"joint '{name}': the slide's axis {np.round(axis, 6).tolist()} leaves the plane normal to "
                           f"joint '{first_name}''s axis {np.round(n, 6).tolist()}")
-        x = np.array([1.0, 0.0, 0.0])
-        if np.linalg.norm(np.cross(x, n)) < 0.5:
-            x = np.array([0.0, 1.0, 0.0])
-        e1 = x - (x @ n) * n
-        e1 /= np.linalg.norm(e1)
+        e1 = _in_plane_x(n)
         self.n, self.e1, self.e2 = n, e1, np.cross(n, e1)
 
     # -- bodies ------------------------------------------------------------------
@@ -330,11 +336,7 @@ class _Reader:
             name = self.name(mujoco.mjtObj.mjOBJ_BODY, b, "body")
             R = d.xmat[b].reshape(3, 3)
             n_local = R.T @ self.n
-            x = np.array([1.0, 0.0, 0.0])
-            if np.linalg.norm(np.cross(x, n_local)) < 0.5:
-                x = np.array([0.0, 1.0, 0.0])
-            a = x - (x @ n_local) * n_local
-            a /= np.linalg.norm(a)
+            a = _in_plane_x(n_local)
             group = _Group(_unique(_clean(name), taken), b, [b], a, np.cross(n_local, a))
             self.group_of[b] = group
             self.moving.append(group)
@@ -346,8 +348,7 @@ class _Reader:
         exact (no round trip through the world) when the body is the group's root."""
         if body != group.root:
             d = self.data
-            world = d.xpos[body] + d.xmat[body].reshape(3, 3) @ p_body
-            p_body = d.xmat[group.root].reshape(3, 3).T @ (world - d.xpos[group.root])
+            return self.world_to_group(group, d.xpos[body] + d.xmat[body].reshape(3, 3) @ p_body)
         return float(p_body @ group.a_local), float(p_body @ group.b_local)
 
     def world_to_group(self, group: _Group, world: np.ndarray) -> tuple[float, float]:
@@ -463,7 +464,7 @@ class _Reader:
                         "; MuJoCo puts a body-form connect's second anchor where the first one is at qpos0, so "
                         "author the model in its assembled pose or use the site form")
                 self.fail(f"connect '{name}' is open by {gap:.3g} m at the configuration read, more than "
-                          f"{CLOSURE_RTOL:g} of the longest link ({self.scale:.3g} m){form}")
+                          f"{CLOSURE_RTOL:g} of the model's size ({self.scale:.3g} m){form}")
             out.append(RevoluteJoint(_unique(_clean(name), self.taken_joints), g1.name, p1, g2.name, p2))
         return out
 
@@ -593,7 +594,11 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     except MechanismError as exc:
         reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
                                 "closures)" if "degrees of freedom" in str(exc) else ""))
-    elements, joint_elements = _elements(reader, linkage)
+    # x = x_read + T (qpos − qpos_read): the coordinates (bodies' angles, slides' s) are the same for
+    # the linkage rebuilt below with another spanning tree
+    system = loops.compile_linkage(linkage)
+    T, x_read = _joint_coefficients(reader, system, linkage)
+    elements, joint_elements = _elements(reader, linkage, system, T, x_read)
     inertias = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
     try:
         if inertias:  # as the scene file builds it (the tree takes them first), so that its loops are the file's
@@ -603,9 +608,9 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         reader.fail(str(exc))
 
     system = loops.compile_linkage(linkage)
-    guess = _configuration(reader, system, linkage)
+    guess = x_read
     q0 = float(system.drive @ guess)
-    xdot = _rates(reader, system, linkage)
+    xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
     qdot0 = float(system.drive @ xdot)
     residual = float(np.max(np.abs(loops.constraint_jacobian(system, guess) @ xdot))) if system.n > 1 else 0.0
     if abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale:
@@ -628,9 +633,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     except SceneError as exc:
         reader.fail(str(exc))
     polish = float(np.max(np.abs(np.asarray(scene.x0) - guess)))
-    qpos_map, _ = _joint_coefficients(reader, system, linkage)
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
-                         qpos_map=qpos_map, x_read=guess, control=applied, gear=gear,
+                         qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings))
 
@@ -720,30 +724,6 @@ def _origin(reader: _Reader, body: str) -> np.ndarray:
     return np.array([float(p @ reader.e1), float(p @ reader.e2)])
 
 
-def _rates(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
-    """ẋ from the MuJoCo rates qvel: a body's angular rate about the normal, a slide's ṡ."""
-    m = reader.model
-    xdot = np.zeros(system.n)
-    if not np.any(reader.qvel):
-        return xdot
-    by_name = {g.name: g for g in reader.moving}
-    for body in linkage.moving:
-        b = by_name[body].root
-        # the body's angular velocity: the sum of the hinge rates on its MuJoCo path from the world
-        rate, k = 0.0, b
-        while k != 0:
-            for j in range(m.body_jntadr[k], m.body_jntadr[k] + m.body_jntnum[k]):
-                if m.jnt_type[j] == _HINGE:
-                    rate += reader.joint_sign[j] * float(reader.qvel[m.jnt_dofadr[j]])
-            k = int(m.body_parentid[k])
-        xdot[system.coordinate(f"{body}.angle")] = rate
-    for j in range(m.njnt):
-        if m.jnt_type[j] == _SLIDE:
-            name = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
-            xdot[system.coordinate(f"{name}.s")] = float(reader.qvel[m.jnt_dofadr[j]])
-    return xdot
-
-
 def _one_branch(model: mujoco.MjModel, dofs: np.ndarray) -> bool:
     """Whether the dofs lie on one path from the root (each pair ancestor and descendant)."""
     def ancestors(dof: int) -> set[int]:
@@ -787,13 +767,12 @@ def _joint_coefficients(reader: _Reader, system, linkage: Linkage) -> tuple[np.n
     return T, _configuration(reader, system, linkage)
 
 
-def _elements(reader: _Reader, linkage: Linkage) -> tuple[list[LineElement], list[JointElement]]:
+def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
+              x_read: np.ndarray) -> tuple[list[LineElement], list[JointElement]]:
     m = reader.model
     disabled = m.opt.disableflags
     springs_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_SPRING)
     dampers_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
-    system = loops.compile_linkage(linkage)
-    T, x_read = _joint_coefficients(reader, system, linkage)
     rows = {j.name: system.joint_row(j.name) for j in linkage.joints}
     taken: set[str] = set()
     lines: list[LineElement] = []

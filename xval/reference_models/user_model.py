@@ -82,6 +82,10 @@ class ModelOptions:
         n = len(self.solref)
         return replace(self, solref=((2.0 * self.timestep, 1.0),) * n, solimp=(tuple(DEFAULT_SOLIMP),) * n)
 
+    def steps(self, horizon: float) -> int:
+        """The steps of a run over ``horizon`` s (the last one may end past it)."""
+        return math.ceil(horizon / self.timestep - 1e-9)
+
     def evaluations_per_step(self) -> int:
         return 4 if self.integrator == "rk4" else 1
 
@@ -166,7 +170,7 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     options = options or ModelOptions.as_written(imported.model)
     scene = imported.scene
     h = options.timestep
-    n = math.ceil(scene.horizon / h - 1e-9)
+    n = options.steps(scene.horizon)
     if n > MAX_STEPS:
         raise ValueError(f"a run of the model at timestep {h:g} s over simulation.horizon {scene.horizon:g} s is "
                          f"{n:.3g} steps, more than {MAX_STEPS:.3g}: raise the timestep or shorten --horizon")
@@ -207,11 +211,10 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
         raise NumericalFailure(FailureReason.UNSTABLE, f"MuJoCo warned {warned} time(s) (bad qacc and the like) and "
                                f"reset the state: the model is unstable at {options.text()}")
 
-    T, drive = imported.qpos_map, scene_drive(imported)
+    system, T = loops.compile_linkage(scene.mechanism.linkage), imported.qpos_map
     x = imported.x_read + (qpos - imported.qpos) @ T.T
     xdot, xddot = qvel @ T.T, qacc @ T.T
-    trajectory = Trajectory(times, x @ drive, xdot @ drive, xddot @ drive)
-    system = loops.compile_linkage(scene.mechanism.linkage)
+    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive)
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
     # the work of the motor and of the dampers, by the trapezoidal rule over each step
@@ -222,11 +225,6 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                         wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,
                         effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, gap),
                         details=ModelRunDetails(options, mujoco.__version__))
-
-
-def scene_drive(imported: ImportedModel) -> np.ndarray:
-    """q = drive·x for the imported scene's coordinates."""
-    return loops.compile_linkage(imported.scene.mechanism.linkage).drive
 
 
 __all__ = ["ENGINE", "MAX_STEPS", "ModelOptions", "ModelRunDetails", "run_model"]
