@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from xval.scene import SceneError
+from xval.scene_writer import toml_text
 from xval.scenefile import scene_from_dict
 
 KINDS = ("four_bar", "four_bar_swing", "slider_crank", "slider_driven", "watt2", "stephenson3")
@@ -389,42 +390,6 @@ def generate(seed: int, n: int, kinds: tuple[str, ...] = KINDS) -> list[dict]:
     return out
 
 
-# -- TOML --------------------------------------------------------------------------------------
-
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(type(v))
-
-
-def to_toml(data: dict, prefix: str = "") -> str:
-    """``data`` as TOML text: a dict at the top level or under ``bodies`` is a [table], a list
-    of dicts an [[array of tables]], any other dict (points, guess) an inline table."""
-    lines, later = [], []
-    for k, v in data.items():
-        if (isinstance(v, dict) and prefix in ("", "bodies")) or (
-                isinstance(v, list) and v and all(isinstance(x, dict) for x in v)):
-            later.append((k, v))
-        else:
-            lines.append(f"{k} = {_value(v)}")
-    out = "\n".join(lines) + ("\n" if lines else "")
-    for k, v in later:
-        path = f"{prefix}.{k}" if prefix else k
-        for item in (v if isinstance(v, list) else [v]):
-            out += f"\n[{'[' if isinstance(v, list) else ''}{path}]{']' if isinstance(v, list) else ''}\n" + to_toml(item, path)
-    return out
-
-
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("outdir", type=Path)
@@ -434,7 +399,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     args.outdir.mkdir(parents=True, exist_ok=True)
     for data in generate(args.seed, args.n, TOGGLE_KINDS if args.toggle else KINDS):
-        (args.outdir / f"{data['name']}.toml").write_text(to_toml(data))
+        (args.outdir / f"{data['name']}.toml").write_text(toml_text(data))
 
 
 if __name__ == "__main__":
