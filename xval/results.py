@@ -80,6 +80,15 @@ class ConstraintViolation:
         """The largest gap over the run (m); NaN if a gap was not finite."""
         return float(np.max(self.gap)) if np.all(np.isfinite(self.gap)) else math.nan
 
+    def gate(self, bound: float, who: str, setting: str) -> None:
+        """NumericalFailure (CONSTRAINT_DRIFT) naming ``who`` ran, the gap's time and the ``setting``
+        to change when a gap is above ``bound`` (m) or not finite."""
+        if not self.max <= bound:
+            k = int(np.argmax(np.nan_to_num(self.gap, nan=np.inf)))
+            raise NumericalFailure(FailureReason.CONSTRAINT_DRIFT,
+                                   f"{who}'s loops opened by {self.gap[k]:.3g} m at t = {self.t[k]:.6g} s, above "
+                                   f"{setting} {bound:g} m", float(self.t[k]))
+
 
 @dataclass(frozen=True)
 class EngineResult:
