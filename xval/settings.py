@@ -15,6 +15,7 @@ import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field
+from numbers import Real
 from typing import Any, Mapping
 
 from .errors import type_name
@@ -143,6 +144,14 @@ def parse_number(text: str, *, positive: bool = False) -> float:
     if positive and not value > 0.0:
         raise argparse.ArgumentTypeError(f"must be positive, got {text}")
     return value
+
+
+def field_number(value: Any, what: str) -> float:
+    """A settings field's number as a float: a real number (numpy's too, not a bool) and finite;
+    ValueError ``"<what> must be a finite number, got ..."`` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ValueError(f"{what} must be a finite number, got {value!r}")
+    return float(value)
 
 
 def parse_whole(text: str, low: int, high: int) -> int:

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from numbers import Integral, Real
+from numbers import Integral
 
-from xval.settings import option
+from xval.settings import field_number, option
 
 METHODS = ("dop853", "rk45", "radau")  # scipy's solve_ivp methods offered (SCIPY_NAMES), named as the reduced engine's
 SCIPY_NAMES = {"dop853": "DOP853", "rk45": "RK45", "radau": "Radau"}
@@ -20,12 +20,6 @@ DEFAULT_SAMPLE_INTERVAL = 1e-3
 DEFAULT_KP = 100.0
 MAX_EVALUATIONS = 10_000_000
 MAX_SAMPLES = 500_000
-
-
-def _number(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise ValueError(f"PinSettings.{name} must be a finite number, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -73,13 +67,13 @@ class PinSettings:
             raise ValueError(f"PinSettings.method must be one of {', '.join(METHODS)}, got {self.method!r}")
         for name in ("rtol", "atol", "sample_interval", "proximal_mu", "proximal_accuracy",
                      "max_constraint_violation", "max_energy_residual"):
-            if not _number(getattr(self, name), name) > 0.0:
+            if not field_number(getattr(self, name), f"PinSettings.{name}") > 0.0:
                 raise ValueError(f"PinSettings.{name} must be positive, got {getattr(self, name)!r}")
         if not 1e-14 <= self.rtol <= 0.1:
             raise ValueError(f"PinSettings.rtol must be within [1e-14, 0.1], got {self.rtol!r}")
-        if not _number(self.baumgarte_kp, "baumgarte_kp") > 0.0:
+        if not field_number(self.baumgarte_kp, "PinSettings.baumgarte_kp") > 0.0:
             raise ValueError(f"PinSettings.baumgarte_kp must be positive, got {self.baumgarte_kp!r}")
-        if self.baumgarte_kd is not None and not _number(self.baumgarte_kd, "baumgarte_kd") > 0.0:
+        if self.baumgarte_kd is not None and not field_number(self.baumgarte_kd, "PinSettings.baumgarte_kd") > 0.0:
             raise ValueError(f"PinSettings.baumgarte_kd must be positive, got {self.baumgarte_kd!r}")
         for name, high in (("proximal_iterations", 1000), ("max_evaluations", MAX_EVALUATIONS)):
             value = getattr(self, name)

@@ -7,11 +7,10 @@ checked against ``mujoco.mjMINIMP`` and ``mjMAXIMP`` by the tests).
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
-from numbers import Integral, Real
+from numbers import Integral
 
-from xval.settings import option
+from xval.settings import field_number, option
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 # MuJoCo's constraint-solver iterations per step: Newton on a loop's rows converges in a handful;
@@ -24,12 +23,6 @@ DEFAULT_INTEGRATOR = "rk4"
 DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 DEFAULT_ITERATIONS = 100
 DEFAULT_TOLERANCE = 1e-12
-
-
-def _finite_number(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -86,18 +79,18 @@ class MujocoSettings:
         if self.integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
         if self.timestep is not None:
-            if _finite_number(self.timestep, "timestep") <= 0.0:
+            if field_number(self.timestep, "timestep") <= 0.0:
                 raise ValueError(f"timestep must be positive, got {self.timestep!r}")
         if self.solref is not None:
             if len(self.solref) != 2:
                 raise ValueError(f"solref must be two numbers (time constant, damping ratio), got {self.solref!r}")
             for value, name in zip(self.solref, ("time constant", "damping ratio")):
-                if _finite_number(value, f"solref {name}") <= 0.0:
+                if field_number(value, f"solref {name}") <= 0.0:
                     raise ValueError(f"solref {name} must be positive (the direct negative form is not "
                                      f"supported), got {value!r}")
         if len(self.solimp) != 5:
             raise ValueError(f"solimp must be five numbers (dmin, dmax, width, midpoint, power), got {self.solimp!r}")
-        dmin, dmax, width, midpoint, power = (_finite_number(v, f"solimp {n}") for v, n in
+        dmin, dmax, width, midpoint, power = (field_number(v, f"solimp {n}") for v, n in
                                               zip(self.solimp, ("dmin", "dmax", "width", "midpoint", "power")))
         if not MIN_IMPEDANCE <= dmin <= dmax <= MAX_IMPEDANCE:
             raise ValueError(f"solimp dmin, dmax must satisfy {MIN_IMPEDANCE:g} ≤ dmin ≤ dmax ≤ "
@@ -111,13 +104,13 @@ class MujocoSettings:
         if (isinstance(self.iterations, bool) or not isinstance(self.iterations, Integral)
                 or not 1 <= self.iterations <= MAX_ITERATIONS):
             raise ValueError(f"iterations must be a whole number in [1, {MAX_ITERATIONS}], got {self.iterations!r}")
-        if _finite_number(self.tolerance, "tolerance") < 0.0:
+        if field_number(self.tolerance, "tolerance") < 0.0:
             raise ValueError(f"tolerance must be at least 0, got {self.tolerance!r}")
         for name in ("refsafe", "diagexact"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
         for name in ("max_constraint_violation", "max_energy_residual"):
-            if _finite_number(getattr(self, name), name) <= 0.0:
+            if field_number(getattr(self, name), name) <= 0.0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
 
     @property
