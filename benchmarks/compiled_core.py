@@ -189,7 +189,7 @@ def refinements(scene, first, targets, truth, quick: bool) -> list:
     grid, as the ladder's are: off it the pulse's edge costs MuJoCo 1e-4 of peak error), run
     once for errors like the ladder's."""
     from xval.compare.cost import measure
-    from xval.reference_models.timestep import grid_timestep
+    from xval.mujoco_model.steps import grid_timestep
 
     if quick:
         return []

@@ -328,8 +328,8 @@ def part2(path: Path, n: int, subset: int) -> None:
     from mujoco import rollout
 
     from xval.compare.settings import mujoco_settings
-    from xval.reference_models.build import initial_qpos_qvel
-    from xval.reference_models.loads import control_sequence
+    from xval.mujoco_model.build import initial_qpos_qvel
+    from xval.mujoco_model.loads import control_sequence
     from xval.reference_models.run import _at_timestep, build_model, simulate_mujoco
 
     data, spec = make_spec(path, n)

@@ -3,7 +3,7 @@
 The seed notes solve the four-bar O1-A-B-O3 by hand. The one part of their closed form that
 production uses is the position analysis, to assemble a shorthand scene at q0 on its branch:
 the scene file polishes it with the general Newton (:func:`xval.scenefile._assemble_four_bar`)
-and the MuJoCo model is authored at it (:func:`xval.reference_models.build.assembled_angles`).
+and the MuJoCo model is authored at it (:func:`xval.mujoco_model.build.assembled_angles`).
 Newton alone, from a guess on the branch, gives other last bits and moved the shipped runs by up
 to 1.7e-6 (and could not reach a start exactly at a limit position, a double root:
 ``scenes/hard/start_dead_centre.toml``); docs/architecture.md gives the measurements. The

@@ -226,7 +226,7 @@ def _parse_timed_forces(top: Table) -> list[TimedForce]:
 
 def _with_inertias_in_tree(linkage: Linkage, joint_elements: list[JointElement]) -> Linkage:
     """The linkage with its joint inertias' joints taken into the spanning tree first (MuJoCo
-    holds an inertia only on a tree joint: :func:`xval.reference_models.build.build_spec`)."""
+    holds an inertia only on a tree joint: :func:`xval.mujoco_model.build.build_spec`)."""
     first = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
     if not first:
         return linkage

@@ -21,7 +21,7 @@ from xval.reduced import ReducedSettings, simulate
 from xval.scenefile import scene_from_dict
 from xval.scene import SceneError
 from xval.reference_models import MujocoSettings, simulate_mujoco
-from xval.reference_models.timestep import grid_timestep
+from xval.mujoco_model.steps import grid_timestep
 
 from helpers import ROOT
 

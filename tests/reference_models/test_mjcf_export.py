@@ -167,7 +167,7 @@ def test_pinocchio_reads_both_chains_closed_at_its_neutral_configuration(branch,
 def test_the_engine_refuses_a_mujoco_older_than_it_needs(version, refused):
     """The GPU ports' pip installs can load MuJoCo 3.17 or 4.0.0 under mujoco-core 4.0.1's name
     (docs/engines-gpu-research.md): the engine checks the library loaded, by number, not text."""
-    from xval.reference_models.build import check_mujoco_version
+    from xval.mujoco_model.build import check_mujoco_version
 
     if refused:
         with pytest.raises(ImportError, match=f"loads {version}"):

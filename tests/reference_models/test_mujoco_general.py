@@ -22,7 +22,7 @@ from xval import kinematics as loops
 from xval.reduced.dynamics import MechanismModel
 from xval.reference_models import (HOME_KEY, MujocoSettings, build_model, coordinate_map, joint_order, mjcf_text,
                               simulate_mujoco)
-from xval.reference_models.build import joint_rates_matrix
+from xval.mujoco_model.build import joint_rates_matrix
 
 from helpers import ROOT, SEED_SCENE
 
@@ -342,7 +342,7 @@ def test_point_force_is_the_tabulated_force_at_every_rk4_stage(name):
     """
     from xval.loads import TabulatedForce
     from xval.reference_models import point_force_callback
-    from xval.reference_models.layout import Layout as _Layout
+    from xval.mujoco_model.layout import Layout as _Layout
 
     scene = SCENES[name]()
     handles = build_model(scene, MujocoSettings(timestep=STEP))

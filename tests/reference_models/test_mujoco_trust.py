@@ -280,7 +280,7 @@ def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
     1 rad/s), the floor of MuJoCo's energy gate, is 𝔍(q0) = Σ m |K_G|² + I K_θ² from the loop
     kinematics (xval.kinematics): two independent routes to the same number (measured ≤ 2e-15
     relative); bound 1e-12 relative, over the revolution and on both branches."""
-    from xval.reference_models.run import check_initial_state
+    from xval.mujoco_model.record import check_initial_state
 
     for q0 in np.linspace(0.0, 2 * np.pi, 7)[:-1]:
         data = seed_dict()

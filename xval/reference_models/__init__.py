@@ -1,5 +1,6 @@
 """The MuJoCo engine: a scene's linkage as MuJoCo's spanning tree closed by ``connect``
-equalities, dampers and springs as tendons, loads as actuators.
+equalities, dampers and springs as tendons, loads as actuators (the model built by the
+MuJoCo-family layer, :mod:`xval.mujoco_model`, which MJX and MJWarp run too).
 
 The engine's interface (:mod:`xval.registry`): ``Settings`` (:class:`MujocoSettings`, its
 ``[mujoco]`` table and flags) and ``simulate(scene, settings) -> EngineResult``. Names load from
@@ -13,12 +14,13 @@ from xval._lazy import lazy_names
 _HOMES = {
     **dict.fromkeys(("BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "ModelHandles", "assembled_angles",
                      "build_spec", "compile_model", "coordinate_map", "initial_qpos_qvel", "joint_order",
-                     "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), ".build"),
-    **dict.fromkeys(("OffGridEdgeWarning", "build_model", "check_initial_state", "mjcf_text", "handles_from_mjcf",
+                     "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), "xval.mujoco_model.build"),
+    **dict.fromkeys(("OffGridEdgeWarning", "build_model", "mjcf_text", "handles_from_mjcf",
                      "simulate_mujoco"), ".run"),
-    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "CheckOutcome", "FailedCheck", "MeasuredCheck",
-                     "grid_timestep"), ".timestep"),
-    **dict.fromkeys(("control_sequence", "point_force_callback"), ".loads"),
+    **dict.fromkeys(("CheckOutcome", "FailedCheck", "MeasuredCheck"), ".timestep"),
+    "check_initial_state": "xval.mujoco_model.record",
+    **dict.fromkeys(("TIMESTEP_CEILING", "TIMESTEP_FLOOR", "grid_timestep"), "xval.mujoco_model.steps"),
+    **dict.fromkeys(("control_sequence", "point_force_callback"), "xval.mujoco_model.loads"),
     **dict.fromkeys(("INTEGRATORS", "MAX_ITERATIONS", "MujocoSettings", "Settings"), ".settings"),
     "simulate": (".run", "simulate_mujoco"),  # the engine interface's name
 }

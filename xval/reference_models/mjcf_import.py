@@ -53,7 +53,7 @@ from xval.scene_writer import scene_data
 from xval.scenefile import scene_from_dict
 from xval.settings import parse_number
 
-from .build import BASE_BODY
+from xval.mujoco_model.build import BASE_BODY
 
 # Loops must close at the configuration read within this fraction of the longest link (the
 # issue's decision); the scene file's Newton assembly then polishes the configuration.

@@ -3,7 +3,7 @@
 The step loop runs in C (``mujoco.rollout``); Python only builds the control sequence before and
 reads sensors and states after. A scene with point forces is stepped by a Python loop of ``mj_step``
 instead, with the forces applied through ``mjcb_control`` at every integrator stage
-(:func:`xval.reference_models.loads.point_force_callback`). Every run is gated on its own
+(:func:`xval.mujoco_model.loads.point_force_callback`). Every run is gated on its own
 diagnostics: the initial state against MuJoCo's own residuals of every loop constraint (position and
 velocity), MuJoCo's warnings (bad qacc and the like, which make ``mj_step`` reset the state), a
 non-finite state, a trajectory that stops short of the horizon, the largest loop-closure violation
@@ -13,7 +13,7 @@ is chosen from the scene and confirmed by step halving (:func:`simulate_mujoco`;
 :mod:`xval.reference_models.timestep`).
 
 MuJoCo's qpos/qvel map linearly onto the scene's general coordinates (x = x0 + T·qpos,
-:func:`xval.reference_models.build.coordinate_map`); the trajectory is the input coordinate
+:func:`xval.mujoco_model.build.coordinate_map`); the trajectory is the input coordinate
 q = drive·x (rad or m, ``scene.input_unit``) and its rates.
 """
 
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import time
 import warnings
 from dataclasses import asdict, dataclass, replace
@@ -33,19 +32,18 @@ import numpy as np
 from mujoco import rollout
 
 from xval.errors import FailureReason, NumericalFailure
-from xval.trajectory import JointTrajectory
-from xval.results import ConstraintViolation, EngineResult
-from xval import kinematics as loops
+from xval.mujoco_model.build import (INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
+                                     compile_model, mjcf_from_spec, set_timestep)
+from xval.mujoco_model.layout import Layout
+from xval.mujoco_model.loads import control_sequence, point_forces_installed, timed_values
+from xval.mujoco_model.record import check_initial_state, record_run
+from xval.mujoco_model.steps import grid_timestep, step_count
+
+from xval.results import EngineResult
 from xval.scene import Scene
-from xval.trajectory import Trajectory
 
 from .settings import MujocoSettings
-from .build import (INPUT_MOTOR, INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
-                    compile_model, mjcf_from_spec, set_timestep, sensor_name)
-from .energy import energy_audit, squares_by_row
-from .layout import Layout
-from .loads import control_sequence, point_forces_installed, timed_values
-from .timestep import SearchCost, TimestepCheck, grid_timestep, search_timestep, step_count
+from .timestep import SearchCost, TimestepCheck, search_timestep
 
 _log = logging.getLogger("xval.mujoco")  # each run (the step search logs its progress there too)
 
@@ -55,11 +53,6 @@ _log = logging.getLogger("xval.mujoco")  # each run (the step search logs its pr
 MAX_STEPS = 20_000_000
 MAX_MEMORY_BYTES = 2 * 1024 ** 3
 _COPIES = 3
-# Initial state: MuJoCo's loop residuals after mj_forward at the assembled (qpos, qvel), relative
-# to the mechanism's size (m) and to its point-speed scale (m/s) (check_initial_state). The
-# assembly leaves ~1e-16 relative (measured on the seed, two slider-cranks and a Watt II six-bar:
-# ≤ 2.2e-16 m and ≤ 4.4e-16 m/s, sizes 0.4–2 m), so 1e-12 is round-off with 1000x margin.
-INITIAL_RESIDUAL_REL = 1e-12
 
 
 class OffGridEdgeWarning(UserWarning):
@@ -258,7 +251,7 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
     """One run at the settings' explicit timestep, gated on its diagnostics.
 
     Without point forces the step loop is ``mujoco.rollout`` (in C); with them it is a Python
-    loop of ``mj_step`` with :func:`~xval.reference_models.loads.point_force_callback` installed as ``mjcb_control``.
+    loop of ``mj_step`` with :func:`~xval.mujoco_model.loads.point_force_callback` installed as ``mjcb_control``.
     ``layout``: the scene's :class:`Layout` if the caller has it (made here otherwise).
     ``data``: an MjData to reuse (reset here, as a new one starts), made for a model of the
     same sizes, as the automatic timestep's models are (they differ only in values:
@@ -300,38 +293,18 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         wall = time.perf_counter() - start
 
         _check_warnings(data, states[1:], h)
-        times = states[:, 0]
-        _check_complete(scene, times, h)
-        qpos = states[:, 1:1 + model.nq]
-        qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
-        x, xdot = layout.x(qpos), layout.xdot(qvel)  # qpos counts from the assembled pose
-        q, qdot = x @ layout.system.drive, xdot @ layout.system.drive
-        sensors[-1] = _sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, spec)
-
-        sl = handles.sensor_slices
-        violation = np.zeros(len(times))
-        for name in scene.mechanism.linkage.cut_joints:
-            gap = sensors[:, sl[sensor_name(name, "a_pos")]] - sensors[:, sl[sensor_name(name, "b_pos")]]
-            violation = np.maximum(violation, np.sqrt(squares_by_row(gap)))
-        qddot = _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback)
-        trajectory = _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
-                                        timed, callback)
-    constraint_violation = ConstraintViolation(times, violation)
-    constraint_violation.gate(settings.max_constraint_violation, "MuJoCo", "max_constraint_violation")
-
-    audit = energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
-    audit.gate(settings.max_energy_residual, 0.5 * initial["unit_rate_inertia"], "MuJoCo", "max_energy_residual")
-    key = sensor_name(INPUT_MOTOR, "force")
-    motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
-    details = MujocoDetails(grid_q=q, grid_qdot=qdot.copy(), input_load=motor, initial_residuals=initial,
+        record = record_run(scene, handles, layout, data, states, sensors, ctrl, timed, callback, h=h)
+    record.gate(settings.max_constraint_violation, settings.max_energy_residual, initial, "MuJoCo")
+    q, qdot = record.q, record.qdot
+    details = MujocoDetails(grid_q=q, grid_qdot=qdot.copy(), input_load=record.input_load, initial_residuals=initial,
                             edge_warnings=tuple(edge_notes), mujoco_version=mujoco.__version__,
                             point_forces="mjcb_control (qfrc_applied, every RK stage)"
                             if scene.mechanism.point_forces or scene.mechanism.timed_forces else None)
     return EngineResult(
-        engine="mujoco", trajectory=trajectory, joints=_joint_trajectory(layout, times, x, xdot),
-        peak=trajectory.peak_rate(), audit=audit, wall_s=wall, n_steps=n_steps,
+        engine="mujoco", trajectory=record.trajectory, joints=record.joints,
+        peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall, n_steps=n_steps,
         n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
-        effects=tuple(scene.effects), constraint_violation=constraint_violation, details=details)
+        effects=tuple(scene.effects), constraint_violation=record.constraint_violation, details=details)
 
 
 @dataclass(frozen=True)
@@ -386,119 +359,6 @@ def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors, timed=
         sensors[k] = data.sensordata
 
 
-def _input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
-    """q̈ at every stored state (rad/s² or m/s²).
-
-    A hinge input: the z angular acceleration of its child body minus its parent's (sensors
-    read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
-    with that step's control and timed forces' values (``timed``, handed to ``callback``).
-    """
-    if layout.input_hinge:
-        return _hinge_acceleration(handles.sensor_slices, layout, sensors)
-    out = np.empty(len(states))
-    for k, state in enumerate(states):
-        mujoco.mj_setState(model, data, state, spec)
-        if model.nu:
-            data.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
-        if timed.shape[1]:
-            callback.step_values[:] = timed[min(k, len(timed) - 1)]
-        mujoco.mj_forward(model, data)
-        out[k] = layout.input_row @ data.qacc
-    return out
-
-
-def _hinge_acceleration(sl, layout, sensors) -> np.ndarray:
-    sensors = np.atleast_2d(sensors)
-    acc = sensors[:, sl[sensor_name(layout.input_body, "angacc")]][:, 2]
-    if sensor_name(layout.input_parent, "angacc") in sl:
-        acc = acc - sensors[:, sl[sensor_name(layout.input_parent, "angacc")]][:, 2]
-    return acc
-
-
-def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData,
-                        layout: "Layout | None" = None) -> dict:
-    """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
-
-    After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
-    of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
-    connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
-    (the largest distance between two of its points at x0), and × the largest point speed
-    scale (size × largest hinge rate, or largest slide rate). ``layout``: the scene's
-    :class:`Layout` if the caller has it (made here otherwise).
-    """
-    if layout is None:
-        layout = Layout.of(scene, model)
-    mujoco.mj_forward(model, data)
-    rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-    position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
-    # MuJoCo derives each connect's anchor on body2 from the authored pose (at qpos0), so a pose
-    # that does not close a loop shows there, not in efc_pos: it must be the joint's point_b.
-    linkage = scene.mechanism.linkage
-    for name in linkage.cut_joints:
-        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, name)
-        jt = linkage.joint_map[name]
-        point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
-        position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
-    velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
-    length = layout.size
-    hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
-    qvel = np.abs(data.qvel)
-    speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
-    limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * speed)
-    expected = 3 * len(scene.mechanism.linkage.cut_joints)
-    if len(rows) != expected or not position <= limits[0] or not velocity <= limits[1]:
-        raise NumericalFailure(FailureReason.INITIAL_STATE,
-                               f"MuJoCo's loop residuals at the initial state are {position:.3g} m (position, "
-                               f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s) "
-                               f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
-                               "does not close the loops", 0.0)
-    return {"position": position, "velocity": velocity, "limits": limits,
-            "unit_rate_inertia": _unit_rate_inertia(model, data, rows, layout.input_row)}
-
-
-def _unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray,
-                       input_row: np.ndarray) -> float:
-    """uᵀ M u (kg·m² or kg) for the joint rates u that keep every loop closed with the input
-    joint at unit rate (1 rad/s or 1 m/s).
-
-    u spans the null space of all equality rows of MuJoCo's constraint Jacobian J (at the state
-    in ``data``), scaled so input_row·u = 1; at a dead centre of the input (input_row·u ≈ 0)
-    so that its largest component is 1. This is 𝔍(q0) of Eksergian's equation, from MuJoCo's
-    quantities.
-    """
-    if len(rows):
-        jacobian = np.zeros((data.nefc, model.nv))
-        if mujoco.mj_isSparse(model):
-            mujoco.mju_sparse2dense(jacobian, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
-                                    data.efc_J_colind)
-        else:
-            jacobian[:] = data.efc_J.reshape(data.nefc, model.nv)
-        u = np.linalg.svd(jacobian[rows])[2][-1]  # right singular vector of the smallest singular value
-    else:
-        u = input_row.copy()
-    rate = float(input_row @ u)
-    u = u / rate if abs(rate) > 1e-6 * np.max(np.abs(u)) else u / np.max(np.abs(u))
-    mass = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, mass)
-    return float(u @ mass @ u)
-
-
-def _check_complete(scene: Scene, times: np.ndarray, h: float) -> None:
-    """INCOMPLETE unless the trajectory reaches the horizon within half a step."""
-    if not times[-1] >= scene.horizon - 0.5 * h:
-        raise NumericalFailure(FailureReason.INCOMPLETE,
-                               f"MuJoCo's trajectory ends at t = {times[-1]:.6g} s, short of simulation.horizon "
-                               f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
-
-
-def _joint_trajectory(layout: Layout, times, x, xdot) -> JointTrajectory:
-    """MuJoCo's general coordinates and rates (from its qpos and qvel: :meth:`Layout.x`,
-    :meth:`Layout.xdot`), with the assembly mode of each sample."""
-    mode = loops.assembly_modes(layout.system, x)
-    return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
-                           np.full(len(times), -1), mode)
-
-
 def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:
     names = {mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc", mujoco.mjtWarning.mjWARN_BADQVEL: "bad qvel",
              mujoco.mjtWarning.mjWARN_BADQPOS: "bad qpos", mujoco.mjtWarning.mjWARN_INERTIA: "bad inertia"}
@@ -513,40 +373,6 @@ def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:
     # A reset (warning swallowed elsewhere) shows as time going backwards.
     if np.any(np.diff(states[:, 0]) <= 0.0):
         raise NumericalFailure("unstable", "MuJoCo's time went backwards: the state was reset")
-
-
-def _sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
-    mujoco.mj_setState(model, data, state, spec)
-    if ctrl_row is not None:
-        data.ctrl[:] = ctrl_row
-    mujoco.mj_forward(model, data)
-    return data.sensordata.copy()
-
-
-def _with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
-                       timed, callback) -> Trajectory:
-    """Insert, at each step where the control or a timed force jumps, a sample with q̈ from
-    before the jump."""
-    jumped = np.zeros(max(len(states) - 2, 0), dtype=bool)
-    if model.nu:
-        jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
-    if timed.shape[1]:
-        jumped |= np.any(np.diff(timed, axis=0) != 0.0, axis=1)
-    if not np.any(jumped):
-        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
-    jumps = np.flatnonzero(jumped) + 1
-    before = []
-    for k in jumps:
-        if timed.shape[1]:
-            callback.step_values[:] = timed[k - 1]
-        if layout.input_hinge:
-            before.append(_hinge_acceleration(handles.sensor_slices, layout,
-                                              _sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
-        else:
-            _sensors_at(model, data, states[k], ctrl[k - 1], spec)
-            before.append(float(layout.input_row @ data.qacc))
-    return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
-                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before))
 
 
 def mjcf_text(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> str:

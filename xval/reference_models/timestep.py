@@ -15,54 +15,21 @@ import numpy as np
 
 from xval.errors import FailureReason, NumericalFailure
 from xval.results import EngineResult
+from xval.mujoco_model.steps import step_count
 from xval.scene import Scene
 
 _log = logging.getLogger("xval.mujoco")  # progress of the automatic step search
 
-# Automatic timestep: the first candidate is the largest step ≤ TIMESTEP_CEILING (and ≤ 1/100
-# of the horizon, and not below TIMESTEP_FLOOR) that puts every load edge on the step grid; a
-# run at h and one at h/2 must differ by at most HALVING_FRACTION of the tolerances. The first
+# Automatic timestep: the first candidate is the grid step (xval.mujoco_model.steps.grid_timestep);
+# a run at h and one at h/2 must differ by at most HALVING_FRACTION of the tolerances. The first
 # failing check halves h; after two, the search jumps to the halving of the first step that the
 # fitted order predicts (with the margin STEP_MARGIN), and it stops only when a check would take
 # it past MAX_SEARCH_STEPS steps in all (a Stephenson six-bar near its toggle needs 7.8e-6 s, a
 # check of 96 000 steps).
-TIMESTEP_CEILING = 1e-3  # s
-TIMESTEP_FLOOR = 1e-5  # s: the first candidate's
-MIN_AUTO_STEPS = 100
 HALVING_FRACTION = 0.25
 STEP_MARGIN = 0.85
 MIN_ORDER = 0.5
 MAX_SEARCH_STEPS = 5_000_000
-
-
-def grid_timestep(scene: Scene, ceiling: float = TIMESTEP_CEILING) -> float:
-    """The largest step h ≤ min(ceiling, horizon/MIN_AUTO_STEPS) that puts every load edge
-    inside the horizon on the step grid (edge/h integral to 1e-9), in s.
-
-    Raises ValueError naming ``simulation.horizon`` when that bound is below TIMESTEP_FLOOR.
-    Without such a step down to TIMESTEP_FLOOR (edges with no common divisor there), the bound
-    itself is returned and the edges stay off the grid (the run warns and the halving check
-    judges the consequence).
-    """
-    h_max = min(ceiling, scene.horizon / MIN_AUTO_STEPS)
-    if h_max < TIMESTEP_FLOOR:
-        raise ValueError(f"simulation.horizon {scene.horizon:g} s is too short for an automatic MuJoCo timestep "
-                         f"({MIN_AUTO_STEPS} steps of at least {TIMESTEP_FLOOR:g} s): lengthen it or set "
-                         "[mujoco] timestep (--timestep)")
-    edges = [e for e in scene.load_edges if 0.0 < e < scene.horizon]
-    if not edges:
-        return h_max
-    first = edges[0]
-    for n in range(math.ceil(first / h_max - 1e-9), math.floor(first / TIMESTEP_FLOOR) + 1):
-        h = first / n
-        if h <= h_max * (1 + 1e-12) and all(abs(e / h - round(e / h)) <= 1e-9 for e in edges):
-            return h
-    return h_max
-
-
-def step_count(scene: Scene, h: float) -> int:
-    """The number of steps of ``h`` (s) that reach the scene's horizon."""
-    return int(math.ceil(scene.horizon / h - 1e-9))
 
 
 def search_timestep(scene: Scene, h0: float, attempt: Callable[[float], EngineResult | NumericalFailure],

@@ -54,10 +54,10 @@ import numpy as np
 from xval import kinematics as loops
 from xval import tree_coordinates as tree
 from xval.tree_coordinates import joint_order
-from xval.mechanism import GROUND, Linkage, PrismaticJoint
+from xval.mechanism import GROUND, PrismaticJoint
 from xval.scene import Scene
 
-from .settings import INTEGRATORS as MUJOCO_INTEGRATORS
+from .options import INTEGRATORS as MUJOCO_INTEGRATORS
 
 # The MuJoCo this engine needs: 4.0.0 has the sparse-Cholesky bug (docs/engines.md), and installing
 # MJX or MJWarp with pip can put MuJoCo 3.17's library in the same folder as mujoco-core 4.0.1, or
