@@ -1,0 +1,39 @@
+"""The MJX engine's settings: its ``[mjx]`` table of the scene file and its flags.
+
+Light on purpose: it imports neither JAX nor MuJoCo. The fields are the MuJoCo-family model's
+options (:mod:`xval.mujoco_model.options`), the same as the MuJoCo engine's, with the grid step
+as the default timestep (MJX runs once; the MuJoCo engine's automatic search confirms its step by
+halving, which would cost MJX a compilation per step), and the precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from xval.mujoco_model.options import ModelOptions
+from xval.settings import option
+
+PRECISIONS = ("float64", "float32")
+
+
+@dataclass(frozen=True)
+class MjxSettings(ModelOptions):
+    """Everything that changes MJX's answer; recorded with every result.
+
+    The model's options (:class:`~xval.mujoco_model.options.ModelOptions`) as the MuJoCo
+    engine's, except ``timestep``: None is the grid step (the largest step ≤ 1 ms and ≤ 1/100 of
+    the horizon that puts every load edge on the grid), not a search. ``precision``: JAX's
+    float64 (``jax_enable_x64``) or float32.
+    """
+
+    timestep: float | None = option(None, "MJX's timestep", "number", unit="s", limit="step", within_horizon=True,
+                                    default_text="the grid step: ≤ 1 ms and ≤ horizon/100, load edges on the grid")
+    precision: str = option("float64", "JAX's floating-point precision", "choice", choices=PRECISIONS)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
+
+
+Settings = MjxSettings  # the name every engine's settings have (xval.registry)
