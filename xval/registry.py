@@ -37,6 +37,11 @@ class Engine:
         """The engine's ``Settings`` type (its ``settings`` module only: no engine is loaded)."""
         return importlib.import_module(f"{self.package}.settings").Settings
 
+    def load(self) -> None:
+        """Import the engine (ImportError in one line, the engine's own, when an optional extra
+        is missing: checked before any work)."""
+        importlib.import_module(self.package).simulate
+
     def simulate(self, scene: Scene, settings: Any) -> EngineResult:
         """Run the engine on ``scene`` with ``settings`` (a ``self.settings``)."""
         return importlib.import_module(self.package).simulate(scene, settings)

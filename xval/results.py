@@ -107,7 +107,10 @@ class EngineResult:
     constraint_violation : the loops' opening over time; None for an engine whose loops are
         closed by construction (the reduced engine solves them by Newton to round-off).
     details : the engine's own record of the run (``xval.reduced.engine.ReducedDetails``,
-        ``xval.reference_models.run.MujocoDetails``, ``xval.pin.run.PinDetails``), each with ``as_dict()``.
+        ``xval.reference_models.run.MujocoDetails``, ``xval.pin.run.PinDetails``,
+        ``xval.mjx.run.MjxDetails``), each with ``as_dict()``.
+    caveats : known defects of the engine that bear on this run, one line each (e.g. MJX 3.17's
+        missing J̇·q̇ on a scene with loops); the comparison prints them beside the verdict.
     """
 
     engine: str
@@ -122,3 +125,4 @@ class EngineResult:
     effects: tuple[str, ...] = ()
     constraint_violation: ConstraintViolation | None = None
     details: Any = None
+    caveats: tuple[str, ...] = ()

@@ -38,7 +38,8 @@ VALUES = {
             "proximal_iterations": (5, ["5"]), "max_evaluations": (1000, ["1000"]),
             "max_constraint_violation": (1e-5, ["1e-5"]), "max_energy_residual": (1e-5, ["1e-5"])},
 }
-API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set()}  # neither a key nor a flag: cost studies set it
+VALUES["mjx"] = {**VALUES["mujoco"], "precision": ("float32", ["float32"])}  # the MuJoCo-family model's options
+API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set(), "mjx": set()}  # neither a key nor a flag: cost studies set it
 
 
 def _flag(name: str, value) -> list[str]:

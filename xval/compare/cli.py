@@ -132,6 +132,17 @@ def cmd_pin(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_mjx(args: argparse.Namespace) -> int:
+    from .text import port_lines
+
+    scene = _scene(args.scene)
+    settings = _settings("mjx", args, scene)
+    ENGINES["mjx"].load()  # a missing extra: one line, exit 2
+    result = ENGINES["mjx"].simulate(scene, settings)
+    print("\n".join(port_lines(scene, result, "MJX")))
+    return EXIT_OK
+
+
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
     from xval.reference_models import mjcf_text
 
@@ -302,6 +313,8 @@ def _check_engines(args: argparse.Namespace, scenes: list) -> int:
     from .engines import check_engines, engines_lines
     from .settings import engine_settings
 
+    for name in args.engines:  # a missing extra is said in one line before any work
+        ENGINES[name].load()
     failed = 0
     for scene in scenes:
         # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
@@ -512,6 +525,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_argument(p)
     add_flags(p, ENGINES["pin"].settings, title="Pinocchio engine settings", table="pin")
     p.set_defaults(func=cmd_pin)
+
+    p = sub.add_parser("mjx", help="run the scene's MuJoCo model with MJX (the extra xval[mjx])",
+                       description="Step the MuJoCo engine's model of the scene with MJX, MuJoCo's JAX port "
+                                   "(docs/engines.md says how to install it); print the peak speed of the input "
+                                   "joint, the largest loop gap and the energy residual (MuJoCo C's, at MJX's "
+                                   "states), and MJX's known defects.")
+    _add_scene_argument(p)
+    add_flags(p, ENGINES["mjx"].settings, title="MJX engine settings", table="mjx")
+    p.set_defaults(func=cmd_mjx)
 
     p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
                        description="Write the scene's MuJoCo model as a human-readable MJCF file "

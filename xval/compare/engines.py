@@ -89,6 +89,9 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: dict[str, An
         except NumericalFailure as exc:
             verdicts.append(EngineVerdict(name, None, f"numerical failure ({exc.reason}): {exc}"))
             continue
+        except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
+            verdicts.append(EngineVerdict(name, None, f"refused: {exc}"))
+            continue
         verdicts.append(EngineVerdict(name, judge(scene, reference, result, tolerances)))
     peaks = {REFERENCE: reference.peak.omega}
     peaks.update({v.engine: v.comparison.diff.peak_omega_other for v in verdicts if v.comparison is not None})
@@ -120,6 +123,7 @@ def engines_lines(check: EnginesCheck) -> list[str]:
                      f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {unit} "
                      f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})")
         lines += [f"               {failure}" for failure in v.comparison.gate.failures]
+        lines += [f"               known defect: {caveat}" for caveat in v.comparison.mujoco.caveats]
     if check.outlier is not None:
         pairs = ", ".join(f"{a}–{b} {d:.2e}" for (a, b), d in check.spread.items())
         lines.append(f"      farthest from the others: {check.outlier} (peaks apart, relative: {pairs})")

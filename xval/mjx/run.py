@@ -118,7 +118,7 @@ def simulate_batch(scenes: list[Scene], settings: MjxSettings = MjxSettings()) -
     for k, run in enumerate(runs):
         run_details = _details_of(run, details)
         results.append(finish(run, qpos[k], qvel[k], name="mjx", engine="MJX", wall_s=wall / len(runs),
-                              evaluations_per_step=per_step, details=run_details))
+                              evaluations_per_step=per_step, details=run_details, caveats=run_details.known_defects))
     return results
 
 
@@ -129,6 +129,21 @@ def _details_of(run: PortRun, batch: MjxDetails) -> MjxDetails:
     if run.scene.mechanism.linkage.cut_joints and _release(MJX_VERSION) <= _DEFECT_UNTIL:
         defects = (KNOWN_DEFECT.format(version=MJX_VERSION),)
     return replace(batch, initial_residuals=run.initial, edge_warnings=run.edge_notes, known_defects=defects)
+
+
+# The compiled scans of this process, by the batch's structure and shapes (a compilation takes
+# about 35 s on a CPU; another run of the same model structure and step count reuses it).
+_COMPILED: dict = {}
+
+
+def _rollout(m, d, us):
+    """qpos and qvel after each step of MJX's ``m`` from ``d`` under the controls ``us``."""
+    def body(d, u):
+        new = mjx.step(m, d.replace(ctrl=u))
+        # MJX 3.17 returns a few index fields (tendon wraps) as int64 under x64: keep the carry's types
+        new = jax.tree_util.tree_map(lambda n, o: n.astype(o.dtype) if hasattr(o, "dtype") else n, new, d)
+        return new, (new.qpos, new.qvel)
+    return jax.lax.scan(body, d, us)[1]
 
 
 def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -142,18 +157,14 @@ def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, 
     dx = jax.tree_util.tree_map(stack, *datas)
     nu = runs[0].port_model.nu
     ctrl = jax.numpy.asarray(np.stack([run.ctrl if nu else np.zeros((run.n_steps, 0)) for run in runs]), dtype=dtype)
-
-    def rollout(m, d, us):
-        def body(d, u):
-            new = mjx.step(m, d.replace(ctrl=u))
-            # MJX 3.17 returns a few index fields (tendon wraps) as int64 under x64: keep the carry's types
-            new = jax.tree_util.tree_map(lambda n, o: n.astype(o.dtype) if hasattr(o, "dtype") else n, new, d)
-            return new, (new.qpos, new.qvel)
-        return jax.lax.scan(body, d, us)[1]
-
-    start = time.perf_counter()
-    compiled = jax.jit(jax.vmap(rollout)).lower(mx, dx, ctrl).compile()
-    compile_s = time.perf_counter() - start
+    key = (jax.tree_util.tree_structure((mx, dx)),
+           tuple((leaf.shape, str(leaf.dtype)) for leaf in jax.tree_util.tree_leaves((mx, dx, ctrl))))
+    compile_s = 0.0
+    compiled = _COMPILED.get(key)
+    if compiled is None:
+        start = time.perf_counter()
+        compiled = _COMPILED[key] = jax.jit(jax.vmap(_rollout)).lower(mx, dx, ctrl).compile()
+        compile_s = time.perf_counter() - start
     start = time.perf_counter()
     qpos, qvel = jax.block_until_ready(compiled(mx, dx, ctrl))
     wall = time.perf_counter() - start

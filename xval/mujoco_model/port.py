@@ -123,7 +123,7 @@ def prepare(scene: Scene, settings: ModelOptions, engine: str, table: str) -> Po
 
 
 def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engine: str, wall_s: float,
-           evaluations_per_step: int, details: Any) -> EngineResult:
+           evaluations_per_step: int, details: Any, caveats: tuple[str, ...] = ()) -> EngineResult:
     """The EngineResult of a port's run: ``qpos``, ``qvel`` (n_steps, nq) and (n_steps, nv) after
     every step, read by MuJoCo C (:func:`record_run`) and gated on the loop gap and the energy
     balance. ``name``: the engine's registry name ("mjx"); ``engine``: its name in messages.
@@ -157,7 +157,7 @@ def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engin
                         peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall_s, n_steps=len(qpos),
                         n_evaluations=len(qpos) * evaluations_per_step, settings=s,
                         effects=tuple(run.scene.effects), constraint_violation=record.constraint_violation,
-                        details=details)
+                        details=details, caveats=caveats)
 
 
 def stack_runs(runs: list[PortRun], engine: str) -> None:
