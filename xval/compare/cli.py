@@ -18,6 +18,7 @@ import contextlib
 import logging
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -113,7 +114,8 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
 
     scene = _scene(args.scene)
     settings = _mujoco_settings(args, scene)
-    result = simulate_mujoco(scene, settings)
+    # the automatic step is chosen for MuJoCo's gate ([tolerances.mujoco] over [tolerances])
+    result = simulate_mujoco(replace(scene, tolerances=scene.tolerances_for("mujoco")), settings)
     print("\n".join(mujoco_lines(scene, result)))
     return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
 
@@ -194,10 +196,11 @@ def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
     return _settings("reduced", args, scene, prefix=REFERENCE_PREFIX)
 
 
-def _tolerances(scene, args: argparse.Namespace):
+def _tolerances(scene, args: argparse.Namespace, engine: str = "mujoco"):
+    """The tolerances ``engine`` is judged by: the flags given over the scene's for it."""
     from .settings import gate_tolerances
 
-    return gate_tolerances(scene, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+    return gate_tolerances(scene, engine, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
                            omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
 
 
@@ -297,19 +300,30 @@ def _engines(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _engines_check(args: argparse.Namespace, scene):
+    """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
+    reference at its own tolerances (the flags given over the scene's for it)."""
+    from xval.registry import REFERENCE
+
+    from .engines import check_engines
+    from .settings import engine_settings
+
+    # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
+    # --rtol, are not read as its): the others run with their scene table over their defaults
+    settings = {name: (_reduced_reference(args, scene) if name == REFERENCE else
+                       _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
+                for name in args.engines}
+    tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
+    return check_engines(scene, args.engines, settings, tolerances)
+
+
 def _check_engines(args: argparse.Namespace, scenes: list) -> int:
     """``xval check --engines``: each engine against the reduced reference, the outlier named."""
-    from .engines import check_engines, engines_lines
-    from .settings import engine_settings
+    from .engines import engines_lines
 
     failed = 0
     for scene in scenes:
-        # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
-        # --rtol, are not read as its): the others run with their scene table over their defaults
-        settings = {name: (_reduced_reference(args, scene) if name == "reduced" else
-                           _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
-                    for name in args.engines}
-        check = check_engines(scene, args.engines, settings, _tolerances(scene, args))
+        check = _engines_check(args, scene)
         failed += not check.passed
         print("\n".join(engines_lines(check)))
     print(f"{len(scenes) - failed} passed, {failed} failed")
@@ -427,7 +441,8 @@ def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("gate tolerances (override the scene's [tolerances] table)")
+    g = p.add_argument_group("gate tolerances (given, each overrides the scene's [tolerances] and "
+                             "[tolerances.ENGINE] value for every engine judged)")
     g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of the peak input speed")
     g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad (m for a prismatic input)")
     g.add_argument("--omega-atol", type=_positive, default=None, help="max |dqdot| in rad/s (m/s for a prismatic input)")
