@@ -209,6 +209,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
+    if args.engines is not None:
+        if args.scene is not None and _is_mjcf(args.scene):
+            raise UsageError("--engines runs scenes: a MuJoCo model (.xml) is run as written against the reduced "
+                             "solution alone")
+        return _run_engines(args, animate)
     check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
     from .run import compare_engines
 
@@ -235,6 +240,31 @@ def cmd_run(args: argparse.Namespace) -> int:
     write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
                   committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
+
+
+def _run_engines(args: argparse.Namespace, animate: bool) -> int:
+    """``xval run --engines``: every engine of the list against the reduced reference (as ``xval check
+    --engines``), the report folder of the reference against MuJoCo (else the list's first other
+    engine) as ``xval run`` writes it, with every engine's verdict in report.json and engines.png."""
+    from .engines import compared_engine, engines_lines
+    from .report import joint_columns, report_files, write_outputs
+    from .text import comparison_lines, engine_label
+
+    other = compared_engine(args.engines)
+    check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE))  # before any work
+    scene = _scene(args.scene)
+    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+    check = _engines_check(args, scene)
+    compared = next(v for v in check.verdicts if v.engine == other)
+    if compared.comparison is not None:
+        print("\n".join(comparison_lines(compared.comparison)))
+    print("\n".join(engines_lines(check)))
+    if compared.comparison is None:
+        print(f"{engine_label(other)} did not run: no report written to {args.out}/")
+        return EXIT_FAILED
+    write_outputs(compared.comparison, args.out, animate=animate, joints=joints, engines=check,
+                  committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
+    return EXIT_OK if check.passed else EXIT_FAILED
 
 
 def _is_mjcf(path: str) -> bool:
@@ -450,6 +480,15 @@ def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
                    help="max |dqdot| at equal input position, rad/s or m/s (phase-free)")
 
 
+def _add_engines_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--engines LIST`` of ``run`` and ``check``: ``what`` they do with it."""
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help=f"engines to {what} (any of {', '.join(ENGINES)}; default reduced,mujoco); with three or "
+                        "more, the one farthest from the others is named when they disagree. Each is judged by the "
+                        "scene's [tolerances.ENGINE] over its [tolerances]; engines beside reduced and mujoco run "
+                        "with their scene table's settings")
+
+
 def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
     _add_reference_arguments(p)
     _add_mujoco_arguments(p)
@@ -571,6 +610,10 @@ def build_parser() -> argparse.ArgumentParser:
                         f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
                         "alone)")
     _add_comparison_arguments(p)
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin: each "
+                             "one's verdict is printed and written to report.json, their |dqdot| to engines.png, and "
+                             "the files of a plain run describe the reference against MuJoCo (else the list's first "
+                             "other engine)")
     _add_model_arguments(p)
     p.set_defaults(func=cmd_run)
 
@@ -585,11 +628,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them), or MuJoCo "
                         "models (.xml)")
     _add_comparison_arguments(p)
-    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
-                   help="engines to judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin "
-                        f"(any of {', '.join(ENGINES)}; default reduced,mujoco); with three or more, the one "
-                        "farthest from the others is named when they disagree. Engines beside reduced and mujoco "
-                        "run with their scene table's settings")
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin")
     _add_model_arguments(p)
     p.set_defaults(func=cmd_check)
 

@@ -68,6 +68,12 @@ def parse_engines(text: str) -> tuple[str, ...]:
     return names
 
 
+def compared_engine(engines: tuple[str, ...]) -> str:
+    """The engine whose comparison with the reference ``xval run --engines`` writes as today's report
+    files (CSV, plots, report.json's engine section): MuJoCo when listed, else the first other engine."""
+    return "mujoco" if "mujoco" in engines else next(name for name in engines if name != REFERENCE)
+
+
 def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any],
                   tolerances: Mapping[str, Tolerances] | None = None) -> EnginesCheck:
     """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included) on
@@ -128,4 +134,4 @@ def engines_lines(check: EnginesCheck) -> list[str]:
     return lines
 
 
-__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "engines_lines", "parse_engines"]
+__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "compared_engine", "engines_lines", "parse_engines"]
