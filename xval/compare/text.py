@@ -21,7 +21,8 @@ FLOAT_DIGITS = 17  # decimals beyond a double's precision only print noise
 # MuJoCo's runs: the scene's model ("mujoco") and a user's own as written (xval.reference_models.user_model.ENGINE).
 MUJOCO_RUNS = ("mujoco", "model")
 # How tables and plots name an engine (xval.registry.ENGINES by name); another engine by its name.
-ENGINE_LABELS = {"reduced": "reduced", **{name: "MuJoCo" for name in MUJOCO_RUNS}, "pin": "Pinocchio"}
+ENGINE_LABELS = {"reduced": "reduced", **{name: "MuJoCo" for name in MUJOCO_RUNS}, "pin": "Pinocchio", "mjx": "MJX",
+                 "mjwarp": "MJWarp"}
 
 
 def engine_label(engine: str) -> str:
@@ -31,11 +32,11 @@ def engine_label(engine: str) -> str:
 
 def settings_label(result) -> str:
     """A run's settings in a few words, for a table's column head: the reduced solver's method and
-    step or rtol, MuJoCo's integrator and timestep, another engine's solver and rtol."""
+    step or rtol, a MuJoCo-family engine's integrator and timestep, another engine's solver and rtol."""
     used = result.settings
     if result.engine == "reduced":
         return f"{result.details.solver} " + (f"h={used.step:g}s" if used.method == "rkn4" else f"rtol={used.rtol:g}")
-    if result.engine in MUJOCO_RUNS:
+    if result.engine in MUJOCO_RUNS or getattr(used, "integrator", None) and getattr(used, "timestep", None):
         return f"{used.integrator} dt={used.timestep:g}s"
     solver = getattr(result.details, "solver", None) or getattr(used, "method", "")
     rtol = getattr(used, "rtol", None)
