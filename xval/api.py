@@ -58,8 +58,9 @@ def simulate(scene: Scene, settings: Settings | None = None) -> EngineResult:
 def compare_results(scene: Scene, reference: EngineResult, other: EngineResult, *,
             tolerances: Tolerances | None = None) -> Comparison:
     """How far ``other`` is from ``reference`` over the scene's horizon (trajectories, peak
-    speed, assembly modes), and the gate's verdict at ``tolerances`` (the scene's by default)."""
-    return judge(scene, reference, other, tolerances or scene.tolerances)
+    speed, assembly modes), and the gate's verdict at ``tolerances`` (by default the scene's for
+    ``other``'s engine: :meth:`xval.scene.Scene.tolerances_for`)."""
+    return judge(scene, reference, other, tolerances or scene.tolerances_for(other.engine))
 
 
 def check(scene: Scene, *, reduced: ReducedSettings | None = None, mujoco: MujocoSettings | None = None,

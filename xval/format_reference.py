@@ -1,6 +1,7 @@
 """The scene-format reference's tables, written from the definitions so that they cannot go
 stale: each engine's table (its ``Settings``' options, :mod:`xval.registry`), the gate's
-``[tolerances]`` (the fields of :class:`xval.scene.Tolerances`) and the scene limits
+``[tolerances]`` (the fields of :class:`xval.scene.Tolerances`) with its engine tables
+``[tolerances.ENGINE]`` and the scene limits
 (:data:`xval.scene.LIMITS`).
 
 ``python -m xval.format_reference docs/scenes.md`` rewrites the part of that file between the
@@ -14,7 +15,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from .registry import ENGINES
+from .registry import ENGINES, REFERENCE, judged_engines
 from .scene import LIMITS, Tolerances
 from .settings import markdown_row, options, reference_rows
 
@@ -25,7 +26,7 @@ LIMITS_END = "<!-- end: the limits, written by xval.format_reference -->"
 
 
 def tables() -> str:
-    """The generated Markdown: one table per engine, then ``[tolerances]``."""
+    """The generated Markdown: one table per engine, then ``[tolerances]`` and its engine tables."""
     parts = []
     for name, engine in ENGINES.items():
         parts += [f"### `[{name}]`: {engine.title}", "", *reference_rows(engine.settings, name), ""]
@@ -35,6 +36,12 @@ def tables() -> str:
         default = "absent" if f.default is None else f"{f.default:g}"
         parts.append(markdown_row((f"`tolerances.{f.name}`", "positive number", f.metadata["unit"] or "–", default,
                                    f.metadata["help"])))
+    tables = ", ".join(f"`[tolerances.{name}]`" for name in judged_engines())
+    parts += ["", f"### {tables}: one engine's own agreement with the reduced reference", "",
+              f"A table for each engine but the reference (`[tolerances.{REFERENCE}]` is refused), with the keys of "
+              "`[tolerances]`: a key it gives is what `xval check --engines` and `xval run --engines` judge that "
+              "engine by, a key it does not give is `[tolerances]`' value. `[tolerances.mujoco]` is MuJoCo's gate in "
+              "every command; the command line's tolerance flags override every engine's value."]
     return "\n".join(parts) + "\n"
 
 

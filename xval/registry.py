@@ -55,6 +55,15 @@ ENGINES: dict[str, Engine] = {e.name: e for e in (
 )}
 
 
+REFERENCE = "reduced"  # the exact reference every other engine is judged against (it has no [tolerances.reduced])
+
+
+def judged_engines() -> tuple[str, ...]:
+    """The engines judged against the reference, by name: every registered engine but it (each may
+    have its own tolerances, ``[tolerances.NAME]``)."""
+    return tuple(name for name in ENGINES if name != REFERENCE)
+
+
 def engine_of(settings: Any) -> Engine:
     """The engine whose ``Settings`` ``settings`` are.
 

@@ -8,6 +8,7 @@ slider displacement (m), as its joint says. The README documents the format; the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -164,7 +165,10 @@ class Scene:
     x0 : the configuration assembled at q0 (the coordinates of
         :class:`xval.kinematics.LoopSystem`: body angles in rad, slider displacements in m).
     mode : its assembly mode, one sign per loop (:func:`xval.kinematics.assembly_mode`).
-    tolerances : the gate's tolerances.
+    tolerances : the gate's tolerances: MuJoCo's, and every engine's where its own table does not
+        say otherwise.
+    engine_tolerances : each engine's own tolerances by engine name (``[tolerances.pin]``): the
+        keys given, each already checked; a key not given is ``tolerances``' (:meth:`tolerances_for`).
     engine_tables : the settings the scene asks each engine for, by engine name (its table of
         the scene file, ``[reduced]``, ``[mujoco]``): the keys given, each already checked.
     four_bar : the four-bar shorthand's geometry when the scene used it (enables the
@@ -185,6 +189,26 @@ class Scene:
     engine_tables: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     source: str = "<memory>"
     four_bar: FourBarGeometry | None = None
+    engine_tolerances: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+
+    def __post_init__(self):
+        keys = {f.name for f in dataclasses.fields(Tolerances)}
+        for engine, given in self.engine_tolerances.items():
+            unknown = sorted(set(given) - keys)
+            if unknown:
+                raise ValueError(f"engine_tolerances[{engine!r}]: {unknown[0]!r} is not a field of Tolerances")
+        object.__setattr__(self, "engine_tolerances", MappingProxyType(
+            {engine: MappingProxyType(dict(given)) for engine, given in self.engine_tolerances.items()}))
+
+    def __reduce__(self):
+        # The read-only views do not pickle (a scene is sent to worker processes).
+        return (Scene, tuple({k: dict(v) for k, v in self.engine_tolerances.items()} if f.name == "engine_tolerances"
+                             else getattr(self, f.name) for f in dataclasses.fields(self)))
+
+    def tolerances_for(self, engine: str) -> Tolerances:
+        """The tolerances the engine named ``engine`` is judged by against the reduced reference:
+        its own table's keys (``[tolerances.ENGINE]``) over the scene's ``tolerances``."""
+        return dataclasses.replace(self.tolerances, **self.engine_tolerances.get(engine, {}))
 
     def engine_table(self, engine: str) -> Mapping[str, Any]:
         """The settings this scene asks the engine ``engine`` for (its table of the scene file:

@@ -126,6 +126,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
     data["simulation"] = {"horizon": scene.horizon}
     data["tolerances"] = {f.name: getattr(scene.tolerances, f.name) for f in dataclasses.fields(Tolerances)
                           if getattr(scene.tolerances, f.name) is not None}
+    for engine, given in scene.engine_tolerances.items():  # [tolerances.ENGINE], written inline in [tolerances]
+        data["tolerances"][engine] = dict(given)
     for engine, table in scene.engine_tables.items():
         if table:
             data[engine] = dict(table)

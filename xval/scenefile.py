@@ -29,7 +29,7 @@ from . import kinematics as loops
 from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
 from .mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
                         PrismaticJoint, RevoluteJoint, TimedForce)
-from .registry import ENGINES
+from .registry import ENGINES, REFERENCE, judged_engines
 from .settings import options, read_table
 from .sweep_spec import SweepSpecError, spec_from_table
 from .scene import (LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, FourBarGeometry,
@@ -398,12 +398,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     horizon = sim.number("horizon", positive=True, kind="horizon")
     sim.close()
 
-    tolerances = Tolerances()
-    if top.has("tolerances"):
-        tol = top.table("tolerances")
-        tolerances = Tolerances(**{f.name: tol.number(f.name, f.default, positive=True)
-                                   for f in dataclasses.fields(Tolerances)})
-        tol.close()
+    tolerances, engine_tolerances = _parse_tolerances(top)
     engine_tables = {name: read_table(engine.settings, top.raw(name), name)
                      for name, engine in ENGINES.items() if top.has(name)}
     if top.has("sweep"):
@@ -428,8 +423,33 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
                   mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
-                  engine_tables=engine_tables, source=source, four_bar=four_bar)
+                  engine_tables=engine_tables, source=source, four_bar=four_bar, engine_tolerances=engine_tolerances)
     return scene
+
+
+def _parse_tolerances(top: Table) -> tuple[Tolerances, dict[str, dict[str, float]]]:
+    """``[tolerances]`` and its engine tables ``[tolerances.ENGINE]``, one per registered engine
+    but the reduced reference: each key positive; an engine's table holds the keys it gives."""
+    if not top.has("tolerances"):
+        return Tolerances(), {}
+    tol = top.table("tolerances")
+    fields = dataclasses.fields(Tolerances)
+    tolerances = Tolerances(**{f.name: tol.number(f.name, f.default, positive=True) for f in fields})
+    judged = judged_engines()
+    engine_tolerances = {}
+    for name in [key for key in tol.data if key not in tol.used]:
+        if name not in (REFERENCE, *judged) and not isinstance(tol.data[name], dict):
+            continue  # an unknown key: tol.close() names it
+        if name == REFERENCE:
+            raise SceneError(f"'{tol.key(name)}': the reduced engine is the reference the others are judged against; "
+                             f"it has no tolerances (engine tables: {', '.join(judged)})")
+        if name not in judged:
+            raise SceneError(f"'{tol.key(name)}' names no engine; [tolerances.ENGINE] is one of {', '.join(judged)}")
+        table = tol.table(name)
+        engine_tolerances[name] = {f.name: table.number(f.name, positive=True) for f in fields if table.has(f.name)}
+        table.close()
+    tol.close()
+    return tolerances, engine_tolerances
 
 
 def _parse_guess(t: Table, system, linkage: Linkage) -> np.ndarray:

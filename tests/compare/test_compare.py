@@ -83,7 +83,11 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
-    assert report["schema_version"] == 4
+    assert report["schema_version"] == 5
+    # a plain run (no --engines): MuJoCo, the one engine judged, is the engines list
+    assert report["other_engine"] == "mujoco" and report["outlier"] is None
+    assert [(e["engine"], e["passed"], e["q_max_abs"]) for e in report["engines"]] == [
+        ("mujoco", True, report["diff"]["q_max_abs"])]
     assert report["scene"]["input_unit"] == "rad" and report["scene"]["mode"] == [1]
     assert (tmp_path / "out" / "mujoco.csv").read_text().startswith("t_s,q_rad,qdot_rad_per_s,")
     csv = np.loadtxt(tmp_path / "out" / "mujoco.csv", delimiter=",", skiprows=1)

@@ -33,8 +33,7 @@ def test_two_engines_name_no_outlier():
     """With only MuJoCo beside the reference, a failing MuJoCo (MuJoCo's default softness: the
     seed's peak 3.2e-2 off) fails the check, and nobody is called an outlier."""
     scene = load_scene("scenes/seed_fourbar.toml")
-    check = check_engines(scene, ("reduced", "mujoco"), _settings(scene, ("reduced", "mujoco"), **SOFT),
-                          scene.tolerances)
+    check = check_engines(scene, ("reduced", "mujoco"), _settings(scene, ("reduced", "mujoco"), **SOFT))
     assert not check.passed and check.outlier is None
 
 
@@ -44,7 +43,7 @@ def test_the_engine_farthest_from_the_others_is_named():
     seed's peak: MuJoCo is named."""
     scene = load_scene("scenes/seed_fourbar.toml")
     engines = ("reduced", "mujoco", "pin")
-    check = check_engines(scene, engines, _settings(scene, engines, **SOFT), scene.tolerances)
+    check = check_engines(scene, engines, _settings(scene, engines, **SOFT))
     assert not check.passed and check.outlier == "mujoco"
     assert check.spread[("reduced", "pin")] < 1e-9 < min(check.spread[("reduced", "mujoco")], check.spread[("mujoco", "pin")])
 
@@ -63,3 +62,59 @@ def test_cli_engines_do_not_apply_to_a_model(capsys):
 
     assert main(["check", "tests/data/mjcf/fourbar_xz_degrees.xml", "--engines", "reduced,mujoco"]) == 2
     assert "--engines checks scenes" in capsys.readouterr().err
+
+
+def _short_seed(extra: str = "") -> str:
+    """The seed over 0.2 s (the pulse still on, the peak the horizon's end: 6.6 rad/s), with ``extra`` TOML."""
+    from helpers import SEED_SCENE
+
+    text = SEED_SCENE.read_text(encoding="utf-8")
+    assert "\nhorizon = 2.0" in text
+    return text.replace("\nhorizon = 2.0", "\nhorizon = 0.2", 1) + extra
+
+
+def test_each_engine_is_judged_by_its_own_table():
+    """MuJoCo at its default softness is 3e-2 off on the seed (test_two_engines_name_no_outlier): loosened
+    in [tolerances.mujoco] alone it passes, while the same tables with the looseness in [tolerances.pin]
+    fail it. What a check judged by [tolerances] (ignoring the engine's table) gives neither way."""
+    from xval.scenefile import scene_from_dict
+    from xval.toml_reader import parse_toml
+    from pathlib import Path
+
+    loose = "peak_omega_rtol = 0.5\nq_atol = 1.0\nomega_atol = 20.0\n"
+    for table, passes in (("mujoco", True), ("pin", False)):
+        scene = scene_from_dict(parse_toml(_short_seed(f"\n[tolerances.{table}]\n{loose}"), Path("s.toml")))
+        check = check_engines(scene, ("reduced", "mujoco"), _settings(scene, ("reduced", "mujoco"), **SOFT))
+        assert check.passed is passes, check.verdicts[0].comparison.gate.failures
+        assert check.verdicts[0].tolerances == scene.tolerances_for("mujoco")
+        assert check.verdicts[0].comparison.gate.tolerances.omega_atol == (20.0 if passes else 0.1)
+
+
+@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra xval[pin]) is not installed")
+def test_cli_check_fails_the_engine_whose_table_is_impossibly_tight_and_flags_override_it(tmp_path, capsys):
+    """Pinocchio's |Δq̇| is 2.6e-9 rad/s over 0.2 s (measured); [tolerances.pin] omega_atol = 1e-12 fails pin
+    alone (exit 1), MuJoCo keeps [tolerances]' 0.1; --omega-atol 0.1 overrides every engine's: exit 0."""
+    from xval.compare.cli import main
+
+    path = tmp_path / "tight.toml"
+    path.write_text(_short_seed("\n[tolerances.pin]\nomega_atol = 1e-12\n"), encoding="utf-8")
+    assert main(["check", str(path), "--engines", "reduced,mujoco,pin"]) == 1
+    out = capsys.readouterr().out
+    assert "      mujoco   ok" in out and "(tol 0.1)" in out
+    assert "      pin      FAIL" in out and "(tol 1e-12)" in out
+    assert main(["check", str(path), "--engines", "reduced,mujoco,pin", "--omega-atol", "0.1"]) == 0
+    out = capsys.readouterr().out
+    assert "      pin      ok" in out and "1e-12" not in out
+
+
+def test_mujocos_own_table_is_its_gate_in_a_plain_check(tmp_path, capsys):
+    """[tolerances.mujoco] is MuJoCo's gate without --engines too (MuJoCo's |Δq̇| is ~5e-5 rad/s over 0.2 s,
+    measured): omega_atol = 1e-12 there fails `xval check`, the same key in [tolerances.pin] does not. At a
+    fixed step: the automatic one would be searched for 1e-12 and fail as a numerical failure."""
+    from xval.compare.cli import main
+
+    for table, status in (("mujoco", 1), ("pin", 0)):
+        path = tmp_path / f"{table}.toml"
+        path.write_text(_short_seed(f"\n[tolerances.{table}]\nomega_atol = 1e-12\n"), encoding="utf-8")
+        assert main(["check", str(path), "--timestep", "5e-4"]) == status  # fixed: no step search for 1e-12
+        assert ("(tol 1e-12)" in capsys.readouterr().out) is (status == 1)

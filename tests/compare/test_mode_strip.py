@@ -300,7 +300,7 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert lines[0].startswith("scene: slider_crank (<memory>); input slide (m)")
     assert not any("rad" in line for line in lines), lines
     report = report_dict(c)
-    assert report["schema_version"] == 4
+    assert report["schema_version"] == 5
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]

@@ -109,6 +109,27 @@ def test_every_plot_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch, 
         assert text_outside(fig) == [], name
 
 
+def test_the_engines_plot_is_drawn_once_with_a_line_per_engine(tmp_path, monkeypatch, comparison):
+    """engines.png (``xval run --engines``): a log |Δq̇| line per engine that ran, one legend entry per engine
+    (one that did not run says so), nothing cut off."""
+    from xval.compare.engines import EnginesCheck, EngineVerdict
+    from xval.compare.plots import plot_engines
+
+    kept = saved_figures(monkeypatch)
+    tolerances = comparison.gate.tolerances
+    check = EnginesCheck(comparison.scene, comparison.reduced,
+                         (EngineVerdict("mujoco", tolerances, comparison),
+                          EngineVerdict("pin", tolerances, None, "numerical failure (budget): ...")), "pin", {})
+    plot_engines(check, tmp_path / "engines.png")
+    (fig, draws), = kept
+    assert draws == 1 and text_outside(fig) == []
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log" and [len(line.get_xdata()) > 0 for line in ax.get_lines()] == [True, False]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert legend[0].startswith("MuJoCo: max ") and legend[1] == "Pinocchio: did not run"
+    assert ax.get_ylabel().endswith(f"({comparison.scene.input_unit}/s)")
+
+
 def test_a_subtitle_of_the_differences_plot_is_not_cut_off(tmp_path, monkeypatch, comparison):
     """Two subtitle lines (a sweep's worst variant), longer than the SUBTITLE_CHARS kept."""
     from xval.compare.plots import plot_differences

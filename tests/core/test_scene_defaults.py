@@ -45,14 +45,14 @@ def test_a_tolerance_left_out_of_its_table_takes_its_documented_default(key):
     data["tolerances"] = _table_without(TOLERANCES, key)
     scene = scene_from_dict(data)
     expected = {k: (default if k == key else other) for k, (default, other) in TOLERANCES.items()}
-    for tolerances in (scene.tolerances, gate_tolerances(scene)):  # the scene, and what the gate uses
+    for tolerances in (scene.tolerances, gate_tolerances(scene, "mujoco")):  # the scene, and what the gate uses
         assert {k: getattr(tolerances, k) for k in TOLERANCES} == expected
 
 
 def test_a_scene_without_a_tolerances_table_takes_every_default():
     data = seed_dict()
     data.pop("tolerances", None)
-    tolerances = gate_tolerances(scene_from_dict(data))
+    tolerances = gate_tolerances(scene_from_dict(data), "mujoco")
     assert {k: getattr(tolerances, k) for k in TOLERANCES} == {k: d for k, (d, _) in TOLERANCES.items()}
 
 

@@ -18,6 +18,7 @@ import contextlib
 import logging
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -113,7 +114,8 @@ def cmd_mujoco(args: argparse.Namespace) -> int:
 
     scene = _scene(args.scene)
     settings = _mujoco_settings(args, scene)
-    result = simulate_mujoco(scene, settings)
+    # the automatic step is chosen for MuJoCo's gate ([tolerances.mujoco] over [tolerances])
+    result = simulate_mujoco(replace(scene, tolerances=scene.tolerances_for("mujoco")), settings)
     print("\n".join(mujoco_lines(scene, result)))
     return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
 
@@ -205,10 +207,11 @@ def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
     return _settings("reduced", args, scene, prefix=REFERENCE_PREFIX)
 
 
-def _tolerances(scene, args: argparse.Namespace):
+def _tolerances(scene, args: argparse.Namespace, engine: str = "mujoco"):
+    """The tolerances ``engine`` is judged by: the flags given over the scene's for it."""
     from .settings import gate_tolerances
 
-    return gate_tolerances(scene, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+    return gate_tolerances(scene, engine, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
                            omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
 
 
@@ -217,6 +220,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .text import comparison_lines
 
     animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
+    if args.engines is not None:
+        if args.scene is not None and _is_mjcf(args.scene):
+            raise UsageError("--engines runs scenes: a MuJoCo model (.xml) is run as written against the reduced "
+                             "solution alone")
+        return _run_engines(args, animate)
     check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
     from .run import compare_engines
 
@@ -243,6 +251,31 @@ def cmd_run(args: argparse.Namespace) -> int:
     write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
                   committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
+
+
+def _run_engines(args: argparse.Namespace, animate: bool) -> int:
+    """``xval run --engines``: every engine of the list against the reduced reference (as ``xval check
+    --engines``), the report folder of the reference against MuJoCo (else the list's first other
+    engine) as ``xval run`` writes it, with every engine's verdict in report.json and engines.png."""
+    from .engines import compared_engine, engines_lines
+    from .report import joint_columns, report_files, write_outputs
+    from .text import comparison_lines, engine_label
+
+    other = compared_engine(args.engines)
+    check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE))  # before any work
+    scene = _scene(args.scene)
+    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+    check = _engines_check(args, scene)
+    compared = next(v for v in check.verdicts if v.engine == other)
+    if compared.comparison is not None:
+        print("\n".join(comparison_lines(compared.comparison)))
+    print("\n".join(engines_lines(check)))
+    if compared.comparison is None:
+        print(f"{engine_label(other)} did not run: no report written to {args.out}/")
+        return EXIT_FAILED
+    write_outputs(compared.comparison, args.out, animate=animate, joints=joints, engines=check,
+                  committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
+    return EXIT_OK if check.passed else EXIT_FAILED
 
 
 def _is_mjcf(path: str) -> bool:
@@ -308,21 +341,32 @@ def _engines(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _engines_check(args: argparse.Namespace, scene):
+    """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
+    reference at its own tolerances (the flags given over the scene's for it)."""
+    from xval.registry import REFERENCE
+
+    from .engines import check_engines
+    from .settings import engine_settings
+
+    # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
+    # --rtol, are not read as its): the others run with their scene table over their defaults
+    settings = {name: (_reduced_reference(args, scene) if name == REFERENCE else
+                       _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
+                for name in args.engines}
+    tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
+    return check_engines(scene, args.engines, settings, tolerances)
+
+
 def _check_engines(args: argparse.Namespace, scenes: list) -> int:
     """``xval check --engines``: each engine against the reduced reference, the outlier named."""
-    from .engines import check_engines, engines_lines
-    from .settings import engine_settings
+    from .engines import engines_lines
 
     for name in args.engines:  # a missing extra is said in one line before any work
         ENGINES[name].load()
     failed = 0
     for scene in scenes:
-        # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
-        # --rtol, are not read as its): the others run with their scene table over their defaults
-        settings = {name: (_reduced_reference(args, scene) if name == "reduced" else
-                           _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
-                    for name in args.engines}
-        check = check_engines(scene, args.engines, settings, _tolerances(scene, args))
+        check = _engines_check(args, scene)
         failed += not check.passed
         print("\n".join(engines_lines(check)))
     print(f"{len(scenes) - failed} passed, {failed} failed")
@@ -440,12 +484,22 @@ def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("gate tolerances (override the scene's [tolerances] table)")
+    g = p.add_argument_group("gate tolerances (given, each overrides the scene's [tolerances] and "
+                             "[tolerances.ENGINE] value for every engine judged)")
     g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of the peak input speed")
     g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad (m for a prismatic input)")
     g.add_argument("--omega-atol", type=_positive, default=None, help="max |dqdot| in rad/s (m/s for a prismatic input)")
     g.add_argument("--omega-vs-q-atol", type=_positive, default=None,
                    help="max |dqdot| at equal input position, rad/s or m/s (phase-free)")
+
+
+def _add_engines_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--engines LIST`` of ``run`` and ``check``: ``what`` they do with it."""
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help=f"engines to {what} (any of {', '.join(ENGINES)}; default reduced,mujoco); with three or "
+                        "more, the one farthest from the others is named when they disagree. Each is judged by the "
+                        "scene's [tolerances.ENGINE] over its [tolerances]; engines beside reduced and mujoco run "
+                        "with their scene table's settings")
 
 
 def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
@@ -578,6 +632,10 @@ def build_parser() -> argparse.ArgumentParser:
                         f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
                         "alone)")
     _add_comparison_arguments(p)
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin: each "
+                             "one's verdict is printed and written to report.json, their |dqdot| to engines.png, and "
+                             "the files of a plain run describe the reference against MuJoCo (else the list's first "
+                             "other engine)")
     _add_model_arguments(p)
     p.set_defaults(func=cmd_run)
 
@@ -592,11 +650,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scene TOML files (or names of shipped scenes, as `xval scenes` lists them), or MuJoCo "
                         "models (.xml)")
     _add_comparison_arguments(p)
-    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
-                   help="engines to judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin "
-                        f"(any of {', '.join(ENGINES)}; default reduced,mujoco); with three or more, the one "
-                        "farthest from the others is named when they disagree. Engines beside reduced and mujoco "
-                        "run with their scene table's settings")
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin")
     _add_model_arguments(p)
     p.set_defaults(func=cmd_check)
 

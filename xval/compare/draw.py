@@ -30,7 +30,7 @@ from xval.loads import TabulatedForce
 from xval.kinematics import LoopSystem, compile_linkage, positions
 from xval.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
 
-from .text import STILL_RISING
+from .text import STILL_RISING, engine_label
 
 if TYPE_CHECKING:
     from .run import Comparison
@@ -493,9 +493,10 @@ REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
 OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
 
 
-def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str) -> None:
-    """Both engines' configurations overlaid (reduced solid, MuJoCo dashed) on ``ax``."""
-    for x, look in zip(xs, (REFERENCE_LOOK, OTHER_LOOK)):
+def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str,
+           other_label: str = OTHER_LOOK["label"]) -> None:
+    """Both engines' configurations overlaid (reduced solid, the other, ``other_label``, dashed) on ``ax``."""
+    for x, look in zip(xs, (REFERENCE_LOOK, {**OTHER_LOOK, "label": other_label})):
         draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
                      label=look["label"])
     # Ground pivots (revolute joints to ground) as triangles; a slider's guide is a line, drawn
@@ -547,11 +548,12 @@ def same_pictures(system: LoopSystem, reference, other, moments: Sequence[tuple[
     return groups
 
 
-def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], path: str | Path) -> None:
+def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], path: str | Path,
+               other_label: str = OTHER_LOOK["label"]) -> None:
     """A strip of the mechanism at the given moments ((label, t s), one panel each, or one
     panel for moments that draw the same picture, :func:`same_pictures`), both engines
-    overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other`` (MuJoCo's)
-    dashed, into the PNG ``path``.
+    overlaid: ``reference`` (the reduced solver's JointTrajectory) solid, ``other`` (MuJoCo's, or
+    the engine ``other_label`` names) dashed, into the PNG ``path``.
 
     Raises ValueError when a run's coordinate names are not the scene's.
     """
@@ -573,10 +575,10 @@ def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], pa
         else:  # moments that would draw the same picture: said, and drawn once
             head = " and ".join(f"{name} (t = {when:.6g} s)" for name, when in group) + ", one picture"
         _frame(ax, linkage, system, xs,
-               f"{head}\nq reduced {q[0]:.6g} {unit}, MuJoCo {q[1]:.6g} {unit}")
+               f"{head}\nq reduced {q[0]:.6g} {unit}, {other_label} {q[1]:.6g} {unit}", other_label)
     axes[0][0].set_ylabel("y (m)")
     axes[0][0].legend(loc="best", fontsize=8)
-    fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and MuJoCo (dashed)", y=0.975,
+    fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and {other_label} (dashed)", y=0.975,
                  va="top", **plots.PLAIN)
     plots._save(fig, Path(path))
 
@@ -595,10 +597,10 @@ ANIMATION_FRAMES = 60  # frames of mechanism.gif, at 15 per second: a 4 s loop
 
 
 def animate_run(scene, reference, other, path: str | Path, *, frames: int | None = None,
-                fps: int = 15) -> None:
-    """An animated GIF of both engines' mechanism over the run (reduced solid, MuJoCo
-    dashed), ``frames`` (default :data:`ANIMATION_FRAMES`) frames at equal time steps over
-    the span both runs cover.
+                fps: int = 15, other_label: str = OTHER_LOOK["label"]) -> None:
+    """An animated GIF of both engines' mechanism over the run (reduced solid, MuJoCo or the
+    engine ``other_label`` names dashed), ``frames`` (default :data:`ANIMATION_FRAMES`) frames at
+    equal time steps over the span both runs cover.
 
     Raises RuntimeError when no GIF writer is available (:func:`gif_writer_available`);
     ValueError when a run's coordinate names are not the scene's.
@@ -626,7 +628,7 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
     def show(k: int):
         ax.clear()
         _frame(ax, linkage, system, configs[k],
-               f"{short_name(scene.name)}: t = {times[k]:.4f} s (reduced solid, MuJoCo dashed)")
+               f"{short_name(scene.name)}: t = {times[k]:.4f} s (reduced solid, {other_label} dashed)", other_label)
         ax.set_aspect("equal", adjustable="box")  # fixed limits: the same view in every frame
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
@@ -649,4 +651,4 @@ def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
     """The mechanism at the peak speed and at the largest disagreement, both engines
     overlaid (:func:`draw_strip`)."""
     draw_strip(c.scene, c.reduced.joints, c.mujoco.joints,
-               strip_moments(c), path)
+               strip_moments(c), path, other_label=engine_label(c.mujoco.engine))

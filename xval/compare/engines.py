@@ -3,7 +3,8 @@ when they disagree, the engine farthest from the others.
 
 Each engine other than the reduced one runs with its scene table's settings (or, for MuJoCo, the
 command line's flags) and is judged against the reduced reference by the same gate as
-``xval check`` (:func:`xval.compare.run.judge`). With three engines or more the peaks say which
+``xval check`` (:func:`xval.compare.run.judge`), at its own tolerances: the scene's
+``[tolerances.ENGINE]`` over its ``[tolerances]`` (:meth:`xval.scene.Scene.tolerances_for`). With three engines or more the peaks say which
 one is the outlier: the engine whose peak input speed is farthest, summed over the others, from
 theirs (relative to the reference's peak). An engine that fails to run is the outlier by
 definition and is reported with its failure.
@@ -12,16 +13,14 @@ definition and is reported with its failure.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Mapping
 
 from xval.errors import NumericalFailure
-from xval.registry import ENGINES
+from xval.registry import ENGINES, REFERENCE
 from xval.results import EngineResult
 from xval.scene import Scene, Tolerances
 
 from .run import Comparison, judge
-
-REFERENCE = "reduced"
 
 
 @dataclass(frozen=True)
@@ -29,6 +28,7 @@ class EngineVerdict:
     """One engine against the reduced reference: its comparison, or why it did not run."""
 
     engine: str
+    tolerances: Tolerances  # what it is judged by (had it run)
     comparison: Comparison | None
     failure: str | None = None
 
@@ -68,31 +68,39 @@ def parse_engines(text: str) -> tuple[str, ...]:
     return names
 
 
-def check_engines(scene: Scene, engines: tuple[str, ...], settings: dict[str, Any],
-                  tolerances: Tolerances) -> EnginesCheck:
+def compared_engine(engines: tuple[str, ...]) -> str:
+    """The engine whose comparison with the reference ``xval run --engines`` writes as today's report
+    files (CSV, plots, report.json's engine section): MuJoCo when listed, else the first other engine."""
+    return "mujoco" if "mujoco" in engines else next(name for name in engines if name != REFERENCE)
+
+
+def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any],
+                  tolerances: Mapping[str, Tolerances] | None = None) -> EnginesCheck:
     """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included) on
-    ``scene`` and judge each against the reduced reference.
+    ``scene`` and judge each against the reduced reference by its tolerances: ``tolerances[name]``,
+    by default the scene's for that engine (:meth:`xval.scene.Scene.tolerances_for`).
 
     Raises
     ------
     NumericalFailure
         If the reduced reference fails (another engine's failure is its verdict).
     """
-    scene = replace(scene, tolerances=tolerances)  # MuJoCo's automatic step is chosen for the gate's tolerances
     reference = ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
     verdicts = []
     for name in engines:
         if name == REFERENCE:
             continue
+        own = tolerances[name] if tolerances is not None else scene.tolerances_for(name)
+        judged = replace(scene, tolerances=own)  # MuJoCo's automatic step is chosen for the tolerances it is judged by
         try:
-            result = ENGINES[name].simulate(scene, settings[name])
+            result = ENGINES[name].simulate(judged, settings[name])
         except NumericalFailure as exc:
-            verdicts.append(EngineVerdict(name, None, f"numerical failure ({exc.reason}): {exc}"))
+            verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}"))
             continue
         except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
-            verdicts.append(EngineVerdict(name, None, f"refused: {exc}"))
+            verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}"))
             continue
-        verdicts.append(EngineVerdict(name, judge(scene, reference, result, tolerances)))
+        verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own)))
     peaks = {REFERENCE: reference.peak.omega}
     peaks.update({v.engine: v.comparison.diff.peak_omega_other for v in verdicts if v.comparison is not None})
     scale = max(abs(reference.peak.omega), 1e-300)
@@ -130,4 +138,4 @@ def engines_lines(check: EnginesCheck) -> list[str]:
     return lines
 
 
-__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "engines_lines", "parse_engines"]
+__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "compared_engine", "engines_lines", "parse_engines"]

@@ -19,9 +19,10 @@ import numpy as np
 
 from xval.reference_models.settings import INTEGRATORS as MUJOCO_INTEGRATORS
 
-from .text import STILL_RISING
+from .text import MUJOCO_RUNS, STILL_RISING, engine_label
 
 if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``xval draw`` needs neither)
+    from .engines import EnginesCheck
     from .run import Comparison
 
 NAME_CHARS = 60  # longest scene name shown in a title
@@ -64,6 +65,21 @@ def short_name(name: str, limit: int = NAME_CHARS) -> str:
 
 REDUCED_STYLE = {"color": "tab:blue", "label": "reduced (Eksergian)"}
 MUJOCO_STYLE = {"color": "tab:orange", "label": "MuJoCo", "linestyle": "--"}
+# One colour per engine judged against the reference (engines.png); another engine takes the next free one.
+ENGINE_COLOURS = {"mujoco": "tab:orange", "pin": "tab:green"}
+SPARE_COLOURS = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:grey")
+
+
+def other_style(c: "Comparison") -> dict:
+    """The style of the engine compared with the reference (``c.mujoco``: MuJoCo's run or another's),
+    labelled by its name."""
+    return {**MUJOCO_STYLE, "label": engine_label(c.mujoco.engine)}
+
+
+def engine_colours(engines) -> dict[str, str]:
+    """A colour for each engine name of ``engines``: its own (:data:`ENGINE_COLOURS`), else a spare."""
+    spare = iter(c for c in SPARE_COLOURS if c not in ENGINE_COLOURS.values())
+    return {name: ENGINE_COLOURS.get(name) or next(spare, "black") for name in engines}
 
 
 _SUPERSCRIPT = str.maketrans("0123456789-−+", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻⁺")
@@ -130,18 +146,19 @@ def _units(c: "Comparison") -> tuple[str, str]:
 
 def plot_trajectories(c: "Comparison", path: Path) -> None:
     """q and q̇ of both engines against time; dots mark the compared peak, one event in both
-    (``diff.peak_reference`` and ``peak_other``: the reduced run's largest |q̇| and MuJoCo's
-    extremum of the same sign nearest in time), and the title says when it is the end of the
+    (``diff.peak_reference`` and ``peak_other``: the reduced run's largest |q̇| and the other
+    engine's extremum of the same sign nearest in time), and the title says when it is the end of the
     horizon with the speed still rising."""
     unit, rate = _units(c)
     rising = c.diff.peak_still_rising
     fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * rising), 2, 1, sharex=True,
                                    margins={"top": 0.45 + 0.25 * rising})
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+    other = other_style(c)
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other)):
         ax_q.plot(result.trajectory.t, result.trajectory.q, **style)
         ax_w.plot(result.trajectory.t, result.trajectory.qdot, **style)
     # The reduced run's dot larger: where the two coincide, both show.
-    for peak, style, size in ((c.diff.peak_reference, REDUCED_STYLE, 8), (c.diff.peak_other, MUJOCO_STYLE, 4.5)):
+    for peak, style, size in ((c.diff.peak_reference, REDUCED_STYLE, 8), (c.diff.peak_other, other, 4.5)):
         ax_w.plot([peak.time], [peak.omega], "o", color=style["color"], markersize=size)
     ax_q.set_ylabel(f"input q ({unit})")
     ax_w.set_ylabel(f"input rate q̇ ({rate})")
@@ -195,7 +212,7 @@ def scaled_limits(values: np.ndarray, band: float | None = None) -> tuple[float,
 
 
 def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -> None:
-    """Δq and Δq̇ (MuJoCo minus reduced) against time, each axis scaled to its data; the
+    """Δq and Δq̇ (MuJoCo or the other engine minus reduced) against time, each axis scaled to its data; the
     gate's tolerance is a grey band only where it is within a decade of the data, and the
     legend says so otherwise (:func:`tolerance_band`). ``subtitle`` (plain text, lines of up
     to SUBTITLE_CHARS characters: longer ones are cut) goes under the title, e.g. which variant
@@ -210,9 +227,10 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
                                    margins={"top": 0.45 + LEGEND_ROOM + 0.25 * len(extra),
                                             "hspace": 0.3 + LEGEND_ROOM})
     tol = c.gate.tolerances
+    other = engine_label(c.mujoco.engine)
     for ax, values, limit, u, label in (
-            (ax_q, d.dq, tol.q_atol, unit, "Δq = q_MuJoCo − q_reduced"),
-            (ax_w, d.domega, tol.omega_atol, rate, "Δq̇ = q̇_MuJoCo − q̇_reduced")):
+            (ax_q, d.dq, tol.q_atol, unit, f"Δq = q_{other} − q_reduced"),
+            (ax_w, d.domega, tol.omega_atol, rate, f"Δq̇ = q̇_{other} − q̇_reduced")):
         ax.plot(d.times, values, color="tab:red", label=label)
         largest = float(np.max(np.abs(values))) if len(values) else 0.0
         drawn, text = tolerance_band(largest, limit, u)
@@ -227,7 +245,7 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
     ax_q.set_ylabel(f"Δq ({unit})")
     ax_w.set_ylabel(f"Δq̇ ({rate})")
     ax_w.set_xlabel("time t (s)")
-    title = f"{short_name(c.scene.name)}: MuJoCo minus reduced reference on MuJoCo's sample times"
+    title = f"{short_name(c.scene.name)}: {other} minus reduced reference on {other}'s sample times"
     ax_q.set_title("\n".join([title, *extra]), pad=6 + 72 * LEGEND_ROOM, **PLAIN)  # above the legend
     _save(fig, path)
 
@@ -235,7 +253,7 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
 def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
     unit, rate = _units(c)
     fig, (ax, ax_d) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other_style(c))):
         ax.plot(result.trajectory.q, result.trajectory.qdot, **style)
     ax.set_ylabel(f"q̇ ({rate})")
     ax.set_title(f"{short_name(c.scene.name)}: input rate against input position (phase-free comparison)",
@@ -250,21 +268,30 @@ def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
 
 
 def plot_constraint_violation(c: "Comparison", path: Path) -> None:
+    """The other engine's largest loop gap over time (MuJoCo's equality constraints, Pinocchio's
+    point constraints); an engine that records none says so."""
     fig, ax = new_figure((8, 4))
-    times, violation = c.mujoco.constraint_violation.t, c.mujoco.constraint_violation.gap
-    ax.semilogy(times, np.maximum(violation, 1e-18), color="tab:orange", label="largest loop gap")
+    violation = c.mujoco.constraint_violation
+    what = ("MuJoCo equality-constraint violation" if c.mujoco.engine in MUJOCO_RUNS
+            else f"{engine_label(c.mujoco.engine)} loop-closure violation")
+    if violation is None:
+        ax.text(0.5, 0.5, f"{engine_label(c.mujoco.engine)} records no loop gap", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set_title(f"{short_name(c.scene.name)}: {what}", **PLAIN)
+        _save(fig, path)
+        return
+    ax.semilogy(violation.t, np.maximum(violation.gap, 1e-18), color="tab:orange", label="largest loop gap")
     plain_log_axis(ax.yaxis)
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("loop-closure violation (m)")
-    ax.set_title(f"{short_name(c.scene.name)}: MuJoCo equality-constraint violation "
-                 f"(max {c.mujoco.constraint_violation.max:.2e} m)", **PLAIN)
+    ax.set_title(f"{short_name(c.scene.name)}: {what} (max {violation.max:.2e} m)", **PLAIN)
     ax.legend(), ax.grid(alpha=0.3, which="both")
     _save(fig, path)
 
 
 def plot_energy(c: "Comparison", path: Path) -> None:
     fig, (ax, ax_r) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, MUJOCO_STYLE)):
+    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other_style(c))):
         a = result.audit
         ls = style.get("linestyle", "-")
         name = style["label"].split()[0]
@@ -281,6 +308,34 @@ def plot_energy(c: "Comparison", path: Path) -> None:
     ax_r.set_ylabel("residual (J)")
     ax_r.set_xlabel("time t (s)")
     ax_r.legend(fontsize=8), ax_r.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_engines(check: "EnginesCheck", path: Path) -> None:
+    """|Δq̇| = |q̇_engine − q̇_reduced| of every engine judged (``xval run --engines``) against
+    time, on a log scale, one line per engine on its own sample times (the differences of
+    ``differences.png``; a sample where it is exactly 0 is left out); the legend gives each
+    engine's largest |Δq̇|, its tolerance and verdict, or that it did not run."""
+    rate = f"{check.scene.input_unit}/s"
+    fig, ax = new_figure((8, 4.8), margins={"left": 1.05})
+    ax.set_yscale("log")  # before the plain labels: set_yscale puts matplotlib's mathtext formatter back
+    plain_log_axis(ax.yaxis)
+    colours = engine_colours([v.engine for v in check.verdicts])
+    for v in check.verdicts:
+        label = engine_label(v.engine)
+        if v.comparison is None:
+            ax.plot([], [], color=colours[v.engine], label=f"{label}: did not run")
+            continue
+        d = v.comparison.diff
+        size = np.abs(d.domega)
+        ax.plot(d.times, np.where(size > 0.0, size, np.nan), color=colours[v.engine], linewidth=1.2,
+                label=f"{label}: max {d.omega_max_abs:.2e} {rate} (tolerance {v.tolerances.omega_atol:g} {rate}), "
+                      f"{'passed' if v.passed else 'FAILED'}")
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel(f"|Δq̇| against reduced ({rate})")
+    ax.set_title(f"{short_name(check.scene.name)}: each engine's input rate minus the reduced reference's", **PLAIN)
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(alpha=0.3, which="both")
     _save(fig, path)
 
 

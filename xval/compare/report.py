@@ -17,13 +17,20 @@ nearest in time, :mod:`xval.compare.diff`), signed, with ``peak_still_rising`` (
 end of the horizon, |q̇| still rising); the ``diff`` peaks ``peak_omega_reference`` and
 ``peak_omega_other`` are signed too (schema 2: magnitudes). Each CSV also carries the coordinate and rate of every joint (a scene of
 at most :data:`JOINTS_BY_DEFAULT` joints; else the input's and those ``xval run --joints``
-names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_report`).
+names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_report`). Schema 5
+(several engines, ``xval run --engines``): ``engines``, one verdict per engine judged against the
+reduced reference (:func:`engines_report`), and ``outlier``, the engine farthest from the others
+or null; ``other_engine`` names the engine the rest of the report compares with the reference,
+whose summary is under its own name (``mujoco``, or ``pin`` when MuJoCo is not in the list) and
+whose CSV is ``<engine>.csv``.
 
-``xval run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set.
+``xval run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set, ``xval run
+--engines`` ``engines.png`` (:data:`ENGINES_PLOT`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 import os
@@ -39,15 +46,17 @@ from xval.scene import Scene
 from xval.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
+from .text import MUJOCO_RUNS
 from .draw import plot_mechanism_strip
-from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_omega_vs_q,
+from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_engines, plot_omega_vs_q,
                     plot_trajectories)
 if TYPE_CHECKING:
     from xval.trajectory import JointTrajectory
 
+    from .engines import EnginesCheck
     from .run import Comparison
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 # The figures a run writes, by file (each function takes the Comparison and the path).
 PLOTS = {
     "trajectories.png": plot_trajectories,
@@ -59,11 +68,22 @@ PLOTS = {
 }
 REPORT_FILES = ("reduced.csv", "mujoco.csv", *PLOTS, "report.json")  # in the order they are committed
 ANIMATION_FILE = "mechanism.gif"
+ENGINES_PLOT = "engines.png"  # xval run --engines: every engine's |Δq̇| against the reference
 
 
-def report_files(animate: bool = False) -> tuple[str, ...]:
-    """The names ``write_outputs`` writes, with the animation when asked for."""
-    return REPORT_FILES[:-1] + ((ANIMATION_FILE,) if animate else ()) + REPORT_FILES[-1:]
+def output_name(engine: str) -> str:
+    """The name under which the report files hold the run of ``engine`` (its CSV ``<name>.csv``, its
+    summary in report.json): ``mujoco`` for MuJoCo's runs (the scene's model, a user's own), else
+    the engine's name."""
+    return "mujoco" if engine in MUJOCO_RUNS else engine
+
+
+def report_files(animate: bool = False, *, other: str = "mujoco", engines: bool = False) -> tuple[str, ...]:
+    """The names ``write_outputs`` writes: the CSV of the engine ``other`` compared with the
+    reference (``<other>.csv``), the animation and the engines' plot when asked for."""
+    files = tuple(f"{other}.csv" if name == "mujoco.csv" else name for name in REPORT_FILES[:-1])
+    return (files + ((ANIMATION_FILE,) if animate else ()) + ((ENGINES_PLOT,) if engines else ())
+            + REPORT_FILES[-1:])
 
 
 def resolve_animation(animate: bool) -> bool:
@@ -108,9 +128,29 @@ def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
     return summary
 
 
-def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
+def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list[dict]:
+    """report.json's ``engines``: each engine judged against the reduced reference (``check``'s
+    verdicts; without one, the engine of ``c`` alone): ``engine``, ``passed``, its compared peak
+    ``peak_omega`` (signed) and ``peak_omega_rel``, ``q_max_abs``, ``omega_max_abs`` (null when it
+    did not run), the ``tolerances`` it was judged by, the gate's ``failures`` and ``failure`` (why
+    it did not run, else null)."""
+    def entry(engine: str, comparison, tolerances, failure: str | None) -> dict:
+        d = comparison.diff if comparison is not None else None
+        return {"engine": engine, "passed": comparison is not None and comparison.gate.passed,
+                "peak_omega": d.peak_omega_other if d else None,
+                **{key: _finite(getattr(d, key)) if d else None for key in ("peak_omega_rel", "q_max_abs", "omega_max_abs")},
+                "tolerances": dataclasses.asdict(tolerances),
+                "failures": list(comparison.gate.failures) if comparison is not None else [], "failure": failure}
+
+    if check is None:
+        return [entry(output_name(c.mujoco.engine), c, c.gate.tolerances, None)]
+    return [entry(v.engine, v.comparison, v.tolerances, v.failure) for v in check.verdicts]
+
+
+def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None) -> dict:
     """The comparison as plain JSON-serialisable data; ``joints`` the joints of its ``joints``
-    list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``)."""
+    list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``); ``engines`` the
+    check of several engines ``c`` is one of (``xval run --engines``: :func:`engines_report`)."""
     s = c.scene
     names = joint_columns(s) if joints is None else tuple(joints)
     return {
@@ -119,8 +159,9 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
                   "effects": list(s.effects), "input_joint": s.mechanism.linkage.input_joint,
                   "input_unit": s.input_unit, "q0": s.q0, "qdot0": s.qdot0, "mode": list(s.mode),
                   "horizon": s.horizon},
+        "other_engine": output_name(c.mujoco.engine),
         "reduced": engine_summary(c.reduced, c.diff.peak_reference),
-        "mujoco": engine_summary(c.mujoco, c.diff.peak_other),
+        output_name(c.mujoco.engine): engine_summary(c.mujoco, c.diff.peak_other),
         "diff": {**{k: _finite(v) for k, v in c.diff.figures().items()},
                  "mode_mismatches": list(c.modes.mismatches),
                  "mode_mismatch_first_times": list(c.modes.first_times),
@@ -131,6 +172,8 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None) -> dict:
                                 "omega_atol": c.gate.tolerances.omega_atol,
                                 "omega_vs_q_atol": c.gate.tolerances.omega_vs_q_atol}},
         "joints": joint_report(c, names) if names else [],
+        "engines": engines_report(c, engines),
+        "outlier": engines.outlier if engines is not None else None,
     }
 
 
@@ -187,7 +230,8 @@ def joint_values(scene: Scene, joints: "JointTrajectory", t: np.ndarray,
 
 def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     """Per named joint: its type, unit, whether it is cut, each engine's range of u and largest
-    |u̇|, and the largest differences MuJoCo − reduced of u and u̇ on MuJoCo's samples (the
+    |u̇| (by engine name), and the largest differences MuJoCo (or the other engine) − reduced of u
+    and u̇ on its samples (the
     reference's body poses interpolated there: :meth:`xval.reduced.charts.JointTrajectory.interpolate`)."""
     linkage = c.scene.mechanism.linkage
     out = []
@@ -201,7 +245,7 @@ def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
     for k, name in enumerate(names):
         engines = {}
-        for engine, u, v in (("reduced", ru, rv), ("mujoco", mu, mv)):
+        for engine, u, v in (("reduced", ru, rv), (output_name(c.mujoco.engine), mu, mv)):
             engines[engine] = {"min": float(np.min(u[:, k])), "max": float(np.max(u[:, k])),
                                "final": float(u[-1, k]), "rate_max_abs": float(np.max(np.abs(v[:, k])))}
         out.append({"name": name, "type": "prismatic" if joint_unit(c.scene, name) == "m" else "revolute",
@@ -229,12 +273,15 @@ def _write_csv(result: EngineResult, path: Path, unit: str = "rad", scene: Scene
 
 
 def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False,
-                  joints: Sequence[str] | None = None, committed=None) -> list[Path]:
-    """Write report.json, reduced.csv, mujoco.csv and the PNG plots (with the mechanism
-    strip) into ``out_dir``, as a set; with ``animate``, also mechanism.gif (the caller
-    checks :func:`xval.compare.draw.gif_writer_available` first). The CSVs and report.json carry
-    the coordinates of the joints :func:`joint_columns` picks from ``joints``. ``committed``:
-    as :func:`xval.compare.output.write_folder`'s (the command's "wrote" line).
+                  joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None,
+                  committed=None) -> list[Path]:
+    """Write report.json, reduced.csv, mujoco.csv (``<engine>.csv`` of the engine ``c`` compares
+    with the reference) and the PNG plots (with the mechanism strip) into ``out_dir``, as a set;
+    with ``animate``, also mechanism.gif (the caller checks
+    :func:`xval.compare.draw.gif_writer_available` first); with ``engines`` (the check of several
+    engines ``c`` is one of), engines.png and each engine's verdict in report.json. The CSVs and
+    report.json carry the coordinates of the joints :func:`joint_columns` picks from ``joints``.
+    ``committed``: as :func:`xval.compare.output.write_folder`'s (the command's "wrote" line).
 
     Raises
     ------
@@ -244,12 +291,15 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
     unit = c.scene.input_unit
     names = joint_columns(c.scene, joints)
     files = {"reduced.csv": lambda p: _write_csv(c.reduced, p, unit, c.scene, names),
-             "mujoco.csv": lambda p: _write_csv(c.mujoco, p, unit, c.scene, names)}
+             f"{output_name(c.mujoco.engine)}.csv": lambda p: _write_csv(c.mujoco, p, unit, c.scene, names)}
     files.update({name: (lambda p, plot=plot: plot(c, p)) for name, plot in PLOTS.items()})
     if animate:
         from .draw import animate_run
+        from .text import engine_label
 
-        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.joints,
-                                                      c.mujoco.joints, p)
-    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names)), encoding="utf-8")
+        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.joints, c.mujoco.joints, p,
+                                                      other_label=engine_label(c.mujoco.engine))
+    if engines is not None:
+        files[ENGINES_PLOT] = lambda p: plot_engines(engines, p)
+    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names, engines)), encoding="utf-8")
     return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True, committed=committed)

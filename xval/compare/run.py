@@ -33,7 +33,8 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     """Run both engines on ``scene`` and compare MuJoCo against the reduced reference.
 
     Settings default to the scene's [reduced] and [mujoco] tables over the defaults;
-    ``tolerances`` to the scene's own table. MuJoCo's automatic timestep (without a timestep in
+    ``tolerances`` to MuJoCo's in the scene (``[tolerances.mujoco]`` over ``[tolerances]``:
+    :meth:`xval.scene.Scene.tolerances_for`). MuJoCo's automatic timestep (without a timestep in
     the settings) is chosen for these tolerances, the ones the gate applies. The comparison covers the scene's horizon:
     if either run stops short of it, the gate fails and names the span compared.
 
@@ -42,7 +43,7 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     NumericalFailure
         If either engine fails.
     """
-    tolerances = tolerances or scene.tolerances
+    tolerances = tolerances or scene.tolerances_for("mujoco")
     reference = simulate(scene, reduced or reduced_settings(scene))
     other = simulate_mujoco(replace(scene, tolerances=tolerances), mujoco or mujoco_settings(scene))
     return judge(scene, reference, other, tolerances)

@@ -34,6 +34,7 @@ def mujoco_settings(scene: Scene, **flags: Any):
     return engine_settings("mujoco", scene, **flags)
 
 
-def gate_tolerances(scene: Scene, **flags: float | None) -> Tolerances:
-    """The gate's tolerances: ``flags`` (None: not given) over the scene's [tolerances]."""
-    return replace(scene.tolerances, **{k: v for k, v in flags.items() if v is not None})
+def gate_tolerances(scene: Scene, engine: str, **flags: float | None) -> Tolerances:
+    """The tolerances the engine named ``engine`` is judged by against the reduced reference:
+    ``flags`` (None: not given) over the scene's ``[tolerances.ENGINE]`` over its ``[tolerances]``."""
+    return replace(scene.tolerances_for(engine), **{k: v for k, v in flags.items() if v is not None})

@@ -106,6 +106,7 @@ def _drift_per_revolution(result) -> float:
 def run_case(case: Case) -> CaseResult:
     """Run one case: both engines, the gate and the case's own checks."""
     scene = load_scene(case.path)
+    scene = replace(scene, tolerances=scene.tolerances_for("mujoco"))  # MuJoCo's gate, its automatic step's target
     reduced_settings = resolve_reduced(scene)
     mujoco_settings = resolve_mujoco(scene)
     problems, notes, figures = [], [], {}

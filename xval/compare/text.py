@@ -18,6 +18,29 @@ if TYPE_CHECKING:
     from .run import Comparison
 
 FLOAT_DIGITS = 17  # decimals beyond a double's precision only print noise
+# MuJoCo's runs: the scene's model ("mujoco") and a user's own as written (xval.reference_models.user_model.ENGINE).
+MUJOCO_RUNS = ("mujoco", "model")
+# How tables and plots name an engine (xval.registry.ENGINES by name); another engine by its name.
+ENGINE_LABELS = {"reduced": "reduced", **{name: "MuJoCo" for name in MUJOCO_RUNS}, "pin": "Pinocchio", "mjx": "MJX",
+                 "mjwarp": "MJWarp"}
+
+
+def engine_label(engine: str) -> str:
+    """The engine named ``engine`` as tables and plots name it (``MuJoCo``, ``Pinocchio``)."""
+    return ENGINE_LABELS.get(engine, engine)
+
+
+def settings_label(result) -> str:
+    """A run's settings in a few words, for a table's column head: the reduced solver's method and
+    step or rtol, a MuJoCo-family engine's integrator and timestep, another engine's solver and rtol."""
+    used = result.settings
+    if result.engine == "reduced":
+        return f"{result.details.solver} " + (f"h={used.step:g}s" if used.method == "rkn4" else f"rtol={used.rtol:g}")
+    if result.engine in MUJOCO_RUNS or getattr(used, "integrator", None) and getattr(used, "timestep", None):
+        return f"{used.integrator} dt={used.timestep:g}s"
+    solver = getattr(result.details, "solver", None) or getattr(used, "method", "")
+    rtol = getattr(used, "rtol", None)
+    return f"{solver} rtol={rtol:g}" if rtol is not None else str(solver)
 
 
 def printed_pair(reference: float, other: float, digits: int = 10) -> tuple[str, str, str]:
@@ -54,24 +77,24 @@ def comparison_lines(c: "Comparison") -> list[str]:
     """The table of both engines' results and their differences, then the gate.
 
     The peak row holds the compared peak, signed (``Difference.peak_reference`` and
-    ``peak_other``: the reduced run's largest |q̇| and MuJoCo's extremum of the same sign
+    ``peak_other``: the reduced run's largest |q̇| and the other engine's extremum of the same sign
     nearest in time, one event), followed by a line when it is at the end of the horizon,
-    still rising. q is the input coordinate, in ``scene.input_unit`` (rad or m).
+    still rising. q is the input coordinate, in ``scene.input_unit`` (rad or m). The other
+    engine (``c.mujoco``, MuJoCo's run or another engine's) is named by :func:`engine_label`.
     """
     r, m, d = c.reduced, c.mujoco, c.diff
     unit = c.scene.input_unit
     rate = f"{unit}/s"
-    ref = r.settings
-    ref_label = f"{r.details.solver} " + (f"h={ref.step:g}s" if ref.method == "rkn4" else f"rtol={ref.rtol:g}")
-    mj_label = f"{m.settings.integrator} dt={m.settings.timestep:g}s"
+    other = engine_label(m.engine)
     peak_r, peak_m, peak_d = printed_pair(d.peak_omega_reference, d.peak_omega_other)
     time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
+    gap = "-" if m.constraint_violation is None else f"{m.constraint_violation.max:.2e}"
     rows = [
-        ("", f"reduced ({ref_label})", f"MuJoCo ({mj_label})", "difference (MuJoCo - reduced)"),
+        ("", f"reduced ({settings_label(r)})", f"{other} ({settings_label(m)})", f"difference ({other} - reduced)"),
         (f"peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
         ("time of peak (s)", time_r, time_m, time_d),
         ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
-        ("loop violation (m)", "-", f"{m.constraint_violation.max:.2e}", ""),
+        ("loop violation (m)", "-", gap, ""),
         ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
         ("compared span (s)", "", "", f"{d.span_start:g} to {d.span_end:g} (horizon {d.horizon:g})"),
         (f"max |dq| ({unit})", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
@@ -84,10 +107,10 @@ def comparison_lines(c: "Comparison") -> list[str]:
     lines = [f"scene: {c.scene.name} ({c.scene.source}); input {c.scene.mechanism.linkage.input_joint} "
              f"({unit}); effects: {', '.join(c.scene.effects) or 'none'}"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
-    rising = [name for name, p in (("reduced", d.peak_reference), ("MuJoCo", d.peak_other)) if p.still_rising]
+    rising = [name for name, p in (("reduced", d.peak_reference), (other, d.peak_other)) if p.still_rising]
     if rising:
         lines.append(f"peak: {STILL_RISING} ({' and '.join(rising)}): the horizon ends before the speed peaks")
-    lines += [f"warning: {note}" for note in m.details.edge_warnings]
+    lines += [f"warning: {note}" for note in getattr(m.details, "edge_warnings", ())]
     return lines + gate_lines(c.gate, unit)
 
 
