@@ -132,15 +132,17 @@ def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list
     """report.json's ``engines``: each engine judged against the reduced reference (``check``'s
     verdicts; without one, the engine of ``c`` alone): ``engine``, ``passed``, its compared peak
     ``peak_omega`` (signed) and ``peak_omega_rel``, ``q_max_abs``, ``omega_max_abs`` (null when it
-    did not run), the ``tolerances`` it was judged by, the gate's ``failures`` and ``failure`` (why
-    it did not run, else null)."""
+    did not run), the ``tolerances`` it was judged by, the gate's ``failures``, ``failure`` (why
+    it did not run, else null) and ``known_defects`` (the engine's known defects that bear on the
+    run: :attr:`EngineResult.caveats`)."""
     def entry(engine: str, comparison, tolerances, failure: str | None) -> dict:
         d = comparison.diff if comparison is not None else None
         return {"engine": engine, "passed": comparison is not None and comparison.gate.passed,
                 "peak_omega": d.peak_omega_other if d else None,
                 **{key: _finite(getattr(d, key)) if d else None for key in ("peak_omega_rel", "q_max_abs", "omega_max_abs")},
                 "tolerances": dataclasses.asdict(tolerances),
-                "failures": list(comparison.gate.failures) if comparison is not None else [], "failure": failure}
+                "failures": list(comparison.gate.failures) if comparison is not None else [], "failure": failure,
+                "known_defects": list(comparison.mujoco.caveats) if comparison is not None else []}
 
     if check is None:
         return [entry(output_name(c.mujoco.engine), c, c.gate.tolerances, None)]
