@@ -13,19 +13,19 @@ difference from the reduced engine over 0.2 s: 1.2e-5 on the peak). Measured (20
 max |Δq̇| 4.5e-4 rad/s; against C: 2.5e-5, 4.2e-5 rad, 4.0e-4 rad/s; loop gap 3.6e-7 m (C: 1.1e-7 m,
 float32 resolves ~1.2e-7 m at 1 m); energy residual 4.2e-5 of the scale (C: 9.4e-6). The bounds
 below are ~5× each (float32 sums depend on the order of operations, which another CPU or a GPU
-changes; 5× covers that without admitting a model error: dropping the controls moves q by 1e-1 rad).
+changes; 5× covers that without admitting a model error: dropping the controls puts the peak 100 % off).
 
 The batch: worlds share MJWarp's kernels and differ in their own model values (here
 ``tendon_damping``), so a world's run is the same arithmetic as the single run; measured equal
 bit for bit. The bound is 2 float32 spacings of the values (2 × 2⁻²³ relative, i.e. ~2.4e-7 of
 |q| and |q̇|), enough for a reordering of sums between nworld = 1 and 2 and far below any model
-difference (the two dampers' runs differ by 1.2e-2 rad/s).
+difference (the two dampers' runs differ by more than 1e-3 rad/s, asserted).
 
 Planted: the controls not copied to the device (the ``wp.copy(dw.ctrl, ...)`` line of
 xval/mjwarp/run.py) fails test_agrees_with_the_reduced_engine and test_agrees_with_mujoco_c
-(|Δq| 0.1 rad: the crank coasts); the per-world model values not assigned (``getattr(mw,
+(the crank stays at rest: peak off by 100 %); the per-world model values not assigned (``getattr(mw,
 name).assign(...)`` in ``_model``) fails test_a_batch_equals_its_single_runs (world 1 runs with
-damper 55: |Δq̇| 1.2e-2 rad/s).
+damper 55 while MuJoCo C audits damper 30: its energy gate fails, residual 0.0037 of the scale).
 
 Cost: MJWarp's kernels compile on first use (~60 s on a 2-core CPU; warp caches them in
 ~/.cache/warp), then each 200-step run takes ~10 s here (~50 ms a step: MJWarp on the CPU is
