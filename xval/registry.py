@@ -52,6 +52,7 @@ ENGINES: dict[str, Engine] = {e.name: e for e in (
     Engine("mujoco", "xval.reference_models", "MuJoCo: the open chain closed by equality constraints"),
     Engine("pin", "xval.pin", "Pinocchio: the tree's constrained dynamics, loops closed by point constraints"),
     Engine("mjx", "xval.mjx", "MJX, MuJoCo's JAX port: the MuJoCo engine's model, stepped by JAX (CPU or GPU)"),
+    Engine("mjwarp", "xval.mjwarp", "MJWarp, MuJoCo's Warp port: the MuJoCo engine's model, stepped in float32 (CPU or GPU)"),
 )}
 
 
