@@ -39,7 +39,8 @@ VALUES = {
             "max_constraint_violation": (1e-5, ["1e-5"]), "max_energy_residual": (1e-5, ["1e-5"])},
 }
 VALUES["mjx"] = {**VALUES["mujoco"], "precision": ("float32", ["float32"])}  # the MuJoCo-family model's options
-API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set(), "mjx": set()}  # neither a key nor a flag: cost studies set it
+VALUES["mjwarp"] = dict(VALUES["mujoco"])
+API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set(), "mjx": set(), "mjwarp": set()}  # neither a key nor a flag: cost studies set it
 
 
 def _flag(name: str, value) -> list[str]:

@@ -134,14 +134,15 @@ def cmd_pin(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_mjx(args: argparse.Namespace) -> int:
+def cmd_port(args: argparse.Namespace) -> int:
+    """``xval mjx`` and ``xval mjwarp``: one of MuJoCo's ports alone."""
     from .text import port_lines
 
     scene = _scene(args.scene)
-    settings = _settings("mjx", args, scene)
-    ENGINES["mjx"].load()  # a missing extra: one line, exit 2
-    result = ENGINES["mjx"].simulate(scene, settings)
-    print("\n".join(port_lines(scene, result, "MJX")))
+    settings = _settings(args.command, args, scene)
+    ENGINES[args.command].load()  # a missing extra: one line, exit 2
+    result = ENGINES[args.command].simulate(scene, settings)
+    print("\n".join(port_lines(scene, result)))
     return EXIT_OK
 
 
@@ -580,14 +581,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_flags(p, ENGINES["pin"].settings, title="Pinocchio engine settings", table="pin")
     p.set_defaults(func=cmd_pin)
 
-    p = sub.add_parser("mjx", help="run the scene's MuJoCo model with MJX (the extra xval[mjx])",
-                       description="Step the MuJoCo engine's model of the scene with MJX, MuJoCo's JAX port "
-                                   "(docs/engines.md says how to install it); print the peak speed of the input "
-                                   "joint, the largest loop gap and the energy residual (MuJoCo C's, at MJX's "
-                                   "states), and MJX's known defects.")
-    _add_scene_argument(p)
-    add_flags(p, ENGINES["mjx"].settings, title="MJX engine settings", table="mjx")
-    p.set_defaults(func=cmd_mjx)
+    for name, port, extra in (("mjx", "MJX, MuJoCo's JAX port", "xval[mjx]"),
+                              ("mjwarp", "MJWarp, MuJoCo's Warp port (float32)", "xval[mjwarp]")):
+        p = sub.add_parser(name, help=f"run the scene's MuJoCo model with {port.split(',')[0]} (the extra {extra})",
+                           description=f"Step the MuJoCo engine's model of the scene with {port} (docs/engines.md "
+                                       "says how to install it); print the peak speed of the input joint, the "
+                                       "largest loop gap and the energy residual (MuJoCo C's, at the port's "
+                                       "states), and the port's known defects.")
+        _add_scene_argument(p)
+        add_flags(p, ENGINES[name].settings, title=f"{port.split(',')[0]} engine settings", table=name)
+        p.set_defaults(func=cmd_port)
 
     p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
                        description="Write the scene's MuJoCo model as a human-readable MJCF file "

@@ -194,13 +194,14 @@ def pin_lines(scene, result) -> list[str]:
         f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, {result.wall_s:.3f} s"]
 
 
-def port_lines(scene, result, engine: str) -> list[str]:
-    """What ``xval mjx`` prints (``engine``: "MJX"): the settings as run, peak input rate, loop gap
+def port_lines(scene, result) -> list[str]:
+    """What ``xval mjx`` and ``xval mjwarp`` print: the settings as run, peak input rate, loop gap
     and energy residual (MuJoCo C's, at the port's states), cost, and the port's known defects."""
     used, unit, details = result.settings, scene.input_unit, result.details
+    device = getattr(details, "backend", None) or getattr(details, "device", None)
     return _scene_lines(scene) + [
         f"settings         {used.integrator}, timestep {used.timestep:g} s, solref {list(used.effective_solref)}, "
-        f"{details.precision} on {details.backend}, " + ", ".join(f"{k} {v}" for k, v in details.versions.items()),
+        f"{details.precision} on {device}, " + ", ".join(f"{k} {v}" for k, v in details.versions.items()),
         f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
         f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
         _energy_line(result),
