@@ -38,8 +38,13 @@ VALUES = {
             "proximal_iterations": (5, ["5"]), "max_evaluations": (1000, ["1000"]),
             "max_constraint_violation": (1e-5, ["1e-5"]), "max_energy_residual": (1e-5, ["1e-5"])},
 }
-VALUES["mjx"] = {**VALUES["mujoco"], "precision": ("float32", ["float32"])}  # the MuJoCo-family model's options
+# the ports take the MuJoCo-family model's options, but for what they do not implement (REFUSED)
+VALUES["mjx"] = {**VALUES["mujoco"], "precision": ("float32", ["float32"])}
 VALUES["mjwarp"] = dict(VALUES["mujoco"])
+REFUSED = {"mjx": {"diagexact"}, "mjwarp": {"diagexact"}}  # only the default is valid: a value is refused
+for _engine, _names in REFUSED.items():
+    for _name in _names:
+        del VALUES[_engine][_name]
 API_ONLY = {"reduced": {"check_error"}, "mujoco": set(), "pin": set(), "mjx": set(), "mjwarp": set()}  # neither a key nor a flag: cost studies set it
 
 
@@ -51,7 +56,7 @@ def _flag(name: str, value) -> list[str]:
 def test_every_option_is_covered_here():
     for name, engine in ENGINES.items():
         declared = {o.name for o in options(engine.settings)}
-        assert declared == set(VALUES[name]) | API_ONLY[name], name
+        assert declared == set(VALUES[name]) | API_ONLY[name] | REFUSED.get(name, set()), name
         assert all(o.flag == o.table == (o.name not in API_ONLY[name]) for o in options(engine.settings))
 
 
@@ -94,6 +99,19 @@ def test_a_bad_table_value_names_its_key(engine, key, value, words):
     with pytest.raises(SceneError) as caught:
         scene_from_dict(data)
     assert words in str(caught.value)
+
+
+@pytest.mark.parametrize("engine, key, value, words", [
+    ("mjx", "diagexact", True, "[mjx] diagexact: MJX does not implement MuJoCo's exact constraint diagonal"),
+    ("mjwarp", "diagexact", True, "[mjwarp] diagexact: MJWarp does not implement MuJoCo's exact constraint"),
+    ("mjx", "integrator", "implicit", "'mjx.integrator' must be one of euler, implicitfast, rk4"),
+])
+def test_what_a_port_does_not_implement_is_refused_naming_it(engine, key, value, words):
+    data = seed_dict()
+    data[engine] = {key: value}
+    with pytest.raises(SceneError) as caught:
+        engine_settings(engine, scene_from_dict(data, source="my.toml"))
+    assert words in str(caught.value) and "\n" not in str(caught.value)
 
 
 def test_a_table_the_settings_refuse_names_the_file_and_table():

@@ -28,7 +28,8 @@ from importlib import metadata
 import numpy as np
 
 from xval.mujoco_model.build import check_mujoco_version
-from xval.mujoco_model.port import MAX_STATE_BYTES, PortRefusal, PortRun, finish, prepare, stack_runs
+from xval.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, prepare, refusing_unimplemented,
+                                   stack_runs)
 from xval.results import EngineResult
 from xval.scene import Scene
 
@@ -218,7 +219,8 @@ def _model(runs: list[PortRun], model_fields: tuple[str, ...], opt_fields: tuple
     """MJWarp's model of the batch: the first run's, with ``model_fields`` and ``opt_fields``
     given per world."""
     nworld = len(runs)
-    mw = mjw.put_model(runs[0].port_model, batch_sizes={name: nworld for name in model_fields})
+    with refusing_unimplemented("MJWarp"):
+        mw = mjw.put_model(runs[0].port_model, batch_sizes={name: nworld for name in model_fields})
     for name in model_fields:
         getattr(mw, name).assign(_per_world(runs, name))
     for name in opt_fields:

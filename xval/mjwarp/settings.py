@@ -32,5 +32,11 @@ class MjwarpSettings(ModelOptions):
     timestep: float | None = option(None, "MJWarp's timestep", "number", unit="s", limit="step", within_horizon=True,
                                     default_text="the grid step: ≤ 1 ms and ≤ horizon/100, load edges on the grid")
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.diagexact is True:
+            raise ValueError("diagexact: MJWarp does not implement MuJoCo's exact constraint diagonal "
+                             "(mjENBL_DIAGEXACT)")
+
 
 Settings = MjwarpSettings  # the name every engine's settings have (xval.registry)

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from xval.mujoco_model.options import ModelOptions
+from xval.mujoco_model.options import DEFAULT_INTEGRATOR, ModelOptions
 from xval.settings import option
 
 PRECISIONS = ("float64", "float32")
+INTEGRATORS = ("euler", "implicitfast", "rk4")  # MJX 3.17's (mjx types.IntegratorType: no implicit)
 
 
 @dataclass(frozen=True)
@@ -23,8 +24,13 @@ class MjxSettings(ModelOptions):
     The model's options (:class:`~xval.mujoco_model.options.ModelOptions`) as the MuJoCo
     engine's, except ``timestep``: None is the grid step (the largest step ≤ 1 ms and ≤ 1/100 of
     the horizon that puts every load edge on the grid), not a search. ``precision``: JAX's
-    float64 (``jax_enable_x64``) or float32.
+    float64 (``jax_enable_x64``) or float32. What MJX does not implement is refused here: the
+    implicit integrator (``implicitfast`` it has) and MuJoCo's exact constraint diagonal
+    (``diagexact``).
     """
+
+    integrator: str = option(DEFAULT_INTEGRATOR, "MJX's integrator (MJX has no implicit)", "choice",
+                             choices=INTEGRATORS)
 
     timestep: float | None = option(None, "MJX's timestep", "number", unit="s", limit="step", within_horizon=True,
                                     default_text="the grid step: ≤ 1 ms and ≤ horizon/100, load edges on the grid")
@@ -32,6 +38,11 @@ class MjxSettings(ModelOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)} (MJX has no implicit integrator), "
+                             f"got {self.integrator!r}")
+        if self.diagexact is True:
+            raise ValueError("diagexact: MJX does not implement MuJoCo's exact constraint diagonal (mjENBL_DIAGEXACT)")
         if self.precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
 

@@ -11,6 +11,7 @@ sensors, the loop gap, q̈, the energy audit, is MuJoCo C's at those states
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import dataclass, replace
 from typing import Any
@@ -36,6 +37,16 @@ MAX_STATE_BYTES = 2 * 1024 ** 3
 
 class PortRefusal(ValueError):
     """A scene or setting a port cannot run, in one line naming what and why."""
+
+
+@contextlib.contextmanager
+def refusing_unimplemented(engine: str):
+    """A port's NotImplementedError (what its ``put_model`` finds it does not implement in the
+    model) as a :class:`PortRefusal` in one line naming it."""
+    try:
+        yield
+    except NotImplementedError as exc:
+        raise PortRefusal(f"{engine} does not implement {exc} (in the MuJoCo model of the scene)") from None
 
 
 @dataclass(frozen=True)
