@@ -254,7 +254,8 @@ def test_every_help_default_is_the_resolved_default():
     from xval.pin import PinSettings
 
     pin = PinSettings()  # `xval pin`'s flags share names with the reduced engine's, not their defaults
-    resolved_by_command = {"pin": {"--method": [f"else {pin.method}"], "--rtol": [f"else {pin.rtol:g}"]}}
+    resolved_by_command = {"pin": {"--method": [f"else {pin.method}"], "--rtol": [f"else {pin.rtol:g}"]},
+                           **{port: {**_resolved_defaults(), "--timestep": ["the grid step"]} for port in ("mjx", "mjwarp")}}
     for command, action in _options():
         resolved = resolved_by_command.get(command) or _resolved_defaults()
         flag = max(action.option_strings, key=len)

@@ -30,7 +30,8 @@ class MjwarpSettings(ModelOptions):
     """
 
     timestep: float | None = option(None, "MJWarp's timestep", "number", unit="s", limit="step", within_horizon=True,
-                                    default_text="the grid step: ≤ 1 ms and ≤ horizon/100, load edges on the grid")
+                                    default_text="the grid step, the MuJoCo engine's first candidate "
+                                                 "(load edges on the grid)")
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -33,7 +33,8 @@ class MjxSettings(ModelOptions):
                              choices=INTEGRATORS)
 
     timestep: float | None = option(None, "MJX's timestep", "number", unit="s", limit="step", within_horizon=True,
-                                    default_text="the grid step: ≤ 1 ms and ≤ horizon/100, load edges on the grid")
+                                    default_text="the grid step, the MuJoCo engine's first candidate "
+                                                 "(load edges on the grid)")
     precision: str = option("float64", "JAX's floating-point precision", "choice", choices=PRECISIONS)
 
     def __post_init__(self) -> None:
