@@ -27,6 +27,17 @@ def test_scene_folders_come_from_the_scenes_package():
     assert shipped == REPO_SCENES and hard_scene_dir().name == "hard"
 
 
+def test_every_package_folder_is_installed():
+    """pyproject.toml lists the packages a wheel holds: every folder of xval/ with an __init__.py
+    must be there (planted: xval.mujoco_model left out of the list, as it once was, fails here,
+    where the wheel's own import of the MuJoCo engine would fail only in .ci/run)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    folders = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "xval").rglob("__init__.py")}
+    assert sorted(folders - listed) == []
+
+
 @pytest.mark.slow
 def test_wheel_contains_every_scene(tmp_path):
     """Build a wheel from a copy of the sources (the checkout stays clean) and list it. pip builds
@@ -48,6 +59,8 @@ def test_wheel_contains_every_scene(tmp_path):
     assert "xval/scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
     assert any(n.startswith("xval/reduced/kernels/physics.") and n.endswith(".so") for n in names)
     assert any(n.startswith("xval/kernels/loops.") and n.endswith(".so") for n in names)  # the kinematics' kernel
+    packages = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "xval").rglob("__init__.py")}
+    assert sorted(p for p in packages if p.replace(".", "/") + "/__init__.py" not in names) == []
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
