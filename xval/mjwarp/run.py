@@ -57,6 +57,7 @@ _DEFECT_UNTIL = (4, 0, 0)  # the newest MJWarp release checked; a later one is n
 # Warp prints a line per kernel module it compiles or loads (hundreds for one step of MJWarp):
 # an engine's run prints nothing of its own (the CLI's output is the report).
 wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # warp 1.19 prints each module load at LOG_INFO, its default
 
 # Model fields that differ between variants but that mjw.step does not read: the keyframes
 # (read by reset_data_keyframe only; the port sets the state itself) and dof_length (read by
