@@ -48,6 +48,7 @@ import os
 import shutil
 import signal
 import stat
+import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -409,8 +410,8 @@ def _child_outcome(pid: int, status: int, read_end: int) -> BaseException | None
 
 
 def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, workers: int) -> None:
-    """Every writer, into ``content``. With ``workers`` > 1 (and fork available, and not in a
-    pool's daemon worker, which may have no children) ``workers`` - 1 forked child processes
+    """Every writer, into ``content``. With ``workers`` > 1 (and fork available, not in a pool's
+    daemon worker, which may have no children, and JAX not loaded) ``workers`` - 1 forked child processes
     (:func:`_fork_writer`) share the writers with this one: the plots of a run are independent
     and cost ~0.1 s each. A child's exception is raised here. Whatever ends this process's part
     (an exception, Ctrl-C, SIGTERM), every child still running is killed and reaped, with
@@ -418,7 +419,11 @@ def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, wor
     import multiprocessing
 
     names = list(files)
-    if workers < 2 or len(names) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon:
+    # JAX (the mjx engine) runs threads of its own: a fork could deadlock on a lock one of them
+    # holds, and JAX warns of it; the writers then run here, one after another (~1 s for a run's plots)
+    threaded = "jax" in sys.modules
+    if (workers < 2 or len(names) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon
+            or threaded):
         for name in names:
             files[name](content / name)
         return
