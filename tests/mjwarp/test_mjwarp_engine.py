@@ -118,6 +118,8 @@ def test_details(run):
     assert details["device"] == "cpu" or details["device"].startswith("cuda")
     assert details["compile_s"] > 0.0 and set(details["versions"]) == {"mujoco_warp", "warp", "mujoco"}
     assert run.settings.timestep == H and run.n_evaluations == 4 * run.n_steps
+    # the defect found for issue 28 travels with every run of a scene with loops (docs/engines.md)
+    assert len(run.caveats) == 1 and "J̇·q̇ from the previous evaluation's body velocities" in run.caveats[0]
 
 
 def test_a_batch_equals_its_single_runs(run):
