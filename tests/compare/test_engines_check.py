@@ -29,6 +29,18 @@ def _settings(scene, engines, **mujoco):
     return {name: MujocoSettings(**mujoco) if name == "mujoco" else engine_settings(name, scene) for name in engines}
 
 
+def test_the_outlier_is_farthest_from_the_median_of_the_others():
+    """Five peaks (rad/s) as the seed's table has them: three engines agree, MJWarp is 2e-4 off and
+    MJX 1.4e-2 off; the median of the others is the agreeing value for both ports, so MJX, the
+    farther, is named. Six, two of them agreeing far from the other four: the lone one is named.
+    (Planted: min for max names 'mujoco' and 'c'.)"""
+    from xval.compare.engines import farthest_from_the_others
+
+    peaks = {"reduced": 34.264413, "mujoco": 34.264320, "pin": 34.264413, "mjx": 33.78, "mjwarp": 34.258}
+    assert farthest_from_the_others(peaks) == "mjx"
+    assert farthest_from_the_others({"a": 0.0, "b": 0.0, "c": 1.0, "d": 1.0, "e": 1.0, "f": 5.0}) == "f"
+
+
 def test_two_engines_name_no_outlier():
     """With only MuJoCo beside the reference, a failing MuJoCo (MuJoCo's default softness: the
     seed's peak 3.2e-2 off) fails the check, and nobody is called an outlier."""

@@ -5,14 +5,15 @@ Each engine other than the reduced one runs with its scene table's settings (or,
 command line's flags) and is judged against the reduced reference by the same gate as
 ``xval check`` (:func:`xval.compare.run.judge`), at its own tolerances: the scene's
 ``[tolerances.ENGINE]`` over its ``[tolerances]`` (:meth:`xval.scene.Scene.tolerances_for`). With three engines or more the peaks say which
-one is the outlier: the engine whose peak input speed is farthest, summed over the others, from
-theirs (relative to the reference's peak). An engine that fails to run is the outlier by
-definition and is reported with its failure.
+one is the outlier: the engine whose peak input speed is farthest from the median of the other
+engines' peaks. An engine that fails to run is the outlier by definition and is reported with its
+failure.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from statistics import median
 from typing import Any, Mapping
 
 from xval.errors import NumericalFailure
@@ -111,10 +112,16 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
         if failed:
             outlier = failed[0]
         else:
-            def distance(name: str) -> float:
-                return sum(d for pair, d in spread.items() if name in pair)
-            outlier = max(peaks, key=distance)
+            outlier = farthest_from_the_others(peaks)
     return EnginesCheck(scene, reference, tuple(verdicts), outlier, spread)
+
+
+def farthest_from_the_others(peaks: dict[str, float]) -> str:
+    """The engine whose peak is farthest from the median of the other engines' peaks (the
+    issue's rule; with three engines, the one farthest from the mean of the other two)."""
+    def distance(name: str) -> float:
+        return abs(peaks[name] - median(p for other, p in peaks.items() if other != name))
+    return max(peaks, key=distance)
 
 
 def engines_lines(check: EnginesCheck) -> list[str]:
