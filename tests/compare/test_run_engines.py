@@ -17,7 +17,7 @@ from xval.compare.report import ENGINES_PLOT, REPORT_FILES, SCHEMA_VERSION, repo
 from helpers import plots_left_out, short_seed_file
 
 ENTRY_KEYS = {"engine", "passed", "peak_omega", "peak_omega_rel", "q_max_abs", "omega_max_abs", "tolerances",
-              "failures", "failure"}
+              "failures", "failure", "known_defects"}
 
 
 def _scene(tmp_path, extra: str = "") -> str:

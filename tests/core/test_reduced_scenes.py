@@ -86,7 +86,7 @@ REQUIRED = ["linkage", "linkage.c1", "linkage.c2", "linkage.c3", "linkage.c4", "
 
 
 def test_the_seed_has_the_keys_these_tests_break():
-    assert len(NUMERIC) == 25 and set(STRINGS) == {"name", "description", "linkage.type", "torque.type",
+    assert len(NUMERIC) == 28 and set(STRINGS) == {"name", "description", "linkage.type", "torque.type",
                                                    "dampers[0].body"}
     scene_from_dict(seed_dict())  # unbroken, it is valid
 
