@@ -32,12 +32,14 @@ import numpy as np
 
 from xval.compare.engines import check_engines
 from xval.compare.settings import engine_settings
+from xval.mujoco_model.steps import grid_timestep, step_count
 from xval.registry import ENGINES
 from xval.scenefile import load_scene, scene_from_dict
 from xval.toml_reader import parse_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 EXTRAS = {"pin": "pinocchio", "mjx": "jax", "mjwarp": "warp"}
+MJWARP_STEP_S = 0.047  # s per MJWarp step on this project's CPU (seed, measured), for the skip message
 
 
 def installed() -> tuple[str, ...]:
@@ -50,7 +52,7 @@ def installed() -> tuple[str, ...]:
     return tuple(names)
 
 
-def table(paths: list[Path], engines: tuple[str, ...]) -> None:
+def table(paths: list[Path], engines: tuple[str, ...], max_port_steps: int) -> None:
     """The ports run with their own loop-gap and energy gates opened, so that a run those gates
     would stop still shows its figures; the "own audit" column says whether it meets the
     defaults' bounds (the gap and the energy residual relative to its scale)."""
@@ -60,10 +62,17 @@ def table(paths: list[Path], engines: tuple[str, ...]) -> None:
     for path in paths:
         scene = load_scene(path)
         settings = {name: engine_settings(name, scene) for name in engines}
+        run_here = engines
+        if "mjwarp" in engines:
+            steps = step_count(scene, settings["mjwarp"].timestep or grid_timestep(scene))
+            if steps > max_port_steps:
+                run_here = tuple(e for e in engines if e != "mjwarp")
+                print(f"| {scene.name} | mjwarp | not run here: {steps} steps at the scene's step, about "
+                      f"{steps * MJWARP_STEP_S / 60:.0f} min of MJWarp on this CPU | | | | | | | | |")
         defaults = dict(settings)
         for port in set(engines) & {"mjx", "mjwarp"}:
             settings[port] = replace(settings[port], max_constraint_violation=1.0, max_energy_residual=1.0)
-        check = check_engines(scene, engines, settings, None)
+        check = check_engines(scene, run_here, settings, None)
         print(f"| {scene.name} | reduced | {check.reference.peak.omega:.10g} | – | – | – | – | "
               f"{check.reference.audit.relative_residual:.1e} | – | – | {check.reference.wall_s:.3f} |")
         for v in check.verdicts:
@@ -122,11 +131,13 @@ def main(argv=None) -> int:
     p.add_argument("--batch", type=int, default=64)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--no-table", action="store_true")
+    p.add_argument("--max-port-steps", type=int, default=5000,
+                   help="skip MJWarp runs of more steps (on a CPU it takes ~50 ms a step)")
     a = p.parse_args(argv)
     engines = tuple(a.engines.split(",")) if a.engines else installed()
     print(f"# engines_table.py on {platform.node()}, {date.today()}, engines {', '.join(engines)}")
     if not a.no_table:
-        table(a.scenes, engines)
+        table(a.scenes, engines, a.max_port_steps)
     per_variant(engines, a.batch, a.repeats)
     return 0
 

@@ -142,3 +142,21 @@ def test_the_impedance_limits_written_in_the_settings_are_mujocos():
     from xval.reference_models.settings import MAX_IMPEDANCE, MIN_IMPEDANCE
 
     assert (MIN_IMPEDANCE, MAX_IMPEDANCE) == (mujoco.mjMINIMP, mujoco.mjMAXIMP)
+
+
+def test_the_ports_take_the_scenes_mujoco_settings_under_their_own():
+    """MJX and MJWarp run the MuJoCo engine's model with the same settings: a scene's [mujoco]
+    model options are their defaults, their own table and flags come over them, and an engine
+    that is not a MuJoCo port (pin) takes none of them. (Planted: no inheritance fails the first
+    assertion; inheritance over the port's own table fails the second.)"""
+    data = seed_dict()
+    data["mujoco"] = {"timestep": 2.5e-4, "iterations": 7}
+    data["mjwarp"] = {"timestep": 5e-4}
+    scene = scene_from_dict(data)
+    mjx = engine_settings("mjx", scene)
+    assert (mjx.timestep, mjx.iterations) == (2.5e-4, 7)
+    assert (engine_settings("mjwarp", scene).timestep, engine_settings("mjwarp", scene).iterations) == (5e-4, 7)
+    assert engine_settings("mjx", scene, timestep=1e-3).timestep == 1e-3
+    data["mujoco"] = {"integrator": "implicit"}  # MuJoCo has it, MJX does not: the message says where it came from
+    with pytest.raises(SceneError, match=r"^<memory>: \[mjx\] \(with \[mujoco\] integrator\)"):
+        engine_settings("mjx", scene_from_dict(data))

@@ -13,15 +13,29 @@ from dataclasses import replace
 from typing import Any
 
 from xval import settings as _settings
+from xval.mujoco_model.options import ModelOptions
 from xval.registry import ENGINES
 from xval.scene import Scene, Tolerances
 
 
 def engine_settings(engine: str, scene: Scene, **flags: Any):
     """The settings of the engine named ``engine`` (:data:`xval.registry.ENGINES`) for ``scene``:
-    ``flags`` (None: not given) over the scene's table of that engine over the defaults."""
-    return _settings.resolve(ENGINES[engine].settings, scene.engine_table(engine), flags,
-                             f"{scene.source}: [{engine}]")
+    ``flags`` (None: not given) over the scene's table of that engine over the defaults.
+
+    MuJoCo's ports (MJX, MJWarp: settings extending the MuJoCo-family model's options) run the
+    model the MuJoCo engine builds with the same settings: the scene's ``[mujoco]`` values of
+    those options come under the port's own table (``[mujoco] timestep``, the step a scene pins
+    for MuJoCo, is the port's step unless ``[mjx] timestep`` says otherwise)."""
+    settings_type = ENGINES[engine].settings
+    table = dict(scene.engine_table(engine))
+    where = f"{scene.source}: [{engine}]"
+    if engine != "mujoco" and issubclass(settings_type, ModelOptions):
+        shared = {o.name for o in _settings.options(ModelOptions)}
+        inherited = {k: v for k, v in scene.engine_table("mujoco").items() if k in shared and k not in table}
+        if inherited:
+            table = {**inherited, **table}
+            where += f" (with [mujoco] {', '.join(sorted(inherited))})"
+    return _settings.resolve(settings_type, table, flags, where)
 
 
 def reduced_settings(scene: Scene, **flags: Any):

@@ -20,7 +20,9 @@ class MjwarpSettings(ModelOptions):
     """Everything that changes MJWarp's answer; recorded with every result.
 
     The model's options (:class:`~xval.mujoco_model.options.ModelOptions`) as the MuJoCo
-    engine's, except ``timestep``: None is the grid step (the largest step ≤ 1 ms and ≤ 1/100 of
+    engine's (a scene's ``[mujoco]`` values of them are this engine's defaults:
+    :func:`xval.compare.settings.engine_settings`), except ``timestep``: None is the grid step
+    (the largest step ≤ 1 ms and ≤ 1/100 of
     the horizon that puts every load edge on the grid), not a search.
 
     MJWarp is float32 only (its arrays are warp's ``float``, float32; it has no float64 switch),
@@ -30,8 +32,8 @@ class MjwarpSettings(ModelOptions):
     """
 
     timestep: float | None = option(None, "MJWarp's timestep", "number", unit="s", limit="step", within_horizon=True,
-                                    default_text="the grid step, the MuJoCo engine's first candidate "
-                                                 "(load edges on the grid)")
+                                    default_text="[mujoco] timestep, else the grid step, the MuJoCo engine's "
+                                                 "first candidate (load edges on the grid)")
 
     def __post_init__(self) -> None:
         super().__post_init__()

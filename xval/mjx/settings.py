@@ -22,7 +22,9 @@ class MjxSettings(ModelOptions):
     """Everything that changes MJX's answer; recorded with every result.
 
     The model's options (:class:`~xval.mujoco_model.options.ModelOptions`) as the MuJoCo
-    engine's, except ``timestep``: None is the grid step (the largest step ≤ 1 ms and ≤ 1/100 of
+    engine's (a scene's ``[mujoco]`` values of them are this engine's defaults:
+    :func:`xval.compare.settings.engine_settings`), except ``timestep``: None is the grid step
+    (the largest step ≤ 1 ms and ≤ 1/100 of
     the horizon that puts every load edge on the grid), not a search. ``precision``: JAX's
     float64 (``jax_enable_x64``) or float32. What MJX does not implement is refused here: the
     implicit integrator (``implicitfast`` it has) and MuJoCo's exact constraint diagonal
@@ -33,8 +35,8 @@ class MjxSettings(ModelOptions):
                              choices=INTEGRATORS)
 
     timestep: float | None = option(None, "MJX's timestep", "number", unit="s", limit="step", within_horizon=True,
-                                    default_text="the grid step, the MuJoCo engine's first candidate "
-                                                 "(load edges on the grid)")
+                                    default_text="[mujoco] timestep, else the grid step, the MuJoCo engine's "
+                                                 "first candidate (load edges on the grid)")
     precision: str = option("float64", "JAX's floating-point precision", "choice", choices=PRECISIONS)
 
     def __post_init__(self) -> None:
