@@ -196,6 +196,8 @@ def _check_file(target: Path, text: str, flag: str) -> Path:
 
 # ---------------------------------------------------------------------------- signals
 
+RESEND_S = 0.01  # s: a signal swallowed by a callback is sent again this long after (signals_as_exceptions)
+
 @contextlib.contextmanager
 def signals_as_exceptions() -> Iterator[list[int]]:
     """For the duration of the block, SIGTERM raises :class:`Terminated` and SIGINT
@@ -219,13 +221,29 @@ def signals_as_exceptions() -> Iterator[list[int]]:
         received.append(signum)
         signal.default_int_handler(signum, frame)
 
+    # A signal that lands while Python runs a callback that cannot raise (a weakref's, matplotlib
+    # drops transforms that way; a __del__) would have its exception printed as "Exception
+    # ignored in" and swallowed: it is sent again instead, from a thread once this callback is
+    # left, to raise where the run sees it (its handler records it again).
+    previous_hook = sys.unraisablehook
+
+    def unraisable(info) -> None:
+        if isinstance(info.exc_value, (Terminated, KeyboardInterrupt)) and received:
+            resend = threading.Timer(RESEND_S, os.kill, args=(os.getpid(), received.pop()))
+            resend.daemon = True
+            resend.start()
+            return
+        previous_hook(info)
+
     wanted = {signal.SIGTERM: terminate, signal.SIGINT: interrupt}
     # A signal the caller chose to ignore (``nohup``, a background job) stays ignored.
     previous = {s: signal.signal(s, handler) for s, handler in wanted.items()
                 if signal.getsignal(s) is not signal.SIG_IGN}
+    sys.unraisablehook = unraisable
     try:
         yield received
     finally:
+        sys.unraisablehook = previous_hook
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
