@@ -69,7 +69,7 @@ def test_mjx_runs_the_mujoco_engines_model_and_passes_its_own_audits(runs):
     # raised otherwise); measured 3.3e-4 of the scale. The loop gap: 1.0e-4 m.
     assert r.audit.relative_residual < r.settings.max_energy_residual
     assert r.constraint_violation.max < 3e-4  # m; measured 1.0e-4 (C: 1.1e-7), see the xfail below
-    assert r.details.known_defects == (KNOWN_DEFECT.format(version=r.details.versions["mjx"]),)
+    assert r.caveats == (KNOWN_DEFECT.format(version=r.details.versions["mjx"]),)
 
 
 def test_a_batch_of_variants_runs_each_as_alone(runs):

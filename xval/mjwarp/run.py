@@ -28,8 +28,8 @@ from importlib import metadata
 import numpy as np
 
 from xval.mujoco_model.build import check_mujoco_version
-from xval.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, prepare, refusing_unimplemented,
-                                   stack_runs)
+from xval.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, known_defects, prepare,
+                                   refusing_unimplemented, stack_runs)
 from xval.results import EngineResult
 from xval.scene import Scene
 
@@ -53,7 +53,7 @@ MJWARP_VERSION = metadata.version("mujoco-warp")
 KNOWN_DEFECT = ("MJWarp {version} computes the loop constraints' J̇·q̇ from the previous evaluation's body "
                 "velocities (make_constraint runs before fwd_velocity), and runs in float32: expect errors of "
                 "order 1e-4 on closed loops (docs/engines.md)")
-_DEFECT_UNTIL = (4, 0, 0)  # the newest MJWarp release checked; a later one is not assumed to have it
+DEFECT_CHECKED = "4.0.0"  # the newest MJWarp release found to have it
 # Warp prints a line per kernel module it compiles or loads (hundreds for one step of MJWarp):
 # an engine's run prints nothing of its own (the CLI's output is the report).
 wp.config.quiet = True
@@ -160,11 +160,10 @@ def simulate_batch(scenes: list[Scene], settings: MjwarpSettings = MjwarpSetting
                           versions={"mujoco_warp": MJWARP_VERSION, "warp": wp.__version__, "mujoco": mujoco.__version__})
     per_step = 4 if settings.integrator == "rk4" else 1
     results = []
-    lagging = tuple(int(p) for p in MJWARP_VERSION.split(".")[:3] if p.isdigit()) <= _DEFECT_UNTIL
+    defect = KNOWN_DEFECT.format(version=MJWARP_VERSION)
     for k, run in enumerate(runs):
         details = replace(batch, initial_residuals=run.initial, edge_warnings=run.edge_notes)
-        caveats = ((KNOWN_DEFECT.format(version=MJWARP_VERSION),)
-                   if lagging and run.scene.mechanism.linkage.cut_joints else ())
+        caveats = known_defects(run, MJWARP_VERSION, DEFECT_CHECKED, defect)
         results.append(finish(run, qpos[:, k], qvel[:, k], name="mjwarp", engine="MJWarp",
                               wall_s=wall / len(runs), evaluations_per_step=per_step, details=details,
                               caveats=caveats))

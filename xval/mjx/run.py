@@ -11,13 +11,13 @@ gap are MuJoCo C's functions at MJX's states, as the issue's design asks (MJX co
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import metadata
 
 import numpy as np
 
 from xval.mujoco_model.build import check_mujoco_version
-from xval.mujoco_model.port import PortRun, finish, prepare, refusing_unimplemented, stack_runs
+from xval.mujoco_model.port import PortRun, finish, known_defects, prepare, refusing_unimplemented, stack_runs
 from xval.results import EngineResult
 from xval.scene import Scene
 
@@ -42,11 +42,7 @@ MJX_VERSION = metadata.version("mujoco-mjx")
 KNOWN_DEFECT = ("MJX {version} omits J̇·q̇ from the loop constraints' reference acceleration (MuJoCo C subtracts "
                 "it: mj_Jdotv), so the loops close late: expect errors of order 1e-3 on closed loops "
                 "(docs/engines.md)")
-_DEFECT_UNTIL = (3, 17, 0)  # the newest MJX release checked; a later one is not assumed to have it
-
-
-def _release(text: str) -> tuple[int, ...]:
-    return tuple(int(p) for p in text.split(".")[:3] if p.isdigit())
+DEFECT_CHECKED = "3.17.0"  # the newest MJX release found to have it
 
 
 @dataclass(frozen=True)
@@ -59,7 +55,6 @@ class MjxDetails:
         ``EngineResult.wall_s`` (the batch's run divided by ``batch``).
     initial_residuals : MuJoCo C's loop residuals at the start.
     edge_warnings : one note per load edge off the step grid.
-    known_defects : the defects of this MJX that bear on the scene (empty when none is known).
     versions : MJX's, JAX's and MuJoCo C's (which reads the states back).
     """
 
@@ -69,14 +64,12 @@ class MjxDetails:
     compile_s: float
     initial_residuals: dict
     edge_warnings: tuple[str, ...]
-    known_defects: tuple[str, ...]
     versions: dict
 
     def as_dict(self) -> dict:
         return {"backend": self.backend, "precision": self.precision, "batch": self.batch,
                 "compile_s": self.compile_s, "initial_residuals": dict(self.initial_residuals),
-                "edge_warnings": list(self.edge_warnings), "known_defects": list(self.known_defects),
-                "versions": dict(self.versions)}
+                "edge_warnings": list(self.edge_warnings), "versions": dict(self.versions)}
 
 
 def simulate_mjx(scene: Scene, settings: MjxSettings = MjxSettings()) -> EngineResult:
@@ -111,24 +104,15 @@ def simulate_batch(scenes: list[Scene], settings: MjxSettings = MjxSettings()) -
     with jax.enable_x64(settings.precision == "float64"):
         qpos, qvel, compile_s, wall = _scan(runs, settings.precision)
     details = MjxDetails(backend=jax.default_backend(), precision=settings.precision, batch=len(runs),
-                         compile_s=compile_s, initial_residuals={}, edge_warnings=(), known_defects=(),
+                         compile_s=compile_s, initial_residuals={}, edge_warnings=(),
                          versions={"mjx": MJX_VERSION, "jax": jax.__version__, "mujoco": mujoco.__version__})
     per_step = 4 if settings.integrator == "rk4" else 1
-    results = []
-    for k, run in enumerate(runs):
-        run_details = _details_of(run, details)
-        results.append(finish(run, qpos[k], qvel[k], name="mjx", engine="MJX", wall_s=wall / len(runs),
-                              evaluations_per_step=per_step, details=run_details, caveats=run_details.known_defects))
-    return results
-
-
-def _details_of(run: PortRun, batch: MjxDetails) -> MjxDetails:
-    from dataclasses import replace
-
-    defects = ()
-    if run.scene.mechanism.linkage.cut_joints and _release(MJX_VERSION) <= _DEFECT_UNTIL:
-        defects = (KNOWN_DEFECT.format(version=MJX_VERSION),)
-    return replace(batch, initial_residuals=run.initial, edge_warnings=run.edge_notes, known_defects=defects)
+    defect = KNOWN_DEFECT.format(version=MJX_VERSION)
+    return [finish(run, qpos[k], qvel[k], name="mjx", engine="MJX", wall_s=wall / len(runs),
+                   evaluations_per_step=per_step,
+                   details=replace(details, initial_residuals=run.initial, edge_warnings=run.edge_notes),
+                   caveats=known_defects(run, MJX_VERSION, DEFECT_CHECKED, defect))
+            for k, run in enumerate(runs)]
 
 
 # The compiled scans of this process, by the batch's structure and shapes (a compilation takes

@@ -66,12 +66,14 @@ from .options import INTEGRATORS as MUJOCO_INTEGRATORS
 MIN_MUJOCO = "4.0.1"
 
 
+def release(text: str) -> tuple[int, ...]:
+    """A version string's release numbers, e.g. (4, 0, 1) of "4.0.1" (at most three)."""
+    return tuple(int(part) for part in re.findall(r"\d+", text)[:3])
+
+
 def check_mujoco_version(version: str) -> None:
     """ImportError in one line unless ``version`` (MuJoCo's, e.g. ``mujoco.__version__``) is at
     least MIN_MUJOCO."""
-    def release(text: str) -> tuple[int, ...]:
-        return tuple(int(part) for part in re.findall(r"\d+", text)[:3])
-
     if release(version) < release(MIN_MUJOCO):
         raise ImportError(f"xval's MuJoCo engine needs MuJoCo {MIN_MUJOCO} or newer, but `import mujoco` loads "
                           f"{version}: reinstall with pip install --force-reinstall 'mujoco-core>={MIN_MUJOCO}' (MJX "

@@ -23,7 +23,7 @@ from xval.errors import FailureReason, NumericalFailure
 from xval.results import EngineResult
 from xval.scene import Scene
 
-from .build import ConstraintSettings, ModelHandles, build_spec, check_joint_order, compile_model
+from .build import ConstraintSettings, ModelHandles, build_spec, check_joint_order, compile_model, release
 from .layout import Layout
 from .loads import control_sequence
 from .options import ModelOptions
@@ -131,6 +131,15 @@ def prepare(scene: Scene, settings: ModelOptions, engine: str, table: str) -> Po
     ctrl, notes = control_sequence(scene, h, n)
     return PortRun(scene=scene, settings=settings, handles=handles, port_model=port_model, layout=layout,
                    data=data, initial=initial, ctrl=ctrl, edge_notes=tuple(notes))
+
+
+def known_defects(run: PortRun, version: str, checked: str, defect: str) -> tuple[str, ...]:
+    """A port's known defect of the loop constraints (``defect``, one line) as the caveat of a
+    run of a scene with loops, while the port's ``version`` is at most ``checked``, the newest
+    release found to have it (a later one is not assumed to); else none."""
+    if run.scene.mechanism.linkage.cut_joints and release(version) <= release(checked):
+        return (defect,)
+    return ()
 
 
 def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engine: str, wall_s: float,
