@@ -1,15 +1,15 @@
 """Build of the compiled core: the loop kinematics and the reduced solver's kernels (Cython 3, pure-Python mode).
 
-The kernels are ordinary ``.py`` files annotated for Cython (``xval/kernels``, ``xval/reduced/kernels``); ``pip install``
+The kernels are ordinary ``.py`` files annotated for Cython (``loopcheck/kernels``, ``loopcheck/reduced/kernels``); ``pip install``
 and ``pip wheel`` compile each into a C extension of the same module name, which Python imports
-in preference to the ``.py`` beside it (``XVAL_PURE_PYTHON=1`` imports the ``.py`` instead:
-``xval/reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
+in preference to the ``.py`` beside it (``LOOPCHECK_PURE_PYTHON=1`` imports the ``.py`` instead:
+``loopcheck/reduced/kernels/__init__.py``). Everything else about the package is in ``pyproject.toml``.
 
 Flags (the README's "Compiled core" says why): ``-ffp-contract=off`` (no fused multiply-add:
 a*b+c rounds twice, as numpy and scipy compute it, on every compiler and CPU) and no fast-math
 (IEEE semantics: NaN and inf propagate, no reassociation); Cython's ``cdivision`` gives C's IEEE
 division (x/0 is inf or NaN, as in numpy, instead of Python's ZeroDivisionError).
-``XVAL_CHECKED_BUILD=1`` builds with bounds checks on every array index (an out-of-range index
+``LOOPCHECK_CHECKED_BUILD=1`` builds with bounds checks on every array index (an out-of-range index
 raises IndexError instead of reading past a buffer): CI runs the kernel tests on such a build.
 """
 
@@ -30,9 +30,9 @@ class ParallelBuildExt(build_ext):
 
 
 # the compiled modules, by package: the mechanism layer's kinematics, the reduced engine's core
-KERNELS = {"xval.kernels": ("loops",),
-           "xval.reduced.kernels": ("problem", "output", "physics", "fixed_step", "adaptive", "partition")}
-CHECKED = os.environ.get("XVAL_CHECKED_BUILD", "") not in ("", "0")
+KERNELS = {"loopcheck.kernels": ("loops",),
+           "loopcheck.reduced.kernels": ("problem", "output", "physics", "fixed_step", "adaptive", "partition")}
+CHECKED = os.environ.get("LOOPCHECK_CHECKED_BUILD", "") not in ("", "0")
 
 DIRECTIVES = {
     "language_level": 3,
@@ -46,7 +46,7 @@ CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"] + (["-O0", "-g"] if CHEC
 
 # Cython's support code (memoryviews: ~25 000 lines of C) compiled once, in a module of its own
 # that the kernels import, rather than into each of them (5 s of gcc per kernel)
-SHARED = "xval.kernels._cython"
+SHARED = "loopcheck.kernels._cython"
 
 extensions = [Extension(SHARED, sources=[], extra_compile_args=CFLAGS)] + [
     Extension(f"{package}.{name}", [f"{package.replace('.', '/')}/{name}.py"], extra_compile_args=CFLAGS)

@@ -1,27 +1,27 @@
 """The compiled reduced core on the seed scene: its targets, measured in one run.
 
-1. Evaluation cost of q̈ through the general path (``xval.reduced.kernels.physics.Chart.acceleration``:
+1. Evaluation cost of q̈ through the general path (``loopcheck.reduced.kernels.physics.Chart.acceleration``:
    the chart walk — Newton or the closed-form dyads, K and L, conditioning — and Eksergian's
    coefficients) inside a compiled RKN4 run of the seed at a fine step (1e-4 s, 80 000
    evaluations): the run's wall time over its evaluations, the integrator's own arithmetic and
    the samples' recording included (target: no slower than the numba core's 0.46 µs).
 2. Reduced RKN4 vs MuJoCo at equal accuracy. Truth: DOP853 rtol 1e-12
-   (``xval.compare.cost.ground_truth``). Every RKN4 step and MuJoCo configuration of
-   ``xval.compare.cost.ladder`` is run once for its errors (``xval.compare.cost.measure``: peak-ω
+   (``loopcheck.compare.cost.ground_truth``). Every RKN4 step and MuJoCo configuration of
+   ``loopcheck.compare.cost.ladder`` is run once for its errors (``loopcheck.compare.cost.measure``: peak-ω
    relative error, and max |Δq(t)| with the truth interpolated at the run's sample times);
    the ladder is 1-2-5 per decade, so for each target and series four geometric steps are
    added between its cheapest passing step and the next coarser one (``refinements``);
    those that meet a target are timed again (median of the repeats) and the cheapest of each
    engine is printed, for peak-ω error 1e-6 and for max |Δq| 1e-6 rad, with the ratio
    MuJoCo / reduced (targets ≥ 20× and ≥ 50×). Wall times: reduced, ``EngineResult.wall_s``
-   of ``reduced.simulate`` = the call to ``xval.reduced.engine.integrate`` (the compiled RKN4 run
+   of ``reduced.simulate`` = the call to ``loopcheck.reduced.engine.integrate`` (the compiled RKN4 run
    and its output assembly; not the error estimate or energy audit); MuJoCo,
    ``simulate_mujoco``'s ``wall_s`` = the rollout only.
 3. The adaptive reference: median wall time of
-   ``xval.reduced.engine.integrate(model, ReducedSettings(method="dop853", rtol=1e-12))`` on the
+   ``loopcheck.reduced.engine.integrate(model, ReducedSettings(method="dop853", rtol=1e-12))`` on the
    seed, model built beforehand (target < 9 ms). The same with ``method="scipy-dop853"``
    (scipy's driver on the compiled equation) beside it.
-4. ``xval run`` on the seed end to end: wall time of the ``xval run --out TMP`` subprocess,
+4. ``loopcheck run`` on the seed end to end: wall time of the ``loopcheck run --out TMP`` subprocess,
    median of 3 or more (target < 2 s). Nothing is compiled or cached at run time, so the first
    run of an install is one of these (``benchmarks/install.py`` measures exactly that).
 
@@ -51,10 +51,10 @@ from common import median_time  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from xval.reduced import ReducedSettings  # noqa: E402
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
-from xval.reduced.dynamics import MechanismModel  # noqa: E402
+from loopcheck.reduced import ReducedSettings  # noqa: E402
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.reduced.dynamics import MechanismModel  # noqa: E402
 
 
 
@@ -63,11 +63,11 @@ from xval.reduced.dynamics import MechanismModel  # noqa: E402
 def compiled_rkn4(scene, step: float):
     """A function that runs the seed's compiled RKN4 (the partitioned run alone: no output
     assembly) at ``step`` and returns its number of evaluations of q̈."""
-    from xval.reduced.integrators import SPEED_LIMIT
-    from xval.reduced.kernels import partition as compiled
-    from xval.reduced.kernels.fixed_step import RKN4
-    from xval.reduced.kernels.output import Samples
-    from xval.reduced.charts import MAX_SWITCHES, _start, load_pieces
+    from loopcheck.reduced.integrators import SPEED_LIMIT
+    from loopcheck.reduced.kernels import partition as compiled
+    from loopcheck.reduced.kernels.fixed_step import RKN4
+    from loopcheck.reduced.kernels.output import Samples
+    from loopcheck.reduced.charts import MAX_SWITCHES, _start, load_pieces
 
     model = MechanismModel(scene)
     x0, i, rate = _start(model)
@@ -99,7 +99,7 @@ def part1(scene, quick: bool, repeats: int) -> None:
 # -- part 2: RKN4 vs MuJoCo at equal accuracy ----------------------------------------------
 
 def part2(scene, quick: bool, repeats: int) -> None:
-    from xval.compare.cost import ground_truth, ladder, measure
+    from loopcheck.compare.cost import ground_truth, ladder, measure
 
     targets = (("peak-ω rel error", "peak_omega_rel", 1e-6), ("max |Δq(t)| (rad)", "q_max_abs", 1e-6))
     truth = ground_truth(scene)
@@ -110,7 +110,7 @@ def part2(scene, quick: bool, repeats: int) -> None:
     print(f"\n2. reduced RKN4 vs MuJoCo at equal accuracy on the seed (truth DOP853 rtol 1e-12, "
           f"itself within {truth.error['peak_omega_rel']:.1e} peak, {truth.error['q_max_abs']:.1e} rad "
           f"of rtol 1e-11)")
-    print(f"   {len(configs)} configurations from xval.compare.cost.ladder({'quick=True' if quick else ''}) run "
+    print(f"   {len(configs)} configurations from loopcheck.compare.cost.ladder({'quick=True' if quick else ''}) run "
           f"once for errors; those meeting a target timed again, median of {repeats}")
     first = [measure(scene, c, truth.trajectory, 1) for c in configs]
     timed: dict[str, object] = {}
@@ -188,8 +188,8 @@ def refinements(scene, first, targets, truth, quick: bool) -> list:
     ``REFINE_POINTS`` geometric steps between them (MuJoCo's moved down onto the load edges'
     grid, as the ladder's are: off it the pulse's edge costs MuJoCo 1e-4 of peak error), run
     once for errors like the ladder's."""
-    from xval.compare.cost import measure
-    from xval.mujoco_model.steps import grid_timestep
+    from loopcheck.compare.cost import measure
+    from loopcheck.mujoco_model.steps import grid_timestep
 
     if quick:
         return []
@@ -220,8 +220,8 @@ def refinements(scene, first, targets, truth, quick: bool) -> list:
 
 def rkn4_breakdown(scene, step: float, repeats: int) -> tuple[float, float]:
     """Median wall times (s) of the compiled RKN4 run alone and of the whole
-    ``xval.reduced.engine.integrate`` call at ``step``."""
-    from xval.reduced.engine import integrate
+    ``loopcheck.reduced.engine.integrate`` call at ``step``."""
+    from loopcheck.reduced.engine import integrate
 
     model = MechanismModel(scene)
     settings = ReducedSettings(method="rkn4", step=step)
@@ -231,13 +231,13 @@ def rkn4_breakdown(scene, step: float, repeats: int) -> tuple[float, float]:
 # -- part 3: the adaptive reference --------------------------------------------------------
 
 def part3(scene, repeats: int) -> None:
-    from xval.reduced.engine import integrate
+    from loopcheck.reduced.engine import integrate
 
     model = MechanismModel(scene)
     settings = ReducedSettings(method="dop853", rtol=1e-12)
     solution = integrate(model, settings)
     t = median_time(lambda: integrate(model, settings), repeats)
-    print(f"\n3. adaptive reference on the seed: xval.reduced.engine.integrate(model, "
+    print(f"\n3. adaptive reference on the seed: loopcheck.reduced.engine.integrate(model, "
           f"ReducedSettings(method='dop853', rtol=1e-12)), model built beforehand, median of {repeats}")
     print(f"   {'solver':28s} {'steps':>7s} {'f evals':>8s} {'wall (ms)':>10s}")
     print(f"   {solution.method:28s} {solution.n_steps:7d} {solution.n_evaluations:8d} {t * 1e3:10.2f}")
@@ -250,31 +250,31 @@ def part3(scene, repeats: int) -> None:
     print(f"   ratio to the target: {t / 9e-3:.2f}x of 9 ms (< 1 meets it)")
 
 
-# -- part 4: xval run end to end -----------------------------------------------------------
+# -- part 4: loopcheck run end to end -----------------------------------------------------------
 
-def xval_command() -> list[str]:
-    exe = Path(sys.executable).with_name("xval")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "xval.compare.cli"]
+def loopcheck_command() -> list[str]:
+    exe = Path(sys.executable).with_name("loopcheck")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "loopcheck.compare.cli"]
 
 
 def timed_run(env: dict) -> float:
-    out = tempfile.mkdtemp(prefix="xval-bench-")
+    out = tempfile.mkdtemp(prefix="loopcheck-bench-")
     try:
         start = time.perf_counter()
-        done = subprocess.run([*xval_command(), "run", "--out", out], cwd=ROOT, env=env,
+        done = subprocess.run([*loopcheck_command(), "run", "--out", out], cwd=ROOT, env=env,
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         wall = time.perf_counter() - start
     finally:
         shutil.rmtree(out, ignore_errors=True)
     if done.returncode not in (0, 1):  # 1: a gate failed, still a full run
-        raise RuntimeError(f"xval run exited {done.returncode}: {done.stderr[-2000:]}")
+        raise RuntimeError(f"loopcheck run exited {done.returncode}: {done.stderr[-2000:]}")
     return wall
 
 
 def part4(quick: bool, repeats: int) -> None:
     env = dict(os.environ)
     runs = [timed_run(env) for _ in range(max(3, repeats if not quick else 3))]
-    print("\n4. `xval run --out TMP` on the seed, subprocess wall time (imports, both engines, report, plots)")
+    print("\n4. `loopcheck run --out TMP` on the seed, subprocess wall time (imports, both engines, report, plots)")
     print(f"   median of {len(runs)}: {statistics.median(runs):.2f} s (runs: {', '.join(f'{w:.2f}' for w in runs)}; "
           f"target < 2 s)")
     print(f"   ratio to the target: {statistics.median(runs) / 2.0:.2f} (< 1 meets it)")

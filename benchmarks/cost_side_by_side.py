@@ -27,11 +27,11 @@ from mujoco import rollout
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import median_time  # noqa: E402
 
-from xval.compare.cost import HARD, Config, ground_truth, measure  # noqa: E402
-from xval.reduced import ReducedSettings  # noqa: E402
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
-from xval.reference_models import (MujocoSettings, build_model, compile_model, control_sequence,  # noqa: E402
+from loopcheck.compare.cost import HARD, Config, ground_truth, measure  # noqa: E402
+from loopcheck.reduced import ReducedSettings  # noqa: E402
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.reference_models import (MujocoSettings, build_model, compile_model, control_sequence,  # noqa: E402
                               initial_qpos_qvel, simulate_mujoco)
 
 TARGETS = (1e-4, 1e-6, 1e-8)

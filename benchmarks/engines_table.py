@@ -1,7 +1,7 @@
 """Every engine against the exact reduced solution on the mechanism catalogue, and each engine's
 time per variant on the seed.
 
-1. For each scene of scenes/mechanisms/ (the nine mechanisms), ``xval check --engines`` with every
+1. For each scene of scenes/mechanisms/ (the nine mechanisms), ``loopcheck check --engines`` with every
    engine installed (reduced, MuJoCo C, Pinocchio, MJX, MJWarp; the optional ones skipped with a
    note when their extra is missing), each at its defaults and judged by the scene's own
    ``[tolerances]`` (or ``[tolerances.ENGINE]``): peak ω, its relative difference from the reduced
@@ -30,12 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from xval.compare.engines import check_engines
-from xval.compare.settings import engine_settings
-from xval.mujoco_model.steps import grid_timestep, step_count
-from xval.registry import ENGINES
-from xval.scenefile import load_scene, scene_from_dict
-from xval.toml_reader import parse_toml
+from loopcheck.compare.engines import check_engines
+from loopcheck.compare.settings import engine_settings
+from loopcheck.mujoco_model.steps import grid_timestep, step_count
+from loopcheck.registry import ENGINES
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.toml_reader import parse_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 EXTRAS = {"pin": "pinocchio", "mjx": "jax", "mjwarp": "warp"}

@@ -3,13 +3,13 @@ form on the seed scene, and the general description on every catalogue mechanism
 
 Three rows per scene, whichever can run:
 
-- ``engine``: the reduced engine's own right-hand side, a :class:`xval.reduced.charts.Chart` of a
-  :class:`xval.reduced.dynamics.MechanismModel` in the input coordinate (the compiled kernel, called
+- ``engine``: the reduced engine's own right-hand side, a :class:`loopcheck.reduced.charts.Chart` of a
+  :class:`loopcheck.reduced.dynamics.MechanismModel` in the input coordinate (the compiled kernel, called
   once per f from Python, as scipy's integrators call it);
 - ``closed form``: Eksergian's equation written here from the four-bar closed form
-  (:meth:`xval.four_bar.FourBar.kinematics`) and the bodies' geometry (``scene.four_bar``
+  (:meth:`loopcheck.four_bar.FourBar.kinematics`) and the bodies' geometry (``scene.four_bar``
   scenes only: the shorthand seed, scenes/seed_fourbar.toml; no point forces);
-- ``loops``: Eksergian's equation written here directly on :mod:`xval.kinematics` (Newton from the
+- ``loops``: Eksergian's equation written here directly on :mod:`loopcheck.kinematics` (Newton from the
   previous configuration, K and L, masses, springs, dampers, gravity, point forces and the input
   load: everything on plain arrays, no model object), a floor for what the general path costs
   in Python and a check of the engine row's value (the two must agree).
@@ -35,10 +35,10 @@ from typing import Callable
 
 import numpy as np
 
-from xval import kinematics as loops
-from xval.loads import TabulatedForce
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
+from loopcheck import kinematics as loops
+from loopcheck.loads import TabulatedForce
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
 
 ROOT = Path(__file__).resolve().parent.parent
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
@@ -47,8 +47,8 @@ F = Callable[[float, float, float], float]
 
 def engine_f(scene) -> F:
     """The reduced engine's q̈ = f(t, q, q̇) in the input coordinate (index 0 of a chart)."""
-    from xval.reduced.dynamics import MechanismModel
-    from xval.reduced.charts import Chart
+    from loopcheck.reduced.dynamics import MechanismModel
+    from loopcheck.reduced.charts import Chart
 
     model = MechanismModel(scene)
     i = model.input_coordinate  # the input is a coordinate in every catalogue scene
@@ -65,7 +65,7 @@ def closed_form_f(scene) -> F:
     """The four-bar closed form's f (scene.four_bar scenes only): body frames crank at O1 turning
     with q, coupler at A = c1 e(q) turning with φ1, rocker at O3 = (c4, 0) turning with φ2 + π;
     a body point p is r = o + R(θ) p, K_r = K_o + θ' (R p)⊥, L_r = L_o + θ'' (R p)⊥ − θ'² R p."""
-    from xval.four_bar import FourBar
+    from loopcheck.four_bar import FourBar
 
     if scene.four_bar is None or scene.mechanism.point_forces:
         raise ValueError("not a four-bar shorthand scene without point forces")
@@ -115,7 +115,7 @@ def closed_form_f(scene) -> F:
 
 
 def loops_f(scene) -> F:
-    """Eksergian's equation on xval.kinematics' plain arrays (see the module docstring)."""
+    """Eksergian's equation on loopcheck.kinematics' plain arrays (see the module docstring)."""
     mech = scene.mechanism
     linkage = mech.linkage
     system = loops.compile_linkage(linkage)

@@ -19,10 +19,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import largest_passing, median_time  # noqa: E402
 
-from xval.reduced import MechanismModel, ReducedSettings  # noqa: E402
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
-from xval.reduced.engine import integrate  # noqa: E402
+from loopcheck.reduced import MechanismModel, ReducedSettings  # noqa: E402
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.reduced.engine import integrate  # noqa: E402
 
 
 def main() -> None:

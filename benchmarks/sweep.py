@@ -12,14 +12,14 @@ The issue's targets, as written:
 
 The sweep: ``scenes/seed_fourbar.toml`` with ``dampers.0.coefficient=40:70:25`` ×
 ``bodies.coupler.mass=35:45:40`` (1 000 variants; the nominal 55 N·s/m and 40 kg inside the
-ranges), made by the package's own ``xval.compare.sweep_spec`` (``load_sweep``, ``spec_from_args``,
-``check``, ``variant_values``, ``apply``) and ``xval.scenefile.scene_from_dict``, as
-``xval sweep`` makes them.
+ranges), made by the package's own ``loopcheck.compare.sweep_spec`` (``load_sweep``, ``spec_from_args``,
+``check``, ``variant_values``, ``apply``) and ``loopcheck.scenefile.scene_from_dict``, as
+``loopcheck sweep`` makes them.
 
 What is timed (``time.perf_counter``, wall; the machine is small and shared, so every figure
 is one run unless said otherwise, and none is asserted):
 
-1. Accuracy first: on the nominal scene, DOP853 (``xval.reduced.engine.simulate``) at rtol 1e-9,
+1. Accuracy first: on the nominal scene, DOP853 (``loopcheck.reduced.engine.simulate``) at rtol 1e-9,
    1e-10, 1e-11 against rtol 1e-13, relative error of ``EngineResult.peak.omega`` (the peak
    located between samples); the loosest rtol within 1e-8 is the first candidate (checked at the
    grid's four corners too). The nominal scene is not enough: every variant's peak is then
@@ -29,15 +29,15 @@ is one run unless said otherwise, and none is asserted):
    until one holds on every variant; that one is timed. The 1 000 variants: (a) serially in
    this process: building every scene (``apply`` + ``scene_from_dict``) and
    ``simulate(scene, settings)`` of each (a NumericalFailure caught and counted), timed apart
-   and together; (b) over both cores with ``xval.compare.pool.ordered_map`` (the sweep's pool) in
-   chunks of ``xval.compare.sweep.chunk_size`` variants, each worker building and simulating its
+   and together; (b) over both cores with ``loopcheck.compare.pool.ordered_map`` (the sweep's pool) in
+   chunks of ``loopcheck.compare.sweep.chunk_size`` variants, each worker building and simulating its
    variants, pool start-up included. Printed: seconds, ms per variant, ratio to 2 s. A split of one
    variant's time (median over a few variants): scene build, ``MechanismModel``,
-   ``xval.reduced.engine.integrate`` (what ``EngineResult.wall_s`` times), ``energy_audit``, the
+   ``loopcheck.reduced.engine.integrate`` (what ``EngineResult.wall_s`` times), ``energy_audit``, the
    peak search, and the rest of ``simulate``.
 2. MuJoCo on a subset of the same variants (every k-th; the whole 1 000 would take minutes):
-   (a) ours, ``xval.reference_models.run.simulate_mujoco(scene, xval.compare.settings.mujoco_settings
-   (scene))`` per variant, the settings ``xval sweep`` uses (an automatic timestep: a run at h
+   (a) ours, ``loopcheck.reference_models.run.simulate_mujoco(scene, loopcheck.compare.settings.mujoco_settings
+   (scene))`` per variant, the settings ``loopcheck sweep`` uses (an automatic timestep: a run at h
    and one at h/2 compared, h halved until they agree; the finer run is the result), serially,
    and over two processes with ``ordered_map``; (b) bare ``mujoco.rollout.rollout`` on the same
    models: every model the automatic choice ran (rebuilt as ours builds them, ``build_model`` at
@@ -47,12 +47,12 @@ is one run unless said otherwise, and none is asserted):
    ``rollout`` call per timestep with the list of models, with one MjData (one thread) and with
    two (two threads). Printed: totals, the ratios ours / bare (target ≤ 1.10), and where our time
    goes (model building, rollouts inside ours, the rest).
-3. ``xval sweep SCENE --vary ... --out TMP`` as a subprocess: the peak memory of its process
-   tree (the xval process and its pool workers), polled from /proc every 0.1 s: the largest sum
+3. ``loopcheck sweep SCENE --vary ... --out TMP`` as a subprocess: the peak memory of its process
+   tree (the loopcheck process and its pool workers), polled from /proc every 0.1 s: the largest sum
    of RSS and of PSS (PSS splits pages shared by the forked workers, so it does not count them
    twice), and the largest single process. Each mode of ``--engines`` asked for (default both):
    ``both`` (the reduced solver at the scene's default DOP853 rtol 1e-12, and MuJoCo) for N = 200
-   and 1 000 variants (and 4 000 with ``--full``); ``reduced`` (``xval sweep --engines reduced``:
+   and 1 000 variants (and 4 000 with ``--full``); ``reduced`` (``loopcheck sweep --engines reduced``:
    the reduced solver alone, the same settings; the issue's target 3) for N = 1 000 and 10 000
    (and 100 000 with ``--full``; ``--reduced-sizes`` to choose). Printed per mode: peak MB per N,
    wall time, the slope MB per 1 000 variants (least squares over the N run) and, unless
@@ -63,7 +63,7 @@ is one run unless said otherwise, and none is asserted):
    ``--scheduler`` on a ``distributed.LocalCluster(n_workers=2, threads_per_worker=1,
    processes=True)`` started here; ``sweep.csv`` rows compared as text after dropping the
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
-   time-based columns of ``xval.compare.sweep_table.FIGURE_COLUMNS``). Exit status 1 if any row differs.
+   time-based columns of ``loopcheck.compare.sweep_table.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
     python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
                                [--reduced-sizes 1000,10000,100000]
@@ -95,13 +95,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from xval.compare.pool import ordered_map  # noqa: E402
-from xval.compare.sweep import chunk_size  # noqa: E402
-from xval.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
-from xval.compare.sweep_scene import check, load_sweep  # noqa: E402
-from xval.reduced import ReducedSettings  # noqa: E402
-from xval.shipped_scenes import default_scene_path
-from xval.scenefile import scene_from_dict  # noqa: E402
+from loopcheck.compare.pool import ordered_map  # noqa: E402
+from loopcheck.compare.sweep import chunk_size  # noqa: E402
+from loopcheck.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
+from loopcheck.compare.sweep_scene import check, load_sweep  # noqa: E402
+from loopcheck.reduced import ReducedSettings  # noqa: E402
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.scenefile import scene_from_dict  # noqa: E402
 
 DAMPER, MASS = "dampers.0.coefficient", "bodies.coupler.mass"
 DAMPER_RANGE, MASS_RANGE = (40.0, 70.0), (35.0, 45.0)
@@ -109,7 +109,7 @@ PEAK_TARGET = 1e-8
 RTOLS = (1e-9, 1e-10, 1e-11)
 TRUTH_RTOL = 1e-13
 GRID_TRUTH_RTOL = 1e-12
-NOISE_MB = 20.0  # MB: the same xval sweep measured twice here differed by up to 19 MB of tree PSS
+NOISE_MB = 20.0  # MB: the same loopcheck sweep measured twice here differed by up to 19 MB of tree PSS
 TIME_COLUMNS = ("reduced.wall_s", "mujoco.wall_s", "variant_wall_s")
 
 
@@ -134,7 +134,7 @@ def make_spec(path: Path, n: int):
 
 
 def build(data, values, source):
-    with warnings.catch_warnings():  # as xval.compare.sweep.run_variant
+    with warnings.catch_warnings():  # as loopcheck.compare.sweep.run_variant
         warnings.simplefilter("ignore")
         return scene_from_dict(apply(data, values), source)
 
@@ -145,15 +145,15 @@ _W: dict = {}
 
 
 def _init(data, source, settings):
-    from xval.compare.pool import ignore_interrupts
+    from loopcheck.compare.pool import ignore_interrupts
 
     ignore_interrupts()
     _W.update(data=data, source=source, settings=settings)
 
 
 def _reduced_chunk(values_list):
-    from xval.reduced.engine import simulate
-    from xval.errors import NumericalFailure
+    from loopcheck.reduced.engine import simulate
+    from loopcheck.errors import NumericalFailure
 
     out = []
     for v in values_list:
@@ -172,7 +172,7 @@ def pool_peaks(values, data, source, settings):
 
 
 def _mujoco_chunk(values_list):
-    from xval.reference_models.run import simulate_mujoco
+    from loopcheck.reference_models.run import simulate_mujoco
 
     return [simulate_mujoco(build(_W["data"], v, _W["source"]), _W["settings"]).peak.omega for v in values_list]
 
@@ -184,10 +184,10 @@ def chunks(items, size):
 # -- part 1: the reduced engine ---------------------------------------------------------------
 
 def part1(path: Path, n: int) -> ReducedSettings:
-    from xval.reduced.dynamics import MechanismModel
-    from xval.reduced.energy import energy_audit
-    from xval.reduced.engine import integrate, simulate
-    from xval.errors import NumericalFailure
+    from loopcheck.reduced.dynamics import MechanismModel
+    from loopcheck.reduced.energy import energy_audit
+    from loopcheck.reduced.engine import integrate, simulate
+    from loopcheck.errors import NumericalFailure
 
     data, spec = make_spec(path, n)
     nominal = scene_from_dict({k: v for k, v in data.items() if k != "sweep"}, str(path))
@@ -286,7 +286,7 @@ def part1(path: Path, n: int) -> ReducedSettings:
             (f"(b) 2 processes, ordered_map, chunks of {size}", t_pool)]
     for label, t in rows:
         print(f"   {label:40s} {t:10.2f} {t / n * 1e3:11.2f} {t / 2.0:12.1f}x")
-    print(f"   of (a)'s simulate(): EngineResult.wall_s (xval.reduced.engine.integrate) sums to {t_wall_s:.2f} s "
+    print(f"   of (a)'s simulate(): EngineResult.wall_s (loopcheck.reduced.engine.integrate) sums to {t_wall_s:.2f} s "
           f"({t_wall_s / t_sim:.0%})")
     print(f"   peaks of (b) identical to (a): {'yes' if same else 'NO'}")
 
@@ -327,10 +327,10 @@ def part2(path: Path, n: int, subset: int) -> None:
     import mujoco
     from mujoco import rollout
 
-    from xval.compare.settings import mujoco_settings
-    from xval.mujoco_model.build import initial_qpos_qvel
-    from xval.mujoco_model.loads import control_sequence
-    from xval.reference_models.run import _at_timestep, build_model, simulate_mujoco
+    from loopcheck.compare.settings import mujoco_settings
+    from loopcheck.mujoco_model.build import initial_qpos_qvel
+    from loopcheck.mujoco_model.loads import control_sequence
+    from loopcheck.reference_models.run import _at_timestep, build_model, simulate_mujoco
 
     data, spec = make_spec(path, n)
     values = list(variant_values(spec))
@@ -341,7 +341,7 @@ def part2(path: Path, n: int, subset: int) -> None:
     scenes = [build(data, v, source) for v in values]
     settings = mujoco_settings(scenes[0])
     print(f"\n2. MuJoCo on {m} of the {n} variants (every {step}th: the whole sweep's MuJoCo part takes "
-          f"~0.1 s a variant here), settings as xval sweep: {settings.integrator}, timestep "
+          f"~0.1 s a variant here), settings as loopcheck sweep: {settings.integrator}, timestep "
           f"{'automatic' if settings.timestep is None else settings.timestep}")
     simulate_mujoco(scenes[0], settings)  # warm-up
     # (a) ours, serial
@@ -384,7 +384,7 @@ def part2(path: Path, n: int, subset: int) -> None:
     def batch(h, entries):
         models = [mm for _, mm in entries]
         states, ctrls = [], []
-        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as xval.reference_models.timestep.step_count
+        n_steps = int(math.ceil(entries[0][0].horizon / h - 1e-9))  # as loopcheck.reference_models.timestep.step_count
         for s, mm in entries:
             d = mujoco.MjData(mm)
             qpos0, qvel0 = initial_qpos_qvel(s)
@@ -439,11 +439,11 @@ def part2(path: Path, n: int, subset: int) -> None:
     print(f"   (load average now {os.getloadavg()[0]:.2f})")
 
 
-# -- part 3: memory of xval sweep --------------------------------------------------------------
+# -- part 3: memory of loopcheck sweep --------------------------------------------------------------
 
-def xval_command() -> list[str]:
-    exe = Path(sys.executable).with_name("xval")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "xval.compare.cli"]
+def loopcheck_command() -> list[str]:
+    exe = Path(sys.executable).with_name("loopcheck")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "loopcheck.compare.cli"]
 
 
 def _tree(pid: int) -> list[int]:
@@ -474,7 +474,7 @@ def _mem_kb(pid: int) -> tuple[int, int]:
 
 
 def run_sweep(n: int, out: Path, scheduler: str | None = None, engines: Engines = Engines.BOTH) -> dict:
-    cmd = [*xval_command(), "sweep", str(default_scene_path()), *sum((["--vary", a] for a in grid_args(*grid_for(n))), []),
+    cmd = [*loopcheck_command(), "sweep", str(default_scene_path()), *sum((["--vary", a] for a in grid_args(*grid_for(n))), []),
            "--out", str(out), "--engines", str(engines)]
     if scheduler:
         cmd += ["--scheduler", scheduler]
@@ -496,7 +496,7 @@ def run_sweep(n: int, out: Path, scheduler: str | None = None, engines: Engines 
     wall = time.perf_counter() - start
     watcher.join()
     if proc.returncode not in (0, 1):  # 1: some variant failed the gate, still a full sweep
-        raise RuntimeError(f"xval sweep exited {proc.returncode}: {stderr[-2000:]}")
+        raise RuntimeError(f"loopcheck sweep exited {proc.returncode}: {stderr[-2000:]}")
     summary = next((line for line in stdout.splitlines() if " variants" in line), "").strip()
     return {"n": n, "wall": wall, "rss_mb": peak["rss"] / 1024, "pss_mb": peak["pss"] / 1024,
             "single_mb": peak["single"] / 1024, "csv": out / "sweep.csv", "summary": summary,
@@ -505,10 +505,10 @@ def run_sweep(n: int, out: Path, scheduler: str | None = None, engines: Engines 
 
 def part3(sizes: list[int], tmp: Path, engines: Engines = Engines.BOTH) -> dict:
     what = "the reduced engine alone" if engines is Engines.REDUCED else "both engines"
-    print(f"\n3. peak memory of `xval sweep {default_scene_path().name} --vary {DAMPER}=.. --vary {MASS}=.. "
+    print(f"\n3. peak memory of `loopcheck sweep {default_scene_path().name} --vary {DAMPER}=.. --vary {MASS}=.. "
           f"--engines {engines} --out TMP` ({what}), 2 local workers, /proc polled every 0.1 s", flush=True)
     print(f"   {'N':>6s} {'wall (s)':>9s} {'tree RSS (MB)':>14s} {'tree PSS (MB)':>14s} {'largest process RSS':>20s}  "
-          f"xval's summary", flush=True)
+          f"loopcheck's summary", flush=True)
     done = {}
     for n in sizes:
         r = run_sweep(n, tmp / f"local-{engines}-{n}", engines=engines)
@@ -583,7 +583,7 @@ def main() -> int:
                         "reduced-only one, MuJoCo on all 1000")
     parser.add_argument("--parts", default="1,2,3,4", help="which parts to run, e.g. 1,3")
     parser.add_argument("--engines", default=",".join(ENGINE_CHOICES),
-                        help=f"part 3's modes of xval sweep --engines, of {', '.join(ENGINE_CHOICES)} "
+                        help=f"part 3's modes of loopcheck sweep --engines, of {', '.join(ENGINE_CHOICES)} "
                              f"(default all)")
     parser.add_argument("--reduced-sizes", default=None,
                         help="part 3's N of the reduced-only sweeps, e.g. 1000,10000,100000 (default 1000,10000; "
@@ -602,7 +602,7 @@ def main() -> int:
     if 2 in parts:
         part2(path, n, 20 if args.quick else (n if args.full else 200))
     ok = True
-    tmp = Path(tempfile.mkdtemp(prefix="xval-sweep-bench-"))
+    tmp = Path(tempfile.mkdtemp(prefix="loopcheck-sweep-bench-"))
     try:
         done = None
         if 3 in parts:

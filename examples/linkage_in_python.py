@@ -5,9 +5,9 @@ released from rest, solved by Eksergian's equation. The keys are those of a scen
     python examples/linkage_in_python.py
 """
 
-import xval
+import loopcheck
 
-scene = xval.scene_from_dict({
+scene = loopcheck.scene_from_dict({
     "name": "swinging_four_bar",
     "gravity": [0.0, -9.81],                                   # m/s²
     "linkage": {"type": "four_bar", "c1": 0.1, "c2": 0.35, "c3": 0.3, "c4": 0.4, "branch": 1},  # m
@@ -19,7 +19,7 @@ scene = xval.scene_from_dict({
     "initial": {"q": 0.3, "qdot": 0.0},                        # rad, rad/s
     "simulation": {"horizon": 1.0},                            # s
 })
-result = xval.simulate(scene, xval.ReducedSettings(rtol=1e-10))
+result = loopcheck.simulate(scene, loopcheck.ReducedSettings(rtol=1e-10))
 t, q = result.trajectory.t, result.trajectory.q
 print(f"{len(t)} samples over {t[-1]:.2f} s; q from {q.min():.4f} to {q.max():.4f} rad; "
       f"peak |q̇| {abs(result.peak.omega):.4f} rad/s at {result.peak.time:.4f} s; "

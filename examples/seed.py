@@ -3,12 +3,12 @@
     python examples/seed.py
 """
 
-import xval
+import loopcheck
 
-scene = xval.load_scene("seed_fourbar")            # a file path works too
-reduced = xval.simulate(scene)                     # Eksergian's equation, the exact reference
-mujoco = xval.simulate(scene, xval.mujoco_settings(scene))
-comparison = xval.compare_results(scene, reduced, mujoco)
+scene = loopcheck.load_scene("seed_fourbar")            # a file path works too
+reduced = loopcheck.simulate(scene)                     # Eksergian's equation, the exact reference
+mujoco = loopcheck.simulate(scene, loopcheck.mujoco_settings(scene))
+comparison = loopcheck.compare_results(scene, reduced, mujoco)
 
 print(f"peak speed: reduced {reduced.peak.omega:.8f} rad/s at {reduced.peak.time:.4f} s, "
       f"MuJoCo {mujoco.peak.omega:.8f} rad/s")

@@ -7,7 +7,7 @@ compiled code never returns to the interpreter, so a signal handler would never 
 timer thread names the test, prints every thread's stack and ends the session (exit 1).
 
 Measured with the --durations of the whole suite (a 2-core machine under a load of ~3, 2026-11-26,
-issue 26): the slowest test not marked slow took 4.5 s (test_sweep, a row against ``xval run``),
+issue 26): the slowest test not marked slow took 4.5 s (test_sweep, a row against ``loopcheck run``),
 the slowest marked slow 65.5 s (test_packaging, building the wheel). 300 s is 66× the first;
 SLOW_TIMEOUT_S is 9× the second.
 
@@ -30,12 +30,12 @@ _TIMER = pytest.StashKey[threading.Timer]()
 def pytest_sessionstart(session):
     """Stop at once, with the fix, when the compiled core is missing: a checkout that was not
     installed (``pip install -e .`` builds the kernels) would otherwise run every kernel as plain
-    Python (``XVAL_PURE_PYTHON``, the debug path), and the suite for hours."""
-    from xval.reduced import kernels
+    Python (``LOOPCHECK_PURE_PYTHON``, the debug path), and the suite for hours."""
+    from loopcheck.reduced import kernels
 
     if not kernels.PURE_PYTHON and not kernels.compiled():
         pytest.exit("the reduced solver's kernels are not compiled: run `pip install -e .` (or "
-                    "`python setup.py build_ext --inplace`) in the checkout; XVAL_PURE_PYTHON=1 runs them "
+                    "`python setup.py build_ext --inplace`) in the checkout; LOOPCHECK_PURE_PYTHON=1 runs them "
                     "uncompiled on purpose", returncode=2)
 
 
@@ -57,7 +57,7 @@ SLIDER_DRIVEN_SCENE = SEED_SCENE.parent / "mechanisms" / "slider_crank_driven_sl
 @pytest.fixture(scope="session")
 def seed_scene():
     """The seed scene (scenes/seed_fourbar.toml), loaded."""
-    from xval.scenefile import load_scene
+    from loopcheck.scenefile import load_scene
 
     return load_scene(SEED_SCENE)
 
@@ -65,7 +65,7 @@ def seed_scene():
 @pytest.fixture(scope="session")
 def seed_reference(seed_scene):
     """The seed's reduced reference run: DOP853 at rtol 1e-12, the scene's other settings."""
-    from xval.reduced import ReducedSettings, simulate
+    from loopcheck.reduced import ReducedSettings, simulate
 
     return simulate(seed_scene, ReducedSettings(method="dop853", rtol=1e-12))
 
@@ -73,15 +73,15 @@ def seed_reference(seed_scene):
 @pytest.fixture(scope="session")
 def seed_mujoco(seed_scene):
     """The seed's MuJoCo run at the default settings (its automatic step)."""
-    from xval.reference_models import simulate_mujoco
+    from loopcheck.reference_models import simulate_mujoco
 
     return simulate_mujoco(seed_scene)
 
 
 @pytest.fixture(scope="session")
 def seed_comparison(seed_scene):
-    """``compare_engines`` on the seed at its defaults (what ``xval run`` compares)."""
-    from xval.compare.run import compare_engines
+    """``compare_engines`` on the seed at its defaults (what ``loopcheck run`` compares)."""
+    from loopcheck.compare.run import compare_engines
 
     return compare_engines(seed_scene)
 
@@ -89,26 +89,26 @@ def seed_comparison(seed_scene):
 @pytest.fixture(scope="session")
 def slider_driven_comparison():
     """``compare_engines`` on the catalogue's slider-driven slider-crank at its defaults."""
-    from xval.compare.run import compare_engines
-    from xval.scenefile import load_scene
+    from loopcheck.compare.run import compare_engines
+    from loopcheck.scenefile import load_scene
 
     return compare_engines(load_scene(SLIDER_DRIVEN_SCENE))
 
 
 @pytest.fixture
 def saved_figures(monkeypatch) -> list:
-    """The matplotlib figures xval.compare.plots saves from now on (still saved, to their files), in
+    """The matplotlib figures loopcheck.compare.plots saves from now on (still saved, to their files), in
     order: a test reads what a plot or drawing drew without replacing how it is drawn."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     kept = []
-    real = xval.compare.plots._save
+    real = loopcheck.compare.plots._save
 
     def keep(fig, path):
         real(fig, path)
         kept.append(fig)
 
-    monkeypatch.setattr(xval.compare.plots, "_save", keep)
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", keep)
     return kept
 
 

@@ -9,7 +9,7 @@ core's answer, not an independent truth (the physics is checked against closed f
 balances and MuJoCo elsewhere).
 
 The fixture also holds each scene's x0 as the numpy kinematics assembled it when the runs were
-recorded (``"x0"``; label ``"x0"``): since the kinematics are compiled (``xval/kernels/loops.py``)
+recorded (``"x0"``; label ``"x0"``): since the kinematics are compiled (``loopcheck/kernels/loops.py``)
 a scene's x0 is round-off away from it (its residual is summed in another order), and the
 reduced runs, whose step sequences follow x0's last bits, start from the recorded x0 so that the
 fixture still holds the core alone.
@@ -39,10 +39,10 @@ def outputs(path: Path, method: str, x0: list[float] | None = None) -> dict:
     started from ``x0`` (the same configuration to round-off) instead of the scene's x0 if given.
     The run's own accuracy check is off (``check_error=False``), so that RKN4 at its default
     step records a trajectory on the hard scenes too, where its estimate refuses the run."""
-    from xval.compare.settings import reduced_settings
-    from xval.errors import NumericalFailure
-    from xval.scenefile import load_scene
-    from xval.reduced import simulate
+    from loopcheck.compare.settings import reduced_settings
+    from loopcheck.errors import NumericalFailure
+    from loopcheck.scenefile import load_scene
+    from loopcheck.reduced import simulate
 
     scene = load_scene(path)
     if x0 is not None:

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval.scene import Scene
-from xval.scenefile import scene_from_dict
-from xval.reduced.kernels.problem import RightHandSide
+from loopcheck.scene import Scene
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reduced.kernels.problem import RightHandSide
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED_SCENE = ROOT / "scenes" / "seed_fourbar.toml"
@@ -72,7 +72,7 @@ def coefficients_along(model, qs) -> list:
     near q0 (MechanismModel.assemble is Newton from x0 and does not converge half a revolution
     away). Not the walked chart's own coefficients: those come from A factored before Newton's
     last step, up to ~1e-10 of V from the ones at the x it returns. The input must be a coordinate."""
-    from xval.reduced.charts import Chart
+    from loopcheck.reduced.charts import Chart
 
     chart = Chart(model, model.input_coordinate, model.x0)
     return [model.coefficients_at(chart.kinematics(float(q)).x) for q in qs]
@@ -90,18 +90,18 @@ def short_seed_file(folder: Path, horizon: str = "0.3") -> Path:
 
 @contextlib.contextmanager
 def plots_left_out():
-    """``xval run`` and ``xval sweep`` (in this process) write their output sets without the plots
+    """``loopcheck run`` and ``loopcheck sweep`` (in this process) write their output sets without the plots
     while inside: for a test that reads only report.json, the CSVs or sweep.csv/sweep.json. The
     plots take most of a short run's time (~0.3 s each, ~2 s a set); they are tested where they
     are the subject: tests/compare/test_startup.py (every plot of a run drawn once, nothing cut
     off), test_compare.py and test_cli.py (the whole set written), test_sweep.py (every sweep
     plot, the worst variant's, the set written)."""
-    import xval.compare.report
-    import xval.compare.sweep
+    import loopcheck.compare.report
+    import loopcheck.compare.sweep
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(xval.compare.report, "PLOTS", {})
-        patch.setattr(xval.compare.sweep, "plot_files", lambda spec: ())
+        patch.setattr(loopcheck.compare.report, "PLOTS", {})
+        patch.setattr(loopcheck.compare.sweep, "plot_files", lambda spec: ())
         yield
 
 
@@ -109,7 +109,7 @@ def plots_left_out():
 class _NumpyInKernelOrder:
     """numpy, but for the sums of scipy's DOP853 on a 2-vector state: np.dot of the stages
     (2 × s by s) and of the dense output (D by K) and np.linalg.norm of a 2-vector, summed in the
-    compiled kernel's fixed order (xval.reduced.kernels.adaptive: _dot_kt, _dense_coefficients,
+    compiled kernel's fixed order (loopcheck.reduced.kernels.adaptive: _dot_kt, _dense_coefficients,
     _norm2). numpy hands these to the BLAS, whose order depends on the CPU (OpenBLAS picks its
     kernels at run time: on an AMD EPYC 1085 of 2000 random 2 × s products differ from the
     kernel's order in the last bit, and DOP853 at rtol 1e-12 turns such bits into other steps).
@@ -128,7 +128,7 @@ class _NumpyInKernelOrder:
         return getattr(self._np, name)
 
     def _norm(self, x, *args, **kwargs):
-        from xval.reduced.kernels.adaptive import _norm2
+        from loopcheck.reduced.kernels.adaptive import _norm2
 
         x = self._np.asarray(x)
         if x.shape == (2,) and not args and not kwargs:
@@ -136,7 +136,7 @@ class _NumpyInKernelOrder:
         return self._np.linalg.norm(x, *args, **kwargs)
 
     def dot(self, a, b):
-        from xval.reduced.kernels.adaptive import _dot_kt
+        from loopcheck.reduced.kernels.adaptive import _dot_kt
 
         np_ = self._np
         a, b = np_.asarray(a), np_.asarray(b)
@@ -173,8 +173,8 @@ def scipy_in_kernel_order():
 
 def without_dyad_plans(model):
     """``model``'s kernel arrays with every chart's dyad plan switched off: Newton's method alone
-    closes the loops (xval.reduced.kernels.physics._close)."""
-    from xval.reduced.kernels import physics
+    closes the loops (loopcheck.reduced.kernels.physics._close)."""
+    from loopcheck.reduced.kernels import physics
 
     I = model.arrays.I.copy()
     start = int(I[physics.DYAD_PLAN])
@@ -235,7 +235,7 @@ def spawn():
 
 
 class ClosedForm(RightHandSide):
-    """A closed-form problem for the compiled integrators (xval.reduced.kernels.fixed_step, .adaptive):
+    """A closed-form problem for the compiled integrators (loopcheck.reduced.kernels.fixed_step, .adaptive):
     q̈ = f(t, q, q̇, u) with u = values[load] constant on each load piece; the energy flows
     P = power(u, q̇) (default u q̇: u a force doing work) and D = dissipation(q̇) (default 0);
     the stop margin stop(t, q, q̇) (default: never). A Python subclass of RightHandSide: the
@@ -262,8 +262,8 @@ def run_rkn(rhs, edges, q0, v0, step, *, tableau=None, loads=None, t0=None, spee
             use_stop=False):
     """rkn_chart from edges[0] (or t0) on the pieces ``edges`` (load k on piece k unless given):
     (Outcome, t, q, v, a, energy (m, 2))."""
-    from xval.reduced.kernels.fixed_step import RKN4, rkn_chart
-    from xval.reduced.kernels.output import Samples
+    from loopcheck.reduced.kernels.fixed_step import RKN4, rkn_chart
+    from loopcheck.reduced.kernels.output import Samples
 
     edges = np.ascontiguousarray(edges, dtype=float)
     loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)
@@ -279,8 +279,8 @@ def run_dop853(rhs, edges, q0, v0, *, rtol=1e-12, atol=None, loads=None, sample_
                speed_limit=1e6, max_evaluations=1_000_000, max_step=np.inf, use_stop=False, steps=None):
     """dop853_run on the pieces ``edges`` (load k on piece k unless given):
     (Outcome, t, q, v, a, energy (m, 2))."""
-    from xval.reduced.kernels.adaptive import Steps, dop853_run
-    from xval.reduced.kernels.output import Samples
+    from loopcheck.reduced.kernels.adaptive import Steps, dop853_run
+    from loopcheck.reduced.kernels.output import Samples
 
     edges = np.ascontiguousarray(edges, dtype=float)
     loads = np.arange(len(edges) - 1, dtype=np.intp) if loads is None else np.asarray(loads, dtype=np.intp)

@@ -1,7 +1,7 @@
-"""``import xval``: the documented names, each the same object or result as the module behind it.
+"""``import loopcheck``: the documented names, each the same object or result as the module behind it.
 
 The oracle for every result is the engine or comparison called directly (the API adds no
-arithmetic): equal bit for bit. ``import xval`` itself loads neither MuJoCo nor matplotlib.
+arithmetic): equal bit for bit. ``import loopcheck`` itself loads neither MuJoCo nor matplotlib.
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ import sys
 
 import pytest
 
-import xval
-from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings, simulate as simulate_reduced
-from xval.scenefile import load_scene as load_file
-from xval.reference_models import MujocoSettings, simulate_mujoco
+import loopcheck
+from loopcheck.compare.run import compare_engines
+from loopcheck.reduced import ReducedSettings, simulate as simulate_reduced
+from loopcheck.scenefile import load_scene as load_file
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT, SEED_SCENE
 
@@ -29,62 +29,62 @@ def scene():
 
 
 def test_the_api_names_are_about_fifteen_and_documented():
-    assert 15 <= len(xval.__all__) <= 22
-    for name in xval.__all__:
-        value = getattr(xval, name)
+    assert 15 <= len(loopcheck.__all__) <= 22
+    for name in loopcheck.__all__:
+        value = getattr(loopcheck, name)
         assert value.__doc__ and value.__doc__.strip(), name
     with pytest.raises(AttributeError):
-        xval.no_such_name  # noqa: B018
+        loopcheck.no_such_name  # noqa: B018
 
 
-def test_import_xval_is_light():
-    code = "import sys, xval; xval.__version__; print('mujoco' in sys.modules, 'matplotlib' in sys.modules)"
+def test_import_loopcheck_is_light():
+    code = "import sys, loopcheck; loopcheck.__version__; print('mujoco' in sys.modules, 'matplotlib' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert done.stdout.split() == ["False", "False"], done.stderr
 
 
 def test_scenes_load_from_a_file_a_name_or_a_string():
-    by_file = xval.load_scene(SEED_SCENE)
-    assert xval.load_scene("seed_fourbar") == by_file
-    from_text = xval.scene_from_string(SEED_SCENE.read_text(), source="seed")
+    by_file = loopcheck.load_scene(SEED_SCENE)
+    assert loopcheck.load_scene("seed_fourbar") == by_file
+    from_text = loopcheck.scene_from_string(SEED_SCENE.read_text(), source="seed")
     assert dataclasses.replace(from_text, source=by_file.source) == by_file
-    assert xval.catalogue()["watt2_sixbar"].name == "watt2_sixbar.toml"
-    with pytest.raises(xval.SceneError, match="horizon"):
-        xval.scene_from_string(SEED_SCENE.read_text().replace("horizon = 2.0 ", "horizon = -1.0 "))
+    assert loopcheck.catalogue()["watt2_sixbar"].name == "watt2_sixbar.toml"
+    with pytest.raises(loopcheck.SceneError, match="horizon"):
+        loopcheck.scene_from_string(SEED_SCENE.read_text().replace("horizon = 2.0 ", "horizon = -1.0 "))
 
 
 def test_simulate_runs_the_engine_whose_settings_it_is_given(scene):
-    reduced = xval.simulate(scene, xval.ReducedSettings(rtol=1e-10))
+    reduced = loopcheck.simulate(scene, loopcheck.ReducedSettings(rtol=1e-10))
     assert reduced.trajectory.q.tobytes() == simulate_reduced(scene, ReducedSettings(rtol=1e-10)).trajectory.q.tobytes()
-    default = xval.simulate(scene)  # the reduced engine, the scene's own settings
-    assert default.peak.omega == simulate_reduced(scene, xval.reduced_settings(scene)).peak.omega
-    mujoco = xval.simulate(scene, xval.MujocoSettings(timestep=1e-3))
+    default = loopcheck.simulate(scene)  # the reduced engine, the scene's own settings
+    assert default.peak.omega == simulate_reduced(scene, loopcheck.reduced_settings(scene)).peak.omega
+    mujoco = loopcheck.simulate(scene, loopcheck.MujocoSettings(timestep=1e-3))
     assert mujoco.trajectory.q.tobytes() == simulate_mujoco(scene, MujocoSettings(timestep=1e-3)).trajectory.q.tobytes()
     with pytest.raises(TypeError, match="settings of an engine .ReducedSettings, MujocoSettings"):
-        xval.simulate(scene, {"rtol": 1e-6})
+        loopcheck.simulate(scene, {"rtol": 1e-6})
 
 
 def test_compare_results_and_check_are_the_comparison_and_the_gate(scene):
-    reduced = xval.simulate(scene)
-    mujoco = xval.simulate(scene, xval.mujoco_settings(scene))
-    by_api = xval.compare_results(scene, reduced, mujoco)
-    assert isinstance(by_api, xval.Comparison)
-    checked = xval.check(scene)
+    reduced = loopcheck.simulate(scene)
+    mujoco = loopcheck.simulate(scene, loopcheck.mujoco_settings(scene))
+    by_api = loopcheck.compare_results(scene, reduced, mujoco)
+    assert isinstance(by_api, loopcheck.Comparison)
+    checked = loopcheck.check(scene)
     direct = compare_engines(scene)
 
     def figures(c):
         return c.gate.passed, c.diff.peak_omega_abs, c.diff.q_max_abs, c.diff.omega_max_abs
 
     assert figures(checked) == figures(direct)
-    assert figures(xval.compare_results(scene, checked.reduced, checked.mujoco)) == figures(direct)
-    assert figures(by_api)[1:] == figures(xval.compare_results(scene, reduced, mujoco, tolerances=scene.tolerances))[1:]
+    assert figures(loopcheck.compare_results(scene, checked.reduced, checked.mujoco)) == figures(direct)
+    assert figures(by_api)[1:] == figures(loopcheck.compare_results(scene, reduced, mujoco, tolerances=scene.tolerances))[1:]
     tight = dataclasses.replace(scene.tolerances, q_atol=1e-12)
-    assert not xval.compare_results(scene, reduced, mujoco, tolerances=tight).gate.passed
+    assert not loopcheck.compare_results(scene, reduced, mujoco, tolerances=tight).gate.passed
 
 
 def test_results_are_read_only_arrays(scene):
     """A result cannot be changed by accident after the run (its arrays are the run's record)."""
-    for result in (xval.simulate(scene), xval.simulate(scene, xval.MujocoSettings(timestep=1e-3))):
+    for result in (loopcheck.simulate(scene), loopcheck.simulate(scene, loopcheck.MujocoSettings(timestep=1e-3))):
         joints = result.joints
         arrays = (result.trajectory.t, result.trajectory.q, result.trajectory.qdot, result.trajectory.qddot,
                   result.audit.kinetic, result.audit.potential, result.audit.torque_work,

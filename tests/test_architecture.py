@@ -1,11 +1,11 @@
 """The import map's contracts hold (pyproject.toml [tool.importlinter]; docs/architecture.md).
 
-import-linter builds the graph of every import inside ``xval`` (function-local ones included)
+import-linter builds the graph of every import inside ``loopcheck`` (function-local ones included)
 and checks the contracts: one direction from the API down through the comparison, the two
 engines (independent of each other) and the engine-neutral core's layers; nothing importing the
 command line; the compiled core's layers; and no import cycle among the modules of the engines
-or of the comparison. (Planted: ``xval.reduced.engine`` importing ``xval.compare.text`` fails
-the first, naming the line; ``xval.compare.plots`` importing ``xval.compare.draw`` at its top,
+or of the comparison. (Planted: ``loopcheck.reduced.engine`` importing ``loopcheck.compare.text`` fails
+the first, naming the line; ``loopcheck.compare.plots`` importing ``loopcheck.compare.draw`` at its top,
 the last, naming the cycle.)
 Run as ``lint-imports`` in a subprocess, from the checkout (it reads pyproject.toml there).
 """

@@ -50,7 +50,7 @@ def test_damper_sweep(tmp_path):
     assert peaks[2] == pytest.approx(SEED_PEAK, abs=1e-6)  # 55 N·s/m is the seed itself
 
 
-@pytest.mark.slow  # ~4 s: the example runs `xval run` on the seed, plots included, in a subprocess
+@pytest.mark.slow  # ~4 s: the example runs `loopcheck run` on the seed, plots included, in a subprocess
 def test_read_report(tmp_path):
     out = run("read_report.py", tmp_path, str(tmp_path / "seed"))
     assert "exited 0" in out and "gate passed: True" in out

@@ -1,6 +1,6 @@
 """The scenes ship inside the package: a wheel holds every scene of the repository, and the
 functions that locate scenes go through importlib.resources, not the source tree's layout.
-(.ci/run installs the wheel in a fresh venv and runs ``xval reduced`` and ``xval stress`` from
+(.ci/run installs the wheel in a fresh venv and runs ``loopcheck reduced`` and ``loopcheck stress`` from
 outside the repository.)"""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import zipfile
 
 import pytest
 
-from xval.shipped_scenes import default_scene_path, hard_scene_dir, scenes_dir
+from loopcheck.shipped_scenes import default_scene_path, hard_scene_dir, scenes_dir
 
 from helpers import ROOT
 
@@ -21,20 +21,20 @@ REPO_SCENES = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "scenes").r
 
 
 def test_scene_folders_come_from_the_scenes_package():
-    assert scenes_dir() == importlib.resources.files("xval.scenes")
+    assert scenes_dir() == importlib.resources.files("loopcheck.scenes")
     assert default_scene_path().is_file() and default_scene_path().parent == scenes_dir()
     shipped = sorted(p.relative_to(scenes_dir().parent).as_posix() for p in scenes_dir().rglob("*.toml"))
     assert shipped == REPO_SCENES and hard_scene_dir().name == "hard"
 
 
 def test_every_package_folder_is_installed():
-    """pyproject.toml lists the packages a wheel holds: every folder of xval/ with an __init__.py
-    must be there (planted: xval.mujoco_model left out of the list, as it once was, fails here,
+    """pyproject.toml lists the packages a wheel holds: every folder of loopcheck/ with an __init__.py
+    must be there (planted: loopcheck.mujoco_model left out of the list, as it once was, fails here,
     where the wheel's own import of the MuJoCo engine would fail only in .ci/run)."""
     import tomllib
 
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
-    folders = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "xval").rglob("__init__.py")}
+    folders = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "loopcheck").rglob("__init__.py")}
     assert sorted(folders - listed) == []
 
 
@@ -42,33 +42,33 @@ def test_every_package_folder_is_installed():
 def test_wheel_contains_every_scene(tmp_path):
     """Build a wheel from a copy of the sources (the checkout stays clean) and list it. pip builds
     in an isolated environment with the setuptools and Cython that pyproject.toml asks for. Everything
-    installs under the one name ``xval``: nothing else at the top of the wheel but its metadata."""
+    installs under the one name ``loopcheck``: nothing else at the top of the wheel but its metadata."""
     src = tmp_path / "src"
     for name in ("pyproject.toml", "README.md", "setup.py"):
         shutil.copy2(ROOT / name, src / name if src.exists() else (src.mkdir() or src / name))
-    for package in ("xval", "scenes"):
+    for package in ("loopcheck", "scenes"):
         shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.c"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
                     "-w", str(tmp_path / "dist"), str(src)], check=True, capture_output=True, timeout=300)
-    (wheel,) = (tmp_path / "dist").glob("xval-*.whl")
+    (wheel,) = (tmp_path / "dist").glob("loopcheck-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    assert {n.split("/")[0] for n in names} == {"xval", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
+    assert {n.split("/")[0] for n in names} == {"loopcheck", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
                                                 + ".dist-info"}
-    assert "xval/scenes/__init__.py" in names
-    assert [n for n in REPO_SCENES if "xval/" + n not in names] == []
-    assert "xval/scenes/hard/gravity.toml" in names  # xval stress --case gravity, as .ci/run runs it
-    assert any(n.startswith("xval/reduced/kernels/physics.") and n.endswith(".so") for n in names)
-    assert any(n.startswith("xval/kernels/loops.") and n.endswith(".so") for n in names)  # the kinematics' kernel
-    packages = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "xval").rglob("__init__.py")}
+    assert "loopcheck/scenes/__init__.py" in names
+    assert [n for n in REPO_SCENES if "loopcheck/" + n not in names] == []
+    assert "loopcheck/scenes/hard/gravity.toml" in names  # loopcheck stress --case gravity, as .ci/run runs it
+    assert any(n.startswith("loopcheck/reduced/kernels/physics.") and n.endswith(".so") for n in names)
+    assert any(n.startswith("loopcheck/kernels/loops.") and n.endswith(".so") for n in names)  # the kinematics' kernel
+    packages = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "loopcheck").rglob("__init__.py")}
     assert sorted(p for p in packages if p.replace(".", "/") + "/__init__.py" not in names) == []
     # Imported from the unpacked wheel, away from the checkout, the shipped scenes are found.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    code = ("from xval.shipped_scenes import default_scene_path, hard_scene_dir; from xval.scenefile import load_scene; "
+    code = ("from loopcheck.shipped_scenes import default_scene_path, hard_scene_dir; from loopcheck.scenefile import load_scene; "
             "print(default_scene_path()); print(load_scene(default_scene_path()).name); "
             "print(len([load_scene(p) for p in hard_scene_dir().glob('*.toml')]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           cwd=tmp_path, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"}, check=True)
     path, name, n_hard = proc.stdout.split("\n")[:3]
-    assert path == str(site / "xval" / "scenes" / "seed_fourbar.toml") and name == "seed_fourbar"
+    assert path == str(site / "loopcheck" / "scenes" / "seed_fourbar.toml") and name == "seed_fourbar"
     assert int(n_hard) == sum(n.startswith("scenes/hard/") for n in REPO_SCENES)

@@ -1,6 +1,6 @@
-"""Seeded generator of valid scenes a mechanism engineer would write, for xval's own gate.
+"""Seeded generator of valid scenes a mechanism engineer would write, for loopcheck's own gate.
 
-The project's rule (issue 24): xval's own defaults must pass xval's own gate on every valid
+The project's rule (issue 24): loopcheck's own defaults must pass loopcheck's own gate on every valid
 scene. This module draws such scenes from a seeded random generator, in both scene forms:
 
 - ``four_bar``: the shorthand ``[linkage] type = "four_bar"``, Grashof (crank-rocker,
@@ -22,7 +22,7 @@ drawn again (any other refusal is a bug of the generator and raises).
 
 Usage: ``python tests/valid_scenes.py OUTDIR [--seed S] [--n N]`` writes N TOML files (what
 tests/compare/test_valid_scene_family.py runs through ``compare_engines``; the full draw was run through
-``xval check`` one file at a time).
+``loopcheck check`` one file at a time).
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from xval.scene import SceneError
-from xval.scene_writer import toml_text
-from xval.scenefile import scene_from_dict
+from loopcheck.scene import SceneError
+from loopcheck.scene_writer import toml_text
+from loopcheck.scenefile import scene_from_dict
 
 KINDS = ("four_bar", "four_bar_swing", "slider_crank", "slider_driven", "watt2", "stephenson3")
 # six-bars started just before their dyad's near-toggle, turning towards it (not in KINDS: ask for them)

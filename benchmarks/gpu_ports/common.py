@@ -1,6 +1,6 @@
 """What the GPU-port research scripts share (issue 28, docs/engines-gpu-research.md).
 
-Like the scripts, it needs only ``mujoco`` (not xval), so that they run in the ports' own
+Like the scripts, it needs only ``mujoco`` (not loopcheck), so that they run in the ports' own
 environments: the seed's exported model loaded as the ports take it, the seed's control, the
 state at a time, and the minimal reproduction's spinning plate.
 """

@@ -5,13 +5,13 @@ MJWarp 4.0.0's ``make_constraint`` (inside ``fwd_position``) reads ``cvel`` and 
 the loops' J̇·q̇ before ``fwd_velocity`` recomputes them. The patch runs ``smooth.com_vel`` first,
 so what is left of MJWarp's difference from the exact solution is its float32 arithmetic (and
 MuJoCo's own discretisation at the step, which MuJoCo C's row of benchmarks/results/engines_table.md
-shows to be far smaller). For each scene of scenes/mechanisms/ that MJWarp runs: xval's mjwarp
+shows to be far smaller). For each scene of scenes/mechanisms/ that MJWarp runs: loopcheck's mjwarp
 engine at its defaults (the scene's [mujoco] timestep, else the grid step), patched, against the reduced engine (DOP853, rtol 1e-12):
 the relative peak difference, max |Δq|, max |Δq̇|, the loop gap and the energy residual.
 
     python benchmarks/gpu_ports/mjwarp_patched_catalogue.py [--scenes A.toml ...]
 
-Needs xval with the mjwarp extra.
+Needs loopcheck with the mjwarp extra.
 """
 
 from __future__ import annotations
@@ -43,13 +43,13 @@ def main(argv=None) -> int:
     p.add_argument("--scenes", nargs="*", type=Path, default=sorted((ROOT / "scenes" / "mechanisms").glob("*.toml")))
     p.add_argument("--max-steps", type=int, default=5000, help="skip runs of more steps (~50 ms a step on a CPU)")
     a = p.parse_args(argv)
-    from xval.compare.run import judge
-    from xval.compare.settings import engine_settings
-    from xval.mjwarp import simulate_mjwarp
-    from xval.mujoco_model.steps import grid_timestep, step_count
-    from xval.mujoco_model.port import PortRefusal
-    from xval.reduced import ReducedSettings, simulate
-    from xval.scenefile import load_scene
+    from loopcheck.compare.run import judge
+    from loopcheck.compare.settings import engine_settings
+    from loopcheck.mjwarp import simulate_mjwarp
+    from loopcheck.mujoco_model.steps import grid_timestep, step_count
+    from loopcheck.mujoco_model.port import PortRefusal
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.scenefile import load_scene
 
     patch_mjwarp_jdotv()
     print("MJWarp 4.0.0 with its J̇·q̇ lag patched out (float32 alone) against the reduced engine")

@@ -2,15 +2,15 @@
 of MJX's difference on every mechanism, not only on the seed? (docs/engines.md, "MJX and the
 connect constraint").
 
-For each scene of scenes/mechanisms/ that MJX runs (no point forces): xval's mjx engine at its
+For each scene of scenes/mechanisms/ that MJX runs (no point forces): loopcheck's mjx engine at its
 defaults (the grid step, float64) with MJX's ``make_constraint`` patched to subtract J̇·q̇ from
 the connect rows' reference acceleration (``mjx_jdotv_study.patch_mjx_jdotv``, what MuJoCo C's
-``mj_Jdotv`` does), against xval's MuJoCo engine on the same model at the same step. Prints the
+``mj_Jdotv`` does), against loopcheck's MuJoCo engine on the same model at the same step. Prints the
 relative difference of the peaks and the largest |Δq̇| relative to the peak.
 
     python benchmarks/gpu_ports/mjx_patched_catalogue.py [--scenes A.toml ...]
 
-Needs xval with the mjx extra (JAX and MJX).
+Needs loopcheck with the mjx extra (JAX and MJX).
 """
 
 from __future__ import annotations
@@ -33,10 +33,10 @@ def main(argv=None) -> int:
     import jax
 
     from mjx_jdotv_study import patch_mjx_jdotv
-    from xval.mjx import MjxSettings, simulate_mjx
-    from xval.mujoco_model.port import PortRefusal
-    from xval.reference_models import MujocoSettings, simulate_mujoco
-    from xval.scenefile import load_scene
+    from loopcheck.mjx import MjxSettings, simulate_mjx
+    from loopcheck.mujoco_model.port import PortRefusal
+    from loopcheck.reference_models import MujocoSettings, simulate_mujoco
+    from loopcheck.scenefile import load_scene
 
     patch_mjx_jdotv()
     open_gates = dict(max_constraint_violation=1.0, max_energy_residual=1.0)

@@ -1,10 +1,10 @@
-"""Run an exported xval MJCF on MuJoCo C, MJX or MJWarp and print the peak input speed.
+"""Run an exported loopcheck MJCF on MuJoCo C, MJX or MJWarp and print the peak input speed.
 
 Research script for issue 28 (docs/engines-gpu-research.md). Stand-alone on purpose: it needs
 only ``mujoco`` (and ``jax`` + ``mujoco.mjx`` or ``warp`` + ``mujoco_warp`` for those engines),
-not xval, so it runs in the ports' own scratch environments.
+not loopcheck, so it runs in the ports' own scratch environments.
 
-The run is the one xval's MuJoCo engine makes of the seed: the MJCF from ``xval export-mjcf``,
+The run is the one loopcheck's MuJoCo engine makes of the seed: the MJCF from ``loopcheck export-mjcf``,
 the energy flag cleared (MJX refuses ``mjENBL_ENERGY``), the model's own integrator and timestep
 unless overridden, the state of keyframe 0, the motor's control held at the pulse's value over
 every step whose midpoint lies inside the pulse (250 N·m for t < 1 s) and 0 after. The peak is
@@ -27,7 +27,7 @@ import numpy as np
 
 from common import controls, load
 
-EXACT_PEAK = 34.26441306  # rad/s: the seed's exact peak (xval reduced, DOP853 at rtol 1e-12)
+EXACT_PEAK = 34.26441306  # rad/s: the seed's exact peak (loopcheck reduced, DOP853 at rtol 1e-12)
 
 
 def run_c(m, d, ctrl, round_state: bool = False):

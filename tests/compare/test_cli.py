@@ -17,21 +17,21 @@ from pathlib import Path
 
 import pytest
 
-import xval.compare.cost
-import xval.compare.draw
-import xval.compare.report
-import xval.compare.run
-import xval.compare.stress
-import xval.compare.sweep
-import xval.reference_models
-from xval.compare import cli
-from xval.compare.cli import main
-from xval.compare.output import check_folder
-from xval.compare.cost import worker_count
-from xval.scenefile import scene_from_dict
-from xval.reduced.settings import ReducedSettings
-from xval.reference_models.settings import MujocoSettings
-from xval.settings import given_flags
+import loopcheck.compare.cost
+import loopcheck.compare.draw
+import loopcheck.compare.report
+import loopcheck.compare.run
+import loopcheck.compare.stress
+import loopcheck.compare.sweep
+import loopcheck.reference_models
+from loopcheck.compare import cli
+from loopcheck.compare.cli import main
+from loopcheck.compare.output import check_folder
+from loopcheck.compare.cost import worker_count
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reduced.settings import ReducedSettings
+from loopcheck.reference_models.settings import MujocoSettings
+from loopcheck.settings import given_flags
 
 from helpers import ROOT, SEED_SCENE, interruptible, seed_dict, short_seed_file, spawn  # noqa: F401 - fixtures
 
@@ -50,9 +50,9 @@ def no_work(monkeypatch):
     """Any computation fails the test: destinations must be refused before it starts."""
     def computed(*args, **kwargs):
         raise AssertionError("work started before the destination was checked")
-    for module, name in ((xval.compare.run, "compare_engines"), (xval.compare.cost, "ground_truth"),
-                         (xval.compare.stress, "run_catalogue"), (xval.reference_models, "build_model"),
-                         (xval.compare.sweep, "run_sweep"), (xval.compare.draw, "draw_scene")):
+    for module, name in ((loopcheck.compare.run, "compare_engines"), (loopcheck.compare.cost, "ground_truth"),
+                         (loopcheck.compare.stress, "run_catalogue"), (loopcheck.reference_models, "build_model"),
+                         (loopcheck.compare.sweep, "run_sweep"), (loopcheck.compare.draw, "draw_scene")):
         monkeypatch.setattr(module, name, computed)
 
 
@@ -66,7 +66,7 @@ def place(tmp_path: Path, kind: str) -> str:
             "missing folder": str(tmp_path / "nope" / "out"), "unwritable": str(locked / "out"),
             "long name": str(tmp_path / ("x" * 300)), "empty": "", "folder": str(tmp_path / "folder"),
             "dot-dot": str(tmp_path / "folder" / ".."), "device": str(tmp_path / "null"),
-            "symlink": str(tmp_path / "link"), "in /proc": "/proc/xval-out", "in /sys": "/sys/xval-out",
+            "symlink": str(tmp_path / "link"), "in /proc": "/proc/loopcheck-out", "in /sys": "/sys/loopcheck-out",
             "/sys folder": "/sys/kernel"}[kind]
 
 
@@ -154,19 +154,19 @@ def test_warnings_are_one_line_each(capsys):
     scene = str(ROOT / "scenes" / "hard" / "off_grid_edge.toml")
     assert main(["mujoco", scene, "--timestep", "0.001"]) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert err and all(line.startswith("xval: warning: ") for line in err), err
+    assert err and all(line.startswith("loopcheck: warning: ") for line in err), err
     assert any("not a multiple of the timestep" in line for line in err)
     assert len(err) == len(set(err))
 
 
-@pytest.mark.parametrize("signum,status,line", [(signal.SIGINT, 130, "xval: interrupted"),
-                                                (signal.SIGTERM, 143, "xval: terminated")])
+@pytest.mark.parametrize("signum,status,line", [(signal.SIGINT, 130, "loopcheck: interrupted"),
+                                                (signal.SIGTERM, 143, "loopcheck: terminated")])
 def test_a_signal_stops_cleanly_and_leaves_nothing(signum, status, line, tmp_path, capsys, monkeypatch,
                                                   interruptible):
     def signalled(*args, **kwargs):
         os.kill(os.getpid(), signum)
         raise AssertionError("the signal did not stop the run")
-    monkeypatch.setattr(xval.compare.run, "compare_engines", signalled)
+    monkeypatch.setattr(loopcheck.compare.run, "compare_engines", signalled)
     previous = signal.getsignal(signal.SIGTERM)
     assert main(["run", str(SEED_SCENE), "--out", str(tmp_path / "out")]) == status
     assert capsys.readouterr().err == line + "\n"
@@ -188,21 +188,21 @@ def test_failed_gate_exits_1_and_still_writes_the_report(tmp_path, capsys):
     report = json.loads((out / "report.json").read_text())
     assert report["gate"]["passed"] is False and report["scene"]["name"] == data["name"]
     assert not Path(report["scene"]["source"]).is_absolute()
-    assert all((out / name).stat().st_size > 0 for name in xval.compare.report.REPORT_FILES)
+    assert all((out / name).stat().st_size > 0 for name in loopcheck.compare.report.REPORT_FILES)
 
 
 def test_long_names_are_cut_in_titles():
-    from xval.compare.plots import NAME_CHARS, short_name
+    from loopcheck.compare.plots import NAME_CHARS, short_name
 
     assert short_name("x" * 10**6) == "x" * (NAME_CHARS - 1) + "…"
     assert short_name("a\nb  c") == "a b c" and short_name("seed_fourbar") == "seed_fourbar"
 
 
 def test_entry_point_smoke(tmp_path):
-    """The one subprocess: ``python -m xval.compare.cli`` runs, exits 2 with one line on a bad -o."""
-    proc = subprocess.run([sys.executable, "-m", "xval.compare.cli", "export-mjcf", "-o", ""], capture_output=True,
+    """The one subprocess: ``python -m loopcheck.compare.cli`` runs, exits 2 with one line on a bad -o."""
+    proc = subprocess.run([sys.executable, "-m", "loopcheck.compare.cli", "export-mjcf", "-o", ""], capture_output=True,
                           text=True, timeout=120, cwd=tmp_path)
-    assert proc.returncode == 2 and proc.stderr == "xval: error: -o is empty: give a file name\n"
+    assert proc.returncode == 2 and proc.stderr == "loopcheck: error: -o is empty: give a file name\n"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -214,7 +214,7 @@ def test_a_scene_table_the_engine_refuses_names_the_file_and_table(tmp_path, cap
         "[simulation]", "[mujoco]\nsolimp = [2.0, 2.0, 2.0, 2.0, 2.0]\n\n[simulation]"))
     assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"xval: error: {scene}: [mujoco] solimp") and err.count("\n") == 1
+    assert err.startswith(f"loopcheck: error: {scene}: [mujoco] solimp") and err.count("\n") == 1
     assert not (tmp_path / "out").exists()
 
 
@@ -233,10 +233,10 @@ def _options():
 def _resolved_defaults() -> dict[str, list[str]]:
     """Flag -> the defaults the settings resolve to when neither the flag nor the scene gives
     one, as the help should print them; taken from the settings objects, not the CLI."""
-    from xval.sweep_spec import spec_from_args
-    from xval.reduced import ReducedSettings
+    from loopcheck.sweep_spec import spec_from_args
+    from loopcheck.reduced import ReducedSettings
 
-    mj = xval.reference_models.MujocoSettings()
+    mj = loopcheck.reference_models.MujocoSettings()
     rtols = [f"{ReducedSettings(method=m).rtol:g} (" for m in ("dop853", "rkn4", "radau", "scipy-dop853")]
     step = [f"{ReducedSettings(method='rkn4').step:g}"]
     method = [ReducedSettings().method]
@@ -251,9 +251,9 @@ def _resolved_defaults() -> dict[str, list[str]]:
 def test_every_help_default_is_the_resolved_default():
     import re
 
-    from xval.pin import PinSettings
+    from loopcheck.pin import PinSettings
 
-    pin = PinSettings()  # `xval pin`'s flags share names with the reduced engine's, not their defaults
+    pin = PinSettings()  # `loopcheck pin`'s flags share names with the reduced engine's, not their defaults
     resolved_by_command = {"pin": {"--method": [f"else {pin.method}"], "--rtol": [f"else {pin.rtol:g}"]},
                            **{port: {**_resolved_defaults(), "--timestep": ["the grid step"]} for port in ("mjx", "mjwarp")}}
     for command, action in _options():
@@ -262,12 +262,12 @@ def test_every_help_default_is_the_resolved_default():
         text = " ".join(action.help.split())
         if flag in resolved:
             for expected in resolved[flag]:
-                assert expected in text, f"xval {command} {flag}: help {text!r} lacks the default {expected!r}"
+                assert expected in text, f"loopcheck {command} {flag}: help {text!r} lacks the default {expected!r}"
             if flag == "--timestep":
-                assert not re.search(r"\d", text), f"xval {command} {flag}: {text!r} states a number"
+                assert not re.search(r"\d", text), f"loopcheck {command} {flag}: {text!r} states a number"
         elif action.default not in (None, False, True) and "default" in text:
             shown = str(action.default)
-            assert shown in text, f"xval {command} {flag}: help {text!r} lacks its default {shown!r}"
+            assert shown in text, f"loopcheck {command} {flag}: help {text!r} lacks its default {shown!r}"
 
 
 # ---------------------------------------------------------------- a signal at any moment of a run
@@ -278,23 +278,23 @@ def _run_folder(folder: Path) -> dict[str, bytes]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, spawn):
-    """Issue 24: SIGTERM or Ctrl-C while `xval run` forked its plot writers hung it (a zombie
+def test_a_signal_at_any_moment_of_loopcheck_run_ends_it_cleanly(signum, tmp_path, spawn):
+    """Issue 24: SIGTERM or Ctrl-C while `loopcheck run` forked its plot writers hung it (a zombie
     writer, a second SIGTERM ignored, the staging folder left) or was swallowed (exit 0, the
     results replaced). The signal goes to the whole process group, as a terminal's Ctrl-C does,
     at delays spread from start-up to past the run's end (the run's length measured first, on
-    this machine). Every time: exit 130/143 (or killed by the signal itself before xval's
+    this machine). Every time: exit 130/143 (or killed by the signal itself before loopcheck's
     handlers are set: -2/-15 here, 130/143 in a shell), at most one line on stderr, no process of
     the group left, no staging folder, and the folder as it was unless the run said it wrote."""
     import time
 
-    from xval.compare.output import STAGING_PREFIX
+    from loopcheck.compare.output import STAGING_PREFIX
 
     scene = short_seed_file(tmp_path)
     old = tmp_path / "old"
     for _ in range(2):  # the second run, with warm caches, is as long as the runs below
         start = time.monotonic()
-        first = subprocess.run([sys.executable, "-m", "xval.compare.cli", "run", str(scene), "--out", str(old)],
+        first = subprocess.run([sys.executable, "-m", "loopcheck.compare.cli", "run", str(scene), "--out", str(old)],
                                capture_output=True, text=True, timeout=300)
         length = time.monotonic() - start
         assert first.returncode == 0, first.stderr
@@ -304,7 +304,7 @@ def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, sp
     for fraction in (0.03, 0.3, 0.6, 0.8, 0.9, 0.97, 1.1):
         out = tmp_path / f"out-{fraction}"
         shutil.copytree(old, out)
-        proc = spawn([sys.executable, "-m", "xval.compare.cli", "run", str(scene), "--out", str(out)],
+        proc = spawn([sys.executable, "-m", "loopcheck.compare.cli", "run", str(scene), "--out", str(out)],
                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
         time.sleep(fraction * length)
         with contextlib.suppress(ProcessLookupError):
@@ -328,24 +328,24 @@ def test_a_signal_at_any_moment_of_xval_run_ends_it_cleanly(signum, tmp_path, sp
     assert sum(not wrote for _, _, wrote in outcomes) >= 3, outcomes  # most signals came during the run
 
 
-def test_the_default_output_folder_is_xval_out_and_the_scene(tmp_path, monkeypatch, capsys):
-    """Without -o, a command writes into xval-out/<scene file's stem>[-cost|-sweep] (stress, which
-    has no scene: xval-out/stress); xval-out is created with the outputs, never on bad input."""
-    from xval.compare.output import write_folder
+def test_the_default_output_folder_is_loopcheck_out_and_the_scene(tmp_path, monkeypatch, capsys):
+    """Without -o, a command writes into loopcheck-out/<scene file's stem>[-cost|-sweep] (stress, which
+    has no scene: loopcheck-out/stress); loopcheck-out is created with the outputs, never on bad input."""
+    from loopcheck.compare.output import write_folder
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "press.toml").write_text(SEED_SCENE.read_text(encoding="utf-8"), encoding="utf-8")
     parser = cli.build_parser()
-    for argv, expected in ((["run"], "xval-out/seed_fourbar"), (["run", "press.toml"], "xval-out/press"),
-                           (["run", "watt2_sixbar"], "xval-out/watt2_sixbar"),
-                           (["cost", "press.toml"], "xval-out/press-cost"), (["stress"], "xval-out/stress"),
-                           (["sweep", "press.toml"], "xval-out/press-sweep"), (["run", "-o", "mine"], "mine")):
+    for argv, expected in ((["run"], "loopcheck-out/seed_fourbar"), (["run", "press.toml"], "loopcheck-out/press"),
+                           (["run", "watt2_sixbar"], "loopcheck-out/watt2_sixbar"),
+                           (["cost", "press.toml"], "loopcheck-out/press-cost"), (["stress"], "loopcheck-out/stress"),
+                           (["sweep", "press.toml"], "loopcheck-out/press-sweep"), (["run", "-o", "mine"], "mine")):
         args = parser.parse_args(argv)
         assert cli._out_folder(args, getattr(args, "scene", None)) == expected, argv
     (tmp_path / "bad.toml").write_text('name = "x"\n', encoding="utf-8")
     assert main(["run", "bad.toml"]) == 2 and "missing key 'linkage'" in one_error_line(capsys)
-    assert not (tmp_path / "xval-out").exists()  # bad input leaves nothing behind
+    assert not (tmp_path / "loopcheck-out").exists()  # bad input leaves nothing behind
     with pytest.raises(cli.OutputError, match="does not exist"):
         check_folder("elsewhere/press")  # only the default root may be missing
-    [path] = write_folder("xval-out/press", {"a.txt": lambda p: p.write_text("a")})
-    assert path == Path("xval-out/press/a.txt") and path.read_text() == "a"
+    [path] = write_folder("loopcheck-out/press", {"a.txt": lambda p: p.write_text("a")})
+    assert path == Path("loopcheck-out/press/a.txt") and path.read_text() == "a"

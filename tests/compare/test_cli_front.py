@@ -1,7 +1,7 @@
-"""The command line's front door: `xval` alone, `--version`, `--quiet`/`--verbose`, and the
+"""The command line's front door: `loopcheck` alone, `--version`, `--quiet`/`--verbose`, and the
 shipped scenes by name.
 
-`xval scenes` lists the catalogue; every command takes a listed name where it takes a scene file,
+`loopcheck scenes` lists the catalogue; every command takes a listed name where it takes a scene file,
 but a file of that name in the working folder comes first.
 """
 
@@ -14,22 +14,22 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare.cli import main
-from xval.scene import SceneError
-from xval.shipped_scenes import catalogue, resolve_scene, scenes_dir
+from loopcheck.compare.cli import main
+from loopcheck.scene import SceneError
+from loopcheck.shipped_scenes import catalogue, resolve_scene, scenes_dir
 
 from helpers import SEED_SCENE
 
 
-def test_xval_alone_prints_its_help_and_succeeds(capsys):
+def test_loopcheck_alone_prints_its_help_and_succeeds(capsys):
     assert main([]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("usage: xval") and "scenes" in out and "run" in out
+    assert out.startswith("usage: loopcheck") and "scenes" in out and "run" in out
 
 
 def test_version_is_the_installed_distributions(capsys):
     assert main(["--version"]) == 0
-    assert capsys.readouterr().out.strip() == f"xval {importlib.metadata.version('xval')}"
+    assert capsys.readouterr().out.strip() == f"loopcheck {importlib.metadata.version('loopcheck')}"
 
 
 def test_scenes_lists_every_shipped_file_once_by_a_name_that_finds_it(capsys):
@@ -64,11 +64,11 @@ def test_a_file_in_the_working_folder_comes_before_the_catalogue(tmp_path, monke
 
 def test_an_unknown_name_is_one_line_naming_it(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(SceneError, match="xval scenes"):
+    with pytest.raises(SceneError, match="loopcheck scenes"):
         resolve_scene("no_such_scene")
     assert main(["reduced", "no_such_scene"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "'no_such_scene'" in err[0] and "xval scenes" in err[0]
+    assert len(err) == 1 and "'no_such_scene'" in err[0] and "loopcheck scenes" in err[0]
     assert not list(tmp_path.iterdir())
 
 
@@ -88,10 +88,10 @@ def tight_seed(folder: Path) -> Path:
 def test_progress_lines_by_default_none_with_quiet(tmp_path, capsys):
     scene = str(tight_seed(tmp_path))
     assert main(["mujoco", scene]) == 0
-    progress = [line for line in capsys.readouterr().err.splitlines() if line.startswith("xval: MuJoCo timestep")]
+    progress = [line for line in capsys.readouterr().err.splitlines() if line.startswith("loopcheck: MuJoCo timestep")]
     assert progress
     assert main(["-q", "mujoco", scene]) == 0
-    assert "xval:" not in capsys.readouterr().err
+    assert "loopcheck:" not in capsys.readouterr().err
 
 
 def test_verbose_adds_each_engine_runs_cost(capsys):
@@ -99,5 +99,5 @@ def test_verbose_adds_each_engine_runs_cost(capsys):
     assert "evaluations of q̈" not in capsys.readouterr().err
     assert main(["--verbose", "reduced", "seed_fourbar"]) == 0
     (line,) = [line for line in capsys.readouterr().err.splitlines() if "evaluations of q̈" in line]
-    assert line.startswith("xval: reduced DOP853 on seed_fourbar: 604 steps, 10864 evaluations")
+    assert line.startswith("loopcheck: reduced DOP853 on seed_fourbar: 604 steps, 10864 evaluations")
     assert main(["-q", "-v", "reduced"]) == 2  # one or the other

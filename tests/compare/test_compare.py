@@ -8,13 +8,13 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-import xval.compare.report
-from xval.compare.cli import main
-from xval.compare.diff import compare_trajectories, gate
-from xval.compare.output import MANIFEST_FILE
-from xval.compare.report import REPORT_FILES, write_outputs
-from xval.trajectory import Trajectory
-from xval.scene import Tolerances
+import loopcheck.compare.report
+from loopcheck.compare.cli import main
+from loopcheck.compare.diff import compare_trajectories, gate
+from loopcheck.compare.output import MANIFEST_FILE
+from loopcheck.compare.report import REPORT_FILES, write_outputs
+from loopcheck.trajectory import Trajectory
+from loopcheck.scene import Tolerances
 
 from helpers import SEED_SCENE
 
@@ -144,7 +144,7 @@ def test_failed_run_leaves_the_output_folder_as_it_was(seed_comparison, tmp_path
     def failing_plot(c, path):
         path.write_bytes(b"\x89PNG half")
         raise error
-    monkeypatch.setitem(xval.compare.report.PLOTS, "energy.png", failing_plot)
+    monkeypatch.setitem(loopcheck.compare.report.PLOTS, "energy.png", failing_plot)
     with pytest.raises(type(error)):
         write_outputs(seed_comparison, out)
     assert {p.name: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before

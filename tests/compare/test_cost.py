@@ -10,9 +10,9 @@ import json
 import matplotlib.image
 import pytest
 
-from xval.compare.cost import (Measurement, cheapest_meeting, converges, cost_report, ground_truth, ladder,
+from loopcheck.compare.cost import (Measurement, cheapest_meeting, converges, cost_report, ground_truth, ladder,
                           recommend, sweep, write_cost_outputs)
-from xval.scenefile import load_scene
+from loopcheck.scenefile import load_scene
 
 from helpers import SEED_SCENE
 
@@ -135,8 +135,8 @@ def test_recommendation_is_the_cheapest_of_the_real_sweep(study):
 def test_the_diagram_keeps_plain_log_labels_with_a_front(tmp_path, saved_figures):
     """Every label of cost.png is plain text (no mathtext parser), also after the Pareto front
     and the target are drawn: a later loglog call would put matplotlib's formatters back."""
-    from xval.compare.cost import pareto_front
-    from xval.compare.plots import plot_work_precision
+    from loopcheck.compare.cost import pareto_front
+    from loopcheck.compare.plots import plot_work_precision
 
     configs = ladder(quick=True)
     measurements = synthetic([c for c in configs if c.engine == "reduced"][:3],

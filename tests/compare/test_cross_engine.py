@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import pytest
 
-from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings
-from xval.scene import Tolerances
-from xval.reference_models import MujocoSettings
+from loopcheck.compare.run import compare_engines
+from loopcheck.reduced import ReducedSettings
+from loopcheck.scene import Tolerances
+from loopcheck.reference_models import MujocoSettings
 
 from helpers import seed_dict, variant
 

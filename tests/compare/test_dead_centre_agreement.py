@@ -17,11 +17,11 @@ import warnings
 import numpy as np
 import pytest
 
-from xval.compare.run import compare_engines
+from loopcheck.compare.run import compare_engines
 from oracles.four_bar import FourBar
-from xval.reduced import MechanismModel, simulate
-from xval.scenefile import scene_from_dict
-from xval.reduced.charts import Chart
+from loopcheck.reduced import MechanismModel, simulate
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reduced.charts import Chart
 
 # q0 = 2.379 rad is within the hysteresis of a dead centre: the run starts in a φ chart and never
 # leaves it. Measured |Δq| 3.2e-10 rad between the engines (MuJoCo's automatic step, 0.5 ms).
@@ -77,7 +77,7 @@ def test_engines_agree_from_a_phi_chart_start(data, switches, q_bound):
 
 
 def test_chart_continues_the_turn_of_its_start():
-    """A chart of φ1 or φ2 (:class:`xval.reduced.charts.Chart`, compiled Newton from the chart's
+    """A chart of φ1 or φ2 (:class:`loopcheck.reduced.charts.Chart`, compiled Newton from the chart's
     last configuration) started at the closed form's configuration shifted by whole turns in
     the dependent angles keeps those turns as it walks (0.01 rad along its coordinate), and
     lands on the closed form modulo 2π (the chart's continuity relies on it; the closed-form
@@ -110,7 +110,7 @@ def test_chart_continues_the_turn_of_its_start():
 # A triple rocker at 9.9 rad/s: DOP853 (the default reference) tries a stage past the reach of
 # the φ2 chart (|cos α| > 1 in the dyad solution) before the switch event fires and stops with
 # a singular position at t = 0.24 s; RKN4 and Radau pass (3 switches). Found on 3 of ~600
-# random valid four-bars. The fix belongs in xval/reduced/charts.py or xval/reduced/integrators.py.
+# random valid four-bars. The fix belongs in loopcheck/reduced/charts.py or loopcheck/reduced/integrators.py.
 DOP853_PAST_CHART_REACH = {
     "name": "dop853_past_chart_reach",
     "linkage": {"type": "four_bar", "c1": 1.622, "c2": 0.8123, "c3": 1.2582, "c4": 0.4901, "branch": 1},

@@ -13,13 +13,13 @@ from decimal import Decimal
 import numpy as np
 import pytest
 
-from xval.compare.diff import compare_trajectories, gate
-from xval.compare.run import compare_engines, judge
-from xval.compare.text import comparison_lines
-from xval.reduced import ReducedSettings, simulate
-from xval.trajectory import Trajectory
-from xval.scene import Tolerances
-from xval.reference_models import MujocoSettings, simulate_mujoco
+from loopcheck.compare.diff import compare_trajectories, gate
+from loopcheck.compare.run import compare_engines, judge
+from loopcheck.compare.text import comparison_lines
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.trajectory import Trajectory
+from loopcheck.scene import Tolerances
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import variant
 
@@ -221,8 +221,8 @@ def test_swing_peak_is_one_event_in_both_engines_and_the_table_subtracts():
 
 
 def test_trajectories_that_never_overlap_are_a_numerical_failure():
-    from xval.errors import NumericalFailure
-    from xval.errors import FailureReason
+    from loopcheck.errors import NumericalFailure
+    from loopcheck.errors import FailureReason
 
     early = parabola()
     late = Trajectory(T + 3.0, early.q, early.qdot, early.qddot)

@@ -1,4 +1,4 @@
-"""``xval draw``: any scene's mechanism is drawn where an independent closed form puts its
+"""``loopcheck draw``: any scene's mechanism is drawn where an independent closed form puts its
 points, the title names q0 with its unit and the assembly mode, and the command writes a
 PNG, refusing a bad destination before any work.
 
@@ -15,12 +15,12 @@ import struct
 import numpy as np
 import pytest
 
-from xval.compare import cli
-from xval.compare.cli import main
-from xval.compare.draw import draw_linkage, draw_scene, mode_text
-from xval.scenefile import load_scene
-from xval.kinematics import assemble, compile_linkage
-from xval.scenefile import scene_from_dict
+from loopcheck.compare import cli
+from loopcheck.compare.cli import main
+from loopcheck.compare.draw import draw_linkage, draw_scene, mode_text
+from loopcheck.scenefile import load_scene
+from loopcheck.kinematics import assemble, compile_linkage
+from loopcheck.scenefile import scene_from_dict
 
 from helpers import SEED_SCENE
 
@@ -170,7 +170,7 @@ def test_slider_crank_block_spring_and_gas_force(q0):
     assert np.allclose(gas.xy, piston, rtol=0.0, atol=ROUND_OFF)  # the arrow ends on the piston
     # F(q) along (cos π, sin π) = −x: a positive value pushes the piston left, so the tail
     # lies to its right; a negative one the other way round.
-    from xval.loads import TabulatedForce
+    from loopcheck.loads import TabulatedForce
 
     value = TabulatedForce((0.0, 1.0, 2.0, 3.0), (0.0, 500.0, -300.0, 0.0))(q0)
     tail = np.array(gas.xyann)
@@ -203,7 +203,7 @@ def test_watt_ii_closes_both_loops_in_the_drawing():
 
 def test_draw_scene_titles_q0_with_its_unit_and_the_mode(tmp_path, monkeypatch):
     """A slider-driven scene gives q0 in m; the Watt II its two-loop mode."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     titles = keep_titles(monkeypatch)
     slider = slider_crank_scene(0.4, prismatic_input=True)
@@ -225,7 +225,7 @@ def test_draw_writes_a_png_of_the_seed(tmp_path, monkeypatch, capsys):
     assert main(["draw", str(SEED_SCENE)]) == 0
     out = tmp_path / "linkage.png"
     assert capsys.readouterr().out.strip() == f"wrote {out}"
-    assert png_size(out) == (990, 715)  # 9 × 6.5 in at 110 dpi (xval/compare/plots.py's _save)
+    assert png_size(out) == (990, 715)  # 9 × 6.5 in at 110 dpi (loopcheck/compare/plots.py's _save)
     assert [p.name for p in tmp_path.iterdir()] == ["linkage.png"]  # no staging left behind
 
 
@@ -252,7 +252,7 @@ def test_bad_out_is_refused_before_any_work(tmp_path, monkeypatch, capsys, dest,
     captured = capsys.readouterr()
     assert captured.out == "" and "Traceback" not in captured.err
     line, = captured.err.strip().splitlines()
-    assert line.startswith("xval: error: --out") and message in line, line
+    assert line.startswith("loopcheck: error: --out") and message in line, line
 
 
 def test_bad_scene_leaves_an_existing_drawing_as_it_was(tmp_path, capsys):
@@ -268,9 +268,9 @@ def test_bad_scene_leaves_an_existing_drawing_as_it_was(tmp_path, capsys):
 
 
 def test_a_drawing_that_fails_midway_leaves_the_old_file(tmp_path, monkeypatch, capsys):
-    """Written through xval.compare.output: a failure while the PNG is being written (here a
+    """Written through loopcheck.compare.output: a failure while the PNG is being written (here a
     writer that writes half a file and raises) leaves the previous file untouched."""
-    import xval.compare.draw
+    import loopcheck.compare.draw
 
     def half_then_fail(scene, path):
         with open(path, "wb") as f:
@@ -279,9 +279,9 @@ def test_a_drawing_that_fails_midway_leaves_the_old_file(tmp_path, monkeypatch, 
 
     out = tmp_path / "linkage.png"
     out.write_bytes(b"before")
-    monkeypatch.setattr(xval.compare.draw, "draw_scene", half_then_fail)
+    monkeypatch.setattr(loopcheck.compare.draw, "draw_scene", half_then_fail)
     assert main(["draw", "--out", str(out)]) == 2
-    assert capsys.readouterr().err.strip() == "xval: error: the drawing failed"
+    assert capsys.readouterr().err.strip() == "loopcheck: error: the drawing failed"
     assert out.read_bytes() == b"before"
     assert [p.name for p in tmp_path.iterdir()] == ["linkage.png"]
 
@@ -307,10 +307,10 @@ def test_a_bare_linkage_is_drawn_at_the_slider_crank_s_closed_form():
 
 def test_user_names_are_plain_text_and_cut(tmp_path, monkeypatch, capsys):
     """A scene name with broken mathtext draws as text (a mathtext parse would fail at save),
-    cut to xval.compare.plots.NAME_CHARS in the title."""
+    cut to loopcheck.compare.plots.NAME_CHARS in the title."""
     plt = pyplot()
 
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     name = r"seed $\notacommand{x}$ " + "x" * 70
     scene = tmp_path / "odd.toml"
@@ -321,30 +321,30 @@ def test_user_names_are_plain_text_and_cut(tmp_path, monkeypatch, capsys):
     assert png_size(out) == (990, 715)
     title, = titles
     assert title.startswith(r"seed $\notacommand{x}$ xxx"), title
-    assert title.index(": linkage at") == xval.compare.plots.NAME_CHARS and "…:" in title
+    assert title.index(": linkage at") == loopcheck.compare.plots.NAME_CHARS and "…:" in title
     assert title.endswith("q0 = 0.2 rad, mode (+1)")
     assert plt.get_fignums() == []
 
 
 def keep_titles(monkeypatch) -> list:
     """The titles of the figures the plots module saves from now on (it still saves them)."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     titles = []
-    real_save = xval.compare.plots._save
+    real_save = loopcheck.compare.plots._save
 
     def keep_title(fig, path):
         titles.append(fig.axes[0].get_title())
         real_save(fig, path)
 
-    monkeypatch.setattr(xval.compare.plots, "_save", keep_title)
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", keep_title)
     return titles
 
 
 @pytest.mark.parametrize("name,magic", [("l.png", b"\x89PNG\r\n\x1a\n"), ("l.pdf", b"%PDF-"), ("L.SVG", b"<?xml")])
 def test_draw_writes_the_format_its_suffix_names(name, magic, tmp_path, capsys):
     """Issue 24: --out l.pdf wrote PNG bytes. The file starts with its format's signature."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     assert main(["draw", "--out", str(tmp_path / name)]) == 0
     data = (tmp_path / name).read_bytes()
@@ -356,7 +356,7 @@ def test_draw_writes_the_format_its_suffix_names(name, magic, tmp_path, capsys):
 @pytest.mark.parametrize("name", ["l.txt", "l.jpg", "linkage"])
 def test_draw_refuses_other_suffixes_before_any_work(name, tmp_path, capsys):
     """Refused before the scene is read: with a scene that does not exist, the suffix is named."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     assert main(["draw", str(tmp_path / "missing.toml"), "--out", str(tmp_path / name)]) == 2
     captured = capsys.readouterr()

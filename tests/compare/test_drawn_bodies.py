@@ -1,5 +1,5 @@
-"""Every body of every catalogue scene is drawn, by ``xval draw`` and by the mechanism strip
-of ``xval run``: each of the body's named points lies inside or on the path of the artist
+"""Every body of every catalogue scene is drawn, by ``loopcheck draw`` and by the mechanism strip
+of ``loopcheck run``: each of the body's named points lies inside or on the path of the artist
 drawn for it (matplotlib's own paths, in data coordinates). Slider guides are not drawn as
 ground pivots, and the strip's tick labels do not overlap.
 
@@ -12,11 +12,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.compare.draw import draw_linkage, draw_strip
-from xval.scenefile import load_scene
-from xval.kinematics import compile_linkage, positions
-from xval.mechanism import GROUND, PrismaticJoint
-from xval.trajectory import JointTrajectory
+from loopcheck.compare.draw import draw_linkage, draw_strip
+from loopcheck.scenefile import load_scene
+from loopcheck.kinematics import compile_linkage, positions
+from loopcheck.mechanism import GROUND, PrismaticJoint
+from loopcheck.trajectory import JointTrajectory
 
 from helpers import ROOT
 
@@ -66,7 +66,7 @@ def span_of(system, x) -> float:
 
 
 @pytest.mark.parametrize("path", CATALOGUE, ids=lambda p: p.stem)
-def test_every_body_is_drawn_by_xval_draw(path):
+def test_every_body_is_drawn_by_loopcheck_draw(path):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,7 +129,7 @@ def scaled_lever(k: float):
     import copy
     import tomllib
 
-    from xval.scenefile import scene_from_dict
+    from loopcheck.scenefile import scene_from_dict
 
     data = copy.deepcopy(tomllib.loads(CATALOGUE_BY_NAME["oscillating_slotted_lever"].read_text(encoding="utf-8")))
     for body in data["bodies"].values():
@@ -147,7 +147,7 @@ def test_strip_tick_labels_do_not_overlap(tmp_path, saved_figures, k):
     assembly: with matplotlib's default ticks, labels such as −0.125 at 0.025 m steps ran into
     each other in one panel or the other at each of these scales (found by scanning k from 0.2
     to 1.2). The labels drawn stand apart."""
-    from xval.kinematics import assemble
+    from loopcheck.kinematics import assemble
 
     scene = scaled_lever(k)
     system = compile_linkage(scene.mechanism.linkage)
@@ -183,7 +183,7 @@ def test_moments_that_draw_the_same_picture_are_one_panel_that_says_so(tmp_path,
     (fig,) = saved_figures
     (ax,) = fig.axes
     assert ax.get_title().startswith("peak speed (t = 0.2 s) and largest |Δq| (t = 0.7 s), one picture")
-    from xval.kinematics import assemble
+    from loopcheck.kinematics import assemble
 
     moved = assemble(system, scene.q0 + 1.0, np.asarray(scene.x0, dtype=float))
     xs = np.array([scene.x0, moved], dtype=float)
@@ -205,13 +205,13 @@ FAST_DRAWINGS = ("seed_fourbar", "slider_crank_driven_slider", "stephenson3_sixb
 
 @pytest.mark.parametrize("path", [p if p.stem in FAST_DRAWINGS else pytest.param(p, marks=pytest.mark.slow)
                                   for p in CATALOGUE], ids=lambda p: p.stem)
-def test_xval_draw_labels_do_not_cover_one_another(path, tmp_path, saved_figures):
-    """The drawing's labels (joints, bodies, centres of mass, elements) as ``xval draw`` saves
+def test_loopcheck_draw_labels_do_not_cover_one_another(path, tmp_path, saved_figures):
+    """The drawing's labels (joints, bodies, centres of mass, elements) as ``loopcheck draw`` saves
     them: no two share a pixel. Before
     labels were moved apart, the Andrews squeezer's 'O (input, …)' covered body1's and body2's
     labels, and the slotted lever's 'O2 (input, …)' its crank's. The figure is caught as it is
     saved (the ``saved_figures`` fixture of conftest.py; the drawing itself is not replaced)."""
-    from xval.compare.draw import _labels, draw_scene, label_boxes
+    from loopcheck.compare.draw import _labels, draw_scene, label_boxes
 
     draw_scene(load_scene(path), tmp_path / "linkage.png")
     [ax] = [a for a in saved_figures[0].axes if _labels(a)]

@@ -1,4 +1,4 @@
-"""`xval check --engines`: each engine against the reduced reference; the outlier named."""
+"""`loopcheck check --engines`: each engine against the reduced reference; the outlier named."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import importlib.util
 
 import pytest
 
-from xval.compare.engines import check_engines, parse_engines
-from xval.compare.settings import engine_settings
-from xval.reference_models import MujocoSettings
-from xval.scenefile import load_scene
+from loopcheck.compare.engines import check_engines, parse_engines
+from loopcheck.compare.settings import engine_settings
+from loopcheck.reference_models import MujocoSettings
+from loopcheck.scenefile import load_scene
 
 HAS_PIN = importlib.util.find_spec("pinocchio") is not None
 # MuJoCo's own default softness on the loop at RK4 1 ms: it runs (its gap and energy bounds opened)
@@ -34,7 +34,7 @@ def test_the_outlier_is_farthest_from_the_median_of_the_others():
     MJX 1.4e-2 off; the median of the others is the agreeing value for both ports, so MJX, the
     farther, is named. Six, two of them agreeing far from the other four: the lone one is named.
     (Planted: min for max names 'mujoco' and 'c'.)"""
-    from xval.compare.engines import farthest_from_the_others
+    from loopcheck.compare.engines import farthest_from_the_others
 
     peaks = {"reduced": 34.264413, "mujoco": 34.264320, "pin": 34.264413, "mjx": 33.78, "mjwarp": 34.258}
     assert farthest_from_the_others(peaks) == "mjx"
@@ -49,7 +49,7 @@ def test_two_engines_name_no_outlier():
     assert not check.passed and check.outlier is None
 
 
-@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra xval[pin]) is not installed")
+@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra loopcheck[pin]) is not installed")
 def test_the_engine_farthest_from_the_others_is_named():
     """MuJoCo with its default softness against the reduced solution and Pinocchio, which agree to 4e-11 on the
     seed's peak: MuJoCo is named."""
@@ -60,9 +60,9 @@ def test_the_engine_farthest_from_the_others_is_named():
     assert check.spread[("reduced", "pin")] < 1e-9 < min(check.spread[("reduced", "mujoco")], check.spread[("mujoco", "pin")])
 
 
-@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra xval[pin]) is not installed")
+@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra loopcheck[pin]) is not installed")
 def test_cli_check_with_three_engines(capsys):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     assert main(["check", "seed_fourbar", "--engines", "reduced,mujoco,pin"]) == 0
     out = capsys.readouterr().out
@@ -70,7 +70,7 @@ def test_cli_check_with_three_engines(capsys):
 
 
 def test_cli_engines_do_not_apply_to_a_model(capsys):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     assert main(["check", "tests/data/mjcf/fourbar_xz_degrees.xml", "--engines", "reduced,mujoco"]) == 2
     assert "--engines checks scenes" in capsys.readouterr().err
@@ -89,8 +89,8 @@ def test_each_engine_is_judged_by_its_own_table():
     """MuJoCo at its default softness is 3e-2 off on the seed (test_two_engines_name_no_outlier): loosened
     in [tolerances.mujoco] alone it passes, while the same tables with the looseness in [tolerances.pin]
     fail it. What a check judged by [tolerances] (ignoring the engine's table) gives neither way."""
-    from xval.scenefile import scene_from_dict
-    from xval.toml_reader import parse_toml
+    from loopcheck.scenefile import scene_from_dict
+    from loopcheck.toml_reader import parse_toml
     from pathlib import Path
 
     loose = "peak_omega_rtol = 0.5\nq_atol = 1.0\nomega_atol = 20.0\n"
@@ -102,11 +102,11 @@ def test_each_engine_is_judged_by_its_own_table():
         assert check.verdicts[0].comparison.gate.tolerances.omega_atol == (20.0 if passes else 0.1)
 
 
-@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra xval[pin]) is not installed")
+@pytest.mark.skipif(not HAS_PIN, reason="Pinocchio (the extra loopcheck[pin]) is not installed")
 def test_cli_check_fails_the_engine_whose_table_is_impossibly_tight_and_flags_override_it(tmp_path, capsys):
     """Pinocchio's |Δq̇| is 2.6e-9 rad/s over 0.2 s (measured); [tolerances.pin] omega_atol = 1e-12 fails pin
     alone (exit 1), MuJoCo keeps [tolerances]' 0.1; --omega-atol 0.1 overrides every engine's: exit 0."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     path = tmp_path / "tight.toml"
     path.write_text(_short_seed("\n[tolerances.pin]\nomega_atol = 1e-12\n"), encoding="utf-8")
@@ -121,9 +121,9 @@ def test_cli_check_fails_the_engine_whose_table_is_impossibly_tight_and_flags_ov
 
 def test_mujocos_own_table_is_its_gate_in_a_plain_check(tmp_path, capsys):
     """[tolerances.mujoco] is MuJoCo's gate without --engines too (MuJoCo's |Δq̇| is ~5e-5 rad/s over 0.2 s,
-    measured): omega_atol = 1e-12 there fails `xval check`, the same key in [tolerances.pin] does not. At a
+    measured): omega_atol = 1e-12 there fails `loopcheck check`, the same key in [tolerances.pin] does not. At a
     fixed step: the automatic one would be searched for 1e-12 and fail as a numerical failure."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     for table, status in (("mujoco", 1), ("pin", 0)):
         path = tmp_path / f"{table}.toml"

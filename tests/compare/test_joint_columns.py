@@ -1,6 +1,6 @@
 """Every joint's own coordinate and rate in reduced.csv, mujoco.csv and report.json: a revolute
 joint's relative angle θ_b − θ_a (cut joints included), a prismatic joint's displacement; all
-joints of a scene of at most 12 joints, else the input's and those ``xval run --joints`` names.
+joints of a scene of at most 12 joints, else the input's and those ``loopcheck run --joints`` names.
 
 Oracles: a joint's relative angle is the difference of its two bodies' angles, taken here by
 name from the reduced solver's coordinates and from MuJoCo's own forward kinematics (the bodies'
@@ -18,13 +18,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.compare import report
-from xval.compare.cli import main
-from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings
-from xval.scenefile import scene_from_dict
-from xval.mechanism import GROUND, PrismaticJoint
-from xval.reference_models import MujocoSettings, build_model, joint_positions
+from loopcheck.compare import report
+from loopcheck.compare.cli import main
+from loopcheck.compare.run import compare_engines
+from loopcheck.reduced import ReducedSettings
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.mechanism import GROUND, PrismaticJoint
+from loopcheck.reference_models import MujocoSettings, build_model, joint_positions
 
 from helpers import ROOT, plots_left_out
 

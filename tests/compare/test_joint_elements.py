@@ -1,7 +1,7 @@
 """Dampers and springs on a joint's own coordinate ([[joint_dampers]], [[joint_springs]]):
 a revolute joint's relative angle θ_b − θ_a (cut joints included), a prismatic joint's
-displacement. Both engines: the reduced kernel's terms (xval/reduced/kernels/physics.py) and
-MuJoCo's fixed tendons (xval/reference_models/build.py, joint_tendons).
+displacement. Both engines: the reduced kernel's terms (loopcheck/reduced/kernels/physics.py) and
+MuJoCo's fixed tendons (loopcheck/reference_models/build.py, joint_tendons).
 
 Oracles: each element split into two halves on the same joint gives the whole's motion (a
 four-bar, a slider-crank and a six-bar, both engines); closed forms of a one-body oscillator
@@ -18,11 +18,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval import kinematics as loops
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import scene_from_dict
-from xval.scene import SceneError
-from xval.reference_models import MujocoSettings, simulate_mujoco
+from loopcheck import kinematics as loops
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.scene import SceneError
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco
 
 from helpers import ROOT
 
@@ -200,7 +200,7 @@ def test_exported_mjcf_keeps_the_joint_tendons(tmp_path):
     """The six-bar with a spring on a cut joint and a damper on a tree joint: the exported file,
     compiled alone, reruns the in-memory model's motion bit for bit (the fixed tendons' numbers
     written to full precision)."""
-    from xval.reference_models import handles_from_mjcf, mjcf_text
+    from loopcheck.reference_models import handles_from_mjcf, mjcf_text
 
     scene = _with("six_bar", False)
     settings = MujocoSettings(integrator="rk4", timestep=MUJOCO_STEP["six_bar"])

@@ -11,22 +11,22 @@ from pathlib import Path
 
 import pytest
 
-import xval
+import loopcheck
 from tests.helpers import patched, variant
-from xval.compare.run import compare_engines
-from xval.reference_models import MujocoSettings, mjcf_text
-from xval.reference_models.mjcf_import import import_mjcf
-from xval.reference_models.user_model import ModelOptions, run_model
-from xval.scenefile import scene_from_dict
+from loopcheck.compare.run import compare_engines
+from loopcheck.reference_models import MujocoSettings, mjcf_text
+from loopcheck.reference_models.mjcf_import import import_mjcf
+from loopcheck.reference_models.user_model import ModelOptions, run_model
+from loopcheck.scenefile import scene_from_dict
 
 
 def test_an_inertia_on_the_cranks_pin_is_pivot_inertia():
     """I on O1 (u = the crank's angle) adds ½ I q̇² like I more pivot inertia: the reduced peaks
     agree to 2.2e-15 measured (asserted 1e-13), through a separate term of the kernel."""
-    on_pin = xval.simulate(variant(joint_inertias=[{"joint": "O1", "inertia": 0.7}]), xval.ReducedSettings())
-    heavier = xval.simulate(scene_from_dict(patched({"bodies.crank.pivot_inertia": 2.2})), xval.ReducedSettings())
+    on_pin = loopcheck.simulate(variant(joint_inertias=[{"joint": "O1", "inertia": 0.7}]), loopcheck.ReducedSettings())
+    heavier = loopcheck.simulate(scene_from_dict(patched({"bodies.crank.pivot_inertia": 2.2})), loopcheck.ReducedSettings())
     assert on_pin.peak.omega == pytest.approx(heavier.peak.omega, rel=1e-13)
-    plain = xval.simulate(variant(), xval.ReducedSettings())
+    plain = loopcheck.simulate(variant(), loopcheck.ReducedSettings())
     assert abs(on_pin.peak.omega - plain.peak.omega) > 1.0  # it matters
 
 
@@ -48,7 +48,7 @@ def test_mujoco_refuses_an_inertia_it_cannot_hold():
     scene = variant(joint_inertias=[{"joint": j, "inertia": 0.1, "name": f"rotor_{j}"} for j in ("O1", "A", "B", "O3")])
     with pytest.raises(ValueError, match="joint inertia 'rotor_.*closes a loop"):
         mjcf_text(scene, MujocoSettings(timestep=1e-3))
-    assert xval.simulate(scene, xval.ReducedSettings()).audit.relative_residual < 1e-9
+    assert loopcheck.simulate(scene, loopcheck.ReducedSettings()).audit.relative_residual < 1e-9
 
 
 def test_inertias_survive_export_and_import(tmp_path):
@@ -70,6 +70,6 @@ def test_a_joint_armature_is_a_joint_inertia(tmp_path):
     imported = import_mjcf(path, keyframe="assembled", horizon=1.0)
     (inertia,) = imported.scene.mechanism.joint_inertias
     assert (inertia.name, inertia.joint, inertia.coefficient) == ("A_armature", "A", 0.3)
-    reference = xval.simulate(imported.scene, xval.ReducedSettings())
+    reference = loopcheck.simulate(imported.scene, loopcheck.ReducedSettings())
     stiff = run_model(imported, ModelOptions.as_written(imported.model).stiff_loops())
     assert stiff.peak.omega == pytest.approx(reference.peak.omega, rel=1e-4)

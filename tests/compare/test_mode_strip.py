@@ -1,8 +1,8 @@
 """Assembly modes per loop in the comparison, and the mechanism strip and animation of
-``xval run``, on JointTrajectory objects built here from the loop kinematics.
+``loopcheck run``, on JointTrajectory objects built here from the loop kinematics.
 
 The engines are not run: the runs are the Watt II six-bar (two loops) assembled by Newton's
-method (xval.kinematics.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
+method (loopcheck.kinematics.assemble) along a prescribed input motion q(t), with ẋ = K q̇. The
 "MuJoCo" run is the same motion shifted by a small known Δq(t), or with its second loop
 put in the other assembly mode part-way; the oracles are those constructions.
 """
@@ -20,14 +20,14 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from xval.compare.diff import ModeCheck, compare_modes, compare_trajectories, gate
-from xval.compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
-from xval.compare.draw import strip_moments
-from xval.compare.text import gate_lines
-from xval.kinematics import assemble, assembly_modes, coefficients, compile_linkage
-from xval.trajectory import JointTrajectory
-from xval.scene import Tolerances
-from xval.trajectory import Trajectory
+from loopcheck.compare.diff import ModeCheck, compare_modes, compare_trajectories, gate
+from loopcheck.compare.draw import animate_run, configuration_at, draw_strip, gif_writer_available
+from loopcheck.compare.draw import strip_moments
+from loopcheck.compare.text import gate_lines
+from loopcheck.kinematics import assemble, assembly_modes, coefficients, compile_linkage
+from loopcheck.trajectory import JointTrajectory
+from loopcheck.scene import Tolerances
+from loopcheck.trajectory import Trajectory
 
 from test_draw import watt_ii_scene
 
@@ -158,24 +158,24 @@ def test_strip_moments_are_the_peak_and_the_largest_difference(runs, scene):
 def test_strip_overlays_both_engines_at_the_moments(tmp_path, monkeypatch, scene, runs):
     """Panel k draws the reduced run solid and MuJoCo's dashed, each at its own
     configuration at that moment; the title gives both q in the input's unit."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     (ref_j, _), (oth_j, _) = runs
     figures = []
-    real_save = xval.compare.plots._save
+    real_save = loopcheck.compare.plots._save
 
     def keep(fig, path):
         figures.append([(ax.get_title(), [(l.get_linestyle(), l.get_xydata().copy()) for l in ax.lines])
                         for ax in fig.axes])
         real_save(fig, path)
 
-    monkeypatch.setattr(xval.compare.plots, "_save", keep)
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", keep)
     out = tmp_path / "mechanism.png"
     draw_strip(scene, ref_j, oth_j, [("peak speed", 0.3), ("largest |Δq|", 0.5)], out)
     assert out.read_bytes()[:8] == PNG_SIGNATURE
     assert struct.unpack(">II", out.read_bytes()[16:24]) == (990, 462)  # 9 × 4.2 in at 110 dpi
     system = compile_linkage(scene.mechanism.linkage)
-    from xval.kinematics import positions
+    from loopcheck.kinematics import positions
 
     (panels,) = figures
     for (title, lines), t in zip(panels, (0.3, 0.5)):
@@ -209,14 +209,14 @@ def test_animation_is_a_gif_with_one_frame_per_step(tmp_path, scene, runs):
 
 
 def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatch):
-    import xval.compare.draw
-    from xval.compare.report import ANIMATION_FILE, REPORT_FILES, report_files, resolve_animation
+    import loopcheck.compare.draw
+    from loopcheck.compare.report import ANIMATION_FILE, REPORT_FILES, report_files, resolve_animation
 
     assert resolve_animation(False) is False
     assert resolve_animation(True) is True
     assert report_files(True) == REPORT_FILES[:-1] + (ANIMATION_FILE, "report.json")
     assert "mechanism.png" in REPORT_FILES
-    monkeypatch.setattr(xval.compare.draw, "gif_writer_available", lambda: False)
+    monkeypatch.setattr(loopcheck.compare.draw, "gif_writer_available", lambda: False)
     with pytest.warns(UserWarning, match="--animate: matplotlib's PillowWriter is not available"):
         assert resolve_animation(True) is False
 
@@ -224,19 +224,19 @@ def test_without_a_gif_writer_the_animation_is_skipped_with_a_warning(monkeypatc
 # -- the report of a comparison, without the engines ------------------------------------
 
 def engine_result(engine, joints, trajectory, violation=0.0):
-    from xval.results import EngineResult
-    from xval.trajectory import Peak
+    from loopcheck.results import EngineResult
+    from loopcheck.trajectory import Peak
 
     t = trajectory.t
     k = int(np.argmax(np.abs(trajectory.qdot)))
     kinetic = 0.5 * trajectory.qdot ** 2
     audit = EnergyAudit(t, kinetic, np.zeros_like(t), kinetic - kinetic[0], np.zeros_like(t))
-    from xval.reduced.settings import ReducedSettings
-    from xval.reference_models.settings import MujocoSettings
-    from xval.results import ConstraintViolation
+    from loopcheck.reduced.settings import ReducedSettings
+    from loopcheck.reference_models.settings import MujocoSettings
+    from loopcheck.results import ConstraintViolation
 
-    from xval.reduced.engine import ReducedDetails
-    from xval.reference_models.run import MujocoDetails
+    from loopcheck.reduced.engine import ReducedDetails
+    from loopcheck.reference_models.run import MujocoDetails
 
     if engine == "mujoco":
         settings, violations = MujocoSettings(timestep=1e-3), ConstraintViolation(t, np.full(len(t), violation))
@@ -248,7 +248,7 @@ def engine_result(engine, joints, trajectory, violation=0.0):
                         len(t), 4 * len(t), settings, ("torque",), violations, details)
 
 
-from xval.results import EnergyAudit  # noqa: E402
+from loopcheck.results import EnergyAudit  # noqa: E402
 
 
 def slider_run(scene, t, shift=0.0):
@@ -268,7 +268,7 @@ def slider_run(scene, t, shift=0.0):
 
 
 def comparison_of(scene, reference, other):
-    """What xval.compare.run.judge builds, from two constructed runs (the engines not run)."""
+    """What loopcheck.compare.run.judge builds, from two constructed runs (the engines not run)."""
     (rj, rt), (oj, ot) = reference, other
     diff = compare_trajectories(rt, ot, horizon=float(rt.t[-1]))
     modes = compare_modes(rj, oj)
@@ -284,8 +284,8 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     mode per loop; write_outputs writes every file, the strip and (asked for) the GIF."""
     import json
 
-    from xval.compare.report import ANIMATION_FILE, REPORT_FILES, report_dict, write_outputs
-    from xval.compare.text import comparison_lines
+    from loopcheck.compare.report import ANIMATION_FILE, REPORT_FILES, report_dict, write_outputs
+    from loopcheck.compare.text import comparison_lines
     from test_draw import slider_crank_scene
 
     scene = slider_crank_scene(0.4, prismatic_input=True)
@@ -304,9 +304,9 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]
-    import xval.compare.draw
+    import loopcheck.compare.draw
 
-    monkeypatch.setattr(xval.compare.draw, "ANIMATION_FRAMES", 4)  # a short GIF: this test is about the set
+    monkeypatch.setattr(loopcheck.compare.draw, "ANIMATION_FRAMES", 4)  # a short GIF: this test is about the set
     paths = write_outputs(c, tmp_path / "out", animate=True)
     assert sorted(p.name for p in paths) == sorted(REPORT_FILES + (ANIMATION_FILE,))
     header = (tmp_path / "out" / "reduced.csv").read_text().split("\n")[0].split(",")
@@ -322,8 +322,8 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
     other_j, other_t = watt_run(scene, t, second_mode=-1)
     wrong_j = dataclasses.replace(right[0], x=np.vstack([right[0].x[:60], other_j.x[60:]]),
                                   mode=np.vstack([right[0].mode[:60], other_j.mode[60:]]))
-    from xval.compare.report import report_dict
-    from xval.compare.text import comparison_lines
+    from loopcheck.compare.report import report_dict
+    from loopcheck.compare.text import comparison_lines
 
     c = comparison_of(scene, right, (wrong_j, right[1]))
     assert not c.gate.passed
@@ -334,9 +334,9 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
 
 
 def test_command_lines_of_a_slider_driven_scene_give_metres():
-    """What ``xval reduced``, ``xval mujoco`` and ``xval check`` print (xval.compare.text) names
+    """What ``loopcheck reduced``, ``loopcheck mujoco`` and ``loopcheck check`` print (loopcheck.compare.text) names
     the input joint and gives its unit."""
-    from xval.compare.text import check_lines, mujoco_lines, reduced_lines
+    from loopcheck.compare.text import check_lines, mujoco_lines, reduced_lines
     from test_draw import slider_crank_scene
 
     scene = slider_crank_scene(0.4, prismatic_input=True)
@@ -360,9 +360,9 @@ def test_command_lines_of_a_slider_driven_scene_give_metres():
 
 @pytest.mark.parametrize("animate", [False, True])
 def test_run_refuses_a_folder_where_an_output_goes_before_any_work(tmp_path, monkeypatch, capsys, animate):
-    """``xval run [--animate]`` checks every file it will write (mechanism.png, and
+    """``loopcheck run [--animate]`` checks every file it will write (mechanism.png, and
     mechanism.gif when animating) before reading the scene."""
-    from xval.compare import cli
+    from loopcheck.compare import cli
 
     monkeypatch.setattr(cli, "_scene", lambda path: pytest.fail("the scene was read"))
     out = tmp_path / "out"
@@ -370,4 +370,4 @@ def test_run_refuses_a_folder_where_an_output_goes_before_any_work(tmp_path, mon
     (out / ("mechanism.gif" if animate else "mechanism.png")).mkdir()
     assert cli.main(["run", "--out", str(out)] + (["--animate"] if animate else [])) == 2
     line, = capsys.readouterr().err.strip().splitlines()
-    assert line.startswith("xval: error: --out") and "mechanism." in line and "is a folder" in line, line
+    assert line.startswith("loopcheck: error: --out") and "mechanism." in line and "is a folder" in line, line

@@ -1,4 +1,4 @@
-"""`xval check model.xml`: a user's MuJoCo model as written against the exact solution, the cause
+"""`loopcheck check model.xml`: a user's MuJoCo model as written against the exact solution, the cause
 of the difference, and options that fix it (checked by pasting them into the file)."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare.model_check import check_model
-from xval.reference_models.mjcf_import import Control, import_mjcf
-from xval.reference_models.user_model import ModelOptions, run_model
+from loopcheck.compare.model_check import check_model
+from loopcheck.reference_models.mjcf_import import Control, import_mjcf
+from loopcheck.reference_models.user_model import ModelOptions, run_model
 
 DATA = Path(__file__).parent.parent / "data" / "mjcf"
 SEED_PULSE = Control((0.0, 1.0), (250.0, 0.0))
@@ -86,7 +86,7 @@ def test_the_run_as_written_changes_nothing_but_the_energy_flag():
 
 
 def test_cli_check_of_a_model(tmp_path, capsys):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     code = main(["check", str(DATA / "fourbar_xz_degrees.xml"), "--ctrl", "0:250,1:0", "--horizon", "2"])
     out = capsys.readouterr().out
@@ -100,18 +100,18 @@ def test_cli_check_of_a_model(tmp_path, capsys):
 
 @pytest.mark.parametrize("flag", [["--keyframe", "nope"], ["--input", "nope"]])
 def test_cli_check_of_a_model_refuses_bad_flags(flag, capsys):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     assert main(["check", str(DATA / "fourbar_xz_degrees.xml"), *flag]) == 2
     assert "'nope'" in capsys.readouterr().err
 
 
 def test_cli_run_of_a_model_writes_the_report(tmp_path, capsys):
-    """`xval run model.xml`: the table of the reduced solution and the model as written, the
+    """`loopcheck run model.xml`: the table of the reduced solution and the model as written, the
     diagnosis under it, and the report folder (report.json names the model's options)."""
     import json
 
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     out = tmp_path / "report"
     code = main(["run", str(DATA / "fourbar_xz_degrees.xml"), "--ctrl", "0:250,1:0", "--horizon", "2", "-o", str(out)])
@@ -139,7 +139,7 @@ def test_mujocos_own_defaults_need_both_changes(tmp_path):
 def test_cli_check_goes_on_after_a_reference_that_fails(tmp_path, capsys):
     """A model whose reduced reference fails (RKN4 at 0.1 s misses its own error bound) is one
     FAIL line, and the next model is still checked."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     other = tmp_path / "other.xml"
     other.write_text((DATA / "fourbar_xz_degrees.xml").read_text())

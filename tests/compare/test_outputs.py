@@ -1,4 +1,4 @@
-"""The output writer's guarantees (xval/compare/output.py), each under the fault it is meant to survive.
+"""The output writer's guarantees (loopcheck/compare/output.py), each under the fault it is meant to survive.
 
 Faults are real: exceptions raised by a writer part-way, a directory in the way, a second
 process writing the same folder, SIGINT and SIGTERM sent to a process while it writes.
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare import output
-from xval.compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
+from loopcheck.compare import output
+from loopcheck.compare.output import OutputError, Terminated, json_text, signals_as_exceptions, write_file, write_folder
 
 from helpers import interruptible, spawn  # noqa: F401 - fixtures
 
@@ -252,7 +252,7 @@ def test_json_is_strict_and_paths_are_not_absolute(tmp_path, monkeypatch):
 CHILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from xval.compare.output import Terminated, signals_as_exceptions, write_folder
+    from loopcheck.compare.output import Terminated, signals_as_exceptions, write_folder
     out, ready, tag = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
     names = ("reduced.csv", "mujoco.csv", "plot.png", "report.json")
 
@@ -332,7 +332,7 @@ def test_sigterm_while_writing_leaves_no_partial_folder(old_folder, spawn):
 FORKING_CHILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from xval.compare.output import Terminated, signals_as_exceptions, write_folder
+    from loopcheck.compare.output import Terminated, signals_as_exceptions, write_folder
     out, started = Path(sys.argv[1]), Path(sys.argv[2])
     names = [f"plot{i}.png" for i in range(6)]
 
@@ -385,7 +385,7 @@ def test_a_signal_while_forked_writers_run_ends_all_of_them_and_changes_nothing(
 def test_a_signal_while_the_command_says_what_it_wrote_comes_after_the_line_and_the_files(tmp_path, existed):
     """``committed`` runs inside the commit's held signals: a SIGTERM sent while the command
     prints its "wrote" line neither undoes the set nor cuts the line; it is delivered after both
-    (Terminated), so an interrupted exit never leaves new files without the line (xval run's
+    (Terminated), so an interrupted exit never leaves new files without the line (loopcheck run's
     signal test caught the gap once in CI at 0.9 of a run). Planted: calling ``committed``
     before the held signals are checked undoes the set, and this fails."""
     out = tmp_path / "out"
@@ -406,7 +406,7 @@ def test_a_signal_while_the_command_says_what_it_wrote_comes_after_the_line_and_
 def test_a_signal_that_lands_in_a_weakref_callback_still_ends_the_run(signum, raised, capsys):
     """Python cannot raise out of a weakref's callback (matplotlib drops transforms that way): it
     prints "Exception ignored in" and goes on. The signal is sent again and raises in the run's own
-    code, with nothing printed (seen once in .ci/run: a SIGTERM at 0.9 s of `xval run` printed a
+    code, with nothing printed (seen once in .ci/run: a SIGTERM at 0.9 s of `loopcheck run` printed a
     traceback). Planted: without the unraisable hook the run is not stopped, and the test fails."""
     import time
     import weakref

@@ -1,6 +1,6 @@
 """The peak is one event, the same in every output: a run's largest |q̇| with its sign and
 time; in a comparison, the reduced run's, and MuJoCo's local extremum of q̇ of the same sign
-nearest in time to it (xval/trajectory.py). A peak that is the last sample with the speed
+nearest in time to it (loopcheck/trajectory.py). A peak that is the last sample with the speed
 still rising is said to be so in the tables, report.json and the plots.
 
 Synthetic trajectories have closed forms (oracles written here); the catalogue's driven
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from xval.compare.diff import compare_trajectories
-from xval.compare.report import report_dict
-from xval.compare.run import compare_engines
-from xval.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
-from xval.trajectory import Trajectory
+from loopcheck.compare.diff import compare_trajectories
+from loopcheck.compare.report import report_dict
+from loopcheck.compare.run import compare_engines
+from loopcheck.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
+from loopcheck.trajectory import Trajectory
 
 from helpers import variant
 
@@ -85,10 +85,10 @@ def dots(figure) -> list[tuple[float, float]]:
 
 
 def saved(monkeypatch) -> list:
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     kept = []
-    monkeypatch.setattr(xval.compare.plots, "_save", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", lambda fig, path: kept.append(fig))
     return kept
 
 
@@ -98,7 +98,7 @@ def test_the_driven_slider_s_peak_is_one_event_in_every_output(slider_driven_com
     The comparison pairs the sixth in both, and report.json and the plot's dots say the same
     event (they once gave MuJoCo's own). Measured time difference of the pair 9.9e-6 s (MuJoCo
     at 0.25 ms steps); bound 5e-5 s, against 0.03 s between cycles."""
-    from xval.compare.plots import plot_trajectories
+    from loopcheck.compare.plots import plot_trajectories
 
     c = slider_driven_comparison
     d = c.diff
@@ -115,7 +115,7 @@ def test_the_driven_slider_s_peak_is_one_event_in_every_output(slider_driven_com
 
 
 def test_every_table_prints_the_peak_signed_under_one_label(slider_driven_comparison):
-    """xval reduced, xval mujoco and xval run print the peak signed, under 'peak qdot'."""
+    """loopcheck reduced, loopcheck mujoco and loopcheck run print the peak signed, under 'peak qdot'."""
     c = slider_driven_comparison
     d = c.diff
     rows = {line.split("  ")[0]: line.split() for line in comparison_lines(c)}
@@ -136,8 +136,8 @@ def from_rest():
 
 
 def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monkeypatch, tmp_path):
-    from xval.compare.draw import plot_mechanism_strip
-    from xval.compare.plots import plot_trajectories
+    from loopcheck.compare.draw import plot_mechanism_strip
+    from loopcheck.compare.plots import plot_trajectories
 
     c = from_rest
     d = c.diff
@@ -155,7 +155,7 @@ def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monke
 
 
 def test_the_seed_s_peak_is_not_flagged(seed_comparison, monkeypatch, tmp_path):
-    from xval.compare.plots import plot_trajectories
+    from loopcheck.compare.plots import plot_trajectories
 
     c = seed_comparison
     assert not c.diff.peak_still_rising and not c.diff.peak_other.still_rising

@@ -1,4 +1,4 @@
-"""The differences plot (``xval run``'s differences.png, and the sweep's worst variant) is
+"""The differences plot (``loopcheck run``'s differences.png, and the sweep's worst variant) is
 scaled to its data: each axis encloses its differences and spans little more than them; the
 gate's tolerance is a band only when it is within a decade of the largest difference, and
 otherwise the legend says how far off scale it is.
@@ -14,16 +14,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from xval.compare.plots import DATA_MARGIN, plot_differences, tolerance_band
-from xval.compare.run import judge
+from loopcheck.compare.plots import DATA_MARGIN, plot_differences, tolerance_band
+from loopcheck.compare.run import judge
 
 
 def drawn(c, monkeypatch, tmp_path):
     """The figure plot_differences saves for ``c``."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     kept = []
-    monkeypatch.setattr(xval.compare.plots, "_save", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", lambda fig, path: kept.append(fig))
     plot_differences(c, tmp_path / "d.png")
     (fig,) = kept
     fig.canvas.draw()

@@ -1,4 +1,4 @@
-"""`xval run --engines`: every engine against the reduced reference, the report folder of one
+"""`loopcheck run --engines`: every engine against the reduced reference, the report folder of one
 comparison (MuJoCo's, else the list's first other engine) with each engine's verdict in report.json
 and engines.png. The seed over 0.2 s keeps each run short (the pulse still on: the peak is the
 horizon's end, 6.6 rad/s)."""
@@ -11,9 +11,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from xval.compare.cli import main
-from xval.compare.output import MANIFEST_FILE
-from xval.compare.report import ENGINES_PLOT, REPORT_FILES, SCHEMA_VERSION, report_files
+from loopcheck.compare.cli import main
+from loopcheck.compare.output import MANIFEST_FILE
+from loopcheck.compare.report import ENGINES_PLOT, REPORT_FILES, SCHEMA_VERSION, report_files
 from helpers import plots_left_out, short_seed_file
 
 ENTRY_KEYS = {"engine", "passed", "peak_omega", "peak_omega_rel", "q_max_abs", "omega_max_abs", "tolerances",
@@ -117,10 +117,10 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, capsys):
 
 
 def test_a_users_model_is_reported_as_mujoco():
-    """A user's MuJoCo model as written (``xval run model.xml``) keeps the report's mujoco names and label."""
-    from xval.compare.report import output_name
-    from xval.compare.text import engine_label
-    from xval.reference_models.user_model import ENGINE
+    """A user's MuJoCo model as written (``loopcheck run model.xml``) keeps the report's mujoco names and label."""
+    from loopcheck.compare.report import output_name
+    from loopcheck.compare.text import engine_label
+    from loopcheck.reference_models.user_model import ENGINE
 
     assert (output_name(ENGINE), engine_label(ENGINE)) == ("mujoco", "MuJoCo")
     assert (output_name("pin"), engine_label("pin")) == ("pin", "Pinocchio")

@@ -1,4 +1,4 @@
-"""Local sensitivities d(peak |ω|)/dp (xval.compare.sensitivity, ``xval sweep --sensitivity``).
+"""Local sensitivities d(peak |ω|)/dp (loopcheck.compare.sensitivity, ``loopcheck sweep --sensitivity``).
 
 Oracle: the same derivative by central differences at a step ten times the module's and more
 (1e-3 of the nominal value), Richardson-extrapolated, whose own truncation is estimated from its
@@ -17,11 +17,11 @@ import json
 
 import pytest
 
-from xval.compare.cli import main
-from xval.compare.sensitivity import Sensitivity, _peak, sensitivities
-from xval.sweep_spec import spec_from_args
-from xval.compare.sweep_scene import load_sweep
-from xval.shipped_scenes import default_scene_path
+from loopcheck.compare.cli import main
+from loopcheck.compare.sensitivity import Sensitivity, _peak, sensitivities
+from loopcheck.sweep_spec import spec_from_args
+from loopcheck.compare.sweep_scene import load_sweep
+from loopcheck.shipped_scenes import default_scene_path
 
 from helpers import plots_left_out
 
@@ -82,7 +82,7 @@ def test_a_sensitivity_needs_a_positive_step():
 def test_a_failed_run_near_the_nominal_value_is_a_numerical_failure_naming_the_key(seed):
     """A run that fails (here RKN4 at a step far too large for its own error estimate) is a
     numerical failure (exit 1), not bad input, and names the key and value that needed it."""
-    from xval.errors import NumericalFailure
+    from loopcheck.errors import NumericalFailure
 
     data, path = seed
     coarse = {**data, "reduced": {"method": "rkn4", "step": 0.05}}

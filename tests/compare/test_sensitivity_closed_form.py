@@ -1,4 +1,4 @@
-"""``--sensitivity`` against a derivative known in closed form (xval.compare.sensitivity).
+"""``--sensitivity`` against a derivative known in closed form (loopcheck.compare.sensitivity).
 
 A parallelogram four-bar (crank and rocker of equal length 0.5 m, coupler as long as the ground)
 keeps its coupler parallel to the ground, so 𝔍 is constant:
@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import math
 
-from xval.compare.sensitivity import sensitivities
-from xval.sweep_spec import spec_from_args
-from xval.scenefile import scene_from_dict
-from xval.reduced import simulate
+from loopcheck.compare.sensitivity import sensitivities
+from loopcheck.sweep_spec import spec_from_args
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reduced import simulate
 
 T, D = 0.05, 0.5  # N·m, s
 MASS, X, PIVOT, I_G = 1.0, 1.0, 0.9, 1e-6  # crank: kg, m, m, kg·m²

@@ -22,22 +22,22 @@ def modules_after(code: str) -> set[str]:
 
 
 def test_the_command_line_loads_neither_matplotlib_nor_mujoco():
-    loaded = modules_after("import xval.compare.cli; xval.compare.cli.build_parser()")
+    loaded = modules_after("import loopcheck.compare.cli; loopcheck.compare.cli.build_parser()")
     assert "matplotlib" not in loaded and "mujoco" not in loaded
 
 
 @pytest.mark.parametrize("command", [["reduced", "--method", "rkn4"], ["mujoco"], ["check"]])
 def test_commands_without_plots_do_not_load_matplotlib(command):
     args = command + [str(SEED_SCENE)]
-    loaded = modules_after(f"from xval.compare.cli import main; assert main({args!r}) == 0")
+    loaded = modules_after(f"from loopcheck.compare.cli import main; assert main({args!r}) == 0")
     assert "matplotlib" not in loaded
     assert ("mujoco" in loaded) == (command[0] != "reduced")
 
 
-@pytest.mark.slow  # ~5 s: a whole `xval run`, plots included, in a fresh interpreter
+@pytest.mark.slow  # ~5 s: a whole `loopcheck run`, plots included, in a fresh interpreter
 def test_run_does_not_load_pyplot(tmp_path):
     out = tmp_path / "out"
-    code = (f"from xval.compare.cli import main; assert main(['run', {str(SEED_SCENE)!r}, '--out', {str(out)!r}]) == 0\n"
+    code = (f"from loopcheck.compare.cli import main; assert main(['run', {str(SEED_SCENE)!r}, '--out', {str(out)!r}]) == 0\n"
             "import sys; assert 'matplotlib.pyplot' not in sys.modules, 'pyplot loaded'\n"
             "assert 'matplotlib' in sys.modules")
     modules_after(code)
@@ -51,8 +51,8 @@ def comparison(request):
 
 
 def saved_figures(monkeypatch) -> list:
-    """(figure, renderer draws) of every figure xval.compare.plots saves from now on (still saved)."""
-    import xval.compare.plots
+    """(figure, renderer draws) of every figure loopcheck.compare.plots saves from now on (still saved)."""
+    import loopcheck.compare.plots
     from matplotlib.figure import Figure
 
     draws = {"n": 0}
@@ -64,14 +64,14 @@ def saved_figures(monkeypatch) -> list:
 
     monkeypatch.setattr(Figure, "draw", counting_draw)
     kept = []
-    real_save = xval.compare.plots._save
+    real_save = loopcheck.compare.plots._save
 
     def keep(fig, path):
         before = draws["n"]
         real_save(fig, path)
         kept.append((fig, draws["n"] - before))
 
-    monkeypatch.setattr(xval.compare.plots, "_save", keep)
+    monkeypatch.setattr(loopcheck.compare.plots, "_save", keep)
     return kept
 
 
@@ -98,7 +98,7 @@ def text_outside(fig) -> list[str]:
 
 
 def test_every_plot_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch, comparison):
-    from xval.compare.report import PLOTS
+    from loopcheck.compare.report import PLOTS
 
     kept = saved_figures(monkeypatch)
     for name, plot in PLOTS.items():
@@ -110,10 +110,10 @@ def test_every_plot_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch, 
 
 
 def test_the_engines_plot_is_drawn_once_with_a_line_per_engine(tmp_path, monkeypatch, comparison):
-    """engines.png (``xval run --engines``): a log |Δq̇| line per engine that ran, one legend entry per engine
+    """engines.png (``loopcheck run --engines``): a log |Δq̇| line per engine that ran, one legend entry per engine
     (one that did not run says so), nothing cut off."""
-    from xval.compare.engines import EnginesCheck, EngineVerdict
-    from xval.compare.plots import plot_engines
+    from loopcheck.compare.engines import EnginesCheck, EngineVerdict
+    from loopcheck.compare.plots import plot_engines
 
     kept = saved_figures(monkeypatch)
     tolerances = comparison.gate.tolerances
@@ -132,7 +132,7 @@ def test_the_engines_plot_is_drawn_once_with_a_line_per_engine(tmp_path, monkeyp
 
 def test_a_subtitle_of_the_differences_plot_is_not_cut_off(tmp_path, monkeypatch, comparison):
     """Two subtitle lines (a sweep's worst variant), longer than the SUBTITLE_CHARS kept."""
-    from xval.compare.plots import plot_differences
+    from loopcheck.compare.plots import plot_differences
 
     kept = saved_figures(monkeypatch)
     values = ", ".join(f"bodies.coupler{k}.mass = 36.125" for k in range(6))
@@ -143,8 +143,8 @@ def test_a_subtitle_of_the_differences_plot_is_not_cut_off(tmp_path, monkeypatch
 
 
 def test_the_drawing_is_drawn_once_and_nothing_is_cut_off(tmp_path, monkeypatch):
-    from xval.compare.draw import draw_scene
-    from xval.scenefile import load_scene
+    from loopcheck.compare.draw import draw_scene
+    from loopcheck.scenefile import load_scene
 
     kept = saved_figures(monkeypatch)
     # Not the slider crank: its slider's label runs off the right edge, with tight_layout too
@@ -160,7 +160,7 @@ def test_log_tick_labels_are_matplotlib_s_in_plain_text():
     """The plain log labels read as matplotlib's mathtext ones (10⁻⁶, 2×10⁻⁷), ticks unchanged."""
     from matplotlib.ticker import LogFormatterSciNotation
 
-    from xval.compare.plots import new_figure, plain_log_axis, plain_power
+    from loopcheck.compare.plots import new_figure, plain_log_axis, plain_power
 
     assert plain_power(r"$\mathdefault{10^{-16}}$") == "10⁻¹⁶"
     assert plain_power(r"$\mathdefault{2\times10^{-7}}$") == "2×10⁻⁷"

@@ -14,14 +14,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from xval.compare.diff import compare_modes, compare_trajectories
-from xval.compare.stress import CATALOGUE, CaseResult, run_case
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import load_scene
+from loopcheck.compare.diff import compare_modes, compare_trajectories
+from loopcheck.compare.stress import CATALOGUE, CaseResult, run_case
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import load_scene
 from oracles.four_bar import FourBar
-from xval.loads import PulseLoad
-from xval.trajectory import JointTrajectory
-from xval.reference_models import MujocoSettings, build_model, simulate_mujoco
+from loopcheck.loads import PulseLoad
+from loopcheck.trajectory import JointTrajectory
+from loopcheck.reference_models import MujocoSettings, build_model, simulate_mujoco
 
 CASES = [c.name for c in CATALOGUE]
 BY_NAME = {c.name: c for c in CATALOGUE}
@@ -196,7 +196,7 @@ def test_fast_crank_peak_is_the_high_accuracy_value(results):
 
 def test_mode_jump_is_detected():
     """Put part of a trajectory in the other assembly mode: the check reports it on the loop."""
-    from xval.kinematics import assemble, assembly_modes, compile_linkage, positions
+    from loopcheck.kinematics import assemble, assembly_modes, compile_linkage, positions
 
     scene = load_scene(BY_NAME["near_change_point"].path)
     system = compile_linkage(scene.mechanism.linkage)

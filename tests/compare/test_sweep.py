@@ -1,8 +1,8 @@
-"""xval sweep (xval.compare.sweep): rows equal to xval run's report on the same variant scene, rows in
+"""loopcheck sweep (loopcheck.compare.sweep): rows equal to loopcheck run's report on the same variant scene, rows in
 variant order from a pool, Monte Carlo reproducible with its seed, bad specifications refused up
 front naming the key, invalid and failed variants counted without stopping the sweep, exit status,
 and the output folder left as it was by an interrupted sweep. Reduced-only sweeps (``--engines
-reduced``): rows equal to xval.reduced.engine.simulate with the settings the comparison would give it,
+reduced``): rows equal to loopcheck.reduced.engine.simulate with the settings the comparison would give it,
 MuJoCo neither run nor imported, exit status 1 on a variant failing the reduced engine's own
 checks, exactly the files sweep_files lists, the [sweep] table's engines and the flag over it, and
 bad values refused. Short scenes (the seed with a 0.3 s horizon) and 2-4 variants."""
@@ -21,14 +21,14 @@ from dataclasses import replace
 
 import pytest
 
-from xval.compare import sweep as sweep_module
-from xval.compare.cli import main
-from xval.compare.output import MANIFEST_FILE
-from xval.compare.sweep import sweep_files
-from xval.compare.sweep_journal import journal_path
-from xval.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows
-from xval.sweep_spec import Engines, spec_from_args
-from xval.shipped_scenes import default_scene_path
+from loopcheck.compare import sweep as sweep_module
+from loopcheck.compare.cli import main
+from loopcheck.compare.output import MANIFEST_FILE
+from loopcheck.compare.sweep import sweep_files
+from loopcheck.compare.sweep_journal import journal_path
+from loopcheck.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows
+from loopcheck.sweep_spec import Engines, spec_from_args
+from loopcheck.shipped_scenes import default_scene_path
 
 from helpers import ROOT, interruptible, plots_left_out, short_seed_file  # noqa: F401 - fixture
 
@@ -46,7 +46,7 @@ def short_scene(tmp_path):
 
 @pytest.fixture
 def without_plots():
-    """The sweep (and ``xval run``) without their plots: for a test that reads only the rows."""
+    """The sweep (and ``loopcheck run``) without their plots: for a test that reads only the rows."""
     with plots_left_out():
         yield
 
@@ -65,7 +65,7 @@ def _without_wall(row):
     return {k: v for k, v in row.items() if k not in WALL}
 
 
-def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, capsys):
+def test_a_row_equals_loopcheck_run_on_the_same_variant_scene(short_scene, tmp_path, capsys):
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "dampers.0.coefficient=[50, 60.5]",
                                 "--workers", "2")
     assert status == 0, printed
@@ -94,9 +94,9 @@ def test_a_row_equals_xval_run_on_the_same_variant_scene(short_scene, tmp_path, 
     data = json.loads((tmp_path / "sw" / JSON_FILE).read_text())  # sweep.json: the same rows
     assert [_without_wall(r) for r in data["rows"]] == [_without_wall(r) for r in rows]
     assert data["summary"]["counts"] == {"passed": 2, "gate_failed": 0, "failed": 0, "invalid": 0}
-    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == ["sweep.csv", "sweep.json",
-                                                                  "sweep_peak_omega.png",
-                                                                  "sweep_worst_differences.png", MANIFEST_FILE]
+    assert sorted(p.name for p in (tmp_path / "sw").iterdir()) == sorted(["sweep.csv", "sweep.json",
+                                                                         "sweep_peak_omega.png",
+                                                                         "sweep_worst_differences.png", MANIFEST_FILE])
 
 
 def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys):
@@ -148,7 +148,7 @@ def test_bad_specs_exit_2_naming_the_key_and_write_nothing(args, key, short_scen
     monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: ran.append(a))
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *args)
     assert status == 2
-    assert printed == "" and err.count("\n") == 1 and err.startswith("xval: error:")
+    assert printed == "" and err.count("\n") == 1 and err.startswith("loopcheck: error:")
     assert f"'{key}'" in err, err
     assert not (tmp_path / "sw").exists() and not ran
 
@@ -188,14 +188,14 @@ def test_a_variant_failing_the_gate_exits_1_and_names_the_failing_values(tmp_pat
 
 
 def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, tmp_path, capsys, monkeypatch):
-    """sweep_worst_differences.png: xval run's differences plot of the row with the largest
+    """sweep_worst_differences.png: loopcheck run's differences plot of the row with the largest
     peak-ω difference against its tolerance, from a run again of that variant (the plot's
     comparison has the row's peaks) and named in the plot's subtitle."""
-    import xval.compare.plots
+    import loopcheck.compare.plots
 
     drawn = []
-    real = xval.compare.plots.plot_differences
-    monkeypatch.setattr(xval.compare.plots, "plot_differences",
+    real = loopcheck.compare.plots.plot_differences
+    monkeypatch.setattr(loopcheck.compare.plots, "plot_differences",
                         lambda c, path, subtitle=None: (drawn.append((c, subtitle)), real(c, path, subtitle))[1])
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "bodies.coupler.mass=[35, 45, 40]",
                                 "--workers", "2")
@@ -212,19 +212,19 @@ def test_the_worst_variant_is_plotted_from_a_run_equal_to_its_row(short_scene, t
 
 
 def test_without_a_compared_variant_the_worst_plot_says_so(tmp_path):
-    from xval.compare.sweep_plots import plot_worst
-    from xval.compare.sweep_summary import Summary
+    from loopcheck.compare.sweep_plots import plot_worst
+    from loopcheck.compare.sweep_summary import Summary
 
     plot_worst({}, "<none>", Summary(keys=()), tmp_path / "worst.png")
     assert (tmp_path / "worst.png").stat().st_size > 0
 
 
 def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, capsys, monkeypatch):
-    from xval.errors import NumericalFailure
+    from loopcheck.errors import NumericalFailure
 
-    import xval.compare.run
+    import loopcheck.compare.run
 
-    original, calls = xval.compare.run.compare_engines, []
+    original, calls = loopcheck.compare.run.compare_engines, []
 
     def flaky(scene, **kwargs):  # the second variant's engines fail
         calls.append(scene)
@@ -232,7 +232,7 @@ def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, 
             raise NumericalFailure("unstable", "planted")
         return original(scene, **kwargs)
 
-    monkeypatch.setattr(xval.compare.run, "compare_engines", flaky)
+    monkeypatch.setattr(loopcheck.compare.run, "compare_engines", flaky)
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "torque.value=[250, 240, 245]",
                                 "--workers", "1")
     rows = _rows(tmp_path / "sw")
@@ -283,8 +283,8 @@ def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypat
     import multiprocessing
     import time
 
-    from xval.compare.sweep import run_rows
-    from xval.sweep_spec import spec_from_args
+    from loopcheck.compare.sweep import run_rows
+    from loopcheck.sweep_spec import spec_from_args
 
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("needs forked workers to see the patched variant runner")
@@ -308,18 +308,18 @@ def _header(out):
 
 
 def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tmp_path, capsys, monkeypatch):
-    """Each row's reduced figures are those of xval.reduced.engine.simulate with the scene's reduced
-    settings as xval.compare.settings resolves them; MuJoCo and the comparison are not run (the
+    """Each row's reduced figures are those of loopcheck.reduced.engine.simulate with the scene's reduced
+    settings as loopcheck.compare.settings resolves them; MuJoCo and the comparison are not run (the
     comparison is planted to fail: a variant that ran it would be a failed row)."""
-    import xval.compare.run
-    from xval.compare.settings import reduced_settings
-    from xval.reduced.engine import simulate
-    from xval.scenefile import load_scene
+    import loopcheck.compare.run
+    from loopcheck.compare.settings import reduced_settings
+    from loopcheck.reduced.engine import simulate
+    from loopcheck.scenefile import load_scene
 
     def no_comparison(*args, **kwargs):
         raise AssertionError("a reduced-only sweep ran the comparison")
 
-    monkeypatch.setattr(xval.compare.run, "compare_engines", no_comparison)
+    monkeypatch.setattr(loopcheck.compare.run, "compare_engines", no_comparison)
     short_scene.write_text(short_scene.read_text() + '\n[reduced]\nrtol = 1e-10\n')  # its own settings, used
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "dampers.0.coefficient=[50, 60.5]",
                                 "--engines", "reduced", "--workers", "1")
@@ -356,7 +356,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
 
 def test_a_reduced_only_variant_does_not_import_mujoco(tmp_path):
     """The memory target's premise: a worker running reduced-only variants never loads MuJoCo."""
-    code = ("import sys\nfrom xval.compare.sweep import run_variant\nfrom xval.sweep_spec import Engines\nfrom xval.compare.sweep_scene import load_sweep\n"
+    code = ("import sys\nfrom loopcheck.compare.sweep import run_variant\nfrom loopcheck.sweep_spec import Engines\nfrom loopcheck.compare.sweep_scene import load_sweep\n"
             f"data, _ = load_sweep({str(short_seed_file(tmp_path))!r})\n"
             "row = run_variant(0, {'torque.value': 240.0}, data, 'short.toml', engines=Engines.REDUCED)\n"
             "print(row['status'], 'mujoco' in sys.modules, 'reference_models' in sys.modules)\n")
@@ -430,16 +430,16 @@ def test_a_bad_engines_value_is_refused_up_front(args, table, named, short_scene
 @pytest.mark.parametrize("varies", [["dampers.0.coefficient=40:70:5", "bodies.coupler.mass=35:45:12"],
                                     ["bodies.coupler.mass=normal(40, 2)"]], ids=["grid", "monte-carlo"])
 def test_no_sweep_plot_has_text_cut_off(tmp_path, monkeypatch, engines, varies):
-    """The sweep's plots (not the worst variant's, which is xval run's) with long keys: the
+    """The sweep's plots (not the worst variant's, which is loopcheck run's) with long keys: the
     reduced-only title's second line and the names of a family of twelve lines stay inside
     the figure (measured on synthetic rows: only the layout is tested)."""
     import csv
 
     from matplotlib.figure import Figure
 
-    from xval.compare.sweep_plots import PLOTS, WORST_PLOT, plot_files
-    from xval.compare.sweep_table import columns
-    from xval.sweep_spec import variant_values
+    from loopcheck.compare.sweep_plots import PLOTS, WORST_PLOT, plot_files
+    from loopcheck.compare.sweep_table import columns
+    from loopcheck.sweep_spec import variant_values
     from test_startup import text_outside
 
     spec = replace(spec_from_args(varies, samples=200 if "normal" in varies[0] else None), engines=engines)
@@ -512,7 +512,7 @@ def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(s
         return real_run_variant(index, *args, **kwargs)
     monkeypatch.setattr(sweep_module, "run_variant", interrupted_at_4)
     status, printed, err = _sweep(capsys, short_scene, out, *RESUMED_VARY)
-    assert status == 130 and err == "xval: interrupted\n", err
+    assert status == 130 and err == "loopcheck: interrupted\n", err
     assert sorted(p.name for p in out.iterdir()) == ["sweep.csv"] and (out / "sweep.csv").read_text() == "old\n"
     lines = journal.read_text().splitlines()
     assert len(lines) == 2 + 4 and [line.split(",")[0] for line in lines[2:]] == ["0", "1", "2", "3"]
@@ -528,7 +528,7 @@ def test_an_interrupted_sweep_keeps_its_rows_beside_out_and_resume_finishes_it(s
 def test_resume_needs_the_journal_of_the_same_sweep(short_scene, tmp_path, capsys):
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
     assert status == 2 and printed == "" and "nothing to resume" in err and err.count("\n") == 1, err
-    journal_path(tmp_path / "sw").write_text("# xval sweep journal 0\nindex,status\n0,passed\n")
+    journal_path(tmp_path / "sw").write_text("# loopcheck sweep journal 0\nindex,status\n0,passed\n")
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", *RESUMED_VARY, "--resume")
     assert status == 2 and printed == "" and "journal of another sweep" in err and err.count("\n") == 1, err
     assert not (tmp_path / "sw").exists()
@@ -546,7 +546,7 @@ def test_a_long_sweep_says_so_before_it_runs_on(short_scene, tmp_path, capsys, m
     status, _, err = _sweep(capsys, short_scene, tmp_path / "b", *RESUMED_VARY)
     lines = [line for line in err.splitlines() if "estimated" in line]
     assert status == 0 and len(lines) == 1, err
-    assert lines[0].startswith("xval: warning: this sweep is estimated to take ") and "5 variants at" in lines[0]
+    assert lines[0].startswith("loopcheck: warning: this sweep is estimated to take ") and "5 variants at" in lines[0]
 
 
 def test_a_signal_while_the_sweep_says_what_it_wrote_comes_after_its_files_and_lines(tmp_path):
@@ -554,8 +554,8 @@ def test_a_signal_while_the_sweep_says_what_it_wrote_comes_after_its_files_and_l
     are held: a SIGTERM sent there comes after the lines (Terminated), so a sweep never exits
     interrupted with new files and no line, nor leaves a journal of a sweep it finished.
     (Planted: removing the journal only after write_folder returns leaves it here.)"""
-    from xval.compare.output import Terminated, signals_as_exceptions
-    from xval.compare.sweep_scene import load_sweep
+    from loopcheck.compare.output import Terminated, signals_as_exceptions
+    from loopcheck.compare.sweep_scene import load_sweep
 
     scene = short_seed_file(tmp_path)
     data, _ = load_sweep(str(scene))

@@ -1,4 +1,4 @@
-"""xval sweep --scheduler (xval.compare.sweep on a Dask cluster, the optional ``distributed`` extra):
+"""loopcheck sweep --scheduler (loopcheck.compare.sweep on a Dask cluster, the optional ``distributed`` extra):
 on a local cluster of two worker processes the rows are the same, in the same order, as a local
 run's (apart from wall times); a bad address, Dask missing, and --workers with --scheduler are
 refused with one line, exit 2, before any work; a local sweep imports no Dask. Short scenes (the seed with a 0.3 s horizon) and
@@ -16,10 +16,10 @@ distributed = pytest.importorskip("distributed")
 # probes of fake schedulers, for an optional extra; CI runs them (it runs every test).
 pytestmark = pytest.mark.slow
 
-from xval.compare import sweep as sweep_module  # noqa: E402
-from xval.compare import sweep_dask  # noqa: E402
-from xval.compare.cli import main  # noqa: E402
-from xval.compare.sweep_table import CSV_FILE, read_rows  # noqa: E402
+from loopcheck.compare import sweep as sweep_module  # noqa: E402
+from loopcheck.compare import sweep_dask  # noqa: E402
+from loopcheck.compare.cli import main  # noqa: E402
+from loopcheck.compare.sweep_table import CSV_FILE, read_rows  # noqa: E402
 
 from helpers import short_seed_file  # noqa: E402
 
@@ -71,7 +71,7 @@ def test_an_unreachable_scheduler_is_one_line_exit_2_before_any_work(short_scene
     monkeypatch.setattr(sweep_dask, "CONNECT_TIMEOUT_S", 1.0)
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9")
     assert status == 2 and printed == ""
-    assert err.count("\n") == 1 and err.startswith("xval: error: --scheduler tcp://127.0.0.1:9: cannot connect"), err
+    assert err.count("\n") == 1 and err.startswith("loopcheck: error: --scheduler tcp://127.0.0.1:9: cannot connect"), err
     assert not (tmp_path / "sw").exists() and not ran
 
 
@@ -82,12 +82,12 @@ def test_scheduler_without_dask_or_with_workers_is_refused(short_scene, tmp_path
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if the extra were not installed
     status, printed, err = _sweep(capsys, short_scene, tmp_path / "sw", "--scheduler", "tcp://127.0.0.1:9")
     assert status == 2 and printed == "" and err.count("\n") == 1
-    assert "pip install 'xval[distributed]'" in err, err
+    assert "pip install -e '.[distributed]' in loopcheck's checkout" in err, err
     assert not (tmp_path / "sw").exists()
 
 
 def test_a_local_sweep_imports_no_dask(short_scene, tmp_path):
-    code = ("import sys; from xval.compare.cli import main; "
+    code = ("import sys; from loopcheck.compare.cli import main; "
             f"status = main(['sweep', {str(short_scene)!r}, '--vary', 'dampers.0.coefficient=[50]', '--workers', '1', "
             f"'--out', {str(tmp_path / 'sw')!r}]); "
             "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
@@ -152,7 +152,7 @@ def test_a_service_that_is_not_a_scheduler_is_one_line_exit_2_within_the_timeout
     out, timings = tmp_path / "sw", tmp_path / "timings"
     with _Service(kind) as service:
         address = f"127.0.0.1:{service.port}"
-        code = ("import sys, time, xval.compare.sweep_dask as s; s.CONNECT_TIMEOUT_S = 2.0; from xval.compare.cli import main\n"
+        code = ("import sys, time, loopcheck.compare.sweep_dask as s; s.CONNECT_TIMEOUT_S = 2.0; from loopcheck.compare.cli import main\n"
                 "took = []\n"
                 f"for address in ('tcp://127.0.0.1:9', {address!r}):\n"
                 "    start = time.monotonic()\n"
@@ -164,7 +164,7 @@ def test_a_service_that_is_not_a_scheduler_is_one_line_exit_2_within_the_timeout
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr
     first, line = done.stderr.splitlines()  # the refused port's line, then the service's
-    assert "Traceback" not in done.stderr and line.startswith(f"xval: error: --scheduler {address}: "), done.stderr
+    assert "Traceback" not in done.stderr and line.startswith(f"loopcheck: error: --scheduler {address}: "), done.stderr
     refused, service = map(float, timings.read_text().split())
     assert service - refused < 2.0 + 1.5, f"refused after {service:.1f} s (a refused port: {refused:.1f} s)"
     assert not out.exists()

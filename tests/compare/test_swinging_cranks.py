@@ -20,10 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from xval.compare.run import compare_engines
-from xval.reduced import ReducedSettings, simulate
-from xval.scene import SceneError
-from xval.scenefile import scene_from_dict
+from loopcheck.compare.run import compare_engines
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import scene_from_dict
 
 N_SCENES = 8
 SLACK = 1e-9  # m
@@ -102,6 +102,6 @@ def test_a_swinging_crank_is_accepted_and_stays_where_it_assembles(k):
 
 @pytest.mark.slow  # ~15 s: MuJoCo's automatic step on three of them
 @pytest.mark.parametrize("k", [0, 3, 4])  # the issue's, and two the old bound refused
-def test_xval_defaults_pass_their_own_gate_on_a_swinging_crank(k):
+def test_loopcheck_defaults_pass_their_own_gate_on_a_swinging_crank(k):
     c = compare_engines(scene_from_dict(FAMILY[k]))
     assert c.gate.passed, c.gate.failures

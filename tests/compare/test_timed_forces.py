@@ -17,11 +17,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import scene_from_dict
-from xval.scene import SceneError
-from xval.reference_models import MujocoSettings, simulate_mujoco
-from xval.mujoco_model.steps import grid_timestep
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.scene import SceneError
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco
+from loopcheck.mujoco_model.steps import grid_timestep
 
 from helpers import ROOT
 

@@ -1,9 +1,9 @@
-"""xval's own defaults must pass xval's own gate on every valid scene (issue 24).
+"""loopcheck's own defaults must pass loopcheck's own gate on every valid scene (issue 24).
 
 Scenes drawn by the seeded generator ``tests/valid_scenes.py`` (four-bars in the shorthand,
 Grashof and swinging; slider-cranks driven at the crank or the slider; Watt II and Stephenson
 III six-bars, some near a toggle; with or without gravity, springs, dampers, point forces and
-constant, pulse or table loads) go through :func:`xval.compare.run.compare_engines` with no
+constant, pulse or table loads) go through :func:`loopcheck.compare.run.compare_engines` with no
 [mujoco] timestep: the automatic step and the gate's tolerances (the defaults, or the draw's).
 """
 
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import pytest
 
-from xval.compare.run import compare_engines
-from xval.reference_models.timestep import CheckOutcome
-from xval.scenefile import scene_from_dict
+from loopcheck.compare.run import compare_engines
+from loopcheck.reference_models.timestep import CheckOutcome
+from loopcheck.scenefile import scene_from_dict
 
 from valid_scenes import TOGGLE_KINDS, generate
 
@@ -52,7 +52,7 @@ def test_a_step_check_after_a_failed_run_is_confirmed_before_the_gate():
     assert c.mujoco.settings.timestep < 6.25e-5
 
 
-# Six of the 42 draws of seed 2024, all of which pass `xval check` at their defaults (measured
+# Six of the 42 draws of seed 2024, all of which pass `loopcheck check` at their defaults (measured
 # one at a time, 2.6–36 s each with MuJoCo's search; these six 2.6–5.3 s): both scene forms, a
 # crank-rocker, a swinging crank, a crank- and a slider-driven slider-crank, a Watt II and a
 # Stephenson III near their toggles.

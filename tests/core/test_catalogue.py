@@ -1,8 +1,8 @@
 """The catalogue of classic mechanisms (scenes/mechanisms/): every scene loads, says what it is
 and where it comes from, assembles in the mode it asks for and keeps it over its motion, and its
-kinematic coefficients K = dx/dq and L = d²x/dq² (xval.kinematics, no finite differences) agree
+kinematic coefficients K = dx/dq and L = d²x/dq² (loopcheck.kinematics, no finite differences) agree
 with central differences of the Newton assembly. These need only the scene layer and
-xval.kinematics; the engines' checks of the catalogue (energy balance, MuJoCo's ½ q̇ᵀMq̇, exported
+loopcheck.kinematics; the engines' checks of the catalogue (energy balance, MuJoCo's ½ q̇ᵀMq̇, exported
 MJCF) live with the engines.
 """
 
@@ -13,11 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from xval import kinematics as loops
-from xval.errors import NumericalFailure
-from xval.mechanism import PrismaticJoint
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
+from loopcheck import kinematics as loops
+from loopcheck.errors import NumericalFailure
+from loopcheck.mechanism import PrismaticJoint
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
 
 from helpers import ROOT
 
@@ -96,7 +96,7 @@ def test_the_crank_turns_fully_in_the_scenes_assembly_mode(name):
     change only where the input cannot drive the loop, so with the slider as input it changes
     exactly at the two dead centres (the extremes of s), and nowhere for a crank input (the
     oscillating slotted lever's extremes are not singular for the crank: needs the mode_pairs fix in
-    xval/kinematics.py, see the catalogue report). The other angles come back too, the drag link's
+    loopcheck/kinematics.py, see the catalogue report). The other angles come back too, the drag link's
     a whole turn on (its coupler and follower turn with the crank), every other's where it was."""
     scene, system = _load(name)
     X = _turn(scene, system)

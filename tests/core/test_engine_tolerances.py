@@ -12,12 +12,12 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare.cli import main
-from xval.registry import ENGINES
-from xval.scene import SceneError, Tolerances
-from xval.scene_writer import scene_toml
-from xval.scenefile import load_scene, scene_from_dict
-from xval.toml_reader import parse_toml
+from loopcheck.compare.cli import main
+from loopcheck.registry import ENGINES
+from loopcheck.scene import SceneError, Tolerances
+from loopcheck.scene_writer import scene_toml
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.toml_reader import parse_toml
 from helpers import SEED_SCENE, seed_dict
 
 JUDGED = ", ".join(name for name in ENGINES if name != "reduced")  # mujoco, pin, and engines registered since
@@ -97,7 +97,7 @@ def test_the_shipped_engine_tables_are_mjwarps_and_only_widen():
     """The engines pass the catalogue with the plain tables (tests/pin), but for MJWarp's float32:
     the mechanisms where MJWarp was measured carry [tolerances.mjwarp] (docs/engines.md), and each
     of its values is at least the scene's own (float32 never asks for more than float64)."""
-    from xval.shipped_scenes import catalogue
+    from loopcheck.shipped_scenes import catalogue
 
     scenes = [load_scene(path) for path in set(catalogue().values())]
     tables = {scene.name: scene.engine_tolerances for scene in scenes if scene.engine_tolerances}
@@ -111,7 +111,7 @@ def test_the_shipped_engine_tables_are_mjwarps_and_only_widen():
 
 
 def test_the_format_reference_lists_each_engine_table():
-    from xval.format_reference import tables
+    from loopcheck.format_reference import tables
 
     text = tables()
     assert all(f"`[tolerances.{name}]`" in text for name in ENGINES if name != "reduced")

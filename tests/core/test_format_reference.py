@@ -1,14 +1,14 @@
 """docs/scenes.md's tables of the engines' settings, of [tolerances] and of the scene limits are
-the ones written from the definitions (xval.format_reference): a setting or a limit added, renamed
+the ones written from the definitions (loopcheck.format_reference): a setting or a limit added, renamed
 or re-documented without rewriting them fails here. (Planted: editing one cell of the file's generated part, and changing
-an option's help in xval/reference_models/settings.py, each failed this test.)"""
+an option's help in loopcheck/reference_models/settings.py, each failed this test.)"""
 
 from __future__ import annotations
 
-from xval.format_reference import BEGIN, END, LIMITS_BEGIN, LIMITS_END, limits_table, main, tables
-from xval.registry import ENGINES
-from xval.scene import LIMITS
-from xval.settings import options
+from loopcheck.format_reference import BEGIN, END, LIMITS_BEGIN, LIMITS_END, limits_table, main, tables
+from loopcheck.registry import ENGINES
+from loopcheck.scene import LIMITS
+from loopcheck.settings import options
 
 from helpers import ROOT
 

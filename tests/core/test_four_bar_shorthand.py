@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import scene_from_dict
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import scene_from_dict
 
 GRAVITY = [0.0, -9.81]  # gravity makes the masses and centres of mass matter as well as the inertias
 SHORTHAND = {

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, TabulatedForce
+from loopcheck.loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, TabulatedForce
 
 PROFILES = [ConstantLoad(3.0), PulseLoad(250.0, 0.5, 1.0),
             PiecewiseConstantLoad((0.0, 1.0, 2.0), (1.0, -2.0, 5.0))]
@@ -47,7 +47,7 @@ def _periodic_force_scene(tmp_path, values, period=6.0, q=(0.0, 2.0, 4.0, 6.0)):
     """The planar seed with a periodic point force on the coupler, written as a scene file."""
     import tomllib
 
-    from xval.shipped_scenes import scenes_dir
+    from loopcheck.shipped_scenes import scenes_dir
 
     text = (scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text()
     tomllib.loads(text)  # the base parses
@@ -62,8 +62,8 @@ def test_a_periodic_table_whose_ends_disagree_is_refused(tmp_path, capsys):
     point and F(6) came out 0 (the first value), exit 0. Decision: refused, exit 2, naming the
     key. A table that ends on its first value, or one period short, is accepted, and F at the
     table's points is the table's value (interpolating spline; the period's end is the start)."""
-    from xval.compare.cli import main
-    from xval.scenefile import load_scene
+    from loopcheck.compare.cli import main
+    from loopcheck.scenefile import load_scene
 
     path = _periodic_force_scene(tmp_path, [0.0, 1000.0, 3000.0, 5000.0])
     assert main(["reduced", str(path)]) == 2

@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from xval.errors import FailureReason, NumericalFailure
+from loopcheck.errors import FailureReason, NumericalFailure
 from oracles.four_bar import FourBar
-from xval.kinematics import (AssemblyError, assemble, coefficients, compile_linkage,
+from loopcheck.kinematics import (AssemblyError, assemble, coefficients, compile_linkage,
                            conditioning, constraint_residual, jacobian_rank, point_kinematics)
-from xval.scene import FourBarGeometry
+from loopcheck.scene import FourBarGeometry
 
 from test_mechanism import (SEED, andrews, four_bar, inverted_slider_crank,
                             slider_crank, watt_ii)

@@ -1,7 +1,7 @@
-"""The compiled kinematics (xval/kernels/loops.py, Cython) and its plain-Python source agree.
+"""The compiled kinematics (loopcheck/kernels/loops.py, Cython) and its plain-Python source agree.
 
 loops.py is compiled by the package's build and runs as plain Python under
-``XVAL_PURE_PYTHON=1`` (the slow reference). Its integer layout constants live twice: C constants
+``LOOPCHECK_PURE_PYTHON=1`` (the slow reference). Its integer layout constants live twice: C constants
 in loops.pxd (a ``cpdef enum``) and, for plain Python, the ``if not cython.compiled`` block of
 loops.py. Here the source is loaded as a second, uncompiled module beside the compiled one and both
 are compared: the constants exactly, and positions, Φ, Φ_x, K, L, the conditioning and Newton's
@@ -17,10 +17,10 @@ import importlib.util
 import numpy as np
 import pytest
 
-from xval import kinematics
-from xval.kernels import compiled, loops
-from xval.kinematics import SINGULAR_CONDITIONING, pack
-from xval.scenefile import load_scene
+from loopcheck import kinematics
+from loopcheck.kernels import compiled, loops
+from loopcheck.kinematics import SINGULAR_CONDITIONING, pack
+from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
 
@@ -29,7 +29,7 @@ needs_compiled = pytest.mark.skipif(not compiled(), reason="the kinematics run a
 
 def source_module():
     """loops.py loaded from its source as plain Python (a module of another name)."""
-    spec = importlib.util.spec_from_file_location("loops_source", ROOT / "xval" / "kernels" / "loops.py")
+    spec = importlib.util.spec_from_file_location("loops_source", ROOT / "loopcheck" / "kernels" / "loops.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

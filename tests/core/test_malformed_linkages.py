@@ -3,7 +3,7 @@ SceneError whose message names the key, body or joint at fault and the reason.
 
 Every case is a patch of one small valid planar four-bar (BASE, below): the patch's effect is
 the only thing wrong, so the message checked is the one for that fault. One case goes through
-the installed ``xval`` entry point (exit 2, one line, no traceback).
+the installed ``loopcheck`` entry point (exit 2, one line, no traceback).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import tomllib
 
 import pytest
 
-from xval.scene import SceneError
-from xval.scenefile import scene_from_dict
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import scene_from_dict
 
 # A valid planar four-bar: ground O1 (0,0), O3 (1,0); crank 0.5, coupler 0.9, rocker 0.7.
 BASE_TOML = """
@@ -206,10 +206,10 @@ def test_the_messages_differ():
 
 
 def test_the_cli_refuses_a_malformed_linkage_in_one_line(tmp_path, capsys):
-    """`xval reduced bad.toml`: exit 2, one line on stderr naming the file and the joint (in this
+    """`loopcheck reduced bad.toml`: exit 2, one line on stderr naming the file and the joint (in this
     process: an exception would fail the test; the installed entry point's exit 2 with one line
     and no traceback is tests/core/test_scenes.py's subprocess)."""
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     bad = tmp_path / "bad.toml"
     bad.write_text(BASE_TOML.replace('b = "coupler.A"', 'b = "coupling.A"'), encoding="utf-8")

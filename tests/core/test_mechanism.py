@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from xval.mechanism import (GROUND, Body, Linkage, MechanismError, PrismaticJoint,
+from loopcheck.mechanism import (GROUND, Body, Linkage, MechanismError, PrismaticJoint,
                                RevoluteJoint)
 
 SEED = (0.5, 0.9, 0.7, 1.0)  # c1 (crank), c2 (coupler), c3 (rocker), c4 (ground), m

@@ -3,7 +3,7 @@ broken names itself in one line; the bad-scene files through the CLI's error pat
 default scene is the seed notes' worked example (README, 'The seed notes').
 
 Each bad-scene file goes through the CLI's ``main`` in the test process (exit status 2, one
-stderr line naming the key, no traceback); tests/core/test_scenes.py runs the installed ``xval``
+stderr line naming the key, no traceback); tests/core/test_scenes.py runs the installed ``loopcheck``
 script once as a subprocess. Extreme values, names and unreadable files: tests/core/test_scene_input.py.
 """
 
@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare import cli
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval.shipped_scenes import default_scene_path
+from loopcheck.compare import cli
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.shipped_scenes import default_scene_path
 
 from helpers import DATA, SEED_SCENE, seed_dict
 
@@ -185,7 +185,7 @@ def test_linkage_that_cannot_close_at_q0_names_the_discriminant():
 
 @pytest.mark.parametrize("path", BAD, ids=lambda p: p.stem)
 def test_cli_main_reports_the_bad_key_in_one_line(path, capsys):
-    """``xval reduced FILE`` in-process: exit status 2, nothing on stdout, one stderr line that
+    """``loopcheck reduced FILE`` in-process: exit status 2, nothing on stdout, one stderr line that
     carries load_scene's message (so it names the key), no traceback."""
     with pytest.raises(SceneError) as info:
         load_scene(path)
@@ -194,7 +194,7 @@ def test_cli_main_reports_the_bad_key_in_one_line(path, capsys):
     out, err = capsys.readouterr()
     assert status == 2 and out == ""
     lines = err.splitlines()
-    assert len(lines) == 1 and lines[0] == f"xval: error: {info.value}"
+    assert len(lines) == 1 and lines[0] == f"loopcheck: error: {info.value}"
     assert "Traceback" not in err
 
 

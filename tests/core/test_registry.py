@@ -1,7 +1,7 @@
 """A third engine is one package and one line in the registry (docs/engines.md): a package
 written here, with a ``settings`` module (one option) and a ``simulate``, registered by one entry
-of ``xval.registry.ENGINES``, gets its scene table read and checked, its flags, its rows in the
-scene-format reference, and ``xval.simulate`` runs it, with nothing else changed. (Planted: the
+of ``loopcheck.registry.ENGINES``, gets its scene table read and checked, its flags, its rows in the
+scene-format reference, and ``loopcheck.simulate`` runs it, with nothing else changed. (Planted: the
 scene reader looking only at ``[reduced]`` and ``[mujoco]`` by name fails the table test.)
 
 The toy engine runs the reduced engine at an rtol of its own: this tests the plumbing, and its
@@ -15,19 +15,19 @@ import textwrap
 
 import pytest
 
-import xval
-from xval import registry
-from xval.format_reference import tables
-from xval.scene import SceneError
-from xval.scenefile import scene_from_dict
-from xval.settings import add_flags, given_flags
+import loopcheck
+from loopcheck import registry
+from loopcheck.format_reference import tables
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.settings import add_flags, given_flags
 
 from helpers import seed_dict
 
 SETTINGS = '''
 from dataclasses import dataclass
 
-from xval.settings import option
+from loopcheck.settings import option
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ class Settings:
 '''
 
 ENGINE = '''
-from xval.reduced import ReducedSettings, simulate as _reduced
+from loopcheck.reduced import ReducedSettings, simulate as _reduced
 
 
 def simulate(scene, settings):
@@ -81,9 +81,9 @@ def test_its_flags_and_reference_come_from_its_settings(toy_engine):
     assert "| `toy.rtol` | positive number |" in tables()
 
 
-def test_xval_simulate_runs_it(toy_engine):
-    scene = xval.load_scene("seed_fourbar")
-    result = xval.simulate(scene, toy_engine.settings(rtol=1e-9))
-    direct = xval.simulate(scene, xval.ReducedSettings(rtol=1e-9))
+def test_loopcheck_simulate_runs_it(toy_engine):
+    scene = loopcheck.load_scene("seed_fourbar")
+    result = loopcheck.simulate(scene, toy_engine.settings(rtol=1e-9))
+    direct = loopcheck.simulate(scene, loopcheck.ReducedSettings(rtol=1e-9))
     assert result.trajectory.q.tobytes() == direct.trajectory.q.tobytes()
     assert registry.engine_of(toy_engine.settings()) is toy_engine

@@ -18,10 +18,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.compare.settings import gate_tolerances, mujoco_settings, reduced_settings
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval.loads import PulseLoad
+from loopcheck.compare.settings import gate_tolerances, mujoco_settings, reduced_settings
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.loads import PulseLoad
 from helpers import DELETE, patched, seed_dict
 
 # [tolerances] (README: "Scene files"): the documented default of each key, and a value that is not.
@@ -103,7 +103,7 @@ def _compiled(model) -> dict:
 
 @pytest.mark.parametrize("key", sorted(MUJOCO) + ["(no table)"])
 def test_mujoco_settings_left_out_take_their_documented_defaults(key):
-    from xval.reference_models.run import build_model
+    from loopcheck.reference_models.run import build_model
 
     data = seed_dict()
     if key == "(no table)":

@@ -1,7 +1,7 @@
 """The two forms of ``[linkage]``: the four-bar shorthand is expanded into the general planar
 description, and the seed written out in the planar form is the same mechanism and assembly.
 
-Oracles: the four-bar's closed-form assembly (xval.four_bar.FourBar, the seed notes'
+Oracles: the four-bar's closed-form assembly (loopcheck.four_bar.FourBar, the seed notes'
 formula) for the configuration, and the description written by hand in
 scenes/mechanisms/seed_fourbar.toml for the expansion.
 """
@@ -14,10 +14,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval.four_bar import FourBar
-from xval.shipped_scenes import scenes_dir
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.four_bar import FourBar
+from loopcheck.shipped_scenes import scenes_dir
 
 from helpers import SEED_SCENE, seed_dict
 

@@ -2,7 +2,7 @@
 text its one-line message must carry. Families: values out of their physical range, derived
 quantities out of range, names and descriptions, sizes, and files that are not UTF-8 TOML text.
 
-The ranges are xval.scene.LIMITS, one table for both engines; the corners of that table are
+The ranges are loopcheck.scene.LIMITS, one table for both engines; the corners of that table are
 checked against MuJoCo's own compiler below (no mock: the model is built and compiled).
 """
 
@@ -14,10 +14,10 @@ import os
 
 import pytest
 
-from xval.compare import cli
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval.scene import LIMITS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES
+from loopcheck.compare import cli
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.scene import LIMITS, MAX_NAME_CHARS, MAX_SCENE_BYTES, MAX_TABLE_ENTRIES
 
 from helpers import DELETE, SEED_SCENE, patched
 
@@ -131,7 +131,7 @@ def test_point_force_beyond_the_force_range_is_refused():
     """The planar seed with a tabulated point force of 1e308 N on the coupler."""
     import tomllib
 
-    from xval.shipped_scenes import scenes_dir
+    from loopcheck.shipped_scenes import scenes_dir
 
     data = tomllib.loads((scenes_dir() / "mechanisms" / "seed_fourbar.toml").read_text())
     data["point_forces"] = [{"point": "coupler.B", "direction": 0.0, "q": [0.0, 1.0], "values": [HUGE, 0.0]}]
@@ -172,7 +172,7 @@ CORNERS = {
 
 @pytest.mark.parametrize("patch", CORNERS.values(), ids=CORNERS.keys())
 def test_corners_of_the_ranges_load_and_mujoco_compiles_them(patch):
-    from xval.reference_models.run import build_model
+    from loopcheck.reference_models.run import build_model
 
     scene = scene_from_dict(patched(patch))
     handles = build_model(scene)
@@ -182,9 +182,9 @@ def test_corners_of_the_ranges_load_and_mujoco_compiles_them(patch):
 def test_below_the_inertia_range_mujoco_itself_refuses():
     """The reason for the lower limits: MuJoCo refuses mass or inertia below mjMINVAL = 1e-15. The
     scene is built past the validator (dataclasses.replace) to reach MuJoCo's compiler."""
-    from xval.reference_models.run import build_model
+    from loopcheck.reference_models.run import build_model
 
-    from xval.mechanism import Linkage
+    from loopcheck.mechanism import Linkage
 
     scene = scene_from_dict(patched({}))
     linkage = scene.mechanism.linkage
@@ -235,7 +235,7 @@ def test_key_message_from_a_file_names_the_file(tmp_path, capsys):
     path.write_bytes(SEED_BYTES.replace(b"c1 = 0.5 ", b"c1 = 1e308"))
     assert cli.main(["check", str(SEED_SCENE), str(path)]) == 2
     err = capsys.readouterr().err
-    assert err == f"xval: error: {path}: {out_of_range('linkage.c1', 1e308, 'length')}\n"
+    assert err == f"loopcheck: error: {path}: {out_of_range('linkage.c1', 1e308, 'length')}\n"
 
 
 @pytest.mark.parametrize("where", ["/dev/zero", "folder", "fifo"])

@@ -1,4 +1,4 @@
-"""xval.scene_writer: a scene written as TOML reads back as the same scene."""
+"""loopcheck.scene_writer: a scene written as TOML reads back as the same scene."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval.mechanism import Body
-from xval.scene_writer import scene_toml, toml_text
-from xval.scenefile import load_scene, scene_from_dict
-from xval.shipped_scenes import catalogue
-from xval.toml_reader import parse_toml
+from loopcheck.mechanism import Body
+from loopcheck.scene_writer import scene_toml, toml_text
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.shipped_scenes import catalogue
+from loopcheck.toml_reader import parse_toml
 
 SHIPPED = sorted({path for path in catalogue().values()})
 

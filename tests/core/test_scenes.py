@@ -1,8 +1,8 @@
 """The bad-scene files: each has its own message; the console script's error path, once.
 
-Each file's message and exit status through ``xval reduced FILE`` are checked in-process in
+Each file's message and exit status through ``loopcheck reduced FILE`` are checked in-process in
 tests/core/test_reduced_scenes.py (``test_cli_main_reports_the_bad_key_in_one_line``); here a single
-subprocess runs the installed ``xval`` script to show that the entry point maps a SceneError to
+subprocess runs the installed ``loopcheck`` script to show that the entry point maps a SceneError to
 exit status 2 and one line, as ``main`` does in-process.
 """
 
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from xval.compare import cli
-from xval.scene import SceneError
-from xval.scenefile import load_scene
+from loopcheck.compare import cli
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene
 
 from helpers import DATA
 
@@ -37,17 +37,17 @@ def test_missing_file_is_bad_input(tmp_path, capsys):
     missing = tmp_path / "nope.toml"
     assert cli.main(["mujoco", str(missing)]) == 2
     out, err = capsys.readouterr()
-    assert out == "" and err == f"xval: error: cannot read scene file '{missing}': No such file or directory\n"
+    assert out == "" and err == f"loopcheck: error: cannot read scene file '{missing}': No such file or directory\n"
 
 
 def test_console_script_exits_2_with_one_line(tmp_path):
-    """The one subprocess: the ``xval`` entry point installed beside this Python."""
-    script = Path(sys.executable).with_name("xval")
-    script = str(script) if script.exists() else shutil.which("xval")
-    assert script, "the xval console script is not installed (pip install -e .)"
+    """The one subprocess: the ``loopcheck`` entry point installed beside this Python."""
+    script = Path(sys.executable).with_name("loopcheck")
+    script = str(script) if script.exists() else shutil.which("loopcheck")
+    assert script, "the loopcheck console script is not installed (pip install -e .)"
     path = BAD[0]
     proc = subprocess.run([script, "reduced", str(path)], capture_output=True, text=True, timeout=120,
                           cwd=tmp_path)
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"xval: error: {path}: ") and "Traceback" not in proc.stderr
+    assert len(lines) == 1 and lines[0].startswith(f"loopcheck: error: {path}: ") and "Traceback" not in proc.stderr

@@ -1,4 +1,4 @@
-"""Each engine's settings are declared once (xval.settings.option) and read three ways: its table
+"""Each engine's settings are declared once (loopcheck.settings.option) and read three ways: its table
 of the scene file, its command-line flags and the help. The same value given by the table and by
 the flag gives the same settings; every option has a flag and a key (or says why not); a bad
 value names the key. (Planted: dropping ``sample_interval``'s flag from ``add_flags`` fails
@@ -11,18 +11,18 @@ import warnings
 
 import pytest
 
-from xval.compare import cli
-from xval.compare.settings import engine_settings
-from xval.errors import IgnoredSettingWarning
-from xval.registry import ENGINES, engine_of
-from xval.scene import SceneError
-from xval.scenefile import scene_from_dict
-from xval.settings import given_flags, options
+from loopcheck.compare import cli
+from loopcheck.compare.settings import engine_settings
+from loopcheck.errors import IgnoredSettingWarning
+from loopcheck.registry import ENGINES, engine_of
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.settings import given_flags, options
 
 from helpers import seed_dict
 
 # A value other than the default for every option of every engine, as the scene file and the
-# command line write it; the engine's command (xval reduced, xval mujoco) takes the flags.
+# command line write it; the engine's command (loopcheck reduced, loopcheck mujoco) takes the flags.
 VALUES = {
     "reduced": {"method": ("rkn4", ["rkn4"]), "rtol": (1e-6, ["1e-6"]), "step": (2.5e-4, ["2.5e-4"]),
                 "sample_interval": (5e-4, ["5e-4"])},
@@ -139,7 +139,7 @@ def test_every_flag_is_in_the_help_of_each_command_that_runs_the_engine():
 def test_the_impedance_limits_written_in_the_settings_are_mujocos():
     import mujoco
 
-    from xval.reference_models.settings import MAX_IMPEDANCE, MIN_IMPEDANCE
+    from loopcheck.reference_models.settings import MAX_IMPEDANCE, MIN_IMPEDANCE
 
     assert (MIN_IMPEDANCE, MAX_IMPEDANCE) == (mujoco.mjMINIMP, mujoco.mjMAXIMP)
 

@@ -1,5 +1,5 @@
 """The one singular-position measure (docs/physics.md, "Singular positions"): defined once, in
-:mod:`xval.kinematics`, and giving the same verdict wherever a verdict is taken.
+:mod:`loopcheck.kinematics`, and giving the same verdict wherever a verdict is taken.
 
 Oracle: four-bars built with a known conditioning. The ground pivot O3 is placed so that the two
 links of the input's dyad meet at B at an angle ε: for the crank's input (O1) the coupler and
@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xval import kinematics as loops
-from xval.errors import NumericalFailure
-from xval.reduced import MechanismModel
-from xval.reduced.kernels import physics
-from xval.scene import SceneError
-from xval.scenefile import _check_start, scene_from_dict
+from loopcheck import kinematics as loops
+from loopcheck.errors import NumericalFailure
+from loopcheck.reduced import MechanismModel
+from loopcheck.reduced.kernels import physics
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import _check_start, scene_from_dict
 
 from helpers import ROOT
 
@@ -157,14 +157,14 @@ def _defined_thresholds(path: Path) -> list[str]:
 
 
 def test_the_singular_threshold_is_defined_once():
-    """Exactly one singular-position threshold in the package: xval.kinematics'. The compiled
+    """Exactly one singular-position threshold in the package: loopcheck.kinematics'. The compiled
     core takes it as an argument (a .pxd declares no copy of it), the four-bar oracle and every
     other check import it. Planted: SINGULAR_CONDITIONING = 1e-9 back in
-    xval/reduced/kernels/physics.py fails this test, naming it."""
-    sources = sorted((ROOT / "xval").rglob("*.py"))
+    loopcheck/reduced/kernels/physics.py fails this test, naming it."""
+    sources = sorted((ROOT / "loopcheck").rglob("*.py"))
     found = [name for path in sources for name in _defined_thresholds(path)]
-    assert found == ["xval/kinematics.py:SINGULAR_CONDITIONING"], found
-    declared = [f"{p.relative_to(ROOT)}: {line.strip()}" for p in sorted((ROOT / "xval").rglob("*.pxd"))
+    assert found == ["loopcheck/kinematics.py:SINGULAR_CONDITIONING"], found
+    declared = [f"{p.relative_to(ROOT)}: {line.strip()}" for p in sorted((ROOT / "loopcheck").rglob("*.pxd"))
                 for line in p.read_text(encoding="utf-8").splitlines()
                 if line.lstrip().startswith("cdef") and NAMES.search(line) and "readonly double singular" not in line]
     assert declared == [], declared

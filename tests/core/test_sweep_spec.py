@@ -1,4 +1,4 @@
-"""Sweep specifications (xval.compare.sweep_spec): parsing, the grid's order, the seeded Monte Carlo
+"""Sweep specifications (loopcheck.compare.sweep_spec): parsing, the grid's order, the seeded Monte Carlo
 sample, variants as deep copies, refusals naming the key, and the [sweep] table of a scene file."""
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError,
+from loopcheck.sweep_spec import (MAX_VARIANTS, Distribution, Engines, Grid, SweepSpec, SweepSpecError,
                                      Variant, count, parse_vary, spec_from_args, spec_from_table, variants)
-from xval.compare.sweep_scene import check, load_sweep
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval.shipped_scenes import default_scene_path
+from loopcheck.compare.sweep_scene import check, load_sweep
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.shipped_scenes import default_scene_path
 
 SEED_TEXT = default_scene_path().read_text()
 SWEEP_TABLE = """

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.trajectory import Trajectory
+from loopcheck.trajectory import Trajectory
 
 
 def test_quintic_hermite_reproduces_quintic_polynomials():
@@ -74,7 +74,7 @@ def test_joint_trajectory_hermite_reproduces_cubics_and_their_rates():
     """JointTrajectory.interpolate is cubic Hermite in x and ẋ: exact for cubic polynomials, in
     value and derivative (measured 8.9e-16 and 2.2e-15 on [0, 1]; bound 1e-14), per column; a time past
     the run is clamped to its end, and a repeated last sample is taken as the later one."""
-    from xval.trajectory import JointTrajectory
+    from loopcheck.trajectory import JointTrajectory
 
     t = np.array([0.0, 0.13, 0.4, 0.41, 0.77, 1.0])
     cubic = np.stack([t**3 - 2 * t**2 + t, -0.5 * t**3 + 3 * t], axis=1)

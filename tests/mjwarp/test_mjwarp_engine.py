@@ -22,7 +22,7 @@ bit for bit. The bound is 2 float32 spacings of the values (2 × 2⁻²³ relati
 difference (the two dampers' runs differ by more than 1e-3 rad/s, asserted).
 
 Planted: the controls not copied to the device (the ``wp.copy(dw.ctrl, ...)`` line of
-xval/mjwarp/run.py) fails test_agrees_with_the_reduced_engine and test_agrees_with_mujoco_c
+loopcheck/mjwarp/run.py) fails test_agrees_with_the_reduced_engine and test_agrees_with_mujoco_c
 (the crank stays at rest: peak off by 100 %); the per-world model values not assigned (``getattr(mw,
 name).assign(...)`` in ``_model``) fails test_a_batch_equals_its_single_runs (world 1 runs with
 damper 55 while MuJoCo C audits damper 30: its energy gate fails, residual 0.0037 of the scale).
@@ -37,14 +37,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("warp", reason="the mjwarp engine's extra is not installed (pip install 'xval[mjwarp]')")
+pytest.importorskip("warp", reason="the mjwarp engine's extra is not installed (pip install -e '.[mjwarp]' in loopcheck's checkout)")
 pytest.importorskip("mujoco_warp", reason="MJWarp is not installed (pip install --no-deps mujoco-warp)")
 
-import xval  # noqa: E402
-from xval.mjwarp import MjwarpSettings, simulate, simulate_batch  # noqa: E402
-from xval.mujoco_model.port import PortRefusal, prepare  # noqa: E402
-from xval.reference_models import MujocoSettings, simulate_mujoco  # noqa: E402
-from xval.scene import Tolerances  # noqa: E402
+import loopcheck  # noqa: E402
+from loopcheck.mjwarp import MjwarpSettings, simulate, simulate_batch  # noqa: E402
+from loopcheck.mujoco_model.port import PortRefusal, prepare  # noqa: E402
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco  # noqa: E402
+from loopcheck.scene import Tolerances  # noqa: E402
 
 from helpers import ROOT, seed_dict, variant  # noqa: E402
 
@@ -79,7 +79,7 @@ def run(seed):
 
 @pytest.fixture(scope="module")
 def reduced(seed):
-    return xval.simulate(seed, xval.ReducedSettings(method="dop853", rtol=1e-12))
+    return loopcheck.simulate(seed, loopcheck.ReducedSettings(method="dop853", rtol=1e-12))
 
 
 def _figures(reference, result):
@@ -93,7 +93,7 @@ def _within(seed, reference, result, tolerances: Tolerances):
     assert peak <= tolerances.peak_omega_rtol, peak
     assert dq <= tolerances.q_atol, dq
     assert dqdot <= tolerances.omega_atol, dqdot
-    verdict = xval.compare_results(seed, reference, result, tolerances=tolerances).gate
+    verdict = loopcheck.compare_results(seed, reference, result, tolerances=tolerances).gate
     assert verdict.passed, verdict.failures
 
 
@@ -139,7 +139,7 @@ def test_a_batch_equals_its_single_runs(run):
 def test_a_batch_refuses_a_field_mjwarp_shares_between_worlds(seed):
     """A variant differing in a model field that MJWarp keeps once for all worlds is refused in
     one line naming it (checked before any step: the model is changed by hand here)."""
-    from xval.mjwarp.run import _batched_fields
+    from loopcheck.mjwarp.run import _batched_fields
 
     runs = [prepare(seed, SETTINGS, "MJWarp", "mjwarp") for _ in range(2)]
     runs[1].port_model.actuator_ctrllimited[0] = 1
@@ -151,6 +151,6 @@ def test_a_batch_refuses_a_field_mjwarp_shares_between_worlds(seed):
 
 
 def test_point_forces_are_refused_in_one_line():
-    scene = xval.load_scene(ROOT / "scenes" / "mechanisms" / "slider_crank_gas.toml")  # a gas force on the piston
+    scene = loopcheck.load_scene(ROOT / "scenes" / "mechanisms" / "slider_crank_gas.toml")  # a gas force on the piston
     with pytest.raises(PortRefusal, match=r"^MJWarp does not run point or timed forces \(.+\): MuJoCo applies them"):
         simulate(scene, SETTINGS)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("jax", reason="the mjx engine's extra is not installed (pip install 'xval[mjx]')")
+pytest.importorskip("jax", reason="the mjx engine's extra is not installed (pip install -e '.[mjx]' in loopcheck's checkout)")
 pytest.importorskip("mujoco.mjx", reason="MJX is not installed (pip install --no-deps mujoco-mjx: docs/engines.md)")
 
 import jax  # noqa: E402

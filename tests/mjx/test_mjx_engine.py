@@ -20,19 +20,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("jax", reason="the mjx engine's extra is not installed (pip install 'xval[mjx]', then "
+pytest.importorskip("jax", reason="the mjx engine's extra is not installed (pip install -e '.[mjx]' in loopcheck's checkout, then "
                                   "pip install --no-deps mujoco-mjx: docs/engines.md)")
 pytest.importorskip("mujoco.mjx", reason="MJX is not installed (pip install --no-deps mujoco-mjx: docs/engines.md)")
 
 
-from xval.compare.cli import main  # noqa: E402
-from xval.compare.run import judge  # noqa: E402
-from xval.mjx import KNOWN_DEFECT, MjxSettings, simulate_batch, simulate_mjx  # noqa: E402
-from xval.mujoco_model.port import PortRefusal  # noqa: E402
-from xval.reduced import ReducedSettings, simulate  # noqa: E402
-from xval.reference_models import MujocoSettings, simulate_mujoco  # noqa: E402
-from xval.scene_writer import scene_toml  # noqa: E402
-from xval.scenefile import load_scene  # noqa: E402
+from loopcheck.compare.cli import main  # noqa: E402
+from loopcheck.compare.run import judge  # noqa: E402
+from loopcheck.mjx import KNOWN_DEFECT, MjxSettings, simulate_batch, simulate_mjx  # noqa: E402
+from loopcheck.mujoco_model.port import PortRefusal  # noqa: E402
+from loopcheck.reduced import ReducedSettings, simulate  # noqa: E402
+from loopcheck.reference_models import MujocoSettings, simulate_mujoco  # noqa: E402
+from loopcheck.scene_writer import scene_toml  # noqa: E402
+from loopcheck.scenefile import load_scene  # noqa: E402
 
 from helpers import ROOT, seed_dict, variant  # noqa: E402
 
@@ -96,7 +96,7 @@ def test_mjx_equals_mujoco_c_on_the_same_model(runs):
 
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason=DEFECT)
 def test_mjx_agrees_with_the_reduced_solution_within_the_seeds_tolerances(seed, runs):
-    """The gate xval applies to MuJoCo C (which passes it: 1.2e-5 on the peak at this step), with
+    """The gate loopcheck applies to MuJoCo C (which passes it: 1.2e-5 on the peak at this step), with
     the seed's [tolerances], not loosened. MJX 3.17.0: 1.48e-4 against 1e-4."""
     verdict = judge(seed, runs["reduced"], runs["single"], seed.tolerances)
     assert verdict.gate.passed, verdict.gate.failures
@@ -108,7 +108,7 @@ def test_mujoco_c_passes_that_gate(seed, runs):
 
 
 def test_check_engines_names_mjx_as_the_outlier_and_its_defect(seed, tmp_path, capsys):
-    """``xval check --engines reduced,mujoco,mjx`` on the short seed: MuJoCo passes, MJX fails the
+    """``loopcheck check --engines reduced,mujoco,mjx`` on the short seed: MuJoCo passes, MJX fails the
     seed's own tolerances, is named the engine farthest from the others, and its known defect is
     printed under its line (the scan compiled above is reused: same model, same steps)."""
     path = tmp_path / "seed_short.toml"

@@ -2,7 +2,7 @@
 
 The seed notes' formulas (with the errata of docs/physics.md) for K, L and the conditioning of
 the four-bar O1-A-B-O3, checked against the general compiled path (the engine always runs that
-one). The closed-form position analysis they build on is :class:`xval.four_bar.FourBar`, which
+one). The closed-form position analysis they build on is :class:`loopcheck.four_bar.FourBar`, which
 production keeps to assemble a ``four_bar`` shorthand scene at q0 (docs/architecture.md says why).
 
 Coordinates x = (q, φ1, φ2): crank, coupler, and the vector B → O3 (the rocker's own angle is
@@ -15,13 +15,13 @@ import math
 
 import numpy as np
 
-from xval import four_bar
-from xval.errors import NumericalFailure
-from xval.kinematics import SINGULAR_CONDITIONING, Kinematics
+from loopcheck import four_bar
+from loopcheck.errors import NumericalFailure
+from loopcheck.kinematics import SINGULAR_CONDITIONING, Kinematics
 
 
 class FourBar(four_bar.FourBar):
-    """:class:`xval.four_bar.FourBar` with the seed's K and L and the conditioning."""
+    """:class:`loopcheck.four_bar.FourBar` with the seed's K and L and the conditioning."""
 
     def loop_residual(self, x: np.ndarray) -> np.ndarray:
         """c1 e(q) + c2 e(φ1) + c3 e(φ2) − c4 e(0), shape (2,) (m)."""
@@ -31,7 +31,7 @@ class FourBar(four_bar.FourBar):
                          g.c1 * math.sin(q) + g.c2 * math.sin(p1) + g.c3 * math.sin(p2)])
 
     def conditioning(self, x: np.ndarray) -> np.ndarray:
-        """The conditioning of each coordinate (:func:`xval.kinematics.conditioning`) for the four-bar:
+        """The conditioning of each coordinate (:func:`loopcheck.kinematics.conditioning`) for the four-bar:
         (|sin(φ2 − φ1)|, |sin(φ2 − q)|, |sin(φ1 − q)|) for q, φ1, φ2 independent."""
         q, p1, p2 = x[0], x[1], x[2]
         return np.array([abs(math.sin(p2 - p1)), abs(math.sin(p2 - q)), abs(math.sin(p1 - q))])
@@ -62,7 +62,7 @@ class FourBar(four_bar.FourBar):
         X = c1 cos q + K_φ1² c2 cos φ1 + K_φ2² c3 cos φ2,  Y likewise with sines.
 
         Raises NumericalFailure(SINGULAR) where |sin(φ2 − φ1)|, the crank's conditioning, is below
-        the project's one threshold (:data:`xval.kinematics.SINGULAR_CONDITIONING`).
+        the project's one threshold (:data:`loopcheck.kinematics.SINGULAR_CONDITIONING`).
         """
         g = self.geometry
         x = self.assemble(q, branch)

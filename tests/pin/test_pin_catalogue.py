@@ -15,7 +15,7 @@ relative to max(1, max |q|), q̇ to max(1, max |q̇|) (rad or m, per s), the pea
 energy residual to the audit's scale.
 
 Planted: dropping the dampers' force from the generalized forces (``tau -= (c * rate) * g`` in
-xval/pin/run.py) fails every test of the seed: the run itself fails its energy gate (residual
+loopcheck/pin/run.py) fails every test of the seed: the run itself fails its energy gate (residual
 0.34 of the scale); with that gate opened (max_energy_residual 1) its figures are dq 0.10,
 dq̇ 0.65, dpeak 0.089, audit terms 0.33, each far beyond its bound. Dropping the springs'
 ½ k (d − d0)² from the audit's potential fails andrews_squeezer's runs (residual 0.65 of the scale).
@@ -29,11 +29,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pin = pytest.importorskip("pinocchio", reason="the pin engine's extra is not installed (pip install 'xval[pin]')")
+pin = pytest.importorskip("pinocchio", reason="the pin engine's extra is not installed (pip install -e '.[pin]' in loopcheck's checkout)")
 
-import xval  # noqa: E402
-from xval.pin import PinSettings, simulate  # noqa: E402
-from xval.scenefile import load_scene  # noqa: E402
+import loopcheck  # noqa: E402
+from loopcheck.pin import PinSettings, simulate  # noqa: E402
+from loopcheck.scenefile import load_scene  # noqa: E402
 
 from helpers import ROOT  # noqa: E402
 
@@ -84,7 +84,7 @@ def runs(name: str):
     """(scene, reduced, pin) of a catalogue scene, run once for this module."""
     if name not in _RUNS:
         scene = load_scene(ROOT / "scenes" / name)
-        _RUNS[name] = (scene, xval.simulate(scene, xval.ReducedSettings(method="dop853", rtol=1e-12)),
+        _RUNS[name] = (scene, loopcheck.simulate(scene, loopcheck.ReducedSettings(method="dop853", rtol=1e-12)),
                        simulate(scene, PinSettings()))
     return _RUNS[name]
 

@@ -9,9 +9,9 @@ rtol 1e-10 (default), measured (2026-11-26, pin 4.1.0) on these scenes at relati
 tests/pin/test_pin_catalogue.py); bounds 1e-9, 2e-8, 1.2e-8, 3e-9 (5–10x).
 
 Planted: the armature left out of the model (``model.armature[...] += e.coefficient`` in
-xval/pin/model.py) fails test_joint_inertias_on_tree_joints (|Δq| 7.4e-2 of the scale; the run's
+loopcheck/pin/model.py) fails test_joint_inertias_on_tree_joints (|Δq| 7.4e-2 of the scale; the run's
 own audit, which reads the same M, does not see it: the reduced engine does); the joint springs'
-force dropped (xval/pin/run.py) fails the joint-element cases (the run's energy balance off by
+force dropped (loopcheck/pin/run.py) fails the joint-element cases (the run's energy balance off by
 0.32 of its scale).
 """
 
@@ -22,10 +22,10 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip("pinocchio", reason="the pin engine's extra is not installed (pip install 'xval[pin]')")
+pytest.importorskip("pinocchio", reason="the pin engine's extra is not installed (pip install -e '.[pin]' in loopcheck's checkout)")
 
-import xval  # noqa: E402
-from xval.pin import PinSettings, simulate  # noqa: E402
+import loopcheck  # noqa: E402
+from loopcheck.pin import PinSettings, simulate  # noqa: E402
 
 from helpers import ROOT, variant  # noqa: E402
 
@@ -34,20 +34,20 @@ import test_joint_elements as joint_elements  # noqa: E402  (their scenes: eleme
 import test_timed_forces as timed_forces  # noqa: E402
 
 EXACT_SEED_PEAK = 34.26441306  # rad/s, 10 significant digits
-REDUCED = xval.ReducedSettings(method="dop853", rtol=1e-12)
+REDUCED = loopcheck.ReducedSettings(method="dop853", rtol=1e-12)
 BOUNDS = {"q": 1e-9, "qdot": 2e-8, "peak": 1.2e-8, "energy": 3e-9}
 
 
 def test_seed_peak_is_the_exact_one():
     """Measured −7.7e-11 relative (34.264413057, 0.6–0.9 s of integration); bound 5e-10."""
-    result = simulate(xval.load_scene("seed_fourbar"), PinSettings())
+    result = simulate(loopcheck.load_scene("seed_fourbar"), PinSettings())
     assert abs(result.peak.omega - EXACT_SEED_PEAK) <= 5e-10 * EXACT_SEED_PEAK
     assert result.engine == "pin" and result.details.constraint_rows == 3
     assert result.details.as_dict()["baumgarte"] == [100.0, 20.0]
 
 
 def _agree(scene) -> tuple:
-    ref = xval.simulate(scene, REDUCED)
+    ref = loopcheck.simulate(scene, REDUCED)
     r = simulate(scene, PinSettings())
     q, qdot, _ = ref.trajectory.interpolate(r.trajectory.t)
     figures = {"q": np.max(np.abs(q - r.trajectory.q)) / max(1.0, np.max(np.abs(ref.trajectory.q))),
@@ -94,6 +94,6 @@ def test_an_inertia_on_a_cut_joint_is_refused_by_name():
 
 
 def test_a_run_beyond_its_evaluations_fails_naming_the_setting():
-    with pytest.raises(xval.NumericalFailure, match=r"used its 500 evaluations .*\[pin\] max_evaluations") as caught:
-        simulate(xval.load_scene("seed_fourbar"), PinSettings(max_evaluations=500))
+    with pytest.raises(loopcheck.NumericalFailure, match=r"used its 500 evaluations .*\[pin\] max_evaluations") as caught:
+        simulate(loopcheck.load_scene("seed_fourbar"), PinSettings(max_evaluations=500))
     assert caught.value.reason == "step-size"

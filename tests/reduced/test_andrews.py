@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from xval import kinematics as loops
-from xval.scenefile import load_scene
+from loopcheck import kinematics as loops
+from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
 
@@ -251,10 +251,10 @@ def test_the_reduced_engine_meets_the_published_solution(andrews):
     reference, every angle to 1e-9 and every rate to 2e-7 relative, after mapping our absolute
     frame angles x (result.joints.x, in the order of the scene's bodies) to the
     published (β, Θ, γ, Φ, δ, Ω, ε). Needs the reduced engine ported to general linkages."""
-    import xval.reduced
+    import loopcheck.reduced
 
     scene, linkage, system = andrews
-    result = xval.reduced.simulate(scene, xval.reduced.ReducedSettings(method="dop853", rtol=1e-13))
+    result = loopcheck.reduced.simulate(scene, loopcheck.reduced.ReducedSettings(method="dop853", rtol=1e-13))
     joints = result.joints
     assert tuple(joints.names) == system.coordinate_names
     assert joints.t[-1] == pytest.approx(HORIZON, abs=1e-15)

@@ -2,7 +2,7 @@
 
 Oracle: conservation of energy, independent of the integrator: kinetic ½ 𝔍 q̇² plus potential V
 minus the work of the input load and the point forces plus the damper dissipation must stay
-constant (xval/reduced/energy.py audits it by Gauss quadrature on the run's dense output). The issue
+constant (loopcheck/reduced/energy.py audits it by Gauss quadrature on the run's dense output). The issue
 asks below 1e-9 of the work done. DOP853 at rtol 1e-12 over the first 0.05 s of each scene
 (Andrews: its whole 0.03 s) measured: Andrews 1.4e-11, planar seed 9.2e-12, slider driven 6.9e-12,
 gas slider-crank 3.7e-11, Stephenson III 1.8e-12 (near toggle 1.6e-12), Watt II 2.6e-12,
@@ -16,8 +16,8 @@ import dataclasses
 
 import pytest
 
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import load_scene
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
 

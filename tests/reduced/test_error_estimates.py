@@ -1,7 +1,7 @@
 """RKN4's two error estimates against the true error, tightly enough to see their constants.
 
 The step-doubling estimate of the error of y_h is |y_h − y_2h| / (2⁴ − 1); when the run at 2h is
-outside RKN4's stability region it is 2⁴ |y_h − y_h/2| / (2⁴ − 1) instead (xval.reduced.engine,
+outside RKN4's stability region it is 2⁴ |y_h − y_h/2| / (2⁴ − 1) instead (loopcheck.reduced.engine,
 ``estimate_error``). Both are asymptotically exact for a fourth-order method, so on a problem in
 the asymptotic range the ratio estimate / true error is close to 1. True error: the largest
 |q − q_ref| over the run's samples, q_ref from DOP853 at rtol 1e-12 (its own error, ~1e-11 rad,
@@ -19,12 +19,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xval.compare import cli
+from loopcheck.compare import cli
 from helpers import variant
-from xval.errors import NumericalFailure
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import load_scene
-from xval.shipped_scenes import hard_scene_dir
+from loopcheck.errors import NumericalFailure
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import hard_scene_dir
 
 REFERENCE = ReducedSettings(method="dop853", rtol=1e-12, sample_interval=2.5e-4)
 STIFF_DAMPER = hard_scene_dir() / "stiff_damper.toml"
@@ -70,7 +70,7 @@ def test_the_half_step_estimate_is_the_true_error_where_twice_the_step_is_unstab
 
 
 def test_a_run_outside_its_accuracy_by_the_half_step_estimate_is_refused(capsys):
-    """`xval reduced stiff_damper.toml --method rkn4 --step 5e-4 --rtol 1e-4`: the estimate,
+    """`loopcheck reduced stiff_damper.toml --method rkn4 --step 5e-4 --rtol 1e-4`: the estimate,
     4.22e-4 of the run's scale (true error 4.09e-4), is above rtol: exit 1, naming it."""
     status = cli.main(["reduced", str(STIFF_DAMPER), "--method", "rkn4", "--step", "5e-4", "--rtol", "1e-4"])
     assert status == 1

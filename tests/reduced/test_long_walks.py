@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel
-from xval.kinematics import SINGULAR_CONDITIONING
-from xval.scenefile import load_scene
-from xval.reduced.charts import Chart
+from loopcheck.reduced import MechanismModel
+from loopcheck.kinematics import SINGULAR_CONDITIONING
+from loopcheck.scenefile import load_scene
+from loopcheck.reduced.charts import Chart
 
 from helpers import SEED_SCENE
 
@@ -33,7 +33,7 @@ def test_a_walk_of_hundreds_of_rad_keeps_the_dependent_angles_turns(far):
     ended 1.5e-2 rad off the start, its dependent angles having passed 1e15 rad.
     Measured: back to the start within 3.3e-16 rad (the closed form: round-off of angles of
     1–3 rad); bound 2e-15."""
-    from xval.reduced.charts import _start
+    from loopcheck.reduced.charts import _start
 
     model = MechanismModel(load_scene(LONG_CONSERVATIVE))
     x0, i, _ = _start(model)
@@ -54,8 +54,8 @@ def test_long_runs_at_loose_tolerances_sample_their_pieces(method, rtol):
     """45 s of a crank coasting at 30 rad/s (about 1 350 rad) in one load piece. These runs
     failed ("Newton's method did not close the loops … crank.angle = 0.2") when the samples were
     walked to from the piece's end, back to its start, in jumps closed at once."""
-    from xval.reduced import ReducedSettings, simulate
-    from xval.errors import NumericalFailure
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.errors import NumericalFailure
 
     settings = ReducedSettings(method=method, rtol=rtol, check_error=False)
     if rtol < 1e-3:
@@ -96,8 +96,8 @@ def test_rotating_dependent_angles_keep_the_start_turns():
     trapezoid rule with its end correction −h²/12 Δq̈ (O(h⁴): measured 1.6e-8 rad, bound 1e-7),
     every joint's by the plain trapezoid (no accelerations recorded: measured 2.0e-3 rad at
     ~1e4 rad/s² of the coupler, bound 1e-2; a turn is 6.28)."""
-    from xval.reduced import ReducedSettings, simulate
-    from xval.scenefile import scene_from_dict
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.scenefile import scene_from_dict
 
     scene = scene_from_dict(drag_link(100.0, 1.0))
     r = simulate(scene, ReducedSettings())
@@ -122,8 +122,8 @@ def test_loops_close_at_angles_of_ten_thousand_rad():
     evaluations holds 125 s; the energy check is off: over 12 000 rad its residual, 2.9e-5, is
     above 1000 rtol). Conservative: the speed at equal crank angle on the last turn is the
     first turn's (measured 1.6e-4 of the peak; bound 1e-3)."""
-    from xval.reduced import ReducedSettings, simulate
-    from xval.scenefile import scene_from_dict
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.scenefile import scene_from_dict
 
     r = simulate(scene_from_dict(drag_link(100.0, 110.0)), ReducedSettings(rtol=1e-8, check_error=False))
     tr = r.trajectory
@@ -146,8 +146,8 @@ def test_a_point_force_on_a_dependent_input_sees_its_true_angle():
     rad, scipy-dop853 2.2e-10; bound 1e-9."""
     import tomllib
 
-    from xval.reduced import ReducedSettings, simulate
-    from xval.scenefile import scene_from_dict
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.scenefile import scene_from_dict
 
     with open(SEED_SCENE.parent / "mechanisms" / "drag_link.toml", "rb") as f:
         data = tomllib.load(f)
@@ -181,8 +181,8 @@ def test_a_chart_started_at_a_fold_follows_it_back(back):
     independent walk), and back at the start the crank is where it started. Measured: 6.1e-8
     rad at most (x is defined there only to ε / σ_min(Φ_x), conditioning 3e-8); bound 2e-7."""
     from helpers import without_dyad_plans
-    from xval.shipped_scenes import default_scene_path
-    from xval.reduced.kernels import physics
+    from loopcheck.shipped_scenes import default_scene_path
+    from loopcheck.reduced.kernels import physics
 
     model = MechanismModel(load_scene(default_scene_path()))
     crank = model.new_chart()

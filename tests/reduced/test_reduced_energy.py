@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel, ReducedSettings, simulate
-from xval.scene import Scene
-from xval.scenefile import load_scene, scene_from_dict
+from loopcheck.reduced import MechanismModel, ReducedSettings, simulate
+from loopcheck.scene import Scene
+from loopcheck.scenefile import load_scene, scene_from_dict
 
 from helpers import SEED_SCENE, coefficients_along, conservative, seed_dict, variant
 
@@ -170,7 +170,7 @@ def test_the_restart_after_the_pulse_keeps_the_step_of_before(method):
     the pulse's end with scipy's initial-step selection (8.0 ms where the steps before were
     1.3 ms), accepted that step, and the energy balance missed by 1.10e-8 of the run's scale,
     failing the engine's 1e-8 bound at rtol 1e-12. Both drivers cap the first step after a load
-    edge by the steps before it (xval.reduced.kernels.adaptive.RESTART_STEPS): measured 9.9e-12 (compiled)
+    edge by the steps before it (loopcheck.reduced.kernels.adaptive.RESTART_STEPS): measured 9.9e-12 (compiled)
     and 9.6e-12 (scipy). Bound 5e-11: 5x those, 200x below the failure."""
     data = seed_dict()
     data["dampers"][0]["coefficient"] = 63.25
@@ -185,12 +185,12 @@ def test_the_restart_after_the_pulse_keeps_the_step_of_before(method):
                                   SEED_SCENE.parent / "hard" / "dead_centre.toml"], ids=lambda p: p.stem)
 def test_the_fields_a_run_records_at_its_samples_are_a_walk_to_them(method, path):
     """The compiled runs record each sample's coefficient fields where they evaluate it
-    (xval.reduced.kernels.physics.Chart.observe), for the outputs and the energy audit, instead of walking
+    (loopcheck.reduced.kernels.physics.Chart.observe), for the outputs and the energy audit, instead of walking
     every chart to its samples again: the same fields as that walk (the chart's own path, from
     its start), to round-off. Measured ≤ 2.6e-13 of each field's largest value (DOP853 on the
     seed; the slider-crank and the 7 charts of dead_centre ≤ 4.5e-14). Bound 1e-12."""
-    from xval.reduced.dynamics import MechanismModel
-    from xval.reduced.engine import integrate
+    from loopcheck.reduced.dynamics import MechanismModel
+    from loopcheck.reduced.engine import integrate
 
     model = MechanismModel(load_scene(path))
     solution = integrate(model, ReducedSettings(method=method))
@@ -208,15 +208,15 @@ FLOW_SCENES = [SEED_SCENE] + [SEED_SCENE.parent / "mechanisms" / f"{name}.toml" 
 @pytest.mark.parametrize("path", FLOW_SCENES, ids=lambda p: p.stem)
 def test_the_energy_flows_integrated_with_the_state_equal_their_quadrature(path):
     """The compiled DOP853 integrates the work done and the energy dissipated alongside the
-    state (its stages' power, xval.reduced.kernels.physics.power); an independent route is
+    state (its stages' power, loopcheck.reduced.kernels.physics.power); an independent route is
     Gauss-Legendre quadrature of the power over the samples' interpolant (what scipy's runs
     use). Measured difference, relative to the run's energy scale: seed 5e-14, driven slider
     (2 charts) 4e-14, oscillating slotted lever (9 charts) 8e-13, gas slider-crank 3.3e-11 (a point force:
     there the quadrature is the coarser of the two). Bound 1e-10, 3x the largest."""
     import dataclasses
 
-    from xval.reduced.energy import energy_audit, quadrature_energy
-    from xval.reduced.engine import integrate
+    from loopcheck.reduced.energy import energy_audit, quadrature_energy
+    from loopcheck.reduced.engine import integrate
 
     model = MechanismModel(load_scene(path))
     solution = integrate(model, ReducedSettings(method="dop853"))
@@ -234,7 +234,7 @@ def test_rkn4s_integrated_energy_flows_converge_at_its_order():
     On the seed (steps 2, 1, 0.5 and 0.25 ms against DOP853 at rtol 1e-13) the final work's
     error falls by 2^4.96–2^4.97 per halving and the dissipation's by 2^5.1–2^6.1; the fitted
     order must be at least 3.8 (weights (P1 + P2 + P3 + P4)/4 would give 2)."""
-    from xval.reduced.engine import integrate
+    from loopcheck.reduced.engine import integrate
 
     model = MechanismModel(load_scene(SEED_SCENE))
 

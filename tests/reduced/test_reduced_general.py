@@ -1,6 +1,6 @@
 """The reduced engine on the general description: kinematics, dynamics, partitioning, energy.
 
-The engine runs one compiled implementation for every linkage (xval.reduced.kernels.physics). The
+The engine runs one compiled implementation for every linkage (loopcheck.reduced.kernels.physics). The
 four-bar closed form (tests/oracles/four_bar.py) is its independent oracle: the seed's Eksergian
 coefficients and right-hand side are written out here from the closed form's x, K, L and the
 bodies' geometry, and compared with the engine's.
@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from oracles.four_bar import FourBar
-from xval.reduced import MechanismModel, ReducedSettings, simulate
-from xval.scenefile import load_scene, scene_from_dict
-from xval.reduced.integrators import solve_adaptive
-from xval.kinematics import assemble
-from xval.reduced.charts import Chart, conditioning
+from loopcheck.reduced import MechanismModel, ReducedSettings, simulate
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.reduced.integrators import solve_adaptive
+from loopcheck.kinematics import assemble
+from loopcheck.reduced.charts import Chart, conditioning
 
 from helpers import DATA, ROOT, SEED_SCENE
 
@@ -52,12 +52,12 @@ PEAK_BEFORE = {"dop853": (34.26441305844235, 1.154455342337707),
 # comparison is at the old sample times through the trajectory's interpolant. Bounds ~3-4x those.
 BEFORE_BOUNDS = {"peak": 1e-11, "peak_time": 5e-12, "q": 3e-12, "qdot": 1e-10}
 # Since then DOP853 restarts after a load edge with its initial step capped by the steps before
-# (xval.reduced.kernels.adaptive.RESTART_STEPS): after the pulse's end at 1 s it takes other steps, an
+# (loopcheck.reduced.kernels.adaptive.RESTART_STEPS): after the pulse's end at 1 s it takes other steps, an
 # equally valid run at rtol 1e-12 (4 more samples). Before 1 s the bounds above still hold
 # (measured: q 3.6e-14 rad, q̇ 1.4e-12 rad/s); after it the runs differ by the integrator's
 # error: peak ω 1.7e-10 rad/s (5e-12 relative), its time 2.9e-10 s, q 3.8e-12 rad (rtol 1e-12 of
 # q's 13–35 rad there), q̇ 3.9e-9 rad/s (1.1e-10 of the peak; DOP853 at rtol 1e-12 and 1e-11
-# differ by 4e-11 in peak ω). (Closing four-bar loops in closed form, xval.reduced.kernels.physics
+# differ by 4e-11 in peak ω). (Closing four-bar loops in closed form, loopcheck.reduced.kernels.physics
 # _dyads, moved q from 4.6e-13 to 3.8e-12 rad and the peak from 9.2e-11 rad/s.) Bounds ~2-5x those.
 PULSE_END = 1.0  # s, scenes/seed_fourbar.toml
 AFTER_RESTART_BOUNDS = {"peak": 5e-10, "peak_time": 1e-9, "q": 1.5e-11, "qdot": 2e-8}
@@ -103,7 +103,7 @@ def closed_form_coefficients(scene, q: float) -> dict:
     closed form's x, K, L (:meth:`FourBar.kinematics`) and the bodies' geometry: body frames
     crank at O1 turning with q, coupler at A = c1 e(q) turning with φ1, rocker at O3 = (c4, 0)
     turning with φ2 + π; a point p of a body is r = o + R(θ) p, K_r = K_o + θ' (R p)⊥,
-    L_r = L_o + θ'' (R p)⊥ − θ'² R p. No xval.kinematics, no kernel."""
+    L_r = L_o + θ'' (R p)⊥ − θ'² R p. No loopcheck.kinematics, no kernel."""
     g = scene.four_bar
     kin = FourBar(g).kinematics(q)
     x, K, L = kin.x, kin.K, kin.L
@@ -239,7 +239,7 @@ FD_STEP = 5e-4
 
 def _fd_check(model, x0, index):
     """K and L of the compiled chart of coordinate ``index`` at x0 against Richardson-extrapolated
-    central differences of positions assembled by xval.kinematics' Newton (numpy) with that
+    central differences of positions assembled by loopcheck.kinematics' Newton (numpy) with that
     coordinate driving."""
     driven = model.system.driven_by(index)
     value = x0[index]

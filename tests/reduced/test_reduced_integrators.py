@@ -12,17 +12,17 @@ import tomllib
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, simulate
-from xval.reduced.integrators import solve_adaptive
-from xval.reduced.kernels.fixed_step import RKN4
-from xval.errors import IgnoredSettingWarning, NumericalFailure
-from xval.scenefile import load_scene, scene_from_dict
-from xval.reduced.integrators import MAX_EVALUATIONS
-from xval.shipped_scenes import hard_scene_dir
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.reduced.integrators import solve_adaptive
+from loopcheck.reduced.kernels.fixed_step import RKN4
+from loopcheck.errors import IgnoredSettingWarning, NumericalFailure
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.reduced.integrators import MAX_EVALUATIONS
+from loopcheck.shipped_scenes import hard_scene_dir
 
 from helpers import SEED_SCENE, seed_dict, variant
 
-simulate_module = importlib.import_module("xval.reduced.engine")  # the package's `simulate` is the function
+simulate_module = importlib.import_module("loopcheck.reduced.engine")  # the package's `simulate` is the function
 
 
 def observed_order(steps, errors) -> float:
@@ -188,7 +188,7 @@ def test_settings_the_method_ignores_are_reported(kwargs, ignored):
         ReducedSettings(**kwargs)
 
 
-@pytest.mark.filterwarnings("error::xval.errors.IgnoredSettingWarning")
+@pytest.mark.filterwarnings("error::loopcheck.errors.IgnoredSettingWarning")
 def test_settings_the_method_uses_raise_no_warning():
     ReducedSettings(method="rkn4", step=1e-3, rtol=1e-3)
     ReducedSettings(method="dop853", rtol=1e-9, sample_interval=1e-4)

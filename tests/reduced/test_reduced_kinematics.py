@@ -1,9 +1,9 @@
 """Kinematics: closed-form, compiled general and finite-difference K, L agree; the seed's 𝔍 and ζ.
 
 The four-bar's closed form (:class:`oracles.four_bar.FourBar`) and the dyad closed form written
-below are the oracles of the compiled general path (:mod:`xval.reduced.kernels.physics`, through
-:class:`xval.reduced.dynamics.MechanismModel` and :class:`xval.reduced.charts.Chart`); the pure-numpy
-loop equations of :mod:`xval.kinematics` are a third, independent evaluation of K and L."""
+below are the oracles of the compiled general path (:mod:`loopcheck.reduced.kernels.physics`, through
+:class:`loopcheck.reduced.dynamics.MechanismModel` and :class:`loopcheck.reduced.charts.Chart`); the pure-numpy
+loop equations of :mod:`loopcheck.kinematics` are a third, independent evaluation of K and L."""
 
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from oracles.four_bar import FourBar
-from xval.reduced import MechanismModel
-from xval.scene import SceneError
-from xval.scenefile import load_scene, scene_from_dict
-from xval import kinematics as loops
-from xval.reduced.charts import Chart
-from xval.scene import FourBarGeometry
+from loopcheck.reduced import MechanismModel
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck import kinematics as loops
+from loopcheck.reduced.charts import Chart
+from loopcheck.scene import FourBarGeometry
 
 from helpers import SEED_SCENE, coefficients_along, seed_dict, variant
 
@@ -119,9 +119,9 @@ def test_every_chart_matches_the_dyad_closed_form_and_newton():
     """With q, φ1 or φ2 as the chart's coordinate, the compiled chart (started at the closed
     form's configuration, then walked 0.02 rad along its coordinate) lands where the dyad's
     closed form puts the linkage (round-off), with the K, L of the pure-numpy loop equations
-    (:func:`xval.kinematics.coefficients` with that coordinate driving, at the same x) and, for
+    (:func:`loopcheck.kinematics.coefficients` with that coordinate driving, at the same x) and, for
     q, of the four-bar closed form (bounds 1e-10, 1e-9: the walked x is Newton's, ~1e-12 from
-    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), xval.kinematics and
+    the closed form's, and |L| reaches 90 here; measured ≤ 1.4e-12 for L). Conditioning: the closed form (|sin|), loopcheck.kinematics and
     the compiled chart agree."""
     g = SEED
     linkage = FourBar(g)
@@ -235,5 +235,5 @@ def test_scene_that_cannot_assemble_names_the_discriminant():
     data = seed_dict()
     data["linkage"]["c3"] = 0.05
     with pytest.raises(SceneError, match="discriminant"):
-        from xval.scenefile import scene_from_dict
+        from loopcheck.scenefile import scene_from_dict
         scene_from_dict(data)

@@ -1,7 +1,7 @@
 """The exported MJCF stands on its own: MuJoCo loads it with the loop closed (issue 11).
 
 Every check here reads the file with MuJoCo alone (``mujoco.MjModel.from_xml_string``, no
-xval code) and judges it against the four-bar's closed-form assembly (``xval.four_bar``),
+loopcheck code) and judges it against the four-bar's closed-form assembly (``loopcheck.four_bar``),
 an oracle independent of the MuJoCo builder. The loop gap is measured between the sites at B
 on the coupler and on the rocker, which sit at the link lengths c2, c3 in each body's frame:
 unlike the connect's own residual (MuJoCo places the rocker's anchor where B is at qpos0, so
@@ -16,9 +16,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.scenefile import load_scene, scene_from_dict
-from xval.four_bar import FourBar
-from xval.reference_models import BASE_BODY, HOME_KEY, MujocoSettings, build_model, mjcf_text
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.four_bar import FourBar
+from loopcheck.reference_models import BASE_BODY, HOME_KEY, MujocoSettings, build_model, mjcf_text
 
 from helpers import SEED_SCENE, seed_dict
 
@@ -93,7 +93,7 @@ def test_exported_model_loads_assembled_at_its_default_state_and_home(branch, q0
 
 
 def test_seed_export_with_the_automatic_step_is_closed_and_at_rest():
-    """The file ``xval export-mjcf`` writes for the default scene, as it is."""
+    """The file ``loopcheck export-mjcf`` writes for the default scene, as it is."""
     scene = load_scene(SEED_SCENE)
     model, data = loaded(mjcf_text(scene))
     for key in (None, HOME_KEY):
@@ -147,7 +147,7 @@ def test_pinocchio_reads_both_chains_closed_at_its_neutral_configuration(branch,
     """A second reader: Pinocchio's MJCF parser (keeps only the first body tree under <worldbody>)
     finds all three hinges, and at its neutral configuration (q = 0) the sites at B meet where
     the closed form puts B (measured 2.5e-16 m and 3.9e-16 m with pin 4.1.0). Skipped where
-    Pinocchio is not installed (it is not a dependency of xval)."""
+    Pinocchio is not installed (it is not a dependency of loopcheck)."""
     pin = pytest.importorskip("pinocchio")
     scene = scene_at(branch, q0, qdot0)
     path = tmp_path / "model.xml"
@@ -167,7 +167,7 @@ def test_pinocchio_reads_both_chains_closed_at_its_neutral_configuration(branch,
 def test_the_engine_refuses_a_mujoco_older_than_it_needs(version, refused):
     """The GPU ports' pip installs can load MuJoCo 3.17 or 4.0.0 under mujoco-core 4.0.1's name
     (docs/engines-gpu-research.md): the engine checks the library loaded, by number, not text."""
-    from xval.mujoco_model.build import check_mujoco_version
+    from loopcheck.mujoco_model.build import check_mujoco_version
 
     if refused:
         with pytest.raises(ImportError, match=f"loads {version}"):
@@ -178,12 +178,12 @@ def test_the_engine_refuses_a_mujoco_older_than_it_needs(version, refused):
 
 def test_an_import_error_is_one_line(monkeypatch, capsys):
     """A missing or wrong engine library is bad setup: one line and exit 2, not a traceback."""
-    from xval.compare import cli
+    from loopcheck.compare import cli
 
     def broken(args):
-        raise ImportError("xval's MuJoCo engine needs MuJoCo 4.0.1 or newer, but `import mujoco` loads 4.0.0")
+        raise ImportError("loopcheck's MuJoCo engine needs MuJoCo 4.0.1 or newer, but `import mujoco` loads 4.0.0")
 
     monkeypatch.setattr(cli, "cmd_mujoco", broken)
     assert cli.main(["mujoco"]) == 2
-    assert capsys.readouterr().err == ("xval: error: xval's MuJoCo engine needs MuJoCo 4.0.1 or newer, but "
+    assert capsys.readouterr().err == ("loopcheck: error: loopcheck's MuJoCo engine needs MuJoCo 4.0.1 or newer, but "
                                        "`import mujoco` loads 4.0.0\n")

@@ -1,4 +1,4 @@
-"""`xval import-mjcf`: a MuJoCo model read as a scene.
+"""`loopcheck import-mjcf`: a MuJoCo model read as a scene.
 
 Oracles: the catalogue's own descriptions (export → import must give them back), the shipped
 seed scene (two hand-written MJCF files of its four-bar), and MuJoCo running a hand-written file
@@ -15,13 +15,13 @@ import mujoco
 import numpy as np
 import pytest
 
-import xval
-from xval.loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad
-from xval.mechanism import PrismaticJoint
-from xval.reference_models import MujocoSettings, mjcf_text
-from xval.reference_models.mjcf_import import Control, MjcfError, import_mjcf
-from xval.scenefile import load_scene
-from xval.shipped_scenes import catalogue
+import loopcheck
+from loopcheck.loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad
+from loopcheck.mechanism import PrismaticJoint
+from loopcheck.reference_models import MujocoSettings, mjcf_text
+from loopcheck.reference_models.mjcf_import import Control, MjcfError, import_mjcf
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import catalogue
 
 DATA = Path(__file__).parent.parent / "data" / "mjcf"
 CATALOGUE = {path: name for name, path in catalogue().items() if "/" in name or name == "seed_fourbar"}
@@ -41,7 +41,7 @@ def _control(load) -> Control | None:
 
 
 def _without_point_forces(scene):
-    """The scene as MJCF carries it: xval applies point forces over q and t itself, outside the model."""
+    """The scene as MJCF carries it: loopcheck applies point forces over q and t itself, outside the model."""
     mech = dataclasses.replace(scene.mechanism, point_forces=(), timed_forces=())
     return dataclasses.replace(scene, mechanism=mech)
 
@@ -98,9 +98,9 @@ def test_round_trip_of_the_catalogue(path, tmp_path):
     assert imported.closure_residual <= 1e-15 and imported.polish <= 1e-15
 
     short = min(scene.horizon, 0.05)
-    settings = xval.ReducedSettings(method="rkn4", step=1e-5, rtol=1e-3)
-    first = xval.simulate(dataclasses.replace(original, horizon=short), settings).trajectory
-    second = xval.simulate(dataclasses.replace(back, horizon=short), settings).trajectory
+    settings = loopcheck.ReducedSettings(method="rkn4", step=1e-5, rtol=1e-3)
+    first = loopcheck.simulate(dataclasses.replace(original, horizon=short), settings).trajectory
+    second = loopcheck.simulate(dataclasses.replace(back, horizon=short), settings).trajectory
     np.testing.assert_array_equal(first.t, second.t)
     assert np.max(np.abs(first.q - second.q)) <= 1e-12 * max(1.0, np.max(np.abs(first.q)))
     assert np.max(np.abs(first.qdot - second.qdot)) <= 1e-12 * max(1.0, np.max(np.abs(first.qdot)))
@@ -121,8 +121,8 @@ def test_the_seed_written_by_hand(name, keyframe):
     # x0 within round-off of the seed's (the authored angles are the seed's, printed to 17 digits)
     np.testing.assert_allclose(scene.x0, seed.x0, rtol=0, atol=1e-14)
     assert scene.q0 == pytest.approx(seed.q0, abs=1e-15)
-    ours = xval.simulate(scene, xval.ReducedSettings())
-    theirs = xval.simulate(seed, xval.ReducedSettings())
+    ours = loopcheck.simulate(scene, loopcheck.ReducedSettings())
+    theirs = loopcheck.simulate(seed, loopcheck.ReducedSettings())
     # DOP853 at rtol 1e-12 on both: measured 1.4e-13 apart; 1e-11 leaves the start's round-off room
     assert ours.peak.omega == pytest.approx(theirs.peak.omega, rel=1e-11)
     assert ours.peak.omega == pytest.approx(34.26441306, rel=2e-10)
@@ -155,7 +155,7 @@ def test_hand_written_models_agree_with_mujoco(name, keyframe, horizon):
     1.95e-4, 4.25e-5 (second order). Asserted: below 1.5e-4 at 5e-5 s (3.5-6x), and shrinking by 3x
     or more when the step halves, so MuJoCo converges on the reduced answer, not near it."""
     imported = import_mjcf(DATA / name, keyframe=keyframe, horizon=horizon)
-    reduced = abs(xval.simulate(imported.scene, xval.ReducedSettings()).peak.omega)
+    reduced = abs(loopcheck.simulate(imported.scene, loopcheck.ReducedSettings()).peak.omega)
     coarse, fine = (abs(_mujoco_peak(DATA / name, keyframe, horizon, dt) - reduced) / reduced for dt in (1e-4, 5e-5))
     assert fine < 1.5e-4
     assert fine < coarse / 3
@@ -261,7 +261,7 @@ def test_control_flag_refuses(text):
 
 
 def test_cli_import_writes_a_scene_that_runs(tmp_path):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     out = tmp_path / "seed.toml"
     assert main(["import-mjcf", str(DATA / "fourbar_sites_keyframe.xml"), "--keyframe", "assembled",
@@ -271,7 +271,7 @@ def test_cli_import_writes_a_scene_that_runs(tmp_path):
 
 
 def test_cli_import_refusal_is_one_line_and_writes_nothing(tmp_path, capsys):
-    from xval.compare.cli import main
+    from loopcheck.compare.cli import main
 
     path = tmp_path / "ball.xml"
     path.write_text(REFUSED["ball"][0])

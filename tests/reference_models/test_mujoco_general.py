@@ -1,7 +1,7 @@
 """The MuJoCo model of any planar linkage (issue 11): slider-cranks, a two-loop six-bar, the seed.
 
 Oracles independent of the MuJoCo builder and of the reduced engine's dynamics: the loop
-kinematics of :mod:`xval.kinematics` (positions, K = dx/dq on ``system.centres``) give the
+kinematics of :mod:`loopcheck.kinematics` (positions, K = dx/dq on ``system.centres``) give the
 kinetic energy ½ 𝔍 q̇² with 𝔍 = Σ m |K_G|² + I K_θ², summed here by hand, and the exported
 MJCF is read by MuJoCo alone (``MjModel.from_xml_string``).
 """
@@ -17,12 +17,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.scenefile import load_scene, scene_from_dict
-from xval import kinematics as loops
-from xval.reduced.dynamics import MechanismModel
-from xval.reference_models import (HOME_KEY, MujocoSettings, build_model, coordinate_map, joint_order, mjcf_text,
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck import kinematics as loops
+from loopcheck.reduced.dynamics import MechanismModel
+from loopcheck.reference_models import (HOME_KEY, MujocoSettings, build_model, coordinate_map, joint_order, mjcf_text,
                               simulate_mujoco)
-from xval.mujoco_model.build import joint_rates_matrix
+from loopcheck.mujoco_model.build import joint_rates_matrix
 
 from helpers import ROOT, SEED_SCENE
 
@@ -251,7 +251,7 @@ def test_kinetic_energy_equals_generalized_inertia(scene):
         mujoco.mj_fullM(m, d, M)
         kinetic = 0.5 * d.qvel @ M @ d.qvel
         worst = max(worst, abs(kinetic / (0.5 * inertia * qdot ** 2) - 1.0))
-        # The reduced model's own 𝔍 (xval.reduced.dynamics, the engine's path) is the same sum.
+        # The reduced model's own 𝔍 (loopcheck.reduced.dynamics, the engine's path) is the same sum.
         engine = MechanismModel(scene).coefficients_at(x).generalized_inertia
         worst = max(worst, abs(kinetic / (0.5 * engine * qdot ** 2) - 1.0))
     assert worst < 5e-14
@@ -335,14 +335,14 @@ def test_general_seed_agrees_with_the_shorthand():
 @pytest.mark.parametrize("name", ["slider_crank", "slider_driven"])
 def test_point_force_is_the_tabulated_force_at_every_rk4_stage(name):
     """The callback's generalized force does the virtual power F(q) u·K_P of the loop kinematics
-    (K_P = dP/dq from xval.kinematics on the point, not MuJoCo), and RK4 calls it once per stage
+    (K_P = dP/dq from loopcheck.kinematics on the point, not MuJoCo), and RK4 calls it once per stage
     (four times per step) at that stage's own state (four different q).
 
     Measured: the two virtual powers agree to 5.4e-17 of Σ max|F|·|K_P|; bound 1e-15 (20x).
     """
-    from xval.loads import TabulatedForce
-    from xval.reference_models import point_force_callback
-    from xval.mujoco_model.layout import Layout as _Layout
+    from loopcheck.loads import TabulatedForce
+    from loopcheck.reference_models import point_force_callback
+    from loopcheck.mujoco_model.layout import Layout as _Layout
 
     scene = SCENES[name]()
     handles = build_model(scene, MujocoSettings(timestep=STEP))
@@ -396,7 +396,7 @@ def test_unit_rate_inertia_from_mujocos_null_space_is_the_generalized_inertia(sc
     """The energy gate's floor: uᵀ M u over the null space of every equality row, scaled to a
     unit input rate, is 𝔍(x0) from the loop kinematics (measured ≤ 1.6e-15 relative, Watt II;
     bound 1e-14)."""
-    from xval.reference_models import check_initial_state, initial_qpos_qvel
+    from loopcheck.reference_models import check_initial_state, initial_qpos_qvel
 
     handles = build_model(scene, MujocoSettings(timestep=STEP))
     data = mujoco.MjData(handles.model)
@@ -410,7 +410,7 @@ def test_unit_rate_inertia_from_mujocos_null_space_is_the_generalized_inertia(sc
 def test_exported_mjcf_reruns_the_same_motion(name, tmp_path):
     """The file, compiled alone and run with the scene (its point forces applied again by the
     runner), gives the in-memory model's run: same model, same arithmetic, so bit-identical."""
-    from xval.reference_models import handles_from_mjcf
+    from loopcheck.reference_models import handles_from_mjcf
 
     scene, direct = _run(name)
     settings = MujocoSettings(timestep=5e-4)

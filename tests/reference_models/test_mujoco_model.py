@@ -8,10 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from xval.errors import NumericalFailure
-from xval import kinematics as loops
-from xval.scenefile import load_scene, scene_from_dict
-from xval.reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
+from loopcheck.errors import NumericalFailure
+from loopcheck import kinematics as loops
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.reference_models import (MujocoSettings, OffGridEdgeWarning, build_model, coordinate_map, handles_from_mjcf,
                               joint_positions, joint_rates, mjcf_text, simulate_mujoco)
 
 from helpers import SEED_SCENE, conservative, variant
@@ -65,7 +65,7 @@ def _mjb(model: mujoco.MjModel) -> bytes:
 def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
     """The automatic timestep's finer models are the coarse one's spec set to their step
     (set_timestep), not built anew: byte for byte the model build_model makes there."""
-    from xval.reference_models.run import _at_timestep
+    from loopcheck.reference_models.run import _at_timestep
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -80,7 +80,7 @@ def test_model_set_to_another_timestep_is_the_model_built_there(scene_path):
 def test_kinetic_energy_matches_generalized_inertia(seed_scene):
     """½ q̇ᵀ M q̇ from MuJoCo at a loop-consistent velocity equals ½ 𝔍(q) q̇² over a full turn.
 
-    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (xval.kinematics: K on the centres of
+    𝔍 = Σ m |K_G|² + I K_θ² from the loop kinematics alone (loopcheck.kinematics: K on the centres of
     mass; the pivoted crank and rocker by their pivot inertias), not from the reduced engine's
     dynamics. Both are sums of the same few products in float64 (measured ≤ 3.1e-15 relative);
     1e-10 is the issue's bound and leaves room for the trigonometry on either side.

@@ -12,8 +12,8 @@ import tomllib
 
 import pytest
 
-from xval.scenefile import scene_from_dict
-from xval.reference_models import simulate_mujoco
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reference_models import simulate_mujoco
 
 from helpers import ROOT
 

@@ -18,11 +18,11 @@ import pytest
 
 from dataclasses import replace
 
-from xval.compare.run import compare_engines
-from xval.errors import FailureReason, NumericalFailure
-from xval.scenefile import scene_from_dict
-from xval.reference_models import simulate_mujoco
-from xval.reference_models.timestep import (MAX_SEARCH_STEPS, STEP_MARGIN, CheckOutcome, FailedCheck,
+from loopcheck.compare.run import compare_engines
+from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.reference_models import simulate_mujoco
+from loopcheck.reference_models.timestep import (MAX_SEARCH_STEPS, STEP_MARGIN, CheckOutcome, FailedCheck,
                                             MeasuredCheck, _predicted_step)
 
 from helpers import ROOT, variant

@@ -10,15 +10,15 @@ import mujoco
 import numpy as np
 import pytest
 
-import xval.reference_models.run as mj_run
-from xval.compare.diff import compare_trajectories, gate
-from xval.errors import NumericalFailure
-from xval import kinematics as loops
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import scene_from_dict
-from xval.errors import FailureReason
-from xval.reference_models.timestep import CheckOutcome
-from xval.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
+import loopcheck.reference_models.run as mj_run
+from loopcheck.compare.diff import compare_trajectories, gate
+from loopcheck.errors import NumericalFailure
+from loopcheck import kinematics as loops
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.errors import FailureReason
+from loopcheck.reference_models.timestep import CheckOutcome
+from loopcheck.reference_models import (MAX_ITERATIONS, MujocoSettings, OffGridEdgeWarning, build_model, mjcf_text,
                               grid_timestep, handles_from_mjcf, initial_qpos_qvel, simulate_mujoco)
 
 from helpers import seed_dict, variant
@@ -278,9 +278,9 @@ def test_no_step_meeting_the_tolerance_is_a_clear_failure():
 def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
     """uᵀ M u from MuJoCo's own mass matrix and loop Jacobian (u: joint rates with the crank at
     1 rad/s), the floor of MuJoCo's energy gate, is 𝔍(q0) = Σ m |K_G|² + I K_θ² from the loop
-    kinematics (xval.kinematics): two independent routes to the same number (measured ≤ 2e-15
+    kinematics (loopcheck.kinematics): two independent routes to the same number (measured ≤ 2e-15
     relative); bound 1e-12 relative, over the revolution and on both branches."""
-    from xval.mujoco_model.record import check_initial_state
+    from loopcheck.mujoco_model.record import check_initial_state
 
     for q0 in np.linspace(0.0, 2 * np.pi, 7)[:-1]:
         data = seed_dict()
@@ -296,7 +296,7 @@ def test_mujoco_unit_rate_inertia_is_the_reduced_generalized_inertia(branch):
 
 
 def _generalized_inertia(scene) -> float:
-    """𝔍 at x0 from xval.kinematics alone (K on the centres of mass), kg·m²."""
+    """𝔍 at x0 from loopcheck.kinematics alone (K on the centres of mass), kg·m²."""
     linkage = scene.mechanism.linkage
     system = loops.compile_linkage(linkage)
     x = np.asarray(scene.x0)

@@ -1,6 +1,6 @@
-"""The compiled DOP853 driver (xval.reduced.kernels.adaptive) against scipy on real scenes.
+"""The compiled DOP853 driver (loopcheck.reduced.kernels.adaptive) against scipy on real scenes.
 
-The kernel calls the compiled physics (a ``xval.reduced.kernels.physics.Chart``, the
+The kernel calls the compiled physics (a ``loopcheck.reduced.kernels.physics.Chart``, the
 ``RightHandSide`` of Eksergian's equation in one chart of a linkage); scipy's side calls the same
 chart's ``acceleration`` and ``stop_margin`` from Python, so any difference is the integrator's. A chart is mutable (its Newton walk starts from
 the last configuration), so every run, the kernel's and scipy's, gets a FRESH chart started
@@ -31,17 +31,17 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from xval.reduced import MechanismModel  # noqa: E402
-from xval.scenefile import load_scene, scene_from_dict
-from xval.shipped_scenes import default_scene_path
-from xval.errors import NumericalFailure  # noqa: E402
-from xval.kinematics import SINGULAR_CONDITIONING  # noqa: E402
-from xval.reduced.integrators import restart, solve_adaptive  # noqa: E402
-from xval.reduced.kernels import adaptive as K  # noqa: E402
-from xval.reduced.kernels import output  # noqa: E402
-from xval.reduced.kernels import physics  # noqa: E402
-from xval.reduced.charts import _start, load_pieces  # noqa: E402
-from xval.shipped_scenes import hard_scene_dir  # noqa: E402
+from loopcheck.reduced import MechanismModel  # noqa: E402
+from loopcheck.scenefile import load_scene, scene_from_dict
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.errors import NumericalFailure  # noqa: E402
+from loopcheck.kinematics import SINGULAR_CONDITIONING  # noqa: E402
+from loopcheck.reduced.integrators import restart, solve_adaptive  # noqa: E402
+from loopcheck.reduced.kernels import adaptive as K  # noqa: E402
+from loopcheck.reduced.kernels import output  # noqa: E402
+from loopcheck.reduced.kernels import physics  # noqa: E402
+from loopcheck.reduced.charts import _start, load_pieces  # noqa: E402
+from loopcheck.shipped_scenes import hard_scene_dir  # noqa: E402
 
 from helpers import scipy_in_kernel_order, without_dyad_plans  # noqa: E402
 
@@ -117,7 +117,7 @@ def seed() -> Case:
 def seed_newton() -> Case:
     """The seed closed by Newton's method: q̈ then depends on the chart's walk in its last bits,
     so scipy's restart after the pulse must start from the f0 computed before its probe
-    (xval.reduced.integrators.restart), as the kernel does; the closed form is history-free."""
+    (loopcheck.reduced.integrators.restart), as the kernel does; the closed form is history-free."""
     return replace(seed(), newton=True)
 
 
@@ -126,7 +126,7 @@ SWING_PULSE_END = 0.25
 # The stop event fires at t = 0.5828 s; from 0.5868 s on the crank cannot close the loop (NaN).
 # A step that jumps those 4 ms puts a stage there before the event is seen (measured at rtol 1e-6
 # with steps of 0.06 s, and with 0.02 s): the engine then runs the chart again with a capped
-# step (xval.reduced.engine.CHART_RETRY_MAX_STEP); the kernel alone does not. So the case caps the
+# step (loopcheck.reduced.engine.CHART_RETRY_MAX_STEP); the kernel alone does not. So the case caps the
 # step at 5 ms, for the kernel and scipy alike.
 SWING_MAX_STEP = 0.005
 
@@ -156,7 +156,7 @@ def rhs_factory(case: Case, chart):
 
 
 def adaptive(case: Case, rtol: float, *, use_stop=False, **kw):
-    """xval.reduced.integrators.solve_adaptive (xval's scipy path) on a fresh chart."""
+    """loopcheck.reduced.integrators.solve_adaptive (loopcheck's scipy path) on a fresh chart."""
     chart = case.chart()
     stop = chart.stop_margin if use_stop else None
     return solve_adaptive(rhs_factory(case, chart), (case.edges[0], case.edges[-1]), case.q0, case.v0,
@@ -189,7 +189,7 @@ def scipy_pieces(case: Case, rtol, *, use_stop=False):
             event.terminal, event.direction = True, -1
             events = [event]
         first_step = None
-        if sols:  # a restart at a load edge (xval.reduced.kernels.adaptive.RESTART_STEPS), as solve_adaptive
+        if sols:  # a restart at a load edge (loopcheck.reduced.kernels.adaptive.RESTART_STEPS), as solve_adaptive
             first_step, fun = restart(fun, case.edges[p], y, case.edges[p + 1], case.max_step, 7, rtol, rtol,
                                       sols[-1].t)
         sol = solve_ivp(fun, (case.edges[p], case.edges[p + 1]), y, method="DOP853", rtol=rtol, atol=rtol,
@@ -263,7 +263,7 @@ def test_event_direction_rule():
 @pytest.mark.parametrize("interval", [0.05, 1e-3])  # 1e-3: steps cut finer than 4 parts
 @pytest.mark.parametrize("rtol", [1e-6, 1e-12])
 @pytest.mark.parametrize("name", ["seed", "swing-stop"])
-def test_samples_equal_xval_dense_samples(rtol, name, interval):
+def test_samples_equal_loopcheck_dense_samples(rtol, name, interval):
     """Sampling rule and dense output: the kernel's samples are solve_adaptive's (scipy) samples."""
     make, use_stop = CASES[name]
     case = make()

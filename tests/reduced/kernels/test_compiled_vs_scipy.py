@@ -18,8 +18,8 @@ import warnings
 import numpy as np
 import pytest
 
-from xval.reduced import ReducedSettings, simulate
-from xval.scenefile import load_scene
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.scenefile import load_scene
 
 from helpers import ROOT, scipy_in_kernel_order
 

@@ -27,7 +27,7 @@ import json
 import numpy as np
 import pytest
 
-from xval.scenefile import load_scene
+from loopcheck.scenefile import load_scene
 
 from core_outputs import FIXTURE, METHODS, key, outputs, shipped_scenes
 

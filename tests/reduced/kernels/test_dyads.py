@@ -1,7 +1,7 @@
-"""Closed-form dyads (xval.reduced.kernels.physics._dyads): a chart whose loops are RRR dyads (two
+"""Closed-form dyads (loopcheck.reduced.kernels.physics._dyads): a chart whose loops are RRR dyads (two
 unknown angles per loop, fixed lengths) closes them by intersecting two circles instead of
 Newton's method. Checked against Newton's method on the same linkages: configurations assembled
-by xval.kinematics (the Python path, another implementation), and whole walks of the compiled
+by loopcheck.kinematics (the Python path, another implementation), and whole walks of the compiled
 chart with the plans switched off."""
 
 from __future__ import annotations
@@ -11,17 +11,17 @@ import math
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel
-from xval.scenefile import load_scene
-from xval.reduced.kernels import physics
-from xval.kinematics import SINGULAR_CONDITIONING, assemble
-from xval.reduced.charts import HYSTERESIS, conditioning
+from loopcheck.reduced import MechanismModel
+from loopcheck.scenefile import load_scene
+from loopcheck.reduced.kernels import physics
+from loopcheck.kinematics import SINGULAR_CONDITIONING, assemble
+from loopcheck.reduced.charts import HYSTERESIS, conditioning
 
 from helpers import ROOT, without_dyad_plans
 
 MECHANISMS = ROOT / "scenes" / "mechanisms"
 WITH_PLANS = ["seed_fourbar", "andrews_squeezer", "stephenson3_sixbar", "watt2_sixbar"]
-# Round-off. The closed form against xval.kinematics' Newton: measured ≤ 1.9e-14 rad on one dyad
+# Round-off. The closed form against loopcheck.kinematics' Newton: measured ≤ 1.9e-14 rad on one dyad
 # (the four-bar, the squeezer, Stephenson III), 1.25e-13 on the Watt six-bar (two dyads, the
 # second built on the first). On the squeezer at its start, in the chart of a coordinate whose
 # conditioning is 1e-16 of the best (one the solver leaves), both satisfy the loops to 1.4e-17 m
@@ -56,7 +56,7 @@ def test_which_charts_close_in_closed_form():
 @pytest.mark.parametrize("name", WITH_PLANS)
 def test_the_closed_form_is_newtons_configuration(name):
     """From a predictor 0.05 rad off in every dependent angle, the closed form lands on the
-    configuration xval.kinematics assembles by Newton's method (Python), for every chart with a
+    configuration loopcheck.kinematics assembles by Newton's method (Python), for every chart with a
     plan that the solver would use there (conditioning within the partition's hysteresis of the
     best), at inputs over 0.6 rad."""
     m = model(name)

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from helpers import ClosedForm, run_dop853, run_rkn
-from xval.reduced import MechanismModel
-from xval.scenefile import load_scene
-from xval.shipped_scenes import default_scene_path
-from xval.reduced.kernels import physics
+from loopcheck.reduced import MechanismModel
+from loopcheck.scenefile import load_scene
+from loopcheck.shipped_scenes import default_scene_path
+from loopcheck.reduced.kernels import physics
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The compiled integrators (xval.reduced.kernels.fixed_step: RKN over a tableau; xval.reduced.kernels.adaptive:
+"""The compiled integrators (loopcheck.reduced.kernels.fixed_step: RKN over a tableau; loopcheck.reduced.kernels.adaptive:
 DOP853) on closed forms, through the RightHandSide interface alone.
 
 Every problem here is a :class:`helpers.ClosedForm` (a Python subclass of RightHandSide, called
@@ -19,9 +19,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk
 
-from xval.reduced.kernels import output
-from xval.reduced.kernels.adaptive import Steps, dop853_run
-from xval.reduced.kernels.fixed_step import RKN4, RKN4_AS_PRINTED, RKNTableau, rkn_chart
+from loopcheck.reduced.kernels import output
+from loopcheck.reduced.kernels.adaptive import Steps, dop853_run
+from loopcheck.reduced.kernels.fixed_step import RKN4, RKN4_AS_PRINTED, RKNTableau, rkn_chart
 
 from helpers import ROOT, ClosedForm, run_dop853, run_rkn, scipy_in_kernel_order
 
@@ -515,7 +515,7 @@ def test_a_reused_step_workspace_gives_the_same_run():
 SCRIPT = """
 import sys, numpy as np
 sys.path.insert(0, {tests!r})
-from xval.reduced import kernels
+from loopcheck.reduced import kernels
 from helpers import ClosedForm, run_dop853, run_rkn
 rhs = ClosedForm(lambda t, q, v, u: -q - 0.3 * v + u, values=(2.0, -1.0))
 runs = (run_rkn(rhs, [0.0, 0.3, 1.0], 0.5, 1.0, 0.01, use_stop=False),
@@ -524,14 +524,14 @@ print(kernels.compiled(), [np.concatenate([x.ravel() for x in r[1:]]).tobytes().
 """
 
 
-@pytest.mark.skipif(not __import__("xval.reduced.kernels").reduced.kernels.compiled(), reason="the kernels are not compiled")
+@pytest.mark.skipif(not __import__("loopcheck.reduced.kernels").reduced.kernels.compiled(), reason="the kernels are not compiled")
 def test_the_uncompiled_source_gives_the_compiled_numbers():
-    """XVAL_PURE_PYTHON=1 (the debugging path) runs the same source as plain Python: both
+    """LOOPCHECK_PURE_PYTHON=1 (the debugging path) runs the same source as plain Python: both
     kernels give the compiled kernels' samples to the bit (two pieces, energy flows)."""
     script = SCRIPT.format(tests=str(ROOT / "tests"))
     results = {}
     for pure in ("0", "1"):
-        env = {**os.environ, "XVAL_PURE_PYTHON": pure}
+        env = {**os.environ, "LOOPCHECK_PURE_PYTHON": pure}
         done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300,
                               cwd=ROOT)
         assert done.returncode == 0, done.stderr

@@ -1,11 +1,11 @@
 """The compiled core's modules import in one direction, and nothing of the project outside it.
 
-The integrators (:mod:`xval.reduced.kernels.fixed_step`, :mod:`xval.reduced.kernels.adaptive`) know only the
+The integrators (:mod:`loopcheck.reduced.kernels.fixed_step`, :mod:`loopcheck.reduced.kernels.adaptive`) know only the
 interface of a right-hand side and the output buffers (``problem``, ``output``; DOP853 its
 tableau): nothing of linkages. The physics knows the interface and nothing of the integrators.
 Only the chart switching (``partition``) knows both. And the core imports nothing of the project
-outside ``xval/reduced/kernels`` but the mechanism layer's compiled kinematics (``xval/kernels``:
-the physics cimports :class:`xval.kernels.loops.Loops`), which imports nothing of the project at
+outside ``loopcheck/reduced/kernels`` but the mechanism layer's compiled kinematics (``loopcheck/kernels``:
+the physics cimports :class:`loopcheck.kernels.loops.Loops`), which imports nothing of the project at
 all: both are compiled on their own, and their sources are their whole behaviour.
 Read from the sources (both the ``import`` and the ``cimport`` lines of Cython's pure-Python mode).
 """
@@ -19,9 +19,9 @@ import pytest
 
 from helpers import ROOT
 
-KERNELS = ROOT / "xval" / "reduced" / "kernels"
-MECHANISM_KERNELS = ROOT / "xval" / "kernels"
-PROJECT_PACKAGES = ("xval", "scenes", "benchmarks")
+KERNELS = ROOT / "loopcheck" / "reduced" / "kernels"
+MECHANISM_KERNELS = ROOT / "loopcheck" / "kernels"
+PROJECT_PACKAGES = ("loopcheck", "scenes", "benchmarks")
 # what each kernel module may import of the others
 ALLOWED = {
     "problem": set(),
@@ -29,7 +29,7 @@ ALLOWED = {
     "dop853_tableau": set(),
     "fixed_step": {"problem", "output"},
     "adaptive": {"problem", "output", "dop853_tableau"},
-    "physics": {"problem", "output", "xval.kernels.loops"},
+    "physics": {"problem", "output", "loopcheck.kernels.loops"},
     "partition": {"adaptive", "fixed_step", "output", "physics", "problem"},
 }
 
@@ -44,10 +44,10 @@ def _imports(path: Path) -> tuple[set[str], list[str]]:
                 module = module[len("cython.cimports."):]
             if node.level == 1:
                 siblings |= {module.split(".")[0]} if module else {a.name for a in node.names}
-            elif node.level == 0 and module.startswith("xval.kernels.") and path.parent == KERNELS:
+            elif node.level == 0 and module.startswith("loopcheck.kernels.") and path.parent == KERNELS:
                 siblings.add(module)  # the mechanism layer's compiled kinematics, by its full name
-            elif node.level == 0 and module.startswith("xval.reduced.kernels"):
-                rest = module[len("xval.reduced.kernels"):].lstrip(".")
+            elif node.level == 0 and module.startswith("loopcheck.reduced.kernels"):
+                rest = module[len("loopcheck.reduced.kernels"):].lstrip(".")
                 siblings |= {rest.split(".")[0]} if rest else {a.name for a in node.names}
             elif node.level >= 2 or (node.level == 0 and module.split(".")[0] in PROJECT_PACKAGES):
                 outside.append(f"{path.name}:{node.lineno}: from {'.' * node.level}{module} import ...")
@@ -75,6 +75,6 @@ def test_the_mechanism_layers_kernels_import_nothing_of_the_project(path):
 
 
 def test_every_mechanism_kernel_is_built():
-    """Each kernel of xval/kernels has its .pxd (setup.py compiles the modules that have one)."""
+    """Each kernel of loopcheck/kernels has its .pxd (setup.py compiles the modules that have one)."""
     assert {p.stem for p in MECHANISM_KERNELS.glob("*.pxd")} == {
         p.stem for p in MECHANISM_KERNELS.glob("*.py")} - {"__init__"}

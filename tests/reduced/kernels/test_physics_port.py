@@ -1,7 +1,7 @@
-"""The compiled physics (xval/reduced/kernels/physics.py, Cython) and its plain-Python source agree.
+"""The compiled physics (loopcheck/reduced/kernels/physics.py, Cython) and its plain-Python source agree.
 
 physics.py is compiled by the package's build and runs as plain Python under
-``XVAL_PURE_PYTHON=1`` (the debug path). Its integer layout constants live twice: C constants in
+``LOOPCHECK_PURE_PYTHON=1`` (the debug path). Its integer layout constants live twice: C constants in
 physics.pxd (a ``cpdef enum``) and, for plain Python, the ``if not cython.compiled`` block of
 physics.py; a value changed in one and not the other would index the packed arrays differently
 in the two modes. Here the source is loaded as a second, uncompiled module beside the compiled
@@ -20,10 +20,10 @@ import sys
 import numpy as np
 import pytest
 
-from xval.reduced import MechanismModel
-from xval.kinematics import SINGULAR_CONDITIONING
-from xval.scenefile import load_scene
-from xval.reduced.kernels import compiled, physics
+from loopcheck.reduced import MechanismModel
+from loopcheck.kinematics import SINGULAR_CONDITIONING
+from loopcheck.scenefile import load_scene
+from loopcheck.reduced.kernels import compiled, physics
 
 from helpers import ROOT
 
@@ -38,20 +38,20 @@ def _load_source(name: str, path):
 
 
 def loops_source():
-    """xval/kernels/loops.py loaded from its source as plain Python (a module of another name)."""
-    return _load_source("loops_source", ROOT / "xval" / "kernels" / "loops.py")
+    """loopcheck/kernels/loops.py loaded from its source as plain Python (a module of another name)."""
+    return _load_source("loops_source", ROOT / "loopcheck" / "kernels" / "loops.py")
 
 
 def source_module():
     """physics.py loaded from its source as plain Python (a module of another name), over the
-    kinematics' source (xval/kernels/loops.py, also plain Python: the compiled Loops's C methods
+    kinematics' source (loopcheck/kernels/loops.py, also plain Python: the compiled Loops's C methods
     cannot be called from Python)."""
-    compiled_loops = sys.modules["xval.kernels.loops"]
-    sys.modules["xval.kernels.loops"] = loops_source()
+    compiled_loops = sys.modules["loopcheck.kernels.loops"]
+    sys.modules["loopcheck.kernels.loops"] = loops_source()
     try:
-        return _load_source("physics_source", ROOT / "xval" / "reduced" / "kernels" / "physics.py")
+        return _load_source("physics_source", ROOT / "loopcheck" / "reduced" / "kernels" / "physics.py")
     finally:
-        sys.modules["xval.kernels.loops"] = compiled_loops
+        sys.modules["loopcheck.kernels.loops"] = compiled_loops
 
 
 @needs_compiled

@@ -6,7 +6,7 @@ the kinematics' constraints) every closure of a slider mechanism came out untrus
 run of the driven slider-crank was still going after 22 minutes. Each walk is now bounded by
 physics.MAX_WALK_CLOSURES and spending it fails the run with its reason.
 
-Here the same fault is put into the kernels run as plain Python (``XVAL_PURE_PYTHON=1``, in a
+Here the same fault is put into the kernels run as plain Python (``LOOPCHECK_PURE_PYTHON=1``, in a
 subprocess: the package reads the variable at import), with the bound lowered to 200 closures so that
 plain Python reaches it in seconds: every method must stop with a NumericalFailure that names
 the walk's bound and the setting to change; without the bound the probe was still running after
@@ -29,13 +29,13 @@ from helpers import ROOT
 PROBE = """
 import dataclasses, json, time, warnings
 warnings.simplefilter("ignore")
-from xval.reduced.kernels import compiled
+from loopcheck.reduced.kernels import compiled
 assert not compiled()
-from xval.reduced import MechanismModel, ReducedSettings, simulate
-from xval.scenefile import load_scene
-from xval.errors import NumericalFailure
-from xval.reduced.kernels import physics
-from xval.kernels import loops
+from loopcheck.reduced import MechanismModel, ReducedSettings, simulate
+from loopcheck.scenefile import load_scene
+from loopcheck.errors import NumericalFailure
+from loopcheck.reduced.kernels import physics
+from loopcheck.kernels import loops
 
 scene = dataclasses.replace(load_scene("scenes/mechanisms/slider_crank_driven_slider.toml"), horizon=0.05)
 names = MechanismModel(scene).coordinate_names
@@ -67,9 +67,9 @@ print(json.dumps(out))
 """
 
 
-@pytest.mark.slow  # ~3 s: the kernels uncompiled (XVAL_PURE_PYTHON), in a subprocess
+@pytest.mark.slow  # ~3 s: the kernels uncompiled (LOOPCHECK_PURE_PYTHON), in a subprocess
 def test_a_walk_that_cannot_settle_fails_with_its_reason():
-    env = {**os.environ, "XVAL_PURE_PYTHON": "1"}
+    env = {**os.environ, "LOOPCHECK_PURE_PYTHON": "1"}
     done = subprocess.run([sys.executable, "-c", PROBE], cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -1,0 +1,45 @@
+"""loopcheck: the dynamics of one-DOF planar linkages solved independent ways, and how far apart they are.
+
+The API (each name loads its module on first use, so ``import loopcheck`` is light):
+
+- scenes: :func:`load_scene` (a file, or a shipped scene by name), :func:`scene_from_string`,
+  :func:`scene_from_dict`, :func:`catalogue` (the shipped scenes by name), :class:`Scene`;
+- engines: :func:`simulate` (the engine is the one whose settings are given),
+  :class:`ReducedSettings` (Eksergian's equation, the exact reference), :class:`MujocoSettings`,
+  and the scene's own settings of each, :func:`reduced_settings`, :func:`mujoco_settings`;
+- comparison: :func:`compare_results` (two results of one scene; the name `compare` is the
+  subpackage), :func:`check` (both engines and the
+  gate, as ``loopcheck check``), :class:`Comparison`, :class:`Tolerances`;
+- results: :class:`EngineResult` (the input's trajectory, every joint's coordinate and rate,
+  peak, energy audit, the loops' opening, cost, the settings as run; every array of a result is
+  read-only), :class:`Trajectory`, :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
+  cannot meet its accuracy, with the reason).
+
+Subpackages: :mod:`loopcheck.reduced` (the Eksergian engine and its compiled core),
+:mod:`loopcheck.reference_models` (the same mechanism in MuJoCo), :mod:`loopcheck.compare` (comparison,
+gate, studies, plots and the command line ``loopcheck``); the shipped scenes are package data of
+:mod:`loopcheck.scenes`.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+from ._lazy import lazy_names
+
+try:
+    __version__ = version("loopcheck")
+except PackageNotFoundError:  # a checkout that was never installed
+    __version__ = "0+unknown"
+
+_HOMES = {
+    **{name: "loopcheck.api" for name in ("Comparison", "EngineResult", "MujocoSettings", "ReducedSettings", "Scene",
+                                     "SceneError", "Tolerances", "check", "compare_results", "load_scene", "mujoco_settings",
+                                     "reduced_settings", "scene_from_dict", "scene_from_string", "catalogue",
+                                     "simulate")},
+    "NumericalFailure": "loopcheck.errors",
+    "Trajectory": "loopcheck.trajectory",
+    "Peak": "loopcheck.trajectory",
+}
+
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())

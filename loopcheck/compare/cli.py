@@ -1,0 +1,817 @@
+"""The ``loopcheck`` command line.
+
+Exit status: 0 success; 1 a gate or check failed or a run failed numerically; 2 bad input
+(including an output path that cannot be written, checked before any work); 130 interrupted
+(Ctrl-C); 143 terminated (SIGTERM). Errors are one line on stderr, never a traceback; an
+interrupted or failed run leaves its output folder as it was (:mod:`loopcheck.compare.output`).
+Warnings raised while settings are resolved or engines run (a setting the method ignores, a
+load edge off MuJoCo's step grid) are printed as one line each, ``loopcheck: warning: ...``.
+
+Engine flags default to None: only the flags given override the scene's [reduced] and
+[mujoco] tables, which override each engine's own defaults.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import sys
+import warnings
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+# Only what parsing and error reporting need is imported here; each command imports its
+# engine (the reduced solver, MuJoCo, matplotlib) when it runs.
+from loopcheck.errors import NumericalFailure
+from loopcheck.registry import ENGINES
+from loopcheck.scene import SceneError
+from loopcheck.scenefile import load_scene
+from loopcheck.settings import add_flags, given_flags, parse_number, parse_whole
+from loopcheck.shipped_scenes import catalogue, default_scene_path, resolve_scene
+from loopcheck.sweep_spec import ENGINE_CHOICES
+
+from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
+                     check_file, check_folder, signals_as_exceptions, write_file)
+from .report import JOINTS_BY_DEFAULT
+from .text import mujoco_lines, pin_lines, reduced_lines
+
+if TYPE_CHECKING:
+    from loopcheck.reduced import ReducedSettings
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+MAX_REPEATS = 1000
+MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
+REFERENCE_PREFIX = "reference-"  # the comparisons' flags of the reduced reference: --reference-method, ...
+
+
+class UsageError(ValueError):
+    """Bad command-line input (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _scene(path: str | None):
+    return load_scene(resolve_scene(path) if path else default_scene_path())
+
+
+def _positive(text: str) -> float:
+    """An argparse type: a positive number (the engines' flags read theirs the same way)."""
+    return parse_number(text, positive=True)
+
+
+def _int_in(low: int, high: int):
+    """An argparse type: a whole number in [low, high]."""
+    def parse(text: str) -> int:
+        return parse_whole(text, low, high)
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+def _settings(engine: str, args: argparse.Namespace, scene, prefix: str = ""):
+    """An engine's settings: the flags given (``--PREFIXNAME``) over the scene's table over the
+    defaults."""
+    from .settings import engine_settings
+
+    return engine_settings(engine, scene, **given_flags(args, ENGINES[engine].settings, prefix=prefix))
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    """The shipped scenes, a line each: the name a command takes, and where the file lies."""
+    preferred: dict = {}
+    for name, path in catalogue().items():  # a bare file name, where it is unique, over the full name
+        if path not in preferred or "/" in preferred[path]:
+            preferred[path] = name
+    width = max(len(name) for name in preferred.values())
+    for path, name in sorted(preferred.items()):
+        print(f"{name:{width}s}  {path}")
+    return EXIT_OK
+
+
+def cmd_reduced(args: argparse.Namespace) -> int:
+    from loopcheck.reduced import simulate
+
+    scene = _scene(args.scene)
+    settings = _settings("reduced", args, scene)
+    result = simulate(scene, settings)
+    print("\n".join(reduced_lines(scene, result)))
+    return EXIT_OK
+
+
+def _mujoco_settings(args: argparse.Namespace, scene):
+    return _settings("mujoco", args, scene)
+
+
+def cmd_mujoco(args: argparse.Namespace) -> int:
+    from loopcheck.reference_models import simulate_mujoco
+
+    scene = _scene(args.scene)
+    settings = _mujoco_settings(args, scene)
+    # the automatic step is chosen for MuJoCo's gate ([tolerances.mujoco] over [tolerances])
+    result = simulate_mujoco(replace(scene, tolerances=scene.tolerances_for("mujoco")), settings)
+    print("\n".join(mujoco_lines(scene, result)))
+    return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
+
+
+def cmd_pin(args: argparse.Namespace) -> int:
+    scene = _scene(args.scene)
+    settings = _settings("pin", args, scene)
+    try:
+        from loopcheck.pin import simulate
+        result = simulate(scene, settings)
+    except ModuleNotFoundError as exc:
+        if exc.name != "pinocchio":
+            raise
+        raise UsageError(str(exc)) from None
+    print("\n".join(pin_lines(scene, result)))
+    return EXIT_OK
+
+
+def cmd_port(args: argparse.Namespace) -> int:
+    """``loopcheck mjx`` and ``loopcheck mjwarp``: one of MuJoCo's ports alone."""
+    from .text import port_lines
+
+    scene = _scene(args.scene)
+    settings = _settings(args.command, args, scene)
+    ENGINES[args.command].load()  # a missing extra: one line, exit 2
+    result = ENGINES[args.command].simulate(scene, settings)
+    print("\n".join(port_lines(scene, result)))
+    return EXIT_OK
+
+
+def cmd_export_mjcf(args: argparse.Namespace) -> int:
+    from loopcheck.reference_models import mjcf_text
+
+    check_file(args.out, flag="-o")  # before any work
+    scene = _scene(args.scene)
+    xml = mjcf_text(scene, _mujoco_settings(args, scene))
+    path = write_file(args.out, xml, flag="-o")
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _control(text: str):
+    """An argparse type: the input motor's control, a number or ``t:value,t:value,...``."""
+    from loopcheck.reference_models.mjcf_import import Control
+
+    try:
+        return Control.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def cmd_import_mjcf(args: argparse.Namespace) -> int:
+    from loopcheck.scene_writer import scene_toml
+
+    check_file(args.out, flag="-o")  # before any work
+    imported = _import(args, args.model)
+    for line in imported.warnings:
+        print(f"loopcheck: warning: {line}", file=sys.stderr)
+    scene = imported.scene
+    where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+    header = (f"Imported by `loopcheck import-mjcf` from {Path(args.model).name}, read at {where}.\n"
+              f"Loops closed there to {imported.closure_residual:.3g} m; Newton moved the configuration by "
+              f"{imported.polish:.3g} (rad or m).\n"
+              + "".join(f"Warning: {line}\n" for line in imported.warnings))
+    path = write_file(args.out, scene_toml(scene, header), flag="-o")
+    print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
+          f"({len(scene.mechanism.linkage.cut_joints)} closing loops), input '{scene.mechanism.linkage.input_joint}' "
+          f"at q0 = {scene.q0:.12g} {scene.input_unit}; loops closed to {imported.closure_residual:.3g} m at {where}")
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+def cmd_draw(args: argparse.Namespace) -> int:
+    from .draw import drawing_format, write_drawing
+
+    target = check_file(args.out, flag="--out")  # before any work
+    drawing_format(args.out)  # .png, .pdf or .svg, before any work too
+    scene = _scene(args.scene)
+    path = write_drawing(scene, target)
+    print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
+    add_flags(p, ENGINES["mujoco"].settings, title="MuJoCo settings", table="mujoco")
+
+
+def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
+    """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
+    return _settings("reduced", args, scene, prefix=REFERENCE_PREFIX)
+
+
+def _tolerances(scene, args: argparse.Namespace, engine: str = "mujoco"):
+    """The tolerances ``engine`` is judged by: the flags given over the scene's for it."""
+    from .settings import gate_tolerances
+
+    return gate_tolerances(scene, engine, peak_omega_rtol=args.peak_rtol, q_atol=args.q_atol,
+                           omega_atol=args.omega_atol, omega_vs_q_atol=args.omega_vs_q_atol)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .report import joint_columns, report_files, resolve_animation, write_outputs
+    from .text import comparison_lines
+
+    animate = resolve_animation(args.animate)  # warns and skips when no GIF writer exists
+    if args.engines is not None:
+        if args.scene is not None and _is_mjcf(args.scene):
+            raise UsageError("--engines runs scenes: a MuJoCo model (.xml) is run as written against the reduced "
+                             "solution alone")
+        return _run_engines(args, animate)
+    check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
+    from .run import compare_engines
+
+    if args.scene is not None and _is_mjcf(args.scene):  # the user's model as written (docs/import.md)
+        from .model_check import check_model, diagnosis_lines
+
+        imported = _import(args, args.scene)
+        for line in imported.warnings:
+            print(f"loopcheck: warning: {args.scene}: {line}", file=sys.stderr)
+        scene = imported.scene
+        joints = joint_columns(scene, args.joints)
+        check = check_model(imported, tolerances=_tolerances(scene, args), reduced=_reduced_reference(args, scene))
+        if check.as_written.comparison is None:
+            raise check.as_written.failure
+        comparison = check.as_written.comparison
+        print("\n".join(comparison_lines(comparison)))
+        print("\n".join(line.strip() for line in diagnosis_lines(check)))
+    else:
+        scene = _scene(args.scene)
+        joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+        comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
+                                     mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
+        print("\n".join(comparison_lines(comparison)))
+    write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
+                  committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
+    return EXIT_OK if comparison.gate.passed else EXIT_FAILED
+
+
+def _run_engines(args: argparse.Namespace, animate: bool) -> int:
+    """``loopcheck run --engines``: every engine of the list against the reduced reference (as ``loopcheck check
+    --engines``), the report folder of the reference against MuJoCo (else the list's first other
+    engine) as ``loopcheck run`` writes it, with every engine's verdict in report.json and engines.png."""
+    from .engines import compared_engine, engines_lines
+    from .report import joint_columns, report_files, write_outputs
+    from .text import comparison_lines, engine_label
+
+    other = compared_engine(args.engines)
+    check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE))  # before any work
+    scene = _scene(args.scene)
+    joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
+    check = _engines_check(args, scene)
+    compared = next(v for v in check.verdicts if v.engine == other)
+    if compared.comparison is not None:
+        print("\n".join(comparison_lines(compared.comparison)))
+    print("\n".join(engines_lines(check)))
+    if compared.comparison is None:
+        print(f"{engine_label(other)} did not run: no report written to {args.out}/")
+        return EXIT_FAILED
+    write_outputs(compared.comparison, args.out, animate=animate, joints=joints, engines=check,
+                  committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
+    return EXIT_OK if check.passed else EXIT_FAILED
+
+
+def _is_mjcf(path: str) -> bool:
+    """A MuJoCo model (checked as written, ``loopcheck check model.xml``) rather than a scene."""
+    return path.lower().endswith(".xml")
+
+
+def _import(args: argparse.Namespace, path: str):
+    from loopcheck.reference_models.mjcf_import import import_mjcf
+
+    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, horizon=args.horizon)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from .run import compare_engines
+    from .text import check_lines
+
+    models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
+    scenes = [load_scene(resolve_scene(path)) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
+    if args.engines is not None:
+        if models:
+            raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
+                             "reduced solution alone")
+        return _check_engines(args, scenes)
+    failed = 0
+    for path, imported in models.items():
+        from .model_check import check_lines as model_lines, check_model
+
+        for line in imported.warnings:
+            print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+        try:
+            check = check_model(imported, tolerances=_tolerances(imported.scene, args),
+                                reduced=_reduced_reference(args, imported.scene))
+        except NumericalFailure as exc:  # the reduced reference's (the model's own runs record theirs)
+            failed += 1
+            print(f"FAIL  {path}: numerical failure of the reduced reference ({exc.reason}): {exc}")
+            continue
+        failed += not check.passed
+        print("\n".join(model_lines(check, path)))
+    for scene in scenes:
+        tolerances = _tolerances(scene, args)
+        try:
+            c = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
+                                tolerances=tolerances)
+        except NumericalFailure as exc:
+            failed += 1
+            print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")
+            continue
+        failed += not c.gate.passed
+        print("\n".join(check_lines(c)))
+    total = len(scenes) + len(models)
+    print(f"{total - failed} passed, {failed} failed")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _engines(text: str) -> tuple[str, ...]:
+    """An argparse type: ``--engines``' list of engine names."""
+    from .engines import parse_engines
+
+    try:
+        return parse_engines(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _engines_check(args: argparse.Namespace, scene):
+    """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
+    reference at its own tolerances (the flags given over the scene's for it)."""
+    from loopcheck.registry import REFERENCE
+
+    from .engines import check_engines
+    from .settings import engine_settings
+
+    # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
+    # --rtol, are not read as its): the others run with their scene table over their defaults
+    settings = {name: (_reduced_reference(args, scene) if name == REFERENCE else
+                       _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
+                for name in args.engines}
+    tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
+    return check_engines(scene, args.engines, settings, tolerances)
+
+
+def _check_engines(args: argparse.Namespace, scenes: list) -> int:
+    """``loopcheck check --engines``: each engine against the reduced reference, the outlier named."""
+    from .engines import engines_lines
+
+    for name in args.engines:  # a missing extra is said in one line before any work
+        ENGINES[name].load()
+    failed = 0
+    for scene in scenes:
+        check = _engines_check(args, scene)
+        failed += not check.passed
+        print("\n".join(engines_lines(check)))
+    print(f"{len(scenes) - failed} passed, {failed} failed")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _add_model_arguments(p: argparse.ArgumentParser) -> None:
+    """How a MuJoCo model (MJCF) is read as a scene: ``import-mjcf``'s flags."""
+    g = p.add_argument_group("reading a MuJoCo model (MJCF, a file ending in .xml; docs/import.md)")
+    g.add_argument("--input", default=None, metavar="JOINT",
+                   help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
+                        "first joint)")
+    g.add_argument("--keyframe", default=None, metavar="NAME",
+                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
+                        "control)")
+    g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
+                   help="the motor's control over time, in its ctrl units: a number, or a table "
+                        "t:value,t:value,... (s; each value held from its time on, zero before the first); "
+                        "default the keyframe's ctrl")
+    g.add_argument("--horizon", type=_positive, default=1.0, help="the simulated time (s; default 1)")
+
+
+def cmd_cost(args: argparse.Namespace) -> int:
+    from .cost import COST_FILES, study, summary_lines, write_cost_outputs
+
+    check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
+    scene = _scene(args.scene)
+    report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
+                                         workers=args.workers)
+    print("\n".join(summary_lines(report, measurements)))
+    write_cost_outputs(report, measurements, args.out, target,
+                       committed=lambda paths: print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True))
+    return EXIT_OK
+
+
+def cmd_stress(args: argparse.Namespace) -> int:
+    from .stress import CATALOGUE, STRESS_FILES, run_catalogue, table_lines, write_stress
+
+    cases = CATALOGUE if not args.case else [c for c in CATALOGUE if c.name in args.case]
+    unknown = set(args.case or ()) - {c.name for c in CATALOGUE}
+    if unknown:
+        raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
+    check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
+    results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
+                                                           file=sys.stderr, flush=True))
+    for line in table_lines(results):
+        print(line)
+    write_stress(results, args.out, committed=lambda paths: print(f"wrote {paths[0]}", flush=True))
+    return EXIT_OK if all(r.passed for r in results) else EXIT_FAILED
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .sweep import run_sweep, sweep_files
+    from .sweep_summary import summary_lines
+    from loopcheck.sweep_spec import spec_from_args
+
+    from .sweep_scene import check, load_sweep
+
+    if args.scheduler is not None:
+        from .sweep_dask import require_dask
+
+        if args.workers is not None:
+            raise UsageError("--workers and --scheduler: the Dask cluster's workers run the sweep; give one of them")
+        require_dask()  # before any work: one line naming the extra to install
+    path = str(resolve_scene(args.scene)) if args.scene else str(default_scene_path())
+    data, table_spec = load_sweep(path)
+    if args.vary:
+        spec = spec_from_args(args.vary, args.samples, args.seed)
+    elif table_spec is None:
+        raise UsageError(f"{path}: nothing to sweep: give --vary KEY=SPEC or a [sweep] table in the scene file")
+    elif args.samples is not None or args.seed is not None:
+        raise UsageError("--samples and --seed go with --vary (the scene's [sweep] table has its own)")
+    else:
+        spec = table_spec
+    if args.engines is not None:  # the flag overrides the table's engines only when given
+        spec = replace(spec, engines=args.engines)
+    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
+    if args.resume:
+        from .sweep_journal import journaled_rows
+
+        if args.keep_trajectories:
+            raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
+        journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
+    client = None
+    if args.scheduler is not None:
+        from .sweep_dask import connect
+
+        client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
+    try:
+        found = None
+        if args.sensitivity:
+            from .sensitivity import sensitivities, sensitivity_lines
+
+            items = sensitivities(data, spec, path)
+            print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
+            found = [s.as_dict() for s in items]
+        def said(summary, paths) -> None:  # with the files in place, before a held signal comes
+            print("\n".join(summary_lines(summary)))
+            print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True)
+
+        summary, _ = run_sweep(data, spec, path, args.out, workers=args.workers,
+                               keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
+                               resume=args.resume, committed=said)
+    finally:
+        if client is not None:
+            client.close()
+    return EXIT_FAILED if summary.failed_any else EXIT_OK
+
+
+def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
+    add_flags(p, ENGINES["reduced"].settings, title="reduced reference", prefix=REFERENCE_PREFIX, table="reduced")
+
+
+def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("gate tolerances (given, each overrides the scene's [tolerances] and "
+                             "[tolerances.ENGINE] value for every engine judged)")
+    g.add_argument("--peak-rtol", type=_positive, default=None, help="relative difference of the peak input speed")
+    g.add_argument("--q-atol", type=_positive, default=None, help="max |dq| in rad (m for a prismatic input)")
+    g.add_argument("--omega-atol", type=_positive, default=None, help="max |dqdot| in rad/s (m/s for a prismatic input)")
+    g.add_argument("--omega-vs-q-atol", type=_positive, default=None,
+                   help="max |dqdot| at equal input position, rad/s or m/s (phase-free)")
+
+
+def _add_engines_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--engines LIST`` of ``run`` and ``check``: ``what`` they do with it."""
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help=f"engines to {what} (any of {', '.join(ENGINES)}; default reduced,mujoco); with three or "
+                        "more, the one farthest from the others is named when they disagree. Each is judged by the "
+                        "scene's [tolerances.ENGINE] over its [tolerances]; engines beside reduced and mujoco run "
+                        "with their scene table's settings")
+
+
+def _add_comparison_arguments(p: argparse.ArgumentParser) -> None:
+    _add_reference_arguments(p)
+    _add_mujoco_arguments(p)
+    _add_tolerance_arguments(p)
+
+
+def _add_out_folder(p: argparse.ArgumentParser, default: str) -> None:
+    """-o/--out of a command that writes a folder of files; ``default`` is the folder's name in
+    ``loopcheck-out/`` when none is given, with ``{scene}`` the scene's name (:func:`_out_folder`)."""
+    shown = f"{DEFAULT_ROOT}/{default.format(scene='SCENE')}"
+    p.add_argument("-o", "--out", default=None,
+                   help=f"output folder, created if absent in an existing folder (default {shown}, SCENE the "
+                        "scene's file name without .toml: a folder holds one run)")
+    p.set_defaults(out_default=default)
+
+
+def _out_folder(args: argparse.Namespace, scene: str | None = None) -> str:
+    """The output folder: ``--out`` if given, else ``loopcheck-out/`` and the command's default name
+    for the scene argument ``scene`` (a file's or catalogue name's stem; the seed without one)."""
+    if args.out is not None:
+        return args.out
+    stem = Path(str(resolve_scene(scene) if scene else default_scene_path())).stem
+    return str(DEFAULT_ROOT / args.out_default.format(scene=stem))
+
+
+def _add_scene_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", nargs="?", default=None,
+                   help="scene TOML file, or the name of a shipped scene when no such file exists (`loopcheck scenes` "
+                        "lists them; default: seed_fourbar, the seed example)")
+
+
+def _version() -> str:
+    import loopcheck
+
+    return loopcheck.__version__
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="loopcheck",
+        description="Solve a one-DOF mechanism two ways (Eksergian's equation and MuJoCo) and "
+                    "say how far apart they are.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("-q", "--quiet", action="store_true",
+                      help="no progress lines on stderr (warnings and errors still), e.g. `loopcheck -q check ...`")
+    talk.add_argument("-v", "--verbose", action="store_true",
+                      help="more progress lines: each engine run's method, steps and time")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("scenes", help="list the shipped scenes, by the names every command accepts",
+                       description="List the shipped scenes (the seed, the mechanism catalogue, the hard cases): "
+                                   "the name any command takes in place of a scene file, and the file.")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("reduced", help="solve the scene's Eksergian equation",
+                       description="Solve the scene's Eksergian equation; print the peak speed of the "
+                                   "input joint (rad/s or m/s), its time and the energy residual.")
+    _add_scene_argument(p)
+    add_flags(p, ENGINES["reduced"].settings, title="reduced solver settings", table="reduced")
+    p.set_defaults(func=cmd_reduced)
+
+    p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
+                       description="Run the scene's MuJoCo model (open chain closed by an equality "
+                                   "constraints); print the peak speed of the input joint, its "
+                                   "time, the largest loop-constraint violation and the energy residual.")
+    _add_scene_argument(p)
+    _add_mujoco_arguments(p)
+    p.set_defaults(func=cmd_mujoco)
+
+    p = sub.add_parser("pin", help="run the scene's Pinocchio model (the extra loopcheck[pin])",
+                       description="Run the scene's Pinocchio model (its tree's constrained dynamics, each loop "
+                                   "closed by a point constraint, integrated by scipy); print the peak speed of the "
+                                   "input joint, its time, the largest loop gap and the energy residual.")
+    _add_scene_argument(p)
+    add_flags(p, ENGINES["pin"].settings, title="Pinocchio engine settings", table="pin")
+    p.set_defaults(func=cmd_pin)
+
+    for name, port, extra in (("mjx", "MJX, MuJoCo's JAX port", "loopcheck[mjx]"),
+                              ("mjwarp", "MJWarp, MuJoCo's Warp port (float32)", "loopcheck[mjwarp]")):
+        p = sub.add_parser(name, help=f"run the scene's MuJoCo model with {port.split(',')[0]} (the extra {extra})",
+                           description=f"Step the MuJoCo engine's model of the scene with {port} (docs/engines.md "
+                                       "says how to install it); print the peak speed of the input joint, the "
+                                       "largest loop gap and the energy residual (MuJoCo C's, at the port's "
+                                       "states), and the port's known defects.")
+        _add_scene_argument(p)
+        add_flags(p, ENGINES[name].settings, title=f"{port.split(',')[0]} engine settings", table=name)
+        p.set_defaults(func=cmd_port)
+
+    p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
+                       description="Write the scene's MuJoCo model as a human-readable MJCF file "
+                                   "that MuJoCo loads on its own.")
+    _add_scene_argument(p)
+    p.add_argument("-o", "--out", required=True, help="MJCF file to write")
+    _add_mujoco_arguments(p)
+    p.set_defaults(func=cmd_export_mjcf)
+
+    p = sub.add_parser("import-mjcf", help="read a MuJoCo model (MJCF) as a scene file",
+                       description="Read the planar one-DOF linkage of a MuJoCo model (hinges, slides, connect "
+                                   "equalities, tendons, joint springs and dampers, one motor, gravity) at a "
+                                   "keyframe or qpos0 and write it as a scene file (docs/import.md). What the "
+                                   "description cannot hold is refused with one line naming the element.")
+    p.add_argument("model", help="MJCF file")
+    p.add_argument("-o", "--out", required=True, help="scene TOML file to write")
+    _add_model_arguments(p)
+    p.set_defaults(func=cmd_import_mjcf)
+
+    p = sub.add_parser("draw", help="draw the scene's linkage at q0 (PNG, PDF or SVG)",
+                       description="Draw the scene's linkage assembled at q0 in its assembly mode: "
+                                   "bodies, revolute and prismatic joints, ground pivots, dampers, "
+                                   "springs, point forces and centres of mass, labelled, lengths in m. "
+                                   "Check a scene's geometry before running it.")
+    _add_scene_argument(p)
+    p.add_argument("-o", "--out", default="linkage.png",
+                   help="file to write, in the format its suffix names: .png, .pdf or .svg (default ./linkage.png)")
+    p.set_defaults(func=cmd_draw)
+
+    p = sub.add_parser("run", help="run both engines, compare, write report and plots",
+                       description="Run the scene through the reduced solver and MuJoCo, print a "
+                                   "table of both results and their differences, and write "
+                                   "report.json, reduced.csv, mujoco.csv and PNG plots (with a strip of "
+                                   "the mechanism at the peak speed and at the largest disagreement, "
+                                   "both engines overlaid) into --out.")
+    _add_scene_argument(p)
+    _add_out_folder(p, "{scene}")
+    p.add_argument("--animate", action="store_true",
+                   help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
+    p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
+                   help="the joints whose coordinate and rate the CSVs and report.json carry, with the input's "
+                        f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
+                        "alone)")
+    _add_comparison_arguments(p)
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin: each "
+                             "one's verdict is printed and written to report.json, their |dqdot| to engines.png, and "
+                             "the files of a plain run describe the reference against MuJoCo (else the list's first "
+                             "other engine)")
+    _add_model_arguments(p)
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("check", help="CI gate: exit 1 if the engines disagree beyond tolerance",
+                       description="Run both engines on each scene and compare the differences "
+                                   "against the scene's [tolerances] (flags override). A MuJoCo model "
+                                   "(model.xml) is run as written against the exact solution of its "
+                                   "linkage; the check says which of its settings causes the difference "
+                                   "and the cheapest options that meet the tolerances. Exit 0 when "
+                                   "every scene passes, 1 when any fails, 2 on bad input.")
+    p.add_argument("scenes", nargs="+", metavar="SCENE",
+                   help="scene TOML files (or names of shipped scenes, as `loopcheck scenes` lists them), or MuJoCo "
+                        "models (.xml)")
+    _add_comparison_arguments(p)
+    _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin")
+    _add_model_arguments(p)
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",
+                       description="Sweep both engines over steps, tolerances, MuJoCo integrators and "
+                                   "constraint softness; measure errors against the reduced truth "
+                                   "(DOP853 rtol 1e-12) and the median wall time of the simulation; "
+                                   "write cost.png (work-precision diagram), cost.csv and cost.json; "
+                                   "recommend the cheapest configuration of each engine for the target.")
+    _add_scene_argument(p)
+    _add_out_folder(p, "{scene}-cost")
+    p.add_argument("--quick", action="store_true", help="a small ladder that runs in a few seconds")
+    p.add_argument("--target", type=_positive, default=None,
+                   help="target relative peak-omega error (default: the scene's peak_omega_rtol)")
+    p.add_argument("--repeats", type=_int_in(1, MAX_REPEATS), default=None,
+                   help="timed runs per configuration (default 3)")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores)")
+    p.set_defaults(func=cmd_cost)
+
+    p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
+                       description="Run every hard case (dead centres, near change point, stiff damper, "
+                                   "long conservative run, fast crank, off-grid pulse edge, gravity) "
+                                   "through both engines; print a table of each engine's status, "
+                                   "differences, constraint violation, energy drift and wall time; "
+                                   "write stress.json. Exit 1 if any case does not behave as expected.")
+    _add_out_folder(p, "stress")
+    p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    p.set_defaults(func=cmd_stress)
+
+    p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
+                       description="Run variants of the scene (numbers of the scene file varied over a grid "
+                                   "or a Monte Carlo sample) through both engines and the gate, as loopcheck run "
+                                   "does (the scene's own settings and tolerances), in parallel; write "
+                                   "sweep.csv and sweep.json (one row per variant: its status, the varied values, "
+                                   "report.json's diff and gate figures, both engines' peaks and times), plots, "
+                                   "and print a summary. With --engines reduced, only the reduced solver runs "
+                                   "(its own error and energy checks, no MuJoCo, no gate). Variants that cannot be "
+                                   "assembled (invalid) or whose engines fail numerically (failed) are counted "
+                                   "rows. Exit 1 if any variant fails the gate or numerically or none is valid, 2 on bad input "
+                                   "(checked before any run).")
+    _add_scene_argument(p)
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC",
+                   help="a dotted key of the scene file (bodies.coupler.mass, dampers.0.coefficient, "
+                        "linkage.c2, mujoco.timestep, tolerances.peak_omega_rtol...) and its values: lo:hi:n, "
+                        "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
+                        "sample. Without --vary: the scene file's [sweep] table; when both are given, "
+                        "--vary wins and the table is ignored")
+    p.add_argument("--engines", choices=ENGINE_CHOICES, default=None,
+                   help="what runs on each variant: both (the reduced solver and MuJoCo, compared and gated) or "
+                        "reduced (the reduced solver alone with the settings the comparison gives it; sweep.csv "
+                        "has no diff, gate or mujoco columns, no gate map or worst-differences plot). Default: the "
+                        "[sweep] table's engines when the table is used, else both")
+    p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
+                   help="number of Monte Carlo variants (distributions only)")
+    p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
+                   help="seed of the Monte Carlo sample (default 0)")
+    _add_out_folder(p, "{scene}-sweep")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
+                   help="processes, at most one per core (default: all cores); not with --scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run the variants on the Dask cluster of this scheduler (tcp://host:8786) instead of "
+                        "local processes: the same chunks of variants are its tasks and the rows are the same, "
+                        "in the same order. Needs the distributed extra (pip install -e '.[distributed]' in loopcheck's checkout); "
+                        "refused with --workers (the cluster's workers run the sweep); an address not "
+                        "reached within 10 s is an error (exit 2)")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="also write trajectories.csv, every variant's input trajectory from both engines "
+                        "(for small sweeps)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted sweep: the rows it finished, kept in the journal beside --out "
+                        "(OUT.sweep-journal.csv, removed when a sweep completes), are not run again; the scene "
+                        "file, keys, values and engines must be the same. Not with --keep-trajectories")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
+                        "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
+    p.set_defaults(func=cmd_sweep)
+
+    return parser
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"loopcheck: warning: {_one_line(message)}", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def _progress_shown(level: int = logging.INFO):
+    """The engines' progress lines (the ``loopcheck`` loggers: MuJoCo's timestep search at INFO, each
+    engine run's cost at DEBUG) on stderr as ``loopcheck: ...`` while a command runs, from ``level`` up
+    (``--quiet``: warnings only; ``--verbose``: DEBUG)."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("loopcheck: %(message)s"))
+    logger = logging.getLogger("loopcheck")
+    logger.addHandler(handler)
+    previous, logger.level = logger.level, level
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one ``loopcheck`` command; return its exit status (see the module docstring)."""
+    received: list[int] = []
+    try:
+        with signals_as_exceptions() as received, warnings.catch_warnings():
+            warnings.simplefilter("default")  # each distinct warning once
+            warnings.showwarning = _show_warning
+            argv = sys.argv[1:] if argv is None else argv
+            if not argv:  # `loopcheck` alone: what it can do
+                build_parser().print_help()
+                return EXIT_OK
+            try:
+                args = build_parser().parse_args(argv)
+            except SystemExit as exc:  # --help, or a usage error already printed
+                return exc.code if isinstance(exc.code, int) else EXIT_OK
+            level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
+            if hasattr(args, "out_default"):
+                args.out = _out_folder(args, getattr(args, "scene", None))
+            with _progress_shown(level):
+                return args.func(args)
+    except BaseException as exc:  # noqa: BLE001 - each kind has its status; others go on
+        return _failure(exc, received)
+
+
+def _failure(exc: BaseException, received: list[int]) -> int:
+    """Print the one line of what ended the command and return its exit status; raise what is
+    not an expected failure (a bug: its traceback). A signal received decides, whatever became
+    of its exception (a module interrupted while loading raises ImportError)."""
+    import signal
+
+    if isinstance(exc, KeyboardInterrupt) or (received and received[0] == signal.SIGINT):
+        print("loopcheck: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if isinstance(exc, Terminated) or received:
+        print("loopcheck: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    if isinstance(exc, NumericalFailure):
+        print(f"loopcheck: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
+        return EXIT_FAILED
+    if isinstance(exc, (SceneError, UsageError, OutputError, ValueError, ImportError)):
+        # ImportError: an engine's library missing or of the wrong version, said in one line
+        print(f"loopcheck: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if isinstance(exc, BrokenPipeError):  # output piped into e.g. `head`
+        sys.stderr.close()
+        return EXIT_OK
+    if isinstance(exc, OSError):  # e.g. the disk filled up while writing: the outputs are as they were
+        where = f"'{exc.filename}': " if exc.filename else ""
+        print(f"loopcheck: error: {where}{exc.strerror or _one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    raise exc
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,148 @@
+"""`loopcheck check --engines reduced,mujoco,pin`: every engine against the reduced solution, and,
+when they disagree, the engine farthest from the others.
+
+Each engine other than the reduced one runs with its scene table's settings (or, for MuJoCo, the
+command line's flags) and is judged against the reduced reference by the same gate as
+``loopcheck check`` (:func:`loopcheck.compare.run.judge`), at its own tolerances: the scene's
+``[tolerances.ENGINE]`` over its ``[tolerances]`` (:meth:`loopcheck.scene.Scene.tolerances_for`). With three engines or more the peaks say which
+one is the outlier: the engine whose peak input speed is farthest from the median of the other
+engines' peaks. An engine that fails to run is the outlier by definition and is reported with its
+failure.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from statistics import median
+from typing import Any, Mapping
+
+from loopcheck.errors import NumericalFailure
+from loopcheck.registry import ENGINES, REFERENCE
+from loopcheck.results import EngineResult
+from loopcheck.scene import Scene, Tolerances
+
+from .run import Comparison, judge
+
+
+@dataclass(frozen=True)
+class EngineVerdict:
+    """One engine against the reduced reference: its comparison, or why it did not run."""
+
+    engine: str
+    tolerances: Tolerances  # what it is judged by (had it run)
+    comparison: Comparison | None
+    failure: str | None = None
+
+    @property
+    def passed(self) -> bool:
+        return self.comparison is not None and self.comparison.gate.passed
+
+
+@dataclass(frozen=True)
+class EnginesCheck:
+    """Every engine of a scene against the reduced reference, and the outlier when they disagree."""
+
+    scene: Scene
+    reference: EngineResult
+    verdicts: tuple[EngineVerdict, ...]
+    outlier: str | None  # None while every engine passes, or with fewer than three engines
+    spread: dict[tuple[str, str], float]  # |Δ peak| / |reference peak| of each pair that ran
+
+    @property
+    def passed(self) -> bool:
+        return all(v.passed for v in self.verdicts)
+
+
+def parse_engines(text: str) -> tuple[str, ...]:
+    """``reduced,mujoco,pin`` (``--engines``) into engine names: known, no repeats, the reduced one
+    included (the reference). ValueError saying which otherwise."""
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [n for n in names if n not in ENGINES]
+    if unknown:
+        raise ValueError(f"unknown engine '{unknown[0]}' (engines: {', '.join(ENGINES)})")
+    if len(set(names)) != len(names):
+        raise ValueError(f"an engine is named twice in '{text}'")
+    if REFERENCE not in names:
+        raise ValueError(f"the list must include '{REFERENCE}', the reference every engine is judged against")
+    if len(names) < 2:
+        raise ValueError("name the reduced reference and at least one other engine")
+    return names
+
+
+def compared_engine(engines: tuple[str, ...]) -> str:
+    """The engine whose comparison with the reference ``loopcheck run --engines`` writes as today's report
+    files (CSV, plots, report.json's engine section): MuJoCo when listed, else the first other engine."""
+    return "mujoco" if "mujoco" in engines else next(name for name in engines if name != REFERENCE)
+
+
+def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any],
+                  tolerances: Mapping[str, Tolerances] | None = None) -> EnginesCheck:
+    """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included) on
+    ``scene`` and judge each against the reduced reference by its tolerances: ``tolerances[name]``,
+    by default the scene's for that engine (:meth:`loopcheck.scene.Scene.tolerances_for`).
+
+    Raises
+    ------
+    NumericalFailure
+        If the reduced reference fails (another engine's failure is its verdict).
+    """
+    reference = ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
+    verdicts = []
+    for name in engines:
+        if name == REFERENCE:
+            continue
+        own = tolerances[name] if tolerances is not None else scene.tolerances_for(name)
+        judged = replace(scene, tolerances=own)  # MuJoCo's automatic step is chosen for the tolerances it is judged by
+        try:
+            result = ENGINES[name].simulate(judged, settings[name])
+        except NumericalFailure as exc:
+            verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}"))
+            continue
+        except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
+            verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}"))
+            continue
+        verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own)))
+    peaks = {REFERENCE: reference.peak.omega}
+    peaks.update({v.engine: v.comparison.diff.peak_omega_other for v in verdicts if v.comparison is not None})
+    scale = max(abs(reference.peak.omega), 1e-300)
+    spread = {(a, b): abs(peaks[a] - peaks[b]) / scale for i, a in enumerate(peaks) for b in list(peaks)[i + 1:]}
+    outlier = None
+    if len(engines) >= 3 and not all(v.passed for v in verdicts):
+        failed = [v.engine for v in verdicts if v.comparison is None]
+        if failed:
+            outlier = failed[0]
+        else:
+            outlier = farthest_from_the_others(peaks)
+    return EnginesCheck(scene, reference, tuple(verdicts), outlier, spread)
+
+
+def farthest_from_the_others(peaks: dict[str, float]) -> str:
+    """The engine whose peak is farthest from the median of the other engines' peaks (the
+    issue's rule; with three engines, the one farthest from the mean of the other two)."""
+    def distance(name: str) -> float:
+        return abs(peaks[name] - median(p for other, p in peaks.items() if other != name))
+    return max(peaks, key=distance)
+
+
+def engines_lines(check: EnginesCheck) -> list[str]:
+    """``loopcheck check --engines``' lines for one scene."""
+    scene, unit = check.scene, check.scene.input_unit
+    status = "ok  " if check.passed else "FAIL"
+    lines = [f"{status}  {scene.source}: reduced peak {check.reference.peak.omega:.10g} {unit}/s"]
+    for v in check.verdicts:
+        if v.comparison is None:
+            lines.append(f"      {v.engine:8s} {v.failure}")
+            continue
+        d, t = v.comparison.diff, v.comparison.gate.tolerances
+        lines.append(f"      {v.engine:8s} {'ok  ' if v.passed else 'FAIL'}  peak {d.peak_omega_other:.10g} "
+                     f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {unit} "
+                     f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})")
+        lines += [f"               {failure}" for failure in v.comparison.gate.failures]
+        lines += [f"               known defect: {caveat}" for caveat in v.comparison.mujoco.caveats]
+    if check.outlier is not None:
+        pairs = ", ".join(f"{a}–{b} {d:.2e}" for (a, b), d in check.spread.items())
+        lines.append(f"      farthest from the others: {check.outlier} (peaks apart, relative: {pairs})")
+    return lines
+
+
+__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "compared_engine", "engines_lines", "parse_engines"]

@@ -1,0 +1,231 @@
+"""`loopcheck check model.xml`: a user's MuJoCo model, as written, against the exact answer.
+
+The model is read as a scene (:func:`loopcheck.reference_models.mjcf_import.import_mjcf`), the
+reduced engine solves that scene (the reference), and MuJoCo runs the model with its own
+options (:func:`loopcheck.reference_models.user_model.run_model`). Then each of the model's own
+settings that can cause a difference is changed alone:
+
+- the loops' softness: the same step, the loops as stiff as MuJoCo allows at it (solref
+  (2·timestep, 1), solimp (0.9999, 0.9999, 0.001, 0.5, 2));
+- the timestep: a tenth of it, the loops as written.
+
+The one that removes more of the difference is named as its cause. Last, the cheapest options
+that meet the tolerances: stiff loops at the model's step, then at halved steps until one passes
+(or at doubled steps while they pass, when the model's own step does), with the model's integrator
+and with RK4; cheapest is fewest evaluations of the dynamics (RK4 makes four a step).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from loopcheck.errors import NumericalFailure
+from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.results import EngineResult
+from loopcheck.scene import Tolerances
+from loopcheck.reference_models.mjcf_import import ImportedModel
+from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, run_model
+
+from .run import Comparison, judge
+
+MAX_HALVINGS = 8  # the cheapest-options search tries steps down to timestep / 2⁸
+SEARCH_STEPS = 1_000_000  # MuJoCo steps all the search's runs may take together (about 2 min at 150 µs a step)
+MAX_DOUBLINGS = 4  # and, when the model's own step passes with stiff loops, up to timestep × 2⁴
+STEP_FACTOR = 10  # the timestep variant runs at timestep / 10
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One run of the model with ``options``: its comparison with the reference, or why it failed."""
+
+    label: str
+    options: ModelOptions
+    comparison: Comparison | None
+    failure: NumericalFailure | None = None
+
+    @property
+    def passed(self) -> bool:
+        return self.comparison is not None and self.comparison.gate.passed
+
+    @property
+    def excess(self) -> float:
+        """The worst of |Δ peak|, max |Δq| and max |Δq̇| over its tolerance (≤ 1 passes those three;
+        inf for a failed run)."""
+        if self.comparison is None:
+            return math.inf
+        d, t = self.comparison.diff, self.comparison.gate.tolerances
+        return max(d.peak_omega_abs / t.peak_bound(abs(d.peak_omega_reference)), d.q_max_abs / t.q_atol,
+                   d.omega_max_abs / t.omega_atol)
+
+    @property
+    def evaluations(self) -> int:
+        return self.comparison.mujoco.n_evaluations if self.comparison is not None else 0
+
+
+@dataclass(frozen=True)
+class ModelCheck:
+    """The model as written, each setting changed alone, the cause, and the cheapest options found."""
+
+    imported: ImportedModel
+    reference: EngineResult
+    as_written: Trial
+    stiff_loops: Trial
+    smaller_step: Trial
+    cheapest: Trial | None
+    tried: tuple[Trial, ...]
+
+    @property
+    def passed(self) -> bool:
+        return self.as_written.passed
+
+    @property
+    def cause(self) -> str:
+        """Which of the model's settings the difference comes from: the one whose change alone
+        meets the tolerances; when neither or both do, both are named, the one that removes more
+        of the difference first."""
+        if self.as_written.passed:
+            return "none: the model as written meets the tolerances"
+        loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
+        more = {loops: "stiffer loops remove", step: "a smaller step removes"}
+        if self.stiff_loops.passed != self.smaller_step.passed:
+            return loops if self.stiff_loops.passed else step
+        first, second = (loops, step) if self.stiff_loops.excess <= self.smaller_step.excess else (step, loops)
+        if self.stiff_loops.passed:
+            return f"{first} or {second}: changing either alone meets the tolerances"
+        return (f"both {first} and {second}: neither changed alone meets the tolerances ({more[first]} "
+                "more of the difference)")
+
+
+def _trial(imported: ImportedModel, reference: EngineResult, tolerances: Tolerances, label: str,
+           options: ModelOptions) -> Trial:
+    try:
+        result = run_model(imported, options)
+    except NumericalFailure as failure:
+        return Trial(label, options, None, failure)
+    return Trial(label, options, judge(imported.scene, reference, result, tolerances))
+
+
+def _cheapest_step(options: ModelOptions, horizon: float, trial, tried: list[Trial],
+                   budget: float = math.inf) -> Trial | None:
+    """The longest step that passes with stiff loops: from the model's step, halving until one
+    passes (MAX_HALVINGS at most, and no step that would cost ``budget`` evaluations or more:
+    a cheaper passing run is known); if the model's own step passes, doubling while it does
+    (MAX_DOUBLINGS at most, the step at most a tenth of the horizon)."""
+    def at(h: float, label: str) -> Trial:
+        candidate = replace(options, timestep=h).stiff_loops()
+        found = next((t for t in tried if t.options == candidate), None)
+        if found is None:
+            found = trial(label, candidate)
+            tried.append(found)
+        return found
+
+    h = options.timestep
+    for halvings in range(MAX_HALVINGS + 1):
+        steps = replace(options, timestep=h / 2 ** halvings).steps(horizon)
+        spent = sum(t.comparison.mujoco.n_steps for t in tried if t.comparison is not None)
+        if steps > MAX_STEPS or steps * options.evaluations_per_step() >= budget or spent + steps > SEARCH_STEPS:
+            return None
+        found = at(h / 2 ** halvings, f"{options.integrator}, timestep / {2 ** halvings}")
+        if found.passed:
+            break
+    else:
+        return None
+    if halvings == 0:
+        for doublings in range(1, MAX_DOUBLINGS + 1):
+            if h * 2 ** doublings > horizon / 10:
+                break
+            longer = at(h * 2 ** doublings, f"{options.integrator}, timestep × {2 ** doublings}")
+            if not longer.passed:
+                break
+            found = longer
+    return found
+
+
+def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None,
+                reduced: ReducedSettings | None = None) -> ModelCheck:
+    """Compare the model as written with the reduced solution of its scene, name the setting that
+    causes the difference, and find the cheapest options that meet ``tolerances`` (module docstring).
+
+    Raises
+    ------
+    NumericalFailure
+        If the reduced reference fails (the model's own runs record their failures instead).
+    """
+    scene = imported.scene
+    tolerances = tolerances or scene.tolerances
+    reference = simulate(scene, reduced or ReducedSettings())
+    written = ModelOptions.as_written(imported.model)
+
+    def trial(label: str, options: ModelOptions) -> Trial:
+        return _trial(imported, reference, tolerances, label, options)
+
+    as_written = trial("as written", written)
+    stiff = trial("stiff loops", written.stiff_loops())
+    smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR))
+    tried = [as_written, stiff, smaller]
+    cheapest = as_written if as_written.passed else None
+    if cheapest is None:
+        for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
+            budget = cheapest.evaluations if cheapest is not None else math.inf
+            found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)
+            if found is not None and (cheapest is None or found.evaluations < cheapest.evaluations):
+                cheapest = found
+    return ModelCheck(imported=imported, reference=reference, as_written=as_written, stiff_loops=stiff,
+                      smaller_step=smaller, cheapest=cheapest, tried=tuple(tried))
+
+
+def _figures(trial: Trial, unit: str) -> str:
+    if trial.comparison is None:
+        return f"failed: {trial.failure}"
+    c = trial.comparison
+    d = c.diff
+    gap = c.mujoco.constraint_violation.max
+    return (f"peak {d.peak_omega_other:.10g} {unit}/s ({d.peak_omega_rel:.2e} off), max |dq| {d.q_max_abs:.2e} {unit}, "
+            f"max |dq/dt| {d.omega_max_abs:.2e} {unit}/s, loops open up to {gap:.2e} m, "
+            f"energy balance {c.mujoco.audit.relative_residual:.2e}")
+
+
+def check_lines(check: ModelCheck, source: str) -> list[str]:
+    """``loopcheck check``'s lines for one model."""
+    scene, imported = check.imported.scene, check.imported
+    unit = scene.input_unit
+    t = check.as_written.comparison.gate.tolerances if check.as_written.comparison else scene.tolerances
+    where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+    status = "ok  " if check.passed else "FAIL"
+    lines = [f"{status}  {source} ({where}, input '{scene.mechanism.linkage.input_joint}'): MuJoCo as written "
+             f"({check.as_written.options.text()}) against the exact reduced solution, "
+             f"peak {check.reference.peak.omega:.10g} {unit}/s",
+             f"      read at {where}: loops closed to {imported.closure_residual:.3g} m, Newton moved the "
+             f"configuration by {imported.polish:.3g} (rad or m)",
+             f"      tolerances: peak_omega_rtol {t.peak_omega_rtol:g}, q_atol {t.q_atol:g} {unit}, "
+             f"omega_atol {t.omega_atol:g} {unit}/s",
+             f"      as written:        {_figures(check.as_written, unit)}"]
+    if check.as_written.comparison is not None:
+        lines += [f"      {failure}" for failure in check.as_written.comparison.gate.failures]
+    return lines + diagnosis_lines(check)
+
+
+def diagnosis_lines(check: ModelCheck) -> list[str]:
+    """Each setting changed alone, the cause, and the cheapest options found (``loopcheck run`` prints
+    these under its table)."""
+    unit = check.imported.scene.input_unit
+    lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
+             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}",
+             f"      the difference comes from: {check.cause}"]
+    if check.cheapest is None:
+        smallest = min(t.options.timestep for t in check.tried)
+        lines.append(f"      no options tried meet the tolerances (stiff loops, RK4 and the model's integrator, steps "
+                     f"down to {smallest:.3g} s, within the search's limit of {SEARCH_STEPS:.3g} steps): loosen the "
+                     "tolerances or shorten the horizon")
+    elif check.cheapest is not check.as_written:
+        c = check.cheapest
+        work = c.evaluations / max(check.as_written.evaluations, 1)
+        lines += [f"      cheapest options that meet them: {c.options.text()} ({c.comparison.mujoco.n_steps} steps, "
+                  f"{work:.3g}x the model's work as written); paste into the MJCF:",
+                  *(f"        {line}" for line in c.options.mjcf().splitlines()),
+                  "      (a connect that sets its own solref or solimp needs them on it instead of in <default>)"]
+    return lines
+
+
+__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]

@@ -1,0 +1,112 @@
+"""What a sweep keeps of its rows and prints: the counts by status, the worst variant, the
+extremes of the reduced engine's peak |ω|, the ranges of the failing variants' values."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from loopcheck.sweep_spec import Engines
+
+STATUSES = ("passed", "gate_failed", "failed", "invalid")
+"""A variant's status: every check that ran passed (both engines and the gate; reduced-only:
+the reduced engine's own checks) / both engines ran and the gate failed; an engine failed
+numerically; the variant could not be assembled (its scene is invalid)."""
+
+
+@dataclass
+class Summary:
+    """What a sweep prints and keeps in memory: counts, the worst variant (compared sweeps),
+    the variants of the lowest and highest peak |ω| of the reduced engine, and per key the range
+    of values of the variants that failed (the gate or numerically)."""
+
+    keys: tuple[str, ...]
+    total: int = 0
+    counts: dict[str, int] = field(default_factory=lambda: {s: 0 for s in STATUSES})
+    worst: dict[str, Any] | None = None  # index, values, peak_ratio, status
+    peak_extremes: dict[str, dict[str, Any]] = field(default_factory=dict)  # lowest/highest: index, values, peak
+    failing_ranges: dict[str, list[float]] = field(default_factory=dict)  # key -> [min, max]
+    ranges: dict[str, list[float]] = field(default_factory=dict)
+    wall_s: float = 0.0
+    workers: int = 1
+    engines: Engines = Engines.BOTH
+    speed_unit: str = "rad/s"
+
+    def add(self, row: Mapping[str, Any]) -> None:
+        self.total += 1
+        status = row["status"]
+        self.counts[status] += 1
+        values = {k: row[k] for k in self.keys}
+        for k, v in values.items():
+            _extend(self.ranges, k, v)
+        if status in ("gate_failed", "failed"):
+            for k, v in values.items():
+                _extend(self.failing_ranges, k, v)
+        ratio = row.get("gate.peak_ratio")
+        if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
+            self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
+                          "peak_omega_rel": row.get("diff.peak_omega_rel")}
+        peak = row.get("reduced.peak_omega")
+        if peak is not None and math.isfinite(peak):
+            entry = {"index": row["index"], "values": values, "peak_omega": abs(peak)}
+            low, high = self.peak_extremes.get("lowest"), self.peak_extremes.get("highest")
+            if low is None or abs(peak) < low["peak_omega"]:
+                self.peak_extremes["lowest"] = entry
+            if high is None or abs(peak) > high["peak_omega"]:
+                self.peak_extremes["highest"] = entry
+
+    @property
+    def none_valid(self) -> bool:
+        """No variant could be assembled: the sweep checked nothing."""
+        return self.total > 0 and self.counts["invalid"] == self.total
+
+    @property
+    def failed_any(self) -> bool:
+        """A variant failed the gate or numerically, or none was valid (exit status 1)."""
+        return bool(self.counts["gate_failed"] or self.counts["failed"]) or self.none_valid
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"variants": self.total, "engines": self.engines, "counts": dict(self.counts), "worst": self.worst,
+                "peak_extremes": self.peak_extremes, "ranges": self.ranges, "failing_ranges": self.failing_ranges,
+                "wall_s": self.wall_s, "workers": self.workers}
+
+
+def values_text(values: Mapping[str, float]) -> str:
+    """A variant's varied values as text: ``key = value, ...``."""
+    return ", ".join(f"{k} = {v:.6g}" for k, v in values.items())
+
+
+def _extend(ranges: dict[str, list[float]], key: str, value: float) -> None:
+    lo_hi = ranges.setdefault(key, [value, value])
+    lo_hi[0], lo_hi[1] = min(lo_hi[0], value), max(lo_hi[1], value)
+
+
+def summary_lines(summary: Summary) -> list[str]:
+    """The printed summary of a sweep."""
+    c = summary.counts
+    workers = f"{summary.workers} worker{'s' if summary.workers != 1 else ''}, {summary.wall_s:.1f} s"
+    if summary.engines is Engines.REDUCED:
+        lines = [f"{summary.total} variants, reduced engine only, no gate ({workers}): {c['passed']} passed its "
+                 f"own checks, {c['failed']} failed numerically, {c['invalid']} invalid"]
+        low, high = summary.peak_extremes.get("lowest"), summary.peak_extremes.get("highest")
+        if low is not None:
+            lines.append(f"peak |omega| from {low['peak_omega']:.6g} {summary.speed_unit} (#{low['index']}: "
+                         f"{values_text(low['values'])}) to {high['peak_omega']:.6g} {summary.speed_unit} "
+                         f"(#{high['index']}: {values_text(high['values'])})")
+    else:
+        lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
+                 f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+    if summary.none_valid:
+        lines.append("no variant is valid: the sweep checked nothing (sweep.csv's reason column says why)")
+    w = summary.worst
+    if w is not None:
+        lines.append(f"worst variant: #{w['index']} ({values_text(w['values'])}): peak-omega difference "
+                     f"{w['peak_ratio']:.3g}x its tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
+    if summary.failing_ranges:
+        parts = []
+        for k, (lo, hi) in summary.failing_ranges.items():
+            all_lo, all_hi = summary.ranges[k]
+            parts.append(f"{k} in [{lo:.6g}, {hi:.6g}] (swept [{all_lo:.6g}, {all_hi:.6g}])")
+        lines.append("failing variants have: " + "; ".join(parts))
+    return lines

@@ -1,0 +1,130 @@
+"""A sweep's table: the columns of ``sweep.csv``, its cells as text and back, the rows streamed
+into it (with ``trajectories.csv``), and ``sweep.json`` made from it (the module docstring of
+:mod:`loopcheck.compare.sweep` says what each file holds)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
+
+from .output import json_text, plain, portable_source
+from loopcheck.sweep_spec import Engines, SweepSpec
+
+if TYPE_CHECKING:
+    from .sweep_summary import Summary
+
+FIXED_COLUMNS = ("index", "status", "reason")
+DIFF_FIGURES = ("peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms", "omega_max_abs",
+                "omega_rms", "omega_vs_q_max_abs", "peak_omega_reference", "peak_omega_other",
+                "t_peak_reference", "t_peak_other", "span_start", "span_end", "horizon",
+                "mode_mismatches", "mode_mismatch_first_times", "mode_mismatches_total")
+GATE_FIGURES = ("passed", "peak_omega_rtol", "q_atol", "omega_atol", "omega_vs_q_atol", "peak_ratio",
+                "worst_ratio")
+ENGINE_FIGURES = ("peak_omega", "t_peak", "wall_s", "n_steps", "energy_residual", "energy_residual_rel")
+FIGURE_COLUMNS = (tuple(f"diff.{k}" for k in DIFF_FIGURES) + tuple(f"gate.{k}" for k in GATE_FIGURES)
+                  + tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + tuple(f"mujoco.{k}" for k in ENGINE_FIGURES)
+                  + ("mujoco.max_constraint_violation", "variant_wall_s"))
+REDUCED_ONLY_COLUMNS = tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + ("variant_wall_s",)
+"""The figure columns of a reduced-only sweep (module docstring)."""
+LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
+
+CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
+
+
+def columns(spec: SweepSpec) -> tuple[str, ...]:
+    """The columns of sweep.csv for ``spec``."""
+    return FIXED_COLUMNS + spec.keys + (REDUCED_ONLY_COLUMNS if spec.engines is Engines.REDUCED else FIGURE_COLUMNS)
+
+
+def _finite(x: Any) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, (list, tuple)):
+        return json.dumps([_finite(v) if isinstance(v, float) else v for v in value])
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ""
+    return value
+
+
+def parse_cell(column: str, text: str) -> Any:
+    """The value of a cell of ``column`` written as ``text`` (None: not measured)."""
+    if column in ("status", "reason"):
+        return text
+    if column == "index":
+        return int(text)
+    if text == "":
+        return None
+    if column in LIST_COLUMNS:
+        return json.loads(text)
+    if text in ("true", "false"):
+        return text == "true"
+    value = float(text)
+    return int(value) if column.endswith(("n_steps", "mode_mismatches_total")) else value
+
+
+def read_rows(path: str | Path) -> Iterator[dict[str, Any]]:
+    """The rows of a sweep.csv, one at a time, with their types (None: not measured)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        for raw in csv.DictReader(f):
+            yield {k: parse_cell(k, v) for k, v in raw.items()}
+
+
+def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
+            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None,
+            replayed: int = 0) -> None:
+    """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row
+    after the first ``replayed`` (read back from the journal) also goes to ``journal``."""
+    cols = columns(spec)
+    traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
+    try:
+        tw = csv.writer(traj) if traj else None
+        if tw:
+            tw.writerow(("index", "engine", "t_s", "q", "qdot", "qddot"))
+        with open(csv_path, "w", newline="", encoding="utf-8") as f:
+            writer = csv.writer(f)
+            writer.writerow(cols)
+            for i, row in enumerate(rows):
+                trajectories = row.pop("_trajectories", None)
+                cells = [_cell(row.get(k)) for k in cols]
+                writer.writerow(cells)
+                if journal and i >= replayed:
+                    journal(cells)
+                if tw and trajectories:
+                    for engine, samples in trajectories.items():
+                        tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
+                summary.add(row)
+                if progress:
+                    progress(row)
+    finally:
+        if traj:
+            traj.close()
+
+
+def write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary,
+                sensitivity: list[dict] | None = None) -> None:
+    """sweep.json: the specification, summary and sensitivities, then the rows read back one by one."""
+    head = {"source": portable_source(source), "engines": spec.engines, "keys": list(spec.keys),
+            "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
+            "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
+                       for v in spec.varies],
+            "summary": summary.as_dict()}
+    if sensitivity is not None:
+        head["sensitivity"] = sensitivity
+    text = json_text(head)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text.rstrip().rstrip("}").rstrip() + ',\n  "rows": [')
+        for i, row in enumerate(read_rows(csv_path)):
+            f.write(("," if i else "") + "\n    " + json.dumps(plain(row), allow_nan=False))
+        f.write("\n  ]\n}\n")

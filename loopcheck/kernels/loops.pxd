@@ -1,0 +1,45 @@
+# C-level declaration of loopcheck/kernels/loops.py (Cython's augmenting .pxd).
+
+# The integer constants of the packed layout (loops.py documents them; its block
+# `if not cython.compiled` holds the same values for plain Python: keep both in step,
+# tests/core/test_loops_kernel.py compares them). A cpdef enum: C constants, importable from Python.
+cpdef enum:
+    N = 0
+    N_ANGLES = 1
+    N_LINEAR = 2
+    MAX_ROWS = 3
+    LINEAR = 4
+    TABLES = 5
+    TABLE_ENTRIES = 7
+    N_TABLES = 4
+    LOOPS = 0
+    KIN_HEADER = 33
+    CLOSED = 0
+    NON_FINITE = 1
+    SINGULAR_JACOBIAN = 2
+    NOT_CLOSED = 3
+
+
+cdef class Loops:
+    cdef readonly object arrays, B, P
+    cdef double[::1] F
+    cdef long long[::1] I
+    cdef readonly Py_ssize_t n
+    # views of B and P (loops.py: Loops), made once at construction; K and L are kin's rows
+    cdef long long[::1] piv
+    cdef double[::1] x, rhs, norms, K, L
+    cdef double[:, ::1] trig, A, rows, kin
+    # what _term leaves (its row is returned), what _constraints, _factor_row and _finish leave
+    cdef Py_ssize_t term_g, term_a, best_j
+    cdef double term_m, term_ux, term_uy, spread, det, hadamard, own, best
+
+    cdef double _lu_factor(self)
+    cdef int _lu_solve(self, double[::1] b)
+    cdef int _angle_trig(self)
+    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
+    cdef int _table_positions(self, Py_ssize_t table)
+    cdef int _table_rates(self, Py_ssize_t table, bint with_l)
+    cdef double _constraints(self)
+    cdef double _factor_row(self, double[::1] row)
+    cdef int _finish(self, double det, Py_ssize_t i)
+    cdef inline double _cramer_ratio(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros)

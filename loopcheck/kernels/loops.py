@@ -1,0 +1,556 @@
+"""Loop kinematics of a one-DOF planar linkage on packed term tables, compiled (Cython).
+
+The one implementation of the linkage's kinematics: term-table positions and rates, the
+constraints Φ and their Jacobian Φ_x, a small dense LU, Newton's assembly at an input, the
+velocity and acceleration coefficients K and L, and the singular-position measure (the
+conditioning). :mod:`loopcheck.kinematics` packs a :class:`~loopcheck.kinematics.LoopSystem` into these
+arrays for the engines' set-up (scene assembly, MuJoCo's initial state, drawings); the reduced
+engine's compiled charts (:mod:`loopcheck.reduced.kernels.physics`) hold a :class:`Loops` and call its
+C methods at every evaluation. Debug with ``LOOPCHECK_PURE_PYTHON=1``: this file then runs as plain
+Python (:mod:`loopcheck.kernels`), the slow reference.
+
+Term tables: row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t with m_t = x[mag_t] (or
+1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t) (:mod:`loopcheck.kinematics`
+documents the tables). With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
+
+    ∂r/∂x[angle] = m u⊥,  ∂r/∂x[mag] = u,
+    K_r = ṁ u + m θ̇ u⊥,  L_r = m̈ u + (2 ṁ θ̇ + m θ̈) u⊥ − m θ̇² u     (ṁ = K[mag], θ̇ = K[angle], …)
+
+With A = [Φ_x; row], row the driving row of the coordinate p = row·x (the input's, or e_i for a
+chart's coordinate x_i), K = dx/dp and L = d²x/dp² solve
+
+    A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
+
+with the same factorization. Conditioning of p (the project's one singular-position measure,
+:data:`loopcheck.kinematics.SINGULAR_CONDITIONING`): the Hadamard ratio of the dependent Jacobian,
+|det A| / (|row_i| Π_{l≠i} ‖Φ_x[:, l] − (row_l / row_i) Φ_x[:, i]‖), i the row's largest |entry|;
+for coordinate j with K taken w.r.t. any coordinate (Cramer's rule) c_j = |K_j| |det A| /
+Π_{l≠j} ‖Φ_x[:, l]‖.
+
+Compiled: the integer constants of the packed layout (below) are C constants declared in
+``loops.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
+``if not cython.compiled`` here defines them for plain Python, and
+``tests/core/test_loops_kernel.py`` checks that the two agree). The arithmetic keeps the order of
+every expression (the build does not contract a*b+c or reassociate), so that it gives the same
+numbers as plain Python.
+"""
+
+import math
+
+import cython
+import numpy as np
+
+if cython.compiled:
+    from cython.cimports.libc.math import cos, fabs, isfinite, sin, sqrt
+else:
+    from math import cos, fabs, isfinite, sin, sqrt
+
+# -- the packed layout -------------------------------------------------------------------
+# A linkage's kinematics is two flat arrays, F (float64) and I (int64), which a user (the reduced
+# engine's model) may extend past KIN_HEADER with its own header entries and arrays.
+#
+# I[0:KIN_HEADER] is the header: n (coordinates), the body angles among them (the first
+# N_ANGLES), the linear constraint rows, the most rows of any table, the offset in F of the
+# linear rows (N_LINEAR, n), then N_TABLES term tables of TABLE_ENTRIES entries each: rows, terms,
+# and the offsets of offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
+# Table LOOPS holds the loop-closure vectors (2 constraint rows each); the others are the user's.
+# Compiled, these are the C constants of loops.pxd (module docstring): keep both in step.
+if not cython.compiled:
+    N, N_ANGLES, N_LINEAR, MAX_ROWS, LINEAR = range(5)
+    TABLES = 5
+    TABLE_ENTRIES = 7
+    N_TABLES = 4
+    LOOPS = 0
+    KIN_HEADER = TABLES + N_TABLES * TABLE_ENTRIES
+    # what assemble returns: closed; a non-finite residual; a singular Jacobian before
+    # convergence; no convergence in the iterations allowed
+    CLOSED, NON_FINITE, SINGULAR_JACOBIAN, NOT_CLOSED = range(4)
+
+
+@cython.final
+@cython.cclass
+class Loops:
+    """The kinematics of one packed linkage (compiled): its arrays and scratch.
+
+    ``Loops(F, I)`` keeps the packed arrays (module docstring) and allocates B (float64: x (n),
+    trig (2, n), A (n, n), rhs (n), norms (n), rows (MAX_ROWS, 4), kin (3, n): x, K, L) and piv
+    (int64, n), with typed views of their parts made once here. The C methods read and write
+    these views and take no array argument (compiled, an array argument is a view passed by
+    value: :mod:`loopcheck.reduced.kernels.physics`'s chart calls them at every evaluation). The
+    Python methods (``positions`` … ``assemble``) copy their arguments in and their results out.
+    """
+
+    def __init__(self, F, I):
+        F = np.ascontiguousarray(F, dtype=np.float64)
+        I = np.ascontiguousarray(I, dtype=np.int64)
+        self.arrays = (F, I)
+        self.F = F
+        self.I = I
+        n = int(I[N])
+        self.n = n
+        rows = max(int(I[MAX_ROWS]), 1)
+        self.B = np.zeros(n + 2 * n + n * n + n + n + 4 * rows + 3 * n)
+        self.P = np.zeros(max(n, 1), np.int64)
+        self.piv = self.P
+        views = []
+        o = 0
+        for shape in ((n,), (2, n), (n, n), (n,), (n,), (rows, 4), (3, n)):
+            size = math.prod(shape)
+            views.append(self.B[o:o + size].reshape(shape))
+            o += size
+        self.x, self.trig, self.A, self.rhs, self.norms, self.rows, self.kin = views
+        self.K = views[6][1]
+        self.L = views[6][2]
+
+    # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
+
+    @cython.cfunc
+    def _lu_factor(self) -> cython.double:
+        """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
+        as its reciprocals (a solve then multiplies: its divisions were most of its latency);
+        returns det A (0.0 if singular)."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        det: cython.double = 1.0
+        big: cython.double
+        d: cython.double
+        inverse: cython.double
+        f: cython.double
+        swap: cython.double
+        for k in range(n):
+            p = k
+            big = fabs(self.A[k, k])
+            for r in range(k + 1, n):
+                if fabs(self.A[r, k]) > big:
+                    big = fabs(self.A[r, k])
+                    p = r
+            self.piv[k] = p
+            if big == 0.0:
+                return 0.0
+            if p != k:
+                det = -det
+                for c in range(n):
+                    swap = self.A[k, c]
+                    self.A[k, c] = self.A[p, c]
+                    self.A[p, c] = swap
+            d = self.A[k, k]
+            det *= d
+            inverse = 1.0 / d
+            self.A[k, k] = inverse
+            for r in range(k + 1, n):
+                f = self.A[r, k] * inverse
+                self.A[r, k] = f
+                for c in range(k + 1, n):
+                    self.A[r, c] -= f * self.A[k, c]
+        return det
+
+    @cython.cfunc
+    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
+        solution."""
+        n: cython.Py_ssize_t = self.n
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        s: cython.double
+        for k in range(n):
+            p = self.piv[k]
+            if p != k:
+                s = b[k]
+                b[k] = b[p]
+                b[p] = s
+        for r in range(n):
+            s = b[r]
+            for c in range(r):
+                s -= self.A[r, c] * b[c]
+            b[r] = s
+        for r in range(n - 1, -1, -1):
+            s = b[r]
+            for c in range(r + 1, n):
+                s -= self.A[r, c] * b[c]
+            b[r] = s * self.A[r, r]
+        return 0
+
+    # -- term tables -----------------------------------------------------------------------
+
+    @cython.cfunc
+    def _angle_trig(self) -> cython.int:
+        """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
+        j: cython.Py_ssize_t
+        for j in range(self.I[N_ANGLES]):
+            self.trig[0, j] = cos(self.x[j])
+            self.trig[1, j] = sin(self.x[j])
+        return 0
+
+    @cython.cfunc
+    @cython.inline
+    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
+        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
+        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
+        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
+        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
+        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
+        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
+        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
+        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
+        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
+        c: cython.double
+        s: cython.double
+        if a >= 0:
+            c = self.trig[0, a]
+            s = self.trig[1, a]
+            wx, wy = wx * c - wy * s, wx * s + wy * c
+        self.term_g = g
+        self.term_a = a
+        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
+        self.term_ux = wx
+        self.term_uy = wy
+        return row
+
+    @cython.cfunc
+    def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
+        """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        k: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        for k in range(self.I[tb]):
+            self.rows[k, 0] = self.F[off + 2 * k]
+            self.rows[k, 1] = self.F[off + 2 * k + 1]
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            self.rows[k, 0] += self.term_m * self.term_ux
+            self.rows[k, 1] += self.term_m * self.term_uy
+        return 0
+
+    @cython.cfunc
+    def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
+        """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
+        with_l), at kin's x, K and L."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        k: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        md: cython.double
+        td: cython.double
+        cu: cython.double
+        cn: cython.double
+        for k in range(self.I[tb]):
+            for c in range(4):
+                self.rows[k, c] = 0.0
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, False)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            md = self.kin[1, g] if g >= 0 else 0.0
+            td = self.kin[1, a] if a >= 0 else 0.0
+            cu = 2.0 * md * td  # coefficient of u⊥ in L_r
+            cn = -m * td * td  # coefficient of u
+            if with_l:
+                if g >= 0:
+                    cn += self.kin[2, g]
+                if a >= 0:
+                    cu += m * self.kin[2, a]
+            self.rows[k, 0] += md * ux - m * td * uy
+            self.rows[k, 1] += md * uy + m * td * ux
+            self.rows[k, 2] += cn * ux - cu * uy
+            self.rows[k, 3] += cn * uy + cu * ux
+        return 0
+
+    @cython.cfunc
+    def _constraints(self) -> cython.double:
+        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
+        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
+        scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
+        the rounding of their angles."""
+        n: cython.Py_ssize_t = self.n
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+        nl: cython.Py_ssize_t = 2 * self.I[tb]
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        m: cython.double
+        ux: cython.double
+        uy: cython.double
+        lever: cython.double
+        v: cython.double
+        for r in range(n - 1):
+            for c in range(n):
+                self.A[r, c] = 0.0
+        off: cython.Py_ssize_t = self.I[tb + 2]
+        scale: cython.double = 0.0
+        spread: cython.double = 0.0
+        for r in range(nl):
+            self.rhs[r] = self.F[off + r]
+            scale += fabs(self.F[off + r])
+        for t in range(self.I[tb + 1]):
+            k = self._term(tb, t, True)
+            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+            self.rhs[2 * k] += m * ux
+            self.rhs[2 * k + 1] += m * uy
+            lever = fabs(m) * (fabs(ux) + fabs(uy))
+            scale += lever
+            if a >= 0:
+                self.A[2 * k, a] -= m * uy
+                self.A[2 * k + 1, a] += m * ux
+                spread += lever * fabs(self.x[a])
+            if g >= 0:
+                self.A[2 * k, g] += ux
+                self.A[2 * k + 1, g] += uy
+        lin: cython.Py_ssize_t = self.I[LINEAR]
+        for r in range(self.I[N_LINEAR]):
+            v = 0.0
+            for c in range(n):
+                self.A[nl + r, c] = self.F[lin + r * n + c]
+                v += self.F[lin + r * n + c] * self.x[c]
+                scale += fabs(self.F[lin + r * n + c] * self.x[c])
+            self.rhs[nl + r] = v
+        self.spread = spread
+        return scale
+
+    # -- one configuration ------------------------------------------------------------------
+
+    @cython.cfunc
+    def _factor_row(self, row: cython.double[::1]) -> cython.double:
+        """A = [Φ_x; row] factored, Φ_x the constraints' (:meth:`_constraints`) at Newton's x;
+        returns det A and leaves it in det, and in hadamard the denominator of the conditioning
+        of p = row·x, |row_i| Π_{l≠i} ‖column l of the dependent Jacobian‖ (module docstring),
+        and the column norms of Φ_x in norms."""
+        n: cython.Py_ssize_t = self.n
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        v: cython.double
+        w: cython.double
+        ratio: cython.double
+        i: cython.Py_ssize_t = 0  # the coordinate p replaces: the row's largest |entry|, the first of equals
+        for c in range(1, n):
+            if fabs(row[c]) > fabs(row[i]):
+                i = c
+        hadamard: cython.double = fabs(row[i])
+        for c in range(n):
+            v = 0.0
+            for r in range(n - 1):
+                v += self.A[r, c] * self.A[r, c]
+            self.norms[c] = sqrt(v)
+            if c != i:
+                ratio = row[c] / row[i] if row[i] != 0.0 else 0.0
+                v = 0.0
+                for r in range(n - 1):
+                    w = self.A[r, c] - ratio * self.A[r, i]
+                    v += w * w
+                hadamard *= sqrt(v)
+        for c in range(n):
+            self.A[n - 1, c] = row[c]
+        self.hadamard = hadamard
+        self.det = self._lu_factor()
+        return self.det
+
+    @cython.cfunc
+    def _finish(self, det: cython.double, i: cython.Py_ssize_t) -> cython.int:
+        """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
+        it) whose determinant is det; the conditioning of every coordinate from the column norms:
+        of coordinate i (−1: none) into own, the best and its coordinate into best, best_j."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        for j in range(n):
+            self.kin[0, j] = self.x[j]
+        for j in range(n):
+            self.K[j] = 0.0
+        self.K[n - 1] = 1.0
+        self._lu_solve(self.K)
+        self._table_rates(LOOPS, False)
+        nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        for k in range(nl):
+            self.L[2 * k] = -self.rows[k, 2]
+            self.L[2 * k + 1] = -self.rows[k, 3]
+        for j in range(2 * nl, n):
+            self.L[j] = 0.0
+        self._lu_solve(self.L)
+        # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
+        product: cython.double = 1.0
+        zeros: cython.Py_ssize_t = 0
+        for j in range(n):
+            if self.norms[j] > 0.0:
+                product *= self.norms[j]
+            else:
+                zeros += 1
+        best: cython.double = 0.0
+        best_j: cython.Py_ssize_t = 0
+        own: cython.double = 0.0
+        c: cython.double
+        for j in range(n):
+            c = self._cramer_ratio(j, det, product, zeros)
+            if j == i:
+                own = c
+            if c > best:
+                best = c
+                best_j = j
+        self.own = own
+        self.best = best
+        self.best_j = best_j
+        return 0
+
+    @cython.cfunc
+    @cython.inline
+    def _cramer_ratio(self, j: cython.Py_ssize_t, det: cython.double, product: cython.double,
+                         zeros: cython.Py_ssize_t) -> cython.double:
+        """c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖ (K solved), product the product of the nonzero
+        column norms and zeros the count of zero columns."""
+        if zeros > 1 or (zeros == 1 and self.norms[j] > 0.0):
+            return 0.0
+        return fabs(self.K[j]) * fabs(det) / (product / self.norms[j] if self.norms[j] > 0.0 else product)
+
+    # -- the Python interface (loopcheck.kinematics) ---------------------------------------------
+
+    def _load(self, x) -> None:
+        """x (n,) into Newton's x and kin's, and the cos and sin of its angles into trig."""
+        if len(x) != self.n:
+            raise ValueError(f"x of {self.n} coordinates, not {len(x)}")
+        for j in range(self.n):
+            self.x[j] = x[j]
+            self.kin[0, j] = x[j]
+        self._angle_trig()
+
+    def _rows_of(self, table: int) -> np.ndarray:
+        """A copy of the rows scratch's rows of table ``table``, shape (rows, 4)."""
+        return np.array(np.asarray(self.rows)[:self.I[TABLES + TABLE_ENTRIES * table]])
+
+    def positions(self, table: int, x) -> np.ndarray:
+        """r(x) of every row of table ``table``, shape (rows, 2) (m)."""
+        self._load(x)
+        self._table_positions(table)
+        return self._rows_of(table)[:, 0:2]
+
+    def rates(self, table: int, x, K, L) -> np.ndarray:
+        """K_r and L_r of every row of table ``table`` at x, K (and L), shape (rows, 4): K_r's x,
+        y, then L_r's (γ, the part without L, where L is None)."""
+        self._load(x)
+        for j in range(self.n):
+            self.kin[1, j] = K[j]
+            self.kin[2, j] = L[j] if L is not None else 0.0
+        self._table_rates(table, L is not None)
+        return self._rows_of(table)
+
+    def constraints(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """Φ(x) (n − 1,) and Φ_x (n − 1, n)."""
+        n = self.n
+        self._load(x)
+        self._constraints()
+        return np.array(np.asarray(self.rhs)[:n - 1]), np.array(np.asarray(self.A)[:n - 1])
+
+    def jacobians(self, X: cython.double[:, ::1]) -> np.ndarray:
+        """Φ_x at each row of X (samples, n), C-contiguous: shape (samples, n − 1, n). A loop in C
+        over the samples (the reduced engine asks for the assembly modes of every output sample)."""
+        n: cython.Py_ssize_t = self.n
+        s: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        if X.shape[1] != n:
+            raise ValueError(f"x of {n} coordinates, not {X.shape[1]}")
+        out = np.empty((X.shape[0], n - 1, n))
+        J: cython.double[:, :, ::1] = out
+        for s in range(X.shape[0]):
+            for j in range(n):
+                self.x[j] = X[s, j]
+                self.kin[0, j] = X[s, j]
+            self._angle_trig()
+            self._constraints()
+            for r in range(n - 1):
+                for j in range(n):
+                    J[s, r, j] = self.A[r, j]
+        return out
+
+    def driving_conditioning(self, x, row) -> float:
+        """The conditioning of p = row·x at x (module docstring): between 0 (A = [Φ_x; row]
+        singular) and 1 (orthogonal columns)."""
+        self._load(x)
+        self._constraints()
+        det = self._factor_row(np.ascontiguousarray(row, dtype=np.float64))
+        if det == 0.0 or not isfinite(det) or not self.hadamard > 0.0:
+            return 0.0
+        return fabs(det) / self.hadamard
+
+    def coefficients(self, x, row) -> tuple[float, np.ndarray, np.ndarray]:
+        """The conditioning of p = row·x, and K = dx/dp, L = d²x/dp² (n,) at an assembled x;
+        K and L are NaN where A = [Φ_x; row] is singular (conditioning 0)."""
+        c = self.driving_conditioning(x, row)
+        if c == 0.0:
+            return 0.0, np.full(self.n, math.nan), np.full(self.n, math.nan)
+        self._finish(self.det, -1)
+        return c, np.array(self.K), np.array(self.L)
+
+    def conditioning(self, x) -> np.ndarray:
+        """The conditioning of each coordinate x_j as the independent one, shape (n,)."""
+        row = np.zeros(self.n)
+        out = np.empty(self.n)
+        for j in range(self.n):
+            row[:] = 0.0
+            row[j] = 1.0
+            out[j] = self.driving_conditioning(x, row)
+        return out
+
+    def assemble(self, q: float, x, row, tol: float, max_iter: int, singular: float) -> tuple[int, int, float]:
+        """Newton's method on (Φ(x), row·x − q) = 0 from x (n,), overwritten with the result:
+        converged when every residual is ≤ tol (m or rad), then one more step to round-off.
+        Returns (status, iteration, largest residual): CLOSED; NON_FINITE (a residual not finite
+        at that iteration); SINGULAR_JACOBIAN (the conditioning of p = row·x below ``singular``
+        before convergence); NOT_CLOSED (no convergence in ``max_iter`` iterations)."""
+        n = self.n
+        drive = np.ascontiguousarray(row, dtype=np.float64)
+        self._load(x)
+        polished = False
+        for iteration in range(1, max_iter + 1):
+            largest = self._residual(q, drive)
+            if not isfinite(largest):
+                return NON_FINITE, iteration, largest
+            if polished:
+                break
+            converged = largest <= tol
+            det = self._factor_row(drive)
+            self.rhs[n - 1] = self._drive_residual(q, drive)
+            if det == 0.0 or not isfinite(det) or fabs(det) < singular * self.hadamard:
+                if converged:
+                    break
+                return SINGULAR_JACOBIAN, iteration, largest
+            self._lu_solve(self.rhs)
+            for j in range(n):
+                self.x[j] -= self.rhs[j]
+            self._angle_trig()
+            polished = converged
+        else:
+            return NOT_CLOSED, max_iter, self._residual(q, drive)
+        for j in range(n):
+            x[j] = self.x[j]
+        return CLOSED, iteration, largest
+
+    def _drive_residual(self, q: float, row) -> float:
+        """row·x − q at Newton's x."""
+        v = 0.0
+        for j in range(self.n):
+            v += row[j] * self.x[j]
+        return v - q
+
+    def _residual(self, q: float, row) -> float:
+        """The largest |residual| of (Φ(x), row·x − q) at Newton's x, NaN if one is not finite;
+        Φ and Φ_x into rhs[:n−1] and A[:n−1]."""
+        self._constraints()
+        largest = abs(self._drive_residual(q, row))
+        if not isfinite(largest):
+            return math.nan
+        for r in range(self.n - 1):
+            if not isfinite(self.rhs[r]):
+                return math.nan
+            largest = max(largest, fabs(self.rhs[r]))
+        return largest

@@ -1,0 +1,45 @@
+"""The MJWarp engine's settings: its ``[mjwarp]`` table of the scene file and its flags.
+
+Light on purpose: it imports neither warp nor MuJoCo. The fields are the MuJoCo-family model's
+options (:mod:`loopcheck.mujoco_model.options`), the same as the MuJoCo engine's, with the grid step
+as the default timestep (MJWarp runs once; the MuJoCo engine's automatic search confirms its step
+by halving, which would cost MJWarp a run per step). There is no precision field: MJWarp 4.0
+computes in float32 only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from loopcheck.mujoco_model.options import ModelOptions
+from loopcheck.settings import option
+
+
+@dataclass(frozen=True)
+class MjwarpSettings(ModelOptions):
+    """Everything that changes MJWarp's answer; recorded with every result.
+
+    The model's options (:class:`~loopcheck.mujoco_model.options.ModelOptions`) as the MuJoCo
+    engine's (a scene's ``[mujoco]`` values of them are this engine's defaults:
+    :func:`loopcheck.compare.settings.engine_settings`), except ``timestep``: None is the grid step
+    (the largest step ≤ 1 ms and ≤ 1/100 of
+    the horizon that puts every load edge on the grid), not a search.
+
+    MJWarp is float32 only (its arrays are warp's ``float``, float32; it has no float64 switch),
+    and its ``put_model`` raises the solver's ``tolerance`` to at least 1e-6. Its results carry
+    float32 round-off, amplified by the loop constraints' stiffness: on the seed about 3e-4 on the
+    peak over 2 s (docs/engines.md, "MJWarp"), against MuJoCo C's 3e-6 with the same model.
+    """
+
+    timestep: float | None = option(None, "MJWarp's timestep", "number", unit="s", limit="step", within_horizon=True,
+                                    default_text="[mujoco] timestep, else the grid step, the MuJoCo engine's "
+                                                 "first candidate (load edges on the grid)")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.diagexact is True:
+            raise ValueError("diagexact: MJWarp does not implement MuJoCo's exact constraint diagonal "
+                             "(mjENBL_DIAGEXACT)")
+
+
+Settings = MjwarpSettings  # the name every engine's settings have (loopcheck.registry)

@@ -1,0 +1,156 @@
+"""Run a scene's MuJoCo model with MJX (:func:`simulate_mjx`), or a batch of variants of it as one
+``jax.vmap`` (:func:`simulate_batch`), and return :class:`~loopcheck.results.EngineResult` s.
+
+The step loop is one ``jax.lax.scan`` of ``mjx.step`` over the controls of every step, compiled
+once per model structure and step count (``jax.jit``; JAX's persistent compilation cache, when
+``JAX_COMPILATION_CACHE_DIR`` is set, keeps it across processes). The states come back to the
+host and MuJoCo C reads them (:func:`loopcheck.mujoco_model.port.finish`): the energy audit and the loop
+gap are MuJoCo C's functions at MJX's states, as the issue's design asks (MJX computes no energy).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from importlib import metadata
+
+import numpy as np
+
+from loopcheck.mujoco_model.build import check_mujoco_version
+from loopcheck.mujoco_model.port import PortRun, finish, known_defects, prepare, refusing_unimplemented, stack_runs
+from loopcheck.results import EngineResult
+from loopcheck.scene import Scene
+
+from .settings import MjxSettings
+
+try:
+    import jax
+    from mujoco import mjx
+except ModuleNotFoundError as exc:  # the optional extra
+    raise ModuleNotFoundError("the mjx engine needs JAX and MJX: pip install -e '.[mjx]' in loopcheck's checkout, then "
+                              "pip install --no-deps mujoco-mjx (docs/engines.md, 'Installing MJX and MJWarp')",
+                              name=exc.name) from exc
+
+import mujoco  # noqa: E402  (after the extra's check: the message above names what is missing)
+
+check_mujoco_version(mujoco.__version__)  # installing MJX with pip's resolver can replace MuJoCo (docs/engines.md)
+
+MJX_VERSION = metadata.version("mujoco-mjx")
+# The defect found for issue 28 (docs/engines.md, "MJX and the connect constraint"): MJX 3.17.0's
+# constraint reference acceleration omits J̇·q̇, which MuJoCo C subtracts for connect and weld rows
+# (mj_Jdotv); a closed loop's pins then lag, and the run is off by about 3e-3 on the seed.
+KNOWN_DEFECT = ("MJX {version} omits J̇·q̇ from the loop constraints' reference acceleration (MuJoCo C subtracts "
+                "it: mj_Jdotv), so the loops close late: expect errors of order 1e-3 on closed loops "
+                "(docs/engines.md)")
+DEFECT_CHECKED = "3.17.0"  # the newest MJX release found to have it
+
+
+@dataclass(frozen=True)
+class MjxDetails:
+    """The MJX engine's own record of a run (:attr:`EngineResult.details`).
+
+    backend : JAX's platform that ran it ("cpu", "gpu", ...); precision : "float64" or "float32".
+    batch : the variants run together (1 for :func:`simulate_mjx`).
+    compile_s : s, the scan's compilation (0 when JAX's cache had it); wall time per variant is
+        ``EngineResult.wall_s`` (the batch's run divided by ``batch``).
+    initial_residuals : MuJoCo C's loop residuals at the start.
+    edge_warnings : one note per load edge off the step grid.
+    versions : MJX's, JAX's and MuJoCo C's (which reads the states back).
+    """
+
+    backend: str
+    precision: str
+    batch: int
+    compile_s: float
+    initial_residuals: dict
+    edge_warnings: tuple[str, ...]
+    versions: dict
+
+    def as_dict(self) -> dict:
+        return {"backend": self.backend, "precision": self.precision, "batch": self.batch,
+                "compile_s": self.compile_s, "initial_residuals": dict(self.initial_residuals),
+                "edge_warnings": list(self.edge_warnings), "versions": dict(self.versions)}
+
+
+def simulate_mjx(scene: Scene, settings: MjxSettings = MjxSettings()) -> EngineResult:
+    """Step the scene's MuJoCo model with MJX to the horizon.
+
+    Raises
+    ------
+    PortRefusal (a ValueError)
+        What MJX does not run (point forces), or a run beyond the limits, in one line.
+    NumericalFailure
+        INITIAL_STATE, NON_FINITE, CONSTRAINT_DRIFT, ENERGY_IMBALANCE (MuJoCo C's checks at MJX's states).
+    """
+    return simulate_batch([scene], settings)[0]
+
+
+def simulate_batch(scenes: list[Scene], settings: MjxSettings = MjxSettings()) -> list[EngineResult]:
+    """Step variants of one model (the same structure and step count; values may differ: masses,
+    dampers, loads, initial state) together, as one ``jax.vmap`` of the scan. Each result's
+    ``wall_s`` is the batch's run time divided by the batch's size.
+
+    Raises
+    ------
+    PortRefusal (a ValueError)
+        Scenes of other structures in one batch, or what :func:`simulate_mjx` refuses.
+    NumericalFailure
+        As :func:`simulate_mjx`, for the first variant that fails.
+    """
+    if not scenes:
+        raise ValueError("simulate_batch needs at least one scene")
+    runs = [prepare(scene, settings, "MJX", "mjx") for scene in scenes]
+    stack_runs(runs, "MJX")
+    with jax.enable_x64(settings.precision == "float64"):
+        qpos, qvel, compile_s, wall = _scan(runs, settings.precision)
+    details = MjxDetails(backend=jax.default_backend(), precision=settings.precision, batch=len(runs),
+                         compile_s=compile_s, initial_residuals={}, edge_warnings=(),
+                         versions={"mjx": MJX_VERSION, "jax": jax.__version__, "mujoco": mujoco.__version__})
+    per_step = 4 if settings.integrator == "rk4" else 1
+    defect = KNOWN_DEFECT.format(version=MJX_VERSION)
+    return [finish(run, qpos[k], qvel[k], name="mjx", engine="MJX", wall_s=wall / len(runs),
+                   evaluations_per_step=per_step,
+                   details=replace(details, initial_residuals=run.initial, edge_warnings=run.edge_notes),
+                   caveats=known_defects(run, MJX_VERSION, DEFECT_CHECKED, defect))
+            for k, run in enumerate(runs)]
+
+
+# The compiled scans of this process, by the batch's structure and shapes (a compilation takes
+# about 35 s on a CPU; another run of the same model structure and step count reuses it).
+_COMPILED: dict = {}
+
+
+def _rollout(m, d, us):
+    """qpos and qvel after each step of MJX's ``m`` from ``d`` under the controls ``us``."""
+    def body(d, u):
+        new = mjx.step(m, d.replace(ctrl=u))
+        # MJX 3.17 returns a few index fields (tendon wraps) as int64 under x64: keep the carry's types
+        new = jax.tree_util.tree_map(lambda n, o: n.astype(o.dtype) if hasattr(o, "dtype") else n, new, d)
+        return new, (new.qpos, new.qvel)
+    return jax.lax.scan(body, d, us)[1]
+
+
+def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """qpos and qvel after every step of every run, (batch, n_steps, nq|nv), with the scan's
+    compile time and run time (s)."""
+    dtype = np.float64 if precision == "float64" else np.float32
+    with refusing_unimplemented("MJX"):
+        models = [mjx.put_model(run.port_model) for run in runs]
+    datas = [mjx.put_data(run.port_model, run.data) for run in runs]
+    stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
+    mx = jax.tree_util.tree_map(stack, *models)
+    dx = jax.tree_util.tree_map(stack, *datas)
+    nu = runs[0].port_model.nu
+    ctrl = jax.numpy.asarray(np.stack([run.ctrl if nu else np.zeros((run.n_steps, 0)) for run in runs]), dtype=dtype)
+    key = (jax.tree_util.tree_structure((mx, dx)),
+           tuple((leaf.shape, str(leaf.dtype)) for leaf in jax.tree_util.tree_leaves((mx, dx, ctrl))))
+    compile_s = 0.0
+    compiled = _COMPILED.get(key)
+    if compiled is None:
+        start = time.perf_counter()
+        compiled = _COMPILED[key] = jax.jit(jax.vmap(_rollout)).lower(mx, dx, ctrl).compile()
+        compile_s = time.perf_counter() - start
+    start = time.perf_counter()
+    qpos, qvel = jax.block_until_ready(compiled(mx, dx, ctrl))
+    wall = time.perf_counter() - start
+    return np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float), compile_s, wall

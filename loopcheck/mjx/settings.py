@@ -1,0 +1,53 @@
+"""The MJX engine's settings: its ``[mjx]`` table of the scene file and its flags.
+
+Light on purpose: it imports neither JAX nor MuJoCo. The fields are the MuJoCo-family model's
+options (:mod:`loopcheck.mujoco_model.options`), the same as the MuJoCo engine's, with the grid step
+as the default timestep (MJX runs once; the MuJoCo engine's automatic search confirms its step by
+halving, which would cost MJX a compilation per step), and the precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from loopcheck.mujoco_model.options import DEFAULT_INTEGRATOR, ModelOptions
+from loopcheck.settings import option
+
+PRECISIONS = ("float64", "float32")
+INTEGRATORS = ("euler", "implicitfast", "rk4")  # MJX 3.17's (mjx types.IntegratorType: no implicit)
+
+
+@dataclass(frozen=True)
+class MjxSettings(ModelOptions):
+    """Everything that changes MJX's answer; recorded with every result.
+
+    The model's options (:class:`~loopcheck.mujoco_model.options.ModelOptions`) as the MuJoCo
+    engine's (a scene's ``[mujoco]`` values of them are this engine's defaults:
+    :func:`loopcheck.compare.settings.engine_settings`), except ``timestep``: None is the grid step
+    (the largest step ≤ 1 ms and ≤ 1/100 of
+    the horizon that puts every load edge on the grid), not a search. ``precision``: JAX's
+    float64 (``jax_enable_x64``) or float32. What MJX does not implement is refused here: the
+    implicit integrator (``implicitfast`` it has) and MuJoCo's exact constraint diagonal
+    (``diagexact``).
+    """
+
+    integrator: str = option(DEFAULT_INTEGRATOR, "MJX's integrator (MJX has no implicit)", "choice",
+                             choices=INTEGRATORS)
+
+    timestep: float | None = option(None, "MJX's timestep", "number", unit="s", limit="step", within_horizon=True,
+                                    default_text="[mujoco] timestep, else the grid step, the MuJoCo engine's "
+                                                 "first candidate (load edges on the grid)")
+    precision: str = option("float64", "JAX's floating-point precision", "choice", choices=PRECISIONS)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)} (MJX has no implicit integrator), "
+                             f"got {self.integrator!r}")
+        if self.diagexact is True:
+            raise ValueError("diagexact: MJX does not implement MuJoCo's exact constraint diagonal (mjENBL_DIAGEXACT)")
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
+
+
+Settings = MjxSettings  # the name every engine's settings have (loopcheck.registry)

@@ -1,0 +1,257 @@
+"""What a MuJoCo-family run's stored states say, by MuJoCo C's own functions: the initial
+state's loop residuals (:func:`check_initial_state`), the sensors at a state (:func:`sensors_at`),
+the loop gap, q̈ of the input, the trajectory with a sample on each side of a load edge, the
+general coordinates, and the energy audit (:func:`record_run`, over :mod:`.energy`).
+
+MuJoCo C steps in its own rollout and reads its sensors as it goes; MJX and MJWarp hand over
+their states alone, and the sensors are computed here at each state (``sensors=None``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from loopcheck import kinematics as loops
+from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.results import ConstraintViolation, EnergyAudit
+from loopcheck.scene import Scene
+from loopcheck.trajectory import JointTrajectory, Trajectory
+
+from .build import INPUT_MOTOR, ModelHandles, sensor_name
+from .energy import energy_audit, squares_by_row
+from .layout import Layout
+
+# Initial state: MuJoCo's loop residuals after mj_forward at the assembled (qpos, qvel), relative
+# to the mechanism's size (m) and to its point-speed scale (m/s) (check_initial_state). The
+# assembly leaves ~1e-16 relative (measured on the seed, two slider-cranks and a Watt II six-bar:
+# ≤ 2.2e-16 m and ≤ 4.4e-16 m/s, sizes 0.4–2 m), so 1e-12 is round-off with 1000x margin.
+INITIAL_RESIDUAL_REL = 1e-12
+STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # the states' layout: time, qpos, qvel, act, ...
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A run's stored states read by MuJoCo C.
+
+    times : s, the states' times; q, qdot : the input coordinate and its rate there (rad or m);
+    x, xdot : the scene's general coordinates and rates; trajectory : q, q̇, q̈ with a sample on
+    each side of every load edge; joints : the general coordinates with their assembly modes;
+    constraint_violation : the largest loop gap at each state (m); audit : the energy balance;
+    input_load : N·m or N, the input motor's force at each state (zero without one).
+    """
+
+    times: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    trajectory: Trajectory
+    joints: JointTrajectory
+    constraint_violation: ConstraintViolation
+    audit: EnergyAudit
+    input_load: np.ndarray
+
+    def gate(self, max_constraint_violation: float, max_energy_residual: float, initial: dict, engine: str) -> None:
+        """NumericalFailure when the loop gap or the energy residual is beyond its bound (the
+        messages name ``engine`` and the setting)."""
+        self.constraint_violation.gate(max_constraint_violation, engine, "max_constraint_violation")
+        self.audit.gate(max_energy_residual, 0.5 * initial["unit_rate_inertia"], engine, "max_energy_residual")
+
+
+def record_run(scene: Scene, handles: ModelHandles, layout: Layout, data: mujoco.MjData, states: np.ndarray,
+               sensors: np.ndarray | None, ctrl: np.ndarray, timed: np.ndarray, callback=None, *,
+               h: float, engine: str = "MuJoCo") -> RunRecord:
+    """Read a run's ``states`` (rows of ``STATE``, the first the initial one, one per step)
+    with MuJoCo C.
+
+    ``sensors``: the sensor rows MuJoCo computed at the start of each step (the last row, at the
+    end state, is computed here), or None to compute every row here at its state (with that
+    step's control ``ctrl`` and timed forces' values ``timed``, handed to ``callback``).
+
+    Raises
+    ------
+    NumericalFailure
+        INCOMPLETE: the states stop short of the horizon by more than half a step ``h``.
+    """
+    model = handles.model
+    times = states[:, 0]
+    check_complete(scene, times, h, engine)
+    qpos = states[:, 1:1 + model.nq]
+    qvel = states[:, 1 + model.nq:1 + model.nq + model.nv]
+    x, xdot = layout.x(qpos), layout.xdot(qvel)  # qpos counts from the assembled pose
+    q, qdot = x @ layout.system.drive, xdot @ layout.system.drive
+    if sensors is None:
+        sensors = np.empty((len(states), model.nsensordata))
+        for k in range(len(states) - 1):
+            if timed.shape[1]:
+                callback.step_values[:] = timed[k]
+            sensors[k] = sensors_at(model, data, states[k], ctrl[k] if model.nu else None, STATE)
+    if timed.shape[1]:
+        callback.step_values[:] = timed[-1]
+    sensors[-1] = sensors_at(model, data, states[-1], ctrl[-1] if model.nu else None, STATE)
+
+    sl = handles.sensor_slices
+    violation = np.zeros(len(times))
+    for name in scene.mechanism.linkage.cut_joints:
+        gap = sensors[:, sl[sensor_name(name, "a_pos")]] - sensors[:, sl[sensor_name(name, "b_pos")]]
+        violation = np.maximum(violation, np.sqrt(squares_by_row(gap)))
+    qddot = input_acceleration(model, data, handles, layout, states, sensors, ctrl, STATE, timed, callback)
+    trajectory = with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, STATE,
+                                   timed, callback)
+    audit = energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
+    key = sensor_name(INPUT_MOTOR, "force")
+    motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
+    return RunRecord(times=times, q=q, qdot=qdot, trajectory=trajectory,
+                     joints=joint_trajectory(layout, times, x, xdot),
+                     constraint_violation=ConstraintViolation(times, violation), audit=audit, input_load=motor)
+
+
+def input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
+    """q̈ at every stored state (rad/s² or m/s²).
+
+    A hinge input: the z angular acceleration of its child body minus its parent's (sensors
+    read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
+    with that step's control and timed forces' values (``timed``, handed to ``callback``).
+    """
+    if layout.input_hinge:
+        return hinge_acceleration(handles.sensor_slices, layout, sensors)
+    out = np.empty(len(states))
+    for k, state in enumerate(states):
+        mujoco.mj_setState(model, data, state, spec)
+        if model.nu:
+            data.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
+        if timed.shape[1]:
+            callback.step_values[:] = timed[min(k, len(timed) - 1)]
+        mujoco.mj_forward(model, data)
+        out[k] = layout.input_row @ data.qacc
+    return out
+
+
+def hinge_acceleration(sl, layout, sensors) -> np.ndarray:
+    sensors = np.atleast_2d(sensors)
+    acc = sensors[:, sl[sensor_name(layout.input_body, "angacc")]][:, 2]
+    if sensor_name(layout.input_parent, "angacc") in sl:
+        acc = acc - sensors[:, sl[sensor_name(layout.input_parent, "angacc")]][:, 2]
+    return acc
+
+
+def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData,
+                        layout: "Layout | None" = None) -> dict:
+    """MuJoCo's own loop residuals at the state in ``data``; NumericalFailure if above round-off.
+
+    After mj_forward, the equality rows of ``efc_pos`` are the gaps of every connect (m) and
+    of ``efc_vel`` = J q̇ their rates (m/s); the position residual also counts how far each
+    connect's anchor on body2 (MuJoCo's, computed at qpos0) is from the cut joint's point_b. Bounds: INITIAL_RESIDUAL_REL × the mechanism's size
+    (the largest distance between two of its points at x0), and × the largest point speed
+    scale (size × largest hinge rate, or largest slide rate). ``layout``: the scene's
+    :class:`Layout` if the caller has it (made here otherwise).
+    """
+    if layout is None:
+        layout = Layout.of(scene, model)
+    mujoco.mj_forward(model, data)
+    rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    position = float(np.linalg.norm(data.efc_pos[rows])) if len(rows) else 0.0
+    # MuJoCo derives each connect's anchor on body2 from the authored pose (at qpos0), so a pose
+    # that does not close a loop shows there, not in efc_pos: it must be the joint's point_b.
+    linkage = scene.mechanism.linkage
+    for name in linkage.cut_joints:
+        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, name)
+        jt = linkage.joint_map[name]
+        point_b = np.array([*linkage.body_map[jt.body_b].points[jt.point_b], 0.0])
+        position = max(position, float(np.linalg.norm(model.eq_data[eq, 3:6] - point_b)) if eq >= 0 else math.inf)
+    velocity = float(np.linalg.norm(data.efc_vel[rows])) if len(rows) else 0.0
+    length = layout.size
+    hinge = model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE
+    qvel = np.abs(data.qvel)
+    speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
+    limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * speed)
+    expected = 3 * len(scene.mechanism.linkage.cut_joints)
+    if len(rows) != expected or not position <= limits[0] or not velocity <= limits[1]:
+        raise NumericalFailure(FailureReason.INITIAL_STATE,
+                               f"MuJoCo's loop residuals at the initial state are {position:.3g} m (position, "
+                               f"limit {limits[0]:.3g} m) and {velocity:.3g} m/s (velocity, limit {limits[1]:.3g} m/s) "
+                               f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
+                               "does not close the loops", 0.0)
+    return {"position": position, "velocity": velocity, "limits": limits,
+            "unit_rate_inertia": unit_rate_inertia(model, data, rows, layout.input_row)}
+
+
+def unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray,
+                       input_row: np.ndarray) -> float:
+    """uᵀ M u (kg·m² or kg) for the joint rates u that keep every loop closed with the input
+    joint at unit rate (1 rad/s or 1 m/s).
+
+    u spans the null space of all equality rows of MuJoCo's constraint Jacobian J (at the state
+    in ``data``), scaled so input_row·u = 1; at a dead centre of the input (input_row·u ≈ 0)
+    so that its largest component is 1. This is 𝔍(q0) of Eksergian's equation, from MuJoCo's
+    quantities.
+    """
+    if len(rows):
+        jacobian = np.zeros((data.nefc, model.nv))
+        if mujoco.mj_isSparse(model):
+            mujoco.mju_sparse2dense(jacobian, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
+                                    data.efc_J_colind)
+        else:
+            jacobian[:] = data.efc_J.reshape(data.nefc, model.nv)
+        u = np.linalg.svd(jacobian[rows])[2][-1]  # right singular vector of the smallest singular value
+    else:
+        u = input_row.copy()
+    rate = float(input_row @ u)
+    u = u / rate if abs(rate) > 1e-6 * np.max(np.abs(u)) else u / np.max(np.abs(u))
+    mass = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, mass)
+    return float(u @ mass @ u)
+
+
+def check_complete(scene: Scene, times: np.ndarray, h: float, engine: str = "MuJoCo") -> None:
+    """INCOMPLETE unless the trajectory reaches the horizon within half a step."""
+    if not times[-1] >= scene.horizon - 0.5 * h:
+        raise NumericalFailure(FailureReason.INCOMPLETE,
+                               f"{engine}'s trajectory ends at t = {times[-1]:.6g} s, short of simulation.horizon "
+                               f"{scene.horizon:g} s (timestep {h:g} s)", float(times[-1]))
+
+
+def joint_trajectory(layout: Layout, times, x, xdot) -> JointTrajectory:
+    """MuJoCo's general coordinates and rates (from its qpos and qvel: :meth:`Layout.x`,
+    :meth:`Layout.xdot`), with the assembly mode of each sample."""
+    mode = loops.assembly_modes(layout.system, x)
+    return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
+                           np.full(len(times), -1), mode)
+
+
+def sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
+    mujoco.mj_setState(model, data, state, spec)
+    if ctrl_row is not None:
+        data.ctrl[:] = ctrl_row
+    mujoco.mj_forward(model, data)
+    return data.sensordata.copy()
+
+
+def with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
+                       timed, callback) -> Trajectory:
+    """Insert, at each step where the control or a timed force jumps, a sample with q̈ from
+    before the jump."""
+    jumped = np.zeros(max(len(states) - 2, 0), dtype=bool)
+    if model.nu:
+        jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
+    if timed.shape[1]:
+        jumped |= np.any(np.diff(timed, axis=0) != 0.0, axis=1)
+    if not np.any(jumped):
+        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
+    jumps = np.flatnonzero(jumped) + 1
+    before = []
+    for k in jumps:
+        if timed.shape[1]:
+            callback.step_values[:] = timed[k - 1]
+        if layout.input_hinge:
+            before.append(hinge_acceleration(handles.sensor_slices, layout,
+                                              sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
+        else:
+            sensors_at(model, data, states[k], ctrl[k - 1], spec)
+            before.append(float(layout.input_row @ data.qacc))
+    return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
+                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before))
+
+

@@ -1,0 +1,884 @@
+"""Eksergian coefficients and the chart walk of a one-DOF planar linkage, compiled (Cython).
+
+The one implementation of the reduced model's physics, over the linkage's compiled kinematics
+(:class:`loopcheck.kernels.loops.Loops`: term tables, Φ and Φ_x, the LU, K, L and the conditioning,
+which a chart holds and calls). A scene's model is two plain arrays
+(:class:`Model`), and a chart (:class:`Chart`) is a compiled object holding its state in two
+more and the integrators' interface (:class:`.problem.RightHandSide`), so that the integrators'
+loops run without a Python object; :mod:`loopcheck.reduced.dynamics` builds the arrays from a scene and
+wraps the chart for Python callers. Debug with ``LOOPCHECK_PURE_PYTHON=1``: this file then runs as
+plain Python (:mod:`loopcheck.reduced.kernels`).
+
+Term tables (:mod:`loopcheck.kernels.loops`): row k of a table is r_k(x) = offset_k + Σ_t m_t R(θ_t) w_t
+with m_t = x[mag_t] (or 1), θ_t = x[angle_t] (or 0 for ground) and w_t = coef_t e(phase_t).
+With u_t = R(θ_t) w_t and u⊥ = (−u_y, u_x):
+
+    ∂r/∂x[angle] = m u⊥,  ∂r/∂x[mag] = u,
+    K_r = ṁ u + m θ̇ u⊥,  L_r = m̈ u + (2 ṁ θ̇ + m θ̈) u⊥ − m θ̇² u     (ṁ = K[mag], θ̇ = K[angle], …)
+
+A chart integrates in one coordinate x_i. Its configuration at x_i = value is found in closed
+form where the chart's loops are RRR dyads (:func:`_dyads`), else by Newton's method on
+A = [Φ_x; e_i] from the quadratic predictor x + K Δ + ½ L Δ² of the chart's last configuration;
+K = dx/dx_i and L = d²x/dx_i² solve
+
+    A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
+
+with the same factorization. Conditioning of coordinate j (Cramer's rule, K w.r.t. x_i):
+c_j = |det J_{−j}| / Π_{l≠j} ‖Φ_x[:, l]‖ with |det J_{−j}| = |K_j| |det A|: the project's one
+singular-position measure (:mod:`loopcheck.kernels.loops` evaluates it, as
+:func:`loopcheck.kinematics.driving_conditioning` does through it), compared with the threshold the
+chart is built with (``Chart(model, singular)``). The walk, the closed-form dyads and Eksergian's
+coefficients are this module's; the term tables, Φ, Φ_x, the LU, K, L and the conditioning are
+:class:`~loopcheck.kernels.loops.Loops`'s C methods, moved there with their arithmetic unchanged.
+
+Compiled: the integer constants of the packed layout (below) are C constants declared in
+``physics.pxd`` (a ``cpdef enum``: importable from Python with the same values; the block
+``if not cython.compiled`` here defines them for plain Python, and
+``tests/reduced/kernels/test_physics_port.py`` checks that the two agree); the numerical constants are Python
+names with a C copy each (``_c_…``) that the kernels read. The arithmetic keeps the order of
+every expression (the build does not contract a*b+c or reassociate), so that it gives the same
+numbers as plain Python, and as the numba core it replaced: compared on every shipped scene and
+the tests' timed-force and joint-element scenes, with and without dyad plans (24 624
+evaluations along, back and in long jumps), not one bit differed.
+"""
+
+import math
+from typing import NamedTuple
+
+import cython
+import numpy as np
+
+if cython.compiled:
+    from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.loopcheck.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
+    from cython.cimports.loopcheck.reduced.kernels.problem import RightHandSide
+else:
+    from math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+
+    from loopcheck.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
+    from loopcheck.reduced.kernels.problem import RightHandSide
+
+# Newton: converged when every residual is ≤ NEWTON_TOL (m or rad); the step computed there
+# is still applied (polish to round-off) and Φ_x factored once more at the polished x, so that
+# K, L and the coefficients are those of the x returned, whatever the walk's history (with the
+# factors of the iterate before, f(t, q, q̇) varied by 4e-12 relative with the previous call,
+# and DOP853's steps with it). From the quadratic predictor: 2 steps, 3 factorizations.
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 20
+# A loop's residual cannot fall below the rounding of its angles: ε|θ| of each term's lever
+# |m w|. Newton's tolerance is never below NEWTON_ROUND_OFF × Σ |m w| |θ| (4 ulps of it): at
+# |θ| ≈ 1e4 rad and 1 m that is 1e-11 m. Without it a drag link coasting at 100 rad/s failed
+# after 75 s (7 400 rad), reported as a singular position. Below ~1 000 rad·m it is NEWTON_TOL.
+NEWTON_ROUND_OFF = 4 * 2.220446049250313e-16
+# A Newton correction larger than PREDICTOR_TRUST × the predicted motion |K Δ| (plus
+# TRUSTED_CORRECTION, rad or m) means the jump was too long for the predictor: it is taken in
+# halves, at most MAX_HALVINGS deep.
+PREDICTOR_TRUST = 0.25
+TRUSTED_CORRECTION = 1e-9
+MAX_HALVINGS = 30
+# The halvings of one walk may nest MAX_HALVINGS deep, a tree of up to 2^30 closures: a walk
+# whose closures keep failing (seen: a prismatic column of Φ_x written into the wrong row, where
+# Newton never converges) would spin for hours. A walk that needs more than MAX_WALK_CLOSURES
+# closures fails instead (S[STATUS] = WORK_SPENT), and the run with it. Measured: at most 2
+# closures in one walk on every shipped scene with dop853, rkn4 and scipy-dop853; 61 in the
+# tests' walks (a chart started at a fold, tests/reduced/test_long_walks.py). With the fault planted, a
+# walk spent the 20 000 in 0.07 s, and the runs that had spun failed in under 0.1 s.
+MAX_WALK_CLOSURES = 20_000
+# Beyond a predicted motion of LONG_JUMP (rad, or m) the quadratic predictor cannot tell a
+# dependent angle's turn, and the closure nearest to it can be whole turns away: a jump that long
+# is halved without trying it. (Closed at once, walks of hundreds of rad had left a crank-rocker's
+# coupler and rocker at thousands of rad, where round-off no longer let the loops close; taking
+# each angle's turn nearest its base instead put a drag link's rotating angles whole turns off,
+# and a force tabulated on q of a dependent input read there: 8e-2 rad of error at rtol 1e-6.)
+# Beyond FAR_JUMP a jump is no motion of the run but a trial stage of a blown-up step (seen at
+# 4e5 to 3e7 rad at loose rtol, a step the solver then rejects): walked in halves it cost
+# seconds to minutes an evaluation, so it is closed at once, each dependent angle on the turn
+# nearest its base. A walk of FAR_JUMP costs ~100 closures. Such a jump starts from the base's
+# configuration with only x_i moved, not from the predictor: K Δ + ½ L Δ² put the dependent
+# angles of a 3e7-rad jump near 1e15 rad, where their rounding alone is 0.1 rad and Newton's
+# round-off floor (NEWTON_ROUND_OFF) let configurations 1e-2 rad off pass as closed.
+LONG_JUMP = 2.0
+FAR_JUMP = 200.0
+# Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
+# well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
+HYSTERESIS = 0.5
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+# cos ψ beyond ±1 by round-off is a flat dyad (the circles touch), beyond this no assembly.
+DYAD_ROUND_OFF = 1e-12
+# A closed-form configuration is taken as it is when every residual is within this many ε of
+# the loop's size (the sum of its terms' magnitudes): near a flat dyad acos loses digits (ψ to
+# ~1e-8), and the residual, though ≤ NEWTON_TOL, would leave x off by NEWTON_TOL / σ_min(Φ_x);
+# there Newton polishes it as it polishes its own iterates.
+CLOSED_FORM_RESIDUAL = 64 * 2.220446049250313e-16
+# The closed form gives each angle modulo 2π; the turn is the predictor's. Beyond this predicted
+# motion (rad) the predictor cannot tell the turn (a walk back over a whole piece: hundreds of
+# rad), and the configuration is left to Newton's method and the walk's halving, which follow it.
+CLOSED_FORM_REACH = 0.5
+
+
+# -- the packed layout -------------------------------------------------------------------
+# A model is two flat arrays, F (float64) and I (int64); a chart holds two more, S (int64) and
+# W (float64), and typed views of their parts (:class:`Chart`).
+#
+# I[0:KIN_HEADER] is the linkage's kinematics (:mod:`loopcheck.kernels.loops`: counts, the linear
+# rows, the term tables, of which LOOPS is the loops'); I[KIN_HEADER:HEADER] this model's header:
+# counts, then offsets of each array in F (or in I).
+# Compiled, these are the C constants of physics.pxd (module docstring): keep both in step.
+if not cython.compiled:
+    N_DAMPERS, N_ELEMENTS, N_FORCES, HAS_GRAVITY = range(33, 37)
+    (DRIVE, MASSES, INERTIAS, GRAVITY, ELEMENT_COEF, ELEMENT_REST, FORCE_DIR, SPLINE_KNOTS, SPLINE_COEF,
+     SPLINE_LO, SPLINE_HI, SPLINE_PERIOD, KNOT_START, COEF_START, SPLINE_DEGREE) = range(37, 52)
+    # Dyads (:func:`_dyads`): DYAD_PLAN, the offset in I of one entry per coordinate i, the first
+    # step of its plan in DYAD_STEPS or −1 (no plan: Newton alone); DYAD_STEPS, the offset in I of
+    # (loop, a, b) per step; DYAD_W, the offset in F of (W_a, W_b, φ_a, φ_b) per step (6 floats; φ
+    # the angle of W).
+    DYAD_PLAN, DYAD_STEPS, DYAD_W = 52, 53, 54
+    # Joint elements (dampers, then springs, then inertias, on a joint's own coordinate u = row·x):
+    # their count, the count of dampers among them, and the offsets in F of their rows (count, n),
+    # coefficients and rest values (count,); N_JOINT_INERTIAS (last in the header), the count of
+    # inertias, the last elements.
+    N_JOINT_ELEMENTS, N_JOINT_DAMPERS, JOINT_ROWS, JOINT_COEF, JOINT_REST = range(55, 60)
+    # Timed forces (F(t) along a fixed direction at a point; their points follow the point forces'
+    # in the FORCE_POINTS table): their count, the offset in F of their directions (count, 2), and
+    # of the loads on each piece of the run's load history (pieces, 1 + count): the input load,
+    # then each timed force's value. The integrators pass a piece's index as its ``load``.
+    N_TIMED, TIMED_DIR, PIECE_VALUES = range(60, 63)
+    # The kinematics' term tables besides LOOPS: the centres of mass, the line elements' end
+    # points, the points of the point and timed forces.
+    CENTRES, ENDS, FORCE_POINTS = range(1, 4)
+    N_JOINT_INERTIAS = 63
+    HEADER = 64
+
+    # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
+    # holds the chart's value), then the walk's halving budgets (DEPTH).
+    INDEPENDENT, SIGN, STATUS, VALID = range(4)
+    S_HEADER = 4
+    # S[STATUS]: WORK_SPENT, a walk that needed more than MAX_WALK_CLOSURES closures
+    OK, SINGULAR, WORK_SPENT = 0, 1, 2
+    # fields: the coefficients at the memo's value, with respect to x_i
+    (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
+     INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
+    N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
+    DEPTH = MAX_HALVINGS + 2
+
+# C copies of the numerical constants above, which the kernels read (compiled, a module's
+# Python name costs a dictionary lookup and an unboxing at every use). Plain Python reads them
+# too: a test that changes a bound changes the copy (tests/reduced/kernels/test_work_bounds.py).
+_c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
+_c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
+_c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
+_c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
+_c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
+_c_max_halvings = cython.declare(cython.longlong, MAX_HALVINGS)
+_c_max_walk_closures = cython.declare(cython.Py_ssize_t, MAX_WALK_CLOSURES)
+_c_long_jump = cython.declare(cython.double, LONG_JUMP)
+_c_far_jump = cython.declare(cython.double, FAR_JUMP)
+_c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
+_c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
+_c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
+_c_pi = cython.declare(cython.double, math.pi)
+_c_nan = cython.declare(cython.double, math.nan)
+
+
+class Model(NamedTuple):
+    """A scene's reduced model, packed (built by :func:`loopcheck.reduced.dynamics.build_arrays`)."""
+
+    F: np.ndarray
+    I: np.ndarray
+
+
+def field_count(model: Model) -> int:
+    """Length of a chart's fields: N_FIELDS, then one per timed force."""
+    return N_FIELDS + int(model.I[N_TIMED])
+
+
+# -- closed-form dyads ------------------------------------------------------------------
+
+@cython.cfunc
+@cython.inline
+def _nearest(angle: cython.double, target: cython.double) -> cython.double:
+    """angle + 2πk closest to target (rad)."""
+    return target + (angle - target) - 2.0 * _c_pi * floor((angle - target) / (2.0 * _c_pi) + 0.5)
+
+
+@cython.ccall
+def _dyads(F: cython.double[::1], I: cython.longlong[::1], first: cython.Py_ssize_t, x: cython.double[::1],
+           base: cython.double[::1], trig: cython.double[:, ::1], i: cython.Py_ssize_t) -> cython.bint:
+    """The dependent angles of x by closed form, loop after loop of the plan that starts at step
+    ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
+    the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
+
+        R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
+
+    two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
+    (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
+    ``base`` (n,) is taken: the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart
+    (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b follows from
+    R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the predictor's).
+    The cos and sin of every angle (the chart's coordinate i and the solved ones: with a plan,
+    all) go into trig (2, n) as they are computed, as :func:`angle_trig` would compute them.
+    Returns False where the circles do not meet (no closed loop)."""
+    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+    n_loops: cython.Py_ssize_t = I[tb]
+    step: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    a: cython.Py_ssize_t
+    b: cython.Py_ssize_t
+    w: cython.Py_ssize_t
+    t: cython.Py_ssize_t
+    g: cython.Py_ssize_t
+    wax: cython.double
+    way: cython.double
+    wbx: cython.double
+    wby: cython.double
+    phi_a: cython.double
+    phi_b: cython.double
+    dx: cython.double
+    dy: cython.double
+    ux: cython.double
+    uy: cython.double
+    c: cython.double
+    sn: cython.double
+    d2: cython.double
+    ra2: cython.double
+    cos_psi: cython.double
+    sin_psi: cython.double
+    last: cython.double
+    norm: cython.double
+    ra: cython.double
+    qx: cython.double
+    qy: cython.double
+    rq: cython.double
+    trig[0, i] = cos(x[i])
+    trig[1, i] = sin(x[i])
+    for step in range(first, first + n_loops):
+        k = I[I[DYAD_STEPS] + 3 * step]
+        a = I[I[DYAD_STEPS] + 3 * step + 1]
+        b = I[I[DYAD_STEPS] + 3 * step + 2]
+        w = I[DYAD_W] + 6 * step
+        wax, way, wbx, wby, phi_a, phi_b = F[w], F[w + 1], F[w + 2], F[w + 3], F[w + 4], F[w + 5]
+        dx = -F[I[tb + 2] + 2 * k]
+        dy = -F[I[tb + 2] + 2 * k + 1]
+        for t in range(I[tb + 1]):
+            g = I[I[tb + 6] + t]
+            if I[I[tb + 4] + t] != k or g == a or g == b:
+                continue
+            ux = F[I[tb + 3] + 2 * t]
+            uy = F[I[tb + 3] + 2 * t + 1]
+            if g >= 0:  # a known angle: i's or solved by an earlier step
+                c = trig[0, g]
+                sn = trig[1, g]
+                ux, uy = ux * c - uy * sn, ux * sn + uy * c
+            dx -= ux
+            dy -= uy
+        d2 = dx * dx + dy * dy
+        ra2 = wax * wax + way * way
+        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * sqrt(d2 * ra2))
+        if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
+            return False
+        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
+        # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
+        last = sin(base[b] + phi_b - base[a] - phi_a)
+        cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
+        sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
+        # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
+        norm = sqrt(d2)
+        ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
+        ra = sqrt(ra2)
+        c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
+        x[a] = _nearest(atan2(uy, ux) - phi_a, x[a])
+        trig[0, a] = c
+        trig[1, a] = sn
+        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
+        x[b] = _nearest(atan2(qy, qx) - phi_b, x[b])
+        rq = sqrt(qx * qx + qy * qy) * sqrt(wbx * wbx + wby * wby)
+        if rq > 0.0:
+            trig[0, b] = (qx * wbx + qy * wby) / rq
+            trig[1, b] = (qy * wbx - qx * wby) / rq
+        else:
+            trig[0, b] = cos(x[b])
+            trig[1, b] = sin(x[b])
+    return True
+
+
+# -- the chart -------------------------------------------------------------------------------
+
+@cython.final
+@cython.cclass
+class Chart(RightHandSide):
+    """One chart of a model: its state, q̈ in its coordinate, its walk (compiled).
+
+    ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
+    SIGN, STATUS, VALID, the walk's halving budgets (DEPTH)) and W (float64: value (1,), start,
+    last (3, n), fields (field_count), guess (n,), base (DEPTH, 3, n), target (DEPTH,)), both numpy
+    arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
+    made once here (the start view is ``origin``: ``start`` is the method). The kernels below
+    are methods that read and write these views and take no array argument (compiled, an array
+    argument is a 200-byte view passed by value, and a view made in a call changes a reference
+    count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
+    as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
+    scratch of the B-splines (the largest degree + 1), and the linkage's kinematics (``loops``, a
+    :class:`loopcheck.kernels.loops.Loops` on the model's arrays: Newton's x, trig, A, rhs, norms, rows
+    and kin (3, n: x, K, L), which the chart views under the same names). A chart is empty until
+    :meth:`start`.
+
+    ``singular`` is the singular-position threshold: below this conditioning a coordinate cannot
+    drive the linkage (:data:`loopcheck.kinematics.SINGULAR_CONDITIONING`, which the reduced engine
+    passes in: the compiled core imports nothing of the project outside it but the kinematics' kernel).
+    """
+
+    def __init__(self, model: Model, singular: float):
+        if not 0.0 < singular < 1.0:
+            raise ValueError(f"Chart: the singular-position threshold is a conditioning in (0, 1), not {singular}")
+        self.singular = singular
+        F = np.ascontiguousarray(model.F, dtype=np.float64)
+        I = np.ascontiguousarray(model.I, dtype=np.int64)
+        self.model = Model(F, I)
+        self.F = F
+        self.I = I
+        n = int(I[N])
+        self.n = n
+        nfields = N_FIELDS + int(I[N_TIMED])
+        size = 1 + 9 * n + nfields + n + DEPTH * 3 * n + DEPTH
+        self.S = np.zeros(S_HEADER + DEPTH, np.int64)
+        self.W = np.zeros(size)
+        self.s = self.S
+        self.budget = self.S[S_HEADER:S_HEADER + DEPTH]
+        views = []
+        o = 0
+        for shape in ((1,), (3, n), (3, n), (nfields,), (n,), (DEPTH, 3, n), (DEPTH,)):
+            size = math.prod(shape)
+            views.append(self.W[o:o + size].reshape(shape))
+            o += size
+        self.value, self.origin, self.last, self.fields, self.guess, self.base, self.target = views
+        # the linkage's kinematics, and views of its scratch under the names the methods below use
+        self.loops = Loops(F, I)
+        self.x, self.trig, self.A, self.rhs = self.loops.x, self.loops.trig, self.loops.A, self.loops.rhs
+        self.norms, self.rows, self.kin = self.loops.norms, self.loops.rows, self.loops.kin
+        self.K, self.L = self.loops.K, self.loops.L
+        self.marked = np.zeros((3, n))
+        degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
+        self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
+
+    def arrays(self) -> dict:
+        """Named numpy views of the chart's state (Python callers): value (1,), start, last,
+        kin (3, n: x, K, L) and fields (field_count,); they follow every later evaluation."""
+        n = int(self.n)
+        nfields = field_count(self.model)
+        views = [self.W[0:1], self.W[1:1 + 3 * n].reshape(3, n), self.W[1 + 3 * n:1 + 6 * n].reshape(3, n),
+                 self.W[1 + 6 * n:1 + 6 * n + nfields]]
+        return {"value": views[0], "start": views[1], "last": views[2], "kin": self.loops.B[-3 * n:].reshape(3, n),
+                "fields": views[3]}
+    # -- one configuration ------------------------------------------------------------------
+
+    @cython.cfunc
+    def _finish(self, det: cython.double) -> cython.int:
+        """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
+        it), and the conditioning of every coordinate into the fields (:meth:`Loops._finish`)."""
+        self.loops._finish(det, self.s[INDEPENDENT])
+        self.fields[CONDITIONING] = self.loops.own
+        self.fields[BEST_CONDITIONING] = self.loops.best
+        self.fields[BEST] = self.loops.best_j
+        self.fields[DETERMINANT] = det
+        return 0
+
+    @cython.cfunc
+    def _close(self, depth: cython.Py_ssize_t, value: cython.double, reach: cython.double) -> cython.int:
+        """Newton from the predictor of base[depth] (rows x, K, L) to x_i = value, whose predicted
+        motion max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into kin (3, n).
+
+        Returns 0 (closed, on the chart's branch, not singular) or 1 (failed: no convergence,
+        singular, or another branch). Leaves the conditioning and det in the fields.
+        """
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        it: cython.Py_ssize_t
+        v: cython.double
+        scale: cython.double
+        largest: cython.double
+        delta: cython.double = value - self.base[depth, 0, i]
+        far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
+        for j in range(n):
+            self.x[j] = self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
+        self.x[i] = value
+        for j in range(n):
+            self.guess[j] = self.x[j]
+        det: cython.double = 0.0
+        converged: cython.bint = False
+        factored: cython.bint = False  # at the polished x
+        plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
+        # x by closed form: taken as it is if it closes the loops
+        closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
+        if closed and not _dyads(self.F, self.I, plan, self.x, self.base[depth, 0], self.trig, i):
+            return 1
+        for it in range(_c_newton_max_iter + 1):
+            if not closed:  # the closed form left trig at x
+                self.loops._angle_trig()
+            scale = self.loops._constraints()
+            largest = 0.0
+            for r in range(n - 1):
+                if not isfinite(self.rhs[r]):
+                    return 1
+                largest = max(largest, fabs(self.rhs[r]))
+            for c in range(n):
+                v = 0.0
+                for r in range(n - 1):
+                    v += self.A[r, c] * self.A[r, c]
+                self.norms[c] = sqrt(v)
+                self.A[n - 1, c] = 0.0
+            self.A[n - 1, i] = 1.0
+            self.rhs[n - 1] = 0.0
+            det = self.loops._lu_factor()
+            if det == 0.0 or not isfinite(det):
+                return 1
+            if converged or (closed and largest <= _c_closed_form_residual * scale):
+                factored = True
+                break
+            closed = False  # not closed to round-off: Newton from there
+            self.loops._lu_solve(self.rhs)
+            for j in range(n):
+                self.x[j] -= self.rhs[j]
+            # converged: the step just taken polishes to round-off
+            converged = largest <= max(_c_newton_tol, _c_newton_round_off * self.loops.spread)
+        if not factored:
+            return 1
+        for j in range(n):
+            if not isfinite(self.x[j]):
+                return 1
+        self._finish(det)
+        if self.fields[CONDITIONING] < self.singular:
+            return 1
+        if self.s[SIGN] != 0 and (1 if det >= 0.0 else -1) != self.s[SIGN]:
+            return 1
+        return 0
+
+    @cython.cfunc
+    def _walk(self, value: cython.double) -> cython.int:
+        """Continue the chart from its last configuration to x_i = value, halving untrusted
+        jumps; the result in kin and last. Returns OK, SINGULAR (no closure within the halvings)
+        or WORK_SPENT (more than MAX_WALK_CLOSURES closures)."""
+        n: cython.Py_ssize_t = self.n
+        i: cython.Py_ssize_t = self.s[INDEPENDENT]
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        delta: cython.double
+        predicted: cython.double
+        moved: cython.double
+        failed: cython.bint
+        trusted: cython.bint
+        for r in range(3):
+            for j in range(n):
+                self.base[0, r, j] = self.last[r, j]
+        self.target[0] = value
+        self.budget[0] = _c_max_halvings
+        depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
+        closures: cython.Py_ssize_t = 0
+        while True:
+            delta = self.target[depth] - self.base[depth, 0, i]
+            predicted = 0.0  # the jump's predicted motion, max_j |K_j Δ| + ½ |L_j| Δ²
+            for j in range(n):
+                predicted = max(predicted, fabs(self.base[depth, 1, j] * delta)
+                                + 0.5 * fabs(self.base[depth, 2, j]) * delta * delta)
+            failed = False  # a jump beyond LONG_JUMP (up to FAR_JUMP) is halved untried
+            trusted = False
+            if predicted <= _c_long_jump or predicted > _c_far_jump or self.budget[depth] <= 0:
+                if closures == _c_max_walk_closures:
+                    return WORK_SPENT
+                closures += 1
+                failed = self._close(depth, self.target[depth], predicted) != 0
+                if not failed:
+                    moved = 0.0
+                    for j in range(n):
+                        moved = max(moved, fabs(self.kin[0, j] - self.guess[j]))
+                    trusted = moved <= _c_predictor_trust * predicted + _c_trusted_correction
+            if failed and self.budget[depth] <= 0:
+                return SINGULAR
+            if trusted or self.budget[depth] <= 0:
+                if predicted > _c_long_jump:  # closed at once: the turns nearest the base's
+                    for j in range(self.I[N_ANGLES]):
+                        if j != i:
+                            self.kin[0, j] = _nearest(self.kin[0, j], self.base[depth, 0, j])
+                if depth == 0:
+                    break
+                # the midpoint is reached: it is the base of the second half, one level down
+                depth -= 1
+                for r in range(3):
+                    for j in range(n):
+                        self.base[depth, r, j] = self.kin[r, j]
+                self.budget[depth] -= 1
+                continue
+            # halve: seek the midpoint first, then the target from there
+            for r in range(3):
+                for j in range(n):
+                    self.base[depth + 1, r, j] = self.base[depth, r, j]
+            self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
+            self.budget[depth + 1] = self.budget[depth] - 1
+            depth += 1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+        return OK
+
+    @cython.cfunc
+    def _point_force(self, p: cython.Py_ssize_t, q: cython.double) -> cython.double:
+        """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor, in the
+        chart's spline scratch)."""
+        lo: cython.double = self.F[self.I[SPLINE_LO] + p]
+        hi: cython.double = self.F[self.I[SPLINE_HI] + p]
+        period: cython.double = self.F[self.I[SPLINE_PERIOD] + p]
+        if period > 0.0:
+            q = lo + (q - lo) - period * floor((q - lo) / period)
+        else:
+            q = min(max(q, lo), hi)
+        t0: cython.Py_ssize_t = self.I[SPLINE_KNOTS] + self.I[self.I[KNOT_START] + p]
+        c0: cython.Py_ssize_t = self.I[SPLINE_COEF] + self.I[self.I[COEF_START] + p]
+        nc: cython.Py_ssize_t = self.I[self.I[COEF_START] + p + 1] - self.I[self.I[COEF_START] + p]
+        k: cython.Py_ssize_t = self.I[self.I[SPLINE_DEGREE] + p]
+        l: cython.Py_ssize_t = k
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        left: cython.double
+        alpha: cython.double
+        while l < nc - 1 and self.F[t0 + l + 1] <= q:
+            l += 1
+        for j in range(k + 1):
+            self.spline[j] = self.F[c0 + l - k + j]
+        for r in range(1, k + 1):
+            for j in range(k, r - 1, -1):
+                left = self.F[t0 + j + l - k]
+                alpha = (q - left) / (self.F[t0 + j + 1 + l - r] - left)
+                self.spline[j] = (1.0 - alpha) * self.spline[j - 1] + alpha * self.spline[j]
+        return self.spline[k]
+
+    @cython.cfunc
+    def _coefficients(self) -> cython.int:
+        """Eksergian's coefficients at the chart's kin into its fields (loopcheck.reduced.dynamics documents
+        them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
+        nb: cython.Py_ssize_t = self.I[N_ANGLES]
+        ms: cython.Py_ssize_t = self.I[MASSES]
+        ins: cython.Py_ssize_t = self.I[INERTIAS]
+        b: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        m: cython.double
+        inertia: cython.double
+        gx: cython.double
+        gy: cython.double
+        dx: cython.double
+        dy: cython.double
+        length: cython.double
+        k_d: cython.double
+        c: cython.double
+        stretch: cython.double
+        u: cython.double
+        k_u: cython.double
+        r: cython.double
+        d: cython.double
+        along: cython.double
+        self.loops._table_rates(CENTRES, True)
+        J: cython.double = 0.0
+        zeta: cython.double = 0.0
+        for b in range(nb):
+            m = self.F[ms + b]
+            inertia = self.F[ins + b]
+            J += m * (self.rows[b, 0] * self.rows[b, 0] + self.rows[b, 1] * self.rows[b, 1]) + inertia * self.K[b] * self.K[b]
+            zeta += m * (self.rows[b, 0] * self.rows[b, 2] + self.rows[b, 1] * self.rows[b, 3]) + inertia * self.K[b] * self.L[b]
+        dV: cython.double = 0.0
+        V: cython.double = 0.0
+        damping: cython.double = 0.0
+        force: cython.double = 0.0
+        if self.I[HAS_GRAVITY]:
+            gx = self.F[self.I[GRAVITY]]
+            gy = self.F[self.I[GRAVITY] + 1]
+            for b in range(nb):
+                dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+            self.loops._table_positions(CENTRES)
+            for b in range(nb):
+                V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
+        ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
+        if ne:
+            self.loops._table_rates(ENDS, False)
+            for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
+                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+            self.loops._table_positions(ENDS)
+            for e in range(ne):
+                dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
+                dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
+                length = sqrt(dx * dx + dy * dy)
+                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                c = self.F[self.I[ELEMENT_COEF] + e]
+                if e < self.I[N_DAMPERS]:
+                    damping += c * k_d * k_d
+                else:
+                    stretch = length - self.F[self.I[ELEMENT_REST] + e]
+                    dV += c * stretch * k_d
+                    V += 0.5 * c * stretch * stretch
+        nj: cython.Py_ssize_t = self.I[N_JOINT_ELEMENTS]
+        n: cython.Py_ssize_t = self.n
+        rows_at: cython.Py_ssize_t
+        first_inertia: cython.Py_ssize_t = nj - self.I[N_JOINT_INERTIAS]
+        l_u: cython.double
+        if nj:
+            rows_at = self.I[JOINT_ROWS]
+            for e in range(nj):  # u = row·x, K_u = du/dx_i = row·K, L_u = row·L
+                u = 0.0
+                k_u = 0.0
+                l_u = 0.0
+                for j in range(n):
+                    r = self.F[rows_at + e * n + j]
+                    u += r * self.kin[0, j]
+                    k_u += r * self.K[j]
+                    l_u += r * self.L[j]
+                c = self.F[self.I[JOINT_COEF] + e]
+                if e < self.I[N_JOINT_DAMPERS]:
+                    damping += c * k_u * k_u
+                elif e >= first_inertia:  # T = ½ c u̇² = ½ c K_u² q̇²: adds c K_u² to 𝔍 and c K_u L_u to ζ
+                    J += c * k_u * k_u
+                    zeta += c * k_u * l_u
+                else:
+                    stretch = u - self.F[self.I[JOINT_REST] + e]
+                    dV += c * stretch * k_u
+                    V += 0.5 * c * stretch * stretch
+        rate: cython.double = 0.0
+        curvature: cython.double = 0.0
+        q: cython.double = 0.0
+        for j in range(n):
+            d = self.F[self.I[DRIVE] + j]
+            rate += d * self.K[j]
+            curvature += d * self.L[j]
+            q += d * self.kin[0, j]
+        nf: cython.Py_ssize_t = self.I[N_FORCES]
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        fd: cython.Py_ssize_t
+        td: cython.Py_ssize_t
+        if nf or nt:
+            self.loops._table_rates(FORCE_POINTS, False)
+            fd = self.I[FORCE_DIR]
+            for p in range(nf):
+                along = self.rows[p, 0] * self.F[fd + 2 * p] + self.rows[p, 1] * self.F[fd + 2 * p + 1]
+                force += self._point_force(p, q) * along
+            td = self.I[TIMED_DIR]
+            for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
+                self.fields[N_FIELDS + p] = self.rows[nf + p, 0] * self.F[td + 2 * p] + self.rows[nf + p, 1] * self.F[td + 2 * p + 1]
+        self.fields[INERTIA] = J
+        self.fields[CENTRIFUGAL] = zeta
+        self.fields[POTENTIAL_GRADIENT] = dV
+        self.fields[DAMPING] = damping
+        self.fields[POTENTIAL] = V
+        self.fields[INPUT_RATE] = rate
+        self.fields[POINT_FORCE] = force
+        self.fields[INPUT_CURVATURE] = curvature
+        return 0
+
+    @cython.cfunc
+    def _applied(self, piece: cython.Py_ssize_t) -> cython.double:
+        """The generalized force of the loads (N·m or N) at the fields on load piece ``piece``
+        (its index): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
+        the piece (PIECE_VALUES)."""
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        row: cython.Py_ssize_t = self.I[PIECE_VALUES] + piece * (1 + nt)
+        p: cython.Py_ssize_t
+        g: cython.double = self.F[row] * self.fields[INPUT_RATE] + self.fields[POINT_FORCE]
+        for p in range(nt):
+            g += self.F[row + 1 + p] * self.fields[N_FIELDS + p]
+        return g
+
+    # -- the chart interface ----------------------------------------------------------------
+
+    @cython.ccall
+    def evaluate(self, value: cython.double) -> cython.bint:
+        """The chart's configuration and coefficients at x_i = value (memoized): True on success,
+        else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
+        reach of the walk) or WORK_SPENT (the walk needed more than MAX_WALK_CLOSURES closures)."""
+        if self.s[VALID] == 1 and self.value[0] == value:
+            return True
+        if self.s[INDEPENDENT] < 0:
+            raise ValueError("a chart without a coordinate (kinematics_at's) cannot be evaluated: start() it first")
+        self.s[VALID] = 0
+        status: cython.int = self._walk(value)
+        if status != OK:
+            self.s[STATUS] = status
+            return False
+        self._coefficients()
+        self.value[0] = value
+        self.s[VALID] = 1
+        return True
+
+    @cython.ccall
+    def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
+                     v: cython.double) -> cython.double:
+        """ẍ_i at x_i = q, ẋ_i = v from Eksergian's equation on load piece ``load`` (its index:
+        the loads over time are constant on it, :meth:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² −
+        dV/dx_i) / 𝔍. NaN when the configuration cannot be found (S[STATUS] says why)."""
+        if not self.evaluate(q):
+            return _c_nan
+        Q: cython.double = self._applied(load) - self.fields[DAMPING] * v
+        return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
+
+    @cython.ccall
+    def power(self, load: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """P = Q_applied ẋ_i (W) at the configuration last evaluated, right after its
+        :meth:`acceleration`: the power of the input load and of the point forces over q and t
+        on load piece ``load``; the energy audit integrates it."""
+        return self._applied(load) * v
+
+    @cython.ccall
+    def dissipation(self, v: cython.double) -> cython.double:
+        """D = Σ b K_D² ẋ_i² (W), the dampers' dissipation rate at the configuration last
+        evaluated, right after its :meth:`acceleration`."""
+        return self.fields[DAMPING] * v * v
+
+    @cython.ccall
+    def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
+        """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
+        than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1.0
+        return self.fields[CONDITIONING] - _c_hysteresis * self.fields[BEST_CONDITIONING]
+
+    @cython.ccall
+    def observation_size(self) -> cython.Py_ssize_t:
+        """Length of :meth:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
+        return N_FIELDS + self.I[N_TIMED] + 3 * self.n
+
+    @cython.ccall
+    def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
+        """The configuration last evaluated, into out[row, :observation_size()]: its coefficient
+        fields, then x, K and L (n each) — what the outputs and the energy audit need at a
+        sample, recorded where the integrator evaluated it instead of walked to again."""
+        n: cython.Py_ssize_t = self.n
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        if not (0 <= row < out.shape[0] and out.shape[1] >= nf + 3 * n):
+            raise IndexError(f"observe: row {row} of an array of shape ({out.shape[0]}, {out.shape[1]}) "
+                             f"(rows of {nf + 3 * n} values)")
+        for k in range(nf):
+            out[row, k] = self.fields[k]
+        for r in range(3):
+            for j in range(n):
+                out[row, nf + r * n + j] = self.kin[r, j]
+
+    @cython.ccall
+    def mark(self):
+        """Keep the chart's last configuration (x, K, L) for :meth:`rewind`."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.marked[r, j] = self.last[r, j]
+
+    @cython.ccall
+    def rewind(self):
+        """Continue the chart's walk from the configuration :meth:`mark` kept. The integrators
+        walk a piece's samples this way, forwards from its start in short jumps, rather than back
+        from its end in one walk of hundreds of rad (halved down to :data:`LONG_JUMP`)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.marked[r, j]
+        self.s[VALID] = 0
+
+    @cython.ccall
+    def reset(self):
+        """Back to the chart's start configuration (a new walk along the chart)."""
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        for r in range(3):
+            for j in range(self.n):
+                self.last[r, j] = self.origin[r, j]
+        self.s[VALID] = 0
+        self.s[STATUS] = OK
+
+    @cython.ccall
+    def kinematics_at(self, x: cython.double[::1], row: cython.double[::1]) -> cython.bint:
+        """K = dx/dp, L = d²x/dp² and the coefficients at an assembled x (n,) for the coordinate
+        p = row·x (the input's drive row, or e_i), into the chart's kin and fields. Returns False
+        where p cannot drive the linkage: its conditioning below the chart's threshold, the
+        Hadamard ratio of the dependent Jacobian (:func:`loopcheck.kinematics.dependent_jacobian`:
+        with i the row's largest |entry|, columns Φ_x[:, l] − (row_l / row_i) Φ_x[:, i], l ≠ i),
+        |det A| / (|row_i| Π_{l≠i} ‖column l‖) with A = [Φ_x; row]; for row = e_i that is c_i.
+        S[INDEPENDENT] should be −1 unless row is e_i.
+        x is copied first (into Newton's x): it may be one of the chart's own buffers."""
+        n: cython.Py_ssize_t = self.n
+        c: cython.Py_ssize_t
+        if x.shape[0] != n or row.shape[0] != n:
+            raise ValueError(f"kinematics_at: x and row of {n} coordinates, not {x.shape[0]} and {row.shape[0]}")
+        for c in range(n):
+            self.x[c] = x[c]
+        self.loops._angle_trig()
+        self.loops._constraints()
+        det: cython.double = self.loops._factor_row(row)
+        self.s[VALID] = 0  # not a chart value: the memo is not valid for evaluate()
+        if det == 0.0 or not isfinite(det) or fabs(det) < self.singular * self.loops.hadamard:
+            self.s[STATUS] = SINGULAR
+            return False
+        self._finish(det)
+        self._coefficients()
+        return True
+
+    @cython.ccall
+    def start(self, x: cython.double[::1], independent: cython.Py_ssize_t) -> cython.bint:
+        """Make this a chart of coordinate ``independent`` starting at the assembled x (n,): its
+        K, L there and the sign of its det A. Returns True on success (False: singular). x may
+        be one of the chart's own buffers (its kin[0], at a switch): :meth:`kinematics_at`
+        copies it first."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        if x.shape[0] != n or not 0 <= independent < n:
+            raise ValueError(f"start: x of {n} coordinates (not {x.shape[0]}) and a coordinate in [0, {n}), "
+                             f"not {independent}")
+        self.s[INDEPENDENT] = independent
+        self.s[SIGN] = 0
+        self.s[STATUS] = OK
+        for j in range(n):
+            self.guess[j] = 0.0
+        self.guess[independent] = 1.0
+        if not self.kinematics_at(x, self.guess):  # its conditioning is c_i: row e_i
+            self.s[STATUS] = SINGULAR
+            return False
+        self.s[SIGN] = 1 if self.fields[DETERMINANT] >= 0.0 else -1
+        for r in range(3):
+            for j in range(n):
+                self.last[r, j] = self.kin[r, j]
+                self.origin[r, j] = self.kin[r, j]
+        self.value[0] = self.x[independent]  # x's, copied by kinematics_at
+        self.s[VALID] = 1
+        return True
+
+    @cython.ccall
+    def walk(self, values: cython.double[::1], fields: cython.double[:, ::1],
+             kin: cython.double[:, :, ::1]) -> cython.Py_ssize_t:
+        """Reset the chart and evaluate it at each of ``values`` in turn: fields (m, field_count)
+        and kinematics (m, 3, n) of each. Returns the number evaluated (< m where it failed)."""
+        s: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        m: cython.Py_ssize_t = values.shape[0]
+        if not (fields.shape[0] >= m and fields.shape[1] >= nf and kin.shape[0] >= m and kin.shape[1] == 3
+                and kin.shape[2] == self.n):
+            raise ValueError(f"walk: fields ({m}, ≥{nf}) and kin ({m}, 3, {self.n}) for {m} values")
+        self.reset()
+        for s in range(values.shape[0]):
+            if not self.evaluate(values[s]):
+                return s
+            for k in range(nf):
+                fields[s, k] = self.fields[k]
+            for r in range(3):
+                for j in range(self.n):
+                    kin[s, r, j] = self.kin[r, j]
+        return values.shape[0]

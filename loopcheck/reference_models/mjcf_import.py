@@ -1,0 +1,872 @@
+"""Reading a user's MJCF: the planar one-DOF linkage a MuJoCo model describes, as a scene.
+
+The file is compiled by MuJoCo itself (``mujoco.MjModel``), so defaults, classes, includes,
+``angle="degree"``, euler and axis-angle frames are resolved as MuJoCo resolves them. The model
+is read in one configuration, the keyframe's ``qpos`` (or ``qpos0``), where its loops must
+close; what becomes of each element:
+
+- Bodies: a body with one hinge or slide is a moving body; a body without a joint is welded to
+  its parent and merges into it (mass, centre of mass, inertia about the plane's normal); the
+  world and every body welded to it are the ground. A body whose centre of mass sits on its pin
+  to ground is written by its inertia about that pivot (``pivot_inertia``): a mass there never
+  moves, so it adds nothing (the MJCF that ``loopcheck export-mjcf`` writes puts 1 kg there, since
+  MuJoCo refuses a moving body without mass).
+- The plane: its normal is the input hinge's axis (else the first hinge's); every hinge axis
+  must be parallel to it and every slide axis in the plane. A body's own 2-D frame is its MuJoCo
+  frame's x axis projected on the plane (its MuJoCo frame when its z is the normal, as in the
+  models ``loopcheck export-mjcf`` writes); ground's is the world's.
+- Points: every site (named after it, without a ``"<body>."`` prefix), every joint's position on
+  both of its bodies and every loop-closure anchor; a point at a site's position is that site.
+- Joints: hinges are revolute joints and slides prismatic ones, from the parent body (``a``) to
+  the child (``b``); each ``connect`` equality (body form, with MuJoCo's second anchor, which its
+  compiler places where the first one is at ``qpos0``; or site form) is a revolute joint closing a
+  loop.
+- Springs, dampers and inertias: a spatial tendon between two sites with ``stiffness`` or
+  ``damping`` is a line spring or damper; a fixed tendon along one joint's coordinate (any joint,
+  also a loop's), and a joint's own ``stiffness``, ``damping`` and ``armature``, are joint
+  springs, dampers and inertias.
+- The load: a motor on the input joint, ``gear`` × its control (the keyframe's ``ctrl`` or the
+  one given, :class:`Control`); gravity: the option's, projected on the plane.
+
+Anything else that acts is refused with one line naming it (:class:`MjcfError`): ball and free
+joints, several joints on one body, axes off the plane, more than one degree of freedom,
+equalities other than connect, actuators other than one motor on one joint, friction loss,
+geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from loopcheck import kinematics as loops
+from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
+from loopcheck.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
+                            PrismaticJoint, RevoluteJoint)
+from loopcheck.scene import Scene, SceneError
+from loopcheck.scene_writer import scene_data
+from loopcheck.scenefile import scene_from_dict
+from loopcheck.settings import parse_number
+
+from loopcheck.mujoco_model.build import BASE_BODY
+
+# Loops must close at the configuration read within this fraction of the longest link (the
+# issue's decision); the scene file's Newton assembly then polishes the configuration.
+CLOSURE_RTOL = 1e-6
+# Two axes are parallel (or a slide in the plane) when |sin| (or |cos|) of their angle is below this.
+AXIS_TOL = 1e-9
+# A joint's or anchor's position is a site's when they are this close, relative to the model's size.
+SAME_POINT_RTOL = 1e-9
+# MuJoCo's enums as plain ints: a model's arrays hold numpy integers, which `in` and dict keys do not
+# match with the enums themselves.
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+_BALL = int(mujoco.mjtJoint.mjJNT_BALL)
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+_SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+_CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+_WELD = int(mujoco.mjtEq.mjEQ_WELD)
+_EQ_JOINT = int(mujoco.mjtEq.mjEQ_JOINT)
+_EQ_TENDON = int(mujoco.mjtEq.mjEQ_TENDON)
+_WRAP_SITE = int(mujoco.mjtWrap.mjWRAP_SITE)
+_WRAP_JOINT = int(mujoco.mjtWrap.mjWRAP_JOINT)
+_TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_DYN_NONE = int(mujoco.mjtDyn.mjDYN_NONE)
+_GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
+_BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
+_OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+_NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
+
+
+class MjcfError(SceneError):
+    """An MJCF model loopcheck cannot read as a planar one-DOF linkage; the message names the element."""
+
+
+@dataclass(frozen=True)
+class Control:
+    """The input motor's control over time (the actuator's ``ctrl`` units): a constant, or a table
+    of (time s, value) pairs, each value held from its time on (zero before the first).
+
+    ``parse`` reads the command line's form: a number (``2.5``) or ``t:value,t:value,...``
+    (``0:250,0.1:0``)."""
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    @classmethod
+    def constant(cls, value: float) -> "Control":
+        return cls((0.0,), (float(value),))
+
+    @classmethod
+    def parse(cls, text: str) -> "Control":
+        """The command line's form (a number, or ``t:value,t:value,...``); ValueError saying why not."""
+        def number(word: str, what: str) -> float:
+            try:
+                return parse_number(word)
+            except argparse.ArgumentTypeError as exc:
+                raise ValueError(f"{what}: {exc}") from None
+
+        text = text.strip()
+        if ":" not in text:
+            return cls.constant(number(text, "the control (a number, or a table t:value,t:value,...)"))
+        times, values = [], []
+        for pair in text.split(","):
+            parts = pair.split(":")
+            if len(parts) != 2:
+                raise ValueError(f"'{pair}' is not a pair time:value (s and the control's units)")
+            t, v = number(parts[0], f"the time of '{pair}'"), number(parts[1], f"the value of '{pair}'")
+            if t < 0.0:
+                raise ValueError(f"'{pair}': the time must be ≥ 0 s")
+            times.append(t)
+            values.append(v)
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise ValueError("the table's times must increase strictly")
+        return cls(tuple(times), tuple(values))
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """The control at each time (s): the value of the last entry at or before it, zero before the first."""
+        k = np.searchsorted(np.asarray(self.times), np.asarray(times, dtype=float), side="right") - 1
+        return np.where(k < 0, 0.0, np.asarray(self.values)[np.maximum(k, 0)])
+
+    def load(self, gear: float) -> LoadProfile | None:
+        """The load on the input joint (N·m or N): gear × control; None when it is zero throughout."""
+        values = tuple(gear * v for v in self.values)
+        if not any(values):
+            return None
+        if self.times == (0.0,):
+            return ConstantLoad(values[0])
+        return PiecewiseConstantLoad(self.times, values)
+
+
+@dataclass(frozen=True)
+class ImportedModel:
+    """A user's MJCF read as a scene.
+
+    scene : the description, assembled (Newton-polished) at the configuration read.
+    model : MuJoCo's compiled model of the file, as written.
+    qpos, qvel : the configuration read (the keyframe's or qpos0) and its rates.
+    joint_of : the scene's name of each MuJoCo hinge or slide, by MuJoCo joint name.
+    qpos_map, x_read : the scene's coordinates x = x_read + qpos_map (qpos − qpos_read) (and
+        ẋ = qpos_map qvel): every body turns about the normal, so x is affine in qpos.
+    control, gear : the motor's control over time (ctrl units) and the load per unit control
+        (gear × gain; N·m or N); None and 0 without a motor.
+    closure_residual : the largest gap of a loop at the configuration read, m (before Newton).
+    polish : the largest change Newton made to the configuration (rad or m).
+    warnings : one line each: what was disabled or left out, and why.
+    """
+
+    scene: Scene
+    model: mujoco.MjModel = field(repr=False)
+    qpos: np.ndarray = field(repr=False)
+    qvel: np.ndarray = field(repr=False)
+    joint_of: dict[str, str]
+    qpos_map: np.ndarray = field(repr=False)
+    x_read: np.ndarray = field(repr=False)
+    control: Control | None
+    gear: float
+    keyframe: str | None
+    closure_residual: float
+    polish: float
+    warnings: tuple[str, ...]
+
+
+def _object_name(model: mujoco.MjModel, kind, index: int, fallback: str) -> str:
+    name = mujoco.mj_id2name(model, kind, index)
+    return name if name else f"{fallback}{index}"
+
+
+def _clean(name: str) -> str:
+    """A name the scene format accepts (letters, digits, '_', '-'): other characters become '_'."""
+    return "".join(c if c in _NAME_CHARS else "_" for c in name) or "_"
+
+
+def _unique(name: str, taken: set[str]) -> str:
+    out, k = name, 1
+    while out in taken:
+        k += 1
+        out = f"{name}_{k}"
+    taken.add(out)
+    return out
+
+
+def _in_plane_x(n: np.ndarray) -> np.ndarray:
+    """The x axis (else, when x is near the normal ``n``, the y axis) projected on the plane
+    normal to the unit vector ``n``, as a unit vector: a plane's, or a body's 2-D, x axis."""
+    x = np.array([1.0, 0.0, 0.0])
+    if np.linalg.norm(np.cross(x, n)) < 0.5:
+        x = np.array([0.0, 1.0, 0.0])
+    x = x - (x @ n) * n
+    return x / np.linalg.norm(x)
+
+
+@dataclass
+class _Group:
+    """A rigid body of the description: a MuJoCo body with a joint and the bodies welded to it."""
+
+    name: str
+    root: int  # MuJoCo body id of its frame (0: the world, for ground)
+    bodies: list[int]
+    a_local: np.ndarray  # the 2-D frame's x and y in the root body's frame
+    b_local: np.ndarray
+    points: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
+class _Reader:
+    """One pass over a compiled model at one configuration (see the module docstring)."""
+
+    def __init__(self, path: Path, model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray):
+        self.path, self.model = path, model
+        self.qpos, self.qvel = qpos, qvel
+        self.warnings: list[str] = []
+        self.data = mujoco.MjData(model)
+        self.data.qpos[:] = qpos
+        self.data.qvel[:] = qvel
+        mujoco.mj_kinematics(model, self.data)
+
+    def fail(self, message: str):
+        raise MjcfError(f"{self.path}: {message}")
+
+    def name(self, kind, index: int, fallback: str) -> str:
+        return _object_name(self.model, kind, index, fallback)
+
+    # -- what acts ---------------------------------------------------------------
+    def check_options(self) -> None:
+        m = self.model
+        opt = m.opt
+        if opt.density > 0.0 or opt.viscosity > 0.0 or np.any(opt.wind != 0.0):
+            self.fail("option density, viscosity or wind: fluid forces act, and loopcheck's description has none")
+        disabled = opt.disableflags
+        if disabled & int(mujoco.mjtDisableBit.mjDSBL_EQUALITY) and m.neq:
+            self.fail("option flag equality=\"disable\": the loops' connect equalities would not act")
+        if disabled & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT) and m.neq:
+            self.fail("option flag constraint=\"disable\": the loops' connect equalities would not act")
+
+    def check_contacts(self) -> None:
+        m = self.model
+        if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) or m.ngeom == 0:
+            return
+        if m.npair:
+            self.fail(f"contact pair '{self.name(mujoco.mjtObj.mjOBJ_PAIR, 0, 'pair')}': contacts act, and loopcheck's "
+                      "description has none")
+        excluded = {(int(sig) >> 16, int(sig) & 0xFFFF) for sig in m.exclude_signature}
+        filter_parent = not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+        weld = [int(b) for b in m.body_weldid]
+        for g1 in range(m.ngeom):
+            for g2 in range(g1 + 1, m.ngeom):
+                b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+                w1, w2 = weld[b1], weld[b2]
+                if w1 == w2:  # one rigid body (the world's static bodies among them)
+                    continue
+                if not (m.geom_contype[g1] & m.geom_conaffinity[g2] or m.geom_contype[g2] & m.geom_conaffinity[g1]):
+                    continue
+                if {(b1, b2), (b2, b1), (w1, w2), (w2, w1)} & excluded:
+                    continue
+                if filter_parent and w1 and w2 and (weld[m.body_parentid[w1]] == w2 or weld[m.body_parentid[w2]] == w1):
+                    continue  # MuJoCo's parent-child filter
+                self.fail(f"geoms '{self.name(mujoco.mjtObj.mjOBJ_GEOM, g1, 'geom')}' and "
+                          f"'{self.name(mujoco.mjtObj.mjOBJ_GEOM, g2, 'geom')}' can collide (contype/conaffinity): "
+                          "contacts are not part of loopcheck's description; set their contype and conaffinity to 0, "
+                          "exclude the pair, or disable contacts")
+        self.warnings.append("contacts disabled: no two geoms of the model can collide")
+
+    # -- the plane ---------------------------------------------------------------
+    def joints(self) -> None:
+        """Refuse joints the description cannot hold; warn of ranges."""
+        m = self.model
+        for j in range(m.njnt):
+            kind = int(m.jnt_type[j])
+            if kind in (_FREE, _BALL):
+                what = "free" if kind == _FREE else "ball"
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' is a {what} joint: a planar "
+                          "one-DOF linkage has hinges and slides only")
+            if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has frictionloss: dry friction "
+                          "is not part of loopcheck's description")
+            if m.jnt_limited[j]:
+                self.warnings.append(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has a range: "
+                                     "loopcheck's description has no joint limits, so the comparison holds while the "
+                                     "motion stays inside it")
+        if m.njnt == 0:
+            self.fail("the model has no joints")
+        for b in range(1, m.nbody):
+            if m.body_jntnum[b] > 1:
+                self.fail(f"body '{self.name(mujoco.mjtObj.mjOBJ_BODY, b, 'body')}' has {m.body_jntnum[b]} joints: "
+                          "loopcheck's description has one joint between two bodies (add a body between them)")
+
+    def plane(self, input_joint: int) -> None:
+        m, d = self.model, self.data
+        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == _HINGE]
+        if not hinges:
+            self.fail("the model has no hinge: a closed planar linkage turns about at least one")
+        first = input_joint if m.jnt_type[input_joint] == _HINGE else hinges[0]
+        n = np.array(d.xaxis[first], dtype=float)
+        n /= np.linalg.norm(n)
+        for j in range(m.njnt):
+            axis = d.xaxis[j] / np.linalg.norm(d.xaxis[j])
+            name = self.name(mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+            first_name = self.name(mujoco.mjtObj.mjOBJ_JOINT, first, "joint")
+            if m.jnt_type[j] == _HINGE:
+                if np.linalg.norm(np.cross(axis, n)) > AXIS_TOL:
+                    self.fail(f"joint '{name}': its axis {np.round(axis, 6).tolist()} is not parallel to joint "
+                              f"'{first_name}''s {np.round(n, 6).tolist()}: the linkage is not planar")
+            elif abs(axis @ n) > AXIS_TOL:
+                self.fail(f"joint '{name}': the slide's axis {np.round(axis, 6).tolist()} leaves the plane normal to "
+                          f"joint '{first_name}''s axis {np.round(n, 6).tolist()}")
+        e1 = _in_plane_x(n)
+        self.n, self.e1, self.e2 = n, e1, np.cross(n, e1)
+
+    # -- bodies ------------------------------------------------------------------
+    def groups(self) -> None:
+        m, d = self.model, self.data
+        self.group_of: dict[int, _Group] = {}
+        taken = {GROUND}
+        ground = _Group(GROUND, 0, [0], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+        self.group_of[0] = ground
+        self.moving: list[_Group] = []
+        for b in range(1, m.nbody):  # parents come before their children
+            if m.body_jntnum[b] == 0:
+                group = self.group_of[int(m.body_parentid[b])]
+                group.bodies.append(b)
+                self.group_of[b] = group
+                continue
+            name = self.name(mujoco.mjtObj.mjOBJ_BODY, b, "body")
+            R = d.xmat[b].reshape(3, 3)
+            n_local = R.T @ self.n
+            a = _in_plane_x(n_local)
+            group = _Group(_unique(_clean(name), taken), b, [b], a, np.cross(n_local, a))
+            self.group_of[b] = group
+            self.moving.append(group)
+        # ground's frame is the world's, in the plane's basis
+        ground.a_local, ground.b_local = self.e1, self.e2
+
+    def local(self, group: _Group, body: int, p_body: np.ndarray) -> tuple[float, float]:
+        """The 2-D coordinates in ``group``'s frame of a point given in MuJoCo body ``body``'s frame:
+        exact (no round trip through the world) when the body is the group's root."""
+        if body != group.root:
+            d = self.data
+            return self.world_to_group(group, d.xpos[body] + d.xmat[body].reshape(3, 3) @ p_body)
+        return float(p_body @ group.a_local), float(p_body @ group.b_local)
+
+    def world_to_group(self, group: _Group, world: np.ndarray) -> tuple[float, float]:
+        d = self.data
+        local = d.xmat[group.root].reshape(3, 3).T @ (world - d.xpos[group.root])
+        return float(local @ group.a_local), float(local @ group.b_local)
+
+    def angle(self, group: _Group) -> float:
+        """The angle of the group's 2-D x axis in the plane at the configuration read (rad)."""
+        if group.root == 0:
+            return 0.0
+        axis = self.data.xmat[group.root].reshape(3, 3) @ group.a_local
+        return math.atan2(float(axis @ self.e2), float(axis @ self.e1))
+
+    def sites(self) -> None:
+        m = self.model
+        self.site_point: dict[int, tuple[_Group, str]] = {}
+        taken: dict[str, set[str]] = {}
+        for s in range(m.nsite):
+            body = int(m.site_bodyid[s])
+            group = self.group_of[body]
+            name = self.name(mujoco.mjtObj.mjOBJ_SITE, s, "site")
+            owner = BASE_BODY if group.root == 0 else group.name
+            for prefix in (f"{owner}.", f"{self.name(mujoco.mjtObj.mjOBJ_BODY, body, 'body')}.", f"{group.name}."):
+                if name.startswith(prefix) and len(name) > len(prefix):
+                    name = name[len(prefix):]
+                    break
+            point = _unique(_clean(name), taken.setdefault(group.name, set()))
+            group.points[point] = self.local(group, body, np.array(m.site_pos[s], dtype=float))
+            self.site_point[s] = (group, point)
+        self.taken = taken
+
+    def point_at(self, group: _Group, xy: tuple[float, float], name: str) -> str:
+        """The group's point at ``xy`` (a site's, when one is there), else a new one named ``name``."""
+        for point, (px, py) in group.points.items():
+            if math.hypot(px - xy[0], py - xy[1]) <= SAME_POINT_RTOL * self.scale:
+                return point
+        point = _unique(_clean(name), self.taken.setdefault(group.name, set()))
+        group.points[point] = xy
+        return point
+
+    # -- joints ------------------------------------------------------------------
+    def tree_joints(self) -> list:
+        m, d = self.model, self.data
+        out = []
+        taken: set[str] = set()
+        self.joint_of: dict[str, str] = {}
+        self.joint_sign: dict[int, float] = {}
+        for j in range(m.njnt):
+            body = int(m.jnt_bodyid[j])
+            child, parent = self.group_of[body], self.group_of[int(m.body_parentid[body])]
+            name = _unique(_clean(self.name(mujoco.mjtObj.mjOBJ_JOINT, j, "joint")), taken)
+            self.joint_of[self.name(mujoco.mjtObj.mjOBJ_JOINT, j, "joint")] = name
+            at_child = self.point_at(child, self.local(child, body, np.array(m.jnt_pos[j], dtype=float)), name)
+            anchor = np.array(d.xanchor[j], dtype=float)
+            axis = d.xaxis[j] / np.linalg.norm(d.xaxis[j])
+            if m.jnt_type[j] == _HINGE:
+                at_parent = self.point_at(parent, self.world_to_group(parent, anchor), name)
+                out.append(RevoluteJoint(name, parent.name, at_parent, child.name, at_child))
+                self.joint_sign[j] = float(np.sign(axis @ self.n))
+                continue
+            # a slide: point_b (the child's) moves along the line through point_a (the parent's)
+            R = d.xmat[parent.root].reshape(3, 3)
+            direction_local = R.T @ axis
+            direction = math.atan2(float(direction_local @ parent.b_local), float(direction_local @ parent.a_local))
+            ux, uy = math.cos(direction), math.sin(direction)
+            ax, ay = self.world_to_group(parent, anchor)
+            on_line = [p for p, (px, py) in parent.points.items()
+                       if abs((px - ax) * uy - (py - ay) * ux) <= SAME_POINT_RTOL * self.scale]
+            if on_line:
+                at_parent = min(on_line, key=lambda p: math.hypot(parent.points[p][0] - ax, parent.points[p][1] - ay))
+            else:
+                at_parent = self.point_at(parent, (ax, ay), name)
+            out.append(PrismaticJoint(name, parent.name, at_parent, direction, child.name, at_child))
+            self.joint_sign[j] = 1.0
+        self.taken_joints = taken
+        return out
+
+    def loops(self) -> list[RevoluteJoint]:
+        m, d = self.model, self.data
+        out = []
+        self.gaps: list[float] = []
+        for e in range(m.neq):
+            name = self.name(mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
+            kind = int(m.eq_type[e])
+            if not m.eq_active0[e]:
+                self.warnings.append(f"equality '{name}' is inactive at the start: left out")
+                continue
+            if kind != _CONNECT:
+                what = {_WELD: "a weld", _EQ_JOINT: "a joint coupling",
+                        _EQ_TENDON: "a tendon coupling"}.get(kind, "not a connect")
+                self.fail(f"equality '{name}' is {what}: only connect equalities (loop closures) have a planar "
+                          "one-DOF meaning here")
+            if int(m.eq_objtype[e]) == _OBJ_SITE:
+                ends = []
+                for site in (int(m.eq_obj1id[e]), int(m.eq_obj2id[e])):
+                    ends.append((self.site_point[site], np.array(d.site_xpos[site], dtype=float)))
+            else:
+                ends = []
+                for body, anchor in ((int(m.eq_obj1id[e]), m.eq_data[e][0:3]), (int(m.eq_obj2id[e]), m.eq_data[e][3:6])):
+                    group = self.group_of[body]
+                    anchor = np.array(anchor, dtype=float)
+                    world = d.xpos[body] + d.xmat[body].reshape(3, 3) @ anchor
+                    ends.append(((group, self.point_at(group, self.local(group, body, anchor), name)), world))
+            (g1, p1), w1 = ends[0]
+            (g2, p2), w2 = ends[1]
+            if g1 is g2:
+                self.fail(f"connect '{name}' joins two points of one rigid body ('{g1.name}')")
+            gap = float(np.linalg.norm(w1 - w2))
+            self.gaps.append(gap)
+            if gap > CLOSURE_RTOL * self.scale:
+                form = ("" if int(m.eq_objtype[e]) == _OBJ_SITE else
+                        "; MuJoCo puts a body-form connect's second anchor where the first one is at qpos0, so "
+                        "author the model in its assembled pose or use the site form")
+                self.fail(f"connect '{name}' is open by {gap:.3g} m at the configuration read, more than "
+                          f"{CLOSURE_RTOL:g} of the model's size ({self.scale:.3g} m){form}")
+            out.append(RevoluteJoint(_unique(_clean(name), self.taken_joints), g1.name, p1, g2.name, p2))
+        return out
+
+    def size(self) -> float:
+        """The model's length scale (m): the largest distance between two bodies' frames, joints and sites."""
+        d = self.data
+        pts = np.vstack([d.xpos[1:], d.xanchor, d.site_xpos]) if self.model.nsite else np.vstack([d.xpos[1:], d.xanchor])
+        span = np.ptp(pts, axis=0)
+        return float(max(np.linalg.norm(span), 1e-9))
+
+
+def _mass_properties(reader: _Reader, group: _Group) -> tuple[float, tuple[float, float], float]:
+    """(mass kg, com in the group's frame m, inertia about the com and the plane's normal kg·m²)."""
+    m, d = reader.model, reader.data
+    n = reader.n
+    masses, coms, inertias = [], [], []
+    for b in group.bodies:
+        mass = float(m.body_mass[b])
+        if mass == 0.0:
+            continue
+        if b == group.root:  # exactly, from the model's numbers
+            com = reader.local(group, b, np.array(m.body_ipos[b], dtype=float))
+            q = np.empty(9)
+            mujoco.mju_quat2Mat(q, m.body_iquat[b])
+            Ri = q.reshape(3, 3)
+            n_local = d.xmat[b].reshape(3, 3).T @ n
+            if np.array_equal(Ri, np.eye(3)) and np.array_equal(np.abs(n_local), [0.0, 0.0, 1.0]):
+                inertia = float(m.body_inertia[b][2])
+            else:
+                v = Ri.T @ n_local
+                inertia = float(v @ (m.body_inertia[b] * v))
+        else:
+            com = reader.world_to_group(group, np.array(d.xipos[b], dtype=float))
+            Ri = d.ximat[b].reshape(3, 3)
+            v = Ri.T @ n
+            inertia = float(v @ (m.body_inertia[b] * v))
+        masses.append(mass)
+        coms.append(com)
+        inertias.append(inertia)
+    if not masses:
+        return 0.0, (0.0, 0.0), 0.0
+    if len(masses) == 1:
+        return masses[0], coms[0], inertias[0]
+    total = sum(masses)
+    cx = sum(mm * c[0] for mm, c in zip(masses, coms)) / total
+    cy = sum(mm * c[1] for mm, c in zip(masses, coms)) / total
+    inertia = sum(i + mm * ((c[0] - cx) ** 2 + (c[1] - cy) ** 2) for mm, c, i in zip(masses, coms, inertias))
+    return total, (cx, cy), inertia
+
+
+def _pivot_body(group: _Group, mass: float, com, inertia: float, joints, scale: float) -> Body:
+    """The group as a body: by its inertia about its pin to ground when its com sits there."""
+    for j in joints:
+        if isinstance(j, RevoluteJoint) and j.body_a == GROUND and j.body_b == group.name:
+            px, py = group.points[j.point_b]
+            if math.hypot(com[0] - px, com[1] - py) <= SAME_POINT_RTOL * scale:
+                pivot = inertia + mass * ((com[0] - px) ** 2 + (com[1] - py) ** 2)
+                return Body(group.name, group.points, 0.0, (px, py), pivot)
+    return Body(group.name, group.points, mass, com, inertia)
+
+
+def _load_model(path: Path) -> mujoco.MjModel:
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:  # MuJoCo's parse and compile errors
+        first = " ".join(str(exc).split())
+        raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+
+
+def _state(path: Path, model: mujoco.MjModel, keyframe: str | None):
+    if keyframe is None:
+        return model.qpos0.copy(), np.zeros(model.nv), np.zeros(model.nu)
+    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+    if k < 0:
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)]
+        listed = ", ".join(f"'{n}'" for n in names if n) or "none"
+        raise MjcfError(f"{path}: no keyframe named '{keyframe}' (the model's keyframes: {listed})")
+    return model.key_qpos[k].copy(), model.key_qvel[k].copy(), model.key_ctrl[k].copy()
+
+
+def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: str | None = None,
+                control: Control | None = None, horizon: float = 1.0, name: str | None = None) -> ImportedModel:
+    """Read the MJCF file ``path`` as a scene (module docstring).
+
+    Parameters
+    ----------
+    input_joint : the MuJoCo joint (hinge or slide) whose coordinate is q; default the joint the
+        motor drives, else the model's first joint.
+    keyframe : the keyframe to read the configuration, rates and control from; default qpos0, at
+        rest, with zero control.
+    control : the motor's control over time, instead of the keyframe's (constant) one.
+    horizon : the scene's simulated time, s.
+    name : the scene's name; default the file's stem.
+
+    Raises
+    ------
+    MjcfError
+        One line naming the file and the element that cannot be read, and why.
+    """
+    path = Path(path)
+    model = _load_model(path)
+    qpos, qvel, key_ctrl = _state(path, model, keyframe)
+    reader = _Reader(path, model, qpos, qvel)
+    reader.check_options()
+    reader.joints()
+    inp = _input_joint(reader, input_joint)
+    reader.plane(inp)
+    reader.check_contacts()
+    reader.scale = reader.size()
+    reader.groups()
+    reader.sites()
+    tree = reader.tree_joints()
+    cuts = reader.loops()
+    input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
+    load, gear, applied = _load(reader, inp, control, key_ctrl)
+
+    # bodies, after every point is known
+    joints = tree + cuts
+    bodies = [Body(GROUND, reader.group_of[0].points)] if reader.group_of[0].points else []
+    for group in reader.moving:
+        mass, com, inertia = _mass_properties(reader, group)
+        if mass == 0.0 or inertia == 0.0:
+            reader.fail(f"body '{group.name}' has no mass or no inertia about the plane's normal")
+        bodies.append(_pivot_body(group, mass, com, inertia, joints, reader.scale))
+    try:
+        linkage = Linkage(bodies, joints, input_name)
+    except MechanismError as exc:
+        reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
+                                "closures)" if "degrees of freedom" in str(exc) else ""))
+    # x = x_read + T (qpos − qpos_read): the coordinates (bodies' angles, slides' s) are the same for
+    # the linkage rebuilt below with another spanning tree
+    system = loops.compile_linkage(linkage)
+    T, x_read = _joint_coefficients(reader, system, linkage)
+    elements, joint_elements = _elements(reader, linkage, system, T, x_read)
+    inertias = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
+    try:
+        if inertias:  # as the scene file builds it (the tree takes them first), so that its loops are the file's
+            linkage = Linkage(bodies, joints, input_name, inertias)
+        mechanism = Mechanism(linkage, elements, (), joint_elements)
+    except MechanismError as exc:
+        reader.fail(str(exc))
+
+    system = loops.compile_linkage(linkage)
+    guess = x_read
+    q0 = float(system.drive @ guess)
+    xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
+    qdot0 = float(system.drive @ xdot)
+    residual = float(np.max(np.abs(loops.constraint_jacobian(system, guess) @ xdot))) if system.n > 1 else 0.0
+    if abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale:
+        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
+                               "the scene starts from the input joint's rate alone")
+    gravity = _gravity(reader)
+    for t in range(model.ntext):  # what loopcheck's own export notes it applies outside the model
+        text = _object_name(model, mujoco.mjtObj.mjOBJ_TEXT, t, "text")
+        kind, _, force = text.partition(" ")
+        if kind in ("point_force", "timed_force") and force:
+            reader.warnings.append(f"{kind.replace('_', ' ')} '{force}' is applied by loopcheck, not by the model "
+                                   "(its custom text says so): not carried into the scene")
+    provisional = Scene(name=_clean(name or path.stem)[:100], description=f"imported from {path.name}",
+                        mechanism=mechanism, load=load, gravity=gravity, q0=q0, qdot0=qdot0,
+                        x0=tuple(float(v) for v in guess), mode=loops.assembly_mode(system, guess),
+                        horizon=horizon, engine_tables={})
+    data = scene_data(provisional)
+    try:
+        scene = scene_from_dict(data, source=str(path))
+    except SceneError as exc:
+        reader.fail(str(exc))
+    polish = float(np.max(np.abs(np.asarray(scene.x0) - guess)))
+    return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
+                         qpos_map=T, x_read=guess, control=applied, gear=gear,
+                         keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
+                         warnings=tuple(reader.warnings))
+
+
+def _input_joint(reader: _Reader, name: str | None) -> int:
+    m = reader.model
+    if name is not None:
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j < 0:
+            names = ", ".join(f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, i, 'joint')}'" for i in range(m.njnt))
+            reader.fail(f"--input '{name}' is not a joint of the model (its joints: {names})")
+        return j
+    for a in range(m.nu):
+        if m.actuator_trntype[a] == _TRN_JOINT:
+            return int(m.actuator_trnid[a][0])
+    reader.warnings.append(f"no motor: the input is the first joint, "
+                           f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, 0, 'joint')}' (--input names another)")
+    return 0
+
+
+def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarray):
+    m = reader.model
+    if m.nu == 0:
+        if control is not None:
+            reader.fail("--ctrl: the model has no actuator to apply a control to")
+        return None, 0.0, None
+    if m.nu > 1:
+        reader.fail(f"the model has {m.nu} actuators: loopcheck's load is one motor on the input joint")
+    a = 0
+    name = _object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
+    motor = (m.actuator_trntype[a] == _TRN_JOINT and m.actuator_dyntype[a] == _DYN_NONE
+             and m.actuator_gaintype[a] == _GAIN_FIXED
+             and m.actuator_biastype[a] == _BIAS_NONE)
+    if not motor:
+        reader.fail(f"actuator '{name}' is not a motor on a joint (a position, velocity or other servo, or on a "
+                    "tendon or site): loopcheck's load is a force or torque given over time")
+    if int(m.actuator_trnid[a][0]) != inp:
+        joint = _object_name(m, mujoco.mjtObj.mjOBJ_JOINT, int(m.actuator_trnid[a][0]), "joint")
+        reader.fail(f"actuator '{name}' drives joint '{joint}', not the input joint: loopcheck's load acts on the input")
+    gear = float(m.actuator_gear[a][0]) * float(m.actuator_gainprm[a][0])  # force = gain · ctrl, on the joint × gear
+    given = control if control is not None else Control.constant(float(key_ctrl[a]))
+    values = list(given.values)
+    if m.actuator_ctrllimited[a]:
+        low, high = m.actuator_ctrlrange[a]
+        clipped = [min(max(v, low), high) for v in values]
+        if clipped != values:
+            reader.warnings.append(f"actuator '{name}': the control is clamped to its ctrlrange [{low:g}, {high:g}], "
+                                   "as MuJoCo clamps it")
+            values = clipped
+    if m.actuator_forcelimited[a]:
+        low, high = m.actuator_forcerange[a]
+        forces = [float(m.actuator_gainprm[a][0]) * v for v in values]
+        if any(not low <= f <= high for f in forces):
+            reader.fail(f"actuator '{name}': gain × control leaves its forcerange [{low:g}, {high:g}]: MuJoCo "
+                        "would clamp the force, which the scene would not")
+    applied = Control(given.times, tuple(values))
+    return applied.load(gear), gear, applied
+
+
+def _configuration(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
+    """The scene's coordinates at the configuration read: body angles (rad), slides' s (m)."""
+    x = np.zeros(system.n)
+    by_name = {g.name: g for g in reader.moving}
+    for i, body in enumerate(linkage.moving):
+        x[system.coordinate(f"{body}.angle")] = reader.angle(by_name[body])
+    for j in linkage.joints:
+        if isinstance(j, PrismaticJoint):
+            world = {}
+            for side, body, point in (("a", j.body_a, j.point_a), ("b", j.body_b, j.point_b)):
+                angle = 0.0 if body == GROUND else x[system.coordinate(f"{body}.angle")]
+                origin = _origin(reader, body)
+                px, py = linkage.body_map[body].points[point]
+                c, s = math.cos(angle), math.sin(angle)
+                world[side] = origin + np.array([c * px - s * py, s * px + c * py])
+            angle_a = 0.0 if j.body_a == GROUND else x[system.coordinate(f"{j.body_a}.angle")]
+            u = np.array([math.cos(angle_a + j.direction_a), math.sin(angle_a + j.direction_a)])
+            x[system.coordinate(f"{j.name}.s")] = float((world["b"] - world["a"]) @ u)
+    return x
+
+
+def _origin(reader: _Reader, body: str) -> np.ndarray:
+    """A description body's frame origin in the plane (m)."""
+    group = next((g for g in reader.moving if g.name == body), None)
+    if group is None:
+        return np.zeros(2)
+    p = reader.data.xpos[group.root]
+    return np.array([float(p @ reader.e1), float(p @ reader.e2)])
+
+
+def _one_branch(model: mujoco.MjModel, dofs: np.ndarray) -> bool:
+    """Whether the dofs lie on one path from the root (each pair ancestor and descendant)."""
+    def ancestors(dof: int) -> set[int]:
+        out = set()
+        while dof >= 0:
+            out.add(dof)
+            dof = int(model.dof_parentid[dof])
+        return out
+
+    chains = [ancestors(int(d)) for d in dofs]
+    return all(int(a) in chains[j] or int(b) in chains[i]
+               for i, a in enumerate(dofs) for j, b in enumerate(dofs))
+
+
+def _gravity(reader: _Reader):
+    m = reader.model
+    if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+        return None
+    g = np.array(m.opt.gravity, dtype=float)
+    planar = (float(g @ reader.e1), float(g @ reader.e2))
+    return planar if any(planar) else None
+
+
+def _joint_coefficients(reader: _Reader, system, linkage: Linkage) -> tuple[np.ndarray, np.ndarray]:
+    """(T, x_read) with x = x_read + T (qpos − qpos_read): every coordinate is affine in qpos,
+    since every body turns about the normal; T's columns are MuJoCo's dofs."""
+    m = reader.model
+    T = np.zeros((system.n, m.nv))
+    by_name = {g.name: g for g in reader.moving}
+    for body in linkage.moving:
+        k = by_name[body].root
+        while k != 0:
+            for j in range(m.body_jntadr[k], m.body_jntadr[k] + m.body_jntnum[k]):
+                if m.jnt_type[j] == _HINGE:
+                    T[system.coordinate(f"{body}.angle"), m.jnt_dofadr[j]] = reader.joint_sign[j]
+            k = int(m.body_parentid[k])
+    for j in range(m.njnt):
+        if m.jnt_type[j] == _SLIDE:
+            name = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
+            T[system.coordinate(f"{name}.s"), m.jnt_dofadr[j]] = 1.0
+    return T, _configuration(reader, system, linkage)
+
+
+def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
+              x_read: np.ndarray) -> tuple[list[LineElement], list[JointElement]]:
+    m = reader.model
+    disabled = m.opt.disableflags
+    springs_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_SPRING)
+    dampers_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    rows = {j.name: system.joint_row(j.name) for j in linkage.joints}
+    taken: set[str] = set()
+    lines: list[LineElement] = []
+    joint_elements: list[JointElement] = []
+
+    def add_joint_element(kind, base, joint, coefficient, rest=0.0):
+        joint_elements.append(JointElement(kind, _unique(_clean(base), taken), joint, coefficient, rest))
+
+    for t in range(m.ntendon):
+        name = _object_name(m, mujoco.mjtObj.mjOBJ_TENDON, t, "tendon")
+        damping = float(m.tendon_damping[t]) if dampers_on else 0.0
+        stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
+        armature = float(m.tendon_armature[t])
+        if m.tendon_frictionloss[t] > 0.0:
+            reader.fail(f"tendon '{name}' has frictionloss: dry friction is not part of loopcheck's description")
+        if m.tendon_limited[t]:
+            reader.warnings.append(f"tendon '{name}' has a range: loopcheck's description has no tendon limits, so the "
+                                   "comparison holds while the motion stays inside it")
+        if damping == 0.0 and stiffness == 0.0 and armature == 0.0:
+            reader.warnings.append(f"tendon '{name}' has no stiffness, damping or armature: it exerts no force and is "
+                                   "left out")
+            continue
+        low, high = m.tendon_lengthspring[t]
+        if stiffness > 0.0 and low != high:
+            reader.fail(f"tendon '{name}' has a dead band (springlength {low:g} {high:g}): not part of loopcheck's "
+                        "description")
+        adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
+        types = [int(m.wrap_type[k]) for k in range(adr, adr + num)]
+        if all(w == _WRAP_SITE for w in types) and num == 2:
+            ends = [reader.site_point[int(m.wrap_objid[k])] for k in range(adr, adr + num)]
+            (ga, pa), (gb, pb) = ends
+            if ga is gb:
+                reader.fail(f"tendon '{name}' joins two points of one rigid body ('{ga.name}'): its length never changes")
+            if armature > 0.0:
+                reader.fail(f"tendon '{name}' has armature along a line between two points: loopcheck's inertias act on "
+                            "one joint (a fixed tendon's or a joint's armature)")
+            if damping > 0.0:
+                lines.append(LineElement("damper", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, damping))
+            if stiffness > 0.0:
+                lines.append(LineElement("spring", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, stiffness,
+                                         float(low)))
+            continue
+        if all(w == _WRAP_JOINT for w in types):
+            c = np.zeros(m.nv)
+            for k in range(adr, adr + num):
+                c[m.jnt_dofadr[int(m.wrap_objid[k])]] += float(m.wrap_prm[k])
+            match = None
+            for joint, row in rows.items():
+                along = row @ T
+                for lam in (1.0, -1.0):
+                    scale = float(np.max(np.abs(along))) or 1.0
+                    if np.max(np.abs(c - lam * along)) <= 1e-12 * scale:
+                        match = (joint, lam)
+                if match:
+                    break
+            if match is None:
+                reader.fail(f"fixed tendon '{name}' couples joints in a way that is no joint's own coordinate: "
+                            "loopcheck's joint springs and dampers act on one joint")
+            joint, lam = match
+            u_read = float(rows[joint] @ x_read)
+            length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
+            if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
+                add_joint_element("inertia", name, joint, armature)
+                if not _one_branch(m, np.flatnonzero(c)):
+                    reader.warnings.append(
+                        f"tendon '{name}': its armature couples joints of different branches, and MuJoCo keeps only "
+                        "the mass-matrix terms of one branch (ancestor pairs): the model as written does not have "
+                        "the ½ a L̇² the scene holds")
+            if damping > 0.0:
+                add_joint_element("damper", name, joint, damping)
+            if stiffness > 0.0:
+                # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
+                add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam)
+            continue
+        reader.fail(f"tendon '{name}' wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
+                    "act along a straight line between two points or on one joint")
+
+    for j in range(m.njnt):
+        mj_name = _object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+        joint = reader.joint_of[mj_name]
+        damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
+        stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
+        armature = float(m.dof_armature[m.jnt_dofadr[j]])
+        if armature > 0.0:
+            add_joint_element("inertia", f"{joint}_armature", joint, armature)
+        if damping > 0.0:
+            add_joint_element("damper", f"{joint}_damping", joint, damping)
+        if stiffness > 0.0:
+            adr = int(m.jnt_qposadr[j])
+            u_read = float(rows[joint] @ x_read)
+            sign = reader.joint_sign[j]
+            add_joint_element("spring", f"{joint}_stiffness", joint, stiffness,
+                              u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])))
+    return lines, joint_elements
+
+
+__all__ = ["Control", "ImportedModel", "MjcfError", "import_mjcf"]

@@ -1,0 +1,42 @@
+"""The MuJoCo engine's settings: its ``[mujoco]`` table of the scene file and its flags.
+
+Light on purpose: it does not import MuJoCo, so that reading a scene file and printing the
+command line's help cost nothing of the engine. Its fields are the MuJoCo-family model's options
+(:mod:`loopcheck.mujoco_model.options`), with the automatic timestep search's default.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from loopcheck.mujoco_model.options import (DEFAULT_INTEGRATOR, DEFAULT_ITERATIONS, DEFAULT_SOLIMP, DEFAULT_TOLERANCE,
+                                       INTEGRATORS, MAX_IMPEDANCE, MAX_ITERATIONS, MIN_IMPEDANCE, ModelOptions)
+from loopcheck.settings import option
+
+
+@dataclass(frozen=True)
+class MujocoSettings(ModelOptions):
+    """Everything that changes MuJoCo's answer; recorded with every result: the model's options
+    (:class:`~loopcheck.mujoco_model.options.ModelOptions`, shared with MJX and MJWarp).
+
+    The defaults are chosen for accuracy (docs/engines.md, "MuJoCo's defaults and loopcheck's"): RK4;
+    the timestep chosen from the scene (``timestep=None``: load edges on the step grid, confirmed
+    by step halving, see :func:`simulate_mujoco`); a hard loop constraint, solimp (0.9999,
+    0.9999, 0.001, 0.5, 2) and solref with time constant 2·timestep (the smallest that
+    ``refsafe`` allows) and critical damping; Newton solver tolerance 1e-12.
+
+    ``max_energy_residual``'s default 3e-3 is about 12x the worst run measured over every scene in
+    scenes/ and scenes/hard/ with its own [mujoco] settings (2.55e-4, long_conservative at 0.5 ms
+    over 45 s; next fast_crank 3.9e-5 at 2e-5 s; the seed at its automatic 0.5 ms: 3.2e-5), so a
+    balance 5 % off fails.
+    """
+
+    timestep: float | None = option(None, "MuJoCo's timestep", "number", unit="s", limit="step",
+                                    within_horizon=True,
+                                    default_text="chosen from the scene: load edges on the step grid, confirmed by "
+                                                 "step halving")
+
+
+Settings = MujocoSettings  # the name every engine's settings have (loopcheck.registry)
+__all__ = ["DEFAULT_INTEGRATOR", "DEFAULT_ITERATIONS", "DEFAULT_SOLIMP", "DEFAULT_TOLERANCE", "INTEGRATORS",
+           "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings"]

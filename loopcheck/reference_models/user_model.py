@@ -1,0 +1,230 @@
+"""Run a user's own MuJoCo model as written, and read it as the scene's coordinates.
+
+The model is the one :func:`loopcheck.reference_models.mjcf_import.import_mjcf` read: MuJoCo steps it with
+its own integrator, timestep, solver options and loop softness (``solref``/``solimp`` of its
+connect equalities), from the configuration, rates and control the import read. Only the energy
+flag is added (for the energy audit: MuJoCo's kinetic and potential energy); nothing else of the
+model changes. :class:`ModelOptions` says what was run, and can change the options a variant
+needs (a smaller step, stiffer loops) without touching anything else.
+
+At the start of every step (after ``mj_forward``) the run records the joints' state, the input's
+acceleration, the energies, the power of the motor and of the dampers, and each loop's gap (the
+distance between a connect's two anchors); the trajectory is the scene's input coordinate
+q = drive·x with x = x_read + qpos_map (qpos − qpos_read).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass, replace
+
+import mujoco
+import numpy as np
+
+from loopcheck import kinematics as loops
+from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
+from loopcheck.trajectory import JointTrajectory, Trajectory
+
+from .mjcf_import import ImportedModel
+from .settings import DEFAULT_SOLIMP, INTEGRATORS
+
+# Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
+# the horizon.
+MAX_STEPS = 5_000_000
+ENGINE = "model"  # the name of a user model's runs in comparisons and reports
+_INTEGRATOR_NAME = {int(getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}")): name for name in INTEGRATORS}
+_CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+
+
+def _number(value: float) -> str:
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """What changes MuJoCo's answer on a user's model.
+
+    integrator : one of :data:`~loopcheck.reference_models.settings.INTEGRATORS`.
+    timestep : s.
+    solref, solimp : per connect equality (the model's order), MuJoCo's five and two numbers.
+    iterations, tolerance : the constraint solver's.
+    """
+
+    integrator: str
+    timestep: float
+    solref: tuple[tuple[float, float], ...]
+    solimp: tuple[tuple[float, float, float, float, float], ...]
+    iterations: int
+    tolerance: float
+
+    def __post_init__(self) -> None:
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
+        if not (math.isfinite(self.timestep) and self.timestep > 0.0):
+            raise ValueError(f"timestep must be positive and finite, got {self.timestep!r}")
+
+    @classmethod
+    def as_written(cls, model: mujoco.MjModel) -> "ModelOptions":
+        connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
+        return cls(integrator=_INTEGRATOR_NAME[int(model.opt.integrator)], timestep=float(model.opt.timestep),
+                   solref=tuple(tuple(float(v) for v in model.eq_solref[e]) for e in connects),
+                   solimp=tuple(tuple(float(v) for v in model.eq_solimp[e]) for e in connects),
+                   iterations=int(model.opt.iterations), tolerance=float(model.opt.tolerance))
+
+    def stiff_loops(self) -> "ModelOptions":
+        """The same step, the loops as stiff as MuJoCo allows at it: solref (2·timestep, 1) (the
+        smallest time constant ``refsafe`` keeps) and loopcheck's solimp (0.9999, 0.9999, 0.001, 0.5, 2)."""
+        n = len(self.solref)
+        return replace(self, solref=((2.0 * self.timestep, 1.0),) * n, solimp=(tuple(DEFAULT_SOLIMP),) * n)
+
+    def steps(self, horizon: float) -> int:
+        """The steps of a run over ``horizon`` s (the last one may end past it)."""
+        return math.ceil(horizon / self.timestep - 1e-9)
+
+    def evaluations_per_step(self) -> int:
+        return 4 if self.integrator == "rk4" else 1
+
+    def text(self) -> str:
+        """One line: integrator, step and (when all loops share them) solref and solimp."""
+        line = f"{self.integrator}, timestep {self.timestep:.6g} s"
+        if self.solref and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1:
+            line += (f", loops solref {' '.join(f'{v:g}' for v in self.solref[0])}, "
+                     f"solimp {' '.join(f'{v:g}' for v in self.solimp[0])}")
+        return line
+
+    def mjcf(self) -> str:
+        """MJCF to paste into the model: the ``<option>`` and the connects' defaults (a connect
+        that sets its own solref or solimp needs them on it instead)."""
+        lines = [f'<option integrator="{self.integrator.upper() if self.integrator == "rk4" else self.integrator}" '
+                 f'timestep="{_number(self.timestep)}"/>']
+        if self.solref and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1:
+            lines.append(f'<default><equality solref="{" ".join(_number(v) for v in self.solref[0])}" '
+                         f'solimp="{" ".join(_number(v) for v in self.solimp[0])}"/></default>')
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        return {"integrator": self.integrator, "timestep": self.timestep, "solref": [list(v) for v in self.solref],
+                "solimp": [list(v) for v in self.solimp], "iterations": self.iterations, "tolerance": self.tolerance}
+
+
+@dataclass(frozen=True)
+class ModelRunDetails:
+    """A user model's run (:attr:`EngineResult.details`): the options run and MuJoCo's version
+    (``edge_warnings``: none, a control's edges are held over the step that holds them)."""
+
+    options: ModelOptions
+    mujoco_version: str
+    edge_warnings: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        return {"options": self.options.as_dict(), "mujoco_version": self.mujoco_version}
+
+
+def _configured(imported: ImportedModel, options: ModelOptions) -> mujoco.MjModel:
+    """A copy of the user's model with ``options`` and the energy flag set."""
+    model = copy.copy(imported.model)
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{options.integrator.upper()}")
+    model.opt.timestep = options.timestep
+    model.opt.iterations = options.iterations
+    model.opt.tolerance = options.tolerance
+    model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
+    for e, solref, solimp in zip(connects, options.solref, options.solimp):
+        model.eq_solref[e] = solref
+        model.eq_solimp[e] = solimp
+    return model
+
+
+def _gaps(model: mujoco.MjModel, data: mujoco.MjData, connects: list[int]) -> float:
+    """The largest distance between a connect's two anchors (m), at the state in ``data``."""
+    gap = 0.0
+    for e in connects:
+        if not data.eq_active[e]:
+            continue
+        if int(model.eq_objtype[e]) == _SITE:
+            a, b = data.site_xpos[model.eq_obj1id[e]], data.site_xpos[model.eq_obj2id[e]]
+        else:
+            b1, b2 = model.eq_obj1id[e], model.eq_obj2id[e]
+            a = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ model.eq_data[e][0:3]
+            b = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ model.eq_data[e][3:6]
+        gap = max(gap, float(np.linalg.norm(a - b)))
+    return gap
+
+
+def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> EngineResult:
+    """Step the user's model (with ``options``, default as written) over the scene's horizon.
+
+    Raises
+    ------
+    ValueError
+        A run of more than MAX_STEPS steps.
+    NumericalFailure
+        UNSTABLE: MuJoCo warned (bad qacc and the like) and reset the state; NON_FINITE: the state
+        became NaN or infinite.
+    """
+    options = options or ModelOptions.as_written(imported.model)
+    scene = imported.scene
+    h = options.timestep
+    n = options.steps(scene.horizon)
+    if n > MAX_STEPS:
+        raise ValueError(f"a run of the model at timestep {h:g} s over simulation.horizon {scene.horizon:g} s is "
+                         f"{n:.3g} steps, more than {MAX_STEPS:.3g}: raise the timestep or shorten --horizon")
+    model = _configured(imported, options)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = imported.qpos, imported.qvel
+    connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
+    times = np.arange(n + 1) * h
+    ctrl = imported.control.at(times[:-1] + 0.5 * h) if imported.control is not None else None  # held over a step
+    qpos = np.empty((n + 1, model.nq))
+    qvel = np.empty((n + 1, model.nv))
+    qacc = np.empty((n + 1, model.nv))
+    energy = np.empty((n + 1, 2))
+    power = np.zeros((n + 1, 2))  # the motor's, the dampers' (W)
+    gap = np.empty(n + 1)
+
+    def record(k: int) -> None:
+        qpos[k], qvel[k], qacc[k], energy[k] = data.qpos, data.qvel, data.qacc, data.energy
+        power[k] = float(data.qfrc_actuator @ data.qvel), float(-data.qfrc_damper @ data.qvel)
+        gap[k] = _gaps(model, data, connects)
+
+    start = time.perf_counter()
+    for k in range(n):
+        if ctrl is not None:
+            data.ctrl[0] = ctrl[k]
+        mujoco.mj_forward(model, data)
+        record(k)
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    record(n)
+    wall = time.perf_counter() - start
+    bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
+    if len(bad):
+        raise NumericalFailure(FailureReason.NON_FINITE, f"MuJoCo's state became NaN or infinite at "
+                               f"t = {times[bad[0]]:.6g} s ({options.text()})", float(times[bad[0]]))
+    warned = sum(w.number for w in data.warning)
+    if warned:
+        raise NumericalFailure(FailureReason.UNSTABLE, f"MuJoCo warned {warned} time(s) (bad qacc and the like) and "
+                               f"reset the state: the model is unstable at {options.text()}")
+
+    system, T = loops.compile_linkage(scene.mechanism.linkage), imported.qpos_map
+    x = imported.x_read + (qpos - imported.qpos) @ T.T
+    xdot, xddot = qvel @ T.T, qacc @ T.T
+    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive)
+    joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
+                             loops.assembly_modes(system, x))
+    # the work of the motor and of the dampers, by the trapezoidal rule over each step
+    work = np.zeros((n + 1, 2))
+    work[1:] = np.cumsum(0.5 * h * (power[1:] + power[:-1]), axis=0)
+    audit = EnergyAudit(times, energy[:, 1], energy[:, 0], work[:, 0], work[:, 1])
+    return EngineResult(engine=ENGINE, trajectory=trajectory, joints=joints, peak=trajectory.peak_rate(), audit=audit,
+                        wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,
+                        effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, gap),
+                        details=ModelRunDetails(options, mujoco.__version__))
+
+
+__all__ = ["ENGINE", "MAX_STEPS", "ModelOptions", "ModelRunDetails", "run_model"]

@@ -1,0 +1,243 @@
+"""The one trajectory type every engine returns, with its interpolant and peak finder.
+
+Samples are (t, q, q̇, q̈) of the input link. Times are non-decreasing; a time may
+appear twice where q̈ jumps (a load edge): q and q̇ agree there, q̈ holds the values on
+either side. Between samples the trajectory is the quintic Hermite polynomial through
+q, q̇, q̈ at both ends: O(h⁶) in q and O(h⁵) in q̇ for a smooth motion, so it adds less
+error than a fourth-order integrator at the same spacing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+PEAK_CANDIDATE_BAND = 0.01  # local maxima of |q̇| samples within 1 % of the largest are refined
+
+
+def freeze_arrays(value, names: tuple[str, ...], dtype=None) -> None:
+    """Set each named field of the frozen dataclass ``value`` to a read-only copy of its array
+    (results are read-only: a caller's array is neither kept nor frozen)."""
+    for name in names:
+        a = np.array(getattr(value, name), dtype=dtype, copy=True)
+        a.setflags(write=False)
+        object.__setattr__(value, name, a)
+
+
+@dataclass(frozen=True)
+class Peak:
+    """The peak of a run's input rate, one event: q̇ (signed; rad/s, or m/s for a prismatic
+    input) at time t (s).
+
+    ``still_rising`` is True when the event is the run's last sample and |q̇| is still rising
+    there (sign(q̇)·q̈ > 0): the horizon ends before the speed peaks, so the "peak" is only the
+    speed at the end. Defined by :meth:`Trajectory.peak_rate` (a run's own peak)
+    and :meth:`Trajectory.extremum_near` (the same event in another run): every output that
+    shows a peak takes it from these two.
+    """
+
+    omega: float
+    time: float
+    still_rising: bool = False
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of the input link: times (s), q (rad), q̇ (rad/s), q̈ (rad/s²), each shape (n,)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    qddot: np.ndarray
+
+    def __post_init__(self) -> None:
+        arrays = {name: np.asarray(getattr(self, name), dtype=float)
+                  for name in ("t", "q", "qdot", "qddot")}
+        n = arrays["t"].shape
+        for name, a in arrays.items():
+            if a.ndim != 1 or a.shape != n:
+                raise ValueError(f"Trajectory.{name} must have shape {n}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"Trajectory.{name} contains NaN or inf")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if n[0] < 2:
+            raise ValueError("a trajectory needs at least two samples")
+        if np.any(np.diff(arrays["t"]) < 0):
+            raise ValueError("Trajectory.t must be non-decreasing")
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def _coefficients(self, i: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Polynomial coefficients c0..c5 in s = (t − t_i)/h on intervals i."""
+        q0, v0, a0 = self.q[i], self.qdot[i], self.qddot[i]
+        q1, v1, a1 = self.q[i + 1], self.qdot[i + 1], self.qddot[i + 1]
+        c0, c1, c2 = q0, h * v0, 0.5 * h * h * a0
+        r0 = q1 - c0 - c1 - c2
+        r1 = h * v1 - c1 - 2.0 * c2
+        r2 = h * h * a1 - 2.0 * c2
+        c3 = 10.0 * r0 - 4.0 * r1 + 0.5 * r2
+        c4 = -15.0 * r0 + 7.0 * r1 - r2
+        c5 = 6.0 * r0 - 3.0 * r1 + 0.5 * r2
+        return c0, c1, c2, c3, c4, c5
+
+    def _locate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Interval index i, its length h and the local coordinate s = (t − t_i)/h.
+
+        Only intervals of positive length are used: a time on a repeated sample (a load edge
+        or a coordinate switch) goes to the next such interval, or the last one at the end.
+        """
+        live = np.flatnonzero(np.diff(self.t) > 0.0)
+        i = np.searchsorted(self.t, times, side="right") - 1
+        k = np.minimum(np.searchsorted(live, i), len(live) - 1)
+        i = live[k]
+        h = self.t[i + 1] - self.t[i]
+        return i, h, (times - self.t[i]) / h
+
+    def interpolate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q, q̇, q̈ at ``times`` (within [t0, tf]); each the shape of ``times``."""
+        times = np.asarray(times, dtype=float)
+        if np.any(times < self.t[0] - 1e-12) or np.any(times > self.t[-1] + 1e-12):
+            raise ValueError("interpolation outside the trajectory's time span")
+        i, h, s = self._locate(times)
+        c0, c1, c2, c3, c4, c5 = self._coefficients(i, h)
+        q = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+        v = (c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
+        a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
+        return q, v, a
+
+    def peak_rate(self, sign: int | None = None) -> Peak:
+        """The largest |q̇| over the run (rad/s, or m/s for a prismatic input), located between
+        samples where q̈ = 0.
+
+        Candidates are every sample (a maximum may sit on a load edge where q̈ jumps)
+        and every root of the interpolant's q̈ (a cubic in s) inside the intervals next
+        to the largest sample; the best candidate is returned with its sign. With
+        ``sign`` = +1 (−1) only the largest positive (most negative) q̇ is sought, so that
+        two runs of a swinging motion are compared on the same side.
+        """
+        objective = np.abs(self.qdot) if sign is None else sign * self.qdot
+        k = int(np.argmax(objective))
+        best = Peak(float(self.qdot[k]), float(self.t[k]))
+        # The summit between samples of one extremum can exceed the largest sample, which may
+        # belong to another: refine around every local maximum of the samples within
+        # PEAK_CANDIDATE_BAND of the largest (a summit exceeds its samples by ~h²|q⃛|/8, far less).
+        rises = (objective[1:-1] > objective[:-2]) & (objective[1:-1] >= objective[2:])
+        near = objective[1:-1] >= objective[k] - PEAK_CANDIDATE_BAND * abs(objective[k])
+        maxima = np.flatnonzero(rises & near) + 1
+        around = sorted({i for m in (k, *maxima.tolist()) for i in (m - 2, m - 1, m, m + 1)})
+        for i in around:
+            if i < 0 or i + 1 >= len(self.t) or self.t[i + 1] == self.t[i]:
+                continue
+            h = self.t[i + 1] - self.t[i]
+            _, _, c2, c3, c4, c5 = self._coefficients(np.array(i), np.array(h))
+            # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³
+            roots = np.roots([20 * c5, 12 * c4, 6 * c3, 2 * c2]) if (c5 or c4 or c3) else []
+            for r in roots:
+                if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0:
+                    t = self.t[i] + r.real * h
+                    _, v, _ = self.interpolate(np.array([t]))
+                    better = abs(v[0]) > abs(best.omega) if sign is None else sign * v[0] > sign * best.omega
+                    if better:
+                        best = Peak(float(v[0]), float(t))
+        return self._flagged(best)
+
+    def _flagged(self, peak: Peak) -> Peak:
+        """``peak`` with ``still_rising`` set when it is the last sample and |q̇| rises there."""
+        rising = peak.time == self.t[-1] and float(np.sign(peak.omega) * self.qddot[-1]) > 0.0
+        return Peak(peak.omega, peak.time, still_rising=bool(rising))
+
+    def extremum_near(self, peak: Peak) -> Peak:
+        """The same event as ``peak`` (another run's peak) in this trajectory: the local
+        extremum of q̇ of the same sign as ``peak.omega`` nearest in time to ``peak.time``
+        (a local maximum of q̇ for a positive peak, a local minimum for a negative one).
+
+        Candidates are the samples where sign·q̇ > 0 stops rising, each end included where
+        sign·q̇ does not rise into the run from it; each is refined between samples by
+        :meth:`peak_rate` (with the sign) on its two neighbouring intervals. Of
+        candidates equally near, the larger sign·q̇ wins. When q̇ never takes that sign, there
+        is no such event: the value at ``peak.time`` is returned (so the difference of the two
+        shows how far apart the runs are, and a gate on it fails).
+        """
+        sign = 1.0 if peak.omega >= 0.0 else -1.0
+        w = sign * self.qdot
+        rising_in = np.r_[True, w[1:] > w[:-1]]
+        falling_out = np.r_[w[:-1] >= w[1:], True]
+        candidates = np.flatnonzero(rising_in & falling_out & (w > 0.0))
+        found: list[Peak] = []
+        n = len(self.t)
+        for k in candidates:
+            a, b = max(k - 1, 0), min(k + 2, n)  # the two intervals beside sample k
+            if b - a < 2 or not np.any(np.diff(self.t[a:b]) > 0.0):
+                found.append(Peak(float(self.qdot[k]), float(self.t[k])))
+                continue
+            part = Trajectory(self.t[a:b], self.q[a:b], self.qdot[a:b], self.qddot[a:b])
+            found.append(part.peak_rate(sign=int(sign)))
+        if not found:
+            time = float(np.clip(peak.time, self.t[0], self.t[-1]))
+            return Peak(float(self.interpolate(np.array([time]))[1][0]), time)
+        best = min(found, key=lambda p: (abs(p.time - peak.time), -sign * p.omega))
+        return self._flagged(Peak(best.omega, best.time))
+
+    def within(self, start: float, end: float) -> "Trajectory":
+        """The trajectory on [start, end] (s, inside its span): itself when that is its whole
+        span, else its samples inside with the ends interpolated."""
+        if start <= self.t[0] and end >= self.t[-1]:
+            return self
+        start, end = max(float(start), float(self.t[0])), min(float(end), float(self.t[-1]))
+        inside = (self.t > start) & (self.t < end)
+        q, v, a = self.interpolate(np.array([start, end]))
+        return Trajectory(np.r_[start, self.t[inside], end], np.r_[q[0], self.q[inside], q[1]],
+                          np.r_[v[0], self.qdot[inside], v[1]], np.r_[a[0], self.qddot[inside], a[1]])
+
+    def resample(self, times: np.ndarray) -> "Trajectory":
+        """The trajectory at new sample times (interpolated)."""
+        q, v, a = self.interpolate(times)
+        return Trajectory(np.asarray(times, dtype=float), q, v, a)
+
+
+@dataclass(frozen=True)
+class JointTrajectory:
+    """Every joint coordinate along a run, in the coordinates of :class:`loopcheck.kinematics.LoopSystem`.
+
+    names (m,) its coordinate names; t (n,) s; x (n, m) rad or m (angles unwrapped);
+    xdot (n, m) rad/s or m/s; coordinate (n,) index of the independent coordinate used at
+    each sample (−1 for an engine without charts, MuJoCo); mode (n, loops) int, the
+    assembly mode (:func:`loopcheck.kinematics.assembly_modes`) at each sample.
+    """
+
+    names: tuple[str, ...]
+    t: np.ndarray
+    x: np.ndarray
+    xdot: np.ndarray
+    coordinate: np.ndarray
+    mode: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "names", tuple(self.names))
+        freeze_arrays(self, ("t", "x", "xdot", "coordinate", "mode"))
+
+    def interpolate(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """x and ẋ at ``times`` (s, clamped to the run's span), shapes (len(times), m): the cubic
+        Hermite interpolant of the samples' x and ẋ on the interval holding each time (O(h⁴)) and
+        its derivative. At a repeated time (a coordinate switch, a load edge) the later sample
+        is used."""
+        T = np.asarray(self.t, dtype=float)
+        X, V = np.asarray(self.x, dtype=float), np.asarray(self.xdot, dtype=float)
+        times = np.clip(np.atleast_1d(np.asarray(times, dtype=float)), T[0], T[-1])
+        if len(T) == 1:
+            return np.repeat(X, len(times), axis=0), np.repeat(V, len(times), axis=0)
+        k = np.clip(np.searchsorted(T, times, side="right") - 1, 0, len(T) - 2)
+        h = T[k + 1] - T[k]
+        flat = h <= 0.0  # the last two samples at one time: the later one
+        h = np.where(flat, 1.0, h)[:, None]
+        s = np.where(flat, 1.0, (times - T[k]) / h[:, 0])[:, None]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, 6 * s - 6 * s**2, 3 * s**2 - 2 * s
+        x = h00 * X[k] + h10 * h * V[k] + h01 * X[k + 1] + h11 * h * V[k + 1]
+        xdot = np.where(flat[:, None], V[k + 1], (d00 * X[k] + d01 * X[k + 1]) / h + d10 * V[k] + d11 * V[k + 1])
+        return x, xdot

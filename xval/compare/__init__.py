@@ -1,1 +1,0 @@
-"""Comparison of the reduced solver and the MuJoCo reference, and the ``xval`` CLI."""
