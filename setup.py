@@ -14,6 +14,8 @@ raises IndexError instead of reading past a buffer): CI runs the kernel tests on
 """
 
 import os
+import sys
+import tempfile
 
 from Cython.Build import cythonize
 from setuptools import Extension, setup
@@ -48,13 +50,21 @@ CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"] + (["-O0", "-g"] if CHEC
 # that the kernels import, rather than into each of them (5 s of gcc per kernel)
 SHARED = "loopcheck.kernels._cython"
 
+# `pip install .` and `pip wheel .` build out of the source tree (setuptools' build/ and egg-info,
+# Cython's C files in a temporary folder that is removed when the build ends); an editable install
+# (`pip install -e .`) and `build_ext --inplace` build in place, where the compiled modules belong.
+IN_PLACE = any(arg in ("editable_wheel", "develop", "--inplace", "-i") for arg in sys.argv[1:])
+OUT_OF_TREE = None if IN_PLACE else tempfile.TemporaryDirectory(prefix="loopcheck-build-")
+BUILD = "build" if IN_PLACE else OUT_OF_TREE.name
+OPTIONS = {} if IN_PLACE else {"build": {"build_base": BUILD}, "egg_info": {"egg_base": BUILD}}
+
 extensions = [Extension(SHARED, sources=[], extra_compile_args=CFLAGS)] + [
     Extension(f"{package}.{name}", [f"{package.replace('.', '/')}/{name}.py"], extra_compile_args=CFLAGS)
     for package, names in KERNELS.items() for name in names
     if os.path.exists(f"{package.replace('.', '/')}/{name}.pxd")
 ]
 
-setup(cmdclass={"build_ext": ParallelBuildExt},
+setup(cmdclass={"build_ext": ParallelBuildExt}, options=OPTIONS,
       ext_modules=cythonize(extensions, compiler_directives=DIRECTIVES, quiet=True, nthreads=os.cpu_count() or 1,
                             shared_utility_qualified_name=SHARED,
-                            build_dir="build/cython-checked" if CHECKED else "build/cython"))
+                            build_dir=f"{BUILD}/cython-checked" if CHECKED else f"{BUILD}/cython"))

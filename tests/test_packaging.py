@@ -42,7 +42,9 @@ def test_every_package_folder_is_installed():
 def test_wheel_contains_every_scene(tmp_path):
     """Build a wheel from a copy of the sources (the checkout stays clean) and list it. pip builds
     in an isolated environment with the setuptools and Cython that pyproject.toml asks for. Everything
-    installs under the one name ``loopcheck``: nothing else at the top of the wheel but its metadata."""
+    installs under the one name ``loopcheck``: nothing else at the top of the wheel but its metadata.
+    The build happens out of the source tree: no build/ folder, egg-info or generated C is left in it
+    (planted: setup.py's in-tree build folders, as before, leaves build/ and loopcheck.egg-info)."""
     src = tmp_path / "src"
     for name in ("pyproject.toml", "README.md", "setup.py"):
         shutil.copy2(ROOT / name, src / name if src.exists() else (src.mkdir() or src / name))
@@ -50,6 +52,9 @@ def test_wheel_contains_every_scene(tmp_path):
         shutil.copytree(ROOT / package, src / package, ignore=shutil.ignore_patterns("__pycache__", "*.so", "*.c"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
                     "-w", str(tmp_path / "dist"), str(src)], check=True, capture_output=True, timeout=300)
+    left = sorted(p.relative_to(src).as_posix() for p in src.rglob("*")
+                  if p.name in ("build", "loopcheck.egg-info") or p.suffix in (".c", ".so"))
+    assert left == []
     (wheel,) = (tmp_path / "dist").glob("loopcheck-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     assert {n.split("/")[0] for n in names} == {"loopcheck", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
