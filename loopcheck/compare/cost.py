@@ -368,6 +368,14 @@ class LoadAverage:
     end: tuple[float, float, float] | None
     cores: int
 
+    def __post_init__(self) -> None:
+        for name in ("start", "end"):
+            value = getattr(self, name)
+            if value is not None and (len(value) != 3 or not all(0.0 <= x < math.inf for x in value)):
+                raise ValueError(f"load average {name} must be three finite numbers >= 0 (1, 5, 15 min), got {value!r}")
+        if isinstance(self.cores, bool) or not isinstance(self.cores, int) or self.cores < 1:
+            raise ValueError(f"cores must be a whole number >= 1, got {self.cores!r}")
+
     @staticmethod
     def now() -> tuple[float, float, float] | None:
         try:

@@ -90,6 +90,9 @@ def test_the_record_keeps_the_spread_of_the_repeats_and_the_load(study, tmp_path
 def test_a_study_records_the_load_average_it_ran_under():
     now = LoadAverage.now()
     assert now is None or (len(now) == 3 and all(x >= 0.0 for x in now))
+    for start in ((0.5, math.nan, 0.1), (0.5, 0.4), (-1.0, 0.0, 0.0)):  # never a NaN or short record
+        with pytest.raises(ValueError, match="load average start"):
+            LoadAverage(start, None, 2)
 
 
 def test_the_headline_interval_warns_when_too_wide_or_when_it_contains_one():
