@@ -17,7 +17,7 @@ from loopcheck.compare.cost import (LOOP_EXACT, RATIO_SPREAD_LIMIT, CostRatio, L
                                     summary_lines, sweep, write_cost_outputs)
 from loopcheck.compare.run import compare_engines
 from loopcheck.errors import NumericalFailure
-from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.reduced import simulate
 from loopcheck.reference_models import MujocoSettings
 from loopcheck.scenefile import load_scene
 
