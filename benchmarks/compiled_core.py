@@ -112,13 +112,13 @@ def part2(scene, quick: bool, repeats: int) -> None:
           f"of rtol 1e-11)")
     print(f"   {len(configs)} configurations from loopcheck.compare.cost.ladder({'quick=True' if quick else ''}) run "
           f"once for errors; those meeting a target timed again, median of {repeats}")
-    first = [measure(scene, c, truth.trajectory, 1) for c in configs]
+    first = [measure(scene, c, truth, 1) for c in configs]
     timed: dict[str, object] = {}
     rkn4_steps = set()
 
     def retimed(m):
         if key(m.config) not in timed:
-            timed[key(m.config)] = measure(scene, m.config, truth.trajectory, repeats)
+            timed[key(m.config)] = measure(scene, m.config, truth, repeats)
         return timed[key(m.config)]
 
     print(f"   {'target':24s} {'engine':8s} {'cheapest configuration':34s} {'error':>9s} "
@@ -212,7 +212,7 @@ def refinements(scene, first, targets, truth, quick: bool) -> list:
                 config = with_step(coarser[0].config, step)
                 if lo < step < hi and key(config) not in seen:
                     seen.add(key(config))
-                    extra.append(measure(scene, config, truth.trajectory, 1))
+                    extra.append(measure(scene, config, truth, 1))
     print(f"   refined: {len(extra)} more configurations between each series' cheapest passing step and the "
           f"next coarser one ({REFINE_POINTS} geometric steps)")
     return extra

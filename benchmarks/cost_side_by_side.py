@@ -55,7 +55,7 @@ def accuracy_cost(scene, repeats: int) -> None:
     truth = ground_truth(scene)
     print(f"1. time to reach a relative peak-omega error (truth DOP853 rtol 1e-12, accurate to "
           f"{truth.error['peak_omega_rel']:.1e}); median of {repeats} runs, simulation only")
-    measured = [measure(scene, c, truth.trajectory, repeats) for c in candidates()]
+    measured = [measure(scene, c, truth, repeats) for c in candidates()]
     print(f"{'target':>8s}  {'reduced':46s} {'MuJoCo':46s} {'MuJoCo/reduced':>14s}")
     for target in TARGETS:
         best = {}

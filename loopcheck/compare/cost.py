@@ -3,8 +3,20 @@
 Ground truth is the reduced adaptive solver (DOP853) at rtol 1e-12; a second run at rtol
 1e-11 measures how accurate that truth is. Every configuration runs to the scene's
 horizon; its errors are measured against the truth with :func:`compare_trajectories`,
-its cost is the median wall time of the simulation alone (no model building, audit or
-plotting) over repeated runs, plus its step and force-evaluation counts.
+its cost is the wall time of the simulation alone (no model building, audit or plotting)
+over repeated runs (median, with the repeats' min and max), plus its step and
+force-evaluation counts.
+
+Every point also carries the verdict ``loopcheck run`` / ``check`` would give it
+(:class:`Verdict`): the engine's own limits at ``run``'s defaults (MuJoCo's loop gap and
+energy balance, the reduced solver's error estimate and energy balance: the sweep itself
+runs with looser limits, to measure what ``run`` would refuse) and the agreement gate
+against the truth, :func:`loopcheck.compare.run.judge` at the scene's tolerances for the
+engine. One rule, the one ``run`` applies; none of this module's own.
+
+Wall times move with the machine's load: the report records the load average at the start
+and end, and the headline ratio between the engines is an interval from the repeats'
+spread (:class:`CostRatio`), with a warning when it is too wide to read.
 """
 
 from __future__ import annotations
@@ -14,10 +26,12 @@ import os
 import statistics
 import sys
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+from enum import Enum
 from pathlib import Path
 
 from loopcheck.errors import NumericalFailure
+from loopcheck.results import EngineResult
 from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Trajectory
@@ -26,6 +40,7 @@ from loopcheck.reference_models import INTEGRATORS, MujocoSettings, simulate_muj
 from .diff import compare_trajectories
 from .output import json_text, portable_source, write_folder
 from .pool import ordered_map
+from .run import judge
 
 COST_FILES = ("cost.png", "cost.csv", "cost.json")
 
@@ -52,41 +67,86 @@ class Config:
         return f"{self.series} {name}={self.parameter:.1e}"
 
 
+class Verdict(str, Enum):
+    """What ``loopcheck run`` / ``check`` would say of a configuration (compares equal to its value)."""
+
+    PASS = "pass"
+    FAIL = "fail"
+
+    def __str__(self) -> str:
+        return self.value
+
+
 @dataclass(frozen=True)
 class Measurement:
-    """Errors against the truth and the cost of one configuration."""
+    """Errors against the truth, the cost and the verdict of one configuration.
+
+    ``status`` is "ok" when the sweep could measure the configuration (with its loose limits),
+    else the failure's reason; ``verdict`` and ``verdict_reasons`` are what ``loopcheck run``
+    would say (module docstring): FAIL with the reasons, PASS with none. Wall times in s over
+    ``repeats`` runs: ``wall_min_s`` ≤ ``wall_median_s`` ≤ ``wall_max_s``. ``constraint_violation``
+    (m) is NaN for the reduced engine, whose loops are exact.
+    """
 
     config: Config
     status: str  # "ok" or a failure reason
     message: str = ""
+    verdict: Verdict = Verdict.FAIL
+    verdict_reasons: tuple[str, ...] = ()
     peak_omega_rel: float = math.nan
     q_max_abs: float = math.nan
     omega_max_abs: float = math.nan
     omega_vs_q_max_abs: float = math.nan
     constraint_violation: float = math.nan
+    wall_min_s: float = math.nan
     wall_median_s: float = math.nan
+    wall_max_s: float = math.nan
     repeats: int = 0
     n_steps: int = 0
     n_evaluations: int = 0
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.verdict, Verdict):
+            object.__setattr__(self, "verdict", Verdict(self.verdict))
+        if (self.verdict is Verdict.PASS) == bool(self.verdict_reasons):
+            raise ValueError(f"{self.config.label}: a verdict fails with its reasons and passes without any, "
+                             f"got {self.verdict} with {len(self.verdict_reasons)} reason(s)")
+        walls = (self.wall_min_s, self.wall_median_s, self.wall_max_s)
+        if not all(math.isnan(w) for w in walls) and not walls[0] <= walls[1] <= walls[2]:
+            raise ValueError(f"{self.config.label}: wall times must satisfy min <= median <= max, got {walls}")
+
     @property
     def ok(self) -> bool:
+        """Whether the sweep measured it (errors and times are figures, not NaN)."""
         return self.status == "ok"
 
+    @property
+    def passed(self) -> bool:
+        """Whether ``loopcheck run`` would pass it."""
+        return self.verdict is Verdict.PASS
+
     def row(self) -> dict:
-        d = {k: v for k, v in asdict(self).items() if k != "config"}
+        d = {k: v for k, v in asdict(self).items() if k not in ("config", "verdict", "verdict_reasons")}
         d.update(engine=self.config.engine, series=self.config.series, parameter=self.config.parameter,
-                 label=self.config.label)
+                 label=self.config.label, verdict=self.verdict.value,
+                 verdict_reasons="; ".join(self.verdict_reasons))
         return d
 
 
 @dataclass(frozen=True)
 class Truth:
-    """The reference trajectory and how far it is from a second, looser tight run."""
+    """The reference run and how far it is from a second, looser tight run."""
 
-    trajectory: Trajectory
-    peak_omega: float
+    result: EngineResult
     error: dict = field(default_factory=dict)
+
+    @property
+    def trajectory(self) -> Trajectory:
+        return self.result.trajectory
+
+    @property
+    def peak_omega(self) -> float:
+        return self.result.peak.omega
 
 
 def ground_truth(scene: Scene) -> Truth:
@@ -94,8 +154,7 @@ def ground_truth(scene: Scene) -> Truth:
     tight = simulate(scene, ReducedSettings(method="dop853", rtol=1e-12))
     check = simulate(scene, ReducedSettings(method="dop853", rtol=1e-11))
     d = compare_trajectories(tight.trajectory, check.trajectory)
-    return Truth(tight.trajectory, tight.peak.omega,
-                 {"against": "DOP853 rtol 1e-11", **d.figures()})
+    return Truth(tight, {"against": "DOP853 rtol 1e-11", **d.figures()})
 
 
 def ladder(quick: bool = False, integrators=INTEGRATORS) -> list[Config]:
@@ -120,29 +179,60 @@ def ladder(quick: bool = False, integrators=INTEGRATORS) -> list[Config]:
     return configs
 
 
-def measure(scene: Scene, config: Config, truth: Trajectory, repeats: int) -> Measurement:
-    """Run one configuration ``repeats`` times; errors from the first run, median wall time."""
-    walls = []
-    result = None
+def run_settings(config: Config) -> ReducedSettings | MujocoSettings:
+    """The configuration's settings with the limits ``loopcheck run`` applies by default (the
+    sweep's own are looser, so that it can measure what ``run`` refuses)."""
+    if config.engine == "reduced":
+        return replace(config.reduced, check_error=ReducedSettings().check_error)
+    defaults = MujocoSettings()
+    return replace(config.mujoco, max_constraint_violation=defaults.max_constraint_violation,
+                   max_energy_residual=defaults.max_energy_residual)
+
+
+def _simulate(scene: Scene, config: Config, settings) -> EngineResult:
+    if config.engine == "reduced":
+        return simulate(scene, settings)
+    with warnings.catch_warnings():  # off-grid edges: measured here, not warned about
+        warnings.simplefilter("ignore")
+        return simulate_mujoco(scene, settings)
+
+
+def measure(scene: Scene, config: Config, truth: Truth, repeats: int) -> Measurement:
+    """Run one configuration ``repeats`` times: errors and verdict from the first run, wall
+    times (min, median, max) from all.
+
+    The first run has ``loopcheck run``'s limits (:func:`run_settings`): a failure there is
+    the verdict's first reason, and the configuration is then measured with the sweep's own.
+    The verdict's other reasons are the agreement gate's against the truth,
+    :func:`loopcheck.compare.run.judge` at the scene's tolerances for the engine.
+    """
+    own_failures: list[str] = []
+    walls, first = [], None
     try:
-        for _ in range(repeats):
-            if config.engine == "reduced":
-                result = simulate(scene, config.reduced)
-            else:
-                with warnings.catch_warnings():  # off-grid edges: measured here, not warned about
-                    warnings.simplefilter("ignore")
-                    result = simulate_mujoco(scene, config.mujoco)
+        try:
+            first = _simulate(scene, config, run_settings(config))
+            walls.append(first.wall_s)
+        except NumericalFailure as exc:
+            own_failures.append(f"{exc.reason}: {exc}")
+        settings = config.reduced if config.engine == "reduced" else config.mujoco
+        while len(walls) < repeats:
+            result = _simulate(scene, config, settings)
+            first = first or result
             walls.append(result.wall_s)
     except NumericalFailure as exc:
-        return Measurement(config, status=exc.reason, message=str(exc))
-    d = compare_trajectories(truth, result.trajectory)
+        return Measurement(config, status=str(exc.reason), message=str(exc),
+                           verdict_reasons=tuple(own_failures) or (f"{exc.reason}: {exc}",))
+    comparison = judge(scene, truth.result, first, scene.tolerances_for(config.engine))
+    d = comparison.diff
+    reasons = (*own_failures, *comparison.gate.failures)
     return Measurement(
-        config, status="ok", peak_omega_rel=d.peak_omega_rel, q_max_abs=d.q_max_abs,
+        config, status="ok", verdict=Verdict.FAIL if reasons else Verdict.PASS, verdict_reasons=reasons,
+        peak_omega_rel=d.peak_omega_rel, q_max_abs=d.q_max_abs,
         omega_max_abs=d.omega_max_abs, omega_vs_q_max_abs=d.omega_vs_q_max_abs,
-        constraint_violation=(math.nan if result.constraint_violation is None
-                              else result.constraint_violation.max),
-        wall_median_s=statistics.median(walls), repeats=len(walls), n_steps=result.n_steps,
-        n_evaluations=result.n_evaluations)
+        constraint_violation=(math.nan if first.constraint_violation is None
+                              else first.constraint_violation.max),
+        wall_min_s=min(walls), wall_median_s=statistics.median(walls), wall_max_s=max(walls),
+        repeats=len(walls), n_steps=first.n_steps, n_evaluations=first.n_evaluations)
 
 
 def _measure_args(args):
@@ -182,7 +272,7 @@ def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3
     """
     workers = worker_count(workers, len(configs))
     progress = Progress(len(configs))
-    jobs = [(scene, c, truth.trajectory, repeats) for c in configs]
+    jobs = [(scene, c, truth, repeats) for c in configs]
     results: list[Measurement] = []
     if workers == 1:
         for job in jobs:
@@ -210,14 +300,92 @@ class Recommendation:
 
     @property
     def confirmed_ok(self) -> bool:
-        return self.confirmed is not None and self.confirmed.ok and self.confirmed.peak_omega_rel <= self.target
+        return (self.confirmed is not None and self.confirmed.ok and self.confirmed.passed
+                and self.confirmed.peak_omega_rel <= self.target)
 
 
 def cheapest_meeting(measurements: list[Measurement], engine: str, target: float) -> Measurement | None:
-    """The successful measurement of ``engine`` with the smallest median wall time among those
-    whose peak-ω relative error is at most ``target`` (None if there is none)."""
-    meeting = [m for m in measurements if m.config.engine == engine and m.ok and m.peak_omega_rel <= target]
+    """The measurement of ``engine`` that ``loopcheck run`` passes with the smallest median wall
+    time among those whose peak-ω relative error is at most ``target`` (None if there is none)."""
+    meeting = [m for m in measurements
+               if m.config.engine == engine and m.ok and m.passed and m.peak_omega_rel <= target]
     return min(meeting, key=lambda m: m.wall_median_s) if meeting else None
+
+
+RATIO_SPREAD_LIMIT = 2.0  # a headline interval wider than this factor is too wide to read
+
+
+@dataclass(frozen=True)
+class CostRatio:
+    """MuJoCo's wall time over the reduced solver's at the recommended configurations: the
+    ratio of the medians and the interval the repeats allow (MuJoCo's fastest over the
+    reduced solver's slowest, MuJoCo's slowest over the reduced solver's fastest)."""
+
+    low: float
+    median: float
+    high: float
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.low <= self.median <= self.high < math.inf:
+            raise ValueError(f"a cost ratio needs 0 < low <= median <= high < inf, got "
+                             f"{self.low!r}, {self.median!r}, {self.high!r}")
+
+    @classmethod
+    def of(cls, mujoco: Measurement, reduced: Measurement) -> CostRatio:
+        return cls(mujoco.wall_min_s / reduced.wall_max_s, mujoco.wall_median_s / reduced.wall_median_s,
+                   mujoco.wall_max_s / reduced.wall_min_s)
+
+    @property
+    def spread(self) -> float:
+        return self.high / self.low
+
+    def warnings(self) -> tuple[str, ...]:
+        """Why the interval cannot be read as one figure: it spans more than
+        ``RATIO_SPREAD_LIMIT``x, or it contains 1 (which engine is cheaper is not measured)."""
+        out = []
+        if self.spread > RATIO_SPREAD_LIMIT:
+            out.append(f"the repeats' spread makes the ratio uncertain by {self.spread:.1f}x (more than "
+                       f"{RATIO_SPREAD_LIMIT:g}x): the machine's load moved the timings; rerun on an idle "
+                       "machine or with more --repeats")
+        if self.low <= 1.0 <= self.high:
+            out.append("the interval contains 1: which engine is cheaper at this accuracy is not measured")
+        return tuple(out)
+
+    def text(self) -> str:
+        return f"{self.median:.2f}x (between {self.low:.2f}x and {self.high:.2f}x over the repeats)"
+
+    def as_dict(self) -> dict:
+        return {"low": self.low, "median": self.median, "high": self.high, "spread": self.spread,
+                "warnings": list(self.warnings())}
+
+
+@dataclass(frozen=True)
+class LoadAverage:
+    """The machine's load average (os.getloadavg: 1, 5 and 15 min) at the start and end of a
+    study, with its core count; None where the platform has none."""
+
+    start: tuple[float, float, float] | None
+    end: tuple[float, float, float] | None
+    cores: int
+
+    def __post_init__(self) -> None:
+        for name in ("start", "end"):
+            value = getattr(self, name)
+            if value is not None and (len(value) != 3 or not all(0.0 <= x < math.inf for x in value)):
+                raise ValueError(f"load average {name} must be three finite numbers >= 0 (1, 5, 15 min), got {value!r}")
+        if isinstance(self.cores, bool) or not isinstance(self.cores, int) or self.cores < 1:
+            raise ValueError(f"cores must be a whole number >= 1, got {self.cores!r}")
+
+    @staticmethod
+    def now() -> tuple[float, float, float] | None:
+        try:
+            return tuple(os.getloadavg())
+        except (AttributeError, OSError):
+            return None
+
+    def as_dict(self) -> dict:
+        return {"start": list(self.start) if self.start else None, "end": list(self.end) if self.end else None,
+                "cores": self.cores, "what": "os.getloadavg(): 1, 5 and 15 min"}
 
 
 def recommend(scene: Scene, measurements: list[Measurement], truth: Truth, target: float,
@@ -229,14 +397,15 @@ def recommend(scene: Scene, measurements: list[Measurement], truth: Truth, targe
         if best is None:
             out[engine] = Recommendation(engine, target, None)
             continue
-        confirmed = measure(scene, best.config, truth.trajectory, repeats)
+        confirmed = measure(scene, best.config, truth, repeats)
         out[engine] = Recommendation(engine, target, best, confirmed)
     return out
 
 
 def pareto_front(measurements: list[Measurement]) -> list[Measurement]:
-    """Configurations that no other one beats on both peak-ω error and wall time."""
-    ok = sorted((m for m in measurements if m.ok and m.peak_omega_rel > 0),
+    """Configurations that ``loopcheck run`` passes and that no other such one beats on both
+    peak-ω error and wall time."""
+    ok = sorted((m for m in measurements if m.ok and m.passed and m.peak_omega_rel > 0),
                 key=lambda m: (m.wall_median_s, m.peak_omega_rel))
     front, best_error = [], math.inf
     for m in ok:
@@ -261,26 +430,35 @@ def converges(series: list[Measurement], floor: float, attr: str = "peak_omega_r
 
 
 def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
-                recommendations: dict[str, Recommendation], repeats: int) -> dict:
-    """The study as JSON-serialisable data."""
+                recommendations: dict[str, Recommendation], repeats: int, load: LoadAverage | None = None) -> dict:
+    """The study as JSON-serialisable data. ``recommendation.mujoco_over_reduced_wall`` is the
+    headline (:class:`CostRatio`: low, median, high and its warnings), null when an engine did
+    not reach the target."""
     def rec(r: Recommendation) -> dict:
         if not r.reached:
             return {"reached": False, "target": r.target}
-        return {"reached": True, "target": r.target, "label": r.measurement.config.label,
-                "wall_median_s": r.measurement.wall_median_s, "peak_omega_rel": r.measurement.peak_omega_rel,
+        m = r.measurement
+        return {"reached": True, "target": r.target, "label": m.config.label,
+                "wall_min_s": m.wall_min_s, "wall_median_s": m.wall_median_s, "wall_max_s": m.wall_max_s,
+                "peak_omega_rel": m.peak_omega_rel,
                 "confirmed_peak_omega_rel": r.confirmed.peak_omega_rel if r.confirmed else None,
                 "confirmed": r.confirmed_ok}
 
     red, mj = recommendations["reduced"], recommendations["mujoco"]
-    ratio = (mj.measurement.wall_median_s / red.measurement.wall_median_s
-             if red.reached and mj.reached else None)
+    ratio = CostRatio.of(mj.measurement, red.measurement) if red.reached and mj.reached else None
+    load = load or LoadAverage(None, None, os.cpu_count() or 1)
     return {
         "scene": scene.name, "source": portable_source(scene.source), "input_unit": scene.input_unit,
         "truth": {"method": "DOP853 rtol 1e-12", "peak_omega": truth.peak_omega, "accuracy": truth.error},
         "timing": {"what": "simulation only (integration or rollout); no model building, audit or plots",
-                   "repeats": repeats, "statistic": "median"},
+                   "repeats": repeats, "statistic": "median, with the repeats' min and max",
+                   "load_average": load.as_dict()},
+        "verdict": {"what": "loopcheck run's: the engine's own limits at run's defaults and the agreement gate "
+                            "(loopcheck.compare.run.judge) against the truth at the scene's tolerances for the engine",
+                    "passed": sum(m.passed for m in measurements), "failed": sum(not m.passed for m in measurements)},
         "measurements": [m.row() for m in measurements],
-        "recommendation": {"reduced": rec(red), "mujoco": rec(mj), "mujoco_over_reduced_wall": ratio},
+        "recommendation": {"reduced": rec(red), "mujoco": rec(mj),
+                           "mujoco_over_reduced_wall": ratio.as_dict() if ratio else None},
     }
 
 
@@ -303,41 +481,72 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
 
     files = {
         "cost.png": lambda p: plot_work_precision(measurements, pareto_front(measurements), target,
-                                                  report["scene"], p),
+                                                  report["scene"], p, headline=headline_text(report)),
         "cost.csv": write_csv,
         "cost.json": lambda p: p.write_text(json_text(report), encoding="utf-8"),
     }
     return write_folder(out_dir, files, one_run=True, committed=committed)
 
 
+LOOP_EXACT = "n/a (exact)"  # the loop column of an engine whose loops are closed by construction
+
+
+def headline_text(report: dict) -> str | None:
+    """The headline, one line: MuJoCo's cost over the reduced solver's at the target, an interval."""
+    ratio = report["recommendation"]["mujoco_over_reduced_wall"]
+    if ratio is None:
+        return None
+    return (f"at peak error <= {report['recommendation']['reduced']['target']:g} MuJoCo costs "
+            f"{CostRatio(ratio['low'], ratio['median'], ratio['high']).text()} the reduced solver's wall time")
+
+
+def _loop_cell(m: Measurement) -> str:
+    if m.config.engine == "reduced":
+        return LOOP_EXACT
+    return f"{m.constraint_violation:.2e}"
+
+
 def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     """A printed summary: the table, the truth's accuracy and the recommendation."""
     unit = report.get("input_unit", "rad")
+    timing = report["timing"]
+    load = timing.get("load_average") or {}
+    loads = " ; ".join(f"{when} {' '.join(f'{x:.2f}' for x in load[when])}" for when in ("start", "end")
+                       if load.get(when))
     lines = [f"truth: DOP853 rtol 1e-12, peak qdot {report['truth']['peak_omega']:+.12g} {unit}/s; "
              f"against rtol 1e-11: peak {report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
              f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}",
-             f"wall time: median of {report['timing']['repeats']} runs, simulation only",
-             f"{'configuration':46s} {'status':>8s} {'peak rel':>9s} {'max|dq|':>9s} {'max|dw|':>9s} "
-             f"{'dw at q':>9s} {'loop (m)':>9s} {'wall (s)':>9s} {'steps':>7s}"]
+             f"wall time: median of {timing['repeats']} runs [min-max], simulation only; load average "
+             f"(1, 5, 15 min) {loads or 'not available'} on {load.get('cores', '?')} cores",
+             "verdict: what `loopcheck run` says (its own limits, and its gate against the truth at the "
+             "scene's tolerances)",
+             f"{'configuration':46s} {'verdict':>7s} {'peak rel':>9s} {'max|dq|':>9s} {'max|dw|':>9s} "
+             f"{'dw at q':>9s} {'loop (m)':>11s} {'wall (s) [min-max]':>26s} {'steps':>7s}"]
     for m in measurements:
         if m.ok:
-            lines.append(f"{m.config.label:46s} {'ok':>8s} {m.peak_omega_rel:9.2e} {m.q_max_abs:9.2e} "
-                         f"{m.omega_max_abs:9.2e} {m.omega_vs_q_max_abs:9.2e} {m.constraint_violation:9.2e} "
-                         f"{m.wall_median_s:9.4f} {m.n_steps:7d}")
+            walls = f"{m.wall_median_s:.4f} [{m.wall_min_s:.4f}-{m.wall_max_s:.4f}]"
+            lines.append(f"{m.config.label:46s} {m.verdict.value:>7s} {m.peak_omega_rel:9.2e} {m.q_max_abs:9.2e} "
+                         f"{m.omega_max_abs:9.2e} {m.omega_vs_q_max_abs:9.2e} {_loop_cell(m):>11s} "
+                         f"{walls:>26s} {m.n_steps:7d}")
         else:
-            lines.append(f"{m.config.label:46s} {m.status:>8s} {m.message[:70]}")
+            lines.append(f"{m.config.label:46s} {m.verdict.value:>7s} {m.status}: {m.message[:70]}")
+    failing = [m for m in measurements if m.ok and not m.passed]
+    for m in failing:
+        lines.append(f"  {m.config.label}: fails run: {m.verdict_reasons[0][:110]}")
     rec = report["recommendation"]
     for engine in ("reduced", "mujoco"):
         r = rec[engine]
         if r["reached"]:
-            lines.append(f"cheapest {engine} configuration with peak error <= {r['target']:g}: {r['label']} "
-                         f"({r['wall_median_s']:.4f} s, error {r['peak_omega_rel']:.2e}; re-run: "
+            lines.append(f"cheapest {engine} configuration that run passes with peak error <= {r['target']:g}: "
+                         f"{r['label']} ({r['wall_median_s']:.4f} s [{r['wall_min_s']:.4f}-{r['wall_max_s']:.4f}], "
+                         f"error {r['peak_omega_rel']:.2e}; re-run: "
                          f"{r['confirmed_peak_omega_rel']:.2e}, {'confirmed' if r['confirmed'] else 'NOT confirmed'})")
         else:
-            lines.append(f"{engine}: the target {r['target']:g} was not reached at any setting tried")
-    if rec["mujoco_over_reduced_wall"] is not None:
-        lines.append(f"at that accuracy MuJoCo costs {rec['mujoco_over_reduced_wall']:.2f}x "
-                     "the reduced solver's wall time")
+            lines.append(f"{engine}: the target {r['target']:g} was not reached at any setting tried that run passes")
+    headline = headline_text(report)
+    if headline:
+        lines.append(headline)
+        lines += [f"warning: {w}" for w in rec["mujoco_over_reduced_wall"]["warnings"]]
     return lines
 
 
@@ -356,7 +565,9 @@ def study(scene: Scene, *, quick: bool = False, target: float | None = None, rep
     if workers is not None and used < workers:
         warnings.warn(f"--workers {workers}: using {used} "
                       f"(at most one process per core: {os.cpu_count() or 1} cores)")
+    load_start = LoadAverage.now()
     truth = ground_truth(scene)
     measurements = sweep(scene, configs, truth, repeats=repeats, workers=used)
     recommendations = recommend(scene, measurements, truth, target, repeats)
-    return cost_report(scene, truth, measurements, recommendations, repeats), measurements, target
+    load = LoadAverage(load_start, LoadAverage.now(), os.cpu_count() or 1)
+    return cost_report(scene, truth, measurements, recommendations, repeats, load), measurements, target

@@ -12,6 +12,7 @@ name is not mathtext), and names are shortened to :data:`NAME_CHARS` characters 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -345,8 +346,19 @@ INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab
                                                    "tab:olive", "tab:pink")))
 
 
-def plot_work_precision(measurements, front, target: float | None, scene_name: str, path: Path) -> None:
-    """Log-log work-precision diagram: peak-ω relative error (x) against wall time (y)."""
+def _log_limits(values, pad: float = 0.25) -> tuple[float, float]:
+    """Limits of a log axis around positive ``values``, ``pad`` decades beyond them."""
+    lo, hi = math.log10(min(values)), math.log10(max(values))
+    return 10.0 ** (lo - pad), 10.0 ** (hi + pad)
+
+
+def plot_work_precision(measurements, front, target: float | None, scene_name: str, path: Path,
+                        headline: str | None = None) -> None:
+    """Log-log work-precision diagram: peak-ω relative error (x) against wall time (y, the
+    median with a bar from the repeats' min to max). A point that ``loopcheck run`` fails is
+    drawn hollow; ``headline`` (the cost ratio's interval) is written under the title."""
+    from matplotlib.lines import Line2D
+
     fig, ax = new_figure((12, 6.5), margins={"right": 2.9})  # the legend right of the axes
     # Scales set once, before the plain labels: every set_*scale (loglog too) puts matplotlib's
     # mathtext formatters back.
@@ -358,6 +370,7 @@ def plot_work_precision(measurements, front, target: float | None, scene_name: s
     for m in measurements:
         if m.ok and m.peak_omega_rel > 0:
             series.setdefault(m.config.series, []).append(m)
+    xs, ys = [], []
     for name, points in series.items():
         points = sorted(points, key=lambda m: -m.config.parameter)
         if name in SERIES_MARKERS:
@@ -366,20 +379,41 @@ def plot_work_precision(measurements, front, target: float | None, scene_name: s
             integrator = name.split()[1]
             colour = INTEGRATOR_COLOURS.get(integrator, "grey")
             marker, ls = ("^", "--") if "(hard)" in name else ("v", ":")
-        ax.plot([m.peak_omega_rel for m in points], [m.wall_median_s for m in points],
-                marker=marker, linestyle=ls, color=colour, label=name, markersize=5)
+        x = [m.peak_omega_rel for m in points]
+        y = [m.wall_median_s for m in points]
+        ax.plot(x, y, linestyle=ls, color=colour, label=name, marker=marker, markersize=5,
+                markevery=[i for i, m in enumerate(points) if m.passed])
+        failing = [m for m in points if not m.passed]
+        if failing:
+            ax.plot([m.peak_omega_rel for m in failing], [m.wall_median_s for m in failing], linestyle="none",
+                    marker=marker, markersize=6, markerfacecolor="white", markeredgecolor=colour, zorder=4)
+        ax.vlines(x, [m.wall_min_s for m in points], [m.wall_max_s for m in points], color=colour,
+                  linewidth=1.0, alpha=0.6)
+        xs += x
+        ys += [m.wall_min_s for m in points] + [m.wall_max_s for m in points]
     if front:
         ax.plot([m.peak_omega_rel for m in front], [m.wall_median_s for m in front], color="black",
-                linewidth=2.5, alpha=0.35, label="Pareto front", zorder=0)
+                linewidth=2.5, alpha=0.35, label="Pareto front (run passes)", zorder=0)
         ax.scatter([m.peak_omega_rel for m in front], [m.wall_median_s for m in front], s=110,
                    facecolors="none", edgecolors="black", zorder=5)
     if target:
         ax.axvline(target, color="green", linestyle="-.", label=f"target {target:g}")
-    ax.set_xlabel("relative error of the peak input speed against the truth")
-    ax.set_ylabel("wall time of the simulation (s, median)")
-    ax.set_title(f"{short_name(scene_name)}: what accuracy costs (truth: DOP853 rtol 1e-12)", **PLAIN)
+        xs.append(target)
+    if xs:
+        ax.set_xlim(*_log_limits(xs))
+        ax.set_ylim(*_log_limits(ys, pad=0.15))
+    handles, labels = ax.get_legend_handles_labels()
+    handles.append(Line2D([], [], linestyle="none", marker="o", markerfacecolor="white", markeredgecolor="black"))
+    labels.append("hollow: loopcheck run fails it")
+    ax.set_xlabel("relative error of the peak input speed against the truth, |Δ peak q̇| / |peak q̇| "
+                  "(dimensionless)", **PLAIN)
+    ax.set_ylabel("wall time of the simulation (s; median, bar: min to max of the repeats)", **PLAIN)
+    title = f"{short_name(scene_name)}: what accuracy costs (truth: DOP853 rtol 1e-12)"
+    if headline:
+        title += f"\n{headline}"
+    ax.set_title(title, fontsize=10, **PLAIN)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    ax.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.text(0.01, 0.01, "lower left is better: accurate and cheap; circles: Pareto front",
             transform=ax.transAxes, fontsize=8, color="dimgray")
     _save(fig, path)
