@@ -400,7 +400,7 @@ def cmd_cost(args: argparse.Namespace) -> int:
     print("\n".join(summary_lines(report, measurements)))
     write_cost_outputs(report, measurements, args.out, target,
                        committed=lambda paths: print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True))
-    return EXIT_OK
+    return EXIT_FAILED if any(m.status == "failed" for m in measurements) else EXIT_OK  # a worker died twice
 
 
 def cmd_stress(args: argparse.Namespace) -> int:

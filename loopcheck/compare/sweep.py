@@ -20,11 +20,14 @@ out rather than left empty, since nothing was compared (empty cells would read l
 failed, and their nulls would make each row of sweep.json 3.4 times longer: 1270 characters for
 374 on the seed). The mode is in sweep.json (``"engines"``) and readable from the header.
 
-Variants run in a process pool (``workers`` processes, default all cores), in chunks of
-consecutive variants per task; results come back in variant order (``Pool.imap``) and each row is
+Variants run in a process pool (``workers`` processes, default all cores,
+:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task; results
+come back in variant order and each row is
 written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
 (only a bounded summary is kept: counts, the worst variant, per key the range of the failing
-variants' values).
+variants' values). A worker that dies (killed from outside, as the OOM killer does) is replaced
+and its chunk runs once more; a chunk whose worker dies twice becomes rows of status ``failed``
+with the reason "worker killed by signal N" (exit status 1), and the sweep goes on.
 
 With a Dask scheduler (``loopcheck sweep --scheduler ADDRESS``, the optional ``distributed`` extra;
 nothing here imports Dask otherwise) the same chunks are Dask tasks: the scene data is scattered
@@ -241,8 +244,15 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
                 yield run_variant(start + i, v, data, source, keep_trajectories, spec.engines)
         return
     for rows in ordered_map(_run_chunk, tasks, workers, _init_worker,
-                            (dict(data), source, keep_trajectories, spec.engines)):
+                            (dict(data), source, keep_trajectories, spec.engines), lost=_lost_chunk):
         yield from rows
+
+
+def _lost_chunk(task: tuple[int, list[dict[str, float]]], reason: str) -> list[dict[str, Any]]:
+    """The rows of a chunk whose worker died twice (:func:`loopcheck.compare.pool.ordered_map`):
+    each variant ``failed`` with the reason ("worker killed by signal 9"), nothing measured."""
+    start, values = task
+    return [{"index": start + i, "status": "failed", "reason": reason, **v} for i, v in enumerate(values)]
 
 
 # -- progress and the estimate of a long sweep ----------------------------------------------
