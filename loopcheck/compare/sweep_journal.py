@@ -150,7 +150,7 @@ class Journal:
         self.written = 0
         self._replay = False
         if resume and restart:
-            check_journal(out, data, spec, resume=resume, restart=restart)
+            raise JournalError("--resume and --restart: give one of them")
         try:
             self.file = _open_locked(self.path, create=not resume)
         except OSError as exc:

@@ -306,3 +306,28 @@ def test_a_sweep_running_in_another_process_holds_its_journal_until_it_dies(made
     status, _, err, ran = resume(None, "--resume")
     assert status == 0 and ran == [3, 4, 5, 6], err
     assert _no_wall(read_rows(tmp_path / "sw" / CSV_FILE)) == _no_wall(made["ref"])
+
+
+def test_a_monte_carlo_sweep_resumes_with_its_drawn_values_and_not_another_seed(made, tmp_path, capsys, monkeypatch):
+    """The values of a Monte Carlo row are checked against the sample drawn again from the seed;
+    a resume with another seed is another sweep."""
+    mc = ["--vary", "dampers.0.coefficient=uniform(40, 60)", "--samples", "5", "--engines", "reduced",
+          "--workers", "1"]
+    out, real, ran = tmp_path / "mc", sweep_module.run_variant, []
+
+    def interrupted_at_3(index, *args, **kwargs):
+        ran.append(index)
+        if index == 3 and len(ran) == 4:
+            raise KeyboardInterrupt
+        return real(index, *args, **kwargs)
+
+    monkeypatch.setattr(sweep_module, "run_variant", interrupted_at_3)
+    with plots_left_out():
+        assert main(["sweep", str(made["scene"]), "--out", str(out), *mc, "--seed", "3"]) == 130
+        assert main(["sweep", str(made["scene"]), "--out", str(out), *mc, "--seed", "4", "--resume"]) == 2
+        assert "journal of another sweep" in capsys.readouterr().err
+        ran.clear()
+        assert main(["sweep", str(made["scene"]), "--out", str(out), *mc, "--seed", "3", "--resume"]) == 0
+        assert ran == [3, 4]
+        assert main(["sweep", str(made["scene"]), "--out", str(tmp_path / "ref"), *mc, "--seed", "3"]) == 0
+    assert _no_wall(read_rows(out / CSV_FILE)) == _no_wall(read_rows(tmp_path / "ref" / CSV_FILE))
