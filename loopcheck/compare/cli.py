@@ -400,7 +400,7 @@ def cmd_cost(args: argparse.Namespace) -> int:
     print("\n".join(summary_lines(report, measurements)))
     write_cost_outputs(report, measurements, args.out, target,
                        committed=lambda paths: print(f"wrote {', '.join(p.name for p in paths)} to {args.out}/", flush=True))
-    return EXIT_OK
+    return EXIT_FAILED if any(m.status == "failed" for m in measurements) else EXIT_OK  # a worker died twice
 
 
 def cmd_stress(args: argparse.Namespace) -> int:
@@ -448,12 +448,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
-    if args.resume:
-        from .sweep_journal import journaled_rows
+    if args.resume and args.keep_trajectories:
+        raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
+    from .sweep_journal import check_journal
 
-        if args.keep_trajectories:
-            raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
-        journaled_rows(args.out, data, spec)  # before any work: a journal of this very sweep
+    check_journal(args.out, data, spec, resume=args.resume, restart=args.restart)  # before any work
     client = None
     if args.scheduler is not None:
         from .sweep_dask import connect
@@ -473,7 +472,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
         summary, _ = run_sweep(data, spec, path, args.out, workers=args.workers,
                                keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
-                               resume=args.resume, committed=said)
+                               resume=args.resume, restart=args.restart, committed=said)
     finally:
         if client is not None:
             client.close()
@@ -726,7 +725,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted sweep: the rows it finished, kept in the journal beside --out "
                         "(OUT.sweep-journal.csv, removed when a sweep completes), are not run again; the scene "
-                        "file, keys, values and engines must be the same. Not with --keep-trajectories")
+                        "file, keys, values and engines must be the same; its rows are checked and the first that "
+                        "does not check runs again, with those after it. Not with --keep-trajectories")
+    p.add_argument("--restart", action="store_true",
+                   help="discard the journal of an interrupted sweep into --out and run every variant (without "
+                        "--resume or --restart, a sweep whose journal is there is refused)")
     p.add_argument("--sensitivity", action="store_true",
                    help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")

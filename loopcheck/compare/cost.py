@@ -239,6 +239,12 @@ def _measure_args(args):
     return measure(*args)
 
 
+def _lost_job(args, reason: str) -> Measurement:
+    """The measurement of a configuration whose worker died twice (killed from outside, as the
+    OOM killer does): status ``failed``, the reason ("worker killed by signal 9") its message."""
+    return Measurement(args[1], status="failed", message=reason, verdict_reasons=(reason,))
+
+
 class Progress:
     """A one-line progress bar on stderr (only when stderr is a terminal)."""
 
@@ -279,7 +285,7 @@ def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3
             results.append(_measure_args(job))
             progress.step(job[1].label)
         return results
-    for m in ordered_map(_measure_args, jobs, workers):
+    for m in ordered_map(_measure_args, jobs, workers, lost=_lost_job):
         results.append(m)
         progress.step(m.config.label)
     return results

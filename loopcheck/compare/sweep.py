@@ -20,11 +20,14 @@ out rather than left empty, since nothing was compared (empty cells would read l
 failed, and their nulls would make each row of sweep.json 3.4 times longer: 1270 characters for
 374 on the seed). The mode is in sweep.json (``"engines"``) and readable from the header.
 
-Variants run in a process pool (``workers`` processes, default all cores), in chunks of
-consecutive variants per task; results come back in variant order (``Pool.imap``) and each row is
+Variants run in a process pool (``workers`` processes, default all cores,
+:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task; results
+come back in variant order and each row is
 written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
 (only a bounded summary is kept: counts, the worst variant, per key the range of the failing
-variants' values).
+variants' values). A worker that dies (killed from outside, as the OOM killer does) is replaced
+and its chunk runs once more; a chunk whose worker dies twice becomes rows of status ``failed``
+with the reason "worker killed by signal N" (exit status 1), and the sweep goes on.
 
 With a Dask scheduler (``loopcheck sweep --scheduler ADDRESS``, the optional ``distributed`` extra;
 nothing here imports Dask otherwise) the same chunks are Dask tasks: the scene data is scattered
@@ -241,8 +244,15 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
                 yield run_variant(start + i, v, data, source, keep_trajectories, spec.engines)
         return
     for rows in ordered_map(_run_chunk, tasks, workers, _init_worker,
-                            (dict(data), source, keep_trajectories, spec.engines)):
+                            (dict(data), source, keep_trajectories, spec.engines), lost=_lost_chunk):
         yield from rows
+
+
+def _lost_chunk(task: tuple[int, list[dict[str, float]]], reason: str) -> list[dict[str, Any]]:
+    """The rows of a chunk whose worker died twice (:func:`loopcheck.compare.pool.ordered_map`):
+    each variant ``failed`` with the reason ("worker killed by signal 9"), nothing measured."""
+    start, values = task
+    return [{"index": start + i, "status": "failed", "reason": reason, **v} for i, v in enumerate(values)]
 
 
 # -- progress and the estimate of a long sweep ----------------------------------------------
@@ -273,7 +283,7 @@ def _estimate(n_left: int, seconds_each: float, workers: int) -> None:
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
               progress: bool = True, sensitivity: list[dict] | None = None,
-              client=None, resume: bool = False,
+              client=None, resume: bool = False, restart: bool = False,
               committed: Callable[[Summary, list[Path]], None] | None = None) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`loopcheck.compare.output.check_folder`);
@@ -284,9 +294,10 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
 
     Each finished row also goes to the journal beside ``out``
     (:func:`loopcheck.compare.sweep_journal.journal_path`), which the commit of the files removes: an
-    interrupted sweep leaves ``out`` as it was and its rows there; with ``resume`` they are read
-    back instead of run again (the caller checked the journal with
-    :func:`loopcheck.compare.sweep_journal.journaled_rows`). Before the bulk of the variants, the next
+    interrupted sweep leaves ``out`` as it was and its rows there; with ``resume`` those that check
+    are read back instead of run again, with ``restart`` they are discarded, and with neither an
+    existing journal is refused (:class:`loopcheck.compare.sweep_journal.JournalError`; the caller
+    checks first with :func:`loopcheck.compare.sweep_journal.check_journal`). Before the bulk of the variants, the next
     two run here and the second one's time estimates the rest (:func:`_estimate`)."""
     from .cost import worker_count
 
@@ -300,10 +311,10 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)
     bar = _Progress(n) if progress else None
 
-    journal = Journal(out, data, spec, resume)
+    journal = Journal(out, data, spec, resume=resume, restart=restart)  # locked until closed
 
-    def fresh_rows() -> Iterator[dict[str, Any]]:
-        first = journal.replayed
+    def fresh_rows() -> Iterator[dict[str, Any]]:  # started once the journal's rows are replayed
+        first = journal.kept
         timed = []
         for index, values in itertools.islice(enumerate(variant_values(spec)), first, first + 2):
             began = time.perf_counter()
@@ -316,9 +327,9 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
 
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
-        rows = itertools.chain(journal.replay(spec), fresh_rows())
+        rows = itertools.chain(journal.replay(), fresh_rows())
         stream_rows(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
-                bar.step if bar else None, journal.write, journal.replayed)
+                    bar.step if bar else None, journal.write)
         summary.wall_s = time.perf_counter() - start
 
     def staged(path: Path) -> None:  # written with sweep.csv
@@ -332,6 +343,7 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
+
     def in_place(paths: list[Path]) -> None:
         journal.close(True)  # the set is committed: nothing is left to resume
         if committed is not None:

@@ -76,25 +76,86 @@ def _title_margins(spec: SweepSpec) -> dict[str, float]:
     return {"top": MARGINS["top"] + (0.25 if spec.engines is Engines.REDUCED else 0.0)}
 
 
+def key_unit(key: str, speed_unit: str = "rad/s") -> str | None:
+    """The unit of a varied scene-file key, as its axis says it ("" for a ratio, None where not
+    known): the engines' settings from their declarations (:func:`loopcheck.settings.options`),
+    the scene's keys from docs/scenes.md; the input's q and q̇ (and the tolerances on them) in
+    the scene's input unit (``speed_unit`` is its speed: rad/s, or m/s for a prismatic input)."""
+    from loopcheck.registry import ENGINES
+
+    parts = key.split(".")
+    names = [p for p in parts if not p.isdigit()]
+    head, name = names[0], names[-1]
+    position = speed_unit[:-2] if speed_unit.endswith("/s") else speed_unit
+    if head in ENGINES and len(names) == 2:
+        from loopcheck.settings import options
+
+        found = [o.unit for o in options(ENGINES[head].settings) if o.name == name]
+        return found[0] if found else None
+    if head == "tolerances":
+        return {"peak_omega_rtol": "", "q_atol": position}.get(name, speed_unit if name.endswith("_atol") else None)
+    if head == "initial":
+        return {"q": position, "qdot": speed_unit}.get(name)
+    if head in ("simulation", "torque", "force", "timed_forces") and name in ("horizon", "start", "duration", "times"):
+        return "s"
+    table = {"linkage": {n: "m" for n in ("c1", "c2", "c3", "c4")},
+             "bodies": {"mass": "kg", "inertia": "kg·m²", "pivot_inertia": "kg·m²", "com": "m", "points": "m"},
+             "dampers": {"coefficient": "N·s/m"}, "springs": {"stiffness": "N/m", "rest_length": "m"},
+             "torque": {"value": "N·m", "values": "N·m"}, "force": {"value": "N", "values": "N"},
+             "timed_forces": {"value": "N", "values": "N"}, "point_forces": {"values": "N"},
+             "gravity": {"gravity": "m/s²"}}
+    return table.get(head, {}).get(name)
+
+
+def key_label(key: str, speed_unit: str = "rad/s") -> str:
+    """An axis label of a varied key: the key and its unit (a ratio says so)."""
+    unit = key_unit(key, speed_unit)
+    return key if unit is None else f"{key} ({unit or 'ratio'})"
+
+
+LEGEND_ENTRY = 0.065
+"""The height of one entry of the peak plot's legend (8-point text), in axes heights."""
+LABEL_GAP = 0.06
+"""The least distance between two line labels of the peak plot (axes heights, 7-point text)."""
+
+
+def spread(fractions: list[float], gap: float = LABEL_GAP) -> list[float]:
+    """Heights (axes fractions, in the given order) moved apart by at least ``gap``, as little as
+    possible, kept within [0, 1] where they fit: the labels at the right of the peak plot."""
+    order = sorted(range(len(fractions)), key=lambda i: fractions[i])
+    placed = [fractions[i] for i in order]
+    for j in range(1, len(placed)):
+        placed[j] = max(placed[j], placed[j - 1] + gap)
+    overflow = placed[-1] - 1.0 if placed else 0.0
+    if overflow > 0:
+        placed = [max(y - overflow, 0.0 if j == 0 else placed[j - 1] - overflow + gap) for j, y in enumerate(placed)]
+    out = [0.0] * len(fractions)
+    for j, i in enumerate(order):
+        out[i] = placed[j]
+    return out
+
+
 def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
-    """Peak |ω| of each engine run against the first varied key (other keys: one line each value)."""
+    """Peak |ω| of each engine run against the first varied key (other keys: one line each value,
+    named at the right of the axes, outside the points, by the other keys' values)."""
     import numpy as np
 
-    from .plots import PLAIN, new_figure
+    from .plots import MARGINS, PLAIN, _save, new_figure
 
     key = spec.keys[0]
     cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
     x = _nan(cols[key])
     red = peaks["reduced"]
     styles = _engine_styles()
-    fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
     others = spec.keys[1:]
+    right = 1.7 if others else MARGINS["right"]
+    fig, ax = new_figure((7.0 + right - MARGINS["right"], 4.2), margins={**_title_margins(spec), "right": right})
     groups: dict[tuple, list[int]] = {}
     for i in range(len(x)):
         groups.setdefault(tuple(cols[k][i] for k in others), []).append(i)
+    labels: list[tuple[float, str]] = []
     for n, (label, idx) in enumerate(groups.items()):
         idx = np.array(idx)
-        suffix = (" (" + ", ".join(f"{k}={v:g}" for k, v in zip(others, label)) + ")") if others else ""
         for engine, peak in peaks.items():
             style = styles[engine]
             ax.plot(x[idx], peak[idx], marker=style["marker"], markersize=style["markersize"], color=style["color"],
@@ -103,20 +164,32 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
         ok = np.flatnonzero(np.isfinite(red[idx]))
         if others and ok.size and (len(groups) <= 10 or n in (0, len(groups) - 1)):
             # name each line by the other keys' values (of many lines, the first and the last)
-            last = idx[ok[-1]]
-            ax.annotate(suffix.strip(" ()"), (x[last], red[last]), textcoords="offset points", xytext=(-4, 4),
-                        ha="right", fontsize=7, **PLAIN)
+            labels.append((red[idx[ok[-1]]], ", ".join(f"{v:.4g}" for v in label)))
     bad = np.array([s in ("invalid", "failed") for s in cols["status"]])
     if bad.any():
         for xv in x[bad]:
             ax.axvline(xv, color="tab:red", alpha=0.3, linewidth=1)
         ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
-    ax.set_xlabel(key, **PLAIN)
+    ax.set_xlabel(key_label(key, speed_unit), **PLAIN)
     ax.set_ylabel(f"peak |ω| of the input ({speed_unit})")
     ax.set_title(_title(source, _what(spec, f"peak speed against {key}")), **PLAIN)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.savefig(path)
+    handles, _ = ax.get_legend_handles_labels()
+    low, high = ax.get_ylim()  # headroom above the points for the legend: it covers none of them
+    room = LEGEND_ENTRY * len(handles) + 0.04
+    ax.set_ylim(low, high + room * (high - low) / (1.0 - room))
+    ax.legend(fontsize=8, loc="upper right")
+    if labels:  # in the right margin, at the height of each line's last point, kept apart
+        low, high = ax.get_ylim()
+        heights = spread([(y - low) / (high - low) for y, _ in labels])
+        for (y, text), h in zip(labels, heights):
+            ax.annotate(text, xy=(1.0, (y - low) / (high - low)), xycoords="axes fraction", xytext=(1.03, h),
+                        textcoords="axes fraction", ha="left", va="center", fontsize=7, annotation_clip=False,
+                        arrowprops={"arrowstyle": "-", "color": "0.6", "linewidth": 0.5}, **PLAIN)
+        ax.text(1.03, 1.02, "\n".join(key_label(k, speed_unit).replace(" (", "\n(") for k in others),
+                transform=ax.transAxes,
+                ha="left", va="bottom", fontsize=7, **PLAIN)
+    _save(fig, path)
 
 
 def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
@@ -125,7 +198,7 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     import numpy as np
     from matplotlib.colors import LogNorm
 
-    from .plots import PLAIN, new_figure, plain_log_axis
+    from .plots import PLAIN, _save, new_figure, plain_log_axis
 
     kx, ky = spec.keys[1], spec.keys[0]
     xs, ys = list(spec.varies[1].values), list(spec.varies[0].values)
@@ -145,13 +218,13 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     ax.set_facecolor("0.8")
     ax.set_xticks(np.arange(len(xs)) + 0.5, [f"{v:.4g}" for v in xs], fontsize=7, rotation=45 if len(xs) > 6 else 0)
     ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{v:.4g}" for v in ys], fontsize=7)
-    ax.set_xlabel(kx, **PLAIN)
-    ax.set_ylabel(ky, **PLAIN)
+    ax.set_xlabel(key_label(kx, speed_unit), **PLAIN)
+    ax.set_ylabel(key_label(ky, speed_unit), **PLAIN)
     ax.set_title(_title(source, "gate's worst figure / tolerance (> 1 fails)"), **PLAIN)
-    bar = fig.colorbar(mesh, ax=ax, label="worst ratio")
+    bar = fig.colorbar(mesh, ax=ax, label="worst figure / its tolerance (ratio)")
     if norm is not None:
         plain_log_axis(bar.ax.yaxis)  # the project's plain-text log labels (no mathtext)
-    fig.savefig(path)
+    _save(fig, path)
 
 
 def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Path) -> None:
@@ -185,7 +258,7 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
     filled, MuJoCo's outlined)."""
     import numpy as np
 
-    from .plots import PLAIN, new_figure
+    from .plots import PLAIN, _save, new_figure
 
     _, peaks = _peaks(csv_path, spec)
     peaks = {e: p[np.isfinite(p)] for e, p in peaks.items()}
@@ -204,7 +277,7 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
     ax.set_title(_title(source, _what(spec, f"peak speed over {len(peaks['reduced'])} samples (seed {spec.seed})")),
                  **PLAIN)
     ax.grid(True, alpha=0.3)
-    fig.savefig(path)
+    _save(fig, path)
 
 
 PLOTS = {PEAK_PLOT: plot_peak_omega, MAP_PLOT: plot_gate_map, HIST_PLOT: plot_peak_histogram}

@@ -82,10 +82,9 @@ def read_rows(path: str | Path) -> Iterator[dict[str, Any]]:
 
 
 def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
-            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None,
-            replayed: int = 0) -> None:
-    """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row
-    after the first ``replayed`` (read back from the journal) also goes to ``journal``."""
+            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None) -> None:
+    """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row but
+    those read back from the journal (marked ``_journaled``) also goes to ``journal``."""
     cols = columns(spec)
     traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
     try:
@@ -95,11 +94,12 @@ def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path,
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
             writer.writerow(cols)
-            for i, row in enumerate(rows):
+            for row in rows:
                 trajectories = row.pop("_trajectories", None)
+                journaled = row.pop("_journaled", False)
                 cells = [_cell(row.get(k)) for k in cols]
                 writer.writerow(cells)
-                if journal and i >= replayed:
+                if journal and not journaled:
                     journal(cells)
                 if tw and trajectories:
                     for engine, samples in trajectories.items():

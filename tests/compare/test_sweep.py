@@ -273,7 +273,8 @@ def test_an_interrupted_sweep_leaves_the_folder_as_it_was(short_scene, tmp_path,
     assert sorted(p.name for p in out.iterdir()) == [CSV_FILE] and (out / CSV_FILE).read_text() == "old\n"
     assert len(journal_path(out).read_text().splitlines()) == 2 + 1  # variant 0's row, beside
     monkeypatch.setattr(sweep_module, "run_variant", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
-    status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1")
+    status, _, err = _sweep(capsys, short_scene, out, "--vary", "torque.value=[240, 250]", "--workers", "1",
+                            "--restart")
     assert status == 130 and not journal_path(out).exists()  # no row: no journal left
 
 
