@@ -29,6 +29,7 @@ from .loads import control_sequence
 from .options import ModelOptions
 from .record import STATE, check_initial_state, record_run
 from .steps import grid_timestep, step_count
+from .warning_handler import compile_spec
 
 # A port keeps qpos and qvel of every step on the host: refuse up front what cannot fit.
 MAX_STEPS = 5_000_000
@@ -122,7 +123,7 @@ def prepare(scene: Scene, settings: ModelOptions, engine: str, table: str) -> Po
         raise PortRefusal(f"{engine} run of {n:.3g} steps needs about {need / 1024 ** 3:.3g} GiB of states, more than "
                           f"{MAX_STATE_BYTES / 1024 ** 3:g} GiB: raise {key} or shorten simulation.horizon")
     check_joint_order(scene, model)
-    port_model = spec.compile()
+    port_model = compile_spec(spec)
     port_model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     layout = Layout.of(scene, model)
     data = mujoco.MjData(model)

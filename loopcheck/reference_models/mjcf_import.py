@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,6 +56,7 @@ from loopcheck.scenefile import scene_from_dict
 from loopcheck.settings import parse_number
 
 from loopcheck.mujoco_model.build import BASE_BODY
+from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
 # issue's decision); the scene file's Newton assembly then polishes the configuration.
@@ -526,12 +529,134 @@ def _pivot_body(group: _Group, mass: float, com, inertia: float, joints, scale: 
     return Body(group.name, group.points, mass, com, inertia)
 
 
-def _load_model(path: Path) -> mujoco.MjModel:
+def _load_model(path: Path) -> tuple[mujoco.MjModel, tuple[str, ...]]:
+    """The compiled model and MuJoCo's warnings while loading it (in loopcheck's words), after
+    the file is checked (:func:`check_model_path`) and its values are (:func:`_check_values`)."""
+    check_model_path(path)
+    with mujoco_warnings() as said:
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+        except ValueError as exc:  # MuJoCo's parse errors
+            first = " ".join(str(exc).split())
+            raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+        _check_values(path, spec)
+        try:
+            model = compile_spec(spec)
+        except ValueError as exc:  # MuJoCo's compile errors
+            first = " ".join(str(exc).split())
+            raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+    return model, tuple(dict.fromkeys(said.lines))
+
+
+def check_model_path(path: Path) -> None:
+    """Refuse, before MuJoCo opens it, a model path that is not a readable regular file (a FIFO
+    would block MuJoCo's read for ever; a folder is not an empty model)."""
     try:
-        return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:  # MuJoCo's parse and compile errors
-        first = " ".join(str(exc).split())
-        raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # opening a FIFO must not wait for a writer
+    except OSError as exc:
+        raise MjcfError(f"cannot read MJCF file '{path}': {exc.strerror}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+    finally:
+        os.close(fd)
+    if not stat.S_ISREG(mode):
+        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+        raise MjcfError(f"cannot read MJCF file '{path}': it is {what}")
+
+
+# The values of a model that reach the description (or change what MuJoCo does with it), as MjSpec
+# holds them after defaults: (element list, MJCF element, attribute, spec field, the least value the
+# description can represent (None: any finite value), how many leading entries that bound covers).
+# A value left unset is NaN in some of MjSpec's fields (a body's ipos and fullinertia): those are
+# checked only when the body sets its inertial.
+_NONNEGATIVE = 0.0
+_VALUES = (
+    ("bodies", "body", "pos", "pos", None), ("bodies", "body", "quat", "quat", None),
+    ("joints", "joint", "pos", "pos", None), ("joints", "joint", "axis", "axis", None),
+    ("joints", "joint", "ref", "ref", None), ("joints", "joint", "springref", "springref", None),
+    ("joints", "joint", "stiffness", "stiffness", _NONNEGATIVE), ("joints", "joint", "damping", "damping", _NONNEGATIVE),
+    ("joints", "joint", "armature", "armature", _NONNEGATIVE),
+    ("joints", "joint", "frictionloss", "frictionloss", _NONNEGATIVE), ("joints", "joint", "range", "range", None),
+    ("sites", "site", "pos", "pos", None), ("sites", "site", "quat", "quat", None),
+    ("tendons", "tendon", "stiffness", "stiffness", _NONNEGATIVE),
+    ("tendons", "tendon", "damping", "damping", _NONNEGATIVE), ("tendons", "tendon", "armature", "armature", _NONNEGATIVE),
+    ("tendons", "tendon", "frictionloss", "frictionloss", _NONNEGATIVE),
+    ("tendons", "tendon", "springlength", "springlength", None), ("tendons", "tendon", "range", "range", None),
+    ("actuators", "actuator", "gear", "gear", None), ("actuators", "actuator", "gainprm", "gainprm", None),
+    ("actuators", "actuator", "biasprm", "biasprm", None), ("actuators", "actuator", "ctrlrange", "ctrlrange", None),
+    ("actuators", "actuator", "forcerange", "forcerange", None),
+    ("equalities", "equality", "anchor", "data", None), ("equalities", "equality", "solref", "solref", None),
+    ("equalities", "equality", "solimp", "solimp", None),
+    ("keys", "key", "qpos", "qpos", None), ("keys", "key", "qvel", "qvel", None), ("keys", "key", "ctrl", "ctrl", None),
+    ("keys", "key", "time", "time", None),
+)
+_INERTIAL = (("inertial pos", "ipos", None), ("inertial quat", "iquat", None), ("inertial mass", "mass", _NONNEGATIVE),
+             ("inertial diaginertia", "inertia", _NONNEGATIVE))
+# What a negative value would be in the description (the scene format's ranges).
+_WHAT = {"stiffness": "a spring's stiffness", "damping": "a damper's coefficient", "armature": "an inertia",
+         "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
+_LINEAR = ("stiffness", "damping")  # MJCF takes polynomial terms after the coefficient
+# The default class's sub-element for each kind of element that has one.
+_DEFAULT_OF = {"joint": "joint", "site": "site", "tendon": "tendon", "actuator": "actuator", "equality": "equality"}
+
+
+def _word(value: float) -> str:
+    return "nan" if math.isnan(value) else repr(float(value)).removesuffix(".0") if math.isfinite(value) else (
+        "inf" if value > 0 else "-inf")
+
+
+def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
+    """Refuse a value that is NaN or infinite, or finite and outside the range the description
+    can represent (a negative damping, stiffness, armature, mass or inertia): one line naming
+    the file, the element, the MJCF attribute and, when the value is its default class's, that
+    class. Zero stays "absent" (no spring, no damper)."""
+    def refuse(kind: str, element, index: int, attribute: str, field_: str, values, reason: str):
+        name = getattr(element, "name", "") or f"#{index} (unnamed)"
+        source = ""
+        classname = getattr(getattr(element, "classname", None), "name", None)
+        if classname and kind in _DEFAULT_OF:
+            default = spec.find_default(classname)
+            sub = getattr(default, _DEFAULT_OF[kind], None) if default is not None else None
+            theirs = getattr(sub, field_, None) if sub is not None else None
+            if theirs is not None and np.array_equal(np.atleast_1d(np.asarray(theirs, dtype=float)),
+                                                     np.atleast_1d(np.asarray(values, dtype=float)), equal_nan=True):
+                source = f" (from default class '{classname}')"
+        if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm"):  # as written: no trailing zeros
+            values = np.trim_zeros(values, "b") if np.any(values != 0.0) else values[:1]
+        written = " ".join(_word(v) for v in values)
+        label = f"{kind} '{name}'" if getattr(element, "name", "") else f"{kind} {name}"
+        raise MjcfError(f"{path}: {label}: {attribute}=\"{written}\"{source} {reason}")
+
+    def check(kind, element, index, attribute, field_, least):
+        values = np.atleast_1d(np.asarray(getattr(element, field_), dtype=float)).ravel()
+        if not np.all(np.isfinite(values)):
+            refuse(kind, element, index, attribute, field_, values, "is not a finite number: every value of the "
+                   "model must be finite")
+        if attribute in _LINEAR and np.any(values[1:] != 0.0):
+            refuse(kind, element, index, attribute, field_, values, "cannot be represented: loopcheck's springs and "
+                   "dampers are linear (one coefficient, no polynomial terms)")
+        if least is not None and np.any(values < least):
+            refuse(kind, element, index, attribute, field_, values,
+                   f"cannot be represented: {_WHAT.get(attribute, attribute)} must be ≥ {least:g} (0: none)")
+
+    for group, kind, attribute, field_, least in _VALUES:
+        for index, element in enumerate(getattr(spec, group)):
+            if kind == "equality" and int(element.type) != _CONNECT:
+                continue  # its data is another equality's (refused by kind later)
+            check(kind, element, index, attribute, field_, least)
+    for index, body in enumerate(spec.bodies):
+        if index and body.explicitinertial:
+            for attribute, field_, least in _INERTIAL:
+                check("body", body, index, attribute, field_, least)
+    option = spec.option
+    for attribute, value in (("timestep", [option.timestep]), ("gravity", option.gravity)):
+        values = np.asarray(value, dtype=float).ravel()
+        if not np.all(np.isfinite(values)):
+            raise MjcfError(f"{path}: option: {attribute}=\"{' '.join(_word(v) for v in values)}\" is not a finite "
+                            "number: every value of the model must be finite")
+    if not option.timestep > 0.0:
+        raise MjcfError(f"{path}: option: timestep=\"{_word(option.timestep)}\" cannot be represented: a timestep "
+                        "must be > 0 s")
 
 
 def _state(path: Path, model: mujoco.MjModel, keyframe: str | None):
@@ -565,9 +690,11 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         One line naming the file and the element that cannot be read, and why.
     """
     path = Path(path)
-    model = _load_model(path)
+    model, loading = _load_model(path)
     qpos, qvel, key_ctrl = _state(path, model, keyframe)
-    reader = _Reader(path, model, qpos, qvel)
+    with mujoco_warnings() as said:
+        reader = _Reader(path, model, qpos, qvel)
+    reader.warnings.extend(loading + tuple(said.lines))
     reader.check_options()
     reader.joints()
     inp = _input_joint(reader, input_joint)
