@@ -243,7 +243,8 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
                      "tolerances or shorten the horizon")
     elif check.cheapest is not check.as_written:
         c = check.cheapest
-        work = c.evaluations / max(check.as_written.evaluations, 1)
+        written = check.as_written.options  # its work as planned (a failed run has no count)
+        work = c.evaluations / (written.steps(check.imported.scene.horizon) * written.evaluations_per_step())
         lines += [f"      cheapest options that meet them: {c.options.text()} ({c.comparison.mujoco.n_steps} steps, "
                   f"{work:.3g}x the model's work as written); paste into the MJCF:",
                   *(f"        {line}" for line in c.options.mjcf().splitlines()),
