@@ -71,9 +71,9 @@ class Warnings:
     def report(self, where: str) -> None:
         """Log every warning kept on the ``loopcheck.mujoco`` logger at WARNING, naming ``where``."""
         for line in dict.fromkeys(self.lines):
-            _log.warning("%s: %s", where, line)
+            _log.warning("warning: %s: %s", where, line)
         if self.count > len(self.lines):
-            _log.warning("%s: %d more MuJoCo warnings", where, self.count - len(self.lines))
+            _log.warning("warning: %s: %d more MuJoCo warnings", where, self.count - len(self.lines))
 
 
 _active: list[Warnings] = []

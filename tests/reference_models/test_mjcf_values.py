@@ -145,6 +145,19 @@ def test_the_keyframe_asked_for_is_read(tmp_path):
 
 # --- MuJoCo's warnings (real MuJoCo) -----------------------------------------------------------
 
+def test_a_warning_while_loading_is_the_imports_own_and_nothing_is_printed(tmp_path, monkeypatch, capfd):
+    """A NaN where loopcheck reads nothing (a custom numeric) makes MuJoCo's parser warn; the import
+    goes on, the warning is one of its own, in loopcheck's words; MuJoCo prints nothing and writes no
+    MUJOCO_LOG.TXT in the working folder (planted with MuJoCo's default handler while loading: a
+    `WARNING: XML contains a 'NaN'` line on stdout, and the log file)."""
+    path = _write(tmp_path, _seed("<keyframe>", '<custom><numeric name="note" data="nan"/></custom><keyframe>'))
+    monkeypatch.chdir(tmp_path)
+    imported = import_mjcf(path, keyframe="assembled")
+    out, err = capfd.readouterr()
+    assert imported.warnings == ("MuJoCo's parser found 'NaN' in the file",)
+    assert "WARNING" not in out + err and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
 def _unstable(tmp_path: Path) -> Path:
     """The seed's four-bar run by Euler at 50 ms: MuJoCo finds a huge qacc and resets the state."""
     return _write(tmp_path, _seed('timestep="0.001" integrator="RK4"', 'timestep="0.05" integrator="Euler"'))
