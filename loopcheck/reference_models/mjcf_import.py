@@ -578,6 +578,8 @@ _VALUES = (
     ("joints", "joint", "armature", "armature", _NONNEGATIVE),
     ("joints", "joint", "frictionloss", "frictionloss", _NONNEGATIVE), ("joints", "joint", "range", "range", None),
     ("sites", "site", "pos", "pos", None), ("sites", "site", "quat", "quat", None),
+    ("geoms", "geom", "pos", "pos", None), ("geoms", "geom", "quat", "quat", None), ("geoms", "geom", "size", "size", None),
+    ("geoms", "geom", "density", "density", _NONNEGATIVE),
     ("tendons", "tendon", "stiffness", "stiffness", _NONNEGATIVE),
     ("tendons", "tendon", "damping", "damping", _NONNEGATIVE), ("tendons", "tendon", "armature", "armature", _NONNEGATIVE),
     ("tendons", "tendon", "frictionloss", "frictionloss", _NONNEGATIVE),
@@ -593,11 +595,15 @@ _VALUES = (
 _INERTIAL = (("inertial pos", "ipos", None), ("inertial quat", "iquat", None), ("inertial mass", "mass", _NONNEGATIVE),
              ("inertial diaginertia", "inertia", _NONNEGATIVE))
 # What a negative value would be in the description (the scene format's ranges).
-_WHAT = {"stiffness": "a spring's stiffness", "damping": "a damper's coefficient", "armature": "an inertia",
+_WHAT = {"density": "a geom's density", "stiffness": "a spring's stiffness", "damping": "a damper's coefficient", "armature": "an inertia",
          "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
+_ALTERNATIVE = {int(mujoco.mjtOrientation.mjORIENTATION_AXISANGLE): "axisangle",
+                int(mujoco.mjtOrientation.mjORIENTATION_EULER): "euler",
+                int(mujoco.mjtOrientation.mjORIENTATION_XYAXES): "xyaxes",
+                int(mujoco.mjtOrientation.mjORIENTATION_ZAXIS): "zaxis"}
 _LINEAR = ("stiffness", "damping")  # MJCF takes polynomial terms after the coefficient
 # The default class's sub-element for each kind of element that has one.
-_DEFAULT_OF = {"joint": "joint", "site": "site", "tendon": "tendon", "actuator": "actuator", "equality": "equality"}
+_DEFAULT_OF = {"joint": "joint", "site": "site", "geom": "geom", "tendon": "tendon", "actuator": "actuator", "equality": "equality"}
 
 
 def _word(value: float) -> str:
@@ -611,7 +617,9 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
     the file, the element, the MJCF attribute and, when the value is its default class's, that
     class. Zero stays "absent" (no spring, no damper)."""
     def refuse(kind: str, element, index: int, attribute: str, field_: str, values, reason: str):
-        name = getattr(element, "name", "") or f"#{index} (unnamed)"
+        parent = getattr(getattr(element, "parent", None), "name", "") if kind != "body" else ""
+        name = getattr(element, "name", "") or (f"#{index} (unnamed, in body '{parent}')" if parent
+                                                 else f"#{index} (unnamed)")
         source = ""
         classname = getattr(getattr(element, "classname", None), "name", None)
         if classname and kind in _DEFAULT_OF:
@@ -621,7 +629,7 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
             if theirs is not None and np.array_equal(np.atleast_1d(np.asarray(theirs, dtype=float)),
                                                      np.atleast_1d(np.asarray(values, dtype=float)), equal_nan=True):
                 source = f" (from default class '{classname}')"
-        if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm"):  # as written: no trailing zeros
+        if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm", "size"):  # as written: no trailing zeros
             values = np.trim_zeros(values, "b") if np.any(values != 0.0) else values[:1]
         written = " ".join(_word(v) for v in values)
         label = f"{kind} '{name}'" if getattr(element, "name", "") else f"{kind} {name}"
@@ -644,10 +652,21 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
             if kind == "equality" and int(element.type) != _CONNECT:
                 continue  # its data is another equality's (refused by kind later)
             check(kind, element, index, attribute, field_, least)
+    for kind, group in (("body", "bodies"), ("geom", "geoms")):  # an orientation other than quat, as written
+        for index, element in enumerate(getattr(spec, group)):
+            attribute = _ALTERNATIVE.get(int(element.alt.type))
+            if attribute is not None:
+                values = np.asarray(getattr(element.alt, attribute), dtype=float).ravel()
+                if not np.all(np.isfinite(values)):
+                    refuse(kind, element, index, attribute, attribute, values, "is not a finite number: every value "
+                           "of the model must be finite")
     for index, body in enumerate(spec.bodies):
         if index and body.explicitinertial:
             for attribute, field_, least in _INERTIAL:
                 check("body", body, index, attribute, field_, least)
+            full = np.asarray(body.fullinertia, dtype=float)
+            if not (math.isnan(full[0]) and not np.any(full[1:])):  # NaN then zeros: not given
+                check("body", body, index, "inertial fullinertia", "fullinertia", None)
     option = spec.option
     for attribute, value in (("timestep", [option.timestep]), ("gravity", option.gravity)):
         values = np.asarray(value, dtype=float).ravel()

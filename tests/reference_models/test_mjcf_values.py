@@ -59,6 +59,16 @@ BAD_VALUES = {
     "centre of mass nan": (('pos="0.5111 0.1333 0"', 'pos="nan 0.1333 0"'),
                            "body 'coupler': inertial pos=\"nan 0.1333 0\" is not a finite"),
     "mass negative": (('mass="40"', 'mass="-40"'), "body 'coupler': inertial mass=\"-40\""),
+    "body euler nan": (('<body name="rocker" pos="1 0 0">', '<body name="rocker" pos="1 0 0" euler="0 0 nan">'),
+                       "body 'rocker': euler=\"0 0 nan\""),
+    "fullinertia nan": (('mass="40" diaginertia="5 5 5"', 'mass="40" fullinertia="5 5 nan 0 0 0"'),
+                        "body 'coupler': inertial fullinertia=\"5 5 nan 0 0 0\""),
+    "geom density negative": (('<site name="rocker_B" pos="0.7 0 0"/>',
+                               '<site name="rocker_B" pos="0.7 0 0"/><geom size="0.1" density="-1000" contype="0" '
+                               'conaffinity="0"/>'),
+                              "geom #0 (unnamed, in body 'rocker'): density=\"-1000\" cannot be represented"),
+    "keyframe ctrl nan": (('ctrl="250"', 'ctrl="nan"'), "key 'assembled': ctrl=\"nan\""),
+    "gravity nan": (('gravity="0 0 0"', 'gravity="0 nan 0"'), "option: gravity=\"0 nan 0\""),
     "polynomial damping": (('damping="55"', 'damping="55 1"'), "tendon 'damper': damping=\"55 1\" cannot be "
                                                                "represented: loopcheck's springs and dampers are linear"),
 }
