@@ -224,3 +224,19 @@ def test_a_scene_run_stops_after_the_chunk_of_mujocos_first_reset(monkeypatch):
     failure = caught.value
     assert failure.reason == FailureReason.UNSTABLE and f"at t = {failure.time:.6g} s and reset the state" in str(failure)
     assert failure.time < ROLLOUT_CHUNK * 0.05 and len(calls) == 1
+
+
+def test_a_compiler_warning_is_caught_too(tmp_path, monkeypatch, capfd, recwarn):
+    """A body with two hinges makes MuJoCo's compiler warn (a singular mass matrix), which MuJoCo's
+    Python package raises as a Python warning in MuJoCo's words: the import refuses the body by
+    name, and neither a Python warning, a `WARNING:` line nor MUJOCO_LOG.TXT gets out (planted
+    with `spec.compile()` in place of the handler's compile_spec: the Python warning gets out)."""
+    path = _write(tmp_path, '<mujoco><worldbody><body name="b"><joint name="j1" axis="0 0 1"/>'
+                            '<joint name="j2" axis="0 0 1"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>'
+                            '</body></worldbody></mujoco>')
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(MjcfError, match="body 'b' has 2 joints"):
+        import_mjcf(path)
+    out, err = capfd.readouterr()
+    assert not [w for w in recwarn if "singular" in str(w.message)]
+    assert "WARNING" not in out + err and not (tmp_path / "MUJOCO_LOG.TXT").exists()
