@@ -572,6 +572,7 @@ def check_model_path(path: Path) -> None:
 _NONNEGATIVE = 0.0
 _VALUES = (
     ("bodies", "body", "pos", "pos", None), ("bodies", "body", "quat", "quat", None),
+    ("frames", "frame", "pos", "pos", None), ("frames", "frame", "quat", "quat", None),
     ("joints", "joint", "pos", "pos", None), ("joints", "joint", "axis", "axis", None),
     ("joints", "joint", "ref", "ref", None), ("joints", "joint", "springref", "springref", None),
     ("joints", "joint", "stiffness", "stiffness", _NONNEGATIVE), ("joints", "joint", "damping", "damping", _NONNEGATIVE),
@@ -652,7 +653,7 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
             if kind == "equality" and int(element.type) != _CONNECT:
                 continue  # its data is another equality's (refused by kind later)
             check(kind, element, index, attribute, field_, least)
-    for kind, group in (("body", "bodies"), ("geom", "geoms")):  # an orientation other than quat, as written
+    for kind, group in (("body", "bodies"), ("frame", "frames"), ("geom", "geoms")):  # an orientation other than quat, as written
         for index, element in enumerate(getattr(spec, group)):
             attribute = _ALTERNATIVE.get(int(element.alt.type))
             if attribute is not None:
