@@ -32,6 +32,12 @@ Anything else that acts is refused with one line naming it (:class:`MjcfError`):
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line.
+A value that is NaN or infinite, or finite and outside what the description can hold (a negative
+damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
+is refused too, naming the element, the MJCF attribute and the default class it came from
+(:func:`_check_values`); zero is "absent". A model path that is not a regular file is refused
+before MuJoCo opens it (:func:`check_model_path`). MuJoCo's warnings while loading go through
+:mod:`loopcheck.mujoco_model.warning_handler` and become the import's own warnings.
 """
 
 from __future__ import annotations
@@ -40,6 +46,7 @@ import argparse
 import math
 import os
 import stat
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -612,6 +619,30 @@ def _word(value: float) -> str:
         "inf" if value > 0 else "-inf")
 
 
+def _check_unset_markers(path: Path) -> None:
+    """Refuse a NaN or infinite value in a geom's ``mass`` or ``fromto``: MjSpec holds NaN there for
+    "not given" (the mass then comes from the density), so only the file's text tells them apart
+    (the file itself; an included file's geoms are not read here)."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError):
+        return  # MuJoCo read it; nothing more to learn here
+    for element in root.iter("geom"):
+        for attribute in ("mass", "fromto"):
+            text = element.get(attribute)
+            if text is None:
+                continue
+            try:
+                values = [float(word) for word in text.split()]
+            except ValueError:
+                continue  # MuJoCo's parser would have refused it
+            if not all(math.isfinite(v) for v in values):
+                name = element.get("name")
+                label = f"geom '{name}'" if name else "a geom without a name"
+                raise MjcfError(f"{path}: {label}: {attribute}=\"{text.strip()}\" is not a finite number: every value "
+                                "of the model must be finite")
+
+
 def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
     """Refuse a value that is NaN or infinite, or finite and outside the range the description
     can represent (a negative damping, stiffness, armature, mass or inertia): one line naming
@@ -668,6 +699,7 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
             full = np.asarray(body.fullinertia, dtype=float)
             if not (math.isnan(full[0]) and not np.any(full[1:])):  # NaN then zeros: not given
                 check("body", body, index, "inertial fullinertia", "fullinertia", None)
+    _check_unset_markers(path)
     option = spec.option
     for attribute, value in (("timestep", [option.timestep]), ("gravity", option.gravity)):
         values = np.asarray(value, dtype=float).ravel()

@@ -70,6 +70,9 @@ BAD_VALUES = {
                                '<site name="rocker_B" pos="0.7 0 0"/><geom size="0.1" density="-1000" contype="0" '
                                'conaffinity="0"/>'),
                               "geom #0 (unnamed, in body 'rocker'): density=\"-1000\" cannot be represented"),
+    "geom mass nan": (('<site name="rocker_B" pos="0.7 0 0"/>',
+                       '<site name="rocker_B" pos="0.7 0 0"/><geom name="lump" size="0.1" mass="nan" contype="0" '
+                       'conaffinity="0"/>'), "geom 'lump': mass=\"nan\" is not a finite"),
     "keyframe ctrl nan": (('ctrl="250"', 'ctrl="nan"'), "key 'assembled': ctrl=\"nan\""),
     "gravity nan": (('gravity="0 0 0"', 'gravity="0 nan 0"'), "option: gravity=\"0 nan 0\""),
     "polynomial damping": (('damping="55"', 'damping="55 1"'), "tendon 'damper': damping=\"55 1\" cannot be "
