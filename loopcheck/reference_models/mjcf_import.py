@@ -572,46 +572,43 @@ def check_model_path(path: Path) -> None:
 
 
 # The values of a model that reach the description (or change what MuJoCo does with it), as MjSpec
-# holds them after defaults: (element list, MJCF element, attribute, spec field, the least value the
-# description can represent (None: any finite value), how many leading entries that bound covers).
-# A value left unset is NaN in some of MjSpec's fields (a body's ipos and fullinertia): those are
-# checked only when the body sets its inertial.
+# holds them after defaults: by MjSpec's element list, the MJCF element and, per value, the MJCF
+# attribute, the spec's field and the least value the description can represent (None: any finite
+# value). A value left unset is NaN in some of MjSpec's fields (a body's ipos and fullinertia, a
+# geom's mass and fromto): the body's are checked only when it sets its inertial, the geom's in the
+# file's text (:func:`_check_unset_markers`).
 _NONNEGATIVE = 0.0
-_VALUES = (
-    ("bodies", "body", "pos", "pos", None), ("bodies", "body", "quat", "quat", None),
-    ("frames", "frame", "pos", "pos", None), ("frames", "frame", "quat", "quat", None),
-    ("joints", "joint", "pos", "pos", None), ("joints", "joint", "axis", "axis", None),
-    ("joints", "joint", "ref", "ref", None), ("joints", "joint", "springref", "springref", None),
-    ("joints", "joint", "stiffness", "stiffness", _NONNEGATIVE), ("joints", "joint", "damping", "damping", _NONNEGATIVE),
-    ("joints", "joint", "armature", "armature", _NONNEGATIVE),
-    ("joints", "joint", "frictionloss", "frictionloss", _NONNEGATIVE), ("joints", "joint", "range", "range", None),
-    ("sites", "site", "pos", "pos", None), ("sites", "site", "quat", "quat", None),
-    ("geoms", "geom", "pos", "pos", None), ("geoms", "geom", "quat", "quat", None), ("geoms", "geom", "size", "size", None),
-    ("geoms", "geom", "density", "density", _NONNEGATIVE),
-    ("tendons", "tendon", "stiffness", "stiffness", _NONNEGATIVE),
-    ("tendons", "tendon", "damping", "damping", _NONNEGATIVE), ("tendons", "tendon", "armature", "armature", _NONNEGATIVE),
-    ("tendons", "tendon", "frictionloss", "frictionloss", _NONNEGATIVE),
-    ("tendons", "tendon", "springlength", "springlength", None), ("tendons", "tendon", "range", "range", None),
-    ("actuators", "actuator", "gear", "gear", None), ("actuators", "actuator", "gainprm", "gainprm", None),
-    ("actuators", "actuator", "biasprm", "biasprm", None), ("actuators", "actuator", "ctrlrange", "ctrlrange", None),
-    ("actuators", "actuator", "forcerange", "forcerange", None),
-    ("equalities", "equality", "anchor", "data", None), ("equalities", "equality", "solref", "solref", None),
-    ("equalities", "equality", "solimp", "solimp", None),
-    ("keys", "key", "qpos", "qpos", None), ("keys", "key", "qvel", "qvel", None), ("keys", "key", "ctrl", "ctrl", None),
-    ("keys", "key", "time", "time", None),
-)
+_VALUES = {  # element list: (MJCF element, [(attribute, spec field, least value or None)])
+    "bodies": ("body", [("pos", "pos", None), ("quat", "quat", None)]),
+    "frames": ("frame", [("pos", "pos", None), ("quat", "quat", None)]),
+    "joints": ("joint", [("pos", "pos", None), ("axis", "axis", None), ("ref", "ref", None),
+                         ("springref", "springref", None), ("stiffness", "stiffness", _NONNEGATIVE),
+                         ("damping", "damping", _NONNEGATIVE), ("armature", "armature", _NONNEGATIVE),
+                         ("frictionloss", "frictionloss", _NONNEGATIVE), ("range", "range", None)]),
+    "sites": ("site", [("pos", "pos", None), ("quat", "quat", None)]),
+    "geoms": ("geom", [("pos", "pos", None), ("quat", "quat", None), ("size", "size", None),
+                       ("density", "density", _NONNEGATIVE)]),
+    "tendons": ("tendon", [("stiffness", "stiffness", _NONNEGATIVE), ("damping", "damping", _NONNEGATIVE),
+                           ("armature", "armature", _NONNEGATIVE), ("frictionloss", "frictionloss", _NONNEGATIVE),
+                           ("springlength", "springlength", None), ("range", "range", None)]),
+    "actuators": ("actuator", [("gear", "gear", None), ("gainprm", "gainprm", None), ("biasprm", "biasprm", None),
+                               ("ctrlrange", "ctrlrange", None), ("forcerange", "forcerange", None)]),
+    "equalities": ("equality", [("anchor", "data", None), ("solref", "solref", None), ("solimp", "solimp", None)]),
+    "keys": ("key", [("qpos", "qpos", None), ("qvel", "qvel", None), ("ctrl", "ctrl", None), ("time", "time", None)]),
+}
 _INERTIAL = (("inertial pos", "ipos", None), ("inertial quat", "iquat", None), ("inertial mass", "mass", _NONNEGATIVE),
              ("inertial diaginertia", "inertia", _NONNEGATIVE))
 # What a negative value would be in the description (the scene format's ranges).
-_WHAT = {"density": "a geom's density", "stiffness": "a spring's stiffness", "damping": "a damper's coefficient", "armature": "an inertia",
-         "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
+_WHAT = {"density": "a geom's density", "stiffness": "a spring's stiffness", "damping": "a damper's coefficient",
+         "armature": "an inertia", "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
 _ALTERNATIVE = {int(mujoco.mjtOrientation.mjORIENTATION_AXISANGLE): "axisangle",
                 int(mujoco.mjtOrientation.mjORIENTATION_EULER): "euler",
                 int(mujoco.mjtOrientation.mjORIENTATION_XYAXES): "xyaxes",
                 int(mujoco.mjtOrientation.mjORIENTATION_ZAXIS): "zaxis"}
 _LINEAR = ("stiffness", "damping")  # MJCF takes polynomial terms after the coefficient
 # The default class's sub-element for each kind of element that has one.
-_DEFAULT_OF = {"joint": "joint", "site": "site", "geom": "geom", "tendon": "tendon", "actuator": "actuator", "equality": "equality"}
+_DEFAULT_OF = {"joint": "joint", "site": "site", "geom": "geom", "tendon": "tendon", "actuator": "actuator",
+               "equality": "equality"}
 
 
 def _word(value: float) -> str:
@@ -679,11 +676,12 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
             refuse(kind, element, index, attribute, field_, values,
                    f"cannot be represented: {_WHAT.get(attribute, attribute)} must be ≥ {least:g} (0: none)")
 
-    for group, kind, attribute, field_, least in _VALUES:
+    for group, (kind, fields) in _VALUES.items():
         for index, element in enumerate(getattr(spec, group)):
             if kind == "equality" and int(element.type) != _CONNECT:
                 continue  # its data is another equality's (refused by kind later)
-            check(kind, element, index, attribute, field_, least)
+            for attribute, field_, least in fields:
+                check(kind, element, index, attribute, field_, least)
     for kind, group in (("body", "bodies"), ("frame", "frames"), ("geom", "geoms")):  # an orientation other than quat, as written
         for index, element in enumerate(getattr(spec, group)):
             attribute = _ALTERNATIVE.get(int(element.alt.type))
