@@ -249,3 +249,12 @@ def test_a_compiler_warning_is_caught_too(tmp_path, monkeypatch, capfd, recwarn)
     out, err = capfd.readouterr()
     assert not [w for w in recwarn if "singular" in str(w.message)]
     assert "WARNING" not in out + err and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root reads a file without permission")
+def test_an_unreadable_model_is_named_so(tmp_path):
+    """A file without read permission: the system's reason, not an empty model."""
+    path = _write(tmp_path, SEED.read_text())
+    path.chmod(0)
+    with pytest.raises(MjcfError, match=r"cannot read MJCF file '.*model.xml': Permission denied"):
+        import_mjcf(path)
