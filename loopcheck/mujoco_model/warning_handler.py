@@ -31,9 +31,10 @@ BAD_STATE = {int(mujoco.mjtWarning.mjWARN_BADQPOS): "position (qpos)",
              int(mujoco.mjtWarning.mjWARN_BADQACC): "acceleration (qacc)"}
 
 # MuJoCo's texts, reworded: (pattern, loopcheck's words; groups as named)
+_RESET = re.compile(r"Nan, Inf or huge value in (QPOS|QVEL|QACC) at DOF (\d+)\. The simulation is unstable\. "
+                    r"Time = ([-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?)")
 _WORDS = [
-    (re.compile(r"Nan, Inf or huge value in (QPOS|QVEL|QACC) at DOF (\d+)\. The simulation is unstable\. "
-                r"Time = ([-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?)"),
+    (_RESET,
      lambda m: f"MuJoCo found a NaN, infinite or huge {m[1].lower()} at dof {m[2]} (t = {float(m[3]):g} s) and "
                "reset the state"),
     (re.compile(r"XML contains a 'NaN'"), lambda m: "MuJoCo's parser found 'NaN' in the file"),
@@ -56,20 +57,27 @@ def in_our_words(text: str) -> str:
 @dataclass
 class Warnings:
     """The warnings MuJoCo gave inside one :func:`mujoco_warnings` block, in loopcheck's words
-    (the first :data:`KEPT`; ``count`` counts all)."""
+    (the first :data:`KEPT`; ``count`` counts all), but for its resets of the state (``resets``
+    counts them): a run that MuJoCo reset fails with its own message (:func:`bad_state`)."""
 
     lines: list[str] = field(default_factory=list)
     count: int = 0
+    resets: int = 0
 
     def add(self, text: str) -> None:
-        self.count += 1
         line = in_our_words(text)
         _log.debug("%s", line)
+        if _RESET.search(" ".join(text.split())):
+            self.resets += 1
+            return
+        self.count += 1
         if len(self.lines) < KEPT:
             self.lines.append(line)
 
     def report(self, where: str) -> None:
-        """Log every warning kept on the ``loopcheck.mujoco`` logger at WARNING, naming ``where``."""
+        """Log every warning kept on the ``loopcheck.mujoco`` logger at WARNING, naming ``where``
+        (a reset of the state is not among them: the run it happened in failed, and an automatic
+        timestep search went on to a smaller step)."""
         for line in dict.fromkeys(self.lines):
             _log.warning("warning: %s: %s", where, line)
         if self.count > len(self.lines):

@@ -258,3 +258,27 @@ def test_an_unreadable_model_is_named_so(tmp_path):
     path.chmod(0)
     with pytest.raises(MjcfError, match=r"cannot read MJCF file '.*model.xml': Permission denied"):
         import_mjcf(path)
+
+
+def test_the_handler_reports_warnings_and_leaves_resets_to_the_run(tmp_path, caplog):
+    """Real MuJoCo inside one handler block: a parser warning (a NaN in a custom numeric) is kept in
+    loopcheck's words and reported at WARNING; a reset of the state (the seed by Euler at 50 ms) is
+    counted as a reset and not reported (the run it happens in fails with its own message; planted
+    reporting resets too, an automatic timestep search that went on to a smaller step would report
+    a reset of a run it discarded)."""
+    import mujoco
+
+    from loopcheck.mujoco_model.warning_handler import mujoco_warnings
+
+    with caplog.at_level(logging.WARNING, logger="loopcheck.mujoco"):
+        with mujoco_warnings() as said:
+            mujoco.MjSpec.from_string('<mujoco><custom><numeric name="n" data="nan"/></custom></mujoco>')
+            model = mujoco.MjModel.from_xml_path(str(_unstable(tmp_path)))
+            data = mujoco.MjData(model)
+            mujoco.mj_resetDataKeyframe(model, data, 0)
+            for _ in range(40):
+                mujoco.mj_step(model, data)
+        said.report("here")
+    assert said.lines == ["MuJoCo's parser found 'NaN' in the file"] and said.count == 1
+    assert said.resets >= 1 and data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number >= 1
+    assert [r.getMessage() for r in caplog.records] == ["warning: here: MuJoCo's parser found 'NaN' in the file"]
