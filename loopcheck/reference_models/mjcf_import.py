@@ -57,7 +57,7 @@ from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
 from loopcheck.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
                             PrismaticJoint, RevoluteJoint)
-from loopcheck.scene import Scene, SceneError
+from loopcheck.scene import LIMITS, Scene, SceneError
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.settings import parse_number
@@ -239,6 +239,14 @@ class _Reader:
 
     def fail(self, message: str):
         raise MjcfError(f"{self.path}: {message}")
+
+    def representable(self, value: float, kind: str, where: str) -> None:
+        """Refuse a value of the model outside the scene format's range of ``kind``
+        (:data:`loopcheck.scene.LIMITS`), naming where in the model it comes from."""
+        r = LIMITS[kind]
+        inside = r.low <= value <= r.high if r.low else abs(value) <= r.high
+        if not inside:
+            self.fail(f"{where} = {value:g} cannot be represented: {r.kind} must be in {r.text()}")
 
     def name(self, kind, index: int, fallback: str) -> str:
         return _object_name(self.model, kind, index, fallback)
@@ -765,7 +773,23 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         mass, com, inertia = _mass_properties(reader, group)
         if mass == 0.0 or inertia == 0.0:
             reader.fail(f"body '{group.name}' has no mass or no inertia about the plane's normal")
-        bodies.append(_pivot_body(group, mass, com, inertia, joints, reader.scale))
+        body = _pivot_body(group, mass, com, inertia, joints, reader.scale)
+        where = f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'" + (
+            " (with the bodies welded to it)" if len(group.bodies) > 1 else "")
+        if body.mass:
+            reader.representable(body.mass, "mass", f"{where}: mass")
+            reader.representable(body.inertia, "inertia", f"{where}: inertia about the plane's normal")
+        else:
+            reader.representable(body.inertia, "inertia", f"{where}: inertia about its pivot")
+        for axis, value in zip("xy", body.com):
+            reader.representable(value, "position", f"{where}: centre of mass, {axis} in its plane frame")
+        bodies.append(body)
+    for group in [reader.group_of[0], *reader.moving]:
+        owner = "the world" if group.root == 0 else f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'"
+        for point, xy in group.points.items():
+            for axis, value in zip("xy", xy):
+                reader.representable(value, "position", f"{owner}: point '{point}' (a site, joint or anchor), {axis} in "
+                                                        "its plane frame")
     try:
         linkage = Linkage(bodies, joints, input_name)
     except MechanismError as exc:
@@ -794,6 +818,12 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
                                "the scene starts from the input joint's rate alone")
     gravity = _gravity(reader)
+    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
+    prismatic_input = isinstance(linkage.joint_map[input_name], PrismaticJoint)
+    reader.representable(q0, "position" if prismatic_input else "angle", f"{read_at}: the input joint's qpos")
+    reader.representable(qdot0, "speed", f"{read_at}: the input joint's qvel")
+    for axis, value in zip("xy", gravity or ()):
+        reader.representable(value, "gravity", f"option gravity, {axis} in the plane")
     for t in range(model.ntext):  # what loopcheck's own export notes it applies outside the model
         text = _object_name(model, mujoco.mjtObj.mjOBJ_TEXT, t, "text")
         kind, _, force = text.partition(" ")
@@ -868,6 +898,10 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
             reader.fail(f"actuator '{name}': gain × control leaves its forcerange [{low:g}, {high:g}]: MuJoCo "
                         "would clamp the force, which the scene would not")
     applied = Control(given.times, tuple(values))
+    kind = "force" if m.jnt_type[inp] == _SLIDE else "torque"
+    for v in values:
+        reader.representable(gear * v, kind,
+                             f"actuator '{name}': gear × gain × control (gear × gain {gear:g}, control {v:g})")
     return applied.load(gear), gear, applied
 
 
@@ -955,7 +989,12 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     lines: list[LineElement] = []
     joint_elements: list[JointElement] = []
 
-    def add_joint_element(kind, base, joint, coefficient, rest=0.0):
+    revolute = {j.name: isinstance(j, RevoluteJoint) for j in linkage.joints}
+    kinds = {"inertia": ("inertia", "mass"), "damper": ("rotational damping", "damping"),
+             "spring": ("rotational stiffness", "stiffness")}
+
+    def add_joint_element(kind, base, joint, coefficient, rest=0.0, where=""):
+        reader.representable(coefficient, kinds[kind][0 if revolute[joint] else 1], where)
         joint_elements.append(JointElement(kind, _unique(_clean(base), taken), joint, coefficient, rest))
 
     for t in range(m.ntendon):
@@ -987,8 +1026,11 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
                 reader.fail(f"tendon '{name}' has armature along a line between two points: loopcheck's inertias act on "
                             "one joint (a fixed tendon's or a joint's armature)")
             if damping > 0.0:
+                reader.representable(damping, "damping", f"tendon '{name}': damping")
                 lines.append(LineElement("damper", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, damping))
             if stiffness > 0.0:
+                reader.representable(stiffness, "stiffness", f"tendon '{name}': stiffness")
+                reader.representable(float(low), "position", f"tendon '{name}': springlength")
                 lines.append(LineElement("spring", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, stiffness,
                                          float(low)))
             continue
@@ -1012,17 +1054,18 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             u_read = float(rows[joint] @ x_read)
             length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
             if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
-                add_joint_element("inertia", name, joint, armature)
+                add_joint_element("inertia", name, joint, armature, where=f"tendon '{name}': armature")
                 if not _one_branch(m, np.flatnonzero(c)):
                     reader.warnings.append(
                         f"tendon '{name}': its armature couples joints of different branches, and MuJoCo keeps only "
                         "the mass-matrix terms of one branch (ancestor pairs): the model as written does not have "
                         "the ½ a L̇² the scene holds")
             if damping > 0.0:
-                add_joint_element("damper", name, joint, damping)
+                add_joint_element("damper", name, joint, damping, where=f"tendon '{name}': damping")
             if stiffness > 0.0:
                 # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
-                add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam)
+                add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam,
+                                  where=f"tendon '{name}': stiffness")
             continue
         reader.fail(f"tendon '{name}' wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
                     "act along a straight line between two points or on one joint")
@@ -1034,15 +1077,16 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
         if armature > 0.0:
-            add_joint_element("inertia", f"{joint}_armature", joint, armature)
+            add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"joint '{mj_name}': armature")
         if damping > 0.0:
-            add_joint_element("damper", f"{joint}_damping", joint, damping)
+            add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"joint '{mj_name}': damping")
         if stiffness > 0.0:
             adr = int(m.jnt_qposadr[j])
             u_read = float(rows[joint] @ x_read)
             sign = reader.joint_sign[j]
             add_joint_element("spring", f"{joint}_stiffness", joint, stiffness,
-                              u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])))
+                              u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])),
+                              where=f"joint '{mj_name}': stiffness")
     return lines, joint_elements
 
 

@@ -75,6 +75,21 @@ BAD_VALUES = {
                        'conaffinity="0"/>'), "geom 'lump': mass=\"nan\" is not a finite"),
     "keyframe ctrl nan": (('ctrl="250"', 'ctrl="nan"'), "key 'assembled': ctrl=\"nan\""),
     "gravity nan": (('gravity="0 0 0"', 'gravity="0 nan 0"'), "option: gravity=\"0 nan 0\""),
+    # finite, and outside the scene format's ranges (loopcheck.scene.LIMITS): named by the model's
+    # element, not by the scene key it would land in ('dampers[0].coefficient', 'initial.qdot', ...)
+    "damping above the range": (('damping="55"', 'damping="1e308"'),
+                                "tendon 'damper': damping = 1e+308 cannot be represented: damping must be in "
+                                "[1e-09, 1e+07] N·s/m"),
+    "mass above the range": (('mass="40"', 'mass="1e308"'), "body 'coupler': mass = 1e+308 cannot be represented"),
+    "keyframe qvel above the range": (('ctrl="250"', 'ctrl="250" qvel="1e308 0 0"'),
+                                      "keyframe 'assembled': the input joint's qvel = 1e+308 cannot be represented: "
+                                      "speed must be in ±10000 rad/s"),
+    "gear above the range": (('<motor name="drive" joint="O1"/>', '<motor name="drive" joint="O1" gear="1e308"/>'),
+                             "actuator 'drive': gear × gain × control (gear × gain 1e+308, control 250) = inf cannot "
+                             "be represented: torque must be in ±1e+06 N·m"),
+    "site beyond the range": (('<site name="damper_ground" pos="1.3 0.12 0"/>', '<site name="damper_ground" pos="2000 0.12 0"/>'),
+                              "the world: point 'damper_ground' (a site, joint or anchor), x in its plane frame = 2000 "
+                              "cannot be represented: position must be in ±1000 m"),
     "polynomial damping": (('damping="55"', 'damping="55 1"'), "tendon 'damper': damping=\"55 1\" cannot be "
                                                                "represented: loopcheck's springs and dampers are linear"),
 }
