@@ -993,8 +993,10 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     kinds = {"inertia": ("inertia", "mass"), "damper": ("rotational damping", "damping"),
              "spring": ("rotational stiffness", "stiffness")}
 
-    def add_joint_element(kind, base, joint, coefficient, rest=0.0, where=""):
+    def add_joint_element(kind, base, joint, coefficient, rest=0.0, where="", rest_where=""):
         reader.representable(coefficient, kinds[kind][0 if revolute[joint] else 1], where)
+        if kind == "spring":
+            reader.representable(rest, "angle" if revolute[joint] else "position", f"{rest_where}: the spring's rest")
         joint_elements.append(JointElement(kind, _unique(_clean(base), taken), joint, coefficient, rest))
 
     for t in range(m.ntendon):
@@ -1065,7 +1067,7 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             if stiffness > 0.0:
                 # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
                 add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam,
-                                  where=f"tendon '{name}': stiffness")
+                                  where=f"tendon '{name}': stiffness", rest_where=f"tendon '{name}': springlength")
             continue
         reader.fail(f"tendon '{name}' wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
                     "act along a straight line between two points or on one joint")
@@ -1086,7 +1088,7 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             sign = reader.joint_sign[j]
             add_joint_element("spring", f"{joint}_stiffness", joint, stiffness,
                               u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])),
-                              where=f"joint '{mj_name}': stiffness")
+                              where=f"joint '{mj_name}': stiffness", rest_where=f"joint '{mj_name}': springref")
     return lines, joint_elements
 
 

@@ -90,6 +90,9 @@ BAD_VALUES = {
     "site beyond the range": (('<site name="damper_ground" pos="1.3 0.12 0"/>', '<site name="damper_ground" pos="2000 0.12 0"/>'),
                               "the world: point 'damper_ground' (a site, joint or anchor), x in its plane frame = 2000 "
                               "cannot be represented: position must be in ±1000 m"),
+    "springref beyond the range": (('<joint name="O3"/>', '<joint name="O3" stiffness="1" springref="1e6"/>'),
+                                   "joint 'O3': springref: the spring's rest = 17453.3 cannot be represented: angle "
+                                   "must be in ±1000 rad"),  # 1e6 degrees (MJCF's default unit)
     "polynomial damping": (('damping="55"', 'damping="55 1"'), "tendon 'damper': damping=\"55 1\" cannot be "
                                                                "represented: loopcheck's springs and dampers are linear"),
 }
