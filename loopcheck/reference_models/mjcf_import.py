@@ -758,7 +758,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     inp = _input_joint(reader, input_joint)
     reader.plane(inp)
     reader.check_contacts()
-    reader.scale = reader.size()
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge position is refused below, by name
+        reader.scale = reader.size()
     reader.groups()
     reader.sites()
     tree = reader.tree_joints()
