@@ -149,4 +149,14 @@ def bad_state(data: mujoco.MjData) -> BadState | None:
     return None
 
 
-__all__ = ["BAD_STATE", "BadState", "Warnings", "bad_state", "compile_spec", "in_our_words", "mujoco_warnings"]
+def singular_mass_matrix(data: mujoco.MjData, options: str) -> str | None:
+    """The failure's message when MuJoCo found the mass matrix singular in the run (its inertia
+    warning: the accelerations are not to be trusted), else None."""
+    w = data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)]
+    if not w.number:
+        return None
+    return f"MuJoCo found the mass matrix singular at dof {w.lastinfo} ({w.number} time(s)) at {options}"
+
+
+__all__ = ["BAD_STATE", "BadState", "Warnings", "bad_state", "compile_spec", "in_our_words", "mujoco_warnings",
+           "singular_mass_matrix"]

@@ -37,7 +37,7 @@ from loopcheck.mujoco_model.layout import Layout
 from loopcheck.mujoco_model.loads import control_sequence, point_forces_installed, timed_values
 from loopcheck.mujoco_model.record import check_initial_state, record_run
 from loopcheck.mujoco_model.steps import grid_timestep, step_count
-from loopcheck.mujoco_model.warning_handler import bad_state, compile_spec, mujoco_warnings
+from loopcheck.mujoco_model.warning_handler import bad_state, compile_spec, mujoco_warnings, singular_mass_matrix
 
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
@@ -372,10 +372,9 @@ def _check_warnings(data: mujoco.MjData, states: np.ndarray, settings: MujocoSet
         back = np.flatnonzero(~(np.diff(t) > 0.0))  # a reset sets the time to 0; NaN after the stop
         time_ = float(t[back[0]]) if len(back) else None
         raise NumericalFailure(FailureReason.UNSTABLE, bad.message(time_, options), time_)
-    singular = data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)]
-    if singular.number:
-        raise NumericalFailure(FailureReason.UNSTABLE, f"MuJoCo found the mass matrix singular at dof "
-                               f"{singular.lastinfo} ({singular.number} time(s)) at {options}")
+    singular = singular_mass_matrix(data, options)
+    if singular is not None:
+        raise NumericalFailure(FailureReason.UNSTABLE, singular)
     if not np.all(np.isfinite(states)):
         raise NumericalFailure("non-finite", "MuJoCo's state became NaN or infinite")
     # A reset (warning swallowed elsewhere) shows as time going backwards.

@@ -26,9 +26,8 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.errors import FailureReason, NumericalFailure
 from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
+from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
-
-from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings
 
 from .mjcf_import import ImportedModel
 from .settings import DEFAULT_SOLIMP, INTEGRATORS
@@ -167,9 +166,10 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
         A run of more than MAX_STEPS steps.
     NumericalFailure
         UNSTABLE: MuJoCo reset the state (a NaN, infinite or huge qpos, qvel or qacc): the run stops
-        at that step, and the message gives the warning and its time; NON_FINITE: the state became
-        NaN or infinite. MuJoCo's other warnings (a buffer too small and the like) are logged on
-        the ``loopcheck.mujoco`` logger, not fatal (:mod:`loopcheck.mujoco_model.warning_handler`).
+        at that step, and the message gives the warning and its time; or MuJoCo found the mass
+        matrix singular. NON_FINITE: the state became NaN or infinite. MuJoCo's other warnings (a
+        buffer too small and the like) are logged on the ``loopcheck.mujoco`` logger, not fatal
+        (:mod:`loopcheck.mujoco_model.warning_handler`).
     """
     options = options or ModelOptions.as_written(imported.model)
     scene = imported.scene
@@ -210,6 +210,9 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                 raise NumericalFailure(FailureReason.UNSTABLE, bad.message(t, options.text()), t)
         mujoco.mj_forward(model, data)
         record(n)
+    singular = singular_mass_matrix(data, options.text())
+    if singular is not None:
+        raise NumericalFailure(FailureReason.UNSTABLE, singular)
     said.report(f"the model at {options.text()}")
     wall = time.perf_counter() - start
     bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
