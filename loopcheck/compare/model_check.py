@@ -9,6 +9,9 @@ settings that can cause a difference is changed alone:
   (2·timestep, 1), solimp (0.9999, 0.9999, 0.001, 0.5, 2));
 - the timestep: a tenth of it, the loops as written.
 
+Each of these two has its own budget of TRIAL_STEPS steps (and a run's MAX_STEPS): past it, the
+trial is skipped with a note, and the model as written still gets its verdict.
+
 The one that removes more of the difference is named as its cause. Last, the cheapest options
 that meet the tolerances: stiff loops at the model's step, then at halved steps until one passes
 (or at doubled steps while they pass, when the model's own step does), with the model's integrator
@@ -33,6 +36,7 @@ MAX_HALVINGS = 8  # the cheapest-options search tries steps down to timestep / 2
 SEARCH_STEPS = 1_000_000  # MuJoCo steps all the search's runs may take together (about 2 min at 150 µs a step)
 MAX_DOUBLINGS = 4  # and, when the model's own step passes with stiff loops, up to timestep × 2⁴
 STEP_FACTOR = 10  # the timestep variant runs at timestep / 10
+TRIAL_STEPS = SEARCH_STEPS  # the comparison trials' (stiff loops, timestep / 10) own budget each, in steps
 
 
 @dataclass(frozen=True)
@@ -43,6 +47,7 @@ class Trial:
     options: ModelOptions
     comparison: Comparison | None
     failure: NumericalFailure | None = None
+    skipped: str | None = None  # why it was not run (a comparison trial past its budget)
 
     @property
     def passed(self) -> bool:
@@ -87,6 +92,14 @@ class ModelCheck:
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
         loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
+        skipped = [t for t in (self.stiff_loops, self.smaller_step) if t.skipped]
+        if skipped:
+            ran = [t for t in (self.stiff_loops, self.smaller_step) if not t.skipped]
+            if ran and ran[0].passed:
+                return loops if ran[0] is self.stiff_loops else step
+            names = " and ".join(f"the {t.label} trial ({t.skipped})" for t in skipped)
+            return f"not found: {names}" + (f"; the {ran[0].label} trial alone does not meet the tolerances"
+                                            if ran else "")
         more = {loops: "stiffer loops remove", step: "a smaller step removes"}
         if self.stiff_loops.passed != self.smaller_step.passed:
             return loops if self.stiff_loops.passed else step
@@ -98,7 +111,15 @@ class ModelCheck:
 
 
 def _trial(imported: ImportedModel, reference: EngineResult, tolerances: Tolerances, label: str,
-           options: ModelOptions) -> Trial:
+           options: ModelOptions, budget: int | None = None) -> Trial:
+    """One run; with ``budget`` (a comparison trial's steps), a run of more steps than it, or than
+    a run may take (MAX_STEPS), is skipped with a note instead."""
+    if budget is not None:
+        steps = options.steps(imported.scene.horizon)
+        limit = min(budget, MAX_STEPS)
+        if steps > limit:
+            return Trial(label, options, None, skipped=f"skipped: {steps:.3g} steps at {options.timestep:.3g} s, "
+                                                       f"more than this trial's budget of {limit:.3g} steps")
     try:
         result = run_model(imported, options)
     except NumericalFailure as failure:
@@ -157,12 +178,12 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     reference = simulate(scene, reduced or ReducedSettings())
     written = ModelOptions.as_written(imported.model)
 
-    def trial(label: str, options: ModelOptions) -> Trial:
-        return _trial(imported, reference, tolerances, label, options)
+    def trial(label: str, options: ModelOptions, budget: int | None = None) -> Trial:
+        return _trial(imported, reference, tolerances, label, options, budget)
 
-    as_written = trial("as written", written)
-    stiff = trial("stiff loops", written.stiff_loops())
-    smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR))
+    as_written = trial("as written", written)  # a run beyond MAX_STEPS is refused (ValueError)
+    stiff = trial("stiff loops", written.stiff_loops(), TRIAL_STEPS)
+    smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR), TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
     cheapest = as_written if as_written.passed else None
     if cheapest is None:
@@ -176,6 +197,8 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
 
 
 def _figures(trial: Trial, unit: str) -> str:
+    if trial.skipped:
+        return trial.skipped
     if trial.comparison is None:
         return f"failed: {trial.failure}"
     c = trial.comparison
@@ -220,7 +243,8 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
                      "tolerances or shorten the horizon")
     elif check.cheapest is not check.as_written:
         c = check.cheapest
-        work = c.evaluations / max(check.as_written.evaluations, 1)
+        written = check.as_written.options  # its work as planned (a failed run has no count)
+        work = c.evaluations / (written.steps(check.imported.scene.horizon) * written.evaluations_per_step())
         lines += [f"      cheapest options that meet them: {c.options.text()} ({c.comparison.mujoco.n_steps} steps, "
                   f"{work:.3g}x the model's work as written); paste into the MJCF:",
                   *(f"        {line}" for line in c.options.mjcf().splitlines()),
@@ -228,4 +252,4 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
     return lines
 
 
-__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]
+__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "TRIAL_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]

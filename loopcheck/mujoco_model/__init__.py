@@ -9,7 +9,9 @@
 - ``layout``: that map for a compiled model; ``loads``: the controls and forces per step;
 - ``record``: what a run's stored states say, by MuJoCo C's own functions (sensors, the initial
   state's residuals, the loop gap, q̈, the trajectory with its load-edge samples);
-- ``energy``: the energy audit from those sensors.
+- ``energy``: the energy audit from those sensors;
+- ``warning_handler``: MuJoCo's warnings, the one handler for loading, runs and the MJCF importer
+  (kept and logged in loopcheck's words, never printed nor written to ``MUJOCO_LOG.TXT``).
 
 An engine of the family steps the model its own way and hands its states to ``record``.
 """

@@ -58,6 +58,7 @@ from loopcheck.mechanism import GROUND, PrismaticJoint
 from loopcheck.scene import Scene
 
 from .options import INTEGRATORS as MUJOCO_INTEGRATORS
+from .warning_handler import compile_spec
 
 # The MuJoCo this engine needs: 4.0.0 has the sparse-Cholesky bug (docs/engines.md), and installing
 # MJX or MJWarp with pip can put MuJoCo 3.17's library in the same folder as mujoco-core 4.0.1, or
@@ -528,7 +529,7 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
 
 def compile_model(spec: mujoco.MjSpec) -> ModelHandles:
     """Compile the spec and index its sensors."""
-    model = spec.compile()
+    model = compile_spec(spec)
     slices = {}
     for i in range(model.nsensor):
         adr, dim = model.sensor_adr[i], model.sensor_dim[i]

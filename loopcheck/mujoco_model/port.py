@@ -29,6 +29,7 @@ from .loads import control_sequence
 from .options import ModelOptions
 from .record import STATE, check_initial_state, record_run
 from .steps import grid_timestep, step_count
+from .warning_handler import compile_spec, mujoco_warnings
 
 # A port keeps qpos and qvel of every step on the host: refuse up front what cannot fit.
 MAX_STEPS = 5_000_000
@@ -122,12 +123,14 @@ def prepare(scene: Scene, settings: ModelOptions, engine: str, table: str) -> Po
         raise PortRefusal(f"{engine} run of {n:.3g} steps needs about {need / 1024 ** 3:.3g} GiB of states, more than "
                           f"{MAX_STATE_BYTES / 1024 ** 3:g} GiB: raise {key} or shorten simulation.horizon")
     check_joint_order(scene, model)
-    port_model = spec.compile()
+    port_model = compile_spec(spec)
     port_model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     layout = Layout.of(scene, model)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = layout.qpos0, layout.qvel0
-    initial = check_initial_state(scene, model, data, layout)
+    with mujoco_warnings() as said:
+        initial = check_initial_state(scene, model, data, layout)
+    said.report(f"{engine} on {scene.name}")
     ctrl, notes = control_sequence(scene, h, n)
     return PortRun(scene=scene, settings=settings, handles=handles, port_model=port_model, layout=layout,
                    data=data, initial=initial, ctrl=ctrl, edge_notes=tuple(notes))
@@ -169,8 +172,10 @@ def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engin
     for note in run.edge_notes:
         warnings.warn(note, UserWarning, stacklevel=3)
     timed = np.zeros((len(qpos), 0))
-    record = record_run(run.scene, run.handles, run.layout, run.data, states, None, run.ctrl, timed, h=h,
-                        engine=engine)
+    with mujoco_warnings() as said:
+        record = record_run(run.scene, run.handles, run.layout, run.data, states, None, run.ctrl, timed, h=h,
+                            engine=engine)
+    said.report(f"{engine} on {run.scene.name}")
     s = run.settings
     record.gate(s.max_constraint_violation, s.max_energy_residual, run.initial, engine)
     return EngineResult(engine=name, trajectory=record.trajectory, joints=record.joints,

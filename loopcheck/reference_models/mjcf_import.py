@@ -32,12 +32,21 @@ Anything else that acts is refused with one line naming it (:class:`MjcfError`):
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line.
+A value that is NaN or infinite, or finite and outside what the description can hold (a negative
+damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
+is refused too, naming the element, the MJCF attribute and the default class it came from
+(:func:`_check_values`); zero is "absent". A model path that is not a regular file is refused
+before MuJoCo opens it (:func:`check_model_path`). MuJoCo's warnings while loading go through
+:mod:`loopcheck.mujoco_model.warning_handler` and become the import's own warnings.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import stat
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,12 +57,13 @@ from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
 from loopcheck.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
                             PrismaticJoint, RevoluteJoint)
-from loopcheck.scene import Scene, SceneError
+from loopcheck.scene import LIMITS, Scene, SceneError
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.settings import parse_number
 
 from loopcheck.mujoco_model.build import BASE_BODY
+from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
 # issue's decision); the scene file's Newton assembly then polishes the configuration.
@@ -229,6 +239,14 @@ class _Reader:
 
     def fail(self, message: str):
         raise MjcfError(f"{self.path}: {message}")
+
+    def representable(self, value: float, kind: str, where: str) -> None:
+        """Refuse a value of the model outside the scene format's range of ``kind``
+        (:data:`loopcheck.scene.LIMITS`), naming where in the model it comes from."""
+        r = LIMITS[kind]
+        inside = r.low <= value <= r.high if r.low else abs(value) <= r.high
+        if not inside:
+            self.fail(f"{where} = {value:g} cannot be represented: {r.kind} must be in {r.text()}")
 
     def name(self, kind, index: int, fallback: str) -> str:
         return _object_name(self.model, kind, index, fallback)
@@ -526,12 +544,177 @@ def _pivot_body(group: _Group, mass: float, com, inertia: float, joints, scale: 
     return Body(group.name, group.points, mass, com, inertia)
 
 
-def _load_model(path: Path) -> mujoco.MjModel:
+def _load_model(path: Path) -> tuple[mujoco.MjModel, tuple[str, ...]]:
+    """The compiled model and MuJoCo's warnings while loading it (in loopcheck's words), after
+    the file is checked (:func:`check_model_path`) and its values are (:func:`_check_values`)."""
+    check_model_path(path)
+    with mujoco_warnings() as said:
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+        except ValueError as exc:  # MuJoCo's parse errors
+            first = " ".join(str(exc).split())
+            raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+        _check_values(path, spec)
+        try:
+            model = compile_spec(spec)
+        except ValueError as exc:  # MuJoCo's compile errors
+            first = " ".join(str(exc).split())
+            raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+    return model, tuple(dict.fromkeys(said.lines))
+
+
+def check_model_path(path: Path) -> None:
+    """Refuse, before MuJoCo opens it, a model path that is not a readable regular file (a FIFO
+    would block MuJoCo's read for ever; a folder is not an empty model)."""
     try:
-        return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:  # MuJoCo's parse and compile errors
-        first = " ".join(str(exc).split())
-        raise MjcfError(f"{path}: MuJoCo cannot load it: {first}") from None
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # opening a FIFO must not wait for a writer
+    except OSError as exc:
+        raise MjcfError(f"cannot read MJCF file '{path}': {exc.strerror}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+    finally:
+        os.close(fd)
+    if not stat.S_ISREG(mode):
+        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+        raise MjcfError(f"cannot read MJCF file '{path}': it is {what}")
+
+
+# The values of a model that reach the description (or change what MuJoCo does with it), as MjSpec
+# holds them after defaults: by MjSpec's element list, the MJCF element and, per value, the MJCF
+# attribute, the spec's field and the least value the description can represent (None: any finite
+# value). A value left unset is NaN in some of MjSpec's fields (a body's ipos and fullinertia, a
+# geom's mass and fromto): the body's are checked only when it sets its inertial, the geom's in the
+# file's text (:func:`_check_unset_markers`).
+_NONNEGATIVE = 0.0
+_VALUES = {  # element list: (MJCF element, [(attribute, spec field, least value or None)])
+    "bodies": ("body", [("pos", "pos", None), ("quat", "quat", None)]),
+    "frames": ("frame", [("pos", "pos", None), ("quat", "quat", None)]),
+    "joints": ("joint", [("pos", "pos", None), ("axis", "axis", None), ("ref", "ref", None),
+                         ("springref", "springref", None), ("stiffness", "stiffness", _NONNEGATIVE),
+                         ("damping", "damping", _NONNEGATIVE), ("armature", "armature", _NONNEGATIVE),
+                         ("frictionloss", "frictionloss", _NONNEGATIVE), ("range", "range", None)]),
+    "sites": ("site", [("pos", "pos", None), ("quat", "quat", None)]),
+    "geoms": ("geom", [("pos", "pos", None), ("quat", "quat", None), ("size", "size", None),
+                       ("density", "density", _NONNEGATIVE)]),
+    "tendons": ("tendon", [("stiffness", "stiffness", _NONNEGATIVE), ("damping", "damping", _NONNEGATIVE),
+                           ("armature", "armature", _NONNEGATIVE), ("frictionloss", "frictionloss", _NONNEGATIVE),
+                           ("springlength", "springlength", None), ("range", "range", None)]),
+    "actuators": ("actuator", [("gear", "gear", None), ("gainprm", "gainprm", None), ("biasprm", "biasprm", None),
+                               ("ctrlrange", "ctrlrange", None), ("forcerange", "forcerange", None)]),
+    "equalities": ("equality", [("anchor", "data", None), ("solref", "solref", None), ("solimp", "solimp", None)]),
+    "keys": ("key", [("qpos", "qpos", None), ("qvel", "qvel", None), ("ctrl", "ctrl", None), ("time", "time", None)]),
+}
+_INERTIAL = (("inertial pos", "ipos", None), ("inertial quat", "iquat", None), ("inertial mass", "mass", _NONNEGATIVE),
+             ("inertial diaginertia", "inertia", _NONNEGATIVE))
+# What a negative value would be in the description (the scene format's ranges).
+_WHAT = {"density": "a geom's density", "stiffness": "a spring's stiffness", "damping": "a damper's coefficient",
+         "armature": "an inertia", "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
+_ALTERNATIVE = {int(mujoco.mjtOrientation.mjORIENTATION_AXISANGLE): "axisangle",
+                int(mujoco.mjtOrientation.mjORIENTATION_EULER): "euler",
+                int(mujoco.mjtOrientation.mjORIENTATION_XYAXES): "xyaxes",
+                int(mujoco.mjtOrientation.mjORIENTATION_ZAXIS): "zaxis"}
+_LINEAR = ("stiffness", "damping")  # MJCF takes polynomial terms after the coefficient
+# The default class's sub-element for each kind of element that has one.
+_DEFAULT_OF = {"joint": "joint", "site": "site", "geom": "geom", "tendon": "tendon", "actuator": "actuator",
+               "equality": "equality"}
+
+
+def _word(value: float) -> str:
+    return "nan" if math.isnan(value) else repr(float(value)).removesuffix(".0") if math.isfinite(value) else (
+        "inf" if value > 0 else "-inf")
+
+
+def _check_unset_markers(path: Path) -> None:
+    """Refuse a NaN or infinite value in a geom's ``mass`` or ``fromto``: MjSpec holds NaN there for
+    "not given" (the mass then comes from the density), so only the file's text tells them apart
+    (the file itself; an included file's geoms are not read here)."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError):
+        return  # MuJoCo read it; nothing more to learn here
+    for element in root.iter("geom"):
+        for attribute in ("mass", "fromto"):
+            text = element.get(attribute)
+            if text is None:
+                continue
+            try:
+                values = [float(word) for word in text.split()]
+            except ValueError:
+                continue  # MuJoCo's parser would have refused it
+            if not all(math.isfinite(v) for v in values):
+                name = element.get("name")
+                label = f"geom '{name}'" if name else "a geom without a name"
+                raise MjcfError(f"{path}: {label}: {attribute}=\"{text.strip()}\" is not a finite number: every value "
+                                "of the model must be finite")
+
+
+def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
+    """Refuse a value that is NaN or infinite, or finite and outside the range the description
+    can represent (a negative damping, stiffness, armature, mass or inertia): one line naming
+    the file, the element, the MJCF attribute and, when the value is its default class's, that
+    class. Zero stays "absent" (no spring, no damper)."""
+    def refuse(kind: str, element, index: int, attribute: str, field_: str, values, reason: str):
+        parent = getattr(getattr(element, "parent", None), "name", "") if kind != "body" else ""
+        name = getattr(element, "name", "") or (f"#{index} (unnamed, in body '{parent}')" if parent
+                                                 else f"#{index} (unnamed)")
+        source = ""
+        classname = getattr(getattr(element, "classname", None), "name", None)
+        if classname and kind in _DEFAULT_OF:
+            default = spec.find_default(classname)
+            sub = getattr(default, _DEFAULT_OF[kind], None) if default is not None else None
+            theirs = getattr(sub, field_, None) if sub is not None else None
+            if theirs is not None and np.array_equal(np.atleast_1d(np.asarray(theirs, dtype=float)),
+                                                     np.atleast_1d(np.asarray(values, dtype=float)), equal_nan=True):
+                source = f" (from default class '{classname}')"
+        if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm", "size"):  # as written: no trailing zeros
+            values = np.trim_zeros(values, "b") if np.any(values != 0.0) else values[:1]
+        written = " ".join(_word(v) for v in values)
+        label = f"{kind} '{name}'" if getattr(element, "name", "") else f"{kind} {name}"
+        raise MjcfError(f"{path}: {label}: {attribute}=\"{written}\"{source} {reason}")
+
+    def check(kind, element, index, attribute, field_, least):
+        values = np.atleast_1d(np.asarray(getattr(element, field_), dtype=float)).ravel()
+        if not np.all(np.isfinite(values)):
+            refuse(kind, element, index, attribute, field_, values, "is not a finite number: every value of the "
+                   "model must be finite")
+        if attribute in _LINEAR and np.any(values[1:] != 0.0):
+            refuse(kind, element, index, attribute, field_, values, "cannot be represented: loopcheck's springs and "
+                   "dampers are linear (one coefficient, no polynomial terms)")
+        if least is not None and np.any(values < least):
+            refuse(kind, element, index, attribute, field_, values,
+                   f"cannot be represented: {_WHAT.get(attribute, attribute)} must be ≥ {least:g} (0: none)")
+
+    for group, (kind, fields) in _VALUES.items():
+        for index, element in enumerate(getattr(spec, group)):
+            if kind == "equality" and int(element.type) != _CONNECT:
+                continue  # its data is another equality's (refused by kind later)
+            for attribute, field_, least in fields:
+                check(kind, element, index, attribute, field_, least)
+    for kind, group in (("body", "bodies"), ("frame", "frames"), ("geom", "geoms")):  # an orientation other than quat, as written
+        for index, element in enumerate(getattr(spec, group)):
+            attribute = _ALTERNATIVE.get(int(element.alt.type))
+            if attribute is not None:
+                values = np.asarray(getattr(element.alt, attribute), dtype=float).ravel()
+                if not np.all(np.isfinite(values)):
+                    refuse(kind, element, index, attribute, attribute, values, "is not a finite number: every value "
+                           "of the model must be finite")
+    for index, body in enumerate(spec.bodies):
+        if index and body.explicitinertial:
+            for attribute, field_, least in _INERTIAL:
+                check("body", body, index, attribute, field_, least)
+            full = np.asarray(body.fullinertia, dtype=float)
+            if not (math.isnan(full[0]) and not np.any(full[1:])):  # NaN then zeros: not given
+                check("body", body, index, "inertial fullinertia", "fullinertia", None)
+    _check_unset_markers(path)
+    option = spec.option
+    for attribute, value in (("timestep", [option.timestep]), ("gravity", option.gravity)):
+        values = np.asarray(value, dtype=float).ravel()
+        if not np.all(np.isfinite(values)):
+            raise MjcfError(f"{path}: option: {attribute}=\"{' '.join(_word(v) for v in values)}\" is not a finite "
+                            "number: every value of the model must be finite")
+    if not option.timestep > 0.0:
+        raise MjcfError(f"{path}: option: timestep=\"{_word(option.timestep)}\" cannot be represented: a timestep "
+                        "must be > 0 s")
 
 
 def _state(path: Path, model: mujoco.MjModel, keyframe: str | None):
@@ -565,15 +748,18 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         One line naming the file and the element that cannot be read, and why.
     """
     path = Path(path)
-    model = _load_model(path)
+    model, loading = _load_model(path)
     qpos, qvel, key_ctrl = _state(path, model, keyframe)
-    reader = _Reader(path, model, qpos, qvel)
+    with mujoco_warnings() as said:
+        reader = _Reader(path, model, qpos, qvel)
+    reader.warnings.extend(loading + tuple(said.lines))
     reader.check_options()
     reader.joints()
     inp = _input_joint(reader, input_joint)
     reader.plane(inp)
     reader.check_contacts()
-    reader.scale = reader.size()
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge position is refused below, by name
+        reader.scale = reader.size()
     reader.groups()
     reader.sites()
     tree = reader.tree_joints()
@@ -588,7 +774,23 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         mass, com, inertia = _mass_properties(reader, group)
         if mass == 0.0 or inertia == 0.0:
             reader.fail(f"body '{group.name}' has no mass or no inertia about the plane's normal")
-        bodies.append(_pivot_body(group, mass, com, inertia, joints, reader.scale))
+        body = _pivot_body(group, mass, com, inertia, joints, reader.scale)
+        where = f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'" + (
+            " (with the bodies welded to it)" if len(group.bodies) > 1 else "")
+        if body.mass:
+            reader.representable(body.mass, "mass", f"{where}: mass")
+            reader.representable(body.inertia, "inertia", f"{where}: inertia about the plane's normal")
+        else:
+            reader.representable(body.inertia, "inertia", f"{where}: inertia about its pivot")
+        for axis, value in zip("xy", body.com):
+            reader.representable(value, "position", f"{where}: centre of mass, {axis} in its plane frame")
+        bodies.append(body)
+    for group in [reader.group_of[0], *reader.moving]:
+        owner = "the world" if group.root == 0 else f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'"
+        for point, xy in group.points.items():
+            for axis, value in zip("xy", xy):
+                reader.representable(value, "position", f"{owner}: point '{point}' (a site, joint or anchor), {axis} in "
+                                                        "its plane frame")
     try:
         linkage = Linkage(bodies, joints, input_name)
     except MechanismError as exc:
@@ -617,6 +819,12 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
                                "the scene starts from the input joint's rate alone")
     gravity = _gravity(reader)
+    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
+    prismatic_input = isinstance(linkage.joint_map[input_name], PrismaticJoint)
+    reader.representable(q0, "position" if prismatic_input else "angle", f"{read_at}: the input joint's qpos")
+    reader.representable(qdot0, "speed", f"{read_at}: the input joint's qvel")
+    for axis, value in zip("xy", gravity or ()):
+        reader.representable(value, "gravity", f"option gravity, {axis} in the plane")
     for t in range(model.ntext):  # what loopcheck's own export notes it applies outside the model
         text = _object_name(model, mujoco.mjtObj.mjOBJ_TEXT, t, "text")
         kind, _, force = text.partition(" ")
@@ -691,6 +899,10 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
             reader.fail(f"actuator '{name}': gain × control leaves its forcerange [{low:g}, {high:g}]: MuJoCo "
                         "would clamp the force, which the scene would not")
     applied = Control(given.times, tuple(values))
+    kind = "force" if m.jnt_type[inp] == _SLIDE else "torque"
+    for v in values:
+        reader.representable(gear * v, kind,
+                             f"actuator '{name}': gear × gain × control (gear × gain {gear:g}, control {v:g})")
     return applied.load(gear), gear, applied
 
 
@@ -778,7 +990,14 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     lines: list[LineElement] = []
     joint_elements: list[JointElement] = []
 
-    def add_joint_element(kind, base, joint, coefficient, rest=0.0):
+    revolute = {j.name: isinstance(j, RevoluteJoint) for j in linkage.joints}
+    kinds = {"inertia": ("inertia", "mass"), "damper": ("rotational damping", "damping"),
+             "spring": ("rotational stiffness", "stiffness")}
+
+    def add_joint_element(kind, base, joint, coefficient, rest=0.0, where="", rest_where=""):
+        reader.representable(coefficient, kinds[kind][0 if revolute[joint] else 1], where)
+        if kind == "spring":
+            reader.representable(rest, "angle" if revolute[joint] else "position", f"{rest_where}: the spring's rest")
         joint_elements.append(JointElement(kind, _unique(_clean(base), taken), joint, coefficient, rest))
 
     for t in range(m.ntendon):
@@ -810,8 +1029,11 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
                 reader.fail(f"tendon '{name}' has armature along a line between two points: loopcheck's inertias act on "
                             "one joint (a fixed tendon's or a joint's armature)")
             if damping > 0.0:
+                reader.representable(damping, "damping", f"tendon '{name}': damping")
                 lines.append(LineElement("damper", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, damping))
             if stiffness > 0.0:
+                reader.representable(stiffness, "stiffness", f"tendon '{name}': stiffness")
+                reader.representable(float(low), "position", f"tendon '{name}': springlength")
                 lines.append(LineElement("spring", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, stiffness,
                                          float(low)))
             continue
@@ -835,17 +1057,18 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             u_read = float(rows[joint] @ x_read)
             length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
             if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
-                add_joint_element("inertia", name, joint, armature)
+                add_joint_element("inertia", name, joint, armature, where=f"tendon '{name}': armature")
                 if not _one_branch(m, np.flatnonzero(c)):
                     reader.warnings.append(
                         f"tendon '{name}': its armature couples joints of different branches, and MuJoCo keeps only "
                         "the mass-matrix terms of one branch (ancestor pairs): the model as written does not have "
                         "the ½ a L̇² the scene holds")
             if damping > 0.0:
-                add_joint_element("damper", name, joint, damping)
+                add_joint_element("damper", name, joint, damping, where=f"tendon '{name}': damping")
             if stiffness > 0.0:
                 # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
-                add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam)
+                add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam,
+                                  where=f"tendon '{name}': stiffness", rest_where=f"tendon '{name}': springlength")
             continue
         reader.fail(f"tendon '{name}' wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
                     "act along a straight line between two points or on one joint")
@@ -857,15 +1080,16 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
         if armature > 0.0:
-            add_joint_element("inertia", f"{joint}_armature", joint, armature)
+            add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"joint '{mj_name}': armature")
         if damping > 0.0:
-            add_joint_element("damper", f"{joint}_damping", joint, damping)
+            add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"joint '{mj_name}': damping")
         if stiffness > 0.0:
             adr = int(m.jnt_qposadr[j])
             u_read = float(rows[joint] @ x_read)
             sign = reader.joint_sign[j]
             add_joint_element("spring", f"{joint}_stiffness", joint, stiffness,
-                              u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])))
+                              u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])),
+                              where=f"joint '{mj_name}': stiffness", rest_where=f"joint '{mj_name}': springref")
     return lines, joint_elements
 
 

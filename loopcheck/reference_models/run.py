@@ -20,7 +20,6 @@ q = drive·x (rad or m, ``scene.input_unit``) and its rates.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import time
 import warnings
@@ -38,6 +37,7 @@ from loopcheck.mujoco_model.layout import Layout
 from loopcheck.mujoco_model.loads import control_sequence, point_forces_installed, timed_values
 from loopcheck.mujoco_model.record import check_initial_state, record_run
 from loopcheck.mujoco_model.steps import grid_timestep, step_count
+from loopcheck.mujoco_model.warning_handler import bad_state, compile_spec, mujoco_warnings, singular_mass_matrix
 
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
@@ -57,27 +57,6 @@ _COPIES = 3
 
 class OffGridEdgeWarning(UserWarning):
     """A load edge does not fall on a MuJoCo step boundary."""
-
-
-# MuJoCo prints its warnings and appends them to MUJOCO_LOG.TXT in the working directory.
-# During a run we keep the latest text instead and turn warnings into failures through
-# data.warning; the process's handler is restored afterwards.
-_last_mujoco_warning: list[str] = []
-
-
-def _keep_warning(message: str) -> None:
-    _last_mujoco_warning[:] = [message.strip()]
-
-
-@contextlib.contextmanager
-def _warnings_kept():
-    previous = mujoco.get_mju_user_warning()
-    _last_mujoco_warning.clear()
-    mujoco.set_mju_user_warning(_keep_warning)
-    try:
-        yield
-    finally:
-        mujoco.set_mju_user_warning(previous)
 
 
 def build_model(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> ModelHandles:
@@ -103,7 +82,7 @@ def _at_timestep(handles: ModelHandles, scene: Scene, settings: MujocoSettings) 
     the same as ``handles``')."""
     spec = handles.spec.copy()
     set_timestep(spec, scene, settings.timestep, settings.effective_solref)
-    return replace(handles, model=spec.compile(), spec=spec)
+    return replace(handles, model=compile_spec(spec), spec=spec)
 
 
 def _check_work(scene: Scene, h: float, model: mujoco.MjModel | None = None) -> int:
@@ -198,7 +177,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
         step within the search's work limit meets the tolerance (the message gives the step
         the fitted order predicts and its cost).
     """
-    with _warnings_kept():
+    with mujoco_warnings() as said:
         if handles is not None:
             if settings.timestep is None:
                 settings = replace(settings, timestep=float(handles.model.opt.timestep))
@@ -209,6 +188,7 @@ def simulate_mujoco(scene: Scene, settings: MujocoSettings = MujocoSettings(),
             result = _run(scene, settings, build_model(scene, settings))
         else:
             result = _automatic(scene, settings)
+    said.report(f"MuJoCo on {scene.name}")
     _log.debug("MuJoCo %s at h = %.4g s on %s: %d steps, %.3g s", result.settings.integrator, result.settings.timestep,
                scene.name, result.n_steps, result.wall_s)
     return result
@@ -288,11 +268,10 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         if callback is not None:
             _step_loop(model, data, state0, ctrl, n_steps, spec, states[1:], sensors[:-1], timed, callback)
         else:
-            rollout.rollout(model, data, state0[None, :], ctrl[None, :, :] if model.nu else None, nstep=n_steps,
-                            state=states[None, 1:], sensordata=sensors[None, :-1])
+            _rollout(model, data, state0, ctrl, n_steps, states, sensors)
         wall = time.perf_counter() - start
 
-        _check_warnings(data, states[1:], h)
+        _check_warnings(data, states, settings)
         record = record_run(scene, handles, layout, data, states, sensors, ctrl, timed, callback, h=h)
     record.gate(settings.max_constraint_violation, settings.max_energy_residual, initial, "MuJoCo")
     q, qdot = record.q, record.qdot
@@ -344,11 +323,32 @@ class MujocoDetails:
                 "initial_residuals": dict(self.initial_residuals)}
 
 
+ROLLOUT_CHUNK = 2000  # steps per call of mujoco.rollout: a run stops within this many steps of MuJoCo's first reset
+
+
+def _rollout(model, data, state0, ctrl, n_steps, states, sensors) -> None:
+    """``mujoco.rollout`` over ``n_steps`` in chunks of ROLLOUT_CHUNK steps, writing ``states[1:]``
+    and ``sensors[:-1]``; it stops after the chunk in which MuJoCo reset the state (bad qpos, qvel
+    or qacc), leaving the rest of ``states`` NaN for :func:`_check_warnings`."""
+    states[1:] = np.nan
+    start, initial = 0, state0
+    while start < n_steps:
+        stop = min(start + ROLLOUT_CHUNK, n_steps)
+        rollout.rollout(model, data, initial[None, :], ctrl[None, start:stop, :] if model.nu else None,
+                        nstep=stop - start, state=states[None, 1 + start:1 + stop],
+                        sensordata=sensors[None, start:stop])
+        if bad_state(data) is not None:
+            return
+        start, initial = stop, states[stop]
+
+
 def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors, timed=None, callback=None) -> None:
     """``rollout``'s states and sensordata, written into ``states`` and ``sensors`` (n_steps
     rows each), from a Python loop of ``mj_step`` (for callbacks); ``timed`` (n_steps, k) the
-    timed forces' values, handed to ``callback`` before each step."""
+    timed forces' values, handed to ``callback`` before each step. It stops at MuJoCo's first
+    reset of the state (the rest of ``states`` NaN)."""
     mujoco.mj_setState(model, data, state0, spec)
+    states[:] = np.nan
     for k in range(n_steps):
         if model.nu:
             data.ctrl[:] = ctrl[k]
@@ -357,17 +357,24 @@ def _step_loop(model, data, state0, ctrl, n_steps, spec, states, sensors, timed=
         mujoco.mj_step(model, data)
         mujoco.mj_getState(model, data, states[k], spec)
         sensors[k] = data.sensordata
+        if bad_state(data) is not None:
+            return
 
 
-def _check_warnings(data: mujoco.MjData, states: np.ndarray, h: float) -> None:
-    names = {mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc", mujoco.mjtWarning.mjWARN_BADQVEL: "bad qvel",
-             mujoco.mjtWarning.mjWARN_BADQPOS: "bad qpos", mujoco.mjtWarning.mjWARN_INERTIA: "bad inertia"}
-    for kind, label in names.items():
-        w = data.warning[int(kind)]
-        if w.number:
-            text = f" ({_last_mujoco_warning[0]})" if _last_mujoco_warning else ""
-            raise NumericalFailure("unstable", f"MuJoCo reported {label} {w.number} time(s){text}; "
-                                   "mj_step reset the state: the simulation is unstable at these settings")
+def _check_warnings(data: mujoco.MjData, states: np.ndarray, settings: MujocoSettings) -> None:
+    """Fail a run in which MuJoCo reset the state (bad qpos, qvel or qacc: the warning's text and
+    the time of the last state before the reset), or whose state is not finite, or whose time
+    went backwards."""
+    options = f"{settings.integrator}, timestep {settings.timestep:g} s"
+    bad = bad_state(data)
+    if bad is not None:
+        t = states[:, 0]
+        back = np.flatnonzero(~(np.diff(t) > 0.0))  # a reset sets the time to 0; NaN after the stop
+        time_ = float(t[back[0]]) if len(back) else None
+        raise NumericalFailure(FailureReason.UNSTABLE, bad.message(time_, options), time_)
+    singular = singular_mass_matrix(data, options)
+    if singular is not None:
+        raise NumericalFailure(FailureReason.UNSTABLE, singular)
     if not np.all(np.isfinite(states)):
         raise NumericalFailure("non-finite", "MuJoCo's state became NaN or infinite")
     # A reset (warning swallowed elsewhere) shows as time going backwards.
@@ -389,4 +396,7 @@ def mjcf_text(scene: Scene, settings: MujocoSettings = MujocoSettings()) -> str:
 
 def handles_from_mjcf(path) -> ModelHandles:
     """Compile an exported MJCF file (e.g. to re-run it with :func:`simulate_mujoco`)."""
-    return compile_model(mujoco.MjSpec.from_file(str(path)))
+    with mujoco_warnings() as said:
+        handles = compile_model(mujoco.MjSpec.from_file(str(path)))
+    said.report(f"MuJoCo loading {path}")
+    return handles

@@ -26,6 +26,7 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.errors import FailureReason, NumericalFailure
 from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
+from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
 from .mjcf_import import ImportedModel
@@ -164,8 +165,11 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     ValueError
         A run of more than MAX_STEPS steps.
     NumericalFailure
-        UNSTABLE: MuJoCo warned (bad qacc and the like) and reset the state; NON_FINITE: the state
-        became NaN or infinite.
+        UNSTABLE: MuJoCo reset the state (a NaN, infinite or huge qpos, qvel or qacc): the run stops
+        at that step, and the message gives the warning and its time; or MuJoCo found the mass
+        matrix singular. NON_FINITE: the state became NaN or infinite. MuJoCo's other warnings (a
+        buffer too small and the like) are logged on the ``loopcheck.mujoco`` logger, not fatal
+        (:mod:`loopcheck.mujoco_model.warning_handler`).
     """
     options = options or ModelOptions.as_written(imported.model)
     scene = imported.scene
@@ -193,23 +197,28 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
         gap[k] = _gaps(model, data, connects)
 
     start = time.perf_counter()
-    for k in range(n):
-        if ctrl is not None:
-            data.ctrl[0] = ctrl[k]
+    with mujoco_warnings() as said:
+        for k in range(n):
+            if ctrl is not None:
+                data.ctrl[0] = ctrl[k]
+            mujoco.mj_forward(model, data)
+            record(k)
+            mujoco.mj_step(model, data)
+            bad = bad_state(data)
+            if bad is not None:  # MuJoCo reset the state in this step: the run stops here
+                t = float(times[k])
+                raise NumericalFailure(FailureReason.UNSTABLE, bad.message(t, options.text()), t)
         mujoco.mj_forward(model, data)
-        record(k)
-        mujoco.mj_step(model, data)
-    mujoco.mj_forward(model, data)
-    record(n)
+        record(n)
+    singular = singular_mass_matrix(data, options.text())
+    if singular is not None:
+        raise NumericalFailure(FailureReason.UNSTABLE, singular)
+    said.report(f"the model at {options.text()}")
     wall = time.perf_counter() - start
     bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
     if len(bad):
         raise NumericalFailure(FailureReason.NON_FINITE, f"MuJoCo's state became NaN or infinite at "
                                f"t = {times[bad[0]]:.6g} s ({options.text()})", float(times[bad[0]]))
-    warned = sum(w.number for w in data.warning)
-    if warned:
-        raise NumericalFailure(FailureReason.UNSTABLE, f"MuJoCo warned {warned} time(s) (bad qacc and the like) and "
-                               f"reset the state: the model is unstable at {options.text()}")
 
     system, T = loops.compile_linkage(scene.mechanism.linkage), imported.qpos_map
     x = imported.x_read + (qpos - imported.qpos) @ T.T

@@ -147,3 +147,41 @@ def test_cli_check_goes_on_after_a_reference_that_fails(tmp_path, capsys):
                  "--ctrl", "0:250,1:0", "--horizon", "2", "--reference-method", "rkn4", "--reference-step", "0.1"])
     out = capsys.readouterr().out
     assert code == 1 and out.count("FAIL  ") == 2 and "numerical failure of the reduced reference" in out
+
+
+def test_a_legal_model_gets_its_verdict_when_the_smaller_step_trial_is_past_its_budget(monkeypatch):
+    """A run may take 5000 steps here (MAX_STEPS lowered for the test): the model as written (500
+    steps at 1 ms over 0.5 s) is legal, its timestep / 10 trial (5000 steps... 5001 with the
+    limit at 4000) is not: the check gives the verdict and notes the trial as skipped (planted
+    without the trials' budget: run_model's ValueError names the trial's step, not the model's)."""
+    import loopcheck.compare.model_check as model_check
+    import loopcheck.reference_models.user_model as user_model
+
+    monkeypatch.setattr(user_model, "MAX_STEPS", 4000)
+    monkeypatch.setattr(model_check, "MAX_STEPS", 4000)
+    imported = import_mjcf(DATA / "fourbar_sites_keyframe.xml", keyframe="assembled", control=SEED_PULSE, horizon=0.5)
+    check = check_model(imported)
+    assert check.as_written.comparison is not None
+    assert check.smaller_step.comparison is None and check.smaller_step.failure is None
+    assert check.smaller_step.skipped.startswith("skipped: 5e+03 steps at 0.0001 s, more than this trial's budget of "
+                                                 "4e+03 steps")
+    lines = model_check.diagnosis_lines(check)
+    assert any("timestep / 10:" in line and "skipped" in line for line in lines)
+    assert "skipped" in check.cause or check.cause.startswith("the loops' softness")
+
+
+def test_the_cheapest_search_costs_rk4_four_evaluations_a_step(tmp_path):
+    """Every trial's cost is its steps × 4 for RK4, × 1 for Euler and the implicit integrators, and
+    the cheapest options found are the fewest evaluations among the passing trials (planted with
+    RK4 costed as one evaluation a step: the RK4 trials' costs are a quarter). The seed's four-bar
+    by Euler at 1 ms with MuJoCo's default loop softness: both integrators are searched."""
+    path = tmp_path / "euler.xml"
+    path.write_text((DATA / "fourbar_sites_keyframe.xml").read_text().replace('integrator="RK4"', 'integrator="Euler"'))
+    imported = import_mjcf(path, keyframe="assembled", control=SEED_PULSE, horizon=0.5)
+    check = check_model(imported)
+    ran = [t for t in check.tried if t.comparison is not None]
+    assert any(t.options.integrator == "rk4" for t in ran) and any(t.options.integrator != "rk4" for t in ran)
+    for t in ran:
+        assert t.evaluations == t.comparison.mujoco.n_steps * (4 if t.options.integrator == "rk4" else 1)
+    assert check.cheapest is not None
+    assert check.cheapest.evaluations == min(t.evaluations for t in ran if t.passed)
