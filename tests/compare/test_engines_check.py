@@ -41,6 +41,16 @@ def test_the_outlier_is_farthest_from_the_median_of_the_others():
     assert farthest_from_the_others({"a": 0.0, "b": 0.0, "c": 1.0, "d": 1.0, "e": 1.0, "f": 5.0}) == "f"
 
 
+def test_the_engine_s_own_peak_is_not_in_the_median_it_is_measured_from():
+    """Peaks 0, 0, 5, 6, 9: from the others' medians (2.5 for 'e', 5.5 for 'a') 'e' is 6.5 away
+    and 'a' 5.5: 'e' is named. The median of all five peaks (5), the engine's own included, would
+    put 'a' 5 away and 'e' 4 and name 'a' (planted so, this fails; with three or four engines
+    the two rules agree, so five)."""
+    from loopcheck.compare.engines import farthest_from_the_others
+
+    assert farthest_from_the_others({"a": 0.0, "b": 0.0, "c": 5.0, "d": 6.0, "e": 9.0}) == "e"
+
+
 def test_two_engines_name_no_outlier():
     """With only MuJoCo beside the reference, a failing MuJoCo (MuJoCo's default softness: the
     seed's peak 3.2e-2 off) fails the check, and nobody is called an outlier."""
