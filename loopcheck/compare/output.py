@@ -260,11 +260,13 @@ def signals_as_exceptions() -> Iterator[list[int]]:
     # ignored in" and swallowed: it is sent again instead, from a thread once this callback is
     # left, to raise where the run sees it (its handler records it again).
     previous_hook = sys.unraisablehook
+    resends: list[threading.Timer] = []
 
     def unraisable(info) -> None:
         if isinstance(info.exc_value, (Terminated, KeyboardInterrupt)) and received:
             resend = threading.Timer(RESEND_S, os.kill, args=(os.getpid(), received.pop()))
             resend.daemon = True
+            resends.append(resend)
             resend.start()
             return
         previous_hook(info)
@@ -277,9 +279,13 @@ def signals_as_exceptions() -> Iterator[list[int]]:
     try:
         yield received
     finally:
-        sys.unraisablehook = previous_hook
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        try:  # a signal being sent again comes while this block's handlers hold: no thread outlives the block
+            for resend in resends:
+                resend.join()
+        finally:
+            sys.unraisablehook = previous_hook
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 class _Abandoned(BaseException):

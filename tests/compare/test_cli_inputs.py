@@ -183,3 +183,21 @@ def test_a_killed_file_writer_is_one_line_and_exit_1(tmp_path, monkeypatch, caps
     assert line.startswith("loopcheck: error: a file writer (process ") and "SIGKILL" in line, line
     assert line.endswith("nothing was written")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, status", [(["scenes"], 0), (["run", "nosuch.toml"], 2)])
+def test_the_command_ends_without_the_interpreter_s_finalization(argv, status, tmp_path):
+    """The command's process leaves by os._exit once its output is flushed: no thread (a signal
+    being sent again, a library's) can run into the interpreter's finalization, where a signal
+    test once ended in "Fatal Python error: PyThreadState_Get ... finalizing" (exit -6, 1 run in
+    14). Seen from outside: an atexit function (a sitecustomize registers one) never runs, and
+    the output is all there. (Planted: returning from main instead, "finalized" is printed.)"""
+    (tmp_path / "sitecustomize.py").write_text(
+        "import atexit, sys\natexit.register(lambda: sys.stderr.write('finalized\\n'))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[2]), str(tmp_path)])}
+    done = subprocess.run([sys.executable, "-m", "loopcheck.compare.cli", *argv], capture_output=True, text=True,
+                          env=env, cwd=tmp_path, timeout=120)
+    assert done.returncode == status and "finalized" not in done.stderr, done.stderr
+    assert (done.stdout.count("\n") > 10) if status == 0 else done.stderr.startswith("loopcheck: error:")
+    probe = subprocess.run([sys.executable, "-c", "print(1)"], capture_output=True, text=True, env=env, timeout=60)
+    assert probe.stderr == "finalized\n"  # the control: the hook works in this interpreter
