@@ -26,10 +26,12 @@ def _ended_at_start_up(signum: int, frame) -> None:
     os._exit(128 + signum)
 
 
-# Started as the command (`loopcheck`, `python -m loopcheck.compare.cli`), not imported by a program:
-# signals end it in one line from here on (main() raises them as exceptions while it runs).
-_AS_COMMAND = __name__ == "__main__" or os.path.basename(getattr(sys.modules.get("__main__"), "__file__", None)
-                                                         or "") == "loopcheck"
+# Started as the command (`loopcheck`, `python -m loopcheck.compare.cli`), not imported by a program
+# (nor by a spawned worker, whose main module is __mp_main__): signals end it in one line from here
+# on (main() raises them as exceptions while it runs).
+_MAIN = sys.modules.get("__main__")
+_AS_COMMAND = __name__ == "__main__" or (getattr(_MAIN, "__name__", "") == "__main__" and os.path.basename(
+    getattr(_MAIN, "__file__", None) or "") == "loopcheck")
 if _AS_COMMAND:
     for _signum in (signal.SIGINT, signal.SIGTERM):
         if signal.getsignal(_signum) is not signal.SIG_IGN:  # nohup's or a background job's choice stays
