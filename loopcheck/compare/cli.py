@@ -870,6 +870,9 @@ def _command(argv: list[str] | None) -> int:
     try:
         with signals_as_exceptions() as received, warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
+            # but not Python's own ResourceWarning (a file a module import had open when a signal
+            # cut it short, "unclosed file <...pyc>"): a developer's diagnostic, not the user's
+            warnings.simplefilter("ignore", ResourceWarning)
             warnings.showwarning = _show_warning
             argv = sys.argv[1:] if argv is None else argv
             if not argv:  # `loopcheck` alone: what it can do

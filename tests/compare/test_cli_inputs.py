@@ -201,3 +201,21 @@ def test_the_command_ends_without_the_interpreter_s_finalization(argv, status, t
     assert (done.stdout.count("\n") > 10) if status == 0 else done.stderr.startswith("loopcheck: error:")
     probe = subprocess.run([sys.executable, "-c", "print(1)"], capture_output=True, text=True, env=env, timeout=60)
     assert probe.stderr == "finalized\n"  # the control: the hook works in this interpreter
+
+
+def test_python_s_resource_warnings_are_not_the_user_s(monkeypatch, capsys):
+    """A signal that cuts an import short leaves the .pyc it was reading unclosed: Python's
+    ResourceWarning was printed as a second line, `loopcheck: warning: unclosed file <...pyc>`, before
+    `loopcheck: terminated` (1 signal test in 25). Here a command drops an open file."""
+    import gc
+
+    from loopcheck.compare import cli
+
+    def leaky(args):
+        open(SEED_SCENE, "rb")  # noqa: SIM115 - dropped open on purpose
+        gc.collect()
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_scenes", leaky)
+    assert main(["scenes"]) == 0
+    assert capsys.readouterr().err == ""
