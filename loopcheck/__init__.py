@@ -23,14 +23,7 @@ gate, studies, plots and the command line ``loopcheck``); the shipped scenes are
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
-
 from ._lazy import lazy_names
-
-try:
-    __version__ = version("loopcheck")
-except PackageNotFoundError:  # a checkout that was never installed
-    __version__ = "0+unknown"
 
 _HOMES = {
     **{name: "loopcheck.api" for name in ("Comparison", "EngineResult", "MujocoSettings", "ReducedSettings", "Scene",
@@ -42,4 +35,17 @@ _HOMES = {
     "Peak": "loopcheck.trajectory",
 }
 
-__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())
+_lazy_getattr, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # looked up on first use: importlib.metadata costs the command's start-up ~30 ms
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            found = version("loopcheck")
+        except PackageNotFoundError:  # a checkout that was never installed
+            found = "0+unknown"
+        globals()["__version__"] = found
+        return found
+    return _lazy_getattr(name)

@@ -32,12 +32,29 @@ class NumericalFailure(RuntimeError):
         The cause; a plain string is converted (and must be one of the reasons' values).
     time : float or None
         Simulation time (s) at which it was detected.
+    partial : EngineResult or None
+        The run as far as the engine got, when it got a result that a check then failed (a loop
+        gap or an energy balance beyond its bound): its trajectory (trustworthy up to ``time``) and
+        its known defects travel with the failure (:func:`with_partial`); else None.
     """
+
+    partial = None
 
     def __init__(self, reason: FailureReason | str, message: str, time: float | None = None):
         super().__init__(message)
         self.reason = FailureReason(reason)
         self.time = time
+
+
+def with_partial(check, result):
+    """Run ``check()`` (a run's own gate); a NumericalFailure it raises carries ``result`` (the
+    run it failed, :attr:`NumericalFailure.partial`). Returns ``result``."""
+    try:
+        check()
+    except NumericalFailure as exc:
+        exc.partial = result
+        raise
+    return result
 
 
 class IgnoredSettingWarning(UserWarning):

@@ -13,10 +13,33 @@ Engine flags default to None: only the flags given override the scene's [reduced
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import logging
+import os
+import signal
 import sys
+
+
+def _ended_at_start_up(signum: int, frame) -> None:
+    """SIGINT or SIGTERM before :func:`main` handles signals (while the command's modules load, a
+    quarter of a second): one line and the signal's exit status, no traceback. Nothing has been
+    written yet, nor any process started."""
+    os.write(2, b"loopcheck: interrupted\n" if signum == signal.SIGINT else b"loopcheck: terminated\n")
+    os._exit(128 + signum)
+
+
+# Started as the command (`loopcheck`, `python -m loopcheck.compare.cli`), not imported by a program
+# (nor by a spawned worker, whose main module is __mp_main__): signals end it in one line from here
+# on (main() raises them as exceptions while it runs).
+_MAIN = sys.modules.get("__main__")
+_AS_COMMAND = __name__ == "__main__" or (getattr(_MAIN, "__name__", "") == "__main__" and os.path.basename(
+    getattr(_MAIN, "__file__", None) or "") == "loopcheck")
+if _AS_COMMAND:
+    for _signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(_signum) is not signal.SIG_IGN:  # nohup's or a background job's choice stays
+            signal.signal(_signum, _ended_at_start_up)
+
+import argparse  # noqa: E402 - after the start-up handlers: a signal while these load is one line
+import contextlib  # noqa: E402
+import logging  # noqa: E402
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -33,7 +56,7 @@ from loopcheck.shipped_scenes import catalogue, default_scene_path, resolve_scen
 from loopcheck.sweep_spec import ENGINE_CHOICES
 
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
-                     check_file, check_folder, signals_as_exceptions, write_file)
+                     WriterDied, check_file, check_folder, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
 from .text import mujoco_lines, pin_lines, reduced_lines
 
@@ -57,8 +80,48 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def _scene_path(path: str | None) -> Path:
+    """The scene file a command's scene argument names (the seed's without one)."""
+    return resolve_scene(path) if path else default_scene_path()
+
+
 def _scene(path: str | None):
-    return load_scene(resolve_scene(path) if path else default_scene_path())
+    return load_scene(_scene_path(path))
+
+
+MODEL_FLAGS = ("input", "keyframe", "ctrl")  # read a MuJoCo model; a scene file has none of these
+
+
+def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
+    """--input, --keyframe and --ctrl read a MuJoCo model (.xml): given with ``what`` (scene files
+    alone), they would be ignored, so they are refused (exit 2)."""
+    given = [f"--{name}" for name in MODEL_FLAGS if getattr(args, name, None) is not None]
+    if given:
+        raise UsageError(f"{', '.join(given)}: read{'s' if len(given) == 1 else ''} a MuJoCo model (.xml), and "
+                         f"{what}; a scene file sets its input, state and load itself")
+
+
+def _run_scene(args: argparse.Namespace, path: str | None):
+    """The scene file of ``run`` or ``check``, with ``--horizon``, when given, over its
+    simulation.horizon (every check of the scene file applies to the new value); the override is
+    said on stdout."""
+    if args.horizon is None:
+        return _scene(path)
+    from loopcheck.scenefile import scene_from_dict
+    from loopcheck.toml_reader import parse_toml, read_text
+
+    file = _scene_path(path)
+    data = parse_toml(read_text(file), file)
+    simulation = data.get("simulation")
+    was = simulation.get("horizon") if isinstance(simulation, dict) else None
+    if isinstance(simulation, dict):
+        data = {**data, "simulation": {**simulation, "horizon": args.horizon}}
+    try:
+        scene = scene_from_dict(data, source=str(file))
+    except SceneError as exc:
+        raise SceneError(f"{file}: with --horizon {args.horizon:g}: {exc}") from None
+    print(f"horizon {scene.horizon:g} s from --horizon, over {file}'s simulation.horizon = {was:g} s")
+    return scene
 
 
 def _positive(text: str) -> float:
@@ -149,7 +212,7 @@ def cmd_port(args: argparse.Namespace) -> int:
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
     from loopcheck.reference_models import mjcf_text
 
-    check_file(args.out, flag="-o")  # before any work
+    check_file(args.out, flag="-o", inputs=[_scene_path(args.scene)])  # before any work
     scene = _scene(args.scene)
     xml = mjcf_text(scene, _mujoco_settings(args, scene))
     path = write_file(args.out, xml, flag="-o")
@@ -170,7 +233,7 @@ def _control(text: str):
 def cmd_import_mjcf(args: argparse.Namespace) -> int:
     from loopcheck.scene_writer import scene_toml
 
-    check_file(args.out, flag="-o")  # before any work
+    check_file(args.out, flag="-o", inputs=[args.model])  # before any work
     imported = _import(args, args.model)
     for line in imported.warnings:
         print(f"loopcheck: warning: {line}", file=sys.stderr)
@@ -191,7 +254,7 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
 def cmd_draw(args: argparse.Namespace) -> int:
     from .draw import drawing_format, write_drawing
 
-    target = check_file(args.out, flag="--out")  # before any work
+    target = check_file(args.out, flag="--out", inputs=[_scene_path(args.scene)])  # before any work
     drawing_format(args.out)  # .png, .pdf or .svg, before any work too
     scene = _scene(args.scene)
     path = write_drawing(scene, target)
@@ -225,8 +288,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         if args.scene is not None and _is_mjcf(args.scene):
             raise UsageError("--engines runs scenes: a MuJoCo model (.xml) is run as written against the reduced "
                              "solution alone")
+        _refuse_model_flags(args, "--engines runs scene files")
         return _run_engines(args, animate)
-    check_folder(args.out, (*report_files(animate), MANIFEST_FILE))  # before any work (and before MuJoCo is loaded)
+    if args.scene is None or not _is_mjcf(args.scene):
+        _refuse_model_flags(args, f"'{args.scene or default_scene_path().name}' is a scene file")
+    check_folder(args.out, (*report_files(animate), MANIFEST_FILE),  # before any work (and before MuJoCo is loaded)
+                 inputs=[_run_input(args.scene)])
     from .run import compare_engines
 
     if args.scene is not None and _is_mjcf(args.scene):  # the user's model as written (docs/import.md)
@@ -244,7 +311,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("\n".join(comparison_lines(comparison)))
         print("\n".join(line.strip() for line in diagnosis_lines(check)))
     else:
-        scene = _scene(args.scene)
+        scene = _run_scene(args, args.scene)
         joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
         comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
                                      mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
@@ -263,8 +330,11 @@ def _run_engines(args: argparse.Namespace, animate: bool) -> int:
     from .text import comparison_lines, engine_label
 
     other = compared_engine(args.engines)
-    check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE))  # before any work
-    scene = _scene(args.scene)
+    check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE),  # before any work
+                 inputs=[_scene_path(args.scene)])
+    for name in args.engines:  # a missing extra is said in one line before any work
+        ENGINES[name].load()
+    scene = _run_scene(args, args.scene)
     joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
     check = _engines_check(args, scene)
     compared = next(v for v in check.verdicts if v.engine == other)
@@ -279,6 +349,11 @@ def _run_engines(args: argparse.Namespace, animate: bool) -> int:
     return EXIT_OK if check.passed else EXIT_FAILED
 
 
+def _run_input(path: str | None) -> Path:
+    """The file ``loopcheck run``'s argument names: a MuJoCo model as given, else the scene file."""
+    return Path(path) if path is not None and _is_mjcf(path) else _scene_path(path)
+
+
 def _is_mjcf(path: str) -> bool:
     """A MuJoCo model (checked as written, ``loopcheck check model.xml``) rather than a scene."""
     return path.lower().endswith(".xml")
@@ -287,15 +362,18 @@ def _is_mjcf(path: str) -> bool:
 def _import(args: argparse.Namespace, path: str):
     from loopcheck.reference_models.mjcf_import import import_mjcf
 
-    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, horizon=args.horizon)
+    horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
+    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, **horizon)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .run import compare_engines
     from .text import check_lines
 
+    if not any(_is_mjcf(path) for path in args.scenes):  # with a model listed, they are the models'
+        _refuse_model_flags(args, "no MuJoCo model is listed")
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
-    scenes = [load_scene(resolve_scene(path)) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
+    scenes = [_run_scene(args, path) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
     if args.engines is not None:
         if models:
             raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
@@ -387,13 +465,16 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="the motor's control over time, in its ctrl units: a number, or a table "
                         "t:value,t:value,... (s; each value held from its time on, zero before the first); "
                         "default the keyframe's ctrl")
-    g.add_argument("--horizon", type=_positive, default=1.0, help="the simulated time (s; default 1)")
+    g.add_argument("--horizon", type=_positive, default=None,
+                   help="the simulated time (s): a model's (default 1); given with a scene file, it replaces the "
+                        "scene's simulation.horizon (said in the output). --input, --keyframe and --ctrl read "
+                        "models only: with scene files alone they are refused")
 
 
 def cmd_cost(args: argparse.Namespace) -> int:
     from .cost import COST_FILES, study, summary_lines, write_cost_outputs
 
-    check_folder(args.out, (*COST_FILES, MANIFEST_FILE))  # before any work
+    check_folder(args.out, (*COST_FILES, MANIFEST_FILE), inputs=[_scene_path(args.scene)])  # before any work
     scene = _scene(args.scene)
     report, measurements, target = study(scene, quick=args.quick, target=args.target, repeats=args.repeats,
                                          workers=args.workers)
@@ -447,7 +528,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.engines is not None:  # the flag overrides the table's engines only when given
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
-    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE))
+    check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE), inputs=[path])
     if args.resume and args.keep_trajectories:
         raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
     from .sweep_journal import check_journal
@@ -764,11 +845,37 @@ def _progress_shown(level: int = logging.INFO):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one ``loopcheck`` command; return its exit status (see the module docstring)."""
+    """Run one ``loopcheck`` command; return its exit status (see the module docstring).
+
+    Started as the command (``loopcheck``, ``python -m loopcheck.compare.cli``: no ``argv``), the
+    process ends here once its output is flushed (:func:`_end`), without the interpreter's
+    finalization: nothing of the command is left to run then, and a thread still running (a
+    signal being sent again, a library's) cannot crash the exit ("Fatal Python error:
+    PyThreadState_Get ... finalizing", seen once in 14 runs of the signal test)."""
+    status = _command(argv)
+    if _AS_COMMAND and argv is None:
+        _end(status)
+    return status
+
+
+def _end(status: int) -> None:
+    """Flush stdout and stderr and leave the process with ``status`` at once (``os._exit``)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe (`loopcheck ... | head`), a closed stream
+            pass
+    os._exit(status)
+
+
+def _command(argv: list[str] | None) -> int:
     received: list[int] = []
     try:
         with signals_as_exceptions() as received, warnings.catch_warnings():
             warnings.simplefilter("default")  # each distinct warning once
+            # but not Python's own ResourceWarning (a file a module import had open when a signal
+            # cut it short, "unclosed file <...pyc>"): a developer's diagnostic, not the user's
+            warnings.simplefilter("ignore", ResourceWarning)
             warnings.showwarning = _show_warning
             argv = sys.argv[1:] if argv is None else argv
             if not argv:  # `loopcheck` alone: what it can do
@@ -799,6 +906,9 @@ def _failure(exc: BaseException, received: list[int]) -> int:
     if isinstance(exc, Terminated) or received:
         print("loopcheck: terminated", file=sys.stderr)
         return EXIT_TERMINATED
+    if isinstance(exc, WriterDied):  # the outputs are as they were
+        print(f"loopcheck: error: {_one_line(exc)}; nothing was written", file=sys.stderr)
+        return EXIT_FAILED
     if isinstance(exc, NumericalFailure):
         print(f"loopcheck: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED

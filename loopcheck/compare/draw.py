@@ -112,7 +112,7 @@ def _guide(r: np.ndarray, system: LoopSystem, x: np.ndarray, j: PrismaticJoint, 
 
 
 def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, colour: str,
-                 linestyle: str = "-", label: str | None = None, alpha: float = 1.0) -> list:
+                 linestyle: str = "-", label: str | None = None, alpha: float = 1.0, width: float = 2.2) -> list:
     """A light drawing of the linkage at x (bodies as closed outlines through all their
     points, a body of one point as a square, joints as dots, prismatic joints as a thin guide
     line and a square block), for overlaying several configurations (the mechanism strip of
@@ -127,7 +127,7 @@ def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, col
         path = np.vstack([shape, shape[:1]]) if len(shape) >= 3 else shape
         if len(path) == 0:
             continue
-        (line,) = ax.plot(path[:, 0], path[:, 1], color=colour, linestyle=linestyle, linewidth=2.2,
+        (line,) = ax.plot(path[:, 0], path[:, 1], color=colour, linestyle=linestyle, linewidth=width,
                           alpha=alpha, marker="s" if len(path) == 1 else None, markersize=8,
                           markerfacecolor="none", label=label if k == 0 else None, zorder=2,
                           gid=f"body:{name}")
@@ -486,21 +486,39 @@ def _checked_system(scene, *runs) -> LoopSystem:
 # suptitle above two-line panel titles) and of the animation's frames.
 DRAWING_MARGINS = {"left": 0.85, "right": 0.3, "top": 0.45, "bottom": 0.6}
 STRIP_MIN_WIDTH = 7.0  # inches: room for the title above a single panel
-STRIP_MARGINS = {"left": 0.75, "right": 0.2, "top": 0.85, "bottom": 0.55, "wspace": 0.55}
+STRIP_MARGINS = {"left": 0.95, "right": 0.2, "top": 0.85, "bottom": 0.55, "wspace": 0.6}
 ANIMATION_MARGINS = {"left": 0.8, "right": 0.2, "top": 0.4, "bottom": 0.55}
 
 REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
 OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
 
 
-def _frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str,
-           other_label: str = OTHER_LOOK["label"]) -> None:
-    """Both engines' configurations overlaid (reduced solid, the other, ``other_label``, dashed) on ``ax``."""
+def _frame(ax, mechanism: Mechanism, system: LoopSystem, xs: Sequence[np.ndarray], title: str,
+           other_label: str = OTHER_LOOK["label"], q: float | None = None) -> None:
+    """Both engines' configurations on ``ax``: the reduced one drawn as ``loopcheck draw`` draws a
+    scene (:func:`draw_linkage`: bodies, joints, ground pivots, elements, named points and their
+    labels, at its input coordinate ``q``), the other (``other_label``) as a dashed outline over it,
+    with a thin solid outline of the reduced one beside it in the legend."""
+    linkage = mechanism.linkage
+    draw_linkage(ax, mechanism, system, np.asarray(xs[0], dtype=float), q=q)
+    for x, look in zip(xs, (REFERENCE_LOOK, {**OTHER_LOOK, "label": other_label})):
+        draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
+                     label=look["label"], width=1.2)
+    declutter_labels(ax)
+    ax.set_title(title, fontsize=9, **PLAIN)
+    ax.set_ylabel("")
+    ax.set_xlabel("x (m)")
+    _few_ticks(ax)
+
+
+def _outline_frame(ax, linkage: Linkage, system: LoopSystem, xs: Sequence[np.ndarray], title: str,
+                   other_label: str = OTHER_LOOK["label"]) -> None:
+    """Both engines' configurations as light outlines (reduced solid, the other, ``other_label``,
+    dashed) and the ground pivots as triangles: a frame of the animation, redrawn ~100 times
+    (labels would jump from frame to frame)."""
     for x, look in zip(xs, (REFERENCE_LOOK, {**OTHER_LOOK, "label": other_label})):
         draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
                      label=look["label"])
-    # Ground pivots (revolute joints to ground) as triangles; a slider's guide is a line, drawn
-    # with the outline.
     ground = [system.point_index(j.body_a if j.body_a == GROUND else j.body_b,
                                  j.point_a if j.body_a == GROUND else j.point_b)
               for j in linkage.joints if GROUND in (j.body_a, j.body_b) and not isinstance(j, PrismaticJoint)]
@@ -574,8 +592,8 @@ def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], pa
             head = f"{' and '.join(name for name, _ in group)}, t = {t:.6g} s"
         else:  # moments that would draw the same picture: said, and drawn once
             head = " and ".join(f"{name} (t = {when:.6g} s)" for name, when in group) + ", one picture"
-        _frame(ax, linkage, system, xs,
-               f"{head}\nq reduced {q[0]:.6g} {unit}, {other_label} {q[1]:.6g} {unit}", other_label)
+        _frame(ax, scene.mechanism, system, xs,
+               f"{head}\nq reduced {q[0]:.6g} {unit}, {other_label} {q[1]:.6g} {unit}", other_label, q=q[0])
     axes[0][0].set_ylabel("y (m)")
     axes[0][0].legend(loc="best", fontsize=8)
     fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and {other_label} (dashed)", y=0.975,
@@ -627,7 +645,7 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
 
     def show(k: int):
         ax.clear()
-        _frame(ax, linkage, system, configs[k],
+        _outline_frame(ax, linkage, system, configs[k],
                f"{short_name(scene.name)}: t = {times[k]:.4f} s (reduced solid, {other_label} dashed)", other_label)
         ax.set_aspect("equal", adjustable="box")  # fixed limits: the same view in every frame
         ax.set_xlim(lo[0] - pad, hi[0] + pad)

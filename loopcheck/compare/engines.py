@@ -32,10 +32,22 @@ class EngineVerdict:
     tolerances: Tolerances  # what it is judged by (had it run)
     comparison: Comparison | None
     failure: str | None = None
+    # A run that a check of its own failed (a loop gap, the energy balance): the result as far as
+    # it went (NumericalFailure.partial), trustworthy up to ``failed_at`` (s), travels with the
+    # failure: its known defects are printed and engines.png draws it up to that time.
+    partial: EngineResult | None = None
+    failed_at: float | None = None
 
     @property
     def passed(self) -> bool:
         return self.comparison is not None and self.comparison.gate.passed
+
+    @property
+    def known_defects(self) -> tuple[str, ...]:
+        """The engine's known defects that bear on its run (:attr:`EngineResult.caveats`), whether
+        it was compared or failed part-way; none when it did not run at all."""
+        run = self.comparison.mujoco if self.comparison is not None else self.partial
+        return run.caveats if run is not None else ()
 
 
 @dataclass(frozen=True)
@@ -96,7 +108,8 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
         try:
             result = ENGINES[name].simulate(judged, settings[name])
         except NumericalFailure as exc:
-            verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}"))
+            verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}",
+                                          partial=exc.partial, failed_at=exc.time))
             continue
         except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
             verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}"))
@@ -132,13 +145,14 @@ def engines_lines(check: EnginesCheck) -> list[str]:
     for v in check.verdicts:
         if v.comparison is None:
             lines.append(f"      {v.engine:8s} {v.failure}")
+            lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
             continue
         d, t = v.comparison.diff, v.comparison.gate.tolerances
         lines.append(f"      {v.engine:8s} {'ok  ' if v.passed else 'FAIL'}  peak {d.peak_omega_other:.10g} "
                      f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {unit} "
                      f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})")
         lines += [f"               {failure}" for failure in v.comparison.gate.failures]
-        lines += [f"               known defect: {caveat}" for caveat in v.comparison.mujoco.caveats]
+        lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
     if check.outlier is not None:
         pairs = ", ".join(f"{a}–{b} {d:.2e}" for (a, b), d in check.spread.items())
         lines.append(f"      farthest from the others: {check.outlier} (peaks apart, relative: {pairs})")

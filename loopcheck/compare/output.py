@@ -6,8 +6,10 @@ Checked before any work (:func:`check_folder`, :func:`check_file`): an empty nam
 longer than the file system allows, a folder whose parent does not exist, is not a folder
 or cannot be written (tried: a staging folder is made and removed there, since ``os.access``
 says yes to root in /proc or /sys), a file name that is a folder (``.``, ``..``, a trailing ``/``), and an
-existing output that is not a regular file (a symbolic link, a device node, a folder) are
-refused with :class:`OutputError` (a ``ValueError``: exit status 2) naming the path.
+existing output that is not a regular file (a symbolic link, a device node, a folder), and an
+output that is one of the command's input files (the same file: by name, through a symbolic
+link or a hard link, compared by device and inode) are refused with :class:`OutputError` (a
+``ValueError``: exit status 2) naming the path.
 
 Written all-or-nothing (:func:`write_folder`, :func:`write_file`):
 
@@ -64,6 +66,12 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM
 
 class OutputError(ValueError):
     """A destination that cannot be written (exit status 2)."""
+
+
+class WriterDied(RuntimeError):
+    """A forked file writer (:func:`_run_writers`) that ended without writing its files: killed by
+    a signal other than SIGINT/SIGTERM (SIGKILL, the out-of-memory killer), or an exception that
+    did not come back. Nothing was written (exit status 1, one line)."""
 
 
 class Terminated(BaseException):
@@ -132,11 +140,31 @@ def _refuse_non_regular(target: Path, flag: str) -> None:
     raise OutputError(f"{flag}: '{target}' is {kind}; loopcheck replaces only regular files, move it away first")
 
 
-def check_folder(path: str | os.PathLike, names: Iterable[str] = (), *, flag: str = "--out") -> Path:
+def _refuse_inputs(target: Path, inputs: Iterable[str | os.PathLike], flag: str) -> None:
+    """Raise if ``target`` is one of the files ``inputs``: the same file by device and inode, so
+    through a symbolic link (followed, at either end) or a hard link too."""
+    try:
+        there = os.stat(target)
+    except OSError:  # absent (or unreachable: the other checks say why): not an input
+        return
+    for source in inputs:
+        try:
+            read = os.stat(source)
+        except OSError:
+            continue
+        if (there.st_dev, there.st_ino) == (read.st_dev, read.st_ino):
+            same = "" if os.path.abspath(target) == os.path.abspath(source) else f" (the same file as '{source}')"
+            raise OutputError(f"{flag} '{target}' is an input of this command{same}: loopcheck never writes over "
+                              "its input; give another name")
+
+
+def check_folder(path: str | os.PathLike, names: Iterable[str] = (), *, flag: str = "--out",
+                 inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """Check that the folder ``path`` can receive the files ``names``, before any work.
 
     The folder may exist (it must then be a writable folder, and each of ``names`` in it
-    absent or a regular file) or not (its parent must then be a writable folder).
+    absent or a regular file) or not (its parent must then be a writable folder). Neither the
+    folder nor any of ``names`` in it may be one of the files ``inputs``.
 
     Raises
     ------
@@ -144,6 +172,10 @@ def check_folder(path: str | os.PathLike, names: Iterable[str] = (), *, flag: st
         Naming the path and the reason.
     """
     out = _check_text(path, flag, "folder")
+    inputs, names = tuple(inputs), tuple(names)
+    _refuse_inputs(out, inputs, flag)
+    for name in names:
+        _refuse_inputs(out / name, inputs, flag)
     try:
         return _check_folder(out, names, flag)
     except OSError as exc:
@@ -170,16 +202,18 @@ def _check_folder(out: Path, names: Iterable[str], flag: str) -> Path:
     return out
 
 
-def check_file(path: str | os.PathLike, *, flag: str = "-o") -> Path:
+def check_file(path: str | os.PathLike, *, flag: str = "-o", inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """Check that the file ``path`` can be written (created, or a regular file replaced).
 
     Raises
     ------
     OutputError
         For an empty name, a folder (``.``, ``..``, a trailing ``/``, an existing folder), a
-        missing or unwritable parent folder, or an existing target that is not a regular file.
+        missing or unwritable parent folder, an existing target that is not a regular file, or
+        a target that is one of the files ``inputs`` (through a link too).
     """
     target = _check_text(path, flag, "file")
+    _refuse_inputs(target, inputs, flag)
     try:
         return _check_file(target, os.fspath(path), flag)
     except OSError as exc:
@@ -226,11 +260,13 @@ def signals_as_exceptions() -> Iterator[list[int]]:
     # ignored in" and swallowed: it is sent again instead, from a thread once this callback is
     # left, to raise where the run sees it (its handler records it again).
     previous_hook = sys.unraisablehook
+    resends: list[threading.Timer] = []
 
     def unraisable(info) -> None:
         if isinstance(info.exc_value, (Terminated, KeyboardInterrupt)) and received:
             resend = threading.Timer(RESEND_S, os.kill, args=(os.getpid(), received.pop()))
             resend.daemon = True
+            resends.append(resend)
             resend.start()
             return
         previous_hook(info)
@@ -243,9 +279,13 @@ def signals_as_exceptions() -> Iterator[list[int]]:
     try:
         yield received
     finally:
-        sys.unraisablehook = previous_hook
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        try:  # a signal being sent again comes while this block's handlers hold: no thread outlives the block
+            for resend in resends:
+                resend.join()
+        finally:
+            sys.unraisablehook = previous_hook
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 class _Abandoned(BaseException):
@@ -418,13 +458,20 @@ def _child_outcome(pid: int, status: int, read_end: int) -> BaseException | None
     if os.WIFSIGNALED(status):
         signum = os.WTERMSIG(status)
         return (KeyboardInterrupt() if signum == signal.SIGINT else Terminated() if signum == signal.SIGTERM
-                else RuntimeError(f"a file writer (process {pid}) died of signal {signum}"))
+                else WriterDied(f"a file writer (process {pid}) was killed by {_signal_name(signum)}"))
     if os.WEXITSTATUS(status) == 0:
         return None
     try:
         return pickle.loads(data)
     except Exception:  # noqa: BLE001
-        return RuntimeError(f"a file writer (process {pid}) failed with exit status {os.WEXITSTATUS(status)}")
+        return WriterDied(f"a file writer (process {pid}) failed with exit status {os.WEXITSTATUS(status)}")
+
+
+def _signal_name(signum: int) -> str:
+    try:
+        return f"{signal.Signals(signum).name} (signal {signum})"
+    except ValueError:
+        return f"signal {signum}"
 
 
 def _run_writers(files: Mapping[str, Callable[[Path], None]], content: Path, workers: int) -> None:

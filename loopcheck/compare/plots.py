@@ -312,11 +312,23 @@ def plot_energy(c: "Comparison", path: Path) -> None:
     _save(fig, path)
 
 
+def partial_difference(reference, partial, until: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """|q̇_partial − q̇_reference| at the partial run's sample times up to ``until`` (s; all of
+    them when None): the reference interpolated there (its dense output)."""
+    t = np.asarray(partial.trajectory.t)
+    keep = t <= until if until is not None else np.ones(len(t), dtype=bool)
+    keep &= (t >= reference.trajectory.t[0]) & (t <= reference.trajectory.t[-1])
+    _, rate, _ = reference.trajectory.interpolate(t[keep])
+    return t[keep], np.abs(np.asarray(partial.trajectory.qdot)[keep] - rate)
+
+
 def plot_engines(check: "EnginesCheck", path: Path) -> None:
     """|Δq̇| = |q̇_engine − q̇_reduced| of every engine judged (``loopcheck run --engines``) against
     time, on a log scale, one line per engine on its own sample times (the differences of
     ``differences.png``; a sample where it is exactly 0 is left out); the legend gives each
-    engine's largest |Δq̇|, its tolerance and verdict, or that it did not run."""
+    engine's largest |Δq̇|, its tolerance and verdict; an engine that failed part-way (a loop gap
+    beyond its bound) is drawn up to the failure's time and said to have failed there; one that
+    did not run at all is said so."""
     rate = f"{check.scene.input_unit}/s"
     fig, ax = new_figure((8, 4.8), margins={"left": 1.05})
     ax.set_yscale("log")  # before the plain labels: set_yscale puts matplotlib's mathtext formatter back
@@ -324,6 +336,15 @@ def plot_engines(check: "EnginesCheck", path: Path) -> None:
     colours = engine_colours([v.engine for v in check.verdicts])
     for v in check.verdicts:
         label = engine_label(v.engine)
+        if v.comparison is None and v.partial is not None:  # failed part-way: drawn up to the failure
+            t, size = partial_difference(check.reference, v.partial, v.failed_at)
+            when = "" if v.failed_at is None else f" at t = {v.failed_at:.4g} s"
+            ax.plot(t, np.where(size > 0.0, size, np.nan), color=colours[v.engine], linewidth=1.2,
+                    label=f"{label}: FAILED{when} ({v.failure.split(':')[0]}); max {np.max(size, initial=0.0):.2e} "
+                          f"{rate} up to it")
+            if v.failed_at is not None:
+                ax.axvline(v.failed_at, color=colours[v.engine], linestyle=":", linewidth=1.0)
+            continue
         if v.comparison is None:
             ax.plot([], [], color=colours[v.engine], label=f"{label}: did not run")
             continue

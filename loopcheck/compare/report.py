@@ -133,20 +133,23 @@ def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list
     verdicts; without one, the engine of ``c`` alone): ``engine``, ``passed``, its compared peak
     ``peak_omega`` (signed) and ``peak_omega_rel``, ``q_max_abs``, ``omega_max_abs`` (null when it
     did not run), the ``tolerances`` it was judged by, the gate's ``failures``, ``failure`` (why
-    it did not run, else null) and ``known_defects`` (the engine's known defects that bear on the
-    run: :attr:`EngineResult.caveats`)."""
-    def entry(engine: str, comparison, tolerances, failure: str | None) -> dict:
+    it did not run, else null), ``failed_at`` (s: the time of a failure found part-way through a
+    run, a loop gap or the energy balance beyond its bound, else null) and ``known_defects`` (the
+    engine's known defects that bear on the run, a failed one's too: :attr:`EngineResult.caveats`)."""
+    def entry(engine: str, comparison, tolerances, failure: str | None, defects=None, failed_at=None) -> dict:
         d = comparison.diff if comparison is not None else None
         return {"engine": engine, "passed": comparison is not None and comparison.gate.passed,
                 "peak_omega": d.peak_omega_other if d else None,
                 **{key: _finite(getattr(d, key)) if d else None for key in ("peak_omega_rel", "q_max_abs", "omega_max_abs")},
                 "tolerances": dataclasses.asdict(tolerances),
                 "failures": list(comparison.gate.failures) if comparison is not None else [], "failure": failure,
-                "known_defects": list(comparison.mujoco.caveats) if comparison is not None else []}
+                "failed_at": failed_at,
+                "known_defects": list(comparison.mujoco.caveats if defects is None else defects)}
 
     if check is None:
         return [entry(output_name(c.mujoco.engine), c, c.gate.tolerances, None)]
-    return [entry(v.engine, v.comparison, v.tolerances, v.failure) for v in check.verdicts]
+    return [entry(v.engine, v.comparison, v.tolerances, v.failure, v.known_defects, v.failed_at)
+            for v in check.verdicts]
 
 
 def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None) -> dict:

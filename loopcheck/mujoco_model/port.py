@@ -19,7 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.errors import FailureReason, NumericalFailure, with_partial
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 
@@ -177,12 +177,14 @@ def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engin
                             engine=engine)
     said.report(f"{engine} on {run.scene.name}")
     s = run.settings
-    record.gate(s.max_constraint_violation, s.max_energy_residual, run.initial, engine)
-    return EngineResult(engine=name, trajectory=record.trajectory, joints=record.joints,
-                        peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall_s, n_steps=len(qpos),
-                        n_evaluations=len(qpos) * evaluations_per_step, settings=s,
-                        effects=tuple(run.scene.effects), constraint_violation=record.constraint_violation,
-                        details=details, caveats=caveats)
+    result = EngineResult(engine=name, trajectory=record.trajectory, joints=record.joints,
+                          peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall_s, n_steps=len(qpos),
+                          n_evaluations=len(qpos) * evaluations_per_step, settings=s,
+                          effects=tuple(run.scene.effects), constraint_violation=record.constraint_violation,
+                          details=details, caveats=caveats)
+    # a failed gate carries the run and its known defects (NumericalFailure.partial)
+    return with_partial(lambda: record.gate(s.max_constraint_violation, s.max_energy_residual, run.initial, engine),
+                        result)
 
 
 def stack_runs(runs: list[PortRun], engine: str) -> None:

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.errors import FailureReason, NumericalFailure, with_partial
 from loopcheck.mujoco_model.build import (INTEGRATOR_ENUM, ConstraintSettings, ModelHandles, build_spec, check_joint_order,
                                      compile_model, mjcf_from_spec, set_timestep)
 from loopcheck.mujoco_model.layout import Layout
@@ -273,17 +273,19 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
 
         _check_warnings(data, states, settings)
         record = record_run(scene, handles, layout, data, states, sensors, ctrl, timed, callback, h=h)
-    record.gate(settings.max_constraint_violation, settings.max_energy_residual, initial, "MuJoCo")
     q, qdot = record.q, record.qdot
     details = MujocoDetails(grid_q=q, grid_qdot=qdot.copy(), input_load=record.input_load, initial_residuals=initial,
                             edge_warnings=tuple(edge_notes), mujoco_version=mujoco.__version__,
                             point_forces="mjcb_control (qfrc_applied, every RK stage)"
                             if scene.mechanism.point_forces or scene.mechanism.timed_forces else None)
-    return EngineResult(
+    result = EngineResult(
         engine="mujoco", trajectory=record.trajectory, joints=record.joints,
         peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall, n_steps=n_steps,
         n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
         effects=tuple(scene.effects), constraint_violation=record.constraint_violation, details=details)
+    # a failed gate carries the run (NumericalFailure.partial): shown up to the failure's time
+    return with_partial(lambda: record.gate(settings.max_constraint_violation, settings.max_energy_residual,
+                                            initial, "MuJoCo"), result)
 
 
 @dataclass(frozen=True)

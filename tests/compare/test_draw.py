@@ -363,3 +363,30 @@ def test_draw_refuses_other_suffixes_before_any_work(name, tmp_path, capsys):
     assert captured.out == "" and captured.err.count("\n") == 1, captured.err
     assert "--out" in captured.err and ".png, .pdf, .svg" in captured.err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_run_s_mechanism_strip_is_the_drawing_with_its_labels(tmp_path, saved_figures):
+    """Issue: the strip of `loopcheck run` (mechanism.png) had no point labels while `loopcheck draw`
+    had them: one drawing now. A run held at q0: each panel carries every label of the drawing
+    (bodies, joints, elements, centres of mass; the input's without the drawing's q0) and the
+    dashed outline of the other engine over it. (Planted: the strip's outlines alone fail it.)"""
+    from loopcheck.compare.draw import draw_strip
+    from loopcheck.reduced.charts import JointTrajectory
+
+    scene = load_scene(SEED_SCENE)
+    system = compile_linkage(scene.mechanism.linkage)
+    x = np.vstack([scene.x0, scene.x0]).astype(float)
+    held = JointTrajectory(system.coordinate_names, np.array([0.0, 1.0]), x, np.zeros_like(x),
+                           np.zeros(2, dtype=int), np.ones((2, 1), dtype=int))
+    draw_scene(scene, tmp_path / "d.png")
+    draw_strip(scene, held, held, [("peak speed", 0.2)], tmp_path / "m.png")
+    drawing, strip = saved_figures
+
+    def labels(ax) -> set[str]:
+        return {t.get_text().split(" (")[0] for t in ax.texts if t.get_text()}
+
+    (drawn,) = drawing.axes
+    assert {"crank", "coupler", "rocker", "O1", "O3", "A", "B"} <= labels(drawn)
+    for ax in strip.axes:
+        assert labels(ax) == labels(drawn)
+        assert any(line.get_linestyle() == "--" and (line.get_gid() or "").startswith("body:") for line in ax.lines)

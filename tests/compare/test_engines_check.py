@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import importlib.util
 
+import numpy as np
 import pytest
 
-from loopcheck.compare.engines import check_engines, parse_engines
+from loopcheck.compare.engines import check_engines, engines_lines, parse_engines
 from loopcheck.compare.settings import engine_settings
 from loopcheck.reference_models import MujocoSettings
 from loopcheck.scenefile import load_scene
@@ -39,6 +40,16 @@ def test_the_outlier_is_farthest_from_the_median_of_the_others():
     peaks = {"reduced": 34.264413, "mujoco": 34.264320, "pin": 34.264413, "mjx": 33.78, "mjwarp": 34.258}
     assert farthest_from_the_others(peaks) == "mjx"
     assert farthest_from_the_others({"a": 0.0, "b": 0.0, "c": 1.0, "d": 1.0, "e": 1.0, "f": 5.0}) == "f"
+
+
+def test_the_engine_s_own_peak_is_not_in_the_median_it_is_measured_from():
+    """Peaks 0, 0, 5, 6, 9: from the others' medians (2.5 for 'e', 5.5 for 'a') 'e' is 6.5 away
+    and 'a' 5.5: 'e' is named. The median of all five peaks (5), the engine's own included, would
+    put 'a' 5 away and 'e' 4 and name 'a' (planted so, this fails; with three or four engines
+    the two rules agree, so five)."""
+    from loopcheck.compare.engines import farthest_from_the_others
+
+    assert farthest_from_the_others({"a": 0.0, "b": 0.0, "c": 5.0, "d": 6.0, "e": 9.0}) == "e"
 
 
 def test_two_engines_name_no_outlier():
@@ -130,3 +141,50 @@ def test_mujocos_own_table_is_its_gate_in_a_plain_check(tmp_path, capsys):
         path.write_text(_short_seed(f"\n[tolerances.{table}]\nomega_atol = 1e-12\n"), encoding="utf-8")
         assert main(["check", str(path), "--timestep", "5e-4"]) == status  # fixed: no step search for 1e-12
         assert ("(tol 1e-12)" in capsys.readouterr().out) is (status == 1)
+
+
+@pytest.fixture(scope="module")
+def failed_part_way():
+    """The seed over 0.5 s with MuJoCo at a fixed 1 ms step held to loops closed within 1e-7 m:
+    its loops open by 3.2e-7 m at t = 0.496 s (measured), so its own gate fails it part-way: a
+    real run, not a made-up failure."""
+    import dataclasses
+
+    scene = dataclasses.replace(load_scene("scenes/seed_fourbar.toml"), horizon=0.5)
+    settings = {"reduced": engine_settings("reduced", scene),
+                "mujoco": MujocoSettings(timestep=0.001, max_constraint_violation=1e-7)}
+    return check_engines(scene, ("reduced", "mujoco"), settings)
+
+
+def test_a_failed_engine_s_run_travels_with_its_failure(failed_part_way, tmp_path, saved_figures):
+    """Issue: MJX, failed on loop drift at t = 1.012 s, printed no known defect under its line,
+    report.json had known_defects [] and engines.png said "did not run" though it ran to 1.012 s.
+    Engine-generic, shown with MuJoCo failed by its own gate: the verdict keeps the run and the
+    failure's time; its known defects (here one given to the run, MuJoCo C has none) are printed
+    under the failure and written to report.json; engines.png draws its |Δq̇| up to the failure.
+    (Planted: check_engines dropping the run fails each part.)"""
+    import dataclasses
+
+    from loopcheck.compare.plots import plot_engines
+    from loopcheck.compare.report import engines_report
+
+    (v,) = failed_part_way.verdicts
+    assert v.comparison is None and "constraint-drift" in v.failure
+    assert v.partial is not None and v.partial.engine == "mujoco"
+    assert v.failed_at == pytest.approx(0.496, abs=1e-9) and v.partial.trajectory.t[-1] >= v.failed_at
+    defect = "a known defect of this engine (test)"
+    check = dataclasses.replace(failed_part_way, verdicts=(dataclasses.replace(
+        v, partial=dataclasses.replace(v.partial, caveats=(defect,))),))
+    lines = engines_lines(check)
+    at = next(k for k, line in enumerate(lines) if "constraint-drift" in line)
+    assert lines[at + 1].strip() == f"known defect: {defect}"
+    (entry,) = engines_report(None, check)
+    assert entry["known_defects"] == [defect] and entry["failed_at"] == v.failed_at and not entry["passed"]
+    plot_engines(check, tmp_path / "engines.png")
+    (fig,) = saved_figures
+    (line,) = [l for l in fig.axes[0].get_lines() if len(l.get_xdata()) > 2]
+    t = np.asarray(line.get_xdata())
+    assert t[-1] <= v.failed_at and t[-1] > v.failed_at - 0.01  # up to the failure, its samples 1 ms apart
+    assert np.nanmax(line.get_ydata()) < 1e-3  # |Δq̇| before the loops opened: a real curve (measured 2.4e-4 rad/s)
+    legend = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    assert legend[0].startswith("MuJoCo: FAILED at t = 0.496 s") and "did not run" not in legend[0]

@@ -427,3 +427,38 @@ def test_a_signal_that_lands_in_a_weakref_callback_still_ends_the_run(signum, ra
             time.sleep(0.001)
     assert keep() is None and received == [signum]
     assert "Exception ignored" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("signum, raised", [(signal.SIGTERM, Terminated), (signal.SIGINT, KeyboardInterrupt)])
+def test_a_signal_sent_again_at_the_end_of_the_block_raises_and_leaves_no_thread(signum, raised):
+    """The block ends right after a weakref's callback swallowed a signal (its resend, a thread,
+    pending): the resend is waited for inside the block, so the signal still raises, under the
+    block's handlers, and no thread of it is left running into the interpreter's exit (a thread
+    running Python while the process finalizes is how a "Fatal Python error ... finalizing" comes).
+    Planted: without the join the block ends normally with the thread alive, and this fails."""
+    import threading
+    import weakref
+
+    class Node:
+        pass
+
+    def callback(ref):
+        os.kill(os.getpid(), signum)
+        sum(range(100_000))  # the handler runs here, inside the callback
+
+    import time
+
+    before = threading.active_count()
+    late: list[int] = []  # a resend that outlives the block lands here, not in pytest
+    outer = signal.signal(signum, lambda s, frame: late.append(s))
+    try:
+        with pytest.raises(raised):
+            with signals_as_exceptions():
+                node = Node()
+                keep = weakref.ref(node, callback)
+                del node  # the block ends at once: the signal is being sent again
+        assert keep() is None and threading.active_count() == before
+    finally:
+        time.sleep(0.05)
+        signal.signal(signum, outer)
+    assert late == []

@@ -78,6 +78,24 @@ def test_a_speed_rising_to_the_end_is_flagged_and_a_turning_one_is_not():
     assert not turning.peak_rate().still_rising
 
 
+def test_a_negative_speed_rising_in_magnitude_to_the_end_is_flagged():
+    """The flag is about |q̇|: q̇ = −20 t (q̈ = −20 < 0) grows in magnitude to the end, its peak
+    −40 at t = 2 is still rising; q̇ = −20 t + 5 t² ends at −20 with q̈ = 0, and q̇ = −(1 + t)
+    then eased back (q̇ = −t(4 − t), q̈ = 2t − 4 = 0 at t = 2) peaks at the end without rising.
+    (Planted: q̈ > 0 without the peak's sign flags none of the rising negative ones.)"""
+    falling = Trajectory(T, -10 * T**2, -20 * T, np.full_like(T, -20.0))
+    peak = falling.peak_rate()
+    assert peak.time == 2.0 and peak.omega == -40.0 and peak.still_rising
+    assert falling.extremum_near(peak).still_rising
+    rising_back = Trajectory(T, -10 * T**2 + T**3, -20 * T + 3 * T**2, -20 + 6 * T)  # q̈(2) = −8: rising
+    assert rising_back.peak_rate().still_rising
+    easing = Trajectory(T, -2 * T**2 + T**3 / 3, -T * (4 - T), 2 * T - 4)  # q̈(2) = 0: at its extremum
+    end = easing.peak_rate()
+    assert end.omega == pytest.approx(-4.0, abs=1e-9) and not end.still_rising
+    slowing = Trajectory(T, -10 * T**2 + 2 * T**3, -20 * T + 6 * T**2, -20 + 12 * T)  # |q̇| falls after t = 5/3
+    assert not slowing.peak_rate().still_rising
+
+
 def dots(figure) -> list[tuple[float, float]]:
     """The single-point 'o' markers of a figure's axes: (t, q̇) of each."""
     return [tuple(line.get_xydata()[0]) for ax in figure.axes for line in ax.lines

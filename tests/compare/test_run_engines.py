@@ -17,7 +17,7 @@ from loopcheck.compare.report import ENGINES_PLOT, REPORT_FILES, SCHEMA_VERSION,
 from helpers import plots_left_out, short_seed_file
 
 ENTRY_KEYS = {"engine", "passed", "peak_omega", "peak_omega_rel", "q_max_abs", "omega_max_abs", "tolerances",
-              "failures", "failure", "known_defects"}
+              "failures", "failure", "failed_at", "known_defects"}
 
 
 def _scene(tmp_path, extra: str = "") -> str:
