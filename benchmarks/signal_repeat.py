@@ -9,8 +9,8 @@ crash prints every thread's stack.
     PYTHONPATH=. python benchmarks/signal_repeat.py --rounds 100 [--signal TERM]
 
 Prints one line per unexpected outcome and a summary: runs, exit statuses seen, crashes.
-Exit 1 if any run crashed (a status other than 0, 130, 143, -2, -15), left a process, or
-printed more than one line on stderr when loopcheck's handlers had it.
+Exit 1 if any run crashed (a status other than 0, 130, 143, -2, -15), left a process or a
+staging folder, or printed more than one line on stderr when loopcheck's handlers had it.
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=100)
     parser.add_argument("--signal", choices=("INT", "TERM"), default="INT")
+    parser.add_argument("--fractions", type=lambda text: tuple(float(f) for f in text.split(",")), default=FRACTIONS,
+                        help="the moments, as fractions of the run's length, comma-separated")
     args = parser.parse_args()
     signum = getattr(signal, f"SIG{args.signal}")
     expected = {0, 128 + signum, -signum}
@@ -57,8 +59,9 @@ def main() -> int:
     bad = 0
     try:
         for k in range(args.rounds):
-            fraction = FRACTIONS[k % len(FRACTIONS)]
+            fraction = args.fractions[k % len(args.fractions)]
             out = folder / f"out-{k}"
+            shutil.copytree(folder / "warm", out)  # an existing folder, as the test's: staging goes inside
             proc = subprocess.Popen(command + [str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                     start_new_session=True, preexec_fn=_defaults, env=env)
             time.sleep(fraction * length)
@@ -68,17 +71,18 @@ def main() -> int:
             left = subprocess.run(["ps", "-o", "pid=,args=", "-g", str(proc.pid)], capture_output=True,
                                   text=True).stdout
             statuses[proc.returncode] += 1
-            problem = (proc.returncode not in expected or "Fatal Python error" in err or left
+            staging = [p.name for p in out.iterdir() if p.name.startswith(".loopcheck-stage-")] if out.exists() else []
+            problem = (proc.returncode not in expected or "Fatal Python error" in err or left or staging
                        or (proc.returncode > 0 and err.count("\n") > 1))
             if problem:
                 bad += 1
                 print(f"round {k} (signal at {fraction:.2f} of {length:.2f} s): exit {proc.returncode}, "
-                      f"processes left {left!r}\n{err}", flush=True)
+                      f"processes left {left!r}, staging left {staging}\n{err}", flush=True)
             shutil.rmtree(out, ignore_errors=True)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     print(f"{args.rounds} runs of `loopcheck run` (0.3 s seed, run length {length:.2f} s), SIG{args.signal} at "
-          f"{', '.join(f'{f:g}' for f in FRACTIONS)} of it in turn: exit statuses {dict(sorted(statuses.items()))}; "
+          f"{', '.join(f'{f:g}' for f in args.fractions)} of it in turn: exit statuses {dict(sorted(statuses.items()))}; "
           f"{bad} bad")
     return 1 if bad else 0
 

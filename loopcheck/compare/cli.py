@@ -2,7 +2,8 @@
 
 Exit status: 0 success; 1 a gate or check failed or a run failed numerically; 2 bad input
 (including an output path that cannot be written, checked before any work); 130 interrupted
-(Ctrl-C); 143 terminated (SIGTERM). Errors are one line on stderr, never a traceback; an
+(Ctrl-C); 143 terminated (SIGTERM); one signal ends the command (a second one while it cleans up is
+not raised again). Errors are one line on stderr, never a traceback; an
 interrupted or failed run leaves its output folder as it was (:mod:`loopcheck.compare.output`).
 Warnings raised while settings are resolved or engines run (a setting the method ignores, a
 load edge off MuJoCo's step grid) are printed as one line each, ``loopcheck: warning: ...``.

@@ -231,6 +231,7 @@ def _check_file(target: Path, text: str, flag: str) -> Path:
 # ---------------------------------------------------------------------------- signals
 
 RESEND_S = 0.01  # s: a signal swallowed by a callback is sent again this long after (signals_as_exceptions)
+_ENDING: list[int] = []  # the signal whose exception is ending the command (signals_as_exceptions)
 
 @contextlib.contextmanager
 def signals_as_exceptions() -> Iterator[list[int]]:
@@ -247,13 +248,22 @@ def signals_as_exceptions() -> Iterator[list[int]]:
         yield received
         return
 
+    # One exception ends the command: a second signal (a second Ctrl-C; the group's signal after a
+    # forked writer died of it, whose exception is already raised) is recorded, not raised again,
+    # so that it cannot land in a clean-up (the staging folder's removal) and cut it short.
+    _ENDING.clear()
+
     def terminate(signum, frame):
         received.append(signum)
-        raise Terminated()
+        if not _ENDING:
+            _ENDING.append(signum)
+            raise Terminated()
 
     def interrupt(signum, frame):
         received.append(signum)
-        signal.default_int_handler(signum, frame)
+        if not _ENDING:
+            _ENDING.append(signum)
+            signal.default_int_handler(signum, frame)
 
     # A signal that lands while Python runs a callback that cannot raise (a weakref's, matplotlib
     # drops transforms that way; a __del__) would have its exception printed as "Exception
@@ -264,6 +274,7 @@ def signals_as_exceptions() -> Iterator[list[int]]:
 
     def unraisable(info) -> None:
         if isinstance(info.exc_value, (Terminated, KeyboardInterrupt)) and received:
+            _ENDING.clear()  # swallowed: nothing is ending yet
             resend = threading.Timer(RESEND_S, os.kill, args=(os.getpid(), received.pop()))
             resend.daemon = True
             resends.append(resend)
@@ -286,6 +297,7 @@ def signals_as_exceptions() -> Iterator[list[int]]:
             sys.unraisablehook = previous_hook
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
+            _ENDING.clear()
 
 
 class _Abandoned(BaseException):
@@ -457,6 +469,8 @@ def _child_outcome(pid: int, status: int, read_end: int) -> BaseException | None
         data += chunk
     if os.WIFSIGNALED(status):
         signum = os.WTERMSIG(status)
+        if signum in _HANDLED and not _ENDING:  # the group's signal: this process's own comes after, not raised
+            _ENDING.append(signum)
         return (KeyboardInterrupt() if signum == signal.SIGINT else Terminated() if signum == signal.SIGTERM
                 else WriterDied(f"a file writer (process {pid}) was killed by {_signal_name(signum)}"))
     if os.WEXITSTATUS(status) == 0:

@@ -462,3 +462,22 @@ def test_a_signal_sent_again_at_the_end_of_the_block_raises_and_leaves_no_thread
         time.sleep(0.05)
         signal.signal(signum, outer)
     assert late == []
+
+
+@pytest.mark.parametrize("signum, raised", [(signal.SIGTERM, Terminated), (signal.SIGINT, KeyboardInterrupt)])
+def test_a_second_signal_does_not_cut_the_clean_up_short(signum, raised):
+    """One exception ends the command: a second signal while the first one's exception unwinds
+    (a second Ctrl-C; the group's signal reaching this process after a forked writer died of it and
+    its exception was raised) is recorded, not raised in the clean-up. Seen as a staging folder
+    left once in 25 runs of the signal test. (Planted: raising every time, the clean-up is cut.)"""
+    cleaned = []
+    with pytest.raises(raised):
+        with signals_as_exceptions() as received:
+            try:
+                os.kill(os.getpid(), signum)
+                sum(range(100_000))  # the first raises here
+            finally:
+                os.kill(os.getpid(), signum)
+                sum(range(100_000))  # the second would raise here
+                cleaned.append(True)
+    assert cleaned == [True] and received == [signum, signum]
