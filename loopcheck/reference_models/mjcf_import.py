@@ -31,7 +31,9 @@ close; what becomes of each element:
 Anything else that acts is refused with one line naming it (:class:`MjcfError`): ball and free
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
-geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line.
+geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
+gravity compensation (a moving body's ``gravcomp`` other than 0, a joint's ``actuatorgravcomp``;
+on a body welded to the world it moves nothing and is accepted).
 A value that is NaN or infinite, or finite and outside what the description can hold (a negative
 damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
 is refused too, naming the element, the MJCF attribute and the default class it came from
@@ -698,6 +700,27 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
                 if not np.all(np.isfinite(values)):
                     refuse(kind, element, index, attribute, attribute, values, "is not a finite number: every value "
                            "of the model must be finite")
+    def moves(body) -> bool:  # a joint on it or on an ancestor; else it is welded to the world (ground)
+        while body is not None and body.name != "world":
+            if body.first_joint() is not None:
+                return True
+            body = body.parent
+        return False
+
+    for index, body in enumerate(spec.bodies):  # gravity compensation: the description has none
+        if index and body.gravcomp != 0.0 and (moves(body) or not math.isfinite(body.gravcomp)):
+            check("body", body, index, "gravcomp", "gravcomp", None)
+            refuse("body", body, index, "gravcomp", "gravcomp", np.array([body.gravcomp]), "cannot be represented: "
+                   "loopcheck's description has no gravity compensation (every body bears its full weight)")
+    for index, joint in enumerate(spec.joints):
+        if joint.actgravcomp:
+            name = joint.name or f"#{index} (unnamed, in body '{getattr(joint.parent, 'name', '')}')"
+            label = f"joint '{name}'" if joint.name else f"joint {name}"
+            classname = getattr(joint.classname, "name", None)
+            default = spec.find_default(classname) if classname else None
+            source = f" (from default class '{classname}')" if default is not None and default.joint.actgravcomp else ""
+            raise MjcfError(f"{path}: {label}: actuatorgravcomp=\"true\"{source} cannot be represented: loopcheck's "
+                            "description has no gravity compensation")
     for index, body in enumerate(spec.bodies):
         if index and body.explicitinertial:
             for attribute, field_, least in _INERTIAL:
