@@ -63,6 +63,10 @@ class Body:
         Centre of mass in the body's frame (m).
     inertia : float
         Moment of inertia about the centre of mass, about z (kg·m²), ≥ 0.
+    gravcomp : float
+        Gravity compensation, as MuJoCo's body ``gravcomp``: the body's weight is scaled by
+        (1 − gravcomp) (0: its full weight, 1: none, above 1: it floats up), ≥ 0. Its mass and
+        inertia are unchanged.
     """
 
     name: str
@@ -70,18 +74,22 @@ class Body:
     mass: float = 0.0
     com: tuple[float, float] = (0.0, 0.0)
     inertia: float = 0.0
+    gravcomp: float = 0.0
 
     def __post_init__(self):
         _name(self.name, "body name")
-        for f in ("mass", "inertia"):
+        for f in ("mass", "inertia", "gravcomp"):
             value = getattr(self, f)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
                     math.isfinite(value) and value >= 0.0):
                 raise MechanismError(f"body {self.name!r}: {f} must be a finite number ≥ 0, got {value!r}")
             object.__setattr__(self, f, float(value))
         object.__setattr__(self, "com", _finite_pair(self.com, f"body {self.name!r}: com"))
-        if self.name == GROUND and (self.mass or self.inertia):
-            raise MechanismError("the ground does not move: it has no mass or inertia")
+        if self.name == GROUND and (self.mass or self.inertia or self.gravcomp):
+            raise MechanismError("the ground does not move: it has no mass, inertia or gravcomp")
+        if self.gravcomp and not self.mass:
+            raise MechanismError(f"body {self.name!r}: gravcomp needs a mass (a body given by its inertia about a "
+                                 "pivot has no weight that moves)")
 
         if not isinstance(self.points, Mapping):
             raise MechanismError(f"body {self.name!r}: points must be a mapping name → (x, y), "

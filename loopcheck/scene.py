@@ -93,6 +93,8 @@ LIMITS: Mapping[str, Range] = _ranges(
           keys=("simulation.horizon",)),
     Range("gravity", "m/s²", 0.0, 1e3, "about 100 g",
           keys=("gravity",)),
+    Range("gravity compensation", "(× the body's weight)", 0.0, 100.0, "MuJoCo's body gravcomp, ≥ 0: 1 "
+          "compensates the weight, above 1 the body floats up (buoyancy)", keys=("bodies.*.gravcomp",)),
     Range("step", "s", 1e-6, 1.0, "an engine's time step (its settings' options of this kind, at most the horizon); "
           "the hard cases use 2e-5 to 1e-3"),
 )

@@ -46,6 +46,8 @@ def _body(body: Body, mechanism: Mechanism) -> dict[str, Any]:
         table.update(pivot_inertia=body.inertia, pivot=_pivot(body, mechanism))
     else:
         table.update(mass=body.mass, com=list(body.com), inertia=body.inertia)
+        if body.gravcomp:
+            table["gravcomp"] = body.gravcomp
     return table
 
 

@@ -80,7 +80,9 @@ def _point_ref(t: Table, name: str) -> tuple[str, str]:
 # -- the general description ----------------------------------------------------------
 
 def _parse_planar_body(t: Table, name: str) -> Body:
-    """``[bodies.<name>]``: points, and mass, com, inertia (or pivot_inertia about a point)."""
+    """``[bodies.<name>]``: points, and mass, com, inertia (or pivot_inertia about a point), and
+    gravcomp (default 0; with mass, com and inertia only: a body given by its pivot inertia has
+    no weight that moves)."""
     pts = t.raw("points", {} if name == GROUND else ...)
     if not isinstance(pts, dict):
         raise SceneError(f"'{t.key('points')}' must be a table of named points {{ A = [x, y], ... }}")
@@ -109,8 +111,9 @@ def _parse_planar_body(t: Table, name: str) -> Body:
     mass = t.number("mass", positive=True, kind="mass")
     com = t.point("com")
     inertia = t.number("inertia", positive=True, kind="inertia")
+    gravcomp = t.number("gravcomp", 0.0, nonnegative=True, kind="gravity compensation")
     t.close()
-    return Body(name, points, mass=mass, com=com, inertia=inertia)
+    return Body(name, points, mass=mass, com=com, inertia=inertia, gravcomp=gravcomp)
 
 
 def _parse_joint(t: Table):

@@ -319,6 +319,7 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                            pos=[*link.joint_pos, 0.0])
         b = described[link.name]
         _set_inertial(body, b.mass, b.com, b.inertia)
+        body.gravcomp = b.gravcomp  # its weight scaled by 1 − gravcomp (MuJoCo's passive force)
         bodies[link.name] = body
     for name, body in bodies.items():
         if name in described:
@@ -497,6 +498,7 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
         body = spec.body(element.get("name"))
         put(element, "pos", body.pos)
         put(element, "quat", body.quat)
+        put(element, "gravcomp", body.gravcomp)
         inertial = element.find("inertial")
         put(inertial, "pos", body.ipos)
         put(inertial, "mass", body.mass)

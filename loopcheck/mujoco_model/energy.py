@@ -32,7 +32,8 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
     """The energy balance from MuJoCo's own quantities at every stored state.
 
     Kinetic Σ ½ m |v_G|² + ½ I_zz ω_z² over every moving body, and ½ I u̇² over every joint
-    inertia (a fixed tendon's armature), and potential −Σ m g·r_G +
+    inertia (a fixed tendon's armature), and potential −Σ (1 − gravcomp) m g·r_G (the work of
+    MuJoCo's gravity compensation counted with the weight it compensates) +
     Σ ½ k (l − l0)² over every spring tendon, from the body and tendon sensors with the model's
     masses, inertias, stiffnesses (kinetic energy agrees with ½ q̇ᵀM q̇); the work of the motor
     ∫ u q̇_input dt (the input joint's rate; the control is constant within each step) plus the
@@ -49,7 +50,9 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
         mass, izz = model.body_mass[body], model.body_inertia[body, 2]
         v, w = sensors[:, sl[sensor_name(name, "com_vel")]], sensors[:, sl[sensor_name(name, "ang_vel")]]
         kinetic += 0.5 * mass * squares_by_row(v) + 0.5 * izz * w[:, 2] ** 2
-        potential -= mass * sensors[:, sl[sensor_name(name, "com_pos")]] @ gravity
+        # gravcomp's force (−gravcomp·m·g at the centre of mass, conservative) counted with the
+        # weight: mj_energyPos leaves it out
+        potential -= (1.0 - model.body_gravcomp[body]) * mass * sensors[:, sl[sensor_name(name, "com_pos")]] @ gravity
     for tendon in range(model.ntendon):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon)
         if model.tendon_armature[tendon] > 0.0:  # a joint inertia: ½ I u̇²

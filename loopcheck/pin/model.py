@@ -105,7 +105,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     Raises
     ------
     ValueError
-        A joint inertia on a cut joint (one line naming it).
+        A joint inertia on a cut joint, or a body with gravcomp under gravity (one line naming it).
     """
     mech = scene.mechanism
     linkage = mech.linkage
@@ -118,6 +118,12 @@ def build(scene: Scene, settings: Settings) -> PinModel:
             raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the "
                              "Pinocchio model: its ½ I u̇² couples several joints' rates and Pinocchio's armature "
                              "is diagonal; move the inertia to a joint of the tree or leave the pin engine out")
+
+    compensated = [b.name for b in linkage.bodies if b.gravcomp]
+    if compensated and scene.gravity is not None:
+        raise ValueError(f"body {compensated[0]!r} has gravcomp {bodies[compensated[0]].gravcomp:g}: the pin engine "
+                         "does not scale a body's gravity (Pinocchio's gravity is the model's); leave the pin "
+                         "engine out")
 
     model = pin.Model()
     model.name = scene.name

@@ -160,7 +160,8 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.DRIVE] = P.float(system.drive)
     h[physics.MASSES] = P.float([bodies[b].mass for b in linkage.moving])
     h[physics.INERTIAS] = P.float([bodies[b].inertia for b in linkage.moving])
-    h[physics.GRAVITY] = P.float(scene.gravity if scene.gravity is not None else (0.0, 0.0))
+    g = np.asarray(scene.gravity if scene.gravity is not None else (0.0, 0.0), dtype=float)
+    h[physics.GRAVITY] = P.float([g * (1.0 - bodies[b].gravcomp) for b in linkage.moving])  # each body's weight
     h[physics.ELEMENT_COEF] = P.float([e.coefficient for e in elements])
     h[physics.ELEMENT_REST] = P.float([e.rest_length for e in elements])
     h[physics.FORCE_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in pf])

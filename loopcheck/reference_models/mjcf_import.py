@@ -25,6 +25,10 @@ close; what becomes of each element:
   ``damping`` is a line spring or damper; a fixed tendon along one joint's coordinate (any joint,
   also a loop's), and a joint's own ``stiffness``, ``damping`` and ``armature``, are joint
   springs, dampers and inertias.
+- Gravity compensation: a moving body's ``gravcomp`` (its weight scaled by 1 − gravcomp; one value
+  for the bodies welded into it; a body welded to the world moves nothing, a body written by its
+  pivot inertia has no weight that moves). A joint's ``actuatorgravcomp`` routes the same force
+  through the actuator: the same motion while its ``actuatorfrcrange`` does not clamp it.
 - The load: a motor on the input joint, ``gear`` × its control (the keyframe's ``ctrl`` or the
   one given, :class:`Control`); gravity: the option's, projected on the plane.
 
@@ -32,8 +36,8 @@ Anything else that acts is refused with one line naming it (:class:`MjcfError`):
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
-gravity compensation (a moving body's ``gravcomp`` other than 0, a joint's ``actuatorgravcomp``;
-on a body welded to the world it moves nothing and is accepted).
+bodies welded together with different ``gravcomp``, a joint's ``actuatorgravcomp`` clamped by its
+``actuatorfrcrange``.
 A value that is NaN or infinite, or finite and outside what the description can hold (a negative
 damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
 is refused too, naming the element, the MJCF attribute and the default class it came from
@@ -306,6 +310,10 @@ class _Reader:
             if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has frictionloss: dry friction "
                           "is not part of loopcheck's description")
+            if m.jnt_actgravcomp[j] and m.jnt_actfrclimited[j]:  # else the same force as a passive gravcomp
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
+                          "with actuatorfrcrange cannot be represented: MuJoCo clamps the gravity compensation "
+                          "there, and loopcheck's gravcomp is not clamped")
             if m.jnt_limited[j]:
                 self.warnings.append(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has a range: "
                                      "loopcheck's description has no joint limits, so the comparison holds while the "
@@ -496,6 +504,19 @@ class _Reader:
         return float(max(np.linalg.norm(span), 1e-9))
 
 
+def _gravcomp(reader: _Reader, group: _Group) -> float:
+    """The group's gravity compensation: its bodies' ``gravcomp``, one value for all those with a
+    mass (welded bodies with different values weigh at another centre than their mass's: refused)."""
+    m = reader.model
+    values = {float(m.body_gravcomp[b]): b for b in group.bodies if m.body_mass[b] > 0.0}
+    if len(values) > 1:
+        (a, ba), (b, bb) = list(values.items())[:2]
+        reader.fail(f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, ba, 'body')}' (gravcomp=\"{_word(a)}\") and body "
+                    f"'{reader.name(mujoco.mjtObj.mjOBJ_BODY, bb, 'body')}' (gravcomp=\"{_word(b)}\") are welded "
+                    "together: different gravcomp on one rigid body cannot be represented (loopcheck's body has one)")
+    return next(iter(values), 0.0)
+
+
 def _mass_properties(reader: _Reader, group: _Group) -> tuple[float, tuple[float, float], float]:
     """(mass kg, com in the group's frame m, inertia about the com and the plane's normal kg·m²)."""
     m, d = reader.model, reader.data
@@ -535,15 +556,16 @@ def _mass_properties(reader: _Reader, group: _Group) -> tuple[float, tuple[float
     return total, (cx, cy), inertia
 
 
-def _pivot_body(group: _Group, mass: float, com, inertia: float, joints, scale: float) -> Body:
-    """The group as a body: by its inertia about its pin to ground when its com sits there."""
+def _pivot_body(group: _Group, mass: float, com, inertia: float, joints, scale: float, gravcomp: float) -> Body:
+    """The group as a body: by its inertia about its pin to ground when its com sits there (its
+    weight, compensated or not, then does no work: ``gravcomp`` is left out)."""
     for j in joints:
         if isinstance(j, RevoluteJoint) and j.body_a == GROUND and j.body_b == group.name:
             px, py = group.points[j.point_b]
             if math.hypot(com[0] - px, com[1] - py) <= SAME_POINT_RTOL * scale:
                 pivot = inertia + mass * ((com[0] - px) ** 2 + (com[1] - py) ** 2)
                 return Body(group.name, group.points, 0.0, (px, py), pivot)
-    return Body(group.name, group.points, mass, com, inertia)
+    return Body(group.name, group.points, mass, com, inertia, gravcomp)
 
 
 def _load_model(path: Path) -> tuple[mujoco.MjModel, tuple[str, ...]]:
@@ -610,7 +632,8 @@ _INERTIAL = (("inertial pos", "ipos", None), ("inertial quat", "iquat", None), (
              ("inertial diaginertia", "inertia", _NONNEGATIVE))
 # What a negative value would be in the description (the scene format's ranges).
 _WHAT = {"density": "a geom's density", "stiffness": "a spring's stiffness", "damping": "a damper's coefficient",
-         "armature": "an inertia", "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia"}
+         "armature": "an inertia", "frictionloss": "a friction loss", "inertial mass": "a mass", "inertial diaginertia": "an inertia",
+         "gravcomp": "a body's gravity compensation"}
 _ALTERNATIVE = {int(mujoco.mjtOrientation.mjORIENTATION_AXISANGLE): "axisangle",
                 int(mujoco.mjtOrientation.mjORIENTATION_EULER): "euler",
                 int(mujoco.mjtOrientation.mjORIENTATION_XYAXES): "xyaxes",
@@ -700,27 +723,9 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
                 if not np.all(np.isfinite(values)):
                     refuse(kind, element, index, attribute, attribute, values, "is not a finite number: every value "
                            "of the model must be finite")
-    def moves(body) -> bool:  # a joint on it or on an ancestor; else it is welded to the world (ground)
-        while body is not None and body.name != "world":
-            if body.first_joint() is not None:
-                return True
-            body = body.parent
-        return False
-
-    for index, body in enumerate(spec.bodies):  # gravity compensation: the description has none
-        if index and body.gravcomp != 0.0 and (moves(body) or not math.isfinite(body.gravcomp)):
-            check("body", body, index, "gravcomp", "gravcomp", None)
-            refuse("body", body, index, "gravcomp", "gravcomp", np.array([body.gravcomp]), "cannot be represented: "
-                   "loopcheck's description has no gravity compensation (every body bears its full weight)")
-    for index, joint in enumerate(spec.joints):
-        if joint.actgravcomp:
-            name = joint.name or f"#{index} (unnamed, in body '{getattr(joint.parent, 'name', '')}')"
-            label = f"joint '{name}'" if joint.name else f"joint {name}"
-            classname = getattr(joint.classname, "name", None)
-            default = spec.find_default(classname) if classname else None
-            source = f" (from default class '{classname}')" if default is not None and default.joint.actgravcomp else ""
-            raise MjcfError(f"{path}: {label}: actuatorgravcomp=\"true\"{source} cannot be represented: loopcheck's "
-                            "description has no gravity compensation")
+    for index, body in enumerate(spec.bodies):  # gravity compensation: finite, ≥ 0 (1: the weight compensated)
+        if index:
+            check("body", body, index, "gravcomp", "gravcomp", _NONNEGATIVE)
     for index, body in enumerate(spec.bodies):
         if index and body.explicitinertial:
             for attribute, field_, least in _INERTIAL:
@@ -797,11 +802,13 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         mass, com, inertia = _mass_properties(reader, group)
         if mass == 0.0 or inertia == 0.0:
             reader.fail(f"body '{group.name}' has no mass or no inertia about the plane's normal")
-        body = _pivot_body(group, mass, com, inertia, joints, reader.scale)
+        gravcomp = _gravcomp(reader, group)
+        body = _pivot_body(group, mass, com, inertia, joints, reader.scale, gravcomp)
         where = f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'" + (
             " (with the bodies welded to it)" if len(group.bodies) > 1 else "")
         if body.mass:
             reader.representable(body.mass, "mass", f"{where}: mass")
+            reader.representable(body.gravcomp, "gravity compensation", f"{where}: gravcomp")
             reader.representable(body.inertia, "inertia", f"{where}: inertia about the plane's normal")
         else:
             reader.representable(body.inertia, "inertia", f"{where}: inertia about its pivot")

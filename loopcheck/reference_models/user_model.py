@@ -191,9 +191,17 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     power = np.zeros((n + 1, 2))  # the motor's, the dampers' (W)
     gap = np.empty(n + 1)
 
+    # gravcomp's force, −gravcomp·m·g at each centre of mass, is conservative: its potential
+    # +Σ gravcomp·m g·x_G joins MuJoCo's (mj_energyPos leaves it out); on a joint with
+    # actuatorgravcomp MuJoCo adds it to qfrc_actuator, where the motor's work leaves it out
+    compensated = model.body_gravcomp * model.body_mass
+    routed = np.asarray(model.jnt_actgravcomp, dtype=float)[model.dof_jntid]
+
     def record(k: int) -> None:
         qpos[k], qvel[k], qacc[k], energy[k] = data.qpos, data.qvel, data.qacc, data.energy
-        power[k] = float(data.qfrc_actuator @ data.qvel), float(-data.qfrc_damper @ data.qvel)
+        energy[k, 0] += float(compensated @ (data.xipos @ model.opt.gravity))
+        power[k] = (float((data.qfrc_actuator - routed * data.qfrc_gravcomp) @ data.qvel),
+                    float(-data.qfrc_damper @ data.qvel))
         gap[k] = _gaps(model, data, connects)
 
     start = time.perf_counter()

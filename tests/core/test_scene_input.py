@@ -143,8 +143,25 @@ def test_point_force_beyond_the_force_range_is_refused():
 FORCE_MESSAGE = out_of_range("point_forces[0].values[0]", HUGE, "force")
 
 
+def test_gravcomp_beyond_its_range_is_refused():
+    """A body's gravcomp (the general description's key) of 1e308 on a shipped planar scene."""
+    import tomllib
+
+    from loopcheck.shipped_scenes import scenes_dir
+
+    data = tomllib.loads((scenes_dir() / "mechanisms" / "drag_link.toml").read_text())
+    body = next(name for name, t in data["bodies"].items() if "mass" in t)
+    data["bodies"][body]["gravcomp"] = HUGE
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(data)
+    assert out_of_range(f"bodies.{body}.gravcomp", HUGE, "gravity compensation") in str(info.value)
+
+
+GRAVCOMP_MESSAGE = out_of_range("bodies.*.gravcomp", HUGE, "gravity compensation")  # its kind, for the check below
+
+
 def test_every_kind_of_range_is_exercised():
-    messages = [c[2] for c in CASES] + [FORCE_MESSAGE]
+    messages = [c[2] for c in CASES] + [FORCE_MESSAGE, GRAVCOMP_MESSAGE]
     kinds = {k for k in LIMITS if any(f": {k} must be in" in m for m in messages)}
     assert kinds == set(LIMITS)
 

@@ -595,13 +595,15 @@ class Chart(RightHandSide):
         V: cython.double = 0.0
         damping: cython.double = 0.0
         force: cython.double = 0.0
-        if self.I[HAS_GRAVITY]:
-            gx = self.F[self.I[GRAVITY]]
-            gy = self.F[self.I[GRAVITY] + 1]
+        if self.I[HAS_GRAVITY]:  # each body's own gravity (the scene's, times 1 − its gravcomp)
             for b in range(nb):
+                gx = self.F[self.I[GRAVITY] + 2 * b]
+                gy = self.F[self.I[GRAVITY] + 2 * b + 1]
                 dV -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
             self.loops._table_positions(CENTRES)
             for b in range(nb):
+                gx = self.F[self.I[GRAVITY] + 2 * b]
+                gy = self.F[self.I[GRAVITY] + 2 * b + 1]
                 V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
         ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
         if ne:
