@@ -33,6 +33,13 @@ INITIAL_RESIDUAL_REL = 1e-12
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # the states' layout: time, qpos, qvel, act, ...
 
 
+def samples_refine_extrema(model: mujoco.MjModel) -> bool:
+    """Whether a run of ``model`` gives samples that support an extremum located between them
+    (:class:`loopcheck.trajectory.Trajectory`'s ``refined_extrema``): RK4's, fourth order, do; Euler's,
+    implicit's and implicitfast's, first order, do not (their peak is the extreme sample)."""
+    return int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
+
+
 @dataclass(frozen=True)
 class RunRecord:
     """A run's stored states read by MuJoCo C.
@@ -238,8 +245,9 @@ def with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles,
         jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
     if timed.shape[1]:
         jumped |= np.any(np.diff(timed, axis=0) != 0.0, axis=1)
+    refined = samples_refine_extrema(model)
     if not np.any(jumped):
-        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy())
+        return Trajectory(times.copy(), q.copy(), qdot.copy(), qddot.copy(), refined)
     jumps = np.flatnonzero(jumped) + 1
     before = []
     for k in jumps:
@@ -252,6 +260,6 @@ def with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles,
             sensors_at(model, data, states[k], ctrl[k - 1], spec)
             before.append(float(layout.input_row @ data.qacc))
     return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
-                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before))
+                      np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before), refined)
 
 

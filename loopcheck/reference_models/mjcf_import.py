@@ -12,9 +12,12 @@ close; what becomes of each element:
   moves, so it adds nothing (the MJCF that ``loopcheck export-mjcf`` writes puts 1 kg there, since
   MuJoCo refuses a moving body without mass).
 - The plane: its normal is the input hinge's axis (else the first hinge's); every hinge axis
-  must be parallel to it and every slide axis in the plane. A body's own 2-D frame is its MuJoCo
-  frame's x axis projected on the plane (its MuJoCo frame when its z is the normal, as in the
-  models ``loopcheck export-mjcf`` writes); ground's is the world's.
+  must be parallel to it and every slide axis in the plane. A body on a hinge has its own 2-D
+  frame: its MuJoCo frame's x axis projected on the plane (its MuJoCo frame when its z is the
+  normal, as in the models ``loopcheck export-mjcf`` writes). A body on a slide takes its parent's
+  2-D frame, whichever way its own MuJoCo frame is turned (its points and centre of mass are
+  expressed in that frame), since the description's prismatic joint keeps its child parallel to its
+  parent; ground's is the world's.
 - Points: every site (named after it, without a ``"<body>."`` prefix), every joint's position on
   both of its bodies and every loop-closure anchor; a point at a site's position is that site.
 - Joints: hinges are revolute joints and slides prismatic ones, from the parent body (``a``) to
@@ -352,24 +355,31 @@ class _Reader:
         m, d = self.model, self.data
         self.group_of: dict[int, _Group] = {}
         taken = {GROUND}
-        ground = _Group(GROUND, 0, [0], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+        # ground's frame is the world's, in the plane's basis
+        ground = _Group(GROUND, 0, [0], self.e1, self.e2)
         self.group_of[0] = ground
         self.moving: list[_Group] = []
         for b in range(1, m.nbody):  # parents come before their children
+            parent = self.group_of[int(m.body_parentid[b])]
             if m.body_jntnum[b] == 0:
-                group = self.group_of[int(m.body_parentid[b])]
-                group.bodies.append(b)
-                self.group_of[b] = group
+                parent.bodies.append(b)
+                self.group_of[b] = parent
                 continue
             name = self.name(mujoco.mjtObj.mjOBJ_BODY, b, "body")
             R = d.xmat[b].reshape(3, 3)
-            n_local = R.T @ self.n
-            a = _in_plane_x(n_local)
-            group = _Group(_unique(_clean(name), taken), b, [b], a, np.cross(n_local, a))
+            if m.jnt_type[m.body_jntadr[b]] == _SLIDE:
+                # the scene's prismatic joint keeps its child's frame parallel to its parent's, and a
+                # slide never turns its child: the child takes its parent's 2-D frame, whatever way
+                # its own MuJoCo frame is turned (constant in the child's frame, so read once here)
+                R_parent = d.xmat[parent.root].reshape(3, 3)
+                a, b_axis = R.T @ (R_parent @ parent.a_local), R.T @ (R_parent @ parent.b_local)
+            else:
+                n_local = R.T @ self.n
+                a = _in_plane_x(n_local)
+                b_axis = np.cross(n_local, a)
+            group = _Group(_unique(_clean(name), taken), b, [b], a, b_axis)
             self.group_of[b] = group
             self.moving.append(group)
-        # ground's frame is the world's, in the plane's basis
-        ground.a_local, ground.b_local = self.e1, self.e2
 
     def local(self, group: _Group, body: int, p_body: np.ndarray) -> tuple[float, float]:
         """The 2-D coordinates in ``group``'s frame of a point given in MuJoCo body ``body``'s frame:

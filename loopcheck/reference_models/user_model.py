@@ -26,6 +26,7 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.errors import FailureReason, NumericalFailure
 from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
+from loopcheck.mujoco_model.record import samples_refine_extrema
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
@@ -231,7 +232,8 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     system, T = loops.compile_linkage(scene.mechanism.linkage), imported.qpos_map
     x = imported.x_read + (qpos - imported.qpos) @ T.T
     xdot, xddot = qvel @ T.T, qacc @ T.T
-    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive)
+    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive,
+                            samples_refine_extrema(model))
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
     # the work of the motor and of the dampers, by the trapezoidal rule over each step
