@@ -90,7 +90,7 @@ def _scene(path: str | None):
     return load_scene(_scene_path(path))
 
 
-MODEL_FLAGS = ("input", "keyframe", "ctrl")  # read a MuJoCo model; a scene file has none of these
+MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl")  # read a MuJoCo model; a scene file has none of these
 
 
 def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
@@ -364,7 +364,11 @@ def _import(args: argparse.Namespace, path: str):
     from loopcheck.reference_models.mjcf_import import import_mjcf
 
     horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
-    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, **horizon)
+    imported = import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+                           control=args.ctrl, **horizon)
+    for line in imported.said:  # the model's only keyframe, read without --keyframe
+        print(f"{path}: {line}")
+    return imported
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -460,15 +464,18 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
                         "first joint)")
     g.add_argument("--keyframe", default=None, metavar="NAME",
-                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
-                        "control)")
+                   help="read the configuration, rates and control of this keyframe (default: the model's only "
+                        "keyframe, said in the output; qpos0 without keyframes; several are refused unless one is "
+                        "named or --qpos0 is given)")
+    g.add_argument("--qpos0", action="store_true", default=None,
+                   help="read qpos0 (at rest, no control) even when the model has keyframes")
     g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
                    help="the motor's control over time, in its ctrl units: a number, or a table "
                         "t:value,t:value,... (s; each value held from its time on, zero before the first); "
                         "default the keyframe's ctrl")
     g.add_argument("--horizon", type=_positive, default=None,
                    help="the simulated time (s): a model's (default 1); given with a scene file, it replaces the "
-                        "scene's simulation.horizon (said in the output). --input, --keyframe and --ctrl read "
+                        "scene's simulation.horizon (said in the output). --input, --keyframe, --qpos0 and --ctrl read "
                         "models only: with scene files alone they are refused")
 
 

@@ -166,7 +166,10 @@ class ImportedModel:
         (gear × gain; N·m or N); None and 0 without a motor.
     closure_residual : the largest gap of a loop at the configuration read, m (before Newton).
     polish : the largest change Newton made to the configuration (rad or m).
+    keyframe : the keyframe read, by name (``#1 (unnamed)`` for a model's only, unnamed one); None
+        for qpos0.
     warnings : one line each: what was disabled or left out, and why.
+    said : one line each for stdout: what was chosen for the user (the model's only keyframe).
     """
 
     scene: Scene
@@ -182,6 +185,7 @@ class ImportedModel:
     closure_residual: float
     polish: float
     warnings: tuple[str, ...]
+    said: tuple[str, ...] = ()
 
 
 def _object_name(model: mujoco.MjModel, kind, index: int, fallback: str) -> str:
@@ -717,27 +721,78 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
                         "must be > 0 s")
 
 
-def _state(path: Path, model: mujoco.MjModel, keyframe: str | None):
+def _key_label(model: mujoco.MjModel, k: int) -> str:
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k)
+    return f"'{name}'" if name else f"#{k + 1} (unnamed)"
+
+
+def _state(path: Path, model: mujoco.MjModel, keyframe: str | None, qpos0: bool):
+    """(qpos, qvel, ctrl, the keyframe read or None, the line that says a keyframe was chosen or None).
+
+    No keyframe named: qpos0 with ``qpos0``; else the model's only keyframe, said in the line
+    returned; several are refused, listed (a load in a keyframe is never silently dropped)."""
+    rest = model.qpos0.copy(), np.zeros(model.nv), np.zeros(model.nu), None, None
+    if keyframe is not None and qpos0:
+        raise MjcfError(f"{path}: --keyframe '{keyframe}' and --qpos0 both given: name a keyframe, or read qpos0")
     if keyframe is None:
-        return model.qpos0.copy(), np.zeros(model.nv), np.zeros(model.nu)
-    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-    if k < 0:
-        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)]
-        listed = ", ".join(f"'{n}'" for n in names if n) or "none"
-        raise MjcfError(f"{path}: no keyframe named '{keyframe}' (the model's keyframes: {listed})")
-    return model.key_qpos[k].copy(), model.key_qvel[k].copy(), model.key_ctrl[k].copy()
+        if qpos0 or model.nkey == 0:
+            return rest
+        if model.nkey > 1:
+            listed = ", ".join(_key_label(model, k) for k in range(model.nkey))
+            raise MjcfError(f"{path}: the model has {model.nkey} keyframes ({listed}): name the one to read with "
+                            "--keyframe, or give --qpos0 to read qpos0 (at rest, no control)")
+        k = 0
+        label = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, 0) or "#1 (unnamed)"
+        said = (f"read at keyframe '{label}', the model's only keyframe (its qpos, qvel and ctrl; --qpos0 reads "
+                "qpos0 instead)")
+    else:
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if k < 0:
+            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)]
+            listed = ", ".join(f"'{n}'" for n in names if n) or "none"
+            raise MjcfError(f"{path}: no keyframe named '{keyframe}' (the model's keyframes: {listed})")
+        label, said = keyframe, None
+    return model.key_qpos[k].copy(), model.key_qvel[k].copy(), model.key_ctrl[k].copy(), label, said
+
+
+def _closing_keyframes(reader: _Reader) -> list[str]:
+    """The keyframes at which every active connect of the model closes (to CLOSURE_RTOL of the
+    model's size at qpos0), by label: named in the refusal of an open qpos0."""
+    m = reader.model
+    d = mujoco.MjData(m)
+    out = []
+    for k in range(m.nkey):
+        d.qpos[:] = m.key_qpos[k]
+        mujoco.mj_kinematics(m, d)
+        gaps = []
+        for e in range(m.neq):
+            if not m.eq_active0[e] or int(m.eq_type[e]) != _CONNECT:
+                continue
+            if int(m.eq_objtype[e]) == _OBJ_SITE:
+                w1, w2 = d.site_xpos[int(m.eq_obj1id[e])], d.site_xpos[int(m.eq_obj2id[e])]
+            else:
+                b1, b2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+                w1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e][0:3]
+                w2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e][3:6]
+            gaps.append(float(np.linalg.norm(np.asarray(w1) - np.asarray(w2))))
+        if gaps and max(gaps) <= CLOSURE_RTOL * reader.scale:
+            out.append(_key_label(m, k))
+    return out
 
 
 def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: str | None = None,
-                control: Control | None = None, horizon: float = 1.0, name: str | None = None) -> ImportedModel:
+                qpos0: bool = False, control: Control | None = None, horizon: float = 1.0,
+                name: str | None = None) -> ImportedModel:
     """Read the MJCF file ``path`` as a scene (module docstring).
 
     Parameters
     ----------
     input_joint : the MuJoCo joint (hinge or slide) whose coordinate is q; default the joint the
         motor drives, else the model's first joint.
-    keyframe : the keyframe to read the configuration, rates and control from; default qpos0, at
-        rest, with zero control.
+    keyframe : the keyframe to read the configuration, rates and control from; default the
+        model's only keyframe (said in ``ImportedModel.said``), qpos0 (at rest, with zero control)
+        when it has none; a model with several is refused unless one is named or ``qpos0``.
+    qpos0 : read qpos0 (at rest, zero control) even when the model has keyframes.
     control : the motor's control over time, instead of the keyframe's (constant) one.
     horizon : the scene's simulated time, s.
     name : the scene's name; default the file's stem.
@@ -749,7 +804,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     """
     path = Path(path)
     model, loading = _load_model(path)
-    qpos, qvel, key_ctrl = _state(path, model, keyframe)
+    qpos, qvel, key_ctrl, keyframe, said_key = _state(path, model, keyframe, qpos0)
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
     reader.warnings.extend(loading + tuple(said.lines))
@@ -763,7 +818,14 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.groups()
     reader.sites()
     tree = reader.tree_joints()
-    cuts = reader.loops()
+    try:
+        cuts = reader.loops()
+    except MjcfError as exc:
+        closing = _closing_keyframes(reader) if keyframe is None and reader.gaps and \
+            reader.gaps[-1] > CLOSURE_RTOL * reader.scale else []
+        if not closing:
+            raise
+        raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
     load, gear, applied = _load(reader, inp, control, key_ctrl)
 
@@ -844,7 +906,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
-                         warnings=tuple(reader.warnings))
+                         warnings=tuple(reader.warnings), said=(said_key,) if said_key else ())
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:

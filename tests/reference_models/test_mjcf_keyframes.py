@@ -1,0 +1,132 @@
+"""Keyframes read when none is named (issue 36): the model's only keyframe is used and said,
+several are refused and listed unless --keyframe or --qpos0 is given, and a refusal of an open
+qpos0 names a keyframe that closes the loops.
+
+The models are written by hand in the style of MuJoCo Menagerie (default classes, bodies placed in
+their assembled pose, a body-form connect, a keyframe "home" that holds the actuator's control).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from loopcheck.loads import ConstantLoad
+from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+
+DATA = Path(__file__).parent.parent / "data" / "mjcf"
+
+# A crank-rocker in a horizontal plane (gravity along the hinge axes does no work): its only load
+# is the keyframe's ctrl on the crank motor. Crank 0.1 m at 90°, coupler 0.3 m, rocker 0.25 m
+# pivoted 0.3 m from the crank's pivot; B = (0.26150623, 0.24701868) closes the loop at qpos0.
+LINKAGE = """\
+<mujoco model="planar_linkage">
+  <compiler angle="degree" autolimits="true"/>
+  <option timestep="0.002"/>
+  <default>
+    <default class="linkage">
+      <joint type="hinge" axis="0 0 1" damping="0.01"/>
+      <geom type="capsule" size="0.008" contype="0" conaffinity="0" density="2700"/>
+      <default class="driver">
+        <motor gear="1" ctrlrange="-5 5"/>
+      </default>
+    </default>
+  </default>
+  <worldbody>
+    <body name="base" childclass="linkage">
+      <body name="crank" euler="0 0 90">
+        <joint name="crank_joint"/>
+        <geom fromto="0 0 0 0.1 0 0"/>
+        <body name="coupler" pos="0.1 0 0" euler="0 0 -60.65532520005005">
+          <joint name="coupler_joint"/>
+          <geom fromto="0 0 0 0.3 0 0"/>
+        </body>
+      </body>
+      <body name="rocker" pos="0.3 0 0" euler="0 0 98.85735968522755">
+        <joint name="rocker_joint"/>
+        <geom fromto="0 0 0 0.25 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <equality>
+    <connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.3 0 0"/>
+  </equality>
+  <actuator>
+    <motor name="crank_motor" class="driver" joint="crank_joint"/>
+  </actuator>
+  <keyframe>
+{keys}
+  </keyframe>
+</mujoco>
+"""
+HOME = '    <key name="home" qpos="0 0 0" ctrl="2"/>'
+
+
+def _write(tmp_path: Path, keys: str, name: str = "linkage.xml") -> Path:
+    path = tmp_path / name
+    path.write_text(LINKAGE.format(keys=keys))
+    return path
+
+
+def test_the_only_keyframe_is_read_and_said(tmp_path):
+    """Without --keyframe, the model's only keyframe gives the load (2 N·m, gear 1); before, it
+    was ignored and the scene had no load at all."""
+    imported = import_mjcf(_write(tmp_path, HOME))
+    assert imported.keyframe == "home"
+    assert imported.scene.load == ConstantLoad(2.0)
+    assert len(imported.said) == 1 and "'home'" in imported.said[0] and "only keyframe" in imported.said[0]
+    at_rest = import_mjcf(_write(tmp_path, HOME), qpos0=True)
+    assert at_rest.keyframe is None and at_rest.scene.load is None and at_rest.said == ()
+
+
+def test_an_unnamed_only_keyframe_is_read(tmp_path):
+    imported = import_mjcf(_write(tmp_path, '    <key qpos="0 0 0" ctrl="-1.5"/>'))
+    assert imported.scene.load == ConstantLoad(-1.5) and "unnamed" in imported.said[0]
+
+
+def test_several_keyframes_are_refused_and_listed(tmp_path):
+    path = _write(tmp_path, HOME + '\n    <key name="push" qpos="0 0 0" ctrl="4"/>\n    <key ctrl="1"/>')
+    with pytest.raises(MjcfError) as refused:
+        import_mjcf(path)
+    text = str(refused.value)
+    assert "3 keyframes" in text and "'home'" in text and "'push'" in text and "#3 (unnamed)" in text
+    assert "--keyframe" in text and "--qpos0" in text and "\n" not in text
+    assert import_mjcf(path, keyframe="push").scene.load == ConstantLoad(4.0)
+    assert import_mjcf(path, qpos0=True).scene.load is None
+    with pytest.raises(MjcfError, match="both given"):
+        import_mjcf(path, keyframe="push", qpos0=True)
+
+
+def test_an_open_qpos0_names_the_keyframe_that_closes_it(tmp_path):
+    """The four-bar laid out straight at qpos0 is assembled by its keyframe 'assembled': read at
+    qpos0, the refusal names it; a keyframe that leaves the loop open is not named."""
+    path = DATA / "fourbar_sites_keyframe.xml"
+    with pytest.raises(MjcfError) as refused:
+        import_mjcf(path, qpos0=True)
+    assert "is open by" in str(refused.value) and "keyframe 'assembled' closes the loops" in str(refused.value)
+    assert import_mjcf(path).keyframe == "assembled"  # its only keyframe, read without --keyframe
+    open_only = tmp_path / "open_keys.xml"
+    open_only.write_text(path.read_text().replace(
+        '<key name="assembled"', '<key name="straight" qpos="0 0 0"/>\n    <key name="assembled"'))
+    with pytest.raises(MjcfError) as refused:
+        import_mjcf(open_only, keyframe="straight")
+    assert "closes the loops" not in str(refused.value)  # a keyframe named is read, not second-guessed
+    with pytest.raises(MjcfError) as refused:
+        import_mjcf(open_only, qpos0=True)
+    assert "keyframe 'assembled' closes" in str(refused.value) and "'straight'" not in str(refused.value)
+
+
+def test_cli_says_which_keyframe_it_read(tmp_path, capsys):
+    from loopcheck.compare.cli import main
+
+    model = _write(tmp_path, HOME)
+    out = tmp_path / "scene.toml"
+    assert main(["import-mjcf", str(model), "-o", str(out)]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if "only keyframe" in line]
+    assert len(said) == 1 and "'home'" in said[0]
+    several = _write(tmp_path, HOME + '\n    <key name="push" ctrl="4"/>', "several.xml")
+    assert main(["import-mjcf", str(several), "-o", str(tmp_path / "s.toml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "2 keyframes" in err and not (tmp_path / "s.toml").exists()
+    assert main(["import-mjcf", str(several), "--qpos0", "-o", str(tmp_path / "s.toml")]) == 0
