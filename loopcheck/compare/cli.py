@@ -472,11 +472,11 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
                    help="the motor's control over time, in its ctrl units: a number, or a table "
                         "t:value,t:value,... (s; each value held from its time on, zero before the first); "
-                        "default the keyframe's ctrl")
+                        "default the model's loopcheck.ctrl numeric, else the keyframe's ctrl")
     g.add_argument("--horizon", type=_positive, default=None,
-                   help="the simulated time (s): a model's (default 1); given with a scene file, it replaces the "
-                        "scene's simulation.horizon (said in the output). --input, --keyframe, --qpos0 and --ctrl read "
-                        "models only: with scene files alone they are refused")
+                   help="the simulated time (s): a model's (default its loopcheck.horizon numeric, else 1); given "
+                        "with a scene file, it replaces the scene's simulation.horizon (said in the output). --input, "
+                        "--keyframe, --qpos0 and --ctrl read models only: with scene files alone they are refused")
 
 
 def cmd_cost(args: argparse.Namespace) -> int:

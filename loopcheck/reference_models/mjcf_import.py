@@ -47,6 +47,7 @@ import math
 import os
 import stat
 import xml.etree.ElementTree as ET
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,12 +58,13 @@ from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
 from loopcheck.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
                             PrismaticJoint, RevoluteJoint)
-from loopcheck.scene import LIMITS, Scene, SceneError
+from loopcheck.scene import LIMITS, Scene, SceneError, Tolerances
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.settings import parse_number
 
-from loopcheck.mujoco_model.build import BASE_BODY
+from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_CTRL, CUSTOM_HORIZON, CUSTOM_PREFIX,
+                                          CUSTOM_TOLERANCES)
 from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
@@ -780,8 +782,66 @@ def _closing_keyframes(reader: _Reader) -> list[str]:
     return out
 
 
+@dataclass(frozen=True)
+class _Customs:
+    """What ``loopcheck export-mjcf`` wrote as ``<custom>`` numerics (:func:`_customs`)."""
+
+    horizon: float | None = None
+    control: Control | None = None
+    tolerances: dict = field(default_factory=dict)  # KEY: value
+    engine_tolerances: dict = field(default_factory=dict)  # ENGINE: {KEY: value}
+
+
+def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
+    """The model's ``loopcheck.*`` numerics (``loopcheck.horizon``, ``loopcheck.ctrl``,
+    ``loopcheck.tolerances.KEY`` and ``loopcheck.tolerances.ENGINE.KEY``); another name under
+    ``loopcheck.``, a wrong size or a value that is not finite or out of range is refused, naming
+    the numeric. Other numerics are the user's own and act on nothing: not read."""
+    keys = [f.name for f in dataclasses.fields(Tolerances)]
+    out = _Customs()
+    for n in range(model.nnumeric):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_NUMERIC, n) or ""
+        if not name.startswith(CUSTOM_PREFIX):
+            continue
+        adr, size = int(model.numeric_adr[n]), int(model.numeric_size[n])
+        data = [float(v) for v in model.numeric_data[adr:adr + size]]
+        where = f"{path}: custom numeric '{name}'"
+        if not all(math.isfinite(v) for v in data):
+            raise MjcfError(f"{where}: data=\"{' '.join(_word(v) for v in data)}\" is not finite: every value of the "
+                            "model must be finite")
+        if name == CUSTOM_CTRL:
+            if size < 2 or size % 2:
+                raise MjcfError(f"{where}: {size} values: the control table is pairs t0 v0 t1 v1 ... (s, ctrl units)")
+            times, values = tuple(data[0::2]), tuple(data[1::2])
+            if times[0] < 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+                raise MjcfError(f"{where}: the times {', '.join(_word(t) for t in times)} must be ≥ 0 s and "
+                                "increase strictly")
+            if model.nu == 0:
+                raise MjcfError(f"{where}: a control table, and the model has no actuator to apply it to")
+            out = dataclasses.replace(out, control=Control(times, values))
+            continue
+        if size != 1:
+            raise MjcfError(f"{where}: {size} values, not one")
+        value = data[0]
+        if name == CUSTOM_HORIZON:
+            out = dataclasses.replace(out, horizon=value)  # its range is the scene file's, checked with it
+            continue
+        key = name[len(CUSTOM_TOLERANCES):] if name.startswith(CUSTOM_TOLERANCES) else ""
+        engine, _, field_ = key.rpartition(".")
+        if field_ not in keys or "." in engine:
+            raise MjcfError(f"{where}: not a numeric loopcheck writes ({CUSTOM_HORIZON}, {CUSTOM_CTRL}, "
+                            f"{CUSTOM_TOLERANCES}KEY or {CUSTOM_TOLERANCES}ENGINE.KEY, KEY one of {', '.join(keys)})")
+        if not value > 0.0:
+            raise MjcfError(f"{where}: {_word(value)}: a tolerance must be > 0")
+        if engine:
+            out.engine_tolerances.setdefault(engine, {})[field_] = value
+        else:
+            out.tolerances[field_] = value
+    return out
+
+
 def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: str | None = None,
-                qpos0: bool = False, control: Control | None = None, horizon: float = 1.0,
+                qpos0: bool = False, control: Control | None = None, horizon: float | None = None,
                 name: str | None = None) -> ImportedModel:
     """Read the MJCF file ``path`` as a scene (module docstring).
 
@@ -793,8 +853,12 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         model's only keyframe (said in ``ImportedModel.said``), qpos0 (at rest, with zero control)
         when it has none; a model with several is refused unless one is named or ``qpos0``.
     qpos0 : read qpos0 (at rest, zero control) even when the model has keyframes.
-    control : the motor's control over time, instead of the keyframe's (constant) one.
-    horizon : the scene's simulated time, s.
+    control : the motor's control over time, instead of the model's ``loopcheck.ctrl`` table or
+        the keyframe's (constant) control.
+    horizon : the scene's simulated time, s; default the model's ``loopcheck.horizon``, else 1.
+
+    What ``loopcheck export-mjcf`` writes as ``<custom>`` numerics (the horizon, the tolerances,
+    the load's table) is read back under the arguments given (:func:`_customs`).
     name : the scene's name; default the file's stem.
 
     Raises
@@ -805,6 +869,9 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     path = Path(path)
     model, loading = _load_model(path)
     qpos, qvel, key_ctrl, keyframe, said_key = _state(path, model, keyframe, qpos0)
+    customs = _customs(path, model)
+    horizon = horizon if horizon is not None else customs.horizon if customs.horizon is not None else 1.0
+    control = control if control is not None else customs.control
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
     reader.warnings.extend(loading + tuple(said.lines))
@@ -896,7 +963,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     provisional = Scene(name=_clean(name or path.stem)[:100], description=f"imported from {path.name}",
                         mechanism=mechanism, load=load, gravity=gravity, q0=q0, qdot0=qdot0,
                         x0=tuple(float(v) for v in guess), mode=loops.assembly_mode(system, guess),
-                        horizon=horizon, engine_tables={})
+                        horizon=horizon, engine_tables={}, tolerances=Tolerances(**customs.tolerances),
+                        engine_tolerances=customs.engine_tolerances)
     data = scene_data(provisional)
     try:
         scene = scene_from_dict(data, source=str(path))

@@ -130,3 +130,52 @@ def test_cli_says_which_keyframe_it_read(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "2 keyframes" in err and not (tmp_path / "s.toml").exists()
     assert main(["import-mjcf", str(several), "--qpos0", "-o", str(tmp_path / "s.toml")]) == 0
+
+
+def _exported(tmp_path: Path) -> Path:
+    """The shipped seed (a 250 N·m pulse for 1 s, horizon 2 s, MJWarp's own tolerances) exported."""
+    from loopcheck.reference_models import MujocoSettings, mjcf_text
+    from loopcheck.shipped_scenes import default_scene_path
+    from loopcheck.scenefile import load_scene
+
+    path = tmp_path / "seed.xml"
+    path.write_text(mjcf_text(load_scene(default_scene_path()), MujocoSettings(timestep=1e-3)))
+    return path
+
+
+def test_the_arguments_come_before_the_custom_numerics(tmp_path):
+    """Flags, then <custom>, then defaults: --horizon and --ctrl over the exported horizon and load
+    table; without them, the file's (2 s; 250 N·m until 1 s); a model without them, 1 s."""
+    from loopcheck.loads import PiecewiseConstantLoad
+    from loopcheck.reference_models.mjcf_import import Control
+
+    path = _exported(tmp_path)
+    plain = import_mjcf(path)
+    assert plain.scene.horizon == 2.0 and plain.scene.load == PiecewiseConstantLoad((0.0, 1.0), (250.0, 0.0))
+    assert plain.scene.engine_tolerances["mjwarp"]["q_atol"] == 0.01
+    flagged = import_mjcf(path, horizon=0.5, control=Control.constant(3.0))
+    assert flagged.scene.horizon == 0.5 and flagged.scene.load == ConstantLoad(3.0)
+    assert import_mjcf(_write(tmp_path, HOME)).scene.horizon == 1.0  # no <custom>: the default
+
+
+@pytest.mark.parametrize("numeric, says", [
+    ('<numeric name="loopcheck.horizon" data="nan"/>', "not finite"),
+    ('<numeric name="loopcheck.horizn" data="2"/>', "not a numeric loopcheck writes"),
+    ('<numeric name="loopcheck.ctrl" data="0 1 2"/>', "pairs"),
+    ('<numeric name="loopcheck.ctrl" data="1 5 0 1"/>', "increase strictly"),
+    ('<numeric name="loopcheck.tolerances.q_atol" data="-1"/>', "must be > 0"),
+    ('<numeric name="loopcheck.horizon" data="1 2"/>', "not one"),
+])
+def test_bad_custom_numerics_are_refused_by_name(tmp_path, numeric, says):
+    path = tmp_path / "bad.xml"
+    path.write_text(LINKAGE.format(keys=HOME).replace("</mujoco>", f"  <custom>{numeric}</custom>\n</mujoco>"))
+    with pytest.raises(MjcfError) as refused:
+        import_mjcf(path)
+    assert "custom numeric 'loopcheck." in str(refused.value) and says in str(refused.value)
+
+
+def test_a_users_own_numeric_is_not_read(tmp_path):
+    path = tmp_path / "own.xml"
+    path.write_text(LINKAGE.format(keys=HOME).replace(
+        "</mujoco>", '  <custom><numeric name="gripper_width" data="0.085"/></custom>\n</mujoco>'))
+    assert import_mjcf(path).scene.horizon == 1.0
