@@ -238,6 +238,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
     imported = _import(args, args.model)
     for line in imported.warnings:
         print(f"loopcheck: warning: {line}", file=sys.stderr)
+    for line in imported.said:  # the model's only keyframe, read without --keyframe
+        print(f"{args.model}: {line}")
     scene = imported.scene
     where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
     header = (f"Imported by `loopcheck import-mjcf` from {Path(args.model).name}, read at {where}.\n"
@@ -303,6 +305,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         imported = _import(args, args.scene)
         for line in imported.warnings:
             print(f"loopcheck: warning: {args.scene}: {line}", file=sys.stderr)
+        for line in imported.said:
+            print(f"{args.scene}: {line}")
         scene = imported.scene
         joints = joint_columns(scene, args.joints)
         check = check_model(imported, tolerances=_tolerances(scene, args), reduced=_reduced_reference(args, scene))
@@ -364,11 +368,8 @@ def _import(args: argparse.Namespace, path: str):
     from loopcheck.reference_models.mjcf_import import import_mjcf
 
     horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
-    imported = import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
-                           control=args.ctrl, **horizon)
-    for line in imported.said:  # the model's only keyframe, read without --keyframe
-        print(f"{path}: {line}")
-    return imported
+    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+                       control=args.ctrl, **horizon)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -390,6 +391,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 
         for line in imported.warnings:
             print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+        for line in imported.said:
+            print(f"{path}: {line}")
         try:
             check = check_model(imported, tolerances=_tolerances(imported.scene, args),
                                 reduced=_reduced_reference(args, imported.scene))

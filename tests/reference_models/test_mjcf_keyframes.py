@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from loopcheck.loads import ConstantLoad
@@ -179,3 +180,23 @@ def test_a_users_own_numeric_is_not_read(tmp_path):
     path.write_text(LINKAGE.format(keys=HOME).replace(
         "</mujoco>", '  <custom><numeric name="gripper_width" data="0.085"/></custom>\n</mujoco>'))
     assert import_mjcf(path).scene.horizon == 1.0
+
+
+def test_cli_export_then_import_with_no_flags_gives_the_scene_back(tmp_path, capsys):
+    """`export-mjcf -o m.xml` then `import-mjcf m.xml` (the seed): before, the load, the horizon
+    (2 s → 1 s) and the tolerances were lost; now the scene file written has them."""
+    from loopcheck.compare.cli import main
+    from loopcheck.scenefile import load_scene
+    from loopcheck.shipped_scenes import default_scene_path
+
+    seed = load_scene(default_scene_path())
+    model, back = tmp_path / "m.xml", tmp_path / "back.toml"
+    assert main(["export-mjcf", "-o", str(model), "--timestep", "0.001"]) == 0
+    assert main(["import-mjcf", str(model), "-o", str(back)]) == 0
+    assert "read at keyframe 'home', the model's only keyframe" in capsys.readouterr().out
+    scene = load_scene(back)
+    assert (scene.horizon, scene.q0, scene.qdot0, scene.tolerances) == (seed.horizon, seed.q0, seed.qdot0,
+                                                                        seed.tolerances)
+    assert dict(scene.engine_tolerances["mjwarp"]) == dict(seed.engine_tolerances["mjwarp"])
+    times = np.linspace(0.0, seed.horizon, 2001)
+    np.testing.assert_array_equal(scene.load.sample(times), seed.load.sample(times))
