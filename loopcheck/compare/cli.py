@@ -90,7 +90,7 @@ def _scene(path: str | None):
     return load_scene(_scene_path(path))
 
 
-MODEL_FLAGS = ("input", "keyframe", "ctrl")  # read a MuJoCo model; a scene file has none of these
+MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl")  # read a MuJoCo model; a scene file has none of these
 
 
 def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
@@ -238,6 +238,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
     imported = _import(args, args.model)
     for line in imported.warnings:
         print(f"loopcheck: warning: {line}", file=sys.stderr)
+    for line in imported.said:  # the model's only keyframe, read without --keyframe
+        print(f"{args.model}: {line}")
     scene = imported.scene
     where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
     header = (f"Imported by `loopcheck import-mjcf` from {Path(args.model).name}, read at {where}.\n"
@@ -303,6 +305,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         imported = _import(args, args.scene)
         for line in imported.warnings:
             print(f"loopcheck: warning: {args.scene}: {line}", file=sys.stderr)
+        for line in imported.said:
+            print(f"{args.scene}: {line}")
         scene = imported.scene
         joints = joint_columns(scene, args.joints)
         check = check_model(imported, tolerances=_tolerances(scene, args), reduced=_reduced_reference(args, scene))
@@ -364,7 +368,8 @@ def _import(args: argparse.Namespace, path: str):
     from loopcheck.reference_models.mjcf_import import import_mjcf
 
     horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
-    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, control=args.ctrl, **horizon)
+    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+                       control=args.ctrl, **horizon)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -386,6 +391,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 
         for line in imported.warnings:
             print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+        for line in imported.said:
+            print(f"{path}: {line}")
         try:
             check = check_model(imported, tolerances=_tolerances(imported.scene, args),
                                 reduced=_reduced_reference(args, imported.scene))
@@ -460,16 +467,19 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
                         "first joint)")
     g.add_argument("--keyframe", default=None, metavar="NAME",
-                   help="read the configuration, rates and control of this keyframe (default: qpos0, at rest, no "
-                        "control)")
+                   help="read the configuration, rates and control of this keyframe (default: the model's only "
+                        "keyframe, said in the output; qpos0 without keyframes; several are refused unless one is "
+                        "named or --qpos0 is given)")
+    g.add_argument("--qpos0", action="store_true", default=None,
+                   help="read qpos0 (at rest, no control) even when the model has keyframes")
     g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
                    help="the motor's control over time, in its ctrl units: a number, or a table "
                         "t:value,t:value,... (s; each value held from its time on, zero before the first); "
-                        "default the keyframe's ctrl")
+                        "default the model's loopcheck.ctrl numeric, else the keyframe's ctrl")
     g.add_argument("--horizon", type=_positive, default=None,
-                   help="the simulated time (s): a model's (default 1); given with a scene file, it replaces the "
-                        "scene's simulation.horizon (said in the output). --input, --keyframe and --ctrl read "
-                        "models only: with scene files alone they are refused")
+                   help="the simulated time (s): a model's (default its loopcheck.horizon numeric, else 1); given "
+                        "with a scene file, it replaces the scene's simulation.horizon (said in the output). --input, "
+                        "--keyframe, --qpos0 and --ctrl read models only: with scene files alone they are refused")
 
 
 def cmd_cost(args: argparse.Namespace) -> int:

@@ -12,6 +12,9 @@ settings that can cause a difference is changed alone:
 Each of these two has its own budget of TRIAL_STEPS steps (and a run's MAX_STEPS): past it, the
 trial is skipped with a note, and the model as written still gets its verdict.
 
+A model whose exact solution does not move (:class:`VacuousCheck`) is refused before MuJoCo runs:
+nothing the gate compares could differ.
+
 The one that removes more of the difference is named as its cause. Last, the cheapest options
 that meet the tolerances: stiff loops at the model's step, then at halved steps until one passes
 (or at doubled steps while they pass, when the model's own step does), with the model's integrator
@@ -23,10 +26,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from loopcheck.errors import NumericalFailure
 from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.results import EngineResult
-from loopcheck.scene import Tolerances
+from loopcheck.scene import SceneError, Tolerances
 from loopcheck.reference_models.mjcf_import import ImportedModel
 from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, run_model
 
@@ -37,6 +42,26 @@ SEARCH_STEPS = 1_000_000  # MuJoCo steps all the search's runs may take together
 MAX_DOUBLINGS = 4  # and, when the model's own step passes with stiff loops, up to timestep × 2⁴
 STEP_FACTOR = 10  # the timestep variant runs at timestep / 10
 TRIAL_STEPS = SEARCH_STEPS  # the comparison trials' (stiff loops, timestep / 10) own budget each, in steps
+
+
+class VacuousCheck(SceneError):
+    """A check of a model whose exact solution does not move (max |q̇| ≤ omega_atol and
+    max |q − q0| ≤ q_atol over the horizon): the gate could see no difference, so it would pass
+    whatever MuJoCo did. Bad input (exit 2): the model has no load that moves it (``--ctrl``,
+    ``--keyframe``)."""
+
+
+def refuse_vacuous(reference: EngineResult, tolerances: Tolerances, where: str, unit: str) -> None:
+    """Raise :class:`VacuousCheck` when the reference ``reference`` does not move by more than the
+    gate's tolerances; ``where`` names the model and the state it was read at."""
+    q, qdot = reference.trajectory.q, reference.trajectory.qdot
+    moved = float(np.max(np.abs(q - q[0])))
+    fastest = float(np.max(np.abs(qdot)))
+    if fastest <= tolerances.omega_atol and moved <= tolerances.q_atol:
+        raise VacuousCheck(f"{where}: the exact solution does not move (max |q̇| {fastest:.3g} {unit}/s ≤ omega_atol "
+                           f"{tolerances.omega_atol:g}, max |q − q0| {moved:.3g} {unit} ≤ q_atol {tolerances.q_atol:g} "
+                           f"over {reference.trajectory.t[-1]:g} s): the check could not fail; load the model with "
+                           "--ctrl, or read a keyframe with rates or control with --keyframe")
 
 
 @dataclass(frozen=True)
@@ -172,10 +197,14 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     ------
     NumericalFailure
         If the reduced reference fails (the model's own runs record their failures instead).
+    VacuousCheck
+        If the reduced reference does not move (:func:`refuse_vacuous`): before MuJoCo runs.
     """
     scene = imported.scene
     tolerances = tolerances or scene.tolerances
     reference = simulate(scene, reduced or ReducedSettings())
+    read_at = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+    refuse_vacuous(reference, tolerances, f"{scene.source or scene.name} (read at {read_at})", scene.input_unit)
     written = ModelOptions.as_written(imported.model)
 
     def trial(label: str, options: ModelOptions, budget: int | None = None) -> Trial:

@@ -43,6 +43,7 @@ enter the joint-space mass matrix, and the choice satisfies MuJoCo's triangle in
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import xml.etree.ElementTree as ET
@@ -55,7 +56,8 @@ from loopcheck import kinematics as loops
 from loopcheck import tree_coordinates as tree
 from loopcheck.tree_coordinates import joint_order
 from loopcheck.mechanism import GROUND, PrismaticJoint
-from loopcheck.scene import Scene
+from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad, PulseLoad
+from loopcheck.scene import Scene, Tolerances
 
 from .options import INTEGRATORS as MUJOCO_INTEGRATORS
 from .warning_handler import compile_spec
@@ -87,6 +89,11 @@ check_mujoco_version(mujoco.__version__)
 INTEGRATOR_ENUM = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in MUJOCO_INTEGRATORS}
 BASE_BODY = "base"  # the fixed body every chain hangs from (the description's ground)
 HOME_KEY = "home"  # keyframe with the scene's initial state
+# What a scene holds outside the model, written as MJCF <custom> numerics for import-mjcf to read back
+CUSTOM_PREFIX = "loopcheck."
+CUSTOM_HORIZON = "loopcheck.horizon"  # [s]
+CUSTOM_CTRL = "loopcheck.ctrl"  # the input motor's control table [t0, v0, t1, v1, ...] (s, ctrl units; gear 1)
+CUSTOM_TOLERANCES = "loopcheck.tolerances."  # + KEY, or + ENGINE.KEY: [value]
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
 INPUT_MOTOR = "input_motor"  # the actuator of the scene's load on the input joint
 RESERVED_NAMES = (BASE_BODY, "world")  # MuJoCo names a description's body may not take
@@ -403,11 +410,52 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                            "mjcb_control, held over each step at its midpoint value "
                            "(loopcheck.reference_models.loads.timed_values)")
 
+    add_scene_customs(spec, scene)
     # The scene's initial state (the control follows the timestep: set_timestep).
     qpos0, qvel0 = initial_qpos_qvel(scene)
     spec.add_key(name=HOME_KEY, time=0.0, qpos=list(qpos0), qvel=list(qvel0))
     set_timestep(spec, scene, timestep, constraint.solref)
     return spec
+
+
+def load_table(load: LoadProfile | None) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """The load as a table of (time s, value) pairs, each value held from its time on, zero before
+    the first (``import-mjcf``'s ``--ctrl`` form): ((0,), (0,)) without a load; None for a kind of
+    load a table cannot give."""
+    if load is None:
+        return (0.0,), (0.0,)
+    if isinstance(load, ConstantLoad):
+        return (0.0,), (float(load.amplitude),)
+    if isinstance(load, PulseLoad):
+        if load.duration == 0.0:
+            return (0.0,), (0.0,)
+        return (float(load.start), float(load.start + load.duration)), (float(load.amplitude), 0.0)
+    if isinstance(load, PiecewiseConstantLoad):
+        return tuple(map(float, load.times)), tuple(map(float, load.values))
+    return None
+
+
+def add_scene_customs(spec: mujoco.MjSpec, scene: Scene) -> None:
+    """What the scene holds outside the model, as ``<custom>`` numerics (``loopcheck import-mjcf``
+    reads them back; they do not act on the model): the horizon, every tolerance given (the
+    scene's ``[tolerances]`` and each engine's own table's keys) and the input's load table, when
+    it has a load (the motor's gear is 1, so its control is the load). A point or timed force is said in a text
+    (:func:`build_spec`): MJCF cannot carry it."""
+    spec.add_numeric(name=CUSTOM_HORIZON, data=[float(scene.horizon)])
+    for f in dataclasses.fields(Tolerances):
+        value = getattr(scene.tolerances, f.name)
+        if value is not None:
+            spec.add_numeric(name=f"{CUSTOM_TOLERANCES}{f.name}", data=[float(value)])
+    for engine, given in scene.engine_tolerances.items():
+        for key, value in given.items():
+            spec.add_numeric(name=f"{CUSTOM_TOLERANCES}{engine}.{key}", data=[float(value)])
+    if scene.load is None:  # no motor either
+        return
+    table = load_table(scene.load)
+    if table is None:
+        raise ValueError(f"the load, a {type(scene.load).__name__}, is not a table of (time, value) pairs: MJCF "
+                         "cannot carry it")
+    spec.add_numeric(name=CUSTOM_CTRL, data=[v for pair in zip(*table) for v in pair])
 
 
 def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
@@ -482,7 +530,7 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
     Each number is rewritten as the shortest text that reads back to the same double
     (``repr``, without a trailing ".0"); attributes the writer left out (at their defaults)
     stay out. Covers the option, bodies (pos, quat, inertial), joints (pos, axis), sites,
-    spatial tendons, connects and keyframes.
+    spatial tendons, connects, keyframes and custom numerics.
     """
     root = ET.fromstring(spec.to_xml())
 
@@ -521,6 +569,8 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
         put(element, "anchor", equality.data[0:3])
         put(element, "solref", equality.solref)
         put(element, "solimp", equality.solimp)
+    for element in root.iter("numeric"):
+        put(element, "data", spec.numeric(element.get("name")).data)
     for element in root.iter("key"):
         key = spec.key(element.get("name"))
         for attribute in ("qpos", "qvel", "ctrl"):
@@ -550,8 +600,8 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
         raise ValueError(f"the model's joints {names} are not the scene's tree joints {wanted} in order")
 
 
-__all__ = ["BASE_BODY", "ConstraintSettings", "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody",
-           "assembled_angles", "build_spec", "check_joint_order", "compile_model", "coordinate_map",
-           "initial_qpos_qvel", "initial_rates", "joint_order", "joint_positions", "joint_rates",
-           "joint_rates_matrix", "joint_tendons", "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name",
-           "spanning_tree"]
+__all__ = ["BASE_BODY", "CUSTOM_CTRL", "CUSTOM_HORIZON", "CUSTOM_PREFIX", "CUSTOM_TOLERANCES", "ConstraintSettings",
+           "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody", "add_scene_customs", "assembled_angles",
+           "build_spec", "check_joint_order", "compile_model", "coordinate_map", "initial_qpos_qvel", "initial_rates",
+           "joint_order", "joint_positions", "joint_rates", "joint_rates_matrix", "joint_tendons", "load_table",
+           "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name", "spanning_tree"]

@@ -56,6 +56,7 @@ import math
 import os
 import stat
 import xml.etree.ElementTree as ET
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -66,12 +67,13 @@ from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
 from loopcheck.mechanism import (GROUND, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
                             PrismaticJoint, RevoluteJoint)
-from loopcheck.scene import LIMITS, Scene, SceneError
+from loopcheck.scene import LIMITS, Scene, SceneError, Tolerances
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.settings import parse_number
 
-from loopcheck.mujoco_model.build import BASE_BODY
+from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_CTRL, CUSTOM_HORIZON, CUSTOM_PREFIX,
+                                          CUSTOM_TOLERANCES)
 from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
@@ -175,7 +177,10 @@ class ImportedModel:
         (gear × gain; N·m or N); None and 0 without a motor.
     closure_residual : the largest gap of a loop at the configuration read, m (before Newton).
     polish : the largest change Newton made to the configuration (rad or m).
+    keyframe : the keyframe read, by name (``#1 (unnamed)`` for a model's only, unnamed one); None
+        for qpos0.
     warnings : one line each: what was disabled or left out, and why.
+    said : one line each for stdout: what was chosen for the user (the model's only keyframe).
     """
 
     scene: Scene
@@ -191,6 +196,7 @@ class ImportedModel:
     closure_residual: float
     polish: float
     warnings: tuple[str, ...]
+    said: tuple[str, ...] = ()
 
 
 def _object_name(model: mujoco.MjModel, kind, index: int, fallback: str) -> str:
@@ -755,29 +761,142 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
                         "must be > 0 s")
 
 
-def _state(path: Path, model: mujoco.MjModel, keyframe: str | None):
+def _key_label(model: mujoco.MjModel, k: int) -> str:
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k)
+    return f"'{name}'" if name else f"#{k + 1} (unnamed)"
+
+
+def _state(path: Path, model: mujoco.MjModel, keyframe: str | None, qpos0: bool):
+    """(qpos, qvel, ctrl, the keyframe read or None, the line that says a keyframe was chosen or None).
+
+    No keyframe named: qpos0 with ``qpos0``; else the model's only keyframe, said in the line
+    returned; several are refused, listed (a load in a keyframe is never silently dropped)."""
+    rest = model.qpos0.copy(), np.zeros(model.nv), np.zeros(model.nu), None, None
+    if keyframe is not None and qpos0:
+        raise MjcfError(f"{path}: --keyframe '{keyframe}' and --qpos0 both given: name a keyframe, or read qpos0")
     if keyframe is None:
-        return model.qpos0.copy(), np.zeros(model.nv), np.zeros(model.nu)
-    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-    if k < 0:
-        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)]
-        listed = ", ".join(f"'{n}'" for n in names if n) or "none"
-        raise MjcfError(f"{path}: no keyframe named '{keyframe}' (the model's keyframes: {listed})")
-    return model.key_qpos[k].copy(), model.key_qvel[k].copy(), model.key_ctrl[k].copy()
+        if qpos0 or model.nkey == 0:
+            return rest
+        if model.nkey > 1:
+            listed = ", ".join(_key_label(model, k) for k in range(model.nkey))
+            raise MjcfError(f"{path}: the model has {model.nkey} keyframes ({listed}): name the one to read with "
+                            "--keyframe, or give --qpos0 to read qpos0 (at rest, no control)")
+        k = 0
+        label = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, 0) or "#1 (unnamed)"
+        said = (f"read at keyframe '{label}', the model's only keyframe (its qpos, qvel and ctrl; --qpos0 reads "
+                "qpos0 instead)")
+    else:
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if k < 0:
+            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)]
+            listed = ", ".join(f"'{n}'" for n in names if n) or "none"
+            raise MjcfError(f"{path}: no keyframe named '{keyframe}' (the model's keyframes: {listed})")
+        label, said = keyframe, None
+    return model.key_qpos[k].copy(), model.key_qvel[k].copy(), model.key_ctrl[k].copy(), label, said
+
+
+def _closing_keyframes(reader: _Reader) -> list[str]:
+    """The keyframes at which every active connect of the model closes (to CLOSURE_RTOL of the
+    model's size at qpos0), by label: named in the refusal of an open qpos0."""
+    m = reader.model
+    d = mujoco.MjData(m)
+    out = []
+    for k in range(m.nkey):
+        d.qpos[:] = m.key_qpos[k]
+        mujoco.mj_kinematics(m, d)
+        gaps = []
+        for e in range(m.neq):
+            if not m.eq_active0[e] or int(m.eq_type[e]) != _CONNECT:
+                continue
+            if int(m.eq_objtype[e]) == _OBJ_SITE:
+                w1, w2 = d.site_xpos[int(m.eq_obj1id[e])], d.site_xpos[int(m.eq_obj2id[e])]
+            else:
+                b1, b2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+                w1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e][0:3]
+                w2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e][3:6]
+            gaps.append(float(np.linalg.norm(np.asarray(w1) - np.asarray(w2))))
+        if gaps and max(gaps) <= CLOSURE_RTOL * reader.scale:
+            out.append(_key_label(m, k))
+    return out
+
+
+@dataclass(frozen=True)
+class _Customs:
+    """What ``loopcheck export-mjcf`` wrote as ``<custom>`` numerics (:func:`_customs`)."""
+
+    horizon: float | None = None
+    control: Control | None = None
+    tolerances: dict = field(default_factory=dict)  # KEY: value
+    engine_tolerances: dict = field(default_factory=dict)  # ENGINE: {KEY: value}
+
+
+def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
+    """The model's ``loopcheck.*`` numerics (``loopcheck.horizon``, ``loopcheck.ctrl``,
+    ``loopcheck.tolerances.KEY`` and ``loopcheck.tolerances.ENGINE.KEY``); another name under
+    ``loopcheck.``, a wrong size or a value that is not finite or out of range is refused, naming
+    the numeric. Other numerics are the user's own and act on nothing: not read."""
+    keys = [f.name for f in dataclasses.fields(Tolerances)]
+    out = _Customs()
+    for n in range(model.nnumeric):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_NUMERIC, n) or ""
+        if not name.startswith(CUSTOM_PREFIX):
+            continue
+        adr, size = int(model.numeric_adr[n]), int(model.numeric_size[n])
+        data = [float(v) for v in model.numeric_data[adr:adr + size]]
+        where = f"{path}: custom numeric '{name}'"
+        if not all(math.isfinite(v) for v in data):
+            raise MjcfError(f"{where}: data=\"{' '.join(_word(v) for v in data)}\" is not finite: every value of the "
+                            "model must be finite")
+        if name == CUSTOM_CTRL:
+            if size < 2 or size % 2:
+                raise MjcfError(f"{where}: {size} values: the control table is pairs t0 v0 t1 v1 ... (s, ctrl units)")
+            times, values = tuple(data[0::2]), tuple(data[1::2])
+            if times[0] < 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+                raise MjcfError(f"{where}: the times {', '.join(_word(t) for t in times)} must be ≥ 0 s and "
+                                "increase strictly")
+            if model.nu == 0:
+                raise MjcfError(f"{where}: a control table, and the model has no actuator to apply it to")
+            out = dataclasses.replace(out, control=Control(times, values))
+            continue
+        if size != 1:
+            raise MjcfError(f"{where}: {size} values, not one")
+        value = data[0]
+        if name == CUSTOM_HORIZON:
+            out = dataclasses.replace(out, horizon=value)  # its range is the scene file's, checked with it
+            continue
+        key = name[len(CUSTOM_TOLERANCES):] if name.startswith(CUSTOM_TOLERANCES) else ""
+        engine, _, field_ = key.rpartition(".")
+        if field_ not in keys or "." in engine:
+            raise MjcfError(f"{where}: not a numeric loopcheck writes ({CUSTOM_HORIZON}, {CUSTOM_CTRL}, "
+                            f"{CUSTOM_TOLERANCES}KEY or {CUSTOM_TOLERANCES}ENGINE.KEY, KEY one of {', '.join(keys)})")
+        if not value > 0.0:
+            raise MjcfError(f"{where}: {_word(value)}: a tolerance must be > 0")
+        if engine:
+            out.engine_tolerances.setdefault(engine, {})[field_] = value
+        else:
+            out.tolerances[field_] = value
+    return out
 
 
 def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: str | None = None,
-                control: Control | None = None, horizon: float = 1.0, name: str | None = None) -> ImportedModel:
+                qpos0: bool = False, control: Control | None = None, horizon: float | None = None,
+                name: str | None = None) -> ImportedModel:
     """Read the MJCF file ``path`` as a scene (module docstring).
 
     Parameters
     ----------
     input_joint : the MuJoCo joint (hinge or slide) whose coordinate is q; default the joint the
         motor drives, else the model's first joint.
-    keyframe : the keyframe to read the configuration, rates and control from; default qpos0, at
-        rest, with zero control.
-    control : the motor's control over time, instead of the keyframe's (constant) one.
-    horizon : the scene's simulated time, s.
+    keyframe : the keyframe to read the configuration, rates and control from; default the
+        model's only keyframe (said in ``ImportedModel.said``), qpos0 (at rest, with zero control)
+        when it has none; a model with several is refused unless one is named or ``qpos0``.
+    qpos0 : read qpos0 (at rest, zero control) even when the model has keyframes.
+    control : the motor's control over time, instead of the model's ``loopcheck.ctrl`` table or
+        the keyframe's (constant) control.
+    horizon : the scene's simulated time, s; default the model's ``loopcheck.horizon``, else 1.
+
+    What ``loopcheck export-mjcf`` writes as ``<custom>`` numerics (the horizon, the tolerances,
+    the load's table) is read back under the arguments given (:func:`_customs`).
     name : the scene's name; default the file's stem.
 
     Raises
@@ -787,7 +906,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     """
     path = Path(path)
     model, loading = _load_model(path)
-    qpos, qvel, key_ctrl = _state(path, model, keyframe)
+    qpos, qvel, key_ctrl, keyframe, said_key = _state(path, model, keyframe, qpos0)
+    customs = _customs(path, model)
+    horizon = horizon if horizon is not None else customs.horizon if customs.horizon is not None else 1.0
+    control = control if control is not None else customs.control
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
     reader.warnings.extend(loading + tuple(said.lines))
@@ -801,7 +923,14 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.groups()
     reader.sites()
     tree = reader.tree_joints()
-    cuts = reader.loops()
+    try:
+        cuts = reader.loops()
+    except MjcfError as exc:
+        closing = _closing_keyframes(reader) if keyframe is None and reader.gaps and \
+            reader.gaps[-1] > CLOSURE_RTOL * reader.scale else []
+        if not closing:
+            raise
+        raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
     load, gear, applied = _load(reader, inp, control, key_ctrl)
 
@@ -874,7 +1003,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     provisional = Scene(name=_clean(name or path.stem)[:100], description=f"imported from {path.name}",
                         mechanism=mechanism, load=load, gravity=gravity, q0=q0, qdot0=qdot0,
                         x0=tuple(float(v) for v in guess), mode=loops.assembly_mode(system, guess),
-                        horizon=horizon, engine_tables={})
+                        horizon=horizon, engine_tables={}, tolerances=Tolerances(**customs.tolerances),
+                        engine_tolerances=customs.engine_tolerances)
     data = scene_data(provisional)
     try:
         scene = scene_from_dict(data, source=str(path))
@@ -884,7 +1014,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
-                         warnings=tuple(reader.warnings))
+                         warnings=tuple(reader.warnings), said=(said_key,) if said_key else ())
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:

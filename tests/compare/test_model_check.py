@@ -6,6 +6,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from loopcheck.compare.model_check import check_model
@@ -185,3 +186,46 @@ def test_the_cheapest_search_costs_rk4_four_evaluations_a_step(tmp_path):
         assert t.evaluations == t.comparison.mujoco.n_steps * (4 if t.options.integrator == "rk4" else 1)
     assert check.cheapest is not None
     assert check.cheapest.evaluations == min(t.evaluations for t in ran if t.passed)
+
+
+CRANK_ROCKER = DATA / "crank_rocker_keyframe.xml"  # its only load: the keyframe 'home''s ctrl, 2 N·m
+
+
+def test_a_keyframe_only_load_is_checked_loaded(capsys):
+    """Without --keyframe, the model's only keyframe is read and its ctrl drives the check (the
+    exact peak is 120.756 rad/s at 0.2 s); before, the check ran unloaded: "ok ... peak 0 rad/s"."""
+    from loopcheck.compare.cli import main
+
+    code = main(["check", str(CRANK_ROCKER), "--horizon", "0.2"])
+    out = capsys.readouterr().out
+    assert "read at keyframe 'home', the model's only keyframe" in out
+    assert code == 1 and "peak 120.756" in out  # Euler at 2 ms with soft loops misses it by 36 %
+
+
+@pytest.mark.parametrize("flags", [["--qpos0"], ["--ctrl", "1e-9"]])
+def test_a_check_that_does_not_move_is_refused(flags, capsys):
+    """At rest with no load (--qpos0), or a load too small to move the crank by q_atol or to
+    omega_atol in 0.2 s: the gate could not see any difference, so the check is refused (exit 2),
+    naming --ctrl and --keyframe, before MuJoCo runs, with nothing on stdout but the notes."""
+    from loopcheck.compare.cli import main
+
+    assert main(["check", str(CRANK_ROCKER), "--horizon", "0.2", *flags]) == 2
+    captured = capsys.readouterr()
+    error = [line for line in captured.err.splitlines() if "error" in line]
+    assert len(error) == 1 and "does not move" in error[0] and "--ctrl" in error[0] and "--keyframe" in error[0]
+    assert "passed" not in captured.out and "peak" not in captured.out
+
+
+def test_the_refusal_needs_both_q_and_its_rate_within_the_tolerances():
+    """The refusal needs both: a model whose rate passes omega_atol is checked even when q barely
+    moves (a small load, omega_atol lowered under its peak)."""
+    from loopcheck.compare.model_check import VacuousCheck, refuse_vacuous
+    from loopcheck.reduced import ReducedSettings, simulate
+    from loopcheck.scene import Tolerances
+
+    imported = import_mjcf(CRANK_ROCKER, control=Control.constant(1e-6), horizon=0.2)
+    reference = simulate(imported.scene, ReducedSettings())
+    fastest = float(np.max(np.abs(reference.trajectory.qdot)))
+    with pytest.raises(VacuousCheck):
+        refuse_vacuous(reference, Tolerances(), "m", "rad")
+    refuse_vacuous(reference, Tolerances(omega_atol=0.5 * fastest), "m", "rad")  # sees the rate: not refused

@@ -58,17 +58,29 @@ DESCRIPTION_RTOL = 4e-15
 
 @pytest.mark.parametrize("path", sorted(CATALOGUE), ids=lambda p: CATALOGUE[p])
 def test_round_trip_of_the_catalogue(path, tmp_path):
-    """Every catalogue scene → export-mjcf → import-mjcf: the same description, and the same
-    reduced trajectory at a fixed step (bit for bit: the Newton-polished start is the same)."""
+    """Every catalogue scene → export-mjcf → import-mjcf with no arguments: the same description,
+    initial state, load, horizon and tolerances (every engine's: the <custom> numerics), and the
+    same reduced trajectory at a fixed step (bit for bit: the Newton-polished start is the same).
+    Point and timed forces, which MJCF cannot carry, are listed in the import's warnings."""
     scene = load_scene(path)
     model = tmp_path / "model.xml"
     model.write_text(mjcf_text(scene, MujocoSettings(timestep=1e-3)))
-    imported = import_mjcf(model, keyframe="home", control=_control(scene.load), horizon=scene.horizon,
-                           input_joint=scene.mechanism.linkage.input_joint)
+    imported = import_mjcf(model)
     back = imported.scene
     original = _without_point_forces(scene)
     if scene.mechanism.point_forces or scene.mechanism.timed_forces:
-        assert any("not carried" in w for w in imported.warnings)
+        for force in scene.mechanism.point_forces + scene.mechanism.timed_forces:
+            assert any("not carried" in w and f"'{force.name}'" in w for w in imported.warnings)
+    assert back.horizon == scene.horizon and back.tolerances == scene.tolerances
+    assert {k: dict(v) for k, v in back.engine_tolerances.items()} == {
+        k: dict(v) for k, v in scene.engine_tolerances.items()}
+    # the load as the same function of time (a pulse comes back as its table): at, between and around its edges
+    edges = np.array(sorted({0.0, *(scene.load.edges if scene.load else ()), scene.horizon}))
+    times = np.concatenate([edges, edges + 1e-9, 0.5 * (edges[1:] + edges[:-1])])
+    if scene.load is None:
+        assert back.load is None
+    else:
+        np.testing.assert_array_equal(back.load.sample(times), scene.load.sample(times))
 
     a, b = original.mechanism.linkage, back.mechanism.linkage
     assert set(a.body_map) == set(b.body_map)
