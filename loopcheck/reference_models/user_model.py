@@ -38,6 +38,8 @@ MAX_STEPS = 5_000_000
 ENGINE = "model"  # the name of a user model's runs in comparisons and reports
 _INTEGRATOR_NAME = {int(getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}")): name for name in INTEGRATORS}
 _CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+# MJCF's keyword for each integrator (MuJoCo's parser is case-sensitive: "euler" is refused)
+MJCF_INTEGRATOR = {"euler": "Euler", "rk4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
 _SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 
 
@@ -101,8 +103,7 @@ class ModelOptions:
     def mjcf(self) -> str:
         """MJCF to paste into the model: the ``<option>`` and the connects' defaults (a connect
         that sets its own solref or solimp needs them on it instead)."""
-        lines = [f'<option integrator="{self.integrator.upper() if self.integrator == "rk4" else self.integrator}" '
-                 f'timestep="{_number(self.timestep)}"/>']
+        lines = [f'<option integrator="{MJCF_INTEGRATOR[self.integrator]}" timestep="{_number(self.timestep)}"/>']
         if self.solref and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1:
             lines.append(f'<default><equality solref="{" ".join(_number(v) for v in self.solref[0])}" '
                          f'solimp="{" ".join(_number(v) for v in self.solimp[0])}"/></default>')
@@ -236,4 +237,4 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                         details=ModelRunDetails(options, mujoco.__version__))
 
 
-__all__ = ["ENGINE", "MAX_STEPS", "ModelOptions", "ModelRunDetails", "run_model"]
+__all__ = ["ENGINE", "MAX_STEPS", "MJCF_INTEGRATOR", "ModelOptions", "ModelRunDetails", "run_model"]
