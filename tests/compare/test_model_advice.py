@@ -56,3 +56,41 @@ def test_every_snippet_loads_in_mujoco_and_sets_what_it_names(integrator):
                              written.iterations, written.tolerance)
     model = mujoco.MjModel.from_xml_string(paste(text, suggested.mjcf()))
     assert ModelOptions.as_written(model) == suggested
+
+
+def _unnamed(tmp_path: Path, old: str, new: str) -> Path:
+    text = (DATA / "fourbar_xz_degrees.xml").read_text().replace('<connect name="B"', '<connect')
+    assert old in text
+    path = tmp_path / "unnamed.xml"
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def test_an_unnamed_connect_is_named_by_kind_ordinal_and_what_it_joins(tmp_path):
+    """The model's second connect, unnamed, joins two sites of the rocker and of an unnamed body
+    welded to it: the refusal names it `connect #2 (tip_a–tip_b)`, words the user finds in the
+    file, not MuJoCo's index (planted: the old fallback, `equality1`, fails it)."""
+    from loopcheck.reference_models.mjcf_import import MjcfError
+
+    path = _unnamed(tmp_path, '<geom class="link" fromto="0 0 0 0.7 0 0"/>',
+                    '<geom class="link" fromto="0 0 0 0.7 0 0"/><site name="tip_a" pos="0.7 0 0"/>'
+                    '<body pos="0.7 0 0"><geom size="0.01" type="sphere"/><site name="tip_b"/></body>')
+    path.write_text(path.read_text().replace('anchor="0.9 0 0"/>',
+                                             'anchor="0.9 0 0"/>\n    <connect site1="tip_a" site2="tip_b"/>'))
+    with pytest.raises(MjcfError) as caught:
+        import_mjcf(path)
+    message = str(caught.value)
+    assert "connect #2 (tip_a–tip_b) joins two points of one rigid body" in message, message
+    assert "equality" not in message
+
+
+def test_unnamed_geoms_that_can_collide_are_named_by_the_bodies_they_are_on(tmp_path):
+    """Contacts left on: the refusal names `geom #1 (on crank)` and `geom #3 (on rocker)`, not
+    `geom0` and `geom2` (planted: the old fallback)."""
+    from loopcheck.reference_models.mjcf_import import MjcfError
+
+    path = _unnamed(tmp_path, ' contype="0" conaffinity="0"', "")
+    with pytest.raises(MjcfError) as caught:
+        import_mjcf(path)
+    message = str(caught.value)
+    assert "geom #1 (on crank) and geom #3 (on rocker) can collide" in message, message
