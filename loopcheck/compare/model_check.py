@@ -245,10 +245,12 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
         c = check.cheapest
         written = check.as_written.options  # its work as planned (a failed run has no count)
         work = c.evaluations / (written.steps(check.imported.scene.horizon) * written.evaluations_per_step())
+        snippet = c.options.mjcf(check.imported.connects)
+        onto = (" (a <connect> line's attributes onto the model's connect of that name)" if "<connect " in snippet
+                else "")
         lines += [f"      cheapest options that meet them: {c.options.text()} ({c.comparison.mujoco.n_steps} steps, "
-                  f"{work:.3g}x the model's work as written); paste into the MJCF:",
-                  *(f"        {line}" for line in c.options.mjcf().splitlines()),
-                  "      (a connect that sets its own solref or solimp needs them on it instead of in <default>)"]
+                  f"{work:.3g}x the model's work as written); paste into the MJCF{onto}:",
+                  *(f"        {line}" for line in snippet.splitlines())]
     return lines
 
 

@@ -167,6 +167,7 @@ class ImportedModel:
     closure_residual : the largest gap of a loop at the configuration read, m (before Newton).
     polish : the largest change Newton made to the configuration (rad or m).
     warnings : one line each: what was disabled or left out, and why.
+    connects : each connect equality of the model, in its order (:class:`ConnectSource`).
     """
 
     scene: Scene
@@ -182,6 +183,38 @@ class ImportedModel:
     closure_residual: float
     polish: float
     warnings: tuple[str, ...]
+    connects: tuple["ConnectSource", ...] = ()
+
+
+@dataclass(frozen=True)
+class ConnectSource:
+    """A connect equality as the file writes it: ``label`` names it for a user
+    (:func:`element_label`), ``name`` is its MJCF name (None without one), and ``own`` says that it
+    sets its own softness (``solref``, ``solimp`` or a default ``class``, or the file could not be
+    matched to the model, an ``<include>``): a new ``<default><equality>`` does not reach it, so
+    new values go on it."""
+
+    label: str
+    name: str | None
+    own: bool
+
+
+def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, ...]:
+    """The model's connects, matched in file order to the ``<equality>`` elements of the file."""
+    try:
+        root = ET.parse(path).getroot()
+        written = [child for block in root.findall("equality") for child in block if isinstance(child.tag, str)]
+    except (ET.ParseError, OSError):
+        written = []
+    matched = len(written) == model.neq
+    out = []
+    for e in range(model.neq):
+        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_CONNECT):
+            continue
+        own = not matched or any(written[e].get(key) is not None for key in ("solref", "solimp", "class"))
+        out.append(ConnectSource(element_label(model, mujoco.mjtObj.mjOBJ_EQUALITY, e),
+                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own))
+    return tuple(out)
 
 
 def _object_name(model: mujoco.MjModel, kind, index: int, fallback: str) -> str:
@@ -898,7 +931,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
-                         warnings=tuple(reader.warnings))
+                         warnings=tuple(reader.warnings), connects=_connect_sources(path, model))
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
@@ -1149,4 +1182,4 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     return lines, joint_elements
 
 
-__all__ = ["Control", "ImportedModel", "MjcfError", "element_label", "import_mjcf"]
+__all__ = ["ConnectSource", "Control", "ImportedModel", "MjcfError", "element_label", "import_mjcf"]

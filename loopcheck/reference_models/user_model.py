@@ -29,7 +29,7 @@ from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
-from .mjcf_import import ImportedModel
+from .mjcf_import import ConnectSource, ImportedModel
 from .settings import DEFAULT_SOLIMP, INTEGRATORS
 
 # Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
@@ -100,13 +100,28 @@ class ModelOptions:
                      f"solimp {' '.join(f'{v:g}' for v in self.solimp[0])}")
         return line
 
-    def mjcf(self) -> str:
-        """MJCF to paste into the model: the ``<option>`` and the connects' defaults (a connect
-        that sets its own solref or solimp needs them on it instead)."""
+    def mjcf(self, connects: tuple[ConnectSource, ...] = ()) -> str:
+        """MJCF to paste into the model, enough alone to give it these options: the ``<option>``,
+        the connects' softness in ``<default>`` when all share it, and a ``<connect name=...>`` line
+        with the values for each connect (``connects``: the model's, in order) that sets its own,
+        which a default does not reach (every connect, when they differ); a connect without a name
+        that needs its own gets a comment naming it (:func:`element_label`) and the values."""
         lines = [f'<option integrator="{MJCF_INTEGRATOR[self.integrator]}" timestep="{_number(self.timestep)}"/>']
-        if self.solref and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1:
+        shared = bool(self.solref) and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1
+        if shared:
             lines.append(f'<default><equality solref="{" ".join(_number(v) for v in self.solref[0])}" '
                          f'solimp="{" ".join(_number(v) for v in self.solimp[0])}"/></default>')
+        for k, (solref, solimp) in enumerate(zip(self.solref, self.solimp)):
+            source = connects[k] if k < len(connects) else None
+            if shared and (source is None or not source.own):
+                continue
+            values = (f'solref="{" ".join(_number(v) for v in solref)}" '
+                      f'solimp="{" ".join(_number(v) for v in solimp)}"')
+            if source is not None and source.name:
+                lines.append(f'<connect name="{source.name}" {values}/>')
+            else:
+                label = source.label if source is not None else f"connect #{k + 1}"
+                lines.append(f"<!-- {label}: set {values} on it -->")
         return "\n".join(lines)
 
     def as_dict(self) -> dict:

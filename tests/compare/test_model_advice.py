@@ -94,3 +94,47 @@ def test_unnamed_geoms_that_can_collide_are_named_by_the_bodies_they_are_on(tmp_
         import_mjcf(path)
     message = str(caught.value)
     assert "geom #1 (on crank) and geom #3 (on rocker) can collide" in message, message
+
+
+def _own_softness(tmp_path: Path) -> Path:
+    """The seed's four-bar with its connect setting its own softness, as Menagerie's grippers do
+    (solref 0.02 1, solimp 0.9 0.95 0.001 on the connect itself, a default class beside it)."""
+    text = (DATA / "fourbar_xz_degrees.xml").read_text().replace(
+        '<connect name="B" body1="coupler" body2="rocker" anchor="0.9 0 0"/>',
+        '<connect name="B" body1="coupler" body2="rocker" anchor="0.9 0 0" solref="0.02 1" solimp="0.9 0.95 0.001"/>')
+    path = tmp_path / "own_softness.xml"
+    path.write_text(text)
+    return path
+
+
+def test_pasting_the_snippet_alone_fixes_a_connect_with_its_own_solref(tmp_path):
+    """The connect's own solref/solimp beat any <default>: the snippet writes the new values on
+    the connect by name, and the model with the snippet pasted in (and nothing else) runs with the
+    suggested options and passes (planted: the snippet without its <connect> line leaves the loop
+    soft, the options read back differ and the model fails)."""
+    from loopcheck.compare.model_check import check_model, diagnosis_lines
+    from loopcheck.reference_models.mjcf_import import Control
+
+    pulse = Control((0.0, 1.0), (250.0, 0.0))
+    path = _own_softness(tmp_path)
+    imported = import_mjcf(path, control=pulse, horizon=1.0)
+    assert [c.own for c in imported.connects] == [True]
+    check = check_model(imported)
+    assert not check.passed and check.cheapest is not None
+    snippet = check.cheapest.options.mjcf(imported.connects)
+    assert '<connect name="B" solref=' in snippet
+    assert any("connect of that name" in line for line in diagnosis_lines(check))
+    fixed = tmp_path / "fixed.xml"
+    fixed.write_text(paste(path.read_text(), snippet))
+    again = import_mjcf(fixed, control=pulse, horizon=1.0)
+    assert ModelOptions.as_written(again.model) == check.cheapest.options
+    assert check_model(again).passed
+
+
+def test_a_connect_without_its_own_softness_gets_the_default_only():
+    """The seed's file: its connect takes the default class's softness, so the snippet is the
+    <option> and the <default> alone (no <connect> line a user would have to place)."""
+    imported = import_mjcf(DATA / "fourbar_xz_degrees.xml")
+    assert [(c.label, c.name, c.own) for c in imported.connects] == [("connect 'B'", "B", False)]
+    snippet = ModelOptions.as_written(imported.model).stiff_loops().mjcf(imported.connects)
+    assert "<connect" not in snippet and "<default><equality" in snippet
