@@ -28,7 +28,7 @@ from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.results import EngineResult
 from loopcheck.scene import Tolerances
 from loopcheck.reference_models.mjcf_import import ImportedModel
-from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, run_model
+from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, input_coordinate, run_model
 
 from .run import Comparison, judge
 
@@ -220,7 +220,8 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
              f"({check.as_written.options.text()}) against the exact reduced solution, "
              f"peak {check.reference.peak.omega:.10g} {unit}/s",
              f"      read at {where}: loops closed to {imported.closure_residual:.3g} m, Newton moved the "
-             f"configuration by {imported.polish:.3g} (rad or m)",
+             f"configuration by {imported.polish:.3g} (rad or m); input {input_coordinate(imported).text()}",
+             f"      horizon: every run simulates {scene.horizon:g} s (--horizon)",
              f"      tolerances: peak_omega_rtol {t.peak_omega_rtol:g}, q_atol {t.q_atol:g} {unit}, "
              f"omega_atol {t.omega_atol:g} {unit}/s",
              f"      as written:        {_figures(check.as_written, unit)}"]

@@ -29,7 +29,7 @@ from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
-from .mjcf_import import ConnectSource, ImportedModel
+from .mjcf_import import ConnectSource, ImportedModel, element_label
 from .settings import DEFAULT_SOLIMP, INTEGRATORS
 
 # Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
@@ -127,6 +127,40 @@ class ModelOptions:
     def as_dict(self) -> dict:
         return {"integrator": self.integrator, "timestep": self.timestep, "solref": [list(v) for v in self.solref],
                 "solimp": [list(v) for v in self.solimp], "iterations": self.iterations, "tolerance": self.tolerance}
+
+
+@dataclass(frozen=True)
+class InputCoordinate:
+    """The scene's input coordinate in MuJoCo's terms: q = sign·qpos + offset, where qpos is the
+    input joint's own coordinate (``joint``, as :func:`element_label` names it), so that the rates
+    and peaks printed (q̇) are sign·qvel. ``sign`` is −1 when the hinge's axis points against the
+    plane's normal; ``offset`` is the joint's frame angle (or a slide's position) at qpos = 0."""
+
+    joint: str
+    qpos: float
+    sign: float
+    offset: float
+    unit: str
+
+    def text(self) -> str:
+        offset = f" {'+' if self.offset >= 0 else '−'} {abs(self.offset):.12g} {self.unit}" if self.offset else ""
+        return (f"{self.joint} at qpos {self.qpos:.12g} {self.unit} (q = {'' if self.sign > 0 else '−'}qpos{offset}; "
+                f"every rate and peak printed is {'' if self.sign > 0 else '−'}qvel of {self.joint})")
+
+
+def input_coordinate(imported: ImportedModel) -> InputCoordinate:
+    """The input joint's qpos at the configuration read, and how the scene's q is made of it."""
+    model, scene = imported.model, imported.scene
+    mine = scene.mechanism.linkage.input_joint
+    j = next(j for j in range(model.njnt)
+             if imported.joint_of.get(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}") == mine)
+    adr = int(model.jnt_qposadr[j])
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    sign = float(np.sign((system.drive @ imported.qpos_map)[adr])) or 1.0
+    qpos = float(imported.qpos[adr])
+    offset = scene.q0 - sign * qpos
+    return InputCoordinate(element_label(model, mujoco.mjtObj.mjOBJ_JOINT, j), qpos, sign,
+                           0.0 if abs(offset) < 1e-12 else offset, scene.input_unit)
 
 
 @dataclass(frozen=True)
@@ -252,4 +286,4 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                         details=ModelRunDetails(options, mujoco.__version__))
 
 
-__all__ = ["ENGINE", "MAX_STEPS", "MJCF_INTEGRATOR", "ModelOptions", "ModelRunDetails", "run_model"]
+__all__ = ["ENGINE", "InputCoordinate", "MAX_STEPS", "MJCF_INTEGRATOR", "input_coordinate", "ModelOptions", "ModelRunDetails", "run_model"]

@@ -124,6 +124,8 @@ def test_pasting_the_snippet_alone_fixes_a_connect_with_its_own_solref(tmp_path)
     snippet = check.cheapest.options.mjcf(imported.connects)
     assert '<connect name="B" solref=' in snippet
     assert any("connect of that name" in line for line in diagnosis_lines(check))
+    from loopcheck.compare.model_check import check_lines
+    assert "      horizon: every run simulates 1 s (--horizon)" in check_lines(check, str(path))
     fixed = tmp_path / "fixed.xml"
     fixed.write_text(paste(path.read_text(), snippet))
     again = import_mjcf(fixed, control=pulse, horizon=1.0)
@@ -138,3 +140,17 @@ def test_a_connect_without_its_own_softness_gets_the_default_only():
     assert [(c.label, c.name, c.own) for c in imported.connects] == [("connect 'B'", "B", False)]
     snippet = ModelOptions.as_written(imported.model).stiff_loops().mjcf(imported.connects)
     assert "<connect" not in snippet and "<default><equality" in snippet
+
+
+def test_the_import_line_gives_q0_as_the_joints_qpos_and_the_sign_of_the_rates(tmp_path, capsys):
+    """The hand-written four-bar is authored with its crank's frame turned by 0.2 rad (euler) and
+    qpos 0: the import line gives the MuJoCo joint's qpos, 0, how the scene's q = 0.2 rad is made of
+    it, and that the rates printed are that joint's qvel (planted: the old `at q0 = 0.2 rad`), and
+    the horizon."""
+    from loopcheck.compare.cli import main
+
+    assert main(["import-mjcf", str(DATA / "fourbar_xz_degrees.xml"), "-o", str(tmp_path / "s.toml")]) == 0
+    out = capsys.readouterr().out
+    assert ("input 'O1': joint 'O1' at qpos 0 rad (q = qpos + 0.2 rad; every rate and peak printed is qvel of "
+            "joint 'O1')") in out, out
+    assert "horizon 1 s" in out
