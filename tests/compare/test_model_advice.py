@@ -214,3 +214,16 @@ def test_the_suggestion_passes_with_margin_at_its_step_and_half_of_it_and_pasted
     assert again.as_written.excess == pytest.approx(best.excess, rel=1e-9)  # the same run: round-off apart
     print(f"{name}: {best.options.text()}, margin {best.excess:.3g} (half step {half.excess:.3g}), "
           f"pasted: {again.as_written.excess:.3g}")
+
+
+def test_an_unnamed_connect_with_its_own_softness_is_named_in_a_comment(tmp_path):
+    """A connect with its own solref and no name cannot be addressed by a <connect name=...>
+    line: the snippet names it as the messages do and gives the values to set on it (planted:
+    the comment dropped, the default alone, which does not reach it)."""
+    path = _variant(tmp_path, "unnamed_own", '<option gravity="0 0 0"/>', True)
+    path.write_text(path.read_text().replace('<connect name="B"', "<connect"))
+    imported = import_mjcf(path)
+    assert [(c.label, c.name, c.own) for c in imported.connects] == [("connect #1 (coupler–rocker)", None, True)]
+    snippet = ModelOptions.as_written(imported.model).stiff_loops().mjcf(imported.connects)
+    assert ('<!-- connect #1 (coupler–rocker): set solref="0.004 1" solimp="0.9999 0.9999 0.001 0.5 2" on it -->'
+            in snippet), snippet
