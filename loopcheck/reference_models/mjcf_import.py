@@ -735,15 +735,31 @@ def _check_unset_markers(path: Path) -> None:
                                 "of the model must be finite")
 
 
+def _spec_ordinal(spec: mujoco.MjSpec, kind: str, element, index: int) -> str:
+    """An unnamed element of the spec (before compiling) as :func:`element_label` names it in the
+    compiled model: its tag, its ordinal in file order and what it joins or sits on (``index`` is its
+    place in the spec's list of its kind, the world first among bodies)."""
+    def body(b) -> str:
+        return (b.name or "an unnamed body") if b is not None else "world"
+
+    parent = getattr(element, "parent", None)
+    if kind == "body":
+        return f"body #{index} (in {body(parent)})"
+    if kind == "equality":
+        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == _CONNECT)
+        return f"connect #{ordinal} ({element.name1}–{element.name2})"
+    if kind == "joint" and parent is not None:
+        return f"joint #{index + 1} ({body(parent.parent) if parent.parent is not None else 'world'}–{body(parent)})"
+    return f"{kind} #{index + 1} (on {body(parent)})"
+
+
 def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
     """Refuse a value that is NaN or infinite, or finite and outside the range the description
     can represent (a negative damping, stiffness, armature, mass or inertia): one line naming
     the file, the element, the MJCF attribute and, when the value is its default class's, that
     class. Zero stays "absent" (no spring, no damper)."""
     def refuse(kind: str, element, index: int, attribute: str, field_: str, values, reason: str):
-        parent = getattr(getattr(element, "parent", None), "name", "") if kind != "body" else ""
-        name = getattr(element, "name", "") or (f"#{index} (unnamed, in body '{parent}')" if parent
-                                                 else f"#{index} (unnamed)")
+        name = getattr(element, "name", "") or _spec_ordinal(spec, kind, element, index)
         source = ""
         classname = getattr(getattr(element, "classname", None), "name", None)
         if classname and kind in _DEFAULT_OF:
@@ -756,7 +772,7 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
         if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm", "size"):  # as written: no trailing zeros
             values = np.trim_zeros(values, "b") if np.any(values != 0.0) else values[:1]
         written = " ".join(_word(v) for v in values)
-        label = f"{kind} '{name}'" if getattr(element, "name", "") else f"{kind} {name}"
+        label = f"{kind} '{name}'" if getattr(element, "name", "") else name
         raise MjcfError(f"{path}: {label}: {attribute}=\"{written}\"{source} {reason}")
 
     def check(kind, element, index, attribute, field_, least):

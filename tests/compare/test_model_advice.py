@@ -227,3 +227,17 @@ def test_an_unnamed_connect_with_its_own_softness_is_named_in_a_comment(tmp_path
     snippet = ModelOptions.as_written(imported.model).stiff_loops().mjcf(imported.connects)
     assert ('<!-- connect #1 (coupler–rocker): set solref="0.004 1" solimp="0.9999 0.9999 0.001 0.5 2" on it -->'
             in snippet), snippet
+
+
+def test_a_value_of_an_unnamed_joint_is_refused_under_the_name_the_messages_use(tmp_path):
+    """The value checks run before MuJoCo compiles the model (on its spec), the other refusals
+    after: an unnamed joint is `joint #3 (world–rocker)` in both (planted: the old `joint #2
+    (unnamed, in body 'rocker')`, 0-based)."""
+    from loopcheck.reference_models.mjcf_import import MjcfError, element_label
+
+    path = _unnamed(tmp_path, '<joint name="O3"/>', '<joint damping="-1"/>')
+    with pytest.raises(MjcfError) as caught:
+        import_mjcf(path)
+    assert "joint #3 (world–rocker): damping=\"-1\" cannot be represented" in str(caught.value), str(caught.value)
+    compiled = mujoco.MjModel.from_xml_path(str(_unnamed(tmp_path, '<joint name="O3"/>', "<joint/>")))
+    assert element_label(compiled, mujoco.mjtObj.mjOBJ_JOINT, 2) == "joint #3 (world–rocker)"
