@@ -233,6 +233,7 @@ def _control(text: str):
 
 def cmd_import_mjcf(args: argparse.Namespace) -> int:
     from loopcheck.scene_writer import scene_toml
+    from loopcheck.reference_models.user_model import input_coordinate
 
     check_file(args.out, flag="-o", inputs=[args.model])  # before any work
     imported = _import(args, args.model)
@@ -248,8 +249,9 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
               + "".join(f"Warning: {line}\n" for line in imported.warnings))
     path = write_file(args.out, scene_toml(scene, header), flag="-o")
     print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
-          f"({len(scene.mechanism.linkage.cut_joints)} closing loops), input '{scene.mechanism.linkage.input_joint}' "
-          f"at q0 = {scene.q0:.12g} {scene.input_unit}; loops closed to {imported.closure_residual:.3g} m at {where}")
+          f"({len(scene.mechanism.linkage.cut_joints)} closing loops), input '{scene.mechanism.linkage.input_joint}': "
+          f"{input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
+          f"horizon {scene.horizon:g} s")
     print(f"wrote {path}")
     return EXIT_OK
 

@@ -16,9 +16,12 @@ A model whose exact solution does not move (:class:`VacuousCheck`) is refused be
 nothing the gate compares could differ.
 
 The one that removes more of the difference is named as its cause. Last, the cheapest options
-that meet the tolerances: stiff loops at the model's step, then at halved steps until one passes
-(or at doubled steps while they pass, when the model's own step does), with the model's integrator
-and with RK4; cheapest is fewest evaluations of the dynamics (RK4 makes four a step).
+that meet the tolerances with margin over the scene's horizon (every difference at most MARGIN,
+half, of its tolerance) at their step and again at half of it: stiff loops at the model's step,
+then at halved steps until a step and its half both do (or, when the model's own step does, at
+doubled steps while they do, up to a tenth of the horizon), with the model's integrator and with
+RK4; cheapest is fewest evaluations of the dynamics (RK4 makes four a step). The output states the
+margin found.
 """
 
 from __future__ import annotations
@@ -33,13 +36,13 @@ from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.results import EngineResult
 from loopcheck.scene import SceneError, Tolerances
 from loopcheck.reference_models.mjcf_import import ImportedModel
-from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, run_model
+from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, input_coordinate, run_model
 
 from .run import Comparison, judge
 
 MAX_HALVINGS = 8  # the cheapest-options search tries steps down to timestep / 2⁸
 SEARCH_STEPS = 1_000_000  # MuJoCo steps all the search's runs may take together (about 2 min at 150 µs a step)
-MAX_DOUBLINGS = 4  # and, when the model's own step passes with stiff loops, up to timestep × 2⁴
+MARGIN = 0.5  # a suggestion's differences are at most half their tolerances, at its step and at half of it
 STEP_FACTOR = 10  # the timestep variant runs at timestep / 10
 TRIAL_STEPS = SEARCH_STEPS  # the comparison trials' (stiff loops, timestep / 10) own budget each, in steps
 
@@ -89,6 +92,11 @@ class Trial:
                    d.omega_max_abs / t.omega_atol)
 
     @property
+    def with_margin(self) -> bool:
+        """Passes with every difference at most MARGIN of its tolerance."""
+        return self.passed and self.excess <= MARGIN
+
+    @property
     def evaluations(self) -> int:
         return self.comparison.mujoco.n_evaluations if self.comparison is not None else 0
 
@@ -104,6 +112,7 @@ class ModelCheck:
     smaller_step: Trial
     cheapest: Trial | None
     tried: tuple[Trial, ...]
+    cheapest_half: Trial | None = None  # the suggestion checked again at half its step
 
     @property
     def passed(self) -> bool:
@@ -153,11 +162,13 @@ def _trial(imported: ImportedModel, reference: EngineResult, tolerances: Toleran
 
 
 def _cheapest_step(options: ModelOptions, horizon: float, trial, tried: list[Trial],
-                   budget: float = math.inf) -> Trial | None:
-    """The longest step that passes with stiff loops: from the model's step, halving until one
-    passes (MAX_HALVINGS at most, and no step that would cost ``budget`` evaluations or more:
-    a cheaper passing run is known); if the model's own step passes, doubling while it does
-    (MAX_DOUBLINGS at most, the step at most a tenth of the horizon)."""
+                   budget: float = math.inf) -> tuple[Trial, Trial] | None:
+    """The longest step that passes with margin (:attr:`Trial.with_margin`) with stiff loops, and
+    passes with margin again at half of it: from the model's step, halving until a step and its half
+    both do (MAX_HALVINGS at most, and no step that would cost ``budget`` evaluations or more: a
+    cheaper passing run is known); if the model's own step does, doubling while the longer step
+    passes with margin (its half is the step before, which did), the step at most a tenth of the
+    horizon. Returns the suggestion and its half-step run."""
     def at(h: float, label: str) -> Trial:
         candidate = replace(options, timestep=h).stiff_loops()
         found = next((t for t in tried if t.options == candidate), None)
@@ -166,26 +177,35 @@ def _cheapest_step(options: ModelOptions, horizon: float, trial, tried: list[Tri
             tried.append(found)
         return found
 
+    def affordable(h: float) -> bool:
+        steps = replace(options, timestep=h).steps(horizon)
+        spent = sum(t.comparison.mujoco.n_steps for t in tried if t.comparison is not None)
+        return steps <= MAX_STEPS and spent + steps <= SEARCH_STEPS
+
     h = options.timestep
     for halvings in range(MAX_HALVINGS + 1):
-        steps = replace(options, timestep=h / 2 ** halvings).steps(horizon)
-        spent = sum(t.comparison.mujoco.n_steps for t in tried if t.comparison is not None)
-        if steps > MAX_STEPS or steps * options.evaluations_per_step() >= budget or spent + steps > SEARCH_STEPS:
+        step = h / 2 ** halvings
+        if not affordable(step) or replace(options, timestep=step).steps(horizon) * options.evaluations_per_step() >= budget:
             return None
-        found = at(h / 2 ** halvings, f"{options.integrator}, timestep / {2 ** halvings}")
-        if found.passed:
+        found = at(step, f"{options.integrator}, timestep / {2 ** halvings}")
+        if not found.with_margin:
+            continue
+        if not affordable(step / 2):
+            return None
+        half = at(step / 2, f"{options.integrator}, timestep / {2 ** (halvings + 1)}")
+        if half.with_margin:
             break
     else:
         return None
     if halvings == 0:
-        for doublings in range(1, MAX_DOUBLINGS + 1):
-            if h * 2 ** doublings > horizon / 10:
-                break
+        doublings = 1
+        while h * 2 ** doublings <= horizon / 10:
             longer = at(h * 2 ** doublings, f"{options.integrator}, timestep × {2 ** doublings}")
-            if not longer.passed:
+            if not longer.with_margin:
                 break
-            found = longer
-    return found
+            found, half = longer, found
+            doublings += 1
+    return found, half
 
 
 def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None,
@@ -214,15 +234,15 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     stiff = trial("stiff loops", written.stiff_loops(), TRIAL_STEPS)
     smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR), TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
-    cheapest = as_written if as_written.passed else None
+    cheapest, half = (as_written, None) if as_written.passed else (None, None)
     if cheapest is None:
         for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
             budget = cheapest.evaluations if cheapest is not None else math.inf
             found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)
-            if found is not None and (cheapest is None or found.evaluations < cheapest.evaluations):
-                cheapest = found
+            if found is not None and (cheapest is None or found[0].evaluations < cheapest.evaluations):
+                cheapest, half = found
     return ModelCheck(imported=imported, reference=reference, as_written=as_written, stiff_loops=stiff,
-                      smaller_step=smaller, cheapest=cheapest, tried=tuple(tried))
+                      smaller_step=smaller, cheapest=cheapest, tried=tuple(tried), cheapest_half=half)
 
 
 def _figures(trial: Trial, unit: str) -> str:
@@ -249,7 +269,8 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
              f"({check.as_written.options.text()}) against the exact reduced solution, "
              f"peak {check.reference.peak.omega:.10g} {unit}/s",
              f"      read at {where}: loops closed to {imported.closure_residual:.3g} m, Newton moved the "
-             f"configuration by {imported.polish:.3g} (rad or m)",
+             f"configuration by {imported.polish:.3g} (rad or m); input {input_coordinate(imported).text()}",
+             f"      horizon: every run simulates {scene.horizon:g} s (--horizon)",
              f"      tolerances: peak_omega_rtol {t.peak_omega_rtol:g}, q_atol {t.q_atol:g} {unit}, "
              f"omega_atol {t.omega_atol:g} {unit}/s",
              f"      as written:        {_figures(check.as_written, unit)}"]
@@ -267,18 +288,24 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
              f"      the difference comes from: {check.cause}"]
     if check.cheapest is None:
         smallest = min(t.options.timestep for t in check.tried)
-        lines.append(f"      no options tried meet the tolerances (stiff loops, RK4 and the model's integrator, steps "
-                     f"down to {smallest:.3g} s, within the search's limit of {SEARCH_STEPS:.3g} steps): loosen the "
-                     "tolerances or shorten the horizon")
+        lines.append(f"      no options tried meet the tolerances with margin (every difference at most {MARGIN:g} of its "
+                     f"tolerance over {check.imported.scene.horizon:g} s, at the step and at half of it; stiff loops, "
+                     f"RK4 and the model's integrator, steps down to {smallest:.3g} s, within the search's limit of "
+                     f"{SEARCH_STEPS:.3g} steps): loosen the tolerances or shorten the horizon")
     elif check.cheapest is not check.as_written:
         c = check.cheapest
         written = check.as_written.options  # its work as planned (a failed run has no count)
         work = c.evaluations / (written.steps(check.imported.scene.horizon) * written.evaluations_per_step())
-        lines += [f"      cheapest options that meet them: {c.options.text()} ({c.comparison.mujoco.n_steps} steps, "
-                  f"{work:.3g}x the model's work as written); paste into the MJCF:",
-                  *(f"        {line}" for line in c.options.mjcf().splitlines()),
-                  "      (a connect that sets its own solref or solimp needs them on it instead of in <default>)"]
+        snippet = c.options.mjcf(check.imported.connects)
+        onto = (" (a <connect> line's attributes onto the model's connect of that name)" if "<connect " in snippet
+                else "")
+        margin = (f"margin: every difference at most {c.excess:.2g} of its tolerance over "
+                  f"{check.imported.scene.horizon:g} s, {check.cheapest_half.excess:.2g} at half the step "
+                  f"(required: {MARGIN:g})")
+        lines += [f"      cheapest options that meet them with margin: {c.options.text()} ({c.comparison.mujoco.n_steps} "
+                  f"steps, {work:.3g}x the model's work as written); {margin}; paste into the MJCF{onto}:",
+                  *(f"        {line}" for line in snippet.splitlines())]
     return lines
 
 
-__all__ = ["MAX_HALVINGS", "SEARCH_STEPS", "TRIAL_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]
+__all__ = ["MARGIN", "MAX_HALVINGS", "SEARCH_STEPS", "TRIAL_STEPS", "ModelCheck", "Trial", "check_lines", "check_model", "diagnosis_lines"]

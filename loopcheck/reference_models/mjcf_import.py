@@ -181,6 +181,7 @@ class ImportedModel:
         for qpos0.
     warnings : one line each: what was disabled or left out, and why.
     said : one line each for stdout: what was chosen for the user (the model's only keyframe).
+    connects : each connect equality of the model, in its order (:class:`ConnectSource`).
     """
 
     scene: Scene
@@ -197,11 +198,93 @@ class ImportedModel:
     polish: float
     warnings: tuple[str, ...]
     said: tuple[str, ...] = ()
+    connects: tuple["ConnectSource", ...] = ()
+
+
+@dataclass(frozen=True)
+class ConnectSource:
+    """A connect equality as the file writes it: ``label`` names it for a user
+    (:func:`element_label`), ``name`` is its MJCF name (None without one), and ``own`` says that it
+    sets its own softness (``solref``, ``solimp`` or a default ``class``, or the file could not be
+    matched to the model, an ``<include>``): a new ``<default><equality>`` does not reach it, so
+    new values go on it."""
+
+    label: str
+    name: str | None
+    own: bool
+
+
+def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, ...]:
+    """The model's connects, matched in file order to the ``<equality>`` elements of the file."""
+    try:
+        root = ET.parse(path).getroot()
+        written = [child for block in root.findall("equality") for child in block if isinstance(child.tag, str)]
+    except (ET.ParseError, OSError):
+        written = []
+    matched = len(written) == model.neq
+    out = []
+    for e in range(model.neq):
+        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_CONNECT):
+            continue
+        own = not matched or any(written[e].get(key) is not None for key in ("solref", "solimp", "class"))
+        out.append(ConnectSource(element_label(model, mujoco.mjtObj.mjOBJ_EQUALITY, e),
+                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own))
+    return tuple(out)
 
 
 def _object_name(model: mujoco.MjModel, kind, index: int, fallback: str) -> str:
+    """The element's MJCF name, else ``fallback`` and its index (a name for the scene file, not for
+    messages: :func:`element_label` names an element so that a user can find it)."""
     name = mujoco.mj_id2name(model, kind, index)
     return name if name else f"{fallback}{index}"
+
+
+# an equality's MJCF tag (a <joint> or <tendon> inside <equality> is said so, not to read as a joint or tendon)
+_EQUALITY_TAG = {int(mujoco.mjtEq.mjEQ_CONNECT): "connect", int(mujoco.mjtEq.mjEQ_WELD): "weld",
+                 int(mujoco.mjtEq.mjEQ_JOINT): "joint equality", int(mujoco.mjtEq.mjEQ_TENDON): "tendon equality"}
+
+
+def _body_text(model: mujoco.MjModel, body: int) -> str:
+    """A body as a user finds it: its name, "world", or "body #k" (k its place in the file)."""
+    return "world" if body == 0 else (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body #{body}")
+
+
+def element_label(model: mujoco.MjModel, kind, index: int) -> str:
+    """How messages name a model's element: ``joint 'crank'`` when it has a name; else its MJCF tag,
+    its ordinal among the file's elements of that tag (from 1, in file order: MuJoCo numbers each
+    kind in the order the file lists them) and what it joins or sits on, e.g.
+    ``connect #2 (right_follower–right_coupler)``, ``geom #12 (on link2)``."""
+    obj = mujoco.mjtObj
+    if kind == obj.mjOBJ_EQUALITY:
+        eq_type = int(model.eq_type[index])
+        tag = _EQUALITY_TAG.get(eq_type, "equality")
+    else:
+        tag = {obj.mjOBJ_JOINT: "joint", obj.mjOBJ_GEOM: "geom", obj.mjOBJ_SITE: "site", obj.mjOBJ_BODY: "body",
+               obj.mjOBJ_PAIR: "pair", obj.mjOBJ_TENDON: "tendon", obj.mjOBJ_ACTUATOR: "actuator",
+               obj.mjOBJ_KEY: "key"}.get(kind, "element")
+    name = mujoco.mj_id2name(model, kind, index)
+    if name:
+        return f"{tag} '{name}'"
+    if kind == obj.mjOBJ_EQUALITY:
+        ordinal = sum(1 for e in range(index + 1) if int(model.eq_type[e]) == eq_type)
+        ends = []
+        for o in (int(model.eq_obj1id[index]), int(model.eq_obj2id[index])):
+            if int(model.eq_objtype[index]) == int(obj.mjOBJ_SITE):
+                ends.append(mujoco.mj_id2name(model, obj.mjOBJ_SITE, o) or _body_text(model, int(model.site_bodyid[o])))
+            elif eq_type in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)):
+                ends.append(_body_text(model, o))
+        return f"{tag} #{ordinal}" + (f" ({'–'.join(ends)})" if ends else "")
+    where = ""
+    if kind == obj.mjOBJ_JOINT:
+        body = int(model.jnt_bodyid[index])
+        where = f" ({_body_text(model, int(model.body_parentid[body]))}–{_body_text(model, body)})"
+    elif kind == obj.mjOBJ_GEOM:
+        where = f" (on {_body_text(model, int(model.geom_bodyid[index]))})"
+    elif kind == obj.mjOBJ_SITE:
+        where = f" (on {_body_text(model, int(model.site_bodyid[index]))})"
+    elif kind == obj.mjOBJ_BODY:
+        return f"body #{index} (in {_body_text(model, int(model.body_parentid[index]))})"
+    return f"{tag} #{index + 1}{where}"
 
 
 def _clean(name: str) -> str:
@@ -266,6 +349,9 @@ class _Reader:
     def name(self, kind, index: int, fallback: str) -> str:
         return _object_name(self.model, kind, index, fallback)
 
+    def label(self, kind, index: int) -> str:
+        return element_label(self.model, kind, index)
+
     # -- what acts ---------------------------------------------------------------
     def check_options(self) -> None:
         m = self.model
@@ -283,7 +369,7 @@ class _Reader:
         if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) or m.ngeom == 0:
             return
         if m.npair:
-            self.fail(f"contact pair '{self.name(mujoco.mjtObj.mjOBJ_PAIR, 0, 'pair')}': contacts act, and loopcheck's "
+            self.fail(f"contact {self.label(mujoco.mjtObj.mjOBJ_PAIR, 0)}: contacts act, and loopcheck's "
                       "description has none")
         excluded = {(int(sig) >> 16, int(sig) & 0xFFFF) for sig in m.exclude_signature}
         filter_parent = not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
@@ -300,8 +386,8 @@ class _Reader:
                     continue
                 if filter_parent and w1 and w2 and (weld[m.body_parentid[w1]] == w2 or weld[m.body_parentid[w2]] == w1):
                     continue  # MuJoCo's parent-child filter
-                self.fail(f"geoms '{self.name(mujoco.mjtObj.mjOBJ_GEOM, g1, 'geom')}' and "
-                          f"'{self.name(mujoco.mjtObj.mjOBJ_GEOM, g2, 'geom')}' can collide (contype/conaffinity): "
+                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_GEOM, g1)} and "
+                          f"{self.label(mujoco.mjtObj.mjOBJ_GEOM, g2)} can collide (contype/conaffinity): "
                           "contacts are not part of loopcheck's description; set their contype and conaffinity to 0, "
                           "exclude the pair, or disable contacts")
         self.warnings.append("contacts disabled: no two geoms of the model can collide")
@@ -314,24 +400,24 @@ class _Reader:
             kind = int(m.jnt_type[j])
             if kind in (_FREE, _BALL):
                 what = "free" if kind == _FREE else "ball"
-                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' is a {what} joint: a planar "
+                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} is a {what} joint: a planar "
                           "one-DOF linkage has hinges and slides only")
             if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
-                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has frictionloss: dry friction "
+                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} has frictionloss: dry friction "
                           "is not part of loopcheck's description")
             if m.jnt_actgravcomp[j] and m.jnt_actfrclimited[j]:  # else the same force as a passive gravcomp
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
                           "with actuatorfrcrange cannot be represented: MuJoCo clamps the gravity compensation "
                           "there, and loopcheck's gravcomp is not clamped")
             if m.jnt_limited[j]:
-                self.warnings.append(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}' has a range: "
+                self.warnings.append(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} has a range: "
                                      "loopcheck's description has no joint limits, so the comparison holds while the "
                                      "motion stays inside it")
         if m.njnt == 0:
             self.fail("the model has no joints")
         for b in range(1, m.nbody):
             if m.body_jntnum[b] > 1:
-                self.fail(f"body '{self.name(mujoco.mjtObj.mjOBJ_BODY, b, 'body')}' has {m.body_jntnum[b]} joints: "
+                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_BODY, b)} has {m.body_jntnum[b]} joints: "
                           "loopcheck's description has one joint between two bodies (add a body between them)")
 
     def plane(self, input_joint: int) -> None:
@@ -344,15 +430,15 @@ class _Reader:
         n /= np.linalg.norm(n)
         for j in range(m.njnt):
             axis = d.xaxis[j] / np.linalg.norm(d.xaxis[j])
-            name = self.name(mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
-            first_name = self.name(mujoco.mjtObj.mjOBJ_JOINT, first, "joint")
+            name = self.label(mujoco.mjtObj.mjOBJ_JOINT, j)
+            first_name = self.label(mujoco.mjtObj.mjOBJ_JOINT, first)
             if m.jnt_type[j] == _HINGE:
                 if np.linalg.norm(np.cross(axis, n)) > AXIS_TOL:
-                    self.fail(f"joint '{name}': its axis {np.round(axis, 6).tolist()} is not parallel to joint "
-                              f"'{first_name}''s {np.round(n, 6).tolist()}: the linkage is not planar")
+                    self.fail(f"{name}: its axis {np.round(axis, 6).tolist()} is not parallel to "
+                              f"{first_name}'s {np.round(n, 6).tolist()}: the linkage is not planar")
             elif abs(axis @ n) > AXIS_TOL:
-                self.fail(f"joint '{name}': the slide's axis {np.round(axis, 6).tolist()} leaves the plane normal to "
-                          f"joint '{first_name}''s axis {np.round(n, 6).tolist()}")
+                self.fail(f"{name}: the slide's axis {np.round(axis, 6).tolist()} leaves the plane normal to "
+                          f"{first_name}'s axis {np.round(n, 6).tolist()}")
         e1 = _in_plane_x(n)
         self.n, self.e1, self.e2 = n, e1, np.cross(n, e1)
 
@@ -477,14 +563,15 @@ class _Reader:
         self.gaps: list[float] = []
         for e in range(m.neq):
             name = self.name(mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
+            label = self.label(mujoco.mjtObj.mjOBJ_EQUALITY, e)
             kind = int(m.eq_type[e])
             if not m.eq_active0[e]:
-                self.warnings.append(f"equality '{name}' is inactive at the start: left out")
+                self.warnings.append(f"{label} is inactive at the start: left out")
                 continue
             if kind != _CONNECT:
                 what = {_WELD: "a weld", _EQ_JOINT: "a joint coupling",
-                        _EQ_TENDON: "a tendon coupling"}.get(kind, "not a connect")
-                self.fail(f"equality '{name}' is {what}: only connect equalities (loop closures) have a planar "
+                        _EQ_TENDON: "a tendon coupling"}.get(kind, "an equality of another kind")
+                self.fail(f"{label} is {what}, not a connect: only connect equalities (loop closures) have a planar "
                           "one-DOF meaning here")
             if int(m.eq_objtype[e]) == _OBJ_SITE:
                 ends = []
@@ -500,14 +587,14 @@ class _Reader:
             (g1, p1), w1 = ends[0]
             (g2, p2), w2 = ends[1]
             if g1 is g2:
-                self.fail(f"connect '{name}' joins two points of one rigid body ('{g1.name}')")
+                self.fail(f"{label} joins two points of one rigid body ('{g1.name}')")
             gap = float(np.linalg.norm(w1 - w2))
             self.gaps.append(gap)
             if gap > CLOSURE_RTOL * self.scale:
                 form = ("" if int(m.eq_objtype[e]) == _OBJ_SITE else
                         "; MuJoCo puts a body-form connect's second anchor where the first one is at qpos0, so "
                         "author the model in its assembled pose or use the site form")
-                self.fail(f"connect '{name}' is open by {gap:.3g} m at the configuration read, more than "
+                self.fail(f"{label} is open by {gap:.3g} m at the configuration read, more than "
                           f"{CLOSURE_RTOL:g} of the model's size ({self.scale:.3g} m){form}")
             out.append(RevoluteJoint(_unique(_clean(name), self.taken_joints), g1.name, p1, g2.name, p2))
         return out
@@ -527,8 +614,8 @@ def _gravcomp(reader: _Reader, group: _Group) -> float:
     values = {float(m.body_gravcomp[b]): b for b in group.bodies if m.body_mass[b] > 0.0}
     if len(values) > 1:
         (a, ba), (b, bb) = list(values.items())[:2]
-        reader.fail(f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, ba, 'body')}' (gravcomp=\"{_word(a)}\") and body "
-                    f"'{reader.name(mujoco.mjtObj.mjOBJ_BODY, bb, 'body')}' (gravcomp=\"{_word(b)}\") are welded "
+        reader.fail(f"{reader.label(mujoco.mjtObj.mjOBJ_BODY, ba)} (gravcomp=\"{_word(a)}\") and "
+                    f"{reader.label(mujoco.mjtObj.mjOBJ_BODY, bb)} (gravcomp=\"{_word(b)}\") are welded "
                     "together: different gravcomp on one rigid body cannot be represented (loopcheck's body has one)")
     return next(iter(values), 0.0)
 
@@ -689,15 +776,31 @@ def _check_unset_markers(path: Path) -> None:
                                 "of the model must be finite")
 
 
+def _spec_ordinal(spec: mujoco.MjSpec, kind: str, element, index: int) -> str:
+    """An unnamed element of the spec (before compiling) as :func:`element_label` names it in the
+    compiled model: its tag, its ordinal in file order and what it joins or sits on (``index`` is its
+    place in the spec's list of its kind, the world first among bodies)."""
+    def body(b) -> str:
+        return (b.name or "an unnamed body") if b is not None else "world"
+
+    parent = getattr(element, "parent", None)
+    if kind == "body":
+        return f"body #{index} (in {body(parent)})"
+    if kind == "equality":
+        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == _CONNECT)
+        return f"connect #{ordinal} ({element.name1}–{element.name2})"
+    if kind == "joint" and parent is not None:
+        return f"joint #{index + 1} ({body(parent.parent) if parent.parent is not None else 'world'}–{body(parent)})"
+    return f"{kind} #{index + 1} (on {body(parent)})"
+
+
 def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
     """Refuse a value that is NaN or infinite, or finite and outside the range the description
     can represent (a negative damping, stiffness, armature, mass or inertia): one line naming
     the file, the element, the MJCF attribute and, when the value is its default class's, that
     class. Zero stays "absent" (no spring, no damper)."""
     def refuse(kind: str, element, index: int, attribute: str, field_: str, values, reason: str):
-        parent = getattr(getattr(element, "parent", None), "name", "") if kind != "body" else ""
-        name = getattr(element, "name", "") or (f"#{index} (unnamed, in body '{parent}')" if parent
-                                                 else f"#{index} (unnamed)")
+        name = getattr(element, "name", "") or _spec_ordinal(spec, kind, element, index)
         source = ""
         classname = getattr(getattr(element, "classname", None), "name", None)
         if classname and kind in _DEFAULT_OF:
@@ -710,7 +813,7 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
         if attribute in _LINEAR or attribute in ("gear", "gainprm", "biasprm", "size"):  # as written: no trailing zeros
             values = np.trim_zeros(values, "b") if np.any(values != 0.0) else values[:1]
         written = " ".join(_word(v) for v in values)
-        label = f"{kind} '{name}'" if getattr(element, "name", "") else f"{kind} {name}"
+        label = f"{kind} '{name}'" if getattr(element, "name", "") else name
         raise MjcfError(f"{path}: {label}: {attribute}=\"{written}\"{source} {reason}")
 
     def check(kind, element, index, attribute, field_, least):
@@ -943,7 +1046,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             reader.fail(f"body '{group.name}' has no mass or no inertia about the plane's normal")
         gravcomp = _gravcomp(reader, group)
         body = _pivot_body(group, mass, com, inertia, joints, reader.scale, gravcomp)
-        where = f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'" + (
+        where = reader.label(mujoco.mjtObj.mjOBJ_BODY, group.root) + (
             " (with the bodies welded to it)" if len(group.bodies) > 1 else "")
         if body.mass:
             reader.representable(body.mass, "mass", f"{where}: mass")
@@ -955,7 +1058,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             reader.representable(value, "position", f"{where}: centre of mass, {axis} in its plane frame")
         bodies.append(body)
     for group in [reader.group_of[0], *reader.moving]:
-        owner = "the world" if group.root == 0 else f"body '{reader.name(mujoco.mjtObj.mjOBJ_BODY, group.root, 'body')}'"
+        owner = "the world" if group.root == 0 else reader.label(mujoco.mjtObj.mjOBJ_BODY, group.root)
         for point, xy in group.points.items():
             for axis, value in zip("xy", xy):
                 reader.representable(value, "position", f"{owner}: point '{point}' (a site, joint or anchor), {axis} in "
@@ -1014,7 +1117,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
-                         warnings=tuple(reader.warnings), said=(said_key,) if said_key else ())
+                         warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
+                         connects=_connect_sources(path, model))
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
@@ -1172,21 +1276,22 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
 
     for t in range(m.ntendon):
         name = _object_name(m, mujoco.mjtObj.mjOBJ_TENDON, t, "tendon")
+        label = element_label(m, mujoco.mjtObj.mjOBJ_TENDON, t)
         damping = float(m.tendon_damping[t]) if dampers_on else 0.0
         stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
         armature = float(m.tendon_armature[t])
         if m.tendon_frictionloss[t] > 0.0:
-            reader.fail(f"tendon '{name}' has frictionloss: dry friction is not part of loopcheck's description")
+            reader.fail(f"{label} has frictionloss: dry friction is not part of loopcheck's description")
         if m.tendon_limited[t]:
-            reader.warnings.append(f"tendon '{name}' has a range: loopcheck's description has no tendon limits, so the "
+            reader.warnings.append(f"{label} has a range: loopcheck's description has no tendon limits, so the "
                                    "comparison holds while the motion stays inside it")
         if damping == 0.0 and stiffness == 0.0 and armature == 0.0:
-            reader.warnings.append(f"tendon '{name}' has no stiffness, damping or armature: it exerts no force and is "
+            reader.warnings.append(f"{label} has no stiffness, damping or armature: it exerts no force and is "
                                    "left out")
             continue
         low, high = m.tendon_lengthspring[t]
         if stiffness > 0.0 and low != high:
-            reader.fail(f"tendon '{name}' has a dead band (springlength {low:g} {high:g}): not part of loopcheck's "
+            reader.fail(f"{label} has a dead band (springlength {low:g} {high:g}): not part of loopcheck's "
                         "description")
         adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
         types = [int(m.wrap_type[k]) for k in range(adr, adr + num)]
@@ -1194,16 +1299,16 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             ends = [reader.site_point[int(m.wrap_objid[k])] for k in range(adr, adr + num)]
             (ga, pa), (gb, pb) = ends
             if ga is gb:
-                reader.fail(f"tendon '{name}' joins two points of one rigid body ('{ga.name}'): its length never changes")
+                reader.fail(f"{label} joins two points of one rigid body ('{ga.name}'): its length never changes")
             if armature > 0.0:
-                reader.fail(f"tendon '{name}' has armature along a line between two points: loopcheck's inertias act on "
+                reader.fail(f"{label} has armature along a line between two points: loopcheck's inertias act on "
                             "one joint (a fixed tendon's or a joint's armature)")
             if damping > 0.0:
-                reader.representable(damping, "damping", f"tendon '{name}': damping")
+                reader.representable(damping, "damping", f"{label}: damping")
                 lines.append(LineElement("damper", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, damping))
             if stiffness > 0.0:
-                reader.representable(stiffness, "stiffness", f"tendon '{name}': stiffness")
-                reader.representable(float(low), "position", f"tendon '{name}': springlength")
+                reader.representable(stiffness, "stiffness", f"{label}: stiffness")
+                reader.representable(float(low), "position", f"{label}: springlength")
                 lines.append(LineElement("spring", _unique(_clean(name), taken), ga.name, pa, gb.name, pb, stiffness,
                                          float(low)))
             continue
@@ -1221,46 +1326,47 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
                 if match:
                     break
             if match is None:
-                reader.fail(f"fixed tendon '{name}' couples joints in a way that is no joint's own coordinate: "
+                reader.fail(f"fixed {label} couples joints in a way that is no joint's own coordinate: "
                             "loopcheck's joint springs and dampers act on one joint")
             joint, lam = match
             u_read = float(rows[joint] @ x_read)
             length_read = float(c @ reader.qpos[[m.jnt_qposadr[j] for j in range(m.njnt)]])
             if armature > 0.0:  # ½ a L̇² = ½ a λ² u̇², λ = ±1
-                add_joint_element("inertia", name, joint, armature, where=f"tendon '{name}': armature")
+                add_joint_element("inertia", name, joint, armature, where=f"{label}: armature")
                 if not _one_branch(m, np.flatnonzero(c)):
                     reader.warnings.append(
-                        f"tendon '{name}': its armature couples joints of different branches, and MuJoCo keeps only "
+                        f"{label}: its armature couples joints of different branches, and MuJoCo keeps only "
                         "the mass-matrix terms of one branch (ancestor pairs): the model as written does not have "
                         "the ½ a L̇² the scene holds")
             if damping > 0.0:
-                add_joint_element("damper", name, joint, damping, where=f"tendon '{name}': damping")
+                add_joint_element("damper", name, joint, damping, where=f"{label}: damping")
             if stiffness > 0.0:
                 # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
                 add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam,
-                                  where=f"tendon '{name}': stiffness", rest_where=f"tendon '{name}': springlength")
+                                  where=f"{label}: stiffness", rest_where=f"{label}: springlength")
             continue
-        reader.fail(f"tendon '{name}' wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
+        reader.fail(f"{label} wraps geoms, pulleys or more than two sites: loopcheck's springs and dampers "
                     "act along a straight line between two points or on one joint")
 
     for j in range(m.njnt):
         mj_name = _object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+        label = element_label(m, mujoco.mjtObj.mjOBJ_JOINT, j)
         joint = reader.joint_of[mj_name]
         damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
         if armature > 0.0:
-            add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"joint '{mj_name}': armature")
+            add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"{label}: armature")
         if damping > 0.0:
-            add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"joint '{mj_name}': damping")
+            add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"{label}: damping")
         if stiffness > 0.0:
             adr = int(m.jnt_qposadr[j])
             u_read = float(rows[joint] @ x_read)
             sign = reader.joint_sign[j]
             add_joint_element("spring", f"{joint}_stiffness", joint, stiffness,
                               u_read + sign * (float(m.qpos_spring[adr]) - float(reader.qpos[adr])),
-                              where=f"joint '{mj_name}': stiffness", rest_where=f"joint '{mj_name}': springref")
+                              where=f"{label}: stiffness", rest_where=f"{label}: springref")
     return lines, joint_elements
 
 
-__all__ = ["Control", "ImportedModel", "MjcfError", "import_mjcf"]
+__all__ = ["ConnectSource", "Control", "ImportedModel", "MjcfError", "element_label", "import_mjcf"]

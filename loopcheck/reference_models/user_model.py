@@ -30,7 +30,7 @@ from loopcheck.mujoco_model.record import samples_refine_extrema
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
-from .mjcf_import import ImportedModel
+from .mjcf_import import ConnectSource, ImportedModel, element_label
 from .settings import DEFAULT_SOLIMP, INTEGRATORS
 
 # Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
@@ -39,6 +39,8 @@ MAX_STEPS = 5_000_000
 ENGINE = "model"  # the name of a user model's runs in comparisons and reports
 _INTEGRATOR_NAME = {int(getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}")): name for name in INTEGRATORS}
 _CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+# MJCF's keyword for each integrator (MuJoCo's parser is case-sensitive: "euler" is refused)
+MJCF_INTEGRATOR = {"euler": "Euler", "rk4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
 _SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 
 
@@ -99,19 +101,67 @@ class ModelOptions:
                      f"solimp {' '.join(f'{v:g}' for v in self.solimp[0])}")
         return line
 
-    def mjcf(self) -> str:
-        """MJCF to paste into the model: the ``<option>`` and the connects' defaults (a connect
-        that sets its own solref or solimp needs them on it instead)."""
-        lines = [f'<option integrator="{self.integrator.upper() if self.integrator == "rk4" else self.integrator}" '
-                 f'timestep="{_number(self.timestep)}"/>']
-        if self.solref and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1:
+    def mjcf(self, connects: tuple[ConnectSource, ...] = ()) -> str:
+        """MJCF to paste into the model, enough alone to give it these options: the ``<option>``,
+        the connects' softness in ``<default>`` when all share it, and a ``<connect name=...>`` line
+        with the values for each connect (``connects``: the model's, in order) that sets its own,
+        which a default does not reach (every connect, when they differ); a connect without a name
+        that needs its own gets a comment naming it (:func:`element_label`) and the values."""
+        lines = [f'<option integrator="{MJCF_INTEGRATOR[self.integrator]}" timestep="{_number(self.timestep)}"/>']
+        shared = bool(self.solref) and len(set(self.solref)) == 1 and len(set(self.solimp)) == 1
+        if shared:
             lines.append(f'<default><equality solref="{" ".join(_number(v) for v in self.solref[0])}" '
                          f'solimp="{" ".join(_number(v) for v in self.solimp[0])}"/></default>')
+        for k, (solref, solimp) in enumerate(zip(self.solref, self.solimp)):
+            source = connects[k] if k < len(connects) else None
+            if shared and (source is None or not source.own):
+                continue
+            values = (f'solref="{" ".join(_number(v) for v in solref)}" '
+                      f'solimp="{" ".join(_number(v) for v in solimp)}"')
+            if source is not None and source.name:
+                lines.append(f'<connect name="{source.name}" {values}/>')
+            else:
+                label = source.label if source is not None else f"connect #{k + 1}"
+                lines.append(f"<!-- {label}: set {values} on it -->")
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
         return {"integrator": self.integrator, "timestep": self.timestep, "solref": [list(v) for v in self.solref],
                 "solimp": [list(v) for v in self.solimp], "iterations": self.iterations, "tolerance": self.tolerance}
+
+
+@dataclass(frozen=True)
+class InputCoordinate:
+    """The scene's input coordinate in MuJoCo's terms: q = sign·qpos + offset, where qpos is the
+    input joint's own coordinate (``joint``, as :func:`element_label` names it), so that the rates
+    and peaks printed (q̇) are sign·qvel. ``sign`` is −1 when the hinge's axis points against the
+    plane's normal; ``offset`` is the joint's frame angle (or a slide's position) at qpos = 0."""
+
+    joint: str
+    qpos: float
+    sign: float
+    offset: float
+    unit: str
+
+    def text(self) -> str:
+        offset = f" {'+' if self.offset >= 0 else '−'} {abs(self.offset):.12g} {self.unit}" if self.offset else ""
+        return (f"{self.joint} at qpos {self.qpos:.12g} {self.unit} (q = {'' if self.sign > 0 else '−'}qpos{offset}; "
+                f"every rate and peak printed is {'' if self.sign > 0 else '−'}qvel of {self.joint})")
+
+
+def input_coordinate(imported: ImportedModel) -> InputCoordinate:
+    """The input joint's qpos at the configuration read, and how the scene's q is made of it."""
+    model, scene = imported.model, imported.scene
+    mine = scene.mechanism.linkage.input_joint
+    j = next(j for j in range(model.njnt)
+             if imported.joint_of.get(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}") == mine)
+    adr = int(model.jnt_qposadr[j])
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    sign = float(np.sign((system.drive @ imported.qpos_map)[adr])) or 1.0
+    qpos = float(imported.qpos[adr])
+    offset = scene.q0 - sign * qpos
+    return InputCoordinate(element_label(model, mujoco.mjtObj.mjOBJ_JOINT, j), qpos, sign,
+                           0.0 if abs(offset) < 1e-12 else offset, scene.input_unit)
 
 
 @dataclass(frozen=True)
@@ -246,4 +296,4 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                         details=ModelRunDetails(options, mujoco.__version__))
 
 
-__all__ = ["ENGINE", "MAX_STEPS", "ModelOptions", "ModelRunDetails", "run_model"]
+__all__ = ["ENGINE", "InputCoordinate", "MAX_STEPS", "MJCF_INTEGRATOR", "input_coordinate", "ModelOptions", "ModelRunDetails", "run_model"]

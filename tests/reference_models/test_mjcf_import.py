@@ -198,9 +198,9 @@ REFUSED = {
                             "joint 'lift': the slide's axis"),
     "no loop closure": (_model(FOUR_BAR), "the linkage has 3 degrees of freedom"),
     "weld": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<weld name="glue" body1="crank" body2="rocker"/></equality>')),
-             "equality 'glue' is a weld"),
+             "weld 'glue' is a weld, not a connect"),
     "joint coupling": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<joint name="gear" joint1="O1" joint2="O3"/></equality>')),
-                       "equality 'gear' is a joint coupling"),
+                       "joint equality 'gear' is a joint coupling, not a connect"),
     "position servo": (_model(FOUR_BAR, extra=LOOP + '<actuator><position name="servo" joint="O1" kp="10"/></actuator>'),
                        "actuator 'servo' is not a motor"),
     "two joints on a body": (_model('<body name="b"><joint name="j1" axis="0 0 1"/><joint name="j2" axis="0 0 1"/>'
@@ -209,7 +209,7 @@ REFUSED = {
                       "joint 'A' has frictionloss"),
     "geoms that touch": (_model(FOUR_BAR.replace('<site name="rB"', '<geom name="stop" size="0.1"/><site name="rB"')
                                 .replace('<site name="cB"', '<geom name="tip" size="0.1" pos="1 0 0"/><site name="cB"'), extra=LOOP),
-                         "geoms 'tip' and 'stop' can collide"),
+                         "geom 'tip' and geom 'stop' can collide"),
     "fluid": (_model(FOUR_BAR, extra=LOOP, option='viscosity="0.1"'), "fluid forces"),
     "wrapping tendon": (_model(FOUR_BAR.replace('<site name="rB"', '<site name="r2" pos="0.1 0 0"/><site name="rB"'),
                                extra=LOOP + '<tendon><spatial name="belt" stiffness="1"><site site="cB"/><site site="rB"/>'

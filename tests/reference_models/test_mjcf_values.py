@@ -69,7 +69,7 @@ BAD_VALUES = {
     "geom density negative": (('<site name="rocker_B" pos="0.7 0 0"/>',
                                '<site name="rocker_B" pos="0.7 0 0"/><geom size="0.1" density="-1000" contype="0" '
                                'conaffinity="0"/>'),
-                              "geom #0 (unnamed, in body 'rocker'): density=\"-1000\" cannot be represented"),
+                              "geom #1 (on rocker): density=\"-1000\" cannot be represented"),
     "geom mass nan": (('<site name="rocker_B" pos="0.7 0 0"/>',
                        '<site name="rocker_B" pos="0.7 0 0"/><geom name="lump" size="0.1" mass="nan" contype="0" '
                        'conaffinity="0"/>'), "geom 'lump': mass=\"nan\" is not a finite"),
