@@ -65,6 +65,12 @@ class PinModel:
     joint_coef : for each joint of a joint element, (coef (nq,), u0): its own coordinate
         u = u0 + coef · q (relative angle rad, or displacement m).
     size : the mechanism's size (m), the largest distance between two named points at x0.
+    compensation, compensation_data : where a body has ``gravcomp`` under gravity, a copy of the
+        model whose bodies weigh gravcomp × their mass at the same centre of mass (no rotational
+        inertia: only its gravity is read), and a data of it; else None. Pinocchio's gravity is one
+        for the model: the compensating force is that copy's generalized gravity, added to τ, and its
+        potential is taken off the model's (MuJoCo's passive gravcomp force, g·gravcomp·m at the
+        centre of mass against gravity).
     """
 
     model: object
@@ -80,6 +86,8 @@ class PinModel:
     input_row: np.ndarray
     joint_coef: dict
     size: float
+    compensation: object = None
+    compensation_data: object = None
 
     def point_jacobians(self, frames: list[int]) -> list[np.ndarray]:
         """The (2, nv) in-plane translational Jacobians of the frames, in the world's axes, at
@@ -105,7 +113,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     Raises
     ------
     ValueError
-        A joint inertia on a cut joint, or a body with gravcomp under gravity (one line naming it).
+        A joint inertia on a cut joint (one line naming it).
     """
     mech = scene.mechanism
     linkage = mech.linkage
@@ -119,12 +127,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
                              "Pinocchio model: its ½ I u̇² couples several joints' rates and Pinocchio's armature "
                              "is diagonal; move the inertia to a joint of the tree or leave the pin engine out")
 
-    compensated = [b.name for b in linkage.bodies if b.gravcomp]
-    if compensated and scene.gravity is not None:
-        raise ValueError(f"body {compensated[0]!r} has gravcomp {bodies[compensated[0]].gravcomp:g}: the pin engine "
-                         "does not scale a body's gravity (Pinocchio's gravity is the model's); leave the pin "
-                         "engine out")
-
+    compensated = {}  # Pinocchio joint id: (gravcomp × mass kg, centre of mass in the joint frame m)
     model = pin.Model()
     model.name = scene.name
     model.gravity = pin.Motion(np.array([*(scene.gravity or (0.0, 0.0)), 0.0]), np.zeros(3))
@@ -151,8 +154,10 @@ def build(scene: Scene, settings: Settings) -> PinModel:
         jid = model.addJoint(joint_id[edge.parent], joint_model, placement, jt.name)
         body = bodies[edge.body]
         inertia = np.diag([body.inertia] * 3)
-        model.appendBodyToJoint(jid, pin.Inertia(body.mass, np.array([body.com[0] - cx, body.com[1] - cy, 0.0]),
-                                                 inertia), pin.SE3.Identity())
+        lever = np.array([body.com[0] - cx, body.com[1] - cy, 0.0])
+        model.appendBodyToJoint(jid, pin.Inertia(body.mass, lever, inertia), pin.SE3.Identity())
+        if body.gravcomp and scene.gravity is not None:
+            compensated[jid] = (body.gravcomp * body.mass, lever)
         joint_id[edge.body], origin[edge.body] = jid, (cx, cy)
         names.append(jt.name)
     names = tuple(names)
@@ -206,5 +211,12 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     pin.initConstraintDynamics(model, data, constraint_models, constraint_datas)
     p = loops.positions(system.points, x0)
     size = float(np.max(np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)))
+    compensation = None
+    if compensated:
+        compensation = pin.Model(model)
+        for jid in range(1, compensation.njoints):
+            mass, lever = compensated.get(jid, (0.0, np.zeros(3)))
+            compensation.inertias[jid] = pin.Inertia(mass, lever, np.zeros((3, 3)))
     return PinModel(model, data, constraint_models, constraint_datas, system, names, x0, T, P, frames,
-                    system.drive @ T, joint_coef, size)
+                    system.drive @ T, joint_coef, size, compensation,
+                    None if compensation is None else compensation.createData())

@@ -126,6 +126,8 @@ class _Dynamics:
         self._kinematics(q)
         tau = np.zeros(self.nq)
         tau[self.input_dof] = load
+        if self.pm.compensation is not None:  # gravcomp: the compensated weight's generalized gravity, held up
+            tau += pin.computeGeneralizedGravity(self.pm.compensation, self.pm.compensation_data, q)
         power = load * v[self.input_dof]
         dissipation = 0.0
         for a, b, c in self.dampers:
@@ -204,6 +206,8 @@ class _Dynamics:
         M = pin.crba(model, data, q)  # the whole symmetric M (Pinocchio 4's binding), armature included
         kinetic = 0.5 * float(v @ M @ v)
         potential = float(pin.computePotentialEnergy(model, data, q))
+        if self.pm.compensation is not None:  # gravcomp: the compensated weight's potential is not the body's
+            potential -= float(pin.computePotentialEnergy(self.pm.compensation, self.pm.compensation_data, q))
         if self.springs:
             self._kinematics(q)
         for a, b, k, rest in self.springs:

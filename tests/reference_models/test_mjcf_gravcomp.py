@@ -7,8 +7,7 @@ with gravity off, and gravcomp 0.5 on every body as the finger under half the gr
 run of the model as written (its passive gravcomp force) converges on the exact answer; MuJoCo's
 energy balance closes with gravcomp's work counted (``mj_energyPos`` leaves it out). Refusals: a
 NaN or negative gravcomp, welded bodies with different gravcomp, ``actuatorgravcomp`` clamped by
-``actuatorfrcrange``; the pin engine (Pinocchio has one gravity for the model) refuses a scene with
-gravcomp in one line."""
+``actuatorfrcrange``. The pin engine's gravcomp is tested in tests/pin/test_pin_engine.py."""
 
 from __future__ import annotations
 
