@@ -18,6 +18,7 @@ class FailureReason(str, Enum):
     ENERGY_IMBALANCE = "energy-imbalance"  # the energy balance does not close within its bound
     INITIAL_STATE = "initial-state"  # the initial state violates the loop constraints
     INCOMPLETE = "incomplete"  # the run or the comparison did not cover the horizon
+    CONTACT = "contact"  # two geoms touched: the exact reference has no contacts
 
     def __str__(self) -> str:
         return self.value

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from loopcheck.errors import NumericalFailure
+from loopcheck.errors import FailureReason, NumericalFailure
 from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.results import EngineResult
 from loopcheck.scene import SceneError, Tolerances
@@ -115,14 +115,23 @@ class ModelCheck:
     cheapest_half: Trial | None = None  # the suggestion checked again at half its step
 
     @property
+    def contact(self) -> NumericalFailure | None:
+        """The first contact of any run (the as-written run first, then the trials): two geoms
+        touched, which the exact reference cannot follow."""
+        return next((t.failure for t in self.tried
+                     if t.failure is not None and t.failure.reason is FailureReason.CONTACT), None)
+
+    @property
     def passed(self) -> bool:
-        return self.as_written.passed
+        return self.as_written.passed and self.contact is None
 
     @property
     def cause(self) -> str:
         """Which of the model's settings the difference comes from: the one whose change alone
         meets the tolerances; when neither or both do, both are named, the one that removes more
         of the difference first."""
+        if self.contact is not None:
+            return f"a contact: {self.contact}"
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
         loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
@@ -276,6 +285,8 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
              f"      as written:        {_figures(check.as_written, unit)}"]
     if check.as_written.comparison is not None:
         lines += [f"      {failure}" for failure in check.as_written.comparison.gate.failures]
+    if check.contact is not None:
+        lines.append(f"      contact: {check.contact}")
     return lines + diagnosis_lines(check)
 
 

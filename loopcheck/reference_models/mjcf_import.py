@@ -323,6 +323,22 @@ class _Group:
     points: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
+def first_contact(model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
+    """The first active contact in ``data`` (after ``mj_forward`` or ``mj_step``: MuJoCo's own
+    collision, its broad phase included), as ``geom 'a' and geom 'b' touch (distance d m, margin
+    m m)``; None when there is none. Active: a contact row MuJoCo's solver acts on (not one in the
+    pair's ``gap``), with distance below the pair's margin."""
+    for i in range(data.ncon):
+        c = data.contact[i]
+        if c.exclude != 0 or c.efc_address < 0 or not c.dist < c.includemargin:
+            continue
+        g1, g2 = sorted((int(c.geom[0]), int(c.geom[1])))
+        return (f"{element_label(model, mujoco.mjtObj.mjOBJ_GEOM, g1)} and "
+                f"{element_label(model, mujoco.mjtObj.mjOBJ_GEOM, g2)} touch (distance {float(c.dist):.3g} m, "
+                f"margin {float(c.includemargin):g} m)")
+    return None
+
+
 class _Reader:
     """One pass over a compiled model at one configuration (see the module docstring)."""
 
@@ -364,33 +380,21 @@ class _Reader:
         if disabled & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT) and m.neq:
             self.fail("option flag constraint=\"disable\": the loops' connect equalities would not act")
 
-    def check_contacts(self) -> None:
+    def check_contacts(self, qpos: np.ndarray) -> None:
+        """Geoms may be collidable (``contype``/``conaffinity``, ``pair``): a contact during a run
+        fails the check (:func:`first_contact`); geoms already in contact at ``qpos`` are refused.
+        MuJoCo's own collision finds them (its broad phase: bounded time however many geoms)."""
         m = self.model
         if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) or m.ngeom == 0:
             return
-        if m.npair:
-            self.fail(f"contact {self.label(mujoco.mjtObj.mjOBJ_PAIR, 0)}: contacts act, and loopcheck's "
-                      "description has none")
-        excluded = {(int(sig) >> 16, int(sig) & 0xFFFF) for sig in m.exclude_signature}
-        filter_parent = not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
-        weld = [int(b) for b in m.body_weldid]
-        for g1 in range(m.ngeom):
-            for g2 in range(g1 + 1, m.ngeom):
-                b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
-                w1, w2 = weld[b1], weld[b2]
-                if w1 == w2:  # one rigid body (the world's static bodies among them)
-                    continue
-                if not (m.geom_contype[g1] & m.geom_conaffinity[g2] or m.geom_contype[g2] & m.geom_conaffinity[g1]):
-                    continue
-                if {(b1, b2), (b2, b1), (w1, w2), (w2, w1)} & excluded:
-                    continue
-                if filter_parent and w1 and w2 and (weld[m.body_parentid[w1]] == w2 or weld[m.body_parentid[w2]] == w1):
-                    continue  # MuJoCo's parent-child filter
-                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_GEOM, g1)} and "
-                          f"{self.label(mujoco.mjtObj.mjOBJ_GEOM, g2)} can collide (contype/conaffinity): "
-                          "contacts are not part of loopcheck's description; set their contype and conaffinity to 0, "
-                          "exclude the pair, or disable contacts")
-        self.warnings.append("contacts disabled: no two geoms of the model can collide")
+        data = mujoco.MjData(m)
+        data.qpos[:] = qpos
+        with mujoco_warnings():
+            mujoco.mj_forward(m, data)
+        touching = first_contact(m, data)
+        if touching is not None:
+            self.fail(f"{touching} at the start: loopcheck's description has no contacts; move them apart, set "
+                      "their contype and conaffinity to 0, exclude the pair, or disable contacts")
 
     # -- the plane ---------------------------------------------------------------
     def joints(self) -> None:
@@ -1020,7 +1024,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.joints()
     inp = _input_joint(reader, input_joint)
     reader.plane(inp)
-    reader.check_contacts()
+    reader.check_contacts(qpos)
     with np.errstate(over="ignore", invalid="ignore"):  # a huge position is refused below, by name
         reader.scale = reader.size()
     reader.groups()
@@ -1369,4 +1373,4 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     return lines, joint_elements
 
 
-__all__ = ["ConnectSource", "Control", "ImportedModel", "MjcfError", "element_label", "import_mjcf"]
+__all__ = ["ConnectSource", "Control", "ImportedModel", "MjcfError", "element_label", "first_contact", "import_mjcf"]

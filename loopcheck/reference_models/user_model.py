@@ -30,7 +30,7 @@ from loopcheck.mujoco_model.record import samples_refine_extrema
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
-from .mjcf_import import ConnectSource, ImportedModel, element_label
+from .mjcf_import import ConnectSource, ImportedModel, element_label, first_contact
 from .settings import DEFAULT_SOLIMP, INTEGRATORS
 
 # Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
@@ -218,7 +218,9 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     NumericalFailure
         UNSTABLE: MuJoCo reset the state (a NaN, infinite or huge qpos, qvel or qacc): the run stops
         at that step, and the message gives the warning and its time; or MuJoCo found the mass
-        matrix singular. NON_FINITE: the state became NaN or infinite. MuJoCo's other warnings (a
+        matrix singular. CONTACT: two geoms touched (an active contact of MuJoCo's, checked at
+        every step): the run stops there, and the message names both geoms, the time and the
+        distance. NON_FINITE: the state became NaN or infinite. MuJoCo's other warnings (a
         buffer too small and the like) are logged on the ``loopcheck.mujoco`` logger, not fatal
         (:mod:`loopcheck.mujoco_model.warning_handler`).
     """
@@ -255,12 +257,24 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                     float(-data.qfrc_damper @ data.qvel))
         gap[k] = _gaps(model, data, connects)
 
+    contacts = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) and model.ngeom > 0
+
+    def touching(k: int) -> None:
+        """Stop at the first contact (the exact reference has none)."""
+        if contacts and data.ncon:
+            found = first_contact(model, data)
+            if found is not None:
+                t = float(times[k])
+                raise NumericalFailure(FailureReason.CONTACT, f"{found} at t = {t:.6g} s ({options.text()}): "
+                                       "the exact reference has no contacts", t)
+
     start = time.perf_counter()
     with mujoco_warnings() as said:
         for k in range(n):
             if ctrl is not None:
                 data.ctrl[0] = ctrl[k]
             mujoco.mj_forward(model, data)
+            touching(k)
             record(k)
             mujoco.mj_step(model, data)
             bad = bad_state(data)
@@ -268,6 +282,7 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                 t = float(times[k])
                 raise NumericalFailure(FailureReason.UNSTABLE, bad.message(t, options.text()), t)
         mujoco.mj_forward(model, data)
+        touching(n)
         record(n)
     singular = singular_mass_matrix(data, options.text())
     if singular is not None:

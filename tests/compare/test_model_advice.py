@@ -85,16 +85,17 @@ def test_an_unnamed_connect_is_named_by_kind_ordinal_and_what_it_joins(tmp_path)
     assert "equality" not in message
 
 
-def test_unnamed_geoms_that_can_collide_are_named_by_the_bodies_they_are_on(tmp_path):
-    """Contacts left on: the refusal names `geom #1 (on crank)` and `geom #3 (on rocker)`, not
-    `geom0` and `geom2` (planted: the old fallback)."""
+def test_unnamed_geoms_touching_at_the_start_are_named_by_the_bodies_they_are_on(tmp_path):
+    """Contacts left on, the coupler's and the rocker's capsules overlapping at their loop joint:
+    the refusal names `geom #2 (on coupler)` and `geom #3 (on rocker)`, not `geom1` and `geom2`
+    (planted: the old fallback)."""
     from loopcheck.reference_models.mjcf_import import MjcfError
 
     path = _unnamed(tmp_path, ' contype="0" conaffinity="0"', "")
     with pytest.raises(MjcfError) as caught:
         import_mjcf(path)
     message = str(caught.value)
-    assert "geom #1 (on crank) and geom #3 (on rocker) can collide" in message, message
+    assert "geom #2 (on coupler) and geom #3 (on rocker) touch (distance -0.04 m" in message, message
 
 
 def _own_softness(tmp_path: Path) -> Path:

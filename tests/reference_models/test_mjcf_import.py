@@ -207,9 +207,11 @@ REFUSED = {
                                     '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>'), "body 'b' has 2 joints"),
     "friction loss": (_model(FOUR_BAR.replace('name="A" axis="0 0 1"', 'name="A" axis="0 0 1" frictionloss="0.1"'), extra=LOOP),
                       "joint 'A' has frictionloss"),
-    "geoms that touch": (_model(FOUR_BAR.replace('<site name="rB"', '<geom name="stop" size="0.1"/><site name="rB"')
-                                .replace('<site name="cB"', '<geom name="tip" size="0.1" pos="1 0 0"/><site name="cB"'), extra=LOOP),
-                         "geom 'tip' and geom 'stop' can collide"),
+    "geoms that touch at the start": (_model(FOUR_BAR.replace('<site name="rB"', '<geom name="stop" size="0.1" '
+                                                              'pos="1.4142135623730951 0 0"/><site name="rB"')
+                                             .replace('<site name="cB"', '<geom name="tip" size="0.1" pos="1 0 0"/>'
+                                                      '<site name="cB"'), extra=LOOP),
+                                      "geom 'tip' and geom 'stop' touch (distance -0.2 m, margin 0 m) at the start"),
     "fluid": (_model(FOUR_BAR, extra=LOOP, option='viscosity="0.1"'), "fluid forces"),
     "wrapping tendon": (_model(FOUR_BAR.replace('<site name="rB"', '<site name="r2" pos="0.1 0 0"/><site name="rB"'),
                                extra=LOOP + '<tendon><spatial name="belt" stiffness="1"><site site="cB"/><site site="rB"/>'
