@@ -131,7 +131,7 @@ class ModelCheck:
         meets the tolerances; when neither or both do, both are named, the one that removes more
         of the difference first."""
         if self.contact is not None:
-            return f"a contact: {self.contact}"
+            return "a contact (above): the exact reference has none, so no options can meet the tolerances"
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
         loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
@@ -244,7 +244,8 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR), TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
     cheapest, half = (as_written, None) if as_written.passed else (None, None)
-    if cheapest is None:
+    touched = any(t.failure is not None and t.failure.reason is FailureReason.CONTACT for t in tried)
+    if cheapest is None and not touched:  # a contact: no options can meet the tolerances
         for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
             budget = cheapest.evaluations if cheapest is not None else math.inf
             found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)
@@ -285,7 +286,7 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
              f"      as written:        {_figures(check.as_written, unit)}"]
     if check.as_written.comparison is not None:
         lines += [f"      {failure}" for failure in check.as_written.comparison.gate.failures]
-    if check.contact is not None:
+    if check.contact is not None and check.contact is not check.as_written.failure:
         lines.append(f"      contact: {check.contact}")
     return lines + diagnosis_lines(check)
 
@@ -297,7 +298,9 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
     lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
              f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}",
              f"      the difference comes from: {check.cause}"]
-    if check.cheapest is None:
+    if check.contact is not None:
+        pass  # no search: a contact leaves no options that meet the tolerances
+    elif check.cheapest is None:
         smallest = min(t.options.timestep for t in check.tried)
         lines.append(f"      no options tried meet the tolerances with margin (every difference at most {MARGIN:g} of its "
                      f"tolerance over {check.imported.scene.horizon:g} s, at the step and at half of it; stiff loops, "
