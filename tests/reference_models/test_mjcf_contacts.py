@@ -187,3 +187,34 @@ def test_a_refused_import_names_unnamed_geoms_by_their_bodies(tmp_path):
     with pytest.raises(MjcfError) as caught:
         import_mjcf(path, keyframe="squeeze")
     assert "geom #1 (on palm) and geom #4 (on coupler) touch" in str(caught.value), caught.value
+
+
+
+def test_a_contact_pair_counts_within_its_margin(tmp_path):
+    """The pads non-collidable, an explicit `<pair>` of them with margin 0.03 m: the pads come
+    within about 0.025 m, never touching; the pair's rows become active at a positive distance below
+    the margin: the run fails on them (planted: counting only distances below 0)."""
+    path = _finger(tmp_path, FAR, collidable=False)
+    path.write_text(path.read_text().replace(
+        "<equality>", '<contact><pair geom1="palm_pad" geom2="finger_pad" margin="0.03"/></contact><equality>', 1))
+    check = check_model(import_mjcf(path, keyframe="squeeze", horizon=HORIZON))
+    message = str(check.contact)
+    assert check.contact is not None and check.contact.reason is FailureReason.CONTACT and not check.passed, message
+    found = re.search(r"touch \(distance (\S+) m, margin 0.03 m\) at t = (\S+) s", message)
+    assert found, message
+    assert 0.0 < float(found.group(1)) <= 0.03  # printed to 3 digits
+    assert 0.0 < float(found.group(2)) < HORIZON
+
+
+def test_a_contact_pairs_rows_in_its_gap_are_not_contacts(tmp_path):
+    """The same pair with margin 0.01 m and gap 0.02 m: MuJoCo lists rows for it from about 0.03 m
+    apart, but while they lie in the gap its solver does not act on them (exclude 1, no constraint
+    row), and the pads never come within 0.01 m: no contact, the check passes (planted: counting
+    every row of data.contact fails it)."""
+    path = _finger(tmp_path, FAR, collidable=False)
+    path.write_text(path.read_text().replace(
+        "<equality>", '<contact><pair geom1="palm_pad" geom2="finger_pad" margin="0.01" gap="0.02"/></contact>'
+                      "<equality>", 1))
+    imported = import_mjcf(path, keyframe="squeeze", horizon=HORIZON)
+    check = check_model(imported)
+    assert check.contact is None and check.passed, check.contact
