@@ -417,6 +417,40 @@ def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) ->
     return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
 
 
+def independent_rows(J: np.ndarray, rtol: float = RANK_RTOL) -> tuple[int, ...]:
+    """The rows of a constraint Jacobian J (m, n) that are independent, in ascending order:
+    a rank-revealing factorization, QR with column pivoting of Jᵀ (scipy's ``qr(pivoting=True)``),
+    keeps pivot k while |R_kk| > ``rtol`` × |R_00| (RANK_RTOL: the same relative tolerance as
+    :func:`jacobian_rank`).
+
+    A redundantly closed loop (a parallelogram with an extra link, two coaxial arms pinned at
+    their tips) has more loop rows than its rank: its degrees of freedom are n − len(rows), not
+    Grübler's count. The rows not selected are combinations of the selected ones at this x;
+    for a consistently redundant linkage they stay satisfied along its motion, so Newton's
+    assembly, K and L may use the selected rows only. The selection is made once, at the
+    assembled configuration: it holds where those rows keep their rank (the conditioning of
+    the driving coordinate measures that along a run)."""
+    from scipy.linalg import qr
+
+    J = np.asarray(J, dtype=float)
+    if J.ndim != 2:
+        raise ValueError(f"J must be a matrix (rows, coordinates), got shape {J.shape}")
+    if not np.all(np.isfinite(J)):
+        raise ValueError("J has non-finite entries")
+    if J.shape[0] == 0 or not np.any(J):
+        return ()
+    _, R, piv = qr(J.T, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > rtol * diag[0]))
+    return tuple(sorted(int(k) for k in piv[:rank]))
+
+
+def rank_dof(J: np.ndarray, rtol: float = RANK_RTOL) -> int:
+    """Degrees of freedom of a configuration whose constraint Jacobian is J (m, n): n minus the
+    number of :func:`independent_rows` (not Grübler's count, which counts redundant rows)."""
+    return int(np.asarray(J).shape[1]) - len(independent_rows(J, rtol))
+
+
 def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """:func:`driving_conditioning` of each coordinate x_j as the independent one,
     |det Φ_dep| / Π ‖columns of Φ_dep‖, shape (n,): between 0 (that coordinate cannot drive
