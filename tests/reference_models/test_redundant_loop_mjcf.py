@@ -42,3 +42,16 @@ def test_mujoco_follows_the_mechanism_without_its_redundant_crank():
         worst = max(worst, float(np.max(np.abs(d.qpos - [theta, -theta, theta, theta]))))
         violation = max(violation, float(np.max(np.abs(d.efc_pos))))
     assert worst < 1e-4 and violation < 1e-4
+
+
+def test_import_refuses_it_by_name_until_the_kernel_runs_on_the_selected_rows():
+    """Today's refusal says what the linkage is (one line, the reason), not only Grübler's count."""
+    import pytest
+
+    from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+
+    with pytest.raises(MjcfError) as info:
+        import_mjcf(MODEL)
+    message = str(info.value)
+    assert "\n" not in message and "0 degrees of freedom by Grübler's count" in message
+    assert "redundantly closed loop" in message and "not accepted yet" in message
