@@ -116,3 +116,65 @@ def test_tolerance_is_relative_and_stated():
 def test_malformed_jacobian_refused(bad):
     with pytest.raises(ValueError):
         independent_rows(bad)
+
+
+# -- the compiled kernel on the selected rows ------------------------------------------------
+
+def _kernel_parallelogram(select=None):
+    """The same two loop vectors as ``phi`` above, as the kernel's term table (x = (θ1, θ2, θ3, θc))."""
+    from loopcheck.kernels import loops as kl
+    from loopcheck.kinematics import TermTable, pack
+
+    offset, row, coef, mag, angle, phase = [], [], [], [], [], []
+    for k, col in ((1, 1), (2, 2)):
+        offset.append((PIVOTS[0] - PIVOTS[k], 0.0))
+        for c, a in ((A, 0), (PIVOTS[k] - PIVOTS[0], 3), (-A, col)):
+            row.append(k - 1), coef.append(c), mag.append(-1), angle.append(a), phase.append(0.0)
+    table = TermTable(np.array(offset), np.array(row), np.array(coef, dtype=float), np.array(mag),
+                      np.array(angle), np.array(phase))
+    F, I = pack(4, 4, (table,))
+    return kl.Loops(F, I, select)
+
+
+def test_kernel_reports_every_row_and_runs_on_the_selected_ones():
+    x = np.array([0.9, 0.9, 0.9, 0.0])
+    phi_all, J_all = _kernel_parallelogram().all_constraints(x)
+    np.testing.assert_allclose(J_all, jac(x), atol=1e-15)
+    np.testing.assert_allclose(phi_all, phi(x), atol=1e-15)
+    chosen = (1, 2, 3)                   # independent here (not the first three: a plant that ignores
+    assert len(independent_rows(J_all[list(chosen)])) == 3   # the selection runs on rows 0, 1, 2)
+    phi_sel, J_sel = _kernel_parallelogram(np.array(chosen)).constraints(x)
+    np.testing.assert_array_equal(J_sel, J_all[list(chosen)])
+    np.testing.assert_array_equal(phi_sel, phi_all[list(chosen)])
+
+
+@pytest.mark.parametrize("pick", ["qr", "last_three"])
+def test_kernel_newton_k_and_l_on_independent_rows_match_the_linkage_without_its_redundant_crank(pick):
+    """Newton's assembly, K and L of the compiled kernel on three of the four rows; the oracle is
+    the parallelogram's closed form (every crank turns as the input, the coupler translates: K = (1, 1,
+    1, 0), L = 0); the dropped row stays satisfied. Tolerances: 1e-12 (Newton's tol, lengths ~1 m)."""
+    from loopcheck.kernels import loops as kl
+
+    x = np.array([0.4, 0.4, 0.4, 0.0])
+    J_all = _kernel_parallelogram().all_constraints(x)[1]
+    rows = independent_rows(J_all) if pick == "qr" else (1, 2, 3)
+    kernel = _kernel_parallelogram(np.array(rows))
+    full = _kernel_parallelogram()
+    dropped = [r for r in range(4) if r not in rows]
+    for q in np.linspace(0.4, 2.6, 12):
+        guess = x + np.array([0.0, 0.02, -0.02, 0.01])
+        status, _, _ = kernel.assemble(q, guess, DRIVE, 1e-12, 50, 1e-9)
+        assert status == kl.CLOSED
+        np.testing.assert_allclose(guess, [q, q, q, 0.0], atol=1e-12)
+        x = guess
+        assert np.max(np.abs(full.all_constraints(x)[0][dropped])) < 1e-12
+        c, K, L = kernel.coefficients(x, DRIVE)
+        assert c > 1e-3
+        np.testing.assert_allclose(K, [1.0, 1.0, 1.0, 0.0], atol=1e-12)
+        np.testing.assert_allclose(L, 0.0, atol=1e-10)   # A's condition (~1/c ≲ 1e2) × Newton's 1e-12
+
+
+def test_kernel_refuses_a_selection_that_is_not_n_minus_1_distinct_rows():
+    for bad in ([0, 1, 2, 3], [0, 1], [0, 0, 1], [0, 1, 4]):
+        with pytest.raises(ValueError, match="select must be 3 distinct rows of the 4 constraint rows"):
+            _kernel_parallelogram(np.array(bad))
