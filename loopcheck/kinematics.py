@@ -199,6 +199,9 @@ class LoopSystem:
     joint_names, joint_rows : the joints in the description's order and (joints, n) the row
         of each one's own coordinate u = row·x: a revolute joint's relative angle θ_b − θ_a
         (rad; also of a cut joint), a prismatic joint's displacement s (m)
+    rows : the n − 1 independent constraint rows the kernel runs on (:func:`independent_rows` at
+        an assembled configuration, :meth:`with_independent_rows`), or None: all of them (a
+        linkage without redundant loops has exactly n − 1)
     """
 
     coordinate_names: tuple[str, ...]
@@ -212,12 +215,27 @@ class LoopSystem:
     mode_pairs: np.ndarray
     joint_names: tuple[str, ...]
     joint_rows: np.ndarray
+    rows: tuple[int, ...] | None = None
 
     @property
     def kernel(self) -> _loops.Loops:
-        """The compiled kinematics of the loops (:mod:`loopcheck.kernels.loops`; table LOOPS)."""
+        """The compiled kinematics of the loops (:mod:`loopcheck.kernels.loops`; table LOOPS), on
+        the constraint rows :attr:`rows`."""
         n_angles = sum(name.endswith(".angle") for name in self.coordinate_names)
-        return _cached_kernel(self, None, lambda: pack(self.n, n_angles, (self.loops,), self.linear))
+        select = None if self.rows is None else np.asarray(self.rows, dtype=np.int64)
+        return _cached_kernel(self, None,
+                              lambda: (*pack(self.n, n_angles, (self.loops,), self.linear), select))
+
+    def with_independent_rows(self, x: np.ndarray, rtol: float = RANK_RTOL) -> "LoopSystem":
+        """The same linkage whose kernel runs on the independent constraint rows at the assembled
+        configuration x (:func:`independent_rows` of every row's Jacobian, chosen once here).
+        Raises :class:`AssemblyError` where they are not n − 1 (not one degree of freedom)."""
+        J = all_constraints(self, x)[1]
+        rows = independent_rows(J, rtol)
+        if len(rows) != self.n - 1:
+            raise AssemblyError(f"the loop equations have rank {len(rows)} of {J.shape[0]} rows over "
+                                f"{self.n} coordinates: {self.n - len(rows)} degrees of freedom, not 1")
+        return replace(self, rows=rows)
 
     def joint_row(self, name: str) -> np.ndarray:
         """(n,) the row of joint ``name``'s own coordinate (:attr:`joint_rows`)."""
@@ -267,6 +285,12 @@ def rates(t: TermTable, x: np.ndarray, K: np.ndarray, L: np.ndarray | None = Non
 def constraint_residual(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     """Φ(x): the loop vectors (m) then the linear rows (rad), shape (n − 1,)."""
     return system.kernel.constraints(x)[0]
+
+
+def all_constraints(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Φ(x) (m,) and Φ_x (m, n) of every constraint row, the dependent rows of a redundant loop
+    too (m ≥ n − 1): loop vectors (m) then linear rows (rad)."""
+    return system.kernel.all_constraints(x)
 
 
 def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
@@ -415,6 +439,40 @@ def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) ->
     it (that is :func:`driving_conditioning`): an SVD, run once per scene at assembly."""
     sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
     return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
+
+
+def independent_rows(J: np.ndarray, rtol: float = RANK_RTOL) -> tuple[int, ...]:
+    """The rows of a constraint Jacobian J (m, n) that are independent, in ascending order:
+    a rank-revealing factorization, QR with column pivoting of Jᵀ (scipy's ``qr(pivoting=True)``),
+    keeps pivot k while |R_kk| > ``rtol`` × |R_00| (RANK_RTOL: the same relative tolerance as
+    :func:`jacobian_rank`).
+
+    A redundantly closed loop (a parallelogram with an extra link, two coaxial arms pinned at
+    their tips) has more loop rows than its rank: its degrees of freedom are n − len(rows), not
+    Grübler's count. The rows not selected are combinations of the selected ones at this x;
+    for a consistently redundant linkage they stay satisfied along its motion, so Newton's
+    assembly, K and L may use the selected rows only. The selection is made once, at the
+    assembled configuration: it holds where those rows keep their rank (the conditioning of
+    the driving coordinate measures that along a run)."""
+    from scipy.linalg import qr
+
+    J = np.asarray(J, dtype=float)
+    if J.ndim != 2:
+        raise ValueError(f"J must be a matrix (rows, coordinates), got shape {J.shape}")
+    if not np.all(np.isfinite(J)):
+        raise ValueError("J has non-finite entries")
+    if J.shape[0] == 0 or not np.any(J):
+        return ()
+    _, R, piv = qr(J.T, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > rtol * diag[0]))
+    return tuple(sorted(int(k) for k in piv[:rank]))
+
+
+def rank_dof(J: np.ndarray, rtol: float = RANK_RTOL) -> int:
+    """Degrees of freedom of a configuration whose constraint Jacobian is J (m, n): n minus the
+    number of :func:`independent_rows` (not Grübler's count, which counts redundant rows)."""
+    return int(np.asarray(J).shape[1]) - len(independent_rows(J, rtol))
 
 
 def conditioning(system: LoopSystem, x: np.ndarray) -> np.ndarray:

@@ -252,7 +252,10 @@ class Linkage:
         tree, cut = self._spanning_tree(moving)
         if dof != 1:
             raise MechanismError(f"the linkage has {dof} degrees of freedom by Grübler's count "
-                                 f"3·{n} moving bodies − 2·{j} joints, not 1")
+                                 f"3·{n} moving bodies − 2·{j} joints, not 1"
+                                 + ("; a redundantly closed loop (dependent loop equations, such "
+                                    "as a parallelogram with an extra parallel link) is not "
+                                    "accepted yet" if dof < 1 else ""))
         kinds = self.joint_map
         for name in cut:
             loop = _cycle(tree, kinds[name])

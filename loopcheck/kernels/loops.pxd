@@ -21,7 +21,12 @@ cpdef enum:
 
 
 cdef class Loops:
-    cdef readonly object arrays, B, P
+    cdef readonly object arrays, B, P, C, S
+    cdef readonly Py_ssize_t m
+    # the m constraint rows (phi, Phi: views of C) and the n − 1 independent ones among them (sel: S)
+    cdef long long[::1] sel
+    cdef double[::1] phi
+    cdef double[:, ::1] Phi
     cdef double[::1] F
     cdef long long[::1] I
     cdef readonly Py_ssize_t n

@@ -72,15 +72,20 @@ if not cython.compiled:
 class Loops:
     """The kinematics of one packed linkage (compiled): its arrays and scratch.
 
-    ``Loops(F, I)`` keeps the packed arrays (module docstring) and allocates B (float64: x (n),
+    ``Loops(F, I, select)`` keeps the packed arrays (module docstring) and allocates B (float64: x (n),
     trig (2, n), A (n, n), rhs (n), norms (n), rows (MAX_ROWS, 4), kin (3, n): x, K, L) and piv
-    (int64, n), with typed views of their parts made once here. The C methods read and write
+    (int64, n), with typed views of their parts made once here, and C (float64: Φ (m,) and Φ_x
+    (m, n) of all m = 2 loops + linear rows). ``select`` (n − 1 indices into the m rows, default
+    all of them when m = n − 1) is the independent rows
+    (:func:`loopcheck.kinematics.independent_rows`, chosen once at an assembled configuration):
+    Newton's assembly, K, L and the conditioning use those rows only; a redundantly closed loop
+    has m > n − 1. The C methods read and write
     these views and take no array argument (compiled, an array argument is a view passed by
     value: :mod:`loopcheck.reduced.kernels.physics`'s chart calls them at every evaluation). The
     Python methods (``positions`` … ``assemble``) copy their arguments in and their results out.
     """
 
-    def __init__(self, F, I):
+    def __init__(self, F, I, select=None):
         F = np.ascontiguousarray(F, dtype=np.float64)
         I = np.ascontiguousarray(I, dtype=np.int64)
         self.arrays = (F, I)
@@ -88,6 +93,20 @@ class Loops:
         self.I = I
         n = int(I[N])
         self.n = n
+        m = 2 * int(I[TABLES + TABLE_ENTRIES * LOOPS]) + int(I[N_LINEAR])
+        self.m = m
+        if select is None:  # every row (a table of points, not loops, has none to select)
+            select = np.arange(min(m, max(n - 1, 0)), dtype=np.int64)
+        elif np.ndim(select) != 1 or len(select) != max(n - 1, 0) or (
+                len(select) and (np.min(select) < 0 or np.max(select) >= m or len(np.unique(select)) != len(select))):
+            raise ValueError(f"select must be {max(n - 1, 0)} distinct rows of the {m} constraint rows, "
+                             f"got {list(select)}")
+        select = np.ascontiguousarray(select, dtype=np.int64)
+        self.S = select
+        self.sel = select
+        self.C = np.zeros(m + m * n + 1)
+        self.phi = self.C[0:m]
+        self.Phi = self.C[m:m + m * n].reshape(m, n)
         rows = max(int(I[MAX_ROWS]), 1)
         self.B = np.zeros(n + 2 * n + n * n + n + n + 4 * rows + 3 * n)
         self.P = np.zeros(max(n, 1), np.int64)
@@ -267,8 +286,8 @@ class Loops:
 
     @cython.cfunc
     def _constraints(self) -> cython.double:
-        """Φ(x) into rhs[:n−1] and Φ_x into A[:n−1, :] (loop rows, then the linear rows), x
-        Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
+        """Φ(x) into phi (m,) and Φ_x into Phi (m, n) (loop rows, then the linear rows), and their
+        selected rows (select) into rhs[:n−1] and A[:n−1, :], x Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
         scale, and leaves in spread Σ |m w| |θ| over the turning terms (m·rad): the scale of
         the rounding of their angles."""
         n: cython.Py_ssize_t = self.n
@@ -285,37 +304,46 @@ class Loops:
         uy: cython.double
         lever: cython.double
         v: cython.double
-        for r in range(n - 1):
+        for r in range(self.m):
             for c in range(n):
-                self.A[r, c] = 0.0
+                self.Phi[r, c] = 0.0
         off: cython.Py_ssize_t = self.I[tb + 2]
         scale: cython.double = 0.0
         spread: cython.double = 0.0
         for r in range(nl):
-            self.rhs[r] = self.F[off + r]
+            self.phi[r] = self.F[off + r]
             scale += fabs(self.F[off + r])
         for t in range(self.I[tb + 1]):
             k = self._term(tb, t, True)
             g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
-            self.rhs[2 * k] += m * ux
-            self.rhs[2 * k + 1] += m * uy
+            self.phi[2 * k] += m * ux
+            self.phi[2 * k + 1] += m * uy
             lever = fabs(m) * (fabs(ux) + fabs(uy))
             scale += lever
             if a >= 0:
-                self.A[2 * k, a] -= m * uy
-                self.A[2 * k + 1, a] += m * ux
+                self.Phi[2 * k, a] -= m * uy
+                self.Phi[2 * k + 1, a] += m * ux
                 spread += lever * fabs(self.x[a])
             if g >= 0:
-                self.A[2 * k, g] += ux
-                self.A[2 * k + 1, g] += uy
+                self.Phi[2 * k, g] += ux
+                self.Phi[2 * k + 1, g] += uy
         lin: cython.Py_ssize_t = self.I[LINEAR]
         for r in range(self.I[N_LINEAR]):
             v = 0.0
             for c in range(n):
-                self.A[nl + r, c] = self.F[lin + r * n + c]
+                self.Phi[nl + r, c] = self.F[lin + r * n + c]
                 v += self.F[lin + r * n + c] * self.x[c]
                 scale += fabs(self.F[lin + r * n + c] * self.x[c])
-            self.rhs[nl + r] = v
+            self.phi[nl + r] = v
+        for r in range(n - 1):  # the independent rows (select)
+            if r < self.sel.shape[0]:
+                k = self.sel[r]
+                self.rhs[r] = self.phi[k]
+                for c in range(n):
+                    self.A[r, c] = self.Phi[k, c]
+            else:
+                for c in range(n):
+                    self.A[r, c] = 0.0
         self.spread = spread
         return scale
 
@@ -373,10 +401,12 @@ class Loops:
         self._table_rates(LOOPS, False)
         nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
         for k in range(nl):
-            self.L[2 * k] = -self.rows[k, 2]
-            self.L[2 * k + 1] = -self.rows[k, 3]
-        for j in range(2 * nl, n):
-            self.L[j] = 0.0
+            self.phi[2 * k] = -self.rows[k, 2]
+            self.phi[2 * k + 1] = -self.rows[k, 3]
+        for j in range(2 * nl, self.m):
+            self.phi[j] = 0.0
+        for j in range(n):
+            self.L[j] = self.phi[self.sel[j]] if j < self.sel.shape[0] else 0.0
         self._lu_solve(self.L)
         # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
         product: cython.double = 1.0
@@ -449,6 +479,13 @@ class Loops:
         self._load(x)
         self._constraints()
         return np.array(np.asarray(self.rhs)[:n - 1]), np.array(np.asarray(self.A)[:n - 1])
+
+    def all_constraints(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """Φ(x) (m,) and Φ_x (m, n) of every constraint row, the dependent ones too (a redundant
+        loop's dependent rows must stay satisfied along the motion)."""
+        self._load(x)
+        self._constraints()
+        return np.array(self.phi), np.array(self.Phi)
 
     def jacobians(self, X: cython.double[:, ::1]) -> np.ndarray:
         """Φ_x at each row of X (samples, n), C-contiguous: shape (samples, n − 1, n). A loop in C

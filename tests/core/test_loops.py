@@ -382,3 +382,18 @@ def test_andrews_spring_length_at_t0():
     r = point_kinematics(system, x, np.zeros(system.n), np.zeros(system.n))[0]
     gap = r[system.point_index("b3", "D")] - r[system.point_index("ground", "C")]
     assert abs(math.hypot(*gap) - 0.0526725) < 5e-8  # half a unit of the 7th digit
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_independent_rows_of_a_linkage_without_redundancy_are_all_its_rows(case):
+    """A linkage that Grübler's count accepts has n − 1 independent rows: choosing them at q0
+    (LoopSystem.with_independent_rows) keeps every row, and the kernel's x, K and L are the same
+    bits as without a selection (the rows are copied in another order, never recombined)."""
+    build, guess, q0, _ = CASES[case]
+    system = compile_linkage(build())
+    x0 = assemble(system, q0, guess)
+    chosen = system.with_independent_rows(x0)
+    assert sorted(chosen.rows) == list(range(system.n - 1))
+    np.testing.assert_array_equal(assemble(chosen, q0, guess), x0)
+    for a, b in zip(coefficients(chosen, x0), coefficients(system, x0)):
+        np.testing.assert_array_equal(a, b)
