@@ -104,25 +104,23 @@ def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
 
 def _run_scene(args: argparse.Namespace, path: str | None):
     """The scene file of ``run`` or ``check``, with ``--horizon``, when given, over its
-    simulation.horizon (every check of the scene file applies to the new value); the override is
-    said on stdout."""
+    simulation.horizon: the file is checked as written first, then every check of the scene file
+    applies to the new value; the override is said on stdout."""
+    scene = _scene(path)
     if args.horizon is None:
-        return _scene(path)
+        return scene
     from loopcheck.scenefile import scene_from_dict
     from loopcheck.toml_reader import parse_toml, read_text
 
     file = _scene_path(path)
     data = parse_toml(read_text(file), file)
-    simulation = data.get("simulation")
-    was = simulation.get("horizon") if isinstance(simulation, dict) else None
-    if isinstance(simulation, dict):
-        data = {**data, "simulation": {**simulation, "horizon": args.horizon}}
+    data = {**data, "simulation": {**data["simulation"], "horizon": args.horizon}}
     try:
-        scene = scene_from_dict(data, source=str(file))
+        overridden = scene_from_dict(data, source=str(file))
     except SceneError as exc:
         raise SceneError(f"{file}: with --horizon {args.horizon:g}: {exc}") from None
-    print(f"horizon {scene.horizon:g} s from --horizon, over {file}'s simulation.horizon = {was:g} s")
-    return scene
+    print(f"horizon {overridden.horizon:g} s from --horizon, over {file}'s simulation.horizon = {scene.horizon:g} s")
+    return overridden
 
 
 def _positive(text: str) -> float:
@@ -339,8 +337,7 @@ def _run_engines(args: argparse.Namespace, animate: bool) -> int:
     other = compared_engine(args.engines)
     check_folder(args.out, (*report_files(animate, other=other, engines=True), MANIFEST_FILE),  # before any work
                  inputs=[_scene_path(args.scene)])
-    for name in args.engines:  # a missing extra is said in one line before any work
-        ENGINES[name].load()
+    _load_extras(args.engines)
     scene = _run_scene(args, args.scene)
     joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
     check = _engines_check(args, scene)
@@ -447,12 +444,18 @@ def _engines_check(args: argparse.Namespace, scene):
     return check_engines(scene, args.engines, settings, tolerances)
 
 
+def _load_extras(engines) -> None:
+    """Load each engine of an ``--engines`` list: a missing extra is said in one line (exit 2)
+    before any work."""
+    for name in engines:
+        ENGINES[name].load()
+
+
 def _check_engines(args: argparse.Namespace, scenes: list) -> int:
     """``loopcheck check --engines``: each engine against the reduced reference, the outlier named."""
     from .engines import engines_lines
 
-    for name in args.engines:  # a missing extra is said in one line before any work
-        ENGINES[name].load()
+    _load_extras(args.engines)
     failed = 0
     for scene in scenes:
         check = _engines_check(args, scene)

@@ -120,6 +120,20 @@ def test_horizon_overrides_a_scene_s_and_says_so(tmp_path, capsys):
     assert "with --horizon 5000" in one_error_line(capsys)
 
 
+@pytest.mark.parametrize("horizon", [None, '"long"'])
+def test_horizon_over_a_scene_file_that_is_wrong_as_written_is_refused(tmp_path, capsys, horizon):
+    """The scene file is checked as written before --horizon replaces its horizon: a missing or
+    unreadable simulation.horizon is its one-line refusal, exit 2 (it was a TypeError traceback,
+    formatting the value it replaced)."""
+    text = short_seed_file(tmp_path, "0.3").read_text()
+    head, rest = text.split("horizon = 0.3", 1)
+    scene = tmp_path / "wrong.toml"
+    scene.write_text(head + ("" if horizon is None else f"horizon = {horizon}") + rest)
+    assert main(["run", str(scene), "--horizon", "0.1", "-o", str(tmp_path / "out")]) == 2
+    assert "simulation.horizon" in one_error_line(capsys)
+    assert not (tmp_path / "out").exists()
+
+
 def test_run_engines_with_a_missing_extra_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
     """Issue: `run --engines reduced,mujoco,pin` ran the reduced solver and MuJoCo first; `check
     --engines` already refused at once."""
