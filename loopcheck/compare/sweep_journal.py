@@ -114,14 +114,18 @@ def _claim(f: BinaryIO, path: Path, identity: str, resume: bool, restart: bool) 
                        "--restart discards them")
 
 
+def _one_of(resume: bool, restart: bool) -> None:
+    if resume and restart:
+        raise JournalError("--resume and --restart: give one of them (--resume continues the journal's sweep, "
+                           "--restart discards its rows)")
+
+
 def check_journal(out: str | os.PathLike, data: Mapping[str, Any], spec: SweepSpec, *, resume: bool = False,
                   restart: bool = False) -> None:
     """Before any work: whether a sweep into ``out`` may use its journal as ``resume`` and
     ``restart`` ask (JournalError otherwise). Reads only the journal's first line; the sweep
     itself checks it again when it locks it (:class:`Journal`)."""
-    if resume and restart:
-        raise JournalError("--resume and --restart: give one of them (--resume continues the journal's sweep, "
-                           "--restart discards its rows)")
+    _one_of(resume, restart)
     path = journal_path(out)
     try:
         f = _open_locked(path, create=False)
@@ -149,8 +153,7 @@ class Journal:
         self.kept = 0  # rows read back (known once replay() is exhausted)
         self.written = 0
         self._replay = False
-        if resume and restart:
-            raise JournalError("--resume and --restart: give one of them")
+        _one_of(resume, restart)
         try:
             self.file = _open_locked(self.path, create=not resume)
         except OSError as exc:
