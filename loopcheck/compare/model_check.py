@@ -101,6 +101,12 @@ class Trial:
         return self.comparison.mujoco.n_evaluations if self.comparison is not None else 0
 
 
+def _first_contact(trials) -> NumericalFailure | None:
+    """The first of ``trials``' failures that is a contact (two geoms touched), or None."""
+    return next((t.failure for t in trials
+                 if t.failure is not None and t.failure.reason is FailureReason.CONTACT), None)
+
+
 @dataclass(frozen=True)
 class ModelCheck:
     """The model as written, each setting changed alone, the cause, and the cheapest options found."""
@@ -118,8 +124,7 @@ class ModelCheck:
     def contact(self) -> NumericalFailure | None:
         """The first contact of any run (the as-written run first, then the trials): two geoms
         touched, which the exact reference cannot follow."""
-        return next((t.failure for t in self.tried
-                     if t.failure is not None and t.failure.reason is FailureReason.CONTACT), None)
+        return _first_contact(self.tried)
 
     @property
     def passed(self) -> bool:
@@ -244,8 +249,7 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR), TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
     cheapest, half = (as_written, None) if as_written.passed else (None, None)
-    touched = any(t.failure is not None and t.failure.reason is FailureReason.CONTACT for t in tried)
-    if cheapest is None and not touched:  # a contact: no options can meet the tolerances
+    if cheapest is None and _first_contact(tried) is None:  # a contact: no options can meet the tolerances
         for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
             budget = cheapest.evaluations if cheapest is not None else math.inf
             found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)
