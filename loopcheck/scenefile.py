@@ -479,7 +479,9 @@ def _assemble(system, q0: float, guess: np.ndarray, mode, linkage: Linkage) -> n
     try:
         x0 = loops.assemble(system, q0, guess)
     except loops.AssemblyError as exc:
-        raise SceneError(f"'initial.q' = {q0:g}: {exc}") from None
+        raise SceneError(f"'initial.q' = {q0:g}: {exc}" + (
+            f"; the linkage has {linkage.grubler_dof} degrees of freedom by Grübler's count: a structure, unless "
+            "its loop equations are redundant" if linkage.grubler_dof < 1 else "")) from None
     rank = loops.jacobian_rank(system, x0)
     if rank != system.n - 1:
         dof = system.n - rank
