@@ -28,6 +28,18 @@ METHODS = ("dop853", "rkn4")
 N_TIMES = 101  # states compared at these many times spread over the horizon
 
 
+# Shipped scenes added after the numba core left the project, which therefore never ran them: the
+# fixture cannot hold them; each one's own oracle test does (scene: that test).
+NOT_RECORDED = {
+    "mechanisms/parallelogram_redundant.toml": "tests/reduced/test_redundant_loop.py (closed form)",
+}
+
+
+def recorded_scenes() -> list[Path]:
+    """The shipped scenes the fixture holds: all but :data:`NOT_RECORDED`."""
+    return [p for p in shipped_scenes() if key(p) not in NOT_RECORDED]
+
+
 def shipped_scenes() -> list[Path]:
     scenes = ROOT / "scenes"
     return sorted([*scenes.glob("*.toml"), *scenes.glob("hard/*.toml"), *scenes.glob("mechanisms/*.toml")])

@@ -64,7 +64,7 @@ I_ARMS = (0.02 + 1.0 * 0.25 ** 2) + (0.01 + 0.6 * 0.3 ** 2)   # kg·m² about th
 
 def test_coaxial_arms_pinned_at_their_tips_turn_as_one_body():
     """Genesis' two coaxial arms pinned at their tips: Grübler 0, rank 1 DOF. The import accepts it with the
-    warning; the reduced engine (DOP853 rtol 1e-12) follows θ0 + ω0 t + ½ (T/(I1 + I2)) t², measured 2e-15
+    warning; the reduced engine (DOP853 rtol 1e-12) follows θ0 + ω0 t + ½ (T/(I1 + I2)) t², measured 4e-15
     rad (bound 1e-11: the integrator's rtol, not a lost arm, which changes θ(1 s) by 0.5 rad); `loopcheck check`
     passes as written (MuJoCo's soft connect: its loops open up to 8.5e-6 m, θ̇ within 1.3e-4 rad/s)."""
     from loopcheck.compare.cli import main
