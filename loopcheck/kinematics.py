@@ -11,7 +11,9 @@ Every point, and every loop-closure vector, is a row of a :class:`TermTable`,
 
 built from the spanning tree (the path from ground to the body): a revolute tree joint adds
 the rotating vector of the child's point, a prismatic one adds s e(θ + direction), a term
-whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows):
+whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows, or more for a
+redundantly closed loop, whose kernel then runs on an orthonormal basis of Φ_x's rows: m > n − 1,
+:attr:`LoopSystem.redundant`):
 
 - two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
   always revolute: :class:`~loopcheck.mechanism.Linkage` takes prismatic joints into the tree

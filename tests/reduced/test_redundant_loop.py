@@ -145,3 +145,46 @@ def test_a_damper_on_the_redundant_crank_decays_as_the_closed_form():
     tr = simulate(scene, ReducedSettings(method="dop853", rtol=1e-12)).trajectory
     T, w0 = data["torque"]["value"], data["initial"]["qdot"]
     assert np.max(np.abs(tr.qdot - (T / c + (w0 - T / c) * np.exp(-c * tr.t / inertia)))) < 1e-10
+
+
+def _seed_with_a_twin_coupler() -> tuple[dict, dict]:
+    """The catalogue's seed four-bar with a second coupler, the first's twin, pinned at the same points A and B
+    (Grübler's count 3·4 − 2·6 = 0, one DOF by rank), and the same four-bar with the twin merged into the
+    coupler (its mass and inertia doubled, the centre of mass where it was): the same mechanism."""
+    with open(ROOT / "scenes" / "mechanisms" / "seed_fourbar.toml", "rb") as f:
+        plain = tomllib.load(f)
+    plain["simulation"]["horizon"] = 0.5
+    twin = copy.deepcopy(plain)
+    twin["bodies"]["coupler2"] = copy.deepcopy(plain["bodies"]["coupler"])
+    twin["joints"] += [{"name": "A2", "type": "revolute", "a": "crank.A", "b": "coupler2.A"},
+                       {"name": "B2", "type": "revolute", "a": "coupler2.B", "b": "rocker.B"}]
+    twin["initial"]["guess"]["coupler2"] = twin["initial"]["guess"]["coupler"]
+    twin["initial"].pop("mode", None)
+    merged = copy.deepcopy(plain)
+    merged["bodies"]["coupler"]["mass"] *= 2
+    merged["bodies"]["coupler"]["inertia"] *= 2
+    return twin, merged
+
+
+def test_a_twin_coupler_moves_as_the_four_bar_it_duplicates():
+    """K and L of a redundant four-bar (every L ≠ 0: the rows' γ must be combined as their basis is) against the
+    plain four-bar's, over half a turn of the crank; then the reduced run (DOP853, rtol 1e-12) against the merged
+    four-bar's. Measured: K 2e-16, L 1.2e-15 (relative), q 9e-16 rad, q̇ 4e-15 rad/s; the bounds, 1e-11, are the
+    runs' rtol-level error, far below a wrong combination of γ (L off by O(1))."""
+    twin_data, merged_data = _seed_with_a_twin_coupler()
+    twin, merged = _quiet(twin_data), scene_from_dict(merged_data)
+    assert twin.mechanism.linkage.grubler_dof == 0
+    a = loops.compile_linkage(twin.mechanism.linkage)
+    b = loops.compile_linkage(merged.mechanism.linkage)
+    assert a.redundant and a.coordinate_names[:3] == b.coordinate_names
+    xa, xb = np.array(twin.x0), np.array(merged.x0)
+    for q in np.linspace(merged.q0, merged.q0 + math.pi, 13):
+        xa, xb = loops.assemble(a, q, xa), loops.assemble(b, q, xb)
+        (Ka, La), (Kb, Lb) = loops.coefficients(a, xa), loops.coefficients(b, xb)
+        assert np.max(np.abs(xa[:3] - xb)) < 1e-12 and abs(xa[3] - xa[1]) < 1e-12  # the twins keep one angle
+        assert np.max(np.abs(Ka[:3] - Kb)) < 1e-11 and np.max(np.abs(La[:3] - Lb)) < 1e-11 * np.max(np.abs(Lb))
+        assert Ka[3] == pytest.approx(Ka[1], abs=1e-12) and La[3] == pytest.approx(La[1], abs=1e-11)
+    settings = ReducedSettings(method="dop853", rtol=1e-12)
+    ta, tb = simulate(twin, settings).trajectory, simulate(merged, settings).trajectory
+    q, qdot, _ = tb.interpolate(ta.t)
+    assert np.max(np.abs(ta.q - q)) < 1e-11 and np.max(np.abs(ta.qdot - qdot)) < 1e-11 * np.max(np.abs(qdot))
