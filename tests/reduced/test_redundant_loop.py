@@ -107,6 +107,18 @@ def test_a_locked_triangle_is_refused_naming_both_counts():
         scene_from_dict(data)
 
 
+def test_a_start_where_the_rank_leaves_two_dof_is_refused_naming_both_counts():
+    """The redundant parallelogram started flat (q0 = 0: every crank along the ground line, a change point): its
+    four loop rows have rank 2 over 4 coordinates there, 2 DOF by rank where Grübler's count says 0."""
+    data = _data()
+    data["initial"] = {"q": 0.0, "guess": {"crank2": 0.0, "crank3": 0.0, "coupler": 0.0}}
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(data)
+    assert str(info.value) == ("'initial.q' = 0: the loop equations have rank 2 (4 rows over 4 coordinates) at the "
+                               "assembled configuration: 2 degrees of freedom by rank (0 by Grübler's count), not 1 "
+                               "(redundant or parallel joints)")
+
+
 def test_the_reduced_engine_follows_the_closed_form():
     """DOP853 at rtol 1e-12 against q0 + ω0 t + ½ (T/𝔍) t². Measured: |Δq| 5.1e-15 rad, |Δq̇| 6.2e-15 rad/s,
     𝔍 to 1e-16 relative; the bounds (1e-11) leave room for the integrator's error at its rtol, not for a
