@@ -399,9 +399,10 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
     if system.redundant:  # Newton ran on a basis of the rows: every row, the dependent ones too, must close
         largest = float(np.max(np.abs(system.kernel.all_constraints(x)[0])))
         if not largest <= tol:
-            raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: the redundant loop "
-                                f"equations are left at {largest:.3g} where the independent ones closed (they "
-                                "disagree: the lengths of the redundant links do not fit)")
+            raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: the loop equations "
+                                f"beyond the independent ones are left at {largest:.3g} where those closed (no "
+                                "configuration at this q closes every loop: a structure, or redundant links whose "
+                                "lengths do not fit)")
     return x
 
 

@@ -107,6 +107,18 @@ def test_a_locked_triangle_is_refused_naming_both_counts():
         scene_from_dict(data)
 
 
+def test_a_third_crank_that_does_not_fit_is_refused():
+    """crank3 1 cm longer: the loop equations no longer agree (no motion at all, but for the flat positions), and
+    Newton on a basis of the rows must not pass for an assembly: every row is checked."""
+    data = _data()
+    data["bodies"]["crank3"]["points"]["A3"] = [0.26, 0.0]
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(data)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("'initial.q' = 0.6: the loops do not close at q = 0.6 rad")
+    assert "0 degrees of freedom by Grübler's count" in message
+
+
 def test_a_start_where_the_rank_leaves_two_dof_is_refused_naming_both_counts():
     """The redundant parallelogram started flat (q0 = 0: every crank along the ground line, a change point): its
     four loop rows have rank 2 over 4 coordinates there, 2 DOF by rank where Grübler's count says 0."""
