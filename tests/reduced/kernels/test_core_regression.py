@@ -35,15 +35,20 @@ PEAK_RTOL, STATE_TOL = 1e-10, 1e-9
 X0_TOL = 2e-15  # rad or m: 3 times the largest measured move of a shipped scene's x0 (6.7e-16)
 
 RECORDED = json.loads(FIXTURE.read_text(encoding="utf-8"))
+# Shipped scenes with what the numba core never had (a joint coupling): no record to hold them to;
+# their own tests hold them to oracles (tests/core/test_couplings.py).
+AFTER_NUMBA = {"mechanisms/seed_fourbar_geared_flywheel.toml"}
+SCENES = [p for p in shipped_scenes() if key(p) not in AFTER_NUMBA]
 
 
 def test_the_fixture_covers_every_shipped_scene_and_is_labelled():
-    assert set(RECORDED["runs"]) == {f"{key(p)}:{m}" for p in shipped_scenes() for m in METHODS}
+    assert set(RECORDED["runs"]) == {f"{key(p)}:{m}" for p in SCENES for m in METHODS}
+    assert AFTER_NUMBA <= {key(p) for p in shipped_scenes()}
     assert RECORDED["label"]["core"] == "numba" and RECORDED["label"]["commit"] and RECORDED["label"]["x0"]
-    assert set(RECORDED["x0"]) == {key(p) for p in shipped_scenes()}
+    assert set(RECORDED["x0"]) == {key(p) for p in SCENES}
 
 
-@pytest.mark.parametrize("path", shipped_scenes(), ids=key)
+@pytest.mark.parametrize("path", SCENES, ids=key)
 def test_a_scene_assembles_where_its_recorded_runs_started(path):
     recorded = np.array(RECORDED["x0"][key(path)])
     x0 = np.array(load_scene(path).x0)
@@ -52,7 +57,7 @@ def test_a_scene_assembles_where_its_recorded_runs_started(path):
 
 
 @pytest.mark.parametrize("method", METHODS)
-@pytest.mark.parametrize("path", shipped_scenes(), ids=key)
+@pytest.mark.parametrize("path", SCENES, ids=key)
 def test_a_shipped_run_is_what_the_numba_core_gave(path, method):
     old = RECORDED["runs"][f"{key(path)}:{method}"]
     new = outputs(path, method, RECORDED["x0"][key(path)])
