@@ -212,10 +212,13 @@ class ConnectSource:
     label: str
     name: str | None
     own: bool
+    tag: str = "connect"  # its MJCF tag inside <equality>: connect, or joint (a coupling)
 
 
 def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, ...]:
-    """The model's connects, matched in file order to the ``<equality>`` elements of the file."""
+    """The model's connects and joint couplings (the equalities whose softness a check sets:
+    :func:`loopcheck.reference_models.user_model._closures`), matched in file order to the
+    ``<equality>`` elements of the file."""
     try:
         root = ET.parse(path).getroot()
         written = [child for block in root.findall("equality") for child in block if isinstance(child.tag, str)]
@@ -224,11 +227,12 @@ def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, 
     matched = len(written) == model.neq
     out = []
     for e in range(model.neq):
-        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_CONNECT):
+        if int(model.eq_type[e]) not in (_CONNECT, _EQ_JOINT):
             continue
         own = not matched or any(written[e].get(key) is not None for key in ("solref", "solimp", "class"))
         out.append(ConnectSource(element_label(model, mujoco.mjtObj.mjOBJ_EQUALITY, e),
-                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own))
+                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own,
+                                 "joint" if int(model.eq_type[e]) == _EQ_JOINT else "connect"))
     return tuple(out)
 
 
@@ -798,8 +802,9 @@ def _spec_ordinal(spec: mujoco.MjSpec, kind: str, element, index: int) -> str:
     if kind == "body":
         return f"body #{index} (in {body(parent)})"
     if kind == "equality":
-        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == _CONNECT)
-        return f"connect #{ordinal} ({element.name1}–{element.name2})"
+        tag = "joint equality" if int(element.type) == _EQ_JOINT else "connect"
+        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == int(element.type))
+        return f"{tag} #{ordinal} ({element.name1}–{element.name2})" if element.name2 else f"{tag} #{ordinal} ({element.name1})"
     if kind == "joint" and parent is not None:
         return f"joint #{index + 1} ({body(parent.parent) if parent.parent is not None else 'world'}–{body(parent)})"
     return f"{kind} #{index + 1} (on {body(parent)})"
@@ -829,6 +834,8 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
 
     def check(kind, element, index, attribute, field_, least):
         values = np.atleast_1d(np.asarray(getattr(element, field_), dtype=float)).ravel()
+        if attribute == "polycoef":  # a joint equality's data: its five coefficients
+            values = values[:5]
         if not np.all(np.isfinite(values)):
             refuse(kind, element, index, attribute, field_, values, "is not a finite number: every value of the "
                    "model must be finite")
@@ -841,9 +848,11 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
 
     for group, (kind, fields) in _VALUES.items():
         for index, element in enumerate(getattr(spec, group)):
-            if kind == "equality" and int(element.type) != _CONNECT:
+            if kind == "equality" and int(element.type) not in (_CONNECT, _EQ_JOINT):
                 continue  # its data is another equality's (refused by kind later)
             for attribute, field_, least in fields:
+                if kind == "equality" and int(element.type) == _EQ_JOINT and attribute == "anchor":
+                    attribute = "polycoef"
                 check(kind, element, index, attribute, field_, least)
     for kind, group in (("body", "bodies"), ("frame", "frames"), ("geom", "geoms")):  # an orientation other than quat, as written
         for index, element in enumerate(getattr(spec, group)):

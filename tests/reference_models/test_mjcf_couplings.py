@@ -15,10 +15,15 @@ law, joint1 about −z, refs on both joints and a keyframe away from qpos0).
 Planted: the import's reference taken at the keyframe instead of qpos0 (``float(m.qpos0[adr])`` →
 ``float(reader.qpos[adr])``) fails test_a_cam_law_is_read_with_qpos0_and_the_hinge_sign (the keyframe no
 longer satisfies the coupling as read: Newton moves it by 0.05 rad); the hinge sign left out
-(``sy = sx = 1``) fails it and test_the_coupled_hand_is_one_dof_and_checks (the coefficients).
+(``sy = sx = 1``) fails it and test_the_coupled_hand_is_one_dof_and_checks (the coefficients); the
+values check skipping joint equalities again (``!= _CONNECT``) fails the three non-finite cases (a NaN
+polycoef then reaches the coupling's own check with the signs applied, an infinite solref MuJoCo
+runs); the options' softness taking connects only fails test_the_stiff_loops_trial_and_its_advice_take_the_coupling.
 """
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pytest
@@ -27,6 +32,7 @@ from loopcheck.compare.cli import main
 from loopcheck.mechanism import JointCoupling
 from loopcheck.reference_models import MujocoSettings, mjcf_text
 from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+from loopcheck.reference_models.user_model import ModelOptions
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.scene_writer import scene_data
 
@@ -101,3 +107,31 @@ def test_export_then_import_gives_the_coupling_back(tmp_path):
     assert isinstance(b, JointCoupling)
     np.testing.assert_allclose(back.x0, scene.x0, rtol=0, atol=1e-14)
     assert scene_data(back)["couplings"][0]["name"] == "cam"
+
+
+@pytest.mark.parametrize("change, words", [
+    (('polycoef="0.05 -1 0.5 0 0"', 'polycoef="0.05 nan 0.5 0 0"'),
+     "equality 'cam_law': polycoef=\"0.05 nan 0.5 0 0\" is not a finite number"),
+    (('solref="0.005 1"', 'solref="0.005 inf"'), "equality 'cam_law': solref=\"0.005 inf\" is not a finite number"),
+    (('<joint name="cam_law" ', '<joint '), None),  # unnamed: named by its tag, ordinal and joints
+])
+def test_a_coupling_value_that_is_not_finite_is_refused_by_name(change, words, tmp_path):
+    text = (MJCF / "cam_rotors.xml").read_text().replace(*change)
+    if words is None:
+        text = text.replace('polycoef="0.05 -1 0.5 0 0"', 'polycoef="0.05 -1 0.5 inf 0"')
+        words = "joint equality #1 (follower_shaft–cam_shaft): polycoef=\"0.05 -1 0.5 inf 0\" is not a finite number"
+    path = tmp_path / "bad.xml"
+    path.write_text(text)
+    with pytest.raises(MjcfError, match=re.escape(words)) as caught:
+        import_mjcf(path)
+    assert "\n" not in str(caught.value)
+
+
+def test_the_stiff_loops_trial_and_its_advice_take_the_coupling():
+    """`check`'s "stiff loops" trial sets the coupling's softness with the connects', and the MJCF it
+    advises names the coupling by its own tag (it sets its own solref, so a default does not reach it)."""
+    imported = import_mjcf(MJCF / "cam_rotors.xml")
+    written = ModelOptions.as_written(imported.model)
+    assert written.solref == ((0.005, 1.0),)
+    advice = written.stiff_loops().mjcf(imported.connects)
+    assert '<joint name="cam_law" solref="0.001 1"' in advice, advice
