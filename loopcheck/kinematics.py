@@ -18,7 +18,9 @@ redundantly closed loop, whose kernel then runs on an orthonormal basis of Φ_x'
 - two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
   always revolute: :class:`~loopcheck.mechanism.Linkage` takes prismatic joints into the tree
   first and refuses a loop of prismatic joints only, so a prismatic joint is never cut;
-- one linear row per prismatic joint: θ_b − θ_a = 0, the slider keeps its angle.
+- one linear row per prismatic joint: θ_b − θ_a = 0, the slider keeps its angle;
+- one row per joint coupling (:class:`~loopcheck.mechanism.JointCoupling`): u_y − y_ref =
+  p(u_x − x_ref) on the two joints' own coordinates u = row·x, whose γ is −p''(s) (r_x·K)².
 
 The input joint adds the driving row c·x = q: c picks s for a prismatic input and
 θ_b − θ_a for a revolute one (θ of ground is 0), so a revolute between two moving bodies is
@@ -156,16 +158,19 @@ class Packer:
         self.ni += a.size
         return self.ni - a.size
 
-    def kinematics(self, n: int, n_angles: int, tables, linear: np.ndarray) -> None:
+    def kinematics(self, n: int, n_angles: int, tables, linear: np.ndarray,
+                   couplings: np.ndarray | None = None) -> None:
         """The kinematics' header and arrays: n coordinates (the first n_angles of them angles),
         the term tables (:func:`kernel_table`'s arrays; the first is the loops'), the linear
-        constraint rows (k, n)."""
+        constraint rows (k, n) and the couplings' rows (c, 2n + 7: :attr:`LoopSystem.couplings`),
+        packed as the kernel's polynomial rows, the linear ones first."""
         if len(tables) > _loops.N_TABLES:
             raise ValueError(f"at most {_loops.N_TABLES} term tables, not {len(tables)}")
         h = self.header
-        h[_loops.N], h[_loops.N_ANGLES], h[_loops.N_LINEAR] = n, n_angles, len(linear)
+        rows = polynomial_rows(n, linear, couplings)
+        h[_loops.N], h[_loops.N_ANGLES], h[_loops.N_LINEAR] = n, n_angles, len(rows)
         h[_loops.MAX_ROWS] = max(len(t[0]) for t in tables)
-        h[_loops.LINEAR] = self.float(linear)
+        h[_loops.LINEAR] = self.float(rows)
         for k, (offset, w, row, mag, angle) in enumerate(tables):
             tb = _loops.TABLES + _loops.TABLE_ENTRIES * k
             h[tb], h[tb + 1] = len(offset), len(row)
@@ -176,12 +181,26 @@ class Packer:
         return np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I)
 
 
-def pack(n: int, n_angles: int, tables: tuple[TermTable, ...], linear: np.ndarray | None = None):
+def polynomial_rows(n: int, linear: np.ndarray, couplings: np.ndarray | None = None) -> np.ndarray:
+    """The kernel's polynomial rows (rows, 2n + 7: r_y, r_x, x_ref, y_ref, a0 … a4;
+    :mod:`loopcheck.kernels.loops`) of linear rows (k, n), which have r_x = 0 and p = 0, then of
+    the couplings' rows (c, 2n + 7) as they are."""
+    linear = np.asarray(linear, dtype=float).reshape(-1, n)
+    rows = np.zeros((len(linear), 2 * n + _loops.ROW_EXTRA))
+    rows[:, :n] = linear
+    if couplings is None:
+        return rows
+    return np.vstack([rows, np.asarray(couplings, dtype=float).reshape(-1, 2 * n + _loops.ROW_EXTRA)])
+
+
+def pack(n: int, n_angles: int, tables: tuple[TermTable, ...], linear: np.ndarray | None = None,
+         couplings: np.ndarray | None = None):
     """The compiled kinematics' arrays (F, I) of term tables (the first the loops') over n
-    coordinates, the first n_angles of them angles, and the linear rows (k, n)."""
+    coordinates, the first n_angles of them angles, the linear rows (k, n) and the couplings'
+    rows (c, 2n + 7)."""
     P = Packer(_loops.KIN_HEADER)
     P.kinematics(n, n_angles, [kernel_table(t) for t in tables],
-                 np.zeros((0, n)) if linear is None else linear)
+                 np.zeros((0, n)) if linear is None else linear, couplings)
     return P.arrays()
 
 
@@ -201,6 +220,9 @@ class LoopSystem:
     joint_names, joint_rows : the joints in the description's order and (joints, n) the row
         of each one's own coordinate u = row·x: a revolute joint's relative angle θ_b − θ_a
         (rad; also of a cut joint), a prismatic joint's displacement s (m)
+    couplings : (c, 2n + 7) — one row per joint coupling (:class:`~loopcheck.mechanism.JointCoupling`),
+        the constraint r_y·x − y_ref = p(r_x·x − x_ref): r_y (n) the coupled joint's row, r_x (n)
+        the driver's, x_ref, y_ref, a0 … a4 (:mod:`loopcheck.kernels.loops`'s polynomial rows)
     rows : the n − 1 independent constraint rows the kernel runs on (:func:`independent_rows` at
         an assembled configuration, :meth:`with_independent_rows`), or None: all of them (a
         linkage without redundant loops has exactly n − 1)
@@ -218,6 +240,14 @@ class LoopSystem:
     joint_names: tuple[str, ...]
     joint_rows: np.ndarray
     rows: tuple[int, ...] | None = None
+    couplings: np.ndarray | None = None
+
+    @property
+    def coupling_rows(self) -> np.ndarray:
+        """:attr:`couplings`, (0, 2n + 7) when there are none."""
+        if self.couplings is None:
+            return np.zeros((0, 2 * self.n + _loops.ROW_EXTRA))
+        return self.couplings
 
     @property
     def kernel(self) -> _loops.Loops:
@@ -226,7 +256,7 @@ class LoopSystem:
         n_angles = sum(name.endswith(".angle") for name in self.coordinate_names)
         select = None if self.rows is None else np.asarray(self.rows, dtype=np.int64)
         return _cached_kernel(self, None,
-                              lambda: (*pack(self.n, n_angles, (self.loops,), self.linear), select))
+                              lambda: (*pack(self.n, n_angles, (self.loops,), self.linear, self.couplings), select))
 
     def with_independent_rows(self, x: np.ndarray, rtol: float = RANK_RTOL) -> "LoopSystem":
         """The same linkage whose kernel runs on the independent constraint rows at the assembled
@@ -297,13 +327,13 @@ def rates(t: TermTable, x: np.ndarray, K: np.ndarray, L: np.ndarray | None = Non
 
 
 def constraint_residual(system: LoopSystem, x: np.ndarray) -> np.ndarray:
-    """Φ(x): the loop vectors (m) then the linear rows (rad), shape (n − 1,)."""
+    """Φ(x): the loop vectors (m) then the linear rows (rad) and the couplings (rad or m), shape (n − 1,)."""
     return system.kernel.constraints(x)[0]
 
 
 def all_constraints(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Φ(x) (m,) and Φ_x (m, n) of every constraint row, the dependent rows of a redundant loop
-    too (m ≥ n − 1): loop vectors (m) then linear rows (rad)."""
+    too (m ≥ n − 1): loop vectors (m) then linear rows (rad), then the couplings (rad or m)."""
     return system.kernel.all_constraints(x)
 
 
@@ -642,8 +672,13 @@ def compile_linkage(linkage: Linkage) -> LoopSystem:
             return row
         return relative_angle(jt.body_a, jt.body_b)
 
+    rows = {j.name: joint_row(j) for j in linkage.joints}
+    couplings = []
+    for c in linkage.couplings:  # y − y_ref = p(x − x_ref) on the joints' own coordinates
+        couplings.append(np.concatenate([rows[c.joint], rows[c.driver], [c.x_ref, c.y_ref], c.coefficients]))
     point_names = tuple((b.name, p) for b in linkage.bodies for p in b.points)
-    return LoopSystem(joint_names=tuple(j.name for j in linkage.joints),
+    return LoopSystem(couplings=np.array(couplings, dtype=float).reshape(-1, 2 * n + _loops.ROW_EXTRA)
+                      if couplings else None,joint_names=tuple(j.name for j in linkage.joints),
                       joint_rows=np.array([joint_row(j) for j in linkage.joints], dtype=float).reshape(-1, n),
                       coordinate_names=names, loops=_table(loops),
                       linear=np.array(linear_rows, dtype=float).reshape(-1, n),

@@ -170,6 +170,67 @@ class PrismaticJoint:
 Joint = RevoluteJoint | PrismaticJoint
 
 
+POLY_TERMS = 5  # a coupling's polynomial: a0 + a1 s + … + a4 s⁴ (MuJoCo's polycoef)
+
+
+@dataclass(frozen=True)
+class JointCoupling:
+    """A closure between two joints' own coordinates (MuJoCo's ``equality/joint``): joint
+    ``joint`` (y, the coupled one) follows joint ``driver`` (x) by a polynomial,
+
+        y − y_ref = a0 + a1 (x − x_ref) + a2 (x − x_ref)² + a3 (x − x_ref)³ + a4 (x − x_ref)⁴,
+
+    each coordinate a joint's own (:class:`JointElement`): a revolute's relative angle
+    θ_b − θ_a (rad), a prismatic's displacement s (m). ``coefficients`` (a0 … a4, fewer given
+    are padded with zeros) in the units that make each term y's; ``x_ref``, ``y_ref`` the
+    reference values (MuJoCo's qpos0 of the two joints). A gear pair: a1 = −ratio. One more
+    constraint row: an ideal, workless closure.
+    """
+
+    name: str
+    joint: str
+    driver: str
+    coefficients: tuple[float, ...] = (0.0, 1.0)
+    x_ref: float = 0.0
+    y_ref: float = 0.0
+
+    def __post_init__(self):
+        _name(self.name, "coupling name")
+        _name(self.joint, f"coupling {self.name!r}: joint")
+        _name(self.driver, f"coupling {self.name!r}: driver")
+        if self.joint == self.driver:
+            raise MechanismError(f"coupling {self.name!r} couples joint {self.joint!r} to itself")
+        try:
+            coefficients = tuple(self.coefficients)
+        except TypeError:
+            raise MechanismError(f"coupling {self.name!r}: coefficients must be 1 to {POLY_TERMS} numbers "
+                                 f"a0 … a4, got {self.coefficients!r}") from None
+        if not 1 <= len(coefficients) <= POLY_TERMS or not all(
+                isinstance(a, (int, float)) and not isinstance(a, bool) for a in coefficients):
+            raise MechanismError(f"coupling {self.name!r}: coefficients must be 1 to {POLY_TERMS} numbers "
+                                 f"a0 … a4, got {self.coefficients!r}")
+        coefficients = tuple(float(a) for a in coefficients) + (0.0,) * (POLY_TERMS - len(coefficients))
+        if not all(math.isfinite(a) for a in coefficients):
+            raise MechanismError(f"coupling {self.name!r}: coefficients must be finite, got {coefficients}")
+        if not any(coefficients[1:]):
+            raise MechanismError(f"coupling {self.name!r}: no term in the driver {self.driver!r} (a1 … a4 all 0): "
+                                 f"it locks joint {self.joint!r}, which is not a coupling")
+        object.__setattr__(self, "coefficients", coefficients)
+        for f in ("x_ref", "y_ref"):
+            value = getattr(self, f)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise MechanismError(f"coupling {self.name!r}: {f} must be a finite number, got {value!r}")
+            object.__setattr__(self, f, float(value))
+
+    def polynomial(self, x: float) -> tuple[float, float, float]:
+        """p(s), p'(s), p''(s) at s = x − x_ref: y = y_ref + p(s)."""
+        a0, a1, a2, a3, a4 = self.coefficients
+        s = x - self.x_ref
+        return (a0 + s * (a1 + s * (a2 + s * (a3 + s * a4))),
+                a1 + s * (2.0 * a2 + s * (3.0 * a3 + s * 4.0 * a4)),
+                2.0 * a2 + s * (6.0 * a3 + s * 12.0 * a4))
+
+
 @dataclass(frozen=True)
 class TreeEdge:
     """How a moving body hangs from the spanning tree: by ``joint`` from ``parent``."""
@@ -195,6 +256,9 @@ class Linkage:
         Joints to take into the spanning tree before the other revolute ones (after the input
         and the prismatic joints), where the loops allow: a joint inertia's joints, which
         MuJoCo holds only on a tree joint (:class:`Mechanism` passes them).
+    couplings : tuple of JointCoupling
+        Polynomial couplings between two joints' coordinates; each is one more closure
+        equation (one fewer degree of freedom).
 
     Attributes (derived)
     --------------------
@@ -218,6 +282,7 @@ class Linkage:
     joints: tuple[Joint, ...]
     input_joint: str
     tree_first: tuple[str, ...] = ()
+    couplings: tuple[JointCoupling, ...] = ()
     moving: tuple[str, ...] = field(init=False, repr=False, compare=False)
     tree: tuple[TreeEdge, ...] = field(init=False, repr=False, compare=False)
     cut_joints: tuple[str, ...] = field(init=False, repr=False, compare=False)
@@ -227,6 +292,7 @@ class Linkage:
         object.__setattr__(self, "bodies", tuple(self.bodies))
         object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(self, "tree_first", tuple(self.tree_first))
+        object.__setattr__(self, "couplings", tuple(self.couplings))
         for b in self.bodies:
             if not isinstance(b, Body):
                 raise MechanismError(f"bodies must be Body values, got {type(b).__name__}")
@@ -253,14 +319,15 @@ class Linkage:
         for name in self.tree_first:
             if name not in {j.name for j in self.joints}:
                 raise MechanismError(f"tree_first: {name!r} is not one of the joints")
+        _check_couplings(self.couplings, self.joint_map)
         touched = {j.body_a for j in self.joints} | {j.body_b for j in self.joints}
         for name in moving:
             if name not in touched:
                 raise MechanismError(f"body {name!r} is connected to nothing (no joint names it)")
         if GROUND not in touched:
             raise MechanismError("no joint connects the linkage to ground")
-        n, j = len(moving), len(self.joints)
-        dof = 3 * n - 2 * j
+        n, j, c = len(moving), len(self.joints), len(self.couplings)
+        dof = 3 * n - 2 * j - c
         tree, cut = self._spanning_tree(moving)
         # Grübler's count below 1 is not a refusal: a redundantly closed loop (dependent loop
         # equations: a parallelogram with an extra parallel crank) may still move with one DOF.
@@ -268,7 +335,8 @@ class Linkage:
         # (:func:`loopcheck.kinematics.rank_dof`, when a scene is read); the count is a warning then.
         if dof > 1:
             raise MechanismError(f"the linkage has {dof} degrees of freedom by Grübler's count "
-                                 f"3·{n} moving bodies − 2·{j} joints, not 1")
+                                 f"3·{n} moving bodies − 2·{j} joints"
+                                 + (f" − {c} couplings" if c else "") + ", not 1")
         kinds = self.joint_map
         for name in cut:
             loop = _cycle(tree, kinds[name])
@@ -334,6 +402,22 @@ class Linkage:
             raise MechanismError(f"bodies {', '.join(map(repr, missing))} form a group not "
                                  f"connected to ground")
         return tuple(tree), tuple(jt.name for jt in self.joints if jt.name not in used)
+
+
+def _check_couplings(couplings, joints) -> None:
+    """Couplings are JointCoupling values with unique names, between known joints."""
+    for c in couplings:
+        if not isinstance(c, JointCoupling):
+            raise MechanismError(f"couplings must be JointCoupling values, got {type(c).__name__}")
+    _unique([c.name for c in couplings], "coupling")
+    for c in couplings:
+        if c.name in joints:
+            raise MechanismError(f"coupling {c.name!r} has a joint's name: couplings and joints share MuJoCo's "
+                                 "equality names (a cut joint's connect is named after it)")
+    for c in couplings:
+        for role, name in (("joint", c.joint), ("driver", c.driver)):
+            if name not in joints:
+                raise MechanismError(f"coupling {c.name!r}: unknown joint {name!r} ({role})")
 
 
 def _check_mass(body: Body, joints) -> None:

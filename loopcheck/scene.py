@@ -62,7 +62,7 @@ LIMITS: Mapping[str, Range] = _ranges(
           keys=("linkage.c1 … c4",)),
     Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths",
           keys=("points", "com", "ground_point", "body_point", "rest_length", "rest_displacement",
-                "initial.q (prismatic input)")),
+                "initial.q (prismatic input)", "couplings.reference (prismatic joints)")),
     Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades",
           keys=("bodies.*.mass", "joint_inertias.inertia (prismatic)")),
     Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m² (a pivot "
@@ -84,7 +84,8 @@ LIMITS: Mapping[str, Range] = _ranges(
           "large engine's)",
           keys=("force.value(s)", "point_forces.values", "timed_forces.value(s)")),
     Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits",
-          keys=("initial.q (revolute input)", "direction", "guessed angles", "rest_angle")),
+          keys=("initial.q (revolute input)", "direction", "guessed angles", "rest_angle",
+                "couplings.reference (revolute joints)")),
     Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed",
           keys=("initial.qdot",)),
     Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)",

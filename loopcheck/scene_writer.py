@@ -92,6 +92,10 @@ def scene_data(scene: Scene) -> dict[str, Any]:
         if rows:
             data[table] = rows
     joint_kinds = linkage.joint_map
+    if linkage.couplings:
+        data["couplings"] = [{"name": c.name, "joint": c.joint, "driver": c.driver,
+                              "polycoef": list(c.coefficients), "reference": [c.x_ref, c.y_ref]}
+                             for c in linkage.couplings]
     if mech.joint_inertias:
         data["joint_inertias"] = [{"name": e.name, "joint": e.joint, "inertia": e.coefficient}
                                   for e in mech.joint_inertias]

@@ -28,14 +28,14 @@ import numpy as np
 
 from . import kinematics as loops
 from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
-from .mechanism import (GROUND, Body, GrublerCountWarning, JointElement, LineElement, Linkage, Mechanism,
+from .mechanism import (GROUND, POLY_TERMS, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement, Linkage, Mechanism,
                         MechanismError, PointForce, PrismaticJoint, RevoluteJoint, TimedForce)
 from .registry import ENGINES, REFERENCE, judged_engines
 from .settings import options, read_table
 from .sweep_spec import SweepSpecError, spec_from_table
 from .scene import (LIMITS, MAX_BODIES, MAX_DESCRIPTION_CHARS, MAX_ELEMENTS, MAX_JOINTS, MAX_NAME_CHARS, FourBarGeometry,
                     Scene, SceneError, Tolerances)
-from .toml_reader import (Table, array_of_tables, check_range, count, name_key, parse_toml, point,
+from .toml_reader import (Table, array_of_tables, check_range, count, name_key, number, parse_toml, point,
                           read_text, table_pair, text_value)
 
 FOUR_BAR_BODIES = ("crank", "coupler", "rocker")
@@ -228,13 +228,48 @@ def _parse_timed_forces(top: Table) -> list[TimedForce]:
     return out
 
 
+def _parse_couplings(top: Table, joints) -> list[JointCoupling]:
+    """``[[couplings]]``: name, joint (y, the coupled joint), driver (x), polycoef (1 to 5 numbers
+    a0 … a4) and reference = [x_ref, y_ref] (default [0, 0]), each in its joint's own coordinate
+    (rad on a revolute, m on a prismatic): y − y_ref = a0 + a1 (x − x_ref) + … + a4 (x − x_ref)⁴,
+    MuJoCo's equality/joint with x_ref, y_ref its qpos0."""
+    out = []
+    by_name = {j.name: j for j in joints}
+    for k, t in enumerate(array_of_tables(top, "couplings")):
+        name = name_key(t.string("name", f"coupling{k}"), t.key("name"))
+        ends = []
+        for role in ("joint", "driver"):
+            joint = t.string(role)
+            if joint not in by_name:
+                raise SceneError(f"'{t.key(role)}' = \"{joint}\" is not one of the joints: {', '.join(by_name)}")
+            ends.append(joint)
+        raw = t.raw("polycoef")
+        if not isinstance(raw, list) or not 1 <= len(raw) <= POLY_TERMS:
+            raise SceneError(f"'{t.key('polycoef')}' must be an array of 1 to {POLY_TERMS} numbers [a0, a1, …, a4]")
+        coefficients = [number(v, f"{t.key('polycoef')}[{i}]") for i, v in enumerate(raw)]
+        reference = t.raw("reference", [0.0, 0.0])
+        if not isinstance(reference, list) or len(reference) != 2:
+            raise SceneError(f"'{t.key('reference')}' must be an array of two numbers [x_ref, y_ref] "
+                             "(the driver's and the joint's reference values)")
+        refs = [number(v, f"{t.key('reference')}[{i}]",
+                       kind="position" if isinstance(by_name[j], PrismaticJoint) else "angle")
+                for i, (v, j) in enumerate(zip(reference, ends[::-1]))]
+        t.close()
+        out.append(_mechanism_value(t.path, lambda: JointCoupling(name, ends[0], ends[1], tuple(coefficients),
+                                                                  refs[0], refs[1])))
+    return out
+
+
 def _with_inertias_in_tree(linkage: Linkage, joint_elements: list[JointElement]) -> Linkage:
-    """The linkage with its joint inertias' joints taken into the spanning tree first (MuJoCo
-    holds an inertia only on a tree joint: :func:`loopcheck.mujoco_model.build.build_spec`)."""
-    first = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
+    """The linkage with its joint inertias' and couplings' joints taken into the spanning tree first
+    (MuJoCo holds an inertia and an equality/joint only on a tree joint:
+    :func:`loopcheck.mujoco_model.build.build_spec`)."""
+    first = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
+                                + [j for c in linkage.couplings for j in (c.joint, c.driver)]))
     if not first:
         return linkage
-    return _mechanism_value("joints", lambda: Linkage(linkage.bodies, linkage.joints, linkage.input_joint, first))
+    return _mechanism_value("joints", lambda: Linkage(linkage.bodies, linkage.joints, linkage.input_joint, first,
+                                                             linkage.couplings))
 
 
 def _mechanism_value(key: str, build):
@@ -260,7 +295,9 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
     joint_names = [j.name for j in joints]
     if input_joint not in joint_names:
         raise SceneError(f"'linkage.input' = \"{input_joint}\" is not one of the joints: {', '.join(joint_names)}")
-    linkage = _mechanism_value("joints", lambda: Linkage(bodies, joints, input_joint))
+    couplings = _parse_couplings(top, joints)
+    linkage = _mechanism_value("couplings" if couplings else "joints",
+                               lambda: Linkage(bodies, joints, input_joint, couplings=couplings))
     input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)

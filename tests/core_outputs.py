@@ -32,6 +32,7 @@ N_TIMES = 101  # states compared at these many times spread over the horizon
 # fixture cannot hold them; each one's own oracle test does (scene: that test).
 NOT_RECORDED = {
     "mechanisms/parallelogram_redundant.toml": "tests/reduced/test_redundant_loop.py (closed form)",
+    "mechanisms/seed_fourbar_geared_flywheel.toml": "tests/core/test_couplings.py (the seed with a joint inertia)",
 }
 
 

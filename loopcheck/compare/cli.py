@@ -247,7 +247,9 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
               + "".join(f"Warning: {line}\n" for line in imported.warnings))
     path = write_file(args.out, scene_toml(scene, header), flag="-o")
     print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
-          f"({len(scene.mechanism.linkage.cut_joints)} closing loops), input '{scene.mechanism.linkage.input_joint}': "
+          f"({len(scene.mechanism.linkage.cut_joints)} closing loops"
+          + "".join(f", coupling '{c.name}'" for c in scene.mechanism.linkage.couplings)
+          + f"), input '{scene.mechanism.linkage.input_joint}': "
           f"{input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
           f"horizon {scene.horizon:g} s")
     print(f"wrote {path}")

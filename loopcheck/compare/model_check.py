@@ -139,7 +139,7 @@ class ModelCheck:
             return "a contact (above): the exact reference has none, so no options can meet the tolerances"
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
-        loops, step = "the loops' softness (the connects' solref and solimp)", "the timestep"
+        loops, step = "the loops' softness (the connects' and couplings' solref and solimp)", "the timestep"
         skipped = [t for t in (self.stiff_loops, self.smaller_step) if t.skipped]
         if skipped:
             ran = [t for t in (self.stiff_loops, self.smaller_step) if not t.skipped]

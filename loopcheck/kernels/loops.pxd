@@ -18,6 +18,7 @@ cpdef enum:
     NON_FINITE = 1
     SINGULAR_JACOBIAN = 2
     NOT_CLOSED = 3
+    ROW_EXTRA = 7
 
 
 cdef class Loops:
@@ -43,6 +44,8 @@ cdef class Loops:
     # what _term leaves (its row is returned), what _constraints, _factor_row and _finish leave
     cdef Py_ssize_t term_g, term_a, best_j
     cdef double term_m, term_ux, term_uy, spread, det, hadamard, own, best
+    # what _poly leaves: p, p', p'' of a linear row's polynomial, and r_x·K
+    cdef double poly_p, poly_dp, poly_ddp, poly_rate
 
     cdef double _lu_factor(self)
     cdef int _lu_solve(self, double[::1] b)
@@ -50,6 +53,7 @@ cdef class Loops:
     cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
     cdef int _table_positions(self, Py_ssize_t table)
     cdef int _table_rates(self, Py_ssize_t table, bint with_l)
+    cdef double _poly(self, Py_ssize_t lin, bint newton)
     cdef double _constraints(self)
     cdef int _basis(self)
     cdef double _factor_row(self, double[::1] row)

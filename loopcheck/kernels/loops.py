@@ -21,7 +21,18 @@ chart's coordinate x_i), K = dx/dp and L = d²x/dp² solve
 
     A K = (0, …, 0, 1),      A L = (−γ, 0),   γ = Σ_t 2 ṁ θ̇ u⊥ − m θ̇² u
 
-with the same factorization. Conditioning of p (the project's one singular-position measure,
+with the same factorization.
+
+Rows of the LINEAR block (N_LINEAR of them, after the loops' rows) are polynomial rows, each
+2n + 7 floats: r_y (n), r_x (n), x_ref, y_ref, a0 … a4, the row
+
+    Φ_c = (r_y·x − y_ref) − p(r_x·x − x_ref),   p(s) = a0 + a1 s + … + a4 s⁴,
+
+Φ_x = r_y − p'(s) r_x and γ_c = −p''(s) (r_x·K)² (d²Φ_c/dp² = Φ_x L + γ_c). A linear row
+(a slider keeps its angle: r_y·x = 0) has r_x = 0 and p = 0; a joint coupling (MuJoCo's
+``equality/joint``: joint y follows joint x) has r_y, r_x the two joints' own coordinates.
+
+Conditioning of p (the project's one singular-position measure,
 :data:`loopcheck.kinematics.SINGULAR_CONDITIONING`): the Hadamard ratio of the dependent Jacobian,
 |det A| / (|row_i| Π_{l≠i} ‖Φ_x[:, l] − (row_l / row_i) Φ_x[:, i]‖), i the row's largest |entry|;
 for coordinate j with K taken w.r.t. any coordinate (Cramer's rule) c_j = |K_j| |det A| /
@@ -50,8 +61,8 @@ else:
 # engine's model) may extend past KIN_HEADER with its own header entries and arrays.
 #
 # I[0:KIN_HEADER] is the header: n (coordinates), the body angles among them (the first
-# N_ANGLES), the linear constraint rows, the most rows of any table, the offset in F of the
-# linear rows (N_LINEAR, n), then N_TABLES term tables of TABLE_ENTRIES entries each: rows, terms,
+# N_ANGLES), the linear (polynomial) constraint rows, the most rows of any table, the offset in F
+# of the linear rows (N_LINEAR, ROW_WIDTH(n): module docstring), then N_TABLES term tables of TABLE_ENTRIES entries each: rows, terms,
 # and the offsets of offset (rows, 2) and w (terms, 2) in F and of row, mag, angle (terms,) in I.
 # Table LOOPS holds the loop-closure vectors (2 constraint rows each); the others are the user's.
 # Compiled, these are the C constants of loops.pxd (module docstring): keep both in step.
@@ -65,6 +76,8 @@ if not cython.compiled:
     # what assemble returns: closed; a non-finite residual; a singular Jacobian before
     # convergence; no convergence in the iterations allowed
     CLOSED, NON_FINITE, SINGULAR_JACOBIAN, NOT_CLOSED = range(4)
+    # a linear row's floats beyond its two rows r_y, r_x (2n): x_ref, y_ref, a0 … a4
+    ROW_EXTRA = 7
 
 # A redundantly closed loop's basis (Loops._basis): a row whose part outside the rows already taken
 # is below BASIS_RTOL × the largest row's norm adds nothing (the rank of the loop equations has
@@ -315,6 +328,30 @@ class Loops:
         return 0
 
     @cython.cfunc
+    def _poly(self, lin: cython.Py_ssize_t, newton: cython.bint) -> cython.double:
+        """The polynomial of the linear row at F[lin] (module docstring) at s = r_x·x − x_ref, x
+        Newton's (``newton``) or kin's: p(s), p'(s), p''(s) into poly_p, poly_dp, poly_ddp, and
+        r_x·K (kin's K) into poly_rate; returns s."""
+        n: cython.Py_ssize_t = self.n
+        c: cython.Py_ssize_t
+        s: cython.double = 0.0
+        rate: cython.double = 0.0
+        for c in range(n):
+            s += self.F[lin + n + c] * (self.x[c] if newton else self.kin[0, c])
+            rate += self.F[lin + n + c] * self.kin[1, c]
+        s -= self.F[lin + 2 * n]
+        a0: cython.double = self.F[lin + 2 * n + 2]
+        a1: cython.double = self.F[lin + 2 * n + 3]
+        a2: cython.double = self.F[lin + 2 * n + 4]
+        a3: cython.double = self.F[lin + 2 * n + 5]
+        a4: cython.double = self.F[lin + 2 * n + 6]
+        self.poly_p = a0 + s * (a1 + s * (a2 + s * (a3 + s * a4)))
+        self.poly_dp = a1 + s * (2.0 * a2 + s * (3.0 * a3 + s * 4.0 * a4))
+        self.poly_ddp = 2.0 * a2 + s * (6.0 * a3 + s * 12.0 * a4)
+        self.poly_rate = rate
+        return s
+
+    @cython.cfunc
     def _constraints(self) -> cython.double:
         """Φ(x) into phi (m,) and Φ_x into Phi (m, n) (loop rows, then the linear rows), and their
         selected rows (select) into rhs[:n−1] and A[:n−1, :], x Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
@@ -357,13 +394,18 @@ class Loops:
             if g >= 0:
                 self.Phi[2 * k, g] += ux
                 self.Phi[2 * k + 1, g] += uy
-        lin: cython.Py_ssize_t = self.I[LINEAR]
+        lin: cython.Py_ssize_t
+        s: cython.double
         for r in range(self.I[N_LINEAR]):
-            v = 0.0
+            # Φ_c = (r_y·x − y_ref) − p(s), s = r_x·x − x_ref (module docstring)
+            lin = self.I[LINEAR] + r * (2 * n + ROW_EXTRA)
+            s = self._poly(lin, True)
+            v = -self.F[lin + 2 * n + 1] - self.poly_p
+            scale += fabs(self.F[lin + 2 * n + 1]) + fabs(self.poly_p)
             for c in range(n):
-                self.Phi[nl + r, c] = self.F[lin + r * n + c]
-                v += self.F[lin + r * n + c] * self.x[c]
-                scale += fabs(self.F[lin + r * n + c] * self.x[c])
+                self.Phi[nl + r, c] = self.F[lin + c] - self.poly_dp * self.F[lin + n + c]
+                v += self.F[lin + c] * self.x[c]
+                scale += fabs(self.F[lin + c] * self.x[c])
             self.phi[nl + r] = v
         if self.adaptive:  # a redundant loop: the orthonormal basis of Φ_x's rows
             self._basis()
@@ -502,8 +544,9 @@ class Loops:
         for k in range(nl):
             self.phi[2 * k] = -self.rows[k, 2]
             self.phi[2 * k + 1] = -self.rows[k, 3]
-        for j in range(2 * nl, self.m):
-            self.phi[j] = 0.0
+        for j in range(2 * nl, self.m):  # the linear rows: −γ_c = p''(s) (r_x·K)²
+            self._poly(self.I[LINEAR] + (j - 2 * nl) * (2 * n + ROW_EXTRA), False)
+            self.phi[j] = self.poly_ddp * self.poly_rate * self.poly_rate
         v: cython.double
         if self.adaptive:  # γ in the basis' combinations
             for j in range(n):

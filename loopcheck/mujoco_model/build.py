@@ -14,6 +14,12 @@ equality named after the joint, with ``body1``/``body2`` its two bodies (``base`
 ground) and ``anchor`` its point on body1, in body1's frame (as menagerie's Cassie and
 Robotiq 2F-85 do); solref/solimp from the settings.
 
+Couplings. Each joint coupling (:class:`loopcheck.mechanism.JointCoupling`) is one ``joint``
+equality named after it, joint1 the coupled joint and joint2 the driver, both tree joints
+(the scene takes them into the tree first): its ``polycoef`` is the coupling's polynomial
+re-expanded exactly about MuJoCo's qpos0 (0: the authored pose) and in the hinges' own sign
+(:func:`coupling_polycoef`); solref/solimp are the loops'.
+
 Pose. The model is authored in the scene's assembled configuration ``scene.x0`` (the
 coordinates of :class:`loopcheck.kinematics.LoopSystem`): each child is placed in its parent's
 frame from the joint's two points and the relative angle at x0, every hinge and slide has
@@ -347,6 +353,13 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
             spec.add_sensor(name=sensor_name(name, f"{side}_pos"), type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
                             objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name(body, point))
 
+    for c in linkage.couplings:
+        joint1, joint2, polycoef = coupling_polycoef(scene, c)
+        coupling = spec.add_equality(name=c.name, type=mujoco.mjtEq.mjEQ_JOINT, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                                     name1=joint1, name2=joint2)
+        coupling.data[0:5] = polycoef
+        coupling.solimp = list(constraint.solimp)
+
     dampers = []
     for e in mech.elements:
         tendon = spec.add_tendon(name=e.name)
@@ -474,6 +487,42 @@ def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
     return {joint: (row @ T, float(row @ x0)) for joint, row in rows.items()}
 
 
+def coupling_polycoef(scene: Scene, coupling) -> tuple[str, str, list[float]]:
+    """(joint1, joint2, polycoef) of MuJoCo's ``equality/joint`` for a joint coupling: with u =
+    u0 + σ qpos on each of its two tree joints (:func:`joint_tendons`' map, σ = ±1, qpos0 = 0),
+    u_y − y_ref = p(u_x − x_ref) is qpos_y = P(qpos_x) with P(s) = σ_y (p(d + σ_x s) − e),
+    d = u0_x − x_ref, e = u0_y − y_ref: P's coefficients are σ_y σ_x^k p⁽ᵏ⁾(d)/k! (a Taylor
+    expansion, exact for a quartic), less σ_y e in a0. ValueError where a joint of it is not a
+    tree joint (it closes a loop: no MuJoCo joint to couple)."""
+    linkage = scene.mechanism.linkage
+    tree_joints = {e.joint for e in linkage.tree}
+    for name in (coupling.joint, coupling.driver):
+        if name not in tree_joints:
+            raise ValueError(f"coupling {coupling.name!r} couples joint {name!r}, which closes a loop in the MuJoCo "
+                             "model (a connect equality, no MuJoCo joint): MuJoCo's equality/joint needs two tree "
+                             "joints")
+    order = joint_order(linkage)
+    system = loops.compile_linkage(linkage)
+    x0, T = coordinate_map(scene)
+    ends = []
+    for name in (coupling.joint, coupling.driver):
+        row = system.joint_row(name)
+        coef = row @ T
+        k = order.index(name)
+        sign = float(coef[k])
+        assert abs(sign) == 1.0 and np.count_nonzero(coef) == 1, "a tree joint's coordinate is ± its own qpos"
+        ends.append((sign, float(row @ x0)))
+    (sy, u0y), (sx, u0x) = ends
+    d, e = u0x - coupling.x_ref, u0y - coupling.y_ref
+    a = coupling.coefficients
+    out = []
+    for k in range(len(a)):  # p⁽ᵏ⁾(d)/k! = Σ_{j≥k} C(j, k) a_j d^(j−k)
+        taylor = sum(math.comb(j, k) * a[j] * d ** (j - k) for j in range(k, len(a)))
+        out.append(sy * sx ** k * taylor)
+    out[0] -= sy * e
+    return coupling.joint, coupling.driver, out
+
+
 def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
     """One fixed tendon per joint damper, spring or inertia (named after it) on the joint's
     coordinate (:func:`joint_tendons`): a damper's with ``damping`` c, a spring's with
@@ -512,7 +561,7 @@ def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tup
     A spec built at one step and set to another compiles to the model built at the other.
     """
     spec.option.timestep = timestep
-    for name in scene.mechanism.linkage.cut_joints:
+    for name in scene.mechanism.linkage.cut_joints + tuple(c.name for c in scene.mechanism.linkage.couplings):
         spec.equality(name).solref = list(solref)
     spec.key(HOME_KEY).ctrl = [] if scene.load is None else [float(scene.load.sample(np.array([0.5 * timestep]))[0])]
 
@@ -530,7 +579,7 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
     Each number is rewritten as the shortest text that reads back to the same double
     (``repr``, without a trailing ".0"); attributes the writer left out (at their defaults)
     stay out. Covers the option, bodies (pos, quat, inertial), joints (pos, axis), sites,
-    spatial tendons, connects, keyframes and custom numerics.
+    spatial tendons, connects, joint couplings, keyframes and custom numerics.
     """
     root = ET.fromstring(spec.to_xml())
 
@@ -552,7 +601,12 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
         put(inertial, "mass", body.mass)
         put(inertial, "diaginertia", body.inertia)
     for element in root.iter("joint"):
-        if element.get("name") is not None:
+        if element.get("joint1") is not None:  # a coupling (equality/joint)
+            equality = spec.equality(element.get("name"))
+            put(element, "polycoef", equality.data[0:5])
+            put(element, "solref", equality.solref)
+            put(element, "solimp", equality.solimp)
+        elif element.get("name") is not None:
             joint = spec.joint(element.get("name"))
             put(element, "pos", joint.pos)
             put(element, "axis", joint.axis)
@@ -602,6 +656,6 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
 
 __all__ = ["BASE_BODY", "CUSTOM_CTRL", "CUSTOM_HORIZON", "CUSTOM_PREFIX", "CUSTOM_TOLERANCES", "ConstraintSettings",
            "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody", "add_scene_customs", "assembled_angles",
-           "build_spec", "check_joint_order", "compile_model", "coordinate_map", "initial_qpos_qvel", "initial_rates",
+           "build_spec", "check_joint_order", "compile_model", "coupling_polycoef", "coordinate_map", "initial_qpos_qvel", "initial_rates",
            "joint_order", "joint_positions", "joint_rates", "joint_rates_matrix", "joint_tendons", "load_table",
            "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name", "spanning_tree"]

@@ -174,7 +174,7 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
     qvel = np.abs(data.qvel)
     speed = max(length * float(np.max(qvel[hinge], initial=0.0)), float(np.max(qvel[~hinge], initial=0.0)))
     limits = (INITIAL_RESIDUAL_REL * length, INITIAL_RESIDUAL_REL * speed)
-    expected = 3 * len(scene.mechanism.linkage.cut_joints)
+    expected = 3 * len(scene.mechanism.linkage.cut_joints) + len(scene.mechanism.linkage.couplings)
     if len(rows) != expected or not position <= limits[0] or not velocity <= limits[1]:
         raise NumericalFailure(FailureReason.INITIAL_STATE,
                                f"MuJoCo's loop residuals at the initial state are {position:.3g} m (position, "

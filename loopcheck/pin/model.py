@@ -22,7 +22,8 @@ A body of mass 0 given by its inertia about a fixed pivot: mass 0 with that iner
 point: a zero mass has no parallel-axis term). A joint inertia (½ I u̇² on a joint's own
 coordinate u) on a tree joint is Pinocchio's ``armature`` of that joint's one dof (u is that
 joint's q: I·row·rowᵀ is I on the diagonal); on a cut joint u is a sum of several q's and its
-cross terms do not fit a diagonal armature: refused with one line.
+cross terms do not fit a diagonal armature: refused with one line. A joint coupling (MuJoCo's
+equality/joint) is refused with one line: Pinocchio's constraint models are contacts between frames.
 
 Everything else (dampers, springs, loads, point and timed forces) is applied as generalized
 forces by :mod:`loopcheck.pin.run` from the point Jacobians of :meth:`PinModel.point_jacobians`.
@@ -113,7 +114,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     Raises
     ------
     ValueError
-        A joint inertia on a cut joint (one line naming it).
+        A joint inertia on a cut joint, or a joint coupling (one line naming it).
     """
     mech = scene.mechanism
     linkage = mech.linkage
@@ -121,6 +122,10 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     system = loops.compile_linkage(linkage)
     x0 = np.asarray(scene.x0, dtype=float)
     angle = {GROUND: 0.0, **{b: float(x0[i]) for i, b in enumerate(linkage.moving)}}
+    for c in linkage.couplings:
+        raise ValueError(f"coupling {c.name!r} (joint {c.joint!r} follows joint {c.driver!r} by a polynomial) has no "
+                         "Pinocchio form: its constraintDynamics holds contact constraints (3D, 6D) between frames, "
+                         "not a polynomial between two joints' coordinates; leave the pin engine out")
     for e in mech.joint_inertias:
         if e.joint in linkage.cut_joints:
             raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the "

@@ -87,7 +87,8 @@ def dyad_plans(n: int, loop_table, n_linear: int) -> tuple[list[int], list[int],
     angles and only fixed-length terms (an RRR dyad: four-bars, their chains, the squeezer's
     loops), or none (a slider's length, a linear row, a loop of more unknowns: Newton alone).
     Returns the first step of each plan (−1: none), the steps (loop, a, b) and their
-    (W_a, W_b, φ_a, φ_b), φ the angle of W (rad): the closed form's constants."""
+    (W_a, W_b, φ_a, φ_b), φ the angle of W (rad): the closed form's constants. n_linear counts the
+    linear rows and the couplings: a coupling is not a dyad, so with one there is no plan."""
     offset, w, row, mag, angle = loop_table
     # per loop of fixed-length terms: W_c = Σ w_t over its terms turning with angle c
     # (R(θ_c) W_c is their sum); loops with a slider's length take no part
@@ -152,7 +153,7 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
               loops.kernel_table(system.points, ends),
               loops.kernel_table(system.points, [system.point_index(p.body, p.point) for p in pf + tf]))
     P = loops.Packer(physics.HEADER)
-    P.kinematics(system.n, len(linkage.moving), tables, system.linear)
+    P.kinematics(system.n, len(linkage.moving), tables, system.linear, system.couplings)
     h = P.header
     h[physics.N_DAMPERS] = len(mech.dampers)
     h[physics.N_ELEMENTS], h[physics.N_FORCES] = len(elements), len(pf)
@@ -182,7 +183,7 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.KNOT_START] = P.int(np.cumsum([0] + [len(s[0]) for s in splines]))
     h[physics.COEF_START] = P.int(np.cumsum([0] + [len(s[1]) for s in splines]))
     h[physics.SPLINE_DEGREE] = P.int([s[2] for s in splines])
-    plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear))
+    plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
     h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
     return Model(*P.arrays())
 

@@ -66,8 +66,8 @@ import numpy as np
 
 from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
-from loopcheck.mechanism import (GROUND, Body, GrublerCountWarning, JointElement, LineElement, Linkage, Mechanism,
-                                 MechanismError, PrismaticJoint, RevoluteJoint)
+from loopcheck.mechanism import (GROUND, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement, Linkage,
+                                 Mechanism, MechanismError, PrismaticJoint, RevoluteJoint)
 from loopcheck.scene import LIMITS, Scene, SceneError, Tolerances
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import redundancy_note, scene_from_dict
@@ -213,10 +213,13 @@ class ConnectSource:
     label: str
     name: str | None
     own: bool
+    tag: str = "connect"  # its MJCF tag inside <equality>: connect, or joint (a coupling)
 
 
 def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, ...]:
-    """The model's connects, matched in file order to the ``<equality>`` elements of the file."""
+    """The model's connects and joint couplings (the equalities whose softness a check sets:
+    :func:`loopcheck.reference_models.user_model._closures`), matched in file order to the
+    ``<equality>`` elements of the file."""
     try:
         root = ET.parse(path).getroot()
         written = [child for block in root.findall("equality") for child in block if isinstance(child.tag, str)]
@@ -225,11 +228,12 @@ def _connect_sources(path: Path, model: mujoco.MjModel) -> tuple[ConnectSource, 
     matched = len(written) == model.neq
     out = []
     for e in range(model.neq):
-        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_CONNECT):
+        if int(model.eq_type[e]) not in (_CONNECT, _EQ_JOINT):
             continue
         own = not matched or any(written[e].get(key) is not None for key in ("solref", "solimp", "class"))
         out.append(ConnectSource(element_label(model, mujoco.mjtObj.mjOBJ_EQUALITY, e),
-                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own))
+                                 mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or None, own,
+                                 "joint" if int(model.eq_type[e]) == _EQ_JOINT else "connect"))
     return tuple(out)
 
 
@@ -566,6 +570,7 @@ class _Reader:
         m, d = self.model, self.data
         out = []
         self.gaps: list[float] = []
+        self.couplings: list[int] = []  # the active joint equalities with a joint2
         for e in range(m.neq):
             name = self.name(mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
             label = self.label(mujoco.mjtObj.mjOBJ_EQUALITY, e)
@@ -573,11 +578,17 @@ class _Reader:
             if not m.eq_active0[e]:
                 self.warnings.append(f"{label} is inactive at the start: left out")
                 continue
+            if kind == _EQ_JOINT:
+                if int(m.eq_obj2id[e]) < 0:
+                    locked = self.label(mujoco.mjtObj.mjOBJ_JOINT, int(m.eq_obj1id[e]))
+                    self.fail(f"{label} has no joint2: it locks {locked} at a polynomial's constant, which "
+                              "is not a coupling (a locked joint is no joint: weld its body to its parent instead)")
+                self.couplings.append(e)  # a coupling: read once the joints' coordinates are known (_couplings)
+                continue
             if kind != _CONNECT:
-                what = {_WELD: "a weld", _EQ_JOINT: "a joint coupling",
-                        _EQ_TENDON: "a tendon coupling"}.get(kind, "an equality of another kind")
-                self.fail(f"{label} is {what}, not a connect: only connect equalities (loop closures) have a planar "
-                          "one-DOF meaning here")
+                what = {_WELD: "a weld", _EQ_TENDON: "a tendon coupling"}.get(kind, "an equality of another kind")
+                self.fail(f"{label} is {what}, not a connect: only connect equalities (loop closures) and joint "
+                          "couplings have a planar one-DOF meaning here")
             if int(m.eq_objtype[e]) == _OBJ_SITE:
                 ends = []
                 for site in (int(m.eq_obj1id[e]), int(m.eq_obj2id[e])):
@@ -792,8 +803,9 @@ def _spec_ordinal(spec: mujoco.MjSpec, kind: str, element, index: int) -> str:
     if kind == "body":
         return f"body #{index} (in {body(parent)})"
     if kind == "equality":
-        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == _CONNECT)
-        return f"connect #{ordinal} ({element.name1}–{element.name2})"
+        tag = "joint equality" if int(element.type) == _EQ_JOINT else "connect"
+        ordinal = sum(1 for e in list(spec.equalities)[:index + 1] if int(e.type) == int(element.type))
+        return f"{tag} #{ordinal} ({element.name1}–{element.name2})" if element.name2 else f"{tag} #{ordinal} ({element.name1})"
     if kind == "joint" and parent is not None:
         return f"joint #{index + 1} ({body(parent.parent) if parent.parent is not None else 'world'}–{body(parent)})"
     return f"{kind} #{index + 1} (on {body(parent)})"
@@ -823,6 +835,8 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
 
     def check(kind, element, index, attribute, field_, least):
         values = np.atleast_1d(np.asarray(getattr(element, field_), dtype=float)).ravel()
+        if attribute == "polycoef":  # a joint equality's data: its five coefficients
+            values = values[:5]
         if not np.all(np.isfinite(values)):
             refuse(kind, element, index, attribute, field_, values, "is not a finite number: every value of the "
                    "model must be finite")
@@ -835,9 +849,11 @@ def _check_values(path: Path, spec: mujoco.MjSpec) -> None:
 
     for group, (kind, fields) in _VALUES.items():
         for index, element in enumerate(getattr(spec, group)):
-            if kind == "equality" and int(element.type) != _CONNECT:
+            if kind == "equality" and int(element.type) not in (_CONNECT, _EQ_JOINT):
                 continue  # its data is another equality's (refused by kind later)
             for attribute, field_, least in fields:
+                if kind == "equality" and int(element.type) == _EQ_JOINT and attribute == "anchor":
+                    attribute = "polycoef"
                 check(kind, element, index, attribute, field_, least)
     for kind, group in (("body", "bodies"), ("frame", "frames"), ("geom", "geoms")):  # an orientation other than quat, as written
         for index, element in enumerate(getattr(spec, group)):
@@ -1068,20 +1084,25 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             for axis, value in zip("xy", xy):
                 reader.representable(value, "position", f"{owner}: point '{point}' (a site, joint or anchor), {axis} in "
                                                         "its plane frame")
+    # the couplings' graph first (their polynomials and references need the coordinates: _couplings)
+    placeholders = [JointCoupling(f"coupling{k}", *ends) for k, ends in enumerate(_coupled_joints(reader))]
     try:
-        linkage = Linkage(bodies, joints, input_name)
+        linkage = Linkage(bodies, joints, input_name, couplings=placeholders)
     except MechanismError as exc:
         reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
-                                "closures)" if "degrees of freedom" in str(exc) else ""))
+                                f"closures{f', {len(placeholders)} couplings' if placeholders else ''})"
+                                if "degrees of freedom" in str(exc) else ""))
     # x = x_read + T (qpos − qpos_read): the coordinates (bodies' angles, slides' s) are the same for
     # the linkage rebuilt below with another spanning tree
     system = loops.compile_linkage(linkage)
     T, x_read = _joint_coefficients(reader, system, linkage)
+    couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
     elements, joint_elements = _elements(reader, linkage, system, T, x_read)
-    inertias = tuple(dict.fromkeys(e.joint for e in joint_elements if e.kind == "inertia"))
+    inertias = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
+                                   + [j for c in couplings for j in (c.joint, c.driver)]))
     try:
-        if inertias:  # as the scene file builds it (the tree takes them first), so that its loops are the file's
-            linkage = Linkage(bodies, joints, input_name, inertias)
+        # as the scene file builds it (the tree takes them first), so that its loops are the file's
+        linkage = Linkage(bodies, joints, input_name, inertias, couplings)
         mechanism = Mechanism(linkage, elements, (), joint_elements)
     except MechanismError as exc:
         reader.fail(str(exc))
@@ -1242,6 +1263,51 @@ def _gravity(reader: _Reader):
     g = np.array(m.opt.gravity, dtype=float)
     planar = (float(g @ reader.e1), float(g @ reader.e2))
     return planar if any(planar) else None
+
+
+def _coupled_joints(reader: _Reader) -> list[tuple[str, str]]:
+    """(joint, driver) scene names of each joint coupling (joint1, joint2) that :meth:`_Reader.loops`
+    kept."""
+    m = reader.model
+    out = []
+    for e in reader.couplings:
+        out.append(tuple(reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, int(j), "joint")]
+                         for j in (m.eq_obj1id[e], m.eq_obj2id[e])))
+    return out
+
+
+def _couplings(reader: _Reader, system, T: np.ndarray, x_read: np.ndarray, taken: set[str]) -> list[JointCoupling]:
+    """Each joint equality (joint1 y, joint2 x: y − y0 = P(x − x0), x0, y0 MuJoCo's qpos0, a joint's
+    ``ref``) as a :class:`JointCoupling` on the two joints' own coordinates u = row·x: with u =
+    u_read + σ (qpos − qpos_read) (σ = ±1, T's entry), the references are u at qpos0 and
+    p(s) = σ_y P(σ_x s), a_k = σ_y σ_x^k P_k. Named after the equality (a name a joint has taken
+    gets a suffix)."""
+    m = reader.model
+    out = []
+    names = set(taken)
+    for e, (joint, driver) in zip(reader.couplings, _coupled_joints(reader)):
+        label = reader.label(mujoco.mjtObj.mjOBJ_EQUALITY, e)
+        ends = []
+        for j, scene_joint in ((int(m.eq_obj1id[e]), joint), (int(m.eq_obj2id[e]), driver)):
+            row = system.joint_row(scene_joint) @ T
+            dof, adr = int(m.jnt_dofadr[j]), int(m.jnt_qposadr[j])
+            sign = float(row[dof])
+            if abs(sign) != 1.0 or np.count_nonzero(row) != 1:
+                reader.fail(f"{label}: {reader.label(mujoco.mjtObj.mjOBJ_JOINT, j)}'s own coordinate is not its "
+                            "qpos alone in the planar description")
+            u_read = float(system.joint_row(scene_joint) @ x_read)
+            ends.append((sign, u_read + sign * (float(m.qpos0[adr]) - float(reader.qpos[adr]))))
+        (sy, y_ref), (sx, x_ref) = ends
+        coefficients = tuple(sy * sx ** k * float(a) + 0.0 for k, a in enumerate(m.eq_data[e][0:5]))  # no −0
+        for value, j, what in ((x_ref, int(m.eq_obj2id[e]), "joint2"), (y_ref, int(m.eq_obj1id[e]), "joint1")):
+            reader.representable(value, "angle" if m.jnt_type[j] == _HINGE else "position",
+                                 f"{label}: {what}'s reference (its qpos0 in the planar description)")
+        name = _unique(_clean(_object_name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e, "coupling")), names)
+        try:
+            out.append(JointCoupling(name, joint, driver, coefficients, x_ref, y_ref))
+        except MechanismError as exc:
+            reader.fail(f"{label}: {exc}")
+    return out
 
 
 def _joint_coefficients(reader: _Reader, system, linkage: Linkage) -> tuple[np.ndarray, np.ndarray]:

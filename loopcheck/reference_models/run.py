@@ -122,9 +122,10 @@ def _check_handles(scene: Scene, handles: ModelHandles, settings: MujocoSettings
     m = handles.model
     check_joint_order(scene, m)
     loops_ = tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, i) for i in range(m.neq))
-    if loops_ != scene.mechanism.linkage.cut_joints:
+    linkage = scene.mechanism.linkage
+    if loops_ != linkage.cut_joints + tuple(c.name for c in linkage.couplings):
         raise ValueError(f"the model's loop equalities {loops_} are not the scene's cut joints "
-                         f"{scene.mechanism.linkage.cut_joints}")
+                         f"{linkage.cut_joints} and couplings {tuple(c.name for c in linkage.couplings)}")
     pairs = [("timestep", float(m.opt.timestep), settings.timestep),
              ("integrator", int(m.opt.integrator), int(INTEGRATOR_ENUM[settings.integrator])),
              ("iterations", int(m.opt.iterations), settings.iterations),

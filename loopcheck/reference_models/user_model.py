@@ -39,6 +39,13 @@ MAX_STEPS = 5_000_000
 ENGINE = "model"  # the name of a user model's runs in comparisons and reports
 _INTEGRATOR_NAME = {int(getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}")): name for name in INTEGRATORS}
 _CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
+_EQ_JOINT = int(mujoco.mjtEq.mjEQ_JOINT)
+
+
+def _closures(model: mujoco.MjModel) -> list[int]:
+    """The equalities whose softness the options set: the connects (loops) and the joint couplings,
+    in the model's order."""
+    return [e for e in range(model.neq) if int(model.eq_type[e]) in (_CONNECT, _EQ_JOINT)]
 # MJCF's keyword for each integrator (MuJoCo's parser is case-sensitive: "euler" is refused)
 MJCF_INTEGRATOR = {"euler": "Euler", "rk4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
 _SITE = int(mujoco.mjtObj.mjOBJ_SITE)
@@ -74,7 +81,7 @@ class ModelOptions:
 
     @classmethod
     def as_written(cls, model: mujoco.MjModel) -> "ModelOptions":
-        connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
+        connects = _closures(model)
         return cls(integrator=_INTEGRATOR_NAME[int(model.opt.integrator)], timestep=float(model.opt.timestep),
                    solref=tuple(tuple(float(v) for v in model.eq_solref[e]) for e in connects),
                    solimp=tuple(tuple(float(v) for v in model.eq_solimp[e]) for e in connects),
@@ -104,7 +111,8 @@ class ModelOptions:
     def mjcf(self, connects: tuple[ConnectSource, ...] = ()) -> str:
         """MJCF to paste into the model, enough alone to give it these options: the ``<option>``,
         the connects' softness in ``<default>`` when all share it, and a ``<connect name=...>`` line
-        with the values for each connect (``connects``: the model's, in order) that sets its own,
+        (``<joint name=...>`` for a joint coupling) with the values for each connect or coupling
+        (``connects``: the model's, in order) that sets its own,
         which a default does not reach (every connect, when they differ); a connect without a name
         that needs its own gets a comment naming it (:func:`element_label`) and the values."""
         lines = [f'<option integrator="{MJCF_INTEGRATOR[self.integrator]}" timestep="{_number(self.timestep)}"/>']
@@ -119,7 +127,7 @@ class ModelOptions:
             values = (f'solref="{" ".join(_number(v) for v in solref)}" '
                       f'solimp="{" ".join(_number(v) for v in solimp)}"')
             if source is not None and source.name:
-                lines.append(f'<connect name="{source.name}" {values}/>')
+                lines.append(f'<{source.tag} name="{source.name}" {values}/>')
             else:
                 label = source.label if source is not None else f"connect #{k + 1}"
                 lines.append(f"<!-- {label}: set {values} on it -->")
@@ -185,8 +193,7 @@ def _configured(imported: ImportedModel, options: ModelOptions) -> mujoco.MjMode
     model.opt.iterations = options.iterations
     model.opt.tolerance = options.tolerance
     model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
-    for e, solref, solimp in zip(connects, options.solref, options.solimp):
+    for e, solref, solimp in zip(_closures(model), options.solref, options.solimp):
         model.eq_solref[e] = solref
         model.eq_solimp[e] = solimp
     return model

@@ -52,7 +52,8 @@ def _results(module, scene_path: str) -> np.ndarray:
     scene = load_scene(ROOT / scene_path)
     system = kinematics.compile_linkage(scene.mechanism.linkage)
     n_angles = sum(name.endswith(".angle") for name in system.coordinate_names)
-    kernel = module.Loops(*pack(system.n, n_angles, (system.loops, system.centres, system.points), system.linear))
+    kernel = module.Loops(*pack(system.n, n_angles, (system.loops, system.centres, system.points), system.linear,
+                                system.couplings))
     x = np.array(scene.x0, dtype=float)
     q0 = float(system.drive @ x)
     out = []
@@ -72,11 +73,12 @@ def _results(module, scene_path: str) -> np.ndarray:
 @needs_compiled
 @pytest.mark.parametrize("scene", ["scenes/seed_fourbar.toml", "scenes/mechanisms/slider_crank_gas.toml",
                                    "scenes/mechanisms/watt2_sixbar.toml", "scenes/mechanisms/andrews_squeezer.toml",
-                                   "scenes/mechanisms/oscillating_slotted_lever.toml"])
+                                   "scenes/mechanisms/oscillating_slotted_lever.toml",
+                                   "scenes/mechanisms/seed_fourbar_geared_flywheel.toml"])
 def test_the_python_source_gives_the_compiled_numbers(scene):
     """Bit for bit: a four-bar, a slider-crank (a slider's length a coordinate, a linear row), a
     Watt six-bar (two loops), Andrews' squeezer (three loops), a slotted lever (a prismatic joint
-    between moving bodies)."""
+    between moving bodies), a four-bar with a geared flywheel (a joint coupling's polynomial row)."""
     ran = _results(loops, scene)
     source = _results(source_module(), scene)
     assert np.all(np.isfinite(ran)) and ran.size > 100

@@ -73,10 +73,14 @@ def bound(measured: float) -> float:
     return max(5.0 * measured, 10.0 * RTOL)
 
 
+# Scenes the pin engine refuses (one line: tests/pin/test_pin_engine.py): a joint coupling.
+REFUSED = {"mechanisms/seed_fourbar_geared_flywheel.toml"}
+
+
 def test_the_table_covers_the_catalogue():
     files = {p.relative_to(ROOT / "scenes").as_posix() for pattern in ("*.toml", "hard/*.toml", "mechanisms/*.toml")
              for p in (ROOT / "scenes").glob(pattern)}
-    assert files == set(MEASURED)
+    assert files == set(MEASURED) | REFUSED
 
 
 _RUNS: dict = {}

@@ -93,6 +93,13 @@ def test_an_inertia_on_a_cut_joint_is_refused_by_name():
     assert "\n" not in str(caught.value)
 
 
+def test_a_joint_coupling_is_refused_by_name():
+    scene = loopcheck.load_scene(ROOT / "scenes" / "mechanisms" / "seed_fourbar_geared_flywheel.toml")
+    with pytest.raises(ValueError, match="coupling 'gear' .* has no Pinocchio form") as caught:
+        simulate(scene, PinSettings())
+    assert "\n" not in str(caught.value)
+
+
 def test_a_run_beyond_its_evaluations_fails_naming_the_setting():
     with pytest.raises(loopcheck.NumericalFailure, match=r"used its 500 evaluations .*\[pin\] max_evaluations") as caught:
         simulate(loopcheck.load_scene("seed_fourbar"), PinSettings(max_evaluations=500))

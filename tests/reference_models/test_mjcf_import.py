@@ -102,6 +102,7 @@ def test_round_trip_of_the_catalogue(path, tmp_path):
                 e.joint == name for e in original.mechanism.joint_elements):
             # a joint's coordinate (its sign) matters: the input's, a slider's, an element's
             assert (joint.body_a, joint.point_a) == (other.body_a, other.point_a), name
+    assert a.couplings == b.couplings  # the same coupling back: MuJoCo's qpos0 is the authored pose
     assert original.mechanism.elements == back.mechanism.elements
     assert original.mechanism.joint_elements == back.mechanism.joint_elements
     # q0 comes back through MuJoCo's body quaternions: within an ulp
@@ -199,8 +200,10 @@ REFUSED = {
     "no loop closure": (_model(FOUR_BAR), "the linkage has 3 degrees of freedom"),
     "weld": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<weld name="glue" body1="crank" body2="rocker"/></equality>')),
              "weld 'glue' is a weld, not a connect"),
-    "joint coupling": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<joint name="gear" joint1="O1" joint2="O3"/></equality>')),
-                       "joint equality 'gear' is a joint coupling, not a connect"),
+    "joint coupling on a closed loop": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<joint name="gear" joint1="O1" joint2="O3"/></equality>')),
+                                        "0 degrees of freedom by rank (0 by Grübler's count), not 1: the linkage is locked"),
+    "joint lock": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<joint name="brake" joint1="O3"/></equality>')),
+                   "joint equality 'brake' has no joint2: it locks joint 'O3'"),
     "position servo": (_model(FOUR_BAR, extra=LOOP + '<actuator><position name="servo" joint="O1" kp="10"/></actuator>'),
                        "actuator 'servo' is not a motor"),
     "two joints on a body": (_model('<body name="b"><joint name="j1" axis="0 0 1"/><joint name="j2" axis="0 0 1"/>'

@@ -35,6 +35,8 @@ PEAK_RTOL, STATE_TOL = 1e-10, 1e-9
 X0_TOL = 2e-15  # rad or m: 3 times the largest measured move of a shipped scene's x0 (6.7e-16)
 
 RECORDED = json.loads(FIXTURE.read_text(encoding="utf-8"))
+# Shipped scenes with what the numba core never had (a joint coupling): no record to hold them to;
+# their own tests hold them to oracles (tests/core/test_couplings.py).
 
 
 def test_the_fixture_covers_every_shipped_scene_and_is_labelled():
