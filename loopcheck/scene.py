@@ -234,11 +234,15 @@ class Scene:
 
     @property
     def load_edges(self) -> tuple[float, ...]:
-        """Times (s) where a load over time jumps, the input's and the timed forces', sorted
+        """Times (s) where a load over time jumps, the input's, the timed forces' and the actuators'
+        controls', sorted
         without repeats: the reduced integrators stop at them, MuJoCo's steps fall on them."""
         edges = set(self.load.edges) if self.load is not None else set()
         for force in self.mechanism.timed_forces:
             edges.update(force.profile.edges)
+        for actuator in self.mechanism.actuators:  # their controls, piecewise constant in t
+            if actuator.control is not None:
+                edges.update(actuator.control.edges)
         return tuple(sorted(edges))
 
     @property
@@ -250,11 +254,11 @@ class Scene:
                    "damper": bool(m.dampers), "spring": bool(m.springs),
                    "joint-damper": bool(m.joint_dampers), "joint-spring": bool(m.joint_springs),
                    "joint-inertia": bool(m.joint_inertias),
-                   "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces),
+                   "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces), "actuator": bool(m.actuators),
                    "gravity": self.gravity is not None}
         return tuple(name for name in EFFECTS if present[name])
 
 
 # Every effect a scene can declare, in the order reports list them.
 EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "joint-inertia", "point-force",
-           "timed-force", "gravity")
+           "timed-force", "actuator", "gravity")
