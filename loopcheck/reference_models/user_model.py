@@ -236,12 +236,19 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     data.qpos[:], data.qvel[:] = imported.qpos, imported.qvel
     connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
     times = np.arange(n + 1) * h
-    ctrl = imported.control.at(times[:-1] + 0.5 * h) if imported.control is not None else None  # held over a step
+    # every control, held over a step: the input motor's, and each scene actuator's (its own control over time)
+    mid = times[:-1] + 0.5 * h
+    ctrl = np.zeros((n, model.nu)) if model.nu else None
+    if imported.control is not None:
+        ctrl[:, imported.motor_index] = imported.control.at(mid)
+    for a, actuator in zip(imported.actuator_index, scene.mechanism.actuators):
+        if actuator.control is not None:
+            ctrl[:, a] = actuator.control.sample(mid)
     qpos = np.empty((n + 1, model.nq))
     qvel = np.empty((n + 1, model.nv))
     qacc = np.empty((n + 1, model.nv))
     energy = np.empty((n + 1, 2))
-    power = np.zeros((n + 1, 2))  # the motor's, the dampers' (W)
+    power = np.zeros((n + 1, 2))  # the actuators' (every one: qfrc_actuator sums them), the dampers' (W)
     gap = np.empty(n + 1)
 
     # gravcomp's force, −gravcomp·m·g at each centre of mass, is conservative: its potential
@@ -272,7 +279,7 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     with mujoco_warnings() as said:
         for k in range(n):
             if ctrl is not None:
-                data.ctrl[0] = ctrl[k]
+                data.ctrl[:] = ctrl[k]
             mujoco.mj_forward(model, data)
             touching(k)
             record(k)
