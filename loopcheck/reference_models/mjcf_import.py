@@ -148,6 +148,37 @@ class Control:
             raise ValueError("the table's times must increase strictly")
         return cls(tuple(times), tuple(values))
 
+    @classmethod
+    def parse_named(cls, text: str) -> tuple[str | None, "Control"]:
+        """``--ctrl``'s forms: ``NAME=VALUE`` or ``NAME=t:value,...`` (one actuator's), or a bare
+        ``VALUE`` or table (the only actuator's, or the input motor's): (name or None, control)."""
+        name, eq, rest = text.partition("=")
+        if not eq:
+            return None, cls.parse(text)
+        if not name.strip():
+            raise ValueError(f"'{text}': the actuator's name before '=' is empty")
+        try:
+            return name.strip(), cls.parse(rest)
+        except ValueError as exc:
+            raise ValueError(f"{name.strip()}: {exc}") from None
+
+    @staticmethod
+    def by_name(given: list) -> tuple["Control | None", dict]:
+        """``--ctrl`` given several times ((name or None, control) each): the bare control (at most
+        one) and the named ones (one per actuator); ValueError saying which is given twice."""
+        bare, named = None, {}
+        for name, control in given or ():
+            if name is None:
+                if bare is not None:
+                    raise ValueError("--ctrl VALUE given twice: a bare control is the only actuator's; name each "
+                                     "actuator's (--ctrl NAME=VALUE)")
+                bare = control
+            elif name in named:
+                raise ValueError(f"--ctrl {name}=...: given twice")
+            else:
+                named[name] = control
+        return bare, named
+
     def at(self, times: np.ndarray) -> np.ndarray:
         """The control at each time (s): the value of the last entry at or before it, zero before the first."""
         k = np.searchsorted(np.asarray(self.times), np.asarray(times, dtype=float), side="right") - 1
