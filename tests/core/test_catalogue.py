@@ -32,6 +32,7 @@ EXPECTED = {  # scene: (moving bodies, loops, effects)
     "stephenson3_sixbar": (5, 2, ("torque", "spring")),
     "stephenson3_near_toggle": (5, 2, ("torque", "spring")),
     "andrews_squeezer": (7, 3, ("torque", "spring")),
+    "servo_fourbar": (3, 1, ("actuator",)),
 }
 NAMES = sorted(EXPECTED)
 TURN_SAMPLES = 720
