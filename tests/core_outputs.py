@@ -28,9 +28,14 @@ METHODS = ("dop853", "rkn4")
 N_TIMES = 101  # states compared at these many times spread over the horizon
 
 
+# Shipped scenes of elements the numba core did not have (it recorded no run of them): actuators
+NEWER_THAN_THE_NUMBA_CORE = ("servo_fourbar",)
+
+
 def shipped_scenes() -> list[Path]:
     scenes = ROOT / "scenes"
-    return sorted([*scenes.glob("*.toml"), *scenes.glob("hard/*.toml"), *scenes.glob("mechanisms/*.toml")])
+    return sorted(p for p in [*scenes.glob("*.toml"), *scenes.glob("hard/*.toml"), *scenes.glob("mechanisms/*.toml")]
+                  if p.stem not in NEWER_THAN_THE_NUMBA_CORE)
 
 
 def outputs(path: Path, method: str, x0: list[float] | None = None) -> dict:
