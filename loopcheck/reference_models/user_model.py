@@ -208,6 +208,21 @@ def _gaps(model: mujoco.MjModel, data: mujoco.MjData, connects: list[int]) -> fl
     return gap
 
 
+def _actuator_forces(model: mujoco.MjModel, data: mujoco.MjData, ctrl_row: np.ndarray) -> np.ndarray:
+    """Every actuator's force (MuJoCo's ``actuator_force``) at the state in ``data`` (its actuator
+    length and velocity) under the controls ``ctrl_row``: gain·clamp(ctrl, ctrlrange) + b0 + b1·L + b2·L̇,
+    clamped to forcerange, the force law of the actuators the import accepts (no activation dynamics,
+    a fixed gain, no or an affine bias)."""
+    c = np.where(model.actuator_ctrllimited, np.clip(ctrl_row, model.actuator_ctrlrange[:, 0],
+                                                     model.actuator_ctrlrange[:, 1]), ctrl_row)
+    affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+    bias = np.where(affine, model.actuator_biasprm[:, 0] + model.actuator_biasprm[:, 1] * data.actuator_length
+                    + model.actuator_biasprm[:, 2] * data.actuator_velocity, 0.0)
+    f = model.actuator_gainprm[:, 0] * c + bias
+    return np.where(model.actuator_forcelimited, np.clip(f, model.actuator_forcerange[:, 0],
+                                                         model.actuator_forcerange[:, 1]), f)
+
+
 def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> EngineResult:
     """Step the user's model (with ``options``, default as written) over the scene's horizon.
 
@@ -257,11 +272,16 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     compensated = model.body_gravcomp * model.body_mass
     routed = np.asarray(model.jnt_actgravcomp, dtype=float)[model.dof_jntid]
 
+    shift = np.zeros(n + 1)  # the actuators' power at state k with the previous step's control, less that at state k
+
     def record(k: int) -> None:
         qpos[k], qvel[k], qacc[k], energy[k] = data.qpos, data.qvel, data.qacc, data.energy
         energy[k, 0] += float(compensated @ (data.xipos @ model.opt.gravity))
         power[k] = (float((data.qfrc_actuator - routed * data.qfrc_gravcomp) @ data.qvel),
                     float(-data.qfrc_damper @ data.qvel))
+        if ctrl is not None and 0 < k < n:  # step k − 1 ended here under its own control
+            shift[k] = float((_actuator_forces(model, data, ctrl[k - 1]) - _actuator_forces(model, data, ctrl[k]))
+                             @ data.actuator_velocity)
         gap[k] = _gaps(model, data, connects)
 
     contacts = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) and model.ngeom > 0
@@ -309,8 +329,11 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
     # the work of the motor and of the dampers, by the trapezoidal rule over each step
+    # (each step's control at both its ends: the actuators' power at a step's end is taken with that
+    # step's control, not the next one's, so a control that jumps costs no O(h) error)
     work = np.zeros((n + 1, 2))
     work[1:] = np.cumsum(0.5 * h * (power[1:] + power[:-1]), axis=0)
+    work[1:, 0] += np.cumsum(0.5 * h * shift[1:])
     audit = EnergyAudit(times, energy[:, 1], energy[:, 0], work[:, 0], work[:, 1])
     return EngineResult(engine=ENGINE, trajectory=trajectory, joints=joints, peak=trajectory.peak_rate(), audit=audit,
                         wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,
