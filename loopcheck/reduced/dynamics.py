@@ -153,8 +153,9 @@ def check_actuators(scene: Scene) -> None:
     for a in scene.mechanism.actuators:
         if a.forcerange is not None and a.state_dependent:
             raise ValueError(f"actuator {a.name!r}: its forcerange clamps a force that depends on the state "
-                             "(bias b1 or b2 nonzero): the reduced engine does not handle the clamp's switching "
-                             "event yet; remove forcerange or run the other engines alone")
+                             "(bias b1 or b2 nonzero): the reduced engine does not build the clamp's switching "
+                             "event yet; remove forcerange (MuJoCo alone runs it: loopcheck.simulate with "
+                             "MujocoSettings)")
 
 
 def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
