@@ -227,6 +227,9 @@ def _parse_timed_forces(top: Table) -> list[TimedForce]:
     return out
 
 
+ACTUATOR = "actuator value"  # the range of an actuator's numbers (loopcheck.scene.LIMITS)
+
+
 def _pair_or_none(t: Table, name: str) -> tuple[float, float] | None:
     """An optional [lo, hi] range, lo < hi."""
     if not t.has(name):
@@ -234,7 +237,7 @@ def _pair_or_none(t: Table, name: str) -> tuple[float, float] | None:
     value = t.raw(name)
     if not isinstance(value, list) or len(value) != 2:
         raise SceneError(f"'{t.key(name)}' must be an array of two numbers [lo, hi]")
-    lo, hi = (number(v, f"{t.key(name)}[{i}]") for i, v in enumerate(value))
+    lo, hi = (number(v, f"{t.key(name)}[{i}]", kind=ACTUATOR) for i, v in enumerate(value))
     if not lo < hi:
         raise SceneError(f"'{t.key(name)}' must have lo < hi, got [{lo:g}, {hi:g}]")
     return lo, hi
@@ -265,21 +268,21 @@ def _parse_actuators(top: Table, linkage: Linkage) -> list[Actuator]:
             for j in tt.data:
                 if j not in joints:
                     raise SceneError(f"'{tt.key(j)}': \"{j}\" is not one of the joints: {', '.join(joints)}")
-                c = tt.number(j)
+                c = tt.number(j, kind=ACTUATOR)
                 if c == 0.0:
                     raise SceneError(f"'{tt.key(j)}' must be nonzero")
                 terms.append((j, c))
             tendon = tuple(terms)
-        gain = t.number("gain", 1.0)
+        gain = t.number("gain", 1.0, kind=ACTUATOR)
         bias = t.raw("bias", [0.0, 0.0, 0.0])
         if not isinstance(bias, list) or len(bias) != 3:
             raise SceneError(f"'{t.key('bias')}' must be an array of three numbers [b0, b1, b2]")
-        bias = tuple(number(v, f"{t.key('bias')}[{i}]") for i, v in enumerate(bias))
-        gear = t.number("gear", 1.0)
+        bias = tuple(number(v, f"{t.key('bias')}[{i}]", kind=ACTUATOR) for i, v in enumerate(bias))
+        gear = t.number("gear", 1.0, kind=ACTUATOR)
         if gear == 0.0:
             raise SceneError(f"'{t.key('gear')}' must be nonzero")
         ctrlrange, forcerange = _pair_or_none(t, "ctrlrange"), _pair_or_none(t, "forcerange")
-        control = _parse_profile(t.table("control"), None) if t.has("control") else None
+        control = _parse_profile(t.table("control"), ACTUATOR) if t.has("control") else None
         t.close()
         out.append(_mechanism_value(t.path, lambda: Actuator(name, joint, tendon, gain, bias, gear, ctrlrange,
                                                              forcerange, control)))

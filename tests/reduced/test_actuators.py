@@ -199,3 +199,8 @@ def test_scipys_runs_count_the_actuators_work_by_quadrature(method):
     scene = load_scene(ROOT / "scenes" / "mechanisms" / "servo_fourbar.toml")
     result = simulate(scene, dataclasses.replace(reduced_settings(scene), method=method))
     assert result.audit.relative_residual < 1e-9
+
+
+def test_an_actuator_value_out_of_its_range_is_named():
+    with pytest.raises(SceneError, match=r"'actuators\[0\].gain' = 1e\+12 is out of range: actuator value"):
+        rotor(kp=1e12)
