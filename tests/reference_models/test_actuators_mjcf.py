@@ -148,3 +148,63 @@ def test_the_model_as_written_counts_each_steps_control_at_both_its_ends(tmp_pat
     path.write_text(mjcf_text(scene, MujocoSettings(timestep=5e-4)))
     written = run_model(import_mjcf(path))
     assert written.audit.relative_residual < 5e-5
+
+
+def _one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("flags, said", [
+    (["--ctrl", "middle=1"], "no actuator 'middle'"),
+    (["--ctrl", "left=1", "--ctrl", "left=2"], "--ctrl left=...: given twice"),
+    (["--ctrl", "1"], "--ctrl VALUE: the model has 2 actuators"),
+    (["--ctrl", "left=0:1,x"], "--ctrl"),
+])
+def test_cli_ctrl_by_name_refusals_are_one_line(tmp_path, capsys, flags, said):
+    from loopcheck.compare.cli import main
+
+    out = tmp_path / "s.toml"
+    code = main(["import-mjcf", str(DATA / "two_motor_fourbar.xml"), *flags, "-o", str(out)])
+    assert code == 2 and not out.exists()
+    line = _one_error_line(capsys)
+    assert said in line, line
+
+
+def test_cli_ctrl_by_name_sets_each_actuators_control(tmp_path, capsys):
+    from loopcheck.compare.cli import main
+    from loopcheck.scenefile import load_scene as read
+
+    out = tmp_path / "s.toml"
+    assert main(["import-mjcf", str(DATA / "two_motor_fourbar.xml"), "--ctrl", "left=0:250,0.5:0",
+                 "--ctrl", "right=3", "-o", str(out)]) == 0
+    left, right = read(out).mechanism.actuators
+    assert (left.control.times, left.control.values) == ((0.0, 0.5), (250.0, 0.0))
+    assert right.control.amplitude == 3.0
+
+
+def test_a_servo_with_a_clamped_force_runs_as_written_and_is_refused_by_the_reduced_engine(tmp_path, capsys):
+    """Menagerie's gripper actuator as written (a forcerange on a servo's force, which depends on the
+    state): MuJoCo as written runs it and its audit balances with the clamp active (measured 8.6e-8 J of
+    0.13 J of work, the same for MuJoCo built from the imported scene);
+    the reduced engine refuses it in one line naming the actuator (its switching event is not built),
+    and `check` exits 2 on that line."""
+    from loopcheck.compare.cli import main
+
+    text = (DATA / "servo_tendon_rotor.xml").read_text().replace('ctrlrange="0 1"', 'ctrlrange="0 1" forcerange="-0.3 0.3"')
+    path = tmp_path / "clamped.xml"
+    path.write_text(text)
+    imported = import_mjcf(path)
+    assert imported.scene.mechanism.actuators[0].forcerange == (-0.3, 0.3)
+    written = run_model(imported)
+    force = written.trajectory.qddot  # I θ̈ = 0.5 f with I = 0.5: θ̈ is the force, held at the clamp
+    assert np.max(np.abs(force)) == pytest.approx(0.3, abs=1e-9)
+    assert residual(written.audit) < 1e-5
+    with pytest.raises(ValueError, match="actuator 'servo': its forcerange clamps a force that depends on the state"):
+        simulate(imported.scene, reduced_settings(imported.scene))
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error:" in line or "Traceback" in line]
+    assert len(errors) == 1 and "actuator 'servo'" in errors[0], errors
