@@ -1298,6 +1298,8 @@ def _actuators(reader: _Reader, linkage: Linkage, system, x_read: np.ndarray, mo
 def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarray, motor: int | None):
     m = reader.model
     if motor is None:
+        if control is not None and m.nu == 0:
+            reader.fail("--ctrl: the model has no actuator to apply a control to")
         if control is not None:
             reader.fail("--ctrl: the model has no motor on the input joint to apply a bare control to "
                         "(name an actuator: --ctrl NAME=VALUE)")
