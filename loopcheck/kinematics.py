@@ -11,7 +11,9 @@ Every point, and every loop-closure vector, is a row of a :class:`TermTable`,
 
 built from the spanning tree (the path from ground to the body): a revolute tree joint adds
 the rotating vector of the child's point, a prismatic one adds s e(θ + direction), a term
-whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows):
+whose magnitude is a coordinate. The constraints Φ(x) = 0 are (m = n − 1 rows, or more for a
+redundantly closed loop, whose kernel then runs on an orthonormal basis of Φ_x's rows: m > n − 1,
+:attr:`LoopSystem.redundant`):
 
 - two rows per cut joint: its two points, reached along the tree, coincide. Cut joints are
   always revolute: :class:`~loopcheck.mechanism.Linkage` takes prismatic joints into the tree
@@ -237,6 +239,18 @@ class LoopSystem:
                                 f"{self.n} coordinates: {self.n - len(rows)} degrees of freedom, not 1")
         return replace(self, rows=rows)
 
+    @property
+    def m(self) -> int:
+        """Every constraint row: two per loop, one per linear row (n − 1 without a redundant loop)."""
+        return 2 * self.loops.rows + len(self.linear)
+
+    @property
+    def redundant(self) -> bool:
+        """More constraint rows than n − 1: a redundantly closed loop (Grübler's count below 1).
+        Without :attr:`rows` its kernel runs on an orthonormal basis of Φ_x's rows, taken at every
+        evaluation (:class:`loopcheck.kernels.loops.Loops`)."""
+        return self.m > self.n - 1
+
     def joint_row(self, name: str) -> np.ndarray:
         """(n,) the row of joint ``name``'s own coordinate (:attr:`joint_rows`)."""
         return self.joint_rows[self.joint_names.index(name)]
@@ -294,7 +308,8 @@ def all_constraints(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def constraint_jacobian(system: LoopSystem, x: np.ndarray) -> np.ndarray:
-    """Φ_x, shape (n − 1, n)."""
+    """Φ_x, shape (n − 1, n): the rows the kernel runs on (every row; the selected ones,
+    :attr:`LoopSystem.rows`; or a redundant loop's orthonormal basis of them, :attr:`LoopSystem.redundant`)."""
     return system.kernel.constraints(x)[1]
 
 
@@ -381,6 +396,13 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
         raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: largest "
                             f"residual {largest:.3g} after {max_iter} Newton iterations "
                             f"(the lengths cannot meet there, or the guess is too far from an assembly)")
+    if system.redundant:  # Newton ran on a basis of the rows: every row, the dependent ones too, must close
+        largest = float(np.max(np.abs(system.kernel.all_constraints(x)[0])))
+        if not largest <= tol:
+            raise AssemblyError(f"the loops do not close at q = {q:.15g} {system.input_unit}: the loop equations "
+                                f"beyond the independent ones are left at {largest:.3g} where those closed (no "
+                                "configuration at this q closes every loop: a structure, or redundant links whose "
+                                "lengths do not fit)")
     return x
 
 
@@ -416,7 +438,10 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
     (samples, n); the result (loops,) or (samples, loops), int.
     """
     X = np.atleast_2d(np.asarray(x, dtype=float))
-    J = system.kernel.jacobians(np.ascontiguousarray(X))  # (samples, n − 1, n)
+    if system.redundant:  # every row (loop k's are 2k, 2k + 1), not the n − 1 selected ones
+        J = np.array([system.kernel.all_constraints(row)[1] for row in X]).reshape(len(X), system.m, system.n)
+    else:
+        J = system.kernel.jacobians(np.ascontiguousarray(X))  # (samples, n − 1, n)
     out = np.zeros((X.shape[0], len(system.mode_pairs)), dtype=int)
     for k, (u, v) in enumerate(system.mode_pairs):
         block = J[:, 2 * k:2 * k + 2][:, :, [u, v]]  # (samples, 2, 2): rows x, y of loop k; columns u, v
@@ -436,8 +461,9 @@ def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) ->
     """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF.
 
     How many degrees of freedom the configuration has, not whether a given coordinate can drive
-    it (that is :func:`driving_conditioning`): an SVD, run once per scene at assembly."""
-    sv = np.linalg.svd(constraint_jacobian(system, x), compute_uv=False)
+    it (that is :func:`driving_conditioning`): an SVD, run once per scene at assembly. Every row,
+    a redundant loop's dependent ones too: n − rank is the configuration's DOF (:func:`rank_dof`)."""
+    sv = np.linalg.svd(all_constraints(system, x)[1], compute_uv=False)
     return int(np.sum(sv > rtol * sv[0])) if sv.size else 0  # a single body on one joint: no constraint
 
 

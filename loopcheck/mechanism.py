@@ -10,7 +10,7 @@ point forces tabulated over the input coordinate (:class:`PointForce`) and point
 given over time (:class:`TimedForce`), and actuators as MuJoCo applies them (:class:`Actuator`). Both engines build from a :class:`Mechanism`; neither is known here.
 
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
-the Grübler count, loops that a MuJoCo ``connect`` equality can close) and holds its
+Grübler's count at most 1, loops that a MuJoCo ``connect`` equality can close) and holds its
 spanning tree from ground and the cut joints, one per independent loop. The numeric loop
 kinematics built from it are in :mod:`loopcheck.kinematics`.
 """
@@ -28,6 +28,11 @@ GROUND = "ground"
 
 class MechanismError(ValueError):
     """A linkage description that is malformed or not a one-degree-of-freedom mechanism."""
+
+
+class GrublerCountWarning(UserWarning):
+    """A linkage accepted with one degree of freedom by the rank of its loop equations whose
+    Grübler count differs (a redundantly closed loop): one line naming the scene and both counts."""
 
 
 def _finite_pair(value, what: str) -> tuple[float, float]:
@@ -201,6 +206,12 @@ class Linkage:
         input is a tree joint and a loop is cut at a revolute joint whenever it has one.
     cut_joints : tuple of str
         One joint per independent loop, not in the tree; its loop closes when it is satisfied.
+    grubler_dof : int
+        Grübler's count 3·moving bodies − 2·joints: at most 1 (above 1 is refused). Below 1 the
+        loops are redundantly closed (more loop equations than the coordinates less one); whether
+        the linkage moves with one DOF is decided by the rank of its loop equations at the
+        assembled configuration (:func:`loopcheck.kinematics.rank_dof`), and the scene reader warns
+        that the count differs (:class:`GrublerCountWarning`).
     """
 
     bodies: tuple[Body, ...]
@@ -210,6 +221,7 @@ class Linkage:
     moving: tuple[str, ...] = field(init=False, repr=False, compare=False)
     tree: tuple[TreeEdge, ...] = field(init=False, repr=False, compare=False)
     cut_joints: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    grubler_dof: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -250,12 +262,13 @@ class Linkage:
         n, j = len(moving), len(self.joints)
         dof = 3 * n - 2 * j
         tree, cut = self._spanning_tree(moving)
-        if dof != 1:
+        # Grübler's count below 1 is not a refusal: a redundantly closed loop (dependent loop
+        # equations: a parallelogram with an extra parallel crank) may still move with one DOF.
+        # The rank of the loop equations at the assembled configuration decides
+        # (:func:`loopcheck.kinematics.rank_dof`, when a scene is read); the count is a warning then.
+        if dof > 1:
             raise MechanismError(f"the linkage has {dof} degrees of freedom by Grübler's count "
-                                 f"3·{n} moving bodies − 2·{j} joints, not 1"
-                                 + ("; a redundantly closed loop (dependent loop equations, such "
-                                    "as a parallelogram with an extra parallel link) is not "
-                                    "accepted yet" if dof < 1 else ""))
+                                 f"3·{n} moving bodies − 2·{j} joints, not 1")
         kinds = self.joint_map
         for name in cut:
             loop = _cycle(tree, kinds[name])
@@ -269,6 +282,7 @@ class Linkage:
         object.__setattr__(self, "moving", moving)
         object.__setattr__(self, "tree", tree)
         object.__setattr__(self, "cut_joints", cut)
+        object.__setattr__(self, "grubler_dof", dof)
 
     @property
     def body_map(self) -> dict[str, Body]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -27,8 +28,8 @@ import numpy as np
 
 from . import kinematics as loops
 from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
-from .mechanism import (GROUND, Actuator, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError, PointForce,
-                        PrismaticJoint, RevoluteJoint, TimedForce)
+from .mechanism import (GROUND, Actuator, Body, GrublerCountWarning, JointElement, LineElement, Linkage, Mechanism,
+                        MechanismError, PointForce, PrismaticJoint, RevoluteJoint, TimedForce)
 from .registry import ENGINES, REFERENCE, judged_engines
 from .settings import options, read_table
 from .sweep_spec import SweepSpecError, spec_from_table
@@ -485,7 +486,10 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     else:
         guess = _parse_guess(guess_t, system, linkage) if guess_t is not None else np.zeros(system.n)
         init.close()
-        x0 = _assemble(system, q0, guess, mode)
+        x0 = _assemble(system, q0, guess, mode, linkage)
+        note = redundancy_note(linkage, system, x0)
+        if note is not None:
+            warnings.warn(f"{source or f'scene {name!r}'}: {note}", GrublerCountWarning, stacklevel=2)
     _check_start(system, x0, q0, qdot0)
 
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
@@ -534,17 +538,22 @@ def _parse_guess(t: Table, system, linkage: Linkage) -> np.ndarray:
     return guess
 
 
-def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
-    """Newton from the guess; the loop Jacobian's rank and the asked mode are checked."""
+def _assemble(system, q0: float, guess: np.ndarray, mode, linkage: Linkage) -> np.ndarray:
+    """Newton from the guess; the degrees of freedom by the loop Jacobian's rank (one, or refused
+    naming Grübler's count and the rank's) and the asked mode are checked."""
     try:
         x0 = loops.assemble(system, q0, guess)
     except loops.AssemblyError as exc:
-        raise SceneError(f"'initial.q' = {q0:g}: {exc}") from None
+        raise SceneError(f"'initial.q' = {q0:g}: {exc}" + (
+            f"; the linkage has {linkage.grubler_dof} degrees of freedom by Grübler's count: a structure, unless "
+            "its loop equations are redundant" if linkage.grubler_dof < 1 else "")) from None
     rank = loops.jacobian_rank(system, x0)
     if rank != system.n - 1:
-        raise SceneError(f"'initial.q' = {q0:g}: the loop Jacobian has rank {rank} at the assembled "
-                         f"configuration, not {system.n - 1}: the linkage has {system.n - rank} degrees "
-                         "of freedom there (redundant or parallel joints)")
+        dof = system.n - rank
+        raise SceneError(f"'initial.q' = {q0:g}: the loop equations have rank {rank} ({system.m} rows over "
+                         f"{system.n} coordinates) at the assembled configuration: {dof} degrees of freedom by "
+                         f"rank ({linkage.grubler_dof} by Grübler's count), not 1"
+                         + (": the linkage is locked" if dof == 0 else " (redundant or parallel joints)"))
     found = loops.assembly_mode(system, x0)
     if mode is not None:
         if (not isinstance(mode, list) or len(mode) != len(found)
@@ -554,6 +563,19 @@ def _assemble(system, q0: float, guess: np.ndarray, mode) -> np.ndarray:
             raise SceneError(f"'initial.guess' assembles in mode {list(found)}, not the 'initial.mode' "
                              f"{list(mode)} asked for: start the guess nearer that assembly")
     return x0
+
+
+def redundancy_note(linkage: Linkage, system, x0: np.ndarray) -> str | None:
+    """The warning (one line, without the scene's name) of a linkage accepted with one degree of
+    freedom by the rank of its loop equations at x0 whose Grübler count differs; None where it
+    does not (:class:`~loopcheck.mechanism.GrublerCountWarning`: the scene reader and the MJCF import
+    say it in these words)."""
+    if linkage.grubler_dof == 1:
+        return None
+    rank = loops.jacobian_rank(system, x0)
+    return (f"Grübler's count gives {linkage.grubler_dof} degrees of freedom, the rank of the loop equations at "
+            f"the start gives 1 ({system.m - rank} of its {system.m} loop equations are redundant): a redundantly "
+            "closed loop, run with one degree of freedom on its independent equations")
 
 
 def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:

@@ -25,6 +25,12 @@ cdef class Loops:
     cdef readonly Py_ssize_t m
     # the m constraint rows (phi, Phi: views of C) and the n − 1 independent ones among them (sel: S)
     cdef long long[::1] sel
+    # a redundant loop without a selection: the basis of Φ_x's rows at every evaluation (_basis), its
+    # scratch G and views W (m, n), E (m, m), T (n − 1, m), used (m,)
+    cdef readonly bint adaptive
+    cdef readonly object G
+    cdef double[:, ::1] W, E, T
+    cdef double[::1] used
     cdef double[::1] phi
     cdef double[:, ::1] Phi
     cdef double[::1] F
@@ -45,6 +51,7 @@ cdef class Loops:
     cdef int _table_positions(self, Py_ssize_t table)
     cdef int _table_rates(self, Py_ssize_t table, bint with_l)
     cdef double _constraints(self)
+    cdef int _basis(self)
     cdef double _factor_row(self, double[::1] row)
     cdef int _finish(self, double det, Py_ssize_t i)
     cdef inline double _cramer_ratio(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros)

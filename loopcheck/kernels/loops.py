@@ -66,6 +66,12 @@ if not cython.compiled:
     # convergence; no convergence in the iterations allowed
     CLOSED, NON_FINITE, SINGULAR_JACOBIAN, NOT_CLOSED = range(4)
 
+# A redundantly closed loop's basis (Loops._basis): a row whose part outside the rows already taken
+# is below BASIS_RTOL × the largest row's norm adds nothing (the rank of the loop equations has
+# dropped there: a singular position), as in :func:`loopcheck.kinematics.independent_rows` (RANK_RTOL).
+BASIS_RTOL = 1e-9
+_c_basis_rtol = cython.declare(cython.double, BASIS_RTOL)
+
 
 @cython.final
 @cython.cclass
@@ -78,8 +84,20 @@ class Loops:
     (m, n) of all m = 2 loops + linear rows). ``select`` (n − 1 indices into the m rows, default
     all of them when m = n − 1) is the independent rows
     (:func:`loopcheck.kinematics.independent_rows`, chosen once at an assembled configuration):
-    Newton's assembly, K, L and the conditioning use those rows only; a redundantly closed loop
-    has m > n − 1. The C methods read and write
+    Newton's assembly, K, L and the conditioning use those rows only.
+
+    A redundantly closed loop has m > n − 1 rows. Without ``select`` its kernel runs on an
+    orthonormal basis of the rows of Φ_x, taken at every evaluation (:meth:`_basis`: Gram-Schmidt
+    with the largest remaining row first) and applied to Φ and γ alike, rather than on rows chosen
+    once: the rows a configuration can drop change along the motion (a parallelogram with an
+    extra crank, its rows chosen at q = 0.6 rad, lost their rank at q = π/2). K and L do not
+    depend on the basis (the rows are consistent); the conditioning, taken on the basis, is a
+    property of Φ_x's row space; det A's sign (a chart's branch without redundant rows) depends
+    on the basis' orientation, which no configuration fixes, so det A is reported as |det A|
+    there. Its scratch is G (float64: W (m, n), the rows under elimination; E (m, m), their
+    combinations of the rows of Φ; T (n − 1, m), the basis' combinations; used (m,)).
+
+    The C methods read and write
     these views and take no array argument (compiled, an array argument is a view passed by
     value: :mod:`loopcheck.reduced.kernels.physics`'s chart calls them at every evaluation). The
     Python methods (``positions`` … ``assemble``) copy their arguments in and their results out.
@@ -95,6 +113,9 @@ class Loops:
         self.n = n
         m = 2 * int(I[TABLES + TABLE_ENTRIES * LOOPS]) + int(I[N_LINEAR])
         self.m = m
+        # A redundant loop without a selection: the basis of Φ_x's rows (a table of points packed as
+        # LOOPS, whose constraints are never asked for, takes this branch too, harmlessly).
+        self.adaptive = select is None and m > max(n - 1, 0)
         if select is None:  # every row (a table of points, not loops, has none to select)
             select = np.arange(min(m, max(n - 1, 0)), dtype=np.int64)
         elif np.ndim(select) != 1 or len(select) != max(n - 1, 0) or (
@@ -105,6 +126,13 @@ class Loops:
         self.S = select
         self.sel = select
         self.C = np.zeros(m + m * n + 1)
+        b = m if self.adaptive else 0
+        nb = max(n - 1, 0) if self.adaptive else 0
+        self.G = np.zeros(b * n + b * b + nb * b + b + 1)
+        self.W = self.G[0:b * n].reshape(b, n)
+        self.E = self.G[b * n:b * n + b * b].reshape(b, b)
+        self.T = self.G[b * n + b * b:b * n + b * b + nb * b].reshape(nb, b)
+        self.used = self.G[b * n + b * b + nb * b:b * n + b * b + nb * b + b]
         self.phi = self.C[0:m]
         self.Phi = self.C[m:m + m * n].reshape(m, n)
         rows = max(int(I[MAX_ROWS]), 1)
@@ -127,7 +155,7 @@ class Loops:
     def _lu_factor(self) -> cython.double:
         """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
         as its reciprocals (a solve then multiplies: its divisions were most of its latency);
-        returns det A (0.0 if singular)."""
+        returns det A (0.0 if singular; |det A| on a redundant loop's basis, :meth:`_basis`)."""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -164,6 +192,8 @@ class Loops:
                 self.A[r, k] = f
                 for c in range(k + 1, n):
                     self.A[r, c] -= f * self.A[k, c]
+        if self.adaptive:  # a redundant loop's basis has no orientation of its own: only |det A| means something
+            return fabs(det)
         return det
 
     @cython.cfunc
@@ -335,6 +365,10 @@ class Loops:
                 v += self.F[lin + r * n + c] * self.x[c]
                 scale += fabs(self.F[lin + r * n + c] * self.x[c])
             self.phi[nl + r] = v
+        if self.adaptive:  # a redundant loop: the orthonormal basis of Φ_x's rows
+            self._basis()
+            self.spread = spread
+            return scale
         for r in range(n - 1):  # the independent rows (select)
             if r < self.sel.shape[0]:
                 k = self.sel[r]
@@ -346,6 +380,71 @@ class Loops:
                     self.A[r, c] = 0.0
         self.spread = spread
         return scale
+
+    @cython.cfunc
+    def _basis(self) -> cython.int:
+        """A redundant loop's rows (:meth:`_constraints`): into A[:n−1] an orthonormal basis of the
+        rows of Φ_x by modified Gram-Schmidt, the largest remaining row first, and into rhs[:n−1]
+        and T the same combinations of Φ (T: of γ in :meth:`_finish`). A row left below BASIS_RTOL ×
+        the first row's norm is not normalized (noise): its A row and rhs are 0, det A is 0 there."""
+        n: cython.Py_ssize_t = self.n
+        m: cython.Py_ssize_t = self.m
+        r: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        best: cython.Py_ssize_t
+        v: cython.double
+        big: cython.double
+        first: cython.double = 0.0
+        inverse: cython.double
+        for k in range(m):
+            self.used[k] = 0.0
+            for c in range(n):
+                self.W[k, c] = self.Phi[k, c]
+            for c in range(m):
+                self.E[k, c] = 0.0
+            self.E[k, k] = 1.0
+        for r in range(n - 1):
+            best = -1
+            big = 0.0
+            for k in range(m):
+                if self.used[k] == 0.0:
+                    v = 0.0
+                    for c in range(n):
+                        v += self.W[k, c] * self.W[k, c]
+                    if v > big:
+                        big = v
+                        best = k
+            if r == 0:
+                first = big
+            if best < 0 or not big > _c_basis_rtol * _c_basis_rtol * first:
+                for c in range(n):
+                    self.A[r, c] = 0.0
+                for c in range(m):
+                    self.T[r, c] = 0.0
+                self.rhs[r] = 0.0
+                continue
+            self.used[best] = 1.0
+            inverse = 1.0 / sqrt(big)
+            for c in range(n):
+                self.W[best, c] *= inverse
+                self.A[r, c] = self.W[best, c]
+            v = 0.0
+            for c in range(m):
+                self.E[best, c] *= inverse
+                self.T[r, c] = self.E[best, c]
+                v += self.E[best, c] * self.phi[c]
+            self.rhs[r] = v
+            for k in range(m):
+                if self.used[k] == 0.0:
+                    v = 0.0
+                    for c in range(n):
+                        v += self.W[k, c] * self.W[best, c]
+                    for c in range(n):
+                        self.W[k, c] -= v * self.W[best, c]
+                    for c in range(m):
+                        self.E[k, c] -= v * self.E[best, c]
+        return 0
 
     # -- one configuration ------------------------------------------------------------------
 
@@ -405,8 +504,17 @@ class Loops:
             self.phi[2 * k + 1] = -self.rows[k, 3]
         for j in range(2 * nl, self.m):
             self.phi[j] = 0.0
-        for j in range(n):
-            self.L[j] = self.phi[self.sel[j]] if j < self.sel.shape[0] else 0.0
+        v: cython.double
+        if self.adaptive:  # γ in the basis' combinations
+            for j in range(n):
+                v = 0.0
+                if j < n - 1:
+                    for k in range(self.m):
+                        v += self.T[j, k] * self.phi[k]
+                self.L[j] = v
+        else:
+            for j in range(n):
+                self.L[j] = self.phi[self.sel[j]] if j < self.sel.shape[0] else 0.0
         self._lu_solve(self.L)
         # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
         product: cython.double = 1.0

@@ -55,6 +55,7 @@ import argparse
 import math
 import os
 import stat
+import warnings
 import xml.etree.ElementTree as ET
 import dataclasses
 from dataclasses import dataclass, field
@@ -65,11 +66,11 @@ import numpy as np
 
 from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
-from loopcheck.mechanism import (GROUND, Actuator, Body, JointElement, LineElement, Linkage, Mechanism, MechanismError,
-                            PrismaticJoint, RevoluteJoint)
+from loopcheck.mechanism import (GROUND, Actuator, Body, GrublerCountWarning, JointElement, LineElement, Linkage,
+                                 Mechanism, MechanismError, PrismaticJoint, RevoluteJoint)
 from loopcheck.scene import LIMITS, Scene, SceneError, Tolerances
 from loopcheck.scene_writer import scene_data
-from loopcheck.scenefile import scene_from_dict
+from loopcheck.scenefile import redundancy_note, scene_from_dict
 from loopcheck.settings import parse_number
 
 from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_ACTUATOR_CTRL, CUSTOM_CTRL, CUSTOM_HORIZON,
@@ -1144,7 +1145,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     q0 = float(system.drive @ guess)
     xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
     qdot0 = float(system.drive @ xdot)
-    residual = float(np.max(np.abs(loops.constraint_jacobian(system, guess) @ xdot))) if system.n > 1 else 0.0
+    # every loop row, a redundant loop's dependent ones too
+    residual = float(np.max(np.abs(loops.all_constraints(system, guess)[1] @ xdot), initial=0.0))
     if abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale:
         reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
                                "the scene starts from the input joint's rate alone")
@@ -1168,9 +1170,14 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                         engine_tolerances=customs.engine_tolerances)
     data = scene_data(provisional)
     try:
-        scene = scene_from_dict(data, source=str(path))
+        with warnings.catch_warnings():  # said once, among the import's warnings, below
+            warnings.simplefilter("ignore", GrublerCountWarning)
+            scene = scene_from_dict(data, source=str(path))
     except SceneError as exc:
         reader.fail(str(exc))
+    note = redundancy_note(linkage, system, np.asarray(scene.x0))
+    if note is not None:  # accepted with one DOF by the rank of its loop equations
+        reader.warnings.append(note)
     polish = float(np.max(np.abs(np.asarray(scene.x0) - guess)))
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,

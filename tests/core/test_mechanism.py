@@ -309,7 +309,6 @@ MALFORMED = {
     "body connected to nothing": (_body_connected_to_nothing, "body 'loose' is connected to nothing"),
     "disconnected group": (_disconnected_group, "bodies 'u', 'v' form a group not connected to ground"),
     "two DOF": (_two_dof, "the linkage has 2 degrees of freedom by Grübler's count 3·4 moving bodies − 2·5 joints, not 1"),
-    "zero DOF": (_zero_dof, "the linkage has 0 degrees of freedom by Grübler's count 3·2 moving bodies − 2·3 joints, not 1"),
     "prismatic-only loop": (_prismatic_only_loop, "has only prismatic joints: no revolute joint to cut it"),
     "duplicate body": (_duplicate_body, "duplicate body name 'crank'"),
     "duplicate joint": (_duplicate_joint, "duplicate joint name 'A'"),
