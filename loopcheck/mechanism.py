@@ -7,7 +7,7 @@ its points are fixed points of the plane, and it is not counted as a moving body
 :class:`Mechanism` adds what acts on the bodies: dampers and springs between two points
 (:class:`LineElement`), dampers and springs on a joint's coordinate (:class:`JointElement`)
 point forces tabulated over the input coordinate (:class:`PointForce`) and point forces
-given over time (:class:`TimedForce`). Both engines build from a :class:`Mechanism`; neither is known here.
+given over time (:class:`TimedForce`), and actuators as MuJoCo applies them (:class:`Actuator`). Both engines build from a :class:`Mechanism`; neither is known here.
 
 :class:`Linkage` checks the description as a graph on construction (names, connectivity,
 Grübler's count at most 1, loops that a MuJoCo ``connect`` equality can close) and holds its
@@ -623,6 +623,122 @@ class TimedForce:
         object.__setattr__(self, "direction", float(self.direction))
 
 
+
+def _finite_number(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise MechanismError(f"{what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _range(value, what: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    try:
+        lo, hi = value
+    except (TypeError, ValueError):
+        raise MechanismError(f"{what} must be a pair (lo, hi), got {value!r}") from None
+    lo, hi = _finite_number(lo, f"{what} lo"), _finite_number(hi, f"{what} hi")
+    if not lo < hi:
+        raise MechanismError(f"{what} must have lo < hi, got ({lo:g}, {hi:g})")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """An actuator as MuJoCo applies it (``<general>`` with fixed gain and affine bias; ``motor``,
+    ``position`` and ``velocity`` are its special cases).
+
+    Transmission: ``joint`` (its own coordinate u, as :class:`JointElement` defines it: a
+    revolute joint's relative angle, a prismatic joint's displacement) or ``tendon``, a fixed
+    tendon: pairs (joint, c) with l = Σ c_j u_j (coefficients finite and nonzero). Exactly one.
+    With l the transmission's length, the actuator's length is L = gear·l (MuJoCo's
+    ``actuator_length``), its force (N·m or N, MuJoCo's ``actuator_force``)
+
+        f = clamp(gain·clamp(ctrl(t), ctrlrange) + b0 + b1·L + b2·L̇, forcerange)
+
+    and its generalized force gear·f·dl/dq; its power f·L̇. A position servo (kp, kv) is gain
+    kp, bias (0, −kp, −kv). ``control`` is the control over time, one of the input load's
+    profiles (:mod:`loopcheck.loads`: piecewise constant in t; None: zero); its edges are load edges.
+    """
+
+    name: str
+    joint: str | None = None
+    tendon: tuple[tuple[str, float], ...] | None = None
+    gain: float = 1.0
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gear: float = 1.0
+    ctrlrange: tuple[float, float] | None = None
+    forcerange: tuple[float, float] | None = None
+    control: object = None  # loopcheck.loads.LoadProfile, or None (zero)
+
+    def __post_init__(self):
+        _name(self.name, "actuator name")
+        what = f"actuator {self.name!r}"
+        if (self.joint is None) == (self.tendon is None):
+            raise MechanismError(f"{what}: give its transmission, a joint or a tendon (one of the two)")
+        if self.joint is not None:
+            _name(self.joint, f"{what}: joint")
+        else:
+            pairs = tuple(self.tendon.items()) if isinstance(self.tendon, Mapping) else self.tendon
+            try:
+                pairs = tuple((j, c) for j, c in pairs)
+            except (TypeError, ValueError):
+                raise MechanismError(f"{what}: tendon must be pairs (joint, coefficient), got {self.tendon!r}") from None
+            if not pairs:
+                raise MechanismError(f"{what}: tendon has no joint")
+            out = []
+            for j, c in pairs:
+                _name(j, f"{what}: tendon joint")
+                c = _finite_number(c, f"{what}: tendon coefficient of joint {j!r}")
+                if c == 0.0:
+                    raise MechanismError(f"{what}: tendon coefficient of joint {j!r} must be nonzero")
+                out.append((j, c))
+            _unique([j for j, _ in out], f"{what}: tendon joint")
+            object.__setattr__(self, "tendon", tuple(out))
+        object.__setattr__(self, "gain", _finite_number(self.gain, f"{what}: gain"))
+        try:
+            bias = tuple(self.bias)
+        except TypeError:
+            bias = ()
+        if len(bias) != 3:
+            raise MechanismError(f"{what}: bias must be three numbers (b0, b1, b2), got {self.bias!r}")
+        object.__setattr__(self, "bias", tuple(_finite_number(b, f"{what}: bias") for b in bias))
+        gear = _finite_number(self.gear, f"{what}: gear")
+        if gear == 0.0:
+            raise MechanismError(f"{what}: gear must be nonzero")
+        object.__setattr__(self, "gear", gear)
+        object.__setattr__(self, "ctrlrange", _range(self.ctrlrange, f"{what}: ctrlrange"))
+        object.__setattr__(self, "forcerange", _range(self.forcerange, f"{what}: forcerange"))
+        if self.control is not None and (not hasattr(self.control, "edges") or not hasattr(self.control, "sample")):
+            raise MechanismError(f"{what}: control must be a load profile (loopcheck.loads), "
+                                 f"got {type(self.control).__name__}")
+
+    @property
+    def terms(self) -> tuple[tuple[str, float], ...]:
+        """The transmission as (joint, coefficient) pairs: l = Σ c_j u_j."""
+        return ((self.joint, 1.0),) if self.joint is not None else self.tendon
+
+    @property
+    def state_dependent(self) -> bool:
+        """Whether the force depends on the state (b1 or b2 nonzero)."""
+        return self.bias[1] != 0.0 or self.bias[2] != 0.0
+
+    def control_values(self, times):
+        """The control at each time, clamped to ctrlrange (zero without a control)."""
+        import numpy as np
+        values = (np.zeros(np.shape(times)) if self.control is None
+                  else np.asarray(self.control.sample(np.asarray(times, dtype=float)), dtype=float))
+        return values if self.ctrlrange is None else np.clip(values, *self.ctrlrange)
+
+    def force(self, ctrl, length, velocity):
+        """f (N·m or N) at a clamped control, the transmission's length l and rate l̇ (arrays or
+        numbers): clamp(gain·ctrl + b0 + b1·gear·l + b2·gear·l̇, forcerange)."""
+        import numpy as np
+        b0, b1, b2 = self.bias
+        f = self.gain * ctrl + b0 + b1 * (self.gear * length) + b2 * (self.gear * velocity)
+        return f if self.forcerange is None else np.clip(f, *self.forcerange)
+
+
 @dataclass(frozen=True)
 class Mechanism:
     """A checked linkage with mass properties, and the dampers, springs and point forces
@@ -636,8 +752,13 @@ class Mechanism:
     point_forces: tuple[PointForce, ...] = ()
     joint_elements: tuple[JointElement, ...] = ()
     timed_forces: tuple[TimedForce, ...] = ()
+    actuators: tuple[Actuator, ...] = ()
 
     def __post_init__(self):
+        object.__setattr__(self, "actuators", tuple(self.actuators))
+        for a in self.actuators:
+            if not isinstance(a, Actuator):
+                raise MechanismError(f"actuators must be Actuator values, got {type(a).__name__}")
         object.__setattr__(self, "elements", tuple(self.elements))
         object.__setattr__(self, "point_forces", tuple(self.point_forces))
         object.__setattr__(self, "joint_elements", tuple(self.joint_elements))
@@ -651,6 +772,11 @@ class Mechanism:
             if e.joint not in joints:
                 raise MechanismError(f"joint {e.kind} {e.name!r}: unknown joint {e.joint!r}")
         _unique([p.name for p in self.point_forces] + [p.name for p in self.timed_forces], "point force")
+        _unique([a.name for a in self.actuators], "actuator")
+        for a in self.actuators:
+            for j, _ in a.terms:
+                if j not in joints:
+                    raise MechanismError(f"actuator {a.name!r}: unknown joint {j!r}")
 
         def check(body, point, what):
             if body not in bodies:

@@ -89,13 +89,17 @@ LIMITS: Mapping[str, Range] = _ranges(
     Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed",
           keys=("initial.qdot",)),
     Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)",
-          keys=("torque and timed-force start, duration, times",)),
+          keys=("torque, timed-force and actuator-control start, duration, times",)),
     Range("horizon", "s", 1e-3, 1e3, "at MuJoCo's 1 ms default a 1000 s run is already 1e6 steps",
           keys=("simulation.horizon",)),
     Range("gravity", "m/s²", 0.0, 1e3, "about 100 g",
           keys=("gravity",)),
     Range("gravity compensation", "(× the body's weight)", 0.0, 100.0, "MuJoCo's body gravcomp, ≥ 0: 1 "
           "compensates the weight, above 1 the body floats up (buoyancy)", keys=("bodies.*.gravcomp",)),
+    Range("actuator value", "(its own units)", 0.0, 1e9, "an actuator's gain, bias terms, gear, tendon coefficients, "
+          "controls and ranges (units follow its transmission and control): wide, and keeps gain·ctrl + b1·L finite",
+          keys=("actuators.gain", "actuators.bias", "actuators.gear", "actuators.tendon", "actuators.ctrlrange",
+                "actuators.forcerange", "actuators.control value(s)")),
     Range("step", "s", 1e-6, 1.0, "an engine's time step (its settings' options of this kind, at most the horizon); "
           "the hard cases use 2e-5 to 1e-3"),
 )
@@ -235,11 +239,15 @@ class Scene:
 
     @property
     def load_edges(self) -> tuple[float, ...]:
-        """Times (s) where a load over time jumps, the input's and the timed forces', sorted
+        """Times (s) where a load over time jumps, the input's, the timed forces' and the actuators'
+        controls', sorted
         without repeats: the reduced integrators stop at them, MuJoCo's steps fall on them."""
         edges = set(self.load.edges) if self.load is not None else set()
         for force in self.mechanism.timed_forces:
             edges.update(force.profile.edges)
+        for actuator in self.mechanism.actuators:  # their controls, piecewise constant in t
+            if actuator.control is not None:
+                edges.update(actuator.control.edges)
         return tuple(sorted(edges))
 
     @property
@@ -251,11 +259,11 @@ class Scene:
                    "damper": bool(m.dampers), "spring": bool(m.springs),
                    "joint-damper": bool(m.joint_dampers), "joint-spring": bool(m.joint_springs),
                    "joint-inertia": bool(m.joint_inertias),
-                   "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces),
+                   "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces), "actuator": bool(m.actuators),
                    "gravity": self.gravity is not None}
         return tuple(name for name in EFFECTS if present[name])
 
 
 # Every effect a scene can declare, in the order reports list them.
 EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "joint-inertia", "point-force",
-           "timed-force", "gravity")
+           "timed-force", "actuator", "gravity")

@@ -62,6 +62,22 @@ def profile_data(profile: LoadProfile) -> dict[str, Any]:
     raise TypeError(f"no scene-file form for a {type(profile).__name__}")
 
 
+def _actuator(a) -> dict[str, Any]:
+    """An actuator as ``[[actuators]]`` writes it (:func:`loopcheck.scenefile._parse_actuators`)."""
+    row: dict[str, Any] = {"name": a.name}
+    if a.joint is not None:
+        row["joint"] = a.joint
+    else:
+        row["tendon"] = {j: c for j, c in a.tendon}
+    row.update({"gain": a.gain, "bias": list(a.bias), "gear": a.gear})
+    for key in ("ctrlrange", "forcerange"):
+        if getattr(a, key) is not None:
+            row[key] = list(getattr(a, key))
+    if a.control is not None:
+        row["control"] = profile_data(a.control)
+    return row
+
+
 def scene_data(scene: Scene) -> dict[str, Any]:
     """The scene as TOML data (tables, arrays, numbers, strings) in the scene file's layout."""
     mech = scene.mechanism
@@ -120,6 +136,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
     if mech.timed_forces:
         data["timed_forces"] = [{"name": p.name, "point": _point(p.body, p.point), "direction": p.direction,
                                  **profile_data(p.profile)} for p in mech.timed_forces]
+    if mech.actuators:
+        data["actuators"] = [_actuator(a) for a in mech.actuators]
     if scene.load is not None:
         data[scene.load_name] = profile_data(scene.load)
     system = loops.compile_linkage(linkage)

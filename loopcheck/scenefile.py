@@ -28,7 +28,8 @@ import numpy as np
 
 from . import kinematics as loops
 from .loads import ConstantLoad, PiecewiseConstantLoad, PulseLoad, LoadProfile
-from .mechanism import (GROUND, POLY_TERMS, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement, Linkage, Mechanism,
+from .mechanism import (GROUND, POLY_TERMS, Actuator, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement,
+                        Linkage, Mechanism,
                         MechanismError, PointForce, PrismaticJoint, RevoluteJoint, TimedForce)
 from .registry import ENGINES, REFERENCE, judged_engines
 from .settings import options, read_table
@@ -260,6 +261,68 @@ def _parse_couplings(top: Table, joints) -> list[JointCoupling]:
     return out
 
 
+ACTUATOR = "actuator value"  # the range of an actuator's numbers (loopcheck.scene.LIMITS)
+
+
+def _pair_or_none(t: Table, name: str) -> tuple[float, float] | None:
+    """An optional [lo, hi] range, lo < hi."""
+    if not t.has(name):
+        return None
+    value = t.raw(name)
+    if not isinstance(value, list) or len(value) != 2:
+        raise SceneError(f"'{t.key(name)}' must be an array of two numbers [lo, hi]")
+    lo, hi = (number(v, f"{t.key(name)}[{i}]", kind=ACTUATOR) for i, v in enumerate(value))
+    if not lo < hi:
+        raise SceneError(f"'{t.key(name)}' must have lo < hi, got [{lo:g}, {hi:g}]")
+    return lo, hi
+
+
+def _parse_actuators(top: Table, linkage: Linkage) -> list[Actuator]:
+    """``[[actuators]]``: name, its transmission (``joint = "J"`` or ``tendon = { J1 = c1, … }``,
+    a fixed tendon l = Σ c_j u_j), gain, bias = [b0, b1, b2], gear, optional ctrlrange and
+    forcerange [lo, hi], and its control over time (``[actuators.control]``, the forms of the
+    input's ``[torque]``: constant, pulse or table; zero without one):
+    :class:`loopcheck.mechanism.Actuator`."""
+    out = []
+    joints = linkage.joint_map
+    for k, t in enumerate(array_of_tables(top, "actuators")):
+        name = name_key(t.string("name", f"actuator{k}"), t.key("name"))
+        if t.has("joint") == t.has("tendon"):
+            raise SceneError(f"'{t.path}' needs its transmission: 'joint' or 'tendon' (one of the two)")
+        joint, tendon = None, None
+        if t.has("joint"):
+            joint = t.string("joint")
+            if joint not in joints:
+                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+        else:
+            tt = t.table("tendon")
+            if not tt.data:
+                raise SceneError(f"'{tt.path}' must name one joint or more with its coefficient")
+            terms = []
+            for j in tt.data:
+                if j not in joints:
+                    raise SceneError(f"'{tt.key(j)}': \"{j}\" is not one of the joints: {', '.join(joints)}")
+                c = tt.number(j, kind=ACTUATOR)
+                if c == 0.0:
+                    raise SceneError(f"'{tt.key(j)}' must be nonzero")
+                terms.append((j, c))
+            tendon = tuple(terms)
+        gain = t.number("gain", 1.0, kind=ACTUATOR)
+        bias = t.raw("bias", [0.0, 0.0, 0.0])
+        if not isinstance(bias, list) or len(bias) != 3:
+            raise SceneError(f"'{t.key('bias')}' must be an array of three numbers [b0, b1, b2]")
+        bias = tuple(number(v, f"{t.key('bias')}[{i}]", kind=ACTUATOR) for i, v in enumerate(bias))
+        gear = t.number("gear", 1.0, kind=ACTUATOR)
+        if gear == 0.0:
+            raise SceneError(f"'{t.key('gear')}' must be nonzero")
+        ctrlrange, forcerange = _pair_or_none(t, "ctrlrange"), _pair_or_none(t, "forcerange")
+        control = _parse_profile(t.table("control"), ACTUATOR) if t.has("control") else None
+        t.close()
+        out.append(_mechanism_value(t.path, lambda: Actuator(name, joint, tendon, gain, bias, gear, ctrlrange,
+                                                             forcerange, control)))
+    return out
+
+
 def _with_inertias_in_tree(linkage: Linkage, joint_elements: list[JointElement]) -> Linkage:
     """The linkage with its joint inertias' and couplings' joints taken into the spanning tree first
     (MuJoCo holds an inertia and an equality/joint only on a tree joint:
@@ -304,10 +367,12 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
     joint_elements = _parse_joint_elements(top, linkage)
     linkage = _with_inertias_in_tree(linkage, joint_elements)
     timed = _parse_timed_forces(top)
-    count(elements + forces + joint_elements + timed,
-           "dampers, springs, joint_dampers, joint_springs, joint_inertias, point_forces and timed_forces", MAX_ELEMENTS,
-           "entries together")
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed)), None
+    actuators = _parse_actuators(top, linkage)
+    count(elements + forces + joint_elements + timed + actuators,
+           "dampers, springs, joint_dampers, joint_springs, joint_inertias, point_forces, timed_forces and actuators",
+           MAX_ELEMENTS, "entries together")
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed,
+                                                        actuators)), None
 
 
 # -- the four-bar shorthand ------------------------------------------------------------
@@ -395,7 +460,8 @@ def _parse_four_bar(top: Table, link: Table, needs_mass: bool) -> tuple[Mechanis
     linkage = Linkage(bodies, joints, "O1")
     joint_elements = _parse_joint_elements(top, linkage)
     linkage = _with_inertias_in_tree(linkage, joint_elements)
-    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements)), g
+    actuators = _parse_actuators(top, linkage)
+    return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, (), joint_elements, (), actuators)), g
 
 
 # -- the scene -------------------------------------------------------------------------

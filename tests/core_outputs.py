@@ -33,6 +33,8 @@ N_TIMES = 101  # states compared at these many times spread over the horizon
 NOT_RECORDED = {
     "mechanisms/parallelogram_redundant.toml": "tests/reduced/test_redundant_loop.py (closed form)",
     "mechanisms/seed_fourbar_geared_flywheel.toml": "tests/core/test_couplings.py (the seed with a joint inertia)",
+    "mechanisms/servo_fourbar.toml": "tests/reduced/test_actuators.py (closed form), "
+                                     "tests/reference_models/test_actuators_mjcf.py (MuJoCo, Pinocchio, audits)",
 }
 
 

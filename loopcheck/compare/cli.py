@@ -220,11 +220,11 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 
 def _control(text: str):
-    """An argparse type: the input motor's control, a number or ``t:value,t:value,...``."""
+    """An argparse type: an actuator's control, ``[NAME=]VALUE`` or ``[NAME=]t:value,t:value,...``."""
     from loopcheck.reference_models.mjcf_import import Control
 
     try:
-        return Control.parse(text)
+        return Control.parse_named(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
@@ -368,9 +368,15 @@ def _is_mjcf(path: str) -> bool:
 def _import(args: argparse.Namespace, path: str):
     from loopcheck.reference_models.mjcf_import import import_mjcf
 
+    from loopcheck.reference_models.mjcf_import import Control
+
     horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
+    try:
+        bare, named = Control.by_name(args.ctrl)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
-                       control=args.ctrl, **horizon)
+                       control=bare, controls=named, **horizon)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -479,10 +485,12 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                         "named or --qpos0 is given)")
     g.add_argument("--qpos0", action="store_true", default=None,
                    help="read qpos0 (at rest, no control) even when the model has keyframes")
-    g.add_argument("--ctrl", type=_control, default=None, metavar="CTRL",
-                   help="the motor's control over time, in its ctrl units: a number, or a table "
+    g.add_argument("--ctrl", type=_control, action="append", default=None, metavar="[NAME=]CTRL",
+                   help="an actuator's control over time, in its ctrl units: a number, or a table "
                         "t:value,t:value,... (s; each value held from its time on, zero before the first); "
-                        "default the model's loopcheck.ctrl numeric, else the keyframe's ctrl")
+                        "NAME=CTRL for actuator NAME, repeated once per actuator; a bare CTRL is the only "
+                        "actuator's (or the input motor's); default the model's loopcheck.ctrl (loopcheck.ctrl.NAME) "
+                        "numeric, else the keyframe's ctrl")
     g.add_argument("--horizon", type=_positive, default=None,
                    help="the simulated time (s): a model's (default its loopcheck.horizon numeric, else 1); given "
                         "with a scene file, it replaces the scene's simulation.horizon (said in the output). --input, "

@@ -32,7 +32,8 @@ hinge qpos along its tree path, a slider's s is s0 plus its slide's qpos.
 Effects. Only what the scene declares is built: a damper is a spatial tendon between its two
 sites with ``damping``, a spring one with ``stiffness`` and ``springlength``, a damper or spring
 on a joint a fixed tendon on the joint's coordinate (:func:`joint_tendons`), the input load
-a motor on the input joint (always a tree joint, hinge or slide), gravity the scene's vector
+a motor on the input joint (always a tree joint, hinge or slide), each actuator a ``general`` actuator
+(:func:`_add_actuators`), gravity the scene's vector
 (else zero). There are no geoms, contacts are disabled, and no joint has damping, armature,
 stiffness or friction loss (a joint inertia is a fixed tendon's ``armature``). Point forces (F(q) along a fixed ground direction at a body
 point) are not a model element: :mod:`loopcheck.reference_models.run` applies them during a run through
@@ -99,6 +100,7 @@ HOME_KEY = "home"  # keyframe with the scene's initial state
 CUSTOM_PREFIX = "loopcheck."
 CUSTOM_HORIZON = "loopcheck.horizon"  # [s]
 CUSTOM_CTRL = "loopcheck.ctrl"  # the input motor's control table [t0, v0, t1, v1, ...] (s, ctrl units; gear 1)
+CUSTOM_ACTUATOR_CTRL = "loopcheck.ctrl."  # + an actuator's name: its control table [t0, v0, t1, v1, ...]
 CUSTOM_TOLERANCES = "loopcheck.tolerances."  # + KEY, or + ENGINE.KEY: [value]
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
 INPUT_MOTOR = "input_motor"  # the actuator of the scene's load on the input joint
@@ -385,6 +387,8 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
         spec.add_sensor(name=sensor_name(INPUT_MOTOR, "force"), type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=INPUT_MOTOR)
 
+    _add_actuators(spec, scene)
+
     # Read-outs (no forces): the input's acceleration (a hinge's: the child's angular
     # acceleration minus the parent's; a slide's is read from qacc by the runner), energy,
     # damper rates, point-force velocities.
@@ -462,6 +466,14 @@ def add_scene_customs(spec: mujoco.MjSpec, scene: Scene) -> None:
     for engine, given in scene.engine_tolerances.items():
         for key, value in given.items():
             spec.add_numeric(name=f"{CUSTOM_TOLERANCES}{engine}.{key}", data=[float(value)])
+    for a in scene.mechanism.actuators:
+        if a.control is None:
+            continue
+        table = load_table(a.control)
+        if table is None:
+            raise ValueError(f"actuator {a.name!r}: its control, a {type(a.control).__name__}, is not a table of "
+                             "(time, value) pairs: MJCF cannot carry it")
+        spec.add_numeric(name=f"{CUSTOM_ACTUATOR_CTRL}{a.name}", data=[v for pair in zip(*table) for v in pair])
     if scene.load is None:  # no motor either
         return
     table = load_table(scene.load)
@@ -553,6 +565,89 @@ def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
     return dampers
 
 
+def actuator_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
+    """For each actuator, (coef, l0): its transmission's length l = Σ c_j u_j as l = l0 + coef·qpos,
+    coef (nq,) over :func:`joint_order` (as :func:`joint_tendons` gives a joint's coordinate)."""
+    acts = scene.mechanism.actuators
+    if not acts:
+        return {}
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    x0, T = coordinate_map(scene)
+    out = {}
+    for a in acts:
+        row = sum(c * system.joint_row(j) for j, c in a.terms)
+        out[a.name] = (row @ T, float(row @ x0))
+    return out
+
+
+def transmission_tendon(actuator: str) -> str:
+    """The name of the fixed tendon an actuator acts on when its transmission is not a tree joint's
+    qpos: ``"<actuator>:transmission"`` (no scene name holds ':')."""
+    return f"{actuator}:transmission"
+
+
+def _add_actuators(spec: mujoco.MjSpec, scene: Scene) -> None:
+    """One ``general`` actuator per scene actuator (named after it), after the input motor: on its
+    joint (a joint transmission) where that joint's coordinate is a tree joint's qpos, else on a fixed
+    tendon l − l0 = coef·qpos (:func:`actuator_tendons`, named :func:`transmission_tendon`); gain
+    fixed (gainprm[0] = gain), bias affine where nonzero, with b0 + b1·gear·l0 for b0 (MuJoCo's
+    length counts from the assembled pose, the scene's from the joints' zero), gear, ctrlrange and
+    forcerange with ctrllimited/forcelimited. Sensors of each actuator's length and velocity (the
+    energy audit)."""
+    acts = scene.mechanism.actuators
+    if not acts:
+        return
+    if scene.load is not None and INPUT_MOTOR in {a.name for a in acts}:
+        raise ValueError(f"actuator name {INPUT_MOTOR!r} is the input load's motor in the MuJoCo model: rename the actuator")
+    order = joint_order(scene.mechanism.linkage)
+    tendons = actuator_tendons(scene)
+    for a in acts:
+        coef, l0 = tendons[a.name]
+        on_joint = (a.joint is not None and a.joint in order
+                    and np.array_equal(coef, np.eye(len(order))[order.index(a.joint)]))
+        if on_joint:
+            act = spec.add_actuator(name=a.name, target=a.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        else:
+            tendon = spec.add_tendon(name=transmission_tendon(a.name))
+            for k in np.flatnonzero(coef):
+                tendon.wrap_joint(order[k], float(coef[k]))
+            act = spec.add_actuator(name=a.name, target=transmission_tendon(a.name), trntype=mujoco.mjtTrn.mjTRN_TENDON)
+        act.dyntype = mujoco.mjtDyn.mjDYN_NONE
+        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        gain = [0.0] * len(act.gainprm)
+        gain[0] = a.gain
+        act.gainprm = gain
+        b0, b1, b2 = a.bias
+        bias = [0.0] * len(act.biasprm)
+        if a.state_dependent or b0 != 0.0:
+            act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            bias[0:3] = [b0 + b1 * a.gear * l0, b1, b2]
+        else:
+            act.biastype = mujoco.mjtBias.mjBIAS_NONE
+        act.biasprm = bias
+        gear = [0.0] * 6
+        gear[0] = a.gear
+        act.gear = gear
+        for attr, rng in (("ctrl", a.ctrlrange), ("force", a.forcerange)):
+            setattr(act, f"{attr}limited", mujoco.mjtLimited.mjLIMITED_TRUE if rng is not None
+                    else mujoco.mjtLimited.mjLIMITED_FALSE)
+            if rng is not None:
+                setattr(act, f"{attr}range", list(rng))
+        for kind, sensor in (("length", mujoco.mjtSensor.mjSENS_ACTUATORPOS),
+                             ("velocity", mujoco.mjtSensor.mjSENS_ACTUATORVEL)):
+            spec.add_sensor(name=sensor_name(a.name, kind), type=sensor, objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                            objname=a.name)
+
+
+def actuator_controls(scene: Scene, times: np.ndarray) -> np.ndarray:
+    """Every control at each time (len(times), nu): the input motor's load (when the scene has
+    one), then each actuator's control (unclamped: MuJoCo clamps it to ctrlrange)."""
+    columns = [scene.load.sample(times)] if scene.load is not None else []
+    columns += [a.control.sample(times) if a.control is not None else np.zeros(len(times))
+                for a in scene.mechanism.actuators]
+    return np.column_stack(columns) if columns else np.zeros((len(times), 0))
+
+
 def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tuple[float, float]) -> None:
     """Set what follows the timestep in a spec made by :func:`build_spec` of ``scene``: the
     option's timestep, every loop's solref and the home key's control (the load the run applies
@@ -563,7 +658,7 @@ def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tup
     spec.option.timestep = timestep
     for name in scene.mechanism.linkage.cut_joints + tuple(c.name for c in scene.mechanism.linkage.couplings):
         spec.equality(name).solref = list(solref)
-    spec.key(HOME_KEY).ctrl = [] if scene.load is None else [float(scene.load.sample(np.array([0.5 * timestep]))[0])]
+    spec.key(HOME_KEY).ctrl = [float(v) for v in actuator_controls(scene, np.array([0.5 * timestep]))[0]]
 
 
 def _number(value: float) -> str:
@@ -618,6 +713,13 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
         put(element, "damping", tendon.damping[0])
         put(element, "stiffness", tendon.stiffness[0])
         put(element, "springlength", tendon.springlength[0])
+    for element in root.iter("general"):
+        act = spec.actuator(element.get("name"))
+        put(element, "gainprm", act.gainprm[0:1])
+        put(element, "biasprm", act.biasprm[0:3])
+        put(element, "gear", act.gear[0:1])
+        put(element, "ctrlrange", act.ctrlrange)
+        put(element, "forcerange", act.forcerange)
     for element in root.iter("connect"):
         equality = spec.equality(element.get("name"))
         put(element, "anchor", equality.data[0:3])
@@ -655,7 +757,7 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
 
 
 __all__ = ["BASE_BODY", "CUSTOM_CTRL", "CUSTOM_HORIZON", "CUSTOM_PREFIX", "CUSTOM_TOLERANCES", "ConstraintSettings",
-           "HOME_KEY", "INPUT_MOTOR", "ModelHandles", "TreeBody", "add_scene_customs", "assembled_angles",
+           "HOME_KEY", "INPUT_MOTOR", "actuator_controls", "actuator_tendons", "transmission_tendon", "ModelHandles", "TreeBody", "add_scene_customs", "assembled_angles",
            "build_spec", "check_joint_order", "compile_model", "coupling_polycoef", "coordinate_map", "initial_qpos_qvel", "initial_rates",
            "joint_order", "joint_positions", "joint_rates", "joint_rates_matrix", "joint_tendons", "load_table",
            "loop_angles", "loop_rates", "mjcf_from_spec", "set_timestep", "site_name", "spanning_tree"]

@@ -28,6 +28,34 @@ def _cumulative_trapezoid(power: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros(1), np.cumsum(0.5 * (power[:-1] + power[1:]) * dt)])
 
 
+def actuator_work(scene, model, sl, sensors, ctrl, dt) -> np.ndarray:
+    """The scene actuators' work ∫ Σ f L̇ dt (J) at every stored state, from MuJoCo's own actuator
+    length L and velocity L̇ (sensors) and the model's gain, bias, ctrlrange and forcerange: over
+    step k, the trapezoid of f·L̇ at its two ends with step k's control (f is affine in the state and
+    the control, clamped: MuJoCo's force law)."""
+    zero = np.zeros(1)
+    work = np.zeros(len(dt) + 1)
+    first = 1 if scene.load is not None else 0
+    for k, a in enumerate(scene.mechanism.actuators):
+        i = first + k
+        length = sensors[:, sl[sensor_name(a.name, "length")]][:, 0]
+        velocity = sensors[:, sl[sensor_name(a.name, "velocity")]][:, 0]
+        c = ctrl[:, i]
+        if model.actuator_ctrllimited[i]:
+            c = np.clip(c, *model.actuator_ctrlrange[i])
+        gain, (b0, b1, b2) = model.actuator_gainprm[i, 0], model.actuator_biasprm[i, 0:3]
+
+        def force(rows, control):
+            f = gain * control + b0 + b1 * length[rows] + b2 * velocity[rows]
+            return np.clip(f, *model.actuator_forcerange[i]) if model.actuator_forcelimited[i] else f
+
+        steps = np.arange(len(dt))
+        c = c[:len(dt)]
+        power_dt = 0.5 * (force(steps, c) * velocity[steps] + force(steps + 1, c) * velocity[steps + 1]) * dt
+        work = work + np.concatenate([zero, np.cumsum(power_dt)])
+    return work
+
+
 def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed) -> EnergyAudit:
     """The energy balance from MuJoCo's own quantities at every stored state.
 
@@ -38,8 +66,8 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
     masses, inertias, stiffnesses (kinetic energy agrees with ½ q̇ᵀM q̇); the work of the motor
     ∫ u q̇_input dt (the input joint's rate; the control is constant within each step) plus the
     work of the point forces ∫ Σ F(q) u·v_p dt and of the timed forces ∫ Σ F(t) u·v_p dt (F held
-    over each step, ``timed`` (steps, forces); in ``torque_work``: the work of the external
-    loads), and the damper dissipation ∫ Σ b l̇² dt, by the trapezoid rule.
+    over each step, ``timed`` (steps, forces)) and of the actuators (:func:`actuator_work`; in
+    ``torque_work``: the work of the external loads), and the damper dissipation ∫ Σ b l̇² dt, by the trapezoid rule.
     """
     sl = handles.sensor_slices
     n = len(times)
@@ -62,7 +90,7 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
             potential += 0.5 * model.tendon_stiffness[tendon] * stretch * stretch
     dt = np.diff(times)
     zero = np.zeros(1)
-    if model.nu:
+    if scene.load is not None:  # the input motor, the first actuator
         rate = states[:, 1 + model.nq + layout.input_dof]
         power_dt = ctrl[:, 0] * 0.5 * (rate[:-1] + rate[1:]) * dt
         load_work = np.concatenate([zero, np.cumsum(power_dt)])
@@ -79,6 +107,8 @@ def energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q,
         u = np.array([math.cos(tf.direction), math.sin(tf.direction), 0.0])
         along = sensors[:, sl[sensor_name(tf.name, "vel")]] @ u
         load_work = load_work + np.concatenate([zero, np.cumsum(timed[:, k] * 0.5 * (along[:-1] + along[1:]) * dt)])
+    if scene.mechanism.actuators:
+        load_work = load_work + actuator_work(scene, model, sl, sensors, ctrl, dt)
     rate = np.zeros(n)
     for name in handles.damper_tendons:
         b = model.tendon_damping[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)]

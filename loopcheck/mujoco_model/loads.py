@@ -14,12 +14,13 @@ import numpy as np
 from loopcheck.loads import TabulatedForce
 from loopcheck.scene import Scene
 
-from .build import site_name
+from .build import actuator_controls, site_name
 from .layout import Layout
 
 
 def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.ndarray, list[str]]:
-    """Motor control for each step, shape (n_steps, nu): T at the step's midpoint t_k + h/2,
+    """Every control for each step, shape (n_steps, nu): the input motor's T, then each actuator's
+    control (:func:`loopcheck.mujoco_model.build.actuator_controls`), at the step's midpoint t_k + h/2,
     so a load edge inside a step is applied at the nearest step boundary.
 
     Returns the controls and one warning per load edge that falls inside a step.
@@ -31,10 +32,8 @@ def control_sequence(scene: Scene, timestep: float, n_steps: int) -> tuple[np.nd
             notes.append(f"load edge at t = {edge:g} s is not a multiple of the timestep {timestep:g} s: "
                          f"the jump is applied at t = {round(k) * timestep:g} s, up to "
                          f"{0.5 * timestep:g} s late or early")
-    if scene.load is None:
-        return np.zeros((n_steps, 0)), notes
     starts = np.arange(n_steps) * timestep
-    return scene.load.sample(starts + 0.5 * timestep)[:, None], notes
+    return actuator_controls(scene, starts + 0.5 * timestep), notes
 
 
 def timed_values(scene: Scene, timestep: float, n_steps: int) -> np.ndarray:

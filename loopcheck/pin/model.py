@@ -206,9 +206,10 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     for e in mech.joint_inertias:
         model.armature[column[e.joint]] += e.coefficient
     joint_coef = {}
-    for e in mech.joint_elements:
-        row = system.joint_row(e.joint)
-        joint_coef[e.joint] = (row @ T, float(row @ x0))
+    for joint in dict.fromkeys([e.joint for e in mech.joint_elements]
+                               + [j for a in mech.actuators for j, _ in a.terms]):  # actuators' joints too
+        row = system.joint_row(joint)
+        joint_coef[joint] = (row @ T, float(row @ x0))
     data = model.createData()
     constraint_datas = pin.StdVec_RigidConstraintData()
     for cm in constraint_models:

@@ -105,6 +105,9 @@ class _Dynamics:
                               TabulatedForce(p.coordinate, p.values, p.period)) for p in mech.point_forces]
         self.timed_forces = [(f[(p.body, p.point)], np.array([math.cos(p.direction), math.sin(p.direction)]),
                               p.profile) for p in mech.timed_forces]
+        # actuators: (actuator, coef, l0) with its transmission's length l = l0 + coef·q
+        self.actuators = [(a, sum(c * pm.joint_coef[j][0] for j, c in a.terms),
+                           sum(c * pm.joint_coef[j][1] for j, c in a.terms)) for a in mech.actuators]
         self.cut_frames = [(f[(j.body_a, j.point_a)], f[(j.body_b, j.point_b)])
                            for j in (mech.linkage.joint_map[n] for n in mech.linkage.cut_joints)]
         self.q_input0 = float(pm.system.drive @ pm.x0)
@@ -122,7 +125,7 @@ class _Dynamics:
 
     def forces(self, q: np.ndarray, v: np.ndarray, load: float, timed: tuple[float, ...]):
         """(τ, load power W', dissipation D') at (q, v) with the input load and timed forces'
-        values of the piece; Pinocchio's kinematics at q are computed here."""
+        values of the piece, then the actuators' clamped controls (``timed``); Pinocchio's kinematics at q are computed here."""
         self._kinematics(q)
         tau = np.zeros(self.nq)
         tau[self.input_dof] = load
@@ -161,6 +164,12 @@ class _Dynamics:
             gen = (value * e) @ J
             tau += gen
             power += float(gen @ v)
+        # the actuators' clamped controls follow the timed forces' values in ``timed``
+        for (a, coef, l0), ctrl in zip(self.actuators, timed[len(self.timed_forces):]):
+            rate = float(coef @ v)
+            f = float(a.force(ctrl, l0 + float(coef @ q), rate))
+            tau += (a.gear * f) * coef
+            power += a.gear * f * rate
         return tau, power, dissipation
 
     def acceleration(self, q, v, tau) -> np.ndarray:
@@ -274,7 +283,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     for t0, t1 in _pieces(scene):
         mid = 0.5 * (t0 + t1)
         load = 0.0 if scene.load is None else float(scene.load(mid))
-        timed = tuple(float(p.profile(mid)) for p in scene.mechanism.timed_forces)
+        timed = (tuple(float(p.profile(mid)) for p in scene.mechanism.timed_forces)
+                 + tuple(float(a.control_values(np.array([mid]))[0]) for a in scene.mechanism.actuators))
         try:
             sol = solve_ivp(dyn.rhs(load, timed), (t0, t1), y, method=SCIPY_NAMES[settings.method],
                             rtol=settings.rtol, atol=settings.atol, dense_output=True)

@@ -6,6 +6,8 @@
     ζ = ½ d𝔍/dx_i = Σ m K_G·L_G + I_G K_θ L_θ
     V = −Σ m g·r_G + Σ ½ k_s (D_s − D0_s)² + Σ ½ k_j (u_j − u0_j)²
     Q_i = load(t)·dq/dx_i + Σ F_p(q) e_p·K_P + Σ F_r(t) e_r·K_R − Σ b_d K_Dd² ẋ_i − Σ c_j K_uj² ẋ_i
+          + Σ_a gear_a f_a K_la     (an actuator's force f_a on its transmission l_a, K_la = dl_a/dx_i:
+                                     :class:`loopcheck.mechanism.Actuator`)
 
 (D = |r_a − r_b| between a line element's points, K_D = dD/dx_i; u = row·x a joint element's
 joint coordinate, relative angle or displacement, K_u = row·K: :class:`loopcheck.mechanism.JointElement`.)
@@ -135,6 +137,28 @@ def piece_values(scene: Scene, edges: np.ndarray) -> np.ndarray:
     return np.column_stack(columns)
 
 
+def actuator_piece_values(scene: Scene, edges: np.ndarray) -> np.ndarray:
+    """The actuators' state-independent force on each piece (p, actuators), N·m or N:
+    gain·clamp(ctrl, ctrlrange) + b0, the control taken at the piece's midpoint."""
+    mid = 0.5 * (edges[:-1] + edges[1:])
+    acts = scene.mechanism.actuators
+    out = np.zeros((len(mid), len(acts)))
+    for k, a in enumerate(acts):
+        out[:, k] = a.gain * a.control_values(mid) + a.bias[0]
+    return out
+
+
+def check_actuators(scene: Scene) -> None:
+    """Refuse (ValueError, one line) an actuator whose forcerange clamp a state-dependent force
+    could reach: the clamp's switching is an event, not built yet in the reduced engine."""
+    for a in scene.mechanism.actuators:
+        if a.forcerange is not None and a.state_dependent:
+            raise ValueError(f"actuator {a.name!r}: its forcerange clamps a force that depends on the state "
+                             "(bias b1 or b2 nonzero): the reduced engine does not build the clamp's switching "
+                             "event yet; remove forcerange (MuJoCo alone runs it: loopcheck.simulate with "
+                             "MujocoSettings)")
+
+
 def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     """The kernel arrays of a scene (:mod:`loopcheck.reduced.kernels.physics` documents the layout, after
     the kinematics' of :mod:`loopcheck.kernels.loops`): only the effects it declares have rows."""
@@ -183,6 +207,13 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.KNOT_START] = P.int(np.cumsum([0] + [len(s[0]) for s in splines]))
     h[physics.COEF_START] = P.int(np.cumsum([0] + [len(s[1]) for s in splines]))
     h[physics.SPLINE_DEGREE] = P.int([s[2] for s in splines])
+    acts = mech.actuators
+    h[physics.N_ACTUATORS] = len(acts)
+    h[physics.ACT_ROWS] = P.float([sum(c * system.joint_row(j) for j, c in a.terms) for a in acts])
+    h[physics.ACT_PARAMS] = P.float([[a.bias[1] * a.gear, a.bias[2] * a.gear, a.gear,
+                                      *(a.forcerange if a.forcerange is not None else (-math.inf, math.inf))]
+                                     for a in acts])
+    h[physics.ACT_PIECE] = P.float(actuator_piece_values(scene, piece_edges(scene)))
     plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
     h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
     return Model(*P.arrays())
@@ -199,6 +230,7 @@ class MechanismModel:
 
     def __init__(self, scene: Scene):
         self.scene = scene
+        check_actuators(scene)
         self.system = loops.compile_linkage(scene.mechanism.linkage)
         self.effects: tuple[str, ...] = scene.effects
         self.load = scene.load

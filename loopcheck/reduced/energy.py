@@ -1,7 +1,8 @@
 """Energy audit of a reduced-model run.
 
 Kinetic ½ 𝔍 ẋ_i² and potential V at every sample; the work of the input load and of the
-point forces over q and over t ∫ (T dq/dx_i + Σ F e·K_P) ẋ_i dt (the audit's ``torque_work``) and the damper
+point forces over q and over t and of the actuators ∫ (T dq/dx_i + Σ F e·K_P + Σ gear f dl/dx_i) ẋ_i dt
+(the audit's ``torque_work``) and the damper
 dissipation ∫ Σ b K_D² ẋ_i² dt.
 
 The compiled runs integrate the two power integrals alongside the state, with the
@@ -46,9 +47,13 @@ def quadrature_energy(model: MechanismModel, chart, trajectory) -> np.ndarray:
     xn, vn, _ = trajectory.interpolate(nodes)
     # dq/dx_i, Σ b K_D², Σ F e·K_P, then each timed force's e·K_P
     timed = model.scene.mechanism.timed_forces
+    acts = model.scene.mechanism.actuators
+    nt = physics.N_FIELDS + len(timed)
     input_rate, damping, point_force, *rates = _fields(chart, xn, physics.INPUT_RATE, physics.DAMPING,
                                                        physics.POINT_FORCE,
-                                                       *(physics.N_FIELDS + p for p in range(len(timed))))
+                                                       *(physics.N_FIELDS + p for p in range(len(timed))),
+                                                       *(nt + k for k in range(2 * len(acts))))
+    rates, lengths = rates[:len(timed)], rates[len(timed):]
     load = model.load.sample(nodes) if model.load is not None else np.zeros_like(nodes)
     w = (0.5 * h[live])[:, None] * _WEIGHTS[None, :]
     torque_step, damper_step = np.zeros_like(h), np.zeros_like(h)
@@ -57,6 +62,9 @@ def quadrature_energy(model: MechanismModel, chart, trajectory) -> np.ndarray:
         generalized = generalized + point_force
     for force, rate in zip(timed, rates):  # the nodes lie inside the load pieces
         generalized = generalized + force.profile.sample(nodes) * rate
+    for k, a in enumerate(acts):  # gear·f·dl/dx_i, f at l and l̇ = (dl/dx_i) ẋ_i
+        length, slope = lengths[2 * k], lengths[2 * k + 1]
+        generalized = generalized + a.gear * a.force(a.control_values(nodes), length, slope * vn) * slope
     torque_step[live] = np.sum(w * (generalized * vn).reshape(-1, len(_NODES)), axis=1)
     damper_step[live] = np.sum(w * (damping * vn * vn).reshape(-1, len(_NODES)), axis=1)
     energy = np.zeros((len(t), 2))

@@ -66,15 +66,16 @@ import numpy as np
 
 from loopcheck import kinematics as loops
 from loopcheck.loads import ConstantLoad, LoadProfile, PiecewiseConstantLoad
-from loopcheck.mechanism import (GROUND, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement, Linkage,
+from loopcheck.mechanism import (GROUND, Actuator, Body, GrublerCountWarning, JointCoupling, JointElement, LineElement,
+                                 Linkage,
                                  Mechanism, MechanismError, PrismaticJoint, RevoluteJoint)
 from loopcheck.scene import LIMITS, Scene, SceneError, Tolerances
 from loopcheck.scene_writer import scene_data
 from loopcheck.scenefile import redundancy_note, scene_from_dict
 from loopcheck.settings import parse_number
 
-from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_CTRL, CUSTOM_HORIZON, CUSTOM_PREFIX,
-                                          CUSTOM_TOLERANCES)
+from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_ACTUATOR_CTRL, CUSTOM_CTRL, CUSTOM_HORIZON,
+                                          CUSTOM_PREFIX, CUSTOM_TOLERANCES, INPUT_MOTOR)
 from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
@@ -149,6 +150,37 @@ class Control:
             raise ValueError("the table's times must increase strictly")
         return cls(tuple(times), tuple(values))
 
+    @classmethod
+    def parse_named(cls, text: str) -> tuple[str | None, "Control"]:
+        """``--ctrl``'s forms: ``NAME=VALUE`` or ``NAME=t:value,...`` (one actuator's), or a bare
+        ``VALUE`` or table (the only actuator's, or the input motor's): (name or None, control)."""
+        name, eq, rest = text.partition("=")
+        if not eq:
+            return None, cls.parse(text)
+        if not name.strip():
+            raise ValueError(f"'{text}': the actuator's name before '=' is empty")
+        try:
+            return name.strip(), cls.parse(rest)
+        except ValueError as exc:
+            raise ValueError(f"{name.strip()}: {exc}") from None
+
+    @staticmethod
+    def by_name(given: list) -> tuple["Control | None", dict]:
+        """``--ctrl`` given several times ((name or None, control) each): the bare control (at most
+        one) and the named ones (one per actuator); ValueError saying which is given twice."""
+        bare, named = None, {}
+        for name, control in given or ():
+            if name is None:
+                if bare is not None:
+                    raise ValueError("--ctrl VALUE given twice: a bare control is the only actuator's; name each "
+                                     "actuator's (--ctrl NAME=VALUE)")
+                bare = control
+            elif name in named:
+                raise ValueError(f"--ctrl {name}=...: given twice")
+            else:
+                named[name] = control
+        return bare, named
+
     def at(self, times: np.ndarray) -> np.ndarray:
         """The control at each time (s): the value of the last entry at or before it, zero before the first."""
         k = np.searchsorted(np.asarray(self.times), np.asarray(times, dtype=float), side="right") - 1
@@ -183,6 +215,8 @@ class ImportedModel:
     warnings : one line each: what was disabled or left out, and why.
     said : one line each for stdout: what was chosen for the user (the model's only keyframe).
     connects : each connect equality of the model, in its order (:class:`ConnectSource`).
+    motor_index : the MuJoCo index of the input motor (``control`` is its), when there is one.
+    actuator_index : the MuJoCo index of each of the scene's actuators, in their order.
     """
 
     scene: Scene
@@ -200,6 +234,8 @@ class ImportedModel:
     warnings: tuple[str, ...]
     said: tuple[str, ...] = ()
     connects: tuple["ConnectSource", ...] = ()
+    motor_index: int = 0
+    actuator_index: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -950,6 +986,7 @@ class _Customs:
 
     horizon: float | None = None
     control: Control | None = None
+    controls: dict = field(default_factory=dict)  # actuator name: Control (loopcheck.ctrl.NAME)
     tolerances: dict = field(default_factory=dict)  # KEY: value
     engine_tolerances: dict = field(default_factory=dict)  # ENGINE: {KEY: value}
 
@@ -971,7 +1008,7 @@ def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
         if not all(math.isfinite(v) for v in data):
             raise MjcfError(f"{where}: data=\"{' '.join(_word(v) for v in data)}\" is not finite: every value of the "
                             "model must be finite")
-        if name == CUSTOM_CTRL:
+        if name == CUSTOM_CTRL or name.startswith(CUSTOM_ACTUATOR_CTRL):
             if size < 2 or size % 2:
                 raise MjcfError(f"{where}: {size} values: the control table is pairs t0 v0 t1 v1 ... (s, ctrl units)")
             times, values = tuple(data[0::2]), tuple(data[1::2])
@@ -980,7 +1017,13 @@ def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
                                 "increase strictly")
             if model.nu == 0:
                 raise MjcfError(f"{where}: a control table, and the model has no actuator to apply it to")
-            out = dataclasses.replace(out, control=Control(times, values))
+            if name == CUSTOM_CTRL:
+                out = dataclasses.replace(out, control=Control(times, values))
+            else:
+                actuator = name[len(CUSTOM_ACTUATOR_CTRL):]
+                if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator) < 0:
+                    raise MjcfError(f"{where}: the model has no actuator '{actuator}' to apply it to")
+                out.controls[actuator] = Control(times, values)
             continue
         if size != 1:
             raise MjcfError(f"{where}: {size} values, not one")
@@ -992,6 +1035,7 @@ def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
         engine, _, field_ = key.rpartition(".")
         if field_ not in keys or "." in engine:
             raise MjcfError(f"{where}: not a numeric loopcheck writes ({CUSTOM_HORIZON}, {CUSTOM_CTRL}, "
+                            f"{CUSTOM_ACTUATOR_CTRL}ACTUATOR, "
                             f"{CUSTOM_TOLERANCES}KEY or {CUSTOM_TOLERANCES}ENGINE.KEY, KEY one of {', '.join(keys)})")
         if not value > 0.0:
             raise MjcfError(f"{where}: {_word(value)}: a tolerance must be > 0")
@@ -1004,7 +1048,7 @@ def _customs(path: Path, model: mujoco.MjModel) -> _Customs:
 
 def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: str | None = None,
                 qpos0: bool = False, control: Control | None = None, horizon: float | None = None,
-                name: str | None = None) -> ImportedModel:
+                name: str | None = None, controls: dict[str, Control] | None = None) -> ImportedModel:
     """Read the MJCF file ``path`` as a scene (module docstring).
 
     Parameters
@@ -1018,6 +1062,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     control : the motor's control over time, instead of the model's ``loopcheck.ctrl`` table or
         the keyframe's (constant) control.
     horizon : the scene's simulated time, s; default the model's ``loopcheck.horizon``, else 1.
+    controls : each actuator's control over time by MuJoCo actuator name (those that become scene
+        actuators, :func:`_actuators`), instead of its ``loopcheck.ctrl.NAME`` table or the keyframe's ctrl.
 
     What ``loopcheck export-mjcf`` writes as ``<custom>`` numerics (the horizon, the tolerances,
     the load's table) is read back under the arguments given (:func:`_customs`).
@@ -1056,7 +1102,15 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             raise
         raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
-    load, gear, applied = _load(reader, inp, control, key_ctrl)
+    motor = _input_motor(reader, inp)
+    if motor is None and control is not None and model.nu:
+        if model.nu != 1:
+            reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "
+                        "(--ctrl NAME=VALUE)")
+        only = _object_name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, 0, "actuator")
+        controls = {only: control, **(controls or {})}
+        control = None
+    load, gear, applied = _load(reader, inp, control, key_ctrl, motor)
 
     # bodies, after every point is known
     joints = tree + cuts
@@ -1098,12 +1152,13 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     T, x_read = _joint_coefficients(reader, system, linkage)
     couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
     elements, joint_elements = _elements(reader, linkage, system, T, x_read)
+    actuators = _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
     inertias = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
                                    + [j for c in couplings for j in (c.joint, c.driver)]))
     try:
         # as the scene file builds it (the tree takes them first), so that its loops are the file's
         linkage = Linkage(bodies, joints, input_name, inertias, couplings)
-        mechanism = Mechanism(linkage, elements, (), joint_elements)
+        mechanism = Mechanism(linkage, elements, (), joint_elements, (), actuators)
     except MechanismError as exc:
         reader.fail(str(exc))
 
@@ -1150,7 +1205,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
-                         connects=_connect_sources(path, model))
+                         connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
+                         actuator_index=tuple(a for a in range(model.nu) if a != motor))
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
@@ -1169,25 +1225,116 @@ def _input_joint(reader: _Reader, name: str | None) -> int:
     return 0
 
 
-def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarray):
+def _plain_motor(m: mujoco.MjModel, a: int, inp: int) -> bool:
+    """Whether actuator a is a motor on the input joint (joint transmission, no dynamics, fixed gain, no bias)."""
+    return (m.actuator_trntype[a] == _TRN_JOINT and m.actuator_dyntype[a] == _DYN_NONE
+            and m.actuator_gaintype[a] == _GAIN_FIXED and m.actuator_biastype[a] == _BIAS_NONE
+            and int(m.actuator_trnid[a][0]) == inp)
+
+
+def _input_motor(reader: _Reader, inp: int) -> int | None:
+    """The actuator that becomes the scene's input load (``[torque]``/``[force]``): the model's only
+    actuator when it is a motor on the input joint, or the one named ``input_motor`` (what
+    ``loopcheck export-mjcf`` writes for the load) when it is; else None (every actuator becomes a
+    scene actuator, :func:`_actuators`)."""
     m = reader.model
-    if m.nu == 0:
-        if control is not None:
+    if m.nu == 1 and _plain_motor(m, 0, inp):
+        return 0
+    a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, INPUT_MOTOR)
+    return a if a >= 0 and _plain_motor(m, a, inp) else None
+
+
+def _profile(control: Control) -> LoadProfile | None:
+    """A control over time as a load profile of its own values; None when it is zero throughout a constant."""
+    if control.times == (0.0,):
+        return ConstantLoad(control.values[0]) if control.values[0] else None
+    return PiecewiseConstantLoad(control.times, control.values)
+
+
+_TRN_TENDON = int(mujoco.mjtTrn.mjTRN_TENDON)
+_BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
+
+
+def _actuators(reader: _Reader, linkage: Linkage, system, x_read: np.ndarray, motor: int | None,
+               controls: dict, key_ctrl: np.ndarray) -> tuple[Actuator, ...]:
+    """Every actuator but the input motor as a scene actuator (:class:`loopcheck.mechanism.Actuator`):
+    no activation dynamics, a fixed gain, no or an affine bias, on a joint or a fixed tendon. Its
+    transmission's MuJoCo length Σ coef_k qpos_k becomes l = Σ c_j u_j + C over the scene's joint
+    coordinates (u_j = u_read + sign·(qpos − qpos_read): c_j = sign·coef_k), and C goes into b0
+    (b0 + b1·gear·C). Its control: ``controls`` by name, else the keyframe's ctrl (constant)."""
+    m = reader.model
+    out = []
+    taken: set[str] = set()
+    rows = {j.name: system.joint_row(j.name) for j in linkage.joints}
+    for a in range(m.nu):
+        if a == motor:
+            continue
+        mj_name = _object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
+        label = f"actuator '{mj_name}'"
+        if m.actuator_dyntype[a] != _DYN_NONE:
+            reader.fail(f"{label} has activation dynamics (dyntype {mujoco.mjtDyn(m.actuator_dyntype[a]).name}): "
+                        "not represented (loopcheck's actuators act at once: dyntype none)")
+        if m.actuator_gaintype[a] != _GAIN_FIXED:
+            reader.fail(f"{label} has gaintype {mujoco.mjtGain(m.actuator_gaintype[a]).name}: only a fixed gain is "
+                        "represented")
+        if m.actuator_biastype[a] not in (_BIAS_NONE, _BIAS_AFFINE):
+            reader.fail(f"{label} has biastype {mujoco.mjtBias(m.actuator_biastype[a]).name}: only none or affine "
+                        "is represented")
+        trn, target = int(m.actuator_trntype[a]), int(m.actuator_trnid[a][0])
+        if trn == _TRN_JOINT:
+            wraps = [(target, 1.0)]
+        elif trn == _TRN_TENDON:
+            adr, num = int(m.tendon_adr[target]), int(m.tendon_num[target])
+            if any(int(m.wrap_type[k]) != _WRAP_JOINT for k in range(adr, adr + num)):
+                reader.fail(f"{label} acts on spatial {element_label(m, mujoco.mjtObj.mjOBJ_TENDON, target)}: only "
+                            "fixed tendons (joint coordinates) are represented as transmissions")
+            wraps = [(int(m.wrap_objid[k]), float(m.wrap_prm[k])) for k in range(adr, adr + num)]
+        else:
+            reader.fail(f"{label} has a {mujoco.mjtTrn(trn).name} transmission: only joint and fixed-tendon "
+                        "transmissions are represented")
+        terms: dict[str, float] = {}
+        offset = 0.0
+        for j, coef in wraps:
+            joint = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]
+            sign = reader.joint_sign[j]
+            adr = int(m.jnt_qposadr[j])
+            terms[joint] = terms.get(joint, 0.0) + coef * sign
+            offset += coef * (float(reader.qpos[adr]) - sign * float(rows[joint] @ x_read))
+        terms = {j: c for j, c in terms.items() if c != 0.0}
+        gear = float(m.actuator_gear[a][0])
+        gain = float(m.actuator_gainprm[a][0])
+        b0, b1, b2 = (float(v) for v in m.actuator_biasprm[a][0:3]) if m.actuator_biastype[a] == _BIAS_AFFINE \
+            else (0.0, 0.0, 0.0)
+        name = _unique(_clean(mj_name), taken)
+        given = controls.get(mj_name)
+        control = _profile(given) if given is not None else _profile(Control.constant(float(key_ctrl[a])))
+        ranges = [tuple(float(v) for v in rng) if limited else None for limited, rng in
+                  ((m.actuator_ctrllimited[a], m.actuator_ctrlrange[a]),
+                   (m.actuator_forcelimited[a], m.actuator_forcerange[a]))]
+        only = list(terms.items())
+        joint, tendon = (only[0][0], None) if len(only) == 1 and only[0][1] == 1.0 else (None, tuple(only))
+        try:
+            out.append(Actuator(name, joint, tendon, gain, (b0 + b1 * gear * offset, b1, b2), gear, *ranges, control))
+        except MechanismError as exc:
+            reader.fail(f"{label}: {exc}")
+    unknown = sorted(set(controls) - {_object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
+                                      for a in range(m.nu) if a != motor})
+    if unknown:
+        reader.fail(f"--ctrl {unknown[0]}=...: the model has no actuator '{unknown[0]}' other than the input motor")
+    return tuple(out)
+
+
+def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarray, motor: int | None):
+    m = reader.model
+    if motor is None:
+        if control is not None and m.nu == 0:
             reader.fail("--ctrl: the model has no actuator to apply a control to")
+        if control is not None:
+            reader.fail("--ctrl: the model has no motor on the input joint to apply a bare control to "
+                        "(name an actuator: --ctrl NAME=VALUE)")
         return None, 0.0, None
-    if m.nu > 1:
-        reader.fail(f"the model has {m.nu} actuators: loopcheck's load is one motor on the input joint")
-    a = 0
+    a = motor
     name = _object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
-    motor = (m.actuator_trntype[a] == _TRN_JOINT and m.actuator_dyntype[a] == _DYN_NONE
-             and m.actuator_gaintype[a] == _GAIN_FIXED
-             and m.actuator_biastype[a] == _BIAS_NONE)
-    if not motor:
-        reader.fail(f"actuator '{name}' is not a motor on a joint (a position, velocity or other servo, or on a "
-                    "tendon or site): loopcheck's load is a force or torque given over time")
-    if int(m.actuator_trnid[a][0]) != inp:
-        joint = _object_name(m, mujoco.mjtObj.mjOBJ_JOINT, int(m.actuator_trnid[a][0]), "joint")
-        reader.fail(f"actuator '{name}' drives joint '{joint}', not the input joint: loopcheck's load acts on the input")
     gear = float(m.actuator_gear[a][0]) * float(m.actuator_gainprm[a][0])  # force = gain · ctrl, on the joint × gear
     given = control if control is not None else Control.constant(float(key_ctrl[a]))
     values = list(given.values)
@@ -1363,6 +1510,8 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             reader.warnings.append(f"{label} has a range: loopcheck's description has no tendon limits, so the "
                                    "comparison holds while the motion stays inside it")
         if damping == 0.0 and stiffness == 0.0 and armature == 0.0:
+            if any(m.actuator_trntype[a] == _TRN_TENDON and int(m.actuator_trnid[a][0]) == t for a in range(m.nu)):
+                continue  # an actuator's transmission (_actuators), nothing of its own
             reader.warnings.append(f"{label} has no stiffness, damping or armature: it exerts no force and is "
                                    "left out")
             continue

@@ -215,6 +215,21 @@ def _gaps(model: mujoco.MjModel, data: mujoco.MjData, connects: list[int]) -> fl
     return gap
 
 
+def _actuator_forces(model: mujoco.MjModel, data: mujoco.MjData, ctrl_row: np.ndarray) -> np.ndarray:
+    """Every actuator's force (MuJoCo's ``actuator_force``) at the state in ``data`` (its actuator
+    length and velocity) under the controls ``ctrl_row``: gain·clamp(ctrl, ctrlrange) + b0 + b1·L + b2·L̇,
+    clamped to forcerange, the force law of the actuators the import accepts (no activation dynamics,
+    a fixed gain, no or an affine bias)."""
+    c = np.where(model.actuator_ctrllimited, np.clip(ctrl_row, model.actuator_ctrlrange[:, 0],
+                                                     model.actuator_ctrlrange[:, 1]), ctrl_row)
+    affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+    bias = np.where(affine, model.actuator_biasprm[:, 0] + model.actuator_biasprm[:, 1] * data.actuator_length
+                    + model.actuator_biasprm[:, 2] * data.actuator_velocity, 0.0)
+    f = model.actuator_gainprm[:, 0] * c + bias
+    return np.where(model.actuator_forcelimited, np.clip(f, model.actuator_forcerange[:, 0],
+                                                         model.actuator_forcerange[:, 1]), f)
+
+
 def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> EngineResult:
     """Step the user's model (with ``options``, default as written) over the scene's horizon.
 
@@ -243,12 +258,19 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     data.qpos[:], data.qvel[:] = imported.qpos, imported.qvel
     connects = [e for e in range(model.neq) if int(model.eq_type[e]) == _CONNECT]
     times = np.arange(n + 1) * h
-    ctrl = imported.control.at(times[:-1] + 0.5 * h) if imported.control is not None else None  # held over a step
+    # every control, held over a step: the input motor's, and each scene actuator's (its own control over time)
+    mid = times[:-1] + 0.5 * h
+    ctrl = np.zeros((n, model.nu)) if model.nu else None
+    if imported.control is not None:
+        ctrl[:, imported.motor_index] = imported.control.at(mid)
+    for a, actuator in zip(imported.actuator_index, scene.mechanism.actuators):
+        if actuator.control is not None:
+            ctrl[:, a] = actuator.control.sample(mid)
     qpos = np.empty((n + 1, model.nq))
     qvel = np.empty((n + 1, model.nv))
     qacc = np.empty((n + 1, model.nv))
     energy = np.empty((n + 1, 2))
-    power = np.zeros((n + 1, 2))  # the motor's, the dampers' (W)
+    power = np.zeros((n + 1, 2))  # the actuators' (every one: qfrc_actuator sums them), the dampers' (W)
     gap = np.empty(n + 1)
 
     # gravcomp's force, −gravcomp·m·g at each centre of mass, is conservative: its potential
@@ -257,11 +279,16 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     compensated = model.body_gravcomp * model.body_mass
     routed = np.asarray(model.jnt_actgravcomp, dtype=float)[model.dof_jntid]
 
+    shift = np.zeros(n + 1)  # the actuators' power at state k with the previous step's control, less that at state k
+
     def record(k: int) -> None:
         qpos[k], qvel[k], qacc[k], energy[k] = data.qpos, data.qvel, data.qacc, data.energy
         energy[k, 0] += float(compensated @ (data.xipos @ model.opt.gravity))
         power[k] = (float((data.qfrc_actuator - routed * data.qfrc_gravcomp) @ data.qvel),
                     float(-data.qfrc_damper @ data.qvel))
+        if ctrl is not None and 0 < k < n:  # step k − 1 ended here under its own control
+            shift[k] = float((_actuator_forces(model, data, ctrl[k - 1]) - _actuator_forces(model, data, ctrl[k]))
+                             @ data.actuator_velocity)
         gap[k] = _gaps(model, data, connects)
 
     contacts = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) and model.ngeom > 0
@@ -279,7 +306,7 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     with mujoco_warnings() as said:
         for k in range(n):
             if ctrl is not None:
-                data.ctrl[0] = ctrl[k]
+                data.ctrl[:] = ctrl[k]
             mujoco.mj_forward(model, data)
             touching(k)
             record(k)
@@ -309,8 +336,11 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
     # the work of the motor and of the dampers, by the trapezoidal rule over each step
+    # (each step's control at both its ends: the actuators' power at a step's end is taken with that
+    # step's control, not the next one's, so a control that jumps costs no O(h) error)
     work = np.zeros((n + 1, 2))
     work[1:] = np.cumsum(0.5 * h * (power[1:] + power[:-1]), axis=0)
+    work[1:, 0] += np.cumsum(0.5 * h * shift[1:])
     audit = EnergyAudit(times, energy[:, 1], energy[:, 0], work[:, 0], work[:, 1])
     return EngineResult(engine=ENGINE, trajectory=trajectory, joints=joints, peak=trajectory.peak_rate(), audit=audit,
                         wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,

@@ -34,6 +34,7 @@ EXPECTED = {  # scene: (moving bodies, loops, effects)
     "andrews_squeezer": (7, 3, ("torque", "spring")),
     "parallelogram_redundant": (4, 2, ("torque",)),  # a redundantly closed loop: Grübler 0, rank 1 DOF
     "seed_fourbar_geared_flywheel": (4, 1, ("torque", "damper")),
+    "servo_fourbar": (3, 1, ("actuator",)),
 }
 # whole turns each other angle makes per turn of the crank (0 where it comes back): the drag link's
 # coupler and follower turn with it, the geared flywheel turns twice the other way (its coupling)

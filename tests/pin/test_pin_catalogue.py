@@ -66,6 +66,8 @@ MEASURED = {
     "mechanisms/stephenson3_near_toggle.toml": (8.9e-11, 2.5e-9, 1.3e-10, 1.7e-10, 1.6e-10),
     "mechanisms/stephenson3_sixbar.toml": (3.1e-11, 3.8e-10, 2.3e-10, 1.7e-10, 1.2e-10),
     "mechanisms/watt2_sixbar.toml": (1.6e-11, 2.5e-10, 2.7e-11, 1.4e-10, 3.8e-11),
+    # measured 2026-11-28, pin 4.1.0 (installed outside the venv for the actuators' branch)
+    "mechanisms/servo_fourbar.toml": (3.0e-11, 4.4e-10, 5.5e-11, 1.9e-10, 1.8e-11),
 }
 
 

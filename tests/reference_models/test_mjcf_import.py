@@ -204,8 +204,9 @@ REFUSED = {
                                         "0 degrees of freedom by rank (0 by Grübler's count), not 1: the linkage is locked"),
     "joint lock": (_model(FOUR_BAR, extra=LOOP.replace("</equality>", '<joint name="brake" joint1="O3"/></equality>')),
                    "joint equality 'brake' has no joint2: it locks joint 'O3'"),
-    "position servo": (_model(FOUR_BAR, extra=LOOP + '<actuator><position name="servo" joint="O1" kp="10"/></actuator>'),
-                       "actuator 'servo' is not a motor"),
+    "activation dynamics": (_model(FOUR_BAR, extra=LOOP + '<actuator><general name="servo" joint="O1" dyntype="integrator"/>'
+                                                          '</actuator>'),
+                            "actuator 'servo' has activation dynamics"),
     "two joints on a body": (_model('<body name="b"><joint name="j1" axis="0 0 1"/><joint name="j2" axis="0 0 1"/>'
                                     '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>'), "body 'b' has 2 joints"),
     "friction loss": (_model(FOUR_BAR.replace('name="A" axis="0 0 1"', 'name="A" axis="0 0 1" frictionloss="0.1"'), extra=LOOP),

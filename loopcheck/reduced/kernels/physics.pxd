@@ -42,7 +42,11 @@ cpdef enum:
     ENDS = 2
     FORCE_POINTS = 3
     N_JOINT_INERTIAS = 63
-    HEADER = 64
+    N_ACTUATORS = 64
+    ACT_ROWS = 65
+    ACT_PARAMS = 66
+    ACT_PIECE = 67
+    HEADER = 80
     INDEPENDENT = 0
     SIGN = 1
     STATUS = 2
@@ -63,7 +67,9 @@ cpdef enum:
     BEST_CONDITIONING = 9
     BEST = 10
     DETERMINANT = 11
-    N_FIELDS = 12
+    ACTUATOR_FIELD_A = 12
+    ACTUATOR_FIELD_B = 13
+    N_FIELDS = 16
     DEPTH = 32
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust
@@ -99,6 +105,7 @@ cdef class Chart(RightHandSide):
     cdef double _point_force(self, Py_ssize_t p, double q)
     cdef int _coefficients(self)
     cdef double _applied(self, Py_ssize_t piece)
+    cdef double _actuated(self, Py_ssize_t piece, double v)
     cpdef bint evaluate(self, double value)
     cpdef double acceleration(self, Py_ssize_t load, double t, double q, double v)
     cpdef double power(self, Py_ssize_t load, double v)

@@ -149,7 +149,12 @@ if not cython.compiled:
     # points, the points of the point and timed forces.
     CENTRES, ENDS, FORCE_POINTS = range(1, 4)
     N_JOINT_INERTIAS = 63
-    HEADER = 64
+    # Actuators (loopcheck.mechanism.Actuator; header slots 64..71, 68..71 unused): their count, the
+    # offset in F of their transmissions' rows (count, n: l = row·x, the tendon's Σ c_j joint rows),
+    # of their parameters (count, 5: b1·gear, b2·gear, gear, force lo, force hi; ±inf unclamped) and
+    # of their state-independent force on each load piece (pieces, count: gain·clamp(ctrl) + b0).
+    N_ACTUATORS, ACT_ROWS, ACT_PARAMS, ACT_PIECE = range(64, 68)
+    HEADER = 80  # slots 72..79: the events' (not used here)
 
     # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
     # holds the chart's value), then the walk's halving budgets (DEPTH).
@@ -160,7 +165,11 @@ if not cython.compiled:
     # fields: the coefficients at the memo's value, with respect to x_i
     (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
      INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
-    N_FIELDS = 12  # then one field per timed force: its generalized rate e·K_P (field_count)
+    # fields 12, 13 are the actuators' (reserved, 0), 14, 15 the events' (not used here)
+    ACTUATOR_FIELD_A, ACTUATOR_FIELD_B = 12, 13
+    # then one field per timed force: its generalized rate e·K_P, then two per actuator: its
+    # transmission's length l and dl/dx_i (field_count)
+    N_FIELDS = 16
     DEPTH = MAX_HALVINGS + 2
 
 # C copies of the numerical constants above, which the kernels read (compiled, a module's
@@ -191,8 +200,8 @@ class Model(NamedTuple):
 
 
 def field_count(model: Model) -> int:
-    """Length of a chart's fields: N_FIELDS, then one per timed force."""
-    return N_FIELDS + int(model.I[N_TIMED])
+    """Length of a chart's fields: N_FIELDS, then one per timed force, then two per actuator."""
+    return N_FIELDS + int(model.I[N_TIMED]) + 2 * int(model.I[N_ACTUATORS])
 
 
 # -- closed-form dyads ------------------------------------------------------------------
@@ -341,7 +350,7 @@ class Chart(RightHandSide):
         self.I = I
         n = int(I[N])
         self.n = n
-        nfields = N_FIELDS + int(I[N_TIMED])
+        nfields = N_FIELDS + int(I[N_TIMED]) + 2 * int(I[N_ACTUATORS])
         size = 1 + 9 * n + nfields + n + DEPTH * 3 * n + DEPTH
         self.S = np.zeros(S_HEADER + DEPTH, np.int64)
         self.W = np.zeros(size)
@@ -671,6 +680,19 @@ class Chart(RightHandSide):
             td = self.I[TIMED_DIR]
             for p in range(nt):  # the generalized rate of timed force p: its force is F_p(t) times this
                 self.fields[N_FIELDS + p] = self.rows[nf + p, 0] * self.F[td + 2 * p] + self.rows[nf + p, 1] * self.F[td + 2 * p + 1]
+        na: cython.Py_ssize_t = self.I[N_ACTUATORS]
+        a: cython.Py_ssize_t
+        if na:
+            rows_at = self.I[ACT_ROWS]
+            for a in range(na):  # l = row·x, dl/dx_i = row·K
+                u = 0.0
+                k_u = 0.0
+                for j in range(n):
+                    r = self.F[rows_at + a * n + j]
+                    u += r * self.kin[0, j]
+                    k_u += r * self.K[j]
+                self.fields[N_FIELDS + nt + 2 * a] = u
+                self.fields[N_FIELDS + nt + 2 * a + 1] = k_u
         self.fields[INERTIA] = J
         self.fields[CENTRIFUGAL] = zeta
         self.fields[POTENTIAL_GRADIENT] = dV
@@ -692,6 +714,28 @@ class Chart(RightHandSide):
         g: cython.double = self.F[row] * self.fields[INPUT_RATE] + self.fields[POINT_FORCE]
         for p in range(nt):
             g += self.F[row + 1 + p] * self.fields[N_FIELDS + p]
+        return g
+
+    @cython.cfunc
+    def _actuated(self, piece: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """The actuators' generalized force (N·m or N) at the fields, ẋ_i = v, on load piece
+        ``piece``: Σ gear·f·dl/dx_i with f = clamp(c + b1·gear·l + b2·gear·l̇, lo, hi), c the
+        piece's gain·clamp(ctrl) + b0 (ACT_PIECE), l̇ = (dl/dx_i) v."""
+        na: cython.Py_ssize_t = self.I[N_ACTUATORS]
+        if na == 0:
+            return 0.0
+        nt: cython.Py_ssize_t = self.I[N_TIMED]
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS]
+        row: cython.Py_ssize_t = self.I[ACT_PIECE] + piece * na
+        a: cython.Py_ssize_t
+        k: cython.double
+        f: cython.double
+        g: cython.double = 0.0
+        for a in range(na):
+            k = self.fields[N_FIELDS + nt + 2 * a + 1]
+            f = self.F[row + a] + self.F[prm + 5 * a] * self.fields[N_FIELDS + nt + 2 * a] + self.F[prm + 5 * a + 1] * (k * v)
+            f = min(max(f, self.F[prm + 5 * a + 3]), self.F[prm + 5 * a + 4])
+            g += self.F[prm + 5 * a + 2] * f * k
         return g
 
     # -- the chart interface ----------------------------------------------------------------
@@ -723,15 +767,15 @@ class Chart(RightHandSide):
         dV/dx_i) / 𝔍. NaN when the configuration cannot be found (S[STATUS] says why)."""
         if not self.evaluate(q):
             return _c_nan
-        Q: cython.double = self._applied(load) - self.fields[DAMPING] * v
+        Q: cython.double = self._applied(load) + self._actuated(load, v) - self.fields[DAMPING] * v
         return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
 
     @cython.ccall
     def power(self, load: cython.Py_ssize_t, v: cython.double) -> cython.double:
         """P = Q_applied ẋ_i (W) at the configuration last evaluated, right after its
-        :meth:`acceleration`: the power of the input load and of the point forces over q and t
-        on load piece ``load``; the energy audit integrates it."""
-        return self._applied(load) * v
+        :meth:`acceleration`: the power of the input load, of the point forces over q and t and
+        of the actuators on load piece ``load``; the energy audit integrates it."""
+        return (self._applied(load) + self._actuated(load, v)) * v
 
     @cython.ccall
     def dissipation(self, v: cython.double) -> cython.double:
@@ -749,8 +793,8 @@ class Chart(RightHandSide):
 
     @cython.ccall
     def observation_size(self) -> cython.Py_ssize_t:
-        """Length of :meth:`observe`'s row: the fields, then x, K and L (N_FIELDS + timed + 3 n)."""
-        return N_FIELDS + self.I[N_TIMED] + 3 * self.n
+        """Length of :meth:`observe`'s row: the fields, then x, K and L (field_count + 3 n)."""
+        return N_FIELDS + self.I[N_TIMED] + 2 * self.I[N_ACTUATORS] + 3 * self.n
 
     @cython.ccall
     def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
@@ -758,7 +802,7 @@ class Chart(RightHandSide):
         fields, then x, K and L (n each) — what the outputs and the energy audit need at a
         sample, recorded where the integrator evaluated it instead of walked to again."""
         n: cython.Py_ssize_t = self.n
-        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED] + 2 * self.I[N_ACTUATORS]
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
         j: cython.Py_ssize_t
@@ -869,7 +913,7 @@ class Chart(RightHandSide):
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
         j: cython.Py_ssize_t
-        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED]
+        nf: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED] + 2 * self.I[N_ACTUATORS]
         m: cython.Py_ssize_t = values.shape[0]
         if not (fields.shape[0] >= m and fields.shape[1] >= nf and kin.shape[0] >= m and kin.shape[1] == 3
                 and kin.shape[2] == self.n):

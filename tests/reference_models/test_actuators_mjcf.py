@@ -1,0 +1,226 @@
+"""Actuators in MuJoCo, built from a scene and as written, and through export → import.
+
+Oracles: the reduced engine (itself checked against closed forms: tests/reduced/test_actuators.py),
+an element split in two halves (two motors of half the torque each on one joint are the seed's one
+motor), the closed-form damped oscillator of a rotor held by a servo on a fixed tendon, and the
+energy audits' balance.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from loopcheck.api import load_scene, mujoco_settings, reduced_settings, simulate
+from loopcheck.reference_models import MujocoSettings, mjcf_text
+from loopcheck.reference_models.mjcf_import import Control, MjcfError, import_mjcf
+from loopcheck.reference_models.user_model import run_model
+
+ROOT = Path(__file__).parent.parent.parent
+DATA = ROOT / "tests" / "data" / "mjcf"
+SERVO_FOURBAR = ROOT / "scenes" / "mechanisms" / "servo_fourbar.toml"
+
+
+def residual(audit):
+    r = audit.kinetic + audit.potential - audit.torque_work + audit.damper_dissipation
+    return float(np.max(np.abs(r - r[0])))
+
+
+def test_catalogue_servo_fourbar_mujoco_against_reduced():
+    """MuJoCo built from the scene (general actuators: a servo on a joint, an affine one on a fixed
+    tendon over a cut joint) against the reduced engine: measured q 2.4e-9 rad, peak ω 2.4e-7 relative at
+    the scene's automatic step; the scene's tolerances are 1e-3 rad, 1e-4. Audits: reduced 9.7e-11 J,
+    MuJoCo 6.3e-5 J (the trapezoid of f·L̇ over 5e-4 s steps) of 0.18 J of work. Planted: the length
+    offset b1·gear·l0 left out of MuJoCo's b0 → ω off by 0.9 rad/s, the gate fails."""
+    scene = load_scene(SERVO_FOURBAR)
+    reduced = simulate(scene, reduced_settings(scene))
+    mujoco = simulate(scene, mujoco_settings(scene))
+    q = np.interp(reduced.trajectory.t, mujoco.trajectory.t, mujoco.trajectory.q)
+    assert np.max(np.abs(q - reduced.trajectory.q)) < 1e-6
+    assert residual(reduced.audit) < 1e-9
+    assert residual(mujoco.audit) < 1e-3 * abs(mujoco.audit.torque_work).max() + 1e-4
+    assert abs(reduced.audit.torque_work[-1] - mujoco.audit.torque_work[-1]) < 1e-3
+
+
+def test_catalogue_servo_fourbar_export_import_round_trip(tmp_path):
+    """export-mjcf → import-mjcf: the same actuators as generalized forces (a tendon over the cut joint B
+    comes back over MuJoCo's tree joints: the same length as a function of the coordinates), the same
+    controls (loopcheck.ctrl.NAME), and the same reduced trajectory: b0 comes back through b1·gear·l0
+    and its inverse, an ulp apart, and the tendon's other terms round differently, so DOP853 takes other
+    steps (sample times 1e-9 s apart): compared at the end of the run, where both stop, to 1e-9 rad."""
+    scene = load_scene(SERVO_FOURBAR)
+    path = tmp_path / "model.xml"
+    path.write_text(mjcf_text(scene, MujocoSettings(timestep=1e-3)))
+    back = import_mjcf(path).scene
+    assert back.load is None and [a.name for a in back.mechanism.actuators] == ["servo", "tendon_drive"]
+    for a, b in zip(scene.mechanism.actuators, back.mechanism.actuators):
+        assert (a.gain, a.bias[1:], a.gear, a.ctrlrange, a.forcerange, a.control) == (
+            b.gain, b.bias[1:], b.gear, b.ctrlrange, b.forcerange, b.control)
+        assert b.bias[0] == pytest.approx(a.bias[0], abs=1e-12)
+    r0 = simulate(scene, reduced_settings(scene))
+    r1 = simulate(back, reduced_settings(back))
+    assert r0.trajectory.t[-1] == r1.trajectory.t[-1]
+    assert abs(r0.trajectory.q[-1] - r1.trajectory.q[-1]) < 1e-9
+
+
+def test_two_motors_are_the_one_motor_split_in_halves():
+    """Genesis' two-motor style: 125 N·m from one motor and 62.5 × gear 2 from the other on O1 are the
+    seed's 250 N·m: the reduced engine gives the same trajectory to 1e-12 rad (measured equal), and the
+    model as written moves as the one-motor model does (run_model, same options: equal to 1e-12)."""
+    two, one = import_mjcf(DATA / "two_motor_fourbar.xml"), import_mjcf(DATA / "fourbar_sites_keyframe.xml")
+    assert len(two.scene.mechanism.actuators) == 2 and two.scene.load is None
+    a = simulate(two.scene, reduced_settings(two.scene))
+    b = simulate(one.scene, reduced_settings(one.scene))
+    assert np.max(np.abs(a.trajectory.q - b.trajectory.q)) < 1e-12
+    assert abs(a.audit.torque_work[-1] - b.audit.torque_work[-1]) < 1e-9 * abs(b.audit.torque_work[-1])
+    ma, mb = run_model(two), run_model(one)
+    assert np.max(np.abs(ma.trajectory.q - mb.trajectory.q)) < 1e-12
+    assert abs(ma.audit.torque_work[-1] - mb.audit.torque_work[-1]) < 1e-9 * abs(mb.audit.torque_work[-1])
+
+
+def test_servo_on_a_fixed_tendon_as_written_is_the_oscillator():
+    """Menagerie's gripper style (general, biastype affine, gainprm/biasprm from a default class, ctrlrange,
+    a fixed tendon of coef 0.5): I θ̈ = 0.5 kp (c − 0.5 θ) − 0.25 kv θ̇ about 2c with c clamped to 1.
+    The reduced engine to 1e-9 rad (measured 7e-12) and the model as written (RK4 at 5e-4 s) to 1e-6
+    (measured 1e-12); both audits balance (reduced 2.4e-11 J, MuJoCo as written 9e-7 J)."""
+    imported = import_mjcf(DATA / "servo_tendon_rotor.xml")
+    (servo,) = imported.scene.mechanism.actuators
+    assert servo.tendon == (("pivot", 0.5),) and servo.ctrlrange == (0.0, 1.0) and servo.bias == (0.0, -8.0, -0.6)
+    reduced = simulate(imported.scene, reduced_settings(imported.scene))
+    written = run_model(imported)
+    inertia, kp, kv, target = 0.5, 2.0, 0.15, 2.0
+    for result, tol in ((reduced, 1e-9), (written, 1e-6)):
+        t = result.trajectory.t
+        alpha = kv / (2 * inertia)
+        wd = math.sqrt(kp / inertia - alpha * alpha)
+        e0 = 0.2 - target
+        exact = target + np.exp(-alpha * t) * (e0 * np.cos(wd * t) + (1.0 + alpha * e0) / wd * np.sin(wd * t))
+        assert np.max(np.abs(result.trajectory.q - exact)) < tol, result.engine
+    assert residual(reduced.audit) < 1e-9 and residual(written.audit) < 1e-5
+
+
+def test_controls_by_name_replace_the_keyframe():
+    """--ctrl NAME=... (import_mjcf's controls): each actuator its own; an unknown name is refused."""
+    two = import_mjcf(DATA / "two_motor_fourbar.xml", controls={"left": Control.parse("0:250,0.5:0"),
+                                                                  "right": Control.constant(0.0)})
+    left, right = two.scene.mechanism.actuators
+    assert left.control.edges == (0.0, 0.5) and right.control is None
+    with pytest.raises(MjcfError, match="no actuator 'middle'"):
+        import_mjcf(DATA / "two_motor_fourbar.xml", controls={"middle": Control.constant(1.0)})
+    with pytest.raises(MjcfError, match="2 actuators: name the one"):
+        import_mjcf(DATA / "two_motor_fourbar.xml", control=Control.constant(1.0))
+
+
+ROTOR = """<mujoco>
+  <option gravity="0 0 0"/>
+  <worldbody><body name="rotor"><joint name="pivot" type="hinge" axis="0 0 1"/>
+    <inertial pos="0 0 0" mass="1" diaginertia="0.5 0.5 0.5"/>
+    <site name="tip" pos="0.3 0 0"/></body><site name="ground" pos="1 0 0"/></worldbody>
+  <tendon><spatial name="line"><site site="ground"/><site site="tip"/></spatial></tendon>
+  <actuator>{actuator}</actuator>
+</mujoco>"""
+
+
+@pytest.mark.parametrize("actuator, message", [
+    ('<general joint="pivot" dyntype="filter" dynprm="0.1"/>', "actuator 'a0' has activation dynamics"),
+    ('<general joint="pivot" gaintype="affine" gainprm="1 1"/>', "actuator 'a0' has gaintype"),
+    ('<general tendon="line"/>', "actuator 'a0' acts on spatial tendon 'line'"),
+    ('<general site="tip" gear="1 0 0 0 0 0"/>', "actuator 'a0' has a mjTRN_SITE transmission"),
+])
+def test_refused_actuators_are_named(tmp_path, actuator, message):
+    path = tmp_path / "m.xml"
+    path.write_text(ROTOR.format(actuator=actuator.replace("<general ", '<general name="a0" ')))
+    with pytest.raises(MjcfError, match=message):
+        import_mjcf(path)
+
+
+def test_the_model_as_written_counts_each_steps_control_at_both_its_ends(tmp_path):
+    """run_model's audit of servo_fourbar exported (a servo on a joint and an affine actuator on a fixed
+    tendon, controls that jump at 0.25, 0.4 and 0.6 s): the actuators' power at a step's end is taken
+    with that step's control. Measured relative residual 8.4e-6 at 5e-4 s (8.1e-8 at a tenth of it:
+    second order); planted, the next step's control there (the trapezoid of qfrc_actuator·qvel alone):
+    2.9e-3 (2.9e-4 at a tenth: first order). Bound 5e-5."""
+    scene = load_scene(SERVO_FOURBAR)
+    path = tmp_path / "model.xml"
+    path.write_text(mjcf_text(scene, MujocoSettings(timestep=5e-4)))
+    written = run_model(import_mjcf(path))
+    assert written.audit.relative_residual < 5e-5
+
+
+def _one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("flags, said", [
+    (["--ctrl", "middle=1"], "no actuator 'middle'"),
+    (["--ctrl", "left=1", "--ctrl", "left=2"], "--ctrl left=...: given twice"),
+    (["--ctrl", "1"], "--ctrl VALUE: the model has 2 actuators"),
+    (["--ctrl", "left=0:1,x"], "--ctrl"),
+])
+def test_cli_ctrl_by_name_refusals_are_one_line(tmp_path, capsys, flags, said):
+    from loopcheck.compare.cli import main
+
+    out = tmp_path / "s.toml"
+    code = main(["import-mjcf", str(DATA / "two_motor_fourbar.xml"), *flags, "-o", str(out)])
+    assert code == 2 and not out.exists()
+    line = _one_error_line(capsys)
+    assert said in line, line
+
+
+def test_cli_ctrl_by_name_sets_each_actuators_control(tmp_path, capsys):
+    from loopcheck.compare.cli import main
+    from loopcheck.scenefile import load_scene as read
+
+    out = tmp_path / "s.toml"
+    assert main(["import-mjcf", str(DATA / "two_motor_fourbar.xml"), "--ctrl", "left=0:250,0.5:0",
+                 "--ctrl", "right=3", "-o", str(out)]) == 0
+    left, right = read(out).mechanism.actuators
+    assert (left.control.times, left.control.values) == ((0.0, 0.5), (250.0, 0.0))
+    assert right.control.amplitude == 3.0
+
+
+def test_a_servo_with_a_clamped_force_runs_as_written_and_is_refused_by_the_reduced_engine(tmp_path, capsys):
+    """Menagerie's gripper actuator as written (a forcerange on a servo's force, which depends on the
+    state): MuJoCo as written runs it and its audit balances with the clamp active (measured 8.6e-8 J of
+    0.13 J of work, the same for MuJoCo built from the imported scene);
+    the reduced engine refuses it in one line naming the actuator (its switching event is not built),
+    and `check` exits 2 on that line."""
+    from loopcheck.compare.cli import main
+
+    text = (DATA / "servo_tendon_rotor.xml").read_text().replace('ctrlrange="0 1"', 'ctrlrange="0 1" forcerange="-0.3 0.3"')
+    path = tmp_path / "clamped.xml"
+    path.write_text(text)
+    imported = import_mjcf(path)
+    assert imported.scene.mechanism.actuators[0].forcerange == (-0.3, 0.3)
+    written = run_model(imported)
+    force = written.trajectory.qddot  # I θ̈ = 0.5 f with I = 0.5: θ̈ is the force, held at the clamp
+    assert np.max(np.abs(force)) == pytest.approx(0.3, abs=1e-9)
+    assert residual(written.audit) < 1e-5
+    with pytest.raises(ValueError, match="actuator 'servo': its forcerange clamps a force that depends on the state"):
+        simulate(imported.scene, reduced_settings(imported.scene))
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error:" in line or "Traceback" in line]
+    assert len(errors) == 1 and "actuator 'servo'" in errors[0], errors
+
+
+def test_two_motors_on_the_two_ground_pivots_mujoco_against_reduced(tmp_path):
+    """Genesis' two-motor four-bar: one motor on each ground pivot (O1: 125 N·m; O3: 62.5 × gear 2). MuJoCo
+    built from the imported scene against the reduced engine at MuJoCo's automatic step (5e-4 s): measured
+    max |Δq| 3.0e-7 rad, audits 6.4e-12 (reduced) and 1.2e-5 (MuJoCo) relative; bounds 1e-5 rad, 1e-9 and
+    1e-4."""
+    path = tmp_path / "pivots.xml"
+    path.write_text((DATA / "two_motor_fourbar.xml").read_text().replace('joint="O1" gear="2"', 'joint="O3" gear="2"'))
+    scene = import_mjcf(path).scene
+    assert [a.joint for a in scene.mechanism.actuators] == ["O1", "O3"]
+    reduced = simulate(scene, reduced_settings(scene))
+    mujoco = simulate(scene, mujoco_settings(scene))
+    q, _, _ = reduced.trajectory.interpolate(mujoco.trajectory.t)
+    assert np.max(np.abs(q - mujoco.trajectory.q)) < 1e-5
+    assert reduced.audit.relative_residual < 1e-9 and mujoco.audit.relative_residual < 1e-4
