@@ -25,8 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from loopcheck import kinematics as loops
-from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
+from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from, ranged_joints
 from loopcheck.errors import NumericalFailure
+from loopcheck.mechanism import PrismaticJoint
 from .integrators import MAX_EVALUATIONS, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
 from .kernels import output, physics
 from .kernels import partition as compiled
@@ -277,7 +278,17 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
     if status == output.NO_BETTER:
         return NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
     if status == output.TOO_MANY_SWITCHES:
-        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
+        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches or changes of the joint "
+                                "friction between stick and slip", t)
+    if status == output.RANGE_REACHED:
+        r, side, u, bound = outcome.detail
+        joint = ranged_joints(model.scene.mechanism.linkage)[int(r)]
+        unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
+        lo, hi = joint.range
+        return NumericalFailure(
+            "range-reached", f"joint {joint.name!r} reached the {'upper' if side else 'lower'} bound {bound:.6g} {unit} "
+            f"of its range [{lo:.6g}, {hi:.6g}] {unit} at t = {t:.9g} s: the exact solution stops there (MuJoCo's "
+            "joint limit would act from then on)", t)
     return NumericalFailure("singular", "the run cannot start: its coordinate cannot drive the linkage", t)
 
 

@@ -278,7 +278,8 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
     step : the largest step (s): a piece of length ℓ gets ⌈ℓ/step − 1e-9⌉ equal steps
     speed_limit : |q̇| beyond which the run ends with SPEED
     stability : check the step every STABILITY_CHECK_EVERY steps (:func:`check_stability`)
-    use_stop : end the run after the first step where rhs.stop_margin ≤ 0 (outcome.stopped)
+    use_stop : end the run after the first step where rhs.stop_margin ≤ 0 (outcome.stopped), or
+        at a piece's first sample where rhs.stop_at_start
     out : the samples are appended to it (its width must be rhs.observation_size()): one at
         every step, and at each piece's start one repeating the previous piece's last time
         with q̈ on the new side; with each, what rhs.observe records and the work done and the
@@ -375,6 +376,9 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
             break
         _sample(rhs, out, start, q, v, accel, work, dissipated)
         outcome.t_reached = start
+        if use_stop and rhs.stop_at_start(start, q, v):  # an event at the piece's start (a load edge)
+            outcome.stopped = True
+            break
         for m in range(n):
             t = start + m * h
             if stability and n_steps % _CHECK_EVERY == 0:
