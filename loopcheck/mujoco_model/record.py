@@ -9,6 +9,7 @@ their states alone, and the sensors are computed here at each state (``sensors=N
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -108,6 +109,9 @@ def record_run(scene: Scene, handles: ModelHandles, layout: Layout, data: mujoco
     trajectory = with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, STATE,
                                    timed, callback)
     audit = energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
+    friction = friction_dissipation(model, data, states, ctrl, timed, callback)
+    if friction is not None:
+        audit = dataclasses.replace(audit, damper_dissipation=audit.damper_dissipation + friction)
     key = sensor_name(INPUT_MOTOR, "force")
     motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
     return RunRecord(times=times, q=q, qdot=qdot, trajectory=trajectory,
@@ -226,6 +230,29 @@ def joint_trajectory(layout: Layout, times, x, xdot) -> JointTrajectory:
     mode = loops.assembly_modes(layout.system, x)
     return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
                            np.full(len(times), -1), mode)
+
+
+_FRICTION_ROWS = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON))
+
+
+def friction_dissipation(model, data, states, ctrl, timed, callback) -> np.ndarray | None:
+    """The energy MuJoCo's dry friction (``frictionloss`` on joints and tendons) dissipated since
+    the first state (J, by the trapezoid rule), or None where the model has none: at each stored
+    state (``mj_forward`` with that step's control and timed forces), −Σ efc_force · efc_vel over
+    its friction rows (mjCNSTR_FRICTION_DOF, mjCNSTR_FRICTION_TENDON: the constraint's force on
+    the row's velocity J q̇; the friction opposes the motion, so the sum is ≥ 0 to the solver's
+    softness)."""
+    if not (np.any(model.dof_frictionloss > 0.0) or np.any(model.tendon_frictionloss > 0.0)):
+        return None
+    rate = np.zeros(len(states))
+    for k, state in enumerate(states):
+        if timed.shape[1]:
+            callback.step_values[:] = timed[min(k, len(timed) - 1)]
+        sensors_at(model, data, state, ctrl[min(k, len(ctrl) - 1)] if model.nu else None, STATE)
+        rows = np.isin(data.efc_type[:data.nefc], _FRICTION_ROWS)
+        rate[k] = -float(data.efc_force[:data.nefc][rows] @ data.efc_vel[:data.nefc][rows])
+    dt = np.diff(states[:, 0])
+    return np.concatenate([np.zeros(1), np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)])
 
 
 def sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:

@@ -121,6 +121,9 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     system = loops.compile_linkage(linkage)
     x0 = np.asarray(scene.x0, dtype=float)
     angle = {GROUND: 0.0, **{b: float(x0[i]) for i, b in enumerate(linkage.moving)}}
+    if mech.joint_frictions:
+        raise ValueError(f"joint friction {mech.joint_frictions[0].name!r}: the Pinocchio engine has no dry "
+                         "(Coulomb) friction with stick and slip; leave the pin engine out")
     for e in mech.joint_inertias:
         if e.joint in linkage.cut_joints:
             raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the "

@@ -79,6 +79,12 @@ def integrate(model: MechanismModel, settings: ReducedSettings, step: float | No
         return integrate_rkn4(model, settings.step if step is None else step)
     if settings.method == "dop853":
         return integrate_dop853(model, settings.rtol, settings.sample_interval, CHART_RETRY_MAX_STEP)
+    mech = model.scene.mechanism
+    events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
+    if events:
+        raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
+                         f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
+                         "or rkn4")
     return integrate_partitioned(model, scipy_chart_integrator(settings, model.load_edges))
 
 
