@@ -299,7 +299,9 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
                           TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
     cheapest, half = (as_written, None) if as_written.passed else (None, None)
-    if cheapest is None and _first_contact(tried) is None:  # a contact: no options can meet the tolerances
+    # the friction the cause: its own snippet, no search of loops and steps (which cannot meet them)
+    friction_cause = friction is not None and friction.passed and not (stiff.passed or smaller.passed)
+    if cheapest is None and _first_contact(tried) is None and not friction_cause:  # a contact: no options can meet the tolerances
         for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
             budget = cheapest.evaluations if cheapest is not None else math.inf
             found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)

@@ -246,13 +246,18 @@ def has_events(model: mujoco.MjModel) -> bool:
                 or np.any(model.jnt_limited) or np.any(model.tendon_limited))
 
 
+_EVENT_ROWS = _FRICTION_ROWS + tuple(_LIMIT_ROWS)
+
+
 def friction_power(data: mujoco.MjData) -> float:
-    """The power MuJoCo's dry friction dissipates at the state last forwarded (W): −Σ efc_force ·
-    efc_vel over the friction rows (mjCNSTR_FRICTION_DOF, mjCNSTR_FRICTION_TENDON: the row's
-    force on its velocity J q̇; the friction opposes the motion, so it is ≥ 0 to the solver's
-    softness)."""
+    """The power MuJoCo's dry friction and limits take out of the motion at the state last
+    forwarded (W): −Σ efc_force · efc_vel over the friction rows (mjCNSTR_FRICTION_DOF,
+    mjCNSTR_FRICTION_TENDON: the row's force on its velocity J q̇; the friction opposes the
+    motion, so it is ≥ 0 to the solver's softness) and the limit rows (mjCNSTR_LIMIT_JOINT,
+    mjCNSTR_LIMIT_TENDON: a soft limit's spring and damper, whose work the audit books with the
+    dissipation; zero until a limit acts)."""
     n = data.nefc
-    rows = np.isin(data.efc_type[:n], _FRICTION_ROWS)
+    rows = np.isin(data.efc_type[:n], _EVENT_ROWS)
     return -float(data.efc_force[:n][rows] @ data.efc_vel[:n][rows])
 
 
@@ -276,9 +281,9 @@ def limit_note(element: str, t: float) -> str:
 
 def constraint_flows(model, data, states, ctrl, timed, callback) -> tuple[np.ndarray | None, tuple[str, ...]]:
     """What the friction and limit rows did over the stored states, read at each (``mj_forward``
-    with that step's control and timed forces): the energy the dry friction dissipated since the
-    first state (J, by the trapezoid rule of :func:`friction_power`; None without friction), and
-    a note per limit that acted (:func:`limit_note`)."""
+    with that step's control and timed forces): the energy they took out of the motion since the
+    first state (J, by the trapezoid rule of :func:`friction_power`; None without either), and a
+    note per limit that acted (:func:`limit_note`)."""
     if not has_events(model):
         return None, ()
     rate = np.zeros(len(states))
@@ -291,8 +296,6 @@ def constraint_flows(model, data, states, ctrl, timed, callback) -> tuple[np.nda
         for element in active_limits(model, data):
             first.setdefault(element, float(state[0]))
     notes = tuple(limit_note(e, t) for e, t in first.items())
-    if not (np.any(model.dof_frictionloss > 0.0) or np.any(model.tendon_frictionloss > 0.0)):
-        return None, notes
     dt = np.diff(states[:, 0])
     return np.concatenate([np.zeros(1), np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)]), notes
 
