@@ -28,9 +28,16 @@ METHODS = ("dop853", "rkn4")
 N_TIMES = 101  # states compared at these many times spread over the horizon
 
 
+# Shipped scenes added after the numba core was replaced: no run of that core exists to hold them
+# to (each has its own oracle test: mechanisms/friction_fourbar.toml, tests/reduced/test_friction_fourbar.py).
+AFTER_NUMBA = ("mechanisms/friction_fourbar.toml",)
+
+
 def shipped_scenes() -> list[Path]:
+    """The shipped scenes the fixture holds (all but :data:`AFTER_NUMBA`)."""
     scenes = ROOT / "scenes"
-    return sorted([*scenes.glob("*.toml"), *scenes.glob("hard/*.toml"), *scenes.glob("mechanisms/*.toml")])
+    return sorted(p for p in [*scenes.glob("*.toml"), *scenes.glob("hard/*.toml"), *scenes.glob("mechanisms/*.toml")]
+                  if p.relative_to(scenes).as_posix() not in AFTER_NUMBA)
 
 
 def outputs(path: Path, method: str, x0: list[float] | None = None) -> dict:
