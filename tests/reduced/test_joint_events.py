@@ -145,3 +145,26 @@ def test_a_scene_starting_outside_its_range_is_refused():
 def test_the_scipy_methods_refuse_events():
     with pytest.raises(ValueError, match="method radau does not run joint friction or joint ranges \\(joint_friction0\\)"):
         loopcheck.simulate(scene_from_dict(rotor(friction=F)), loopcheck.ReducedSettings(method="radau"))
+
+
+def test_a_spring_with_friction_reverses_and_sticks_as_the_closed_form_says():
+    """A rotor (I = 2) on a joint spring (k = 8) with friction f = 1, released at 1 rad: each half
+    period π √(I/k) the amplitude falls by 2 f / k (Coulomb damping of a linear oscillator), so it
+    turns at −0.75, 0.5, −0.25 rad (slip → slip reversals: |k q| > f there) and at 0 rad, where the
+    spring holds nothing, it sticks from t = 2π for good. DOP853 (rtol 1e-12): turning times within
+    1.7e-12 s and angles within 1e-12 rad of the closed form (measured; asserted 1e-10). Planted: a reversal
+    taken as a stick (stick whenever q̇ reaches 0) stops it at −0.75 rad."""
+    data = rotor(friction=F, horizon=7.0)
+    data.pop("torque")
+    data["initial"]["q"] = 1.0
+    data["joint_springs"] = [{"joint": "O", "stiffness": 8.0, "rest_angle": 0.0}]
+    result = loopcheck.simulate(scene_from_dict(data), loopcheck.ReducedSettings(rtol=1e-12))
+    tr = result.trajectory
+    turns = tr.qdot == 0.0
+    half = math.pi * math.sqrt(I / 8.0)
+    for k, amplitude in enumerate((-0.75, 0.5, -0.25, 0.0), start=1):
+        at = np.flatnonzero(turns & (np.abs(tr.t - k * half) < 1e-6))
+        assert len(at) >= 1 and abs(tr.t[at[0]] - k * half) < 1e-10  # (then the stick's samples at 0)
+        assert abs(tr.q[at[0]] - amplitude) < 1e-10
+    assert np.all(tr.qdot[tr.t > 4 * half + 1e-9] == 0.0) and abs(tr.q[-1]) < 1e-10
+    assert result.audit.relative_residual < 1e-10
