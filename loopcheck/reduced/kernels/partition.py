@@ -4,7 +4,8 @@
 
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
 conditioned by more than the hysteresis), then continues in the best-conditioned coordinate j
-from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i).
+from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i), and a slipping friction's sign
+that of ẋ_j.
 :mod:`loopcheck.reduced.charts` documents the method; this module only strings the charts together,
 with either integrator: :func:`run_rkn` (fixed step, :mod:`.fixed_step`) or :func:`run_dop853`
 (adaptive, :mod:`.adaptive`). Each chart's samples are appended to one :class:`.output.Samples`,
@@ -193,6 +194,9 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
             total.status, total.fail_time = status, t
             break
         switches.append((t, *switched))
+        mode = chart.arrays()["fields"][physics.FRICTION_MODE]
+        if friction and (mode == 1.0 or mode == -1.0):  # the slip's sign is ẋ_j's now: ẋ_j = K_j ẋ_i
+            chart.set_friction(mode if (rate > 0.0) == (mode > 0.0) or rate == 0.0 else -mode)
         segment_starts.append(out.n)
         coordinates.append(switched[1])
         starts.append(chart.arrays()["start"].copy())
