@@ -16,12 +16,13 @@ import pytest
 import loopcheck
 from loopcheck.compare.cli import main
 from loopcheck.compare.model_check import FRICTION_CAUSE, check_model, friction_snippet
-from loopcheck.compare.run import compare_engines
+from loopcheck.compare.run import compare_engines, judge
 from loopcheck.mechanism import JointElement
 from loopcheck.mujoco_model.port import PortRefusal, prepare
 from loopcheck.mjx.settings import MjxSettings
 from loopcheck.reference_models import MujocoSettings, mjcf_text
 from loopcheck.reference_models.mjcf_import import Control, import_mjcf
+from loopcheck.reference_models.user_model import run_model
 from loopcheck.scenefile import scene_from_dict
 from tests.reduced.test_joint_events import rotor
 
@@ -48,14 +49,14 @@ def test_a_joint_frictionloss_is_a_joint_friction_and_mujoco_meets_the_exact_sti
     friction rows' power left out of run_model's audit (dissipation 0)."""
     imported = import_mjcf(ROTOR, control=PULSE, horizon=3.5)
     assert imported.scene.mechanism.joint_frictions == (JointElement("friction", "spin_frictionloss", "spin", 1.0),)
-    check = check_model(imported)
-    reference = check.reference.trajectory
-    assert reference.q[-1] == pytest.approx(1.5, abs=1e-10)
-    assert reference.t[np.flatnonzero(reference.qdot != 0.0)[-1] + 1] == pytest.approx(3.0, abs=1e-10)
-    assert check.passed
-    mujoco_audit = check.as_written.comparison.mujoco.audit
-    assert mujoco_audit.damper_dissipation[-1] == pytest.approx(1.5, rel=1e-3)
-    assert check.reference.audit.damper_dissipation[-1] == pytest.approx(1.5, abs=1e-9)
+    reference = loopcheck.simulate(imported.scene, loopcheck.ReducedSettings(rtol=1e-12))
+    tr = reference.trajectory
+    assert tr.q[-1] == pytest.approx(1.5, abs=1e-10)
+    assert tr.t[np.flatnonzero(tr.qdot != 0.0)[-1] + 1] == pytest.approx(3.0, abs=1e-10)
+    written = run_model(imported)
+    assert judge(imported.scene, reference, written, imported.scene.tolerances).gate.passed
+    assert written.audit.damper_dissipation[-1] == pytest.approx(1.5, rel=1e-3)
+    assert reference.audit.damper_dissipation[-1] == pytest.approx(1.5, abs=1e-9)
 
 
 @pytest.mark.slow  # four MuJoCo runs as written over 2 s, one at a tenth of the step: 3 to 5 s
