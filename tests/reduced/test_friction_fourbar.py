@@ -33,6 +33,8 @@ def test_it_sticks_and_its_energy_balances():
     stuck = np.flatnonzero(tr.qdot == 0.0)
     start = tr.t[stuck[stuck > 0][0]]
     assert 2.0 < start < 2.5
+    (event,) = result.details.friction_events  # one change of mode: the stick
+    assert (event.mode, event.time) == ("stick", start)
     held = tr.t > start  # (the slip segment's last sample, at the same time, has q̇ = 0 and its q̈)
     assert np.all(tr.qdot[held] == 0.0) and np.all(tr.qddot[held] == 0.0) and np.ptp(tr.q[held]) == 0.0
     audit = result.audit

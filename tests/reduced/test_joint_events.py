@@ -167,6 +167,9 @@ def test_a_spring_with_friction_reverses_and_sticks_as_the_closed_form_says():
         assert len(at) >= 1 and abs(tr.t[at[0]] - k * half) < 1e-10  # (then the stick's samples at 0)
         assert abs(tr.q[at[0]] - amplitude) < 1e-10
     assert np.all(tr.qdot[tr.t > 4 * half + 1e-9] == 0.0) and abs(tr.q[-1]) < 1e-10
+    events = result.details.friction_events  # three reversals, then the stick
+    assert [(e.mode, e.direction) for e in events] == [("slip", 1), ("slip", -1), ("slip", 1), ("stick", 0)]
+    assert np.allclose([e.time for e in events], [k * half for k in (1, 2, 3, 4)], atol=1e-10)
     assert result.audit.relative_residual < 1e-10
 
 
