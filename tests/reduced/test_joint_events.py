@@ -80,15 +80,16 @@ def test_a_load_within_the_friction_never_moves_it():
     assert result.audit.max_abs_residual < 1e-9
 
 
-def test_rkn4_runs_friction_within_its_error_estimate():
-    """RKN4 locates the stick after the step that crossed q̇ = 0 (no root finding): its step-doubling
-    estimate sees that error, so at 5e-4 s it refuses (measured 1.7e-5 > rtol 1e-5) and at 5e-5 s
-    it passes with the stick time within one step of t_s."""
-    scene = scene_from_dict(rotor(friction=F))
-    with pytest.raises(NumericalFailure, match="estimates its own error"):
-        loopcheck.simulate(scene, loopcheck.ReducedSettings(method="rkn4", step=5e-4))
-    fine = loopcheck.simulate(scene, loopcheck.ReducedSettings(method="rkn4", step=5e-5))
-    assert abs(stick_time(fine) - T_STICK) <= 5e-5 + 1e-12
+def test_rkn4_takes_the_step_again_to_the_stick():
+    """RKN4 finds the stick after the step that crossed q̇ = 0, and takes that step again to the
+    root of q̇ on the step's Hermite interpolant: at its default 5e-4 s the stick time is within
+    7e-13 s and the final angle 3e-13 rad of the closed form (measured; asserted 1e-10), and its
+    step-doubling estimate (1.8e-14) passes. Planted: the step not taken again (the stick one step
+    late): the estimate refuses the run (1.7e-5 > rtol 1e-5)."""
+    result = loopcheck.simulate(scene_from_dict(rotor(friction=F)), loopcheck.ReducedSettings(method="rkn4", step=5e-4))
+    assert abs(stick_time(result) - T_STICK) < 1e-10
+    assert abs(result.trajectory.q[-1] - Q_STICK) < 1e-10
+    assert result.audit.relative_residual < 1e-10
 
 
 def test_friction_split_in_halves_runs_the_same_motion():
@@ -111,8 +112,9 @@ def test_friction_split_in_halves_runs_the_same_motion():
 
 def test_a_reached_range_ends_the_run_at_the_closed_form_time():
     """Constant T from rest reaches hi = 1.5 rad at √(2 I hi / T): DOP853's event at 7e-16 s of it
-    (measured; asserted 1e-10), RKN4's after its step (within h = 5e-4 s); the failure names the
-    joint, the bound and the time. Planted: the upper margin written as u − hi fires at once."""
+    (measured; asserted 1e-10); RKN4 takes the step that crossed it again to its root, 7e-15 s off
+    (measured; asserted 1e-10); the failure names the joint, the bound and the time. Planted: the
+    upper margin written as u − hi never fires."""
     scene = scene_from_dict(rotor(span=(-0.5, 1.5), torque={"type": "constant", "value": T}, horizon=2.0))
     expected = math.sqrt(2 * I * 1.5 / T)
     with pytest.raises(NumericalFailure) as caught:
@@ -123,7 +125,7 @@ def test_a_reached_range_ends_the_run_at_the_closed_form_time():
     with pytest.raises(NumericalFailure) as caught:
         loopcheck.simulate(scene, loopcheck.ReducedSettings(method="rkn4", step=5e-4))
     assert caught.value.reason == FailureReason.RANGE_REACHED
-    assert 0.0 <= caught.value.time - expected <= 5e-4
+    assert caught.value.time == pytest.approx(expected, abs=1e-10)
 
 
 def test_a_range_not_reached_changes_nothing():
@@ -152,7 +154,9 @@ def test_a_spring_with_friction_reverses_and_sticks_as_the_closed_form_says():
     period π √(I/k) the amplitude falls by 2 f / k (Coulomb damping of a linear oscillator), so it
     turns at −0.75, 0.5, −0.25 rad (slip → slip reversals: |k q| > f there) and at 0 rad, where the
     spring holds nothing, it sticks from t = 2π for good. DOP853 (rtol 1e-12): turning times within
-    1.7e-12 s and angles within 1e-12 rad of the closed form (measured; asserted 1e-10). Planted: a reversal
+    1.7e-12 s and angles within 1e-12 rad of the closed form (measured; asserted 1e-10); RKN4 at its
+    default 5e-4 s, each step that crossed a turn taken again to it: within 2.6e-14 s (5e-12 at
+    2e-3 s: fourth order). Planted: a reversal
     taken as a stick (stick whenever q̇ reaches 0) stops it at −0.75 rad."""
     data = rotor(friction=F, horizon=7.0)
     data.pop("torque")
@@ -170,6 +174,9 @@ def test_a_spring_with_friction_reverses_and_sticks_as_the_closed_form_says():
     events = result.details.friction_events  # three reversals, then the stick
     assert [(e.mode, e.direction) for e in events] == [("slip", 1), ("slip", -1), ("slip", 1), ("stick", 0)]
     assert np.allclose([e.time for e in events], [k * half for k in (1, 2, 3, 4)], atol=1e-10)
+    rkn4 = loopcheck.simulate(scene_from_dict(data), loopcheck.ReducedSettings(method="rkn4"))
+    assert [(e.mode, e.direction) for e in rkn4.details.friction_events] == [(e.mode, e.direction) for e in events]
+    assert np.allclose([e.time for e in rkn4.details.friction_events], [k * half for k in (1, 2, 3, 4)], atol=1e-10)
     assert result.audit.relative_residual < 1e-10
 
 

@@ -120,6 +120,7 @@ cdef class Chart(RightHandSide):
     cpdef double power(self, Py_ssize_t load, double v)
     cpdef double dissipation(self, double v)
     cpdef double stop_margin(self, double t, double q, double v)
+    cpdef bint locate(self, double t, double q, double v)
     cpdef bint stop_at_start(self, double t, double q, double v)
     cpdef Py_ssize_t fired(self, double t, double q, double v)
     cpdef double rest_force(self, Py_ssize_t load, double q)

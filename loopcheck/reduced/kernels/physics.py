@@ -841,6 +841,12 @@ class Chart(RightHandSide):
         return g
 
     @cython.ccall
+    def locate(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
+        """A friction's change of mode or a range reached is located at its root (the time of a
+        stick, of a reversal, of the bound); a chart switch may happen anywhere near its own."""
+        return self.fired(t, q, v) >= FRICTION_EVENT
+
+    @cython.ccall
     def stop_at_start(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
         """True at a load piece's start where the friction sticks and the piece's loads (those
         of the latest acceleration) exceed its capacity: it breaks loose there."""

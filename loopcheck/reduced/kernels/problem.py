@@ -20,6 +20,9 @@ nothing, exchanges no energy and never asks to stop:
   and whatever else it watches); the run ends where it crosses to ≤ 0. It is read on the load
   piece of the latest ``acceleration`` (the integrators evaluate q̈ on a piece before its
   margin); what the event was and what follows is the caller's (:mod:`.partition` asks the chart);
+- ``locate(t, q, v)``: at a stop the fixed-step integrator found after a step, True where the
+  event must be located at its root (the step taken again to it), False where stopping after
+  the step will do;
 - ``stop_at_start(t, q, v)``: True where the run must end at a load piece's start, right after
   its first ``acceleration`` (an event the load edge itself causes: a stuck joint broken loose);
 - ``observation_size()`` and ``observe(out, row)``: what the problem records at a sample, right
@@ -51,6 +54,10 @@ class RightHandSide:
     @cython.ccall
     def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
         return 1.0
+
+    @cython.ccall
+    def locate(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
+        return False
 
     @cython.ccall
     def stop_at_start(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
