@@ -19,6 +19,7 @@ class FailureReason(str, Enum):
     INITIAL_STATE = "initial-state"  # the initial state violates the loop constraints
     INCOMPLETE = "incomplete"  # the run or the comparison did not cover the horizon
     CONTACT = "contact"  # two geoms touched: the exact reference has no contacts
+    RANGE_REACHED = "range-reached"  # a joint reached a bound of its range: the exact solution stops there
 
     def __str__(self) -> str:
         return self.value

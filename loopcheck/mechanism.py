@@ -121,11 +121,27 @@ def _check_joint_ends(joint) -> None:
         raise MechanismError(f"joint {joint.name!r} joins body {joint.body_a!r} to itself")
 
 
+def _check_range(joint, unit: str) -> None:
+    """A joint's ``range``: None, or two finite numbers lo < hi (``unit``), stored as floats."""
+    if joint.range is None:
+        return
+    try:
+        lo, hi = (float(v) for v in joint.range)
+    except (TypeError, ValueError):
+        raise MechanismError(f"joint {joint.name!r}: range must be two numbers [lo, hi] in {unit}, "
+                             f"got {joint.range!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise MechanismError(f"joint {joint.name!r}: range must be finite with lo < hi ({unit}), got [{lo}, {hi}]")
+    object.__setattr__(joint, "range", (lo, hi))
+
+
 @dataclass(frozen=True)
 class RevoluteJoint:
     """A pin: point ``point_a`` of ``body_a`` and point ``point_b`` of ``body_b`` coincide.
 
-    Its coordinate is the angle of body_b's frame relative to body_a's (rad).
+    Its coordinate is the angle of body_b's frame relative to body_a's (rad). ``range``: the
+    interval (lo, hi) of that coordinate the joint may reach (rad; whole turns count, as for a
+    joint spring), or None; a run that reaches a bound ends there (MuJoCo's joint ``range``).
     """
 
     name: str
@@ -133,9 +149,11 @@ class RevoluteJoint:
     point_a: str
     body_b: str
     point_b: str
+    range: tuple[float, float] | None = None
 
     def __post_init__(self):
         _check_joint_ends(self)
+        _check_range(self, "rad")
 
 
 @dataclass(frozen=True)
@@ -145,7 +163,8 @@ class PrismaticJoint:
     Point ``point_b`` of body_b slides along the line through ``point_a`` of body_a with
     direction ``direction_a`` (rad, in body_a's frame), and body_b's frame stays parallel to
     body_a's (relative angle 0). Its coordinate is the displacement s (m) of point_b from
-    point_a along the line.
+    point_a along the line. ``range``: the interval (lo, hi) of s the joint may reach (m), or
+    None; a run that reaches a bound ends there (MuJoCo's joint ``range``).
     """
 
     name: str
@@ -154,9 +173,11 @@ class PrismaticJoint:
     direction_a: float
     body_b: str
     point_b: str
+    range: tuple[float, float] | None = None
 
     def __post_init__(self):
         _check_joint_ends(self)
+        _check_range(self, "m")
         try:
             direction = float(self.direction_a)
         except (TypeError, ValueError):
@@ -509,7 +530,7 @@ class LineElement:
 
 
 LINE_ELEMENT_KINDS = ("damper", "spring")
-JOINT_ELEMENT_KINDS = ("damper", "spring", "inertia")
+JOINT_ELEMENT_KINDS = ("damper", "spring", "inertia", "friction")
 
 
 @dataclass(frozen=True)
@@ -521,7 +542,9 @@ class JointElement:
     ``kind`` is ``"damper"`` (generalized force −c u̇ on u: a torque in N·m with c in
     N·m·s/rad, or a force in N with c in N·s/m), ``"spring"`` (V = ½ k (u − u0)², k in
     N·m/rad or N/m, ``rest`` u0 in rad or m) or ``"inertia"`` (kinetic energy ½ I u̇², I in
-    kg·m² or kg: a rotor geared to the joint, MuJoCo's ``armature``). The relative angle counts
+    kg·m² or kg: a rotor geared to the joint, MuJoCo's ``armature``) or ``"friction"`` (dry
+    Coulomb friction of f = c, N·m or N, static equal to kinetic: −f sign(u̇) while the joint
+    slips, up to f while it sticks; MuJoCo's ``frictionloss``). The relative angle counts
     whole turns: a torsion spring wound by one turn stores ½ k (2π)².
     """
 
@@ -814,3 +837,7 @@ class Mechanism:
     @property
     def joint_inertias(self) -> tuple[JointElement, ...]:
         return tuple(e for e in self.joint_elements if e.kind == "inertia")
+
+    @property
+    def joint_frictions(self) -> tuple[JointElement, ...]:
+        return tuple(e for e in self.joint_elements if e.kind == "friction")

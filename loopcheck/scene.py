@@ -62,7 +62,7 @@ LIMITS: Mapping[str, Range] = _ranges(
           keys=("linkage.c1 … c4",)),
     Range("position", "m", 0.0, 1e3, "points, centres of mass and spring rest lengths",
           keys=("points", "com", "ground_point", "body_point", "rest_length", "rest_displacement",
-                "initial.q (prismatic input)", "couplings.reference (prismatic joints)")),
+                "initial.q (prismatic input)", "couplings.reference (prismatic joints)", "joints.range (prismatic)")),
     Range("mass", "kg", 1e-6, 1e6, "MuJoCo refuses a mass below mjMINVAL = 1e-15 kg; 1e-6 leaves nine decades",
           keys=("bodies.*.mass", "joint_inertias.inertia (prismatic)")),
     Range("inertia", "kg·m²", 1e-9, 1e6, "MuJoCo refuses an inertia below mjMINVAL = 1e-15 kg·m² (a pivot "
@@ -79,13 +79,13 @@ LIMITS: Mapping[str, Range] = _ranges(
           "of the same stiffness acting 1 m from the pin",
           keys=("joint_springs.stiffness (revolute)",)),
     Range("torque", "N·m", 0.0, 1e6, "fast_crank reaches ~1000 rad/s with 7300 N·m",
-          keys=("torque.value(s)",)),
+          keys=("torque.value(s)", "joint_frictions.friction (revolute)")),
     Range("force", "N", 0.0, 1e7, "a force on a slider, or a tabulated point force (a gas force of 1e5 N is a "
           "large engine's)",
-          keys=("force.value(s)", "point_forces.values", "timed_forces.value(s)")),
+          keys=("force.value(s)", "point_forces.values", "timed_forces.value(s)", "joint_frictions.friction (prismatic)")),
     Range("angle", "rad", 0.0, 1e3, "q0 is an angle; beyond a few turns it only loses digits",
           keys=("initial.q (revolute input)", "direction", "guessed angles", "rest_angle",
-                "couplings.reference (revolute joints)")),
+                "couplings.reference (revolute joints)", "joints.range (revolute)")),
     Range("speed", "rad/s", 0.0, 1e4, "q̇0; fast_crank peaks near 1000 rad/s, and the work grows with speed",
           keys=("initial.qdot",)),
     Range("time", "s", 0.0, 1e3, "torque start, duration and table times (s)",
@@ -258,12 +258,13 @@ class Scene:
                    "force": self.load is not None and self.input_is_prismatic,
                    "damper": bool(m.dampers), "spring": bool(m.springs),
                    "joint-damper": bool(m.joint_dampers), "joint-spring": bool(m.joint_springs),
-                   "joint-inertia": bool(m.joint_inertias),
+                   "joint-inertia": bool(m.joint_inertias), "joint-friction": bool(m.joint_frictions),
+                   "joint-range": any(j.range is not None for j in m.linkage.joints),
                    "point-force": bool(m.point_forces), "timed-force": bool(m.timed_forces), "actuator": bool(m.actuators),
                    "gravity": self.gravity is not None}
         return tuple(name for name in EFFECTS if present[name])
 
 
 # Every effect a scene can declare, in the order reports list them.
-EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "joint-inertia", "point-force",
-           "timed-force", "actuator", "gravity")
+EFFECTS = ("torque", "force", "damper", "spring", "joint-damper", "joint-spring", "joint-inertia", "joint-friction",
+           "joint-range", "point-force", "timed-force", "actuator", "gravity")

@@ -95,6 +95,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
                                "a": _point(j.body_a, j.point_a), "b": _point(j.body_b, j.point_b)}
         if isinstance(j, PrismaticJoint):
             row["direction"] = j.direction_a
+        if j.range is not None:
+            row["range"] = list(j.range)
         joints.append(row)
     data["joints"] = joints
     for kind, table in (("damper", "dampers"), ("spring", "springs")):
@@ -115,6 +117,9 @@ def scene_data(scene: Scene) -> dict[str, Any]:
     if mech.joint_inertias:
         data["joint_inertias"] = [{"name": e.name, "joint": e.joint, "inertia": e.coefficient}
                                   for e in mech.joint_inertias]
+    if mech.joint_frictions:
+        data["joint_frictions"] = [{"name": e.name, "joint": e.joint, "friction": e.coefficient}
+                                   for e in mech.joint_frictions]
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
         rows = []
         for e in mech.joint_elements:

@@ -123,11 +123,15 @@ def _parse_joint(t: Table):
     kind = t.choice("type", JOINT_TYPES)
     body_a, point_a = _point_ref(t, "a")
     body_b, point_b = _point_ref(t, "b")
+    span = t.point("range", None, kind="angle" if kind == "revolute" else "position")  # [lo, hi] of u
+    if span is not None and not span[0] < span[1]:
+        raise SceneError(f"'{t.key('range')}' = [{span[0]:g}, {span[1]:g}]: the lower bound must be below the upper")
     if kind == "revolute":
-        joint = _mechanism_value(t.path, lambda: RevoluteJoint(name, body_a, point_a, body_b, point_b))
+        joint = _mechanism_value(t.path, lambda: RevoluteJoint(name, body_a, point_a, body_b, point_b, span))
     else:
         direction = t.number("direction", kind="angle")
-        joint = _mechanism_value(t.path, lambda: PrismaticJoint(name, body_a, point_a, direction, body_b, point_b))
+        joint = _mechanism_value(t.path, lambda: PrismaticJoint(name, body_a, point_a, direction, body_b, point_b,
+                                                                span))
     t.close()
     return joint
 
@@ -158,10 +162,10 @@ def _parse_line_elements(top: Table) -> list[LineElement]:
 
 def _parse_joint_elements(top: Table, linkage: Linkage) -> list[JointElement]:
     """``[[joint_dampers]]`` (joint, coefficient), ``[[joint_springs]]`` (joint, stiffness,
-    rest_angle on a revolute joint or rest_displacement on a prismatic one) and
-    ``[[joint_inertias]]`` (joint, inertia: MuJoCo's armature): elements on the joint's own
-    coordinate, in N·m·s/rad, N·m/rad and kg·m² on a revolute joint, N·s/m, N/m and kg on a
-    prismatic one."""
+    rest_angle on a revolute joint or rest_displacement on a prismatic one),
+    ``[[joint_inertias]]`` (joint, inertia: MuJoCo's armature) and ``[[joint_frictions]]`` (joint,
+    friction: MuJoCo's frictionloss): elements on the joint's own coordinate, in N·m·s/rad,
+    N·m/rad, kg·m² and N·m on a revolute joint, N·s/m, N/m, kg and N on a prismatic one."""
     out = []
     joints = linkage.joint_map
     for k, t in enumerate(array_of_tables(top, "joint_inertias")):
@@ -173,6 +177,15 @@ def _parse_joint_elements(top: Table, linkage: Linkage) -> list[JointElement]:
         inertia = t.number("inertia", positive=True, kind="inertia" if revolute else "mass")
         t.close()
         out.append(_mechanism_value(t.path, lambda: JointElement("inertia", name, joint, inertia)))
+    for k, t in enumerate(array_of_tables(top, "joint_frictions")):
+        joint = t.string("joint")
+        if joint not in joints:
+            raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+        name = name_key(t.string("name", f"joint_friction{k}"), t.key("name"))
+        revolute = not isinstance(joints[joint], PrismaticJoint)
+        friction = t.number("friction", positive=True, kind="torque" if revolute else "force")
+        t.close()
+        out.append(_mechanism_value(t.path, lambda: JointElement("friction", name, joint, friction)))
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
         for k, t in enumerate(array_of_tables(top, table)):
             joint = t.string("joint")
@@ -369,7 +382,7 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
     timed = _parse_timed_forces(top)
     actuators = _parse_actuators(top, linkage)
     count(elements + forces + joint_elements + timed + actuators,
-           "dampers, springs, joint_dampers, joint_springs, joint_inertias, point_forces, timed_forces and actuators",
+           "dampers, springs, joint_dampers, joint_springs, joint_inertias, joint_frictions, point_forces, timed_forces and actuators",
            MAX_ELEMENTS, "entries together")
     return _mechanism_value("bodies", lambda: Mechanism(linkage, elements, forces, joint_elements, timed,
                                                         actuators)), None
@@ -529,6 +542,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
         if note is not None:
             warnings.warn(f"{source or f'scene {name!r}'}: {note}", GrublerCountWarning, stacklevel=2)
     _check_start(system, x0, q0, qdot0)
+    _check_ranges(system, mechanism.linkage, x0)
 
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
@@ -638,6 +652,18 @@ def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
         raise SceneError(f"'initial.q' = {q0}: the general description assembles {gap:.3g} rad away from the "
                          f"four-bar closed form on branch {g.branch}")
     return x0
+
+
+def _check_ranges(system, linkage: Linkage, x0: np.ndarray) -> None:
+    """Every joint with a range starts inside it (lo ≤ u0 ≤ hi)."""
+    for joint in linkage.joints:
+        if joint.range is None:
+            continue
+        u0 = float(system.joint_row(joint.name) @ x0)
+        lo, hi = joint.range
+        if not lo <= u0 <= hi:
+            unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
+            raise SceneError(f"joint '{joint.name}' starts at {u0:.9g} {unit}, outside its range [{lo:g}, {hi:g}] {unit}")
 
 
 def _check_start(system, x0: np.ndarray, q0: float, qdot0: float) -> None:

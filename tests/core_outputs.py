@@ -35,6 +35,7 @@ NOT_RECORDED = {
     "mechanisms/seed_fourbar_geared_flywheel.toml": "tests/core/test_couplings.py (the seed with a joint inertia)",
     "mechanisms/servo_fourbar.toml": "tests/reduced/test_actuators.py (closed form), "
                                      "tests/reference_models/test_actuators_mjcf.py (MuJoCo, Pinocchio, audits)",
+    "mechanisms/friction_fourbar.toml": "tests/reduced/test_friction_fourbar.py (stick, energy, halves)",
 }
 
 

@@ -7,7 +7,10 @@ settings that can cause a difference is changed alone:
 
 - the loops' softness: the same step, the loops as stiff as MuJoCo allows at it (solref
   (2·timestep, 1), solimp (0.9999, 0.9999, 0.001, 0.5, 2));
-- the timestep: a tenth of it, the loops as written.
+- the timestep: a tenth of it, the loops as written;
+- where the model has dry friction (``frictionloss`` on a joint or tendon, which MuJoCo makes soft:
+  it creeps while the exact solution sticks): the same step, the friction rows as stiff as the
+  loops' (solreffriction (2·timestep, 1), solimpfriction (0.9999, 0.9999, 0.001, 0.5, 2)).
 
 Each of these two has its own budget of TRIAL_STEPS steps (and a run's MAX_STEPS): past it, the
 trial is skipped with a note, and the model as written still gets its verdict.
@@ -26,6 +29,7 @@ margin found.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 
@@ -36,6 +40,7 @@ from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.results import EngineResult
 from loopcheck.scene import SceneError, Tolerances
 from loopcheck.reference_models.mjcf_import import ImportedModel
+from loopcheck.reference_models.settings import DEFAULT_SOLIMP
 from loopcheck.reference_models.user_model import MAX_STEPS, ModelOptions, input_coordinate, run_model
 
 from .run import Comparison, judge
@@ -119,6 +124,14 @@ class ModelCheck:
     cheapest: Trial | None
     tried: tuple[Trial, ...]
     cheapest_half: Trial | None = None  # the suggestion checked again at half its step
+    stiff_friction: Trial | None = None  # the dry friction's rows stiff (a model with frictionloss)
+
+    @property
+    def friction_is_the_cause(self) -> bool:
+        """The model fails as written, and stiffer friction rows alone meet the tolerances where
+        neither stiffer loops nor a smaller step does."""
+        return (not self.as_written.passed and self.stiff_friction is not None and self.stiff_friction.passed
+                and not self.stiff_loops.passed and not self.smaller_step.passed)
 
     @property
     def contact(self) -> NumericalFailure | None:
@@ -139,6 +152,8 @@ class ModelCheck:
             return "a contact (above): the exact reference has none, so no options can meet the tolerances"
         if self.as_written.passed:
             return "none: the model as written meets the tolerances"
+        if self.friction_is_the_cause:
+            return FRICTION_CAUSE
         loops, step = "the loops' softness (the connects' and couplings' solref and solimp)", "the timestep"
         skipped = [t for t in (self.stiff_loops, self.smaller_step) if t.skipped]
         if skipped:
@@ -156,6 +171,37 @@ class ModelCheck:
             return f"{first} or {second}: changing either alone meets the tolerances"
         return (f"both {first} and {second}: neither changed alone meets the tolerances ({more[first]} "
                 "more of the difference)")
+
+
+FRICTION_CAUSE = ("the dry friction's softness (frictionloss: MuJoCo's friction rows creep where the exact solution "
+                  "sticks): stiffen them with solreffriction and solimpfriction on the joints and tendons with "
+                  "frictionloss")
+
+
+def has_friction(model) -> bool:
+    """Whether the model has dry friction (``frictionloss`` on a dof or a tendon)."""
+    return bool(np.any(model.dof_frictionloss > 0.0) or np.any(model.tendon_frictionloss > 0.0))
+
+
+def friction_snippet(timestep: float) -> str:
+    """The MJCF that makes every joint's and tendon's friction rows as stiff as the stiff-friction
+    trial's (a ``<default>`` of solreffriction and solimpfriction)."""
+    solimp = " ".join(f"{v:g}" for v in DEFAULT_SOLIMP)
+    values = f'solreffriction="{2.0 * timestep:g} 1" solimpfriction="{solimp}"'
+    return f"<default><joint {values}/><tendon {values}/></default>"
+
+
+def _stiff_friction(imported: ImportedModel, timestep: float) -> ImportedModel:
+    """The imported model with its friction rows as stiff as the loops' stiff trial: solref
+    (2·timestep, 1), solimp DEFAULT_SOLIMP on every dof and tendon with frictionloss."""
+    model = copy.copy(imported.model)
+    for d in np.flatnonzero(model.dof_frictionloss > 0.0):
+        model.dof_solref[d] = (2.0 * timestep, 1.0)
+        model.dof_solimp[d] = DEFAULT_SOLIMP
+    for t in np.flatnonzero(model.tendon_frictionloss > 0.0):
+        model.tendon_solref_fri[t] = (2.0 * timestep, 1.0)
+        model.tendon_solimp_fri[t] = DEFAULT_SOLIMP
+    return replace(imported, model=model)
 
 
 def _trial(imported: ImportedModel, reference: EngineResult, tolerances: Tolerances, label: str,
@@ -247,16 +293,23 @@ def check_model(imported: ImportedModel, *, tolerances: Tolerances | None = None
     as_written = trial("as written", written)  # a run beyond MAX_STEPS is refused (ValueError)
     stiff = trial("stiff loops", written.stiff_loops(), TRIAL_STEPS)
     smaller = trial(f"timestep / {STEP_FACTOR}", replace(written, timestep=written.timestep / STEP_FACTOR), TRIAL_STEPS)
+    friction = None
+    if has_friction(imported.model) and not as_written.passed:
+        friction = _trial(_stiff_friction(imported, written.timestep), reference, tolerances, "stiff friction", written,
+                          TRIAL_STEPS)
     tried = [as_written, stiff, smaller]
     cheapest, half = (as_written, None) if as_written.passed else (None, None)
-    if cheapest is None and _first_contact(tried) is None:  # a contact: no options can meet the tolerances
+    # the friction the cause: its own snippet, no search of loops and steps (which cannot meet them)
+    friction_cause = friction is not None and friction.passed and not (stiff.passed or smaller.passed)
+    if cheapest is None and _first_contact(tried) is None and not friction_cause:  # a contact: no options can meet the tolerances
         for integrator in dict.fromkeys(("rk4", written.integrator)):  # RK4's answer bounds the other's search
             budget = cheapest.evaluations if cheapest is not None else math.inf
             found = _cheapest_step(replace(written, integrator=integrator), scene.horizon, trial, tried, budget)
             if found is not None and (cheapest is None or found[0].evaluations < cheapest.evaluations):
                 cheapest, half = found
     return ModelCheck(imported=imported, reference=reference, as_written=as_written, stiff_loops=stiff,
-                      smaller_step=smaller, cheapest=cheapest, tried=tuple(tried), cheapest_half=half)
+                      smaller_step=smaller, cheapest=cheapest, tried=tuple(tried), cheapest_half=half,
+                      stiff_friction=friction)
 
 
 def _figures(trial: Trial, unit: str) -> str:
@@ -300,10 +353,16 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
     these under its table)."""
     unit = check.imported.scene.input_unit
     lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
-             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}",
-             f"      the difference comes from: {check.cause}"]
+             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}"]
+    if check.stiff_friction is not None:
+        lines.append(f"      stiff friction:    {_figures(check.stiff_friction, unit)}")
+    lines.append(f"      the difference comes from: {check.cause}")
     if check.contact is not None:
         pass  # no search: a contact leaves no options that meet the tolerances
+    elif check.friction_is_the_cause:
+        lines += ["      paste into the MJCF (the friction rows as stiff as the stiff-friction trial's, "
+                  f"solreffriction at 2 × the timestep {check.as_written.options.timestep:g} s):",
+                  f"        {friction_snippet(check.as_written.options.timestep)}"]
     elif check.cheapest is None:
         smallest = min(t.options.timestep for t in check.tried)
         lines.append(f"      no options tried meet the tolerances with margin (every difference at most {MARGIN:g} of its "

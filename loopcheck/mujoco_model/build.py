@@ -305,6 +305,11 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
                              "(the loops leave no spanning tree holding every inertia's joint): MuJoCo's tendon armature "
                              "keeps only the mass-matrix terms of one branch, so it would not be ½ I u̇²; move the "
                              "inertia to a joint of the tree or run the reduced engine alone")
+    taken = {e.name for e in mech.elements + mech.joint_elements}
+    for joint in linkage.joints:
+        if joint.range is not None and range_tendon(joint.name) in taken:
+            raise ValueError(f"element name {range_tendon(joint.name)!r} is the MuJoCo model's tendon of joint "
+                             f"{joint.name!r}'s range: rename the element")
     spec = mujoco.MjSpec()
     spec.modelname = scene.name
     opt = spec.option
@@ -491,11 +496,12 @@ def joint_tendons(scene: Scene) -> dict[str, tuple[np.ndarray, float]]:
     path (:func:`coordinate_map`) and u is linear in qpos also for a cut joint: the coefficients
     are 0 or ±1, and a fixed tendon is u − u0."""
     elements = scene.mechanism.joint_elements
-    if not elements:
+    ranged = [j.name for j in scene.mechanism.linkage.joints if j.range is not None]
+    if not elements and not ranged:
         return {}
     system = loops.compile_linkage(scene.mechanism.linkage)
     x0, T = coordinate_map(scene)
-    rows = {e.joint: system.joint_row(e.joint) for e in elements}
+    rows = {name: system.joint_row(name) for name in [e.joint for e in elements] + ranged}
     return {joint: (row @ T, float(row @ x0)) for joint, row in rows.items()}
 
 
@@ -543,7 +549,10 @@ def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
     the joint's own stiffness, damping and armature: it serves a cut joint too (closed by a
     connect equality, no MuJoCo joint), and two elements on one joint stay two. Where u_rest − u0 < 0 the tendon
     is written with the opposite sign (same force and energy), since MuJoCo reads a
-    springlength of −1 as "the length at qpos0". Returns the dampers' names."""
+    springlength of −1 as "the length at qpos0". A joint friction's tendon has ``frictionloss`` f
+    (MuJoCo's dry friction on the tendon's length, u − u0: f on u). A joint's range is a tendon
+    named ``<joint>_range`` with ``range`` [lo − u0, hi − u0] (limited), a cut joint's as a tree
+    joint's. Returns the dampers' names."""
     order = joint_order(scene.mechanism.linkage)
     tendons = joint_tendons(scene)
     dampers = []
@@ -559,9 +568,20 @@ def _add_joint_elements(spec: mujoco.MjSpec, scene: Scene) -> list[str]:
             dampers.append(e.name)
         elif e.kind == "inertia":
             tendon.armature = e.coefficient
+        elif e.kind == "friction":
+            tendon.frictionloss = e.coefficient
         else:
             tendon.stiffness = [e.coefficient, 0.0, 0.0]
             tendon.springlength = [sign * length, sign * length]
+    for joint in scene.mechanism.linkage.joints:
+        if joint.range is None:
+            continue
+        coef, u0 = tendons[joint.name]
+        tendon = spec.add_tendon(name=range_tendon(joint.name))
+        for k in np.flatnonzero(coef):
+            tendon.wrap_joint(order[k], float(coef[k]))
+        tendon.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        tendon.range = [joint.range[0] - u0, joint.range[1] - u0]
     return dampers
 
 
@@ -646,6 +666,11 @@ def actuator_controls(scene: Scene, times: np.ndarray) -> np.ndarray:
     columns += [a.control.sample(times) if a.control is not None else np.zeros(len(times))
                 for a in scene.mechanism.actuators]
     return np.column_stack(columns) if columns else np.zeros((len(times), 0))
+
+
+def range_tendon(joint: str) -> str:
+    """The name of the fixed tendon that holds joint ``joint``'s range in the MuJoCo model."""
+    return f"{joint}_range"
 
 
 def set_timestep(spec: mujoco.MjSpec, scene: Scene, timestep: float, solref: tuple[float, float]) -> None:

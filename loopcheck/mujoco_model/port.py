@@ -103,6 +103,14 @@ def prepare(scene: Scene, settings: ModelOptions, engine: str, table: str) -> Po
     if forces:
         raise PortRefusal(f"{engine} does not run point or timed forces ({', '.join(forces)}): MuJoCo applies them "
                           "through mjcb_control at every integrator stage, which the port does not call")
+    frictions = [e.name for e in mechanism.joint_frictions]
+    if frictions:
+        raise PortRefusal(f"{engine} does not run joint friction ({', '.join(frictions)}): the port's support of "
+                          "MuJoCo's tendon frictionloss is not checked against the reduced reference")
+    ranged = [j.name for j in mechanism.linkage.joints if j.range is not None]
+    if ranged:
+        raise PortRefusal(f"{engine} does not run joint ranges ({', '.join(ranged)}): the port's support of "
+                          "MuJoCo's tendon limits is not checked against the reduced reference")
     key = f"[{table}] timestep (--timestep)"
     h = settings.timestep if settings.timestep is not None else grid_timestep(scene, key=key)
     if not h <= scene.horizon:

@@ -9,6 +9,7 @@ their states alone, and the sensors are computed here at each state (``sensors=N
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -48,7 +49,8 @@ class RunRecord:
     x, xdot : the scene's general coordinates and rates; trajectory : q, q̇, q̈ with a sample on
     each side of every load edge; joints : the general coordinates with their assembly modes;
     constraint_violation : the largest loop gap at each state (m); audit : the energy balance;
-    input_load : N·m or N, the input motor's force at each state (zero without one).
+    input_load : N·m or N, the input motor's force at each state (zero without one); notes : a
+    line per joint or tendon limit that acted, and when it first did.
     """
 
     times: np.ndarray
@@ -59,6 +61,7 @@ class RunRecord:
     constraint_violation: ConstraintViolation
     audit: EnergyAudit
     input_load: np.ndarray
+    notes: tuple[str, ...] = ()  # each MuJoCo limit that acted (constraint_flows)
 
     def gate(self, max_constraint_violation: float, max_energy_residual: float, initial: dict, engine: str) -> None:
         """NumericalFailure when the loop gap or the energy residual is beyond its bound (the
@@ -108,11 +111,15 @@ def record_run(scene: Scene, handles: ModelHandles, layout: Layout, data: mujoco
     trajectory = with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, STATE,
                                    timed, callback)
     audit = energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
+    friction, notes = constraint_flows(model, data, states, ctrl, timed, callback)
+    if friction is not None:
+        audit = dataclasses.replace(audit, damper_dissipation=audit.damper_dissipation + friction)
     key = sensor_name(INPUT_MOTOR, "force")
     motor = sensors[:, sl[key]][:, 0] if key in sl else np.zeros(len(times))
     return RunRecord(times=times, q=q, qdot=qdot, trajectory=trajectory,
                      joints=joint_trajectory(layout, times, x, xdot),
-                     constraint_violation=ConstraintViolation(times, violation), audit=audit, input_load=motor)
+                     constraint_violation=ConstraintViolation(times, violation), audit=audit, input_load=motor,
+                     notes=notes)
 
 
 def input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
@@ -226,6 +233,71 @@ def joint_trajectory(layout: Layout, times, x, xdot) -> JointTrajectory:
     mode = loops.assembly_modes(layout.system, x)
     return JointTrajectory(layout.system.coordinate_names, times, x, xdot,
                            np.full(len(times), -1), mode)
+
+
+_FRICTION_ROWS = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON))
+_LIMIT_ROWS = {int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT): mujoco.mjtObj.mjOBJ_JOINT,
+               int(mujoco.mjtConstraint.mjCNSTR_LIMIT_TENDON): mujoco.mjtObj.mjOBJ_TENDON}
+
+
+def has_events(model: mujoco.MjModel) -> bool:
+    """Whether the model has dry friction (``frictionloss`` on a dof or a tendon) or limits."""
+    return bool(np.any(model.dof_frictionloss > 0.0) or np.any(model.tendon_frictionloss > 0.0)
+                or np.any(model.jnt_limited) or np.any(model.tendon_limited))
+
+
+_EVENT_ROWS = _FRICTION_ROWS + tuple(_LIMIT_ROWS)
+
+
+def friction_power(data: mujoco.MjData) -> float:
+    """The power MuJoCo's dry friction and limits take out of the motion at the state last
+    forwarded (W): −Σ efc_force · efc_vel over the friction rows (mjCNSTR_FRICTION_DOF,
+    mjCNSTR_FRICTION_TENDON: the row's force on its velocity J q̇; the friction opposes the
+    motion, so it is ≥ 0 to the solver's softness) and the limit rows (mjCNSTR_LIMIT_JOINT,
+    mjCNSTR_LIMIT_TENDON: a soft limit's spring and damper, whose work the audit books with the
+    dissipation; zero until a limit acts)."""
+    n = data.nefc
+    rows = np.isin(data.efc_type[:n], _EVENT_ROWS)
+    return -float(data.efc_force[:n][rows] @ data.efc_vel[:n][rows])
+
+
+def active_limits(model: mujoco.MjModel, data: mujoco.MjData) -> list[str]:
+    """The joints and tendons whose limit row is active (a nonzero force) at the state last
+    forwarded, as MuJoCo names them ("joint 'spin'", "tendon 'O_range'")."""
+    out = []
+    for i in range(data.nefc):
+        obj = _LIMIT_ROWS.get(int(data.efc_type[i]))
+        if obj is not None and data.efc_force[i] != 0.0:
+            name = mujoco.mj_id2name(model, obj, int(data.efc_id[i])) or f"#{int(data.efc_id[i])}"
+            out.append(f"{'joint' if obj == mujoco.mjtObj.mjOBJ_JOINT else 'tendon'} '{name}'")
+    return out
+
+
+def limit_note(element: str, t: float) -> str:
+    """The note of a MuJoCo limit that acted (first at t, s)."""
+    return (f"{element}: MuJoCo's limit acted from t = {t:.6g} s (the exact reference ends where the joint "
+            "reaches its range)")
+
+
+def constraint_flows(model, data, states, ctrl, timed, callback) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """What the friction and limit rows did over the stored states, read at each (``mj_forward``
+    with that step's control and timed forces): the energy they took out of the motion since the
+    first state (J, by the trapezoid rule of :func:`friction_power`; None without either), and a
+    note per limit that acted (:func:`limit_note`)."""
+    if not has_events(model):
+        return None, ()
+    rate = np.zeros(len(states))
+    first: dict[str, float] = {}
+    for k, state in enumerate(states):
+        if timed.shape[1]:
+            callback.step_values[:] = timed[min(k, len(timed) - 1)]
+        sensors_at(model, data, state, ctrl[min(k, len(ctrl) - 1)] if model.nu else None, STATE)
+        rate[k] = friction_power(data)
+        for element in active_limits(model, data):
+            first.setdefault(element, float(state[0]))
+    notes = tuple(limit_note(e, t) for e, t in first.items())
+    dt = np.diff(states[:, 0])
+    return np.concatenate([np.zeros(1), np.cumsum(0.5 * (rate[:-1] + rate[1:]) * dt)]), notes
 
 
 def sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:

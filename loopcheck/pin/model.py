@@ -126,6 +126,9 @@ def build(scene: Scene, settings: Settings) -> PinModel:
         raise ValueError(f"coupling {c.name!r} (joint {c.joint!r} follows joint {c.driver!r} by a polynomial) has no "
                          "Pinocchio form: its constraintDynamics holds contact constraints (3D, 6D) between frames, "
                          "not a polynomial between two joints' coordinates; leave the pin engine out")
+    if mech.joint_frictions:
+        raise ValueError(f"joint friction {mech.joint_frictions[0].name!r}: the Pinocchio engine has no dry "
+                         "(Coulomb) friction with stick and slip; leave the pin engine out")
     for e in mech.joint_inertias:
         if e.joint in linkage.cut_joints:
             raise ValueError(f"joint inertia {e.name!r} is on joint {e.joint!r}, which closes a loop in the "

@@ -25,8 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from loopcheck import kinematics as loops
-from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from
+from .dynamics import Coefficients, Kinematics, MechanismModel, coefficients_from, ranged_joints
 from loopcheck.errors import NumericalFailure
+from loopcheck.mechanism import PrismaticJoint
 from .integrators import MAX_EVALUATIONS, SAMPLES_PER_STEP, SPEED_LIMIT, Solution, budget_spent
 from .kernels import output, physics
 from .kernels import partition as compiled
@@ -47,6 +48,16 @@ class Switch:
     new: str
     conditioning_old: float
     conditioning_new: float
+
+
+@dataclass(frozen=True)
+class FrictionEvent:
+    """A change of the joint friction's mode at time t (s): "stick", or "slip" with the sign of
+    the chart coordinate's rate (+1 or −1) in ``direction`` (0 for a stick)."""
+
+    time: float
+    mode: str
+    direction: int = 0
 
 
 class Chart:
@@ -166,6 +177,7 @@ class PartitionedSolution:
     sample_energy: tuple[np.ndarray, ...] | None
     method: str
     settings: dict = field(default_factory=dict)
+    friction_events: tuple[FrictionEvent, ...] = ()  # the compiled runs' (each stick and slip)
 
 
 def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
@@ -277,7 +289,17 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
     if status == output.NO_BETTER:
         return NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
     if status == output.TOO_MANY_SWITCHES:
-        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
+        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches or changes of the joint "
+                                "friction between stick and slip", t)
+    if status == output.RANGE_REACHED:
+        r, side, u, bound = outcome.detail
+        joint = ranged_joints(model.scene.mechanism.linkage)[int(r)]
+        unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
+        lo, hi = joint.range
+        return NumericalFailure(
+            "range-reached", f"joint {joint.name!r} reached the {'upper' if side else 'lower'} bound {bound:.6g} {unit} "
+            f"of its range [{lo:.6g}, {hi:.6g}] {unit} at t = {t:.9g} s: the exact solution stops there (MuJoCo's "
+            "joint limit would act from then on)", t)
     return NumericalFailure("singular", "the run cannot start: its coordinate cannot drive the linkage", t)
 
 
@@ -311,7 +333,8 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 
-def _solution(model: MechanismModel, segments, switches, observed=None, energy=None) -> PartitionedSolution:
+def _solution(model: MechanismModel, segments, switches, observed=None, energy=None,
+              friction_events: tuple[FrictionEvent, ...] = ()) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
     (:meth:`loopcheck.reduced.kernels.physics.Chart.observe`), or None to walk each chart to its samples;
     ``energy``: per segment, the energy flows the compiled run integrated (or None)."""
@@ -327,7 +350,7 @@ def _solution(model: MechanismModel, segments, switches, observed=None, energy=N
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
         sample_fields=tuple(f for f, _ in recorded), sample_energy=None if energy is None else tuple(energy),
-        method=first.method, settings=first.settings)
+        method=first.method, settings=first.settings, friction_events=friction_events)
 
 
 def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, method: str,
@@ -346,7 +369,9 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, metho
     names = model.coordinate_names
     switches = [Switch(float(r[0]), names[int(r[1])], names[int(r[2])], float(r[3]), float(r[4]))
                 for r in run.switches]
-    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts))
+    events = tuple(FrictionEvent(float(t), "stick", 0) if mode == physics.STICK else FrictionEvent(float(t), "slip", int(mode))
+                   for t, mode in run.events)
+    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events)
 
 
 def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajectory, JointTrajectory]:

@@ -159,6 +159,11 @@ def check_actuators(scene: Scene) -> None:
                              "MujocoSettings)")
 
 
+def ranged_joints(linkage) -> tuple:
+    """The joints with a range, in the linkage's order: range r of the kernel is the r-th."""
+    return tuple(j for j in linkage.joints if j.range is not None)
+
+
 def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     """The kernel arrays of a scene (:mod:`loopcheck.reduced.kernels.physics` documents the layout, after
     the kinematics' of :mod:`loopcheck.kernels.loops`): only the effects it declares have rows."""
@@ -196,6 +201,14 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.JOINT_ROWS] = P.float([system.joint_row(e.joint) for e in joint_elements])
     h[physics.JOINT_COEF] = P.float([e.coefficient for e in joint_elements])
     h[physics.JOINT_REST] = P.float([e.rest for e in joint_elements])
+    frictions = mech.joint_frictions  # the events' (:meth:`physics.Chart.stop_margin`)
+    h[physics.N_FRICTION] = len(frictions)
+    h[physics.FRICTION_ROWS] = P.float([system.joint_row(e.joint) for e in frictions])
+    h[physics.FRICTION_COEF] = P.float([e.coefficient for e in frictions])
+    ranged = ranged_joints(linkage)
+    h[physics.N_RANGES] = len(ranged)
+    h[physics.RANGE_ROWS] = P.float([system.joint_row(j.name) for j in ranged])
+    h[physics.RANGE_BOUNDS] = P.float([j.range for j in ranged])
     h[physics.N_TIMED] = len(tf)
     h[physics.TIMED_DIR] = P.float([[math.cos(p.direction), math.sin(p.direction)] for p in tf])
     h[physics.PIECE_VALUES] = P.float(piece_values(scene, piece_edges(scene)))

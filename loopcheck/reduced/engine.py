@@ -79,6 +79,12 @@ def integrate(model: MechanismModel, settings: ReducedSettings, step: float | No
         return integrate_rkn4(model, settings.step if step is None else step)
     if settings.method == "dop853":
         return integrate_dop853(model, settings.rtol, settings.sample_interval, CHART_RETRY_MAX_STEP)
+    mech = model.scene.mechanism
+    events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
+    if events:
+        raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
+                         f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
+                         "or rkn4")
     return integrate_partitioned(model, scipy_chart_integrator(settings, model.load_edges))
 
 
@@ -224,7 +230,7 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
             f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol"
             + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
     details = ReducedDetails(solver=solution.method, switches=tuple(solution.switches), error_estimate=estimate,
-                             energy_bound=bound, energy_scale=scale)
+                             energy_bound=bound, energy_scale=scale, friction_events=solution.friction_events)
     return EngineResult(
         engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_rate(),
         audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
@@ -240,6 +246,7 @@ class ReducedDetails:
     error_estimate : RKN4's step-doubling estimate of its own error; None for the adaptive methods.
     energy_bound : the largest relative energy residual the run may have.
     energy_scale : J, what the residual is relative to (:func:`energy_scale`).
+    friction_events : each change of the joint friction between stick and slip, in time order.
     """
 
     solver: str
@@ -247,11 +254,13 @@ class ReducedDetails:
     error_estimate: ErrorEstimate | None
     energy_bound: float
     energy_scale: float
+    friction_events: tuple = ()
 
     def as_dict(self) -> dict:
         return {"solver": self.solver, "switches": [asdict(s) for s in self.switches],
                 "error_estimate": None if self.error_estimate is None else self.error_estimate.as_dict(),
-                "energy_bound": self.energy_bound, "energy_scale_J": self.energy_scale}
+                "energy_bound": self.energy_bound, "energy_scale_J": self.energy_scale,
+                "friction_events": [asdict(e) for e in self.friction_events]}
 
 
 def energy_scale(audit, solution: PartitionedSolution) -> float:

@@ -439,7 +439,7 @@ class _Reader:
 
     # -- the plane ---------------------------------------------------------------
     def joints(self) -> None:
-        """Refuse joints the description cannot hold; warn of ranges."""
+        """Refuse joints the description cannot hold."""
         m = self.model
         for j in range(m.njnt):
             kind = int(m.jnt_type[j])
@@ -447,17 +447,10 @@ class _Reader:
                 what = "free" if kind == _FREE else "ball"
                 self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} is a {what} joint: a planar "
                           "one-DOF linkage has hinges and slides only")
-            if m.dof_frictionloss[m.jnt_dofadr[j]] > 0.0:
-                self.fail(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} has frictionloss: dry friction "
-                          "is not part of loopcheck's description")
             if m.jnt_actgravcomp[j] and m.jnt_actfrclimited[j]:  # else the same force as a passive gravcomp
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
                           "with actuatorfrcrange cannot be represented: MuJoCo clamps the gravity compensation "
                           "there, and loopcheck's gravcomp is not clamped")
-            if m.jnt_limited[j]:
-                self.warnings.append(f"{self.label(mujoco.mjtObj.mjOBJ_JOINT, j)} has a range: "
-                                     "loopcheck's description has no joint limits, so the comparison holds while the "
-                                     "motion stays inside it")
         if m.njnt == 0:
             self.fail("the model has no joints")
         for b in range(1, m.nbody):
@@ -572,6 +565,7 @@ class _Reader:
         taken: set[str] = set()
         self.joint_of: dict[str, str] = {}
         self.joint_sign: dict[int, float] = {}
+        self.ranges: dict[str, tuple[float, float]] = {}  # a joint's range on its own coordinate (_elements)
         for j in range(m.njnt):
             body = int(m.jnt_bodyid[j])
             child, parent = self.group_of[body], self.group_of[int(m.body_parentid[body])]
@@ -1156,6 +1150,9 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     inertias = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
                                    + [j for c in couplings for j in (c.joint, c.driver)]))
     try:
+        if reader.ranges:
+            joints = [dataclasses.replace(j, range=reader.ranges[j.name]) if j.name in reader.ranges else j
+                      for j in joints]
         # as the scene file builds it (the tree takes them first), so that its loops are the file's
         linkage = Linkage(bodies, joints, input_name, inertias, couplings)
         mechanism = Mechanism(linkage, elements, (), joint_elements, (), actuators)
@@ -1490,7 +1487,19 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
 
     revolute = {j.name: isinstance(j, RevoluteJoint) for j in linkage.joints}
     kinds = {"inertia": ("inertia", "mass"), "damper": ("rotational damping", "damping"),
-             "spring": ("rotational stiffness", "stiffness")}
+             "spring": ("rotational stiffness", "stiffness"), "friction": ("torque", "force")}
+
+    def add_range(joint, bounds, where):
+        """A range on the joint's own coordinate; two on one joint (its own and a fixed tendon's)
+        keep what both allow."""
+        for b in bounds:
+            reader.representable(b, "angle" if revolute[joint] else "position", where)
+        lo, hi = bounds
+        if joint in reader.ranges:
+            lo, hi = max(lo, reader.ranges[joint][0]), min(hi, reader.ranges[joint][1])
+        if not lo < hi:
+            reader.fail(f"{where}: the ranges on joint '{joint}' leave it no motion ([{lo:g}, {hi:g}])")
+        reader.ranges[joint] = (lo, hi)
 
     def add_joint_element(kind, base, joint, coefficient, rest=0.0, where="", rest_where=""):
         reader.representable(coefficient, kinds[kind][0 if revolute[joint] else 1], where)
@@ -1504,12 +1513,17 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.tendon_damping[t]) if dampers_on else 0.0
         stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
         armature = float(m.tendon_armature[t])
-        if m.tendon_frictionloss[t] > 0.0:
-            reader.fail(f"{label} has frictionloss: dry friction is not part of loopcheck's description")
-        if m.tendon_limited[t]:
-            reader.warnings.append(f"{label} has a range: loopcheck's description has no tendon limits, so the "
-                                   "comparison holds while the motion stays inside it")
-        if damping == 0.0 and stiffness == 0.0 and armature == 0.0:
+        friction = float(m.tendon_frictionloss[t])
+        limited = bool(m.tendon_limited[t])
+        adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
+        on_joints = all(int(m.wrap_type[k]) == _WRAP_JOINT for k in range(adr, adr + num))
+        if friction > 0.0 and not on_joints:
+            reader.fail(f"{label} has frictionloss along a path of sites or geoms: loopcheck's dry friction acts on "
+                        "one joint's own coordinate (a joint's frictionloss, or a fixed tendon's on one joint)")
+        if limited and not on_joints:
+            reader.warnings.append(f"{label} has a range: loopcheck's description has no limits on a tendon's "
+                                   "path, so the comparison holds while the motion stays inside it")
+        if damping == 0.0 and stiffness == 0.0 and armature == 0.0 and friction == 0.0 and not (limited and on_joints):
             if any(m.actuator_trntype[a] == _TRN_TENDON and int(m.actuator_trnid[a][0]) == t for a in range(m.nu)):
                 continue  # an actuator's transmission (_actuators), nothing of its own
             reader.warnings.append(f"{label} has no stiffness, damping or armature: it exerts no force and is "
@@ -1566,6 +1580,11 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
                         "the ½ a L̇² the scene holds")
             if damping > 0.0:
                 add_joint_element("damper", name, joint, damping, where=f"{label}: damping")
+            if friction > 0.0:  # f on L = λ u + const, λ = ±1: f on u
+                add_joint_element("friction", name, joint, friction, where=f"{label}: frictionloss")
+            if limited:  # L in [lo, hi]: u = (L − L_read) / λ + u_read
+                bounds = sorted((float(b) - length_read) / lam + u_read for b in m.tendon_range[t])
+                add_range(joint, bounds, f"{label}: range")
             if stiffness > 0.0:
                 # L = λ u + (L_read − λ u_read): ½ k (L − L0)² = ½ k (u − u_rest)² with λ = ±1
                 add_joint_element("spring", name, joint, stiffness, (float(low) - length_read + lam * u_read) / lam,
@@ -1581,8 +1600,17 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
+        friction = float(m.dof_frictionloss[m.jnt_dofadr[j]])
         if armature > 0.0:
             add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"{label}: armature")
+        if friction > 0.0:
+            add_joint_element("friction", f"{joint}_frictionloss", joint, friction, where=f"{label}: frictionloss")
+        if m.jnt_limited[j]:  # u = u_read + sign (qpos − qpos_read), as MuJoCo resolved limited/autolimits
+            adr = int(m.jnt_qposadr[j])
+            u_read = float(rows[joint] @ x_read)
+            sign = reader.joint_sign[j]
+            add_range(joint, sorted(u_read + sign * (float(b) - float(reader.qpos[adr])) for b in m.jnt_range[j]),
+                      f"{label}: range")
         if damping > 0.0:
             add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"{label}: damping")
         if stiffness > 0.0:

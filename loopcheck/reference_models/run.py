@@ -283,7 +283,8 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
         engine="mujoco", trajectory=record.trajectory, joints=record.joints,
         peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall, n_steps=n_steps,
         n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
-        effects=tuple(scene.effects), constraint_violation=record.constraint_violation, details=details)
+        effects=tuple(scene.effects), constraint_violation=record.constraint_violation, details=details,
+        caveats=record.notes)
     # a failed gate carries the run (NumericalFailure.partial): shown up to the failure's time
     return with_partial(lambda: record.gate(settings.max_constraint_violation, settings.max_energy_residual,
                                             initial, "MuJoCo"), result)

@@ -8,7 +8,7 @@ model changes. :class:`ModelOptions` says what was run, and can change the optio
 needs (a smaller step, stiffer loops) without touching anything else.
 
 At the start of every step (after ``mj_forward``) the run records the joints' state, the input's
-acceleration, the energies, the power of the motor and of the dampers, and each loop's gap (the
+acceleration, the energies, the power of the motor, of the dampers and of the dry friction (its efc rows), the limits that act, and each loop's gap (the
 distance between a connect's two anchors); the trajectory is the scene's input coordinate
 q = drive·x with x = x_read + qpos_map (qpos − qpos_read).
 """
@@ -26,7 +26,7 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.errors import FailureReason, NumericalFailure
 from loopcheck.results import ConstraintViolation, EnergyAudit, EngineResult
-from loopcheck.mujoco_model.record import samples_refine_extrema
+from loopcheck.mujoco_model.record import active_limits, friction_power, has_events, limit_note, samples_refine_extrema
 from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, singular_mass_matrix
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
@@ -270,7 +270,9 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     qvel = np.empty((n + 1, model.nv))
     qacc = np.empty((n + 1, model.nv))
     energy = np.empty((n + 1, 2))
-    power = np.zeros((n + 1, 2))  # the actuators' (every one: qfrc_actuator sums them), the dampers' (W)
+    power = np.zeros((n + 1, 2))  # the actuators' (every one: qfrc_actuator sums them); the dampers', the dry friction's and the limits' (W)
+    events = has_events(model)
+    limits: dict[str, float] = {}  # each limit that acted, when it first did
     gap = np.empty(n + 1)
 
     # gravcomp's force, −gravcomp·m·g at each centre of mass, is conservative: its potential
@@ -289,6 +291,10 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
         if ctrl is not None and 0 < k < n:  # step k − 1 ended here under its own control
             shift[k] = float((_actuator_forces(model, data, ctrl[k - 1]) - _actuator_forces(model, data, ctrl[k]))
                              @ data.actuator_velocity)
+        if events:
+            power[k, 1] += friction_power(data)
+            for element in active_limits(model, data):
+                limits.setdefault(element, float(times[k]))
         gap[k] = _gaps(model, data, connects)
 
     contacts = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT) and model.ngeom > 0
@@ -335,9 +341,9 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                             samples_refine_extrema(model))
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
-    # the work of the motor and of the dampers, by the trapezoidal rule over each step
-    # (each step's control at both its ends: the actuators' power at a step's end is taken with that
-    # step's control, not the next one's, so a control that jumps costs no O(h) error)
+    # the work of the actuators and the dampers' and dry friction's dissipation, by the trapezoidal rule
+    # over each step (each step's control at both its ends: the actuators' power at a step's end is
+    # taken with that step's control, not the next one's, so a control that jumps costs no O(h) error)
     work = np.zeros((n + 1, 2))
     work[1:] = np.cumsum(0.5 * h * (power[1:] + power[:-1]), axis=0)
     work[1:, 0] += np.cumsum(0.5 * h * shift[1:])
@@ -345,7 +351,8 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     return EngineResult(engine=ENGINE, trajectory=trajectory, joints=joints, peak=trajectory.peak_rate(), audit=audit,
                         wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,
                         effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, gap),
-                        details=ModelRunDetails(options, mujoco.__version__))
+                        details=ModelRunDetails(options, mujoco.__version__),
+                        caveats=tuple(limit_note(e, t) for e, t in limits.items()))
 
 
 __all__ = ["ENGINE", "InputCoordinate", "MAX_STEPS", "MJCF_INTEGRATOR", "input_coordinate", "ModelOptions", "ModelRunDetails", "run_model"]

@@ -24,6 +24,7 @@ from helpers import ROOT
 FOLDER = ROOT / "scenes" / "mechanisms"
 EXPECTED = {  # scene: (moving bodies, loops, effects)
     "seed_fourbar": (3, 1, ("torque", "damper")),
+    "friction_fourbar": (3, 1, ("torque", "damper", "joint-friction")),
     "slider_crank_gas": (3, 1, ("torque", "point-force")),
     "slider_crank_driven_slider": (3, 1, ("force",)),
     "oscillating_slotted_lever": (3, 1, ("torque", "damper", "gravity")),

@@ -209,8 +209,9 @@ REFUSED = {
                             "actuator 'servo' has activation dynamics"),
     "two joints on a body": (_model('<body name="b"><joint name="j1" axis="0 0 1"/><joint name="j2" axis="0 0 1"/>'
                                     '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>'), "body 'b' has 2 joints"),
-    "friction loss": (_model(FOUR_BAR.replace('name="A" axis="0 0 1"', 'name="A" axis="0 0 1" frictionloss="0.1"'), extra=LOOP),
-                      "joint 'A' has frictionloss"),
+    "friction loss along a line": (_model(FOUR_BAR, extra=LOOP + '<tendon><spatial name="rub" frictionloss="0.1">'
+                                                     '<site site="cB"/><site site="rB"/></spatial></tendon>'),
+                                   "tendon 'rub' has frictionloss along a path of sites or geoms"),
     "geoms that touch at the start": (_model(FOUR_BAR.replace('<site name="rB"', '<geom name="stop" size="0.1" '
                                                               'pos="1.4142135623730951 0 0"/><site name="rB"')
                                              .replace('<site name="cB"', '<geom name="tip" size="0.1" pos="1 0 0"/>'

@@ -530,6 +530,8 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
     d: cython.double
     if use_stop and status == _OK:
         g = rhs.stop_margin(t, y0, y1)
+        if rhs.stop_at_start(t, y0, y1):  # an event at the piece's start (a load edge breaks a stick loose)
+            return status, 0, 1, fail_time
     while status == _OK:
         if t == end:  # OdeSolver.step's corner case (an empty piece)
             break
@@ -705,7 +707,8 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
     speed_limit : |q̇| beyond which a sample ends the run with SPEED
     max_evaluations : budget of f evaluations over all pieces (as scipy's nfev counts them)
     max_step : scipy's max_step (inf for none)
-    use_stop : the terminal event rhs.stop_margin (direction -1)
+    use_stop : the terminal event rhs.stop_margin (direction -1); rhs.stop_at_start at a piece's
+        start ends the run there (one sample, no step)
     out : the samples are appended to it (its width must be rhs.observation_size())
     steps : the step workspace (:class:`Steps`; any capacity: it grows)
 

@@ -261,6 +261,108 @@ def _sample(rhs: RightHandSide, out: Samples, t: cython.double, q: cython.double
     out.n = i + 1
 
 
+@cython.cfunc
+def _step(rhs: RightHandSide, load: cython.Py_ssize_t, t: cython.double, q: cython.double, v: cython.double,
+          h: cython.double, c: cython.double[::1], a: cython.double[:, ::1], abar: cython.double[:, ::1],
+          b: cython.double[::1], bbar: cython.double[::1], den: cython.double, kk: cython.double[::1],
+          pp: cython.double[::1], dd: cython.double[::1], res: cython.double[::1]) -> cython.bint:
+    """One step of h from (t, q, v), its first stage's f, P, D in kk[0], pp[0], dd[0]: q⁺, q̇⁺
+    and the increments of the work done and of the energy dissipated into res[0:4]. False
+    where a stage's f is not finite."""
+    s: cython.Py_ssize_t = kk.shape[0]
+    i: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    started: cython.bint
+    sq: cython.double
+    sv: cython.double
+    sp: cython.double
+    sd: cython.double
+    Q: cython.double
+    V: cython.double
+    finite: cython.bint = True
+    for i in range(1, s):
+        # nonzero entries only, left to right (module docstring: RKN4 to the bit)
+        started = False
+        sq = 0.0
+        sv = 0.0
+        for j in range(i):
+            if abar[i, j] != 0.0:
+                sq = sq + abar[i, j] * kk[j] if started else abar[i, j] * kk[j]
+                started = True
+        Q = q + c[i] * h * v
+        if started:
+            Q = Q + h * h * sq
+        started = False
+        for j in range(i):
+            if a[i, j] != 0.0:
+                sv = sv + a[i, j] * kk[j] if started else a[i, j] * kk[j]
+                started = True
+        V = v
+        if started:
+            V = V + h * sv
+        kk[i] = rhs.acceleration(load, t + c[i] * h, Q, V)
+        pp[i] = rhs.power(load, V)
+        dd[i] = rhs.dissipation(V)
+        finite = finite and isfinite(kk[i])
+    if not finite:
+        return False
+    sq = 0.0
+    sv = 0.0
+    sp = 0.0
+    sd = 0.0
+    started = False
+    for i in range(s):
+        if bbar[i] != 0.0:
+            sq = sq + bbar[i] * kk[i] if started else bbar[i] * kk[i]
+            started = True
+    started = False
+    for i in range(s):
+        if b[i] != 0.0:
+            if started:
+                sv = sv + b[i] * kk[i]
+                sp = sp + b[i] * pp[i]
+                sd = sd + b[i] * dd[i]
+            else:
+                sv = b[i] * kk[i]
+                sp = b[i] * pp[i]
+                sd = b[i] * dd[i]
+            started = True
+    res[0] = q + h * v + h * h * sq / den
+    res[1] = v + h * sv / den
+    res[2] = h * sp / den
+    res[3] = h * sd / den
+    return True
+
+
+@cython.cfunc
+def _root(rhs: RightHandSide, t: cython.double, q0: cython.double, v0: cython.double, a0: cython.double,
+          q1: cython.double, v1: cython.double, a1: cython.double, h: cython.double) -> cython.double:
+    """The part of the step [t, t + h] to the stop margin's root: bisection (to the spacing of
+    the floats) of the margin on the step's cubic Hermite interpolants, q from (q, q̇) and q̇ from
+    (q̇, q̈) at its ends (fourth order in h, as the method); the margin is > 0 at its start and
+    ≤ 0 at its end."""
+    lo: cython.double = 0.0
+    hi: cython.double = 1.0
+    x: cython.double
+    x2: cython.double
+    x3: cython.double
+    it: cython.int
+    for it in range(60):
+        x = 0.5 * (lo + hi)
+        if x <= lo or x >= hi:
+            break
+        x2 = x * x
+        x3 = x2 * x
+        if rhs.stop_margin(t + x * h,
+                           (2 * x3 - 3 * x2 + 1) * q0 + (x3 - 2 * x2 + x) * h * v0 + (3 * x2 - 2 * x3) * q1 + (x3 - x2) * h * v1,
+                           (2 * x3 - 3 * x2 + 1) * v0 + (x3 - 2 * x2 + x) * h * a0 + (3 * x2 - 2 * x3) * v1 + (x3 - x2) * h * a1
+                           ) > 0.0:
+            lo = x
+        else:
+            hi = x
+    return hi * h
+
+
 @cython.ccall
 def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1],
               loads: cython.Py_ssize_t[::1], t0: cython.double, q0: cython.double, v0: cython.double,
@@ -278,7 +380,9 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
     step : the largest step (s): a piece of length ℓ gets ⌈ℓ/step − 1e-9⌉ equal steps
     speed_limit : |q̇| beyond which the run ends with SPEED
     stability : check the step every STABILITY_CHECK_EVERY steps (:func:`check_stability`)
-    use_stop : end the run after the first step where rhs.stop_margin ≤ 0 (outcome.stopped)
+    use_stop : end the run after the first step where rhs.stop_margin ≤ 0 (outcome.stopped), or
+        at a piece's first sample where rhs.stop_at_start; where rhs.locate says so, that step is
+        taken again from its start, to the margin's root on the step's interpolant (:func:`_root`)
     out : the samples are appended to it (its width must be rhs.observation_size()): one at
         every step, and at each piece's start one repeating the previous piece's last time
         with q̈ on the new side; with each, what rhs.observe records and the work done and the
@@ -333,20 +437,16 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
     t_next: cython.double
     h: cython.double
     accel: cython.double
-    sq: cython.double
-    sv: cython.double
-    sp: cython.double
-    sd: cython.double
-    Q: cython.double
-    V: cython.double
     load: cython.Py_ssize_t
     n: cython.Py_ssize_t
     m: cython.Py_ssize_t
     i: cython.Py_ssize_t
-    j: cython.Py_ssize_t
     status: cython.int
-    started: cython.bint
-    finite: cython.bint
+    q_prev: cython.double = q0
+    v_prev: cython.double = v0
+    hs: cython.double
+    res_array = np.empty(4)
+    res: cython.double[::1] = res_array  # a step's q⁺, q̇⁺ and the energy flows' increments
     outcome.t_reached = t0
     if not (isfinite(q) and isfinite(v)):
         outcome.status = NONFINITE
@@ -375,6 +475,9 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
             break
         _sample(rhs, out, start, q, v, accel, work, dissipated)
         outcome.t_reached = start
+        if use_stop and rhs.stop_at_start(start, q, v):  # an event at the piece's start (a load edge)
+            outcome.stopped = True
+            break
         for m in range(n):
             t = start + m * h
             if stability and n_steps % _CHECK_EVERY == 0:
@@ -385,60 +488,16 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
                     outcome.fail_time = t
                     break
             kk[0] = accel
-            finite = True
-            for i in range(1, s):
-                # nonzero entries only, left to right (module docstring: RKN4 to the bit)
-                started = False
-                sq = 0.0
-                sv = 0.0
-                for j in range(i):
-                    if abar[i, j] != 0.0:
-                        sq = sq + abar[i, j] * kk[j] if started else abar[i, j] * kk[j]
-                        started = True
-                Q = q + c[i] * h * v
-                if started:
-                    Q = Q + h * h * sq
-                started = False
-                for j in range(i):
-                    if a[i, j] != 0.0:
-                        sv = sv + a[i, j] * kk[j] if started else a[i, j] * kk[j]
-                        started = True
-                V = v
-                if started:
-                    V = V + h * sv
-                kk[i] = rhs.acceleration(load, t + c[i] * h, Q, V)
-                pp[i] = rhs.power(load, V)
-                dd[i] = rhs.dissipation(V)
-                finite = finite and isfinite(kk[i])
-            if not finite:
+            q_prev = q
+            v_prev = v
+            if not _step(rhs, load, t, q, v, h, c, a, abar, b, bbar, den, kk, pp, dd, res):
                 outcome.status = FAILED
                 outcome.fail_time = t
                 break
-            sq = 0.0
-            sv = 0.0
-            sp = 0.0
-            sd = 0.0
-            started = False
-            for i in range(s):
-                if bbar[i] != 0.0:
-                    sq = sq + bbar[i] * kk[i] if started else bbar[i] * kk[i]
-                    started = True
-            started = False
-            for i in range(s):
-                if b[i] != 0.0:
-                    if started:
-                        sv = sv + b[i] * kk[i]
-                        sp = sp + b[i] * pp[i]
-                        sd = sd + b[i] * dd[i]
-                    else:
-                        sv = b[i] * kk[i]
-                        sp = b[i] * pp[i]
-                        sd = b[i] * dd[i]
-                    started = True
-            q = q + h * v + h * h * sq / den
-            v = v + h * sv / den
-            work += h * sp / den
-            dissipated += h * sd / den
+            q = res[0]
+            v = res[1]
+            work += res[2]
+            dissipated += res[3]
             t_next = end if m + 1 == n else start + (m + 1) * h
             if not (isfinite(q) and isfinite(v)):
                 outcome.status = NONFINITE
@@ -462,6 +521,26 @@ def rkn_chart(rhs: RightHandSide, tableau: RKNTableau, edges: cython.double[::1]
             outcome.t_reached = t_next
             if use_stop and rhs.stop_margin(t_next, q, v) <= 0.0:
                 outcome.stopped = True
+                if rhs.locate(t_next, q, v):  # the step again, to the event's root (module docstring)
+                    hs = _root(rhs, t, q_prev, v_prev, kk[0], q, v, accel, t_next - t)
+                    kk[0] = rhs.acceleration(load, t, q_prev, v_prev)
+                    pp[0] = rhs.power(load, v_prev)
+                    dd[0] = rhs.dissipation(v_prev)
+                    work -= res[2]
+                    dissipated -= res[3]
+                    if not _step(rhs, load, t, q_prev, v_prev, hs, c, a, abar, b, bbar, den, kk, pp, dd, res):
+                        outcome.status = FAILED
+                        outcome.fail_time = t
+                        break
+                    q = res[0]
+                    v = res[1]
+                    work += res[2]
+                    dissipated += res[3]
+                    accel = rhs.acceleration(load, t + hs, q, v)
+                    n_eval += s + 1
+                    out.n -= 1
+                    _sample(rhs, out, t + hs, q, v, accel, work, dissipated)
+                    outcome.t_reached = t + hs
                 break
         if outcome.status != OK or outcome.stopped:
             break

@@ -22,6 +22,7 @@ FAILED = 5             #: the problem could not be evaluated (its own status say
 NO_BETTER = 6          #: chart switching: the stop event fired but no coordinate is better
 TOO_MANY_SWITCHES = 7  #: chart switching: more switches than allowed
 SINGULAR_START = 8     #: chart switching: the initial configuration is singular in its coordinate
+RANGE_REACHED = 9      #: a joint reached a bound of its range (fail_time; detail: range, side, u, bound)
 
 
 @cython.cclass

@@ -1,14 +1,24 @@
 # cython: wraparound=True
 # (the chart switching indexes Python arrays from their end; it has no hot loop)
-"""Coordinate partitioning: a whole run of charts, switching at dead centres.
+"""Coordinate partitioning and events: a whole run of charts, switching at dead centres.
 
 A run integrates one chart until its stop margin falls to ≤ 0 (another coordinate is better
 conditioned by more than the hysteresis), then continues in the best-conditioned coordinate j
-from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i).
+from the same configuration, with ẋ_j = K_j ẋ_i (K with respect to the old coordinate x_i), and a slipping friction's sign
+that of ẋ_j.
 :mod:`loopcheck.reduced.charts` documents the method; this module only strings the charts together,
 with either integrator: :func:`run_rkn` (fixed step, :mod:`.fixed_step`) or :func:`run_dop853`
 (adaptive, :mod:`.adaptive`). Each chart's samples are appended to one :class:`.output.Samples`,
 so the run's samples come out in one piece; :class:`PartitionedRun` says where each chart's begin.
+
+A chart's stop margin is the least of its events' (:meth:`.physics.Chart.stop_margin`): after a
+stop the run asks the chart which fired (:meth:`~.physics.Chart.fired`) and acts on it. A chart
+switch, as above. The joint friction: at q̇ = 0 while slipping, or at a load edge while
+sticking, the friction sticks if every other generalized force there, Q_rest (q̇ = 0), is
+within its capacity C = Σ f |K_u| (|Q_rest| ≤ C), else slips in the sign of Q_rest; the chart
+starts again there with q̇ = 0 (a new segment in the same coordinate). A joint's range: the
+run ends there with RANGE_REACHED (detail: the range's index, its side 0 lower or 1 upper, the
+joint's coordinate and the bound).
 
 The switching happens a handful of times a run (none on most scenes): this is the one kernel
 module whose work is not in a hot loop, compiled with the others but typed only where it is free.
@@ -20,7 +30,7 @@ import cython
 import numpy as np
 
 from . import adaptive, fixed_step, physics
-from .output import FAILED, NO_BETTER, NONFINITE, OK, SINGULAR_START, TOO_MANY_SWITCHES
+from .output import FAILED, NO_BETTER, NONFINITE, OK, RANGE_REACHED, SINGULAR_START, TOO_MANY_SWITCHES
 
 if cython.compiled:
     from cython.cimports.loopcheck.reduced.kernels.output import Outcome, Samples
@@ -36,7 +46,8 @@ class PartitionedRun(NamedTuple):
     segment_starts: np.ndarray     # (segments,) the index of each chart's first sample
     coordinates: np.ndarray        # (segments,) each chart's coordinate
     starts: np.ndarray             # (segments, 3, n) each chart's start configuration (x, K, L)
-    switches: np.ndarray           # (segments − 1, 5) each switch: time, old, new, c_old, c_new
+    switches: np.ndarray           # (switches, 5) each chart switch: time, old, new, c_old, c_new
+    events: np.ndarray             # (friction events, 2) each change of the friction's mode: time, new mode
 
 
 def switch(chart, value: cython.double, rate: cython.double):
@@ -93,19 +104,46 @@ def _dop853_chart(chart, steps, edges, loads, t: cython.double, value: cython.do
     return outcome
 
 
+def _friction_mode(chart, edges, loads, t: cython.double, value: cython.double, rate: cython.double):
+    """The friction's mode at (t, value, rate): slipping in the sign of a nonzero rate, else
+    sticking if the loads of the piece from t leave Q_rest within the capacity, else slipping in
+    the sign of Q_rest. NaN where the configuration fails."""
+    if rate > 0.0:
+        return 1.0
+    if rate < 0.0:
+        return -1.0
+    load = int(_pieces_from(edges, loads, t)[1][0])
+    rest = chart.rest_force(load, value)
+    if rest != rest:
+        return rest
+    capacity = float(chart.arrays()["fields"][physics.FRICTION_CAPACITY])
+    if abs(rest) <= capacity:
+        return float(physics.STICK)
+    return 1.0 if rest > 0.0 else -1.0
+
+
 def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, integrate_chart,
          max_switches: cython.Py_ssize_t, out: Samples) -> PartitionedRun:
     """The charts from the start: ``integrate_chart(t, value, rate, spent)`` runs the current chart
-    from t (``spent``: the evaluations of q̈ the run has used so far) and returns its :class:`Outcome`."""
+    from t (``spent``: the evaluations of q̈ the run has used so far) and returns its :class:`Outcome`.
+    ``max_switches`` bounds the chart switches and the friction's changes of mode, each."""
     n = int(chart.n)
     total = Outcome()
-    segment_starts, coordinates, starts, switches = [out.n], [independent], [], []
+    segment_starts, coordinates, starts, switches, events = [out.n], [independent], [], [], []
+    friction = bool(chart.model.I[physics.N_FRICTION])
     if not chart.start(np.ascontiguousarray(x0, dtype=np.float64), independent):
         total.status = SINGULAR_START
         return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
-                              np.empty((0, 5)))
+                              np.empty((0, 5)), np.empty((0, 2)))
     starts.append(chart.arrays()["start"].copy())
     t, value, rate = float(edges[0]), float(x0[independent]), rate0
+    if friction:
+        mode = _friction_mode(chart, edges, loads, t, value, rate)
+        if mode != mode:
+            total.status = SINGULAR_START
+            return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
+                                  np.empty((0, 5)), np.empty((0, 2)))
+        chart.set_friction(mode)
     while True:
         outcome = integrate_chart(t, value, rate, total.n_evaluations)
         total.n_steps += outcome.n_steps
@@ -114,25 +152,59 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         total.status, total.stopped = outcome.status, outcome.stopped
         total.fail_time, total.fail_value, total.detail = outcome.fail_time, outcome.fail_value, outcome.detail
         last = out.n - 1
-        if outcome.status != OK or not outcome.stopped or last < 0 or out.t[last] >= edges[-1]:
+        if outcome.status != OK or not outcome.stopped or last < 0:
+            break
+        t, value, rate = out.t[last], out.q[last], out.v[last]
+        event = chart.fired(t, value, rate)
+        if event < 0:
+            total.status, total.fail_time = FAILED, t
+            break
+        if event >= physics.RANGE_EVENT:  # the run ends here, even at its last instant
+            r, side = divmod(event - physics.RANGE_EVENT, 2)
+            row = chart.model.F[chart.model.I[physics.RANGE_ROWS] + r * n:][:n]
+            bound = chart.model.F[chart.model.I[physics.RANGE_BOUNDS] + 2 * r + side]
+            u = float(row @ chart.arrays()["kin"][0])
+            total.status, total.fail_time = RANGE_REACHED, t
+            total.detail = np.array([r, side, u, bound], dtype=np.float64)
+            break
+        if t >= edges[-1]:
             break
         total.stopped = False
+        if event == physics.FRICTION_EVENT:
+            if len(events) + 1 > max_switches:
+                total.status, total.fail_time = TOO_MANY_SWITCHES, t
+                break
+            mode = _friction_mode(chart, edges, loads, t, value, 0.0)
+            if mode != mode or not chart.start(chart.arrays()["kin"][0].copy(), int(chart.S[physics.INDEPENDENT])):
+                total.status, total.fail_time = FAILED, t
+                break
+            chart.set_friction(mode)
+            rate = 0.0
+            events.append((t, mode))
+            segment_starts.append(out.n)
+            coordinates.append(int(chart.S[physics.INDEPENDENT]))
+            starts.append(chart.arrays()["start"].copy())
+            value = starts[-1][0, coordinates[-1]]
+            continue
         if len(switches) + 1 > max_switches:
-            total.status, total.fail_time = TOO_MANY_SWITCHES, out.t[last]
+            total.status, total.fail_time = TOO_MANY_SWITCHES, t
             break
-        t, value = out.t[last], out.q[last]
-        status, rate, switched = switch(chart, value, out.v[last])
+        status, rate, switched = switch(chart, value, rate)
         if status != OK:
             total.status, total.fail_time = status, t
             break
         switches.append((t, *switched))
+        mode = chart.arrays()["fields"][physics.FRICTION_MODE]
+        if friction and (mode == 1.0 or mode == -1.0):  # the slip's sign is ẋ_j's now: ẋ_j = K_j ẋ_i
+            chart.set_friction(mode if (rate > 0.0) == (mode > 0.0) or rate == 0.0 else -mode)
         segment_starts.append(out.n)
         coordinates.append(switched[1])
         starts.append(chart.arrays()["start"].copy())
         value = starts[-1][0, switched[1]]
     total.t_reached = out.t[out.n - 1] if out.n else edges[0]
     return PartitionedRun(total, out, np.array(segment_starts, dtype=np.intp), np.array(coordinates, dtype=np.intp),
-                          np.array(starts).reshape(-1, 3, n), np.array(switches, dtype=np.float64).reshape(-1, 5))
+                          np.array(starts).reshape(-1, 3, n), np.array(switches, dtype=np.float64).reshape(-1, 5),
+                          np.array(events, dtype=np.float64).reshape(-1, 2))
 
 
 def run_rkn(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, tableau,

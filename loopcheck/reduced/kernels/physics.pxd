@@ -46,6 +46,12 @@ cpdef enum:
     ACT_ROWS = 65
     ACT_PARAMS = 66
     ACT_PIECE = 67
+    N_FRICTION = 72
+    FRICTION_ROWS = 73
+    FRICTION_COEF = 74
+    N_RANGES = 75
+    RANGE_ROWS = 76
+    RANGE_BOUNDS = 77
     HEADER = 80
     INDEPENDENT = 0
     SIGN = 1
@@ -69,7 +75,13 @@ cpdef enum:
     DETERMINANT = 11
     ACTUATOR_FIELD_A = 12
     ACTUATOR_FIELD_B = 13
+    FRICTION_CAPACITY = 14
+    FRICTION_MODE = 15
     N_FIELDS = 16
+    STICK = 2
+    SWITCH_EVENT = 0
+    FRICTION_EVENT = 1
+    RANGE_EVENT = 2
     DEPTH = 32
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust
@@ -90,6 +102,8 @@ cdef class Chart(RightHandSide):
     cdef readonly Py_ssize_t n
     # below this conditioning a coordinate cannot drive the linkage (passed in: Chart.__init__)
     cdef readonly double singular
+    # the load piece of the latest acceleration: the piece stop_margin's stick test reads
+    cdef readonly Py_ssize_t piece
     # the linkage's kinematics (loopcheck/kernels/loops.py), and its scratch under the names the
     # methods use (x, trig, A, rhs, norms, rows, kin and its rows K, L: views of loops.B)
     cdef readonly Loops loops
@@ -106,11 +120,18 @@ cdef class Chart(RightHandSide):
     cdef int _coefficients(self)
     cdef double _applied(self, Py_ssize_t piece)
     cdef double _actuated(self, Py_ssize_t piece, double v)
+    cdef double _friction_sign(self, double v)
+    cdef double _event_margin(self, Py_ssize_t event, double v)
     cpdef bint evaluate(self, double value)
     cpdef double acceleration(self, Py_ssize_t load, double t, double q, double v)
     cpdef double power(self, Py_ssize_t load, double v)
     cpdef double dissipation(self, double v)
     cpdef double stop_margin(self, double t, double q, double v)
+    cpdef bint locate(self, double t, double q, double v)
+    cpdef bint stop_at_start(self, double t, double q, double v)
+    cpdef Py_ssize_t fired(self, double t, double q, double v)
+    cpdef double rest_force(self, Py_ssize_t load, double q)
+    cpdef set_friction(self, double mode)
     cpdef Py_ssize_t observation_size(self)
     cpdef observe(self, double[:, ::1] out, Py_ssize_t row)
     cpdef mark(self)

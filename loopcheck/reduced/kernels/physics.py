@@ -154,7 +154,12 @@ if not cython.compiled:
     # of their parameters (count, 5: b1·gear, b2·gear, gear, force lo, force hi; ±inf unclamped) and
     # of their state-independent force on each load piece (pieces, count: gain·clamp(ctrl) + b0).
     N_ACTUATORS, ACT_ROWS, ACT_PARAMS, ACT_PIECE = range(64, 68)
-    HEADER = 80  # slots 72..79: the events' (not used here)
+    # Events (:meth:`Chart.stop_margin`): joint friction (static = kinetic Coulomb friction f on a
+    # joint's own coordinate u = row·x, MuJoCo's frictionloss): its count and the offsets in F of
+    # its rows (count, n) and coefficients f (count,); joint ranges: their count, and the offsets
+    # in F of their rows (count, n) and bounds (count, 2: lo, hi). Slots 78, 79 are reserved.
+    N_FRICTION, FRICTION_ROWS, FRICTION_COEF, N_RANGES, RANGE_ROWS, RANGE_BOUNDS = range(72, 78)
+    HEADER = 80
 
     # S: INDEPENDENT, SIGN (of det A on the chart's branch; 0 unchecked), STATUS, VALID (the memo
     # holds the chart's value), then the walk's halving budgets (DEPTH).
@@ -165,11 +170,21 @@ if not cython.compiled:
     # fields: the coefficients at the memo's value, with respect to x_i
     (INERTIA, CENTRIFUGAL, POTENTIAL_GRADIENT, DAMPING, POTENTIAL, INPUT_RATE, POINT_FORCE,
      INPUT_CURVATURE, CONDITIONING, BEST_CONDITIONING, BEST, DETERMINANT) = range(12)
-    # fields 12, 13 are the actuators' (reserved, 0), 14, 15 the events' (not used here)
+    # fields 12, 13 are the actuators' (reserved, 0), 14, 15 the events' (below)
     ACTUATOR_FIELD_A, ACTUATOR_FIELD_B = 12, 13
     # then one field per timed force: its generalized rate e·K_P, then two per actuator: its
     # transmission's length l and dl/dx_i (field_count)
+    # FRICTION_CAPACITY: C = Σ f |K_u|, the friction's largest generalized force (N·m or N);
+    # FRICTION_MODE: +1 or −1 slipping that way (friction −mode·C), STICK (q̇ = q̈ = 0), 0 (unset:
+    # slipping in the sign of q̇). Set by the run (set_friction), kept by the evaluations. Fields
+    # 12, 13 are reserved.
+    FRICTION_CAPACITY, FRICTION_MODE = 14, 15
     N_FIELDS = 16
+    STICK = 2
+    # the events a stop can be (Chart.fired): the chart's coordinate worse than another, the
+    # friction's slip → stick or stick → slip, a joint's range (RANGE_EVENT + 2 r + side, side 0
+    # its lower bound, 1 its upper)
+    SWITCH_EVENT, FRICTION_EVENT, RANGE_EVENT = 0, 1, 2
     DEPTH = MAX_HALVINGS + 2
 
 # C copies of the numerical constants above, which the kernels read (compiled, a module's
@@ -693,6 +708,16 @@ class Chart(RightHandSide):
                     k_u += r * self.K[j]
                 self.fields[N_FIELDS + nt + 2 * a] = u
                 self.fields[N_FIELDS + nt + 2 * a + 1] = k_u
+        capacity: cython.double = 0.0
+        nfr: cython.Py_ssize_t = self.I[N_FRICTION]
+        if nfr:  # C = Σ f |K_u|, K_u = row·K: the friction's generalized force while slipping
+            rows_at = self.I[FRICTION_ROWS]
+            for e in range(nfr):
+                k_u = 0.0
+                for j in range(n):
+                    k_u += self.F[rows_at + e * n + j] * self.K[j]
+                capacity += self.F[self.I[FRICTION_COEF] + e] * fabs(k_u)
+        self.fields[FRICTION_CAPACITY] = capacity
         self.fields[INERTIA] = J
         self.fields[CENTRIFUGAL] = zeta
         self.fields[POTENTIAL_GRADIENT] = dV
@@ -759,15 +784,32 @@ class Chart(RightHandSide):
         self.s[VALID] = 1
         return True
 
+    @cython.cfunc
+    def _friction_sign(self, v: cython.double) -> cython.double:
+        """The sign s of the slip (friction −s·C), 0 when sticking or without friction."""
+        if not self.I[N_FRICTION]:
+            return 0.0
+        mode: cython.double = self.fields[FRICTION_MODE]
+        if mode == STICK:
+            return 0.0
+        if mode != 0.0:
+            return mode
+        return 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+
     @cython.ccall
     def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
                      v: cython.double) -> cython.double:
         """ẍ_i at x_i = q, ẋ_i = v from Eksergian's equation on load piece ``load`` (its index:
         the loads over time are constant on it, :meth:`_applied`): (Q_applied − b ẋ_i − ζ ẋ_i² −
-        dV/dx_i) / 𝔍. NaN when the configuration cannot be found (S[STATUS] says why)."""
+        dV/dx_i − s C) / 𝔍, s C the joint friction while slipping (FRICTION_MODE); 0 while it
+        sticks. NaN when the configuration cannot be found (S[STATUS] says why)."""
+        self.piece = load
         if not self.evaluate(q):
             return _c_nan
+        if self.I[N_FRICTION] and self.fields[FRICTION_MODE] == STICK:
+            return 0.0
         Q: cython.double = self._applied(load) + self._actuated(load, v) - self.fields[DAMPING] * v
+        Q -= self._friction_sign(v) * self.fields[FRICTION_CAPACITY]
         return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
 
     @cython.ccall
@@ -779,17 +821,103 @@ class Chart(RightHandSide):
 
     @cython.ccall
     def dissipation(self, v: cython.double) -> cython.double:
-        """D = Σ b K_D² ẋ_i² (W), the dampers' dissipation rate at the configuration last
-        evaluated, right after its :meth:`acceleration`."""
-        return self.fields[DAMPING] * v * v
+        """D = Σ b K_D² ẋ_i² + s C ẋ_i (W), the dampers' and the joint friction's dissipation
+        rate at the configuration last evaluated, right after its :meth:`acceleration`."""
+        return self.fields[DAMPING] * v * v + self._friction_sign(v) * self.fields[FRICTION_CAPACITY] * v
+
+    @cython.ccall
+    def rest_force(self, load: cython.Py_ssize_t, q: cython.double) -> cython.double:
+        """Q_rest at x_i = q, ẋ_i = 0 on load piece ``load``: every generalized force but the
+        friction's (Q_applied + the actuators' − dV/dx_i); NaN where the configuration fails. Leaves the
+        friction's capacity C in the fields."""
+        if not self.evaluate(q):
+            return _c_nan
+        return self._applied(load) + self._actuated(load, 0.0) - self.fields[POTENTIAL_GRADIENT]
+
+    @cython.ccall
+    def set_friction(self, mode: cython.double):
+        """Set the friction's mode (FRICTION_MODE: +1, −1, STICK or 0)."""
+        if not (mode == 1.0 or mode == -1.0 or mode == 0.0 or mode == STICK):
+            raise ValueError(f"set_friction: a mode of +1, -1, 0 or STICK ({STICK}), not {mode}")
+        self.fields[FRICTION_MODE] = mode
+
+    @cython.cfunc
+    def _event_margin(self, event: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """The margin of ``event`` (:meth:`fired`'s numbering) at the configuration last
+        evaluated and rate v: > 0 while it has not happened."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        u: cython.double
+        mode: cython.double
+        rest: cython.double
+        if event == SWITCH_EVENT:
+            return self.fields[CONDITIONING] - _c_hysteresis * self.fields[BEST_CONDITIONING]
+        if event == FRICTION_EVENT:
+            mode = self.fields[FRICTION_MODE]
+            if mode == STICK:  # constant on a load piece: < 0 from its start when the load breaks it loose
+                rest = self._applied(self.piece) + self._actuated(self.piece, 0.0) - self.fields[POTENTIAL_GRADIENT]
+                return 1.0 if fabs(rest) <= self.fields[FRICTION_CAPACITY] else -1.0
+            return mode * v if mode != 0.0 else 1.0  # slipping: until q̇ reaches 0
+        r = (event - RANGE_EVENT) // 2
+        u = 0.0
+        for j in range(n):
+            u += self.F[self.I[RANGE_ROWS] + r * n + j] * self.kin[0, j]
+        if (event - RANGE_EVENT) % 2 == 0:
+            return u - self.F[self.I[RANGE_BOUNDS] + 2 * r]
+        return self.F[self.I[RANGE_BOUNDS] + 2 * r + 1] - u
 
     @cython.ccall
     def stop_margin(self, t: cython.double, q: cython.double, v: cython.double) -> cython.double:
-        """> 0 while the chart's coordinate is good enough; ≤ 0 when another is better by more
-        than the hysteresis (c_i < HYSTERESIS · max_j c_j). −1 where the configuration fails."""
+        """> 0 while no event has happened, the least of the events' margins: the chart's
+        coordinate good enough (≤ 0 when another is better by more than the hysteresis:
+        c_i < HYSTERESIS · max_j c_j); the friction slipping with q̇ ≠ 0, or sticking with the
+        loads of the latest acceleration's piece within its capacity; every joint inside its
+        range. −1 where the configuration fails."""
         if not self.evaluate(q):
             return -1.0
-        return self.fields[CONDITIONING] - _c_hysteresis * self.fields[BEST_CONDITIONING]
+        g: cython.double = self._event_margin(SWITCH_EVENT, v)
+        e: cython.Py_ssize_t
+        if self.I[N_FRICTION]:
+            g = min(g, self._event_margin(FRICTION_EVENT, v))
+        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES]):
+            g = min(g, self._event_margin(e, v))
+        return g
+
+    @cython.ccall
+    def locate(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
+        """A friction's change of mode or a range reached is located at its root (the time of a
+        stick, of a reversal, of the bound); a chart switch may happen anywhere near its own."""
+        return self.fired(t, q, v) >= FRICTION_EVENT
+
+    @cython.ccall
+    def stop_at_start(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
+        """True at a load piece's start where the friction sticks and the piece's loads (those
+        of the latest acceleration) exceed its capacity: it breaks loose there."""
+        if not (self.I[N_FRICTION] and self.fields[FRICTION_MODE] == STICK):
+            return False
+        return not self.evaluate(q) or self._event_margin(FRICTION_EVENT, v) < 0.0
+
+    @cython.ccall
+    def fired(self, t: cython.double, q: cython.double, v: cython.double) -> cython.Py_ssize_t:
+        """Which event a stop at (t, q, v) is: the one of least margin (SWITCH_EVENT,
+        FRICTION_EVENT, or RANGE_EVENT + 2 r + side: joint range r's lower (side 0) or upper
+        (1) bound); −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1
+        best: cython.Py_ssize_t = SWITCH_EVENT
+        least: cython.double = self._event_margin(SWITCH_EVENT, v)
+        g: cython.double
+        e: cython.Py_ssize_t
+        if self.I[N_FRICTION]:
+            g = self._event_margin(FRICTION_EVENT, v)
+            if g < least:
+                best, least = FRICTION_EVENT, g
+        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES]):
+            g = self._event_margin(e, v)
+            if g < least:
+                best, least = e, g
+        return best
 
     @cython.ccall
     def observation_size(self) -> cython.Py_ssize_t:

@@ -23,8 +23,9 @@ from loopcheck.scenefile import load_scene
 
 from helpers import ROOT, scipy_in_kernel_order
 
+# scipy's methods refuse the scenes with events (friction_fourbar: tests/reduced/test_joint_events.py)
 SCENES = sorted(p for folder in ("scenes", "scenes/hard", "scenes/mechanisms")
-                for p in (ROOT / folder).glob("*.toml"))
+                for p in (ROOT / folder).glob("*.toml") if p.stem != "friction_fourbar")
 Q_BOUND = 1e-12        # rad
 QDOT_BOUND = 1e-12     # of the run's largest |q̇|
 PEAK_BOUND = 3e-12     # relative
