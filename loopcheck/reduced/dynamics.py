@@ -201,10 +201,12 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     h[physics.JOINT_ROWS] = P.float([system.joint_row(e.joint) for e in joint_elements])
     h[physics.JOINT_COEF] = P.float([e.coefficient for e in joint_elements])
     h[physics.JOINT_REST] = P.float([e.rest for e in joint_elements])
-    frictions = mech.joint_frictions  # the events' (:meth:`physics.Chart.stop_margin`)
+    frictions: dict[str, float] = {}  # the events' (physics.Chart.stop_margin): one per joint, f summed
+    for e in mech.joint_frictions:
+        frictions[e.joint] = frictions.get(e.joint, 0.0) + e.coefficient
     h[physics.N_FRICTION] = len(frictions)
-    h[physics.FRICTION_ROWS] = P.float([system.joint_row(e.joint) for e in frictions])
-    h[physics.FRICTION_COEF] = P.float([e.coefficient for e in frictions])
+    h[physics.FRICTION_ROWS] = P.float([system.joint_row(joint) for joint in frictions])
+    h[physics.FRICTION_COEF] = P.float(list(frictions.values()))
     ranged = ranged_joints(linkage)
     h[physics.N_RANGES] = len(ranged)
     h[physics.RANGE_ROWS] = P.float([system.joint_row(j.name) for j in ranged])

@@ -33,6 +33,11 @@ weights, W⁺ = W + h (P1 + 2 P2 + 2 P3 + P4)/6 and likewise E: the quadrature o
 
 Every ``STABILITY_CHECK_EVERY`` steps the step is checked against the stability region of the
 locally linearized problem (:func:`check_stability`, below with its constants).
+
+A stop (the problem's ``stop_margin`` ≤ 0 after a step) ends the run after that step, unless the
+problem asks for it to be located (``locate``): then the step is taken again from its start, to
+the margin's root on the step's cubic Hermite interpolants (q from q and q̇ at its ends, q̇ from
+q̇ and q̈: fourth order, as the method), and its sample replaced by the one there.
 """
 
 import cython

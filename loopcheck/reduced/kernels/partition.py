@@ -16,7 +16,9 @@ stop the run asks the chart which fired (:meth:`~.physics.Chart.fired`) and acts
 switch, as above. The joint friction: at q̇ = 0 while slipping, or at a load edge while
 sticking, the friction sticks if every other generalized force there, Q_rest (q̇ = 0), is
 within its capacity C = Σ f |K_u| (|Q_rest| ≤ C), else slips in the sign of Q_rest; the chart
-starts again there with q̇ = 0 (a new segment in the same coordinate). A joint's range: the
+starts again there with q̇ = 0 (a new segment in the same coordinate). A friction's kink (its
+K_u = row·K changing sign while it slips: its force −s f |K_u| has a kink there): the chart starts
+again there (a new segment), so that no step straddles it. A joint's range: the
 run ends there with RANGE_REACHED (detail: the range's index, its side 0 lower or 1 upper, the
 joint's coordinate and the bound).
 
@@ -144,6 +146,8 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
             return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
                                   np.empty((0, 5)), np.empty((0, 2)))
         chart.set_friction(mode)
+        chart.set_kinks(-1)
+    kinks = physics.RANGE_EVENT + 2 * int(chart.model.I[physics.N_RANGES])  # the first kink's event
     while True:
         outcome = integrate_chart(t, value, rate, total.n_evaluations)
         total.n_steps += outcome.n_steps
@@ -159,7 +163,7 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         if event < 0:
             total.status, total.fail_time = FAILED, t
             break
-        if event >= physics.RANGE_EVENT:  # the run ends here, even at its last instant
+        if physics.RANGE_EVENT <= event < kinks:  # the run ends here, even at its last instant
             r, side = divmod(event - physics.RANGE_EVENT, 2)
             row = chart.model.F[chart.model.I[physics.RANGE_ROWS] + r * n:][:n]
             bound = chart.model.F[chart.model.I[physics.RANGE_BOUNDS] + 2 * r + side]
@@ -170,6 +174,16 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         if t >= edges[-1]:
             break
         total.stopped = False
+        if event >= kinks:  # a friction's K_u changed sign: the chart again from here, that kink's sign flipped
+            if not chart.start(chart.arrays()["kin"][0].copy(), int(chart.S[physics.INDEPENDENT])):
+                total.status, total.fail_time = FAILED, t
+                break
+            chart.set_kinks(event - kinks)
+            segment_starts.append(out.n)
+            coordinates.append(int(chart.S[physics.INDEPENDENT]))
+            starts.append(chart.arrays()["start"].copy())
+            value = starts[-1][0, coordinates[-1]]
+            continue
         if event == physics.FRICTION_EVENT:
             if len(events) + 1 > max_switches:
                 total.status, total.fail_time = TOO_MANY_SWITCHES, t
@@ -179,6 +193,7 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
                 total.status, total.fail_time = FAILED, t
                 break
             chart.set_friction(mode)
+            chart.set_kinks(-1)
             rate = 0.0
             events.append((t, mode))
             segment_starts.append(out.n)
@@ -197,6 +212,8 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         mode = chart.arrays()["fields"][physics.FRICTION_MODE]
         if friction and (mode == 1.0 or mode == -1.0):  # the slip's sign is ẋ_j's now: ẋ_j = K_j ẋ_i
             chart.set_friction(mode if (rate > 0.0) == (mode > 0.0) or rate == 0.0 else -mode)
+        if friction:
+            chart.set_kinks(-1)  # K w.r.t. the new coordinate
         segment_starts.append(out.n)
         coordinates.append(switched[1])
         starts.append(chart.arrays()["start"].copy())

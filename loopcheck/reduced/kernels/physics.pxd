@@ -86,6 +86,7 @@ cpdef enum:
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust
 cdef double _c_trusted_correction, _c_long_jump, _c_far_jump, _c_hysteresis, _c_dyad_round_off
+cdef double _c_kink_root
 cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan
 cdef Py_ssize_t _c_newton_max_iter, _c_max_walk_closures
 cdef long long _c_max_halvings
@@ -111,6 +112,8 @@ cdef class Chart(RightHandSide):
     cdef long long[::1] s, budget
     cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
+    # the sign of each joint friction's K_u = row·K watched for its kink (0: not watched): set_kinks
+    cdef readonly double[::1] kinks
     cdef double[:, :, ::1] base
 
     cdef int _finish(self, double det)
@@ -132,6 +135,7 @@ cdef class Chart(RightHandSide):
     cpdef Py_ssize_t fired(self, double t, double q, double v)
     cpdef double rest_force(self, Py_ssize_t load, double q)
     cpdef set_friction(self, double mode)
+    cpdef set_kinks(self, Py_ssize_t flipped)
     cpdef Py_ssize_t observation_size(self)
     cpdef observe(self, double[:, ::1] out, Py_ssize_t row)
     cpdef mark(self)

@@ -99,6 +99,10 @@ MAX_WALK_CLOSURES = 20_000
 # round-off floor (NEWTON_ROUND_OFF) let configurations 1e-2 rad off pass as closed.
 LONG_JUMP = 2.0
 FAR_JUMP = 200.0
+# A joint friction's K_u within KINK_ROOT of its size (Σ |row_l K_l|) where another's kink fired is
+# at its root too (its joint's rate proportional to the other's): its watch flips with it (else
+# the two, at each other's roots, would fire in turn without end).
+KINK_ROOT = 1e-9
 # Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
 # well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
 HYSTERESIS = 0.5
@@ -183,7 +187,8 @@ if not cython.compiled:
     STICK = 2
     # the events a stop can be (Chart.fired): the chart's coordinate worse than another, the
     # friction's slip → stick or stick → slip, a joint's range (RANGE_EVENT + 2 r + side, side 0
-    # its lower bound, 1 its upper)
+    # its lower bound, 1 its upper), a friction's kink (RANGE_EVENT + 2 N_RANGES + j: joint
+    # friction j's K_u changes sign while slipping, where its force −f |K_u| s has a kink)
     SWITCH_EVENT, FRICTION_EVENT, RANGE_EVENT = 0, 1, 2
     DEPTH = MAX_HALVINGS + 2
 
@@ -200,6 +205,7 @@ _c_max_walk_closures = cython.declare(cython.Py_ssize_t, MAX_WALK_CLOSURES)
 _c_long_jump = cython.declare(cython.double, LONG_JUMP)
 _c_far_jump = cython.declare(cython.double, FAR_JUMP)
 _c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_kink_root = cython.declare(cython.double, KINK_ROOT)
 _c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
 _c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
 _c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
@@ -384,6 +390,7 @@ class Chart(RightHandSide):
         self.norms, self.rows, self.kin = self.loops.norms, self.loops.rows, self.loops.kin
         self.K, self.L = self.loops.K, self.loops.L
         self.marked = np.zeros((3, n))
+        self.kinks = np.zeros(max(int(I[N_FRICTION]), 1))
         degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
         self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
 
@@ -841,6 +848,29 @@ class Chart(RightHandSide):
             raise ValueError(f"set_friction: a mode of +1, -1, 0 or STICK ({STICK}), not {mode}")
         self.fields[FRICTION_MODE] = mode
 
+    @cython.ccall
+    def set_kinks(self, flipped: cython.Py_ssize_t):
+        """Watch each joint friction's kink from the configuration last evaluated: σ_j = the sign of
+        its K_u = row·K there (0, not watched, where K_u = 0). With ``flipped`` ≥ 0 (the kink
+        that just fired, its K_u at its root), that friction and every other at its root with it
+        (|K_u| ≤ KINK_ROOT × Σ |row_l K_l|: a joint whose rate is proportional to its rate) take
+        the opposite of their σ before: the sign of a K_u at its root is round-off's."""
+        n: cython.Py_ssize_t = self.n
+        e: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        k_u: cython.double
+        size: cython.double
+        for e in range(self.I[N_FRICTION]):
+            k_u = 0.0
+            size = 0.0
+            for j in range(n):
+                k_u += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.K[j]
+                size += fabs(self.F[self.I[FRICTION_ROWS] + e * n + j] * self.K[j])
+            if e == flipped or (flipped >= 0 and self.kinks[e] != 0.0 and fabs(k_u) <= _c_kink_root * size):
+                self.kinks[e] = -self.kinks[e]
+            else:
+                self.kinks[e] = 1.0 if k_u > 0.0 else (-1.0 if k_u < 0.0 else 0.0)
+
     @cython.cfunc
     def _event_margin(self, event: cython.Py_ssize_t, v: cython.double) -> cython.double:
         """The margin of ``event`` (:meth:`fired`'s numbering) at the configuration last
@@ -859,6 +889,15 @@ class Chart(RightHandSide):
                 rest = self._applied(self.piece) + self._actuated(self.piece, 0.0) - self.fields[POTENTIAL_GRADIENT]
                 return 1.0 if fabs(rest) <= self.fields[FRICTION_CAPACITY] else -1.0
             return mode * v if mode != 0.0 else 1.0  # slipping: until q̇ reaches 0
+        if event >= RANGE_EVENT + 2 * self.I[N_RANGES]:  # a kink: σ_j K_u while slipping
+            r = event - RANGE_EVENT - 2 * self.I[N_RANGES]
+            mode = self.fields[FRICTION_MODE]
+            if self.kinks[r] == 0.0 or not (mode == 1.0 or mode == -1.0):
+                return 1.0
+            u = 0.0
+            for j in range(n):
+                u += self.F[self.I[FRICTION_ROWS] + r * n + j] * self.K[j]
+            return self.kinks[r] * u
         r = (event - RANGE_EVENT) // 2
         u = 0.0
         for j in range(n):
@@ -873,14 +912,15 @@ class Chart(RightHandSide):
         coordinate good enough (≤ 0 when another is better by more than the hysteresis:
         c_i < HYSTERESIS · max_j c_j); the friction slipping with q̇ ≠ 0, or sticking with the
         loads of the latest acceleration's piece within its capacity; every joint inside its
-        range. −1 where the configuration fails."""
+        range; each joint friction's K_u keeping its sign while slipping (the kinks). −1 where the
+        configuration fails."""
         if not self.evaluate(q):
             return -1.0
         g: cython.double = self._event_margin(SWITCH_EVENT, v)
         e: cython.Py_ssize_t
         if self.I[N_FRICTION]:
             g = min(g, self._event_margin(FRICTION_EVENT, v))
-        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES]):
+        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION]):
             g = min(g, self._event_margin(e, v))
         return g
 
@@ -901,8 +941,9 @@ class Chart(RightHandSide):
     @cython.ccall
     def fired(self, t: cython.double, q: cython.double, v: cython.double) -> cython.Py_ssize_t:
         """Which event a stop at (t, q, v) is: the one of least margin (SWITCH_EVENT,
-        FRICTION_EVENT, or RANGE_EVENT + 2 r + side: joint range r's lower (side 0) or upper
-        (1) bound); −1 where the configuration fails."""
+        FRICTION_EVENT, RANGE_EVENT + 2 r + side: joint range r's lower (side 0) or upper (1)
+        bound, or RANGE_EVENT + 2 N_RANGES + j: joint friction j's kink); −1 where the
+        configuration fails."""
         if not self.evaluate(q):
             return -1
         best: cython.Py_ssize_t = SWITCH_EVENT
@@ -913,7 +954,7 @@ class Chart(RightHandSide):
             g = self._event_margin(FRICTION_EVENT, v)
             if g < least:
                 best, least = FRICTION_EVENT, g
-        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES]):
+        for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION]):
             g = self._event_margin(e, v)
             if g < least:
                 best, least = e, g
