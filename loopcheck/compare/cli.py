@@ -392,6 +392,13 @@ def cmd_check(args: argparse.Namespace) -> int:
             raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
                              "reduced solution alone")
         return _check_engines(args, scenes)
+    from loopcheck.reduced.engine import check_work
+
+    for path, scene in [*((p, m.scene) for p, m in models.items()), *((s.source, s) for s in scenes)]:
+        try:  # the reference's refusals, before anything is printed
+            check_work(scene, _reduced_reference(args, scene))
+        except ValueError as exc:
+            raise UsageError(f"{path}: {exc}") from None
     failed = 0
     for path, imported in models.items():
         from .model_check import check_lines as model_lines, check_model

@@ -79,23 +79,25 @@ def integrate(model: MechanismModel, settings: ReducedSettings, step: float | No
         return integrate_rkn4(model, settings.step if step is None else step)
     if settings.method == "dop853":
         return integrate_dop853(model, settings.rtol, settings.sample_interval, CHART_RETRY_MAX_STEP)
-    mech = model.scene.mechanism
-    events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
-    if events:
-        raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
-                         f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
-                         "or rkn4")
     return integrate_partitioned(model, scipy_chart_integrator(settings, model.load_edges))
 
 
 def check_work(scene: Scene, settings: ReducedSettings) -> None:
-    """Refuse, before any work, a run that would hold more than ``MAX_SAMPLES`` samples.
+    """Refuse, before any work, a run the settings cannot do: one that would hold more than
+    ``MAX_SAMPLES`` samples, or joint friction or ranges with a method of scipy's (their events
+    are the compiled core's).
 
     Raises
     ------
     ValueError
         Naming the setting or scene key to change.
     """
+    mech = scene.mechanism
+    events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
+    if events and settings.method not in ("dop853", "rkn4"):
+        raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
+                         f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
+                         "or rkn4")
     horizon, edges = scene.horizon, len(scene.load_edges)
     if settings.method == "rkn4":
         samples = horizon / settings.step + 2 * edges

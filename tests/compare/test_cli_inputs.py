@@ -233,3 +233,15 @@ def test_python_s_resource_warnings_are_not_the_user_s(monkeypatch, capsys):
     monkeypatch.setattr(cli, "cmd_scenes", leaky)
     assert main(["scenes"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_a_scene_the_reference_cannot_run_is_refused_before_any_output(capsys):
+    """`check a b` where the reference refuses b (joint friction under scipy's Radau): one line
+    naming b's file, exit 2, and nothing of a's check printed first (planted: the refusal raised
+    only when b runs printed a's result lines and named no file)."""
+    root = Path(__file__).resolve().parents[2] / "scenes"
+    friction = root / "mechanisms" / "friction_fourbar.toml"
+    assert main(["check", str(root / "seed_fourbar.toml"), str(friction), "--reference-method", "radau"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.count("\n") == 1 and err.startswith(f"loopcheck: error: {friction}: the reduced engine's method radau")
