@@ -1343,7 +1343,10 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
                                    "as MuJoCo clamps it")
             values = clipped
     applied = Control(given.times, tuple(values))
-    load = applied.load(gear)
+    kind = "force" if m.jnt_type[inp] == _SLIDE else "torque"
+    for v in values:
+        reader.representable(gear * v, kind,
+                             f"actuator '{name}': gear × gain × control (gear × gain {gear:g}, control {v:g})")
     if m.actuator_forcelimited[a]:  # the motor's force gain × control is constant on each piece: its clamp is exact
         low, high = (float(v) for v in m.actuator_forcerange[a])
         forces = [float(m.actuator_gainprm[a][0]) * v for v in values]
@@ -1351,12 +1354,8 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
         if clamped != forces:
             reader.warnings.append(f"actuator '{name}': its force gain × control is clamped to its forcerange "
                                    f"[{low:g}, {high:g}], as MuJoCo clamps it")
-            load = Control(given.times, tuple(clamped)).load(float(m.actuator_gear[a][0]))
-    kind = "force" if m.jnt_type[inp] == _SLIDE else "torque"
-    for v in values:
-        reader.representable(gear * v, kind,
-                             f"actuator '{name}': gear × gain × control (gear × gain {gear:g}, control {v:g})")
-    return load, gear, applied
+            return Control(given.times, tuple(clamped)).load(float(m.actuator_gear[a][0])), gear, applied
+    return applied.load(gear), gear, applied
 
 
 def _configuration(reader: _Reader, system, linkage: Linkage) -> np.ndarray:
