@@ -19,19 +19,47 @@ from scipy.optimize import brentq
 from loopcheck.api import ReducedSettings, check, scene_from_string, simulate
 from loopcheck.reduced.kernels import physics
 
-from test_actuators import ROTOR
-
 INERTIA, KP, KV, F, TARGET, STEP_AT = 0.5, 8.0, 0.6, 1.0, 1.0, 0.1
 HORIZON = 3.0
+
+ROTOR = """
+name = "clamped_servo_rotor"
+[linkage]
+type = "planar"
+input = "O"
+[bodies.ground]
+points = {{ O = [0.0, 0.0] }}
+[bodies.rotor]
+points = {{ O = [0.0, 0.0] }}
+pivot_inertia = {inertia}
+pivot = "O"
+[[joints]]
+name = "O"
+type = "revolute"
+a = "ground.O"
+b = "rotor.O"
+[[actuators]]
+name = "servo"
+joint = "O"
+gain = {kp}
+bias = [0.0, -{kp}, -{kv}]
+forcerange = [-{f}, {f}]
+[actuators.control]
+type = "table"
+times = {times}
+values = {values}
+[initial]
+q = 0.0
+qdot = 0.0
+[simulation]
+horizon = {horizon}
+"""
 
 
 def clamped_rotor(times=(0.0, STEP_AT), values=(0.0, TARGET), horizon=HORIZON):
     """The rotor at rest, its servo's set-point a table (piecewise constant)."""
-    text = ROTOR.format(kp=KP, kv=KV, c=0.0, transmission='joint = "O"', extra=f"forcerange = [-{F}, {F}]")
-    text = text.replace('type = "constant"\nvalue = 0.0',
-                        f'type = "table"\ntimes = {list(times)}\nvalues = {list(values)}')
-    text = text.replace("q = 0.2\nqdot = 1.0", "q = 0.0\nqdot = 0.0").replace("horizon = 2.0", f"horizon = {horizon}")
-    return scene_from_string(text)
+    return scene_from_string(ROTOR.format(inertia=INERTIA, kp=KP, kv=KV, f=F, times=list(times), values=list(values),
+                                          horizon=horizon))
 
 
 def _free(s, q, v, target=TARGET):
