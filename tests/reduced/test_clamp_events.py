@@ -183,6 +183,47 @@ def test_the_clamp_modes_follow_a_control_step_back_inside():
     assert [(e.mode, e.time) for e in result.details.clamp_events] == [("upper", STEP_AT), ("free", 0.3)]
 
 
+def test_the_servo_split_in_halves_switches_both_clamps_at_once():
+    """The servo as two halves: one on the joint (kp/2, kv/2, ±F/2), one on a tendon l = 2θ (gain kp/4,
+    bias [0, −kp/8, −kv/8], ±F/4: generalized force 2 f). Their clamps cross their bounds at the same
+    instants: the run is the one servo's closed form (1e-9 rad; measured 3.9e-12 DOP853, 1.2e-13 RKN4) and
+    each event sets both modes (one stop, two changes). Planted: set_clamps stopping after its first
+    change: the second half is never given a mode (clamped by value, its kinks inside steps, still
+    within 1e-9 rad here) and has no events: fails."""
+    text = ROTOR.replace("""[[actuators]]
+name = "servo"
+joint = "O"
+gain = {kp}
+bias = [0.0, -{kp}, -{kv}]
+forcerange = [-{f}, {f}]
+""", """[[actuators]]
+name = "servo_b"
+tendon = {{ O = 2.0 }}
+gain = {kp4}
+bias = [0.0, -{kp8}, -{kv8}]
+forcerange = [-{f4}, {f4}]
+[actuators.control]
+type = "table"
+times = {times}
+values = {values}
+[[actuators]]
+name = "servo_a"
+joint = "O"
+gain = {kp2}
+bias = [0.0, -{kp2}, -{kv2}]
+forcerange = [-{f2}, {f2}]
+""")
+    scene = scene_from_string(text.format(inertia=INERTIA, kp2=KP / 2, kv2=KV / 2, f2=F / 2, kp4=KP / 4, kp8=KP / 8,
+                                          kv8=KV / 8, f4=F / 4, times=[0.0, STEP_AT], values=[0.0, TARGET],
+                                          horizon=HORIZON))
+    for method in ("dop853", "rkn4"):
+        result = simulate(scene, ReducedSettings(method=method))
+        assert np.max(np.abs(result.trajectory.q - exact(result.trajectory.t, TABLE))) < 1e-9
+        events = result.details.clamp_events
+        assert [e.actuator for e in events] == ["servo_b", "servo_a"] * 5
+        assert [e.time for e in events[::2]] == [e.time for e in events[1::2]]
+
+
 def test_scipys_methods_refuse_the_clamp_by_name():
     with pytest.raises(ValueError, match=r"method radau does not run a forcerange clamp on a force that depends "
                                          r"on the state \(actuator 'servo'\)"):
