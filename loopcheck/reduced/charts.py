@@ -60,6 +60,24 @@ class FrictionEvent:
     direction: int = 0
 
 
+@dataclass(frozen=True)
+class ClampEvent:
+    """A change of an actuator's forcerange clamp at time t (s), its force from then on: "free"
+    (between its bounds), "upper" or "lower" (held at that bound)."""
+
+    time: float
+    actuator: str
+    mode: str
+
+    def __post_init__(self):
+        if self.mode not in CLAMP_MODES.values():
+            raise ValueError(f"ClampEvent: mode {self.mode!r}, one of {sorted(CLAMP_MODES.values())}")
+
+
+# the kernel's clamp modes (physics.CLAMP_FREE, …) by name
+CLAMP_MODES = {physics.CLAMP_FREE: "free", physics.CLAMP_HI: "upper", physics.CLAMP_LO: "lower"}
+
+
 class Chart:
     """Eksergian's equation in one independent coordinate: a Python view of a compiled chart
     (:class:`loopcheck.reduced.kernels.physics.Chart`) that starts at an assembled configuration x."""
@@ -178,6 +196,7 @@ class PartitionedSolution:
     method: str
     settings: dict = field(default_factory=dict)
     friction_events: tuple[FrictionEvent, ...] = ()  # the compiled runs' (each stick and slip)
+    clamp_events: tuple[ClampEvent, ...] = ()        # the compiled runs' (each change of a forcerange clamp)
 
 
 def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
@@ -289,8 +308,8 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
     if status == output.NO_BETTER:
         return NumericalFailure("singular", f"no better-conditioned coordinate at t = {t:.6g} s", t)
     if status == output.TOO_MANY_SWITCHES:
-        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches or changes of the joint "
-                                "friction between stick and slip", t)
+        return NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches, changes of the joint "
+                                "friction between stick and slip or of an actuator's forcerange clamp", t)
     if status == output.RANGE_REACHED:
         r, side, u, bound = outcome.detail
         joint = ranged_joints(model.scene.mechanism.linkage)[int(r)]
@@ -334,7 +353,8 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
 
 
 def _solution(model: MechanismModel, segments, switches, observed=None, energy=None,
-              friction_events: tuple[FrictionEvent, ...] = ()) -> PartitionedSolution:
+              friction_events: tuple[FrictionEvent, ...] = (),
+              clamp_events: tuple[ClampEvent, ...] = ()) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
     (:meth:`loopcheck.reduced.kernels.physics.Chart.observe`), or None to walk each chart to its samples;
     ``energy``: per segment, the energy flows the compiled run integrated (or None)."""
@@ -350,7 +370,7 @@ def _solution(model: MechanismModel, segments, switches, observed=None, energy=N
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
         sample_fields=tuple(f for f, _ in recorded), sample_energy=None if energy is None else tuple(energy),
-        method=first.method, settings=first.settings, friction_events=friction_events)
+        method=first.method, settings=first.settings, friction_events=friction_events, clamp_events=clamp_events)
 
 
 def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, method: str,
@@ -371,7 +391,9 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, metho
                 for r in run.switches]
     events = tuple(FrictionEvent(float(t), "stick", 0) if mode == physics.STICK else FrictionEvent(float(t), "slip", int(mode))
                    for t, mode in run.events)
-    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events)
+    actuators = model.scene.mechanism.actuators
+    clamps = tuple(ClampEvent(float(t), actuators[int(a)].name, CLAMP_MODES[int(mode)]) for t, a, mode in run.clamps)
+    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events, clamps)
 
 
 def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajectory, JointTrajectory]:

@@ -148,15 +148,10 @@ def actuator_piece_values(scene: Scene, edges: np.ndarray) -> np.ndarray:
     return out
 
 
-def check_actuators(scene: Scene) -> None:
-    """Refuse (ValueError, one line) an actuator whose forcerange clamp a state-dependent force
-    could reach: the clamp's switching is an event, not built yet in the reduced engine."""
-    for a in scene.mechanism.actuators:
-        if a.forcerange is not None and a.state_dependent:
-            raise ValueError(f"actuator {a.name!r}: its forcerange clamps a force that depends on the state "
-                             "(bias b1 or b2 nonzero): the reduced engine does not build the clamp's switching "
-                             "event yet; remove forcerange (MuJoCo alone runs it: loopcheck.simulate with "
-                             "MujocoSettings)")
+def clamped_actuators(mechanism) -> tuple:
+    """The actuators whose forcerange clamps a force that depends on the state (b1 or b2 nonzero):
+    the clamp's switching is an event of the reduced engine (:meth:`physics.Chart.set_clamps`)."""
+    return tuple(a for a in mechanism.actuators if a.forcerange is not None and a.state_dependent)
 
 
 def ranged_joints(linkage) -> tuple:
@@ -229,6 +224,7 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
                                       *(a.forcerange if a.forcerange is not None else (-math.inf, math.inf))]
                                      for a in acts])
     h[physics.ACT_PIECE] = P.float(actuator_piece_values(scene, piece_edges(scene)))
+    h[physics.N_CLAMPED] = len(clamped_actuators(mech))
     plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
     h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
     return Model(*P.arrays())
@@ -245,7 +241,6 @@ class MechanismModel:
 
     def __init__(self, scene: Scene):
         self.scene = scene
-        check_actuators(scene)
         self.system = loops.compile_linkage(scene.mechanism.linkage)
         self.effects: tuple[str, ...] = scene.effects
         self.load = scene.load

@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .dynamics import MechanismModel
+from .dynamics import MechanismModel, clamped_actuators
 from .energy import energy_audit
 from loopcheck.errors import FailureReason, NumericalFailure
 from .integrators import solve_adaptive
@@ -84,8 +84,8 @@ def integrate(model: MechanismModel, settings: ReducedSettings, step: float | No
 
 def check_work(scene: Scene, settings: ReducedSettings) -> None:
     """Refuse, before any work, a run the settings cannot do: one that would hold more than
-    ``MAX_SAMPLES`` samples, or joint friction or ranges with a method of scipy's (their events
-    are the compiled core's).
+    ``MAX_SAMPLES`` samples, or joint friction, ranges or a clamp of a state-dependent force with a
+    method of scipy's (their events are the compiled core's).
 
     Raises
     ------
@@ -98,6 +98,11 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
         raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
                          f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
                          "or rkn4")
+    clamped = [a.name for a in clamped_actuators(mech)]
+    if clamped and settings.method not in ("dop853", "rkn4"):
+        raise ValueError(f"the reduced engine's method {settings.method} does not run a forcerange clamp on a "
+                         f"force that depends on the state (actuator {', '.join(map(repr, clamped))}): its "
+                         "switching is an event of the compiled core; use method dop853 or rkn4")
     horizon, edges = scene.horizon, len(scene.load_edges)
     if settings.method == "rkn4":
         samples = horizon / settings.step + 2 * edges
@@ -232,7 +237,8 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> Eng
             f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol"
             + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
     details = ReducedDetails(solver=solution.method, switches=tuple(solution.switches), error_estimate=estimate,
-                             energy_bound=bound, energy_scale=scale, friction_events=solution.friction_events)
+                             energy_bound=bound, energy_scale=scale, friction_events=solution.friction_events,
+                             clamp_events=solution.clamp_events)
     return EngineResult(
         engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_rate(),
         audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
@@ -249,6 +255,7 @@ class ReducedDetails:
     energy_bound : the largest relative energy residual the run may have.
     energy_scale : J, what the residual is relative to (:func:`energy_scale`).
     friction_events : each change of the joint friction between stick and slip, in time order.
+    clamp_events : each change of an actuator's forcerange clamp (free, upper, lower), in time order.
     """
 
     solver: str
@@ -257,12 +264,14 @@ class ReducedDetails:
     energy_bound: float
     energy_scale: float
     friction_events: tuple = ()
+    clamp_events: tuple = ()
 
     def as_dict(self) -> dict:
         return {"solver": self.solver, "switches": [asdict(s) for s in self.switches],
                 "error_estimate": None if self.error_estimate is None else self.error_estimate.as_dict(),
                 "energy_bound": self.energy_bound, "energy_scale_J": self.energy_scale,
-                "friction_events": [asdict(e) for e in self.friction_events]}
+                "friction_events": [asdict(e) for e in self.friction_events],
+                "clamp_events": [asdict(e) for e in self.clamp_events]}
 
 
 def energy_scale(audit, solution: PartitionedSolution) -> float:

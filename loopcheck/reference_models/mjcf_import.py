@@ -1342,17 +1342,19 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
             reader.warnings.append(f"actuator '{name}': the control is clamped to its ctrlrange [{low:g}, {high:g}], "
                                    "as MuJoCo clamps it")
             values = clipped
-    if m.actuator_forcelimited[a]:
-        low, high = m.actuator_forcerange[a]
-        forces = [float(m.actuator_gainprm[a][0]) * v for v in values]
-        if any(not low <= f <= high for f in forces):
-            reader.fail(f"actuator '{name}': gain × control leaves its forcerange [{low:g}, {high:g}]: MuJoCo "
-                        "would clamp the force, which the scene would not")
     applied = Control(given.times, tuple(values))
     kind = "force" if m.jnt_type[inp] == _SLIDE else "torque"
     for v in values:
         reader.representable(gear * v, kind,
                              f"actuator '{name}': gear × gain × control (gear × gain {gear:g}, control {v:g})")
+    if m.actuator_forcelimited[a]:  # the motor's force gain × control is constant on each piece: its clamp is exact
+        low, high = (float(v) for v in m.actuator_forcerange[a])
+        forces = [float(m.actuator_gainprm[a][0]) * v for v in values]
+        clamped = [min(max(f, low), high) for f in forces]
+        if clamped != forces:
+            reader.warnings.append(f"actuator '{name}': its force gain × control is clamped to its forcerange "
+                                   f"[{low:g}, {high:g}], as MuJoCo clamps it")
+            return Control(given.times, tuple(clamped)).load(float(m.actuator_gear[a][0])), gear, applied
     return applied.load(gear), gear, applied
 
 

@@ -107,12 +107,6 @@ def test_a_control_table_steps_the_target():
     assert residual(result.audit) < 1e-9
 
 
-def test_forcerange_on_a_state_dependent_force_is_refused_by_the_reduced_engine():
-    scene = rotor(extra="forcerange = [-1.0, 1.0]")
-    with pytest.raises(ValueError, match=r"actuator 'servo': its forcerange .* switching event"):
-        simulate(scene, reduced_settings(scene))
-
-
 def test_forcerange_on_a_constant_force_clamps_it():
     """b1 = b2 = 0: the clamp is on the control, exact. A motor of gain 1, control 5 clamped to 2 by its
     forcerange, on a free rotor of 0.5 kg·m²: θ = 0.2 + t + ½ (2 / 0.5) t²."""

@@ -20,7 +20,11 @@ starts again there with q̇ = 0 (a new segment in the same coordinate). A fricti
 K_u = row·K changing sign while it slips: its force −s f |K_u| has a kink there): the chart starts
 again there (a new segment), so that no step straddles it. A joint's range: the
 run ends there with RANGE_REACHED (detail: the range's index, its side 0 lower or 1 upper, the
-joint's coordinate and the bound).
+joint's coordinate and the bound). An actuator's forcerange clamp on a force that depends on the
+state: where its unclamped force crosses a bound (by the clamp's hysteresis), each clamp's mode is
+set again from the state (:meth:`~.physics.Chart.set_clamps`: free between the bounds, else held at
+the bound it passed) and the chart starts again there, at the same rate (q̈ is continuous there, its
+derivative is not: the integrators never step across the kink).
 
 The switching happens a handful of times a run (none on most scenes): this is the one kernel
 module whose work is not in a hot loop, compiled with the others but typed only where it is free.
@@ -50,6 +54,7 @@ class PartitionedRun(NamedTuple):
     starts: np.ndarray             # (segments, 3, n) each chart's start configuration (x, K, L)
     switches: np.ndarray           # (switches, 5) each chart switch: time, old, new, c_old, c_new
     events: np.ndarray             # (friction events, 2) each change of the friction's mode: time, new mode
+    clamps: np.ndarray = np.empty((0, 3))  # (clamp events, 3) each change of a clamp's mode: time, actuator, new mode
 
 
 def switch(chart, value: cython.double, rate: cython.double):
@@ -133,12 +138,18 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
     total = Outcome()
     segment_starts, coordinates, starts, switches, events = [out.n], [independent], [], [], []
     friction = bool(chart.model.I[physics.N_FRICTION])
+    clamped = bool(chart.model.I[physics.N_CLAMPED])
+    clamps = []
     if not chart.start(np.ascontiguousarray(x0, dtype=np.float64), independent):
         total.status = SINGULAR_START
         return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
                               np.empty((0, 5)), np.empty((0, 2)))
     starts.append(chart.arrays()["start"].copy())
     t, value, rate = float(edges[0]), float(x0[independent]), rate0
+    if clamped and chart.set_clamps(int(_pieces_from(edges, loads, t)[1][0]), value, rate) < 0:
+        total.status = SINGULAR_START
+        return PartitionedRun(total, out, np.zeros(0, np.intp), np.zeros(0, np.intp), np.empty((0, 3, n)),
+                              np.empty((0, 5)), np.empty((0, 2)))
     if friction:
         mode = _friction_mode(chart, edges, loads, t, value, rate)
         if mode != mode:
@@ -163,6 +174,7 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         if event < 0:
             total.status, total.fail_time = FAILED, t
             break
+        actuator = chart.clamp_event(event)
         if physics.RANGE_EVENT <= event < kinks:  # the run ends here, even at its last instant
             r, side = divmod(event - physics.RANGE_EVENT, 2)
             row = chart.model.F[chart.model.I[physics.RANGE_ROWS] + r * n:][:n]
@@ -174,11 +186,25 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
         if t >= edges[-1]:
             break
         total.stopped = False
-        if event >= kinks:  # a friction's K_u changed sign: the chart again from here, that kink's sign flipped
+        if event >= kinks and actuator < 0:  # a friction's K_u changed sign: the chart again from here, that kink's sign flipped
             if not chart.start(chart.arrays()["kin"][0].copy(), int(chart.S[physics.INDEPENDENT])):
                 total.status, total.fail_time = FAILED, t
                 break
             chart.set_kinks(event - kinks)
+        if actuator >= 0:  # a clamp's kink: each clamp's mode set from the state (no jump in q̈)
+            if len(clamps) + 1 > max_switches:
+                total.status, total.fail_time = TOO_MANY_SWITCHES, t
+                break
+            before = chart.arrays()["clamp"].copy()
+            load = int(_pieces_from(edges, loads, t)[1][0])
+            if chart.set_clamps(load, value, rate) < 0 or not chart.start(chart.arrays()["kin"][0].copy(),
+                                                                          int(chart.S[physics.INDEPENDENT])):
+                total.status, total.fail_time = FAILED, t
+                break
+            after = chart.arrays()["clamp"]
+            changed = np.flatnonzero(after != before)
+            clamps += [(t, int(a), float(after[a])) for a in changed] or [(t, actuator, float(after[actuator]))]
+        if event >= kinks:
             segment_starts.append(out.n)
             coordinates.append(int(chart.S[physics.INDEPENDENT]))
             starts.append(chart.arrays()["start"].copy())
@@ -221,7 +247,8 @@ def _run(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.
     total.t_reached = out.t[out.n - 1] if out.n else edges[0]
     return PartitionedRun(total, out, np.array(segment_starts, dtype=np.intp), np.array(coordinates, dtype=np.intp),
                           np.array(starts).reshape(-1, 3, n), np.array(switches, dtype=np.float64).reshape(-1, 5),
-                          np.array(events, dtype=np.float64).reshape(-1, 2))
+                          np.array(events, dtype=np.float64).reshape(-1, 2),
+                          np.array(clamps, dtype=np.float64).reshape(-1, 3))
 
 
 def run_rkn(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double, tableau,

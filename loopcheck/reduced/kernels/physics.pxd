@@ -46,6 +46,7 @@ cpdef enum:
     ACT_ROWS = 65
     ACT_PARAMS = 66
     ACT_PIECE = 67
+    N_CLAMPED = 68
     N_FRICTION = 72
     FRICTION_ROWS = 73
     FRICTION_COEF = 74
@@ -82,12 +83,16 @@ cpdef enum:
     SWITCH_EVENT = 0
     FRICTION_EVENT = 1
     RANGE_EVENT = 2
+    CLAMP_FREE = 0
+    CLAMP_HI = 1
+    CLAMP_LO = -1
+    CLAMP_AUTO = 2
     DEPTH = 32
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust
 cdef double _c_trusted_correction, _c_long_jump, _c_far_jump, _c_hysteresis, _c_dyad_round_off
 cdef double _c_kink_root
-cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan
+cdef double _c_closed_form_residual, _c_closed_form_reach, _c_pi, _c_nan, _c_clamp_hysteresis
 cdef Py_ssize_t _c_newton_max_iter, _c_max_walk_closures
 cdef long long _c_max_halvings
 
@@ -110,7 +115,7 @@ cdef class Chart(RightHandSide):
     cdef readonly Loops loops
     # views of S and of W (physics.py: Chart), made once at construction
     cdef long long[::1] s, budget
-    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L
+    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L, clamp
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
     # the sign of each joint friction's K_u = row·K watched for its kink (0: not watched): set_kinks
     cdef readonly double[::1] kinks
@@ -122,7 +127,10 @@ cdef class Chart(RightHandSide):
     cdef double _point_force(self, Py_ssize_t p, double q)
     cdef int _coefficients(self)
     cdef double _applied(self, Py_ssize_t piece)
-    cdef double _actuated(self, Py_ssize_t piece, double v)
+    cdef double _unclamped(self, Py_ssize_t a, Py_ssize_t piece, double v)
+    cdef bint _clamped(self, Py_ssize_t a)
+    cdef double _actuated(self, Py_ssize_t piece, double v, bint modes)
+    cdef double _clamp_margin(self, Py_ssize_t a, double v)
     cdef double _friction_sign(self, double v)
     cdef double _event_margin(self, Py_ssize_t event, double v)
     cpdef bint evaluate(self, double value)
@@ -136,6 +144,8 @@ cdef class Chart(RightHandSide):
     cpdef double rest_force(self, Py_ssize_t load, double q)
     cpdef set_friction(self, double mode)
     cpdef set_kinks(self, Py_ssize_t flipped)
+    cpdef Py_ssize_t set_clamps(self, Py_ssize_t load, double q, double v)
+    cpdef Py_ssize_t clamp_event(self, Py_ssize_t event)
     cpdef Py_ssize_t observation_size(self)
     cpdef observe(self, double[:, ::1] out, Py_ssize_t row)
     cpdef mark(self)

@@ -106,6 +106,13 @@ KINK_ROOT = 1e-9
 # Coordinate partitioning: leave a chart when its coordinate is less than HYSTERESIS times as
 # well conditioned as the best one (c_i < HYSTERESIS · max_j c_j).
 HYSTERESIS = 0.5
+# A clamp's mode changes where its unclamped force f_u crosses a bound by CLAMP_HYSTERESIS times the
+# larger finite bound's magnitude (N·m or N): free → hi at f_u = hi + ε, hi → free at f_u = hi − ε,
+# so that the mode the run then sets by value (:meth:`Chart.set_clamps`) has a margin of ~2ε at the
+# root, far above the root's own error (brentq's 4 ε_mach in t, times ḟ_u), and the integrator
+# restarts with every margin positive, as after a chart switch. The force is then off by at most ε
+# for the ~2ε/|ḟ_u| s around the kink.
+CLAMP_HYSTERESIS = 1e-9
 
 # -- closed-form dyads ------------------------------------------------------------------
 
@@ -153,11 +160,15 @@ if not cython.compiled:
     # points, the points of the point and timed forces.
     CENTRES, ENDS, FORCE_POINTS = range(1, 4)
     N_JOINT_INERTIAS = 63
-    # Actuators (loopcheck.mechanism.Actuator; header slots 64..71, 68..71 unused): their count, the
+    # Actuators (loopcheck.mechanism.Actuator; header slots 64..71, 69..71 unused): their count, the
     # offset in F of their transmissions' rows (count, n: l = row·x, the tendon's Σ c_j joint rows),
     # of their parameters (count, 5: b1·gear, b2·gear, gear, force lo, force hi; ±inf unclamped) and
     # of their state-independent force on each load piece (pieces, count: gain·clamp(ctrl) + b0).
     N_ACTUATORS, ACT_ROWS, ACT_PARAMS, ACT_PIECE = range(64, 68)
+    # N_CLAMPED: the count of actuators whose forcerange clamps a force that depends on the state
+    # (b1 or b2 nonzero, lo < hi, a finite bound): each clamp's switching is an event (slots 69..71
+    # unused).
+    N_CLAMPED = 68
     # Events (:meth:`Chart.stop_margin`): joint friction (static = kinetic Coulomb friction f on a
     # joint's own coordinate u = row·x, MuJoCo's frictionloss): its count and the offsets in F of
     # its rows (count, n) and coefficients f (count,); joint ranges: their count, and the offsets
@@ -190,6 +201,13 @@ if not cython.compiled:
     # its lower bound, 1 its upper), a friction's kink (RANGE_EVENT + 2 N_RANGES + j: joint
     # friction j's K_u changes sign while slipping, where its force −f |K_u| s has a kink)
     SWITCH_EVENT, FRICTION_EVENT, RANGE_EVENT = 0, 1, 2
+    # then one event per actuator a (clamped or not: an unclamped one never fires), numbered
+    # RANGE_EVENT + 2 N_RANGES + N_FRICTION + a: its force's clamp switching (:meth:`Chart.clamp_event`). Each
+    # clamped actuator has a mode (the chart's ``clamp``, set by the run: :meth:`Chart.set_clamps`):
+    # CLAMP_FREE (f = the unclamped force f_u, between the bounds), CLAMP_HI (f = hi), CLAMP_LO
+    # (f = lo), or CLAMP_AUTO (f = clamp(f_u, lo, hi) by value: the default, and every actuator's
+    # force at rest, rest_force's and the stick's).
+    CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO = 0, 1, -1, 2
     DEPTH = MAX_HALVINGS + 2
 
 # C copies of the numerical constants above, which the kernels read (compiled, a module's
@@ -206,6 +224,7 @@ _c_long_jump = cython.declare(cython.double, LONG_JUMP)
 _c_far_jump = cython.declare(cython.double, FAR_JUMP)
 _c_hysteresis = cython.declare(cython.double, HYSTERESIS)
 _c_kink_root = cython.declare(cython.double, KINK_ROOT)
+_c_clamp_hysteresis = cython.declare(cython.double, CLAMP_HYSTERESIS)
 _c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
 _c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
 _c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
@@ -343,7 +362,8 @@ class Chart(RightHandSide):
 
     ``Chart(model)`` allocates the state for ``model`` (:class:`Model`): S (int64: INDEPENDENT,
     SIGN, STATUS, VALID, the walk's halving budgets (DEPTH)) and W (float64: value (1,), start,
-    last (3, n), fields (field_count), guess (n,), base (DEPTH, 3, n), target (DEPTH,)), both numpy
+    last (3, n), fields (field_count), guess (n,), base (DEPTH, 3, n), target (DEPTH,), clamp (the
+    actuators' clamp modes, CLAMP_AUTO until the run sets them)), both numpy
     arrays (``chart.S[STATUS]`` says why an evaluation failed), and typed views of their parts,
     made once here (the start view is ``origin``: ``start`` is the method). The kernels below
     are methods that read and write these views and take no array argument (compiled, an array
@@ -372,18 +392,20 @@ class Chart(RightHandSide):
         n = int(I[N])
         self.n = n
         nfields = N_FIELDS + int(I[N_TIMED]) + 2 * int(I[N_ACTUATORS])
-        size = 1 + 9 * n + nfields + n + DEPTH * 3 * n + DEPTH
+        na = int(I[N_ACTUATORS])
+        size = 1 + 9 * n + nfields + n + DEPTH * 3 * n + DEPTH + na
         self.S = np.zeros(S_HEADER + DEPTH, np.int64)
         self.W = np.zeros(size)
         self.s = self.S
         self.budget = self.S[S_HEADER:S_HEADER + DEPTH]
         views = []
         o = 0
-        for shape in ((1,), (3, n), (3, n), (nfields,), (n,), (DEPTH, 3, n), (DEPTH,)):
+        for shape in ((1,), (3, n), (3, n), (nfields,), (n,), (DEPTH, 3, n), (DEPTH,), (na,)):
             size = math.prod(shape)
             views.append(self.W[o:o + size].reshape(shape))
             o += size
-        self.value, self.origin, self.last, self.fields, self.guess, self.base, self.target = views
+        self.value, self.origin, self.last, self.fields, self.guess, self.base, self.target, self.clamp = views
+        self.W[o - na:o] = CLAMP_AUTO
         # the linkage's kinematics, and views of its scratch under the names the methods below use
         self.loops = Loops(F, I)
         self.x, self.trig, self.A, self.rhs = self.loops.x, self.loops.trig, self.loops.A, self.loops.rhs
@@ -396,13 +418,16 @@ class Chart(RightHandSide):
 
     def arrays(self) -> dict:
         """Named numpy views of the chart's state (Python callers): value (1,), start, last,
-        kin (3, n: x, K, L) and fields (field_count,); they follow every later evaluation."""
+        kin (3, n: x, K, L), fields (field_count,) and clamp (the actuators' clamp modes); they follow
+        every later evaluation."""
         n = int(self.n)
         nfields = field_count(self.model)
         views = [self.W[0:1], self.W[1:1 + 3 * n].reshape(3, n), self.W[1 + 3 * n:1 + 6 * n].reshape(3, n),
                  self.W[1 + 6 * n:1 + 6 * n + nfields]]
+        na = int(self.I[N_ACTUATORS])
+        at = 1 + 6 * n + nfields + n + DEPTH * 3 * n + DEPTH  # the clamp modes follow target (__init__)
         return {"value": views[0], "start": views[1], "last": views[2], "kin": self.loops.B[-3 * n:].reshape(3, n),
-                "fields": views[3]}
+                "fields": views[3], "clamp": self.W[at:at + na]}
     # -- one configuration ------------------------------------------------------------------
 
     @cython.cfunc
@@ -749,26 +774,80 @@ class Chart(RightHandSide):
         return g
 
     @cython.cfunc
-    def _actuated(self, piece: cython.Py_ssize_t, v: cython.double) -> cython.double:
+    def _unclamped(self, a: cython.Py_ssize_t, piece: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """Actuator a's force before its forcerange clamp, f_u = c + b1·gear·l + b2·gear·l̇ (N or
+        N·m), at the fields, ẋ_i = v, on load piece ``piece``."""
+        na: cython.Py_ssize_t = self.I[N_ACTUATORS]
+        at: cython.Py_ssize_t = N_FIELDS + self.I[N_TIMED] + 2 * a
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * a
+        return (self.F[self.I[ACT_PIECE] + piece * na + a] + self.F[prm] * self.fields[at]
+                + self.F[prm + 1] * (self.fields[at + 1] * v))
+
+    @cython.cfunc
+    def _clamped(self, a: cython.Py_ssize_t) -> cython.bint:
+        """Whether actuator a's clamp switches with the state (an event): b1 or b2 nonzero, lo < hi,
+        a finite bound."""
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * a
+        lo: cython.double = self.F[prm + 3]
+        hi: cython.double = self.F[prm + 4]
+        return (self.F[prm] != 0.0 or self.F[prm + 1] != 0.0) and lo < hi and (isfinite(lo) or isfinite(hi))
+
+    @cython.cfunc
+    def _actuated(self, piece: cython.Py_ssize_t, v: cython.double, modes: cython.bint) -> cython.double:
         """The actuators' generalized force (N·m or N) at the fields, ẋ_i = v, on load piece
         ``piece``: Σ gear·f·dl/dx_i with f = clamp(c + b1·gear·l + b2·gear·l̇, lo, hi), c the
-        piece's gain·clamp(ctrl) + b0 (ACT_PIECE), l̇ = (dl/dx_i) v."""
+        piece's gain·clamp(ctrl) + b0 (ACT_PIECE), l̇ = (dl/dx_i) v; with ``modes``, a clamped
+        actuator's f is its mode's (CLAMP_FREE: unclamped, CLAMP_HI: hi, CLAMP_LO: lo), so that q̈
+        is smooth between the clamp's events; CLAMP_AUTO (and without ``modes``) clamps by value."""
         na: cython.Py_ssize_t = self.I[N_ACTUATORS]
         if na == 0:
             return 0.0
         nt: cython.Py_ssize_t = self.I[N_TIMED]
         prm: cython.Py_ssize_t = self.I[ACT_PARAMS]
-        row: cython.Py_ssize_t = self.I[ACT_PIECE] + piece * na
         a: cython.Py_ssize_t
         k: cython.double
         f: cython.double
+        mode: cython.double
         g: cython.double = 0.0
         for a in range(na):
             k = self.fields[N_FIELDS + nt + 2 * a + 1]
-            f = self.F[row + a] + self.F[prm + 5 * a] * self.fields[N_FIELDS + nt + 2 * a] + self.F[prm + 5 * a + 1] * (k * v)
-            f = min(max(f, self.F[prm + 5 * a + 3]), self.F[prm + 5 * a + 4])
+            f = self._unclamped(a, piece, v)
+            mode = self.clamp[a] if modes else CLAMP_AUTO
+            if mode == CLAMP_HI:
+                f = self.F[prm + 5 * a + 4]
+            elif mode == CLAMP_LO:
+                f = self.F[prm + 5 * a + 3]
+            elif mode != CLAMP_FREE:
+                f = min(max(f, self.F[prm + 5 * a + 3]), self.F[prm + 5 * a + 4])
             g += self.F[prm + 5 * a + 2] * f * k
         return g
+
+    @cython.cfunc
+    def _clamp_margin(self, a: cython.Py_ssize_t, v: cython.double) -> cython.double:
+        """Actuator a's clamp margin at the fields, ẋ_i = v, on the latest acceleration's piece: > 0
+        while its mode holds (CLAMP_FREE: min(hi − f_u, f_u − lo) + ε; CLAMP_HI: f_u − hi + ε;
+        CLAMP_LO: lo − f_u + ε; ε = CLAMP_HYSTERESIS × the larger finite bound's magnitude); 1 for
+        an actuator without a clamp event or in CLAMP_AUTO."""
+        if not self._clamped(a):
+            return 1.0
+        mode: cython.double = self.clamp[a]
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * a
+        lo: cython.double = self.F[prm + 3]
+        hi: cython.double = self.F[prm + 4]
+        scale: cython.double = 0.0
+        if isfinite(lo):
+            scale = fabs(lo)
+        if isfinite(hi):
+            scale = max(scale, fabs(hi))
+        eps: cython.double = _c_clamp_hysteresis * scale
+        f: cython.double = self._unclamped(a, self.piece, v)
+        if mode == CLAMP_HI:
+            return f - hi + eps
+        if mode == CLAMP_LO:
+            return lo - f + eps
+        if mode == CLAMP_FREE:
+            return min(hi - f, f - lo) + eps
+        return 1.0
 
     # -- the chart interface ----------------------------------------------------------------
 
@@ -815,7 +894,7 @@ class Chart(RightHandSide):
             return _c_nan
         if self.I[N_FRICTION] and self.fields[FRICTION_MODE] == STICK:
             return 0.0
-        Q: cython.double = self._applied(load) + self._actuated(load, v) - self.fields[DAMPING] * v
+        Q: cython.double = self._applied(load) + self._actuated(load, v, True) - self.fields[DAMPING] * v
         Q -= self._friction_sign(v) * self.fields[FRICTION_CAPACITY]
         return (Q - self.fields[CENTRIFUGAL] * v * v - self.fields[POTENTIAL_GRADIENT]) / self.fields[INERTIA]
 
@@ -824,7 +903,7 @@ class Chart(RightHandSide):
         """P = Q_applied ẋ_i (W) at the configuration last evaluated, right after its
         :meth:`acceleration`: the power of the input load, of the point forces over q and t and
         of the actuators on load piece ``load``; the energy audit integrates it."""
-        return (self._applied(load) + self._actuated(load, v)) * v
+        return (self._applied(load) + self._actuated(load, v, True)) * v
 
     @cython.ccall
     def dissipation(self, v: cython.double) -> cython.double:
@@ -839,7 +918,7 @@ class Chart(RightHandSide):
         friction's capacity C in the fields."""
         if not self.evaluate(q):
             return _c_nan
-        return self._applied(load) + self._actuated(load, 0.0) - self.fields[POTENTIAL_GRADIENT]
+        return self._applied(load) + self._actuated(load, 0.0, False) - self.fields[POTENTIAL_GRADIENT]
 
     @cython.ccall
     def set_friction(self, mode: cython.double):
@@ -886,9 +965,11 @@ class Chart(RightHandSide):
         if event == FRICTION_EVENT:
             mode = self.fields[FRICTION_MODE]
             if mode == STICK:  # constant on a load piece: < 0 from its start when the load breaks it loose
-                rest = self._applied(self.piece) + self._actuated(self.piece, 0.0) - self.fields[POTENTIAL_GRADIENT]
+                rest = self._applied(self.piece) + self._actuated(self.piece, 0.0, False) - self.fields[POTENTIAL_GRADIENT]
                 return 1.0 if fabs(rest) <= self.fields[FRICTION_CAPACITY] else -1.0
             return mode * v if mode != 0.0 else 1.0  # slipping: until q̇ reaches 0
+        if event >= RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION]:  # a clamp
+            return self._clamp_margin(event - RANGE_EVENT - 2 * self.I[N_RANGES] - self.I[N_FRICTION], v)
         if event >= RANGE_EVENT + 2 * self.I[N_RANGES]:  # a kink: σ_j K_u while slipping
             r = event - RANGE_EVENT - 2 * self.I[N_RANGES]
             mode = self.fields[FRICTION_MODE]
@@ -912,7 +993,8 @@ class Chart(RightHandSide):
         coordinate good enough (≤ 0 when another is better by more than the hysteresis:
         c_i < HYSTERESIS · max_j c_j); the friction slipping with q̇ ≠ 0, or sticking with the
         loads of the latest acceleration's piece within its capacity; every joint inside its
-        range; each joint friction's K_u keeping its sign while slipping (the kinks). −1 where the
+        range; each joint friction's K_u keeping its sign while slipping (the kinks).
+        every clamped actuator's force in its mode (:meth:`_clamp_margin`). −1 where the
         configuration fails."""
         if not self.evaluate(q):
             return -1.0
@@ -922,27 +1004,74 @@ class Chart(RightHandSide):
             g = min(g, self._event_margin(FRICTION_EVENT, v))
         for e in range(RANGE_EVENT, RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION]):
             g = min(g, self._event_margin(e, v))
+        if self.I[N_CLAMPED]:
+            for e in range(self.I[N_ACTUATORS]):
+                g = min(g, self._clamp_margin(e, v))
         return g
 
     @cython.ccall
     def locate(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
-        """A friction's change of mode or a range reached is located at its root (the time of a
-        stick, of a reversal, of the bound); a chart switch may happen anywhere near its own."""
+        """A friction's change of mode, a range reached or a clamp's switching is located at its
+        root (the time of a stick, of a reversal, of the bound, of the force's kink); a chart switch
+        may happen anywhere near its own."""
         return self.fired(t, q, v) >= FRICTION_EVENT
 
     @cython.ccall
     def stop_at_start(self, t: cython.double, q: cython.double, v: cython.double) -> cython.bint:
         """True at a load piece's start where the friction sticks and the piece's loads (those
-        of the latest acceleration) exceed its capacity: it breaks loose there."""
-        if not (self.I[N_FRICTION] and self.fields[FRICTION_MODE] == STICK):
-            return False
-        return not self.evaluate(q) or self._event_margin(FRICTION_EVENT, v) < 0.0
+        of the latest acceleration) exceed its capacity: it breaks loose there; or where a clamped
+        actuator's force leaves its mode (a control step past a bound, or back inside)."""
+        e: cython.Py_ssize_t
+        if self.I[N_FRICTION] and self.fields[FRICTION_MODE] == STICK:
+            if not self.evaluate(q) or self._event_margin(FRICTION_EVENT, v) < 0.0:
+                return True
+        if self.I[N_CLAMPED]:
+            if not self.evaluate(q):
+                return True
+            for e in range(self.I[N_ACTUATORS]):
+                if self._clamp_margin(e, v) < 0.0:
+                    return True
+        return False
+
+    @cython.ccall
+    def set_clamps(self, load: cython.Py_ssize_t, q: cython.double, v: cython.double) -> cython.Py_ssize_t:
+        """Set each clamped actuator's mode by its unclamped force f_u at x_i = q, ẋ_i = v on load
+        piece ``load``: CLAMP_HI above hi, CLAMP_LO below lo, else CLAMP_FREE (the mode whose margin
+        is then the largest, ≥ ε). Returns the count of modes changed, −1 where the configuration
+        fails."""
+        if not self.evaluate(q):
+            return -1
+        self.piece = load
+        changed: cython.Py_ssize_t = 0
+        a: cython.Py_ssize_t
+        f: cython.double
+        mode: cython.double
+        prm: cython.Py_ssize_t
+        for a in range(self.I[N_ACTUATORS]):
+            if not self._clamped(a):
+                continue
+            prm = self.I[ACT_PARAMS] + 5 * a
+            f = self._unclamped(a, load, v)
+            mode = CLAMP_HI if f > self.F[prm + 4] else (CLAMP_LO if f < self.F[prm + 3] else CLAMP_FREE)
+            if mode != self.clamp[a]:
+                changed += 1
+                self.clamp[a] = mode
+        return changed
+
+    @cython.ccall
+    def clamp_event(self, event: cython.Py_ssize_t) -> cython.Py_ssize_t:
+        """The actuator whose clamp ``event`` (:meth:`fired`'s numbering) is, −1 if it is no clamp's."""
+        base: cython.Py_ssize_t = RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION]
+        if base <= event < base + self.I[N_ACTUATORS]:
+            return event - base
+        return -1
 
     @cython.ccall
     def fired(self, t: cython.double, q: cython.double, v: cython.double) -> cython.Py_ssize_t:
         """Which event a stop at (t, q, v) is: the one of least margin (SWITCH_EVENT,
         FRICTION_EVENT, RANGE_EVENT + 2 r + side: joint range r's lower (side 0) or upper (1)
-        bound, or RANGE_EVENT + 2 N_RANGES + j: joint friction j's kink); −1 where the
+        bound, RANGE_EVENT + 2 N_RANGES + j: joint friction j's kink, or RANGE_EVENT + 2 N_RANGES +
+        N_FRICTION + a: actuator a's clamp); −1 where the
         configuration fails."""
         if not self.evaluate(q):
             return -1
@@ -958,6 +1087,11 @@ class Chart(RightHandSide):
             g = self._event_margin(e, v)
             if g < least:
                 best, least = e, g
+        if self.I[N_CLAMPED]:
+            for e in range(self.I[N_ACTUATORS]):
+                g = self._clamp_margin(e, v)
+                if g < least:
+                    best, least = RANGE_EVENT + 2 * self.I[N_RANGES] + self.I[N_FRICTION] + e, g
         return best
 
     @cython.ccall

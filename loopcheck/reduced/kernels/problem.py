@@ -24,7 +24,8 @@ nothing, exchanges no energy and never asks to stop:
   event must be located at its root (the step taken again to it), False where stopping after
   the step will do;
 - ``stop_at_start(t, q, v)``: True where the run must end at a load piece's start, right after
-  its first ``acceleration`` (an event the load edge itself causes: a stuck joint broken loose);
+  its first ``acceleration`` (an event the load edge itself causes: a stuck joint broken loose,
+  an actuator's force moved past its forcerange or back inside);
 - ``observation_size()`` and ``observe(out, row)``: what the problem records at a sample, right
   after the sample's ``acceleration``, into ``out[row, :observation_size()]``;
 - ``mark()`` and ``rewind()``: remember the problem's state at a piece's start, and go back to
