@@ -38,9 +38,12 @@ class NumericalFailure(RuntimeError):
         The run as far as the engine got, when it got a result that a check then failed (a loop
         gap or an energy balance beyond its bound): its trajectory (trustworthy up to ``time``) and
         its known defects travel with the failure (:func:`with_partial`); else None.
+    joint : str or None
+        The scene joint whose range a RANGE_REACHED failure reached; else None.
     """
 
     partial = None
+    joint = None  # the scene joint a RANGE_REACHED failure names
 
     def __init__(self, reason: FailureReason | str, message: str, time: float | None = None):
         super().__init__(message)

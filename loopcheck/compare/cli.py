@@ -401,7 +401,7 @@ def cmd_check(args: argparse.Namespace) -> int:
             raise UsageError(f"{path}: {exc}") from None
     failed = 0
     for path, imported in models.items():
-        from .model_check import check_lines as model_lines, check_model
+        from .model_check import check_lines as model_lines, check_model, reference_failure_lines
 
         for line in imported.warnings:
             print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
@@ -412,7 +412,7 @@ def cmd_check(args: argparse.Namespace) -> int:
                                 reduced=_reduced_reference(args, imported.scene))
         except NumericalFailure as exc:  # the reduced reference's (the model's own runs record theirs)
             failed += 1
-            print(f"FAIL  {path}: numerical failure of the reduced reference ({exc.reason}): {exc}")
+            print("\n".join(reference_failure_lines(imported, exc, path)))
             continue
         failed += not check.passed
         print("\n".join(model_lines(check, path)))

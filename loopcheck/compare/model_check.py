@@ -325,6 +325,16 @@ def _figures(trial: Trial, unit: str) -> str:
             f"energy balance {c.mujoco.audit.relative_residual:.2e}")
 
 
+def reference_failure_lines(imported: ImportedModel, failure: NumericalFailure, source: str) -> list[str]:
+    """What ``check`` prints when the reduced reference of a user's model fails: the failure, and
+    for a range reached, the range as the file writes it (the scene's bounds count from the joint's
+    body frame, the file's from its qpos)."""
+    lines = [f"FAIL  {source}: numerical failure of the reduced reference ({failure.reason}): {failure}"]
+    if failure.joint in imported.range_sources:
+        lines.append(f"      in the file: {imported.range_sources[failure.joint]}")
+    return lines
+
+
 def check_lines(check: ModelCheck, source: str) -> list[str]:
     """``loopcheck check``'s lines for one model."""
     scene, imported = check.imported.scene, check.imported

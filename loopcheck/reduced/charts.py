@@ -315,10 +315,12 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
         joint = ranged_joints(model.scene.mechanism.linkage)[int(r)]
         unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
         lo, hi = joint.range
-        return NumericalFailure(
+        failure = NumericalFailure(
             "range-reached", f"joint {joint.name!r} reached the {'upper' if side else 'lower'} bound {bound:.6g} {unit} "
             f"of its range [{lo:.6g}, {hi:.6g}] {unit} at t = {t:.9g} s: the exact solution stops there (MuJoCo's "
             "joint limit would act from then on)", t)
+        failure.joint = joint.name  # the scene joint (an import says where its range came from)
+        return failure
     return NumericalFailure("singular", "the run cannot start: its coordinate cannot drive the linkage", t)
 
 

@@ -217,6 +217,9 @@ class ImportedModel:
     connects : each connect equality of the model, in its order (:class:`ConnectSource`).
     motor_index : the MuJoCo index of the input motor (``control`` is its), when there is one.
     actuator_index : the MuJoCo index of each of the scene's actuators, in their order.
+    range_sources : for each scene joint whose range comes from a MuJoCo joint's, that range as the
+        file writes it and how the scene's coordinate is made of its qpos (one line, for messages:
+        the scene's bounds differ from the file's where the joint's body frame is turned).
     """
 
     scene: Scene
@@ -236,6 +239,7 @@ class ImportedModel:
     connects: tuple["ConnectSource", ...] = ()
     motor_index: int = 0
     actuator_index: tuple[int, ...] = ()
+    range_sources: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -566,6 +570,7 @@ class _Reader:
         self.joint_of: dict[str, str] = {}
         self.joint_sign: dict[int, float] = {}
         self.ranges: dict[str, tuple[float, float]] = {}  # a joint's range on its own coordinate (_elements)
+        self.range_sources: dict[str, str] = {}  # ImportedModel.range_sources
         for j in range(m.njnt):
             body = int(m.jnt_bodyid[j])
             child, parent = self.group_of[body], self.group_of[int(m.body_parentid[body])]
@@ -1203,7 +1208,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
                          connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
-                         actuator_index=tuple(a for a in range(model.nu) if a != motor))
+                         actuator_index=tuple(a for a in range(model.nu) if a != motor),
+                         range_sources=dict(reader.range_sources))
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
@@ -1613,6 +1619,12 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
             sign = reader.joint_sign[j]
             add_range(joint, sorted(u_read + sign * (float(b) - float(reader.qpos[adr])) for b in m.jnt_range[j]),
                       f"{label}: range")
+            offset = u_read - sign * float(reader.qpos[adr])
+            unit = "rad" if revolute[joint] else "m"
+            made = ("qpos" if sign > 0 else "−qpos") + (f" {'+' if offset >= 0 else '−'} {abs(offset):.6g} {unit}"
+                                                          if abs(offset) > 1e-12 else "")
+            reader.range_sources[joint] = (f"{label} has range=\"{m.jnt_range[j][0]:g} {m.jnt_range[j][1]:g}\" "
+                                           f"in its qpos; the scene's coordinate of joint '{joint}' is {made}")
         if damping > 0.0:
             add_joint_element("damper", f"{joint}_damping", joint, damping, where=f"{label}: damping")
         if stiffness > 0.0:

@@ -90,6 +90,19 @@ def test_a_range_reached_fails_the_check_naming_the_joint(tmp_path, capsys):
     assert import_mjcf(ranged, horizon=1.0).scene.mechanism.linkage.joints[0].range == (-0.5, 1.5)
 
 
+def test_a_range_reached_in_a_turned_body_quotes_the_file_s_range(tmp_path, capsys):
+    """The rotor's body turned 0.3 rad in its plane: the scene's coordinate of 'spin' is qpos + 0.3,
+    so range="-0.5 1.5" is [-0.2, 1.8] in the scene, reached at the same 1.0954 s (qpos 0 → 1.5);
+    the failure quotes the file's range and the map (planted: the line left out)."""
+    turned = _written(tmp_path, "turned.xml", ('frictionloss="1"', 'range="-0.5 1.5"'),
+                      ('<body name="rotor">', '<body name="rotor" euler="0 0 0.3">'))
+    assert main(["check", str(turned), "--ctrl", "5", "--horizon", "2"]) == 1
+    out = capsys.readouterr().out
+    assert "joint 'spin' reached the upper bound 1.8 rad of its range [-0.2, 1.8] rad at t = 1.09544512 s" in out
+    assert ("      in the file: joint 'spin' has range=\"-0.5 1.5\" in its qpos; the scene's coordinate of joint "
+            "'spin' is qpos + 0.3 rad\n") in out
+
+
 def test_friction_and_ranges_survive_export_and_import(tmp_path):
     scene = scene_from_dict(rotor(friction=1.0, span=(-0.5, 8.0)))
     path = tmp_path / "rotor.xml"
