@@ -525,19 +525,21 @@ def _check_rebased(path: Path, m: mujoco.MjModel, d: mujoco.MjData, sub: mujoco.
 
 def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | None = None,
                 keyframe: str | None = None, qpos0: bool = False, **kwargs) -> tuple[ImportedModel, Extraction]:
-    """Extract the loop (:func:`extract_loop`), write it (to ``write_to``, else a temporary file),
-    load that file back from disk and import it (:func:`import_mjcf`, ``kwargs`` its own)."""
+    """Extract the loop (:func:`extract_loop`), write it to a file, load that file back from disk and
+    import it (:func:`import_mjcf`, ``kwargs`` its own); the same text to ``write_to`` once imported."""
     path = Path(path)
     ext = extract_loop(path, loops, keyframe=keyframe, qpos0=qpos0)
     with tempfile.TemporaryDirectory(prefix="loopcheck-loop-") as tmp:
-        target = Path(write_to) if write_to is not None else Path(tmp) / f"{path.stem}.loop.xml"
+        target = Path(tmp) / f"{path.stem}.loop.xml"
         target.write_text(ext.xml)
         try:
             imported = import_mjcf(target, keyframe=ext.key, name=kwargs.pop("name", None) or path.stem, **kwargs)
         except MjcfError as exc:
             text = str(exc).replace(str(target), f"{path} (--loop {', '.join(loops)})")
             raise MjcfError(text) from None
-    imported = dataclasses.replace(imported, warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
+    if write_to is not None:  # the file the check ran, once it is read (no partial output)
+        Path(write_to).write_text(ext.xml)
+    imported = dataclasses.replace(imported, extraction=ext, warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
     return imported, ext
 
 

@@ -217,6 +217,8 @@ class ImportedModel:
     connects : each connect equality of the model, in its order (:class:`ConnectSource`).
     motor_index : the MuJoCo index of the input motor (``control`` is its), when there is one.
     actuator_index : the MuJoCo index of each of the scene's actuators, in their order.
+    extraction : the loop cut out of a larger model this was read from (``--loop``:
+        :class:`loopcheck.reference_models.extract.Extraction`), else None.
     """
 
     scene: Scene
@@ -236,6 +238,7 @@ class ImportedModel:
     connects: tuple["ConnectSource", ...] = ()
     motor_index: int = 0
     actuator_index: tuple[int, ...] = ()
+    extraction: object = None
 
 
 @dataclass(frozen=True)
