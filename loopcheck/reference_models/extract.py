@@ -184,8 +184,9 @@ def _select(path: Path, m: mujoco.MjModel, names: list[str]) -> list[list[_Closu
     listed = "; ".join(_loop_text(g) for g in loops) or "none"
     chosen: list[list[_Closure]] = []
     for name in names:
+        said = name.replace("-", "–")  # an unnamed connect's ends typed with a hyphen
         by_closure = [g for g in loops for c in g
-                      if name in (c.name, c.label) or c.label.split(" ", 1)[-1] == name]
+                      if name == c.name or said in (c.label.replace("-", "–"), c.label.replace("-", "–").split(" ", 1)[-1])]
         if not by_closure:
             b = mujoco.mj_name2id(m, _OBJ.mjOBJ_BODY, name)
             by_closure = [g for g in loops if b >= 0 and any(b in c.bodies or b == c.top for c in g)]

@@ -92,6 +92,7 @@ def test_the_arm_keeps_the_finger_motor_and_drops_the_servo(tmp_path):
     # the unnamed connect is named as the messages name it, and a body of the loop names the loop
     assert extract_loop(robot, ["connect #1 (f_coupler–f_rocker)"]).moving == ext.moving
     assert extract_loop(robot, ["f_rocker"]).moving == ext.moving
+    assert extract_loop(robot, ["connect #1 (f_coupler-f_rocker)"]).moving == ext.moving  # typed with a hyphen
 
 
 def _edited(tmp_path: Path, old: str, new: str) -> Path:
@@ -134,3 +135,26 @@ def test_a_body_in_two_loops_is_refused_listing_them(tmp_path):
                                         r"'ankle_loop'\)"):
         extract_loop(robot, ["base"])
     assert "connect 'ankle_loop' (acts outside the loop)" in extract_loop(robot, ["foot_loop"]).dropped
+
+
+def test_a_loop_with_two_dof_is_refused_saying_how_many(tmp_path):
+    # the connect closes on the pad, whose own joint then belongs to the loop (closed at qpos0)
+    robot = _edited(tmp_path, 'body2="rocker" anchor=', 'body2="pad" anchor=')
+    assert extract_loop(robot, ["foot_loop"], qpos0=True).moving == ("crank", "coupler", "rocker", "pad")
+    with pytest.raises(MjcfError, match=r"leg.xml \(--loop foot_loop\): .*2 degrees of freedom"):
+        import_loop(robot, ["foot_loop"], qpos0=True, horizon=HORIZON)
+
+
+def test_a_spring_from_a_welded_body_is_kept_with_that_end_as_ground(tmp_path):
+    robot = _edited(tmp_path, "<equality>", """<tendon><spatial name="heel_spring" stiffness="20">
+      <site site="heel"/><site site="toe"/></spatial><spatial name="calf" stiffness="5"><site site="heel"/>
+      <site site="hip_site"/></spatial></tendon><equality>""")
+    text = robot.read_text().replace('<body name="ankle" pos="0 0 -0.3">',
+                                     '<body name="ankle" pos="0 0 -0.3"><site name="heel" pos="0.05 0 0"/>')
+    text = text.replace('<body name="thigh" pos="0 0 -0.1">', '<body name="thigh" pos="0 0 -0.1"><site name="hip_site"/>')
+    text = text.replace('<body name="pad" pos="0.01 -0.005 0" >', '<body name="pad" pos="0.01 -0.005 0" ><site name="toe"/>')
+    robot.write_text(text)
+    imported, ext = import_loop(robot, ["foot_loop"], horizon=HORIZON)
+    assert ext.kept_across[0] == "tendon 'heel_spring' (its sites on welded bodies are ground)"
+    assert "tendon 'calf' (between welded bodies)" in ext.dropped
+    assert [e.name for e in imported.scene.mechanism.elements if e.kind == "spring"] == ["heel_spring"]
