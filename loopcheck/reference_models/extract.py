@@ -62,7 +62,7 @@ class Extraction:
     dropped : each element dropped, and why. kept_across : elements kept across the boundary, and how.
     normal, x_axis : the loop's plane in the world (its normal; ground's 2-D x axis).
     largest_angle : the largest angle between two of the loop's hinge axes (rad), before projection.
-    warnings : lines for stderr.
+    warnings : lines for stderr. said : lines for stdout (the model's only keyframe, read without --keyframe).
     """
 
     source: Path
@@ -79,6 +79,7 @@ class Extraction:
     x_axis: tuple[float, float, float]
     largest_angle: float
     warnings: tuple[str, ...]
+    said: tuple[str, ...] = ()
 
     def __post_init__(self):
         if not self.loops or not self.moving:
@@ -222,7 +223,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     """
     path = Path(path)
     model, loading = _load_model(path)
-    qpos, qvel, ctrl, key_label, _ = _state(path, model, keyframe, qpos0)
+    qpos, qvel, ctrl, key_label, said_key = _state(path, model, keyframe, qpos0)
     with mujoco_warnings() as said:
         spec = mujoco.MjSpec.from_file(str(path))
         m = compile_spec(spec)
@@ -436,7 +437,8 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         ground=tuple(_body(m, b) for b in range(1, m.nbody) if b not in mover),
         welded=tuple(welded), dropped=tuple(dropped), kept_across=tuple(across),
         normal=tuple(float(x) for x in normal), x_axis=tuple(float(x) for x in e1),
-        largest_angle=float(largest), warnings=tuple(dict.fromkeys([*warnings, *said.lines])))
+        largest_angle=float(largest), warnings=tuple(dict.fromkeys([*warnings, *said.lines])),
+        said=(said_key,) if said_key else ())
 
 
 _UNSUPPORTED = ("include", "frame", "replicate", "attach", "model")
@@ -537,10 +539,13 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
             imported = import_mjcf(target, keyframe=ext.key, name=kwargs.pop("name", None) or path.stem, **kwargs)
         except MjcfError as exc:
             text = str(exc).replace(str(target), f"{path} (--loop {', '.join(loops)})")
+            for name in (kwargs.get("controls") or {}):
+                if any(d.startswith(f"actuator '{name}' ") for d in ext.dropped):
+                    text += f" (--loop dropped actuator '{name}': it acts outside the loop)"
             raise MjcfError(text) from None
     if write_to is not None:  # the file the check ran, once it is read (no partial output)
         Path(write_to).write_text(ext.xml)
-    imported = dataclasses.replace(imported, extraction=ext, warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
+    imported = dataclasses.replace(imported, extraction=ext, said=ext.said + imported.said, warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
     return imported, ext
 
 

@@ -105,3 +105,14 @@ def test_run_loop_writes_the_extraction_in_report_json(tmp_path, capsys):
     assert ext["mass"] == [{"body": "pad", "welded_to": "rocker"}]
     assert [w.split(" at ")[0] for w in ext["welded"]] == ["joint 'root'", "joint 'hip'", "joint 'knee'",
                                                            "joint 'pad_j'"]
+
+
+def test_a_control_for_a_dropped_actuator_says_it_was_dropped(tmp_path, capsys):
+    robot, _ = _robot(tmp_path, "leg")
+    assert main(["check", str(robot), "--loop", "foot_loop", "--ctrl", "hip_motor=1"]) == 2
+    assert "--loop dropped actuator 'hip_motor': it acts outside the loop" in capsys.readouterr().err
+    out = tmp_path / "leg.toml"
+    assert main(["import-mjcf", str(robot), "--loop", "foot_loop", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "read at keyframe 'stance', the model's only keyframe" in printed  # said, as for any model
+    assert "dropped: actuator 'hip_motor'" in printed and out.is_file()
