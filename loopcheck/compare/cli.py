@@ -90,7 +90,7 @@ def _scene(path: str | None):
     return load_scene(_scene_path(path))
 
 
-MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl", "loop", "write_submodel")  # read a MuJoCo model; a scene file has none of these
+MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl", "loop", "write_submodel", "assemble")  # read a MuJoCo model; a scene file has none of these
 
 
 def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
@@ -387,9 +387,15 @@ def _import(args: argparse.Namespace, path: str):
         if args.write_submodel is not None:
             check_file(args.write_submodel, flag="--write-submodel", inputs=[path])  # before any work
         return import_loop(path, args.loop, write_to=args.write_submodel, keyframe=args.keyframe,
-                           qpos0=bool(args.qpos0), input_joint=args.input, control=bare, controls=named, **horizon)[0]
+                           qpos0=bool(args.qpos0), assemble=bool(args.assemble), input_joint=args.input,
+                           control=bare, controls=named, **horizon)[0]
     if getattr(args, "write_submodel", None) is not None:
         raise UsageError("--write-submodel writes the loop that --loop NAME cuts out of the model: give --loop")
+    if getattr(args, "assemble", None):  # the whole model's loops (docs/import.md)
+        from loopcheck.reference_models.extract import import_assembled
+
+        return import_assembled(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+                                control=bare, controls=named, **horizon)
     return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
                        control=bare, controls=named, **horizon)
 
@@ -528,6 +534,10 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                         "it; the rest of the robot is welded at the configuration read, what acts outside is dropped")
     g.add_argument("--write-submodel", default=None, metavar="FILE",
                    help="with --loop: write the extracted model (MJCF, loadable on its own) there; the check runs it")
+    g.add_argument("--assemble", action="store_true", default=None,
+                   help="close loops left open in the configuration read by Newton from there, the input joint held "
+                        "(a move above 0.1 rad or 10 mm is refused; the moves are printed in qpos units); with --loop, "
+                        "the loop's, else the whole model's")
     g.add_argument("--horizon", type=_positive, default=None,
                    help="the simulated time (s): a model's (default its loopcheck.horizon numeric, else 1); given "
                         "with a scene file, it replaces the scene's simulation.horizon (said in the output). --input, "

@@ -17,6 +17,9 @@
 - the plane: the loop's hinge axes must be parallel within :data:`PLANAR_TOL` rad; above
   :data:`AXIS_TOL`, they are projected on their mean normal, with a warning quoting the largest angle.
 
+With ``assemble`` (``--assemble``), loops left open in the configuration read are closed first by
+Newton, the input joint held (:func:`_assemble`; :func:`import_assembled` does it for a whole model).
+
 The result (:class:`Extraction`) holds the standalone MJCF, with one keyframe (the state read);
 :func:`import_loop` writes it to a file, loads that file back, and imports it (the check runs exactly
 the model ``--write-submodel`` writes).
@@ -24,6 +27,7 @@ the model ``--write-submodel`` writes).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import tempfile
@@ -80,6 +84,7 @@ class Extraction:
     largest_angle: float
     warnings: tuple[str, ...]
     said: tuple[str, ...] = ()
+    assembly: Assembly | None = None
 
     def __post_init__(self):
         if not self.loops or not self.moving:
@@ -99,7 +104,8 @@ class Extraction:
                 "ground: " + (", ".join(self.ground) or "none"),
                 "welded at the configuration read: " + ("; ".join(self.welded) or "none"),
                 "dropped: " + ("; ".join(self.dropped) or "none"),
-                *(["kept across the boundary: " + "; ".join(self.kept_across)] if self.kept_across else []))
+                *(["kept across the boundary: " + "; ".join(self.kept_across)] if self.kept_across else []),
+                *([self.assembly.line()] if self.assembly else []))
 
     def as_dict(self) -> dict:
         """report.json's ``extraction``."""
@@ -108,7 +114,8 @@ class Extraction:
                 "ground": list(self.ground), "welded": list(self.welded), "dropped": list(self.dropped),
                 "kept_across": list(self.kept_across),
                 "plane": {"normal": list(self.normal), "x_axis": list(self.x_axis),
-                          "largest_axis_angle": self.largest_angle}}
+                          "largest_axis_angle": self.largest_angle},
+                "assembly": self.assembly.as_dict() if self.assembly else None}
 
 
 def _body(m: mujoco.MjModel, b: int) -> str:
@@ -211,8 +218,116 @@ def _qpos_text(m: mujoco.MjModel, j: int, qpos: np.ndarray) -> str:
     return f"{element_label(m, _OBJ.mjOBJ_JOINT, j)} at {values}{unit}"
 
 
+# --assemble: Newton may move a joint by at most this much (the issue's decision), qpos units.
+MAX_TURN = 0.1  # rad
+MAX_SLIDE = 0.01  # m
+NEWTON_ITERATIONS = 50
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """The loops closed by Newton from the configuration read (``--assemble``).
+
+    input : the joint held at its value read (as messages name it) and that value (qpos units).
+    moves : (joint, how far Newton moved it in qpos units, "rad" or "m") for each joint it moved.
+    open_before, open_after : the loops' largest residual (m, or the coupling's units) before and after.
+    """
+
+    input: str
+    input_value: float
+    moves: tuple[tuple[str, float, str], ...]
+    open_before: float
+    open_after: float
+
+    def __post_init__(self):
+        if not all(math.isfinite(v) for v in (self.input_value, self.open_before, self.open_after,
+                                               *(m for _, m, _ in self.moves))):
+            raise ValueError("an assembly's figures must be finite")
+
+    def line(self) -> str:
+        moved = ", ".join(f"{name} by {move:+.3g} {unit}" for name, move, unit in self.moves) or "nothing"
+        return (f"assembled (--assemble): loops open by {self.open_before:.3g} at the configuration read, closed to "
+                f"{self.open_after:.3g} by Newton with {self.input} held at {self.input_value:.6g}; it moved {moved}")
+
+    def as_dict(self) -> dict:
+        return {"input": self.input, "input_qpos": self.input_value, "open_before": self.open_before,
+                "open_after": self.open_after,
+                "moves": [{"joint": n, "move": v, "unit": u} for n, v, u in self.moves]}
+
+
+def _assemble(path: Path, m: mujoco.MjModel, qpos: np.ndarray, eqs: set[int], joints: list[int],
+              input_joint: int) -> tuple[np.ndarray, Assembly]:
+    """Close the equalities ``eqs`` by (least-squares) Newton on the hinges and slides ``joints``
+    but ``input_joint`` (held at its value read), from ``qpos``; refuse a move above MAX_TURN or
+    MAX_SLIDE, or no convergence."""
+    mc = copy.deepcopy(m)
+    mc.opt.jacobian = int(mujoco.mjtJacobian.mjJAC_DENSE)
+    d = mujoco.MjData(mc)
+    q = qpos.copy()
+    free = [j for j in joints if j != input_joint and int(m.jnt_type[j]) in (_HINGE, _SLIDE)]
+    dofs = [int(m.jnt_dofadr[j]) for j in free]
+    adrs = [int(m.jnt_qposadr[j]) for j in free]
+
+    def residual():
+        d.qpos[:] = q
+        with mujoco_warnings():
+            mujoco.mj_fwdPosition(mc, d)
+        rows = [i for i in range(d.nefc) if int(d.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+                and int(d.efc_id[i]) in eqs]
+        return d.efc_pos[rows].copy(), d.efc_J.reshape(d.nefc, mc.nv)[rows][:, dofs] if rows else np.zeros((0, len(dofs)))
+
+    def gap() -> float:  # the largest closure's gap: a connect's distance, a coupling's residual
+        ids = [int(d.efc_id[i]) for i in range(d.nefc) if int(d.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+               and int(d.efc_id[i]) in eqs]
+        return max((float(np.linalg.norm(r[[k for k, x in enumerate(ids) if x == e]])) for e in set(ids)), default=0.0)
+
+    r, J = residual()
+    before = gap()
+    scale = max(float(np.ptp(d.xpos, axis=0).max()), 1e-9)
+    for _ in range(NEWTON_ITERATIONS):  # to round-off: until a step no longer shrinks the gap
+        if not r.size or not dofs or float(np.abs(r).max()) <= 1e-15 * scale:
+            break
+        trial = q.copy()
+        q[adrs] += np.linalg.lstsq(J, -r, rcond=None)[0]
+        r_new, J_new = residual()
+        if float(np.abs(r_new).max()) >= float(np.abs(r).max()):
+            q = trial
+            r, J = residual()
+            break
+        r, J = r_new, J_new
+    after = gap()
+    if after > 1e-10 * scale:
+        raise MjcfError(f"{path}: --assemble: Newton did not close the loops from the configuration read (still open "
+                        f"by {after:.3g} after {NEWTON_ITERATIONS} iterations)")
+    moves = []
+    for j, a in zip(free, adrs):
+        move = float(q[a] - qpos[a])
+        unit, limit = ("rad", MAX_TURN) if int(m.jnt_type[j]) == _HINGE else ("m", MAX_SLIDE)
+        if abs(move) > limit:
+            raise MjcfError(f"{path}: --assemble: closing the loops moves {element_label(m, _OBJ.mjOBJ_JOINT, j)} by "
+                            f"{move:.3g} {unit}, more than {limit:g} {unit}: the configuration read is too far from "
+                            "closed; author a keyframe that closes them")
+        if abs(move) > 1e-12:  # a move of round-off is no move
+            moves.append((element_label(m, _OBJ.mjOBJ_JOINT, j), move, unit))
+    return q, Assembly(element_label(m, _OBJ.mjOBJ_JOINT, input_joint), float(qpos[int(m.jnt_qposadr[input_joint])]),
+                       tuple(moves), before, after)
+
+
+def _input_of(path: Path, m: mujoco.MjModel, joints: list[int], name: str | None) -> int:
+    """The joint --assemble holds: ``--input``'s, else the first joint an actuator drives, else the first hinge."""
+    if name is not None:
+        j = mujoco.mj_name2id(m, _OBJ.mjOBJ_JOINT, name)
+        if j not in joints:
+            raise MjcfError(f"{path}: --input {name}: no joint of that name is among the loop's joints")
+        return j
+    for a in range(m.nu):
+        if int(m.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT) and int(m.actuator_trnid[a, 0]) in joints:
+            return int(m.actuator_trnid[a, 0])
+    return min(joints)
+
+
 def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = None,
-                 qpos0: bool = False) -> Extraction:
+                 qpos0: bool = False, assemble: bool = False, input_joint: str | None = None) -> Extraction:
     """The loop(s) named, cut out of the model at ``path`` as a standalone model (module docstring).
 
     Raises
@@ -252,6 +367,13 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
                             f"{element_label(m, _OBJ.mjOBJ_JOINT, j)} is a {'free' if int(m.jnt_type[j]) == _FREE else 'ball'} "
                             "joint")
     label = lambda kind, i: element_label(m, kind, i)  # noqa: E731
+    assembly = None
+    if assemble:
+        joints = sorted(kept_joints)
+        qpos, assembly = _assemble(path, m, qpos, {c.index for c in closures}, joints,
+                                   _input_of(path, m, joints, input_joint))
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
 
     # the plane: the loop's hinge axes, parallel within PLANAR_TOL
     hinges = sorted(j for j in kept_joints if int(m.jnt_type[j]) == _HINGE)
@@ -438,7 +560,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         welded=tuple(welded), dropped=tuple(dropped), kept_across=tuple(across),
         normal=tuple(float(x) for x in normal), x_axis=tuple(float(x) for x in e1),
         largest_angle=float(largest), warnings=tuple(dict.fromkeys([*warnings, *said.lines])),
-        said=(said_key,) if said_key else ())
+        said=(said_key,) if said_key else (), assembly=assembly)
 
 
 _UNSUPPORTED = ("include", "frame", "replicate", "attach", "model")
@@ -449,7 +571,8 @@ def _words(values) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, spec_joint: dict, key) -> str | None:
+def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, spec_joint: dict, key,
+               rebase: bool = True) -> str | None:
     """The extracted model written by editing the file's own XML as the spec was edited (MuJoCo's
     writer rounds numbers to 6 digits): welded joints and dropped elements removed, welded bodies'
     poses (the spec's, in full precision), projected axes, one keyframe. None when the file has what
@@ -474,7 +597,7 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
     if any(a != b for a, b in counts.values()) or root.find("worldbody/joint") is not None:
         return None
     by_id = spec_body
-    for b, element in enumerate(bodies, start=1):
+    for b, element in enumerate(bodies if rebase else (), start=1):
         sb = by_id[b]
         if m.body_jntnum[b] and all(j not in drops["joint"] for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])):
             continue  # a moving body of the loop: as written
@@ -492,7 +615,7 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
         for i, element in enumerate(listed[kind]):
             if i in drops[kind]:
                 parents[element].remove(element)
-    for section in ("sensor", "keyframe"):
+    for section in ("sensor", "keyframe") if rebase else ("keyframe",):
         for block in root.findall(section):
             root.remove(block)
     name, qpos, qvel, ctrl = key
@@ -527,11 +650,13 @@ def _check_rebased(path: Path, m: mujoco.MjModel, d: mujoco.MjData, sub: mujoco.
 
 
 def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | None = None,
-                keyframe: str | None = None, qpos0: bool = False, **kwargs) -> tuple[ImportedModel, Extraction]:
+                keyframe: str | None = None, qpos0: bool = False, assemble: bool = False,
+                **kwargs) -> tuple[ImportedModel, Extraction]:
     """Extract the loop (:func:`extract_loop`), write it to a file, load that file back from disk and
     import it (:func:`import_mjcf`, ``kwargs`` its own); the same text to ``write_to`` once imported."""
     path = Path(path)
-    ext = extract_loop(path, loops, keyframe=keyframe, qpos0=qpos0)
+    ext = extract_loop(path, loops, keyframe=keyframe, qpos0=qpos0, assemble=assemble,
+                       input_joint=kwargs.get("input_joint"))
     with tempfile.TemporaryDirectory(prefix="loopcheck-loop-") as tmp:
         target = Path(tmp) / f"{path.stem}.loop.xml"
         target.write_text(ext.xml)
@@ -549,4 +674,42 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
     return imported, ext
 
 
-__all__ = ["CHECK_SCOPE", "Extraction", "PLANAR_TOL", "extract_loop", "import_loop"]
+def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bool = False,
+                     **kwargs) -> ImportedModel:
+    """``--assemble`` without ``--loop``: the whole model's loops closed by Newton from the
+    configuration read (:func:`_assemble`; every hinge and slide but the input moves), the model
+    written again with that state as its one keyframe, loaded back from disk and imported
+    (:func:`import_mjcf`, ``kwargs`` its own)."""
+    path = Path(path)
+    model, _ = _load_model(path)
+    qpos, qvel, ctrl, key_label, said_key = _state(path, model, keyframe, qpos0)
+    eqs = {c.index for c in _closures(model)}
+    joints = [j for j in range(model.njnt) if int(model.jnt_type[j]) in (_HINGE, _SLIDE)]
+    if not joints:
+        raise MjcfError(f"{path}: --assemble: the model has no hinge or slide to move")
+    qpos, assembly = _assemble(path, model, qpos, eqs, joints, _input_of(path, model, joints, kwargs.get("input_joint")))
+    key = key_label.strip("'") if key_label is not None else "qpos0"
+    xml = _exact_xml(path, model, drops=dict(joint=set(), actuator=set(), tendon=set(), equality=set(), pair=set()),
+                     spec_body={}, spec_joint={}, key=(key, qpos, qvel, ctrl), rebase=False)
+    warnings = []
+    if xml is None:
+        with mujoco_warnings():
+            spec = mujoco.MjSpec.from_file(str(path))
+            for k in list(spec.keys):
+                spec.delete(k)
+            spec.add_key(name=key, qpos=qpos.tolist(), qvel=qvel.tolist(), ctrl=ctrl.tolist())
+            xml = spec.to_xml()
+        warnings.append("the model uses <include>, <frame>, <replicate> or <attach>: the assembled model is written by "
+                        "MuJoCo's own writer, which rounds numbers to 6 digits")
+    with tempfile.TemporaryDirectory(prefix="loopcheck-assembled-") as tmp:
+        target = Path(tmp) / f"{path.stem}.assembled.xml"
+        target.write_text(xml)
+        try:
+            imported = import_mjcf(target, keyframe=key, name=kwargs.pop("name", None) or path.stem, **kwargs)
+        except MjcfError as exc:
+            raise MjcfError(str(exc).replace(str(target), f"{path} (--assemble)")) from None
+    return dataclasses.replace(imported, said=((said_key,) if said_key else ()) + (assembly.line(),) + imported.said,
+                               warnings=tuple(dict.fromkeys([*warnings, *imported.warnings])))
+
+
+__all__ = ["Assembly", "import_assembled", "CHECK_SCOPE", "Extraction", "PLANAR_TOL", "extract_loop", "import_loop"]

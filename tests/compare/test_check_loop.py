@@ -116,3 +116,24 @@ def test_a_control_for_a_dropped_actuator_says_it_was_dropped(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "read at keyframe 'stance', the model's only keyframe" in printed  # said, as for any model
     assert "dropped: actuator 'hip_motor'" in printed and out.is_file()
+
+
+def test_check_assemble_prints_the_moves(tmp_path, capsys):
+    robot, _ = _robot(tmp_path, "leg")
+    text = robot.read_text()
+    start = text.index('qpos="', text.index("<key ")) + len('qpos="')
+    end = text.index('"', start)
+    words = text[start:end].split()
+    words[11] = "0.002"  # rocker_j: the foot loop open by 6e-5 m
+    robot.write_text(text[:start] + " ".join(words) + text[end:])
+    assert main(["check", str(robot), "--loop", "foot_loop", "--horizon", "0.05"]) == 2
+    assert "--assemble closes them by Newton" in capsys.readouterr().err
+    out = tmp_path / "foot.xml"
+    assert main(["check", str(robot), "--loop", "foot_loop", "--horizon", "0.05", "--assemble",
+                 "--write-submodel", str(out)]) in (0, 1)
+    printed = capsys.readouterr().out
+    assert "assembled (--assemble): loops open by 6.08e-05" in printed
+    assert "with joint 'crank_j' held at 0; it moved joint 'rocker_j' by -0.002 rad" in printed
+    # the written model's keyframe is the assembled state: it is read closed, without --assemble
+    assert main(["check", str(out), "--horizon", "0.05"]) in (0, 1)
+    assert "loops closed to" in capsys.readouterr().out

@@ -20,7 +20,7 @@ import pytest
 
 from loopcheck.reduced.engine import simulate
 from loopcheck.reduced.settings import ReducedSettings
-from loopcheck.reference_models.extract import CHECK_SCOPE, extract_loop, import_loop
+from loopcheck.reference_models.extract import CHECK_SCOPE, extract_loop, import_assembled, import_loop
 from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
 
 import loop_robots as robots
@@ -158,3 +158,57 @@ def test_a_spring_from_a_welded_body_is_kept_with_that_end_as_ground(tmp_path):
     assert ext.kept_across[0] == "tendon 'heel_spring' (its sites on welded bodies are ground)"
     assert "tendon 'calf' (between welded bodies)" in ext.dropped
     assert [e.name for e in imported.scene.mechanism.elements if e.kind == "spring"] == ["heel_spring"]
+
+
+def _open_key(text: str, index: int, value: float) -> str:
+    """The text with the only keyframe's qpos[index] set to ``value``."""
+    start = text.index('qpos="', text.index("<key ")) + len('qpos="')
+    end = text.index('"', start)
+    words = text[start:end].split()
+    words[index] = repr(value)
+    return text[:start] + " ".join(words) + text[end:]
+
+
+ROCKER = 11  # the leg's qpos: root (7), hip, knee, crank_j, coupler_j, rocker_j, pad_j
+
+
+def test_assemble_closes_a_loop_left_open_and_reports_the_moves(tmp_path):
+    closed, loop, by_hand = _write(tmp_path, "leg")
+    robot = tmp_path / "open.xml"
+    robot.write_text(_open_key(closed.read_text(), ROCKER, 0.002))  # open by 6e-5 m
+    with pytest.raises(MjcfError, match=r"connect 'foot_loop' is open by 6.08e-05 m .*--assemble closes them"):
+        import_loop(robot, [loop], horizon=HORIZON)
+    imported, ext = import_loop(robot, [loop], horizon=HORIZON, assemble=True)
+    a = ext.assembly
+    assert a.input == "joint 'crank_j'" and a.input_value == 0.0
+    assert [(n, u) for n, _, u in a.moves] == [("joint 'rocker_j'", "rad")]
+    assert a.moves[0][1] == pytest.approx(-0.002, abs=1e-12)  # back to the closed pose, in qpos units
+    assert a.open_before == pytest.approx(6.08e-5, rel=1e-3) and a.open_after < 1e-15
+    assert ext.lines()[-1].startswith("assembled (--assemble): loops open by 6.08e-05")
+    # the extracted keyframe is the assembled state: the closed robot's loop, to round-off
+    reference, _ = import_loop(closed, [loop], horizon=HORIZON)
+    fixed = ReducedSettings(method="rkn4", step=1e-4)
+    x, y = simulate(imported.scene, fixed).trajectory, simulate(reference.scene, fixed).trajectory
+    assert _rel(x.q, y.q) < 1e-12 and _rel(x.qdot, y.qdot) < 1e-12
+
+
+def test_assemble_refuses_a_move_above_a_tenth_of_a_radian(tmp_path):
+    closed, loop, _ = _write(tmp_path, "leg")
+    robot = tmp_path / "far.xml"
+    robot.write_text(_open_key(closed.read_text(), ROCKER, 0.3))
+    with pytest.raises(MjcfError, match=r"--assemble: closing the loops moves joint 'rocker_j' by -0.3 rad, more than "
+                                        r"0.1 rad"):
+        import_loop(robot, [loop], assemble=True)
+
+
+def test_assemble_without_loop_applies_to_the_whole_model(tmp_path):
+    _, _, by_hand = _write(tmp_path, "leg")
+    robot = tmp_path / "alone_open.xml"
+    robot.write_text(_open_key(by_hand.read_text(), 2, 0.002))
+    imported = import_assembled(robot, horizon=HORIZON)
+    assert any(line.startswith("assembled (--assemble): loops open by 6.08e-05") and "joint 'rocker_j' by -0.002 rad"
+               in line for line in imported.said)
+    fixed = ReducedSettings(method="rkn4", step=1e-4)
+    x = simulate(imported.scene, fixed).trajectory
+    y = simulate(import_mjcf(by_hand, horizon=HORIZON).scene, fixed).trajectory
+    assert _rel(x.q, y.q) < 1e-12 and _rel(x.qdot, y.qdot) < 1e-12
