@@ -326,6 +326,13 @@ def _input_of(path: Path, m: mujoco.MjModel, joints: list[int], name: str | None
     return min(joints)
 
 
+def _rate_text(m: mujoco.MjModel, j: int, qvel: np.ndarray) -> str:
+    """A welded joint's rate in the state read, when not zero: held still, it is dropped (said so)."""
+    a = int(m.jnt_dofadr[j])
+    rates = qvel[a:a + {_FREE: 6, _BALL: 3}.get(int(m.jnt_type[j]), 1)]
+    return f" (its rate {' '.join(f'{v:.3g}' for v in rates)} dropped: held still)" if np.any(rates != 0.0) else ""
+
+
 def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = None,
                  qpos0: bool = False, assemble: bool = False, input_joint: str | None = None) -> Extraction:
     """The loop(s) named, cut out of the model at ``path`` as a standalone model (module docstring).
@@ -491,7 +498,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     bind = lambda element: int(m.bind(element).id)  # noqa: E731
     spec_body = {bind(b): b for b in spec.bodies}
     spec_joint = {bind(j): j for j in spec.joints}
-    welded = [_qpos_text(m, j, qpos) for j in range(m.njnt) if j not in kept_joints]
+    welded = [_qpos_text(m, j, qpos) + _rate_text(m, j, qvel) for j in range(m.njnt) if j not in kept_joints]
     key_qpos = np.concatenate([qpos[int(m.jnt_qposadr[j]):int(m.jnt_qposadr[j]) + 1] for j in sorted(kept_joints)])
     key_qvel = np.array([qvel[int(m.jnt_dofadr[j])] for j in sorted(kept_joints)])
     key_ctrl = np.array([ctrl[a] for a in range(m.nu) if a not in drop_act])
@@ -551,6 +558,17 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
             xml = spec.to_xml()
             warnings.append("the model uses <include>, <frame>, <replicate> or <attach>: the extracted model is "
                             "written by MuJoCo's own writer, which rounds numbers to 6 digits")
+        try:  # the text written, read back: what the check will load
+            written = compile_spec(mujoco.MjSpec.from_string(xml))
+        except ValueError as exc:
+            raise MjcfError(f"{path}: --loop {', '.join(loops)}: the extracted model does not load: "
+                            f"{' '.join(str(exc).split())}") from None
+    if (written.njnt, written.nu, written.ntendon, written.neq, written.npair) != (
+            len(kept_joints), m.nu - len(drop_act), m.ntendon - len(drop_ten), m.neq - len(drop_eq),
+            m.npair - len(drop_pair)):
+        raise MjcfError(f"{path}: --loop {', '.join(loops)}: the extracted model written does not hold the elements "
+                        "kept: the extraction cannot be trusted")
+    _check_rebased(path, m, d, written, key_qpos)
     e1 = _in_plane_x(normal)
     return Extraction(
         source=path, loops=tuple(c.label for c in closures), key=key, xml=xml,

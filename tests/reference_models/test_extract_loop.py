@@ -212,3 +212,11 @@ def test_assemble_without_loop_applies_to_the_whole_model(tmp_path):
     x = simulate(imported.scene, fixed).trajectory
     y = simulate(import_mjcf(by_hand, horizon=HORIZON).scene, fixed).trajectory
     assert _rel(x.q, y.q) < 1e-12 and _rel(x.qdot, y.qdot) < 1e-12
+
+
+def test_a_welded_joints_rate_is_said_to_be_dropped(tmp_path):
+    qvel = [0.0] * 6 + [0.5, 0.0] + [0.0] * 4  # root (6), hip, knee, crank_j, coupler_j, rocker_j, pad_j
+    robot = _edited(tmp_path, '" ctrl="', f'" qvel="{" ".join(map(str, qvel))}" ctrl="')
+    ext = extract_loop(robot, ["foot_loop"])
+    assert "joint 'hip' at 0.4 rad (its rate 0.5 dropped: held still)" in ext.welded
+    assert "joint 'knee' at -0.7 rad" in ext.welded
