@@ -194,7 +194,8 @@ def _select(path: Path, m: mujoco.MjModel, names: list[str]) -> list[list[_Closu
     for name in names:
         said = name.replace("-", "–")  # an unnamed connect's ends typed with a hyphen
         by_closure = [g for g in loops for c in g
-                      if name == c.name or said in (c.label.replace("-", "–"), c.label.replace("-", "–").split(" ", 1)[-1])]
+                      if name == c.name or said in (c.label.replace("-", "–"),
+                                                    c.label.replace("-", "–").split(" ", 1)[-1])]
         if not by_closure:
             b = mujoco.mj_name2id(m, _OBJ.mjOBJ_BODY, name)
             by_closure = [g for g in loops if b >= 0 and any(b in c.bodies or b == c.top for c in g)]
@@ -371,7 +372,8 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     for j in sorted(kept_joints):
         if int(m.jnt_type[j]) in (_FREE, _BALL):
             raise MjcfError(f"{path}: --loop {', '.join(loops)}: the loop is spatial: its "
-                            f"{element_label(m, _OBJ.mjOBJ_JOINT, j)} is a {'free' if int(m.jnt_type[j]) == _FREE else 'ball'} "
+                            f"{element_label(m, _OBJ.mjOBJ_JOINT, j)} is a "
+                            f"{'free' if int(m.jnt_type[j]) == _FREE else 'ball'} "
                             "joint")
     label = lambda kind, i: element_label(m, kind, i)  # noqa: E731
     assembly = None
@@ -609,7 +611,8 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
                      and (kind != "pair" or e.tag == "pair")]
               for kind, section in (("actuator", "actuator"), ("tendon", "tendon"), ("equality", "equality"),
                                     ("pair", "contact"))}
-    counts = {"body": (len(bodies), m.nbody - 1), "joint": (len(joints), m.njnt), "actuator": (len(listed["actuator"]), m.nu),
+    counts = {"body": (len(bodies), m.nbody - 1), "joint": (len(joints), m.njnt),
+              "actuator": (len(listed["actuator"]), m.nu),
               "tendon": (len(listed["tendon"]), m.ntendon), "equality": (len(listed["equality"]), m.neq),
               "pair": (len(listed["pair"]), m.npair)}
     if any(a != b for a, b in counts.values()) or root.find("worldbody/joint") is not None:
@@ -617,7 +620,8 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
     by_id = spec_body
     for b, element in enumerate(bodies if rebase else (), start=1):
         sb = by_id[b]
-        if m.body_jntnum[b] and all(j not in drops["joint"] for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])):
+        own = range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+        if m.body_jntnum[b] and all(j not in drops["joint"] for j in own):
             continue  # a moving body of the loop: as written
         for attr in _ORIENTATIONS:
             element.attrib.pop(attr, None)
@@ -688,7 +692,8 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
             raise MjcfError(text) from None
     if write_to is not None:  # the file the check ran, once it is read (no partial output)
         Path(write_to).write_text(ext.xml)
-    imported = dataclasses.replace(imported, extraction=ext, said=ext.said + imported.said, warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
+    imported = dataclasses.replace(imported, extraction=ext, said=ext.said + imported.said,
+                                   warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
     return imported, ext
 
 
