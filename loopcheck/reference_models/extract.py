@@ -59,7 +59,8 @@ class Extraction:
     """A loop cut out of a model: the standalone MJCF and what became of each element.
 
     source : the model the loop was cut from. loops : the closures kept (as messages name them).
-    key : the extracted model's keyframe (the state read). xml : the extracted MJCF.
+    key : the extracted model's keyframe (the state read); None when qpos0 was read (the extracted
+    model's own qpos0 is then that state). xml : the extracted MJCF.
     moving : the loop's moving bodies; mass : (body, the moving body it is welded to) for each
     descendant kept as mass; ground : the bodies that became ground.
     welded : each welded joint and its value(s) at the configuration read.
@@ -71,7 +72,7 @@ class Extraction:
 
     source: Path
     loops: tuple[str, ...]
-    key: str
+    key: str | None
     xml: str
     moving: tuple[str, ...]
     mass: tuple[tuple[str, str], ...]
@@ -145,6 +146,7 @@ class _Closure:
     bodies: set  # the path's bodies (moving)
     top: int
     kind: int = _CONNECT
+    ends: tuple = ()  # a coupling's two joints' bodies
 
 
 def _closures(m: mujoco.MjModel) -> list[_Closure]:
@@ -166,7 +168,7 @@ def _closures(m: mujoco.MjModel) -> list[_Closure]:
         if kind == _EQ_JOINT:  # a coupling's joints move their own bodies even on one branch
             bodies |= {b for b in ends if b != 0}
         out.append(_Closure(e, element_label(m, _OBJ.mjOBJ_EQUALITY, e),
-                            mujoco.mj_id2name(m, _OBJ.mjOBJ_EQUALITY, e) or None, bodies, top, kind))
+                            mujoco.mj_id2name(m, _OBJ.mjOBJ_EQUALITY, e) or None, bodies, top, kind, tuple(ends)))
     return out
 
 
@@ -174,12 +176,22 @@ def _components(closures: list[_Closure]) -> list[list[_Closure]]:
     """The loops: closures grouped when their moving bodies overlap (one mechanism)."""
     groups: list[list[_Closure]] = []
     for c in closures:
-        if c.kind == _EQ_JOINT:  # a coupling is its own loop (kept with a loop whose joints it couples)
-            groups.append([c])
+        if c.kind == _EQ_JOINT:
             continue
         joined = [g for g in groups if any(c.bodies & o.bodies for o in g)]
         merged = [c] + [o for g in joined for o in g]
         groups = [g for g in groups if g not in joined] + [sorted(merged, key=lambda o: o.index)]
+    # a coupling whose two joints move loops' bodies makes those loops one mechanism (the coupled
+    # fingers of a hand); any other is a loop of its own (a lock when it couples a loop's joint)
+    for c in (c for c in closures if c.kind == _EQ_JOINT):
+        ends = [next((g for g in groups if any(b in o.bodies for o in g if o.kind != _EQ_JOINT)), None)
+                for b in c.ends]
+        if any(g is None for g in ends):
+            groups.append([c])
+            continue
+        joined = [g for g in groups if any(g is e for e in ends)]
+        merged = [c] + [o for g in joined for o in g]
+        groups = [g for g in groups if not any(g is j for j in joined)] + [sorted(merged, key=lambda o: o.index)]
     return sorted(groups, key=lambda g: g[0].index)
 
 
@@ -466,7 +478,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         sites = [o for k, o in zip(types, objs) if k == int(mujoco.mjtWrap.mjWRAP_SITE)]
         on = [int(m.site_bodyid[s]) in mover for s in sites]
         if any(on) and not all(on):
-            across.append(f"{what} (its sites on welded bodies are ground)")
+            across.append(f"{what} (its sites off the loop are ground)")
         elif not any(on):
             drop_ten.append(t)
             dropped.append(f"{what} (between welded bodies)")
@@ -541,8 +553,11 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         spec.delete(key)
     for element in [*doomed, *sensors]:
         spec.delete(element)
-    key = key_label.strip("'") if key_label is not None else "qpos0"
-    spec.add_key(name=key, qpos=key_qpos.tolist(), qvel=key_qvel.tolist(), ctrl=key_ctrl.tolist())
+    # the state read: a keyframe (named as the one read, or 'assembled'); none for qpos0, which the
+    # extracted model's own qpos0 then is
+    key = key_label.strip("'") if key_label is not None else "assembled" if assemble else None
+    if key is not None:
+        spec.add_key(name=key, qpos=key_qpos.tolist(), qvel=key_qvel.tolist(), ctrl=key_ctrl.tolist())
     for attr in ("meshdir", "texturedir"):  # the written file may sit elsewhere: assets by absolute path
         if getattr(spec, attr) is not None:
             setattr(spec, attr, str((path.parent / (getattr(spec, attr) or ".")).resolve()))
@@ -641,6 +656,9 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
         for block in root.findall(section):
             root.remove(block)
     name, qpos, qvel, ctrl = key
+    if name is None:  # read at qpos0: the model's own qpos0
+        ET.indent(root)
+        return ET.tostring(root, encoding="unicode") + "\n"
     frame = ET.SubElement(root, "keyframe")
     entry = ET.SubElement(frame, "key", name=name, qpos=_words(qpos))
     if len(qvel):
@@ -683,7 +701,7 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
         target = Path(tmp) / f"{path.stem}.loop.xml"
         target.write_text(ext.xml)
         try:
-            imported = import_mjcf(target, keyframe=ext.key, name=kwargs.pop("name", None) or path.stem, **kwargs)
+            imported = import_mjcf(target, keyframe=ext.key, qpos0=ext.key is None, name=kwargs.pop("name", None) or path.stem, **kwargs)
         except MjcfError as exc:
             text = str(exc).replace(str(target), f"{path} (--loop {', '.join(loops)})")
             for name in (kwargs.get("controls") or {}):
@@ -711,7 +729,7 @@ def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bo
     if not joints:
         raise MjcfError(f"{path}: --assemble: the model has no hinge or slide to move")
     qpos, assembly = _assemble(path, model, qpos, eqs, joints, _input_of(path, model, joints, kwargs.get("input_joint")))
-    key = key_label.strip("'") if key_label is not None else "qpos0"
+    key = key_label.strip("'") if key_label is not None else "assembled"
     xml = _exact_xml(path, model, drops=dict(joint=set(), actuator=set(), tendon=set(), equality=set(), pair=set()),
                      spec_body={}, spec_joint={}, key=(key, qpos, qvel, ctrl), rebase=False)
     warnings = []

@@ -21,7 +21,7 @@ import pytest
 from loopcheck.reduced.engine import simulate
 from loopcheck.reduced.settings import ReducedSettings
 from loopcheck.reference_models.extract import CHECK_SCOPE, extract_loop, import_assembled, import_loop
-from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+from loopcheck.reference_models.mjcf_import import Control, MjcfError, import_mjcf
 
 import loop_robots as robots
 
@@ -155,7 +155,7 @@ def test_a_spring_from_a_welded_body_is_kept_with_that_end_as_ground(tmp_path):
     text = text.replace('<body name="pad" pos="0.01 -0.005 0" >', '<body name="pad" pos="0.01 -0.005 0" ><site name="toe"/>')
     robot.write_text(text)
     imported, ext = import_loop(robot, ["foot_loop"], horizon=HORIZON)
-    assert ext.kept_across[0] == "tendon 'heel_spring' (its sites on welded bodies are ground)"
+    assert ext.kept_across[0] == "tendon 'heel_spring' (its sites off the loop are ground)"
     assert "tendon 'calf' (between welded bodies)" in ext.dropped
     assert [e.name for e in imported.scene.mechanism.elements if e.kind == "spring"] == ["heel_spring"]
 
@@ -220,3 +220,25 @@ def test_a_welded_joints_rate_is_said_to_be_dropped(tmp_path):
     ext = extract_loop(robot, ["foot_loop"])
     assert "joint 'hip' at 0.4 rad (its rate 0.5 dropped: held still)" in ext.welded
     assert "joint 'knee' at -0.7 rad" in ext.welded
+
+
+@pytest.mark.parametrize("name,loop,kwargs", [
+    # read at qpos0: no keyframe written, qpos0 read back
+    ("fourbar_xz_degrees.xml", "B", dict(qpos0=True, control=Control.parse("0:250,1:0"))),
+    ("gripper_finger.xml", "pad", {}),  # a tendon spring to the palm, a collidable geom on it
+    ("coupled_hand.xml", "right_finger", {}),  # two fingers one loop: the coupling joins them
+])
+def test_a_loop_that_is_the_whole_model_is_the_model(name, loop, kwargs):
+    from helpers import DATA
+
+    path = DATA / "mjcf" / name
+    imported, ext = import_loop(path, [loop], horizon=HORIZON, **kwargs)
+    whole = import_mjcf(path, horizon=HORIZON, **kwargs)
+    assert ext.welded == () and ext.dropped == ()
+    fixed = ReducedSettings(method="rkn4", step=1e-4)
+    a, b = simulate(imported.scene, fixed).trajectory, simulate(whole.scene, fixed).trajectory
+    assert _rel(a.q, b.q) < 1e-12 and _rel(a.qdot, b.qdot) < 1e-12
+    assert np.max(np.abs(b.qdot)) > 0.1  # it moves
+    if name == "coupled_hand.xml":
+        assert ext.loops == ("connect #1 (right_finger–right_inner_knuckle)",
+                             "connect #2 (left_finger–left_inner_knuckle)", "joint equality #1")
