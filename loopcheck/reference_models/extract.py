@@ -518,7 +518,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     key_ctrl = np.array([ctrl[a] for a in range(m.nu) if a not in drop_act])
     for body in spec.bodies:
         b = bind(body)
-        if b == 0 or b in moving:
+        if b == 0 or b in moving or m.body_jntnum[b] == 0:  # a body without joints sits as written
             continue
         parent = int(m.body_parentid[b])
         R_p = d.xmat[parent].reshape(3, 3)
@@ -570,7 +570,8 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         _check_rebased(path, m, d, sub, key_qpos)
         xml = _exact_xml(path, m, drops=dict(joint=set(range(m.njnt)) - kept_joints, actuator=set(drop_act),
                                              tendon=set(drop_ten), equality=set(drop_eq), pair=set(drop_pair)),
-                         spec_body=spec_body, spec_joint=spec_joint, key=(key, key_qpos, key_qvel, key_ctrl))
+                         spec_body=spec_body, spec_joint=spec_joint, project=project,
+                         key=(key, key_qpos, key_qvel, key_ctrl))
         if xml is None:
             xml = spec.to_xml()
             warnings.append("the model uses <include>, <frame>, <replicate> or <attach>: the extracted model is "
@@ -607,7 +608,7 @@ def _words(values) -> str:
 
 
 def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, spec_joint: dict, key,
-               rebase: bool = True) -> str | None:
+               rebase: bool = True, project: bool = False) -> str | None:
     """The extracted model written by editing the file's own XML as the spec was edited (MuJoCo's
     writer rounds numbers to 6 digits): welded joints and dropped elements removed, welded bodies'
     poses (the spec's, in full precision), projected axes, one keyframe. None when the file has what
@@ -636,7 +637,7 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
     for b, element in enumerate(bodies if rebase else (), start=1):
         sb = by_id[b]
         own = range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
-        if m.body_jntnum[b] and all(j not in drops["joint"] for j in own):
+        if not m.body_jntnum[b] or all(j not in drops["joint"] for j in own):  # as written
             continue  # a moving body of the loop: as written
         for attr in _ORIENTATIONS:
             element.attrib.pop(attr, None)
@@ -646,7 +647,7 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
     for j, element in enumerate(joints):
         if j in drops["joint"]:
             parents[element].remove(element)
-        elif j in by_joint and by_joint[j].axis is not None and element.tag == "joint":
+        elif project and j in by_joint and element.tag == "joint":
             element.set("axis", _words(by_joint[j].axis))
     for kind in ("actuator", "tendon", "equality", "pair"):
         for i, element in enumerate(listed[kind]):
