@@ -558,9 +558,6 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     key = key_label.strip("'") if key_label is not None else "assembled" if assemble else None
     if key is not None:
         spec.add_key(name=key, qpos=key_qpos.tolist(), qvel=key_qvel.tolist(), ctrl=key_ctrl.tolist())
-    for attr in ("meshdir", "texturedir"):  # the written file may sit elsewhere: assets by absolute path
-        if getattr(spec, attr) is not None:
-            setattr(spec, attr, str((path.parent / (getattr(spec, attr) or ".")).resolve()))
     with mujoco_warnings() as said:
         try:
             sub = compile_spec(spec)
@@ -572,10 +569,6 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
                                              tendon=set(drop_ten), equality=set(drop_eq), pair=set(drop_pair)),
                          spec_body=spec_body, spec_joint=spec_joint, project=project,
                          key=(key, key_qpos, key_qvel, key_ctrl))
-        if xml is None:
-            xml = spec.to_xml()
-            warnings.append("the model uses <include>, <frame>, <replicate> or <attach>: the extracted model is "
-                            "written by MuJoCo's own writer, which rounds numbers to 6 digits")
         try:  # the text written, read back: what the check will load
             written = compile_spec(mujoco.MjSpec.from_string(xml))
         except ValueError as exc:
@@ -599,7 +592,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
         said=(said_key,) if said_key else (), assembly=assembly)
 
 
-_UNSUPPORTED = ("include", "frame", "replicate", "attach", "model")
+_UNSUPPORTED = ("replicate", "attach", "model")
 _ORIENTATIONS = ("quat", "euler", "axisangle", "xyaxes", "zaxis")
 
 
@@ -607,19 +600,44 @@ def _words(values) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
+def _flatten_includes(root: ET.Element, folder: Path, path: Path, depth: int = 0) -> None:
+    """Replace each ``<include file="..."/>`` by the children of the file's root, as MuJoCo does
+    (a file named relative to the main model's folder)."""
+    if depth > 20:
+        raise MjcfError(f"{path}: --loop: <include> nested more than 20 deep")
+    for parent in list(root.iter()):
+        for k, child in reversed(list(enumerate(parent))):
+            if child.tag != "include":
+                continue
+            try:
+                included = ET.parse(folder / child.get("file", "")).getroot()
+            except (ET.ParseError, OSError) as exc:
+                raise MjcfError(f"{path}: --loop: cannot read <include file=\"{child.get('file')}\">: {exc}") from None
+            _flatten_includes(included, folder, path, depth + 1)
+            parent.remove(child)
+            for i, grandchild in enumerate(list(included)):
+                parent.insert(k + i, grandchild)
+
+
 def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, spec_joint: dict, key,
-               rebase: bool = True, project: bool = False) -> str | None:
+               rebase: bool = True, project: bool = False) -> str:
     """The extracted model written by editing the file's own XML as the spec was edited (MuJoCo's
-    writer rounds numbers to 6 digits): welded joints and dropped elements removed, welded bodies'
-    poses (the spec's, in full precision), projected axes, one keyframe. None when the file has what
-    this cannot follow (an ``<include>``, ``<frame>``, ``<replicate>``, ``<attach>``) or does not match
-    the model element for element."""
+    writer rounds numbers to 6 digits, which would move the loop by 1e-6): its ``<include>``s
+    flattened, welded joints and dropped elements removed, welded bodies' poses (the spec's, in full
+    precision), projected axes, one keyframe. Refused (MjcfError) when the file has what this cannot
+    follow (``<replicate>``, ``<attach>``, a welded body inside a ``<frame>``) or does not match the
+    model element for element."""
+    def refuse(why: str):
+        raise MjcfError(f"{path}: --loop/--assemble: the extracted model cannot be written exactly: {why}")
+
     try:
         root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError):
-        return None
-    if any(e.tag in _UNSUPPORTED for e in root.iter()):
-        return None
+    except (ET.ParseError, OSError) as exc:
+        refuse(f"the file does not parse as XML ({exc})")
+    _flatten_includes(root, path.parent, path)
+    unsupported = sorted({e.tag for e in root.iter() if e.tag in _UNSUPPORTED})
+    if unsupported:
+        refuse(f"it uses {', '.join(f'<{t}>' for t in unsupported)}, which the extraction does not follow")
     parents = {child: parent for parent in root.iter() for child in parent}
     bodies = [b for w in root.findall("worldbody") for b in w.iter("body")]
     joints = [j for b in bodies for j in b if j.tag in ("joint", "freejoint")]
@@ -632,13 +650,16 @@ def _exact_xml(path: Path, m: mujoco.MjModel, *, drops: dict, spec_body: dict, s
               "tendon": (len(listed["tendon"]), m.ntendon), "equality": (len(listed["equality"]), m.neq),
               "pair": (len(listed["pair"]), m.npair)}
     if any(a != b for a, b in counts.values()) or root.find("worldbody/joint") is not None:
-        return None
+        refuse("its elements do not match the compiled model's one for one ("
+               + ", ".join(f"{k}: {a} in the file, {b} compiled" for k, (a, b) in counts.items() if a != b) + ")")
     by_id = spec_body
     for b, element in enumerate(bodies if rebase else (), start=1):
         sb = by_id[b]
         own = range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
         if not m.body_jntnum[b] or all(j not in drops["joint"] for j in own):  # as written
-            continue  # a moving body of the loop: as written
+            continue
+        if parents[element].tag == "frame":
+            refuse(f"{_body(m, b)}, welded, sits inside a <frame>")  # a moving body of the loop: as written
         for attr in _ORIENTATIONS:
             element.attrib.pop(attr, None)
         element.set("pos", _words(sb.pos))
@@ -733,16 +754,7 @@ def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bo
     key = key_label.strip("'") if key_label is not None else "assembled"
     xml = _exact_xml(path, model, drops=dict(joint=set(), actuator=set(), tendon=set(), equality=set(), pair=set()),
                      spec_body={}, spec_joint={}, key=(key, qpos, qvel, ctrl), rebase=False)
-    warnings = []
-    if xml is None:
-        with mujoco_warnings():
-            spec = mujoco.MjSpec.from_file(str(path))
-            for k in list(spec.keys):
-                spec.delete(k)
-            spec.add_key(name=key, qpos=qpos.tolist(), qvel=qvel.tolist(), ctrl=ctrl.tolist())
-            xml = spec.to_xml()
-        warnings.append("the model uses <include>, <frame>, <replicate> or <attach>: the assembled model is written by "
-                        "MuJoCo's own writer, which rounds numbers to 6 digits")
+    warnings: list[str] = []
     with tempfile.TemporaryDirectory(prefix="loopcheck-assembled-") as tmp:
         target = Path(tmp) / f"{path.stem}.assembled.xml"
         target.write_text(xml)

@@ -242,3 +242,20 @@ def test_a_loop_that_is_the_whole_model_is_the_model(name, loop, kwargs):
     if name == "coupled_hand.xml":
         assert ext.loops == ("connect #1 (right_finger–right_inner_knuckle)",
                              "connect #2 (left_finger–left_inner_knuckle)", "joint equality #1")
+
+
+def test_an_include_is_flattened_and_a_welded_body_in_a_frame_refused(tmp_path):
+    text = robots.floating_leg()
+    start, end = text.index("<actuator>"), text.index("</actuator>") + len("</actuator>")
+    (tmp_path / "motors.xml").write_text(f"<mujoco>{text[start:end]}</mujoco>")
+    robot = tmp_path / "leg.xml"
+    robot.write_text(text[:start] + '<include file="motors.xml"/>' + text[end:])
+    imported, ext = import_loop(robot, ["foot_loop"], horizon=HORIZON)
+    assert ext.dropped == ("actuator 'hip_motor' (on welded joint 'hip')",
+                           "actuator 'knee_motor' (on welded joint 'knee')")
+    assert "<include" not in ext.xml and 'name="foot_motor"' in ext.xml  # standalone
+    framed = tmp_path / "framed.xml"
+    framed.write_text(text.replace('<body name="shin"', '<frame><body name="shin"', 1)
+                      .replace('</body>\n      </body>\n    </body>', '</body></frame>\n      </body>\n    </body>', 1))
+    with pytest.raises(MjcfError, match=r"cannot be written exactly: shin, welded, sits inside a <frame>"):
+        extract_loop(framed, ["foot_loop"])
