@@ -20,9 +20,11 @@
 With ``assemble`` (``--assemble``), loops left open in the configuration read are closed first by
 Newton, the input joint held (:func:`_assemble`; :func:`import_assembled` does it for a whole model).
 
-The result (:class:`Extraction`) holds the standalone MJCF, with one keyframe (the state read);
-:func:`import_loop` writes it to a file, loads that file back, and imports it (the check runs exactly
-the model ``--write-submodel`` writes).
+The result (:class:`Extraction`) holds the standalone MJCF, with one keyframe (the state read; none
+when qpos0 was read), written by editing the file's own XML as the spec was edited
+(:func:`_exact_xml`: MuJoCo's writer rounds numbers to 6 digits) and checked once read back (every
+body where it sat); :func:`import_loop` writes it to a file, loads that file back, and imports it (the
+check runs exactly the model ``--write-submodel`` writes).
 """
 
 from __future__ import annotations
