@@ -90,13 +90,13 @@ def _scene(path: str | None):
     return load_scene(_scene_path(path))
 
 
-MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl")  # read a MuJoCo model; a scene file has none of these
+MODEL_FLAGS = ("input", "keyframe", "qpos0", "ctrl", "loop", "write_submodel", "assemble")  # read a MuJoCo model; a scene file has none of these
 
 
 def _refuse_model_flags(args: argparse.Namespace, what: str) -> None:
     """--input, --keyframe and --ctrl read a MuJoCo model (.xml): given with ``what`` (scene files
     alone), they would be ignored, so they are refused (exit 2)."""
-    given = [f"--{name}" for name in MODEL_FLAGS if getattr(args, name, None) is not None]
+    given = [f"--{name.replace('_', '-')}" for name in MODEL_FLAGS if getattr(args, name, None) is not None]
     if given:
         raise UsageError(f"{', '.join(given)}: read{'s' if len(given) == 1 else ''} a MuJoCo model (.xml), and "
                          f"{what}; a scene file sets its input, state and load itself")
@@ -252,6 +252,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
           + f"), input '{scene.mechanism.linkage.input_joint}': "
           f"{input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
           f"horizon {scene.horizon:g} s")
+    if imported.extraction:
+        print(_extraction_lines(imported))
     print(f"wrote {path}")
     return EXIT_OK
 
@@ -317,13 +319,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         comparison = check.as_written.comparison
         print("\n".join(comparison_lines(comparison)))
         print("\n".join(line.strip() for line in diagnosis_lines(check)))
+        if imported.extraction:
+            print(_extraction_lines(imported))
+        extraction = imported.extraction.as_dict() if imported.extraction else None
     else:
         scene = _run_scene(args, args.scene)
         joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
         comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
                                      mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
         print("\n".join(comparison_lines(comparison)))
-    write_outputs(comparison, args.out, animate=animate, joints=joints,  # the line with the files, not after
+        extraction = None
+    write_outputs(comparison, args.out, animate=animate, joints=joints, extraction=extraction,
                   committed=lambda paths: print(f"wrote {len(paths)} files to {args.out}/", flush=True))
     return EXIT_OK if comparison.gate.passed else EXIT_FAILED
 
@@ -375,8 +381,28 @@ def _import(args: argparse.Namespace, path: str):
         bare, named = Control.by_name(args.ctrl)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+    if getattr(args, "loop", None):  # one loop out of a larger model (docs/import.md)
+        from loopcheck.reference_models.extract import import_loop
+
+        if args.write_submodel is not None:
+            check_file(args.write_submodel, flag="--write-submodel", inputs=[path])  # before any work
+        return import_loop(path, args.loop, write_to=args.write_submodel, keyframe=args.keyframe,
+                           qpos0=bool(args.qpos0), assemble=bool(args.assemble), input_joint=args.input,
+                           control=bare, controls=named, **horizon)[0]
+    if getattr(args, "write_submodel", None) is not None:
+        raise UsageError("--write-submodel writes the loop that --loop NAME cuts out of the model: give --loop")
+    if getattr(args, "assemble", None):  # the whole model's loops (docs/import.md)
+        from loopcheck.reference_models.extract import import_assembled
+
+        return import_assembled(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+                                control=bare, controls=named, **horizon)
     return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
                        control=bare, controls=named, **horizon)
+
+
+def _extraction_lines(imported, indent: str = "") -> str:
+    """What ``--loop`` cut out of the model (:meth:`Extraction.lines`), for stdout."""
+    return "\n".join(f"{indent}{line}" for line in imported.extraction.lines()) if imported.extraction else ""
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -385,6 +411,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     if not any(_is_mjcf(path) for path in args.scenes):  # with a model listed, they are the models'
         _refuse_model_flags(args, "no MuJoCo model is listed")
+    if getattr(args, "write_submodel", None) is not None and len(args.scenes) > 1:
+        raise UsageError("--write-submodel writes one model's loop: list one model")
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
     scenes = [_run_scene(args, path) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
     if args.engines is not None:
@@ -416,6 +444,8 @@ def cmd_check(args: argparse.Namespace) -> int:
             continue
         failed += not check.passed
         print("\n".join(model_lines(check, path)))
+        if imported.extraction:
+            print(_extraction_lines(imported, "      "))
     for scene in scenes:
         tolerances = _tolerances(scene, args)
         try:
@@ -498,6 +528,16 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
                         "NAME=CTRL for actuator NAME, repeated once per actuator; a bare CTRL is the only "
                         "actuator's (or the input motor's); default the model's loopcheck.ctrl (loopcheck.ctrl.NAME) "
                         "numeric, else the keyframe's ctrl")
+    g.add_argument("--loop", action="append", default=None, metavar="NAME",
+                   help="check one loop of a larger model: the connect or joint coupling that closes it (repeated "
+                        "when several do; an unnamed one as messages name it, e.g. 'connect #2 (a–b)'), or a body of "
+                        "it; the rest of the robot is welded at the configuration read, what acts outside is dropped")
+    g.add_argument("--write-submodel", default=None, metavar="FILE",
+                   help="with --loop: write the extracted model (MJCF, loadable on its own) there; the check runs it")
+    g.add_argument("--assemble", action="store_true", default=None,
+                   help="close loops left open in the configuration read by Newton from there, the input joint held "
+                        "(a move above 0.1 rad or 10 mm is refused; the moves are printed in qpos units); with --loop, "
+                        "the loop's, else the whole model's")
     g.add_argument("--horizon", type=_positive, default=None,
                    help="the simulated time (s): a model's (default its loopcheck.horizon numeric, else 1); given "
                         "with a scene file, it replaces the scene's simulation.horizon (said in the output). --input, "

@@ -152,7 +152,8 @@ def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list
             for v in check.verdicts]
 
 
-def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None) -> dict:
+def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None,
+                extraction: dict | None = None) -> dict:
     """The comparison as plain JSON-serialisable data; ``joints`` the joints of its ``joints``
     list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``); ``engines`` the
     check of several engines ``c`` is one of (``loopcheck run --engines``: :func:`engines_report`)."""
@@ -179,6 +180,7 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "
         "joints": joint_report(c, names) if names else [],
         "engines": engines_report(c, engines),
         "outlier": engines.outlier if engines is not None else None,
+        **({"extraction": extraction} if extraction is not None else {}),
     }
 
 
@@ -279,7 +281,7 @@ def _write_csv(result: EngineResult, path: Path, unit: str = "rad", scene: Scene
 
 def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False,
                   joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None,
-                  committed=None) -> list[Path]:
+                  committed=None, extraction: dict | None = None) -> list[Path]:
     """Write report.json, reduced.csv, mujoco.csv (``<engine>.csv`` of the engine ``c`` compares
     with the reference) and the PNG plots (with the mechanism strip) into ``out_dir``, as a set;
     with ``animate``, also mechanism.gif (the caller checks
@@ -287,6 +289,7 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
     engines ``c`` is one of), engines.png and each engine's verdict in report.json. The CSVs and
     report.json carry the coordinates of the joints :func:`joint_columns` picks from ``joints``.
     ``committed``: as :func:`loopcheck.compare.output.write_folder`'s (the command's "wrote" line).
+    ``extraction``: report.json's ``extraction`` (``--loop``: what was welded and dropped), when given.
 
     Raises
     ------
@@ -306,5 +309,5 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
                                                       other_label=engine_label(c.mujoco.engine))
     if engines is not None:
         files[ENGINES_PLOT] = lambda p: plot_engines(engines, p)
-    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names, engines)), encoding="utf-8")
+    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names, engines, extraction)), encoding="utf-8")
     return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True, committed=committed)

@@ -220,6 +220,8 @@ class ImportedModel:
     range_sources : for each scene joint whose range comes from a MuJoCo joint's, that range as the
         file writes it and how the scene's coordinate is made of its qpos (one line, for messages:
         the scene's bounds differ from the file's where the joint's body frame is turned).
+    extraction : the loop cut out of a larger model this was read from (``--loop``:
+        :class:`loopcheck.reference_models.extract.Extraction`), else None.
     """
 
     scene: Scene
@@ -240,6 +242,7 @@ class ImportedModel:
     motor_index: int = 0
     actuator_index: tuple[int, ...] = ()
     range_sources: dict[str, str] = field(default_factory=dict)
+    extraction: object = None
 
 
 @dataclass(frozen=True)
@@ -646,7 +649,8 @@ class _Reader:
                         "; MuJoCo puts a body-form connect's second anchor where the first one is at qpos0, so "
                         "author the model in its assembled pose or use the site form")
                 self.fail(f"{label} is open by {gap:.3g} m at the configuration read, more than "
-                          f"{CLOSURE_RTOL:g} of the model's size ({self.scale:.3g} m){form}")
+                          f"{CLOSURE_RTOL:g} of the model's size ({self.scale:.3g} m){form}; --assemble closes them "
+                          "by Newton from there (moves up to 0.1 rad or 10 mm)")
             out.append(RevoluteJoint(_unique(_clean(name), self.taken_joints), g1.name, p1, g2.name, p2))
         return out
 
