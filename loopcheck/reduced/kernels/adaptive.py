@@ -688,12 +688,111 @@ def _sample_piece(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: 
     return m
 
 
+@cython.cfunc
+@cython.inline
+@cython.exceptval(check=False)
+def _score(ends: Samples, j: cython.Py_ssize_t, column: cython.Py_ssize_t) -> cython.double:
+    """|observed[j, column] · q̇| at endpoint j: the rate whose peak a summary run keeps."""
+    return fabs(ends.observed[j, column] * ends.v[j])
+
+
+@cython.cfunc
+def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: cython.Py_ssize_t,
+                          sample_interval: cython.double, per_step: cython.Py_ssize_t,
+                          peak_column: cython.Py_ssize_t, ends: Samples, out: Samples
+                          ) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t]:
+    """A summary run's samples of one piece (:func:`dop853_run` with ``peak_column`` ≥ 0), written
+    as :func:`_sample_piece` writes them: every step's end, and :func:`_sample_piece`'s cuts only in
+    the steps where the peak can lie: the two steps on either side of each step end where the rate
+    of interest |observed[peak_column] · q̇| is a local maximum over the step ends (the piece's ends
+    included). There the samples are a full run's, at the same times, so the peak refined between
+    them (:meth:`loopcheck.trajectory.Trajectory.peak_rate`) is the full run's; elsewhere q̈ is
+    evaluated once a step instead of max(per_step, ⌈h / sample_interval⌉) times. The step ends
+    (``ends``, a workspace) are evaluated first, in time order, then the cuts, in time order from the
+    piece's start (:meth:`RightHandSide.rewind`). Returns (samples m, evaluations of q̈)."""
+    st: cython.double[::1] = steps.st
+    sh: cython.double[::1] = steps.sh
+    sy: cython.double[:, ::1] = steps.sy
+    sF: cython.double[:, :, ::1] = steps.sF
+    width: cython.Py_ssize_t = out.width
+    j: cython.Py_ssize_t
+    i: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    c: cython.Py_ssize_t
+    parts: cython.Py_ssize_t
+    dt: cython.double
+    x: cython.double
+    s: cython.double
+    ends.clear()
+    ends.reserve(n + 1)
+    for j in range(n + 1):  # the step ends: the solver's own states and energy flows
+        ends.t[j] = st[j]
+        ends.q[j] = sy[j, 0]
+        ends.v[j] = sy[j, 1]
+        ends.energy[j, 0] = sy[j, 2]
+        ends.energy[j, 1] = sy[j, 3]
+        ends.a[j] = rhs.acceleration(load, st[j], sy[j, 0], sy[j, 1])
+        rhs.observe(ends.observed, j)
+    evaluations: cython.Py_ssize_t = n + 1
+    fine: cython.uchar[::1] = np.zeros(n + 1, dtype=np.uint8)
+    for j in range(n + 1):
+        s = _score(ends, j, peak_column)
+        if (j == 0 or s > _score(ends, j - 1, peak_column)) and (j == n or s >= _score(ends, j + 1, peak_column)):
+            for k in range(max(j - 2, 0), min(j + 2, n)):
+                fine[k] = 1
+    m: cython.Py_ssize_t = 1
+    for j in range(n):
+        m += _parts(st[j + 1] - st[j], sample_interval, per_step) if fine[j] else 1
+    out.reserve(m)
+    o: cython.Py_ssize_t = out.n
+    times: cython.double[::1] = out.t
+    times[o] = st[0]
+    m = 1
+    for j in range(n):  # the times _sample_piece gives, in the steps cut
+        dt = st[j + 1] - st[j]
+        parts = _parts(dt, sample_interval, per_step) if fine[j] else 1
+        for i in range(1, parts + 1):
+            x = st[j] + dt * (cython.cast(cython.double, i) / parts) if i < parts else st[j + 1]
+            if x != times[o + m - 1]:
+                times[o + m] = x
+                m += 1
+    source: cython.Py_ssize_t[::1] = np.full(m, -1, dtype=np.intp)  # the step end a sample is, or -1
+    i = 0
+    for j in range(n + 1):
+        while times[o + i] < st[j]:
+            i += 1
+        source[i] = j
+    rhs.rewind()
+    seg: cython.Py_ssize_t = 0
+    for i in range(m):
+        k = source[i]
+        if k >= 0:
+            out.q[o + i] = ends.q[k]
+            out.v[o + i] = ends.v[k]
+            out.a[o + i] = ends.a[k]
+            out.energy[o + i, 0] = ends.energy[k, 0]
+            out.energy[o + i, 1] = ends.energy[k, 1]
+            for c in range(width):
+                out.observed[o + i, c] = ends.observed[k, c]
+            continue
+        x = times[o + i]
+        while seg < n - 1 and st[seg + 1] < x:
+            seg += 1
+        out.q[o + i], out.v[o + i] = _dense_eval(x, st[seg], sh[seg], sy[seg, 0], sy[seg, 1], sF, seg, 0)
+        out.energy[o + i, 0], out.energy[o + i, 1] = _dense_eval(x, st[seg], sh[seg], sy[seg, 2], sy[seg, 3],
+                                                                 sF, seg, 2)
+        out.a[o + i] = rhs.acceleration(load, x, out.q[o + i], out.v[o + i])
+        rhs.observe(out.observed, o + i)
+        evaluations += 1
+    return m, evaluations
+
+
 @cython.ccall
 def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: cython.Py_ssize_t[::1],
                q0: cython.double, v0: cython.double, rtol: cython.double, atol: cython.double,
                sample_interval: cython.double, per_step: cython.Py_ssize_t, speed_limit: cython.double,
                max_evaluations: cython.Py_ssize_t, max_step: cython.double, use_stop: cython.bint,
-               out: Samples, steps: Steps) -> Outcome:
+               out: Samples, steps: Steps, peak_column: cython.Py_ssize_t = -1) -> Outcome:
     """Integrate q̈ = rhs.acceleration(load, t, q, q̇) over the pieces.
 
     Parameters
@@ -711,6 +810,11 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
         start ends the run there (one sample, no step)
     out : the samples are appended to it (its width must be rhs.observation_size())
     steps : the step workspace (:class:`Steps`; any capacity: it grows)
+    peak_column : -1 (a full run): every step cut as above. Else a summary run: the observed
+        column whose product with q̇ is the rate whose peak is kept; only the steps beside that
+        rate's local maxima are cut, every other step sampled at its end only
+        (:func:`_sample_piece_summary`): the peak and the energy flows as a full run's, at a
+        fraction of the evaluations at the samples
 
     Returns
     -------
@@ -723,7 +827,11 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
     if not (rtol > 0.0 and atol > 0.0 and sample_interval > 0.0 and per_step >= 1):
         raise ValueError(f"rtol {rtol}, atol {atol}, sample_interval {sample_interval} positive; per_step "
                          f"{per_step} at least 1")
+    if peak_column >= rhs.observation_size():
+        raise ValueError(f"peak_column {peak_column}: the problem observes {rhs.observation_size()} values")
     outcome: Outcome = Outcome()
+    ends: Samples = Samples(rhs.observation_size()) if peak_column >= 0 else None
+    evaluated: cython.Py_ssize_t
     K: cython.double[:, ::1] = np.empty((_NSE, 2))
     P: cython.double[:, ::1] = np.empty((_NSE, 2))
     scratch: cython.double[:, ::1] = np.empty((3, 2))  # the stages' increments and error estimates
@@ -765,8 +873,13 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
             stopped = 0
             break
         rhs.rewind()  # the samples in order from the piece's start
-        m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
-        n_samp += m
+        if peak_column >= 0:
+            m, evaluated = _sample_piece_summary(rhs, load, steps, n, sample_interval, per_step, peak_column,
+                                                 ends, out)
+        else:
+            m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
+            evaluated = m
+        n_samp += evaluated
         o = out.n
         for i in range(m):
             if not (isfinite(out.q[o + i]) and isfinite(out.v[o + i]) and isfinite(out.a[o + i])):
@@ -807,7 +920,7 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
 
 def run(rhs, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None, sample_interval=1e-3, per_step=4,
         speed_limit=1e6, max_evaluations=1_000_000, max_step=float("inf"), use_stop=False,
-        steps=None) -> RunResult:
+        steps=None, peak_column=-1) -> RunResult:
     """Python convenience wrapper of :func:`dop853_run` (atol defaults to rtol): fresh Samples
     (and Steps unless given), the samples returned as arrays in a :data:`RunResult`."""
     atol = rtol if atol is None else atol
@@ -816,7 +929,7 @@ def run(rhs, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None, sample_i
                          np.ascontiguousarray(piece_load, dtype=np.intp), float(q0), float(v0),
                          float(rtol), float(atol), float(sample_interval), int(per_step),
                          float(speed_limit), int(max_evaluations), float(max_step), bool(use_stop), out,
-                         Steps() if steps is None else steps)
+                         Steps() if steps is None else steps, int(peak_column))
     t, q, v, a, observed, energy = out.arrays()
     return RunResult(outcome.status, t, q, v, a, outcome.n_steps, outcome.n_evaluations,
                      outcome.n_sample_evaluations, outcome.stopped, outcome.t_reached, outcome.fail_time,
