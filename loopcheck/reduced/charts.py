@@ -351,7 +351,7 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
 
     ``summary``: samples only at the solver's steps, and as above only in the steps beside each
     local maximum of the input's |q̇| over the steps (:func:`loopcheck.reduced.kernels.adaptive.dop853_run`'s
-    ``peak_column``): the same steps, peak and energy flows as a full run, for a run whose
+    ``peak_column``): a full run's steps, peak and energy flows to round-off, for a run whose
     trajectory is not kept (a sweep's row)."""
     run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
                         SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,

@@ -196,10 +196,12 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
     summaries alone are kept (the peak, its time, the energy residual, the steps, the status).
     With the compiled DOP853 (the default method) its samples are the solver's step ends, cut as
     usual only in the steps beside each local maximum of |q̇| over the steps
-    (:func:`loopcheck.reduced.charts.integrate_dop853`): the same steps and peak as a full run, the
-    energy audited at the step ends (the flows are the solver's own there) instead of at every
-    sample, and q̈ evaluated about once a step instead of at least four times. Its trajectory and
-    joints hold those samples only: not for plots or comparisons. Other methods ignore it.
+    (:func:`loopcheck.reduced.charts.integrate_dop853`): the full run's peak and steps to
+    round-off (its chart walks to fewer positions, and the steps follow the last bits of where a
+    load piece starts: tests/reduced/test_summary_runs.py states the bounds), the energy audited at
+    the step ends (the flows are the solver's own there) instead of at every sample, and q̈
+    evaluated about once a step instead of at least four times. Its trajectory and joints hold
+    those samples only: not for plots or comparisons. Other methods ignore it.
 
     Returns
     -------

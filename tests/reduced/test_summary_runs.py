@@ -3,17 +3,21 @@ summaries.
 
 A summary run samples the compiled DOP853 at its step ends, and as a full run only in the steps
 beside each local maximum of |q̇| over the step ends (loopcheck.reduced.kernels.adaptive,
-``_sample_piece_summary``). Bounds, and why:
+``_sample_piece_summary``). Its chart walks to fewer positions, by other paths, so the next load
+piece or chart starts from a configuration closed to another round-off; the solver's step sequence
+follows such last bits (the regression fixture holds no steps for the same reason). Measured over
+the 1 000 variants of benchmarks/sweep.py (seed, damper 40-70 x coupler 35-45): at rtol 1e-10 958
+variants take the same steps, the others within 3 of ~350; at rtol 1e-12 975, within 2 of ~600.
+Bounds, and why:
 
 - the peak: the samples around it are the full run's, at the same times, so the peak is the full
-  run's up to the round-off of the chart's walk taking another path to them (measured on the seed's
-  variants: equal, or 1.5e-12 rad/s apart at rtol 1e-12). Held to the regression fixture's bound,
-  1e-10 relative, and its peak time to its 1e-9 s;
-- the steps: the same solver run, equal;
+  run's to round-off (measured: at most 2.1e-12 relative at rtol 1e-10, 3.9e-12 at 1e-12). Held
+  to the regression fixture's bound, 1e-10 relative, and its peak time to its 1e-9 s;
+- the steps: within STEPS_RTOL (1 %: 3 times the largest measured difference, 3 of 336);
 - the energy residual: taken at the step ends only, where the work and dissipation are the
-  solver's own, so at most the full run's, which also has the dense output's error between the
-  steps (measured 0.34 to 0.94 of it on the seed's variants). Held to at most the full run's, with
-  1e-9 relative for the round-off of the fields at the same positions reached by another walk.
+  solver's own, without the dense output's error between steps (measured 0.17 to 1.15 times the
+  full run's: above 1 only where the steps differ). Held within ENERGY_RATIO of the full run's
+  (a lost term shows as 1e5 times and more) and to the run's own bound (the status).
 """
 
 from __future__ import annotations
@@ -35,7 +39,8 @@ from loopcheck.sweep_spec import Engines
 from core_outputs import FIXTURE, key, recorded_scenes
 
 PEAK_RTOL, TIME_TOL = 1e-10, 1e-9  # the regression fixture's (tests/reduced/kernels/test_core_regression.py)
-ENERGY_ROUND_OFF = 1e-9
+STEPS_RTOL = 0.01
+ENERGY_RATIO = 2.0
 
 RECORDED = json.loads(FIXTURE.read_text(encoding="utf-8"))
 
@@ -77,16 +82,17 @@ def test_a_summary_sweep_row_equals_the_full_runs_row():
         summary = run_variant(index, values, data, str(path), engines=Engines.REDUCED)
         full = run_variant(index, values, data, str(path), keep_trajectories=True, engines=Engines.REDUCED)
         assert summary["status"] == full["status"] == "passed", (summary, full)
-        assert summary["reduced.n_steps"] == full["reduced.n_steps"]
+        assert summary["reduced.n_steps"] == pytest.approx(full["reduced.n_steps"], rel=STEPS_RTOL)
         assert summary["reduced.peak_omega"] == pytest.approx(full["reduced.peak_omega"], rel=PEAK_RTOL, abs=0.0)
         assert summary["reduced.t_peak"] == pytest.approx(full["reduced.t_peak"], abs=TIME_TOL)
         for name in ("reduced.energy_residual", "reduced.energy_residual_rel"):
-            assert 0.0 < summary[name] <= full[name] * (1.0 + ENERGY_ROUND_OFF), name
+            assert 0.0 < summary[name] <= full[name] * ENERGY_RATIO, name
 
 
 def test_a_summary_run_evaluates_far_fewer_samples():
     """The point of it: on the seed the summary run's samples (each one evaluation of q̈) are
-    under a third of the full run's (measured 746 of 2 887 at rtol 1e-12), its steps the same."""
+    under a third of the full run's (measured 746 of 2 887 at rtol 1e-12), at the full run's
+    sample times (the nominal seed's steps are the same: no load piece starts after a refined one)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = load_scene(default_scene_path())
