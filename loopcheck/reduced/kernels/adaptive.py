@@ -22,7 +22,7 @@ Failures are status codes of :mod:`.output`, never exceptions (``OK``, ``STEP_SI
 Debugging: ``LOOPCHECK_PURE_PYTHON=1`` runs this same source as plain Python (:mod:`loopcheck.reduced.kernels`).
 """
 
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import cython
 import numpy as np
@@ -480,7 +480,7 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
            q0: cython.double, v0: cython.double, w0: cython.double, d0: cython.double, rtol: cython.double,
            atol: cython.double, max_step: cython.double, restart_cap: cython.double, use_stop: cython.bint,
            work: cython.longlong[::1], steps: Steps, K: cython.double[:, ::1], P: cython.double[:, ::1],
-           scratch: cython.double[:, ::1]
+           scratch: cython.double[:, ::1], ends: Optional[Samples]
            ) -> tuple[cython.int, cython.Py_ssize_t, cython.int, cython.double]:
     """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0) from
     (q0, v0), the work done w0 and the energy dissipated d0 (J): steps into ``steps`` (st times,
@@ -489,7 +489,10 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
 
     The energy flows ride along: each accepted step adds h Σ b_s P_s of their stage rates
     (DOP853's order-8 quadrature) and gets DOP853's dense output; they take no part in the
-    error estimate, so the steps are scipy's. Returns (status, n_steps, stopped, fail_time)."""
+    error estimate, so the steps are scipy's. With ``ends`` (a summary run's, else None), each
+    accepted step's end gets q̈ and the problem's observation there from the step's last stage,
+    evaluated at that very state (f_new), into ends.a and ends.observed at row n + 1 (the rows
+    indexed like steps.st; ends.n is not advanced). Returns (status, n_steps, stopped, fail_time)."""
     t: cython.double = start
     y0: cython.double = q0
     y1: cython.double = v0
@@ -590,6 +593,11 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
             steps.grow(n + 1)
         steps.sy[n + 1, 0] = y0
         steps.sy[n + 1, 1] = y1
+        if ends is not None:  # the last stage was f at (t, y): the configuration is the step end's
+            ends.n = n + 1  # rows 0..n kept when it grows
+            ends.reserve(1)
+            ends.a[n + 1] = f1
+            rhs.observe(ends.observed, n + 1)
         _dot_kt(P, _B, _NS, pb)  # the energy flows' step, with the state's weights
         steps.sy[n + 1, 2] = steps.sy[n, 2] + h * pb[0]
         steps.sy[n + 1, 3] = steps.sy[n, 3] + h * pb[1]
@@ -699,7 +707,7 @@ def _score(ends: Samples, j: cython.Py_ssize_t, column: cython.Py_ssize_t) -> cy
 @cython.cfunc
 def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: cython.Py_ssize_t,
                           sample_interval: cython.double, per_step: cython.Py_ssize_t,
-                          peak_column: cython.Py_ssize_t, ends: Samples, out: Samples
+                          peak_column: cython.Py_ssize_t, stopped: cython.bint, ends: Samples, out: Samples
                           ) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t]:
     """A summary run's samples of one piece (:func:`dop853_run` with ``peak_column`` ≥ 0), written
     as :func:`_sample_piece` writes them: every step's end, and :func:`_sample_piece`'s cuts only in
@@ -707,9 +715,11 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
     of interest |observed[peak_column] · q̇| is a local maximum over the step ends (the piece's ends
     included). There the samples are a full run's, at the same times, so the peak refined between
     them (:meth:`loopcheck.trajectory.Trajectory.peak_rate`) is the full run's; elsewhere q̈ is
-    evaluated once a step instead of max(per_step, ⌈h / sample_interval⌉) times. The step ends
-    (``ends``, a workspace) are evaluated first, in time order, then the cuts, in time order from the
-    piece's start (:meth:`RightHandSide.rewind`). Returns (samples m, evaluations of q̈)."""
+    not evaluated at all: a step end's q̈ and observation are its last stage's, kept by :func:`_piece`
+    in ``ends`` (a workspace), where a full run evaluates max(per_step, ⌈h / sample_interval⌉) samples
+    a step. Only the piece's start, its end if the stop event (``stopped``) cut the last step, and the
+    cuts are evaluated, in time order from the piece's start (:meth:`RightHandSide.rewind`).
+    Returns (samples m, evaluations of q̈)."""
     st: cython.double[::1] = steps.st
     sh: cython.double[::1] = steps.sh
     sy: cython.double[:, ::1] = steps.sy
@@ -723,7 +733,7 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
     dt: cython.double
     x: cython.double
     s: cython.double
-    ends.clear()
+    ends.n = 0  # (rows 1..n are _piece's, which grew it to hold them)
     ends.reserve(n + 1)
     for j in range(n + 1):  # the step ends: the solver's own states and energy flows
         ends.t[j] = st[j]
@@ -731,9 +741,15 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
         ends.v[j] = sy[j, 1]
         ends.energy[j, 0] = sy[j, 2]
         ends.energy[j, 1] = sy[j, 3]
-        ends.a[j] = rhs.acceleration(load, st[j], sy[j, 0], sy[j, 1])
-        rhs.observe(ends.observed, j)
-    evaluations: cython.Py_ssize_t = n + 1
+    # q̈ and the observation at each step's end were recorded by _piece from the step's last stage;
+    # the piece's start, and its end where the stop event cut the last step, are evaluated here
+    ends.a[0] = rhs.acceleration(load, st[0], sy[0, 0], sy[0, 1])
+    rhs.observe(ends.observed, 0)
+    evaluations: cython.Py_ssize_t = 1
+    if stopped and n > 0:
+        ends.a[n] = rhs.acceleration(load, st[n], sy[n, 0], sy[n, 1])
+        rhs.observe(ends.observed, n)
+        evaluations += 1
     fine: cython.uchar[::1] = np.zeros(n + 1, dtype=np.uint8)
     for j in range(n + 1):
         s = _score(ends, j, peak_column)
@@ -867,7 +883,7 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
         rhs.mark()
         status, n, stopped, fail_time = _piece(rhs, load, piece_edges[p], piece_edges[p + 1], q, v, w, d, rtol,
                                                atol, max_step, previous_step, use_stop, work, steps, K, P,
-                                               scratch)
+                                               scratch, ends)
         n_steps += n
         if status != _OK:
             stopped = 0
@@ -875,7 +891,7 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
         rhs.rewind()  # the samples in order from the piece's start
         if peak_column >= 0:
             m, evaluated = _sample_piece_summary(rhs, load, steps, n, sample_interval, per_step, peak_column,
-                                                 ends, out)
+                                                 stopped != 0, ends, out)
         else:
             m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
             evaluated = m
