@@ -199,9 +199,14 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
     (:func:`loopcheck.reduced.charts.integrate_dop853`): the full run's peak and steps to
     round-off (its chart walks to fewer positions, and the steps follow the last bits of where a
     load piece starts: tests/reduced/test_summary_runs.py states the bounds), the energy audited at
-    the step ends (the flows are the solver's own there) instead of at every sample, and q̈
-    evaluated about once a step instead of at least four times. Its trajectory and joints hold
-    those samples only: not for plots or comparisons. Other methods ignore it.
+    the step ends (the flows are the solver's own there) instead of at every sample. q̈ is
+    evaluated only at the samples cut beside the peaks (about 140 on the seed at rtol 1e-12)
+    instead of at least four a step (a step end's is its last stage's), and the dense output
+    (3 evaluations a step) is made only for the steps cut and a step the stop event needs: on
+    the seed at rtol 1e-12, 9 187 evaluations where a full run makes 10 864 and 2 887 more at
+    its samples. Its trajectory and joints hold those samples
+    only: not for plots or comparisons; ``n_evaluations`` counts what it evaluated. Other
+    methods ignore it.
 
     Returns
     -------

@@ -98,7 +98,8 @@ def test_a_summary_run_evaluates_far_fewer_samples():
         scene = load_scene(default_scene_path())
     settings = reduced_settings(scene)
     full, summary = simulate(scene, settings), simulate(scene, settings, summary=True)
-    assert summary.n_steps == full.n_steps and summary.n_evaluations == full.n_evaluations
+    assert summary.n_steps == pytest.approx(full.n_steps, rel=STEPS_RTOL)
+    assert summary.n_evaluations < full.n_evaluations  # the dense outputs of the steps not cut: none
     assert len(summary.trajectory.t) < len(full.trajectory.t) / 3
     assert set(summary.trajectory.t) <= set(full.trajectory.t)  # the same sample times, fewer of them
     assert math.isfinite(summary.audit.max_abs_residual)

@@ -7,7 +7,8 @@ from loopcheck.reduced.kernels.problem cimport RightHandSide
 cdef class Steps:
     cdef double[::1] st, sh
     cdef double[:, ::1] sy
-    cdef double[:, :, ::1] sF
+    cdef double[:, :, ::1] sF, sK
+    cdef unsigned char[::1] sD
     cdef _allocate(self, Py_ssize_t capacity)
     cpdef Py_ssize_t capacity(self)
     cpdef grow(self, Py_ssize_t keep)

@@ -120,7 +120,9 @@ RunResult = NamedTuple("RunResult", [
 class Steps:
     """The accepted steps of a piece (a workspace, reusable across runs): st (times, s), sh
     (each step's h of the dense output, s), sy (the state after each: q, q̇, the work done and
-    the energy dissipated) and sF (each step's dense coefficients, (n, INTERPOLATOR_POWER, 4)).
+    the energy dissipated) and sF (each step's dense coefficients, (n, INTERPOLATOR_POWER, 4));
+    a summary run's deferred dense outputs: sD (1 where sF holds the step's coefficients) and sK
+    (its 13 stages' K and P, (n, N_STAGES + 1, 4), to compute them later).
     Grows by doubling when full (:meth:`grow`), never per step."""
 
     def __init__(self, capacity: cython.Py_ssize_t = 64):
@@ -134,6 +136,8 @@ class Steps:
         self.sh = np.empty(capacity)
         self.sy = np.empty((capacity, 4))
         self.sF = np.empty((capacity, INTERPOLATOR_POWER, 4))
+        self.sK = np.empty((capacity, N_STAGES + 1, 4))
+        self.sD = np.zeros(capacity, dtype=np.uint8)
 
     @cython.ccall
     def capacity(self) -> cython.Py_ssize_t:
@@ -143,7 +147,7 @@ class Steps:
     @cython.ccall
     def grow(self, keep: cython.Py_ssize_t):
         """Double the capacity, keeping the first ``keep`` entries."""
-        st, sh, sy, sF = self.st, self.sh, self.sy, self.sF
+        st, sh, sy, sF, sK, sD = self.st, self.sh, self.sy, self.sF, self.sK, self.sD
         self._allocate(2 * st.shape[0])
         i: cython.Py_ssize_t
         c: cython.Py_ssize_t
@@ -151,10 +155,13 @@ class Steps:
         for i in range(keep):
             self.st[i] = st[i]
             self.sh[i] = sh[i]
+            self.sD[i] = sD[i]
             for c in range(4):
                 self.sy[i, c] = sy[i, c]
                 for r in range(_IP):
                     self.sF[i, r, c] = sF[i, r, c]
+                for r in range(_NS + 1):
+                    self.sK[i, r, c] = sK[i, r, c]
 
 
 # ---- helpers --------------------------------------------------------------------------------
@@ -476,6 +483,40 @@ def _dense_coefficients(rhs: RightHandSide, load: cython.Py_ssize_t, t_old: cyth
 
 
 @cython.cfunc
+@cython.inline
+def _keep_stages(steps: Steps, n: cython.Py_ssize_t, K: cython.double[:, ::1], P: cython.double[:, ::1]) -> cython.void:
+    """Step n's 13 stages (K and P rows 0.._NS) into steps.sK[n], its dense output not yet made."""
+    r: cython.Py_ssize_t
+    for r in range(_NS + 1):
+        steps.sK[n, r, 0] = K[r, 0]
+        steps.sK[n, r, 1] = K[r, 1]
+        steps.sK[n, r, 2] = P[r, 0]
+        steps.sK[n, r, 3] = P[r, 1]
+    steps.sD[n] = 0
+
+
+@cython.cfunc
+def _deferred_dense(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, j: cython.Py_ssize_t,
+                    K: cython.double[:, ::1], P: cython.double[:, ::1], work: cython.longlong[::1],
+                    dy: cython.double[::1]) -> tuple[cython.int, cython.double]:
+    """Step j's dense output from its kept stages (:func:`_keep_stages`): what
+    :func:`_dense_coefficients` made right after the step in a full run."""
+    r: cython.Py_ssize_t
+    for r in range(_NS + 1):
+        K[r, 0] = steps.sK[j, r, 0]
+        K[r, 1] = steps.sK[j, r, 1]
+        P[r, 0] = steps.sK[j, r, 2]
+        P[r, 1] = steps.sK[j, r, 3]
+    status: cython.int
+    fail_time: cython.double
+    status, fail_time = _dense_coefficients(rhs, load, steps.st[j], steps.sy[j, 0], steps.sy[j, 1], steps.sh[j],
+                                            K, P, work, steps, j, dy)
+    if status == _OK:
+        steps.sD[j] = 1
+    return status, fail_time
+
+
+@cython.cfunc
 def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, end: cython.double,
            q0: cython.double, v0: cython.double, w0: cython.double, d0: cython.double, rtol: cython.double,
            atol: cython.double, max_step: cython.double, restart_cap: cython.double, use_stop: cython.bint,
@@ -601,15 +642,26 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
         _dot_kt(P, _B, _NS, pb)  # the energy flows' step, with the state's weights
         steps.sy[n + 1, 2] = steps.sy[n, 2] + h * pb[0]
         steps.sy[n + 1, 3] = steps.sy[n, 3] + h * pb[1]
-        status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps, n, scratch[0])
-        if status != _OK:
-            break
+        if ends is None:
+            status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps, n,
+                                                    scratch[0])
+            if status != _OK:
+                break
+            steps.sD[n] = 1
+        else:  # a summary run: the dense output later, and only where a sample or the stop event needs it
+            _keep_stages(steps, n, K, P)
         steps.sh[n] = t - t_old
         steps.st[n + 1] = t
         n += 1
         if use_stop:
             g_new = rhs.stop_margin(t, y0, y1)
             if g >= 0 and g_new <= 0:  # find_active_events, direction -1
+                if not steps.sD[n - 1]:
+                    status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps,
+                                                            n - 1, scratch[0])
+                    if status != _OK:
+                        break
+                    steps.sD[n - 1] = 1
                 root = _brentq_stop(rhs, t_old, t, t_old, steps.sh[n - 1], yo0, yo1, steps.sF, n - 1)
                 q, v = _dense_eval(root, t_old, steps.sh[n - 1], yo0, yo1, steps.sF, n - 1, 0)
                 w, d = _dense_eval(root, t_old, steps.sh[n - 1], steps.sy[n - 1, 2], steps.sy[n - 1, 3],
@@ -707,8 +759,10 @@ def _score(ends: Samples, j: cython.Py_ssize_t, column: cython.Py_ssize_t) -> cy
 @cython.cfunc
 def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: cython.Py_ssize_t,
                           sample_interval: cython.double, per_step: cython.Py_ssize_t,
-                          peak_column: cython.Py_ssize_t, stopped: cython.bint, ends: Samples, out: Samples
-                          ) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t]:
+                          peak_column: cython.Py_ssize_t, stopped: cython.bint, ends: Samples, out: Samples,
+                          K: cython.double[:, ::1], P: cython.double[:, ::1], work: cython.longlong[::1],
+                          dy: cython.double[::1]
+                          ) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t, cython.int, cython.double]:
     """A summary run's samples of one piece (:func:`dop853_run` with ``peak_column`` ≥ 0), written
     as :func:`_sample_piece` writes them: every step's end, and :func:`_sample_piece`'s cuts only in
     the steps where the peak can lie: the two steps on either side of each step end where the rate
@@ -718,8 +772,11 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
     not evaluated at all: a step end's q̈ and observation are its last stage's, kept by :func:`_piece`
     in ``ends`` (a workspace), where a full run evaluates max(per_step, ⌈h / sample_interval⌉) samples
     a step. Only the piece's start, its end if the stop event (``stopped``) cut the last step, and the
-    cuts are evaluated, in time order from the piece's start (:meth:`RightHandSide.rewind`).
-    Returns (samples m, evaluations of q̈)."""
+    cuts are evaluated, in time order from the piece's start (:meth:`RightHandSide.rewind`), after
+    the dense output of each step cut, deferred by :func:`_piece` (3 evaluations a step, counted
+    in ``work``; K, P and dy are its workspace). Returns (samples m, evaluations of q̈ at the
+    samples, status, fail_time): a status other than OK (the budget spent, a non-finite stage)
+    leaves ``out`` as it was."""
     st: cython.double[::1] = steps.st
     sh: cython.double[::1] = steps.sh
     sy: cython.double[:, ::1] = steps.sy
@@ -772,6 +829,14 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
             if x != times[o + m - 1]:
                 times[o + m] = x
                 m += 1
+    status: cython.int
+    fail_time: cython.double
+    rhs.rewind()
+    for j in range(n):  # the dense outputs of the steps cut, in time order
+        if fine[j] and not steps.sD[j]:
+            status, fail_time = _deferred_dense(rhs, load, steps, j, K, P, work, dy)
+            if status != _OK:
+                return 0, evaluations, status, fail_time
     source: cython.Py_ssize_t[::1] = np.full(m, -1, dtype=np.intp)  # the step end a sample is, or -1
     i = 0
     for j in range(n + 1):
@@ -800,7 +865,7 @@ def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: St
         out.a[o + i] = rhs.acceleration(load, x, out.q[o + i], out.v[o + i])
         rhs.observe(out.observed, o + i)
         evaluations += 1
-    return m, evaluations
+    return m, evaluations, _OK, NAN
 
 
 @cython.ccall
@@ -890,8 +955,12 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
             break
         rhs.rewind()  # the samples in order from the piece's start
         if peak_column >= 0:
-            m, evaluated = _sample_piece_summary(rhs, load, steps, n, sample_interval, per_step, peak_column,
-                                                 stopped != 0, ends, out)
+            m, evaluated, status, fail_time = _sample_piece_summary(rhs, load, steps, n, sample_interval, per_step,
+                                                                    peak_column, stopped != 0, ends, out, K, P,
+                                                                    work, scratch[0])
+            if status != _OK:
+                stopped = 0
+                break
         else:
             m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
             evaluated = m
