@@ -36,7 +36,7 @@ from loopcheck.scenefile import load_scene
 from loopcheck.shipped_scenes import default_scene_path
 from loopcheck.sweep_spec import Engines
 
-from core_outputs import FIXTURE, key, recorded_scenes
+from core_outputs import FIXTURE, NOT_RECORDED, ROOT, key, recorded_scenes
 
 PEAK_RTOL, TIME_TOL = 1e-10, 1e-9  # the regression fixture's (tests/reduced/kernels/test_core_regression.py)
 STEPS_RTOL = 0.01
@@ -65,6 +65,37 @@ def test_a_summary_run_keeps_the_recorded_peak(path):
     assert "failure" not in old, old
     assert run.peak.omega == pytest.approx(old["peak_omega"], rel=PEAK_RTOL, abs=0.0)
     assert run.peak.time == pytest.approx(old["peak_time"], abs=TIME_TOL)
+
+
+@pytest.mark.parametrize("name", sorted(NOT_RECORDED))
+def test_a_summary_run_is_the_full_run_on_the_scenes_the_fixture_lacks(name):
+    """The shipped scenes newer than the fixture (a joint coupling, actuators, joint friction with
+    its stick and slip events: pieces the stop event cuts), DOP853: the summary run's status, peak,
+    steps and energy residual against the full run's, within the module's bounds."""
+    from loopcheck.errors import NumericalFailure
+
+    with warnings.catch_warnings():  # the redundant parallelogram's Grübler count: its own tests'
+        warnings.simplefilter("ignore")
+        scene = load_scene(ROOT / "scenes" / name)
+    settings = reduced_settings(scene, method="dop853")
+    runs = []
+    for summary in (False, True):
+        try:
+            runs.append(simulate(scene, settings, summary=summary))
+        except NumericalFailure as failure:
+            runs.append(failure.reason)
+    full, summary = runs
+    if not hasattr(full, "peak"):
+        assert summary == full
+        return
+    assert summary.peak.omega == pytest.approx(full.peak.omega, rel=PEAK_RTOL, abs=0.0)
+    assert summary.peak.time == pytest.approx(full.peak.time, abs=TIME_TOL)
+    assert summary.n_steps == pytest.approx(full.n_steps, rel=STEPS_RTOL)
+    assert 0.0 <= summary.audit.max_abs_residual <= full.audit.max_abs_residual * ENERGY_RATIO
+    events = [(e.mode, e.direction) for e in full.details.friction_events]
+    assert [(e.mode, e.direction) for e in summary.details.friction_events] == events
+    for a, b in zip(summary.details.friction_events, full.details.friction_events):
+        assert a.time == pytest.approx(b.time, abs=TIME_TOL)
 
 
 def _seed_variants():
