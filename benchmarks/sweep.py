@@ -1,4 +1,4 @@
-"""The sweep feature's four targets, measured in one run on the code as it is.
+"""The sweep feature's four targets, and the summary rows' (part 5), measured in one run on the code as it is.
 
 The issue's targets, as written:
 
@@ -65,8 +65,25 @@ is one run unless said otherwise, and none is asserted):
    time columns (``reduced.wall_s``, ``mujoco.wall_s``, ``variant_wall_s``: the only
    time-based columns of ``loopcheck.compare.sweep_table.FIGURE_COLUMNS``). Exit status 1 if any row differs.
 
-    python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4] [--engines both,reduced]
-                               [--reduced-sizes 1000,10000,100000]
+5. The summary rows (issue 39: a reduced-only sweep's variant is a summary run, sampled at the
+   solver's steps and finely only beside the peak; ``simulate(..., summary=True)``), with
+   ``--parts 5``. The yardstick: one ``simulate`` of the nominal scene at its own settings (DOP853
+   rtol 1e-12), the median of 9, measured first in the same run; every time is printed also as a
+   multiple of it. The 1 000 variants at ``--rtol`` (default 1e-10, part 1's loosest that holds
+   1e-8 on every variant) over two processes as (b) of part 1, each variant a full run (the
+   sampling before) and a summary run, ``--repeats`` times interleaved (best and median); their
+   peaks judged against each variant's rtol-1e-12 run; the two compared variant by variant
+   (status, steps, peak, its time, energy residual). Reported apart: the summary runs at each
+   looser rtol of part 1's ladder. With ``--before TREE`` (the code before, its kernels built in
+   place: e.g. ``git archive`` of the commit before and ``python setup.py build_ext --inplace``),
+   the command a user types, ``loopcheck sweep SEED --vary .. --vary .. --engines reduced --out
+   TMP`` at its defaults (the scene's rtol 1e-12, two workers, sweep.csv, the plot and sweep.json
+   written), run as a subprocess with TREE's package and with this one's, ``--repeats`` times
+   interleaved.
+
+    python benchmarks/sweep.py [--quick] [--full] [--parts 1,2,3,4,5] [--engines both,reduced]
+                               [--reduced-sizes 1000,10000,100000] [--before TREE] [--rtol 1e-10]
+                               [--repeats 3]
 
 ``--quick`` is a smoke run (100 reduced variants, 20 MuJoCo variants, sweeps of 40 and 100
 variants in each mode, Dask on 40). ``--full`` adds the 4 000-variant memory run of both engines,
@@ -576,6 +593,141 @@ def part4(n: int, tmp: Path, local: dict | None) -> bool:
     return ok
 
 
+# -- part 5: the summary rows ------------------------------------------------------------------
+
+def _init5(data, source, settings, summary):
+    from loopcheck.compare.pool import ignore_interrupts
+
+    ignore_interrupts()
+    _W.update(data=data, source=source, settings=settings, summary=summary)
+
+
+def _summary_chunk(values_list):
+    """(peak ω, t_peak, steps, relative energy residual, failure reason) of each variant, a full
+    run or a summary run as _W["summary"] says (loopcheck.reduced.engine.simulate's ``summary``)."""
+    from loopcheck.errors import NumericalFailure
+    from loopcheck.reduced.engine import simulate
+
+    out = []
+    for v in values_list:
+        try:
+            r = simulate(build(_W["data"], v, _W["source"]), _W["settings"], summary=_W["summary"])
+            out.append((r.peak.omega, r.peak.time, r.n_steps, r.audit.relative_residual, ""))
+        except NumericalFailure as exc:
+            out.append((None, None, None, None, exc.reason.value))
+    return out
+
+
+def summary_pool(values, data, source, settings, summary: bool):
+    size = chunk_size(len(values), 2)
+    return [r for rs in ordered_map(_summary_chunk, chunks(values, size), 2, _init5,
+                                    (data, source, settings, summary)) for r in rs]
+
+
+def _cli_sweep(tree: Path, n: int, out: Path) -> float:
+    """Wall time of ``loopcheck sweep SEED --vary .. --engines reduced --out OUT`` (its defaults:
+    the scene's rtol 1e-12, two workers, sweep.csv, the plot and sweep.json written) with the
+    package of ``tree`` (PYTHONPATH and the working folder)."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    cmd = [sys.executable, "-m", "loopcheck.compare.cli", "sweep", str(default_scene_path()),
+           *sum((["--vary", a] for a in grid_args(*grid_for(n))), []), "--engines", "reduced", "--out", str(out)]
+    start = time.perf_counter()
+    done = subprocess.run(cmd, cwd=tree, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - start
+    if done.returncode not in (0, 1):
+        raise RuntimeError(f"{' '.join(cmd)} in {tree} exited {done.returncode}: {done.stderr[-2000:]}")
+    shutil.rmtree(out, ignore_errors=True)
+    return wall
+
+
+def part5(path: Path, n: int, rtol: float, repeats: int, before: Path | None, tmp: Path) -> None:
+    """The reduced sweep's summary rows (issue 39): each variant a full run (as before the
+    summary runs) and a summary run, timed in the same run against the yardstick, one simulate()
+    of the nominal scene at its own settings; then the command a user types, before and after."""
+    from loopcheck.compare.settings import reduced_settings
+    from loopcheck.reduced.engine import simulate
+
+    data, spec = make_spec(path, n)
+    source = str(path)
+    values = list(variant_values(spec))
+    nominal = scene_from_dict({k: v for k, v in data.items() if k != "sweep"}, source)
+    own = reduced_settings(nominal)
+    simulate(nominal, own)  # imports and compiled code loaded
+    marks = []
+    for _ in range(9):
+        t0 = time.perf_counter()
+        simulate(nominal, own)
+        marks.append(time.perf_counter() - t0)
+    yardstick = statistics.median(marks)
+    print(f"\n5. summary rows: {n} variants of {path.name}, each a full run (before) and a summary run (after), "
+          f"2 processes (ordered_map, the sweep's chunks, start-up included), {repeats} repeats interleaved")
+    print(f"   yardstick: one simulate() of the nominal scene at its own settings (DOP853 rtol {own.rtol:g}), "
+          f"median of 9: {yardstick * 1e3:.2f} ms (load average {os.getloadavg()[0]:.2f})")
+    truth = summary_pool(values, data, source, ReducedSettings(rtol=GRID_TRUTH_RTOL, check_error=False), False)
+
+    def judged(rows):
+        failed = sum(r[4] != "" for r in rows)
+        errs = [abs(r[0] - t[0]) / abs(t[0]) for r, t in zip(rows, truth) if r[0] is not None]
+        return failed, sum(e > PEAK_TARGET for e in errs), max(errs, default=math.nan)
+
+    times = {False: [], True: []}
+    rows = {}
+    settings = ReducedSettings(rtol=rtol)
+    for _ in range(repeats):
+        for summary in (False, True):
+            t0 = time.perf_counter()
+            rows[summary] = summary_pool(values, data, source, settings, summary)
+            times[summary].append(time.perf_counter() - t0)
+    full, summ = rows[False], rows[True]
+    same_status = all((a[4] == "") == (b[4] == "") for a, b in zip(full, summ))
+    peak_diff = max((abs(a[0] - b[0]) / abs(a[0]) for a, b in zip(full, summ) if a[0] is not None and b[0] is not None),
+                    default=math.nan)
+    time_diff = max((abs(a[1] - b[1]) for a, b in zip(full, summ) if a[0] is not None and b[0] is not None),
+                    default=math.nan)
+    steps_same = all(a[2] == b[2] for a, b in zip(full, summ))
+    energy = [b[3] / a[3] for a, b in zip(full, summ) if a[3] and b[3] is not None]
+    print(f"   DOP853 rtol {rtol:g}          {'best (s)':>9s} {'median (s)':>11s} {'ms/variant':>11s} "
+          f"{'/ yardstick':>12s}  failed  peak err > 1e-8  largest peak err")
+    for summary, label in ((False, "full runs (before)"), (True, "summary runs (after)")):
+        best, med = min(times[summary]), statistics.median(times[summary])
+        failed, over, worst = judged(rows[summary])
+        print(f"   {label:24s} {best:9.2f} {med:11.2f} {best / n * 1e3:11.2f} {best / yardstick:11.0f}x  "
+              f"{failed:6d} {over:16d} {worst:17.2e}")
+    ratio = min(times[True]) / min(times[False])
+    print(f"   after / before (best of {repeats}): {ratio:.2f}; the target, 2 s where before took 4.22 s on an idle "
+          f"machine: {2.0 / 4.22:.2f}")
+    print(f"   summary vs full, variant by variant: same status {'yes' if same_status else 'NO'}, same steps "
+          f"{'yes' if steps_same else 'NO'}, largest peak difference {peak_diff:.1e} relative, of its time "
+          f"{time_diff:.1e} s, energy residual summary / full {min(energy):.2f}..{max(energy):.2f}")
+    loose = [r for r in RTOLS if r > rtol]
+    for r in loose:  # reported apart: a looser rtol that the summary runs' energy audit may now pass
+        t0 = time.perf_counter()
+        got = summary_pool(values, data, source, ReducedSettings(rtol=r), True)
+        wall = time.perf_counter() - t0
+        failed, over, worst = judged(got)
+        print(f"   apart, a looser rtol: summary runs at rtol {r:g}: {wall:.2f} s ({wall / yardstick:.0f}x the "
+              f"yardstick), {failed} failed, {over} with peak err > 1e-8 (largest {worst:.2e}): "
+              f"{'holds' if not failed and not over else 'does not hold'} 1e-8 on every variant")
+    print(f"   (load average now {os.getloadavg()[0]:.2f})")
+    if before is None:
+        print("   the command: not measured (--before TREE: a tree of the code before, its kernels built)")
+        return
+    walls = {"before": [], "after": []}
+    for _ in range(repeats):
+        for label, tree in (("before", before), ("after", ROOT)):
+            walls[label].append(_cli_sweep(tree, n, tmp / f"cli-{label}"))
+    print(f"   `loopcheck sweep {path.name} --vary {DAMPER}=.. --vary {MASS}=.. --engines reduced --out TMP` "
+          f"({n} variants, its defaults: rtol {own.rtol:g}, 2 workers, sweep.csv, the plot and sweep.json written), "
+          f"before = {before}, after = this tree")
+    for label in ("before", "after"):
+        w = walls[label]
+        print(f"   {label:6s}  best {min(w):6.2f} s  median {statistics.median(w):6.2f} s  "
+              f"({', '.join(f'{x:.2f}' for x in w)})  {min(w) / yardstick:.0f}x the yardstick")
+    print(f"   the command, before / after (best of {repeats}): {min(walls['before']) / min(walls['after']):.2f} "
+          f"(target: at least 2); median / median: {statistics.median(walls['before']) / statistics.median(walls['after']):.2f}")
+    print(f"   (load average now {os.getloadavg()[0]:.2f})")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a fast smoke run")
@@ -588,6 +740,11 @@ def main() -> int:
     parser.add_argument("--reduced-sizes", default=None,
                         help="part 3's N of the reduced-only sweeps, e.g. 1000,10000,100000 (default 1000,10000; "
                              "with --full also 100000)")
+    parser.add_argument("--before", default=None, help="part 5: a tree of the code before (its kernels built in "
+                        "place), whose `loopcheck sweep --engines reduced` is timed beside this tree's")
+    parser.add_argument("--rtol", type=float, default=1e-10,
+                        help="part 5's rtol (default 1e-10: part 1's loosest that holds 1e-8 on every variant)")
+    parser.add_argument("--repeats", type=int, default=3, help="part 5's repeats of each timing (default 3)")
     args = parser.parse_args()
     parts = {int(p) for p in args.parts.split(",")}
     modes = [Engines(e.strip()) for e in args.engines.split(",")]
@@ -619,6 +776,8 @@ def main() -> int:
         if 4 in parts:
             m = 40 if args.quick else 1000
             ok = part4(m, tmp, done.get(m) if done else None)
+        if 5 in parts:
+            part5(path, n, args.rtol, args.repeats, Path(args.before).resolve() if args.before else None, tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print(f"   (load average now {os.getloadavg()[0]:.2f})")

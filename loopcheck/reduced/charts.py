@@ -324,14 +324,15 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
     return NumericalFailure("singular", "the run cannot start: its coordinate cannot drive the linkage", t)
 
 
-def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None) -> compiled.PartitionedRun:
+def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None,
+                  **options) -> compiled.PartitionedRun:
     """A whole compiled run (``kernel``: :func:`loopcheck.reduced.kernels.partition.run_rkn` or
-    ``run_dop853``, with its ``settings`` after the start) from the scene's start over its load
-    pieces; the run, or the failure it reports raised."""
+    ``run_dop853``, with its ``settings`` after the start and its keyword ``options``) from the
+    scene's start over its load pieces; the run, or the failure it reports raised."""
     x0, i, rate = _start(model)
     edges, loads = load_pieces(model)
     chart = model.new_chart()
-    run = kernel(chart, edges, loads, x0, i, rate, *settings, Samples(chart.observation_size()))
+    run = kernel(chart, edges, loads, x0, i, rate, *settings, Samples(chart.observation_size()), **options)
     if run.outcome.status != output.OK:
         raise compiled_failure(model, run.outcome, chart, step)
     return run
@@ -345,12 +346,18 @@ def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = T
 
 
 def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
-                     retry_caps: tuple[float, ...]) -> PartitionedSolution:
+                     retry_caps: tuple[float, ...], summary: bool = False) -> PartitionedSolution:
     """The compiled DOP853 run of the scene at rtol = atol = ``rtol``, all charts; samples no
     further apart than ``sample_interval`` (s); a chart that meets a singular position is run
-    again with the step capped to each fraction ``retry_caps`` of its span."""
+    again with the step capped to each fraction ``retry_caps`` of its span.
+
+    ``summary``: samples only at the solver's steps, and as above only in the steps beside each
+    local maximum of the input's |q̇| over the steps (:func:`loopcheck.reduced.kernels.adaptive.dop853_run`'s
+    ``peak_column``): a full run's steps, peak and energy flows to round-off, for a run whose
+    trajectory is not kept (a sweep's row)."""
     run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
-                        SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES)
+                        SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,
+                        peak_column=physics.INPUT_RATE if summary else -1)
     return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
 
 

@@ -310,8 +310,9 @@ def _header(out):
 
 def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tmp_path, capsys, monkeypatch):
     """Each row's reduced figures are those of loopcheck.reduced.engine.simulate with the scene's reduced
-    settings as loopcheck.compare.settings resolves them; MuJoCo and the comparison are not run (the
-    comparison is planted to fail: a variant that ran it would be a failed row)."""
+    settings as loopcheck.compare.settings resolves them, as a summary run (the row's figures equal a full
+    run's within the bounds of tests/reduced/test_summary_runs.py); MuJoCo and the comparison are not run
+    (the comparison is planted to fail: a variant that ran it would be a failed row)."""
     import loopcheck.compare.run
     from loopcheck.compare.settings import reduced_settings
     from loopcheck.reduced.engine import simulate
@@ -333,7 +334,7 @@ def test_rows_equal_the_reduced_engine_on_the_same_variant_scene(short_scene, tm
         variant.write_text(short_scene.read_text().replace("coefficient = 55.0",
                                                            f"coefficient = {row['dampers.0.coefficient']!r}"))
         scene = load_scene(variant)
-        result = simulate(scene, reduced_settings(scene))
+        result = simulate(scene, reduced_settings(scene), summary=True)
         assert result.settings.rtol == 1e-10
         assert row["reduced.peak_omega"] == result.peak.omega
         assert row["reduced.t_peak"] == result.peak.time

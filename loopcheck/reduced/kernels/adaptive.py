@@ -22,7 +22,7 @@ Failures are status codes of :mod:`.output`, never exceptions (``OK``, ``STEP_SI
 Debugging: ``LOOPCHECK_PURE_PYTHON=1`` runs this same source as plain Python (:mod:`loopcheck.reduced.kernels`).
 """
 
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import cython
 import numpy as np
@@ -120,7 +120,9 @@ RunResult = NamedTuple("RunResult", [
 class Steps:
     """The accepted steps of a piece (a workspace, reusable across runs): st (times, s), sh
     (each step's h of the dense output, s), sy (the state after each: q, q̇, the work done and
-    the energy dissipated) and sF (each step's dense coefficients, (n, INTERPOLATOR_POWER, 4)).
+    the energy dissipated) and sF (each step's dense coefficients, (n, INTERPOLATOR_POWER, 4));
+    a summary run's deferred dense outputs: sD (1 where sF holds the step's coefficients) and sK
+    (its 13 stages' K and P, (n, N_STAGES + 1, 4), to compute them later).
     Grows by doubling when full (:meth:`grow`), never per step."""
 
     def __init__(self, capacity: cython.Py_ssize_t = 64):
@@ -134,6 +136,8 @@ class Steps:
         self.sh = np.empty(capacity)
         self.sy = np.empty((capacity, 4))
         self.sF = np.empty((capacity, INTERPOLATOR_POWER, 4))
+        self.sK = np.empty((capacity, N_STAGES + 1, 4))
+        self.sD = np.zeros(capacity, dtype=np.uint8)
 
     @cython.ccall
     def capacity(self) -> cython.Py_ssize_t:
@@ -143,7 +147,7 @@ class Steps:
     @cython.ccall
     def grow(self, keep: cython.Py_ssize_t):
         """Double the capacity, keeping the first ``keep`` entries."""
-        st, sh, sy, sF = self.st, self.sh, self.sy, self.sF
+        st, sh, sy, sF, sK, sD = self.st, self.sh, self.sy, self.sF, self.sK, self.sD
         self._allocate(2 * st.shape[0])
         i: cython.Py_ssize_t
         c: cython.Py_ssize_t
@@ -151,10 +155,13 @@ class Steps:
         for i in range(keep):
             self.st[i] = st[i]
             self.sh[i] = sh[i]
+            self.sD[i] = sD[i]
             for c in range(4):
                 self.sy[i, c] = sy[i, c]
                 for r in range(_IP):
                     self.sF[i, r, c] = sF[i, r, c]
+                for r in range(_NS + 1):
+                    self.sK[i, r, c] = sK[i, r, c]
 
 
 # ---- helpers --------------------------------------------------------------------------------
@@ -476,11 +483,45 @@ def _dense_coefficients(rhs: RightHandSide, load: cython.Py_ssize_t, t_old: cyth
 
 
 @cython.cfunc
+@cython.inline
+def _keep_stages(steps: Steps, n: cython.Py_ssize_t, K: cython.double[:, ::1], P: cython.double[:, ::1]) -> cython.void:
+    """Step n's 13 stages (K and P rows 0.._NS) into steps.sK[n], its dense output not yet made."""
+    r: cython.Py_ssize_t
+    for r in range(_NS + 1):
+        steps.sK[n, r, 0] = K[r, 0]
+        steps.sK[n, r, 1] = K[r, 1]
+        steps.sK[n, r, 2] = P[r, 0]
+        steps.sK[n, r, 3] = P[r, 1]
+    steps.sD[n] = 0
+
+
+@cython.cfunc
+def _deferred_dense(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, j: cython.Py_ssize_t,
+                    K: cython.double[:, ::1], P: cython.double[:, ::1], work: cython.longlong[::1],
+                    dy: cython.double[::1]) -> tuple[cython.int, cython.double]:
+    """Step j's dense output from its kept stages (:func:`_keep_stages`): what
+    :func:`_dense_coefficients` made right after the step in a full run."""
+    r: cython.Py_ssize_t
+    for r in range(_NS + 1):
+        K[r, 0] = steps.sK[j, r, 0]
+        K[r, 1] = steps.sK[j, r, 1]
+        P[r, 0] = steps.sK[j, r, 2]
+        P[r, 1] = steps.sK[j, r, 3]
+    status: cython.int
+    fail_time: cython.double
+    status, fail_time = _dense_coefficients(rhs, load, steps.st[j], steps.sy[j, 0], steps.sy[j, 1], steps.sh[j],
+                                            K, P, work, steps, j, dy)
+    if status == _OK:
+        steps.sD[j] = 1
+    return status, fail_time
+
+
+@cython.cfunc
 def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, end: cython.double,
            q0: cython.double, v0: cython.double, w0: cython.double, d0: cython.double, rtol: cython.double,
            atol: cython.double, max_step: cython.double, restart_cap: cython.double, use_stop: cython.bint,
            work: cython.longlong[::1], steps: Steps, K: cython.double[:, ::1], P: cython.double[:, ::1],
-           scratch: cython.double[:, ::1]
+           scratch: cython.double[:, ::1], ends: Optional[Samples]
            ) -> tuple[cython.int, cython.Py_ssize_t, cython.int, cython.double]:
     """One solve_ivp call on [start, end] (its first step at most ``restart_cap`` if > 0) from
     (q0, v0), the work done w0 and the energy dissipated d0 (J): steps into ``steps`` (st times,
@@ -489,7 +530,10 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
 
     The energy flows ride along: each accepted step adds h Σ b_s P_s of their stage rates
     (DOP853's order-8 quadrature) and gets DOP853's dense output; they take no part in the
-    error estimate, so the steps are scipy's. Returns (status, n_steps, stopped, fail_time)."""
+    error estimate, so the steps are scipy's. With ``ends`` (a summary run's, else None), each
+    accepted step's end gets q̈ and the problem's observation there from the step's last stage,
+    evaluated at that very state (f_new), into ends.a and ends.observed at row n + 1 (the rows
+    indexed like steps.st; ends.n is not advanced). Returns (status, n_steps, stopped, fail_time)."""
     t: cython.double = start
     y0: cython.double = q0
     y1: cython.double = v0
@@ -590,18 +634,34 @@ def _piece(rhs: RightHandSide, load: cython.Py_ssize_t, start: cython.double, en
             steps.grow(n + 1)
         steps.sy[n + 1, 0] = y0
         steps.sy[n + 1, 1] = y1
+        if ends is not None:  # the last stage was f at (t, y): the configuration is the step end's
+            ends.n = n + 1  # rows 0..n kept when it grows
+            ends.reserve(1)
+            ends.a[n + 1] = f1
+            rhs.observe(ends.observed, n + 1)
         _dot_kt(P, _B, _NS, pb)  # the energy flows' step, with the state's weights
         steps.sy[n + 1, 2] = steps.sy[n, 2] + h * pb[0]
         steps.sy[n + 1, 3] = steps.sy[n, 3] + h * pb[1]
-        status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps, n, scratch[0])
-        if status != _OK:
-            break
+        if ends is None:
+            status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps, n,
+                                                    scratch[0])
+            if status != _OK:
+                break
+            steps.sD[n] = 1
+        else:  # a summary run: the dense output later, and only where a sample or the stop event needs it
+            _keep_stages(steps, n, K, P)
         steps.sh[n] = t - t_old
         steps.st[n + 1] = t
         n += 1
         if use_stop:
             g_new = rhs.stop_margin(t, y0, y1)
             if g >= 0 and g_new <= 0:  # find_active_events, direction -1
+                if not steps.sD[n - 1]:
+                    status, fail_time = _dense_coefficients(rhs, load, t_old, yo0, yo1, h, K, P, work, steps,
+                                                            n - 1, scratch[0])
+                    if status != _OK:
+                        break
+                    steps.sD[n - 1] = 1
                 root = _brentq_stop(rhs, t_old, t, t_old, steps.sh[n - 1], yo0, yo1, steps.sF, n - 1)
                 q, v = _dense_eval(root, t_old, steps.sh[n - 1], yo0, yo1, steps.sF, n - 1, 0)
                 w, d = _dense_eval(root, t_old, steps.sh[n - 1], steps.sy[n - 1, 2], steps.sy[n - 1, 3],
@@ -688,12 +748,132 @@ def _sample_piece(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: 
     return m
 
 
+@cython.cfunc
+@cython.inline
+@cython.exceptval(check=False)
+def _score(ends: Samples, j: cython.Py_ssize_t, column: cython.Py_ssize_t) -> cython.double:
+    """|observed[j, column] · q̇| at endpoint j: the rate whose peak a summary run keeps."""
+    return fabs(ends.observed[j, column] * ends.v[j])
+
+
+@cython.cfunc
+def _sample_piece_summary(rhs: RightHandSide, load: cython.Py_ssize_t, steps: Steps, n: cython.Py_ssize_t,
+                          sample_interval: cython.double, per_step: cython.Py_ssize_t,
+                          peak_column: cython.Py_ssize_t, stopped: cython.bint, ends: Samples, out: Samples,
+                          K: cython.double[:, ::1], P: cython.double[:, ::1], work: cython.longlong[::1],
+                          dy: cython.double[::1]
+                          ) -> tuple[cython.Py_ssize_t, cython.Py_ssize_t, cython.int, cython.double]:
+    """A summary run's samples of one piece (:func:`dop853_run` with ``peak_column`` ≥ 0), written
+    as :func:`_sample_piece` writes them: every step's end, and :func:`_sample_piece`'s cuts only in
+    the steps where the peak can lie: the two steps on either side of each step end where the rate
+    of interest |observed[peak_column] · q̇| is a local maximum over the step ends (the piece's ends
+    included). There the samples are a full run's, at the same times, so the peak refined between
+    them (:meth:`loopcheck.trajectory.Trajectory.peak_rate`) is the full run's; elsewhere q̈ is
+    not evaluated at all: a step end's q̈ and observation are its last stage's, kept by :func:`_piece`
+    in ``ends`` (a workspace), where a full run evaluates max(per_step, ⌈h / sample_interval⌉) samples
+    a step. Only the piece's start, its end if the stop event (``stopped``) cut the last step, and the
+    cuts are evaluated, in time order from the piece's start (:meth:`RightHandSide.rewind`), after
+    the dense output of each step cut, deferred by :func:`_piece` (3 evaluations a step, counted
+    in ``work``; K, P and dy are its workspace). Returns (samples m, evaluations of q̈ at the
+    samples, status, fail_time): a status other than OK (the budget spent, a non-finite stage)
+    leaves ``out`` as it was."""
+    st: cython.double[::1] = steps.st
+    sh: cython.double[::1] = steps.sh
+    sy: cython.double[:, ::1] = steps.sy
+    sF: cython.double[:, :, ::1] = steps.sF
+    width: cython.Py_ssize_t = out.width
+    j: cython.Py_ssize_t
+    i: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    c: cython.Py_ssize_t
+    parts: cython.Py_ssize_t
+    dt: cython.double
+    x: cython.double
+    s: cython.double
+    ends.n = 0  # (rows 1..n are _piece's, which grew it to hold them)
+    ends.reserve(n + 1)
+    for j in range(n + 1):  # the step ends: the solver's own states and energy flows
+        ends.t[j] = st[j]
+        ends.q[j] = sy[j, 0]
+        ends.v[j] = sy[j, 1]
+        ends.energy[j, 0] = sy[j, 2]
+        ends.energy[j, 1] = sy[j, 3]
+    # q̈ and the observation at each step's end were recorded by _piece from the step's last stage;
+    # the piece's start, and its end where the stop event cut the last step, are evaluated here
+    ends.a[0] = rhs.acceleration(load, st[0], sy[0, 0], sy[0, 1])
+    rhs.observe(ends.observed, 0)
+    evaluations: cython.Py_ssize_t = 1
+    if stopped and n > 0:
+        ends.a[n] = rhs.acceleration(load, st[n], sy[n, 0], sy[n, 1])
+        rhs.observe(ends.observed, n)
+        evaluations += 1
+    fine: cython.uchar[::1] = np.zeros(n + 1, dtype=np.uint8)
+    for j in range(n + 1):
+        s = _score(ends, j, peak_column)
+        if (j == 0 or s > _score(ends, j - 1, peak_column)) and (j == n or s >= _score(ends, j + 1, peak_column)):
+            for k in range(max(j - 2, 0), min(j + 2, n)):
+                fine[k] = 1
+    m: cython.Py_ssize_t = 1
+    for j in range(n):
+        m += _parts(st[j + 1] - st[j], sample_interval, per_step) if fine[j] else 1
+    out.reserve(m)
+    o: cython.Py_ssize_t = out.n
+    times: cython.double[::1] = out.t
+    times[o] = st[0]
+    m = 1
+    for j in range(n):  # the times _sample_piece gives, in the steps cut
+        dt = st[j + 1] - st[j]
+        parts = _parts(dt, sample_interval, per_step) if fine[j] else 1
+        for i in range(1, parts + 1):
+            x = st[j] + dt * (cython.cast(cython.double, i) / parts) if i < parts else st[j + 1]
+            if x != times[o + m - 1]:
+                times[o + m] = x
+                m += 1
+    status: cython.int
+    fail_time: cython.double
+    rhs.rewind()
+    for j in range(n):  # the dense outputs of the steps cut, in time order
+        if fine[j] and not steps.sD[j]:
+            status, fail_time = _deferred_dense(rhs, load, steps, j, K, P, work, dy)
+            if status != _OK:
+                return 0, evaluations, status, fail_time
+    source: cython.Py_ssize_t[::1] = np.full(m, -1, dtype=np.intp)  # the step end a sample is, or -1
+    i = 0
+    for j in range(n + 1):
+        while times[o + i] < st[j]:
+            i += 1
+        source[i] = j
+    rhs.rewind()
+    seg: cython.Py_ssize_t = 0
+    for i in range(m):
+        k = source[i]
+        if k >= 0:
+            out.q[o + i] = ends.q[k]
+            out.v[o + i] = ends.v[k]
+            out.a[o + i] = ends.a[k]
+            out.energy[o + i, 0] = ends.energy[k, 0]
+            out.energy[o + i, 1] = ends.energy[k, 1]
+            for c in range(width):
+                out.observed[o + i, c] = ends.observed[k, c]
+            continue
+        x = times[o + i]
+        while seg < n - 1 and st[seg + 1] < x:
+            seg += 1
+        out.q[o + i], out.v[o + i] = _dense_eval(x, st[seg], sh[seg], sy[seg, 0], sy[seg, 1], sF, seg, 0)
+        out.energy[o + i, 0], out.energy[o + i, 1] = _dense_eval(x, st[seg], sh[seg], sy[seg, 2], sy[seg, 3],
+                                                                 sF, seg, 2)
+        out.a[o + i] = rhs.acceleration(load, x, out.q[o + i], out.v[o + i])
+        rhs.observe(out.observed, o + i)
+        evaluations += 1
+    return m, evaluations, _OK, NAN
+
+
 @cython.ccall
 def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: cython.Py_ssize_t[::1],
                q0: cython.double, v0: cython.double, rtol: cython.double, atol: cython.double,
                sample_interval: cython.double, per_step: cython.Py_ssize_t, speed_limit: cython.double,
                max_evaluations: cython.Py_ssize_t, max_step: cython.double, use_stop: cython.bint,
-               out: Samples, steps: Steps) -> Outcome:
+               out: Samples, steps: Steps, peak_column: cython.Py_ssize_t = -1) -> Outcome:
     """Integrate q̈ = rhs.acceleration(load, t, q, q̇) over the pieces.
 
     Parameters
@@ -711,6 +891,11 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
         start ends the run there (one sample, no step)
     out : the samples are appended to it (its width must be rhs.observation_size())
     steps : the step workspace (:class:`Steps`; any capacity: it grows)
+    peak_column : -1 (a full run): every step cut as above. Else a summary run: the observed
+        column whose product with q̇ is the rate whose peak is kept; only the steps beside that
+        rate's local maxima are cut, every other step sampled at its end only
+        (:func:`_sample_piece_summary`): the peak and the energy flows as a full run's, at a
+        fraction of the evaluations at the samples
 
     Returns
     -------
@@ -723,7 +908,11 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
     if not (rtol > 0.0 and atol > 0.0 and sample_interval > 0.0 and per_step >= 1):
         raise ValueError(f"rtol {rtol}, atol {atol}, sample_interval {sample_interval} positive; per_step "
                          f"{per_step} at least 1")
+    if peak_column >= rhs.observation_size():
+        raise ValueError(f"peak_column {peak_column}: the problem observes {rhs.observation_size()} values")
     outcome: Outcome = Outcome()
+    ends: Samples = Samples(rhs.observation_size()) if peak_column >= 0 else None
+    evaluated: cython.Py_ssize_t
     K: cython.double[:, ::1] = np.empty((_NSE, 2))
     P: cython.double[:, ::1] = np.empty((_NSE, 2))
     scratch: cython.double[:, ::1] = np.empty((3, 2))  # the stages' increments and error estimates
@@ -759,14 +948,23 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
         rhs.mark()
         status, n, stopped, fail_time = _piece(rhs, load, piece_edges[p], piece_edges[p + 1], q, v, w, d, rtol,
                                                atol, max_step, previous_step, use_stop, work, steps, K, P,
-                                               scratch)
+                                               scratch, ends)
         n_steps += n
         if status != _OK:
             stopped = 0
             break
         rhs.rewind()  # the samples in order from the piece's start
-        m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
-        n_samp += m
+        if peak_column >= 0:
+            m, evaluated, status, fail_time = _sample_piece_summary(rhs, load, steps, n, sample_interval, per_step,
+                                                                    peak_column, stopped != 0, ends, out, K, P,
+                                                                    work, scratch[0])
+            if status != _OK:
+                stopped = 0
+                break
+        else:
+            m = _sample_piece(rhs, load, steps, n, sample_interval, per_step, out)
+            evaluated = m
+        n_samp += evaluated
         o = out.n
         for i in range(m):
             if not (isfinite(out.q[o + i]) and isfinite(out.v[o + i]) and isfinite(out.a[o + i])):
@@ -807,7 +1005,7 @@ def dop853_run(rhs: RightHandSide, piece_edges: cython.double[::1], piece_load: 
 
 def run(rhs, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None, sample_interval=1e-3, per_step=4,
         speed_limit=1e6, max_evaluations=1_000_000, max_step=float("inf"), use_stop=False,
-        steps=None) -> RunResult:
+        steps=None, peak_column=-1) -> RunResult:
     """Python convenience wrapper of :func:`dop853_run` (atol defaults to rtol): fresh Samples
     (and Steps unless given), the samples returned as arrays in a :data:`RunResult`."""
     atol = rtol if atol is None else atol
@@ -816,7 +1014,7 @@ def run(rhs, piece_edges, piece_load, q0, v0, *, rtol=1e-12, atol=None, sample_i
                          np.ascontiguousarray(piece_load, dtype=np.intp), float(q0), float(v0),
                          float(rtol), float(atol), float(sample_interval), int(per_step),
                          float(speed_limit), int(max_evaluations), float(max_step), bool(use_stop), out,
-                         Steps() if steps is None else steps)
+                         Steps() if steps is None else steps, int(peak_column))
     t, q, v, a, observed, energy = out.arrays()
     return RunResult(outcome.status, t, q, v, a, outcome.n_steps, outcome.n_evaluations,
                      outcome.n_sample_evaluations, outcome.stopped, outcome.t_reached, outcome.fail_time,

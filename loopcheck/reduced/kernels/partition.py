@@ -88,7 +88,8 @@ def _pieces_from(edges, loads, t: cython.double):
 
 def _dop853_chart(chart, steps, edges, loads, t: cython.double, value: cython.double, rate: cython.double,
                   rtol: cython.double, sample_interval: cython.double, per_step: cython.Py_ssize_t,
-                  speed_limit: cython.double, max_evaluations: cython.Py_ssize_t, retry_caps, out: Samples):
+                  speed_limit: cython.double, max_evaluations: cython.Py_ssize_t, retry_caps, out: Samples,
+                  peak_column: cython.Py_ssize_t = -1):
     """One chart by DOP853 from t; a chart that meets a singular position (a trial stage past
     the reach of its coordinate, before the switch event fires) is integrated again from its
     start with the step capped to each fraction of its span in ``retry_caps`` in turn (the
@@ -102,7 +103,7 @@ def _dop853_chart(chart, steps, edges, loads, t: cython.double, value: cython.do
             chart.reset()
             out.n = first
         outcome = adaptive.dop853_run(chart, piece_edges, piece_loads, value, rate, rtol, rtol, sample_interval,
-                                      per_step, speed_limit, max_evaluations, cap, True, out, steps)
+                                      per_step, speed_limit, max_evaluations, cap, True, out, steps, peak_column)
         walk_failed = outcome.status == NONFINITE and chart.S[physics.STATUS] != physics.OK  # SINGULAR, WORK_SPENT
         if not (walk_failed and chart.S[physics.STATUS] == physics.SINGULAR):
             break
@@ -267,16 +268,18 @@ def run_rkn(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cyth
 def run_dop853(chart, edges, loads, x0, independent: cython.Py_ssize_t, rate0: cython.double,
                rtol: cython.double, sample_interval: cython.double, per_step: cython.Py_ssize_t,
                speed_limit: cython.double, max_evaluations: cython.Py_ssize_t, retry_caps,
-               max_switches: cython.Py_ssize_t, out: Samples, steps=None) -> PartitionedRun:
+               max_switches: cython.Py_ssize_t, out: Samples, steps=None,
+               peak_column: cython.Py_ssize_t = -1) -> PartitionedRun:
     """DOP853 at rtol = atol ``rtol`` (scipy's algorithm, :mod:`.adaptive`), sampled no coarser
     than ``sample_interval`` (s), each step in at least ``per_step`` parts; ``max_evaluations`` of q̈
     in all; charts that meet a singular position retried with the step capped to the fractions
     ``retry_caps`` of their span; ``steps`` (:class:`.adaptive.Steps`), the step storage (may be reused), taken
-    when given."""
+    when given; ``peak_column`` ≥ 0: a summary run (:func:`.adaptive.dop853_run`), sampled only where
+    the peak of that observed column times q̇ can lie."""
     steps = adaptive.Steps() if steps is None else steps
 
     def integrate_chart(t, value, rate, spent):
         return _dop853_chart(chart, steps, edges, loads, t, value, rate, rtol, sample_interval, per_step,
-                             speed_limit, max_evaluations - spent, retry_caps, out)
+                             speed_limit, max_evaluations - spent, retry_caps, out, peak_column)
 
     return _run(chart, edges, loads, x0, independent, rate0, integrate_chart, max_switches, out)
