@@ -76,7 +76,7 @@ def test_compare_results_and_check_are_the_comparison_and_the_gate(scene):
         return c.gate.passed, c.diff.peak_omega_abs, c.diff.q_max_abs, c.diff.omega_max_abs
 
     assert figures(checked) == figures(direct)
-    assert figures(loopcheck.compare_results(scene, checked.reduced, checked.mujoco)) == figures(direct)
+    assert figures(loopcheck.compare_results(scene, checked.reference, checked.other)) == figures(direct)
     assert figures(by_api)[1:] == figures(loopcheck.compare_results(scene, reduced, mujoco, tolerances=scene.tolerances))[1:]
     tight = dataclasses.replace(scene.tolerances, q_atol=1e-12)
     assert not loopcheck.compare_results(scene, reduced, mujoco, tolerances=tight).gate.passed

@@ -46,7 +46,7 @@ class EngineVerdict:
     def known_defects(self) -> tuple[str, ...]:
         """The engine's known defects that bear on its run (:attr:`EngineResult.caveats`), whether
         it was compared or failed part-way; none when it did not run at all."""
-        run = self.comparison.mujoco if self.comparison is not None else self.partial
+        run = self.comparison.other if self.comparison is not None else self.partial
         return run.caveats if run is not None else ()
 
 
