@@ -57,6 +57,7 @@ ENGINES: dict[str, Engine] = {e.name: e for e in (
 
 
 REFERENCE = "reduced"  # the exact reference every other engine is judged against (it has no [tolerances.reduced])
+DEFAULT_ENGINES = (REFERENCE, "mujoco")  # the default comparison: the design card's pair (others by --engines)
 
 
 def judged_engines() -> tuple[str, ...]:
