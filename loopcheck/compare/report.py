@@ -44,6 +44,7 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.mechanism import PrismaticJoint
 from loopcheck.results import EngineResult
+from loopcheck.settings import settings_dict
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Peak
 
@@ -119,7 +120,7 @@ def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
         "wall_s": result.wall_s,
         "n_steps": result.n_steps,
         "n_evaluations": result.n_evaluations,
-        "settings": result.settings.as_dict(),
+        "settings": settings_dict(result.settings),
         "details": result.details.as_dict(),
         "energy_residual": result.audit.max_abs_residual,
         "energy_residual_rel": result.audit.relative_residual,
