@@ -125,7 +125,8 @@ def test_a_bad_declaration_is_refused_in_one_line_naming_the_distribution(tmp_pa
 def test_an_installed_engine_reaches_check_and_run_engines(tmp_path):
     """In a fresh process, the distribution on PYTHONPATH is all it takes: `check --engines
     reduced,fake` judges it, `run --engines reduced,fake` writes its CSV and verdict; without the
-    distribution the same command refuses the name (exit 2)."""
+    distribution the same command refuses the name (exit 2), and a distribution declaring an engine
+wrongly stops every command in one line naming it (exit 2)."""
     (tmp_path / "site").mkdir()
     folder = install(tmp_path / "site")
     done = _cli(["check", str(SEED_SCENE), "--engines", "reduced,fake", "--horizon", SHORT], folder, tmp_path)
@@ -140,3 +141,9 @@ def test_an_installed_engine_reaches_check_and_run_engines(tmp_path):
     assert report["engines"][0]["passed"] is True and (out / "fake.csv").is_file()
     bare = _cli(["check", str(SEED_SCENE), "--engines", "reduced,fake"], tmp_path / "empty", tmp_path)
     assert bare.returncode == 2 and "unknown engine 'fake'" in bare.stderr and not bare.stdout
+    (tmp_path / "bad").mkdir()
+    bad = install(tmp_path / "bad", "Fake = fake_engine", dist="bad_dist")  # one line, exit 2, no traceback
+    done = _cli(["check", str(SEED_SCENE)], bad, tmp_path)
+    assert done.returncode == 2 and not done.stdout and done.stderr.splitlines() == [
+        "loopcheck: entry point 'Fake = fake_engine' of bad_dist (loopcheck.engines): engine name 'Fake': lower-case "
+        "letters, digits and _, a letter first"], done.stderr
