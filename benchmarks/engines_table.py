@@ -79,7 +79,7 @@ def table(paths: list[Path], engines: tuple[str, ...], max_port_steps: int) -> N
             if v.comparison is None:
                 print(f"| {scene.name} | {v.engine} | {v.failure} | | | | | | | no | |")
                 continue
-            d, run = v.comparison.diff, v.comparison.mujoco
+            d, run = v.comparison.diff, v.comparison.other
             gap, energy = run.constraint_violation.max, run.audit.relative_residual
             bounds = defaults[v.engine]
             own = gap <= bounds.max_constraint_violation and energy <= bounds.max_energy_residual

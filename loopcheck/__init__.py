@@ -6,10 +6,20 @@ The API (each name loads its module on first use, so ``import loopcheck`` is lig
   :func:`scene_from_dict`, :func:`catalogue` (the shipped scenes by name), :class:`Scene`;
 - engines: :func:`simulate` (the engine is the one whose settings are given),
   :class:`ReducedSettings` (Eksergian's equation, the exact reference), :class:`MujocoSettings`,
-  and the scene's own settings of each, :func:`reduced_settings`, :func:`mujoco_settings`;
-- comparison: :func:`compare_results` (two results of one scene; the name `compare` is the
-  subpackage), :func:`check` (both engines and the
-  gate, as ``loopcheck check``), :class:`Comparison`, :class:`Tolerances`;
+  and the scene's own settings of each, :func:`reduced_settings`, :func:`mujoco_settings`; every
+  registered engine (``reduced``, ``mujoco``, ``pin``, ``mjx``, ``mjwarp``: ``loopcheck.registry.ENGINES``,
+  its ``Settings`` as ``ENGINES[name].settings``) runs through :func:`simulate` and :func:`check`;
+- comparison: :func:`compare_results` (two results of one scene, a :class:`Comparison` of a
+  ``reference`` and an ``other`` run; the name `compare` is the subpackage), :func:`check` (engines
+  against the reduced reference, as ``loopcheck check --engines``: an :class:`EnginesCheck` with
+  ``.passed``, ``.verdicts`` (:class:`EngineVerdict`), ``.outlier`` and ``.comparison(name)``;
+  by default the reduced reference against MuJoCo, as ``loopcheck check``), :class:`Tolerances`.
+  Every engine at once::
+
+      check = loopcheck.check(scene, engines=["reduced", "mujoco", "pin", "mjx", "mjwarp"])
+      print(check.passed, check.outlier, [(v.engine, v.passed) for v in check.verdicts])
+      print(check.comparison("pin").diff.peak_omega_rel)
+
 - results: :class:`EngineResult` (the input's trajectory, every joint's coordinate and rate,
   peak, energy audit, the loops' opening, cost, the settings as run; every array of a result is
   read-only), :class:`Trajectory`, :class:`Peak`; errors: :class:`SceneError` (bad input), :class:`NumericalFailure` (a run that
@@ -26,7 +36,7 @@ from __future__ import annotations
 from ._lazy import lazy_names
 
 _HOMES = {
-    **{name: "loopcheck.api" for name in ("Comparison", "EngineResult", "MujocoSettings", "ReducedSettings", "Scene",
+    **{name: "loopcheck.api" for name in ("Comparison", "EngineResult", "EngineVerdict", "EnginesCheck", "MujocoSettings", "ReducedSettings", "Scene",
                                      "SceneError", "Tolerances", "check", "compare_results", "load_scene", "mujoco_settings",
                                      "reduced_settings", "scene_from_dict", "scene_from_string", "catalogue",
                                      "simulate")},

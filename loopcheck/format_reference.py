@@ -29,7 +29,7 @@ def tables() -> str:
     """The generated Markdown: one table per engine, then ``[tolerances]`` and its engine tables."""
     parts = []
     for name, engine in ENGINES.items():
-        parts += [f"### `[{name}]`: {engine.title}", "", *reference_rows(engine.settings, name), ""]
+        parts += [f"### `[{name}]`: {engine.description}", "", *reference_rows(engine.settings, name), ""]
     parts += ["### `[tolerances]`: what `loopcheck check` requires of the engines' agreement", "",
               "| key | value | unit | default | meaning |", "|---|---|---|---|---|"]
     for f in dataclasses.fields(Tolerances):

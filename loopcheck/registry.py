@@ -11,11 +11,19 @@ An engine is a package with two names (``docs/engines.md`` has the recipe):
 The registry names packages and imports them only when asked (``importlib``): the scene format
 reads each engine's table through it, and the comparison and the command line run engines
 through it, without a static import of any engine.
+
+Engines are registered by entry points in the ``loopcheck.engines`` group (:data:`GROUP`): one line
+``NAME = "PACKAGE"`` in a distribution's ``pyproject.toml`` (``[project.entry-points."loopcheck.engines"]``).
+loopcheck's own five are declared there too; :data:`BUILT_IN` is the same table, so that a
+checkout run without installing, or an install older than the group, still has them
+(``tests/core/test_engine_entry_points.py`` checks that the two agree). An installed distribution
+that declares an engine is found when the registry is first imported (:func:`registered`).
 """
 
 from __future__ import annotations
 
 import importlib
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,14 +31,34 @@ from .results import EngineResult
 from .scene import Scene
 
 
+GROUP = "loopcheck.engines"  # the entry-point group an engine is declared in
+_NAME = re.compile(r"[a-z][a-z0-9_]*")  # a scene file's table, a word of --engines
+
+
 @dataclass(frozen=True)
 class Engine:
     """One engine: its ``name`` (the scene file's table, the results' label), the ``package``
-    that holds it and a one-line ``title``."""
+    that holds it and a one-line ``title`` (for an engine declared by an entry point, the first
+    line of its ``settings`` module's docstring, read when asked: :attr:`description`)."""
 
     name: str
     package: str
-    title: str
+    title: str | None = None
+
+    def __post_init__(self):
+        if not _NAME.fullmatch(self.name):
+            raise ValueError(f"engine name '{self.name}': lower-case letters, digits and _, a letter first")
+        if not re.fullmatch(r"[A-Za-z_][\w.]*", self.package):
+            raise ValueError(f"engine '{self.name}': '{self.package}' is not a package name (the entry point's "
+                             f"value is the engine's package, e.g. my_engine)")
+
+    @property
+    def description(self) -> str:
+        """The one-line title: ``title``, else the first line of the settings module's docstring."""
+        if self.title:
+            return self.title
+        doc = importlib.import_module(f"{self.package}.settings").__doc__ or ""
+        return doc.strip().splitlines()[0] if doc.strip() else self.package
 
     @property
     def settings(self) -> type:
@@ -47,16 +75,46 @@ class Engine:
         return importlib.import_module(self.package).simulate(scene, settings)
 
 
-ENGINES: dict[str, Engine] = {e.name: e for e in (
+BUILT_IN: tuple[Engine, ...] = (  # pyproject.toml's [project.entry-points."loopcheck.engines"], with titles
     Engine("reduced", "loopcheck.reduced", "Eksergian's equation, solved in one coordinate (the exact reference)"),
     Engine("mujoco", "loopcheck.reference_models", "MuJoCo: the open chain closed by equality constraints"),
     Engine("pin", "loopcheck.pin", "Pinocchio: the tree's constrained dynamics, loops closed by point constraints"),
     Engine("mjx", "loopcheck.mjx", "MJX, MuJoCo's JAX port: the MuJoCo engine's model, stepped by JAX (CPU or GPU)"),
     Engine("mjwarp", "loopcheck.mjwarp", "MJWarp, MuJoCo's Warp port: the MuJoCo engine's model, stepped in float32 (CPU or GPU)"),
-)}
+)
+
+
+def registered() -> dict[str, Engine]:
+    """The engines by name: the built-ins first, then every other engine declared in the
+    :data:`GROUP` entry points of the installed distributions, by name.
+
+    Raises
+    ------
+    ValueError
+        In one line naming the distribution: a declared name that is no engine name, a value
+        that is no package, or a built-in's name declared for another package.
+    """
+    from importlib.metadata import entry_points
+
+    engines = {e.name: e for e in BUILT_IN}
+    for point in sorted(entry_points(group=GROUP), key=lambda p: p.name):
+        where = f"entry point '{point.name} = {point.value}' of {point.dist.name if point.dist else 'a distribution'} ({GROUP})"
+        try:
+            engine = Engine(point.name, point.value.strip())
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        known = engines.get(engine.name)
+        if known is not None and known.package != engine.package:
+            raise ValueError(f"{where}: the engine '{engine.name}' is {known.package}'s")
+        engines.setdefault(engine.name, engine)
+    return engines
+
+
+ENGINES: dict[str, Engine] = registered()
 
 
 REFERENCE = "reduced"  # the exact reference every other engine is judged against (it has no [tolerances.reduced])
+DEFAULT_ENGINES = (REFERENCE, "mujoco")  # the default comparison: the design card's pair (others by --engines)
 
 
 def judged_engines() -> tuple[str, ...]:

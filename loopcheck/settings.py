@@ -180,6 +180,16 @@ def options(settings_type: type) -> tuple[Option, ...]:
     return tuple(out)
 
 
+def settings_dict(settings: Any) -> dict[str, Any]:
+    """An engine's settings as run, for reports: its ``as_dict()`` where the engine declares one
+    (a resolved value, such as MuJoCo's effective solref), by default each option's value (tuples
+    as lists)."""
+    if hasattr(settings, "as_dict"):
+        return settings.as_dict()
+    return {o.name: (list(v) if isinstance(v := getattr(settings, o.name), tuple) else v)
+            for o in options(type(settings))}
+
+
 def read_table(settings_type: type, table: Any, key: str) -> dict[str, Any]:
     """The keys given in a scene file's engine table, each checked on its own (SceneError
     naming ``key.name``); unknown keys refused. Rules between values are the settings' own

@@ -69,17 +69,49 @@ def test_compare_results_and_check_are_the_comparison_and_the_gate(scene):
     mujoco = loopcheck.simulate(scene, loopcheck.mujoco_settings(scene))
     by_api = loopcheck.compare_results(scene, reduced, mujoco)
     assert isinstance(by_api, loopcheck.Comparison)
-    checked = loopcheck.check(scene)
+    checked = loopcheck.check(scene)  # the default pair, as `loopcheck check`
     direct = compare_engines(scene)
 
     def figures(c):
         return c.gate.passed, c.diff.peak_omega_abs, c.diff.q_max_abs, c.diff.omega_max_abs
 
-    assert figures(checked) == figures(direct)
-    assert figures(loopcheck.compare_results(scene, checked.reduced, checked.mujoco)) == figures(direct)
+    assert isinstance(checked, loopcheck.EnginesCheck) and checked.engines == ("reduced", "mujoco")
+    assert [type(v) for v in checked.verdicts] == [loopcheck.EngineVerdict]
+    assert checked.passed == direct.gate.passed and checked.outlier is None
+    compared = checked.comparison("mujoco")
+    assert (compared.reference.engine, compared.other.engine) == ("reduced", "mujoco")
+    assert figures(compared) == figures(direct)
+    assert figures(loopcheck.compare_results(scene, compared.reference, compared.other)) == figures(direct)
     assert figures(by_api)[1:] == figures(loopcheck.compare_results(scene, reduced, mujoco, tolerances=scene.tolerances))[1:]
     tight = dataclasses.replace(scene.tolerances, q_atol=1e-12)
     assert not loopcheck.compare_results(scene, reduced, mujoco, tolerances=tight).gate.passed
+
+
+def test_check_takes_the_engines_their_settings_and_tolerances(scene):
+    """The list, settings by engine (the named ones and any engine's Settings) and tolerances for
+    every engine judged reach the runs and the gate (planted: settings ignored, the step is MuJoCo's
+    automatic one; tolerances ignored, the check passes)."""
+    tight = dataclasses.replace(scene.tolerances, q_atol=1e-12)
+    checked = loopcheck.check(scene, ["reduced", "mujoco"], settings=[loopcheck.MujocoSettings(timestep=1e-3)],
+                              reduced=loopcheck.ReducedSettings(rtol=1e-10), tolerances=tight)
+    c = checked.comparison("mujoco")
+    assert c.other.settings.timestep == 1e-3 and c.reference.settings.rtol == 1e-10
+    assert not checked.passed and c.gate.tolerances == tight
+    assert any(f.startswith("q_max_abs = ") for f in checked.verdict("mujoco").comparison.gate.failures)
+    with pytest.raises(KeyError, match="'pin' was not judged in this check .judged: mujoco"):
+        checked.comparison("pin")
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    (dict(engines=["mujoco"]), ValueError, "must include 'reduced'"),
+    (dict(engines=["reduced", "mujco"]), ValueError, "unknown engine 'mujco'"),
+    (dict(engines="reduced,mujoco"), TypeError, "a list of engine names"),
+    (dict(engines=["reduced", "mujoco"], mujoco=ReducedSettings()), TypeError, "mujoco= takes MujocoSettings"),
+    (dict(engines=["reduced", "mujoco"], settings=[{"rtol": 1}]), TypeError, "settings of an engine"),
+])
+def test_check_refuses_a_bad_list_or_settings_before_any_work(scene, kwargs, error, message):
+    with pytest.raises(error, match=message):
+        loopcheck.check(scene, **kwargs)
 
 
 def test_results_are_read_only_arrays(scene):

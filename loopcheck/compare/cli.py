@@ -49,7 +49,14 @@ from typing import TYPE_CHECKING
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
 from loopcheck.errors import NumericalFailure
-from loopcheck.registry import ENGINES
+
+try:
+    from loopcheck.registry import ENGINES
+except ValueError as _exc:  # an engine an installed distribution declares wrongly (loopcheck.registry)
+    if not _AS_COMMAND:
+        raise
+    print(f"loopcheck: {_exc}", file=sys.stderr)
+    sys.exit(2)
 from loopcheck.scene import SceneError
 from loopcheck.scenefile import load_scene
 from loopcheck.settings import add_flags, given_flags, parse_number, parse_whole

@@ -668,5 +668,5 @@ def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
 def plot_mechanism_strip(c: "Comparison", path: Path) -> None:
     """The mechanism at the peak speed and at the largest disagreement, both engines
     overlaid (:func:`draw_strip`)."""
-    draw_strip(c.scene, c.reduced.joints, c.mujoco.joints,
-               strip_moments(c), path, other_label=engine_label(c.mujoco.engine))
+    draw_strip(c.scene, c.reference.joints, c.other.joints,
+               strip_moments(c), path, other_label=engine_label(c.other.engine))

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from statistics import median
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from loopcheck.errors import NumericalFailure
 from loopcheck.registry import ENGINES, REFERENCE
@@ -22,6 +22,7 @@ from loopcheck.results import EngineResult
 from loopcheck.scene import Scene, Tolerances
 
 from .run import Comparison, judge
+from .settings import engine_settings
 
 
 @dataclass(frozen=True)
@@ -46,13 +47,16 @@ class EngineVerdict:
     def known_defects(self) -> tuple[str, ...]:
         """The engine's known defects that bear on its run (:attr:`EngineResult.caveats`), whether
         it was compared or failed part-way; none when it did not run at all."""
-        run = self.comparison.mujoco if self.comparison is not None else self.partial
+        run = self.comparison.other if self.comparison is not None else self.partial
         return run.caveats if run is not None else ()
 
 
 @dataclass(frozen=True)
 class EnginesCheck:
-    """Every engine of a scene against the reduced reference, and the outlier when they disagree."""
+    """Every engine of a scene against the reduced reference, and the outlier when they disagree
+    (what ``loopcheck check --engines`` prints and ``loopcheck.check`` returns): ``passed`` (every
+    engine passed its gate), ``verdicts`` (one per engine judged, in the list's order),
+    ``outlier`` and :meth:`comparison` (one engine's comparison with the reference)."""
 
     scene: Scene
     reference: EngineResult
@@ -64,11 +68,49 @@ class EnginesCheck:
     def passed(self) -> bool:
         return all(v.passed for v in self.verdicts)
 
+    @property
+    def engines(self) -> tuple[str, ...]:
+        """The engines checked, by name: the reference's first."""
+        return (self.reference.engine, *(v.engine for v in self.verdicts))
+
+    def verdict(self, engine: str) -> EngineVerdict:
+        """The verdict of the engine named ``engine`` (KeyError naming the engines judged otherwise)."""
+        for v in self.verdicts:
+            if v.engine == engine:
+                return v
+        raise KeyError(f"'{engine}' was not judged in this check (judged: {', '.join(v.engine for v in self.verdicts)})")
+
+    def comparison(self, engine: str) -> Comparison:
+        """The comparison of the engine named ``engine`` with the reference (``.reference``,
+        ``.other``, ``.diff``, ``.gate``).
+
+        Raises
+        ------
+        KeyError
+            If the engine was not judged in this check.
+        ValueError
+            If it did not run to the end (its verdict's failure, in one line; :meth:`verdict` has
+            the run as far as it went).
+        """
+        v = self.verdict(engine)
+        if v.comparison is None:
+            raise ValueError(f"{engine} has no comparison: {v.failure}")
+        return v.comparison
+
 
 def parse_engines(text: str) -> tuple[str, ...]:
     """``reduced,mujoco,pin`` (``--engines``) into engine names: known, no repeats, the reduced one
     included (the reference). ValueError saying which otherwise."""
-    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    return engine_list(tuple(name.strip() for name in text.split(",") if name.strip()))
+
+
+def engine_list(names: Sequence[str]) -> tuple[str, ...]:
+    """Engine names checked as :func:`parse_engines` checks them (``loopcheck.check(scene,
+    engines=[...])``): known, no repeats, the reduced reference included, another engine beside it."""
+    if isinstance(names, str):
+        raise TypeError(f"a list of engine names, not the string '{names}'")
+    names = tuple(names)
+    text = ",".join(names)
     unknown = [n for n in names if n not in ENGINES]
     if unknown:
         raise ValueError(f"unknown engine '{unknown[0]}' (engines: {', '.join(ENGINES)})")
@@ -87,23 +129,25 @@ def compared_engine(engines: tuple[str, ...]) -> str:
     return "mujoco" if "mujoco" in engines else next(name for name in engines if name != REFERENCE)
 
 
-def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any],
+def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any] | None = None,
                   tolerances: Mapping[str, Tolerances] | None = None) -> EnginesCheck:
-    """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included) on
-    ``scene`` and judge each against the reduced reference by its tolerances: ``tolerances[name]``,
-    by default the scene's for that engine (:meth:`loopcheck.scene.Scene.tolerances_for`).
+    """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included; an
+    engine not there runs with the scene's table over its defaults) on ``scene`` and judge each
+    against the reduced reference by its tolerances: ``tolerances[name]``, by default the scene's
+    for that engine (:meth:`loopcheck.scene.Scene.tolerances_for`).
 
     Raises
     ------
     NumericalFailure
         If the reduced reference fails (another engine's failure is its verdict).
     """
+    settings = {name: (settings or {}).get(name) or engine_settings(name, scene) for name in engines}
     reference = ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
     verdicts = []
     for name in engines:
         if name == REFERENCE:
             continue
-        own = tolerances[name] if tolerances is not None else scene.tolerances_for(name)
+        own = (tolerances or {}).get(name) or scene.tolerances_for(name)
         judged = replace(scene, tolerances=own)  # MuJoCo's automatic step is chosen for the tolerances it is judged by
         try:
             result = ENGINES[name].simulate(judged, settings[name])
@@ -159,4 +203,5 @@ def engines_lines(check: EnginesCheck) -> list[str]:
     return lines
 
 
-__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "compared_engine", "engines_lines", "parse_engines"]
+__all__ = ["EngineVerdict", "EnginesCheck", "check_engines", "compared_engine", "engine_list", "engines_lines",
+           "parse_engines"]

@@ -103,7 +103,7 @@ class Trial:
 
     @property
     def evaluations(self) -> int:
-        return self.comparison.mujoco.n_evaluations if self.comparison is not None else 0
+        return self.comparison.other.n_evaluations if self.comparison is not None else 0
 
 
 def _first_contact(trials) -> NumericalFailure | None:
@@ -239,7 +239,7 @@ def _cheapest_step(options: ModelOptions, horizon: float, trial, tried: list[Tri
 
     def affordable(h: float) -> bool:
         steps = replace(options, timestep=h).steps(horizon)
-        spent = sum(t.comparison.mujoco.n_steps for t in tried if t.comparison is not None)
+        spent = sum(t.comparison.other.n_steps for t in tried if t.comparison is not None)
         return steps <= MAX_STEPS and spent + steps <= SEARCH_STEPS
 
     h = options.timestep
@@ -319,10 +319,10 @@ def _figures(trial: Trial, unit: str) -> str:
         return f"failed: {trial.failure}"
     c = trial.comparison
     d = c.diff
-    gap = c.mujoco.constraint_violation.max
+    gap = c.other.constraint_violation.max
     return (f"peak {d.peak_omega_other:.10g} {unit}/s ({d.peak_omega_rel:.2e} off), max |dq| {d.q_max_abs:.2e} {unit}, "
             f"max |dq/dt| {d.omega_max_abs:.2e} {unit}/s, loops open up to {gap:.2e} m, "
-            f"energy balance {c.mujoco.audit.relative_residual:.2e}")
+            f"energy balance {c.other.audit.relative_residual:.2e}")
 
 
 def reference_failure_lines(imported: ImportedModel, failure: NumericalFailure, source: str) -> list[str]:
@@ -389,7 +389,7 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
         margin = (f"margin: every difference at most {c.excess:.2g} of its tolerance over "
                   f"{check.imported.scene.horizon:g} s, {check.cheapest_half.excess:.2g} at half the step "
                   f"(required: {MARGIN:g})")
-        lines += [f"      cheapest options that meet them with margin: {c.options.text()} ({c.comparison.mujoco.n_steps} "
+        lines += [f"      cheapest options that meet them with margin: {c.options.text()} ({c.comparison.other.n_steps} "
                   f"steps, {work:.3g}x the model's work as written); {margin}; paste into the MJCF{onto}:",
                   *(f"        {line}" for line in snippet.splitlines())]
     return lines

@@ -72,9 +72,9 @@ SPARE_COLOURS = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan",
 
 
 def other_style(c: "Comparison") -> dict:
-    """The style of the engine compared with the reference (``c.mujoco``: MuJoCo's run or another's),
+    """The style of the engine compared with the reference (``c.other``: MuJoCo's run or another's),
     labelled by its name."""
-    return {**MUJOCO_STYLE, "label": engine_label(c.mujoco.engine)}
+    return {**MUJOCO_STYLE, "label": engine_label(c.other.engine)}
 
 
 def engine_colours(engines) -> dict[str, str]:
@@ -155,7 +155,7 @@ def plot_trajectories(c: "Comparison", path: Path) -> None:
     fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * rising), 2, 1, sharex=True,
                                    margins={"top": 0.45 + 0.25 * rising})
     other = other_style(c)
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other)):
+    for result, style in ((c.reference, REDUCED_STYLE), (c.other, other)):
         ax_q.plot(result.trajectory.t, result.trajectory.q, **style)
         ax_w.plot(result.trajectory.t, result.trajectory.qdot, **style)
     # The reduced run's dot larger: where the two coincide, both show.
@@ -228,7 +228,7 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
                                    margins={"top": 0.45 + LEGEND_ROOM + 0.25 * len(extra),
                                             "hspace": 0.3 + LEGEND_ROOM})
     tol = c.gate.tolerances
-    other = engine_label(c.mujoco.engine)
+    other = engine_label(c.other.engine)
     for ax, values, limit, u, label in (
             (ax_q, d.dq, tol.q_atol, unit, f"Δq = q_{other} − q_reduced"),
             (ax_w, d.domega, tol.omega_atol, rate, f"Δq̇ = q̇_{other} − q̇_reduced")):
@@ -254,7 +254,7 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
 def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
     unit, rate = _units(c)
     fig, (ax, ax_d) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other_style(c))):
+    for result, style in ((c.reference, REDUCED_STYLE), (c.other, other_style(c))):
         ax.plot(result.trajectory.q, result.trajectory.qdot, **style)
     ax.set_ylabel(f"q̇ ({rate})")
     ax.set_title(f"{short_name(c.scene.name)}: input rate against input position (phase-free comparison)",
@@ -272,11 +272,11 @@ def plot_constraint_violation(c: "Comparison", path: Path) -> None:
     """The other engine's largest loop gap over time (MuJoCo's equality constraints, Pinocchio's
     point constraints); an engine that records none says so."""
     fig, ax = new_figure((8, 4))
-    violation = c.mujoco.constraint_violation
-    what = ("MuJoCo equality-constraint violation" if c.mujoco.engine in MUJOCO_RUNS
-            else f"{engine_label(c.mujoco.engine)} loop-closure violation")
+    violation = c.other.constraint_violation
+    what = ("MuJoCo equality-constraint violation" if c.other.engine in MUJOCO_RUNS
+            else f"{engine_label(c.other.engine)} loop-closure violation")
     if violation is None:
-        ax.text(0.5, 0.5, f"{engine_label(c.mujoco.engine)} records no loop gap", ha="center", va="center",
+        ax.text(0.5, 0.5, f"{engine_label(c.other.engine)} records no loop gap", ha="center", va="center",
                 transform=ax.transAxes)
         ax.set_title(f"{short_name(c.scene.name)}: {what}", **PLAIN)
         _save(fig, path)
@@ -292,7 +292,7 @@ def plot_constraint_violation(c: "Comparison", path: Path) -> None:
 
 def plot_energy(c: "Comparison", path: Path) -> None:
     fig, (ax, ax_r) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for result, style in ((c.reduced, REDUCED_STYLE), (c.mujoco, other_style(c))):
+    for result, style in ((c.reference, REDUCED_STYLE), (c.other, other_style(c))):
         a = result.audit
         ls = style.get("linestyle", "-")
         name = style["label"].split()[0]

@@ -22,7 +22,9 @@ names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_repo
 reduced reference (:func:`engines_report`), and ``outlier``, the engine farthest from the others
 or null; ``other_engine`` names the engine the rest of the report compares with the reference,
 whose summary is under its own name (``mujoco``, or ``pin`` when MuJoCo is not in the list) and
-whose CSV is ``<engine>.csv``.
+whose CSV is ``<engine>.csv``. Schema 6 (the comparison by role: :class:`loopcheck.compare.run.Comparison`'s
+``reference`` and ``other``): ``reference_engine`` names the engine whose summary is the reference's
+(``reduced``), beside ``other_engine``.
 
 ``loopcheck run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set, ``loopcheck run
 --engines`` ``engines.png`` (:data:`ENGINES_PLOT`).
@@ -42,6 +44,7 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.mechanism import PrismaticJoint
 from loopcheck.results import EngineResult
+from loopcheck.settings import settings_dict
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Peak
 
@@ -56,7 +59,7 @@ if TYPE_CHECKING:
     from .engines import EnginesCheck
     from .run import Comparison
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 # The figures a run writes, by file (each function takes the Comparison and the path).
 PLOTS = {
     "trajectories.png": plot_trajectories,
@@ -117,7 +120,7 @@ def engine_summary(result: EngineResult, peak: Peak | None = None) -> dict:
         "wall_s": result.wall_s,
         "n_steps": result.n_steps,
         "n_evaluations": result.n_evaluations,
-        "settings": result.settings.as_dict(),
+        "settings": settings_dict(result.settings),
         "details": result.details.as_dict(),
         "energy_residual": result.audit.max_abs_residual,
         "energy_residual_rel": result.audit.relative_residual,
@@ -144,10 +147,10 @@ def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list
                 "tolerances": dataclasses.asdict(tolerances),
                 "failures": list(comparison.gate.failures) if comparison is not None else [], "failure": failure,
                 "failed_at": failed_at,
-                "known_defects": list(comparison.mujoco.caveats if defects is None else defects)}
+                "known_defects": list(comparison.other.caveats if defects is None else defects)}
 
     if check is None:
-        return [entry(output_name(c.mujoco.engine), c, c.gate.tolerances, None)]
+        return [entry(output_name(c.other.engine), c, c.gate.tolerances, None)]
     return [entry(v.engine, v.comparison, v.tolerances, v.failure, v.known_defects, v.failed_at)
             for v in check.verdicts]
 
@@ -165,9 +168,10 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "
                   "effects": list(s.effects), "input_joint": s.mechanism.linkage.input_joint,
                   "input_unit": s.input_unit, "q0": s.q0, "qdot0": s.qdot0, "mode": list(s.mode),
                   "horizon": s.horizon},
-        "other_engine": output_name(c.mujoco.engine),
-        "reduced": engine_summary(c.reduced, c.diff.peak_reference),
-        output_name(c.mujoco.engine): engine_summary(c.mujoco, c.diff.peak_other),
+        "reference_engine": output_name(c.reference.engine),
+        "other_engine": output_name(c.other.engine),
+        output_name(c.reference.engine): engine_summary(c.reference, c.diff.peak_reference),
+        output_name(c.other.engine): engine_summary(c.other, c.diff.peak_other),
         "diff": {**{k: _finite(v) for k, v in c.diff.figures().items()},
                  "mode_mismatches": list(c.modes.mismatches),
                  "mode_mismatch_first_times": list(c.modes.first_times),
@@ -242,17 +246,17 @@ def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     reference's body poses interpolated there: :meth:`loopcheck.reduced.charts.JointTrajectory.interpolate`)."""
     linkage = c.scene.mechanism.linkage
     out = []
-    ref_t, mj_t = c.reduced.trajectory.t, c.mujoco.trajectory.t
-    ru, rv = joint_values(c.scene, c.reduced.joints, ref_t, names)
-    mu, mv = joint_values(c.scene, c.mujoco.joints, mj_t, names)
+    ref_t, mj_t = c.reference.trajectory.t, c.other.trajectory.t
+    ru, rv = joint_values(c.scene, c.reference.joints, ref_t, names)
+    mu, mv = joint_values(c.scene, c.other.joints, mj_t, names)
     inside = (mj_t >= ref_t[0]) & (mj_t <= ref_t[-1])
-    x_ref, xdot_ref = c.reduced.joints.interpolate(mj_t[inside])
+    x_ref, xdot_ref = c.reference.joints.interpolate(mj_t[inside])
     rows = _joint_rows(c.scene, names)
     u_ref, v_ref = x_ref @ rows.T, xdot_ref @ rows.T
     du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
     for k, name in enumerate(names):
         engines = {}
-        for engine, u, v in (("reduced", ru, rv), (output_name(c.mujoco.engine), mu, mv)):
+        for engine, u, v in (("reduced", ru, rv), (output_name(c.other.engine), mu, mv)):
             engines[engine] = {"min": float(np.min(u[:, k])), "max": float(np.max(u[:, k])),
                                "final": float(u[-1, k]), "rate_max_abs": float(np.max(np.abs(v[:, k])))}
         out.append({"name": name, "type": "prismatic" if joint_unit(c.scene, name) == "m" else "revolute",
@@ -298,15 +302,15 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
     """
     unit = c.scene.input_unit
     names = joint_columns(c.scene, joints)
-    files = {"reduced.csv": lambda p: _write_csv(c.reduced, p, unit, c.scene, names),
-             f"{output_name(c.mujoco.engine)}.csv": lambda p: _write_csv(c.mujoco, p, unit, c.scene, names)}
+    files = {"reduced.csv": lambda p: _write_csv(c.reference, p, unit, c.scene, names),
+             f"{output_name(c.other.engine)}.csv": lambda p: _write_csv(c.other, p, unit, c.scene, names)}
     files.update({name: (lambda p, plot=plot: plot(c, p)) for name, plot in PLOTS.items()})
     if animate:
         from .draw import animate_run
         from .text import engine_label
 
-        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reduced.joints, c.mujoco.joints, p,
-                                                      other_label=engine_label(c.mujoco.engine))
+        files[ANIMATION_FILE] = lambda p: animate_run(c.scene, c.reference.joints, c.other.joints, p,
+                                                      other_label=engine_label(c.other.engine))
     if engines is not None:
         files[ENGINES_PLOT] = lambda p: plot_engines(engines, p)
     files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names, engines, extraction)), encoding="utf-8")

@@ -17,13 +17,16 @@ from .diff import (Difference, GateResult, ModeCheck, compare_modes, compare_tra
 
 @dataclass(frozen=True)
 class Comparison:
-    """Both engines' results for one scene, how far apart they are, and the verdict."""
+    """Two engines' results for one scene by role, how far apart they are, and the verdict:
+    ``reference`` (the reduced engine's run, :data:`loopcheck.registry.REFERENCE`) and ``other``
+    (the run judged against it: MuJoCo's in the default comparison, any engine's with
+    ``--engines``; ``other.engine`` names it)."""
 
     scene: Scene
-    reduced: EngineResult
-    mujoco: EngineResult
+    reference: EngineResult
+    other: EngineResult
     diff: Difference
-    modes: ModeCheck  # assembly mode of each loop, MuJoCo against the reduced reference
+    modes: ModeCheck  # assembly mode of each loop, the other engine's against the reference's
     gate: GateResult
 
 
@@ -55,7 +58,7 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
                                 peak_floor=peak_floor_of(tolerances))
     modes = compare_modes(reference.joints, other.joints)
     verdict = _name_the_fixed_step(scene, other, gate(diff, tolerances, modes, unit=scene.input_unit))
-    return Comparison(scene=scene, reduced=reference, mujoco=other, diff=diff, modes=modes,
+    return Comparison(scene=scene, reference=reference, other=other, diff=diff, modes=modes,
                       gate=verdict)
 
 

@@ -124,9 +124,9 @@ def comparison_row(c) -> dict[str, Any]:
     ratios = [r for r in ratios if r is not None]
     row.update({"gate.passed": c.gate.passed, **{f"gate.{k}": v for k, v in report["gate"]["tolerances"].items()},
                 "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
-    row.update(engine_row("reduced", c.reduced, c.diff.peak_reference))
-    row.update(engine_row("mujoco", c.mujoco, c.diff.peak_other))
-    row["mujoco.max_constraint_violation"] = c.mujoco.constraint_violation.max
+    row.update(engine_row("reduced", c.reference, c.diff.peak_reference))
+    row.update(engine_row("mujoco", c.other, c.diff.peak_other))
+    row["mujoco.max_constraint_violation"] = c.other.constraint_violation.max
     return row
 
 
@@ -156,7 +156,7 @@ def _run_engines(scene, engines: Engines, summary: bool = True) -> tuple[dict[st
 
     c = compare_engines(scene)
     return (comparison_row(c), "passed" if c.gate.passed else "gate_failed", "; ".join(c.gate.failures),
-            {"reduced": c.reduced, "mujoco": c.mujoco})
+            {"reduced": c.reference, "mujoco": c.other})
 
 
 def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any], source: str,

@@ -80,9 +80,9 @@ def comparison_lines(c: "Comparison") -> list[str]:
     ``peak_other``: the reduced run's largest |q̇| and the other engine's extremum of the same sign
     nearest in time, one event), followed by a line when it is at the end of the horizon,
     still rising. q is the input coordinate, in ``scene.input_unit`` (rad or m). The other
-    engine (``c.mujoco``, MuJoCo's run or another engine's) is named by :func:`engine_label`.
+    engine (``c.other``, MuJoCo's run or another engine's) is named by :func:`engine_label`.
     """
-    r, m, d = c.reduced, c.mujoco, c.diff
+    r, m, d = c.reference, c.other, c.diff
     unit = c.scene.input_unit
     rate = f"{unit}/s"
     other = engine_label(m.engine)

@@ -83,7 +83,7 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
-    assert report["schema_version"] == 5
+    assert report["schema_version"] == 6
     # a plain run (no --engines): MuJoCo, the one engine judged, is the engines list
     assert report["other_engine"] == "mujoco" and report["outlier"] is None
     assert [(e["engine"], e["passed"], e["q_max_abs"]) for e in report["engines"]] == [
@@ -101,7 +101,7 @@ def test_check_passes_on_seed_and_fails_below_measured_difference(seed_compariso
     assert "1 passed, 0 failed" in capsys.readouterr().out
     # at MuJoCo's step of that run (an automatic step would be chosen for the tighter gate)
     tight = seed_comparison.diff.peak_omega_rel / 10
-    step = seed_comparison.mujoco.settings.timestep
+    step = seed_comparison.other.settings.timestep
     assert main(["check", str(SEED_SCENE), "--peak-rtol", f"{tight:.3e}", "--timestep", f"{step!r}"]) == 1
     out = capsys.readouterr().out
     assert "peak_omega_rel" in out and "> tolerance" in out and "fixed timestep" in out and "--timestep" in out

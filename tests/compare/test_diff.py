@@ -206,7 +206,7 @@ def test_swing_peak_is_one_event_in_both_engines_and_the_table_subtracts():
                               "body": "crank", "body_point": [0.5, 0.0]}])
     c = compare_engines(scene, **SETTINGS)
     d = c.diff
-    assert np.sign(c.reduced.peak.omega) != np.sign(c.mujoco.peak.omega)  # the case this is about
+    assert np.sign(c.reference.peak.omega) != np.sign(c.other.peak.omega)  # the case this is about
     assert d.t_peak_abs < 5e-3
     assert d.peak_omega_abs <= d.omega_max_abs + 1e-9
     rows = {line.split("  ")[0]: line.split() for line in comparison_lines(c)}

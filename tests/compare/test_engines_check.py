@@ -188,3 +188,22 @@ def test_a_failed_engine_s_run_travels_with_its_failure(failed_part_way, tmp_pat
     assert np.nanmax(line.get_ydata()) < 1e-3  # |Δq̇| before the loops opened: a real curve (measured 2.4e-4 rad/s)
     legend = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
     assert legend[0].startswith("MuJoCo: FAILED at t = 0.496 s") and "did not run" not in legend[0]
+
+
+def test_an_engine_that_did_not_run_has_a_verdict_and_no_comparison():
+    """check.comparison(name) of an engine that did not run says why in one line (planted: returning
+    the verdict's None comparison fails); an engine not judged is a KeyError naming those judged."""
+    import dataclasses
+
+    from loopcheck.compare.engines import EnginesCheck, EngineVerdict
+    from loopcheck.reduced import ReducedSettings, simulate
+
+    scene = dataclasses.replace(load_scene("scenes/seed_fourbar.toml"), horizon=0.05)
+    reference = simulate(scene, ReducedSettings())
+    refused = EngineVerdict("mjx", scene.tolerances, None, "refused: MJX does not run point forces")
+    check = EnginesCheck(scene, reference, (refused,), None, {})
+    assert check.engines == ("reduced", "mjx") and not check.passed and check.verdict("mjx") is refused
+    with pytest.raises(ValueError, match=r"^mjx has no comparison: refused: MJX does not run point forces$"):
+        check.comparison("mjx")
+    with pytest.raises(KeyError, match="'pin' was not judged in this check .judged: mjx."):
+        check.verdict("pin")

@@ -81,7 +81,7 @@ def test_relative_angle_is_the_difference_of_the_bodies_angles(written):
     scene, c, tables, _ = written
     linkage = scene.mechanism.linkage
     revolute = [j for j in linkage.joints if not isinstance(j, PrismaticJoint)]
-    joints = c.reduced.joints
+    joints = c.reference.joints
     index = np.minimum(np.searchsorted(joints.t, tables["reduced"]["t_s"]), len(joints.t) - 1)
 
     def angle(x, body):
@@ -93,7 +93,7 @@ def test_relative_angle_is_the_difference_of_the_bodies_angles(written):
 
     model = build_model(scene, MujocoSettings(integrator="rk4", timestep=1e-4)).model
     data = mujoco.MjData(model)
-    mj = c.mujoco.joints
+    mj = c.other.joints
     rows = np.arange(0, len(mj.t), 25)
     mj_index = np.searchsorted(tables["mujoco"]["t_s"], mj.t[rows])
     worst = 0.0

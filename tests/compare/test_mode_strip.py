@@ -273,8 +273,8 @@ def comparison_of(scene, reference, other):
     diff = compare_trajectories(rt, ot, horizon=float(rt.t[-1]))
     modes = compare_modes(rj, oj)
     tolerances = Tolerances(q_atol=1e-3, omega_atol=0.1)
-    fields = dict(scene=scene, reduced=engine_result("reduced", rj, rt),
-                  mujoco=engine_result("mujoco", oj, ot, 1e-9), diff=diff, modes=modes,
+    fields = dict(scene=scene, reference=engine_result("reduced", rj, rt),
+                  other=engine_result("mujoco", oj, ot, 1e-9), diff=diff, modes=modes,
                   gate=gate(diff, tolerances, modes, unit=scene.input_unit))
     return type("Comparison", (), fields)()
 
@@ -300,7 +300,7 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert lines[0].startswith("scene: slider_crank (<memory>); input slide (m)")
     assert not any("rad" in line for line in lines), lines
     report = report_dict(c)
-    assert report["schema_version"] == 5
+    assert report["schema_version"] == 6
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]

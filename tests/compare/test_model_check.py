@@ -45,7 +45,7 @@ def test_mujoco_defaults_open_the_loop_and_the_suggested_options_close_it(tmp_pa
     check = check_model(imported)
     assert not check.passed
     assert check.as_written.comparison.diff.peak_omega_rel > 0.01
-    assert check.as_written.comparison.mujoco.constraint_violation.max > 1e-3
+    assert check.as_written.comparison.other.constraint_violation.max > 1e-3
     assert check.stiff_loops.passed and not check.smaller_step.passed
     assert check.cause.startswith("the loops' softness")
     assert check.cheapest is not None and check.cheapest.passed
@@ -183,7 +183,7 @@ def test_the_cheapest_search_costs_rk4_four_evaluations_a_step(tmp_path):
     ran = [t for t in check.tried if t.comparison is not None]
     assert any(t.options.integrator == "rk4" for t in ran) and any(t.options.integrator != "rk4" for t in ran)
     for t in ran:
-        assert t.evaluations == t.comparison.mujoco.n_steps * (4 if t.options.integrator == "rk4" else 1)
+        assert t.evaluations == t.comparison.other.n_steps * (4 if t.options.integrator == "rk4" else 1)
     assert check.cheapest is not None
     assert check.cheapest.evaluations == min(t.evaluations for t in ran if t.passed)
 

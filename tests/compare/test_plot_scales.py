@@ -73,7 +73,7 @@ def test_a_tolerance_within_a_decade_is_a_band_on_the_scale_of_the_data(seed_com
     −tol to +tol, inside the axis, which spans the band plus its margin."""
     d = seed_comparison.diff
     tol = replace(seed_comparison.gate.tolerances, q_atol=2e-5, omega_atol=3e-3)
-    c = judge(seed_comparison.scene, seed_comparison.reduced, seed_comparison.mujoco, tol)
+    c = judge(seed_comparison.scene, seed_comparison.reference, seed_comparison.other, tol)
     fig = drawn(c, monkeypatch, tmp_path)
     for ax, values, limit in zip(fig.axes, (d.dq, d.domega), (2e-5, 3e-3)):
         assert np.max(np.abs(values)) * 10 >= limit  # within a decade: drawn

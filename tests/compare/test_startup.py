@@ -117,7 +117,7 @@ def test_the_engines_plot_is_drawn_once_with_a_line_per_engine(tmp_path, monkeyp
 
     kept = saved_figures(monkeypatch)
     tolerances = comparison.gate.tolerances
-    check = EnginesCheck(comparison.scene, comparison.reduced,
+    check = EnginesCheck(comparison.scene, comparison.reference,
                          (EngineVerdict("mujoco", tolerances, comparison),
                           EngineVerdict("pin", tolerances, None, "numerical failure (budget): ...")), "pin", {})
     plot_engines(check, tmp_path / "engines.png")

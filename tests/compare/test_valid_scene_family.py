@@ -47,9 +47,9 @@ def test_the_generator_draws_this_scene():
 def test_a_step_check_after_a_failed_run_is_confirmed_before_the_gate():
     c = compare_engines(scene_from_dict(FAST_CRANK))
     assert c.gate.passed, c.gate.failures
-    check = c.mujoco.details.timestep_checks
+    check = c.other.details.timestep_checks
     assert any(r.outcome is CheckOutcome.UNCONFIRMED for r in check)  # the 0.125 ms check was not taken alone
-    assert c.mujoco.settings.timestep < 6.25e-5
+    assert c.other.settings.timestep < 6.25e-5
 
 
 # Six of the 42 draws of seed 2024, all of which pass `loopcheck check` at their defaults (measured
@@ -65,7 +65,7 @@ FAMILY = {d["name"]: d for d in generate(2024, 42)}
 def test_the_defaults_pass_their_own_gate_on_a_generated_scene(name):
     c = compare_engines(scene_from_dict(FAMILY[name]))
     assert c.gate.passed, c.gate.failures
-    assert c.mujoco.details.timestep_automatic
+    assert c.other.details.timestep_automatic
 
 
 @pytest.mark.slow  # ~10 s: eight six-bars, some with a few halvings of MuJoCo's step
@@ -78,4 +78,4 @@ def test_the_defaults_pass_their_own_gate_through_a_near_toggle(k):
     c = compare_engines(scene_from_dict(data))
     assert c.gate.passed, c.gate.failures
     toggle = float(data["description"].split("q = ")[1].split(" rad")[0])
-    assert c.reduced.trajectory.q.min() < toggle < c.reduced.trajectory.q.max()
+    assert c.reference.trajectory.q.min() < toggle < c.reference.trajectory.q.max()

@@ -170,8 +170,8 @@ def test_mujoco_runs_the_coupling_as_written():
     x_ref = 0.1) and in the hinge's own sign (J2 reversed): within the scene's tolerances of the exact
     solution, and the re-expanded polynomial is the coupling at qpos = 0 and beyond."""
     scene = loopcheck.scene_from_string(rotors([0.05, -1.5, 0.8], q0=0.4, qdot0=1.0, reversed_joint=True))
-    comparison = loopcheck.check(scene)
-    assert comparison.gate.passed, comparison.gate
+    check = loopcheck.check(scene)
+    assert check.passed, check.comparison("mujoco").gate
     joint1, joint2, P = coupling_polycoef(scene, scene.mechanism.linkage.couplings[0])
     assert (joint1, joint2) == ("J2", "J1")
     # MuJoCo: qpos_y = P(qpos_x) with qpos 0 at x0; the scene: u_y = −θ_r2 = y_ref + p(u_x − x_ref)
@@ -189,8 +189,8 @@ def test_the_catalogue_scene_passes_its_gate_and_mujocos_energy_balances():
     work over the scene's 2 s, summed from efc_force · efc_vel: −1.9e-4 J of 2950 J (measured)."""
     scene = loopcheck.load_scene(FLYWHEEL)
     short = dataclasses.replace(scene, horizon=0.5)
-    comparison = loopcheck.check(short)
-    assert comparison.gate.passed, comparison.gate
+    check = loopcheck.check(short)
+    assert check.passed, check.comparison("mujoco").gate
     mujoco_run = loopcheck.simulate(short, loopcheck.mujoco_settings(short))
     assert mujoco_run.audit.relative_residual <= 1e-5
 

@@ -1,6 +1,7 @@
-"""A third engine is one package and one line in the registry (docs/engines.md): a package
-written here, with a ``settings`` module (one option) and a ``simulate``, registered by one entry
-of ``loopcheck.registry.ENGINES``, gets its scene table read and checked, its flags, its rows in the
+"""A third engine is one package and one entry of the registry (docs/engines.md): a package
+written here, with a ``settings`` module (one option) and a ``simulate``, put in
+``loopcheck.registry.ENGINES`` as the registry puts an engine declared by an entry point
+(tests/compare/test_fake_engine.py installs one as a distribution), gets its scene table read and checked, its flags, its rows in the
 scene-format reference, and ``loopcheck.simulate`` runs it, with nothing else changed. (Planted: the
 scene reader looking only at ``[reduced]`` and ``[mujoco]`` by name fails the table test.)
 

@@ -88,10 +88,10 @@ def test_no_prediction_when_the_differences_do_not_fall():
 @pytest.mark.slow  # ~15 s: 124 000 MuJoCo steps of a six-bar
 def test_a_six_bar_near_its_toggle_passes_the_gate_at_the_defaults():
     c = compare_engines(scene_from_dict(_near_toggle()))
-    h = c.mujoco.settings.timestep
+    h = c.other.settings.timestep
     assert c.gate.passed, c.gate.failures
-    assert h < 1.5625e-5 and c.mujoco.details.timestep_automatic  # below where the search stopped
-    checks = c.mujoco.details.timestep_checks
+    assert h < 1.5625e-5 and c.other.details.timestep_automatic  # below where the search stopped
+    checks = c.other.details.timestep_checks
     assert any(isinstance(r, MeasuredCheck) and r.order for r in checks)  # it jumped by the fitted order
 
 
@@ -102,7 +102,7 @@ def test_the_step_is_chosen_for_the_gate_tolerances():
     tight = replace(scene.tolerances, q_atol=1e-6, omega_atol=1e-3)
     c = compare_engines(scene, tolerances=tight)
     assert c.gate.passed, c.gate.failures
-    assert c.mujoco.details.timestep_checks[-1].limits[1] == pytest.approx(0.25 * 1e-3)
+    assert c.other.details.timestep_checks[-1].limits[1] == pytest.approx(0.25 * 1e-3)
 
 
 def test_a_fixed_step_that_fails_the_gate_is_named():
