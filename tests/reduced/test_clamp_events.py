@@ -160,7 +160,7 @@ def test_the_event_spares_dop853_its_rejected_steps():
 def test_mujoco_built_from_the_scene_agrees():
     """MuJoCo clamps the same way (actuator_forcerange): the check passes at the scene's tolerances
     (q 1e-3 rad); measured 1.2e-7 rad in q, 4.3e-7 rad/s in q̇ (MuJoCo's RK4 at its step)."""
-    comparison = check(clamped_rotor())
+    comparison = check(clamped_rotor()).comparison("mujoco")
     assert comparison.gate.passed, comparison.gate.failures
     assert comparison.diff.q_max_abs < 1e-5
 
