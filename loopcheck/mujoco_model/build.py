@@ -698,8 +698,10 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
     assembled pose ~1e-6 m off and open the loops by that much when the file is loaded.
     Each number is rewritten as the shortest text that reads back to the same double
     (``repr``, without a trailing ".0"); attributes the writer left out (at their defaults)
-    stay out. Covers the option, bodies (pos, quat, inertial), joints (pos, axis), sites,
-    spatial tendons, connects, joint couplings, keyframes and custom numerics.
+    stay out. Covers the option, bodies (pos, quat, inertial), joints (pos, axis, range, ref,
+    springref, armature, frictionloss, damping, stiffness), sites, tendons (their coefficients,
+    damping, stiffness, springlength, armature, frictionloss, range), actuators, connects, joint
+    couplings, keyframes and custom numerics.
     """
     root = ET.fromstring(spec.to_xml())
 
@@ -728,8 +730,10 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
             put(element, "solimp", equality.solimp)
         elif element.get("name") is not None:
             joint = spec.joint(element.get("name"))
-            put(element, "pos", joint.pos)
-            put(element, "axis", joint.axis)
+            for attribute in ("pos", "axis", "range", "ref", "springref", "armature", "frictionloss"):
+                put(element, attribute, getattr(joint, attribute))
+            put(element, "damping", joint.damping[0])
+            put(element, "stiffness", joint.stiffness[0])
     for element in root.iter("site"):
         if element.get("name") is not None:
             put(element, "pos", spec.site(element.get("name")).pos)
@@ -738,6 +742,11 @@ def mjcf_from_spec(spec: mujoco.MjSpec) -> str:
         put(element, "damping", tendon.damping[0])
         put(element, "stiffness", tendon.stiffness[0])
         put(element, "springlength", tendon.springlength[0])
+        for attribute in ("armature", "frictionloss", "range"):
+            put(element, attribute, getattr(tendon, attribute))
+        if element.tag == "fixed":  # its joints' coefficients, in the order written
+            for child, wrap in zip(element.findall("joint"), tendon.path):
+                put(child, "coef", wrap.coef)
     for element in root.iter("general"):
         act = spec.actuator(element.get("name"))
         put(element, "gainprm", act.gainprm[0:1])
