@@ -294,6 +294,8 @@ def _parse_actuators(top: Table, linkage: Linkage) -> list[Actuator]:
     joints = linkage.joint_map
     for k, t in enumerate(array_of_tables(top, "actuators")):
         name = name_key(t.string("name", f"actuator{k}"), t.key("name"))
+        if name in {a.name for a in out}:
+            raise SceneError(f"'{t.key('name')}' = \"{name}\": duplicate actuator name")
         if t.has("joint") == t.has("tendon"):
             raise SceneError(f"'{t.path}' needs its transmission: 'joint' or 'tendon' (one of the two)")
         joint, tendon = None, None

@@ -332,8 +332,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         scene = _run_scene(args, args.scene)
         joints = joint_columns(scene, args.joints)  # an unknown name is refused before any work
-        comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
-                                     mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
+        try:
+            comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
+                                         mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
+        except UsageError:
+            raise
+        except ValueError as exc:  # what an engine refuses of the scene (a name its model reserves): the file named
+            raise UsageError(f"{scene.source}: {exc}") from None
         print("\n".join(comparison_lines(comparison)))
         extraction = None
     write_outputs(comparison, args.out, animate=animate, joints=joints, extraction=extraction,
@@ -458,6 +463,10 @@ def cmd_check(args: argparse.Namespace) -> int:
         try:
             c = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                 tolerances=tolerances)
+        except UsageError:
+            raise
+        except ValueError as exc:  # what an engine refuses of the scene (a name its model reserves): the file named
+            raise UsageError(f"{scene.source}: {exc}") from None
         except NumericalFailure as exc:
             failed += 1
             print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")

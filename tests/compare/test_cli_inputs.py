@@ -245,3 +245,18 @@ def test_a_scene_the_reference_cannot_run_is_refused_before_any_output(capsys):
     out, err = capsys.readouterr()
     assert out == ""
     assert err.count("\n") == 1 and err.startswith(f"loopcheck: error: {friction}: the reduced engine's method radau")
+
+
+@pytest.mark.parametrize("command", ["check", "run"])
+def test_a_name_the_mujoco_model_reserves_is_refused_naming_the_scene_file(command, tmp_path, capsys):
+    """An actuator named 'input_motor' beside a [torque] load (the name of the load's motor in the
+    MuJoCo model): one line naming the scene file, exit 2, nothing on stdout (planted: the builder's
+    ValueError printed without the file)."""
+    text = (Path(__file__).resolve().parents[2] / "scenes" / "mechanisms" / "friction_fourbar.toml").read_text()
+    text = text.replace("[torque]", '[[actuators]]\nname = "input_motor"\njoint = "O3"\n\n[torque]', 1)
+    scene = tmp_path / "clash.toml"
+    scene.write_text(text)
+    assert main([command, str(scene), "-o", str(tmp_path / "out")] if command == "run" else [command, str(scene)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1
+    assert err.startswith(f"loopcheck: error: {scene}: actuator name 'input_motor' is the input load's motor")

@@ -136,6 +136,13 @@ def test_bad_actuator_keys_are_named(extra, key):
         rotor(extra=extra)
 
 
+def test_a_duplicate_actuator_name_is_named_by_its_key():
+    """Two actuators named alike: the second's name key (planted: the Mechanism's own check, which
+    the scene reader attributed to 'bodies')."""
+    with pytest.raises(SceneError, match=re.escape("'actuators[1].name' = \"servo\": duplicate actuator name")):
+        rotor(extra='\n[[actuators]]\nname = "servo"\njoint = "O"')
+
+
 def test_bad_transmissions_are_named():
     with pytest.raises(SceneError, match=r"actuators\[0\].joint' = \"X\" is not one of the joints"):
         rotor(transmission='joint = "X"')
