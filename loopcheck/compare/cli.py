@@ -443,17 +443,21 @@ def cmd_check(args: argparse.Namespace) -> int:
     for path, imported in models.items():
         from .model_check import check_lines as model_lines, check_model, reference_failure_lines
 
-        for line in imported.warnings:
-            print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
-        for line in imported.said:
-            print(f"{path}: {line}")
+        def said(imported=imported, path=path) -> None:  # after the check: a refusal in it prints its line alone
+            for line in imported.warnings:
+                print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+            for line in imported.said:
+                print(f"{path}: {line}")
+
         try:
             check = check_model(imported, tolerances=_tolerances(imported.scene, args),
                                 reduced=_reduced_reference(args, imported.scene))
         except NumericalFailure as exc:  # the reduced reference's (the model's own runs record theirs)
             failed += 1
+            said()
             print("\n".join(reference_failure_lines(imported, exc, path)))
             continue
+        said()
         failed += not check.passed
         print("\n".join(model_lines(check, path)))
         if imported.extraction:
