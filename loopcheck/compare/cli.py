@@ -130,6 +130,13 @@ def _run_scene(args: argparse.Namespace, path: str | None):
     return overridden
 
 
+def _named(exc: ValueError, source: str) -> ValueError:
+    """``exc`` as a refusal naming the scene file ``source``, unless it already does."""
+    if isinstance(exc, UsageError) or str(exc).startswith(source):
+        return exc
+    return UsageError(f"{source}: {exc}")
+
+
 def _positive(text: str) -> float:
     """An argparse type: a positive number (the engines' flags read theirs the same way)."""
     return parse_number(text, positive=True)
@@ -335,10 +342,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             comparison = compare_engines(scene, reduced=_reduced_reference(args, scene),
                                          mujoco=_mujoco_settings(args, scene), tolerances=_tolerances(scene, args))
-        except UsageError:
-            raise
         except ValueError as exc:  # what an engine refuses of the scene (a name its model reserves): the file named
-            raise UsageError(f"{scene.source}: {exc}") from None
+            raise _named(exc, scene.source) from None
         print("\n".join(comparison_lines(comparison)))
         extraction = None
     write_outputs(comparison, args.out, animate=animate, joints=joints, extraction=extraction,
@@ -467,10 +472,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         try:
             c = compare_engines(scene, reduced=_reduced_reference(args, scene), mujoco=_mujoco_settings(args, scene),
                                 tolerances=tolerances)
-        except UsageError:
-            raise
         except ValueError as exc:  # what an engine refuses of the scene (a name its model reserves): the file named
-            raise UsageError(f"{scene.source}: {exc}") from None
+            raise _named(exc, scene.source) from None
         except NumericalFailure as exc:
             failed += 1
             print(f"FAIL  {scene.source}: numerical failure ({exc.reason}): {exc}")
