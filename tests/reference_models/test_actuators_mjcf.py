@@ -244,3 +244,29 @@ def test_an_input_motors_control_beyond_its_forcerange_is_clamped_as_mujoco_clam
     assert np.array_equal(written.trajectory.q, written_same.trajectory.q)
     reduced, reduced_same = (simulate(i.scene, reduced_settings(i.scene)) for i in (imported, same))
     assert np.array_equal(reduced.trajectory.q, reduced_same.trajectory.q)
+
+
+def test_ctrl_named_for_the_input_motor_is_its_control(tmp_path, capsys):
+    """--ctrl drive=5 names the input motor: the same scene as a bare --ctrl 5, with --loop too (the
+    foot four-bar's kept motor is its input motor); given twice, or an unknown name, refused."""
+    import loop_robots as robots
+
+    from loopcheck.compare.cli import main
+
+    rotor, named, bare = DATA / "rotor_frictionloss.xml", tmp_path / "named.toml", tmp_path / "bare.toml"
+    assert main(["import-mjcf", str(rotor), "--ctrl", "drive=5", "-o", str(named)]) == 0
+    assert main(["import-mjcf", str(rotor), "--ctrl", "5", "-o", str(bare)]) == 0
+    assert named.read_text() == bare.read_text() and "value = 5" in named.read_text()
+    leg = tmp_path / "leg.xml"
+    leg.write_text(robots.floating_leg())
+    assert main(["import-mjcf", str(leg), "--loop", "foot_loop", "--ctrl", "foot_motor=0.002", "-o", str(named)]) == 0
+    assert main(["import-mjcf", str(leg), "--loop", "foot_loop", "--ctrl", "0.002", "-o", str(bare)]) == 0
+    assert named.read_text() == bare.read_text() and "value = 0.002" in named.read_text()
+    capsys.readouterr()
+    out = tmp_path / "x.toml"
+    assert main(["import-mjcf", str(rotor), "--ctrl", "5", "--ctrl", "drive=5", "-o", str(out)]) == 2
+    assert "--ctrl drive=...: given twice" in _one_error_line(capsys) and not out.exists()
+    assert main(["import-mjcf", str(rotor), "--ctrl", "drive=5", "--ctrl", "drive=6", "-o", str(out)]) == 2
+    assert "--ctrl drive=...: given twice" in _one_error_line(capsys)
+    assert main(["import-mjcf", str(rotor), "--ctrl", "nope=5", "-o", str(out)]) == 2
+    assert "no actuator 'nope'" in _one_error_line(capsys) and not out.exists()
