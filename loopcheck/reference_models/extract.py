@@ -722,9 +722,16 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
             raise MjcfError(text) from None
     if write_to is not None:  # the file the check ran, once it is read (no partial output)
         Path(write_to).write_text(ext.xml)
-    imported = dataclasses.replace(imported, extraction=ext, said=ext.said + imported.said,
+    imported = dataclasses.replace(imported, scene=_named_after(imported.scene, path, " ".join(f"--loop {n}" for n in loops)),
+                                   extraction=ext, said=ext.said + imported.said,
                                    warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
     return imported, ext
+
+
+def _named_after(scene, path: Path, flags: str):
+    """The scene read from a temporary file, named after the user's model and the flags that made it
+    (``leg.xml --loop foot_loop``): the temporary file is gone once read."""
+    return dataclasses.replace(scene, source=f"{path} {flags}", description=f"imported from {path.name} ({flags})")
 
 
 def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bool = False,
@@ -752,7 +759,8 @@ def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bo
             imported = import_mjcf(target, keyframe=key, name=kwargs.pop("name", None) or path.stem, **kwargs)
         except MjcfError as exc:
             raise MjcfError(str(exc).replace(str(target), f"{path} (--assemble)")) from None
-    return dataclasses.replace(imported, said=((said_key,) if said_key else ()) + (assembly.line(),) + imported.said,
+    return dataclasses.replace(imported, scene=_named_after(imported.scene, path, "--assemble"),
+                               said=((said_key,) if said_key else ()) + (assembly.line(),) + imported.said,
                                warnings=tuple(dict.fromkeys([*warnings, *imported.warnings])))
 
 

@@ -113,7 +113,13 @@ def test_run_loop_writes_the_extraction_in_report_json(tmp_path, capsys):
     robot, _ = _robot(tmp_path, "leg")
     out = tmp_path / "report"
     main(["run", str(robot), "--loop", "foot_loop", "--horizon", "0.05", "-o", str(out)])
+    printed = capsys.readouterr().out
+    assert f"scene: leg ({robot} --loop foot_loop); input crank_j" in printed  # the user's model, not a temporary file
+    assert "loopcheck-loop" not in printed and "leg.loop.xml" not in printed
     report = json.loads((out / "report.json").read_text())
+    assert report["scene"]["source"].endswith("leg.xml --loop foot_loop")
+    assert report["scene"]["description"] == "imported from leg.xml (--loop foot_loop)"
+    assert "loopcheck-loop" not in (out / "report.json").read_text()
     ext = report["extraction"]
     assert ext["check"] == CHECK_SCOPE
     assert ext["dropped"] == ["actuator 'hip_motor' (on welded joint 'hip')",

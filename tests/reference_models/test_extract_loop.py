@@ -211,6 +211,7 @@ def test_assemble_without_loop_applies_to_the_whole_model(tmp_path):
     robot = tmp_path / "alone_open.xml"
     robot.write_text(_open_key(by_hand.read_text(), 2, 0.002))
     imported = import_assembled(robot, horizon=HORIZON)
+    assert imported.scene.source == f"{robot} --assemble"  # the user's model, not the temporary file read
     assert any(line.startswith("assembled (--assemble): loops open by 6.08e-05") and "joint 'rocker_j' by -0.002 rad"
                in line for line in imported.said)
     fixed = ReducedSettings(method="rkn4", step=1e-4)
