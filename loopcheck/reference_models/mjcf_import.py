@@ -1113,6 +1113,12 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             reader.fail(f"--ctrl {motor_name}=...: given twice (a bare --ctrl is the input motor's control too)")
         controls = dict(controls)
         control = controls.pop(motor_name)
+    if motor_name is not None and motor_name in customs.controls:  # loopcheck.ctrl.MOTOR: the same, from the file
+        named_in_file = customs.controls.pop(motor_name)
+        if customs.control is not None:
+            reader.fail(f"custom numerics '{CUSTOM_CTRL}' and '{CUSTOM_ACTUATOR_CTRL}{motor_name}' both give the input "
+                        "motor's control: keep one")
+        control = control if control is not None else named_in_file
     if motor is None and control is not None and model.nu:
         if model.nu != 1:
             reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "

@@ -270,3 +270,20 @@ def test_ctrl_named_for_the_input_motor_is_its_control(tmp_path, capsys):
     assert "--ctrl drive=...: given twice" in _one_error_line(capsys)
     assert main(["import-mjcf", str(rotor), "--ctrl", "nope=5", "-o", str(out)]) == 2
     assert "no actuator 'nope'" in _one_error_line(capsys) and not out.exists()
+
+
+def test_the_file_numeric_named_for_the_input_motor_is_its_control(tmp_path):
+    """loopcheck.ctrl.drive names the input motor: its control, as loopcheck.ctrl; both refused."""
+    text = (DATA / "rotor_frictionloss.xml").read_text()
+    named = tmp_path / "named.xml"
+    named.write_text(text.replace("</mujoco>", '<custom><numeric name="loopcheck.ctrl.drive" size="2" data="0 5"/>'
+                                               "</custom></mujoco>"))
+    imported = import_mjcf(named)
+    assert imported.control == Control.constant(5.0)
+    bare = import_mjcf(DATA / "rotor_frictionloss.xml", control=Control.constant(5.0))
+    assert imported.scene.load == bare.scene.load and imported.scene.load is not None
+    both = tmp_path / "both.xml"
+    both.write_text(named.read_text().replace("<custom>", '<custom><numeric name="loopcheck.ctrl" size="2" data="0 4"/>'))
+    with pytest.raises(MjcfError, match=r"'loopcheck.ctrl' and 'loopcheck.ctrl.drive' both give the input motor's "
+                                        r"control"):
+        import_mjcf(both)
