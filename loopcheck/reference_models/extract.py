@@ -348,7 +348,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     ------
     MjcfError
         One line naming the file and the reason: a name that closes no loop, a body in several
-        loops, a spatial loop, a coupling or connect that locks the loop to the held robot.
+        loops, a spatial loop, a connect or weld that locks the loop to the held robot.
     """
     path = Path(path)
     model, loading = _load_model(path)
