@@ -64,7 +64,7 @@ from loopcheck.shipped_scenes import catalogue, default_scene_path, resolve_scen
 from loopcheck.sweep_spec import ENGINE_CHOICES
 
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
-                     WriterDied, check_file, check_folder, signals_as_exceptions, write_file)
+                     WriterDied, check_file, check_folder, refuse_same_outputs, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
 from .text import mujoco_lines, pin_lines, reduced_lines
 
@@ -248,6 +248,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
     from loopcheck.reference_models.user_model import input_coordinate
 
     check_file(args.out, flag="-o", inputs=[args.model])  # before any work
+    if args.write_submodel is not None:
+        refuse_same_outputs([("-o", args.out), ("--write-submodel", args.write_submodel)])
     imported = _import(args, args.model)
     for line in imported.warnings:
         print(f"loopcheck: warning: {line}", file=sys.stderr)

@@ -158,6 +158,25 @@ def _refuse_inputs(target: Path, inputs: Iterable[str | os.PathLike], flag: str)
                               "its input; give another name")
 
 
+def refuse_same_outputs(outputs: Iterable[tuple[str, str | os.PathLike]]) -> None:
+    """Raise if two of one command's outputs, ``(flag, path)`` each, name the same file: the same
+    path once resolved (symbolic links followed, the file there or not), or the same existing file
+    by device and inode (a hard link); the second written would replace the first."""
+    seen: list[tuple[str, str | os.PathLike, str, tuple | None]] = []
+    for flag, path in outputs:
+        real = os.path.realpath(path)
+        try:
+            st = os.stat(real)
+            inode = (st.st_dev, st.st_ino)
+        except OSError:
+            inode = None
+        for other_flag, other, other_real, other_inode in seen:
+            if real == other_real or (inode is not None and inode == other_inode):
+                raise OutputError(f"{flag} '{path}' and {other_flag} '{other}' name the same file: each output needs "
+                                  "its own; give another name")
+        seen.append((flag, path, real, inode))
+
+
 def check_folder(path: str | os.PathLike, names: Iterable[str] = (), *, flag: str = "--out",
                  inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """Check that the folder ``path`` can receive the files ``names``, before any work.

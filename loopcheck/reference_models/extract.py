@@ -3,7 +3,8 @@
 :func:`extract_loop` reads a model at one configuration (the keyframe's ``qpos`` or ``qpos0``, as
 :func:`loopcheck.reference_models.mjcf_import.import_mjcf` reads it) and edits its ``MjSpec``:
 
-- the loop: the connects and joint couplings named (a loop closed by several is kept whole) and the
+- the loop: the connects and joint couplings named, with every closure joined to them through a shared
+  moving body or a coupled joint (:func:`_components`: the mechanism is kept whole), and the
   bodies on the tree path between each one's two ends (the path's top body, where the two branches
   meet, is the loop's ground); those bodies keep their joints;
 - mass: the descendants of the loop's moving bodies stay, their joints welded at the configuration
@@ -12,7 +13,8 @@
   each welded body's pose is rebased to its pose there;
 - what acts outside the kept set is dropped and listed (actuators, tendons, equalities, contact
   pairs, sensors); a spatial tendon with a site on a moving body is kept (its other sites are then
-  ground); a coupling or connect between the loop and a welded joint or body is refused (a lock);
+  ground); a joint coupling joins the loop of each joint it couples (:func:`_components`), so none
+  reaches a welded joint; a connect or weld between the loop and a welded body is refused (a lock);
   a collidable geom on ground stays (a foot and the floor: a contact fails the check).
 - the plane: the loop's hinge axes must be parallel within :data:`PLANAR_TOL` rad; above
   :data:`AXIS_TOL`, they are projected on their mean normal, with a warning quoting the largest angle.
@@ -175,23 +177,13 @@ def _closures(m: mujoco.MjModel) -> list[_Closure]:
 
 
 def _components(closures: list[_Closure]) -> list[list[_Closure]]:
-    """The loops: closures grouped when their moving bodies overlap (one mechanism)."""
+    """The loops: closures (connects and joint couplings alike) grouped when their moving bodies
+    overlap, transitively (one mechanism). A coupling's moving bodies hold its two joints, so a
+    coupling joins every loop one of its joints moves (the coupled fingers of a hand, a geared
+    flywheel), and a coupled joint is never welded."""
     groups: list[list[_Closure]] = []
     for c in closures:
-        if c.kind == _EQ_JOINT:
-            continue
         joined = [g for g in groups if any(c.bodies & o.bodies for o in g)]
-        merged = [c] + [o for g in joined for o in g]
-        groups = [g for g in groups if g not in joined] + [sorted(merged, key=lambda o: o.index)]
-    # a coupling whose two joints move loops' bodies makes those loops one mechanism (the coupled
-    # fingers of a hand); any other is a loop of its own (a lock when it couples a loop's joint)
-    for c in (c for c in closures if c.kind == _EQ_JOINT):
-        ends = [next((g for g in groups if any(b in o.bodies for o in g if o.kind != _EQ_JOINT)), None)
-                for b in c.ends]
-        if any(g is None for g in ends):
-            groups.append([c])
-            continue
-        joined = [g for g in groups if any(g is e for e in ends)]
         merged = [c] + [o for g in joined for o in g]
         groups = [g for g in groups if not any(g is j for j in joined)] + [sorted(merged, key=lambda o: o.index)]
     return sorted(groups, key=lambda g: g[0].index)
@@ -356,7 +348,7 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
     ------
     MjcfError
         One line naming the file and the reason: a name that closes no loop, a body in several
-        loops, a spatial loop, a coupling or connect that locks the loop to the held robot.
+        loops, a spatial loop, a connect or weld that locks the loop to the held robot.
     """
     path = Path(path)
     model, loading = _load_model(path)
@@ -444,12 +436,8 @@ def extract_loop(path: str | Path, loops: list[str], *, keyframe: str | None = N
             inside = [j for j in js if j in kept_joints]
             if inside and len(inside) == len(js):  # within the loop: it acts there
                 continue
-            if inside:
-                others = [label(_OBJ.mjOBJ_JOINT, j) for j in js if j not in kept_joints]
-                raise MjcfError(f"{path}: --loop {', '.join(loops)}: {what} couples the loop's "
-                                f"{label(_OBJ.mjOBJ_JOINT, inside[0])} with welded "
-                                f"{', '.join(others) or 'nothing'}: with the rest of the robot held still it locks "
-                                "the loop")
+            # an active coupling of two joints closes a loop (_closures) and joins the loop of either
+            # joint (_components): one that reaches a welded joint here is inactive at the start
         elif kind in (_CONNECT, _WELD):
             if int(m.eq_objtype[e]) == int(_OBJ.mjOBJ_SITE):
                 bs = [int(m.site_bodyid[int(m.eq_obj1id[e])]), int(m.site_bodyid[int(m.eq_obj2id[e])])]
@@ -734,9 +722,16 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
             raise MjcfError(text) from None
     if write_to is not None:  # the file the check ran, once it is read (no partial output)
         Path(write_to).write_text(ext.xml)
-    imported = dataclasses.replace(imported, extraction=ext, said=ext.said + imported.said,
+    imported = dataclasses.replace(imported, scene=_named_after(imported.scene, path, " ".join(f"--loop {n}" for n in loops)),
+                                   extraction=ext, said=ext.said + imported.said,
                                    warnings=tuple(dict.fromkeys([*ext.warnings, *imported.warnings])))
     return imported, ext
+
+
+def _named_after(scene, path: Path, flags: str):
+    """The scene read from a temporary file, named after the user's model and the flags that made it
+    (``leg.xml --loop foot_loop``): the temporary file is gone once read."""
+    return dataclasses.replace(scene, source=f"{path} {flags}", description=f"imported from {path.name} ({flags})")
 
 
 def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bool = False,
@@ -764,7 +759,8 @@ def import_assembled(path: str | Path, *, keyframe: str | None = None, qpos0: bo
             imported = import_mjcf(target, keyframe=key, name=kwargs.pop("name", None) or path.stem, **kwargs)
         except MjcfError as exc:
             raise MjcfError(str(exc).replace(str(target), f"{path} (--assemble)")) from None
-    return dataclasses.replace(imported, said=((said_key,) if said_key else ()) + (assembly.line(),) + imported.said,
+    return dataclasses.replace(imported, scene=_named_after(imported.scene, path, "--assemble"),
+                               said=((said_key,) if said_key else ()) + (assembly.line(),) + imported.said,
                                warnings=tuple(dict.fromkeys([*warnings, *imported.warnings])))
 
 

@@ -1082,6 +1082,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     qpos, qvel, key_ctrl, keyframe, said_key = _state(path, model, keyframe, qpos0)
     customs = _customs(path, model)
     horizon = horizon if horizon is not None else customs.horizon if customs.horizon is not None else 1.0
+    given_bare = control  # --ctrl VALUE (the input motor's, or the only actuator's)
     control = control if control is not None else customs.control
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
@@ -1106,6 +1107,18 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
         raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
     motor = _input_motor(reader, inp)
+    motor_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, motor) if motor is not None else None
+    if motor_name is not None and motor_name in (controls or {}):  # --ctrl MOTOR=...: the input motor's control
+        if given_bare is not None:
+            reader.fail(f"--ctrl {motor_name}=...: given twice (a bare --ctrl is the input motor's control too)")
+        controls = dict(controls)
+        control = controls.pop(motor_name)
+    if motor_name is not None and motor_name in customs.controls:  # loopcheck.ctrl.MOTOR: the same, from the file
+        named_in_file = customs.controls.pop(motor_name)
+        if customs.control is not None:
+            reader.fail(f"custom numerics '{CUSTOM_CTRL}' and '{CUSTOM_ACTUATOR_CTRL}{motor_name}' both give the input "
+                        "motor's control: keep one")
+        control = control if control is not None else named_in_file
     if motor is None and control is not None and model.nu:
         if model.nu != 1:
             reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "

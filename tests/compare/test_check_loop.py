@@ -82,6 +82,22 @@ def test_write_submodel_never_overwrites_the_input(tmp_path, capsys):
     assert "--write-submodel" in capsys.readouterr().err
 
 
+def test_two_outputs_naming_one_file_are_refused_before_any_work(tmp_path, capsys):
+    robot, _ = _robot(tmp_path, "leg")
+    same = tmp_path / "same.toml"
+    assert main(["import-mjcf", str(robot), "--loop", "foot_loop", "--write-submodel", str(same),
+                 "-o", str(same)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "name the same file" in err and "--write-submodel" in err
+    assert not same.exists()
+    link = tmp_path / "link.toml"
+    link.symlink_to(same)  # a link to a file not there yet: the same file once written
+    assert main(["import-mjcf", str(robot), "--loop", "foot_loop", "--write-submodel", str(link),
+                 "-o", str(tmp_path / "." / "same.toml")]) == 2
+    assert "name the same file" in capsys.readouterr().err
+    assert not same.exists()
+
+
 def test_refusals_are_one_line(tmp_path, capsys):
     robot, _ = _robot(tmp_path, "leg")
     assert main(["check", str(robot), "--loop", "nowhere"]) == 2
@@ -97,7 +113,13 @@ def test_run_loop_writes_the_extraction_in_report_json(tmp_path, capsys):
     robot, _ = _robot(tmp_path, "leg")
     out = tmp_path / "report"
     main(["run", str(robot), "--loop", "foot_loop", "--horizon", "0.05", "-o", str(out)])
+    printed = capsys.readouterr().out
+    assert f"scene: leg ({robot} --loop foot_loop); input crank_j" in printed  # the user's model, not a temporary file
+    assert "loopcheck-loop" not in printed and "leg.loop.xml" not in printed
     report = json.loads((out / "report.json").read_text())
+    assert report["scene"]["source"].endswith("leg.xml --loop foot_loop")
+    assert report["scene"]["description"] == "imported from leg.xml (--loop foot_loop)"
+    assert "loopcheck-loop" not in (out / "report.json").read_text()
     ext = report["extraction"]
     assert ext["check"] == CHECK_SCOPE
     assert ext["dropped"] == ["actuator 'hip_motor' (on welded joint 'hip')",

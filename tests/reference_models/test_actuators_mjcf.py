@@ -244,3 +244,46 @@ def test_an_input_motors_control_beyond_its_forcerange_is_clamped_as_mujoco_clam
     assert np.array_equal(written.trajectory.q, written_same.trajectory.q)
     reduced, reduced_same = (simulate(i.scene, reduced_settings(i.scene)) for i in (imported, same))
     assert np.array_equal(reduced.trajectory.q, reduced_same.trajectory.q)
+
+
+def test_ctrl_named_for_the_input_motor_is_its_control(tmp_path, capsys):
+    """--ctrl drive=5 names the input motor: the same scene as a bare --ctrl 5, with --loop too (the
+    foot four-bar's kept motor is its input motor); given twice, or an unknown name, refused."""
+    import loop_robots as robots
+
+    from loopcheck.compare.cli import main
+
+    rotor, named, bare = DATA / "rotor_frictionloss.xml", tmp_path / "named.toml", tmp_path / "bare.toml"
+    assert main(["import-mjcf", str(rotor), "--ctrl", "drive=5", "-o", str(named)]) == 0
+    assert main(["import-mjcf", str(rotor), "--ctrl", "5", "-o", str(bare)]) == 0
+    assert named.read_text() == bare.read_text() and "value = 5" in named.read_text()
+    leg = tmp_path / "leg.xml"
+    leg.write_text(robots.floating_leg())
+    assert main(["import-mjcf", str(leg), "--loop", "foot_loop", "--ctrl", "foot_motor=0.002", "-o", str(named)]) == 0
+    assert main(["import-mjcf", str(leg), "--loop", "foot_loop", "--ctrl", "0.002", "-o", str(bare)]) == 0
+    assert named.read_text() == bare.read_text() and "value = 0.002" in named.read_text()
+    capsys.readouterr()
+    out = tmp_path / "x.toml"
+    assert main(["import-mjcf", str(rotor), "--ctrl", "5", "--ctrl", "drive=5", "-o", str(out)]) == 2
+    assert "--ctrl drive=...: given twice" in _one_error_line(capsys) and not out.exists()
+    assert main(["import-mjcf", str(rotor), "--ctrl", "drive=5", "--ctrl", "drive=6", "-o", str(out)]) == 2
+    assert "--ctrl drive=...: given twice" in _one_error_line(capsys)
+    assert main(["import-mjcf", str(rotor), "--ctrl", "nope=5", "-o", str(out)]) == 2
+    assert "no actuator 'nope'" in _one_error_line(capsys) and not out.exists()
+
+
+def test_the_file_numeric_named_for_the_input_motor_is_its_control(tmp_path):
+    """loopcheck.ctrl.drive names the input motor: its control, as loopcheck.ctrl; both refused."""
+    text = (DATA / "rotor_frictionloss.xml").read_text()
+    named = tmp_path / "named.xml"
+    named.write_text(text.replace("</mujoco>", '<custom><numeric name="loopcheck.ctrl.drive" size="2" data="0 5"/>'
+                                               "</custom></mujoco>"))
+    imported = import_mjcf(named)
+    assert imported.control == Control.constant(5.0)
+    bare = import_mjcf(DATA / "rotor_frictionloss.xml", control=Control.constant(5.0))
+    assert imported.scene.load == bare.scene.load and imported.scene.load is not None
+    both = tmp_path / "both.xml"
+    both.write_text(named.read_text().replace("<custom>", '<custom><numeric name="loopcheck.ctrl" size="2" data="0 4"/>'))
+    with pytest.raises(MjcfError, match=r"'loopcheck.ctrl' and 'loopcheck.ctrl.drive' both give the input motor's "
+                                        r"control"):
+        import_mjcf(both)

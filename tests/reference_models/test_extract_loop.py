@@ -121,11 +121,16 @@ def test_a_spatial_loop_is_refused_and_a_nearly_planar_one_projected(tmp_path):
     assert any("parallel within 4e-07 rad" in w and "projected" in w for w in imported.warnings)
 
 
-def test_a_coupling_to_a_welded_joint_is_a_lock_refused_by_name(tmp_path):
+def test_a_coupling_to_a_joint_outside_the_loop_joins_that_joint_to_the_loop(tmp_path):
+    # the knee, coupled to the foot's rocker, moves with the loop (never welded): its axis is then
+    # out of the loop's plane
     robot = _edited(tmp_path, "</equality>", '<joint name="tie" joint1="rocker_j" joint2="knee"/></equality>')
-    with pytest.raises(MjcfError, match=r"joint equality 'tie' couples the loop's joint 'rocker_j' with welded "
-                                        r"joint 'knee'.*locks the loop"):
+    with pytest.raises(MjcfError, match=r"--loop foot_loop: the loop is spatial: joint 'crank_j''s axis is at "
+                                        r"1.37 rad to joint 'knee''s"):
         extract_loop(robot, ["foot_loop"])
+    inactive = _edited(tmp_path, "</equality>",
+                       '<joint name="tie" joint1="rocker_j" joint2="knee" active="false"/></equality>')
+    assert "joint equality 'tie' (acts outside the loop)" in extract_loop(inactive, ["foot_loop"]).dropped
 
 
 def test_a_body_in_two_loops_is_refused_listing_them(tmp_path):
@@ -206,6 +211,7 @@ def test_assemble_without_loop_applies_to_the_whole_model(tmp_path):
     robot = tmp_path / "alone_open.xml"
     robot.write_text(_open_key(by_hand.read_text(), 2, 0.002))
     imported = import_assembled(robot, horizon=HORIZON)
+    assert imported.scene.source == f"{robot} --assemble"  # the user's model, not the temporary file read
     assert any(line.startswith("assembled (--assemble): loops open by 6.08e-05") and "joint 'rocker_j' by -0.002 rad"
                in line for line in imported.said)
     fixed = ReducedSettings(method="rkn4", step=1e-4)
@@ -259,3 +265,28 @@ def test_an_include_is_flattened_and_a_welded_body_in_a_frame_refused(tmp_path):
                       .replace('</body>\n      </body>\n    </body>', '</body></frame>\n      </body>\n    </body>', 1))
     with pytest.raises(MjcfError, match=r"cannot be written exactly: shin, welded, sits inside a <frame>"):
         extract_loop(framed, ["foot_loop"])
+
+
+@pytest.mark.parametrize("name", ["B", "gear", "flywheel"])
+def test_a_coupling_that_shares_a_loops_body_keeps_the_geared_four_bar_whole(name, tmp_path):
+    """The catalogue's geared four-bar, exported: named by its connect, its coupling or the coupled
+    flywheel, the extraction keeps connect and coupling together (the whole model), and its exact
+    answer is the scene's (1e-12 relative at a fixed RKN4 step: both describe the same planar
+    four-bar in the same frame; 0 measured)."""
+    import dataclasses
+
+    from loopcheck.reference_models import MujocoSettings, mjcf_text
+    from loopcheck.scenefile import load_scene
+    from loopcheck.shipped_scenes import resolve_scene
+
+    scene = dataclasses.replace(load_scene(resolve_scene("seed_fourbar_geared_flywheel")), horizon=HORIZON)
+    path = tmp_path / "geared.xml"
+    path.write_text(mjcf_text(scene, MujocoSettings()))
+    imported, ext = import_loop(path, [name], horizon=HORIZON)
+    assert ext.loops == ("connect 'B'", "joint equality 'gear'")
+    assert ext.moving == ("crank", "coupler", "flywheel", "rocker") and ext.welded == ()
+    fixed = ReducedSettings(method="rkn4", step=1e-4)
+    a, b = simulate(imported.scene, fixed).trajectory, simulate(scene, fixed).trajectory
+    assert np.array_equal(a.t, b.t)
+    assert _rel(a.q, b.q) < 1e-12 and _rel(a.qdot, b.qdot) < 1e-12
+    assert np.max(np.abs(b.q - b.q[0])) > 0.1  # it moves: the comparison could fail
