@@ -1454,6 +1454,20 @@ def _couplings(reader: _Reader, system, T: np.ndarray, x_read: np.ndarray, taken
             u_read = float(system.joint_row(scene_joint) @ x_read)
             ends.append((sign, u_read + sign * (float(m.qpos0[adr]) - float(reader.qpos[adr]))))
         (sy, y_ref), (sx, x_ref) = ends
+        # closed at the configuration read as the connects are (Loops.loops): MuJoCo's own residual
+        # qpos1 − qpos1_0 − P(qpos2 − qpos2_0), in the coupled joint's unit
+        j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+        a1, a2 = int(m.jnt_qposadr[j1]), int(m.jnt_qposadr[j2])
+        s = float(reader.qpos[a2]) - float(m.qpos0[a2])
+        gap = abs(float(reader.qpos[a1]) - float(m.qpos0[a1])
+                  - sum(float(a) * s ** k for k, a in enumerate(m.eq_data[e][0:5])))
+        hinge = m.jnt_type[j1] == _HINGE
+        bound = CLOSURE_RTOL * (1.0 if hinge else reader.scale)
+        if not gap <= bound:
+            unit = "rad" if hinge else "m"
+            reader.fail(f"{label} is open by {gap:.3g} {unit} at the configuration read (joint1 off its polynomial "
+                        f"of joint2), more than {bound:.3g} {unit}; --assemble closes it by Newton from there "
+                        "(moves up to 0.1 rad or 10 mm)")
         coefficients = tuple(sy * sx ** k * float(a) + 0.0 for k, a in enumerate(m.eq_data[e][0:5]))  # no −0
         for value, j, what in ((x_ref, int(m.eq_obj2id[e]), "joint2"), (y_ref, int(m.eq_obj1id[e]), "joint1")):
             reader.representable(value, "angle" if m.jnt_type[j] == _HINGE else "position",

@@ -135,3 +135,22 @@ def test_the_stiff_loops_trial_and_its_advice_take_the_coupling():
     assert written.solref == ((0.005, 1.0),)
     advice = written.stiff_loops().mjcf(imported.connects)
     assert '<joint name="cam_law" solref="0.001 1"' in advice, advice
+
+
+@pytest.mark.parametrize("qpos, words", [
+    ("0.3 0.155", "joint equality 'cam_law' is open by 0.1 rad at the configuration read"),
+    ("0.3 0.0550000001", None),  # 1e-10 rad: within the 1e-6 closure bound, Newton polishes it
+])
+def test_a_keyframe_off_its_coupling_is_refused_like_an_open_connect(qpos, words, tmp_path, capsys):
+    """The keyframe's follower 0.1 rad off cam_law(cam_shaft): the scene's Newton would move it
+    there silently, as it would an open connect; refused by name, with --assemble's hint."""
+    path = tmp_path / "open.xml"
+    path.write_text((MJCF / "cam_rotors.xml").read_text().replace('qpos="0.3 0.055"', f'qpos="{qpos}"'))
+    if words is None:
+        assert import_mjcf(path).polish <= 1e-9
+        return
+    with pytest.raises(MjcfError, match=re.escape(words)) as caught:
+        import_mjcf(path)
+    assert "--assemble" in str(caught.value) and "\n" not in str(caught.value)
+    assert main(["import-mjcf", str(path), "-o", str(tmp_path / "out.toml")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not (tmp_path / "out.toml").exists()
