@@ -458,6 +458,16 @@ class _Reader:
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
                           "with actuatorfrcrange cannot be represented: MuJoCo clamps the gravity compensation "
                           "there, and loopcheck's gravcomp is not clamped")
+            if (m.jnt_actgravcomp[j] and np.any(m.body_gravcomp != 0.0)
+                    and m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)):
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
+                          "with option flag actuation=\"disable\" cannot be represented: MuJoCo drops the gravity "
+                          "compensation on this joint only, and loopcheck's gravcomp acts on the whole body")
+            if m.jnt_actfrclimited[j]:
+                low, high = (float(v) for v in m.jnt_actfrcrange[j])
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorfrcrange=\"{low:g} "
+                          f"{high:g}\" cannot be represented: MuJoCo clamps the total actuator force on the joint, "
+                          "and loopcheck has no such clamp")
         if m.njnt == 0:
             self.fail("the model has no joints")
         for b in range(1, m.nbody):
@@ -1082,7 +1092,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     qpos, qvel, key_ctrl, keyframe, said_key = _state(path, model, keyframe, qpos0)
     customs = _customs(path, model)
     horizon = horizon if horizon is not None else customs.horizon if customs.horizon is not None else 1.0
-    control = control if control is not None else customs.control
+    actuation_off = bool(model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)) and model.nu > 0
+    if actuation_off and (control is not None or controls):
+        raise MjcfError(f"{path}: --ctrl: option flag actuation=\"disable\": the model's actuators do not act")
+    control = control if control is not None else customs.control if not actuation_off else None
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
     reader.warnings.extend(loading + tuple(said.lines))
@@ -1105,7 +1118,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             raise
         raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
-    motor = _input_motor(reader, inp)
+    motor = _input_motor(reader, inp) if not actuation_off else None
+    if actuation_off:
+        reader.warnings.append("option flag actuation=\"disable\": the model's actuators exert no force in MuJoCo, "
+                               "left out (no load)")
     if motor is None and control is not None and model.nu:
         if model.nu != 1:
             reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "
@@ -1155,7 +1171,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     T, x_read = _joint_coefficients(reader, system, linkage)
     couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
     elements, joint_elements = _elements(reader, linkage, system, T, x_read)
-    actuators = _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
+    actuators = () if actuation_off else \
+        _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
     inertias = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
                                    + [j for c in couplings for j in (c.joint, c.driver)]))
     try:
@@ -1212,7 +1229,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
                          connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
-                         actuator_index=tuple(a for a in range(model.nu) if a != motor),
+                         actuator_index=tuple(a for a in range(model.nu) if a != motor and not actuation_off),
                          range_sources=dict(reader.range_sources))
 
 
@@ -1506,6 +1523,17 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     disabled = m.opt.disableflags
     springs_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_SPRING)
     dampers_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    # friction loss and limits are constraints: off with either flag (MuJoCo makes no such rows)
+    constraints_off = disabled & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    friction_on = not (constraints_off or disabled & int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS))
+    limits_on = not (constraints_off or disabled & int(mujoco.mjtDisableBit.mjDSBL_LIMIT))
+    flag_constraint = 'constraint' if constraints_off else None
+    if not friction_on and (np.any(m.dof_frictionloss > 0.0) or np.any(m.tendon_frictionloss > 0.0)):
+        reader.warnings.append(f"option flag {flag_constraint or 'frictionloss'}=\"disable\": the joints' and "
+                               "tendons' frictionloss do not act in MuJoCo, left out")
+    if not limits_on and (np.any(m.jnt_limited) or np.any(m.tendon_limited)):
+        reader.warnings.append(f"option flag {flag_constraint or 'limit'}=\"disable\": the joints' and tendons' "
+                               "ranges do not act in MuJoCo, left out")
     rows = {j.name: system.joint_row(j.name) for j in linkage.joints}
     taken: set[str] = set()
     lines: list[LineElement] = []
@@ -1539,8 +1567,8 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.tendon_damping[t]) if dampers_on else 0.0
         stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
         armature = float(m.tendon_armature[t])
-        friction = float(m.tendon_frictionloss[t])
-        limited = bool(m.tendon_limited[t])
+        friction = float(m.tendon_frictionloss[t]) if friction_on else 0.0
+        limited = bool(m.tendon_limited[t]) and limits_on
         adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
         on_joints = all(int(m.wrap_type[k]) == _WRAP_JOINT for k in range(adr, adr + num))
         if friction > 0.0 and not on_joints:
@@ -1626,12 +1654,12 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
-        friction = float(m.dof_frictionloss[m.jnt_dofadr[j]])
+        friction = float(m.dof_frictionloss[m.jnt_dofadr[j]]) if friction_on else 0.0
         if armature > 0.0:
             add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"{label}: armature")
         if friction > 0.0:
             add_joint_element("friction", f"{joint}_frictionloss", joint, friction, where=f"{label}: frictionloss")
-        if m.jnt_limited[j]:  # u = u_read + sign (qpos − qpos_read), as MuJoCo resolved limited/autolimits
+        if m.jnt_limited[j] and limits_on:  # u = u_read + sign (qpos − qpos_read), as MuJoCo resolved limited/autolimits
             adr = int(m.jnt_qposadr[j])
             u_read = float(rows[joint] @ x_read)
             sign = reader.joint_sign[j]
