@@ -1190,13 +1190,21 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     q0 = float(system.drive @ guess)
     xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
     qdot0 = float(system.drive @ xdot)
+    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
+    _check_drive(reader, system, linkage, guess, inp, read_at)
     # every loop row, a redundant loop's dependent ones too
     residual = float(np.max(np.abs(loops.all_constraints(system, guess)[1] @ xdot), initial=0.0))
-    if abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale:
-        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
-                               "the scene starts from the input joint's rate alone")
+    # and every rate the input's alone reproduces (a coupled or other joint's qvel beside it)
+    drives = qdot0 != 0.0 and loops.driving_conditioning(system, guess) >= loops.SINGULAR_CONDITIONING
+    reproduced = loops.coefficients(system, guess)[0] * qdot0 if drives else 0.0  # else refused (scene file)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge qvel is refused below, by name
+        rates_off = float(np.max(np.abs(xdot - reproduced), initial=0.0))
+    if (abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale) \
+            or rates_off > 1e-6 * max(float(np.max(np.abs(xdot), initial=0.0)), 1.0):
+        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed, or has rates the input joint's "
+                               f"does not reproduce (rate residual {max(residual, rates_off):.3g}): the scene starts "
+                               "from the input joint's rate alone")
     gravity = _gravity(reader)
-    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
     prismatic_input = isinstance(linkage.joint_map[input_name], PrismaticJoint)
     reader.representable(q0, "position" if prismatic_input else "angle", f"{read_at}: the input joint's qpos")
     reader.representable(qdot0, "speed", f"{read_at}: the input joint's qvel")
@@ -1231,6 +1239,30 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                          connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
                          actuator_index=tuple(a for a in range(model.nu) if a != motor and not actuation_off),
                          range_sources=dict(reader.range_sources))
+
+
+def _check_drive(reader: _Reader, system, linkage: Linkage, x: np.ndarray, inp: int, read_at: str) -> None:
+    """Refuse an input joint that cannot drive the linkage at the configuration read and near it (a
+    coupling locks it: its driving conditioning stays below the singular threshold a step of 1e-3 along
+    a joint that can drive); a dead centre alone is the scene file's to judge (a singular start at rest
+    is allowed there). Names a joint that can drive."""
+    c = loops.driving_conditioning(system, x)
+    if c >= loops.SINGULAR_CONDITIONING:
+        return
+    mj_names = {scene: mj for mj, scene in reader.joint_of.items()}
+    can = [j.name for j in linkage.joints if j.name in mj_names and
+           loops.driving_conditioning(system, x, system.joint_row(j.name)) >= loops.SINGULAR_CONDITIONING]
+    if not can:
+        return
+    row = system.joint_row(can[0])
+    step = 1e-3 * (1.0 if isinstance(linkage.joint_map[can[0]], RevoluteJoint) else reader.scale)
+    near = np.array(x, dtype=float)
+    status, _, _ = system.kernel.assemble(float(row @ x) + step, near, row, 1e-12, 50, loops.SINGULAR_CONDITIONING)
+    if status != 0 or loops.driving_conditioning(system, near) >= loops.SINGULAR_CONDITIONING:  # 0: closed
+        return  # a dead centre (or no assembly there to judge by)
+    reader.fail(f"{reader.label(mujoco.mjtObj.mjOBJ_JOINT, inp)} (the input) cannot drive the linkage at {read_at} "
+                f"or near it: its driving conditioning {c:.3g} is below {loops.SINGULAR_CONDITIONING:g} (a coupling "
+                f"locks it); --input '{mj_names[can[0]]}' names a joint that can")
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
