@@ -39,8 +39,10 @@ Anything else that acts is refused with one line naming it (:class:`MjcfError`):
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
-bodies welded together with different ``gravcomp``, a joint's ``actuatorgravcomp`` clamped by its
-``actuatorfrcrange``.
+bodies welded together with different ``gravcomp``, a joint's ``actuatorfrcrange`` (limited; MuJoCo
+clamps the joint's total actuator force), a joint equality open at the configuration read, an input
+joint a coupling locks. The option flags ``frictionloss``, ``limit`` and ``actuation`` ="disable" leave
+out the joint frictions, the ranges, the load and actuators (a warning each), as MuJoCo does.
 A value that is NaN or infinite, or finite and outside what the description can hold (a negative
 damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
 is refused too, naming the element, the MJCF attribute and the default class it came from
