@@ -1366,8 +1366,9 @@ def _actuators(reader: _Reader, linkage: Linkage, system, x_read: np.ndarray, mo
         name = _unique(_clean(mj_name), taken)
         given = controls.get(mj_name)
         control = _profile(given) if given is not None else _profile(Control.constant(float(key_ctrl[a])))
+        clamped = m.actuator_ctrllimited[a] and not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
         ranges = [tuple(float(v) for v in rng) if limited else None for limited, rng in
-                  ((m.actuator_ctrllimited[a], m.actuator_ctrlrange[a]),
+                  ((clamped, m.actuator_ctrlrange[a]),
                    (m.actuator_forcelimited[a], m.actuator_forcerange[a]))]
         only = list(terms.items())
         joint, tendon = (only[0][0], None) if len(only) == 1 and only[0][1] == 1.0 else (None, tuple(only))
@@ -1396,7 +1397,7 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
     gear = float(m.actuator_gear[a][0]) * float(m.actuator_gainprm[a][0])  # force = gain · ctrl, on the joint × gear
     given = control if control is not None else Control.constant(float(key_ctrl[a]))
     values = list(given.values)
-    if m.actuator_ctrllimited[a]:
+    if m.actuator_ctrllimited[a] and not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL):
         low, high = m.actuator_ctrlrange[a]
         clipped = [min(max(v, low), high) for v in values]
         if clipped != values:

@@ -284,3 +284,19 @@ def test_a_joints_actuatorfrcrange_is_refused_by_name(tmp_path, joint, words):
     with pytest.raises(MjcfError, match=re.escape(words)) as caught:
         import_mjcf(path)
     assert "\n" not in str(caught.value)
+
+
+def test_with_clampctrl_disabled_the_control_is_not_clamped(tmp_path):
+    """MuJoCo leaves ctrl outside ctrlrange as given under clampctrl="disable" (measured: a motor's
+    force 5 for ctrl 5 in [-1, 1]): the input motor's load and a servo's control are not clamped
+    either (planted: the flag ignored, the load 1 and the servo's ctrlrange come back)."""
+    path = tmp_path / "noclamp.xml"
+    path.write_text(ROTOR.format(actuator='<motor name="input_motor" joint="pivot" ctrlrange="-1 1"/>'
+                                 '<position name="servo" joint="pivot" kp="3" ctrlrange="-1 1"/>')
+                    .replace('<option gravity="0 0 0"/>', '<option gravity="0 0 0"><flag clampctrl="disable"/></option>')
+                    .replace("</mujoco>", '<keyframe><key name="k" ctrl="5 0.5"/></keyframe></mujoco>'))
+    imported = import_mjcf(path)
+    assert imported.scene.load(0.0) == 5.0
+    assert imported.control.values == (5.0,)
+    (servo,) = imported.scene.mechanism.actuators
+    assert servo.ctrlrange is None
