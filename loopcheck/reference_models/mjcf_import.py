@@ -39,8 +39,10 @@ Anything else that acts is refused with one line naming it (:class:`MjcfError`):
 joints, several joints on one body, axes off the plane, more than one degree of freedom,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
-bodies welded together with different ``gravcomp``, a joint's ``actuatorgravcomp`` clamped by its
-``actuatorfrcrange``.
+bodies welded together with different ``gravcomp``, a joint's ``actuatorfrcrange`` (limited; MuJoCo
+clamps the joint's total actuator force), a joint equality open at the configuration read, an input
+joint a coupling locks. The option flags ``frictionloss``, ``limit`` and ``actuation`` ="disable" leave
+out the joint frictions, the ranges, the load and actuators (a warning each), as MuJoCo does.
 A value that is NaN or infinite, or finite and outside what the description can hold (a negative
 damping, stiffness, armature, mass, inertia or density; a spring or damper with polynomial terms),
 is refused too, naming the element, the MJCF attribute and the default class it came from
@@ -458,6 +460,16 @@ class _Reader:
                 self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
                           "with actuatorfrcrange cannot be represented: MuJoCo clamps the gravity compensation "
                           "there, and loopcheck's gravcomp is not clamped")
+            if (m.jnt_actgravcomp[j] and np.any(m.body_gravcomp != 0.0)
+                    and m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)):
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorgravcomp=\"true\" "
+                          "with option flag actuation=\"disable\" cannot be represented: MuJoCo drops the gravity "
+                          "compensation on this joint only, and loopcheck's gravcomp acts on the whole body")
+            if m.jnt_actfrclimited[j]:
+                low, high = (float(v) for v in m.jnt_actfrcrange[j])
+                self.fail(f"joint '{self.name(mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')}': actuatorfrcrange=\"{low:g} "
+                          f"{high:g}\" cannot be represented: MuJoCo clamps the total actuator force on the joint, "
+                          "and loopcheck has no such clamp")
         if m.njnt == 0:
             self.fail("the model has no joints")
         for b in range(1, m.nbody):
@@ -1083,7 +1095,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     customs = _customs(path, model)
     horizon = horizon if horizon is not None else customs.horizon if customs.horizon is not None else 1.0
     given_bare = control  # --ctrl VALUE (the input motor's, or the only actuator's)
-    control = control if control is not None else customs.control
+    actuation_off = bool(model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)) and model.nu > 0
+    if actuation_off and (control is not None or controls):
+        raise MjcfError(f"{path}: --ctrl: option flag actuation=\"disable\": the model's actuators do not act")
+    control = control if control is not None else customs.control if not actuation_off else None
     with mujoco_warnings() as said:
         reader = _Reader(path, model, qpos, qvel)
     reader.warnings.extend(loading + tuple(said.lines))
@@ -1106,7 +1121,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             raise
         raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
-    motor = _input_motor(reader, inp)
+    motor = _input_motor(reader, inp) if not actuation_off else None
+    if actuation_off:
+        reader.warnings.append("option flag actuation=\"disable\": the model's actuators exert no force in MuJoCo, "
+                               "left out (no load)")
     motor_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, motor) if motor is not None else None
     if motor_name is not None and motor_name in (controls or {}):  # --ctrl MOTOR=...: the input motor's control
         if given_bare is not None:
@@ -1168,7 +1186,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     T, x_read = _joint_coefficients(reader, system, linkage)
     couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
     elements, joint_elements = _elements(reader, linkage, system, T, x_read)
-    actuators = _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
+    actuators = () if actuation_off else \
+        _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
     inertias = tuple(dict.fromkeys([e.joint for e in joint_elements if e.kind == "inertia"]
                                    + [j for c in couplings for j in (c.joint, c.driver)]))
     try:
@@ -1186,13 +1205,21 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     q0 = float(system.drive @ guess)
     xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
     qdot0 = float(system.drive @ xdot)
+    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
+    _check_drive(reader, system, linkage, guess, inp, read_at)
     # every loop row, a redundant loop's dependent ones too
     residual = float(np.max(np.abs(loops.all_constraints(system, guess)[1] @ xdot), initial=0.0))
-    if abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale:
-        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed (rate residual {residual:.3g}): "
-                               "the scene starts from the input joint's rate alone")
+    # and every rate the input's alone reproduces (a coupled or other joint's qvel beside it)
+    drives = qdot0 != 0.0 and loops.driving_conditioning(system, guess) >= loops.SINGULAR_CONDITIONING
+    reproduced = loops.coefficients(system, guess)[0] * qdot0 if drives else 0.0  # else refused (scene file)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge qvel is refused below, by name
+        rates_off = float(np.max(np.abs(xdot - reproduced), initial=0.0))
+    if (abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale) \
+            or rates_off > 1e-6 * max(float(np.max(np.abs(xdot), initial=0.0)), 1.0):
+        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed, or has rates the input joint's "
+                               f"does not reproduce (rate residual {max(residual, rates_off):.3g}): the scene starts "
+                               "from the input joint's rate alone")
     gravity = _gravity(reader)
-    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
     prismatic_input = isinstance(linkage.joint_map[input_name], PrismaticJoint)
     reader.representable(q0, "position" if prismatic_input else "angle", f"{read_at}: the input joint's qpos")
     reader.representable(qdot0, "speed", f"{read_at}: the input joint's qvel")
@@ -1225,8 +1252,32 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
                          warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
                          connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
-                         actuator_index=tuple(a for a in range(model.nu) if a != motor),
+                         actuator_index=tuple(a for a in range(model.nu) if a != motor and not actuation_off),
                          range_sources=dict(reader.range_sources))
+
+
+def _check_drive(reader: _Reader, system, linkage: Linkage, x: np.ndarray, inp: int, read_at: str) -> None:
+    """Refuse an input joint that cannot drive the linkage at the configuration read and near it (a
+    coupling locks it: its driving conditioning stays below the singular threshold a step of 1e-3 along
+    a joint that can drive); a dead centre alone is the scene file's to judge (a singular start at rest
+    is allowed there). Names a joint that can drive."""
+    c = loops.driving_conditioning(system, x)
+    if c >= loops.SINGULAR_CONDITIONING:
+        return
+    mj_names = {scene: mj for mj, scene in reader.joint_of.items()}
+    can = [j.name for j in linkage.joints if j.name in mj_names and
+           loops.driving_conditioning(system, x, system.joint_row(j.name)) >= loops.SINGULAR_CONDITIONING]
+    if not can:
+        return
+    row = system.joint_row(can[0])
+    step = 1e-3 * (1.0 if isinstance(linkage.joint_map[can[0]], RevoluteJoint) else reader.scale)
+    near = np.array(x, dtype=float)
+    status, _, _ = system.kernel.assemble(float(row @ x) + step, near, row, 1e-12, 50, loops.SINGULAR_CONDITIONING)
+    if status != 0 or loops.driving_conditioning(system, near) >= loops.SINGULAR_CONDITIONING:  # 0: closed
+        return  # a dead centre (or no assembly there to judge by)
+    reader.fail(f"{reader.label(mujoco.mjtObj.mjOBJ_JOINT, inp)} (the input) cannot drive the linkage at {read_at} "
+                f"or near it: its driving conditioning {c:.3g} is below {loops.SINGULAR_CONDITIONING:g} (a coupling "
+                f"locks it); --input '{mj_names[can[0]]}' names a joint that can")
 
 
 def _input_joint(reader: _Reader, name: str | None) -> int:
@@ -1328,8 +1379,9 @@ def _actuators(reader: _Reader, linkage: Linkage, system, x_read: np.ndarray, mo
         name = _unique(_clean(mj_name), taken)
         given = controls.get(mj_name)
         control = _profile(given) if given is not None else _profile(Control.constant(float(key_ctrl[a])))
+        clamped = m.actuator_ctrllimited[a] and not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
         ranges = [tuple(float(v) for v in rng) if limited else None for limited, rng in
-                  ((m.actuator_ctrllimited[a], m.actuator_ctrlrange[a]),
+                  ((clamped, m.actuator_ctrlrange[a]),
                    (m.actuator_forcelimited[a], m.actuator_forcerange[a]))]
         only = list(terms.items())
         joint, tendon = (only[0][0], None) if len(only) == 1 and only[0][1] == 1.0 else (None, tuple(only))
@@ -1358,7 +1410,7 @@ def _load(reader: _Reader, inp: int, control: Control | None, key_ctrl: np.ndarr
     gear = float(m.actuator_gear[a][0]) * float(m.actuator_gainprm[a][0])  # force = gain · ctrl, on the joint × gear
     given = control if control is not None else Control.constant(float(key_ctrl[a]))
     values = list(given.values)
-    if m.actuator_ctrllimited[a]:
+    if m.actuator_ctrllimited[a] and not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL):
         low, high = m.actuator_ctrlrange[a]
         clipped = [min(max(v, low), high) for v in values]
         if clipped != values:
@@ -1467,6 +1519,20 @@ def _couplings(reader: _Reader, system, T: np.ndarray, x_read: np.ndarray, taken
             u_read = float(system.joint_row(scene_joint) @ x_read)
             ends.append((sign, u_read + sign * (float(m.qpos0[adr]) - float(reader.qpos[adr]))))
         (sy, y_ref), (sx, x_ref) = ends
+        # closed at the configuration read as the connects are (Loops.loops): MuJoCo's own residual
+        # qpos1 − qpos1_0 − P(qpos2 − qpos2_0), in the coupled joint's unit
+        j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+        a1, a2 = int(m.jnt_qposadr[j1]), int(m.jnt_qposadr[j2])
+        s = float(reader.qpos[a2]) - float(m.qpos0[a2])
+        gap = abs(float(reader.qpos[a1]) - float(m.qpos0[a1])
+                  - sum(float(a) * s ** k for k, a in enumerate(m.eq_data[e][0:5])))
+        hinge = m.jnt_type[j1] == _HINGE
+        bound = CLOSURE_RTOL * (1.0 if hinge else reader.scale)
+        if not gap <= bound:
+            unit = "rad" if hinge else "m"
+            reader.fail(f"{label} is open by {gap:.3g} {unit} at the configuration read (joint1 off its polynomial "
+                        f"of joint2), more than {bound:.3g} {unit}; --assemble closes it by Newton from there "
+                        "(moves up to 0.1 rad or 10 mm)")
         coefficients = tuple(sy * sx ** k * float(a) + 0.0 for k, a in enumerate(m.eq_data[e][0:5]))  # no −0
         for value, j, what in ((x_ref, int(m.eq_obj2id[e]), "joint2"), (y_ref, int(m.eq_obj1id[e]), "joint1")):
             reader.representable(value, "angle" if m.jnt_type[j] == _HINGE else "position",
@@ -1505,6 +1571,17 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
     disabled = m.opt.disableflags
     springs_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_SPRING)
     dampers_on = not disabled & int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    # friction loss and limits are constraints: off with either flag (MuJoCo makes no such rows)
+    constraints_off = disabled & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    friction_on = not (constraints_off or disabled & int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS))
+    limits_on = not (constraints_off or disabled & int(mujoco.mjtDisableBit.mjDSBL_LIMIT))
+    flag_constraint = 'constraint' if constraints_off else None
+    if not friction_on and (np.any(m.dof_frictionloss > 0.0) or np.any(m.tendon_frictionloss > 0.0)):
+        reader.warnings.append(f"option flag {flag_constraint or 'frictionloss'}=\"disable\": the joints' and "
+                               "tendons' frictionloss do not act in MuJoCo, left out")
+    if not limits_on and (np.any(m.jnt_limited) or np.any(m.tendon_limited)):
+        reader.warnings.append(f"option flag {flag_constraint or 'limit'}=\"disable\": the joints' and tendons' "
+                               "ranges do not act in MuJoCo, left out")
     rows = {j.name: system.joint_row(j.name) for j in linkage.joints}
     taken: set[str] = set()
     lines: list[LineElement] = []
@@ -1538,8 +1615,8 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.tendon_damping[t]) if dampers_on else 0.0
         stiffness = float(m.tendon_stiffness[t]) if springs_on else 0.0
         armature = float(m.tendon_armature[t])
-        friction = float(m.tendon_frictionloss[t])
-        limited = bool(m.tendon_limited[t])
+        friction = float(m.tendon_frictionloss[t]) if friction_on else 0.0
+        limited = bool(m.tendon_limited[t]) and limits_on
         adr, num = int(m.tendon_adr[t]), int(m.tendon_num[t])
         on_joints = all(int(m.wrap_type[k]) == _WRAP_JOINT for k in range(adr, adr + num))
         if friction > 0.0 and not on_joints:
@@ -1625,12 +1702,12 @@ def _elements(reader: _Reader, linkage: Linkage, system, T: np.ndarray,
         damping = float(m.dof_damping[m.jnt_dofadr[j]]) if dampers_on else 0.0
         stiffness = float(m.jnt_stiffness[j]) if springs_on else 0.0
         armature = float(m.dof_armature[m.jnt_dofadr[j]])
-        friction = float(m.dof_frictionloss[m.jnt_dofadr[j]])
+        friction = float(m.dof_frictionloss[m.jnt_dofadr[j]]) if friction_on else 0.0
         if armature > 0.0:
             add_joint_element("inertia", f"{joint}_armature", joint, armature, where=f"{label}: armature")
         if friction > 0.0:
             add_joint_element("friction", f"{joint}_frictionloss", joint, friction, where=f"{label}: frictionloss")
-        if m.jnt_limited[j]:  # u = u_read + sign (qpos − qpos_read), as MuJoCo resolved limited/autolimits
+        if m.jnt_limited[j] and limits_on:  # u = u_read + sign (qpos − qpos_read), as MuJoCo resolved limited/autolimits
             adr = int(m.jnt_qposadr[j])
             u_read = float(rows[joint] @ x_read)
             sign = reader.joint_sign[j]

@@ -138,3 +138,34 @@ def test_mujocos_limit_is_a_note_and_the_ports_refuse(tmp_path):
         prepare(scene, MjxSettings(), "MJX", "mjx")
     with pytest.raises(PortRefusal, match=r"^MJX does not run joint friction \(joint_friction0\)"):
         prepare(scene_from_dict(rotor(friction=1.0)), MjxSettings(), "MJX", "mjx")
+
+
+@pytest.mark.parametrize("flag, said", [
+    ('frictionloss="disable"', 'option flag frictionloss="disable"'),
+    ('limit="disable"', 'option flag limit="disable"'),
+    ('constraint="disable"', 'option flag constraint="disable"'),
+])
+def test_a_disabled_flag_leaves_out_what_mujoco_does_not_apply(tmp_path, flag, said):
+    """MuJoCo makes no friction-loss rows under frictionloss="disable", no limit rows under
+    limit="disable", neither under constraint="disable": the scene has none either, and a warning
+    says so (planted: the flags ignored, the friction and the range come back)."""
+    path = _written(tmp_path, "flagged.xml", ('gravity="0 0 0"/>', f'gravity="0 0 0"><flag {flag}/></option>'),
+                    ('<joint name="spin" class="rotor"/>', '<joint name="spin" class="rotor" range="-0.1 0.1"/>'))
+    imported = import_mjcf(path)
+    mechanism = imported.scene.mechanism
+    friction_off = "limit" not in flag
+    limit_off = "frictionloss" not in flag
+    assert (mechanism.joint_frictions == ()) == friction_off
+    assert (mechanism.linkage.joint_map["spin"].range is None) == limit_off
+    assert sum(said in w for w in imported.warnings) == friction_off + limit_off
+
+
+def test_with_frictionloss_disabled_mujoco_as_written_meets_the_free_rotor(tmp_path):
+    """MuJoCo as written spins freely under frictionloss="disable" (the 3 N·m pulse for 1 s on
+    2 kg·m²: 1.5 rad/s, kept); the imported scene's reference meets it (planted: the friction kept,
+    the reference sticks at t = 3 s and the gate fails)."""
+    path = _written(tmp_path, "free.xml", ('gravity="0 0 0"/>', 'gravity="0 0 0"><flag frictionloss="disable"/></option>'))
+    imported = import_mjcf(path, control=PULSE, horizon=1.5)
+    reference = loopcheck.simulate(imported.scene, loopcheck.ReducedSettings(rtol=1e-12))
+    assert reference.trajectory.qdot[-1] == pytest.approx(1.5, abs=1e-9)  # closed form, round-off
+    assert judge(imported.scene, reference, run_model(imported), imported.scene.tolerances).gate.passed

@@ -9,6 +9,7 @@ energy audits' balance.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -287,3 +288,58 @@ def test_the_file_numeric_named_for_the_input_motor_is_its_control(tmp_path):
     with pytest.raises(MjcfError, match=r"'loopcheck.ctrl' and 'loopcheck.ctrl.drive' both give the input motor's "
                                         r"control"):
         import_mjcf(both)
+
+
+def test_with_actuation_disabled_there_is_no_load_and_no_actuator(tmp_path, capsys):
+    """MuJoCo applies no actuator force under actuation="disable": the scene has neither the input
+    motor's load nor the other actuator, a warning says so, and a control given is refused
+    (planted: the flag ignored, the 2 N·m load and the servo come back)."""
+    from loopcheck.compare.cli import main
+    path = tmp_path / "off.xml"
+    path.write_text(ROTOR.format(actuator='<motor name="input_motor" joint="pivot"/>'
+                                 '<position name="servo" joint="pivot" kp="3"/>')
+                    .replace('<option gravity="0 0 0"/>', '<option gravity="0 0 0"><flag actuation="disable"/></option>')
+                    .replace("</mujoco>", '<keyframe><key name="k" ctrl="2 0.5"/></keyframe></mujoco>'))
+    imported = import_mjcf(path)
+    assert imported.scene.load is None and imported.scene.mechanism.actuators == ()
+    assert any('option flag actuation="disable"' in w for w in imported.warnings)
+    with pytest.raises(MjcfError, match='--ctrl: option flag actuation="disable"'):
+        import_mjcf(path, control=Control.constant(1.0))
+    assert main(["import-mjcf", str(path), "--ctrl", "1", "-o", str(tmp_path / "out.toml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("error") == 1 and not (tmp_path / "out.toml").exists()
+
+
+@pytest.mark.parametrize("joint, words", [
+    ('<joint name="O1" actuatorfrcrange="-50 50"/>', "joint 'O1': actuatorfrcrange=\"-50 50\" cannot be represented"),
+    ('<joint name="O1" actuatorfrcrange="-50 50" actuatorfrclimited="false"/>', None),
+])
+def test_a_joints_actuatorfrcrange_is_refused_by_name(tmp_path, joint, words):
+    """MuJoCo clamps the total actuator force on a joint to its actuatorfrcrange (limited; autolimits
+    makes a range limited); loopcheck has no such clamp: refused, never dropped (planted: accepted)."""
+    path = tmp_path / "clamped.xml"
+    text = (DATA / "two_motor_fourbar.xml").read_text()
+    assert '<joint name="O1"/>' in text
+    path.write_text(text.replace('<joint name="O1"/>', joint))
+    if words is None:
+        assert len(import_mjcf(path).scene.mechanism.actuators) == 2  # not limited: never clamps, imported
+        return
+    with pytest.raises(MjcfError, match=re.escape(words)) as caught:
+        import_mjcf(path)
+    assert "\n" not in str(caught.value)
+
+
+def test_with_clampctrl_disabled_the_control_is_not_clamped(tmp_path):
+    """MuJoCo leaves ctrl outside ctrlrange as given under clampctrl="disable" (measured: a motor's
+    force 5 for ctrl 5 in [-1, 1]): the input motor's load and a servo's control are not clamped
+    either (planted: the flag ignored, the load 1 and the servo's ctrlrange come back)."""
+    path = tmp_path / "noclamp.xml"
+    path.write_text(ROTOR.format(actuator='<motor name="input_motor" joint="pivot" ctrlrange="-1 1"/>'
+                                 '<position name="servo" joint="pivot" kp="3" ctrlrange="-1 1"/>')
+                    .replace('<option gravity="0 0 0"/>', '<option gravity="0 0 0"><flag clampctrl="disable"/></option>')
+                    .replace("</mujoco>", '<keyframe><key name="k" ctrl="5 0.5"/></keyframe></mujoco>'))
+    imported = import_mjcf(path)
+    assert imported.scene.load(0.0) == 5.0
+    assert imported.control.values == (5.0,)
+    (servo,) = imported.scene.mechanism.actuators
+    assert servo.ctrlrange is None

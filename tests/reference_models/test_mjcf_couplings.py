@@ -135,3 +135,68 @@ def test_the_stiff_loops_trial_and_its_advice_take_the_coupling():
     assert written.solref == ((0.005, 1.0),)
     advice = written.stiff_loops().mjcf(imported.connects)
     assert '<joint name="cam_law" solref="0.001 1"' in advice, advice
+
+
+@pytest.mark.parametrize("qpos, words", [
+    ("0.3 0.155", "joint equality 'cam_law' is open by 0.1 rad at the configuration read"),
+    ("0.3 0.0550000001", None),  # 1e-10 rad: within the 1e-6 closure bound, Newton polishes it
+])
+def test_a_keyframe_off_its_coupling_is_refused_like_an_open_connect(qpos, words, tmp_path, capsys):
+    """The keyframe's follower 0.1 rad off cam_law(cam_shaft): the scene's Newton would move it
+    there silently, as it would an open connect; refused by name, with --assemble's hint."""
+    path = tmp_path / "open.xml"
+    path.write_text((MJCF / "cam_rotors.xml").read_text().replace('qpos="0.3 0.055"', f'qpos="{qpos}"'))
+    if words is None:
+        assert import_mjcf(path).polish <= 1e-9
+        return
+    with pytest.raises(MjcfError, match=re.escape(words)) as caught:
+        import_mjcf(path)
+    assert "--assemble" in str(caught.value) and "\n" not in str(caught.value)
+    assert main(["import-mjcf", str(path), "-o", str(tmp_path / "out.toml")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not (tmp_path / "out.toml").exists()
+
+
+def _locked_input(tmp_path):
+    """The geared flywheel's export with the coupling moved to the rocker: O3 = −2·O1 locks the
+    four-bar (one loop, one coupling: zero DOF there), and the flywheel F turns freely at 3 rad/s."""
+    import loopcheck
+    from loopcheck.reference_models import MujocoSettings, mjcf_text
+    scene = loopcheck.load_scene(DATA.parent.parent / "scenes" / "mechanisms" / "seed_fourbar_geared_flywheel.toml")
+    text = mjcf_text(scene, MujocoSettings(timestep=5e-4))
+    for old, new in (('joint1="F" joint2="O1"', 'joint1="O3" joint2="O1"'),
+                     ('<key name="home" ctrl="250" />', '<key name="home" ctrl="0" qvel="0 0 3 0" />')):
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "locked_input.xml"
+    path.write_text(text)
+    return path
+
+
+def test_an_input_a_coupling_locks_is_refused_naming_a_joint_that_can_drive(tmp_path, capsys):
+    """The motor's joint O1 cannot drive the linkage (driving conditioning 0): the scene would hold
+    q̇ = 0 and drop F's 3 rad/s. Refused by name, with the joint that can (planted: the check
+    removed, it imports with input 'O1' and qdot 0)."""
+    path = _locked_input(tmp_path)
+    with pytest.raises(MjcfError, match=re.escape("joint 'O1' (the input) cannot drive the linkage at keyframe "
+                                                  "'home'")) as caught:
+        import_mjcf(path)
+    assert "--input 'F'" in str(caught.value) and "\n" not in str(caught.value)
+    assert main(["import-mjcf", str(path), "-o", str(tmp_path / "out.toml")]) == 2
+    assert capsys.readouterr().err.count("error") == 1
+    driven = import_mjcf(path, input_joint="F").scene
+    assert driven.qdot0 == 3.0
+
+
+@pytest.mark.parametrize("qvel, off", [("1 -0.9", None), ("0 -0.9", "0.9"), ("1 -0.5", "0.4")])
+def test_rates_the_input_does_not_reproduce_are_said(qvel, off, tmp_path):
+    """The follower's keyframe rate beside the cam shaft's (the input's): −0.9 is cam_law's slope at
+    the keyframe (−1 + 2·0.5·0.1), so it is kept; at rest input with −0.9 on the follower, or −0.5,
+    the scene starts from the input's rate alone and says so (planted: the warning only when the
+    input's own rate is not zero; the first case then says nothing)."""
+    path = tmp_path / "rates.xml"
+    path.write_text((MJCF / "cam_rotors.xml").read_text().replace('qvel="1 -0.9"', f'qvel="{qvel}"'))
+    said = [w for w in import_mjcf(path).warnings if "qvel" in w]
+    if off is None:
+        assert said == []
+    else:
+        assert len(said) == 1 and f"rate residual {off}" in said[0] and "the input joint's does not reproduce" in said[0]

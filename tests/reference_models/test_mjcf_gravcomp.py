@@ -192,3 +192,12 @@ def test_zero_and_a_welded_body_stay_absent(tmp_path):
     welded = import_mjcf(welded_path, keyframe="home").scene
     assert all(b.gravcomp == 0.0 for b in plain.mechanism.linkage.bodies)
     assert zero.mechanism == plain.mechanism and welded.mechanism == plain.mechanism
+
+
+def test_actuatorgravcomp_with_actuation_disabled_is_refused(tmp_path):
+    """Under actuation="disable" MuJoCo drops the gravity compensation routed through the joint's
+    actuator (qfrc_actuator is zero) but keeps it on the others: one body's gravcomp cannot carry
+    that (planted: the refusal removed, it imports with the full compensation)."""
+    path = _variant(tmp_path, ('damping="0.00002"', 'damping="0.00002" actuatorgravcomp="true"'),
+                    ('gravity="0 0 -9.81"/>', 'gravity="0 0 -9.81"><flag actuation="disable"/></option>'))
+    assert "actuatorgravcomp=\"true\" with option flag actuation=\"disable\" cannot be represented" in _refusal(path)
