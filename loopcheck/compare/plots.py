@@ -292,13 +292,17 @@ def plot_constraint_violation(c: "Comparison", path: Path) -> None:
 
 def plot_energy(c: "Comparison", path: Path) -> None:
     fig, (ax, ax_r) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    mech = c.scene.mechanism
+    # the audit's work is every load's (the input's, the actuators'), its dissipation the dampers' and the friction's
+    work = "loads' work" if mech.actuators else f"{c.scene.load_name} work"
+    dissipation = "dissipation (dampers, friction)" if mech.joint_frictions else "damper dissipation"
     for result, style in ((c.reference, REDUCED_STYLE), (c.other, other_style(c))):
         a = result.audit
         ls = style.get("linestyle", "-")
         name = style["label"].split()[0]
         ax.plot(a.t, a.kinetic, color="tab:green", linestyle=ls, label=f"kinetic ({name})")
-        ax.plot(a.t, a.torque_work, color="tab:purple", linestyle=ls, label=f"{c.scene.load_name} work ({name})")
-        ax.plot(a.t, a.damper_dissipation, color="tab:brown", linestyle=ls, label=f"damper dissipation ({name})")
+        ax.plot(a.t, a.torque_work, color="tab:purple", linestyle=ls, label=f"{work} ({name})")
+        ax.plot(a.t, a.damper_dissipation, color="tab:brown", linestyle=ls, label=f"{dissipation} ({name})")
         if np.any(a.potential != a.potential[0]):
             ax.plot(a.t, a.potential - a.potential[0], color="tab:grey", linestyle=ls,
                     label=f"potential − V0 ({name})")
