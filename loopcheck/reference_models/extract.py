@@ -719,6 +719,9 @@ def import_loop(path: str | Path, loops: list[str], *, write_to: str | Path | No
             for name in (kwargs.get("controls") or {}):
                 if any(d.startswith(f"actuator '{name}' ") for d in ext.dropped):
                     text += f" (--loop dropped actuator '{name}': it acts outside the loop)"
+            given = kwargs.get("input_joint")
+            if given is not None and any(w.startswith(f"joint '{given}' ") for w in ext.welded):
+                text += f" (--loop welded joint '{given}': the input is one of the loop's joints)"
             raise MjcfError(text) from None
     if write_to is not None:  # the file the check ran, once it is read (no partial output)
         Path(write_to).write_text(ext.xml)

@@ -1387,8 +1387,8 @@ def _actuators(reader: _Reader, linkage: Linkage, system, x_read: np.ndarray, mo
         joint, tendon = (only[0][0], None) if len(only) == 1 and only[0][1] == 1.0 else (None, tuple(only))
         try:
             out.append(Actuator(name, joint, tendon, gain, (b0 + b1 * gear * offset, b1, b2), gear, *ranges, control))
-        except MechanismError as exc:
-            reader.fail(f"{label}: {exc}")
+        except MechanismError as exc:  # its message names the scene's actuator; the line names the file's
+            reader.fail(f"{label}: {str(exc).removeprefix(f'actuator {name!r}: ')}")
     unknown = sorted(set(controls) - {_object_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
                                       for a in range(m.nu) if a != motor})
     if unknown:

@@ -140,6 +140,15 @@ def test_a_control_for_a_dropped_actuator_says_it_was_dropped(tmp_path, capsys):
     assert "dropped: actuator 'hip_motor'" in printed and out.is_file()
 
 
+def test_an_input_the_extraction_welded_says_so(tmp_path, capsys):
+    """--input names a joint --loop welded (the leg's hip): the refusal says the extraction welded it
+    (planted: the import's "not a joint of the model" alone, of a joint the user's file has)."""
+    robot, _ = _robot(tmp_path, "leg")
+    assert main(["check", str(robot), "--loop", "foot_loop", "--input", "hip"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(--loop welded joint 'hip': the input is one of the loop's joints)" in err
+
+
 def test_check_assemble_prints_the_moves(tmp_path, capsys):
     robot, _ = _robot(tmp_path, "leg")
     text = robot.read_text()

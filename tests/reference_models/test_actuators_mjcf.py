@@ -130,6 +130,8 @@ ROTOR = """<mujoco>
     ('<general joint="pivot" gaintype="affine" gainprm="1 1"/>', "actuator 'a0' has gaintype"),
     ('<general tendon="line"/>', "actuator 'a0' acts on spatial tendon 'line'"),
     ('<general site="tip" gear="1 0 0 0 0 0"/>', "actuator 'a0' has a mjTRN_SITE transmission"),
+    # the file's element named once (planted: the scene's value's message kept its own "actuator 'a0': ")
+    ('<general joint="pivot" gear="0" biastype="affine" biasprm="0 -1 0"/>', r"xml: actuator 'a0': gear must be nonzero$"),
 ])
 def test_refused_actuators_are_named(tmp_path, actuator, message):
     path = tmp_path / "m.xml"
