@@ -12,6 +12,8 @@ failure.
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass, replace
 from statistics import median
 from typing import Any, Mapping, Sequence
@@ -23,6 +25,8 @@ from loopcheck.scene import Scene, Tolerances
 
 from .run import Comparison, judge
 from .settings import engine_settings
+
+_log = logging.getLogger(__name__)  # the command prints it on stderr as progress (loopcheck: ...)
 
 
 @dataclass(frozen=True)
@@ -142,23 +146,30 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
         If the reduced reference fails (another engine's failure is its verdict).
     """
     settings = {name: (settings or {}).get(name) or engine_settings(name, scene) for name in engines}
+    _log.info("%s: %s started (the reference)", scene.name, REFERENCE)
+    start = time.perf_counter()
     reference = ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
+    _log.info("%s: %s ended in %.3g s", scene.name, REFERENCE, time.perf_counter() - start)
     verdicts = []
     for name in engines:
         if name == REFERENCE:
             continue
         own = (tolerances or {}).get(name) or scene.tolerances_for(name)
         judged = replace(scene, tolerances=own)  # MuJoCo's automatic step is chosen for the tolerances it is judged by
+        _log.info("%s: %s started", scene.name, name)
+        start = time.perf_counter()
         try:
             result = ENGINES[name].simulate(judged, settings[name])
         except NumericalFailure as exc:
             verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}",
                                           partial=exc.partial, failed_at=exc.time))
-            continue
         except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
             verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}"))
-            continue
-        verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own)))
+        else:
+            verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own)))
+        _log.info("%s: %s ended in %.3g s (%s)", scene.name, name, time.perf_counter() - start,
+                  "passed" if verdicts[-1].passed else "failed" if verdicts[-1].comparison is not None
+                  else verdicts[-1].failure.split(":")[0])
     peaks = {REFERENCE: reference.peak.omega}
     peaks.update({v.engine: v.comparison.diff.peak_omega_other for v in verdicts if v.comparison is not None})
     scale = max(abs(reference.peak.omega), 1e-300)
