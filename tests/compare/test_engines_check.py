@@ -209,21 +209,25 @@ def test_an_engine_that_did_not_run_has_a_verdict_and_no_comparison():
         check.verdict("pin")
 
 
-def test_check_engines_says_when_each_engine_starts_and_ends():
+def test_check_engines_says_when_each_engine_starts_and_ends(tmp_path):
     """Long engine runs talk (issue 39): `check --engines` prints on stderr a line when each engine
     starts and one when it ends, with its time and verdict; -q silences them (planted: no lines). Run
     as the command (a process of its own: the loggers as a user's shell has them)."""
     import subprocess
     import sys
 
-    argv = [sys.executable, "-m", "loopcheck.compare.cli", "check", "seed_fourbar", "--engines", "reduced,mujoco",
+    from helpers import SEED_SCENE
+
+    # from a folder of its own: the installed loopcheck, not a checkout's folder on the path
+    argv = [sys.executable, "-m", "loopcheck.compare.cli", "check", str(SEED_SCENE), "--engines", "reduced,mujoco",
             "--horizon", "0.2"]
-    done = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     err = done.stderr.splitlines()
     assert len(err) == 4 and err[0] == "loopcheck: seed_fourbar: reduced started (the reference)", err
     assert err[1].startswith("loopcheck: seed_fourbar: reduced ended in ") and err[1].endswith(" s")
     assert err[2] == "loopcheck: seed_fourbar: mujoco started"
     assert err[3].startswith("loopcheck: seed_fourbar: mujoco ended in ") and err[3].endswith(" s (passed)")
-    quiet = subprocess.run([argv[0], *argv[1:3], "-q", *argv[3:]], capture_output=True, text=True, timeout=120)
+    quiet = subprocess.run([argv[0], *argv[1:3], "-q", *argv[3:]], capture_output=True, text=True, timeout=120,
+                           cwd=tmp_path)
     assert quiet.returncode == 0 and quiet.stderr == ""
