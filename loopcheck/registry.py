@@ -23,9 +23,10 @@ that declares an engine is found when the registry is first imported (:func:`reg
 from __future__ import annotations
 
 import importlib
+import math
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 from .results import EngineResult
 from .scene import Scene
@@ -33,6 +34,27 @@ from .scene import Scene
 
 GROUP = "loopcheck.engines"  # the entry-point group an engine is declared in
 _NAME = re.compile(r"[a-z][a-z0-9_]*")  # a scene file's table, a word of --engines
+
+
+@dataclass(frozen=True)
+class Rung:
+    """One run an engine declares for a study: a point of its accuracy ladder (``loopcheck cost``)
+    or one of its stress probes (``loopcheck stress``).
+
+    ``series`` names the curve or the probe's family (e.g. ``"DOP853"``, ``"rk4 (hard)"``),
+    ``parameter`` what the series varies (a step in s, or a tolerance; NaN for a single point) and
+    ``settings`` the engine's ``Settings`` for that run."""
+
+    series: str
+    parameter: float
+    settings: Any
+
+    def __post_init__(self):
+        if not isinstance(self.series, str) or not self.series:
+            raise ValueError(f"Rung.series must be a non-empty string, got {self.series!r}")
+        if not isinstance(self.parameter, (int, float)) or isinstance(self.parameter, bool) or (
+                not math.isnan(self.parameter) and not (math.isfinite(self.parameter) and self.parameter > 0.0)):
+            raise ValueError(f"Rung.parameter must be positive and finite, or NaN, got {self.parameter!r}")
 
 
 @dataclass(frozen=True)
@@ -73,6 +95,79 @@ class Engine:
     def simulate(self, scene: Scene, settings: Any) -> EngineResult:
         """Run the engine on ``scene`` with ``settings`` (a ``self.settings``)."""
         return importlib.import_module(self.package).simulate(scene, settings)
+
+    # The optional declarations (docs/engines.md, "What an engine may declare"). Each has a default,
+    # so that an engine declaring none of them still reaches every study. The light ones live in the
+    # engine's ``settings`` module (read without loading the engine); ``simulate_batch`` in its package.
+
+    def _declared(self, name: str) -> Any:
+        return getattr(importlib.import_module(f"{self.package}.settings"), name, None)
+
+    @property
+    def label(self) -> str:
+        """The engine's name in prose, tables and plots: its settings module's ``LABEL`` (default:
+        its name)."""
+        label = self._declared("LABEL")
+        return label if isinstance(label, str) and label else self.name
+
+    def ladder(self, scene: Scene, base: Any, quick: bool = False) -> tuple[Rung, ...]:
+        """The accuracy ladder ``loopcheck cost`` runs: the settings module's
+        ``accuracy_ladder(scene, base, quick) -> Sequence[Rung]`` (``base``: the scene's resolved
+        settings; ``quick``: a short ladder), by default one point at ``base``."""
+        declared = self._declared("accuracy_ladder")
+        rungs = (Rung(self.label, math.nan, base),) if declared is None else tuple(declared(scene, base, quick))
+        return self._checked(rungs, "accuracy_ladder")
+
+    def stress_probes(self, scene: Scene, base: Any) -> tuple[Rung, ...]:
+        """The probes ``loopcheck stress`` runs on a case that asks for them (each reported by its
+        status): the settings module's ``stress_probes(scene, base) -> Sequence[Rung]``, by default
+        none."""
+        declared = self._declared("stress_probes")
+        return () if declared is None else self._checked(tuple(declared(scene, base)), "stress_probes")
+
+    def peak_accuracy(self, settings: Any) -> float:
+        """ε, the relative accuracy of the engine's peak input speed at ``settings`` (sensitivity's
+        differences balance their truncation against it): the settings module's
+        ``peak_accuracy(settings) -> float``.
+
+        Raises
+        ------
+        ValueError
+            In one line naming what is missing, when the engine declares none.
+        """
+        declared = self._declared("peak_accuracy")
+        if declared is None:
+            raise ValueError(f"engine '{self.name}' declares no peak accuracy (peak_accuracy(settings) in "
+                             f"{self.package}.settings), which sensitivity needs to choose its steps")
+        eps = declared(settings)
+        if not (isinstance(eps, (int, float)) and math.isfinite(eps) and 0.0 < eps < 1.0):
+            raise ValueError(f"engine '{self.name}': peak_accuracy gave {eps!r}, not a relative accuracy in (0, 1)")
+        return float(eps)
+
+    @property
+    def batch_size(self) -> int:
+        """How many variants of one structure a sweep hands ``simulate_batch`` at once: the settings
+        module's ``BATCH_SIZE`` (default 1: one variant a task, on the sweep's process pool)."""
+        size = self._declared("BATCH_SIZE")
+        if size is None:
+            return 1
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            raise ValueError(f"engine '{self.name}': BATCH_SIZE is {size!r}, not a whole number >= 1")
+        return size
+
+    def simulate_batch(self, scenes: Sequence[Scene], settings: Any) -> list[EngineResult]:
+        """Run variants of one structure: the package's ``simulate_batch(scenes, settings)`` where it
+        has one (the ports: one ``vmap``, MJWarp's worlds), else :meth:`simulate` on each in turn."""
+        batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
+        if batch is None:
+            return [self.simulate(scene, settings) for scene in scenes]
+        return list(batch(list(scenes), settings))
+
+    def _checked(self, rungs: tuple, what: str) -> tuple[Rung, ...]:
+        for rung in rungs:
+            if not isinstance(rung, Rung) or not isinstance(rung.settings, self.settings):
+                raise TypeError(f"engine '{self.name}': {what} gave {rung!r}, not a Rung of its Settings")
+        return rungs
 
 
 BUILT_IN: tuple[Engine, ...] = (  # pyproject.toml's [project.entry-points."loopcheck.engines"], with titles
