@@ -1,0 +1,296 @@
+"""A planar multibody in full coordinates with Lagrange multipliers: the tests' independent oracle
+for linkages of one or several degrees of freedom (not shipped).
+
+Written from the physics, sharing nothing with loopcheck's kinematics or engines. Each moving body
+i has the coordinates (x_i, y_i, θ_i): its centre of mass and its frame's angle. A point s of the
+body's frame (m) is at
+
+    r = r_G + R(θ) (s − c),        c: the centre of mass in the body's frame,
+
+and each revolute joint asks two such points, of two bodies or of a body and the ground, to
+coincide: Φ(q) = 0. With M = diag(m, m, I_G) per body and Φ_q the constraints' Jacobian,
+
+    [ M    Φ_qᵀ ] [ q̈ ]   [ Q ]
+    [ Φ_q   0   ] [ λ  ] = [ γ ],     γ = −(Φ_q q̇)_q q̇ = Σ ± θ̇² R(θ) u   (u = s − c),
+
+the index-1 form of the equations of motion. Q holds gravity, the joints' torques (τ on the body
+``b`` of a joint, −τ on its body ``a``, for the relative angle θ_b − θ_a) and the point-to-point
+dampers (force −c ḋ along the line between their points). The work of the torques and the
+dampers' dissipation are integrated alongside, for the energy balance.
+
+``simulate`` integrates it with scipy's DOP853 (restarted at every load edge) and states its own
+accuracy: the largest differences of the body angles and of their rates between rtol and rtol / 2 — a
+test compares an engine only to within more than those. The constraint's drift (|Φ| at the end,
+with no stabilization) is reported too.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+GROUND = "ground"
+
+
+def _rot(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+_PERP = np.array([[0.0, -1.0], [1.0, 0.0]])  # d/dθ R(θ) = PERP R(θ)
+
+
+@dataclass(frozen=True)
+class Body:
+    name: str
+    mass: float          # kg
+    com: tuple           # m, in the body's frame
+    inertia: float       # kg·m², about the centre of mass
+
+
+@dataclass(frozen=True)
+class Pin:
+    """A revolute joint: point ``sa`` of body ``a`` on point ``sb`` of body ``b`` (frames' m;
+    ``a`` may be the ground, its ``sa`` then in the world)."""
+    name: str
+    a: str
+    sa: tuple
+    b: str
+    sb: tuple
+
+
+@dataclass(frozen=True)
+class Damper:
+    a: str
+    sa: tuple
+    b: str
+    sb: tuple
+    coefficient: float  # N·s/m
+
+
+@dataclass(frozen=True)
+class Torque:
+    """τ(t) (N·m) across a pin: on its body b, and −τ on its body a. Constant between the model's
+    ``edges`` (it is read at the middle of each piece)."""
+    pin: str
+    value: Callable[[float], float]
+
+
+@dataclass(frozen=True)
+class Model:
+    bodies: tuple
+    pins: tuple
+    dampers: tuple = ()
+    torques: tuple = ()
+    gravity: float = 0.0                         # m/s², along −y
+    edges: tuple = ()                            # s: where a torque jumps (the integrator restarts)
+    index: dict = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "index", {b.name: i for i, b in enumerate(self.bodies)})
+
+    @property
+    def n(self) -> int:
+        return 3 * len(self.bodies)
+
+    def _point(self, body: str, s, q):
+        """(position, u rotated, body index or None) of point s of ``body``."""
+        if body == GROUND:
+            return np.asarray(s, float), None, None
+        i = self.index[body]
+        b = self.bodies[i]
+        u = _rot(q[3 * i + 2]) @ (np.asarray(s, float) - np.asarray(b.com, float))
+        return q[3 * i:3 * i + 2] + u, u, i
+
+    def residual(self, q) -> np.ndarray:
+        out = []
+        for p in self.pins:
+            ra, _, _ = self._point(p.a, p.sa, q)
+            rb, _, _ = self._point(p.b, p.sb, q)
+            out.append(ra - rb)
+        return np.concatenate(out)
+
+    def jacobian(self, q) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """Φ_q, and γ(q̇)."""
+        J = np.zeros((2 * len(self.pins), self.n))
+        terms = []
+        for k, p in enumerate(self.pins):
+            for body, s, sign in ((p.a, p.sa, 1.0), (p.b, p.sb, -1.0)):
+                _, u, i = self._point(body, s, q)
+                if i is None:
+                    continue
+                J[2 * k:2 * k + 2, 3 * i:3 * i + 2] += sign * np.eye(2)
+                J[2 * k:2 * k + 2, 3 * i + 2] += sign * (_PERP @ u)
+                terms.append((k, i, sign, u))
+
+        def gamma(qd):
+            g = np.zeros(2 * len(self.pins))
+            for k, i, sign, u in terms:
+                g[2 * k:2 * k + 2] += sign * qd[3 * i + 2] ** 2 * u
+            return g
+        return J, gamma
+
+    def mass(self) -> np.ndarray:
+        return np.diag(np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies]))
+
+    def _point_velocity(self, body, s, q, qd):
+        r, u, i = self._point(body, s, q)
+        if i is None:
+            return r, np.zeros(2), None, None
+        return r, qd[3 * i:3 * i + 2] + qd[3 * i + 2] * (_PERP @ u), u, i
+
+    def forces(self, t, q, qd) -> tuple[np.ndarray, float, float]:
+        """Q, the torques' power (W) and the dampers' dissipation rate (W)."""
+        Q = np.zeros(self.n)
+        for i, b in enumerate(self.bodies):
+            Q[3 * i + 1] -= b.mass * self.gravity
+        power = 0.0
+        pins = {p.name: p for p in self.pins}
+        for torque in self.torques:
+            p = pins[torque.pin]
+            tau = torque.value(t)
+            rate = 0.0
+            if p.b != GROUND:
+                Q[3 * self.index[p.b] + 2] += tau
+                rate += qd[3 * self.index[p.b] + 2]
+            if p.a != GROUND:
+                Q[3 * self.index[p.a] + 2] -= tau
+                rate -= qd[3 * self.index[p.a] + 2]
+            power += tau * rate
+        dissipation = 0.0
+        for d in self.dampers:
+            ra, va, ua, ia = self._point_velocity(d.a, d.sa, q, qd)
+            rb, vb, ub, ib = self._point_velocity(d.b, d.sb, q, qd)
+            n = (rb - ra) / np.linalg.norm(rb - ra)
+            ddot = float(n @ (vb - va))
+            f = -d.coefficient * ddot  # on b along n, on a along −n
+            for i, u, sign in ((ib, ub, 1.0), (ia, ua, -1.0)):
+                if i is None:
+                    continue
+                Q[3 * i:3 * i + 2] += sign * f * n
+                Q[3 * i + 2] += sign * f * float(n @ (_PERP @ u))
+            dissipation += d.coefficient * ddot ** 2
+        return Q, power, dissipation
+
+    def accelerations(self, t, q, qd) -> tuple[np.ndarray, float, float]:
+        M = self.mass()
+        J, gamma = self.jacobian(q)
+        Q, power, dissipation = self.forces(t, q, qd)
+        m = J.shape[0]
+        A = np.block([[M, J.T], [J, np.zeros((m, m))]])
+        sol = np.linalg.solve(A, np.concatenate([Q, gamma(qd)]))
+        return sol[:self.n], power, dissipation
+
+    def energy(self, q, qd) -> float:
+        """Kinetic + gravity's potential (J)."""
+        kinetic = 0.5 * qd @ self.mass() @ qd
+        potential = sum(b.mass * self.gravity * q[3 * i + 1] for i, b in enumerate(self.bodies))
+        return float(kinetic + potential)
+
+    def assemble(self, guess: dict, fixed: dict, rates: dict) -> tuple[np.ndarray, np.ndarray]:
+        """A consistent (q, q̇): the body angles ``guess`` (rad, each body's), the bodies named in
+        ``fixed`` held at their angle, positions by Newton on Φ = 0; q̇ from the bodies' angular
+        rates ``rates`` (rad/s, as many as the mechanism's degrees of freedom) and Φ_q q̇ = 0."""
+        q = np.zeros(self.n)
+        for i, b in enumerate(self.bodies):
+            q[3 * i + 2] = guess[b.name]
+        held = [3 * self.index[name] + 2 for name in fixed]
+        for name, angle in fixed.items():
+            q[3 * self.index[name] + 2] = angle
+        for _ in range(100):
+            r = np.concatenate([self.residual(q), np.zeros(len(held))])
+            J, _ = self.jacobian(q)
+            rows = np.zeros((len(held), self.n))
+            for k, j in enumerate(held):
+                rows[k, j] = 1.0
+            step = np.linalg.lstsq(np.vstack([J, rows]), -r, rcond=None)[0]
+            q += step
+            if np.max(np.abs(step)) < 1e-15 and np.max(np.abs(self.residual(q))) < 1e-14:
+                break
+        else:
+            raise RuntimeError("the assembly did not converge")
+        J, _ = self.jacobian(q)
+        named = [3 * self.index[name] + 2 for name in rates]
+        rows = np.zeros((len(named), self.n))
+        for k, j in enumerate(named):
+            rows[k, j] = 1.0
+        A = np.vstack([J, rows])
+        b = np.concatenate([np.zeros(J.shape[0]), list(rates.values())])
+        qd = np.linalg.solve(A, b) if A.shape[0] == A.shape[1] else np.linalg.lstsq(A, b, rcond=None)[0]
+        return q, qd
+
+
+@dataclass(frozen=True)
+class Run:
+    t: np.ndarray
+    q: np.ndarray          # (samples, 3 × bodies)
+    qd: np.ndarray
+    work: np.ndarray       # J, the torques' work from t = 0
+    dissipated: np.ndarray  # J, the dampers'
+    energy: np.ndarray     # J, kinetic + potential
+
+    def angle(self, model: Model, body: str) -> np.ndarray:
+        return self.q[:, 3 * model.index[body] + 2]
+
+    def rate(self, model: Model, body: str) -> np.ndarray:
+        return self.qd[:, 3 * model.index[body] + 2]
+
+    @property
+    def balance(self) -> float:
+        """|E(t) − E(0) − W + D| at its largest over the run, relative to max(|E|, W, D) (1)."""
+        residual = self.energy - self.energy[0] - self.work + self.dissipated
+        scale = max(np.max(np.abs(self.energy)), np.max(np.abs(self.work)), np.max(self.dissipated), 1e-300)
+        return float(np.max(np.abs(residual)) / scale)
+
+
+def integrate(model: Model, q0, qd0, t_eval, rtol: float = 1e-12) -> Run:
+    """DOP853 from (q0, q̇0) through ``t_eval`` (restarted at every edge)."""
+    t_eval = np.asarray(t_eval, float)
+    n = model.n
+
+    def rhs(t, y, t_load):
+        q, qd = y[:n], y[n:2 * n]
+        qdd, power, dissipation = model.accelerations(t_load, q, qd)
+        return np.concatenate([qd, qdd, [power, dissipation]])
+
+    y = np.concatenate([q0, qd0, [0.0, 0.0]])
+    bounds = [t_eval[0], *[e for e in model.edges if t_eval[0] < e < t_eval[-1]], t_eval[-1]]
+    out = []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        last = hi == bounds[-1]
+        inside = t_eval[(t_eval >= lo) & ((t_eval <= hi) if last else (t_eval < hi))]
+        # the torques are constant between edges: read at the piece's middle, so that no stage at
+        # an edge sees the next piece's value
+        sol = solve_ivp(rhs, (lo, hi), y, method="DOP853", rtol=rtol, atol=rtol * 1e-2, dense_output=True,
+                        args=(0.5 * (lo + hi),))
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        if inside.size:
+            out.append(sol.sol(inside))
+        y = sol.y[:, -1]
+    Y = np.hstack(out)
+    q, qd = Y[:n].T, Y[n:2 * n].T
+    energy = np.array([model.energy(a, b) for a, b in zip(q, qd)])
+    return Run(t_eval, q, qd, Y[2 * n], Y[2 * n + 1], energy)
+
+
+def simulate(model: Model, q0, qd0, t_eval, rtol: float = 1e-12) -> tuple[Run, tuple[float, float]]:
+    """The run at ``rtol`` and its accuracy: the largest difference of the bodies' angles (rad)
+    and of their angular rates (rad/s) from the run at rtol / 2."""
+    run = integrate(model, q0, qd0, t_eval, rtol)
+    half = integrate(model, q0, qd0, t_eval, rtol / 2.0)
+    angles = [3 * i + 2 for i in range(len(model.bodies))]
+    accuracy = (float(np.max(np.abs(run.q[:, angles] - half.q[:, angles]))),
+                float(np.max(np.abs(run.qd[:, angles] - half.qd[:, angles]))))
+    return run, accuracy
+
+
+def pulse(value: float, start: float, duration: float) -> Callable[[float], float]:
+    return lambda t: value if start <= t < start + duration else 0.0
+
+
+__all__ = ["Body", "Damper", "GROUND", "Model", "Pin", "Run", "Torque", "integrate", "pulse", "simulate"]
