@@ -1,7 +1,7 @@
 """`loopcheck check model.xml` and `loopcheck run model.xml`: a user's own model, as written, against
 the exact answer.
 
-The engine that reads the model's file (:func:`loopcheck.registry.model_reader`: MuJoCo reads MJCF)
+The engine that read the model's file (:func:`loopcheck.registry.model_readers`: MuJoCo reads MJCF)
 reads it as a scene, runs it as written, changes each of its settings alone and says which causes
 the difference and what to paste into the file (its ``models`` module,
 :attr:`loopcheck.registry.Engine.models`: MuJoCo's :mod:`loopcheck.reference_models.model_check`).
@@ -13,25 +13,25 @@ from __future__ import annotations
 
 from typing import Any
 
-from loopcheck.registry import ENGINES, REFERENCE, Engine, model_reader
+from loopcheck.registry import ENGINES, REFERENCE, Engine, model_readers
 from loopcheck.scene import Tolerances
 
 from .run import judge
 
 
 def reader_of(imported: Any) -> Engine:
-    """The engine that read ``imported`` (the model its scene was read from, by the file's suffix).
+    """The engine that read ``imported`` (the engine reading model files whose ``models`` module made
+    it: its ``ImportedModel``).
 
     Raises
     ------
-    ValueError
-        If no registered engine reads that file.
+    TypeError
+        If no registered engine reads such a model.
     """
-    source = imported.scene.source or ""
-    engine = model_reader(source)
-    if engine is None:
-        raise ValueError(f"{source}: no engine reads this file as a model")
-    return engine
+    for engine in model_readers():
+        if isinstance(imported, engine.models.ImportedModel):
+            return engine
+    raise TypeError(f"{type(imported).__name__}: no registered engine reads this model")
 
 
 def check_model(imported: Any, *, tolerances: Tolerances | None = None, reduced: Any = None):

@@ -3,7 +3,7 @@
 the comparison and the command line name no engine.
 
 The interface: ``Control`` (an actuator's control, ``--ctrl``), ``import_model`` (the file read as a
-scene at a keyframe or qpos0), ``import_loop`` (one loop cut out, ``--loop``), ``import_assembled``
+scene at a keyframe or qpos0, an ``ImportedModel``), ``import_loop`` (one loop cut out, ``--loop``), ``import_assembled``
 (the loops closed by Newton, ``--assemble``), ``input_coordinate`` (the input as the file names it),
 ``model_text`` (a scene's model written in the format, ``export-mjcf``), and the check of the model
 as written against the reduced reference (:mod:`loopcheck.reference_models.model_check`:
@@ -18,7 +18,7 @@ from loopcheck._lazy import lazy_names
 FORMAT = "MuJoCo model (MJCF)"  # how messages name the files read here
 
 _HOMES = {
-    "Control": ".mjcf_import",
+    **dict.fromkeys(("Control", "ImportedModel"), ".mjcf_import"),
     "import_model": (".mjcf_import", "import_mjcf"),
     **dict.fromkeys(("import_loop", "import_assembled"), ".extract"),
     "input_coordinate": ".user_model",
