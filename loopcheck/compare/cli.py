@@ -704,8 +704,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_scenes)
 
     for engine in ENGINES.values():  # each registered engine alone: `loopcheck NAME`
-        p = sub.add_parser(engine.name, help=f"run {engine.label} alone on the scene: {engine.description}",
-                           description=f"Run the scene through {engine.label} alone ({engine.description}); print "
+        p = sub.add_parser(engine.name, help=f"one engine alone: {engine.description}",
+                           description=f"Run the scene through this engine alone: {engine.description}. Print "
                                        "its settings as run, the peak speed of the input joint and its time, the "
                                        "loop gap where the engine records one, the energy residual and the cost. "
                                        "An engine of an optional extra that is not installed says how to install "
