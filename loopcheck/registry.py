@@ -110,6 +110,82 @@ class Engine:
         label = self._declared("LABEL")
         return label if isinstance(label, str) and label else self.name
 
+    @property
+    def colour(self) -> str:
+        """The engine's colour in plots (a matplotlib colour): its settings module's ``COLOUR``
+        (default: the first colour of :data:`PALETTE` that no registered engine declares, taken
+        by the undeclared engines in the registry's order)."""
+        colour = self._declared("COLOUR")
+        if isinstance(colour, str) and colour:
+            return colour
+        declared = {e._declared("COLOUR") for e in ENGINES.values()}
+        spare = [c for c in PALETTE if c not in declared]
+        undeclared = [e.name for e in ENGINES.values() if not e._declared("COLOUR")]
+        index = undeclared.index(self.name) if self.name in undeclared else len(undeclared)
+        return spare[index % len(spare)] if spare else PALETTE[index % len(PALETTE)]
+
+    @property
+    def runs(self) -> tuple[str, ...]:
+        """The names of the runs this engine's package produces (``EngineResult.engine``): its own
+        name, then its settings module's ``RUNS`` (e.g. a user's own model run as written; default
+        none). Each is labelled, coloured and filed as the engine (:func:`engine_of_run`)."""
+        runs = self._declared("RUNS") or ()
+        return (self.name, *(r for r in runs if isinstance(r, str) and r != self.name))
+
+    @property
+    def inherits(self) -> tuple[str, frozenset[str]] | None:
+        """Another engine's table whose values are this engine's defaults for some keys: its settings
+        module's ``INHERITS = (ENGINE, KEYS)`` (a port taking the scene's table of the engine it
+        ports for the options they share; default: nothing inherited)."""
+        declared = self._declared("INHERITS")
+        if declared is None:
+            return None
+        engine, keys = declared
+        return str(engine), frozenset(keys)
+
+    def settings_text(self, result: EngineResult) -> str | None:
+        """A run's settings in a few words, for a table's column head: the settings module's
+        ``settings_text(result) -> str`` (default None: the comparison's own words)."""
+        declared = self._declared("settings_text")
+        return None if declared is None else str(declared(result))
+
+    def check_work(self, scene: Scene, settings: Any) -> None:
+        """Refuse, before any work, a run the engine cannot do with ``settings``: the package's
+        ``check_work(scene, settings)`` where it has one (ValueError naming what to change), else
+        nothing."""
+        check = getattr(importlib.import_module(self.package), "check_work", None)
+        if check is not None:
+            check(scene, settings)
+
+    @property
+    def model_files(self) -> tuple[str, ...]:
+        """The suffixes of the model files the engine reads as scenes and runs as written (a user's own
+        model: ``loopcheck check model.xml``): its settings module's ``MODEL_FILES`` (e.g.
+        ``(".xml",)``; default none). Such an engine's package has a ``models`` module
+        (:attr:`models`)."""
+        files = self._declared("MODEL_FILES") or ()
+        return tuple(str(suffix).lower() for suffix in files)
+
+    @property
+    def models(self):
+        """The module of the engine's package that reads and checks a user's own model (its
+        ``models`` module; the commands' interface to it is documented there)."""
+        return importlib.import_module(f"{self.package}.models")
+
+    def gate_notes(self, scene: Scene, result: EngineResult, failures: Sequence[str]) -> tuple[str, ...]:
+        """What a failed gate adds about the engine's run ``result`` of ``scene`` (``failures``: the
+        gate's): the settings module's ``gate_notes(scene, result, failures) -> Sequence[str]``
+        (e.g. MuJoCo naming the fixed timestep it ran at), by default nothing."""
+        declared = self._declared("gate_notes")
+        return () if declared is None else tuple(str(note) for note in declared(scene, result, failures))
+
+    def result_lines(self, scene: Scene, result: EngineResult) -> list[str] | None:
+        """What the engine's own command (``loopcheck NAME``) prints of a run beside the common lines:
+        the package's ``result_lines(scene, result) -> list[str]`` (default None: the common lines
+        alone)."""
+        lines = getattr(importlib.import_module(self.package), "result_lines", None)
+        return None if lines is None else list(lines(scene, result))
+
     def ladder(self, scene: Scene, base: Any, quick: bool = False) -> tuple[Rung, ...]:
         """The accuracy ladder ``loopcheck cost`` runs: the settings module's
         ``accuracy_ladder(scene, base, quick) -> Sequence[Rung]`` (``base``: the scene's resolved
@@ -169,6 +245,9 @@ class Engine:
                 raise TypeError(f"engine '{self.name}': {what} gave {rung!r}, not a Rung of its Settings")
         return rungs
 
+
+# The colours an engine that declares none takes (Engine.colour), in this order.
+PALETTE = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:grey", "tab:red", "tab:green")
 
 BUILT_IN: tuple[Engine, ...] = (  # pyproject.toml's [project.entry-points."loopcheck.engines"], with titles
     Engine("reduced", "loopcheck.reduced", "Eksergian's equation, solved in one coordinate (the exact reference)"),
@@ -231,3 +310,23 @@ def engine_of(settings: Any) -> Engine:
             return engine
     names = ", ".join(e.settings.__name__ for e in ENGINES.values())
     raise TypeError(f"settings of an engine ({names}), not {type(settings).__name__}")
+
+
+def engine_of_run(name: str) -> Engine | None:
+    """The engine whose package produced the run named ``name`` (``EngineResult.engine``: an
+    engine's name, or one of its :attr:`Engine.runs`), None for none."""
+    if name in ENGINES:
+        return ENGINES[name]
+    return next((e for e in ENGINES.values() if name in e.runs), None)
+
+
+def model_reader(path: str) -> Engine | None:
+    """The engine that reads the model file ``path`` (by its suffix: :attr:`Engine.model_files`),
+    None for a file no engine reads (a scene file)."""
+    suffix = "." + str(path).rsplit(".", 1)[-1].lower() if "." in str(path) else ""
+    return next((e for e in ENGINES.values() if suffix and suffix in e.model_files), None)
+
+
+def model_readers() -> tuple[Engine, ...]:
+    """The engines that read model files (:attr:`Engine.model_files`), in the registry's order."""
+    return tuple(e for e in ENGINES.values() if e.model_files)

@@ -44,14 +44,13 @@ import logging  # noqa: E402
 import warnings
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 # Only what parsing and error reporting need is imported here; each command imports its
 # engine (the reduced solver, MuJoCo, matplotlib) when it runs.
 from loopcheck.errors import NumericalFailure
 
 try:
-    from loopcheck.registry import ENGINES
+    from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE, model_reader, model_readers
 except ValueError as _exc:  # an engine an installed distribution declares wrongly (loopcheck.registry)
     if not _AS_COMMAND:
         raise
@@ -66,14 +65,11 @@ from loopcheck.sweep_spec import ENGINE_CHOICES
 from .output import (DEFAULT_ROOT, EXIT_INTERRUPTED, EXIT_TERMINATED, MANIFEST_FILE, OutputError, Terminated,
                      WriterDied, check_file, check_folder, refuse_same_outputs, signals_as_exceptions, write_file)
 from .report import JOINTS_BY_DEFAULT
-from .text import mujoco_lines, pin_lines, reduced_lines
-
-if TYPE_CHECKING:
-    from loopcheck.reduced import ReducedSettings
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_REPEATS = 1000
 MAX_WORKERS = 1024  # the cost study uses at most one process per core; more than this is a typo
+OTHER = next(name for name in DEFAULT_ENGINES if name != REFERENCE)  # the default comparison's other engine (MuJoCo)
 REFERENCE_PREFIX = "reference-"  # the comparisons' flags of the reduced reference: --reference-method, ...
 
 
@@ -171,63 +167,34 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_reduced(args: argparse.Namespace) -> int:
-    from loopcheck.reduced import simulate
+def cmd_engine(args: argparse.Namespace) -> int:
+    """``loopcheck NAME``: the registered engine ``NAME`` alone on the scene (a missing optional
+    extra: one line, exit 2)."""
+    from .text import result_lines
 
+    engine = ENGINES[args.command]
     scene = _scene(args.scene)
-    settings = _settings("reduced", args, scene)
-    result = simulate(scene, settings)
-    print("\n".join(reduced_lines(scene, result)))
-    return EXIT_OK
-
-
-def _mujoco_settings(args: argparse.Namespace, scene):
-    return _settings("mujoco", args, scene)
-
-
-def cmd_mujoco(args: argparse.Namespace) -> int:
-    from loopcheck.reference_models import simulate_mujoco
-
-    scene = _scene(args.scene)
-    settings = _mujoco_settings(args, scene)
-    # the automatic step is chosen for MuJoCo's gate ([tolerances.mujoco] over [tolerances])
-    result = simulate_mujoco(replace(scene, tolerances=scene.tolerances_for("mujoco")), settings)
-    print("\n".join(mujoco_lines(scene, result)))
+    settings = _settings(engine.name, args, scene)
+    engine.load()
+    # an automatic step is chosen for the engine's gate ([tolerances.NAME] over [tolerances])
+    result = engine.simulate(replace(scene, tolerances=scene.tolerances_for(engine.name)), settings)
+    print("\n".join(result_lines(scene, result)))
     return EXIT_OK  # off-grid load edges: an OffGridEdgeWarning, printed by main()
 
 
-def cmd_pin(args: argparse.Namespace) -> int:
-    scene = _scene(args.scene)
-    settings = _settings("pin", args, scene)
-    try:
-        from loopcheck.pin import simulate
-        result = simulate(scene, settings)
-    except ModuleNotFoundError as exc:
-        if exc.name != "pinocchio":
-            raise
-        raise UsageError(str(exc)) from None
-    print("\n".join(pin_lines(scene, result)))
-    return EXIT_OK
-
-
-def cmd_port(args: argparse.Namespace) -> int:
-    """``loopcheck mjx`` and ``loopcheck mjwarp``: one of MuJoCo's ports alone."""
-    from .text import port_lines
-
-    scene = _scene(args.scene)
-    settings = _settings(args.command, args, scene)
-    ENGINES[args.command].load()  # a missing extra: one line, exit 2
-    result = ENGINES[args.command].simulate(scene, settings)
-    print("\n".join(port_lines(scene, result)))
-    return EXIT_OK
+def _model_engine():
+    """The engine that reads model files (``import-mjcf``, ``export-mjcf``; MuJoCo's MJCF)."""
+    readers = model_readers()
+    if not readers:
+        raise UsageError("no registered engine reads model files")
+    return readers[0]
 
 
 def cmd_export_mjcf(args: argparse.Namespace) -> int:
-    from loopcheck.reference_models import mjcf_text
-
+    engine = _model_engine()
     check_file(args.out, flag="-o", inputs=[_scene_path(args.scene)])  # before any work
     scene = _scene(args.scene)
-    xml = mjcf_text(scene, _mujoco_settings(args, scene))
+    xml = engine.models.model_text(scene, _settings(engine.name, args, scene))
     path = write_file(args.out, xml, flag="-o")
     print(f"wrote {path}")
     return EXIT_OK
@@ -235,17 +202,14 @@ def cmd_export_mjcf(args: argparse.Namespace) -> int:
 
 def _control(text: str):
     """An argparse type: an actuator's control, ``[NAME=]VALUE`` or ``[NAME=]t:value,t:value,...``."""
-    from loopcheck.reference_models.mjcf_import import Control
-
     try:
-        return Control.parse_named(text)
+        return _model_engine().models.Control.parse_named(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def cmd_import_mjcf(args: argparse.Namespace) -> int:
     from loopcheck.scene_writer import scene_toml
-    from loopcheck.reference_models.user_model import input_coordinate
 
     check_file(args.out, flag="-o", inputs=[args.model])  # before any work
     if args.write_submodel is not None:
@@ -266,7 +230,7 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
           f"({len(scene.mechanism.linkage.cut_joints)} closing loops"
           + "".join(f", coupling '{c.name}'" for c in scene.mechanism.linkage.couplings)
           + f"), input '{scene.mechanism.linkage.input_joint}': "
-          f"{input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
+          f"{_reader(args.model).models.input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
           f"horizon {scene.horizon:g} s")
     if imported.extraction:
         print(_extraction_lines(imported))
@@ -285,16 +249,21 @@ def cmd_draw(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _mujoco_settings(args: argparse.Namespace, scene):
+    """The default comparison's other engine's settings (MuJoCo's): its flags given over the scene's table."""
+    return _settings(OTHER, args, scene)
+
+
 def _add_mujoco_arguments(p: argparse.ArgumentParser) -> None:
-    add_flags(p, ENGINES["mujoco"].settings, title="MuJoCo settings", table="mujoco")
+    add_flags(p, ENGINES[OTHER].settings, title=f"{ENGINES[OTHER].label} settings", table=OTHER)
 
 
-def _reduced_reference(args: argparse.Namespace, scene) -> ReducedSettings:
+def _reduced_reference(args: argparse.Namespace, scene):
     """The reduced reference: command-line flags over the scene's [reduced] table over the defaults."""
-    return _settings("reduced", args, scene, prefix=REFERENCE_PREFIX)
+    return _settings(REFERENCE, args, scene, prefix=REFERENCE_PREFIX)
 
 
-def _tolerances(scene, args: argparse.Namespace, engine: str = "mujoco"):
+def _tolerances(scene, args: argparse.Namespace, engine: str = OTHER):
     """The tolerances ``engine`` is judged by: the flags given over the scene's for it."""
     from .settings import gate_tolerances
 
@@ -320,7 +289,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .run import compare_engines
 
     if args.scene is not None and _is_mjcf(args.scene):  # the user's model as written (docs/import.md)
-        from .model_check import check_model, diagnosis_lines
+        from .model_check import check_model, reader_of
 
         imported = _import(args, args.scene)
         for line in imported.warnings:
@@ -334,7 +303,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise check.as_written.failure
         comparison = check.as_written.comparison
         print("\n".join(comparison_lines(comparison)))
-        print("\n".join(line.strip() for line in diagnosis_lines(check)))
+        print("\n".join(line.strip() for line in reader_of(imported).models.diagnosis_lines(check)))
         if imported.extraction:
             print(_extraction_lines(imported))
         extraction = imported.extraction.as_dict() if imported.extraction else None
@@ -386,36 +355,35 @@ def _run_input(path: str | None) -> Path:
 
 
 def _is_mjcf(path: str) -> bool:
-    """A MuJoCo model (checked as written, ``loopcheck check model.xml``) rather than a scene."""
-    return path.lower().endswith(".xml")
+    """A model file an engine reads (MuJoCo's MJCF, checked as written, ``loopcheck check model.xml``)
+    rather than a scene (:func:`loopcheck.registry.model_reader`)."""
+    return model_reader(path) is not None
+
+
+def _reader(path: str):
+    """The engine that reads the model file ``path`` (``import-mjcf`` reads MJCF: MuJoCo's)."""
+    return model_reader(path) or _model_engine()
 
 
 def _import(args: argparse.Namespace, path: str):
-    from loopcheck.reference_models.mjcf_import import import_mjcf
-
-    from loopcheck.reference_models.mjcf_import import Control
-
+    models = _reader(path).models
     horizon = {} if args.horizon is None else {"horizon": args.horizon}  # else import_mjcf's default, 1 s
     try:
-        bare, named = Control.by_name(args.ctrl)
+        bare, named = models.Control.by_name(args.ctrl)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if getattr(args, "loop", None):  # one loop out of a larger model (docs/import.md)
-        from loopcheck.reference_models.extract import import_loop
-
         if args.write_submodel is not None:
             check_file(args.write_submodel, flag="--write-submodel", inputs=[path])  # before any work
-        return import_loop(path, args.loop, write_to=args.write_submodel, keyframe=args.keyframe,
+        return models.import_loop(path, args.loop, write_to=args.write_submodel, keyframe=args.keyframe,
                            qpos0=bool(args.qpos0), assemble=bool(args.assemble), input_joint=args.input,
                            control=bare, controls=named, **horizon)[0]
     if getattr(args, "write_submodel", None) is not None:
         raise UsageError("--write-submodel writes the loop that --loop NAME cuts out of the model: give --loop")
     if getattr(args, "assemble", None):  # the whole model's loops (docs/import.md)
-        from loopcheck.reference_models.extract import import_assembled
-
-        return import_assembled(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+        return models.import_assembled(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
                                 control=bare, controls=named, **horizon)
-    return import_mjcf(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
+    return models.import_model(path, input_joint=args.input, keyframe=args.keyframe, qpos0=bool(args.qpos0),
                        control=bare, controls=named, **horizon)
 
 
@@ -439,16 +407,16 @@ def cmd_check(args: argparse.Namespace) -> int:
             raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
                              "reduced solution alone")
         return _check_engines(args, scenes)
-    from loopcheck.reduced.engine import check_work
-
     for path, scene in [*((p, m.scene) for p, m in models.items()), *((s.source, s) for s in scenes)]:
         try:  # the reference's refusals, before anything is printed
-            check_work(scene, _reduced_reference(args, scene))
+            ENGINES[REFERENCE].check_work(scene, _reduced_reference(args, scene))
         except ValueError as exc:
             raise UsageError(f"{path}: {exc}") from None
     failed = 0
     for path, imported in models.items():
-        from .model_check import check_lines as model_lines, check_model, reference_failure_lines
+        from .model_check import check_model, reader_of
+
+        own = reader_of(imported).models  # the reading engine's check and its lines
 
         def said(imported=imported, path=path) -> None:  # after the check: a refusal in it prints its line alone
             for line in imported.warnings:
@@ -462,11 +430,11 @@ def cmd_check(args: argparse.Namespace) -> int:
         except NumericalFailure as exc:  # the reduced reference's (the model's own runs record theirs)
             failed += 1
             said()
-            print("\n".join(reference_failure_lines(imported, exc, path)))
+            print("\n".join(own.reference_failure_lines(imported, exc, path)))
             continue
         said()
         failed += not check.passed
-        print("\n".join(model_lines(check, path)))
+        print("\n".join(own.check_lines(check, path)))
         if imported.extraction:
             print(_extraction_lines(imported, "      "))
     for scene in scenes:
@@ -500,15 +468,13 @@ def _engines(text: str) -> tuple[str, ...]:
 def _engines_check(args: argparse.Namespace, scene):
     """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
     reference at its own tolerances (the flags given over the scene's for it)."""
-    from loopcheck.registry import REFERENCE
-
     from .engines import check_engines
     from .settings import engine_settings
 
     # the flags are the reference's and MuJoCo's (another engine's flags of the same name, --method,
     # --rtol, are not read as its): the others run with their scene table over their defaults
     settings = {name: (_reduced_reference(args, scene) if name == REFERENCE else
-                       _mujoco_settings(args, scene) if name == "mujoco" else engine_settings(name, scene))
+                       _mujoco_settings(args, scene) if name == OTHER else engine_settings(name, scene))
                 for name in args.engines}
     tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
     return check_engines(scene, args.engines, settings, tolerances)
@@ -659,7 +625,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
-    add_flags(p, ENGINES["reduced"].settings, title="reduced reference", prefix=REFERENCE_PREFIX, table="reduced")
+    add_flags(p, ENGINES[REFERENCE].settings, title=f"{ENGINES[REFERENCE].label} reference", prefix=REFERENCE_PREFIX,
+              table=REFERENCE)
 
 
 def _add_tolerance_arguments(p: argparse.ArgumentParser) -> None:
@@ -736,39 +703,16 @@ def build_parser() -> argparse.ArgumentParser:
                                    "the name any command takes in place of a scene file, and the file.")
     p.set_defaults(func=cmd_scenes)
 
-    p = sub.add_parser("reduced", help="solve the scene's Eksergian equation",
-                       description="Solve the scene's Eksergian equation; print the peak speed of the "
-                                   "input joint (rad/s or m/s), its time and the energy residual.")
-    _add_scene_argument(p)
-    add_flags(p, ENGINES["reduced"].settings, title="reduced solver settings", table="reduced")
-    p.set_defaults(func=cmd_reduced)
-
-    p = sub.add_parser("mujoco", help="run the scene's MuJoCo model",
-                       description="Run the scene's MuJoCo model (open chain closed by an equality "
-                                   "constraints); print the peak speed of the input joint, its "
-                                   "time, the largest loop-constraint violation and the energy residual.")
-    _add_scene_argument(p)
-    _add_mujoco_arguments(p)
-    p.set_defaults(func=cmd_mujoco)
-
-    p = sub.add_parser("pin", help="run the scene's Pinocchio model (the extra loopcheck[pin])",
-                       description="Run the scene's Pinocchio model (its tree's constrained dynamics, each loop "
-                                   "closed by a point constraint, integrated by scipy); print the peak speed of the "
-                                   "input joint, its time, the largest loop gap and the energy residual.")
-    _add_scene_argument(p)
-    add_flags(p, ENGINES["pin"].settings, title="Pinocchio engine settings", table="pin")
-    p.set_defaults(func=cmd_pin)
-
-    for name, port, extra in (("mjx", "MJX, MuJoCo's JAX port", "loopcheck[mjx]"),
-                              ("mjwarp", "MJWarp, MuJoCo's Warp port (float32)", "loopcheck[mjwarp]")):
-        p = sub.add_parser(name, help=f"run the scene's MuJoCo model with {port.split(',')[0]} (the extra {extra})",
-                           description=f"Step the MuJoCo engine's model of the scene with {port} (docs/engines.md "
-                                       "says how to install it); print the peak speed of the input joint, the "
-                                       "largest loop gap and the energy residual (MuJoCo C's, at the port's "
-                                       "states), and the port's known defects.")
+    for engine in ENGINES.values():  # each registered engine alone: `loopcheck NAME`
+        p = sub.add_parser(engine.name, help=f"one engine alone: {engine.description}",
+                           description=f"Run the scene through this engine alone: {engine.description}. Print "
+                                       "its settings as run, the peak speed of the input joint and its time, the "
+                                       "loop gap where the engine records one, the energy residual and the cost. "
+                                       "An engine of an optional extra that is not installed says how to install "
+                                       "it (docs/engines.md).")
         _add_scene_argument(p)
-        add_flags(p, ENGINES[name].settings, title=f"{port.split(',')[0]} engine settings", table=name)
-        p.set_defaults(func=cmd_port)
+        add_flags(p, engine.settings, title=f"{engine.label} settings", table=engine.name)
+        p.set_defaults(func=cmd_engine)
 
     p = sub.add_parser("export-mjcf", help="write the scene's MuJoCo model as MJCF",
                        description="Write the scene's MuJoCo model as a human-readable MJCF file "

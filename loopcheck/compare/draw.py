@@ -29,6 +29,7 @@ import numpy as np
 from loopcheck.loads import TabulatedForce
 from loopcheck.kinematics import LoopSystem, compile_linkage, positions
 from loopcheck.mechanism import GROUND, Linkage, Mechanism, PrismaticJoint
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
 
 from .text import STILL_RISING, engine_label
 
@@ -489,8 +490,8 @@ STRIP_MIN_WIDTH = 7.0  # inches: room for the title above a single panel
 STRIP_MARGINS = {"left": 0.95, "right": 0.2, "top": 0.85, "bottom": 0.55, "wspace": 0.6}
 ANIMATION_MARGINS = {"left": 0.8, "right": 0.2, "top": 0.4, "bottom": 0.55}
 
-REFERENCE_LOOK = {"colour": "tab:blue", "linestyle": "-", "label": "reduced"}
-OTHER_LOOK = {"colour": "tab:orange", "linestyle": "--", "label": "MuJoCo"}
+REFERENCE_LOOK = {"colour": ENGINES[REFERENCE].colour, "linestyle": "-", "label": ENGINES[REFERENCE].label}
+OTHER_LOOK = {"colour": ENGINES[DEFAULT_ENGINES[1]].colour, "linestyle": "--", "label": ENGINES[DEFAULT_ENGINES[1]].label}
 
 
 def _frame(ax, mechanism: Mechanism, system: LoopSystem, xs: Sequence[np.ndarray], title: str,

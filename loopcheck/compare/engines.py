@@ -19,7 +19,7 @@ from statistics import median
 from typing import Any, Mapping, Sequence
 
 from loopcheck.errors import NumericalFailure
-from loopcheck.registry import ENGINES, REFERENCE
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene, Tolerances
 
@@ -129,8 +129,10 @@ def engine_list(names: Sequence[str]) -> tuple[str, ...]:
 
 def compared_engine(engines: tuple[str, ...]) -> str:
     """The engine whose comparison with the reference ``loopcheck run --engines`` writes as today's report
-    files (CSV, plots, report.json's engine section): MuJoCo when listed, else the first other engine."""
-    return "mujoco" if "mujoco" in engines else next(name for name in engines if name != REFERENCE)
+    files (CSV, plots, report.json's engine section): the default comparison's (MuJoCo,
+    :data:`loopcheck.registry.DEFAULT_ENGINES`) when listed, else the first other engine."""
+    default = next(name for name in DEFAULT_ENGINES if name != REFERENCE)
+    return default if default in engines else next(name for name in engines if name != REFERENCE)
 
 
 def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any] | None = None,

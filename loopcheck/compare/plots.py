@@ -18,9 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from loopcheck.reference_models.settings import INTEGRATORS as MUJOCO_INTEGRATORS
 
-from .text import MUJOCO_RUNS, STILL_RISING, engine_label
+from loopcheck.registry import engine_of_run
+
+from .text import STILL_RISING, engine_label
 
 if TYPE_CHECKING:  # the engines are not loaded to draw a plot (``loopcheck draw`` needs neither)
     from .engines import EnginesCheck
@@ -66,21 +67,24 @@ def short_name(name: str, limit: int = NAME_CHARS) -> str:
 
 REDUCED_STYLE = {"color": "tab:blue", "label": "reduced (Eksergian)"}
 MUJOCO_STYLE = {"color": "tab:orange", "label": "MuJoCo", "linestyle": "--"}
-# One colour per engine judged against the reference (engines.png); another engine takes the next free one.
-ENGINE_COLOURS = {"mujoco": "tab:orange", "pin": "tab:green"}
-SPARE_COLOURS = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:grey")
+
+
+def engine_colour(engine: str) -> str:
+    """The colour of the run named ``engine`` (:attr:`loopcheck.registry.Engine.colour`: declared,
+    else the registry's palette); black for a run of no registered engine."""
+    owner = engine_of_run(engine)
+    return owner.colour if owner is not None else "black"
 
 
 def other_style(c: "Comparison") -> dict:
-    """The style of the engine compared with the reference (``c.other``: MuJoCo's run or another's),
-    labelled by its name."""
-    return {**MUJOCO_STYLE, "label": engine_label(c.other.engine)}
+    """The style of the engine compared with the reference (``c.other``: MuJoCo's run or another's):
+    dashed, in its colour, labelled by its name."""
+    return {**MUJOCO_STYLE, "color": engine_colour(c.other.engine), "label": engine_label(c.other.engine)}
 
 
 def engine_colours(engines) -> dict[str, str]:
-    """A colour for each engine name of ``engines``: its own (:data:`ENGINE_COLOURS`), else a spare."""
-    spare = iter(c for c in SPARE_COLOURS if c not in ENGINE_COLOURS.values())
-    return {name: ENGINE_COLOURS.get(name) or next(spare, "black") for name in engines}
+    """A colour for each engine name of ``engines``: its own (:func:`engine_colour`)."""
+    return {name: engine_colour(name) for name in engines}
 
 
 _SUPERSCRIPT = str.maketrans("0123456789-−+", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻⁺")
@@ -273,8 +277,7 @@ def plot_constraint_violation(c: "Comparison", path: Path) -> None:
     point constraints); an engine that records none says so."""
     fig, ax = new_figure((8, 4))
     violation = c.other.constraint_violation
-    what = ("MuJoCo equality-constraint violation" if c.other.engine in MUJOCO_RUNS
-            else f"{engine_label(c.other.engine)} loop-closure violation")
+    what = f"{engine_label(c.other.engine)} loop-closure violation"
     if violation is None:
         ax.text(0.5, 0.5, f"{engine_label(c.other.engine)} records no loop gap", ha="center", va="center",
                 transform=ax.transAxes)
@@ -366,9 +369,9 @@ def plot_engines(check: "EnginesCheck", path: Path) -> None:
 
 
 SERIES_MARKERS = {"RKN4": ("tab:blue", "o", "-"), "DOP853": ("tab:cyan", "s", "-")}
-# One colour per MuJoCo integrator, in the order loopcheck.scene lists them (the one list of names).
-INTEGRATOR_COLOURS = dict(zip(MUJOCO_INTEGRATORS, ("tab:red", "tab:purple", "tab:brown", "tab:orange",
-                                                   "tab:olive", "tab:pink")))
+# The other series' colours: one per word after the engine's label ("MuJoCo <integrator> (<softness>)"),
+# in the order the ladder lists them.
+SERIES_COLOURS = ("tab:red", "tab:purple", "tab:brown", "tab:orange", "tab:olive", "tab:pink")
 
 
 def _log_limits(values, pad: float = 0.25) -> tuple[float, float]:
@@ -396,13 +399,16 @@ def plot_work_precision(measurements, front, target: float | None, scene_name: s
         if m.ok and m.peak_omega_rel > 0:
             series.setdefault(m.config.series, []).append(m)
     xs, ys = [], []
+    kinds: dict[str, str] = {}  # the second word of a series' name (MuJoCo's integrator) -> its colour
+    for name in series:
+        if name not in SERIES_MARKERS and len(name.split()) > 1:
+            kinds.setdefault(name.split()[1], SERIES_COLOURS[len(kinds) % len(SERIES_COLOURS)])
     for name, points in series.items():
         points = sorted(points, key=lambda m: -m.config.parameter)
         if name in SERIES_MARKERS:
             colour, marker, ls = SERIES_MARKERS[name]
         else:  # "MuJoCo <integrator> (<softness>)"
-            integrator = name.split()[1]
-            colour = INTEGRATOR_COLOURS.get(integrator, "grey")
+            colour = kinds.get(name.split()[1], "grey") if len(name.split()) > 1 else "grey"
             marker, ls = ("^", "--") if "(hard)" in name else ("v", ":")
         x = [m.peak_omega_rel for m in points]
         y = [m.wall_median_s for m in points]

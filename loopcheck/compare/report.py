@@ -44,12 +44,12 @@ import numpy as np
 from loopcheck import kinematics as loops
 from loopcheck.mechanism import PrismaticJoint
 from loopcheck.results import EngineResult
+from loopcheck.registry import DEFAULT_ENGINES, REFERENCE, engine_of_run
 from loopcheck.settings import settings_dict
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
-from .text import MUJOCO_RUNS
 from .draw import plot_mechanism_strip
 from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_engines, plot_omega_vs_q,
                     plot_trajectories)
@@ -69,22 +69,23 @@ PLOTS = {
     "energy.png": plot_energy,
     "mechanism.png": plot_mechanism_strip,
 }
-REPORT_FILES = ("reduced.csv", "mujoco.csv", *PLOTS, "report.json")  # in the order they are committed
+REPORT_FILES = (f"{REFERENCE}.csv", f"{DEFAULT_ENGINES[1]}.csv", *PLOTS, "report.json")  # in the order they are committed
 ANIMATION_FILE = "mechanism.gif"
 ENGINES_PLOT = "engines.png"  # loopcheck run --engines: every engine's |Δq̇| against the reference
 
 
 def output_name(engine: str) -> str:
-    """The name under which the report files hold the run of ``engine`` (its CSV ``<name>.csv``, its
-    summary in report.json): ``mujoco`` for MuJoCo's runs (the scene's model, a user's own), else
-    the engine's name."""
-    return "mujoco" if engine in MUJOCO_RUNS else engine
+    """The name under which the report files hold the run named ``engine`` (its CSV ``<name>.csv``,
+    its summary in report.json): the name of the engine whose run it is (a user's own model run as
+    written is MuJoCo's: :attr:`loopcheck.registry.Engine.runs`)."""
+    owner = engine_of_run(engine)
+    return owner.name if owner is not None else engine
 
 
-def report_files(animate: bool = False, *, other: str = "mujoco", engines: bool = False) -> tuple[str, ...]:
+def report_files(animate: bool = False, *, other: str = DEFAULT_ENGINES[1], engines: bool = False) -> tuple[str, ...]:
     """The names ``write_outputs`` writes: the CSV of the engine ``other`` compared with the
     reference (``<other>.csv``), the animation and the engines' plot when asked for."""
-    files = tuple(f"{other}.csv" if name == "mujoco.csv" else name for name in REPORT_FILES[:-1])
+    files = tuple(f"{other}.csv" if name == REPORT_FILES[1] else name for name in REPORT_FILES[:-1])
     return (files + ((ANIMATION_FILE,) if animate else ()) + ((ENGINES_PLOT,) if engines else ())
             + REPORT_FILES[-1:])
 
@@ -256,7 +257,7 @@ def joint_report(c: "Comparison", names: Sequence[str]) -> list[dict]:
     du, dv = np.abs(mu[inside] - u_ref), np.abs(mv[inside] - v_ref)
     for k, name in enumerate(names):
         engines = {}
-        for engine, u, v in (("reduced", ru, rv), (output_name(c.other.engine), mu, mv)):
+        for engine, u, v in ((output_name(c.reference.engine), ru, rv), (output_name(c.other.engine), mu, mv)):
             engines[engine] = {"min": float(np.min(u[:, k])), "max": float(np.max(u[:, k])),
                                "final": float(u[-1, k]), "rate_max_abs": float(np.max(np.abs(v[:, k])))}
         out.append({"name": name, "type": "prismatic" if joint_unit(c.scene, name) == "m" else "revolute",

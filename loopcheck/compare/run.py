@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from typing import Any
+
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
 from loopcheck.results import EngineResult
-from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.scene import Scene
 from loopcheck.scene import Tolerances
-from loopcheck.reference_models import MujocoSettings, simulate_mujoco
 
 from .settings import mujoco_settings, reduced_settings
 from .diff import (Difference, GateResult, ModeCheck, compare_modes, compare_trajectories, gate,
@@ -30,10 +31,11 @@ class Comparison:
     gate: GateResult
 
 
-def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
-                    mujoco: MujocoSettings | None = None,
+def compare_engines(scene: Scene, *, reduced: Any = None, mujoco: Any = None,
                     tolerances: Tolerances | None = None) -> Comparison:
-    """Run both engines on ``scene`` and compare MuJoCo against the reduced reference.
+    """Run the default comparison's engines on ``scene`` (:data:`loopcheck.registry.DEFAULT_ENGINES`:
+    the reduced reference, settings ``reduced``, and MuJoCo, settings ``mujoco``) and compare
+    MuJoCo against the reference.
 
     Settings default to the scene's [reduced] and [mujoco] tables over the defaults;
     ``tolerances`` to MuJoCo's in the scene (``[tolerances.mujoco]`` over ``[tolerances]``:
@@ -46,9 +48,10 @@ def compare_engines(scene: Scene, *, reduced: ReducedSettings | None = None,
     NumericalFailure
         If either engine fails.
     """
-    tolerances = tolerances or scene.tolerances_for("mujoco")
-    reference = simulate(scene, reduced or reduced_settings(scene))
-    other = simulate_mujoco(replace(scene, tolerances=tolerances), mujoco or mujoco_settings(scene))
+    other_engine = ENGINES[next(name for name in DEFAULT_ENGINES if name != REFERENCE)]
+    tolerances = tolerances or scene.tolerances_for(other_engine.name)
+    reference = ENGINES[REFERENCE].simulate(scene, reduced or reduced_settings(scene))
+    other = other_engine.simulate(replace(scene, tolerances=tolerances), mujoco or mujoco_settings(scene))
     return judge(scene, reference, other, tolerances)
 
 
@@ -63,15 +66,10 @@ def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances
 
 
 def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -> GateResult:
-    """A failed gate of a MuJoCo run at a fixed timestep also names where the step came from:
-    the automatic step would have been chosen for the gate's tolerances, a fixed one was not."""
-    accuracy = ("peak_omega_abs", "q_max_abs", "omega_max_abs", "omega_vs_q_max_abs")
-    if (run.engine != "mujoco" or run.details.timestep_automatic
-            or not any(f.startswith(accuracy) for f in verdict.failures)):
+    """A failed gate also carries what the run's engine says about it
+    (:meth:`loopcheck.registry.Engine.gate_notes`: MuJoCo at a fixed timestep names where the step
+    came from)."""
+    if verdict.passed or run.engine not in ENGINES:
         return verdict
-    h = run.settings.timestep
-    source = ("the scene's [mujoco] timestep" if scene.engine_table("mujoco").get("timestep") == h
-              else "the settings (--timestep)")
-    note = (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
-            f"without it the step is chosen automatically for them")
-    return replace(verdict, failures=(*verdict.failures, note))
+    notes = ENGINES[run.engine].gate_notes(scene, run, verdict.failures)
+    return replace(verdict, failures=(*verdict.failures, *notes)) if notes else verdict

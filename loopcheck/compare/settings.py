@@ -13,8 +13,7 @@ from dataclasses import replace
 from typing import Any
 
 from loopcheck import settings as _settings
-from loopcheck.mujoco_model.options import ModelOptions
-from loopcheck.registry import ENGINES
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
 from loopcheck.scene import Scene, Tolerances
 
 
@@ -22,30 +21,33 @@ def engine_settings(engine: str, scene: Scene, **flags: Any):
     """The settings of the engine named ``engine`` (:data:`loopcheck.registry.ENGINES`) for ``scene``:
     ``flags`` (None: not given) over the scene's table of that engine over the defaults.
 
-    MuJoCo's ports (MJX, MJWarp: settings extending the MuJoCo-family model's options) run the
-    model the MuJoCo engine builds with the same settings: the scene's ``[mujoco]`` values of
-    those options come under the port's own table (``[mujoco] timestep``, the step a scene pins
-    for MuJoCo, is the port's step unless ``[mjx] timestep`` says otherwise)."""
+    An engine that inherits another's table (:attr:`loopcheck.registry.Engine.inherits`: MuJoCo's
+    ports, MJX and MJWarp, run the model the MuJoCo engine builds with the same options) takes
+    that table's values of the keys it inherits under its own table (``[mujoco] timestep``, the
+    step a scene pins for MuJoCo, is the port's step unless ``[mjx] timestep`` says otherwise)."""
     settings_type = ENGINES[engine].settings
     table = dict(scene.engine_table(engine))
     where = f"{scene.source}: [{engine}]"
-    if engine != "mujoco" and issubclass(settings_type, ModelOptions):
-        shared = {o.name for o in _settings.options(ModelOptions)}
-        inherited = {k: v for k, v in scene.engine_table("mujoco").items() if k in shared and k not in table}
+    inherits = ENGINES[engine].inherits
+    if inherits is not None:
+        source, shared = inherits
+        inherited = {k: v for k, v in scene.engine_table(source).items() if k in shared and k not in table}
         if inherited:
             table = {**inherited, **table}
-            where += f" (with [mujoco] {', '.join(sorted(inherited))})"
+            where += f" (with [{source}] {', '.join(sorted(inherited))})"
     return _settings.resolve(settings_type, table, flags, where)
 
 
 def reduced_settings(scene: Scene, **flags: Any):
-    """The reduced reference's settings (a ``ReducedSettings``): ``flags`` over ``[reduced]``."""
-    return engine_settings("reduced", scene, **flags)
+    """The reduced reference's settings (:data:`loopcheck.registry.REFERENCE`'s): ``flags`` over its
+    table."""
+    return engine_settings(REFERENCE, scene, **flags)
 
 
 def mujoco_settings(scene: Scene, **flags: Any):
-    """MuJoCo's settings (a ``MujocoSettings``): ``flags`` over ``[mujoco]``."""
-    return engine_settings("mujoco", scene, **flags)
+    """The settings of the default comparison's other engine (MuJoCo,
+    :data:`loopcheck.registry.DEFAULT_ENGINES`): ``flags`` over its table."""
+    return engine_settings(DEFAULT_ENGINES[1], scene, **flags)
 
 
 def gate_tolerances(scene: Scene, engine: str, **flags: float | None) -> Tolerances:

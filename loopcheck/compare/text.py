@@ -12,31 +12,52 @@ from decimal import Decimal
 
 from typing import TYPE_CHECKING
 
+from loopcheck.registry import engine_of_run
+from loopcheck.run_text import STILL_RISING, energy_line, peak_text, scene_lines, setting_text  # noqa: F401 - the tables' words
+
 from .diff import GateResult
 
 if TYPE_CHECKING:
     from .run import Comparison
 
 FLOAT_DIGITS = 17  # decimals beyond a double's precision only print noise
-# MuJoCo's runs: the scene's model ("mujoco") and a user's own as written (loopcheck.reference_models.user_model.ENGINE).
-MUJOCO_RUNS = ("mujoco", "model")
-# How tables and plots name an engine (loopcheck.registry.ENGINES by name); another engine by its name.
-ENGINE_LABELS = {"reduced": "reduced", **{name: "MuJoCo" for name in MUJOCO_RUNS}, "pin": "Pinocchio", "mjx": "MJX",
-                 "mjwarp": "MJWarp"}
 
 
 def engine_label(engine: str) -> str:
-    """The engine named ``engine`` as tables and plots name it (``MuJoCo``, ``Pinocchio``)."""
-    return ENGINE_LABELS.get(engine, engine)
+    """The run named ``engine`` (an engine's, or another run of its package: a user's own model) as
+    tables and plots name it (``MuJoCo``, ``Pinocchio``: :attr:`loopcheck.registry.Engine.label`); a
+    run of no registered engine by its name."""
+    owner = engine_of_run(engine)
+    return owner.label if owner is not None else engine
+
+
+def result_lines(scene, result) -> list[str]:
+    """What ``loopcheck NAME`` prints of a run: the engine's own lines
+    (:meth:`loopcheck.registry.Engine.result_lines`), else the lines every run has (the scene, the
+    peak, the loop gap when recorded, the energy residual, the cost)."""
+    owner = engine_of_run(result.engine)
+    own = owner.result_lines(scene, result) if owner is not None else None
+    if own is not None:
+        return own
+    gap = result.constraint_violation
+    return scene_lines(scene) + [
+        f"settings         {settings_label(result)}",
+        f"peak qdot        {peak_text(result.peak, scene.input_unit)} (largest |qdot|)",
+        *([f"loop violation   {gap.max:.3e} m (largest over the run)"] if gap is not None else []),
+        energy_line(result),
+        f"cost             {result.n_steps} steps, {result.wall_s:.3f} s"]
 
 
 def settings_label(result) -> str:
-    """A run's settings in a few words, for a table's column head: the reduced solver's method and
-    step or rtol, a MuJoCo-family engine's integrator and timestep, another engine's solver and rtol."""
+    """A run's settings in a few words, for a table's column head: the engine's own words
+    (:meth:`loopcheck.registry.Engine.settings_text`, e.g. the reduced solver's method and step or
+    rtol), else an integrator and timestep where the settings have them, else a solver and rtol."""
     used = result.settings
-    if result.engine == "reduced":
-        return f"{result.details.solver} " + (f"h={used.step:g}s" if used.method == "rkn4" else f"rtol={used.rtol:g}")
-    if result.engine in MUJOCO_RUNS or getattr(used, "integrator", None) and getattr(used, "timestep", None):
+    owner = engine_of_run(result.engine)
+    own = owner.settings_text(result) if owner is not None else None
+    if own is not None:
+        return own
+    if getattr(used, "integrator", None) and getattr(used, "timestep", None):
         return f"{used.integrator} dt={used.timestep:g}s"
     solver = getattr(result.details, "solver", None) or getattr(used, "method", "")
     rtol = getattr(used, "rtol", None)
@@ -63,16 +84,6 @@ def printed_pair(reference: float, other: float, digits: int = 10) -> tuple[str,
     return a, b, "0" if difference == 0 else f"{difference.normalize():+e}"
 
 
-STILL_RISING = "at the end of the horizon, still rising"
-
-
-def peak_text(peak, unit: str) -> str:
-    """A run's peak (:class:`loopcheck.trajectory.Peak`) as every table writes it: signed q̇ in
-    ``unit``/s, its time, and when it is the horizon's end with |q̇| still rising, that."""
-    return (f"{peak.omega:+.10g} {unit}/s at t = {peak.time:.10g} s"
-            + (f", {STILL_RISING}" if peak.still_rising else ""))
-
-
 def comparison_lines(c: "Comparison") -> list[str]:
     """The table of both engines' results and their differences, then the gate.
 
@@ -85,12 +96,12 @@ def comparison_lines(c: "Comparison") -> list[str]:
     r, m, d = c.reference, c.other, c.diff
     unit = c.scene.input_unit
     rate = f"{unit}/s"
-    other = engine_label(m.engine)
+    other, reference = engine_label(m.engine), engine_label(r.engine)
     peak_r, peak_m, peak_d = printed_pair(d.peak_omega_reference, d.peak_omega_other)
     time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
     gap = "-" if m.constraint_violation is None else f"{m.constraint_violation.max:.2e}"
     rows = [
-        ("", f"reduced ({settings_label(r)})", f"{other} ({settings_label(m)})", f"difference ({other} - reduced)"),
+        ("", f"{reference} ({settings_label(r)})", f"{other} ({settings_label(m)})", f"difference ({other} - {reference})"),
         (f"peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
         ("time of peak (s)", time_r, time_m, time_d),
         ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
@@ -107,7 +118,7 @@ def comparison_lines(c: "Comparison") -> list[str]:
     lines = [f"scene: {c.scene.name} ({c.scene.source}); input {c.scene.mechanism.linkage.input_joint} "
              f"({unit}); effects: {', '.join(c.scene.effects) or 'none'}"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
-    rising = [name for name, p in (("reduced", d.peak_reference), (other, d.peak_other)) if p.still_rising]
+    rising = [name for name, p in ((reference, d.peak_reference), (other, d.peak_other)) if p.still_rising]
     if rising:
         lines.append(f"peak: {STILL_RISING} ({' and '.join(rising)}): the horizon ends before the speed peaks")
     lines += [f"warning: {note}" for note in getattr(m.details, "edge_warnings", ())]
@@ -124,89 +135,6 @@ def gate_lines(g: GateResult, unit: str = "rad") -> list[str]:
             f"peak_omega_atol {t.peak_omega_atol:g} {rate}, q_atol {t.q_atol:g} {unit}, "
             f"omega_atol {t.omega_atol:g} {rate}{extra})")
     return [head, *(f"  {failure}" for failure in g.failures)]
-
-
-def setting_text(settings, name: str, unit: str = "") -> str:
-    """A setting as printed: ``automatic`` when unset (None), floats with ``:g``."""
-    value = getattr(settings, name)
-    return "automatic" if value is None else f"{value:g}{unit}" if isinstance(value, float) else str(value)
-
-
-def _scene_lines(scene) -> list[str]:
-    linkage = scene.mechanism.linkage
-    return [f"scene            {scene.name}  ({scene.source})",
-            f"input            {linkage.input_joint} (q in {scene.input_unit}, mode "
-            + "(" + ", ".join(f"{v:+d}" for v in scene.mode) + ") at q0)",
-            f"effects          {', '.join(scene.effects) or 'none'}"]
-
-
-def _energy_line(result) -> str:
-    return (f"energy residual  {result.audit.max_abs_residual:.3e} J "
-            f"({result.audit.relative_residual:.3e} of {result.audit.scale:.6g} J)")
-
-
-def reduced_lines(scene, result) -> list[str]:
-    """What ``loopcheck reduced`` prints: the run's settings, peak input rate, error estimate,
-    energy residual and cost (q in ``scene.input_unit``)."""
-    used, unit = result.settings, scene.input_unit
-    lines = _scene_lines(scene) + [
-        f"solver           {result.details.solver}  "
-        + (f"step = {setting_text(used, 'step', ' s')}" if used.method == "rkn4"
-           else f"rtol = {setting_text(used, 'rtol')}"),
-        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)"]
-    estimate = result.details.error_estimate
-    if estimate is not None:
-        lines.append(f"error estimate   {estimate.q_abs:.3e} {unit} in q, {estimate.qdot_abs:.3e} "
-                     f"{unit}/s in q̇: {estimate.relative:.3e} of the run's scale (tolerance rtol = "
-                     f"{estimate.tolerance:g}; {estimate.method})")
-    return lines + [_energy_line(result),
-                    f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, "
-                    f"{result.wall_s:.3f} s"]
-
-
-def mujoco_lines(scene, result) -> list[str]:
-    """What ``loopcheck mujoco`` prints: the settings as run, peak input rate, loop violation,
-    energy residual and cost."""
-    used, unit = result.settings, scene.input_unit  # as run (an automatic timestep resolved)
-    return _scene_lines(scene) + [
-        f"settings         {used.integrator}, timestep {setting_text(used, 'timestep', ' s')}"
-        f"{' (automatic)' if result.details.timestep_automatic else ''}, "
-        f"solref {tuple(used.effective_solref or ())}, solimp {tuple(used.solimp)}, "
-        f"refsafe {'on' if used.refsafe else 'off'}, diagexact {'on' if used.diagexact else 'off'}, "
-        f"iterations {used.iterations}, tolerance {setting_text(used, 'tolerance')}, "
-        f"MuJoCo {result.details.mujoco_version}",
-        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
-        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
-        _energy_line(result),
-        f"cost             {result.n_steps} steps, {result.wall_s:.3f} s"]
-
-
-def pin_lines(scene, result) -> list[str]:
-    """What ``loopcheck pin`` prints: the settings as run, peak input rate, loop gap, energy residual
-    and cost."""
-    used, unit = result.settings, scene.input_unit
-    return _scene_lines(scene) + [
-        f"settings         {result.details.solver}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
-        f"Kd {used.kd:g}, Pinocchio {result.details.pinocchio_version}",
-        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
-        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
-        _energy_line(result),
-        f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, {result.wall_s:.3f} s"]
-
-
-def port_lines(scene, result) -> list[str]:
-    """What ``loopcheck mjx`` and ``loopcheck mjwarp`` print: the settings as run, peak input rate, loop gap
-    and energy residual (MuJoCo C's, at the port's states), cost, and the port's known defects."""
-    used, unit, details = result.settings, scene.input_unit, result.details
-    device = getattr(details, "backend", None) or getattr(details, "device", None)
-    return _scene_lines(scene) + [
-        f"settings         {used.integrator}, timestep {used.timestep:g} s, solref {list(used.effective_solref)}, "
-        f"{details.precision} on {device}, " + ", ".join(f"{k} {v}" for k, v in details.versions.items()),
-        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
-        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
-        _energy_line(result),
-        f"cost             {result.n_steps} steps, compiled in {details.compile_s:.1f} s, run in {result.wall_s:.3f} s",
-        *(f"known defect     {caveat}" for caveat in result.caveats)]
 
 
 def check_lines(c: "Comparison") -> list[str]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from loopcheck._lazy import lazy_names
 
 _HOMES = {
+    "result_lines": "loopcheck.mujoco_model.text",  # what `loopcheck NAME` prints (loopcheck.registry.Engine.result_lines)
     **dict.fromkeys(("MjwarpSettings", "Settings"), ".settings"),
     **dict.fromkeys(("MjwarpDetails", "simulate_mjwarp", "simulate_batch", "BATCHED_FIELDS"), ".run"),
     "simulate": (".run", "simulate_mjwarp"),  # the engine interface's name

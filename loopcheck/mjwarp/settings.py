@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from loopcheck.mujoco_model.options import ModelOptions
-from loopcheck.settings import option
+from loopcheck.settings import option, options
 
 
 @dataclass(frozen=True)
@@ -43,3 +43,9 @@ class MjwarpSettings(ModelOptions):
 
 
 Settings = MjwarpSettings  # the name every engine's settings have (loopcheck.registry)
+
+# How tables and plots name the engine (loopcheck.registry.Engine.label; its colour is the registry's).
+LABEL = "MJWarp"
+# The scene's [mujoco] values of the model's options are this port's defaults, under its own table
+# (loopcheck.registry.Engine.inherits): it runs the model the MuJoCo engine builds.
+INHERITS = ("mujoco", tuple(o.name for o in options(ModelOptions)))

@@ -15,6 +15,7 @@ from __future__ import annotations
 from loopcheck._lazy import lazy_names
 
 _HOMES = {
+    "result_lines": "loopcheck.mujoco_model.text",  # what `loopcheck NAME` prints (loopcheck.registry.Engine.result_lines)
     **dict.fromkeys(("MjxSettings", "Settings", "PRECISIONS"), ".settings"),
     **dict.fromkeys(("MjxDetails", "simulate_mjx", "simulate_batch", "KNOWN_DEFECT"), ".run"),
     "simulate": (".run", "simulate_mjx"),  # the engine interface's name

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from loopcheck.mujoco_model.options import DEFAULT_INTEGRATOR, ModelOptions
-from loopcheck.settings import option
+from loopcheck.settings import option, options
 
 PRECISIONS = ("float64", "float32")
 INTEGRATORS = ("euler", "implicitfast", "rk4")  # MJX 3.17's (mjx types.IntegratorType: no implicit)
@@ -51,3 +51,9 @@ class MjxSettings(ModelOptions):
 
 
 Settings = MjxSettings  # the name every engine's settings have (loopcheck.registry)
+
+# How tables and plots name the engine (loopcheck.registry.Engine.label; its colour is the registry's).
+LABEL = "MJX"
+# The scene's [mujoco] values of the model's options are this port's defaults, under its own table
+# (loopcheck.registry.Engine.inherits): it runs the model the MuJoCo engine builds.
+INHERITS = ("mujoco", tuple(o.name for o in options(ModelOptions)))

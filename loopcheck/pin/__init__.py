@@ -13,6 +13,7 @@ from __future__ import annotations
 from loopcheck._lazy import lazy_names
 
 _HOMES = {
+    "result_lines": ".text",  # what `loopcheck NAME` prints (loopcheck.registry.Engine.result_lines)
     **dict.fromkeys(("METHODS", "PinSettings", "Settings"), ".settings"),
     **dict.fromkeys(("PinModel", "build"), ".model"),
     **dict.fromkeys(("PinDetails", "simulate_pin"), ".run"),

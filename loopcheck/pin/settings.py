@@ -92,3 +92,7 @@ class PinSettings:
 
 
 Settings = PinSettings  # the name every engine's settings have (loopcheck.registry)
+
+# How tables and plots name and draw the engine (loopcheck.registry.Engine.label, .colour).
+LABEL = "Pinocchio"
+COLOUR = "tab:green"

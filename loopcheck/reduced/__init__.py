@@ -12,7 +12,9 @@ from __future__ import annotations
 from loopcheck._lazy import lazy_names
 
 _HOMES = {
+    "result_lines": ".text",  # what `loopcheck NAME` prints (loopcheck.registry.Engine.result_lines)
     "ReducedSettings": ".settings", "Settings": ".settings", "simulate": ".engine",  # the engine interface
+    "check_work": ".engine",  # its refusals before any work (loopcheck.registry.Engine.check_work)
     "MechanismModel": ".dynamics", "Coefficients": ".dynamics",  # the model arrays and K, L, 𝔍, ζ at a q
 }
 __getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES, globals())

@@ -116,3 +116,14 @@ class ReducedSettings:
 
 
 Settings = ReducedSettings  # the name every engine's settings have (loopcheck.registry)
+
+# How tables and plots name and draw the engine (loopcheck.registry.Engine.label, .colour).
+LABEL = "reduced"
+COLOUR = "tab:blue"
+
+
+def settings_text(result) -> str:
+    """A run's settings in a few words (loopcheck.registry.Engine.settings_text): the method and its
+    step (RKN4) or rtol."""
+    used = result.settings
+    return f"{result.details.solver} " + (f"h={used.step:g}s" if used.method == "rkn4" else f"rtol={used.rtol:g}")

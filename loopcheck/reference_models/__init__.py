@@ -12,6 +12,7 @@ from __future__ import annotations
 from loopcheck._lazy import lazy_names
 
 _HOMES = {
+    "result_lines": ".text",  # what `loopcheck mujoco` prints (loopcheck.registry.Engine.result_lines)
     **dict.fromkeys(("BASE_BODY", "HOME_KEY", "INPUT_MOTOR", "ConstraintSettings", "ModelHandles", "assembled_angles",
                      "build_spec", "compile_model", "coordinate_map", "initial_qpos_qvel", "joint_order",
                      "joint_positions", "joint_rates", "loop_angles", "loop_rates", "site_name"), "loopcheck.mujoco_model.build"),

@@ -38,5 +38,32 @@ class MujocoSettings(ModelOptions):
 
 
 Settings = MujocoSettings  # the name every engine's settings have (loopcheck.registry)
+
+# How tables and plots name and draw the engine (loopcheck.registry.Engine.label, .colour).
+LABEL = "MuJoCo"
+COLOUR = "tab:orange"
+# A user's own model run as written (loopcheck.reference_models.user_model) is MuJoCo's run too:
+# labelled, drawn and filed as this engine (loopcheck.registry.Engine.runs).
+USER_MODEL = "model"
+RUNS = (USER_MODEL,)
+# A user's own MuJoCo model (MJCF) is read as a scene and run as written (loopcheck.registry.Engine.model_files;
+# the commands reach it through loopcheck.reference_models.models).
+MODEL_FILES = (".xml",)
+
+
+def gate_notes(scene, result, failures) -> tuple[str, ...]:
+    """A failed gate of a MuJoCo run at a fixed timestep also names where the step came from: the
+    automatic step would have been chosen for the gate's tolerances, a fixed one was not
+    (loopcheck.registry.Engine.gate_notes)."""
+    accuracy = ("peak_omega_abs", "q_max_abs", "omega_max_abs", "omega_vs_q_max_abs")
+    if (result.engine != "mujoco" or result.details.timestep_automatic
+            or not any(f.startswith(accuracy) for f in failures)):
+        return ()
+    h = result.settings.timestep
+    source = ("the scene's [mujoco] timestep" if scene.engine_table("mujoco").get("timestep") == h
+              else "the settings (--timestep)")
+    return (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
+            f"without it the step is chosen automatically for them",)
 __all__ = ["DEFAULT_INTEGRATOR", "DEFAULT_ITERATIONS", "DEFAULT_SOLIMP", "DEFAULT_TOLERANCE", "INTEGRATORS",
-           "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings"]
+           "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings", "LABEL", "COLOUR",
+           "USER_MODEL", "RUNS", "MODEL_FILES", "gate_notes"]

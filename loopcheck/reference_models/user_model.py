@@ -31,12 +31,12 @@ from loopcheck.mujoco_model.warning_handler import bad_state, mujoco_warnings, s
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
 from .mjcf_import import ConnectSource, ImportedModel, element_label, first_contact
-from .settings import DEFAULT_SOLIMP, INTEGRATORS
+from .settings import DEFAULT_SOLIMP, INTEGRATORS, USER_MODEL
 
 # Work refused up front (the run keeps a dozen numbers per step): raise the timestep or shorten
 # the horizon.
 MAX_STEPS = 5_000_000
-ENGINE = "model"  # the name of a user model's runs in comparisons and reports
+ENGINE = USER_MODEL  # the name of a user model's runs in comparisons and reports (a run of the engine: its RUNS)
 _INTEGRATOR_NAME = {int(getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}")): name for name in INTEGRATORS}
 _CONNECT = int(mujoco.mjtEq.mjEQ_CONNECT)
 _EQ_JOINT = int(mujoco.mjtEq.mjEQ_JOINT)

@@ -147,3 +147,28 @@ wrongly stops every command in one line naming it (exit 2)."""
     assert done.returncode == 2 and not done.stdout and done.stderr.splitlines() == [
         "loopcheck: entry point 'Fake = fake_engine' of bad_dist (loopcheck.engines): engine name 'Fake': lower-case "
         "letters, digits and _, a letter first"], done.stderr
+
+
+def test_an_installed_engine_has_its_own_command(on_path, monkeypatch, capsys):
+    """`loopcheck fake` exists by registration alone: its flag from its Settings, its title from its
+    docstring, and the lines every run has (no lines of its own declared); its label, colour and
+    report name are the registry's defaults (planted: the engines' commands listed by name in the
+    CLI, as before the registry, leave `fake` an invalid choice, exit 2)."""
+    from loopcheck.compare import cli
+    from loopcheck.compare.plots import engine_colour
+    from loopcheck.compare.report import output_name
+    from loopcheck.compare.text import engine_label
+
+    fake = registry.registered()["fake"]
+    monkeypatch.setitem(registry.ENGINES, "fake", fake)  # as the registry reads it at import
+    assert cli.main(["fake", "--help"]) == 0
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "--rtol RTOL" in shown and "A fake engine: the reduced engine's run under another name." in shown
+    assert cli.main(["fake", str(SEED_SCENE), "--rtol", "1e-9"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == ["scene", "input", "effects", "settings", "peak", "energy", "cost"]
+    assert lines[3].split() == ["settings", "DOP853", "rtol=1e-09"]
+    peak = simulate_reduced(loopcheck.load_scene(SEED_SCENE), ReducedSettings(rtol=1e-9)).peak.omega
+    assert lines[4].split()[2] == f"{peak:+.10g}"
+    assert engine_label("fake") == output_name("fake") == "fake"
+    assert engine_colour("fake") not in {e.colour for e in registry.BUILT_IN}

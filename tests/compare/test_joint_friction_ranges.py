@@ -15,7 +15,8 @@ import pytest
 
 import loopcheck
 from loopcheck.compare.cli import main
-from loopcheck.compare.model_check import FRICTION_CAUSE, check_model, friction_snippet
+from loopcheck.compare.model_check import check_model
+from loopcheck.reference_models.model_check import FRICTION_CAUSE, friction_snippet
 from loopcheck.compare.run import compare_engines, judge
 from loopcheck.mechanism import JointElement
 from loopcheck.mujoco_model.port import PortRefusal, prepare

@@ -336,14 +336,14 @@ def test_a_mode_mismatch_reaches_the_table_and_the_report(scene):
 def test_command_lines_of_a_slider_driven_scene_give_metres():
     """What ``loopcheck reduced``, ``loopcheck mujoco`` and ``loopcheck check`` print (loopcheck.compare.text) names
     the input joint and gives its unit."""
-    from loopcheck.compare.text import check_lines, mujoco_lines, reduced_lines
+    from loopcheck.compare.text import check_lines, result_lines
     from test_draw import slider_crank_scene
 
     scene = slider_crank_scene(0.4, prismatic_input=True)
     t = np.linspace(0.0, 1.0, 51)
     run = slider_run(scene, t)
-    red = reduced_lines(scene, engine_result("reduced", *run))
-    mj = mujoco_lines(scene, engine_result("mujoco", *run, violation=1e-9))
+    red = result_lines(scene, engine_result("reduced", *run))
+    mj = result_lines(scene, engine_result("mujoco", *run, violation=1e-9))
     for lines in (red, mj):
         assert lines[1].startswith("input            slide (q in m, mode (")
         peak = next(line for line in lines if line.startswith("peak qdot"))

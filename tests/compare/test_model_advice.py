@@ -114,7 +114,8 @@ def test_pasting_the_snippet_alone_fixes_a_connect_with_its_own_solref(tmp_path)
     the connect by name, and the model with the snippet pasted in (and nothing else) runs with the
     suggested options and passes (planted: the snippet without its <connect> line leaves the loop
     soft, the options read back differ and the model fails)."""
-    from loopcheck.compare.model_check import check_model, diagnosis_lines
+    from loopcheck.compare.model_check import check_model
+    from loopcheck.reference_models.model_check import diagnosis_lines
     from loopcheck.reference_models.mjcf_import import Control
 
     pulse = Control((0.0, 1.0), (250.0, 0.0))
@@ -126,7 +127,7 @@ def test_pasting_the_snippet_alone_fixes_a_connect_with_its_own_solref(tmp_path)
     snippet = check.cheapest.options.mjcf(imported.connects)
     assert '<connect name="B" solref=' in snippet
     assert any("connect of that name" in line for line in diagnosis_lines(check))
-    from loopcheck.compare.model_check import check_lines
+    from loopcheck.reference_models.model_check import check_lines
     assert "      horizon: every run simulates 1 s (--horizon)" in check_lines(check, str(path))
     fixed = tmp_path / "fixed.xml"
     fixed.write_text(paste(path.read_text(), snippet))
@@ -186,7 +187,8 @@ def test_the_suggestion_passes_with_margin_at_its_step_and_half_of_it_and_pasted
     states the margin; the model with the snippet pasted in passes as written with the same margin
     (the same options: the same run). Planted: the search stopping at a step that merely passes
     (the old rule) suggests RK4 8 ms for the first model, 0.89 of its tolerance."""
-    from loopcheck.compare.model_check import MARGIN, check_model, diagnosis_lines
+    from loopcheck.compare.model_check import check_model
+    from loopcheck.reference_models.model_check import MARGIN, diagnosis_lines
     from loopcheck.reference_models.mjcf_import import Control
     from loopcheck.scene import Tolerances
 

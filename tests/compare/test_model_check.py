@@ -155,7 +155,7 @@ def test_a_legal_model_gets_its_verdict_when_the_smaller_step_trial_is_past_its_
     steps at 1 ms over 0.5 s) is legal, its timestep / 10 trial (5000 steps... 5001 with the
     limit at 4000) is not: the check gives the verdict and notes the trial as skipped (planted
     without the trials' budget: run_model's ValueError names the trial's step, not the model's)."""
-    import loopcheck.compare.model_check as model_check
+    import loopcheck.reference_models.model_check as model_check
     import loopcheck.reference_models.user_model as user_model
 
     monkeypatch.setattr(user_model, "MAX_STEPS", 4000)
@@ -220,7 +220,7 @@ def test_a_check_that_does_not_move_is_refused(flags, capsys):
 def test_the_refusal_needs_both_q_and_its_rate_within_the_tolerances():
     """The refusal needs both: a model whose rate passes omega_atol is checked even when q barely
     moves (a small load, omega_atol lowered under its peak)."""
-    from loopcheck.compare.model_check import VacuousCheck, refuse_vacuous
+    from loopcheck.reference_models.model_check import VacuousCheck, refuse_vacuous
     from loopcheck.reduced import ReducedSettings, simulate
     from loopcheck.scene import Tolerances
 

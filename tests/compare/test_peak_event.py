@@ -18,7 +18,7 @@ from scipy.special import erf
 from loopcheck.compare.diff import compare_trajectories
 from loopcheck.compare.report import report_dict
 from loopcheck.compare.run import compare_engines
-from loopcheck.compare.text import STILL_RISING, comparison_lines, mujoco_lines, reduced_lines
+from loopcheck.compare.text import STILL_RISING, comparison_lines, result_lines
 from loopcheck.trajectory import Trajectory
 
 from helpers import variant
@@ -140,7 +140,7 @@ def test_every_table_prints_the_peak_signed_under_one_label(slider_driven_compar
     peak = rows["peak qdot (m/s)"]
     assert float(peak[3]) == pytest.approx(d.peak_omega_reference, rel=1e-9)
     assert float(peak[4]) == pytest.approx(d.peak_omega_other, rel=1e-9)
-    for lines, result in ((reduced_lines(c.scene, c.reference), c.reference), (mujoco_lines(c.scene, c.other), c.other)):
+    for lines, result in ((result_lines(c.scene, c.reference), c.reference), (result_lines(c.scene, c.other), c.other)):
         (line,) = [line for line in lines if line.startswith("peak qdot")]
         assert line.split()[2] == f"{result.peak.omega:+.10g}" and "(largest |qdot|)" in line
 
@@ -161,8 +161,8 @@ def test_a_speed_still_rising_at_the_horizon_says_so_everywhere(from_rest, monke
     d = c.diff
     assert d.t_peak_reference == pytest.approx(0.05) and d.peak_still_rising and d.peak_other.still_rising
     assert any(line.startswith(f"peak: {STILL_RISING} (reduced and MuJoCo)") for line in comparison_lines(c))
-    assert any(STILL_RISING in line for line in reduced_lines(c.scene, c.reference))
-    assert any(STILL_RISING in line for line in mujoco_lines(c.scene, c.other))
+    assert any(STILL_RISING in line for line in result_lines(c.scene, c.reference))
+    assert any(STILL_RISING in line for line in result_lines(c.scene, c.other))
     report = report_dict(c)
     assert report["reduced"]["peak_still_rising"] is True and report["mujoco"]["peak_still_rising"] is True
     kept = saved(monkeypatch)
@@ -177,7 +177,7 @@ def test_the_seed_s_peak_is_not_flagged(seed_comparison, monkeypatch, tmp_path):
 
     c = seed_comparison
     assert not c.diff.peak_still_rising and not c.diff.peak_other.still_rising
-    assert not any(STILL_RISING in line for line in comparison_lines(c) + reduced_lines(c.scene, c.reference))
+    assert not any(STILL_RISING in line for line in comparison_lines(c) + result_lines(c.scene, c.reference))
     assert report_dict(c)["reduced"]["peak_still_rising"] is False
     kept = saved(monkeypatch)
     plot_trajectories(c, tmp_path / "t.png")

@@ -114,3 +114,71 @@ def test_a_declaration_that_breaks_its_rule_is_refused_naming_the_engine(package
 def test_a_rung_refuses_a_parameter_that_is_not_positive_and_finite(parameter):
     with pytest.raises(ValueError, match="Rung.parameter"):
         Rung("s", parameter, None)
+
+
+def test_the_presentation_declarations_default_to_the_engine_alone(package, monkeypatch):
+    """A bare engine registered beside the built-ins: its name as label, the first colour of the
+    palette the others leave (the built-in ports declare none and take the first two), itself as
+    its only run, nothing inherited, no words, notes, lines, refusals or model files of its own."""
+    import loopcheck.registry as registry
+
+    engine = package("pkg_plain")
+    monkeypatch.setitem(registry.ENGINES, engine.name, engine)
+    declared = {e.colour for e in registry.BUILT_IN if e._declared("COLOUR")}
+    spare = [c for c in registry.PALETTE if c not in declared]
+    assert [registry.ENGINES[n].colour for n in ("mjx", "mjwarp", "plain")] == spare[:3]
+    assert len({e.colour for e in registry.ENGINES.values()}) == len(registry.ENGINES)  # no two alike
+    assert engine.runs == ("plain",) and registry.engine_of_run("plain") is engine
+    assert engine.inherits is None and engine.model_files == ()
+    assert engine.settings_text("result") is None and engine.gate_notes("scene", "result", ("f",)) == ()
+    assert engine.result_lines("scene", "result") is None
+    assert engine.check_work("scene", engine.settings()) is None
+    assert registry.model_reader("model.xyz") is None
+
+
+def test_the_presentation_declarations_are_read_where_the_engine_declares_them(package, monkeypatch):
+    import loopcheck.registry as registry
+
+    engine = package("pkg_shown", '''
+        COLOUR = "tab:cyan"
+        RUNS = ("shown_user",)
+        INHERITS = ("mujoco", ("timestep",))
+        MODEL_FILES = (".SHOWN",)
+
+
+        def settings_text(result):
+            return f"step {result.settings.step:g}"
+
+
+        def gate_notes(scene, result, failures):
+            return [f"{len(failures)} failures"]
+    ''')
+    monkeypatch.setitem(registry.ENGINES, engine.name, engine)
+    assert engine.colour == "tab:cyan" and engine.runs == ("shown", "shown_user")
+    assert registry.engine_of_run("shown_user") is engine
+    assert engine.inherits == ("mujoco", frozenset({"timestep"}))
+    assert registry.model_reader("a/b/model.shown") is engine and engine.model_files == (".shown",)
+
+    class Result:
+        settings = engine.settings(step=0.5)
+
+    assert engine.settings_text(Result()) == "step 0.5"
+    assert engine.gate_notes("scene", Result(), ("a", "b")) == ("2 failures",)
+
+
+def test_the_built_in_engines_declare_their_labels_colours_and_runs():
+    """The built-ins' declarations: what tables and plots called them before the declarations
+    (a user's own MuJoCo model is MuJoCo's run), the ports inheriting [mujoco]'s model options."""
+    from loopcheck.mujoco_model.options import ModelOptions
+    from loopcheck.registry import ENGINES, engine_of_run, model_reader
+    from loopcheck.settings import options
+
+    assert {n: e.label for n, e in ENGINES.items() if n in ("reduced", "mujoco", "pin", "mjx", "mjwarp")} == {
+        "reduced": "reduced", "mujoco": "MuJoCo", "pin": "Pinocchio", "mjx": "MJX", "mjwarp": "MJWarp"}
+    assert (ENGINES["reduced"].colour, ENGINES["mujoco"].colour, ENGINES["pin"].colour) == (
+        "tab:blue", "tab:orange", "tab:green")
+    assert engine_of_run("model") is ENGINES["mujoco"] and model_reader("Robot.XML") is ENGINES["mujoco"]
+    assert model_reader("scene.toml") is None
+    shared = frozenset(o.name for o in options(ModelOptions))
+    assert ENGINES["mjx"].inherits == ENGINES["mjwarp"].inherits == ("mujoco", shared)
+    assert ENGINES["mujoco"].inherits is None and ENGINES["pin"].inherits is None

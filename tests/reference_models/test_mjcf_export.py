@@ -183,7 +183,7 @@ def test_an_import_error_is_one_line(monkeypatch, capsys):
     def broken(args):
         raise ImportError("loopcheck's MuJoCo engine needs MuJoCo 4.0.1 or newer, but `import mujoco` loads 4.0.0")
 
-    monkeypatch.setattr(cli, "cmd_mujoco", broken)
+    monkeypatch.setattr(cli, "cmd_engine", broken)  # every engine's own command (`loopcheck mujoco`)
     assert cli.main(["mujoco"]) == 2
     assert capsys.readouterr().err == ("loopcheck: error: loopcheck's MuJoCo engine needs MuJoCo 4.0.1 or newer, but "
                                        "`import mujoco` loads 4.0.0\n")

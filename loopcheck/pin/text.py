@@ -1,0 +1,18 @@
+"""What ``loopcheck pin`` prints of a run (:meth:`loopcheck.registry.Engine.result_lines`)."""
+
+from __future__ import annotations
+
+from loopcheck.run_text import energy_line, peak_text, scene_lines
+
+
+def result_lines(scene, result) -> list[str]:
+    """What ``loopcheck pin`` prints: the settings as run, peak input rate, loop gap, energy residual
+    and cost."""
+    used, unit = result.settings, scene.input_unit
+    return scene_lines(scene) + [
+        f"settings         {result.details.solver}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
+        f"Kd {used.kd:g}, Pinocchio {result.details.pinocchio_version}",
+        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
+        f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
+        energy_line(result),
+        f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, {result.wall_s:.3f} s"]
