@@ -40,7 +40,7 @@ def series_styles(measurements) -> dict[tuple[str, str], tuple[str, dict]]:
         family = colormaps[FAMILIES[i % len(FAMILIES)]]
         label = ENGINES[engine].label if engine in ENGINES else engine
         for j, name in enumerate(names):
-            shade = 0.85 - 0.45 * (j / max(1, len(names) - 1)) if len(names) > 1 else 0.75
+            shade = 0.9 - 0.35 * (j / (len(names) - 1)) if len(names) > 1 else 0.75
             styles[(engine, name)] = (label, {"color": family(shade), "marker": MARKERS[j % len(MARKERS)],
                                               "linestyle": LINESTYLES[(j // 2) % len(LINESTYLES)]})
     return styles
