@@ -77,8 +77,7 @@ def test_each_installed_engine_runs_its_quick_ladder_and_is_judged_as_check_judg
     """On the seed over 0.2 s, the engine's first quick rung runs (one repeat) and its verdict is
     the one ``check --engines`` gives the same settings (known defects included: MJX may fail; no
     test requires it to pass); the report names it and, where both reached the target, its ratio to
-    the reference. (Planted: the verdict taken from the sweep's loose settings fails for Pinocchio,
-    whose rtol-1e-6 run opens its loop beyond run's 1e-6 m.)"""
+    the reference."""
     if not _installed(name):
         pytest.skip(f"the engine '{name}' is not installed (its extra: pip install -e '.[{name}]')")
     scene = _short_seed()
@@ -98,6 +97,22 @@ def test_each_installed_engine_runs_its_quick_ladder_and_is_judged_as_check_judg
     assert report["engines"] == list(engines)
     assert (report["recommendation"][cost.ratio_key(name)] is not None) == (
         recs[name].reached and recs[registry.REFERENCE].reached)
+
+
+@pytest.mark.skipif(not _installed("pin"), reason="Pinocchio (the extra loopcheck[pin]) is not installed")
+def test_a_point_run_refuses_is_measured_and_fails_as_run_fails_it():
+    """Pinocchio's ladder loosens its loop limit: its coarsest point (rtol 1e-4) opens the seed's loop
+    by 4.6e-5 m over 0.5 s, 46x run's 1e-6 m. The sweep measures it (status ok, its errors) and its
+    verdict is run's: constraint-drift, as ``check --engines`` says. (Planted: the verdict's run made
+    with the sweep's loose settings passes it, and fails this test.)"""
+    scene = dataclasses.replace(load_scene(SEED_SCENE), horizon=0.5)
+    truth = cost.ground_truth(scene)
+    (config,) = [c for c in cost.ladder(scene, ("pin",)) if c.parameter == 1e-4]
+    m = cost.measure(scene, config, truth, repeats=1)
+    assert m.ok and m.constraint_violation > 1e-5 and not m.passed
+    assert m.verdict_reasons[0].startswith("constraint-drift")
+    check = check_engines(scene, (registry.REFERENCE, "pin"), {"pin": cost.run_settings(config)})
+    assert not check.verdict("pin").passed and "constraint-drift" in check.verdict("pin").failure
 
 
 BROKEN = '''
