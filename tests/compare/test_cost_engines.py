@@ -232,3 +232,21 @@ def test_an_installed_engine_reaches_cost_as_a_command(tmp_path):
     assert (out / "cost.png").stat().st_size > 10_000
     bare = _cli(["cost", str(SEED_SCENE), "--engines", "reduced,fake"], tmp_path / "empty", tmp_path)
     assert bare.returncode == 2 and "unknown engine 'fake'" in bare.stderr and not bare.stdout
+
+
+def test_an_engine_whose_extra_is_missing_is_refused_in_one_line_before_any_work(tmp_path, capsys, monkeypatch):
+    """`loopcheck cost --engines reduced,pin` without Pinocchio: one line naming the extra, exit 2,
+    nothing computed nor written. (Planted: the engines not loaded up front fails: the study starts.)"""
+    from loopcheck.compare.cli import main
+
+    if _installed("pin"):
+        pytest.skip("Pinocchio is installed: nothing is missing")
+
+    def computed(*args, **kwargs):
+        raise AssertionError("work started before the engines were loaded")
+
+    monkeypatch.setattr(cost, "ground_truth", computed)
+    status = main(["cost", str(SEED_SCENE), "--engines", "reduced,pin", "-o", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and err[0].startswith("loopcheck: error: the pin engine needs Pinocchio"), err
+    assert not (tmp_path / "out").exists()
