@@ -842,7 +842,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("cost", help="work-precision study: what accuracy costs in time",
                        description="Sweep each engine over its accuracy ladder (steps, tolerances, integrators, "
                                    "constraint softness: what the engine declares); measure errors against the "
-                                   "reduced truth (DOP853 rtol 1e-12) and the median wall time of the simulation; "
+                                   "reference's truth (DOP853 rtol 1e-12) and the median wall time of the simulation; "
                                    "write cost.png (work-precision diagram, every engine on it), cost.csv and "
                                    "cost.json; recommend the cheapest configuration of each engine for the target, "
                                    "and its cost against the reference's.")
@@ -855,9 +855,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="timed runs per configuration (default 3)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), default=None,
                    help="processes, at most one per core (default: all cores)")
+    from loopcheck import registry as _registry  # (a name of its own: build_parser's other names stay global)
+
     p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
-                   help=f"engines to sweep, comma-separated, the reduced reference among them (any of "
-                        f"{', '.join(ENGINES)}; default reduced,mujoco), e.g. reduced,mujoco,pin")
+                   help=f"engines to sweep, comma-separated, the reference {_registry.REFERENCE} among them (any "
+                        f"of {', '.join(ENGINES)}; default {','.join(_registry.DEFAULT_ENGINES)})")
     p.set_defaults(func=cmd_cost)
 
     p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
