@@ -27,7 +27,8 @@ from mujoco import rollout
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import median_time  # noqa: E402
 
-from loopcheck.compare.cost import HARD, Config, ground_truth, measure  # noqa: E402
+from loopcheck.compare.cost import Config, ground_truth, measure  # noqa: E402
+from loopcheck.mujoco_model.options import HARD  # noqa: E402
 from loopcheck.reduced import ReducedSettings  # noqa: E402
 from loopcheck.scenefile import load_scene
 from loopcheck.shipped_scenes import default_scene_path
@@ -38,16 +39,16 @@ TARGETS = (1e-4, 1e-6, 1e-8)
 
 
 def candidates() -> list[Config]:
-    configs = [Config("reduced", "RKN4", h, reduced=ReducedSettings(method="rkn4", step=h))
+    configs = [Config("reduced", "RKN4", h, ReducedSettings(method="rkn4", step=h))
                for h in np.geomspace(1e-2, 5e-5, 14)]
-    configs += [Config("reduced", "DOP853", r, reduced=ReducedSettings(method="dop853", rtol=r))
+    configs += [Config("reduced", "DOP853", r, ReducedSettings(method="dop853", rtol=r), "rtol")
                 for r in np.geomspace(1e-3, 1e-12, 19)]
     # Timesteps that divide the pulse edges (1 s): an off-grid edge adds an error of its own.
     for integrator in ("euler", "implicit", "implicitfast", "rk4"):
         for h in (2e-3, 1e-3, 5e-4, 2.5e-4, 2e-4, 1.25e-4, 1e-4, 5e-5, 2.5e-5, 1e-5):
             configs.append(Config("mujoco", f"MuJoCo {integrator}", h,
-                                  mujoco=MujocoSettings(integrator=integrator, timestep=float(h),
-                                                        max_constraint_violation=0.1, **HARD)))
+                                  MujocoSettings(integrator=integrator, timestep=float(h),
+                                                 max_constraint_violation=0.1, **HARD)))
     return configs
 
 

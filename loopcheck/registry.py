@@ -43,11 +43,17 @@ class Rung:
 
     ``series`` names the curve or the probe's family (e.g. ``"DOP853"``, ``"rk4 (hard)"``),
     ``parameter`` what the series varies (a step in s, or a tolerance; NaN for a single point) and
-    ``settings`` the engine's ``Settings`` for that run."""
+    ``settings`` the engine's ``Settings`` for that run. ``symbol`` names the parameter in labels
+    (``"h"``, a step; ``"rtol"``, a tolerance). ``run_settings``: where the ladder loosens the
+    engine's own limits so as to measure what ``loopcheck run`` refuses (a loop gap, an energy
+    balance, an error estimate), the same point with run's default limits, which give the point's
+    verdict; None: ``settings`` are run's."""
 
     series: str
     parameter: float
     settings: Any
+    symbol: str = "h"
+    run_settings: Any = None
 
     def __post_init__(self):
         if not isinstance(self.series, str) or not self.series:
@@ -55,6 +61,18 @@ class Rung:
         if not isinstance(self.parameter, (int, float)) or isinstance(self.parameter, bool) or (
                 not math.isnan(self.parameter) and not (math.isfinite(self.parameter) and self.parameter > 0.0)):
             raise ValueError(f"Rung.parameter must be positive and finite, or NaN, got {self.parameter!r}")
+        if not isinstance(self.symbol, str) or not self.symbol:
+            raise ValueError(f"Rung.symbol must be a non-empty string, got {self.symbol!r}")
+
+    @property
+    def as_run(self) -> Any:
+        """The settings ``loopcheck run`` would run this point with (its verdict's)."""
+        return self.settings if self.run_settings is None else self.run_settings
+
+    @property
+    def label(self) -> str:
+        """The point in a table: ``"RKN4 h=1.0e-03"``; the series alone for a single point."""
+        return self.series if math.isnan(self.parameter) else f"{self.series} {self.symbol}={self.parameter:.1e}"
 
 
 @dataclass(frozen=True)
@@ -194,6 +212,25 @@ class Engine:
         rungs = (Rung(self.label, math.nan, base),) if declared is None else tuple(declared(scene, base, quick))
         return self._checked(rungs, "accuracy_ladder")
 
+    def truth(self) -> tuple[Rung, Rung]:
+        """The ground truth a study measures every engine against, for the reference engine
+        (:data:`REFERENCE`): its settings module's ``truth() -> (Rung, Rung)``, the truth's run and
+        a looser one that measures how accurate the truth is.
+
+        Raises
+        ------
+        ValueError
+            In one line, when the engine declares none (or not two Rungs of its Settings).
+        """
+        declared = self._declared("truth")
+        if declared is None:
+            raise ValueError(f"engine '{self.name}' declares no ground truth (truth() in {self.package}.settings), "
+                             f"which a study's reference needs")
+        rungs = tuple(declared())
+        if len(rungs) != 2:
+            raise ValueError(f"engine '{self.name}': truth() gave {len(rungs)} runs, not two (the truth, its check)")
+        return self._checked(rungs, "truth")
+
     def stress_probes(self, scene: Scene, base: Any) -> tuple[Rung, ...]:
         """The probes ``loopcheck stress`` runs on a case that asks for them (each reported by its
         status): the settings module's ``stress_probes(scene, base) -> Sequence[Rung]``, by default
@@ -241,7 +278,8 @@ class Engine:
 
     def _checked(self, rungs: tuple, what: str) -> tuple[Rung, ...]:
         for rung in rungs:
-            if not isinstance(rung, Rung) or not isinstance(rung.settings, self.settings):
+            if not isinstance(rung, Rung) or not isinstance(rung.settings, self.settings) or not (
+                    rung.run_settings is None or isinstance(rung.run_settings, self.settings)):
                 raise TypeError(f"engine '{self.name}': {what} gave {rung!r}, not a Rung of its Settings")
         return rungs
 

@@ -1,22 +1,26 @@
-"""What accuracy costs in time: work-precision sweeps of both engines on one scene.
+"""What accuracy costs in time: work-precision sweeps of engines on one scene.
 
-Ground truth is the reduced adaptive solver (DOP853) at rtol 1e-12; a second run at rtol
-1e-11 measures how accurate that truth is. Every configuration runs to the scene's
+Each engine runs its accuracy ladder (:meth:`loopcheck.registry.Engine.ladder`: its settings
+module's ``accuracy_ladder``, by default one point at the scene's settings); the default list is
+:data:`loopcheck.registry.DEFAULT_ENGINES`. Ground truth is the reference engine's
+(:meth:`loopcheck.registry.Engine.truth`: its adaptive DOP853 at rtol 1e-12); a
+second run (rtol 1e-11) measures how accurate that truth is. Every configuration runs to the scene's
 horizon; its errors are measured against the truth with :func:`compare_trajectories`,
 its cost is the wall time of the simulation alone (no model building, audit or plotting)
 over repeated runs (median, with the repeats' min and max), plus its step and
 force-evaluation counts.
 
 Every point also carries the verdict ``loopcheck run`` / ``check`` would give it
-(:class:`Verdict`): the engine's own limits at ``run``'s defaults (MuJoCo's loop gap and
-energy balance, the reduced solver's error estimate and energy balance: the sweep itself
-runs with looser limits, to measure what ``run`` would refuse) and the agreement gate
-against the truth, :func:`loopcheck.compare.run.judge` at the scene's tolerances for the
-engine. One rule, the one ``run`` applies; none of this module's own.
+(:class:`Verdict`): the engine's own limits at ``run``'s defaults (a ladder may loosen them, a
+loop gap, an energy balance, an error estimate, to measure what ``run`` would refuse: the rung's
+``run_settings`` are run's) and the agreement gate against the truth,
+:func:`loopcheck.compare.run.judge` at the scene's tolerances for the engine. One rule, the one
+``run`` applies; none of this module's own. An engine that fails a point (a numerical failure, or
+a refusal of what it does not run) has that point's verdict: the study goes on.
 
 Wall times move with the machine's load: the report records the load average at the start
-and end, and the headline ratio between the engines is an interval from the repeats'
-spread (:class:`CostRatio`), with a warning when it is too wide to read.
+and end, and the headline ratio of each engine against the reference is an interval from the
+repeats' spread (:class:`CostRatio`), with a warning when it is too wide to read.
 """
 
 from __future__ import annotations
@@ -26,45 +30,54 @@ import os
 import statistics
 import sys
 import warnings
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from enum import Enum
 from pathlib import Path
+from typing import Any, Sequence
 
 from loopcheck.errors import NumericalFailure
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE, Rung
 from loopcheck.results import EngineResult
-from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Trajectory
-from loopcheck.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
 
 from .diff import compare_trajectories
 from .output import json_text, portable_source, write_folder
 from .pool import ordered_map
 from .run import judge
+from .settings import engine_settings
 
 COST_FILES = ("cost.png", "cost.csv", "cost.json")
-
-HARD = {"solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}  # solref (2·timestep, 1): loopcheck's default
-MUJOCO_DEFAULT_SOFTNESS = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}
-SOFTNESS = {"hard": HARD, "mujoco-default": MUJOCO_DEFAULT_SOFTNESS}
-SWEEP_VIOLATION_LIMIT = 0.1  # m: a sweep measures soft constraints rather than rejecting them
-SWEEP_ENERGY_LIMIT = 1.0  # of the energy scale: likewise for first-order integrators' energy error
+FRESH_WORKERS = "forkserver"  # pool.ordered_map's start method for a sweep with an engine beyond the default
+# pair: fresh processes, not forks of a parent that loaded the engine's library (JAX runs threads, and
+# warns that a fork of them may deadlock). The default pair's workers are forks, as they always were.
 
 
 @dataclass(frozen=True)
 class Config:
-    """One point of a sweep."""
+    """One point of a sweep: a rung of ``engine``'s accuracy ladder (:class:`loopcheck.registry.Rung`:
+    ``series``, ``parameter`` (a step in s, a tolerance; NaN for a single point), ``settings`` the
+    sweep runs, ``symbol`` the parameter's name in labels, ``run_settings`` ``loopcheck run``'s,
+    None where they are ``settings``)."""
 
-    engine: str  # "reduced" or "mujoco"
-    series: str  # e.g. "RKN4", "DOP853", "MuJoCo rk4 (hard)"
-    parameter: float  # step (s), rtol, or timestep (s)
-    reduced: ReducedSettings | None = None
-    mujoco: MujocoSettings | None = None
+    engine: str  # a registered engine's name (loopcheck.registry.ENGINES)
+    series: str  # e.g. "RKN4", "DOP853", "<engine> rk4 (hard)"
+    parameter: float  # step (s), rtol, or timestep (s); NaN for an engine's single point
+    settings: Any  # the engine's Settings, as the sweep runs them
+    symbol: str = "h"
+    run_settings: Any = None
+
+    @classmethod
+    def of(cls, engine: str, rung: Rung) -> "Config":
+        return cls(engine, rung.series, rung.parameter, rung.settings, rung.symbol, rung.run_settings)
+
+    @property
+    def rung(self) -> Rung:
+        return Rung(self.series, self.parameter, self.settings, self.symbol, self.run_settings)
 
     @property
     def label(self) -> str:
-        name = "rtol" if self.series == "DOP853" else "h"
-        return f"{self.series} {name}={self.parameter:.1e}"
+        return self.rung.label
 
 
 class Verdict(str, Enum):
@@ -85,7 +98,7 @@ class Measurement:
     else the failure's reason; ``verdict`` and ``verdict_reasons`` are what ``loopcheck run``
     would say (module docstring): FAIL with the reasons, PASS with none. Wall times in s over
     ``repeats`` runs: ``wall_min_s`` ≤ ``wall_median_s`` ≤ ``wall_max_s``. ``constraint_violation``
-    (m) is NaN for the reduced engine, whose loops are exact.
+    (m) is NaN for an engine whose loops are exact (its results have none).
     """
 
     config: Config
@@ -149,52 +162,46 @@ class Truth:
         return self.result.peak.omega
 
 
+def _rung_text(rung: Rung) -> str:
+    """``"DOP853 rtol 1e-12"``: a rung in prose."""
+    return rung.series if math.isnan(rung.parameter) else f"{rung.series} {rung.symbol} {rung.parameter:g}"
+
+
+def truth_text() -> str:
+    """The ground truth in prose (the reference's declaration): ``"DOP853 rtol 1e-12"``."""
+    return _rung_text(ENGINES[REFERENCE].truth()[0])
+
+
 def ground_truth(scene: Scene) -> Truth:
-    """DOP853 at rtol 1e-12, checked against rtol 1e-11."""
-    tight = simulate(scene, ReducedSettings(method="dop853", rtol=1e-12))
-    check = simulate(scene, ReducedSettings(method="dop853", rtol=1e-11))
+    """The reference engine's truth (DOP853 at rtol 1e-12), checked against its looser run (rtol 1e-11)."""
+    reference = ENGINES[REFERENCE]
+    tight_rung, check_rung = reference.truth()
+    tight = reference.simulate(scene, tight_rung.settings)
+    check = reference.simulate(scene, check_rung.settings)
     d = compare_trajectories(tight.trajectory, check.trajectory)
-    return Truth(tight, {"against": "DOP853 rtol 1e-11", **d.figures()})
+    return Truth(tight, {"against": _rung_text(check_rung), **d.figures()})
 
 
-def ladder(quick: bool = False, integrators=INTEGRATORS) -> list[Config]:
-    """The configurations of a sweep (a small ladder with ``quick``)."""
-    if quick:
-        steps, rtols, timesteps = (1e-2, 3e-3, 1e-3), (1e-4, 1e-7, 1e-10), (1e-3, 2.5e-4)
-    else:
-        steps = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4)
-        rtols = tuple(10.0 ** -k for k in range(3, 13))
-        timesteps = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
-    configs = [Config("reduced", "RKN4", h, reduced=ReducedSettings(method="rkn4", step=h, check_error=False))
-               for h in steps]
-    configs += [Config("reduced", "DOP853", r, reduced=ReducedSettings(method="dop853", rtol=r, check_error=False))
-                for r in rtols]
-    for integrator in integrators:
-        for softness, extra in SOFTNESS.items():
-            for h in timesteps:
-                settings = MujocoSettings(integrator=integrator, timestep=h,
-                                          max_constraint_violation=SWEEP_VIOLATION_LIMIT,
-                                          max_energy_residual=SWEEP_ENERGY_LIMIT, **extra)
-                configs.append(Config("mujoco", f"MuJoCo {integrator} ({softness})", h, mujoco=settings))
+def ladder(scene: Scene, engines: Sequence[str] = DEFAULT_ENGINES, quick: bool = False) -> list[Config]:
+    """The configurations of a sweep: each engine's accuracy ladder (a short one with ``quick``),
+    from the scene's settings of that engine (its table over its defaults), in the list's order."""
+    configs = []
+    for name in engines:
+        engine = ENGINES[name]
+        configs += [Config.of(name, rung) for rung in engine.ladder(scene, engine_settings(name, scene), quick)]
     return configs
 
 
-def run_settings(config: Config) -> ReducedSettings | MujocoSettings:
-    """The configuration's settings with the limits ``loopcheck run`` applies by default (the
-    sweep's own are looser, so that it can measure what ``run`` refuses)."""
-    if config.engine == "reduced":
-        return replace(config.reduced, check_error=ReducedSettings().check_error)
-    defaults = MujocoSettings()
-    return replace(config.mujoco, max_constraint_violation=defaults.max_constraint_violation,
-                   max_energy_residual=defaults.max_energy_residual)
+def run_settings(config: Config) -> Any:
+    """The configuration's settings with the limits ``loopcheck run`` applies (the rung's
+    ``run_settings``; the sweep's own may be looser, so that it can measure what ``run`` refuses)."""
+    return config.settings if config.run_settings is None else config.run_settings
 
 
 def _simulate(scene: Scene, config: Config, settings) -> EngineResult:
-    if config.engine == "reduced":
-        return simulate(scene, settings)
-    with warnings.catch_warnings():  # off-grid edges: measured here, not warned about
+    with warnings.catch_warnings():  # off-grid edges and the like: measured here, not warned about
         warnings.simplefilter("ignore")
-        return simulate_mujoco(scene, settings)
+        return ENGINES[config.engine].simulate(scene, settings)
 
 
 def measure(scene: Scene, config: Config, truth: Truth, repeats: int) -> Measurement:
@@ -204,7 +211,9 @@ def measure(scene: Scene, config: Config, truth: Truth, repeats: int) -> Measure
     The first run has ``loopcheck run``'s limits (:func:`run_settings`): a failure there is
     the verdict's first reason, and the configuration is then measured with the sweep's own.
     The verdict's other reasons are the agreement gate's against the truth,
-    :func:`loopcheck.compare.run.judge` at the scene's tolerances for the engine.
+    :func:`loopcheck.compare.run.judge` at the scene's tolerances for the engine. A point the
+    engine refuses (a ValueError: what it does not run) has status ``refused``, as
+    ``loopcheck check --engines`` says it.
     """
     own_failures: list[str] = []
     walls, first = [], None
@@ -214,14 +223,15 @@ def measure(scene: Scene, config: Config, truth: Truth, repeats: int) -> Measure
             walls.append(first.wall_s)
         except NumericalFailure as exc:
             own_failures.append(f"{exc.reason}: {exc}")
-        settings = config.reduced if config.engine == "reduced" else config.mujoco
         while len(walls) < repeats:
-            result = _simulate(scene, config, settings)
+            result = _simulate(scene, config, config.settings)
             first = first or result
             walls.append(result.wall_s)
     except NumericalFailure as exc:
         return Measurement(config, status=str(exc.reason), message=str(exc),
                            verdict_reasons=tuple(own_failures) or (f"{exc.reason}: {exc}",))
+    except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
+        return Measurement(config, status="refused", message=str(exc), verdict_reasons=(f"refused: {exc}",))
     comparison = judge(scene, truth.result, first, scene.tolerances_for(config.engine))
     d = comparison.diff
     reasons = (*own_failures, *comparison.gate.failures)
@@ -270,9 +280,16 @@ def worker_count(requested: int | None, jobs: int) -> int:
     return max(1, min(requested or cores, cores, jobs))
 
 
+def start_method(engines: Sequence[str]) -> str | None:
+    """The workers' start method for a sweep of ``engines``: forks (None, the platform's default)
+    for the default pair, else :data:`FRESH_WORKERS` (they find the engines as the registry does)."""
+    return None if set(engines) <= set(DEFAULT_ENGINES) else FRESH_WORKERS
+
+
 def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3,
           workers: int | None = None) -> list[Measurement]:
-    """Measure every configuration, ``workers`` processes at a time (see :func:`worker_count`).
+    """Measure every configuration, ``workers`` processes at a time (see :func:`worker_count`
+    and :func:`start_method`).
 
     An exception in the parent (Ctrl-C, SIGTERM raised as an exception) ends the workers.
     """
@@ -285,7 +302,8 @@ def sweep(scene: Scene, configs: list[Config], truth: Truth, *, repeats: int = 3
             results.append(_measure_args(job))
             progress.step(job[1].label)
         return results
-    for m in ordered_map(_measure_args, jobs, workers, lost=_lost_job):
+    method = start_method([c.engine for c in configs])
+    for m in ordered_map(_measure_args, jobs, workers, lost=_lost_job, start_method=method):
         results.append(m)
         progress.step(m.config.label)
     return results
@@ -323,9 +341,9 @@ RATIO_SPREAD_LIMIT = 2.0  # a headline interval wider than this factor is too wi
 
 @dataclass(frozen=True)
 class CostRatio:
-    """MuJoCo's wall time over the reduced solver's at the recommended configurations: the
-    ratio of the medians and the interval the repeats allow (MuJoCo's fastest over the
-    reduced solver's slowest, MuJoCo's slowest over the reduced solver's fastest)."""
+    """An engine's wall time over the reference's at the recommended configurations: the
+    ratio of the medians and the interval the repeats allow (the engine's fastest over the
+    reference's slowest, its slowest over the reference's fastest)."""
 
     low: float
     median: float
@@ -337,9 +355,9 @@ class CostRatio:
                              f"{self.low!r}, {self.median!r}, {self.high!r}")
 
     @classmethod
-    def of(cls, mujoco: Measurement, reduced: Measurement) -> CostRatio:
-        return cls(mujoco.wall_min_s / reduced.wall_max_s, mujoco.wall_median_s / reduced.wall_median_s,
-                   mujoco.wall_max_s / reduced.wall_min_s)
+    def of(cls, other: Measurement, reference: Measurement) -> CostRatio:
+        return cls(other.wall_min_s / reference.wall_max_s, other.wall_median_s / reference.wall_median_s,
+                   other.wall_max_s / reference.wall_min_s)
 
     @property
     def spread(self) -> float:
@@ -394,11 +412,17 @@ class LoadAverage:
                 "cores": self.cores, "what": "os.getloadavg(): 1, 5 and 15 min"}
 
 
+def engines_of(measurements: list[Measurement]) -> tuple[str, ...]:
+    """The engines measured, in the sweep's order."""
+    return tuple(dict.fromkeys(m.config.engine for m in measurements))
+
+
 def recommend(scene: Scene, measurements: list[Measurement], truth: Truth, target: float,
-              repeats: int = 3) -> dict[str, Recommendation]:
-    """Per engine, the cheapest measured configuration with peak-ω relative error ≤ target."""
+              repeats: int = 3, engines: Sequence[str] | None = None) -> dict[str, Recommendation]:
+    """Per engine (``engines``, default those measured), the cheapest measured configuration with
+    peak-ω relative error ≤ target."""
     out = {}
-    for engine in ("reduced", "mujoco"):
+    for engine in (engines if engines is not None else engines_of(measurements)):
         best = cheapest_meeting(measurements, engine, target)
         if best is None:
             out[engine] = Recommendation(engine, target, None)
@@ -435,11 +459,19 @@ def converges(series: list[Measurement], floor: float, attr: str = "peak_omega_r
     return all(b <= 2.0 * a for a, b in zip(judged, judged[1:])) and judged[-1] < judged[0]
 
 
+def ratio_key(engine: str) -> str:
+    """cost.json's key of ``engine``'s ratio to the reference: ``recommendation.ENGINE_over_REFERENCE_wall``."""
+    return f"{engine}_over_{REFERENCE}_wall"
+
+
 def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
                 recommendations: dict[str, Recommendation], repeats: int, load: LoadAverage | None = None) -> dict:
-    """The study as JSON-serialisable data. ``recommendation.mujoco_over_reduced_wall`` is the
-    headline (:class:`CostRatio`: low, median, high and its warnings), null when an engine did
-    not reach the target."""
+    """The study as JSON-serialisable data. ``engines`` lists the engines in the sweep's order
+    (``reference`` the one the truth is from); ``recommendation.ENGINE`` is each engine's cheapest
+    configuration meeting the target, and ``recommendation.ENGINE_over_REFERENCE_wall``
+    (:func:`ratio_key`) each other engine's headline ratio to the
+    reference (:class:`CostRatio`: low, median, high and its warnings), null when either did not reach
+    the target."""
     def rec(r: Recommendation) -> dict:
         if not r.reached:
             return {"reached": False, "target": r.target}
@@ -450,12 +482,19 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
                 "confirmed_peak_omega_rel": r.confirmed.peak_omega_rel if r.confirmed else None,
                 "confirmed": r.confirmed_ok}
 
-    red, mj = recommendations["reduced"], recommendations["mujoco"]
-    ratio = CostRatio.of(mj.measurement, red.measurement) if red.reached and mj.reached else None
+    engines = tuple(recommendations)
+    reference = recommendations.get(REFERENCE)
+    recommendation: dict = {name: rec(r) for name, r in recommendations.items()}
+    for name, r in recommendations.items():
+        if name != REFERENCE:
+            ratio = (CostRatio.of(r.measurement, reference.measurement)
+                     if reference is not None and reference.reached and r.reached else None)
+            recommendation[ratio_key(name)] = ratio.as_dict() if ratio else None
     load = load or LoadAverage(None, None, os.cpu_count() or 1)
     return {
         "scene": scene.name, "source": portable_source(scene.source), "input_unit": scene.input_unit,
-        "truth": {"method": "DOP853 rtol 1e-12", "peak_omega": truth.peak_omega, "accuracy": truth.error},
+        "engines": list(engines), "reference": REFERENCE,
+        "truth": {"method": truth_text(), "peak_omega": truth.peak_omega, "accuracy": truth.error},
         "timing": {"what": "simulation only (integration or rollout); no model building, audit or plots",
                    "repeats": repeats, "statistic": "median, with the repeats' min and max",
                    "load_average": load.as_dict()},
@@ -463,8 +502,7 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
                             "(loopcheck.compare.run.judge) against the truth at the scene's tolerances for the engine",
                     "passed": sum(m.passed for m in measurements), "failed": sum(not m.passed for m in measurements)},
         "measurements": [m.row() for m in measurements],
-        "recommendation": {"reduced": rec(red), "mujoco": rec(mj),
-                           "mujoco_over_reduced_wall": ratio.as_dict() if ratio else None},
+        "recommendation": recommendation,
     }
 
 
@@ -476,7 +514,7 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
     """
     import csv
 
-    from .plots import plot_work_precision
+    from .cost_plot import plot_cost
 
     def write_csv(path: Path) -> None:
         rows = [m.row() for m in measurements]
@@ -486,8 +524,8 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
             writer.writerows(rows)
 
     files = {
-        "cost.png": lambda p: plot_work_precision(measurements, pareto_front(measurements), target,
-                                                  report["scene"], p, headline=headline_text(report)),
+        "cost.png": lambda p: plot_cost(measurements, pareto_front(measurements), target, report["scene"], p,
+                                        truth=report["truth"]["method"], headline="\n".join(headline_lines(report))),
         "cost.csv": write_csv,
         "cost.json": lambda p: p.write_text(json_text(report), encoding="utf-8"),
     }
@@ -497,17 +535,23 @@ def write_cost_outputs(report: dict, measurements: list[Measurement], out_dir, t
 LOOP_EXACT = "n/a (exact)"  # the loop column of an engine whose loops are closed by construction
 
 
-def headline_text(report: dict) -> str | None:
-    """The headline, one line: MuJoCo's cost over the reduced solver's at the target, an interval."""
-    ratio = report["recommendation"]["mujoco_over_reduced_wall"]
+def _headline(report: dict, engine: str) -> str | None:
+    """``engine``'s cost over the reference's at the target, an interval, one line (None: no ratio)."""
+    rec = report["recommendation"]
+    ratio = rec.get(ratio_key(engine)) if engine != REFERENCE else None
     if ratio is None:
         return None
-    return (f"at peak error <= {report['recommendation']['reduced']['target']:g} MuJoCo costs "
-            f"{CostRatio(ratio['low'], ratio['median'], ratio['high']).text()} the reduced solver's wall time")
+    return (f"at peak error <= {rec[engine]['target']:g} {ENGINES[engine].label} costs "
+            f"{CostRatio(ratio['low'], ratio['median'], ratio['high']).text()} {ENGINES[REFERENCE].label}'s wall time")
+
+
+def headline_lines(report: dict) -> list[str]:
+    """The headlines, one line per engine beside the reference where both reached the target."""
+    return [line for line in (_headline(report, name) for name in report["engines"]) if line]
 
 
 def _loop_cell(m: Measurement) -> str:
-    if m.config.engine == "reduced":
+    if math.isnan(m.constraint_violation):  # the engine's results have no loop gap: loops closed by construction
         return LOOP_EXACT
     return f"{m.constraint_violation:.2e}"
 
@@ -519,8 +563,9 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     load = timing.get("load_average") or {}
     loads = " ; ".join(f"{when} {' '.join(f'{x:.2f}' for x in load[when])}" for when in ("start", "end")
                        if load.get(when))
-    lines = [f"truth: DOP853 rtol 1e-12, peak qdot {report['truth']['peak_omega']:+.12g} {unit}/s; "
-             f"against rtol 1e-11: peak {report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
+    lines = [f"truth: {report['truth']['method']}, peak qdot {report['truth']['peak_omega']:+.12g} {unit}/s; "
+             f"against {report['truth']['accuracy']['against'].split(' ', 1)[-1]}: peak "
+             f"{report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
              f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}",
              f"wall time: median of {timing['repeats']} runs [min-max], simulation only; load average "
              f"(1, 5, 15 min) {loads or 'not available'} on {load.get('cores', '?')} cores",
@@ -540,7 +585,7 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     for m in failing:
         lines.append(f"  {m.config.label}: fails run: {m.verdict_reasons[0][:110]}")
     rec = report["recommendation"]
-    for engine in ("reduced", "mujoco"):
+    for engine in report["engines"]:
         r = rec[engine]
         if r["reached"]:
             lines.append(f"cheapest {engine} configuration that run passes with peak error <= {r['target']:g}: "
@@ -549,24 +594,35 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
                          f"{r['confirmed_peak_omega_rel']:.2e}, {'confirmed' if r['confirmed'] else 'NOT confirmed'})")
         else:
             lines.append(f"{engine}: the target {r['target']:g} was not reached at any setting tried that run passes")
-    headline = headline_text(report)
-    if headline:
-        lines.append(headline)
-        lines += [f"warning: {w}" for w in rec["mujoco_over_reduced_wall"]["warnings"]]
+    for engine in report["engines"]:
+        headline = _headline(report, engine)
+        if headline:
+            lines.append(headline)
+            lines += [f"warning: {w}" for w in rec[ratio_key(engine)]["warnings"]]
     return lines
 
 
 def study(scene: Scene, *, quick: bool = False, target: float | None = None, repeats: int | None = None,
-          workers: int | None = None) -> tuple[dict, list[Measurement], float]:
-    """The whole cost pipeline: truth, sweep, recommendation and report.
+          workers: int | None = None, engines: Sequence[str] = DEFAULT_ENGINES) -> tuple[dict, list[Measurement], float]:
+    """The whole cost pipeline: truth, sweep, recommendation and report, over ``engines``
+    (names of :data:`loopcheck.registry.ENGINES`; default the design card's pair).
 
     ``target`` defaults to the scene's peak_omega_rtol, ``repeats`` to 3, ``workers`` to
     one process per core (a request above that warns and is capped). Returns the report
     (cost.json's data), the measurements and the target used.
+
+    Raises
+    ------
+    ImportError
+        In one line, before any work, when an engine's optional extra is missing.
+    ValueError
+        In one line, before any work: a scene table an engine's settings refuse.
     """
     target = target if target is not None else scene.tolerances.peak_omega_rtol
     repeats = repeats if repeats is not None else 3
-    configs = ladder(quick=quick)
+    for name in engines:
+        ENGINES[name].load()
+    configs = ladder(scene, engines, quick=quick)
     used = worker_count(workers, len(configs))
     if workers is not None and used < workers:
         warnings.warn(f"--workers {workers}: using {used} "
@@ -574,6 +630,6 @@ def study(scene: Scene, *, quick: bool = False, target: float | None = None, rep
     load_start = LoadAverage.now()
     truth = ground_truth(scene)
     measurements = sweep(scene, configs, truth, repeats=repeats, workers=used)
-    recommendations = recommend(scene, measurements, truth, target, repeats)
+    recommendations = recommend(scene, measurements, truth, target, repeats, engines=engines)
     load = LoadAverage(load_start, LoadAverage.now(), os.cpu_count() or 1)
     return cost_report(scene, truth, measurements, recommendations, repeats, load), measurements, target

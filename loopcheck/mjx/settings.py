@@ -57,3 +57,14 @@ LABEL = "MJX"
 # The scene's [mujoco] values of the model's options are this port's defaults, under its own table
 # (loopcheck.registry.Engine.inherits): it runs the model the MuJoCo engine builds.
 INHERITS = ("mujoco", tuple(o.name for o in options(ModelOptions)))
+
+# The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
+
+def accuracy_ladder(scene, base, quick: bool = False):
+    """``loopcheck cost``'s points: fixed timesteps 2e-3 … 2.5e-4 s (``quick``: 1e-3 and 5e-4, each
+    a compilation), the scene's integrator (default RK4) with the hard loop constraint, each with the
+    ladder's loose limits (:func:`loopcheck.mujoco_model.options.fixed_step_ladder`)."""
+    from loopcheck.mujoco_model.options import fixed_step_ladder
+
+    timesteps = (1e-3, 5e-4) if quick else (2e-3, 1e-3, 5e-4, 2.5e-4)
+    return fixed_step_ladder(base, "MJX", (base.integrator,), ("hard",), timesteps)

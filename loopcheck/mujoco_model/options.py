@@ -125,3 +125,32 @@ class ModelOptions:
         d["solref"] = None if solref is None else list(solref)
         d["solimp"] = list(self.solimp)
         return d
+
+
+# The accuracy ladders of `loopcheck cost` for the engines of this family (their settings modules'
+# accuracy_ladder; loopcheck.registry.Engine.ladder).
+SWEEP_VIOLATION_LIMIT = 0.1  # m: a ladder measures soft constraints rather than rejecting them
+SWEEP_ENERGY_LIMIT = 1.0  # of the energy scale: likewise for first-order integrators' energy error
+HARD = {"solref": None, "solimp": DEFAULT_SOLIMP}  # solref (2·timestep, 1): loopcheck's default
+MUJOCO_DEFAULT_SOFTNESS = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}
+SOFTNESS = {"hard": HARD, "mujoco-default": MUJOCO_DEFAULT_SOFTNESS}
+
+
+def fixed_step_ladder(base, name: str, integrators, softnesses, timesteps) -> list:
+    """Rungs of ``base`` (a ModelOptions: the scene's settings) at each integrator × softness
+    (:data:`SOFTNESS`' keys) × timestep (s), series ``"NAME INTEGRATOR (SOFTNESS)"``. Each runs with
+    the ladder's loose limits (:data:`SWEEP_VIOLATION_LIMIT`, :data:`SWEEP_ENERGY_LIMIT`), so that
+    it is measured where ``loopcheck run`` refuses it; its verdict is run's, at ``base``'s limits."""
+    from dataclasses import replace
+
+    from loopcheck.registry import Rung
+
+    rungs = []
+    for integrator in integrators:
+        for softness in softnesses:
+            for h in timesteps:
+                point = replace(base, integrator=integrator, timestep=h, **SOFTNESS[softness])
+                loose = replace(point, max_constraint_violation=SWEEP_VIOLATION_LIMIT,
+                                max_energy_residual=SWEEP_ENERGY_LIMIT)
+                rungs.append(Rung(f"{name} {integrator} ({softness})", h, loose, "h", run_settings=point))
+    return rungs

@@ -96,3 +96,24 @@ Settings = PinSettings  # the name every engine's settings have (loopcheck.regis
 # How tables and plots name and draw the engine (loopcheck.registry.Engine.label, .colour).
 LABEL = "Pinocchio"
 COLOUR = "tab:green"
+
+# The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
+SWEEP_VIOLATION_LIMIT = 0.1  # m: a ladder measures an opening loop rather than rejecting it
+SWEEP_ENERGY_LIMIT = 1.0  # of the energy scale: likewise for a loose tolerance's energy error
+
+
+def accuracy_ladder(scene, base, quick: bool = False):
+    """``loopcheck cost``'s points: the scene's method (default DOP853) over rtol 1e-4 … 1e-12
+    (``quick``: 1e-6, 1e-9, 1e-12), each with loose limits so that it is measured where
+    ``loopcheck run`` refuses it (its verdict: run's, at the scene's limits)."""
+    from dataclasses import replace
+
+    from loopcheck.registry import Rung
+
+    rtols = (1e-6, 1e-9, 1e-12) if quick else tuple(10.0 ** -k for k in range(4, 13))
+    rungs = []
+    for rtol in rtols:
+        point = replace(base, rtol=rtol)
+        loose = replace(point, max_constraint_violation=SWEEP_VIOLATION_LIMIT, max_energy_residual=SWEEP_ENERGY_LIMIT)
+        rungs.append(Rung(f"Pinocchio {SCIPY_NAMES[base.method]}", rtol, loose, "rtol", run_settings=point))
+    return rungs

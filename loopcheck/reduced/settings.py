@@ -127,3 +127,35 @@ def settings_text(result) -> str:
     step (RKN4) or rtol."""
     used = result.settings
     return f"{result.details.solver} " + (f"h={used.step:g}s" if used.method == "rkn4" else f"rtol={used.rtol:g}")
+
+# The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
+
+def _rung(series: str, parameter: float, symbol: str, **fields):
+    from loopcheck.registry import Rung
+
+    # The ladder measures coarse settings: their error estimate and energy balance are recorded,
+    # not enforced (check_error False); run's own check (the default) gives the point's verdict.
+    return Rung(series, parameter, ReducedSettings(**fields, check_error=False), symbol,
+                run_settings=ReducedSettings(**fields))
+
+
+def accuracy_ladder(scene, base, quick: bool = False):
+    """``loopcheck cost``'s points: RKN4 over steps 1e-2 … 1e-4 s and DOP853 over rtol 1e-3 … 1e-12
+    (``quick``: three of each). Every field is the ladder's (the settings resolve per method), not
+    the scene's table."""
+    if quick:
+        steps, rtols = (1e-2, 3e-3, 1e-3), (1e-4, 1e-7, 1e-10)
+    else:
+        steps = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4)
+        rtols = tuple(10.0 ** -k for k in range(3, 13))
+    return ([_rung("RKN4", h, "h", method="rkn4", step=h) for h in steps]
+            + [_rung("DOP853", r, "rtol", method="dop853", rtol=r) for r in rtols])
+
+
+def truth():
+    """The ground truth of the studies, as the reference (loopcheck.registry.Engine.truth): DOP853 at
+    rtol 1e-12, checked against rtol 1e-11."""
+    from loopcheck.registry import Rung
+
+    return (Rung("DOP853", 1e-12, ReducedSettings(method="dop853", rtol=1e-12), "rtol"),
+            Rung("DOP853", 1e-11, ReducedSettings(method="dop853", rtol=1e-11), "rtol"))

@@ -66,4 +66,16 @@ def gate_notes(scene, result, failures) -> tuple[str, ...]:
             f"without it the step is chosen automatically for them",)
 __all__ = ["DEFAULT_INTEGRATOR", "DEFAULT_ITERATIONS", "DEFAULT_SOLIMP", "DEFAULT_TOLERANCE", "INTEGRATORS",
            "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings", "LABEL", "COLOUR",
-           "USER_MODEL", "RUNS", "MODEL_FILES", "gate_notes"]
+           "USER_MODEL", "RUNS", "MODEL_FILES", "gate_notes", "accuracy_ladder"]
+
+
+# The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
+
+def accuracy_ladder(scene, base, quick: bool = False):
+    """``loopcheck cost``'s points: every integrator, the hard loop constraint and MuJoCo's default
+    softness, timesteps 1e-3 … 1e-5 s (``quick``: 1e-3 and 2.5e-4), each with the ladder's loose limits
+    (:func:`loopcheck.mujoco_model.options.fixed_step_ladder`)."""
+    from loopcheck.mujoco_model.options import SOFTNESS, fixed_step_ladder
+
+    timesteps = (1e-3, 2.5e-4) if quick else (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
+    return fixed_step_ladder(base, "MuJoCo", INTEGRATORS, tuple(SOFTNESS), timesteps)

@@ -30,7 +30,7 @@ TARGET = 1e-4
 def study():
     scene = load_scene(SEED_SCENE)
     truth = ground_truth(scene)
-    measurements = sweep(scene, ladder(quick=True), truth, repeats=2, workers=2)  # 2: a spread to record
+    measurements = sweep(scene, ladder(scene, quick=True), truth, repeats=2, workers=2)  # 2: a spread to record
     recommendations = recommend(scene, measurements, truth, TARGET, repeats=1)
     return scene, truth, measurements, recommendations
 
@@ -98,7 +98,7 @@ def test_a_study_records_the_load_average_it_ran_under():
 def test_the_headline_interval_warns_when_too_wide_or_when_it_contains_one():
     """The headline's warnings (issue: 9.47x then 55.43x). Planted: no warning, or the interval
     taken from the medians alone, fails."""
-    configs = ladder(quick=True)
+    configs = ladder(load_scene(SEED_SCENE), quick=True)
     red = Measurement(configs[0], "ok", verdict=Verdict.PASS, wall_min_s=0.010, wall_median_s=0.011,
                       wall_max_s=0.012, repeats=3)
     steady = Measurement(configs[-1], "ok", verdict=Verdict.PASS, wall_min_s=0.050, wall_median_s=0.055,
@@ -117,7 +117,7 @@ def test_the_headline_interval_warns_when_too_wide_or_when_it_contains_one():
 
 def _as_run_would(scene, config):
     """What `loopcheck run` says of one MuJoCo configuration, through run's own API: pass, or the failure."""
-    s = config.mujoco
+    s = config.settings
     settings = MujocoSettings(integrator=s.integrator, timestep=s.timestep, solref=s.solref, solimp=s.solimp)
     try:
         return compare_engines(scene, mujoco=settings).gate.passed
@@ -141,7 +141,7 @@ def test_every_point_carries_the_verdict_run_gives_it(study):
     assert soft and all(not m.passed and m.verdict_reasons[0].startswith("constraint-drift") for m in soft)
     for m in (m for m in measurements if m.config.engine == "reduced"):
         try:
-            simulate(scene, replace(m.config.reduced, check_error=True))
+            simulate(scene, replace(m.config.settings, check_error=True))
             own = True
         except NumericalFailure:
             own = False
@@ -217,7 +217,7 @@ def test_the_cheapest_configuration_meeting_the_target_is_chosen(study):
     MuJoCo configurations, three of each meet the target at different costs; the cheapest
     overall misses it, one failed run is cheaper still."""
     scene, truth, _, _ = study
-    configs = ladder(quick=True)
+    configs = ladder(load_scene(SEED_SCENE), quick=True)
     reduced = [c for c in configs if c.engine == "reduced"][:4]
     mujoco = [c for c in configs if c.engine == "mujoco"][:4]
     walls_errors = [(0.5, 1e-5), (0.1, 1e-6), (0.9, 1e-7), (0.01, 1e-2)]
@@ -247,12 +247,12 @@ def test_the_diagram_keeps_plain_log_labels_with_a_front(tmp_path, saved_figures
     """Every label of cost.png is plain text (no mathtext parser), also after the Pareto front
     and the target are drawn: a later loglog call would put matplotlib's formatters back."""
     from loopcheck.compare.cost import pareto_front
-    from loopcheck.compare.plots import plot_work_precision
+    from loopcheck.compare.cost_plot import plot_cost
 
-    configs = ladder(quick=True)
+    configs = ladder(load_scene(SEED_SCENE), quick=True)
     measurements = synthetic([c for c in configs if c.engine == "reduced"][:3],
                              [(0.5, 1e-5), (0.1, 1e-6), (0.9, 1e-7)])
-    plot_work_precision(measurements, pareto_front(measurements), TARGET, "seed", tmp_path / "cost.png")
+    plot_cost(measurements, pareto_front(measurements), TARGET, "seed", tmp_path / "cost.png")
     (fig,) = saved_figures
     ax = fig.axes[0]
     labels = [t.get_text() for axis in (ax.xaxis, ax.yaxis)
@@ -263,14 +263,14 @@ def test_the_diagram_keeps_plain_log_labels_with_a_front(tmp_path, saved_figures
 def test_failing_points_are_hollow_and_the_axes_hold_the_data(tmp_path, saved_figures):
     """cost.png: a point `loopcheck run` fails is drawn hollow, every point lies inside the axes
     (scaled to the data) and both axes name their unit. (Planted: failing points drawn filled fails.)"""
-    from loopcheck.compare.plots import plot_work_precision
+    from loopcheck.compare.cost_plot import plot_cost
 
-    configs = ladder(quick=True)
+    configs = ladder(load_scene(SEED_SCENE), quick=True)
     reduced = [c for c in configs if c.engine == "reduced"][:3]
     passing = synthetic(reduced[:2], [(0.5, 1e-5), (0.1, 1e-6)])
     failing = synthetic(reduced[2:], [(2e-4, 3e-2)], Verdict.FAIL)
-    plot_work_precision(passing + failing, passing[1:], TARGET, "seed", tmp_path / "cost.png",
-                        headline="MuJoCo costs 5.00x (between 4.00x and 6.00x over the repeats)")
+    plot_cost(passing + failing, passing[1:], TARGET, "seed", tmp_path / "cost.png",
+              headline="MuJoCo costs 5.00x (between 4.00x and 6.00x over the repeats)")
     (fig,) = saved_figures
     ax = fig.axes[0]
     hollow = [line for line in ax.get_lines() if line.get_linestyle() in ("None", "none")

@@ -142,8 +142,11 @@ def test_a_cost_configuration_whose_worker_dies_twice_is_failed(tmp_path, monkey
     """``loopcheck cost``'s pool: the configuration measured in a worker killed twice is a
     measurement of status ``failed`` whose message is the signal; the others are measured."""
     from loopcheck.compare import cost
+    from loopcheck.scenefile import load_scene
 
-    configs = cost.ladder(quick=True)[:4]
+    from helpers import SEED_SCENE
+
+    configs = cost.ladder(load_scene(SEED_SCENE), quick=True)[:4]
     parent = os.getpid()
 
     def measure(scene, config, truth, repeats):

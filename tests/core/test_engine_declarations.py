@@ -182,3 +182,54 @@ def test_the_built_in_engines_declare_their_labels_colours_and_runs():
     shared = frozenset(o.name for o in options(ModelOptions))
     assert ENGINES["mjx"].inherits == ENGINES["mjwarp"].inherits == ("mujoco", shared)
     assert ENGINES["mujoco"].inherits is None and ENGINES["pin"].inherits is None
+def test_a_rung_says_what_run_would_run_and_how_it_is_labelled(package):
+    """A rung's verdict settings (``run_settings``, default its own) and its label; a ladder whose
+    verdict settings are another engine's is refused. (Planted: ``as_run`` returning ``settings``
+    always fails the first assertion; the type check skipping ``run_settings`` fails the last.)"""
+    engine = package("pkg_loose", '''
+        from loopcheck.registry import Rung
+
+
+        def accuracy_ladder(scene, base, quick):
+            return [Rung("fixed", 1e-2, Settings(step=1e-2), run_settings=Settings(step=2e-2)),
+                    Rung("tol", 1e-6, Settings(step=1e-3), "rtol")]
+    ''')
+    loose, tight = engine.ladder("s", engine.settings())
+    assert loose.as_run == engine.settings(step=2e-2) and tight.as_run is tight.settings
+    assert (loose.label, tight.label) == ("fixed h=1.0e-02", "tol rtol=1.0e-06")
+    assert engine.ladder("s", engine.settings())[0].settings == engine.settings(step=1e-2)
+    plain = package("pkg_plain")
+    (single,) = plain.ladder("s", plain.settings())
+    assert single.label == "plain"  # the default point: the engine's label, no parameter
+    with pytest.raises(ValueError, match="Rung.symbol"):
+        Rung("s", 1e-3, None, "")
+    bad = package("pkg_mixed", '''
+        from loopcheck.registry import Rung
+
+
+        def accuracy_ladder(scene, base, quick):
+            return [Rung("fixed", 1e-2, Settings(step=1e-2), run_settings="not its settings")]
+    ''')
+    with pytest.raises(TypeError, match="engine 'mixed': accuracy_ladder gave .* not a Rung of its Settings"):
+        bad.ladder("s", bad.settings())
+
+
+def test_the_reference_declares_its_truth_and_an_engine_without_one_is_refused(package):
+    """``Engine.truth()``: the reduced reference's two runs (DOP853 at rtol 1e-12 and 1e-11); an
+    engine declaring none is refused in one line naming what is missing."""
+    from loopcheck.registry import ENGINES, REFERENCE
+
+    tight, check = ENGINES[REFERENCE].truth()
+    assert (tight.label, check.label) == ("DOP853 rtol=1.0e-12", "DOP853 rtol=1.0e-11")
+    assert (tight.settings.method, tight.settings.rtol, check.settings.rtol) == ("dop853", 1e-12, 1e-11)
+    with pytest.raises(ValueError, match=r"engine 'bare2' declares no ground truth \(truth\(\) in pkg_bare2.settings\)"):
+        package("pkg_bare2").truth()
+    one = package("pkg_one", '''
+        from loopcheck.registry import Rung
+
+
+        def truth():
+            return (Rung("t", 1e-3, Settings()),)
+    ''')
+    with pytest.raises(ValueError, match="truth\\(\\) gave 1 runs, not two"):
+        one.truth()
