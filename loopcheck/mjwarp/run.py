@@ -7,7 +7,10 @@ copy sets ``ctrl`` of every world, ``mjw.step`` steps them all, and two copies a
 qvel to arrays that stay on the device until the run ends (one copy back to the host). Warp
 compiles MJWarp's kernels on first use (about 60 s on a 2-core CPU) and keeps them in its kernel
 cache (``~/.cache/warp``); one step before the run, on a scratch copy of the data, pays that and
-is recorded as ``compile_s``. MuJoCo C reads the states back (:func:`loopcheck.mujoco_model.port.finish`):
+is recorded as ``compile_s``, announced first with the last compile's time
+(:mod:`loopcheck.mujoco_model.compile_record`). What warp prints (its banner, its CUDA warning on a
+machine without a driver) is kept and logged in loopcheck's words
+(:mod:`loopcheck.mujoco_model.foreign_output`). MuJoCo C reads the states back (:func:`loopcheck.mujoco_model.port.finish`):
 the energy audit and the loop gap are MuJoCo C's functions at MJWarp's states (MJWarp computes no
 energy here).
 

@@ -3,7 +3,9 @@
 
 The step loop is one ``jax.lax.scan`` of ``mjx.step`` over the controls of every step, compiled
 once per model structure and step count (``jax.jit``; JAX's persistent compilation cache, when
-``JAX_COMPILATION_CACHE_DIR`` is set, keeps it across processes). The states come back to the
+``JAX_COMPILATION_CACHE_DIR`` is set, keeps it across processes), announced first with the last
+compile's time (:mod:`loopcheck.mujoco_model.compile_record`); what JAX and XLA say meanwhile is
+kept and logged in loopcheck's words (:mod:`loopcheck.mujoco_model.foreign_output`). The states come back to the
 host and MuJoCo C reads them (:func:`loopcheck.mujoco_model.port.finish`): the energy audit and the loop
 gap are MuJoCo C's functions at MJX's states, as the issue's design asks (MJX computes no energy).
 """

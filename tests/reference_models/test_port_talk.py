@@ -3,7 +3,7 @@ compile record kept beside a compilation cache (loopcheck.mujoco_model.compile_r
 filter that keeps JAX's, XLA's and Warp's own output from the user
 (loopcheck.mujoco_model.foreign_output). The messages the filter is tested with are the
 libraries' own, copied from their output (JAX 0.10.2, warp 1.19.0): the libraries themselves are
-not needed here; tests/mjx/test_port_talk_command.py runs the command with them.
+not needed here; tests/compare/test_port_talk_command.py runs the command with them.
 """
 
 from __future__ import annotations
@@ -142,7 +142,8 @@ def test_foreign_output_keeps_every_channel_and_logs_it_in_our_words(tmp_path):
     logging.info() (which would configure the root logger: MJX's put_model does), and a Python
     warning. Nothing of theirs reaches the process's stdout or stderr; loopcheck's own lines do, and
     the root logger has no handler afterwards (planted: no fd capture: Warp's line on stderr;
-    planted: the root's added handler left: every later loopcheck line printed twice). Run in a
+    planted: no collector on the root while the block runs and the handler that logging.info()
+    adds left: the root has a handler, every later loopcheck line printed twice). Run in a
     process of its own: the descriptors and loggers as a command has them."""
     script = textwrap.dedent(f"""
         import logging, os, sys, warnings
