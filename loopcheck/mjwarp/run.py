@@ -42,8 +42,10 @@ from loopcheck.scene import Scene
 
 from .settings import MjwarpSettings
 
+_LOGGERS = ("warp", "mujoco_warp")  # warp's and MJWarp's loggers
+
 try:
-    with foreign_output("mjwarp", "Warp"):  # what warp says as it loads, in loopcheck's words (foreign_output)
+    with foreign_output("mjwarp", "Warp", _LOGGERS):  # what warp says as it loads, in loopcheck's words (foreign_output)
         import warp as wp
 
         # Warp prints a line per kernel module it compiles or loads (hundreds for one step of
@@ -68,7 +70,7 @@ KNOWN_DEFECT = ("MJWarp {version} computes the loop constraints' J̇·q̇ from t
                 "velocities (make_constraint runs before fwd_velocity), and runs in float32: expect errors of "
                 "order 1e-4 on closed loops (docs/engines.md)")
 DEFECT_CHECKED = "4.0.0"  # the newest MJWarp release found to have it
-with foreign_output("mjwarp", "Warp"):  # warp's start: its CUDA warning from C++ on stderr, its banner
+with foreign_output("mjwarp", "Warp", _LOGGERS):  # warp's start: its CUDA warning from C++ on stderr, its banner
     wp.init()
 
 # Model fields that differ between variants but that mjw.step does not read: the keyframes
@@ -270,7 +272,7 @@ def _rollout(runs: list[PortRun], model_fields, opt_fields) -> tuple[np.ndarray,
     nworld, n = len(runs), runs[0].n_steps
     m0 = runs[0].port_model
     nq, nv, nu = m0.nq, m0.nv, m0.nu
-    with foreign_output("mjwarp", "Warp"):
+    with foreign_output("mjwarp", "Warp", _LOGGERS):
         mw = _model(runs, model_fields, opt_fields)
 
     # the kernels' compile (or their load from warp's cache), said first with the last one's time
@@ -278,7 +280,7 @@ def _rollout(runs: list[PortRun], model_fields, opt_fields) -> tuple[np.ndarray,
     structure = model_structure(m0)
     announce = compiling("mjwarp", str(wp.get_device()), _cache_dir(), runs[0].scene.name) \
         if structure not in _STEPPED else contextlib.nullcontext()
-    with announce, foreign_output("mjwarp", "Warp"):
+    with announce, foreign_output("mjwarp", "Warp", _LOGGERS):
         start = time.perf_counter()
         scratch = _data(runs, mw)
         mjw.step(mw, scratch)
@@ -287,7 +289,7 @@ def _rollout(runs: list[PortRun], model_fields, opt_fields) -> tuple[np.ndarray,
         del scratch
     _STEPPED.add(structure)
 
-    with foreign_output("mjwarp", "Warp"):
+    with foreign_output("mjwarp", "Warp", _LOGGERS):
         dw = _data(runs, mw)
         device = dw.qpos.device
         ctrl = np.stack([run.ctrl for run in runs], axis=1) if nu else np.zeros((n, nworld, 0))

@@ -28,8 +28,10 @@ from loopcheck.scene import Scene
 
 from .settings import MjxSettings
 
+_LOGGERS = ("jax", "jaxlib", "absl", "mujoco.mjx")  # JAX's, absl's (XLA's Python side) and MJX's loggers
+
 try:
-    with foreign_output("mjx", "JAX"):  # what JAX says as it loads, in loopcheck's words (foreign_output)
+    with foreign_output("mjx", "JAX", _LOGGERS):  # what JAX says as it loads, in loopcheck's words (foreign_output)
         import jax
         from mujoco import mjx
 except ModuleNotFoundError as exc:  # the optional extra
@@ -140,7 +142,7 @@ def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, 
     """qpos and qvel after every step of every run, (batch, n_steps, nq|nv), with the scan's
     compile time and run time (s)."""
     dtype = np.float64 if precision == "float64" else np.float32
-    with foreign_output("mjx", "JAX"), refusing_unimplemented("MJX"):  # JAX starts its device here
+    with foreign_output("mjx", "JAX", _LOGGERS), refusing_unimplemented("MJX"):  # JAX starts its device here
         models = [mjx.put_model(run.port_model) for run in runs]
         datas = [mjx.put_data(run.port_model, run.data) for run in runs]
         stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
@@ -155,10 +157,10 @@ def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, 
     compiled = _COMPILED.get(key)
     if compiled is None:  # said first, with the last compile's time (compile_record); JAX's talk kept meanwhile
         with compiling("mjx", jax.default_backend(), _cache_dir(), runs[0].scene.name) as timed, \
-                foreign_output("mjx", "JAX"):
+                foreign_output("mjx", "JAX", _LOGGERS):
             compiled = _COMPILED[key] = jax.jit(jax.vmap(_rollout)).lower(mx, dx, ctrl).compile()
         compile_s = timed.seconds
-    with foreign_output("mjx", "JAX"):
+    with foreign_output("mjx", "JAX", _LOGGERS):
         start = time.perf_counter()
         qpos, qvel = jax.block_until_ready(compiled(mx, dx, ctrl))
         wall = time.perf_counter() - start

@@ -16,9 +16,9 @@ run):
 - the process's stdout and stderr (file descriptors 1 and 2, where C++ and ``print`` write) go to
   a temporary file in the system's temporary folder (never the working folder);
 - Python's warnings are recorded, not shown;
-- records of the libraries' loggers (``jax``, ``absl``, ``warp``, ``mujoco_warp``, ``mujoco.mjx``)
-  and of the root logger are kept, and a root handler that a library configures meanwhile is
-  removed again.
+- records of the libraries' loggers (the port names them: ``jax``, ``absl``, ``mujoco.mjx``;
+  ``warp``, ``mujoco_warp``) and of the root logger are kept, and a root handler that a library
+  configures meanwhile is removed again.
 
 When the block ends, each line is logged on the ``loopcheck.ports`` logger in loopcheck's words
 (:func:`in_our_words`): "JAX runs on the CPU: ..." for its fall-back, a warning (a Python warning,
@@ -43,8 +43,6 @@ from typing import Iterator
 
 _log = logging.getLogger("loopcheck.ports")
 
-# the libraries' loggers, kept (not propagated) inside a block
-FOREIGN_LOGGERS = ("jax", "jaxlib", "absl", "warp", "mujoco_warp", "mujoco.mjx")
 KEPT = 20  # the first lines kept per block (the count goes on)
 
 _XLA_LINE = re.compile(r"^([IWEF])\d{4} [\d:.]+\s+\d+\s+\S+:\d+\]\s*(.*)$")  # absl's C++ log prefix
@@ -135,17 +133,19 @@ def _descriptors_kept(lines: list[str]) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def foreign_output(engine: str, library: str) -> Iterator[None]:
-    """Keep what ``library`` ("JAX", "Warp") says while the block runs (module docstring) and log
-    it afterwards in loopcheck's words, naming ``engine`` ("mjx"). A block inside a block adds
-    nothing (the outer one keeps it all)."""
+def foreign_output(engine: str, library: str, loggers: tuple[str, ...] = ()) -> Iterator[None]:
+    """Keep what ``library`` ("JAX", "Warp") says while the block runs (module docstring), on the
+    process's stdout and stderr, as Python warnings, and on the root logger and ``loggers`` (its
+    loggers' names, kept from propagating meanwhile), and log it afterwards in loopcheck's words,
+    naming ``engine`` (its registry name). A block inside a block adds nothing (the outer one
+    keeps it all)."""
     if _depth[0]:
         yield
         return
     handler = _Kept()
     root = logging.getLogger()
     roots_before = list(root.handlers)
-    loggers = [logging.getLogger(name) for name in FOREIGN_LOGGERS]
+    loggers = [logging.getLogger(name) for name in loggers]
     propagation = [lg.propagate for lg in loggers]
     lines: list[str] = []
     caught: list[warnings.WarningMessage] = []
@@ -197,4 +197,4 @@ def _report(engine: str, library: str, said: list[tuple[int, str]]) -> None:
             _log.log(level, "%s: %s", engine, line)
 
 
-__all__ = ["FOREIGN_LOGGERS", "foreign_output", "in_our_words"]
+__all__ = ["foreign_output", "in_our_words"]

@@ -152,7 +152,7 @@ def test_foreign_output_keeps_every_channel_and_logs_it_in_our_words(tmp_path):
         handler.setFormatter(logging.Formatter("loopcheck: %(message)s"))
         logging.getLogger("loopcheck").addHandler(handler)
         logging.getLogger("loopcheck").setLevel(logging.INFO)
-        with foreign_output("mjwarp", "Warp"):
+        with foreign_output("mjwarp", "Warp", ("jax",)):
             os.write(2, {WARP_CUDA + chr(10)!r}.encode())
             os.write(1, b"C stdout line\\n")
             print("Warp 1.19.0 initialized:")
@@ -181,7 +181,8 @@ def test_foreign_output_restores_everything_when_the_block_raises(capfd):
     root = logging.getLogger()
     before = (list(root.handlers), logging.getLogger("jax").propagate)
     with pytest.raises(KeyboardInterrupt), warnings.catch_warnings():
-        with foreign_output("mjx", "JAX"):
+        with foreign_output("mjx", "JAX", ("jax",)):
+            assert logging.getLogger("jax").propagate is False
             os.write(2, b"Warp CUDA warning: inside\n")
             raise KeyboardInterrupt
     os.write(2, b"after\n")
