@@ -7,7 +7,10 @@ copy sets ``ctrl`` of every world, ``mjw.step`` steps them all, and two copies a
 qvel to arrays that stay on the device until the run ends (one copy back to the host). Warp
 compiles MJWarp's kernels on first use (about 60 s on a 2-core CPU) and keeps them in its kernel
 cache (``~/.cache/warp``); one step before the run, on a scratch copy of the data, pays that and
-is recorded as ``compile_s``. MuJoCo C reads the states back (:func:`loopcheck.mujoco_model.port.finish`):
+is recorded as ``compile_s``, announced first with the last compile's time
+(:mod:`loopcheck.mujoco_model.compile_record`). What warp prints (its banner, its CUDA warning on a
+machine without a driver) is kept and logged in loopcheck's words
+(:mod:`loopcheck.mujoco_model.foreign_output`). MuJoCo C reads the states back (:func:`loopcheck.mujoco_model.port.finish`):
 the energy audit and the loop gap are MuJoCo C's functions at MJWarp's states (MJWarp computes no
 energy here).
 
@@ -20,24 +23,37 @@ whose model differs in a field that MJWarp shares between worlds is refused in o
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from dataclasses import dataclass, replace
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 
 from loopcheck.mujoco_model.build import check_mujoco_version
-from loopcheck.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, known_defects, prepare,
-                                   refusing_unimplemented, stack_runs)
+from loopcheck.mujoco_model.compile_record import compiling
+from loopcheck.mujoco_model.foreign_output import foreign_output
+from loopcheck.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, known_defects,
+                                         model_structure, prepare, refusing_unimplemented, stack_runs)
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 
 from .settings import MjwarpSettings
 
+_LOGGERS = ("warp", "mujoco_warp")  # warp's and MJWarp's loggers
+
 try:
-    import mujoco_warp as mjw
-    import warp as wp
+    with foreign_output("mjwarp", "Warp", _LOGGERS):  # what warp says as it loads, in loopcheck's words (foreign_output)
+        import warp as wp
+
+        # Warp prints a line per kernel module it compiles or loads (hundreds for one step of
+        # MJWarp), and its banner at init: an engine's run prints nothing of its own (the CLI's
+        # output is the report).
+        wp.config.quiet = True
+        wp.config.log_level = wp.LOG_WARNING  # warp 1.19 prints each module load at LOG_INFO, its default
+        import mujoco_warp as mjw
 except ModuleNotFoundError as exc:  # the optional extra
     raise ModuleNotFoundError("the mjwarp engine needs warp and MJWarp: pip install -e '.[mjwarp]' in loopcheck's checkout, then "
                               "pip install --no-deps mujoco-warp (docs/engines.md, 'MJWarp')", name=exc.name) from exc
@@ -54,10 +70,8 @@ KNOWN_DEFECT = ("MJWarp {version} computes the loop constraints' J̇·q̇ from t
                 "velocities (make_constraint runs before fwd_velocity), and runs in float32: expect errors of "
                 "order 1e-4 on closed loops (docs/engines.md)")
 DEFECT_CHECKED = "4.0.0"  # the newest MJWarp release found to have it
-# Warp prints a line per kernel module it compiles or loads (hundreds for one step of MJWarp):
-# an engine's run prints nothing of its own (the CLI's output is the report).
-wp.config.quiet = True
-wp.config.log_level = wp.LOG_WARNING  # warp 1.19 prints each module load at LOG_INFO, its default
+with foreign_output("mjwarp", "Warp", _LOGGERS):  # warp's start: its CUDA warning from C++ on stderr, its banner
+    wp.init()
 
 # Model fields that differ between variants but that mjw.step does not read: the keyframes
 # (read by reset_data_keyframe only; the port sets the state itself) and dof_length (read by
@@ -258,29 +272,50 @@ def _rollout(runs: list[PortRun], model_fields, opt_fields) -> tuple[np.ndarray,
     nworld, n = len(runs), runs[0].n_steps
     m0 = runs[0].port_model
     nq, nv, nu = m0.nq, m0.nv, m0.nu
-    mw = _model(runs, model_fields, opt_fields)
+    with foreign_output("mjwarp", "Warp", _LOGGERS):
+        mw = _model(runs, model_fields, opt_fields)
 
-    start = time.perf_counter()
-    scratch = _data(runs, mw)
-    mjw.step(mw, scratch)
-    wp.synchronize()
-    compile_s = time.perf_counter() - start
-    del scratch
+    # the kernels' compile (or their load from warp's cache), said first with the last one's time
+    # (compile_record) when this process has not run the structure yet; warp's talk kept meanwhile
+    structure = model_structure(m0)
+    announce = compiling("mjwarp", str(wp.get_device()), _cache_dir(), runs[0].scene.name) \
+        if structure not in _STEPPED else contextlib.nullcontext()
+    with announce, foreign_output("mjwarp", "Warp", _LOGGERS):
+        start = time.perf_counter()
+        scratch = _data(runs, mw)
+        mjw.step(mw, scratch)
+        wp.synchronize()
+        compile_s = time.perf_counter() - start
+        del scratch
+    _STEPPED.add(structure)
 
-    dw = _data(runs, mw)
-    device = dw.qpos.device
-    ctrl = np.stack([run.ctrl for run in runs], axis=1) if nu else np.zeros((n, nworld, 0))
-    ctrl_all = wp.array(ctrl.reshape(n, nworld * nu), dtype=float, device=device)
-    qpos_all = wp.empty((n, nworld * nq), dtype=float, device=device)
-    qvel_all = wp.empty((n, nworld * nv), dtype=float, device=device)
-    start = time.perf_counter()
-    for k in range(n):
-        if nu:
-            wp.copy(dw.ctrl, ctrl_all, src_offset=k * nworld * nu, count=nworld * nu)
-        mjw.step(mw, dw)
-        wp.copy(qpos_all, dw.qpos, dest_offset=k * nworld * nq, count=nworld * nq)
-        wp.copy(qvel_all, dw.qvel, dest_offset=k * nworld * nv, count=nworld * nv)
-    qpos = qpos_all.numpy().reshape(n, nworld, nq).astype(float)
-    qvel = qvel_all.numpy().reshape(n, nworld, nv).astype(float)
-    wall = time.perf_counter() - start
+    with foreign_output("mjwarp", "Warp", _LOGGERS):
+        dw = _data(runs, mw)
+        device = dw.qpos.device
+        ctrl = np.stack([run.ctrl for run in runs], axis=1) if nu else np.zeros((n, nworld, 0))
+        ctrl_all = wp.array(ctrl.reshape(n, nworld * nu), dtype=float, device=device)
+        qpos_all = wp.empty((n, nworld * nq), dtype=float, device=device)
+        qvel_all = wp.empty((n, nworld * nv), dtype=float, device=device)
+        start = time.perf_counter()
+        for k in range(n):
+            if nu:
+                wp.copy(dw.ctrl, ctrl_all, src_offset=k * nworld * nu, count=nworld * nu)
+            mjw.step(mw, dw)
+            wp.copy(qpos_all, dw.qpos, dest_offset=k * nworld * nq, count=nworld * nq)
+            wp.copy(qvel_all, dw.qvel, dest_offset=k * nworld * nv, count=nworld * nv)
+        qpos = qpos_all.numpy().reshape(n, nworld, nq).astype(float)
+        qvel = qvel_all.numpy().reshape(n, nworld, nv).astype(float)
+        wall = time.perf_counter() - start
     return qpos, qvel, compile_s, wall
+
+
+# The model structures this process has stepped: warp has their kernels loaded,
+# and another batch of them compiles nothing (nor is a compile announced).
+_STEPPED: set = set()
+
+
+def _cache_dir() -> Path:
+    """Where the compile's time is recorded (compile_record): beside warp's kernel cache
+    (``WARP_CACHE_PATH``/<warp's version>, by default ``~/.cache/warp/<version>``), which
+    ``wp.init()`` resolves."""
+    return Path(wp.config.kernel_cache_dir)

@@ -3,7 +3,9 @@
 
 The step loop is one ``jax.lax.scan`` of ``mjx.step`` over the controls of every step, compiled
 once per model structure and step count (``jax.jit``; JAX's persistent compilation cache, when
-``JAX_COMPILATION_CACHE_DIR`` is set, keeps it across processes). The states come back to the
+``JAX_COMPILATION_CACHE_DIR`` is set, keeps it across processes), announced first with the last
+compile's time (:mod:`loopcheck.mujoco_model.compile_record`); what JAX and XLA say meanwhile is
+kept and logged in loopcheck's words (:mod:`loopcheck.mujoco_model.foreign_output`). The states come back to the
 host and MuJoCo C reads them (:func:`loopcheck.mujoco_model.port.finish`): the energy audit and the loop
 gap are MuJoCo C's functions at MJX's states, as the issue's design asks (MJX computes no energy).
 """
@@ -13,19 +15,25 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 
 from loopcheck.mujoco_model.build import check_mujoco_version
+from loopcheck.mujoco_model.compile_record import compiling, user_cache_dir
+from loopcheck.mujoco_model.foreign_output import foreign_output
 from loopcheck.mujoco_model.port import PortRun, finish, known_defects, prepare, refusing_unimplemented, stack_runs
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 
 from .settings import MjxSettings
 
+_LOGGERS = ("jax", "jaxlib", "absl", "mujoco.mjx")  # JAX's, absl's (XLA's Python side) and MJX's loggers
+
 try:
-    import jax
-    from mujoco import mjx
+    with foreign_output("mjx", "JAX", _LOGGERS):  # what JAX says as it loads, in loopcheck's words (foreign_output)
+        import jax
+        from mujoco import mjx
 except ModuleNotFoundError as exc:  # the optional extra
     raise ModuleNotFoundError("the mjx engine needs JAX and MJX: pip install -e '.[mjx]' in loopcheck's checkout, then "
                               "pip install --no-deps mujoco-mjx (docs/engines.md, 'Installing MJX and MJWarp')",
@@ -134,23 +142,34 @@ def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, 
     """qpos and qvel after every step of every run, (batch, n_steps, nq|nv), with the scan's
     compile time and run time (s)."""
     dtype = np.float64 if precision == "float64" else np.float32
-    with refusing_unimplemented("MJX"):
+    with foreign_output("mjx", "JAX", _LOGGERS), refusing_unimplemented("MJX"):  # JAX starts its device here
         models = [mjx.put_model(run.port_model) for run in runs]
-    datas = [mjx.put_data(run.port_model, run.data) for run in runs]
-    stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
-    mx = jax.tree_util.tree_map(stack, *models)
-    dx = jax.tree_util.tree_map(stack, *datas)
-    nu = runs[0].port_model.nu
-    ctrl = jax.numpy.asarray(np.stack([run.ctrl if nu else np.zeros((run.n_steps, 0)) for run in runs]), dtype=dtype)
-    key = (jax.tree_util.tree_structure((mx, dx)),
-           tuple((leaf.shape, str(leaf.dtype)) for leaf in jax.tree_util.tree_leaves((mx, dx, ctrl))))
+        datas = [mjx.put_data(run.port_model, run.data) for run in runs]
+        stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
+        mx = jax.tree_util.tree_map(stack, *models)
+        dx = jax.tree_util.tree_map(stack, *datas)
+        nu = runs[0].port_model.nu
+        ctrl = jax.numpy.asarray(np.stack([run.ctrl if nu else np.zeros((run.n_steps, 0)) for run in runs]),
+                                 dtype=dtype)
+        key = (jax.tree_util.tree_structure((mx, dx)),
+               tuple((leaf.shape, str(leaf.dtype)) for leaf in jax.tree_util.tree_leaves((mx, dx, ctrl))))
     compile_s = 0.0
     compiled = _COMPILED.get(key)
-    if compiled is None:
+    if compiled is None:  # said first, with the last compile's time (compile_record); JAX's talk kept meanwhile
+        with compiling("mjx", jax.default_backend(), _cache_dir(), runs[0].scene.name) as timed, \
+                foreign_output("mjx", "JAX", _LOGGERS):
+            compiled = _COMPILED[key] = jax.jit(jax.vmap(_rollout)).lower(mx, dx, ctrl).compile()
+        compile_s = timed.seconds
+    with foreign_output("mjx", "JAX", _LOGGERS):
         start = time.perf_counter()
-        compiled = _COMPILED[key] = jax.jit(jax.vmap(_rollout)).lower(mx, dx, ctrl).compile()
-        compile_s = time.perf_counter() - start
-    start = time.perf_counter()
-    qpos, qvel = jax.block_until_ready(compiled(mx, dx, ctrl))
-    wall = time.perf_counter() - start
+        qpos, qvel = jax.block_until_ready(compiled(mx, dx, ctrl))
+        wall = time.perf_counter() - start
     return np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float), compile_s, wall
+
+
+def _cache_dir() -> Path:
+    """Where the compile's time is recorded (compile_record): beside JAX's persistent compilation
+    cache (``JAX_COMPILATION_CACHE_DIR``, ``jax_compilation_cache_dir``), or, without one, in
+    loopcheck's cache folder (each process then compiles afresh)."""
+    configured = jax.config.jax_compilation_cache_dir
+    return Path(configured) if configured else user_cache_dir() / "jax-without-cache"

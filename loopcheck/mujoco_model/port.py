@@ -199,10 +199,14 @@ def stack_runs(runs: list[PortRun], engine: str) -> None:
     """PortRefusal unless ``runs`` (a batch) share one model structure and step count: a port
     batches values, not shapes."""
     first = runs[0]
-    m0 = first.port_model
-    shape = lambda m: (m.nq, m.nv, m.nu, m.nbody, m.njnt, m.neq, m.ntendon, m.nwrap, m.nsite, m.ngeom,  # noqa: E731
-                       int(m.opt.integrator))
+    m0 = model_structure(first.port_model)
     for k, run in enumerate(runs[1:], start=1):
-        if shape(run.port_model) != shape(m0) or run.n_steps != first.n_steps:
+        if model_structure(run.port_model) != m0 or run.n_steps != first.n_steps:
             raise PortRefusal(f"{engine} batches variants of one model: scene {k} ({run.scene.name}) has another "
                               f"structure or step count than scene 0 ({first.scene.name})")
+
+
+def model_structure(m: mujoco.MjModel) -> tuple:
+    """What a port's compile depends on in a model (its sizes and integrator), not its values:
+    the models of one batch share it (:func:`stack_runs`)."""
+    return (m.nq, m.nv, m.nu, m.nbody, m.njnt, m.neq, m.ntendon, m.nwrap, m.nsite, m.ngeom, int(m.opt.integrator))
