@@ -155,13 +155,49 @@ class Engine:
             raise ValueError(f"engine '{self.name}': BATCH_SIZE is {size!r}, not a whole number >= 1")
         return size
 
-    def simulate_batch(self, scenes: Sequence[Scene], settings: Any) -> list[EngineResult]:
+    def simulate_batch(self, scenes: Sequence[Scene], settings: Any, *, each: bool = False) -> list:
         """Run variants of one structure: the package's ``simulate_batch(scenes, settings)`` where it
-        has one (the ports: one ``vmap``, MJWarp's worlds), else :meth:`simulate` on each in turn."""
+        has one (the ports: one ``vmap``, MJWarp's worlds), else :meth:`simulate` on each in turn.
+
+        With ``each``, one outcome per scene, in order: its ``EngineResult`` or the exception its
+        own run raised (a variant's failure sinks no other variant). A package whose
+        ``simulate_batch`` takes ``each`` returns those itself (the ports: one batch, the failing
+        variants' slots filled by another's run and dropped); one that does not is called plainly,
+        and if the batch raises, each scene runs alone (:meth:`simulate`) for its own outcome."""
+        import inspect
+
         batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
-        if batch is None:
+        if batch is not None and each and "each" in inspect.signature(batch).parameters:
+            return list(batch(list(scenes), settings, each=True))
+        if batch is not None:
+            if not each:
+                return list(batch(list(scenes), settings))
+            try:
+                return list(batch(list(scenes), settings))
+            except Exception:  # noqa: BLE001 - which variant failed is each one's own run to say
+                pass
+        if not each:
             return [self.simulate(scene, settings) for scene in scenes]
-        return list(batch(list(scenes), settings))
+        outcomes: list = []
+        for scene in scenes:
+            try:
+                outcomes.append(self.simulate(scene, settings))
+            except Exception as exc:  # noqa: BLE001 - this variant's outcome
+                outcomes.append(exc)
+        return outcomes
+
+    def batch_limit(self, scene: Scene, settings: Any) -> int | None:
+        """The most variants of ``scene``'s structure one batch may hold on the device the engine
+        runs on (a sweep splits a larger chunk before any work): the package's
+        ``batch_limit(scene, settings) -> int`` (the ports: the device's memory over a variant's
+        states, the model's sizes × its steps), by default None (no limit)."""
+        declared = getattr(importlib.import_module(self.package), "batch_limit", None)
+        if declared is None:
+            return None
+        limit = declared(scene, settings)
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise ValueError(f"engine '{self.name}': batch_limit gave {limit!r}, not a whole number >= 1")
+        return limit
 
     def _checked(self, rungs: tuple, what: str) -> tuple[Rung, ...]:
         for rung in rungs:

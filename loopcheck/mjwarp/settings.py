@@ -43,3 +43,10 @@ class MjwarpSettings(ModelOptions):
 
 
 Settings = MjwarpSettings  # the name every engine's settings have (loopcheck.registry)
+
+
+BATCH_SIZE = 16
+"""Variants a sweep hands ``simulate_batch`` at once (MJWarp's worlds; ``loopcheck sweep
+--batch-size`` overrides it). A CPU's default: a step launches some hundred kernels whatever the
+number of worlds, so a batch amortises their launch, while a CPU's cores share the worlds' work;
+on a GPU give thousands (docs/performance.md)."""

@@ -51,3 +51,11 @@ class MjxSettings(ModelOptions):
 
 
 Settings = MjxSettings  # the name every engine's settings have (loopcheck.registry)
+
+
+BATCH_SIZE = 16
+"""Variants a sweep hands ``simulate_batch`` at once (one ``vmap``; ``loopcheck sweep --batch-size``
+overrides it). A CPU's default: each batch size is a compilation of its own (about 35 s on a
+2-core CPU), paid once per sweep as the last chunk is padded to it, and a CPU gains little from a
+wider ``vmap`` beyond amortising the dispatch of each step; on a GPU give thousands
+(docs/performance.md)."""
