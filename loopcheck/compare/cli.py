@@ -890,9 +890,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "each judged against the reference at its own tolerances. Default: the [sweep] table's "
                         "engines when the table is used, else both")
     p.add_argument("--batch-size", type=_int_in(1, 1_000_000), default=None, metavar="N",
-                   help="variants of one structure each batch engine (MJX, MJWarp: those declaring a batch "
-                        "size) runs at once, in this process; default each engine's own; 1 runs them variant by "
-                        "variant on the process pool")
+                   help="variants of one structure that each engine declaring a batch size (BATCH_SIZE) runs "
+                        "at once, in this process; default each engine's own; 1 runs them variant by variant on "
+                        "the process pool")
     p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,
