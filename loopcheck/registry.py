@@ -167,17 +167,17 @@ class Engine:
         import inspect
 
         batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
-        if batch is not None and each and "each" in inspect.signature(batch).parameters:
-            return list(batch(list(scenes), settings, each=True))
-        if batch is not None:
-            if not each:
-                return list(batch(list(scenes), settings))
-            try:
-                return list(batch(list(scenes), settings))
-            except Exception:  # noqa: BLE001 - which variant failed is each one's own run to say
-                pass
         if not each:
-            return [self.simulate(scene, settings) for scene in scenes]
+            if batch is None:
+                return [self.simulate(scene, settings) for scene in scenes]
+            return list(batch(list(scenes), settings))
+        if batch is not None:
+            try:
+                if "each" in inspect.signature(batch).parameters:
+                    return list(batch(list(scenes), settings, each=True))
+                return list(batch(list(scenes), settings))
+            except Exception:  # noqa: BLE001 - the batch as a whole: each variant's own run says what failed
+                pass
         outcomes: list = []
         for scene in scenes:
             try:
