@@ -627,6 +627,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes, the engines
     _load_extras(spec.engines)
+    if args.scheduler is not None:
+        from .sweep import batch_sizes
+
+        batched = batch_sizes(spec.engines, args.batch_size)
+        if batched:
+            raise UsageError(f"--scheduler runs engines variant by variant; {', '.join(batched)} run in batches in "
+                             "this process: give --batch-size 1 with --scheduler")
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE), inputs=[path])
     if args.resume and args.keep_trajectories:
         raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")

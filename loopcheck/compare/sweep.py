@@ -70,7 +70,8 @@ This module runs a sweep: the row of one variant, the process pool, the order of
 estimate of a long sweep (:func:`run_sweep`). The rest has a module each: the Dask cluster
 (:mod:`loopcheck.compare.sweep_dask`), the journal of finished rows (:mod:`loopcheck.compare.sweep_journal`),
 the summary (:mod:`loopcheck.compare.sweep_summary`), sweep.csv and sweep.json
-(:mod:`loopcheck.compare.sweep_table`) and the plots (:mod:`loopcheck.compare.sweep_plots`).
+(:mod:`loopcheck.compare.sweep_table`), the plots (:mod:`loopcheck.compare.sweep_plots`) and
+which engines run (:mod:`loopcheck.compare.sweep_engines`).
 """
 
 from __future__ import annotations
@@ -89,8 +90,8 @@ from .sweep_dask import CHUNKS_IN_FLIGHT, dask_rows, dask_threads
 from .sweep_journal import Journal
 from .sweep_plots import PLOTS, WORST_PLOT, plot_files, plot_worst
 from .sweep_summary import Summary
-from .sweep_table import (CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, JSON_FILE, TRAJECTORY_FILE, stream_rows,
-                          sweep_engines, write_json)
+from .sweep_engines import judged_scene, sweep_engines
+from .sweep_table import CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, JSON_FILE, TRAJECTORY_FILE, stream_rows, write_json
 from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.sweep_spec import Engines, SweepSpec, count, engine_names, variant_values
 
@@ -156,14 +157,6 @@ def failure_text(exc: BaseException) -> str:
     if isinstance(exc, ValueError):
         return f"refused: {text}"
     return f"{type(exc).__name__}: {text}"
-
-
-def judged_scene(scene, engine: str):
-    """``scene`` as ``engine`` runs it and is judged on it: with its own tolerances
-    (:meth:`loopcheck.scene.Scene.tolerances_for`; MuJoCo's automatic step is chosen for them)."""
-    from dataclasses import replace
-
-    return replace(scene, tolerances=scene.tolerances_for(engine))
 
 
 def _run_engines(scene, engines, summary: bool = True,

@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .sweep_summary import Summary, values_text
-from .sweep_table import diff_column, judged, read_rows, sweep_engines
+from .sweep_engines import judged, judged_scene, sweep_engines
+from .sweep_table import diff_column, read_rows
 from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.sweep_spec import SweepSpec
 
@@ -258,7 +259,6 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
     from loopcheck.sweep_spec import apply
     from loopcheck.scenefile import scene_from_dict
 
-    from .sweep import judged_scene
 
     worst = summary.worst
     if worst is None:

@@ -14,7 +14,7 @@ from loopcheck.scene import SceneError
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.toml_reader import parse_toml, read_text
 
-from .sweep_table import sweep_engines
+from .sweep_engines import sweep_engines
 from loopcheck.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, apply, lookup,
                                      spec_from_table)
 

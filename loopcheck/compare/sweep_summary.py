@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from .sweep_engines import engines_value
 from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.sweep_spec import Engines
 
@@ -100,8 +101,6 @@ class Summary:
         return bool(self.counts["gate_failed"] or self.counts["failed"]) or self.none_valid
 
     def as_dict(self) -> dict[str, Any]:
-        from .sweep_table import engines_value
-
         out = {"variants": self.total, "engines": engines_value(self.engines), "counts": dict(self.counts),
                "worst": self.worst, "peak_extremes": self.peak_extremes, "ranges": self.ranges,
                "failing_ranges": self.failing_ranges, "wall_s": self.wall_s, "workers": self.workers}

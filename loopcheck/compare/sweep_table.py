@@ -11,8 +11,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
 
 from .output import json_text, plain, portable_source
-from loopcheck.registry import ENGINES, REFERENCE
-from loopcheck.sweep_spec import Engines, SweepSpec, SweepSpecError
+from .sweep_engines import engines_value, judged, sweep_engines
+from loopcheck.registry import REFERENCE
+from loopcheck.sweep_spec import SweepSpec
 
 if TYPE_CHECKING:
     from .sweep_summary import Summary
@@ -38,34 +39,6 @@ CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.
 SCHEMA_VERSION = 1
 """sweep.json's ``schema_version`` (written for a list of engines other than the two words;
 the files of ``both`` and ``reduced`` are as before, without it)."""
-
-
-def sweep_engines(engines: tuple[str, ...]) -> tuple[str, ...]:
-    """A sweep's engines (:attr:`SweepSpec.engines`) checked against the registry, the reduced
-    reference first, the others in their order. SweepSpecError (one line) for an unknown engine
-    or a list without the reference."""
-    unknown = [n for n in engines if n not in ENGINES]
-    if unknown:
-        raise SweepSpecError(f"sweep engines (--engines or sweep.engines): unknown engine '{unknown[0]}' "
-                             f"(engines: {', '.join(ENGINES)})")
-    if REFERENCE not in engines:
-        raise SweepSpecError(f"sweep engines (--engines or sweep.engines) must include '{REFERENCE}', the reference "
-                             f"every engine is judged against, got {','.join(engines)!r}")
-    return (REFERENCE, *(n for n in engines if n != REFERENCE))
-
-
-def judged(spec: SweepSpec) -> tuple[str, ...]:
-    """The engines a sweep judges against the reference, in order (none: the reference alone)."""
-    return sweep_engines(spec.engines)[1:]
-
-
-def engines_value(engines: tuple[str, ...]) -> str | list[str]:
-    """A sweep's engines as sweep.json and the journal say them: the word of
-    :class:`~loopcheck.sweep_spec.Engines` they are (``both``, ``reduced``), else the list."""
-    for word in Engines:
-        if tuple(engines) == word.runs:
-            return word.value
-    return list(engines)
 
 
 def diff_column(spec_or_judged, engine: str, figure: str, table: str = "diff") -> str:
