@@ -8,12 +8,12 @@ as ``loopcheck sweep`` makes them (``load_sweep``, ``spec_from_args``, ``variant
 variants the way the sweep runs them, in this process:
 
 - variant by variant: ``Engine.simulate(scene, settings)`` on each (the sweep's process pool runs
-  the same call per variant; one process here, so the figure is one core's), the scene and the
-  engine's settings as the sweep gives them (``judged_scene``, ``engine_settings``);
+  the same call per variant, and so does ``--batch-size 1`` for a batch engine; one process
+  here, so the figure is one core's), the scene and the engine's settings as the sweep gives
+  them (``judged_scene``, ``engine_settings``);
 - an engine that declares a batch size (MJX, MJWarp) also in batches:
   :func:`loopcheck.compare.sweep.run_batches`, the sweep's own function (chunks of the batch size,
-  the last padded, each variant's failure its own), at batch size 1 and at its ``BATCH_SIZE``
-  (or ``--batch`` N).
+  the last padded, each variant's failure its own), at its ``BATCH_SIZE`` (or ``--batch`` N).
 
 Each engine's first call (MJX's compilation of a shape, warp's kernel load, imports) is made once
 before the timing and printed apart ("first call"); the timing is one pass over the variants
@@ -127,20 +127,20 @@ def main() -> int:
             each = (time.perf_counter() - start) / len(runs)
         rows.append((name, "variant by variant", 1, device, first_s, each, failed, first))
         declared = engine.batch_size
-        if declared > 1:
-            for size in sorted({1, args.batch or declared}):
-                sizes = {name: size}
-                members = [_member(i, v, data, str(SEED), sizes) for i, v in enumerate(values)]
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    start = time.perf_counter()
-                    run_batches(members[:1], sizes)  # the compiled shape of this size
-                    first_s = time.perf_counter() - start
-                    start = time.perf_counter()
-                    outcomes = run_batches(members, sizes)
-                    each = (time.perf_counter() - start) / len(members)
-                failed = sum(isinstance(o[name], BaseException) for o in outcomes)
-                rows.append((name, "batches (run_batches)", size, device, first_s, each, failed, None))
+        size = args.batch or declared
+        if declared > 1 and size > 1:
+            sizes = {name: size}
+            members = [_member(i, v, data, str(SEED), sizes) for i, v in enumerate(values)]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                start = time.perf_counter()
+                run_batches(members[:1], sizes)  # the compiled shape of this size (one padded batch)
+                first_s = time.perf_counter() - start
+                start = time.perf_counter()
+                outcomes = run_batches(members, sizes)
+                each = (time.perf_counter() - start) / len(members)
+            failed = sum(isinstance(o[name], BaseException) for o in outcomes)
+            rows.append((name, "batches (run_batches)", size, device, first_s, each, failed, None))
 
     print(f"{'engine':8s} {'how':22s} {'batch':>6s} {'device':14s} {'first call (s)':>14s} "
           f"{'per variant (ms)':>16s} {'/ yardstick':>11s} {'failed':>6s}")

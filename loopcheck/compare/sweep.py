@@ -1,4 +1,4 @@
-"""``loopcheck sweep``: a family of scenes through both engines, one summary row per variant.
+"""``loopcheck sweep``: a family of scenes through the engines, one summary row per variant.
 
 A sweep (:mod:`loopcheck.compare.sweep_spec`) makes variants of one scene file. Each variant is built
 with :func:`loopcheck.scenefile.scene_from_dict` and run through :func:`loopcheck.compare.run.compare_engines`
@@ -7,7 +7,19 @@ without engine flags). A variant that cannot be assembled is a row with status `
 whose engines fail numerically a row with status ``failed``; both are counted and the sweep goes
 on.
 
-Reduced-only sweeps (``spec.engines`` is :attr:`~loopcheck.compare.sweep_spec.Engines.REDUCED`, ``loopcheck
+Any list of engines (``spec.engines``, ``loopcheck sweep --engines reduced,mujoco,mjx``; the default
+``both`` is the design card's pair): each variant runs the reference and every other engine of the
+list, each judged against the reference at its own tolerances (:func:`_run_engines`, as ``loopcheck
+check --engines``). One judged engine: the row's ``diff.*`` and ``gate.*`` columns (the pair's
+sweep.csv and sweep.json are as they were); several: ``diff.ENGINE.*`` and ``gate.ENGINE.*`` for
+each, sweep.json with ``schema_version`` 1 and the list of engines, the summary per engine. An
+engine that declares a batch size (:func:`batch_sizes`: the registry's ``Engine.batch_size``, or
+``--batch-size``) runs in this process in batches of consecutive variants of one structure
+(:func:`structure`, :func:`run_batches`: the last chunk padded, a chunk split first to what the
+device holds, each variant's failure its own), and the rest of each variant's row on the pool,
+its workers started by ``spawn``.
+
+Reduced-only sweeps (``spec.engines`` is the reference alone, ``loopcheck
 sweep --engines reduced`` or ``engines = "reduced"`` in the ``[sweep]`` table): each variant runs
 only :func:`loopcheck.reduced.engine.simulate` with the scene's reduced settings as the comparison resolves
 them (:func:`loopcheck.compare.settings.reduced_settings`); MuJoCo is neither run nor imported. Their rows
