@@ -627,10 +627,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes, the engines
     _load_extras(spec.engines)
-    if args.scheduler is not None:
-        from .sweep import batch_sizes
+    from .sweep import batch_sizes
 
-        batched = batch_sizes(spec.engines, args.batch_size)
+    batched = batch_sizes(spec.engines, args.batch_size)
+    if args.batch_size not in (None, 1) and not batched:
+        warnings.warn(f"--batch-size {args.batch_size}: no engine of {','.join(spec.engines)} runs in batches "
+                      "(none declares a batch size); the variants run one by one")
+    if args.scheduler is not None:
         if batched:
             raise UsageError(f"--scheduler runs engines variant by variant; {', '.join(batched)} run in batches in "
                              "this process: give --batch-size 1 with --scheduler")
