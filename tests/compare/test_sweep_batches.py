@@ -194,3 +194,24 @@ def test_an_installed_engine_reaches_sweep_engines(tmp_path):
     assert rows[0]["fake.peak_omega"] == pytest.approx(rows[0]["reduced.peak_omega"], rel=1e-8)  # rtol 1e-10 vs 1e-12
     assert sorted(p.name for p in out.iterdir()) == ["loopcheck-manifest.txt", "sweep.csv", "sweep.json", "sweep_peak_omega.png",
                                                      "sweep_worst_differences.png"]
+
+
+def test_batch_size_where_nothing_batches_and_batches_on_dask_are_said_before_any_work(batchy, tmp_path, capsys):
+    """--batch-size with no batch engine: one warning line, the sweep runs; --scheduler with a batch
+    engine: refused in one line (exit 2), nothing written, no scheduler reached (planted: without the
+    check the sweep connects, and fails only after its journal is opened)."""
+    pytest.importorskip("distributed", reason="the distributed extra is not installed")
+    scene = tmp_path / "short.toml"
+    scene.write_text(SHORT)
+    status, printed, err = _sweep(capsys, scene, tmp_path / "w", "--vary", "dampers.0.coefficient=[50]",
+                                  "--engines", "reduced", "--batch-size", "4")
+    assert status == 0 and err.strip().splitlines() == [
+        "loopcheck: warning: --batch-size 4: no engine of reduced runs in batches (none declares a batch size); the "
+        "variants run one by one"], err
+    status = main(["sweep", str(scene), "--out", str(tmp_path / "d"), "--vary", "dampers.0.coefficient=[50]",
+                   "--engines", "reduced,batchy", "--scheduler", "tcp://127.0.0.1:9"])
+    captured = capsys.readouterr()
+    assert status == 2 and not captured.out and captured.err.strip().splitlines() == [
+        "loopcheck: error: --scheduler runs engines variant by variant; batchy run in batches in this process: give "
+        "--batch-size 1 with --scheduler"], captured.err
+    assert not (tmp_path / "d").exists() and batchy.batches == []
