@@ -215,3 +215,60 @@ def test_batch_size_where_nothing_batches_and_batches_on_dask_are_said_before_an
         "loopcheck: error: --scheduler runs engines variant by variant; batchy run in batches in this process: give "
         "--batch-size 1 with --scheduler"], captured.err
     assert not (tmp_path / "d").exists() and batchy.batches == []
+
+
+def test_a_sweep_of_several_engines_in_batches_resumes_from_its_checked_journal(batchy, tmp_path, capsys,
+                                                                              monkeypatch):
+    """--engines reduced,mujoco,batchy (two judged engines: diff.ENGINE.* columns, list cells among
+    them) interrupted at variant 4 of 6, in the chunk of variants 3..5: the journal holds rows
+    0..2; the list cell of row 2 damaged makes it run again (one warning), and the rows are an
+    uninterrupted sweep's
+    Variant 1 (damper 45) fails in the batch engine: its row is failed, naming it, with MuJoCo's
+    comparison kept (planted: a journal check blind to the engines' list columns keeps the
+    damaged row; a judged engine's failure dropping the others' figures)."""
+    import loopcheck.compare.sweep as sweep_module
+    from loopcheck.compare.sweep_journal import journal_path
+
+    scene = tmp_path / "short.toml"
+    scene.write_text(SHORT)
+    args = ("--vary", "dampers.0.coefficient=40:65:6", "--engines", "reduced,mujoco,batchy")
+    status, printed, _ = _sweep(capsys, scene, tmp_path / "ref", *args)
+    assert status == 1, printed
+    assert "  batchy: 5 passed its gate, 0 failed it, 1 failed numerically" in printed
+    reference = _rows(tmp_path / "ref")
+    assert "diff.batchy.mode_mismatches" in reference[0] and "gate.mujoco.passed" in reference[0]
+    failed = reference[1]
+    assert failed["status"] == "failed" and failed["reason"] == "batchy: non-finite: planted failure of the batch engine"
+    assert failed["gate.mujoco.passed"] is True and failed["gate.batchy.passed"] is None
+    real = sweep_module.run_variant
+
+    def interrupted(index, *a, **k):
+        if index == 4:
+            raise KeyboardInterrupt
+        return real(index, *a, **k)
+
+    monkeypatch.setattr(sweep_module, "run_variant", interrupted)
+    status, _, _ = _sweep(capsys, scene, tmp_path / "cut", *args)
+    assert status == 130
+    journal = journal_path(tmp_path / "cut")
+    lines = journal.read_bytes().splitlines(keepends=True)
+    assert len(lines) == 2 + 3  # the interrupted chunk's rows were not written
+    import csv
+    import io
+
+    columns = next(csv.reader([lines[1].decode()]))
+    cell = columns.index("diff.batchy.mode_mismatches")
+    row2 = next(csv.reader([lines[4].decode()]))
+    assert json.loads(row2[cell]) == [0], row2[cell]  # a list: one mode, no mismatch
+    row2[cell] = "7"  # a number where a list is written
+    damaged = io.StringIO()
+    csv.writer(damaged, lineterminator="\n").writerow(row2)
+    journal.write_bytes(b"".join(lines[:4]) + damaged.getvalue().encode())
+    ran = []
+    monkeypatch.setattr(sweep_module, "run_variant", lambda index, *a, **k: ran.append(index) or real(index, *a, **k))
+    batchy.batches.clear()
+    status, printed, err = _sweep(capsys, scene, tmp_path / "cut", *args, "--resume")
+    assert status == 1, printed + err
+    assert ran == [2, 3, 4, 5] and batchy.batches == [[50.0, 55.0, 60.0], [65.0, 65.0, 65.0]]
+    assert len([line for line in err.splitlines() if "discarded" in line]) == 1, err
+    assert _rows(tmp_path / "cut") == reference
