@@ -153,12 +153,38 @@ def _rollout(m, d, us):
     return jax.lax.scan(body, d, us)[1]
 
 
+# Model fields that mjx.step does not read but that MJX compiles in (static arrays of its Model):
+# the keyframes (the port sets the state itself) and the numeric data (where the model records
+# the control sequence; the scan takes the controls as its input). Variants of a load or of an
+# initial state differ there: measured, without this their models did not stack into a batch.
+_UNREAD_PREFIXES = ("key_",)
+_UNREAD = ("numeric_data",)
+
+
+def _stepped_model(run: PortRun, first: PortRun):
+    """``run``'s model for the step, its unread fields (:data:`_UNREAD`) the first run's (a copy:
+    the run's own is MuJoCo C's to read back)."""
+    import copy
+
+    m = run.port_model
+    names = [n for n in dir(m) if n.startswith(_UNREAD_PREFIXES) or n in _UNREAD]
+    differ = [n for n in names if isinstance(getattr(m, n), np.ndarray)
+              and getattr(m, n).shape == getattr(first.port_model, n).shape
+              and not np.array_equal(getattr(m, n), getattr(first.port_model, n))]
+    if not differ:
+        return m
+    m = copy.copy(m)
+    for name in differ:
+        getattr(m, name)[...] = getattr(first.port_model, name)
+    return m
+
+
 def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, float, float]:
     """qpos and qvel after every step of every run, (batch, n_steps, nq|nv), with the scan's
     compile time and run time (s)."""
     dtype = np.float64 if precision == "float64" else np.float32
     with refusing_unimplemented("MJX"):
-        models = [mjx.put_model(run.port_model) for run in runs]
+        models = [mjx.put_model(_stepped_model(run, runs[0])) for run in runs]
     datas = [mjx.put_data(run.port_model, run.data) for run in runs]
     stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
     mx = jax.tree_util.tree_map(stack, *models)

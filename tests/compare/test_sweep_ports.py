@@ -142,3 +142,32 @@ def test_pinocchio_sweeps_variant_by_variant_at_its_own_tolerances(short_file, t
     assert all(r["gate.pin.peak_ratio"] < 1e-3 for r in rows)
     assert re.search(r"(?m)^  \S+: 3 passed its gate, 0 failed it, 0 failed numerically", printed), printed
     assert "diff.peak_omega_abs" not in rows[0] and "pin.peak_omega" in rows[0]
+
+
+@pytest.mark.slow  # JAX's import and MJX's put_model: ~13 s on the loaded 2-core machine
+@pytest.mark.skipif(not _have("jax", "mujoco.mjx"), reason="the mjx engine's extra is not installed (docs/engines.md)")
+def test_mjx_batches_variants_of_a_load_and_of_an_initial_state(short_file):
+    """Variants of the torque or of the initial speed differ in model fields MJX compiles in but
+    never steps with (the keyframes, the numeric data holding the control sequence): their models
+    stack into one batch, and each run's own model, which MuJoCo C reads back, keeps its values
+    (planted: without the alignment the stack raises, and the sweep ran each such variant alone)."""
+    import jax
+    from mujoco import mjx
+
+    from loopcheck.mjx.run import _stepped_model
+    from loopcheck.mujoco_model.port import prepare
+
+    def run(**values):
+        scene = _scene(short_file, **values)
+        return prepare(scene, engine_settings("mjx", scene), "MJX", "mjx")
+
+    first = run()
+    for values in ({"torque.value": 240.0}, {"initial.qdot": 1.0}):
+        other = run(**values)
+        own = {n: np.array(getattr(other.port_model, n)) for n in ("key_qvel", "key_ctrl", "numeric_data")}
+        with jax.enable_x64(True):
+            stacked = jax.tree_util.tree_map(lambda *leaves: jax.numpy.stack(leaves),
+                                             mjx.put_model(_stepped_model(first, first)),
+                                             mjx.put_model(_stepped_model(other, first)))
+        assert stacked.body_mass.shape[0] == 2, values
+        assert all(np.array_equal(getattr(other.port_model, n), v) for n, v in own.items()), values
