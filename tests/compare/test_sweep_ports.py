@@ -72,10 +72,9 @@ def _scene(path, **values):
 def test_a_ports_batch_equals_its_single_runs_bit_for_bit(name, short_file):
     """Three variants (dampers 40, 50, 60 N·s/m) as one batch, and each alone: MJWarp equal to the
     last bit (q, q̇, q̈), MJX's states within MJX_ULPS of their scale (module docstring). With
-    ``each``, a variant that fails (BLOWN: MJWarp's loops open; MJX refuses to stack its model,
-    whose actuator limits it compiles in, so the chunk runs variant by variant) is its own
-    NumericalFailure and the others are the same runs (planted: a failure raised for the batch,
-    or a variant's slot left to the next, fails this)."""
+    ``each``, a variant that fails (BLOWN: the loops open) inside the batch is its own
+    NumericalFailure and the others are the same runs, in the same one batch (planted: a failure
+    raised for the batch, which then runs variant by variant, fails this)."""
     engine = ENGINES[name]
     scenes = [_scene(short_file, **{"dampers.0.coefficient": c}) for c in DAMPERS]
     settings = engine_settings(name, scenes[0])
@@ -90,8 +89,7 @@ def test_a_ports_batch_equals_its_single_runs_bit_for_bit(name, short_file):
     assert batch[0].peak.omega != batch[2].peak.omega  # each ran its own damper
     outcomes = engine.simulate_batch([scenes[0], _scene(short_file, **BLOWN), scenes[2]], settings, each=True)
     assert isinstance(outcomes[1], NumericalFailure), outcomes[1]
-    # MJWarp: one batch of three worlds; MJX: the stack refused, each variant alone (a batch of 1)
-    assert [o.details.batch for o in (outcomes[0], outcomes[2])] == ([3, 3] if name == "mjwarp" else [1, 1])
+    assert [o.details.batch for o in (outcomes[0], outcomes[2])] == [3, 3]  # one batch, not each alone
     for got, want in zip((outcomes[0], outcomes[2]), (batch[0], batch[2])):
         assert np.allclose(got.trajectory.qdot, want.trajectory.qdot, rtol=0.0,
                            atol=MJX_ULPS * np.finfo(float).eps * np.max(np.abs(want.trajectory.qdot)))
