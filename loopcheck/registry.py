@@ -23,6 +23,7 @@ that declares an engine is found when the registry is first imported (:func:`reg
 from __future__ import annotations
 
 import importlib
+import inspect
 import math
 import re
 from dataclasses import dataclass
@@ -110,9 +111,15 @@ class Engine:
         is missing: checked before any work)."""
         importlib.import_module(self.package).simulate
 
-    def simulate(self, scene: Scene, settings: Any) -> EngineResult:
-        """Run the engine on ``scene`` with ``settings`` (a ``self.settings``)."""
-        return importlib.import_module(self.package).simulate(scene, settings)
+    def simulate(self, scene: Scene, settings: Any, *, summary: bool = False) -> EngineResult:
+        """Run the engine on ``scene`` with ``settings`` (a ``self.settings``). ``summary``: only the
+        result's summaries will be read (a sweep's row: the peak, the energy residual, the status),
+        passed on to a ``simulate`` that takes a keyword ``summary`` (the reduced engine's cheaper
+        run), ignored by one that does not."""
+        simulate = importlib.import_module(self.package).simulate
+        if summary and "summary" in inspect.signature(simulate).parameters:
+            return simulate(scene, settings, summary=True)
+        return simulate(scene, settings)
 
     # The optional declarations (docs/engines.md, "What an engine may declare"). Each has a default,
     # so that an engine declaring none of them still reaches every study. The light ones live in the
@@ -268,13 +275,49 @@ class Engine:
             raise ValueError(f"engine '{self.name}': BATCH_SIZE is {size!r}, not a whole number >= 1")
         return size
 
-    def simulate_batch(self, scenes: Sequence[Scene], settings: Any) -> list[EngineResult]:
+    def simulate_batch(self, scenes: Sequence[Scene], settings: Any, *, each: bool = False) -> list:
         """Run variants of one structure: the package's ``simulate_batch(scenes, settings)`` where it
-        has one (the ports: one ``vmap``, MJWarp's worlds), else :meth:`simulate` on each in turn."""
+        has one (the ports: one ``vmap``, MJWarp's worlds), else :meth:`simulate` on each in turn.
+
+        With ``each``, one outcome per scene, in order: its ``EngineResult`` or the exception its
+        own run raised (a variant's failure sinks no other variant). A package whose
+        ``simulate_batch`` takes ``each`` returns those itself (the ports: one batch, the failing
+        variants' slots filled by another's run and dropped); one that does not is called plainly,
+        and if the batch raises, each scene runs alone (:meth:`simulate`) for its own outcome."""
+        import inspect
+
         batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
-        if batch is None:
-            return [self.simulate(scene, settings) for scene in scenes]
-        return list(batch(list(scenes), settings))
+        if not each:
+            if batch is None:
+                return [self.simulate(scene, settings) for scene in scenes]
+            return list(batch(list(scenes), settings))
+        if batch is not None:
+            try:
+                if "each" in inspect.signature(batch).parameters:
+                    return list(batch(list(scenes), settings, each=True))
+                return list(batch(list(scenes), settings))
+            except Exception:  # noqa: BLE001 - the batch as a whole: each variant's own run says what failed
+                pass
+        outcomes: list = []
+        for scene in scenes:
+            try:
+                outcomes.append(self.simulate(scene, settings))
+            except Exception as exc:  # noqa: BLE001 - this variant's outcome
+                outcomes.append(exc)
+        return outcomes
+
+    def batch_limit(self, scene: Scene, settings: Any) -> int | None:
+        """The most variants of ``scene``'s structure one batch may hold on the device the engine
+        runs on (a sweep splits a larger chunk before any work): the package's
+        ``batch_limit(scene, settings) -> int`` (the ports: the device's memory over a variant's
+        states, the model's sizes × its steps), by default None (no limit)."""
+        declared = getattr(importlib.import_module(self.package), "batch_limit", None)
+        if declared is None:
+            return None
+        limit = declared(scene, settings)
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise ValueError(f"engine '{self.name}': batch_limit gave {limit!r}, not a whole number >= 1")
+        return limit
 
     def _checked(self, rungs: tuple, what: str) -> tuple[Rung, ...]:
         for rung in rungs:

@@ -23,14 +23,20 @@ distributions in one sweep are refused (a grid with a Monte Carlo sample on top 
 ``samples`` (≥ 1) is required by distributions and refused with grids (a grid's size is its n);
 ``seed`` (an integer ≥ 0) defaults to 0. At most :data:`MAX_VARIANTS` variants.
 
-``engines`` (:class:`Engines`) says what runs on each variant: ``both`` (the default: the reduced
-solver and MuJoCo, compared and gated as ``loopcheck run`` does) or ``reduced`` (the reduced solver
-alone, with its own error and energy checks; no MuJoCo, no comparison, no gate).
+``engines`` says what runs on each variant: a list of registered engines' names, the reduced
+reference among them (``"reduced,mujoco,mjx"`` or a TOML array ``["reduced", "mjx"]``; each other
+engine compared with the reference and gated at its own tolerances, as ``loopcheck check
+--engines`` does), or one of the two words of :class:`Engines`: ``both`` (the default: the
+design card's pair, the reduced solver and MuJoCo, compared and gated as ``loopcheck run`` does)
+or ``reduced`` (the reduced solver alone, with its own error and energy checks; no comparison, no
+gate). The specification keeps the names (:attr:`SweepSpec.engines`, a tuple: ``both`` is
+``("reduced", "mujoco")``); which names are registered engines is the sweep's check
+(:func:`loopcheck.compare.sweep_scene.check`), above the registry.
 
 The same in a scene file, a ``[sweep]`` table (:func:`spec_from_table`)::
 
     [sweep]
-    engines = "reduced"            # optional, "both" (default) or "reduced"
+    engines = "reduced"            # optional: "both" (default), "reduced", or a list "reduced,mujoco,mjx"
     [sweep.vary]                   # KEY = SPEC, in the order of the sweep
     "dampers.0.coefficient" = "40:70:7"
     "linkage.c2" = [0.85, 0.9, 0.95]   # a TOML array of numbers is a list grid
@@ -72,6 +78,7 @@ from typing import Any, Iterator, Mapping, NamedTuple, Union
 import numpy as np
 
 from .errors import type_name
+from .registry import DEFAULT_ENGINES, REFERENCE
 
 
 MAX_VARIANTS = 1_000_000
@@ -89,8 +96,8 @@ class SweepSpecError(ValueError):
 class Engines(str, Enum):
     """What runs on each variant of a sweep (compares equal to its value string)."""
 
-    BOTH = "both"  # the reduced solver and MuJoCo, compared and gated (as loopcheck run)
-    REDUCED = "reduced"  # the reduced solver alone: its own error and energy checks, no gate
+    BOTH = "both"  # the design card's pair (the reference and MuJoCo C), compared and gated (as loopcheck run)
+    REDUCED = REFERENCE  # the reference alone (its name): its own error and energy checks, no gate
 
     def __str__(self) -> str:
         return self.value
@@ -98,11 +105,36 @@ class Engines(str, Enum):
     @property
     def runs(self) -> tuple[str, ...]:
         """The engines run on each variant, by their names in sweep.csv's columns."""
-        return ("reduced",) if self is Engines.REDUCED else ("reduced", "mujoco")
+        return (REFERENCE,) if self is Engines.REDUCED else DEFAULT_ENGINES
 
 
 ENGINE_CHOICES = tuple(e.value for e in Engines)
-"""The values of ``--engines`` and ``sweep.engines``."""
+"""The two words ``--engines`` and ``sweep.engines`` take beside a list of engine names."""
+_ENGINE_NAME = re.compile(r"[a-z][a-z0-9_]*")  # an engine's name (loopcheck.registry checks the same)
+
+
+def engine_names(value: Any) -> tuple[str, ...]:
+    """The engines a sweep runs, by name, from ``sweep.engines`` or ``--engines``: a word of
+    :data:`ENGINE_CHOICES`, a comma-separated list, or a list of names. SweepSpecError (one line)
+    for anything else, an empty list, a malformed name or a name given twice."""
+    what = "sweep engines (--engines or sweep.engines)"
+    if isinstance(value, str) and value.strip() in ENGINE_CHOICES:
+        return Engines(value.strip()).runs
+    if isinstance(value, str):
+        names = tuple(n.strip() for n in value.split(","))
+    elif isinstance(value, (list, tuple)) and all(isinstance(n, str) for n in value):
+        names = tuple(n.strip() for n in value)
+    else:
+        raise SweepSpecError(f"{what} must be {', '.join(ENGINE_CHOICES)} or a list of engine names such as "
+                             f"\"reduced,mujoco,mjx\", got {value!r}")
+    if not names or not all(names):
+        raise SweepSpecError(f"{what}: an empty engine name in {value!r}")
+    bad = [n for n in names if not _ENGINE_NAME.fullmatch(n)]
+    if bad:
+        raise SweepSpecError(f"{what}: '{bad[0]}' is not an engine name (lower-case letters, digits and _)")
+    if len(set(names)) != len(names):
+        raise SweepSpecError(f"{what}: an engine is named twice in {','.join(names)!r}")
+    return names
 
 
 # -- keys ------------------------------------------------------------------------------
@@ -226,7 +258,8 @@ Vary = Union[Grid, Distribution]
 @dataclass(frozen=True)
 class SweepSpec:
     """The varied keys (in order), ``samples`` (distributions only), ``seed`` and the
-    ``engines`` run on each variant (a value of :data:`ENGINE_CHOICES` is converted).
+    ``engines`` run on each variant, by name (a word of :data:`ENGINE_CHOICES` or a list is
+    converted by :func:`engine_names`).
 
     All grids: the product of their values, the last key fastest. All distributions: a sample
     of ``samples`` variants from ``default_rng(seed)``. Mixing the two is refused.
@@ -235,7 +268,7 @@ class SweepSpec:
     varies: tuple[Vary, ...]
     samples: int | None = None
     seed: int = 0
-    engines: Engines = Engines.BOTH
+    engines: tuple[str, ...] = Engines.BOTH.runs
 
     def __post_init__(self):
         varies = tuple(self.varies) if isinstance(self.varies, (list, tuple)) else self.varies
@@ -254,10 +287,7 @@ class SweepSpec:
         if grids and dists:
             raise SweepSpecError(f"sweep key '{grids[0]}' is a grid and '{dists[0]}' a distribution: a sweep is "
                                  "either a full grid or a Monte Carlo sample, not both")
-        if not isinstance(self.engines, str) or self.engines not in ENGINE_CHOICES:
-            raise SweepSpecError(f"sweep engines (--engines or sweep.engines) must be one of "
-                                 f"{', '.join(ENGINE_CHOICES)}, got {self.engines!r}")
-        object.__setattr__(self, "engines", Engines(self.engines))
+        object.__setattr__(self, "engines", engine_names(self.engines))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SweepSpecError(f"sweep seed (--seed or sweep.seed) must be an integer ≥ 0, got {self.seed!r}")
         if dists:
@@ -390,7 +420,7 @@ def spec_from_table(table: Any, source: str = "<memory>") -> SweepSpec:
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
                 raise SweepSpecError(f"'sweep.{name}' must be a whole number, got {value!r}")
         return SweepSpec(tuple(parse_spec(k, v) for k, v in _flatten(vary)), samples, seed,
-                         table.get("engines", Engines.BOTH))
+                         table.get("engines", Engines.BOTH.value))
     except SweepSpecError as exc:
         raise SweepSpecError(f"{source}: {exc}" if source else str(exc)) from None
 

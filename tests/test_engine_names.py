@@ -37,14 +37,6 @@ OWNED = {"loopcheck.mujoco_model": "mujoco"}
 EXEMPT = (
     "loopcheck/compare/stress.py",
     "loopcheck/compare/sensitivity.py",
-    "loopcheck/compare/sweep.py",
-    "loopcheck/compare/sweep_dask.py",
-    "loopcheck/compare/sweep_journal.py",
-    "loopcheck/compare/sweep_plots.py",
-    "loopcheck/compare/sweep_scene.py",
-    "loopcheck/compare/sweep_summary.py",
-    "loopcheck/compare/sweep_table.py",
-    "loopcheck/sweep_spec.py",
 )
 
 

@@ -595,7 +595,18 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         spec = table_spec
     if args.engines is not None:  # the flag overrides the table's engines only when given
         spec = replace(spec, engines=args.engines)
-    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes, the engines
+    _load_extras(spec.engines)
+    from .sweep import batch_sizes
+
+    batched = batch_sizes(spec.engines, args.batch_size)
+    if args.batch_size not in (None, 1) and not batched:
+        warnings.warn(f"--batch-size {args.batch_size}: no engine of {','.join(spec.engines)} runs in batches "
+                      "(none declares a batch size); the variants run one by one")
+    if args.scheduler is not None:
+        if batched:
+            raise UsageError(f"--scheduler runs engines variant by variant; {', '.join(batched)} run in batches in "
+                             "this process: give --batch-size 1 with --scheduler")
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE), inputs=[path])
     if args.resume and args.keep_trajectories:
         raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
@@ -621,7 +632,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
         summary, _ = run_sweep(data, spec, path, args.out, workers=args.workers,
                                keep_trajectories=args.keep_trajectories, sensitivity=found, client=client,
-                               resume=args.resume, restart=args.restart, committed=said)
+                               resume=args.resume, restart=args.restart, batch_size=args.batch_size,
+                               committed=said)
     finally:
         if client is not None:
             client.close()
@@ -834,11 +846,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "a list a,b,c, normal(mu, sigma) or uniform(lo, hi); repeat for a full grid or a joint "
                         "sample. Without --vary: the scene file's [sweep] table; when both are given, "
                         "--vary wins and the table is ignored")
-    p.add_argument("--engines", choices=ENGINE_CHOICES, default=None,
-                   help="what runs on each variant: both (the reduced solver and MuJoCo, compared and gated) or "
-                        "reduced (the reduced solver alone with the settings the comparison gives it; sweep.csv "
-                        "has no diff, gate or mujoco columns, no gate map or worst-differences plot). Default: the "
-                        "[sweep] table's engines when the table is used, else both")
+    p.add_argument("--engines", default=None, metavar="LIST",
+                   help=f"what runs on each variant: {ENGINE_CHOICES[0]} (the design card's pair, compared and "
+                        f"gated), {ENGINE_CHOICES[1]} (the reference alone with the settings the comparison gives "
+                        f"it; sweep.csv has no diff or gate columns, no gate map or worst-differences plot), or a "
+                        f"comma-separated list of engines (any of {', '.join(ENGINES)}; the reference among them), "
+                        "each judged against the reference at its own tolerances. Default: the [sweep] table's "
+                        "engines when the table is used, else both")
+    p.add_argument("--batch-size", type=_int_in(1, 1_000_000), default=None, metavar="N",
+                   help="variants of one structure that each engine declaring a batch size (BATCH_SIZE) runs "
+                        "at once, in this process; default each engine's own; 1 runs them variant by variant on "
+                        "the process pool")
     p.add_argument("--samples", type=_int_in(1, 1_000_000), default=None,
                    help="number of Monte Carlo variants (distributions only)")
     p.add_argument("--seed", type=_int_in(0, 2**63 - 1), default=None,

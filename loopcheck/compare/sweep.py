@@ -1,4 +1,4 @@
-"""``loopcheck sweep``: a family of scenes through both engines, one summary row per variant.
+"""``loopcheck sweep``: a family of scenes through the engines, one summary row per variant.
 
 A sweep (:mod:`loopcheck.compare.sweep_spec`) makes variants of one scene file. Each variant is built
 with :func:`loopcheck.scenefile.scene_from_dict` and run through :func:`loopcheck.compare.run.compare_engines`
@@ -7,7 +7,19 @@ without engine flags). A variant that cannot be assembled is a row with status `
 whose engines fail numerically a row with status ``failed``; both are counted and the sweep goes
 on.
 
-Reduced-only sweeps (``spec.engines`` is :attr:`~loopcheck.compare.sweep_spec.Engines.REDUCED`, ``loopcheck
+Any list of engines (``spec.engines``, ``loopcheck sweep --engines reduced,mujoco,mjx``; the default
+``both`` is the design card's pair): each variant runs the reference and every other engine of the
+list, each judged against the reference at its own tolerances (:func:`_run_engines`, as ``loopcheck
+check --engines``). One judged engine: the row's ``diff.*`` and ``gate.*`` columns (the pair's
+sweep.csv and sweep.json are as they were); several: ``diff.ENGINE.*`` and ``gate.ENGINE.*`` for
+each, sweep.json with ``schema_version`` 1 and the list of engines, the summary per engine. An
+engine that declares a batch size (:func:`batch_sizes`: the registry's ``Engine.batch_size``, or
+``--batch-size``) runs in this process in batches of consecutive variants of one structure
+(:func:`structure`, :func:`run_batches`: the last chunk padded, a chunk split first to what the
+device holds, each variant's failure its own), and the rest of each variant's row on the pool,
+its workers started by ``spawn``.
+
+Reduced-only sweeps (``spec.engines`` is the reference alone, ``loopcheck
 sweep --engines reduced`` or ``engines = "reduced"`` in the ``[sweep]`` table): each variant runs
 only :func:`loopcheck.reduced.engine.simulate` with the scene's reduced settings as the comparison resolves
 them (:func:`loopcheck.compare.settings.reduced_settings`); MuJoCo is neither run nor imported. Their rows
@@ -70,7 +82,8 @@ This module runs a sweep: the row of one variant, the process pool, the order of
 estimate of a long sweep (:func:`run_sweep`). The rest has a module each: the Dask cluster
 (:mod:`loopcheck.compare.sweep_dask`), the journal of finished rows (:mod:`loopcheck.compare.sweep_journal`),
 the summary (:mod:`loopcheck.compare.sweep_summary`), sweep.csv and sweep.json
-(:mod:`loopcheck.compare.sweep_table`) and the plots (:mod:`loopcheck.compare.sweep_plots`).
+(:mod:`loopcheck.compare.sweep_table`), the plots (:mod:`loopcheck.compare.sweep_plots`) and
+which engines run (:mod:`loopcheck.compare.sweep_engines`).
 """
 
 from __future__ import annotations
@@ -81,7 +94,7 @@ import os
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping
+from typing import Any, Callable, Iterator, Mapping, NamedTuple
 
 from .output import write_folder
 from .pool import ignore_interrupts, ordered_map
@@ -89,9 +102,10 @@ from .sweep_dask import CHUNKS_IN_FLIGHT, dask_rows, dask_threads
 from .sweep_journal import Journal
 from .sweep_plots import PLOTS, WORST_PLOT, plot_files, plot_worst
 from .sweep_summary import Summary
-from .sweep_table import (CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, JSON_FILE, TRAJECTORY_FILE, stream_rows,
-                          write_json)
-from loopcheck.sweep_spec import Engines, SweepSpec, count, variant_values
+from .sweep_engines import judged_scene, sweep_engines
+from .sweep_table import CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, JSON_FILE, TRAJECTORY_FILE, stream_rows, write_json
+from loopcheck.registry import ENGINES, REFERENCE
+from loopcheck.sweep_spec import Engines, SweepSpec, count, engine_names, variant_values
 
 MAX_CHUNK = 32
 
@@ -110,23 +124,29 @@ def _ratio(value: float, bound: float | None) -> float | None:
     return value / bound if bound > 0 else math.inf
 
 
-def comparison_row(c) -> dict[str, Any]:
+def comparison_row(c, engine: str | None = None, several: bool = False) -> dict[str, Any]:
     """The figures of one comparison (the ``diff`` and ``gate`` of report.json, both engines'
-    peaks, times and residuals), keyed by sweep.csv column."""
+    peaks, times and residuals), keyed by sweep.csv column: ``diff.*``/``gate.*``, or with
+    ``several`` (the sweep judges several engines) ``diff.ENGINE.*``/``gate.ENGINE.*``. ``engine``:
+    the judged engine's name (default the result's)."""
     from .report import report_dict
 
+    engine = engine or c.other.engine
+    col = (lambda table, k: f"{table}.{engine}.{k}") if several else (lambda table, k: f"{table}.{k}")  # noqa: E731
     report = report_dict(c, joints=())  # a row holds no joint coordinates
-    row: dict[str, Any] = {f"diff.{k}": report["diff"][k] for k in DIFF_FIGURES}
+    row: dict[str, Any] = {col("diff", k): report["diff"][k] for k in DIFF_FIGURES}
     tol = c.gate.tolerances
     peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(abs(c.diff.peak_omega_reference)))
     ratios = [peak_ratio, _ratio(c.diff.q_max_abs, tol.q_atol), _ratio(c.diff.omega_max_abs, tol.omega_atol),
               _ratio(c.diff.omega_vs_q_max_abs, tol.omega_vs_q_atol)]
     ratios = [r for r in ratios if r is not None]
-    row.update({"gate.passed": c.gate.passed, **{f"gate.{k}": v for k, v in report["gate"]["tolerances"].items()},
-                "gate.peak_ratio": peak_ratio, "gate.worst_ratio": max(ratios) if ratios else None})
-    row.update(engine_row("reduced", c.reference, c.diff.peak_reference))
-    row.update(engine_row("mujoco", c.other, c.diff.peak_other))
-    row["mujoco.max_constraint_violation"] = c.other.constraint_violation.max
+    row.update({col("gate", "passed"): c.gate.passed,
+                **{col("gate", k): v for k, v in report["gate"]["tolerances"].items()},
+                col("gate", "peak_ratio"): peak_ratio, col("gate", "worst_ratio"): max(ratios) if ratios else None})
+    row.update(engine_row(REFERENCE, c.reference, c.diff.peak_reference))
+    row.update(engine_row(engine, c.other, c.diff.peak_other))
+    gap = c.other.constraint_violation
+    row[f"{engine}.max_constraint_violation"] = gap.max if gap is not None else None
     return row
 
 
@@ -139,31 +159,72 @@ def engine_row(engine: str, result, peak=None) -> dict[str, Any]:
     return {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}
 
 
-def _run_engines(scene, engines: Engines, summary: bool = True) -> tuple[dict[str, Any], str, str, dict[str, Any]]:
-    """The figures, status, reason and results by engine name of ``scene`` run as ``engines``
-    says: both engines compared and gated (as ``loopcheck run``), or the reduced engine alone with the
-    settings the comparison would give it, as a summary run when ``summary`` (the row holds only
-    summaries: :func:`loopcheck.reduced.engine.simulate`'s ``summary``; not when the trajectories
-    are kept). NumericalFailure propagates."""
-    if engines is Engines.REDUCED:  # MuJoCo is not imported: loopcheck.compare.run would load it
-        from loopcheck.reduced.engine import simulate
+def failure_text(exc: BaseException) -> str:
+    """A failed run's reason, in one line, as a row says it."""
+    from loopcheck.errors import NumericalFailure
 
-        from .settings import reduced_settings
+    text = " ".join(str(exc).split())
+    if isinstance(exc, NumericalFailure):
+        return f"{exc.reason}: {text}"
+    if isinstance(exc, ValueError):
+        return f"refused: {text}"
+    return f"{type(exc).__name__}: {text}"
 
-        result = simulate(scene, reduced_settings(scene), summary=summary)
-        return engine_row("reduced", result), "passed", "", {"reduced": result}
-    from .run import compare_engines
 
-    c = compare_engines(scene)
-    return (comparison_row(c), "passed" if c.gate.passed else "gate_failed", "; ".join(c.gate.failures),
-            {"reduced": c.reference, "mujoco": c.other})
+def _run_engines(scene, engines, summary: bool = True,
+                 batched: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], str, str, dict[str, Any]]:
+    """The figures, status, reason and results by engine name of ``scene`` run by ``engines``
+    (names, the reference among them): each other engine compared with the reference and gated at
+    its own tolerances (as ``loopcheck check --engines``; the pair as ``loopcheck run``), or the
+    reduced engine alone with the settings the comparison would give it, as a summary run when
+    ``summary`` (the row holds only summaries: :func:`loopcheck.reduced.engine.simulate`'s
+    ``summary``; not when the trajectories are kept). ``batched``: the outcomes (EngineResult or
+    exception) of the engines run in batches, by name. The reference's NumericalFailure
+    propagates; so does the judged engine's when it is the only one (its row is ``failed``, as
+    ``loopcheck run``'s); with several, a judged engine's failure is the row's, the others' figures kept."""
+    from .settings import engine_settings
+
+    names = sweep_engines(engine_names(engines))
+    if len(names) == 1:  # the reference alone; no other engine is imported (loopcheck.compare.run would load one)
+        result = ENGINES[REFERENCE].simulate(scene, engine_settings(REFERENCE, scene), summary=summary)
+        return engine_row(REFERENCE, result), "passed", "", {REFERENCE: result}
+    from .run import judge
+
+    reference = ENGINES[REFERENCE].simulate(scene, engine_settings(REFERENCE, scene))
+    several = len(names) > 2
+    figures: dict[str, Any] = {}
+    failures: list[str] = []
+    gates: list[str] = []
+    results: dict[str, Any] = {REFERENCE: reference}
+    for name in names[1:]:
+        judged = judged_scene(scene, name)
+        got = (batched or {}).get(name)
+        if got is None:
+            try:
+                got = ENGINES[name].simulate(judged, engine_settings(name, scene))
+            except Exception as exc:  # noqa: BLE001 - this engine's failure on this variant
+                got = exc
+        if isinstance(got, BaseException):
+            if not several:
+                raise got
+            failures.append(f"{name}: {failure_text(got)}")
+            continue
+        c = judge(judged, reference, got, judged.tolerances)
+        figures.update(comparison_row(c, name, several))
+        gates += [f"{name}: {f}" if several else f for f in c.gate.failures]
+        results[name] = got
+    if not any(k.startswith(f"{REFERENCE}.") for k in figures):
+        figures.update(engine_row(REFERENCE, reference))
+    status = "failed" if failures else "gate_failed" if gates else "passed"
+    return figures, status, "; ".join(failures + gates), results
 
 
 def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any], source: str,
-                keep_trajectories: bool = False, engines: Engines = Engines.BOTH) -> dict[str, Any]:
-    """One variant's row: built from ``data`` with ``values`` applied, run through both engines
-    and gated (as ``loopcheck run``), or with ``engines`` REDUCED through the reduced engine alone;
-    invalid and failed variants are rows too."""
+                keep_trajectories: bool = False, engines=Engines.BOTH,
+                batched: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """One variant's row: built from ``data`` with ``values`` applied, run through ``engines`` (a
+    word of :class:`~loopcheck.sweep_spec.Engines` or names) as :func:`_run_engines` says, with the
+    outcomes ``batched`` of the engines run in batches; invalid and failed variants are rows too."""
     from loopcheck.errors import NumericalFailure
     from loopcheck.scene import SceneError
     from loopcheck.scenefile import scene_from_dict
@@ -176,7 +237,8 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
         with warnings.catch_warnings():  # off-grid edges and ignored settings: the same for many variants
             warnings.simplefilter("ignore")
             scene = scene_from_dict(apply(data, values), source)
-            figures, status, reason, results = _run_engines(scene, engines, summary=not keep_trajectories)
+            figures, status, reason, results = _run_engines(scene, engines, summary=not keep_trajectories,
+                                                            batched=batched)
     except (SceneError, ValueError) as exc:  # as main() does: the variant's scene or settings are bad input
         row.update(status="invalid", reason=" ".join(str(exc).split()))
     except NumericalFailure as exc:
@@ -188,7 +250,8 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
         row.update(status=status, reason=reason)
         if keep_trajectories:
             row["_trajectories"] = {e: _trajectory(r) for e, r in results.items()}
-    row["variant_wall_s"] = time.perf_counter() - start
+    row["variant_wall_s"] = time.perf_counter() - start + sum(
+        r.wall_s for r in (batched or {}).values() if not isinstance(r, BaseException))
     return row
 
 
@@ -207,10 +270,11 @@ def _init_worker(data, source, keep, engines) -> None:
     _WORKER.update(data=data, source=source, keep=keep, engines=engines)
 
 
-def _run_chunk(task: tuple[int, list[dict[str, float]]]) -> list[dict[str, Any]]:
-    start, values = task
-    return [run_variant(start + i, v, _WORKER["data"], _WORKER["source"], _WORKER["keep"], _WORKER["engines"])
-            for i, v in enumerate(values)]
+def _run_chunk(task: tuple) -> list[dict[str, Any]]:
+    start, values, *rest = task
+    batched = rest[0] if rest else [None] * len(values)
+    return [run_variant(start + i, v, _WORKER["data"], _WORKER["source"], _WORKER["keep"], _WORKER["engines"], b)
+            for i, (v, b) in enumerate(zip(values, batched))]
 
 
 def chunk_size(n: int, workers: int) -> int:
@@ -229,41 +293,200 @@ def _chunks(spec: SweepSpec, size: int, start: int = 0) -> Iterator[tuple[int, l
 
 
 def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
-                keep: bool, engines: Engines) -> list[dict[str, Any]]:
+                keep: bool, engines) -> list[dict[str, Any]]:
     """One Dask task: the rows of the consecutive variants ``start``, ``start + 1``..."""
     return [run_variant(start + i, v, data, source, keep, engines) for i, v in enumerate(values)]
 
 
+# -- batches ----------------------------------------------------------------------------
+
+def batch_sizes(engines, batch_size: int | None = None) -> dict[str, int]:
+    """The engines of a sweep that run in batches, and each one's batch size: the judged engines
+    that declare a batch size over 1 (:attr:`loopcheck.registry.Engine.batch_size`), at that size
+    or at ``batch_size`` (``--batch-size``; 1 puts them back on the process pool). The reference
+    runs on the pool."""
+    sizes = {}
+    for name in sweep_engines(engine_names(engines))[1:]:
+        declared = ENGINES[name].batch_size
+        size = declared if batch_size is None else batch_size
+        if declared > 1 and size > 1:
+            sizes[name] = size
+    return sizes
+
+
+def structure(value: Any) -> Any:
+    """``value`` (a scene, its parts, an engine's settings) with its real numbers stripped: what
+    stays is its structure (types, names, counts, choices, integers), hashable. Two variants of a
+    sweep whose scenes have one structure, whose engine settings are equal and whose horizons are
+    equal have one model structure and step count (load edges that move the grid step aside,
+    which a port's own check refuses: the batch then runs variant by variant)."""
+    import dataclasses
+    from enum import Enum
+
+    import numpy as np
+
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str, Enum)):
+        return value
+    if isinstance(value, float):
+        return None
+    if isinstance(value, np.ndarray):
+        return ("array", value.shape, str(value.dtype))
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (type(value).__name__,) + tuple((f.name, structure(getattr(value, f.name)))
+                                               for f in dataclasses.fields(value))
+    if isinstance(value, Mapping):
+        return tuple(sorted((str(k), structure(v)) for k, v in value.items()))
+    if isinstance(value, (list, tuple, frozenset, set)):
+        return tuple(structure(v) for v in value)
+    return type(value).__name__
+
+
+class _Member(NamedTuple):
+    index: int
+    values: dict[str, float]
+    runs: dict[str, tuple[Any, Any]]  # engine -> (judged scene, settings), or (None, exception)
+    key: Any
+
+
+def _member(index: int, values: dict[str, float], data: Mapping[str, Any], source: str,
+            sizes: Mapping[str, int]) -> _Member:
+    """A variant's scene and settings for each batched engine, keyed by its structure (an invalid
+    variant: no runs, its row says why; a setting refused: that engine's outcome)."""
+    from loopcheck.scenefile import scene_from_dict
+    from loopcheck.sweep_spec import apply
+
+    from .settings import engine_settings
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = scene_from_dict(apply(data, values), source)
+    except Exception:  # noqa: BLE001 - invalid: run_variant's row says why
+        return _Member(index, values, {}, None)
+    runs = {}
+    for name in sizes:
+        try:
+            runs[name] = (judged_scene(scene, name), engine_settings(name, scene))
+        except Exception as exc:  # noqa: BLE001 - this engine's outcome on this variant
+            runs[name] = (None, exc)
+    key = (structure(scene), scene.horizon,
+           tuple((name, settings) for name, (_, settings) in runs.items() if not isinstance(settings, BaseException)))
+    return _Member(index, values, runs, key)
+
+
+_LIMITS: dict = {}  # (engine, structure key) -> its batch limit on this machine's device
+
+
+def run_batches(members: list[_Member], sizes: Mapping[str, int]) -> list[dict[str, Any]]:
+    """The outcomes of each batched engine on ``members`` (one structure), by member: each
+    engine's ``simulate_batch`` per chunk of its batch size (split first to what the device holds:
+    :meth:`loopcheck.registry.Engine.batch_limit`), the last chunk padded to the same size by
+    repeating its last variant (the padding's results dropped), each variant's failure its own."""
+    outcomes: list[dict[str, Any]] = [{} for _ in members]
+    for name, size in sizes.items():
+        ready = []
+        for k, m in enumerate(members):
+            if name not in m.runs:
+                continue
+            scene, settings = m.runs[name]
+            if scene is None:
+                outcomes[k][name] = settings
+            else:
+                ready.append((k, scene, settings))
+        if not ready:
+            continue
+        engine = ENGINES[name]
+        limit_key = (name, repr(members[0].key))
+        if limit_key not in _LIMITS:
+            try:
+                _LIMITS[limit_key] = engine.batch_limit(ready[0][1], ready[0][2])
+            except Exception:  # noqa: BLE001 - the variant's own run says what is wrong
+                _LIMITS[limit_key] = None
+        limit = _LIMITS[limit_key]
+        chunk = min(size, limit) if limit else size
+        for at in range(0, len(ready), chunk):
+            part = ready[at:at + chunk]
+            scenes = [scene for _, scene, _ in part]
+            padded = scenes + [scenes[-1]] * (chunk - len(scenes))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                got = engine.simulate_batch(padded, part[0][2], each=True)
+            for (k, _, _), outcome in zip(part, got):
+                outcomes[k][name] = outcome
+    return outcomes
+
+
+def _batched_tasks(data: Mapping[str, Any], spec: SweepSpec, source: str, sizes: Mapping[str, int],
+                   start: int = 0) -> Iterator[tuple[int, list[dict[str, float]], list[dict[str, Any]]]]:
+    """The sweep's variants from ``start`` as tasks ``(start, values, outcomes)``: consecutive
+    variants of one structure, as many as the largest batch, with the batched engines' outcomes
+    (run here, in this process: JAX and warp find their device once)."""
+    largest = max(sizes.values())
+    group: list[_Member] = []
+
+    def done():
+        outcomes = run_batches([m for m in group if m.key is not None], sizes)
+        it = iter(outcomes)
+        batched = [next(it) if m.key is not None else None for m in group]
+        return group[0].index, [m.values for m in group], batched
+
+    for index, values in itertools.islice(enumerate(variant_values(spec)), start, None):
+        m = _member(index, values, data, source, sizes)
+        keys = [g.key for g in group if g.key is not None]
+        if group and (len(group) >= largest or (m.key is not None and keys and m.key != keys[0])):
+            yield done()
+            group = []
+        group.append(m)
+    if group:
+        yield done()
+
+
 def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: int = 1,
-             keep_trajectories: bool = False, client=None, start: int = 0) -> Iterator[dict[str, Any]]:
+             keep_trajectories: bool = False, client=None, start: int = 0,
+             batch_size: int | None = None) -> Iterator[dict[str, Any]]:
     """Every variant's row from variant ``start`` on, in variant order, as they complete
     (``workers`` processes, or with ``client`` the Dask cluster's worker threads: the same
-    chunks become Dask tasks)."""
+    chunks become Dask tasks). Engines that run in batches (:func:`batch_sizes`) run here, chunk
+    by chunk, and the rest of each variant's row on the pool (started by ``spawn``: no fork of a
+    process that holds JAX's or warp's threads)."""
     n = count(spec) - start
     if n <= 0:
         return
-    if client is not None:
-        workers = dask_threads(client)
-    size = chunk_size(n, workers)
-    tasks = _chunks(spec, size, start)
+    sizes = batch_sizes(spec.engines, batch_size)
+    if sizes:
+        if client is not None:
+            raise ValueError("engines run in batches (" + ", ".join(sizes) + ") run in this process, not on a Dask "
+                             "cluster: give --batch-size 1 with --scheduler")
+        tasks: Iterator = _batched_tasks(data, spec, source, sizes, start)
+    else:
+        if client is not None:
+            workers = dask_threads(client)
+        tasks = _chunks(spec, chunk_size(n, workers), start)
     if client is not None:
         yield from dask_rows(client, _dask_chunk, data, (source, keep_trajectories, spec.engines), tasks,
                              CHUNKS_IN_FLIGHT * workers)
         return
     if workers <= 1:
-        for start, values in tasks:
-            for i, v in enumerate(values):
-                yield run_variant(start + i, v, data, source, keep_trajectories, spec.engines)
+        for task in tasks:
+            _WORKER.update(data=data, source=source, keep=keep_trajectories, engines=spec.engines)
+            yield from _run_chunk(task)
         return
     for rows in ordered_map(_run_chunk, tasks, workers, _init_worker,
-                            (dict(data), source, keep_trajectories, spec.engines), lost=_lost_chunk):
+                            (dict(data), source, keep_trajectories, spec.engines), lost=_lost_chunk,
+                            start_method="spawn" if _holds_threads(spec.engines) else None):
         yield from rows
 
 
-def _lost_chunk(task: tuple[int, list[dict[str, float]]], reason: str) -> list[dict[str, Any]]:
+def _holds_threads(engines) -> bool:
+    """Whether this process may hold a batch engine's runtime (JAX's, warp's threads: the engines
+    declaring a batch size are loaded before any work), which a forked worker must not inherit."""
+    return any(ENGINES[name].batch_size > 1 for name in sweep_engines(engine_names(engines)))
+
+
+def _lost_chunk(task: tuple, reason: str) -> list[dict[str, Any]]:
     """The rows of a chunk whose worker died twice (:func:`loopcheck.compare.pool.ordered_map`):
     each variant ``failed`` with the reason ("worker killed by signal 9"), nothing measured."""
-    start, values = task
+    start, values, *_ = task
     return [{"index": start + i, "status": "failed", "reason": reason, **v} for i, v in enumerate(values)]
 
 
@@ -295,7 +518,7 @@ def _estimate(n_left: int, seconds_each: float, workers: int) -> None:
 def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | os.PathLike, *,
               workers: int | None = None, keep_trajectories: bool = False,
               progress: bool = True, sensitivity: list[dict] | None = None,
-              client=None, resume: bool = False, restart: bool = False,
+              client=None, resume: bool = False, restart: bool = False, batch_size: int | None = None,
               committed: Callable[[Summary, list[Path]], None] | None = None) -> tuple[Summary, list[Path]]:
     """Run every variant and write the sweep's files into ``out`` (module docstring). The
     caller has checked ``spec`` against the scene and ``out`` (:func:`loopcheck.compare.output.check_folder`);
@@ -310,7 +533,8 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     are read back instead of run again, with ``restart`` they are discarded, and with neither an
     existing journal is refused (:class:`loopcheck.compare.sweep_journal.JournalError`; the caller
     checks first with :func:`loopcheck.compare.sweep_journal.check_journal`). Before the bulk of the variants, the next
-    two run here and the second one's time estimates the rest (:func:`_estimate`)."""
+    two run here and the second one's time estimates the rest (:func:`_estimate`; not in a sweep
+    with engines run in batches: ``batch_size`` overrides their own, :func:`batch_sizes`)."""
     from .cost import worker_count
 
     n = count(spec)
@@ -320,7 +544,9 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     from loopcheck.scenefile import scene_from_dict
 
     speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
-    summary = Summary(spec.keys, workers=used, engines=spec.engines, speed_unit=speed_unit)
+    sizes = batch_sizes(spec.engines, batch_size)
+    summary = Summary(spec.keys, workers=used, engines=sweep_engines(spec.engines), speed_unit=speed_unit,
+                      batch_sizes=sizes)
     bar = _Progress(n) if progress else None
 
     journal = Journal(out, data, spec, resume=resume, restart=restart)  # locked until closed
@@ -328,14 +554,14 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     def fresh_rows() -> Iterator[dict[str, Any]]:  # started once the journal's rows are replayed
         first = journal.kept
         timed = []
-        for index, values in itertools.islice(enumerate(variant_values(spec)), first, first + 2):
+        for index, values in itertools.islice(enumerate(variant_values(spec)), first, first + (0 if sizes else 2)):
             began = time.perf_counter()
             yield run_variant(index, values, data, source, keep_trajectories, spec.engines)
             timed.append(time.perf_counter() - began)
         if len(timed) == 2:  # the second: imports and compiled code loaded by the first
             _estimate(n - first - 2, timed[1], used)
         yield from run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client,
-                            start=first + len(timed))
+                            start=first + len(timed), batch_size=batch_size)
 
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
@@ -352,7 +578,7 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
     if keep_trajectories:
         files[TRAJECTORY_FILE] = staged
     for name in plot_files(spec):  # from the staged sweep.csv, but the worst variant's (run again)
-        files[name] = (lambda p: plot_worst(data, source, summary, p)) if name == WORST_PLOT else \
+        files[name] = (lambda p: plot_worst(data, source, summary, p, sizes)) if name == WORST_PLOT else \
             (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
     files[JSON_FILE] = lambda p: write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
 

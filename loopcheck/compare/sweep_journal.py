@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, BinaryIO, Iterator, Mapping
 
 from .sweep_summary import STATUSES
-from .sweep_table import LIST_COLUMNS, columns, parse_cell
+from .sweep_table import columns, is_list_column, parse_cell
 from loopcheck.sweep_spec import SweepSpec, count, variant_values
 
 JOURNAL_SUFFIX = ".sweep-journal.csv"
@@ -254,7 +254,7 @@ def _checked(line: bytes, k: int, values: Mapping[str, float], cols: tuple[str, 
         except ValueError:  # json.JSONDecodeError is one
             value = math.nan
         if (isinstance(value, float) and not math.isfinite(value)) or \
-                (col in LIST_COLUMNS and value is not None and not isinstance(value, list)):
+                (is_list_column(col) and value is not None and not isinstance(value, list)):
             return None, f"row {k}: its {col} cell {text[:20]!r} is not readable"
         row[col] = value
     if row["index"] != k:

@@ -10,16 +10,18 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .sweep_summary import Summary, values_text
-from .sweep_table import read_rows
-from loopcheck.sweep_spec import Engines, SweepSpec
+from .sweep_engines import judged, judged_scene, sweep_engines
+from .sweep_table import diff_column, read_rows
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
+from loopcheck.sweep_spec import SweepSpec
 
 PEAK_PLOT, MAP_PLOT, HIST_PLOT = "sweep_peak_omega.png", "sweep_gate_map.png", "sweep_peak_omega_hist.png"
 WORST_PLOT = "sweep_worst_differences.png"
 
 
 def plot_files(spec: SweepSpec) -> tuple[str, ...]:
-    """The plots a sweep of ``spec`` draws (a reduced-only sweep: no gate map, no worst differences)."""
-    compared = spec.engines is Engines.BOTH
+    """The plots a sweep of ``spec`` draws (the reference alone: no gate map, no worst differences)."""
+    compared = bool(judged(spec))
     if not spec.is_grid:
         plots = (HIST_PLOT,)
     else:
@@ -50,30 +52,37 @@ def _title(source: str, what: str) -> str:
 
 def _peaks(csv_path: Path, spec: SweepSpec, names: tuple[str, ...] = ()) -> tuple[dict[str, list], dict]:
     """The columns ``names`` of a sweep.csv, and the peak |ω| of each engine the sweep ran (by
-    engine name, in :attr:`Engines.runs` order, NaN where not measured)."""
-    cols = _column(csv_path, names + tuple(f"{e}.peak_omega" for e in spec.engines.runs))
-    return cols, {e: abs(_nan(cols[f"{e}.peak_omega"])) for e in spec.engines.runs}
+    engine name, the reference first, NaN where not measured)."""
+    engines = sweep_engines(spec.engines)
+    cols = _column(csv_path, names + tuple(f"{e}.peak_omega" for e in engines))
+    return cols, {e: abs(_nan(cols[f"{e}.peak_omega"])) for e in engines}
 
 
-def _engine_styles() -> dict[str, dict[str, Any]]:
-    """How each engine is drawn in the sweep's plots: its colour, label, marker, line style."""
-    from .plots import MUJOCO_STYLE, REDUCED_STYLE
+MARKERS = ("o", "x", "s", "^", "v", "D", "P", "*", "h")
+LINESTYLES = ("-", "--", ":")
 
-    return {"reduced": {**REDUCED_STYLE, "marker": "o", "markersize": 3, "linestyle": "-"},
-            "mujoco": {**MUJOCO_STYLE, "marker": "x", "markersize": 4, "linestyle": "--"}}
+
+def _engine_styles(engines: tuple[str, ...] = ()) -> dict[str, dict[str, Any]]:
+    """How each engine is drawn in the sweep's plots: its colour and label
+    (:attr:`loopcheck.registry.Engine.colour`, ``.label``), a marker and a line style in the
+    order of ``engines`` (the reference first; by default the design card's pair)."""
+    engines = engines or DEFAULT_ENGINES
+    return {name: {"color": ENGINES[name].colour, "label": ENGINES[name].label, "marker": MARKERS[k % len(MARKERS)],
+                   "markersize": 3 if k == 0 else 4, "linestyle": LINESTYLES[min(k, len(LINESTYLES) - 1)]}
+            for k, name in enumerate(engines)}
 
 
 def _what(spec: SweepSpec, what: str) -> str:
     """A plot's title text; a reduced-only sweep says so on a second line (one line would not
     fit over the axes with a long key)."""
-    return what + ("\n(reduced engine only: no MuJoCo, no gate)" if spec.engines is Engines.REDUCED else "")
+    return what + (f"\n({REFERENCE} engine only: no other engine, no gate)" if not judged(spec) else "")
 
 
 def _title_margins(spec: SweepSpec) -> dict[str, float]:
     """new_figure's margins for :func:`_what`'s title (inches)."""
     from .plots import MARGINS
 
-    return {"top": MARGINS["top"] + (0.25 if spec.engines is Engines.REDUCED else 0.0)}
+    return {"top": MARGINS["top"] + (0.25 if not judged(spec) else 0.0)}
 
 
 def key_unit(key: str, speed_unit: str = "rad/s") -> str | None:
@@ -145,8 +154,8 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
     key = spec.keys[0]
     cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
     x = _nan(cols[key])
-    red = peaks["reduced"]
-    styles = _engine_styles()
+    red = peaks[REFERENCE]
+    styles = _engine_styles(tuple(peaks))
     others = spec.keys[1:]
     right = 1.7 if others else MARGINS["right"]
     fig, ax = new_figure((7.0 + right - MARGINS["right"], 4.2), margins={**_title_margins(spec), "right": right})
@@ -194,7 +203,8 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
 
 def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
     """The gate's worst ratio (largest figure over its tolerance) over the first two grid keys
-    (the others: the largest ratio over their values); gray where no comparison ran."""
+    (the others: the largest ratio over their values; several judged engines: the largest over
+    them); gray where no comparison ran."""
     import numpy as np
     from matplotlib.colors import LogNorm
 
@@ -202,11 +212,14 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
 
     kx, ky = spec.keys[1], spec.keys[0]
     xs, ys = list(spec.varies[1].values), list(spec.varies[0].values)
-    cols = _column(csv_path, (kx, ky, "gate.worst_ratio"))
+    ratios = tuple(diff_column(spec, x, "worst_ratio", "gate") for x in judged(spec))
+    cols = _column(csv_path, (kx, ky) + ratios)
     grid = np.full((len(ys), len(xs)), np.nan)
-    for xv, yv, r in zip(cols[kx], cols[ky], cols["gate.worst_ratio"]):
-        if r is None:
+    for xv, yv, *rs in zip(cols[kx], cols[ky], *(cols[r] for r in ratios)):
+        rs = [r for r in rs if r is not None]
+        if not rs:
             continue
+        r = max(rs)
         i, j = ys.index(yv), xs.index(xv)
         grid[i, j] = r if math.isnan(grid[i, j]) else max(grid[i, j], r)
     fig, ax = new_figure((7.0, 5.0), margins={"right": 1.3})
@@ -220,22 +233,27 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{v:.4g}" for v in ys], fontsize=7)
     ax.set_xlabel(key_label(kx, speed_unit), **PLAIN)
     ax.set_ylabel(key_label(ky, speed_unit), **PLAIN)
-    ax.set_title(_title(source, "gate's worst figure / tolerance (> 1 fails)"), **PLAIN)
+    over = "" if len(ratios) == 1 else f", worst of {', '.join(ENGINES[x].label for x in judged(spec))}"
+    ax.set_title(_title(source, f"gate's worst figure / tolerance (> 1 fails){over}"), **PLAIN)
     bar = fig.colorbar(mesh, ax=ax, label="worst figure / its tolerance (ratio)")
     if norm is not None:
         plain_log_axis(bar.ax.yaxis)  # the project's plain-text log labels (no mathtext)
     _save(fig, path)
 
 
-def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Path) -> None:
+def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Path,
+               batch_sizes: Mapping[str, int] | None = None) -> None:
     """The differences plot of ``loopcheck run`` (:func:`loopcheck.compare.plots.plot_differences`) for the
     worst variant, the one whose peak-ω difference is the largest multiple of its tolerance, run
-    again through both engines (the same scene and settings as its row); a note instead when no
-    variant ran through both."""
+    again through the reference and the engine it was worst for (the same scene and settings as
+    its row; an engine run in batches, as a batch of its size, whose compiled shape this process
+    has); a note instead when no variant ran through two engines."""
     from .plots import PLAIN, _save, new_figure, plot_differences
-    from .run import compare_engines
+    from .run import judge
+    from .settings import engine_settings
     from loopcheck.sweep_spec import apply
     from loopcheck.scenefile import scene_from_dict
+
 
     worst = summary.worst
     if worst is None:
@@ -245,11 +263,20 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
                 ha="center", va="center", **PLAIN)
         _save(fig, path)
         return
+    engine = worst.get("engine", summary.judged[0])
     with warnings.catch_warnings():  # as run_variant: its warnings were the sweep's to ignore
         warnings.simplefilter("ignore")
-        c = compare_engines(scene_from_dict(apply(data, worst["values"]), source))
+        scene = scene_from_dict(apply(data, worst["values"]), source)
+        reference = ENGINES[REFERENCE].simulate(scene, engine_settings(REFERENCE, scene))
+        judged_ = judged_scene(scene, engine)
+        size = (batch_sizes or {}).get(engine, 1)
+        settings = engine_settings(engine, scene)
+        other = (ENGINES[engine].simulate_batch([judged_] * size, settings)[0] if size > 1
+                 else ENGINES[engine].simulate(judged_, settings))
+        c = judge(judged_, reference, other, judged_.tolerances)
     values = values_text(worst["values"])
-    plot_differences(c, path, subtitle=f"worst of {summary.total} variants: #{worst['index']}, peak-ω difference "
+    by = f" ({ENGINES[engine].label})" if "engine" in worst else ""
+    plot_differences(c, path, subtitle=f"worst of {summary.total} variants{by}: #{worst['index']}, peak-ω difference "
                                        f"{worst['peak_ratio']:.3g}× its tolerance\n{values}")
 
 
@@ -262,19 +289,19 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
 
     _, peaks = _peaks(csv_path, spec)
     peaks = {e: p[np.isfinite(p)] for e, p in peaks.items()}
-    styles = _engine_styles()
+    styles = _engine_styles(tuple(peaks))
     fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
     every = np.concatenate(list(peaks.values()))
     if every.size:
         bins = np.histogram_bin_edges(every, bins=min(50, max(5, int(math.sqrt(every.size)))))
         for engine, peak in peaks.items():
             style = styles[engine]
-            look = {"alpha": 0.6} if engine == "reduced" else {"histtype": "step", "linestyle": "--", "linewidth": 1.5}
+            look = {"alpha": 0.6} if engine == REFERENCE else {"histtype": "step", "linestyle": "--", "linewidth": 1.5}
             ax.hist(peak, bins=bins, color=style["color"], label=style["label"], **look)
         ax.legend(fontsize=8)
     ax.set_xlabel(f"peak |ω| of the input ({speed_unit})")
     ax.set_ylabel("variants")
-    ax.set_title(_title(source, _what(spec, f"peak speed over {len(peaks['reduced'])} samples (seed {spec.seed})")),
+    ax.set_title(_title(source, _what(spec, f"peak speed over {len(peaks[REFERENCE])} samples (seed {spec.seed})")),
                  **PLAIN)
     ax.grid(True, alpha=0.3)
     _save(fig, path)

@@ -13,6 +13,8 @@ from loopcheck.errors import type_name
 from loopcheck.scene import SceneError
 from loopcheck.scenefile import scene_from_dict
 from loopcheck.toml_reader import parse_toml, read_text
+
+from .sweep_engines import sweep_engines
 from loopcheck.sweep_spec import (MISSING, SWEEP_TABLE, SweepSpec, SweepSpecError, apply, lookup,
                                      spec_from_table)
 
@@ -34,10 +36,15 @@ def check(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>") ->
     Each key must lead to a number of the scene, or to a place the scene format accepts one;
     the scene is built (:func:`loopcheck.scenefile.scene_from_dict`) at the nominal values (as
     written; a key the file does not give at its spec's centre) and at each key's extremes
-    (the others nominal). Raises SweepSpecError naming the key (with ``source`` in front);
+    (the others nominal); the engines must be registered, the reference among them. Raises
+    SweepSpecError naming the key (with ``source`` in front);
     a SceneError of the scene as written propagates unchanged.
     """
     prefix = f"{source}: " if source else ""
+    try:
+        sweep_engines(spec.engines)
+    except SweepSpecError as exc:
+        raise SweepSpecError(prefix + str(exc)) from None
     base = {k: v for k, v in data.items() if k != SWEEP_TABLE}
     scene_from_dict(base, source)  # the scene as written: its own errors are not the sweep's
     given = nominal_values(base, spec, source)

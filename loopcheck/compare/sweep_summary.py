@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from .sweep_engines import engines_value
+from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.sweep_spec import Engines
 
 STATUSES = ("passed", "gate_failed", "failed", "invalid")
@@ -30,8 +32,38 @@ class Summary:
     ranges: dict[str, list[float]] = field(default_factory=dict)
     wall_s: float = 0.0
     workers: int = 1
-    engines: Engines = Engines.BOTH
+    engines: tuple[str, ...] = Engines.BOTH.runs  # the reference first (sweep_table.sweep_engines)
     speed_unit: str = "rad/s"
+    # several judged engines: per engine, its gate's counts and its worst peak ratio
+    per_engine: dict[str, dict[str, Any]] = field(default_factory=dict)
+    batch_sizes: dict[str, int] = field(default_factory=dict)  # engines run in batches: their batch size
+
+    def __post_init__(self):
+        self.engines = tuple(Engines(self.engines).runs if isinstance(self.engines, str) else self.engines)
+        if len(self.engines) > 2:
+            self.per_engine = {x: {"passed": 0, "gate_failed": 0, "failed": 0, "worst_peak_ratio": None}
+                               for x in self.engines[1:]}
+
+    @property
+    def judged(self) -> tuple[str, ...]:
+        return self.engines[1:]
+
+    def _add_engine(self, row: Mapping[str, Any], status: str, values: dict) -> None:
+        """Several judged engines: each one's gate and failure, and the worst variant over all."""
+        for x, counts in self.per_engine.items():
+            passed = row.get(f"gate.{x}.passed")
+            if passed is None and status == "failed":
+                counts["failed"] += 1
+            elif passed is not None:
+                counts["passed" if passed else "gate_failed"] += 1
+            ratio = row.get(f"gate.{x}.peak_ratio")
+            if ratio is None or math.isnan(ratio):
+                continue
+            if counts["worst_peak_ratio"] is None or ratio > counts["worst_peak_ratio"]:
+                counts["worst_peak_ratio"] = ratio
+            if self.worst is None or ratio > self.worst["peak_ratio"]:
+                self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
+                              "peak_omega_rel": row.get(f"diff.{x}.peak_omega_rel"), "engine": x}
 
     def add(self, row: Mapping[str, Any]) -> None:
         self.total += 1
@@ -47,7 +79,9 @@ class Summary:
         if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
             self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
                           "peak_omega_rel": row.get("diff.peak_omega_rel")}
-        peak = row.get("reduced.peak_omega")
+        if self.per_engine:
+            self._add_engine(row, status, values)
+        peak = row.get(f"{REFERENCE}.peak_omega")
         if peak is not None and math.isfinite(peak):
             entry = {"index": row["index"], "values": values, "peak_omega": abs(peak)}
             low, high = self.peak_extremes.get("lowest"), self.peak_extremes.get("highest")
@@ -67,9 +101,14 @@ class Summary:
         return bool(self.counts["gate_failed"] or self.counts["failed"]) or self.none_valid
 
     def as_dict(self) -> dict[str, Any]:
-        return {"variants": self.total, "engines": self.engines, "counts": dict(self.counts), "worst": self.worst,
-                "peak_extremes": self.peak_extremes, "ranges": self.ranges, "failing_ranges": self.failing_ranges,
-                "wall_s": self.wall_s, "workers": self.workers}
+        out = {"variants": self.total, "engines": engines_value(self.engines), "counts": dict(self.counts),
+               "worst": self.worst, "peak_extremes": self.peak_extremes, "ranges": self.ranges,
+               "failing_ranges": self.failing_ranges, "wall_s": self.wall_s, "workers": self.workers}
+        if self.per_engine:
+            out["per_engine"] = {x: dict(c) for x, c in self.per_engine.items()}
+        if self.batch_sizes:
+            out["batch_sizes"] = dict(self.batch_sizes)
+        return out
 
 
 def values_text(values: Mapping[str, float]) -> str:
@@ -86,8 +125,10 @@ def summary_lines(summary: Summary) -> list[str]:
     """The printed summary of a sweep."""
     c = summary.counts
     workers = f"{summary.workers} worker{'s' if summary.workers != 1 else ''}, {summary.wall_s:.1f} s"
-    if summary.engines is Engines.REDUCED:
-        lines = [f"{summary.total} variants, reduced engine only, no gate ({workers}): {c['passed']} passed its "
+    if summary.batch_sizes:
+        workers += ", " + ", ".join(f"{ENGINES[x].label} in batches of {b}" for x, b in summary.batch_sizes.items())
+    if not summary.judged:
+        lines = [f"{summary.total} variants, {REFERENCE} engine only, no gate ({workers}): {c['passed']} passed its "
                  f"own checks, {c['failed']} failed numerically, {c['invalid']} invalid"]
         low, high = summary.peak_extremes.get("lowest"), summary.peak_extremes.get("highest")
         if low is not None:
@@ -97,11 +138,16 @@ def summary_lines(summary: Summary) -> list[str]:
     else:
         lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
                  f"{c['failed']} failed numerically, {c['invalid']} invalid"]
+        for x, e in summary.per_engine.items():
+            worst = "" if e["worst_peak_ratio"] is None else f" (worst peak-omega difference {e['worst_peak_ratio']:.3g}x its tolerance)"
+            lines.append(f"  {ENGINES[x].label}: {e['passed']} passed its gate, {e['gate_failed']} failed it, "
+                         f"{e['failed']} failed numerically{worst}")
     if summary.none_valid:
         lines.append("no variant is valid: the sweep checked nothing (sweep.csv's reason column says why)")
     w = summary.worst
     if w is not None:
-        lines.append(f"worst variant: #{w['index']} ({values_text(w['values'])}): peak-omega difference "
+        by = f" of {ENGINES[w['engine']].label}" if "engine" in w else ""
+        lines.append(f"worst variant{by}: #{w['index']} ({values_text(w['values'])}): peak-omega difference "
                      f"{w['peak_ratio']:.3g}x its tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
     if summary.failing_ranges:
         parts = []

@@ -11,7 +11,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
 
 from .output import json_text, plain, portable_source
-from loopcheck.sweep_spec import Engines, SweepSpec
+from .sweep_engines import engines_value, judged, sweep_engines
+from loopcheck.registry import REFERENCE
+from loopcheck.sweep_spec import SweepSpec
 
 if TYPE_CHECKING:
     from .sweep_summary import Summary
@@ -34,9 +36,42 @@ LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
 CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
 
 
+SCHEMA_VERSION = 1
+"""sweep.json's ``schema_version`` (written for a list of engines other than the two words;
+the files of ``both`` and ``reduced`` are as before, without it)."""
+
+
+def diff_column(spec_or_judged, engine: str, figure: str, table: str = "diff") -> str:
+    """The column of ``engine``'s ``figure`` of its comparison (``table`` "diff" or "gate"):
+    ``diff.FIGURE`` when the sweep judges one engine (the pair's layout), ``diff.ENGINE.FIGURE``
+    when it judges several."""
+    names = judged(spec_or_judged) if isinstance(spec_or_judged, SweepSpec) else tuple(spec_or_judged)
+    return f"{table}.{engine}.{figure}" if len(names) > 1 else f"{table}.{figure}"
+
+
 def columns(spec: SweepSpec) -> tuple[str, ...]:
-    """The columns of sweep.csv for ``spec``."""
-    return FIXED_COLUMNS + spec.keys + (REDUCED_ONLY_COLUMNS if spec.engines is Engines.REDUCED else FIGURE_COLUMNS)
+    """The columns of sweep.csv for ``spec``: the fixed ones, the varied keys, then the figures.
+    The reference alone: its own figures (:data:`REDUCED_ONLY_COLUMNS`). One judged engine (the
+    default pair among them, :data:`FIGURE_COLUMNS`): ``diff.*``, ``gate.*``, both engines'
+    figures, the judged engine's loop gap. Several: each judged engine's ``diff.ENGINE.*`` and
+    ``gate.ENGINE.*``, then every engine's figures, then each judged engine's loop gap."""
+    names = sweep_engines(spec.engines)
+    others = names[1:]
+    mine = lambda name: tuple(f"{name}.{k}" for k in ENGINE_FIGURES)  # noqa: E731
+    if not others:
+        figures = mine(REFERENCE) + ("variant_wall_s",)
+    else:
+        figures = (tuple(diff_column(others, x, k) for x in others for k in DIFF_FIGURES)
+                   + tuple(diff_column(others, x, k, "gate") for x in others for k in GATE_FIGURES)
+                   + sum((mine(n) for n in names), ())
+                   + tuple(f"{x}.max_constraint_violation" for x in others) + ("variant_wall_s",))
+    return FIXED_COLUMNS + spec.keys + figures
+
+
+def is_list_column(column: str) -> bool:
+    """A column whose cells are JSON lists (:data:`LIST_COLUMNS`, or an engine's of them)."""
+    return column.startswith("diff.") and column.rsplit(".", 1)[-1] in ("mode_mismatches",
+                                                                        "mode_mismatch_first_times")
 
 
 def _finite(x: Any) -> float | None:
@@ -66,7 +101,7 @@ def parse_cell(column: str, text: str) -> Any:
         return int(text)
     if text == "":
         return None
-    if column in LIST_COLUMNS:
+    if is_list_column(column):
         return json.loads(text)
     if text in ("true", "false"):
         return text == "true"
@@ -115,7 +150,9 @@ def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path,
 def write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary,
                 sensitivity: list[dict] | None = None) -> None:
     """sweep.json: the specification, summary and sensitivities, then the rows read back one by one."""
-    head = {"source": portable_source(source), "engines": spec.engines, "keys": list(spec.keys),
+    engines = engines_value(spec.engines)
+    head = {**({"schema_version": SCHEMA_VERSION} if isinstance(engines, list) else {}),
+            "source": portable_source(source), "engines": engines, "keys": list(spec.keys),
             "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
             "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
                        for v in spec.varies],

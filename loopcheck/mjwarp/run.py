@@ -35,8 +35,9 @@ import numpy as np
 from loopcheck.mujoco_model.build import check_mujoco_version
 from loopcheck.mujoco_model.compile_record import compiling
 from loopcheck.mujoco_model.foreign_output import foreign_output
-from loopcheck.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, known_defects,
-                                         model_structure, prepare, refusing_unimplemented, stack_runs)
+from loopcheck.mujoco_model.port import (MAX_STATE_BYTES, PortRefusal, PortRun, finish, finished, known_defects,
+                                         model_structure, prepare, prepared, refusing_unimplemented, stack_runs,
+                                         states_limit)
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 
@@ -142,11 +143,16 @@ def simulate_mjwarp(scene: Scene, settings: MjwarpSettings = MjwarpSettings()) -
     return simulate_batch([scene], settings)[0]
 
 
-def simulate_batch(scenes: list[Scene], settings: MjwarpSettings = MjwarpSettings()) -> list[EngineResult]:
+def simulate_batch(scenes: list[Scene], settings: MjwarpSettings = MjwarpSettings(), *,
+                   each: bool = False) -> list[EngineResult]:
     """Step variants of one model together, one MJWarp world each: the same structure and step
     count; values may differ where MJWarp keeps them per world (module docstring), and the
     initial state and the loads. Each result's ``wall_s`` is the batch's run time divided by the
     batch's size.
+
+    With ``each``, one outcome per scene: its result or the exception its own run raises
+    (a refusal or NumericalFailure of one variant sinks no other; a variant refused before the
+    run has its world filled by another's run, so the batch keeps its size).
 
     Raises
     ------
@@ -154,12 +160,15 @@ def simulate_batch(scenes: list[Scene], settings: MjwarpSettings = MjwarpSetting
         Scenes of other structures in one batch, variants differing in a model field that MJWarp
         shares between worlds, or what :func:`simulate_mjwarp` refuses.
     NumericalFailure
-        As :func:`simulate_mjwarp`, for the first variant that fails.
+        As :func:`simulate_mjwarp`, for the first variant that fails (without ``each``).
     """
     if not scenes:
         raise ValueError("simulate_batch needs at least one scene")
-    runs = [prepare(scene, settings, "MJWarp", "mjwarp") for scene in scenes]
-    stack_runs(runs, "MJWarp")
+    outcomes, ready = prepared(scenes, lambda scene: prepare(scene, settings, "MJWarp", "mjwarp"), each)
+    if not ready:
+        return outcomes
+    stack_runs([run for _, run in ready], "MJWarp")
+    runs = [run for _, run in ready] + [ready[-1][1]] * (len(scenes) - len(ready))  # the batch's size
     model_fields, opt_fields = _batched_fields(runs)
     need = 4 * len(runs) * (runs[0].port_model.nq + runs[0].port_model.nv) * runs[0].n_steps
     if need > MAX_STATE_BYTES:
@@ -173,15 +182,25 @@ def simulate_batch(scenes: list[Scene], settings: MjwarpSettings = MjwarpSetting
                           compile_s=compile_s, initial_residuals={}, edge_warnings=(),
                           versions={"mujoco_warp": MJWARP_VERSION, "warp": wp.__version__, "mujoco": mujoco.__version__})
     per_step = 4 if settings.integrator == "rk4" else 1
-    results = []
     defect = KNOWN_DEFECT.format(version=MJWARP_VERSION)
-    for k, run in enumerate(runs):
+    for j, (k, run) in enumerate(ready):
         details = replace(batch, initial_residuals=run.initial, edge_warnings=run.edge_notes)
         caveats = known_defects(run, MJWARP_VERSION, DEFECT_CHECKED, defect)
-        results.append(finish(run, qpos[:, k], qvel[:, k], name="mjwarp", engine="MJWarp",
-                              wall_s=wall / len(runs), evaluations_per_step=per_step, details=details,
-                              caveats=caveats))
-    return results
+        outcomes[k] = finished(lambda: finish(run, qpos[:, j], qvel[:, j], name="mjwarp", engine="MJWarp",
+                                              wall_s=wall / len(runs), evaluations_per_step=per_step,
+                                              details=details, caveats=caveats), each)
+    return outcomes
+
+
+def batch_limit(scene: Scene, settings: MjwarpSettings = MjwarpSettings()) -> int:
+    """The most variants of ``scene``'s structure one batch holds: the device's memory (warp's
+    ``total_memory`` of a GPU, half of it for the stored states) and the host's
+    (:data:`~loopcheck.mujoco_model.port.MAX_STATE_BYTES`, which also bounds the states kept on
+    the device) over one variant's states, its model's nq + nv × its steps, in float32."""
+    run = prepare(scene, settings, "MJWarp", "mjwarp")
+    wp.init()
+    device = wp.get_device()
+    return states_limit(run, 4, getattr(device, "total_memory", 0) if device.is_cuda else None)
 
 
 def _differs(a, b) -> bool:

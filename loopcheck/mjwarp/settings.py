@@ -60,3 +60,9 @@ def accuracy_ladder(scene, base, quick: bool = False):
 
     timesteps = (1e-3, 5e-4) if quick else (2e-3, 1e-3, 5e-4, 2.5e-4)
     return fixed_step_ladder(base, "MJWarp", (base.integrator,), ("hard",), timesteps)
+
+BATCH_SIZE = 16
+"""Variants a sweep hands ``simulate_batch`` at once (MJWarp's worlds; ``loopcheck sweep
+--batch-size`` overrides it). A CPU's default: a step launches some hundred kernels whatever the
+number of worlds, so a batch amortises their launch, while a CPU's cores share the worlds' work;
+on a GPU give thousands (docs/performance.md)."""

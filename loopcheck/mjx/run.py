@@ -22,7 +22,8 @@ import numpy as np
 from loopcheck.mujoco_model.build import check_mujoco_version
 from loopcheck.mujoco_model.compile_record import compiling, user_cache_dir
 from loopcheck.mujoco_model.foreign_output import foreign_output
-from loopcheck.mujoco_model.port import PortRun, finish, known_defects, prepare, refusing_unimplemented, stack_runs
+from loopcheck.mujoco_model.port import (PortRun, finish, finished, known_defects, prepare, prepared,
+                                         refusing_unimplemented, stack_runs, states_limit)
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 
@@ -93,34 +94,56 @@ def simulate_mjx(scene: Scene, settings: MjxSettings = MjxSettings()) -> EngineR
     return simulate_batch([scene], settings)[0]
 
 
-def simulate_batch(scenes: list[Scene], settings: MjxSettings = MjxSettings()) -> list[EngineResult]:
+def simulate_batch(scenes: list[Scene], settings: MjxSettings = MjxSettings(), *,
+                   each: bool = False) -> list[EngineResult]:
     """Step variants of one model (the same structure and step count; values may differ: masses,
     dampers, loads, initial state) together, as one ``jax.vmap`` of the scan. Each result's
     ``wall_s`` is the batch's run time divided by the batch's size.
+
+    With ``each``, one outcome per scene: its result or the exception its own run raises
+    (a refusal or NumericalFailure of one variant sinks no other; a variant refused before the
+    run has its slot filled by another's run, so the batch keeps its compiled shape).
 
     Raises
     ------
     PortRefusal (a ValueError)
         Scenes of other structures in one batch, or what :func:`simulate_mjx` refuses.
     NumericalFailure
-        As :func:`simulate_mjx`, for the first variant that fails.
+        As :func:`simulate_mjx`, for the first variant that fails (without ``each``).
     """
     if not scenes:
         raise ValueError("simulate_batch needs at least one scene")
-    runs = [prepare(scene, settings, "MJX", "mjx") for scene in scenes]
-    stack_runs(runs, "MJX")
+    outcomes, runs = prepared(scenes, lambda scene: prepare(scene, settings, "MJX", "mjx"), each)
+    if not runs:
+        return outcomes
+    stack_runs([run for _, run in runs], "MJX")
+    filled = [run for _, run in runs] + [runs[-1][1]] * (len(scenes) - len(runs))  # the compiled shape
     with jax.enable_x64(settings.precision == "float64"):
-        qpos, qvel, compile_s, wall = _scan(runs, settings.precision)
-    details = MjxDetails(backend=jax.default_backend(), precision=settings.precision, batch=len(runs),
+        qpos, qvel, compile_s, wall = _scan(filled, settings.precision)
+    details = MjxDetails(backend=jax.default_backend(), precision=settings.precision, batch=len(filled),
                          compile_s=compile_s, initial_residuals={}, edge_warnings=(),
                          versions={"mjx": MJX_VERSION, "jax": jax.__version__, "mujoco": mujoco.__version__})
     per_step = 4 if settings.integrator == "rk4" else 1
     defect = KNOWN_DEFECT.format(version=MJX_VERSION)
-    return [finish(run, qpos[k], qvel[k], name="mjx", engine="MJX", wall_s=wall / len(runs),
-                   evaluations_per_step=per_step,
-                   details=replace(details, initial_residuals=run.initial, edge_warnings=run.edge_notes),
-                   caveats=known_defects(run, MJX_VERSION, DEFECT_CHECKED, defect))
-            for k, run in enumerate(runs)]
+    for j, (k, run) in enumerate(runs):
+        outcomes[k] = finished(lambda: finish(run, qpos[j], qvel[j], name="mjx", engine="MJX",
+                                              wall_s=wall / len(filled), evaluations_per_step=per_step,
+                                              details=replace(details, initial_residuals=run.initial,
+                                                              edge_warnings=run.edge_notes),
+                                              caveats=known_defects(run, MJX_VERSION, DEFECT_CHECKED, defect)),
+                               each)
+    return outcomes
+
+
+def batch_limit(scene: Scene, settings: MjxSettings = MjxSettings()) -> int:
+    """The most variants of ``scene``'s structure one batch holds: the device's memory (JAX's
+    ``bytes_limit`` on a GPU, half of it for the scan's states) and the host's
+    (:data:`~loopcheck.mujoco_model.port.MAX_STATE_BYTES` for the states read back) over one
+    variant's states, its model's nq + nv × its steps."""
+    run = prepare(scene, settings, "MJX", "mjx")
+    itemsize = 8 if settings.precision == "float64" else 4
+    stats = jax.devices()[0].memory_stats() or {}
+    return states_limit(run, itemsize, stats.get("bytes_limit"))
 
 
 # The compiled scans of this process, by the batch's structure and shapes (a compilation takes
@@ -138,12 +161,38 @@ def _rollout(m, d, us):
     return jax.lax.scan(body, d, us)[1]
 
 
+# Model fields that mjx.step does not read but that MJX compiles in (static arrays of its Model):
+# the keyframes (the port sets the state itself) and the numeric data (where the model records
+# the control sequence; the scan takes the controls as its input). Variants of a load or of an
+# initial state differ there: measured, without this their models did not stack into a batch.
+_UNREAD_PREFIXES = ("key_",)
+_UNREAD = ("numeric_data",)
+
+
+def _stepped_model(run: PortRun, first: PortRun):
+    """``run``'s model for the step, its unread fields (:data:`_UNREAD`) the first run's (a copy:
+    the run's own is MuJoCo C's to read back)."""
+    import copy
+
+    m = run.port_model
+    names = [n for n in dir(m) if n.startswith(_UNREAD_PREFIXES) or n in _UNREAD]
+    differ = [n for n in names if isinstance(getattr(m, n), np.ndarray)
+              and getattr(m, n).shape == getattr(first.port_model, n).shape
+              and not np.array_equal(getattr(m, n), getattr(first.port_model, n))]
+    if not differ:
+        return m
+    m = copy.copy(m)
+    for name in differ:
+        getattr(m, name)[...] = getattr(first.port_model, name)
+    return m
+
+
 def _scan(runs: list[PortRun], precision: str) -> tuple[np.ndarray, np.ndarray, float, float]:
     """qpos and qvel after every step of every run, (batch, n_steps, nq|nv), with the scan's
     compile time and run time (s)."""
     dtype = np.float64 if precision == "float64" else np.float32
     with foreign_output("mjx", "JAX", _LOGGERS), refusing_unimplemented("MJX"):  # JAX starts its device here
-        models = [mjx.put_model(run.port_model) for run in runs]
+        models = [mjx.put_model(_stepped_model(run, runs[0])) for run in runs]
         datas = [mjx.put_data(run.port_model, run.data) for run in runs]
         stack = lambda *leaves: jax.numpy.stack(leaves)  # noqa: E731
         mx = jax.tree_util.tree_map(stack, *models)

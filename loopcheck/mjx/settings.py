@@ -68,3 +68,10 @@ def accuracy_ladder(scene, base, quick: bool = False):
 
     timesteps = (1e-3, 5e-4) if quick else (2e-3, 1e-3, 5e-4, 2.5e-4)
     return fixed_step_ladder(base, "MJX", (base.integrator,), ("hard",), timesteps)
+
+BATCH_SIZE = 16
+"""Variants a sweep hands ``simulate_batch`` at once (one ``vmap``; ``loopcheck sweep --batch-size``
+overrides it). A CPU's default: each batch size is a compilation of its own (about 35 s on a
+2-core CPU), paid once per sweep as the last chunk is padded to it, and a CPU gains little from a
+wider ``vmap`` beyond amortising the dispatch of each step; on a GPU give thousands
+(docs/performance.md)."""

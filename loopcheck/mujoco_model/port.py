@@ -210,3 +210,42 @@ def model_structure(m: mujoco.MjModel) -> tuple:
     """What a port's compile depends on in a model (its sizes and integrator), not its values:
     the models of one batch share it (:func:`stack_runs`)."""
     return (m.nq, m.nv, m.nu, m.nbody, m.njnt, m.neq, m.ntendon, m.nwrap, m.nsite, m.ngeom, int(m.opt.integrator))
+
+
+def prepared(scenes: list[Scene], make, each: bool) -> tuple[list, list[tuple[int, PortRun]]]:
+    """A batch's runs made by ``make(scene)`` (:func:`prepare`), with their scenes' indices, and a
+    list of outcomes by scene: with ``each``, a scene that ``make`` refuses has its exception there
+    (the others still run); without, the first refusal is raised."""
+    outcomes: list = [None] * len(scenes)
+    runs: list[tuple[int, PortRun]] = []
+    for k, scene in enumerate(scenes):
+        try:
+            runs.append((k, make(scene)))
+        except Exception as exc:  # noqa: BLE001 - this variant's own outcome
+            if not each:
+                raise
+            outcomes[k] = exc
+    return outcomes, runs
+
+
+def finished(make, each: bool):
+    """``make()`` (a variant's :func:`finish`), or with ``each`` the exception it raises."""
+    if not each:
+        return make()
+    try:
+        return make()
+    except Exception as exc:  # noqa: BLE001 - this variant's own outcome
+        return exc
+
+
+def states_limit(run: PortRun, itemsize: int, device_bytes: int | None) -> int:
+    """The most variants of ``run``'s structure one batch holds: the host's
+    :data:`MAX_STATE_BYTES` over a variant's states read back (float64, nq + nv per step), and on
+    a device of ``device_bytes`` (None: the host is the device) half of it over a variant's
+    states there (``itemsize`` bytes per number). At least 1."""
+    m = run.port_model
+    numbers = (m.nq + m.nv) * (run.n_steps + 1)
+    limit = MAX_STATE_BYTES // (8 * numbers)
+    if device_bytes:
+        limit = min(limit, int(device_bytes) // 2 // (itemsize * numbers))
+    return max(1, limit)

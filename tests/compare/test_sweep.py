@@ -224,15 +224,15 @@ def test_a_failed_variant_is_a_row_and_the_sweep_goes_on(short_scene, tmp_path, 
 
     import loopcheck.compare.run
 
-    original, calls = loopcheck.compare.run.compare_engines, []
+    original, calls = loopcheck.compare.run.judge, []
 
-    def flaky(scene, **kwargs):  # the second variant's engines fail
+    def flaky(scene, *args, **kwargs):  # the second variant's comparison fails
         calls.append(scene)
         if len(calls) == 2:
             raise NumericalFailure("unstable", "planted")
-        return original(scene, **kwargs)
+        return original(scene, *args, **kwargs)
 
-    monkeypatch.setattr(loopcheck.compare.run, "compare_engines", flaky)
+    monkeypatch.setattr(loopcheck.compare.run, "judge", flaky)
     status, printed, _ = _sweep(capsys, short_scene, tmp_path / "sw", "--vary", "torque.value=[250, 240, 245]",
                                 "--workers", "1")
     rows = _rows(tmp_path / "sw")
@@ -290,7 +290,7 @@ def test_the_pool_yields_rows_in_variant_order_whatever_finishes_first(monkeypat
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("needs forked workers to see the patched variant runner")
 
-    def slow_first(index, values, data, source, keep=False, engines=None):
+    def slow_first(index, values, data, source, keep=False, engines=None, batched=None):
         time.sleep(0.5 if index == 0 else 0.01)
         return {"index": index, "status": "passed", "reason": "", **values, "pid": multiprocessing.current_process().pid}
 

@@ -233,3 +233,45 @@ def test_the_reference_declares_its_truth_and_an_engine_without_one_is_refused(p
     ''')
     with pytest.raises(ValueError, match="truth\\(\\) gave 1 runs, not two"):
         one.truth()
+
+
+FAILING_BATCH = '''
+from dataclasses import dataclass
+
+batches = []
+
+
+def simulate(scene, settings):
+    if scene == "bad":
+        raise ValueError("bad scene")
+    return ("ran", scene, settings.step)
+
+
+def simulate_batch(scenes, settings):  # no `each`: a bad scene sinks the batch
+    batches.append(list(scenes))
+    return [simulate(scene, settings) for scene in scenes]
+
+
+def batch_limit(scene, settings):
+    return 2 if scene == "small" else 0
+'''
+
+
+def test_a_batch_with_each_gives_each_variant_its_own_outcome(package, tmp_path):
+    """each=True: the default loop and a package's batch that raises (it takes no ``each``) both
+    give one outcome per scene, a failing scene's exception in its slot (planted: without the
+    fallback the batch's ValueError escapes)."""
+    bare = package("pkg_loop")
+    base = bare.settings()
+    assert bare.simulate_batch(["a", "b"], base, each=True) == [("ran", "a", 1e-3), ("ran", "b", 1e-3)]
+    engine = package("pkg_failing")
+    (tmp_path / "pkg_failing" / "__init__.py").write_text(FAILING_BATCH)  # before its first import
+    got = engine.simulate_batch(["a", "bad", "c"], base, each=True)
+    assert got[0] == ("ran", "a", 1e-3) and got[2] == ("ran", "c", 1e-3)
+    assert isinstance(got[1], ValueError) and str(got[1]) == "bad scene"
+    assert sys.modules["pkg_failing"].batches == [["a", "bad", "c"]]  # the batch was tried first
+    with pytest.raises(ValueError, match="bad scene"):
+        engine.simulate_batch(["a", "bad"], base)
+    assert engine.batch_limit("small", base) == 2 and bare.batch_limit("small", base) is None
+    with pytest.raises(ValueError, match=r"engine 'failing': batch_limit gave 0, not a whole number >= 1"):
+        engine.batch_limit("big", base)

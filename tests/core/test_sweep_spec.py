@@ -298,13 +298,18 @@ def test_a_scene_file_without_sweep_table_loads_as_before(tmp_path):
 
 def test_engines_of_a_spec_and_of_the_sweep_table():
     grid = (Grid("linkage.c2", (0.9,)),)
-    assert SweepSpec(grid).engines is Engines.BOTH
-    assert SweepSpec(grid, engines="reduced").engines is Engines.REDUCED  # a value string is converted
+    assert SweepSpec(grid).engines == Engines.BOTH.runs == ("reduced", "mujoco")
+    assert SweepSpec(grid, engines="reduced").engines == ("reduced",)  # a word is converted
     assert Engines.REDUCED.runs == ("reduced",) and Engines.BOTH.runs == ("reduced", "mujoco")
     table = {"engines": "reduced", "vary": {"linkage.c2": [0.9, 1.0]}}
-    assert spec_from_table(table).engines is Engines.REDUCED
-    with pytest.raises(SweepSpecError, match=r"^s\.toml: sweep engines \(--engines or sweep\.engines\) must be one of "
-                                             r"both, reduced, got 'mujoco'$"):
-        spec_from_table({**table, "engines": "mujoco"}, "s.toml")
-    with pytest.raises(SweepSpecError, match=r"sweep\.engines.*got \['reduced'\]"):
-        SweepSpec(grid, engines=["reduced"])
+    assert spec_from_table(table).engines == ("reduced",)
+    # a list: a comma-separated string or a TOML array, kept in its order (the registry's check is the sweep's)
+    assert spec_from_table({**table, "engines": "reduced, mjx,pin"}).engines == ("reduced", "mjx", "pin")
+    assert spec_from_table({**table, "engines": ["mjx", "reduced"]}).engines == ("mjx", "reduced")
+    assert SweepSpec(grid, engines=["reduced"]).engines == ("reduced",)
+    for bad, message in ((3, r"must be both, reduced or a list of engine names .*got 3"),
+                         ("reduced,,mjx", r"an empty engine name"), ("reduced,MJX", r"'MJX' is not an engine name"),
+                         ("reduced,mjx,mjx", r"an engine is named twice in 'reduced,mjx,mjx'"), ([], "an empty")):
+        with pytest.raises(SweepSpecError, match=r"^s\.toml: sweep engines \(--engines or sweep\.engines\)[: ].*"
+                                                 + message):
+            spec_from_table({**table, "engines": bad}, "s.toml")
