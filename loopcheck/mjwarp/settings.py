@@ -43,3 +43,13 @@ class MjwarpSettings(ModelOptions):
 
 
 Settings = MjwarpSettings  # the name every engine's settings have (loopcheck.registry)
+
+
+# What the MJWarp engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the MuJoCo-family model's (loopcheck.mujoco_model.options).
+from loopcheck.mujoco_model.options import INTEGRATORS, grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MjwarpSettings) -> tuple:
+    """The scene's settings at each integrator and each of 1 ms, 0.1 ms, 10 µs."""
+    return integrator_probes(base, INTEGRATORS)

@@ -51,3 +51,14 @@ class MjxSettings(ModelOptions):
 
 
 Settings = MjxSettings  # the name every engine's settings have (loopcheck.registry)
+
+
+# What the MJX engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the MuJoCo-family model's (loopcheck.mujoco_model.options), over MJX's integrators.
+from loopcheck.mujoco_model.options import grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MjxSettings) -> tuple:
+    """The scene's settings at each of MJX's integrators and each of 1 ms, 0.1 ms, 10 µs (each a
+    compilation and a run: minutes on a CPU)."""
+    return integrator_probes(base, INTEGRATORS)

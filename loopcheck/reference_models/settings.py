@@ -40,3 +40,13 @@ class MujocoSettings(ModelOptions):
 Settings = MujocoSettings  # the name every engine's settings have (loopcheck.registry)
 __all__ = ["DEFAULT_INTEGRATOR", "DEFAULT_ITERATIONS", "DEFAULT_SOLIMP", "DEFAULT_TOLERANCE", "INTEGRATORS",
            "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings"]
+
+
+# What the MuJoCo engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the model's (loopcheck.mujoco_model.options), shared with its ports.
+from loopcheck.mujoco_model.options import grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MujocoSettings) -> tuple:
+    """The scene's settings at each integrator and each of 1 ms, 0.1 ms, 10 µs."""
+    return integrator_probes(base, INTEGRATORS)
