@@ -590,8 +590,12 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
     check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
+    from loopcheck.registry import DEFAULT_ENGINES
+
+    engines = args.engines or DEFAULT_ENGINES
+    _load_extras(engines)  # a missing extra: one line, before any work
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
-                                                           file=sys.stderr, flush=True))
+                                                           file=sys.stderr, flush=True), engines=engines)
     for line in table_lines(results):
         print(line)
     write_stress(results, args.out, committed=lambda paths: print(f"wrote {paths[0]}", flush=True))
@@ -855,11 +859,18 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
                        description="Run every hard case (dead centres, near change point, stiff damper, "
                                    "long conservative run, fast crank, off-grid pulse edge, gravity) "
-                                   "through both engines; print a table of each engine's status, "
+                                   "through the engines (--engines); print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
     _add_out_folder(p, "stress")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    from loopcheck.registry import DEFAULT_ENGINES, REFERENCE
+
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help=f"the engines each case runs, comma-separated (any of {', '.join(ENGINES)}; default "
+                        f"{','.join(DEFAULT_ENGINES)}), the reference {REFERENCE} among them, each judged by its own "
+                        "tolerances as check --engines judges it, with its declared probes where a case asks for "
+                        "them; an engine's failure or refusal is its verdict in the case")
     p.set_defaults(func=cmd_stress)
 
     p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
