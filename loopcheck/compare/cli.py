@@ -630,6 +630,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.engines is not None:  # the flag overrides the table's engines only when given
         spec = replace(spec, engines=args.engines)
     check(data, spec, path)  # before any work: every key, the nominal scene and each key's extremes
+    if args.sensitivity_engines:  # before any work: each engine installed and declaring its peak accuracy
+        from .sensitivity import check_engines_declare
+
+        _load_extras(args.sensitivity_engines)
+        check_engines_declare(data, spec, path, args.sensitivity_engines)
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE), inputs=[path])
     if args.resume and args.keep_trajectories:
         raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
@@ -643,10 +648,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
     try:
         found = None
-        if args.sensitivity:
+        if args.sensitivity or args.sensitivity_engines:
             from .sensitivity import sensitivities, sensitivity_lines
 
-            items = sensitivities(data, spec, path)
+            items = sensitivities(data, spec, path, **({"engines": args.sensitivity_engines}
+                                                       if args.sensitivity_engines else {}))
             print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
             found = [s.as_dict() for s in items]
         def said(summary, paths) -> None:  # with the files in place, before a held signal comes
@@ -923,6 +929,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensitivity", action="store_true",
                    help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
+    p.add_argument("--sensitivity-engines", type=_engines, default=None, metavar="LIST",
+                   help="--sensitivity with each engine of the list (comma-separated, the reference among them): "
+                        "each engine's own d(peak)/d(key), with the steps it chose at the nominal scene frozen, "
+                        "printed beside the reference's (an engine that declares no peak accuracy is refused)")
     p.set_defaults(func=cmd_sweep)
 
     return parser

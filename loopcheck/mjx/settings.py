@@ -62,3 +62,17 @@ def stress_probes(scene, base: MjxSettings) -> tuple:
     """The scene's settings at each of MJX's integrators and each of 1 ms, 0.1 ms, 10 µs (each a
     compilation and a run: minutes on a CPU)."""
     return integrator_probes(base, INTEGRATORS)
+
+
+# Sensitivity's ε: MJX runs the MuJoCo engine's model with its RK4 in float64 and MuJoCo C reads its
+# states and refines the peak as for MuJoCo (loopcheck.mujoco_model.port), so its peak carries the
+# same sawtooth against a parameter as the summit crosses the step grid: MuJoCo's figure
+# (loopcheck.reference_models.settings.PEAK_ACCURACY, 3e-6). Measured for MJX on the seed over 0.2 s
+# (the damper coefficient; the peak at the horizon, where no summit moves): MJX_NOISE.
+PEAK_ACCURACY = 3e-6
+PEAK_ACCURACY_FLOAT32 = 3e-4  # float32: MJWarp's figure (its settings module), the same round-off
+
+
+def peak_accuracy(settings: MjxSettings) -> float:
+    """ε: ``PEAK_ACCURACY`` in float64, ``PEAK_ACCURACY_FLOAT32`` in float32."""
+    return PEAK_ACCURACY if settings.precision == "float64" else PEAK_ACCURACY_FLOAT32
