@@ -665,7 +665,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     finally:
         if client is not None:
             client.close()
-    return EXIT_FAILED if summary.failed_any else EXIT_OK
+    unmeasured = found is not None and any("failure" in item for item in found)  # an engine's sensitivity failed
+    return EXIT_FAILED if summary.failed_any or unmeasured else EXIT_OK
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:

@@ -63,6 +63,27 @@ class Sensitivity:
                 "engine": self.engine, "frozen_step": self.frozen_step}
 
 
+@dataclass(frozen=True)
+class SensitivityFailure:
+    """An engine other than the reference whose run failed or was refused at the nominal scene or
+    near it: its line (``failure``, naming the key and value), in the place of its sensitivity to
+    ``key``; the study goes on with the other engines (a failed run of the reference ends it)."""
+
+    key: str
+    engine: str
+    failure: str
+
+    def __post_init__(self):
+        if self.engine == REFERENCE or self.engine not in ENGINES:
+            raise ValueError(f"SensitivityFailure.engine must be a registered engine other than the reference, "
+                             f"got {self.engine!r}")
+        if not self.failure:
+            raise ValueError("SensitivityFailure.failure must say why")
+
+    def as_dict(self) -> dict[str, str]:
+        return {"key": self.key, "engine": self.engine, "failure": self.failure}
+
+
 def _where(key: str, values: Mapping[str, float]) -> str:
     return f"the sensitivity to '{key}' needs the scene at {key} = {values[key]:.10g}, near its nominal value"
 
@@ -128,31 +149,52 @@ def check_engines_declare(data: Mapping[str, Any], spec: SweepSpec, source: str,
 
 
 def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memory>",
-                  engines: Sequence[str] = (REFERENCE,)) -> list[Sensitivity]:
+                  engines: Sequence[str] = (REFERENCE,)) -> list[Sensitivity | SensitivityFailure]:
     """d(peak |ω|)/dp for every key of ``spec`` at the nominal scene (module docstring) and every
     engine of ``engines`` (the reference by default): for each, a nominal run, then four runs per
-    key, the other keys at their nominal values; by key, the engines in the list's order.
+    key, the other keys at their nominal values; by key, the engines in the list's order. Another
+    engine's failed or refused run is its :class:`SensitivityFailure` for the key (for every key when
+    it is the nominal run), and the study goes on.
 
     Raises ValueError (before any run) when an engine declares no peak accuracy; SweepSpecError
-    naming the key when the scene is invalid at p0 ± 2h; NumericalFailure (naming it and the
-    engine) when a run fails there.
+    naming the key when the scene is invalid at p0 ± 2h; NumericalFailure (naming it) when a run
+    of the reference fails there.
     """
-    engines = tuple(engines)
+    from loopcheck.errors import NumericalFailure
+
+    engines = tuple(sorted(engines, key=lambda e: e != REFERENCE))  # the reference's rows first
     check_engines_declare(data, spec, source, engines)
     base = {k: v for k, v in data.items() if k != SWEEP_TABLE}
     nominal = nominal_values(base, spec, source)
-    runs = {engine: _run(base, nominal, spec.keys[0], source, engine) for engine in engines}
+    runs, failed = {}, {}
+    for engine in engines:
+        try:
+            runs[engine] = _run(base, nominal, spec.keys[0], source, engine)
+        except (NumericalFailure, ValueError) as exc:
+            if engine == REFERENCE or isinstance(exc, SweepSpecError):
+                raise
+            failed[engine] = _failure_line(exc)
     out = []
     for v in spec.varies:
         p0 = nominal[v.key]
         (low, _), (high, _) = v.extremes
         scale = abs(p0) or (high - low) or 1.0
         for engine in engines:
+            if engine in failed:
+                out.append(SensitivityFailure(v.key, engine, failed[engine]))
+                continue
             frozen = runs[engine].settings
             eps = ENGINES[engine].peak_accuracy(frozen)
             peak0 = abs(runs[engine].peak.omega)
             h = scale * eps ** (1.0 / 3.0)
-            at = {k: _peak(base, {**nominal, v.key: p0 + k * h}, v.key, source, engine, frozen) for k in (-2, -1, 1, 2)}
+            try:
+                at = {k: _peak(base, {**nominal, v.key: p0 + k * h}, v.key, source, engine, frozen)
+                      for k in (-2, -1, 1, 2)}
+            except (NumericalFailure, ValueError) as exc:
+                if engine == REFERENCE or isinstance(exc, SweepSpecError):
+                    raise
+                out.append(SensitivityFailure(v.key, engine, _failure_line(exc)))
+                continue
             d_h = (at[1] - at[-1]) / (2.0 * h)
             d_2h = (at[2] - at[-2]) / (4.0 * h)
             out.append(Sensitivity(key=v.key, nominal=p0, step=h, peak=peak0, derivative=d_h + (d_h - d_2h) / 3.0,
@@ -161,7 +203,14 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
     return out
 
 
-def sensitivity_lines(items: list[Sensitivity], unit: str = "rad/s") -> list[str]:
+def _failure_line(exc: Exception) -> str:
+    from loopcheck.errors import NumericalFailure
+
+    line = " ".join(str(exc).split())
+    return f"numerical failure ({exc.reason}): {line}" if isinstance(exc, NumericalFailure) else f"refused: {line}"
+
+
+def sensitivity_lines(items: list[Sensitivity | SensitivityFailure], unit: str = "rad/s") -> list[str]:
     """A table: key, nominal value, step, d(peak)/dp and its error estimate; with several engines,
     each engine's row under the reference's with its difference from it (relative to it), and the
     engines' nominal peaks and frozen steps."""
@@ -175,18 +224,25 @@ def sensitivity_lines(items: list[Sensitivity], unit: str = "rad/s") -> list[str
         return lines
     first = {}
     for s in items:
-        first.setdefault(s.engine, s)
+        if isinstance(s, Sensitivity):
+            first.setdefault(s.engine, s)
     peaks = ", ".join(f"{e} {first[e].peak:.10g}" + (f" (step frozen at {first[e].frozen_step:g} s)"
-                                                      if first[e].frozen_step is not None else "") for e in engines)
+                                                      if first[e].frozen_step is not None else "") for e in first)
     lines = [f"d(peak |omega|)/dp at the nominal scene, each engine's own (central differences at h and 2h, "
              f"Richardson); peaks in {unit}: {peaks}",
              f"  {'key':32s} {'engine':>8s} {'nominal':>12s} {'step h':>10s} {'d(peak)/dp':>14s} {'error est.':>10s} "
              f"{'vs reference':>12s}"]
     reference = {s.key: s for s in items if s.engine == REFERENCE}
+    shown = set()
     for s in items:
+        key = "" if s.key in shown else s.key
+        shown.add(s.key)
+        if isinstance(s, SensitivityFailure):
+            lines.append(f"  {key:32s} {s.engine:>8s} {s.failure}")
+            continue
         ref = reference.get(s.key)
         versus = ("" if s.engine == REFERENCE or ref is None else
                   f"{(s.derivative - ref.derivative) / abs(ref.derivative):+12.2e}" if ref.derivative else "-")
-        lines.append(f"  {s.key if s.engine == engines[0] else '':32s} {s.engine:>8s} {s.nominal:12.6g} "
+        lines.append(f"  {key:32s} {s.engine:>8s} {s.nominal:12.6g} "
                      f"{s.step:10.3g} {s.derivative:14.8g} {s.error:10.2g} {versus:>12s}".rstrip())
     return lines

@@ -22,7 +22,7 @@ from dataclasses import replace
 import pytest
 
 from loopcheck.compare.engines import check_engines
-from loopcheck.compare.sensitivity import _frozen, sensitivities
+from loopcheck.compare.sensitivity import SensitivityFailure, _frozen, sensitivities, sensitivity_lines
 from loopcheck.compare.stress import Case, RunStatus, run_catalogue, run_case, stress_data, table_lines
 from loopcheck.errors import FailureReason
 from loopcheck.registry import ENGINES, REFERENCE, Rung
@@ -222,3 +222,24 @@ def test_the_fake_engine_reaches_stress_and_sensitivity_as_commands(tmp_path):
     reference, fake = recorded
     assert (reference["engine"], fake["engine"]) == ("reduced", "fake")
     assert abs(fake["derivative"] - reference["derivative"]) <= fake["error"] + reference["error"]
+
+
+def test_an_engine_that_fails_near_the_nominal_scene_is_its_line_and_the_sensitivity_goes_on(tmp_path):
+    """MuJoCo's RK4 at 1 ms loses the stiff damper's loop: its sensitivity is that failure, in one line
+    naming the key, and the reference's is computed and printed as without it."""
+    stiff = (ROOT / "scenes" / "hard" / "stiff_damper.toml").read_text()
+    stiff = stiff.replace("timestep = 1e-4", "timestep = 1e-3").replace("horizon = 2.0", f"horizon = {SHORT}")
+    (tmp_path / "stiff.toml").write_text(stiff, encoding="utf-8")
+    data, _ = load_sweep(str(tmp_path / "stiff.toml"))
+    spec = spec_from_args(["dampers.0.coefficient=1e6:2e6:2"])
+    items = sensitivities(data, spec, str(tmp_path), engines=("mujoco", "reduced"))
+    reference, failed = items
+    assert reference.engine == "reduced" and math.isfinite(reference.derivative)  # the reference's rows first
+    assert isinstance(failed, SensitivityFailure) and (failed.engine, failed.key) == ("mujoco", "dampers.0.coefficient")
+    assert failed.failure.startswith("numerical failure (constraint-drift): mujoco: the sensitivity to "
+                                     "'dampers.0.coefficient' needs the scene at dampers.0.coefficient = ")
+    alone = sensitivities(data, spec, str(tmp_path))
+    assert alone == [reference]
+    lines = sensitivity_lines(items)
+    assert lines[-1].split()[:4] == ["mujoco", "numerical", "failure", "(constraint-drift):"]
+    assert failed.as_dict() == {"key": "dampers.0.coefficient", "engine": "mujoco", "failure": failed.failure}
