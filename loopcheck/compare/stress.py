@@ -111,6 +111,7 @@ class EngineOutcome:
     result: EngineResult | None = field(default=None, repr=False)
     comparison: Comparison | None = field(default=None, repr=False)
     figures: Mapping[str, Any] = field(default_factory=dict)
+    known_defects: tuple[str, ...] = ()  # the engine's known defects that bear on its run, as check prints them
 
     def __post_init__(self):
         if not isinstance(self.status, (RunStatus, FailureReason)):
@@ -226,10 +227,12 @@ def _run_engines(scene: Scene, engines: tuple[str, ...]) -> list[EngineOutcome]:
             continue
         v = check.verdict(name)
         if v.comparison is None:
-            outcomes.append(EngineOutcome(name, _failure_status(v.failure), v.failure))
+            outcomes.append(EngineOutcome(name, _failure_status(v.failure), v.failure,
+                                          known_defects=v.known_defects))
         else:
             outcomes.append(EngineOutcome(name, RunStatus.OK, result=v.comparison.other, comparison=v.comparison,
-                                          figures=_run_figures(v.comparison.other, v.comparison)))
+                                          figures=_run_figures(v.comparison.other, v.comparison),
+                                          known_defects=v.known_defects))
     return outcomes
 
 
@@ -250,6 +253,7 @@ def run_case(case: Case, engines: tuple[str, ...] = DEFAULT_ENGINES) -> CaseResu
         elif o.comparison is not None:
             where = "gate" if len(others) == 1 else f"gate ({o.engine})"
             problems += [f"{where}: {f}" for f in o.comparison.gate.failures]
+        notes += [f"{label} known defect: {defect}" for defect in o.known_defects]
 
     reference = outcomes[0].result
     if reference is not None:
@@ -462,11 +466,12 @@ STRESS_FILES = ("stress.json",)
 
 def stress_data(results: list[CaseResult]) -> dict:
     """stress.json's content (schema :data:`SCHEMA_VERSION`): the engines, and per case its verdict,
-    each engine's outcome (status, failure line, figures), problems, notes and the case's figures."""
+    each engine's outcome (status, failure line, figures, known defects), problems, notes and the case's figures."""
     return {"schema_version": SCHEMA_VERSION, "engines": list(results[0].engines if results else DEFAULT_ENGINES),
             "cases": [{"case": r.name, "passed": r.passed,
                        "engines": {o.engine: {"status": o.status.value, "failure": o.failure,
-                                              "figures": dict(o.figures)} for o in r.outcomes},
+                                              "figures": dict(o.figures), "known_defects": list(o.known_defects)}
+                                   for o in r.outcomes},
                        "problems": list(r.problems), "notes": list(r.notes), "figures": dict(r.figures)}
                       for r in results]}
 

@@ -146,7 +146,8 @@ def test_each_engine_in_a_stress_case_has_the_verdict_check_gives(tmp_path, name
     outcome, verdict = result.outcome(name), check.verdict(name)
     assert result.engines == ("reduced", name)
     assert outcome.passed == verdict.passed and result.passed == check.passed
-    assert (outcome.failure is None) == (verdict.failure is None)
+    assert outcome.failure == verdict.failure and outcome.known_defects == verdict.known_defects
+    assert all(f"{ENGINES[name].label} known defect: {d}" in result.notes for d in outcome.known_defects)
     if outcome.comparison is not None:
         assert outcome.comparison.gate.tolerances == load_scene(path).tolerances_for(name)
         assert outcome.figures["peak_omega_rel"] == verdict.comparison.diff.peak_omega_rel
