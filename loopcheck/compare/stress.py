@@ -427,7 +427,8 @@ def table_lines(results: list[CaseResult]) -> list[str]:
     differences, loop violation, drift per revolution and wall times on the same line, with several
     one line per engine under the case's."""
     engines = results[0].engines if results else DEFAULT_ENGINES
-    statuses = " ".join(f"{name:>9s}" for name in engines)
+    w = max([9, *(len(o.status.value) for r in results for o in r.outcomes)])  # a status column's width
+    statuses = " ".join(f"{name:>{w}s}" for name in engines)
     pair = len(engines) == 2
     if pair:
         lines = [f"{'case':18s} {statuses} {'peak rel':>8s} {'max|dq|':>8s} {'loop (m)':>8s} {'drift/rev':>17s} "
@@ -437,7 +438,7 @@ def table_lines(results: list[CaseResult]) -> list[str]:
                  f"{'':18s} {'engine':>9s} {'peak rel':>8s} {'max|dq|':>8s} {'loop (m)':>8s} {'drift/rev':>9s} "
                  f"{'wall (s)':>8s}"]
     for r in results:
-        row = " ".join(f"{o.status.value:>9s}" for o in r.outcomes)
+        row = " ".join(f"{o.status.value:>{w}s}" for o in r.outcomes)
         verdict = "PASS" if r.passed else "FAIL"
         if pair:
             ref, other = (o.figures for o in r.outcomes)
