@@ -2,14 +2,14 @@
 
 For each varied key p of a sweep (nominal p0: the scene's value, or the spec's centre where the
 file gives none), central differences of an engine's continuous peak |ω| P(p) (the scene's own
-settings of that engine; for the reduced reference DOP853 at rtol 1e-12 by default) at two steps h
-and 2h:
+settings of that engine; for the reference, :data:`loopcheck.registry.REFERENCE`, DOP853 at rtol
+1e-12 by default) at two steps h and 2h:
 
     D(h) = (P(p0 + h) − P(p0 − h)) / 2h,    D = D(h) + (D(h) − D(2h)) / 3   (Richardson)
 
 D(h) has a truncation error c h² and a noise error of about ε |P| / h, where ε is the peak's
-relative accuracy the engine declares (:meth:`loopcheck.registry.Engine.peak_accuracy`; the reduced
-engine's is 10 × rtol). The step h = s ε^(1/3) balances the two (s = |p0|, or the spread of the
+relative accuracy the engine declares (:meth:`loopcheck.registry.Engine.peak_accuracy`; the
+reference's is 10 × rtol). The step h = s ε^(1/3) balances the two (s = |p0|, or the spread of the
 key's spec when p0 = 0, or 1). The estimate of D's error is |D(h) − D(2h)| / 3 (the truncation left
 in D(h); D itself is better, O(h⁴)) plus ε |P| / h. A peak that jumps between two extrema inside
 ±2h makes D(h) and D(2h) disagree, and the estimate says so. Units: rad/s (m/s for a prismatic
@@ -17,7 +17,7 @@ input) per unit of the key.
 
 Every engine of the list computes its own D, at its own ε, with what it chose by itself at the
 nominal scene frozen for the runs at p0 ± h, ± 2h: a setting left to the engine (None in its
-settings, e.g. MuJoCo's automatic timestep) takes the value its nominal run used
+settings, e.g. an automatic timestep) takes the value its nominal run used
 (:attr:`loopcheck.results.EngineResult.settings`), so that its step grid does not move with p. Its D
 is its own peak's slope, printed beside the reference's: an engine whose peak depends on where
 the summit falls on its step grid shows it there.

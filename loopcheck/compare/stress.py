@@ -1,7 +1,7 @@
 """Hard cases: a catalogue of scenes under ``scenes/hard/`` and what each engine does with them.
 
 Every case runs each engine of the list (by default :data:`loopcheck.registry.DEFAULT_ENGINES`, the
-reduced reference and MuJoCo) with the scene's own settings, each judged against the reference by
+design card's pair) with the scene's own settings, each judged against the reference by
 its own gate, as ``loopcheck check --engines`` judges it (:func:`loopcheck.compare.engines.check_engines`:
 an engine's failure or refusal is its verdict in the case, and the catalogue goes on), plus the
 checks its kind of difficulty calls for, engine by engine: coordinate switches at dead centres (the
@@ -82,7 +82,7 @@ CATALOGUE = (
     Case("off_grid_edge", "hard/off_grid_edge.toml", off_grid_edge=True),
     Case("gravity", "hard/gravity.toml", energy_drift=True),
     # General linkages: a slider-driven slider-crank through its dead centres (the slide cannot
-    # drive there: the reduced solver must change coordinate), a six-bar near a toggle.
+    # drive there: the reference must change coordinate), a six-bar near a toggle.
     Case("slider_dead_centres", "mechanisms/slider_crank_driven_slider.toml", must_switch=True),
     Case("sixbar_near_toggle", "mechanisms/stephenson3_near_toggle.toml"),
 )
@@ -277,11 +277,11 @@ def run_case(case: Case, engines: tuple[str, ...] = DEFAULT_ENGINES) -> CaseResu
     return CaseResult(case.name, not problems, outcomes, tuple(problems), figures, tuple(notes))
 
 
-def _check_switches(reduced, notes: list) -> list[str]:
-    switches = reduced.details.switches
-    joints = reduced.joints
+def _check_switches(reference: EngineResult, notes: list) -> list[str]:
+    switches = reference.details.switches
+    joints = reference.joints
     if not switches:
-        return ["the reduced solver never switched coordinate"]
+        return [f"{ENGINES[REFERENCE].label} never switched coordinate"]
     same_time = np.diff(joints.t) == 0.0
     jump_x = float(np.max(np.abs(np.diff(joints.x, axis=0))[same_time])) if same_time.any() else 0.0
     jump_v = float(np.max(np.abs(np.diff(joints.xdot, axis=0))[same_time])) if same_time.any() else 0.0
