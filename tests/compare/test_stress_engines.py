@@ -6,17 +6,12 @@ catalogue goes on); the reference's own sensitivity (another engine's d(peak)/dp
 within the two error bars, where the engine has no known defect); the engines' declarations read
 without loading an engine. The optional engines (Pinocchio, MJX, MJWarp) run the seed over 0.2 s
 and are skipped without their extra; MJX's known defect (docs/engines.md) means no test here
-requires it to pass. The fake engine of tests/compare/test_fake_engine.py, installed for the
-test, reaches ``loopcheck stress --engines`` and ``loopcheck sweep --sensitivity-engines`` as commands.
+requires it to pass. The fake engine's commands: tests/compare/test_fake_engine_studies.py.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
 from dataclasses import replace
 
 import pytest
@@ -25,13 +20,12 @@ from loopcheck.compare.engines import check_engines
 from loopcheck.compare.sensitivity import SensitivityFailure, _frozen, sensitivities, sensitivity_lines
 from loopcheck.compare.stress import Case, RunStatus, run_catalogue, run_case, stress_data, table_lines
 from loopcheck.errors import FailureReason
-from loopcheck.registry import ENGINES, REFERENCE, Rung
+from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.scenefile import load_scene
 from loopcheck.sweep_spec import spec_from_args
 from loopcheck.compare.sweep_scene import load_sweep
 
 from helpers import ROOT, SEED_SCENE
-from test_fake_engine import install
 
 SHORT = 0.2  # s: the seed's first 0.2 s (the plumbing and the verdicts are the subject)
 OPTIONAL = ("pin", "mjx", "mjwarp")
@@ -175,54 +169,6 @@ def test_each_engine_has_its_own_sensitivity_beside_the_reference(tmp_path, name
         assert SHORT / own.frozen_step == pytest.approx(round(SHORT / own.frozen_step))  # the grid step
     if name != "mjx":
         assert abs(own.derivative - reference.derivative) <= own.error + reference.error, (own, reference)
-
-
-# The fake engine, installed for the test, as commands
-
-def _cli(args, folder, cwd):
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(folder), str(ROOT), os.environ.get("PYTHONPATH"))
-                                                       if p)}
-    return subprocess.run([sys.executable, "-m", "loopcheck.compare.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=120)
-
-
-@pytest.mark.slow  # three fresh processes (~2 s each): the subprocess is what shows an installed distribution
-def test_the_fake_engine_reaches_stress_and_sensitivity_as_commands(tmp_path):
-    """``loopcheck stress --engines reduced,fake --case dead_centre`` runs it beside the reference and
-    judges it (the fake engine is the reduced one at rtol 1e-10: it passes); the sensitivity refuses
-    it in one line while it declares no peak accuracy (exit 2, nothing written), and prints its own
-    d(peak)/dp beside the reference's once it declares one."""
-    (tmp_path / "site").mkdir()
-    folder = install(tmp_path / "site")
-    out = tmp_path / "stress"
-    done = _cli(["stress", "--engines", "reduced,fake", "--case", "dead_centre", "--out", str(out)], folder, tmp_path)
-    assert done.returncode == 0, done.stdout + done.stderr
-    lines = done.stdout.splitlines()
-    assert lines[0].split()[:3] == ["case", "reduced", "fake"]
-    assert lines[1].split()[:3] == ["dead_centre", "ok", "ok"] and lines[1].endswith("PASS")
-    case = json.loads((out / "stress.json").read_text())["cases"][0]
-    assert case["engines"]["fake"]["status"] == "ok" and case["engines"]["fake"]["figures"]["peak_omega_rel"] < 1e-6
-
-    scene = _short_seed(tmp_path)
-    sweep = ["sweep", scene, "--vary", "dampers.0.coefficient=50,60", "--sensitivity-engines", "reduced,fake",
-             "--workers", "1", "--out"]
-    done = _cli([*sweep, str(tmp_path / "refused")], folder, tmp_path)
-    assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.strip().splitlines() == [
-        "loopcheck: error: engine 'fake' declares no peak accuracy (peak_accuracy(settings) in fake_engine.settings), "
-        "which sensitivity needs to choose its steps"]
-    assert not (tmp_path / "refused").exists()
-    with open(folder / "fake_engine" / "settings.py", "a", encoding="utf-8") as f:
-        f.write("\n\ndef peak_accuracy(settings):\n    return 10.0 * settings.rtol\n")
-    done = _cli([*sweep, str(tmp_path / "sensitivity")], folder, tmp_path)
-    assert done.returncode == 0, done.stdout + done.stderr
-    rows = [line.split() for line in done.stdout.splitlines() if line.split()[:1] in (["dampers.0.coefficient"],
-                                                                                      ["fake"])]
-    assert [row[0] for row in rows] == ["dampers.0.coefficient", "fake"] and rows[0][1] == "reduced"
-    recorded = json.loads((tmp_path / "sensitivity" / "sweep.json").read_text())["sensitivity"]
-    reference, fake = recorded
-    assert (reference["engine"], fake["engine"]) == ("reduced", "fake")
-    assert abs(fake["derivative"] - reference["derivative"]) <= fake["error"] + reference["error"]
 
 
 def test_an_engine_that_fails_near_the_nominal_scene_is_its_line_and_the_sensitivity_goes_on(tmp_path):
