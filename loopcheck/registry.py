@@ -264,6 +264,20 @@ class Engine:
             raise ValueError(f"engine '{self.name}': peak_accuracy gave {eps!r}, not a relative accuracy in (0, 1)")
         return float(eps)
 
+    def fixed_step(self, settings: Any) -> float | None:
+        """The step (s) of the engine's fixed step grid at ``settings`` as a run used them
+        (:attr:`EngineResult.settings`), or None when its steps adapt: the settings module's
+        ``fixed_step(settings) -> float | None``, by default None. ``loopcheck stress`` measures the
+        error of a load edge off that grid."""
+        declared = self._declared("fixed_step")
+        if declared is None:
+            return None
+        h = declared(settings)
+        if h is not None and (isinstance(h, bool) or not isinstance(h, (int, float))
+                              or not math.isfinite(h) or h <= 0.0):
+            raise ValueError(f"engine '{self.name}': fixed_step gave {h!r}, not a positive step in s or None")
+        return None if h is None else float(h)
+
     @property
     def batch_size(self) -> int:
         """How many variants of one structure a sweep hands ``simulate_batch`` at once: the settings

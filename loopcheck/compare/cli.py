@@ -560,8 +560,12 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if unknown:
         raise UsageError(f"unknown case {sorted(unknown)[0]!r}; cases: {', '.join(c.name for c in CATALOGUE)}")
     check_folder(args.out, (*STRESS_FILES, MANIFEST_FILE))  # before any work
+    from loopcheck.registry import DEFAULT_ENGINES
+
+    engines = args.engines or DEFAULT_ENGINES
+    _load_extras(engines)  # a missing extra: one line, before any work
     results = run_catalogue(cases, progress=lambda r: print(f"  {r.name}: {'pass' if r.passed else 'FAIL'}",
-                                                           file=sys.stderr, flush=True))
+                                                           file=sys.stderr, flush=True), engines=engines)
     for line in table_lines(results):
         print(line)
     write_stress(results, args.out, committed=lambda paths: print(f"wrote {paths[0]}", flush=True))
@@ -607,6 +611,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         if batched:
             raise UsageError(f"--scheduler runs engines variant by variant; {', '.join(batched)} run in batches in "
                              "this process: give --batch-size 1 with --scheduler")
+    if args.sensitivity_engines:  # before any work: each engine installed and declaring its peak accuracy
+        from .sensitivity import check_engines_declare
+
+        _load_extras(args.sensitivity_engines)
+        check_engines_declare(data, spec, path, args.sensitivity_engines)
     check_folder(args.out, (*sweep_files(spec, args.keep_trajectories), MANIFEST_FILE), inputs=[path])
     if args.resume and args.keep_trajectories:
         raise UsageError("--resume and --keep-trajectories: the journal keeps the rows, not the trajectories")
@@ -620,10 +629,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         client = connect(args.scheduler)  # before any work: an unreachable scheduler is one line, exit 2
     try:
         found = None
-        if args.sensitivity:
+        if args.sensitivity or args.sensitivity_engines:
             from .sensitivity import sensitivities, sensitivity_lines
 
-            items = sensitivities(data, spec, path)
+            items = sensitivities(data, spec, path, **({"engines": args.sensitivity_engines}
+                                                       if args.sensitivity_engines else {}))
             print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
             found = [s.as_dict() for s in items]
         def said(summary, paths) -> None:  # with the files in place, before a held signal comes
@@ -637,7 +647,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     finally:
         if client is not None:
             client.close()
-    return EXIT_FAILED if summary.failed_any else EXIT_OK
+    unmeasured = found is not None and any("failure" in item for item in found)  # an engine's sensitivity failed
+    return EXIT_FAILED if summary.failed_any or unmeasured else EXIT_OK
 
 
 def _add_reference_arguments(p: argparse.ArgumentParser) -> None:
@@ -821,11 +832,18 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stress", help="run the hard-case catalogue (scenes/hard/)",
                        description="Run every hard case (dead centres, near change point, stiff damper, "
                                    "long conservative run, fast crank, off-grid pulse edge, gravity) "
-                                   "through both engines; print a table of each engine's status, "
+                                   "through the engines (--engines); print a table of each engine's status, "
                                    "differences, constraint violation, energy drift and wall time; "
                                    "write stress.json. Exit 1 if any case does not behave as expected.")
     _add_out_folder(p, "stress")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    from loopcheck.registry import DEFAULT_ENGINES, REFERENCE
+
+    p.add_argument("--engines", type=_engines, default=None, metavar="LIST",
+                   help=f"the engines each case runs, comma-separated (any of {', '.join(ENGINES)}; default "
+                        f"{','.join(DEFAULT_ENGINES)}), the reference {REFERENCE} among them, each judged by its own "
+                        "tolerances as check --engines judges it, with its declared probes where a case asks for "
+                        "them; an engine's failure or refusal is its verdict in the case")
     p.set_defaults(func=cmd_stress)
 
     p = sub.add_parser("sweep", help="a family of scene variants through both engines, gated",
@@ -884,6 +902,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensitivity", action="store_true",
                    help="also print d(peak |omega|)/d(key) at the nominal scene for each varied key, by central "
                         "differences of the reduced solver at two steps with an error estimate (in sweep.json too)")
+    p.add_argument("--sensitivity-engines", type=_engines, default=None, metavar="LIST",
+                   help="--sensitivity with each engine of the list (comma-separated, the reference among them): "
+                        "each engine's own d(peak)/d(key), with the steps it chose at the nominal scene frozen, "
+                        "printed beside the reference's (an engine that declares no peak accuracy is refused)")
     p.set_defaults(func=cmd_sweep)
 
     return parser

@@ -1,10 +1,16 @@
 """Hard cases: a catalogue of scenes under ``scenes/hard/`` and what each engine does with them.
 
-Every case runs both engines with the scene's own settings and gate, plus the checks its
-kind of difficulty calls for (coordinate switches at dead centres, stability detection for
-stiff dampers, energy drift over long runs, the error of an off-grid pulse edge).
-A case passes when each engine ends with the status it is expected to have and every check
-holds. Nothing is skipped and nothing is marked as expected to fail.
+Every case runs each engine of the list (by default :data:`loopcheck.registry.DEFAULT_ENGINES`, the
+design card's pair) with the scene's own settings, each judged against the reference by
+its own gate, as ``loopcheck check --engines`` judges it (:func:`loopcheck.compare.engines.check_engines`:
+an engine's failure or refusal is its verdict in the case, and the catalogue goes on), plus the
+checks its kind of difficulty calls for, engine by engine: coordinate switches at dead centres (the
+reference's), each engine's declared probes where a case asks for them
+(:meth:`loopcheck.registry.Engine.stress_probes`: a stiff damper's stability per integrator and
+step), energy drift over long runs, and the error of a pulse edge off the step grid of every engine
+that has one (:meth:`loopcheck.registry.Engine.fixed_step`). A case passes when every engine ran
+and passed its gate and every check holds. Nothing is skipped and nothing is marked as expected to
+fail.
 """
 
 from __future__ import annotations
@@ -13,85 +19,158 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field, replace
+from enum import Enum
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 
-from loopcheck.errors import NumericalFailure
-from loopcheck.reduced import ReducedSettings, simulate
+from loopcheck.errors import FailureReason, NumericalFailure
+from loopcheck.loads import PulseLoad
+from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE, Rung
+from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 from loopcheck.scenefile import load_scene
-from loopcheck.loads import PulseLoad
 from loopcheck.shipped_scenes import scenes_dir
-from loopcheck.reference_models import INTEGRATORS, MujocoSettings, simulate_mujoco
-
-from loopcheck.results import EngineResult
 
 from .diff import compare_trajectories
-from .run import Comparison, judge
-from .settings import mujoco_settings as resolve_mujoco, reduced_settings as resolve_reduced
+from .engines import check_engines
+from .run import Comparison
+from .settings import engine_settings
 
-PROBE_TIMESTEPS = (1e-3, 1e-4, 1e-5)
+SCHEMA_VERSION = 2  # stress.json: 2 holds each engine's outcome under "engines" (1: two engines' keys)
 
 
 @dataclass(frozen=True)
 class Case:
-    """One hard case and what must happen."""
+    """One hard case and what must happen.
+
+    ``expect`` holds probe expectations, each (engine, probe, status): the engine's declared probe
+    (``"SERIES@PARAMETER"``, e.g. ``"rkn4@0.001"``) must end with that status (``"unstable"``: the
+    instability detected, not returned)."""
 
     name: str
-    scene_file: str
-    must_switch: bool = False  # the reduced solver must change coordinate and stay continuous
-    explicit_step: float | None = None  # run RKN4 at this step too ...
-    explicit_expect: str = "ok"  # ... and expect this status ("unstable": detected, not returned)
-    probe_integrators: bool = False  # report MuJoCo's stability per integrator and timestep
-    energy_drift: bool = False  # conservative: report drift per revolution, bound the reduced one
-    off_grid_edge: bool = False  # quantify the error of a pulse edge off MuJoCo's step grid
+    scene_file: str  # under the shipped scenes, or an absolute path
+    must_switch: bool = False  # the reference must change coordinate and stay continuous
+    probes: bool = False  # run and report every engine's stress probes
+    expect: tuple[tuple[str, str, str], ...] = ()  # (engine, probe, status): a probe's expected status
+    energy_drift: bool = False  # conservative: report each engine's drift per revolution, bound the reference's
+    off_grid_edge: bool = False  # quantify the error of a pulse edge off each engine's step grid
+
+    def __post_init__(self):
+        for item in self.expect:
+            if len(item) != 3 or not all(isinstance(part, str) and part for part in item):
+                raise ValueError(f"case '{self.name}': expect holds (engine, probe, status) triples, got {item!r}")
+        if self.expect and not self.probes:
+            raise ValueError(f"case '{self.name}': a probe is expected but the case runs no probes")
 
     @property
     def path(self) -> Path:
-        return scenes_dir() / self.scene_file
+        own = Path(self.scene_file)
+        return own if own.is_absolute() else scenes_dir() / own
 
 
 CATALOGUE = (
     Case("dead_centre", "hard/dead_centre.toml", must_switch=True),
     Case("start_dead_centre", "hard/start_dead_centre.toml"),
     Case("near_change_point", "hard/near_change_point.toml"),
-    Case("stiff_damper", "hard/stiff_damper.toml", explicit_step=1e-3, explicit_expect="unstable",
-         probe_integrators=True),
+    # The reference's explicit fixed-step method at 1 ms is far outside its stability region (h/τ ≈ 10):
+    # it must say so.
+    Case("stiff_damper", "hard/stiff_damper.toml", probes=True, expect=((REFERENCE, "rkn4@0.001", "unstable"),)),
     Case("long_conservative", "hard/long_conservative.toml", energy_drift=True),
     Case("fast_crank", "hard/fast_crank.toml"),
     Case("off_grid_edge", "hard/off_grid_edge.toml", off_grid_edge=True),
     Case("gravity", "hard/gravity.toml", energy_drift=True),
     # General linkages: a slider-driven slider-crank through its dead centres (the slide cannot
-    # drive there: the reduced solver must change coordinate), a six-bar near a toggle.
+    # drive there: the reference must change coordinate), a six-bar near a toggle.
     Case("slider_dead_centres", "mechanisms/slider_crank_driven_slider.toml", must_switch=True),
     Case("sixbar_near_toggle", "mechanisms/stephenson3_near_toggle.toml"),
 )
 
 
+class RunStatus(str, Enum):
+    """How an engine's run ended in a case, besides a numerical failure (its
+    :class:`~loopcheck.errors.FailureReason`)."""
+
+    OK = "ok"
+    REFUSED = "refused"  # the engine does not run this scene or these settings (a ValueError: its line)
+    NOT_RUN = "not run"  # the reference failed: nothing to judge the engine against
+
+
+@dataclass(frozen=True)
+class EngineOutcome:
+    """One engine in one case: how its run ended (``status``: :class:`RunStatus` or the numerical
+    failure's reason, ``failure``: its line), the run (``result``, the reference's or the engine's;
+    None when it did not run to the end), its comparison with the reference (None for the reference
+    itself and for an engine that did not run) and its figures (wall time, energy residual, loop
+    violation, the comparison's differences, drift, probes, the off-grid edge's errors)."""
+
+    engine: str
+    status: RunStatus | FailureReason
+    failure: str | None = None
+    result: EngineResult | None = field(default=None, repr=False)
+    comparison: Comparison | None = field(default=None, repr=False)
+    figures: Mapping[str, Any] = field(default_factory=dict)
+    known_defects: tuple[str, ...] = ()  # the engine's known defects that bear on its run, as check prints them
+
+    def __post_init__(self):
+        if not isinstance(self.status, (RunStatus, FailureReason)):
+            raise ValueError(f"EngineOutcome.status must be a RunStatus or a FailureReason, got {self.status!r}")
+        if (self.status is RunStatus.OK) != (self.failure is None):
+            raise ValueError(f"EngineOutcome of '{self.engine}': a failure line goes with a status other than ok")
+
+    @property
+    def passed(self) -> bool:
+        """It ran, and passed its gate (the reference: it ran)."""
+        return self.status is RunStatus.OK and (self.comparison is None or self.comparison.gate.passed)
+
+
 @dataclass(frozen=True)
 class CaseResult:
-    """What happened to one case."""
+    """What happened to one case: each engine's outcome (the reference's first), why the case did
+    not pass (``problems``, empty when it did), the case's own figures and what it showed in words."""
 
     name: str
     passed: bool
-    reduced_status: str  # "ok" or a failure reason
-    mujoco_status: str
-    problems: tuple[str, ...]  # why the case did not pass (empty when it did)
-    figures: dict = field(default_factory=dict)  # peak_omega_rel, q_max_abs, violation, drift, walls
-    notes: tuple[str, ...] = ()  # what the case showed, in words
-    reduced: EngineResult | None = field(default=None, repr=False)  # the runs, kept for the tests
-    mujoco: EngineResult | None = field(default=None, repr=False)
-    comparison: Comparison | None = field(default=None, repr=False)  # when both engines finished
+    outcomes: tuple[EngineOutcome, ...]
+    problems: tuple[str, ...]
+    figures: Mapping[str, Any] = field(default_factory=dict)  # the case's: switches, the reference's drift bound, wall
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if not self.outcomes or self.outcomes[0].engine != REFERENCE:
+            raise ValueError(f"CaseResult '{self.name}': the reference '{REFERENCE}' comes first")
+
+    @property
+    def engines(self) -> tuple[str, ...]:
+        return tuple(o.engine for o in self.outcomes)
+
+    def outcome(self, engine: str) -> EngineOutcome:
+        """The outcome of the engine named ``engine`` (KeyError naming the engines run otherwise)."""
+        for o in self.outcomes:
+            if o.engine == engine:
+                return o
+        raise KeyError(f"'{engine}' was not run in case '{self.name}' (engines: {', '.join(self.engines)})")
 
 
-def _run(engine_call):
+def _attempt(call):
+    """``call()``'s run, ``(result, RunStatus.OK, None)``, or how it ended: ``(None, reason, line)``."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return engine_call(), "ok", ""
+            return call(), RunStatus.OK, None
     except NumericalFailure as exc:
         return None, exc.reason, str(exc)
+    except ValueError as exc:  # what the engine does not run: its one line
+        return None, RunStatus.REFUSED, str(exc)
+
+
+def _failure_status(line: str) -> RunStatus | FailureReason:
+    """An :class:`~loopcheck.compare.engines.EngineVerdict`'s failure line's status: it reads
+    ``refused: ...`` or ``numerical failure (REASON): ...`` (check_engines writes them so)."""
+    if line.startswith("refused:"):
+        return RunStatus.REFUSED
+    return FailureReason(line.split("(", 1)[1].split(")", 1)[0])
 
 
 def _drift_per_revolution(result) -> float:
@@ -103,61 +182,106 @@ def _drift_per_revolution(result) -> float:
     return float(abs(energy[-1] - energy[0]) / scale / revolutions)
 
 
-def run_case(case: Case) -> CaseResult:
-    """Run one case: both engines, the gate and the case's own checks."""
-    scene = load_scene(case.path)
-    scene = replace(scene, tolerances=scene.tolerances_for("mujoco"))  # MuJoCo's gate, its automatic step's target
-    reduced_settings = resolve_reduced(scene)
-    mujoco_settings = resolve_mujoco(scene)
-    problems, notes, figures = [], [], {}
-
-    reduced, r_status, r_message = _run(lambda: simulate(scene, reduced_settings))
-    mujoco, m_status, m_message = _run(lambda: simulate_mujoco(scene, mujoco_settings))
-    if reduced is None:
-        problems.append(f"reduced solver failed: {r_message}")
-    if mujoco is None:
-        problems.append(f"MuJoCo failed: {m_message}")
-
-    comparison = None
-    if reduced is not None and mujoco is not None:
-        comparison = judge(scene, reduced, mujoco, scene.tolerances)
-        diff, modes = comparison.diff, comparison.modes
-        problems += [f"gate: {f}" for f in comparison.gate.failures]
+def _run_figures(result: EngineResult, comparison: Comparison | None) -> dict:
+    figures = dict(wall_s=result.wall_s, energy_residual=result.audit.relative_residual)
+    if result.constraint_violation is not None:
+        figures["constraint_violation"] = result.constraint_violation.max
+    if comparison is not None:
+        diff = comparison.diff
         figures.update(peak_omega_rel=diff.peak_omega_rel, peak_omega_abs=diff.peak_omega_abs,
-                       t_peak_abs=diff.t_peak_abs, q_max_abs=diff.q_max_abs,
-                       omega_max_abs=diff.omega_max_abs, omega_vs_q_max_abs=diff.omega_vs_q_max_abs,
-                       span_end=diff.span_end, mode_mismatches=modes.total)
-    if reduced is not None:
-        figures.update(reduced_wall_s=reduced.wall_s, reduced_energy_residual=reduced.audit.relative_residual,
-                       switches=len(reduced.details.switches))
-    if mujoco is not None:
-        figures.update(mujoco_wall_s=mujoco.wall_s, mujoco_energy_residual=mujoco.audit.relative_residual,
-                       constraint_violation=mujoco.constraint_violation.max)
+                       t_peak_abs=diff.t_peak_abs, q_max_abs=diff.q_max_abs, omega_max_abs=diff.omega_max_abs,
+                       omega_vs_q_max_abs=diff.omega_vs_q_max_abs, span_end=diff.span_end,
+                       mode_mismatches=comparison.modes.total)
+    return figures
 
-    if case.must_switch and reduced is not None:
-        problems += _check_switches(reduced, notes)
-    if case.explicit_step is not None:
-        problems += _check_explicit(scene, case, notes, figures)
-    if case.probe_integrators:
-        figures["mujoco_stability"] = _probe_integrators(scene, notes)
+
+def _run_engines(scene: Scene, engines: tuple[str, ...]) -> list[EngineOutcome]:
+    """Every engine on ``scene``, judged as ``loopcheck check --engines`` judges it (the same call):
+    the reference's outcome first."""
+    settings, refused = {}, {}
+    for name in engines:
+        try:
+            settings[name] = engine_settings(name, scene)
+        except ValueError as exc:  # the scene's table refused for this engine: its verdict
+            refused[name] = str(exc)
+    ordered = (REFERENCE, *(n for n in engines if n != REFERENCE))
+    if REFERENCE in refused:
+        return [EngineOutcome(name, RunStatus.REFUSED if name == REFERENCE else RunStatus.NOT_RUN,
+                              refused.get(name, f"the reference did not run: {refused[REFERENCE]}"))
+                for name in ordered]
+    runnable = tuple(name for name in engines if name not in refused)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check = check_engines(scene, runnable, settings) if len(runnable) > 1 else None
+            reference = check.reference if check else ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
+    except (NumericalFailure, ValueError) as exc:  # the reference's failure (another engine's is its verdict)
+        status = exc.reason if isinstance(exc, NumericalFailure) else RunStatus.REFUSED
+        return [EngineOutcome(name, status, str(exc)) if name == REFERENCE else
+                EngineOutcome(name, RunStatus.REFUSED, refused[name]) if name in refused else
+                EngineOutcome(name, RunStatus.NOT_RUN, f"the reference failed: {exc}") for name in ordered]
+    outcomes = [EngineOutcome(REFERENCE, RunStatus.OK, result=reference, figures=_run_figures(reference, None))]
+    for name in (n for n in engines if n != REFERENCE):
+        if name in refused:
+            outcomes.append(EngineOutcome(name, RunStatus.REFUSED, refused[name]))
+            continue
+        v = check.verdict(name)
+        if v.comparison is None:
+            outcomes.append(EngineOutcome(name, _failure_status(v.failure), v.failure,
+                                          known_defects=v.known_defects))
+        else:
+            outcomes.append(EngineOutcome(name, RunStatus.OK, result=v.comparison.other, comparison=v.comparison,
+                                          figures=_run_figures(v.comparison.other, v.comparison),
+                                          known_defects=v.known_defects))
+    return outcomes
+
+
+def run_case(case: Case, engines: tuple[str, ...] = DEFAULT_ENGINES) -> CaseResult:
+    """Run one case: every engine of ``engines`` (the reference among them), its gate and the
+    case's own checks."""
+    if REFERENCE not in engines:
+        raise ValueError(f"the engines must include '{REFERENCE}', the reference every engine is judged against")
+    scene = load_scene(case.path)
+    outcomes = _run_engines(scene, tuple(engines))
+    problems, notes, figures = [], [], {}
+    others = [o for o in outcomes if o.engine != REFERENCE]
+    for o in outcomes:
+        label = ENGINES[o.engine].label
+        if o.status is not RunStatus.OK:
+            problems.append(f"{label} failed: {o.failure}" if o.status is not RunStatus.REFUSED
+                            else f"{label} refused: {o.failure}")
+        elif o.comparison is not None:
+            where = "gate" if len(others) == 1 else f"gate ({o.engine})"
+            problems += [f"{where}: {f}" for f in o.comparison.gate.failures]
+        notes += [f"{label} known defect: {defect}" for defect in o.known_defects]
+
+    reference = outcomes[0].result
+    if reference is not None:
+        switches = getattr(reference.details, "switches", None)
+        if switches is not None:
+            figures["switches"] = len(switches)
+        if case.must_switch:
+            problems += _check_switches(reference, notes)
+    extra = {o.engine: {} for o in outcomes}  # each engine's figures from the case's checks
+    if case.probes:
+        problems += _run_probes(scene, case, outcomes, extra, notes)
     if case.energy_drift:
-        for name, result in (("reduced", reduced), ("mujoco", mujoco)):
-            if result is not None:
-                figures[f"{name}_drift_per_revolution"] = _drift_per_revolution(result)
-        if reduced is not None:
-            problems += _check_reduced_drift(reduced, reduced_settings, figures, notes)
-    if case.off_grid_edge and mujoco is not None and reduced is not None:
-        problems += _quantify_off_grid_edge(scene, mujoco_settings, figures, notes)
+        problems += _report_drift(outcomes, extra, notes)
+    if case.off_grid_edge and reference is not None:
+        on_grid_references: dict[float, EngineResult] = {}
+        for o in others:
+            if o.result is not None:
+                problems += _quantify_off_grid_edge(scene, o, on_grid_references, len(others) > 1, extra[o.engine],
+                                                    notes)
+    outcomes = tuple(replace(o, figures={**o.figures, **extra[o.engine]}) for o in outcomes)
+    return CaseResult(case.name, not problems, outcomes, tuple(problems), figures, tuple(notes))
 
-    return CaseResult(case.name, not problems, r_status, m_status, tuple(problems), figures, tuple(notes),
-                      reduced=reduced, mujoco=mujoco, comparison=comparison)
 
-
-def _check_switches(reduced, notes: list) -> list[str]:
-    switches = reduced.details.switches
-    joints = reduced.joints
+def _check_switches(reference: EngineResult, notes: list) -> list[str]:
+    switches = reference.details.switches
+    joints = reference.joints
     if not switches:
-        return ["the reduced solver never switched coordinate"]
+        return [f"{ENGINES[REFERENCE].label} never switched coordinate"]
     same_time = np.diff(joints.t) == 0.0
     jump_x = float(np.max(np.abs(np.diff(joints.x, axis=0))[same_time])) if same_time.any() else 0.0
     jump_v = float(np.max(np.abs(np.diff(joints.xdot, axis=0))[same_time])) if same_time.any() else 0.0
@@ -170,101 +294,166 @@ def _check_switches(reduced, notes: list) -> list[str]:
                                                         f"{jump_v:.2e} (rad or m)/s"]
 
 
-def _check_explicit(scene: Scene, case: Case, notes: list, figures: dict) -> list[str]:
-    _, status, message = _run(lambda: simulate(scene, ReducedSettings(method="rkn4", step=case.explicit_step)))
-    figures["rkn4_status"] = status
-    notes.append(f"RKN4 at h = {case.explicit_step:g} s: {status}" + (f" ({message[:110]}...)" if message else ""))
-    if status != case.explicit_expect:
-        return [f"RKN4 at h = {case.explicit_step:g} s ended '{status}', expected '{case.explicit_expect}'"]
-    return []
+def probe_key(rung: Rung) -> str:
+    """A probe's name in stress.json and in a case's ``expect``: ``SERIES@PARAMETER`` (``rk4@0.001``)."""
+    return rung.series if math.isnan(rung.parameter) else f"{rung.series}@{rung.parameter:g}"
 
 
-def _probe_integrators(scene: Scene, notes: list) -> dict:
-    table = {}
-    for integrator in INTEGRATORS:
-        for h in PROBE_TIMESTEPS:
-            settings = MujocoSettings(integrator=integrator, timestep=h)
-            _, status, _ = _run(lambda settings=settings: simulate_mujoco(scene, settings))
-            table[f"{integrator}@{h:g}"] = status
-    stable = {i: [h for h in PROBE_TIMESTEPS if table[f"{i}@{h:g}"] == "ok"] for i in INTEGRATORS}
-    notes.append("MuJoCo stable at: " + "; ".join(
-        f"{i} {', '.join(f'{h:g}' for h in hs) or 'none'}" for i, hs in stable.items()) + " s")
-    return table
-
-
-def _check_reduced_drift(reduced, settings: ReducedSettings, figures: dict, notes: list) -> list[str]:
-    """Bound: an adaptive method keeps each step's local error below rtol (relative to the
-    state), so energy can drift by at most about rtol per step; per revolution the bound is
-    rtol × (steps per revolution). For RKN4 the same reasoning with its own error is not a
-    bound, so only adaptive references are held to it."""
-    drift = figures["reduced_drift_per_revolution"]
-    revolutions = max(abs(reduced.trajectory.q[-1] - reduced.trajectory.q[0]) / (2 * math.pi), 1.0)
-    bound = settings.rtol * reduced.n_steps / revolutions
-    figures["reduced_drift_bound"] = bound
-    span = f"{revolutions:.0f} revolutions" if revolutions > 1.0 else "swinging, under one revolution"
-    notes.append(f"{span}; energy drift per revolution (or over the run): reduced {drift:.1e} "
-                 f"(bound {bound:.1e}), MuJoCo {figures.get('mujoco_drift_per_revolution', math.nan):.1e}")
-    if settings.method != "rkn4" and not drift <= bound:
-        return [f"reduced energy drift {drift:.2e} per revolution exceeds its bound {bound:.2e}"]
-    return []
-
-
-def _quantify_off_grid_edge(scene: Scene, settings: MujocoSettings, figures: dict, notes: list) -> list[str]:
-    """MuJoCo's error with the edge off the grid against the same scene with the edge moved
-    onto the grid (each against its own reduced reference)."""
-    torque = scene.load
-    if not isinstance(torque, PulseLoad):
-        return ["off-grid case needs a pulse torque"]
-    h = settings.timestep
-    on_grid = replace(scene, load=replace(torque, duration=round(torque.duration / h) * h))
-
-    def error(s: Scene):
-        reference = simulate(s, resolve_reduced(s))
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            other = simulate_mujoco(s, settings)
-        return compare_trajectories(reference.trajectory, other.trajectory, horizon=s.horizon), caught
-
-    off, caught = error(scene)
-    on, _ = error(on_grid)
-    warned = any("not a multiple of the timestep" in str(w.message) for w in caught)
-    figures.update(off_grid_peak_rel=off.peak_omega_rel, on_grid_peak_rel=on.peak_omega_rel,
-                   off_grid_q_max=off.q_max_abs, on_grid_q_max=on.q_max_abs)
-    notes.append(f"edge {torque.start + torque.duration:g} s off the {h:g} s grid: peak error "
-                 f"{off.peak_omega_rel:.1e} (on grid {on.peak_omega_rel:.1e}), max |dq| {off.q_max_abs:.1e} {scene.input_unit} "
-                 f"(on grid {on.q_max_abs:.1e}); warned: {'yes' if warned else 'NO'}")
-    problems = [] if warned else ["no warning for the off-grid pulse edge"]
-    if not off.q_max_abs > on.q_max_abs:
-        problems.append("the off-grid edge shows no extra error: the quantification is not measuring it")
+def _run_probes(scene: Scene, case: Case, outcomes: list[EngineOutcome], extra: dict, notes: list) -> list[str]:
+    """Each engine's declared probes, run on the scene judged by its tolerances; their statuses go
+    into the engine's figures (``stability``); a case's expectations are checked."""
+    problems = []
+    for o in outcomes:
+        engine = ENGINES[o.engine]
+        judged = replace(scene, tolerances=scene.tolerances_for(o.engine)) if o.engine != REFERENCE else scene
+        try:
+            probes = engine.stress_probes(judged, engine_settings(o.engine, scene))
+        except ValueError as exc:  # the engine's settings refused for this scene: said by its outcome
+            probes = ()
+            notes.append(f"{engine.label}: no probes ({exc})")
+        table, stable = {}, {}
+        for rung in probes:
+            _, status, _ = _attempt(lambda rung=rung: engine.simulate(judged, rung.settings))
+            table[probe_key(rung)] = status.value
+            stable.setdefault(rung.series, [])
+            if status is RunStatus.OK:
+                stable[rung.series].append(rung.parameter)
+        if table:
+            extra[o.engine]["stability"] = table
+            failed = [f"{key} {status}" for key, status in table.items() if status != RunStatus.OK.value]
+            notes.append(f"{engine.label} stable at: " + "; ".join(
+                f"{series} {', '.join(f'{p:g}' for p in ps) or 'none'}" for series, ps in stable.items()) + " s"
+                + (f" (not: {', '.join(failed)})" if failed else ""))
+    for name, key, expected in case.expect:
+        got = extra.get(name, {}).get("stability", {}).get(key)
+        if got is None:
+            if name in extra:
+                problems.append(f"{ENGINES[name].label} has no probe '{key}' (case '{case.name}' expects one)")
+        elif got != expected:
+            problems.append(f"{ENGINES[name].label}'s probe {key} ended '{got}', expected '{expected}'")
     return problems
 
 
-def run_catalogue(cases=CATALOGUE, progress=None) -> list[CaseResult]:
+def _report_drift(outcomes: list[EngineOutcome], extra: dict, notes: list) -> list[str]:
+    """Each engine's energy drift per revolution (its figures' ``drift_per_revolution``); the
+    reference's bounded (its ``drift_bound``: :func:`_check_reference_drift`)."""
+    ran = [o for o in outcomes if o.result is not None]
+    for o in ran:
+        extra[o.engine]["drift_per_revolution"] = _drift_per_revolution(o.result)
+    if not ran or ran[0].engine != REFERENCE:
+        return []
+    reference = ran[0].result
+    revolutions = max(abs(reference.trajectory.q[-1] - reference.trajectory.q[0]) / (2 * math.pi), 1.0)
+    problems, bound = _check_reference_drift(reference, extra[REFERENCE]["drift_per_revolution"], revolutions)
+    extra[REFERENCE]["drift_bound"] = bound
+    span = f"{revolutions:.0f} revolutions" if revolutions > 1.0 else "swinging, under one revolution"
+    drifts = [f"{ENGINES[o.engine].label} {extra[o.engine]['drift_per_revolution']:.1e}"
+              + (f" (bound {bound:.1e})" if o.engine == REFERENCE else "") for o in ran]
+    notes.append(f"{span}; energy drift per revolution (or over the run): {', '.join(drifts)}")
+    return problems
+
+
+def _check_reference_drift(reference: EngineResult, drift: float, revolutions: float) -> tuple[list[str], float]:
+    """Bound: an adaptive method keeps each step's local error below rtol (relative to the
+    state), so energy can drift by at most about rtol per step; per revolution the bound is
+    rtol × (steps per revolution). For a fixed-step method the same reasoning with its own error
+    is not a bound, so only adaptive references are held to it."""
+    settings = reference.settings
+    bound = settings.rtol * reference.n_steps / revolutions
+    if ENGINES[REFERENCE].fixed_step(settings) is None and not drift <= bound:
+        label = ENGINES[REFERENCE].label
+        return [f"{label} energy drift {drift:.2e} per revolution exceeds its bound {bound:.2e}"], bound
+    return [], bound
+
+
+def _quantify_off_grid_edge(scene: Scene, outcome: EngineOutcome, on_grid_references: dict, named: bool,
+                            figures: dict, notes: list) -> list[str]:
+    """The engine's error with the edge off its step grid against the same scene with the edge
+    moved onto the grid (each against its own reference run), at the step its run used; nothing
+    for an engine whose steps adapt (:meth:`loopcheck.registry.Engine.fixed_step` None)."""
+    engine = ENGINES[outcome.engine]
+    h = engine.fixed_step(outcome.result.settings)
+    if h is None:
+        return []
+    torque = scene.load
+    if not isinstance(torque, PulseLoad):
+        return ["off-grid case needs a pulse torque"]
+    judged = replace(scene, tolerances=scene.tolerances_for(outcome.engine))
+    on_grid = replace(judged, load=replace(torque, duration=round(torque.duration / h) * h))
+
+    def error(s: Scene, reference: EngineResult | None = None):
+        if reference is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                reference = ENGINES[REFERENCE].simulate(s, engine_settings(REFERENCE, s))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            other = engine.simulate(s, outcome.result.settings)
+        return (compare_trajectories(reference.trajectory, other.trajectory, horizon=s.horizon), reference,
+                {str(w.message) for w in caught})
+
+    off, _, off_warnings = error(judged)
+    on, on_grid_references[h], on_warnings = error(on_grid, on_grid_references.get(h))
+    warned = bool(off_warnings - on_warnings)  # a warning the edge off the grid raised, and only it
+    figures.update(off_grid_peak_rel=off.peak_omega_rel, on_grid_peak_rel=on.peak_omega_rel,
+                           off_grid_q_max=off.q_max_abs, on_grid_q_max=on.q_max_abs)
+    who = f"{engine.label}: " if named else ""
+    notes.append(f"{who}edge {torque.start + torque.duration:g} s off the {h:g} s grid: peak error "
+                 f"{off.peak_omega_rel:.1e} (on grid {on.peak_omega_rel:.1e}), max |dq| {off.q_max_abs:.1e} "
+                 f"{scene.input_unit} (on grid {on.q_max_abs:.1e}); warned: {'yes' if warned else 'NO'}")
+    problems = [] if warned else [f"{who}no warning for the off-grid pulse edge"]
+    if not off.q_max_abs > on.q_max_abs:
+        problems.append(f"{who}the off-grid edge shows no extra error: the quantification is not measuring it")
+    return problems
+
+
+def run_catalogue(cases=CATALOGUE, progress=None, engines: tuple[str, ...] = DEFAULT_ENGINES) -> list[CaseResult]:
     results = []
     for case in cases:
         start = time.perf_counter()
-        result = run_case(case)
+        result = run_case(case, engines)
         results.append(replace(result, figures={**result.figures, "case_wall_s": time.perf_counter() - start}))
         if progress:
             progress(result)
     return results
 
 
-def table_lines(results: list[CaseResult]) -> list[str]:
-    def f(x, fmt=".1e"):
-        return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, fmt)
+def _f(x, fmt=".1e"):
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, fmt)
 
-    header = (f"{'case':18s} {'reduced':>9s} {'mujoco':>9s} {'peak rel':>8s} {'max|dq|':>8s} "
-              f"{'loop (m)':>8s} {'drift/rev':>17s} {'wall (s)':>11s}  verdict")
-    lines = [header]
+
+def table_lines(results: list[CaseResult]) -> list[str]:
+    """The table: a case a line with each engine's status; with one engine beside the reference its
+    differences, loop violation, drift per revolution and wall times on the same line, with several
+    one line per engine under the case's."""
+    engines = results[0].engines if results else DEFAULT_ENGINES
+    w = max([9, *(len(o.status.value) for r in results for o in r.outcomes)])  # a status column's width
+    statuses = " ".join(f"{name:>{w}s}" for name in engines)
+    pair = len(engines) == 2
+    if pair:
+        lines = [f"{'case':18s} {statuses} {'peak rel':>8s} {'max|dq|':>8s} {'loop (m)':>8s} {'drift/rev':>17s} "
+                 f"{'wall (s)':>11s}  verdict"]
+    else:
+        lines = [f"{'case':18s} {statuses}  verdict",
+                 f"{'':18s} {'engine':>9s} {'peak rel':>8s} {'max|dq|':>8s} {'loop (m)':>8s} {'drift/rev':>9s} "
+                 f"{'wall (s)':>8s}"]
     for r in results:
-        g = r.figures
-        drift = (f"{f(g.get('reduced_drift_per_revolution'))}/{f(g.get('mujoco_drift_per_revolution'))}"
-                 if "reduced_drift_per_revolution" in g else "-")
-        walls = f"{f(g.get('reduced_wall_s'), '.2f')}/{f(g.get('mujoco_wall_s'), '.2f')}"
-        lines.append(f"{r.name:18s} {r.reduced_status:>9s} {r.mujoco_status:>9s} {f(g.get('peak_omega_rel')):>8s} "
-                     f"{f(g.get('q_max_abs')):>8s} {f(g.get('constraint_violation')):>8s} {drift:>17s} "
-                     f"{walls:>11s}  {'PASS' if r.passed else 'FAIL'}")
+        row = " ".join(f"{o.status.value:>{w}s}" for o in r.outcomes)
+        verdict = "PASS" if r.passed else "FAIL"
+        if pair:
+            ref, other = (o.figures for o in r.outcomes)
+            drift = (f"{_f(ref.get('drift_per_revolution'))}/{_f(other.get('drift_per_revolution'))}"
+                     if "drift_per_revolution" in ref else "-")
+            walls = f"{_f(ref.get('wall_s'), '.2f')}/{_f(other.get('wall_s'), '.2f')}"
+            lines.append(f"{r.name:18s} {row} {_f(other.get('peak_omega_rel')):>8s} {_f(other.get('q_max_abs')):>8s} "
+                         f"{_f(other.get('constraint_violation')):>8s} {drift:>17s} {walls:>11s}  {verdict}")
+        else:
+            lines.append(f"{r.name:18s} {row}  {verdict}")
+            for o in r.outcomes:
+                g = o.figures
+                lines.append(f"{'':18s} {o.engine:>9s} {_f(g.get('peak_omega_rel')):>8s} {_f(g.get('q_max_abs')):>8s} "
+                             f"{_f(g.get('constraint_violation')):>8s} {_f(g.get('drift_per_revolution')):>9s} "
+                             f"{_f(g.get('wall_s'), '.2f'):>8s}")
         for note in r.notes:
             lines.append(f"{'':18s}   {note}")
         for problem in r.problems:
@@ -276,12 +465,23 @@ def table_lines(results: list[CaseResult]) -> list[str]:
 STRESS_FILES = ("stress.json",)
 
 
+def stress_data(results: list[CaseResult]) -> dict:
+    """stress.json's content (schema :data:`SCHEMA_VERSION`): the engines, and per case its verdict,
+    each engine's outcome (status, failure line, figures, known defects), problems, notes and the case's figures."""
+    return {"schema_version": SCHEMA_VERSION, "engines": list(results[0].engines if results else DEFAULT_ENGINES),
+            "cases": [{"case": r.name, "passed": r.passed,
+                       "engines": {o.engine: {"status": o.status.value, "failure": o.failure,
+                                              "figures": dict(o.figures), "known_defects": list(o.known_defects)}
+                                   for o in r.outcomes},
+                       "problems": list(r.problems), "notes": list(r.notes), "figures": dict(r.figures)}
+                      for r in results]}
+
+
 def write_stress(results: list[CaseResult], out_dir, committed=None) -> list:
-    """stress.json (one entry per case: status, problems, notes, figures) into ``out_dir``,
-    through :func:`loopcheck.compare.output.write_folder`."""
+    """stress.json (:func:`stress_data`) into ``out_dir``, through
+    :func:`loopcheck.compare.output.write_folder`."""
     from .output import json_text, write_folder
 
-    data = [{"case": r.name, "passed": r.passed, "reduced": r.reduced_status, "mujoco": r.mujoco_status,
-             "problems": list(r.problems), "notes": list(r.notes), "figures": r.figures} for r in results]
+    data = stress_data(results)
     return write_folder(out_dir, {"stress.json": lambda p: p.write_text(json_text(data), encoding="utf-8")},
                         one_run=True, committed=committed)

@@ -66,3 +66,26 @@ BATCH_SIZE = 16
 --batch-size`` overrides it). A CPU's default: a step launches some hundred kernels whatever the
 number of worlds, so a batch amortises their launch, while a CPU's cores share the worlds' work;
 on a GPU give thousands (docs/performance.md)."""
+
+# What the MJWarp engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the MuJoCo-family model's (loopcheck.mujoco_model.options).
+from loopcheck.mujoco_model.options import INTEGRATORS, grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MjwarpSettings) -> tuple:
+    """The scene's settings at each integrator and each of 1 ms, 0.1 ms, 10 µs."""
+    return integrator_probes(base, INTEGRATORS)
+
+
+# Sensitivity's ε: MJWarp computes in float32, whose round-off the loop constraints' stiffness
+# amplifies (on the seed about 3e-4 on the peak over 2 s, against MuJoCo C's 3e-6 with the same model:
+# docs/engines.md, "MJWarp"); at a frozen step that round-off is the peak's noise against a parameter.
+# Measured on the seed over 1.3 s at its grid step 1 ms (warp on the CPU): five runs of the coupler mass
+# 1e-6 of it apart (where the true peak moves by 4e-7 of itself) scatter about a parabola by 1.2e-4 of the
+# peak rms, 2.1e-4 at most. So ε = 3e-4, and the sensitivity's steps are |p0| ε^(1/3), 6.7 % of p0.
+PEAK_ACCURACY = 3e-4
+
+
+def peak_accuracy(settings: MjwarpSettings) -> float:
+    """ε: ``PEAK_ACCURACY`` (float32 round-off, measured)."""
+    return PEAK_ACCURACY

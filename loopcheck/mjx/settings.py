@@ -75,3 +75,30 @@ overrides it). A CPU's default: each batch size is a compilation of its own (abo
 2-core CPU), paid once per sweep as the last chunk is padded to it, and a CPU gains little from a
 wider ``vmap`` beyond amortising the dispatch of each step; on a GPU give thousands
 (docs/performance.md)."""
+
+# What the MJX engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the MuJoCo-family model's (loopcheck.mujoco_model.options), over MJX's integrators.
+from loopcheck.mujoco_model.options import grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MjxSettings) -> tuple:
+    """The scene's settings at each of MJX's integrators and each of 1 ms, 0.1 ms, 10 µs (each a
+    compilation and a run: minutes on a CPU)."""
+    return integrator_probes(base, INTEGRATORS)
+
+
+# Sensitivity's ε: MJX runs the MuJoCo engine's model with its RK4 in float64 and MuJoCo C reads its
+# states and refines the peak as for MuJoCo (loopcheck.mujoco_model.port), so its peak carries the
+# same sawtooth against a parameter as the summit crosses the step grid: MuJoCo's figure
+# (loopcheck.reference_models.settings.PEAK_ACCURACY, 3e-6). Measured for MJX (CPU, float64) on the seed
+# over 0.2 s, the damper coefficient (the peak at the horizon, where no summit crosses the grid): five
+# runs 1e-7, 1e-5 and 1e-3 of it apart lie on a parabola within 7e-14 of the peak, round-off as MuJoCo C's.
+# The seed's summit (1.154 s) lies past MJX's loop failure there (1.01 s, its known defect), so the
+# sawtooth is taken as MuJoCo's, whose mechanism (the refinement of the summit between samples) it shares.
+PEAK_ACCURACY = 3e-6
+PEAK_ACCURACY_FLOAT32 = 3e-4  # float32: MJWarp's figure (its settings module), the same round-off
+
+
+def peak_accuracy(settings: MjxSettings) -> float:
+    """ε: ``PEAK_ACCURACY`` in float64, ``PEAK_ACCURACY_FLOAT32`` in float32."""
+    return PEAK_ACCURACY if settings.precision == "float64" else PEAK_ACCURACY_FLOAT32

@@ -154,3 +154,28 @@ def fixed_step_ladder(base, name: str, integrators, softnesses, timesteps) -> li
                                 max_energy_residual=SWEEP_ENERGY_LIMIT)
                 rungs.append(Rung(f"{name} {integrator} ({softness})", h, loose, "h", run_settings=point))
     return rungs
+
+
+# What the MuJoCo-family engines (MuJoCo C, MJX, MJWarp) declare for the studies
+# (loopcheck.registry.Engine's optional declarations; each engine's settings module names them).
+
+PROBE_TIMESTEPS = (1e-3, 1e-4, 1e-5)  # s: ``loopcheck stress``'s integrator × timestep probes
+
+
+def integrator_probes(base: ModelOptions, integrators: tuple[str, ...] = INTEGRATORS,
+                      timesteps: tuple[float, ...] = PROBE_TIMESTEPS) -> tuple:
+    """``stress_probes``: ``base`` (the scene's settings) at each of ``integrators`` and each of
+    ``timesteps``, one :class:`loopcheck.registry.Rung` each (series the integrator, parameter the
+    step): ``loopcheck stress`` reports the status of each where a case asks for its probes."""
+    from dataclasses import replace
+
+    from loopcheck.registry import Rung
+
+    return tuple(Rung(integrator, h, replace(base, integrator=integrator, timestep=h))
+                 for integrator in integrators for h in timesteps)
+
+
+def grid_step(settings: ModelOptions) -> float | None:
+    """``fixed_step``: the timestep, every step of the run on its grid (None while the engine has
+    still to choose it: a run's ``result.settings`` has it)."""
+    return None if settings.timestep is None else float(settings.timestep)

@@ -159,3 +159,30 @@ def truth():
 
     return (Rung("DOP853", 1e-12, ReducedSettings(method="dop853", rtol=1e-12), "rtol"),
             Rung("DOP853", 1e-11, ReducedSettings(method="dop853", rtol=1e-11), "rtol"))
+
+# What the reduced engine declares for the studies (loopcheck.registry.Engine's optional declarations).
+
+# Sensitivity's ε, the peak's relative accuracy, against rtol: DOP853 at rtol 1e-11 and 1e-12 differ
+# by 4.1e-11 in peak ω on the seed (benchmarks/results/compiled_core.txt), about 10 × rtol. For RKN4
+# its rtol (the step-doubling error allowed) is a bound on the same scale, and a generous one at a
+# frozen step.
+PEAK_ACCURACY_FACTOR = 10.0
+RKN4_PROBE_STEPS = (1e-3, 1e-4)  # s: the fixed-step method's stability, where a stress case asks
+
+
+def peak_accuracy(settings: ReducedSettings) -> float:
+    """ε: ``PEAK_ACCURACY_FACTOR`` × rtol."""
+    return PEAK_ACCURACY_FACTOR * settings.rtol
+
+
+def fixed_step(settings: ReducedSettings) -> float | None:
+    """RKN4's step; None for the adaptive methods."""
+    return settings.step if settings.method == "rkn4" else None
+
+
+def stress_probes(scene, base: ReducedSettings) -> tuple:
+    """RKN4 at each of ``RKN4_PROBE_STEPS`` with its default rtol (series "rkn4", parameter the step):
+    whether the explicit fixed-step method runs, or detects that it cannot (a stiff damper)."""
+    from loopcheck.registry import Rung
+
+    return tuple(Rung("rkn4", h, ReducedSettings(method="rkn4", step=h)) for h in RKN4_PROBE_STEPS)

@@ -64,9 +64,12 @@ def gate_notes(scene, result, failures) -> tuple[str, ...]:
               else "the settings (--timestep)")
     return (f"MuJoCo ran at the fixed timestep {h:g} s from {source}, not a step chosen for these tolerances: "
             f"without it the step is chosen automatically for them",)
+
+
 __all__ = ["DEFAULT_INTEGRATOR", "DEFAULT_ITERATIONS", "DEFAULT_SOLIMP", "DEFAULT_TOLERANCE", "INTEGRATORS",
            "MAX_IMPEDANCE", "MAX_ITERATIONS", "MIN_IMPEDANCE", "MujocoSettings", "Settings", "LABEL", "COLOUR",
-           "USER_MODEL", "RUNS", "MODEL_FILES", "gate_notes", "accuracy_ladder"]
+           "USER_MODEL", "RUNS", "MODEL_FILES", "gate_notes", "accuracy_ladder", "fixed_step",
+           "stress_probes", "peak_accuracy", "PEAK_ACCURACY"]
 
 
 # The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
@@ -79,3 +82,30 @@ def accuracy_ladder(scene, base, quick: bool = False):
 
     timesteps = (1e-3, 2.5e-4) if quick else (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
     return fixed_step_ladder(base, "MuJoCo", INTEGRATORS, tuple(SOFTNESS), timesteps)
+
+
+# What the MuJoCo engine declares for the studies (loopcheck.registry.Engine's optional declarations):
+# the model's (loopcheck.mujoco_model.options), shared with its ports.
+from loopcheck.mujoco_model.options import grid_step as fixed_step, integrator_probes  # noqa: E402
+
+
+def stress_probes(scene, base: MujocoSettings) -> tuple:
+    """The scene's settings at each integrator and each of 1 ms, 0.1 ms, 10 µs."""
+    return integrator_probes(base, INTEGRATORS)
+
+
+# Sensitivity's ε: the part of MuJoCo's peak error that is not smooth in a parameter, at a frozen
+# timestep. As the parameter moves the summit across the step grid, the peak's error changes with
+# where the summit falls between two steps: MuJoCo's peak, as a function of the parameter, is a
+# smooth curve plus a sawtooth of about one step's period. Measured on the seed (RK4 at its automatic
+# 0.5 ms, peak at 1.154 s, over 1.3 s): the residual of a cubic through nine runs of the coupler mass
+# 3e-4, 1e-3 and 3e-3 of it apart is at most 2.5e-6 of the peak (1.3e-6 rms), where 1e-9 to 1e-6
+# apart it is round-off (at most 8.6e-13) and the local slope is 2.6 % off the smooth curve's; the
+# damper coefficient moves the summit less (2.8e-11 at 1e-4 apart). So ε = 3e-6: the steps
+# (|p0| ε^(1/3), 1.4 % of p0) span many periods of the sawtooth and the error bar includes it.
+PEAK_ACCURACY = 3e-6
+
+
+def peak_accuracy(settings: MujocoSettings) -> float:
+    """ε: ``PEAK_ACCURACY``, measured at RK4 on the seed (the comment above)."""
+    return PEAK_ACCURACY

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from loopcheck.compare.diff import compare_modes, compare_trajectories
-from loopcheck.compare.stress import CATALOGUE, CaseResult, run_case
+from loopcheck.compare.stress import CATALOGUE, CaseResult, RunStatus, run_case
 from loopcheck.reduced import ReducedSettings, simulate
 from loopcheck.scenefile import load_scene
 from oracles.four_bar import FourBar
@@ -57,11 +57,12 @@ def test_catalogue_covers_the_ten_kinds_of_hard_case():
 @pytest.mark.parametrize("name", [case_param(n) for n in CASES])
 def test_case_passes_over_the_whole_horizon(results, name):
     r = results(name)
-    assert r.reduced_status == "ok" and r.mujoco_status == "ok"
+    assert r.engines == ("reduced", "mujoco")  # the default pair, the reference first
+    assert [o.status for o in r.outcomes] == [RunStatus.OK, RunStatus.OK]
     assert r.passed, r.problems
-    d = r.comparison.diff
+    d = r.outcome("mujoco").comparison.diff
     assert d.covers_horizon and d.span_end == pytest.approx(load_scene(BY_NAME[name].path).horizon)
-    assert r.figures["mode_mismatches"] == 0
+    assert r.outcome("mujoco").figures["mode_mismatches"] == 0
 
 
 @pytest.mark.parametrize("name", [case_param(n) for n in CASES])
@@ -69,7 +70,8 @@ def test_tolerances_are_within_10x_of_the_measured_differences(results, name):
     """Each scene sets its tolerances 3-10x above the differences measured (its comment
     says which): a tolerance far above them could never fail, one below would always."""
     r = results(name)
-    d, tol = r.comparison.diff, r.comparison.gate.tolerances
+    comparison = r.outcome("mujoco").comparison
+    d, tol = comparison.diff, comparison.gate.tolerances
     pairs = [(d.peak_omega_abs, tol.peak_omega_rtol * abs(d.peak_omega_reference) + tol.peak_omega_atol),
              (d.q_max_abs, tol.q_atol), (d.omega_max_abs, tol.omega_atol)]
     if tol.omega_vs_q_atol is not None:
@@ -81,7 +83,7 @@ def test_tolerances_are_within_10x_of_the_measured_differences(results, name):
 def test_dead_centre_switches_coordinate_and_stays_continuous(results):
     """Across a switch both charts describe the same instant: the angles agree to round-off
     (1e-12 rad) and the rates to 1e-9 rad/s (K of a well-conditioned chart is O(1-10))."""
-    result = results("dead_centre").reduced
+    result = results("dead_centre").outcome("reduced").result
     switches = result.details.switches
     joints: JointTrajectory = result.joints
     assert len(switches) >= 2
@@ -105,7 +107,7 @@ def test_dead_centre_switches_coordinate_and_stays_continuous(results):
 
 def test_start_at_dead_centre_uses_another_coordinate(results):
     scene = load_scene(BY_NAME["start_dead_centre"].path)
-    result = results("start_dead_centre").reduced
+    result = results("start_dead_centre").outcome("reduced").result
     joints = result.joints
     assert FourBar(scene.four_bar).conditioning(joints.x[0])[0] < 1e-9  # exactly at the limit
     assert joints.coordinate[0] != 0
@@ -115,8 +117,8 @@ def test_start_at_dead_centre_uses_another_coordinate(results):
 @pytest.mark.slow
 def test_stiff_damper_instability_is_detected_and_stable_paths_agree(results):
     r = results("stiff_damper")
-    assert r.figures["rkn4_status"] == "unstable"
-    table = r.figures["mujoco_stability"]
+    assert r.outcome("reduced").figures["stability"]["rkn4@0.001"] == "unstable"
+    table = r.outcome("mujoco").figures["stability"]
     assert set(table) == {f"{i}@{h:g}" for i in ("euler", "implicit", "implicitfast", "rk4")
                           for h in (1e-3, 1e-4, 1e-5)}
     assert all(table[f"{i}@1e-05"] == "ok" for i in ("euler", "implicit", "implicitfast", "rk4"))
@@ -132,12 +134,13 @@ def test_long_run_energy_drift_is_bounded(results):
     assert scene.qdot0 * scene.horizon / (2 * np.pi) > revolutions_needed * 0.9  # ≥ 200 turns at speed
     # The bound is rtol × steps per revolution (an adaptive step keeps its local error below
     # rtol of the state); it is itself small, so the check means something.
-    assert r.figures["reduced_drift_bound"] < 1e-9
-    assert r.figures["reduced_drift_per_revolution"] <= r.figures["reduced_drift_bound"]
+    reduced, mujoco = (r.outcome(name).figures for name in ("reduced", "mujoco"))
+    assert reduced["drift_bound"] < 1e-9
+    assert reduced["drift_per_revolution"] <= reduced["drift_bound"]
     # MuJoCo's drift is reported, measured 1.1e-6 per turn at 0.5 ms; bound 5.4x. The reduced
     # drift, measured 5.5e-13 per turn, far inside its bound: held to 5.5x the measurement too.
-    assert r.figures["reduced_drift_per_revolution"] < 3e-12
-    assert r.figures["mujoco_drift_per_revolution"] < 6e-6
+    assert reduced["drift_per_revolution"] < 3e-12
+    assert mujoco["drift_per_revolution"] < 6e-6
 
 
 def test_off_grid_edge_is_warned_and_its_error_quantified(results):
@@ -145,7 +148,9 @@ def test_off_grid_edge_is_warned_and_its_error_quantified(results):
     assert any("warned: yes" in n for n in r.notes)
     # The misplaced edge (0.37 ms early) costs far more than MuJoCo's own error on the grid
     # (measured 1.3e-2 against 6.9e-5 rad).
-    assert r.figures["off_grid_q_max"] > 50 * r.figures["on_grid_q_max"]
+    figures = r.outcome("mujoco").figures
+    assert figures["off_grid_q_max"] > 50 * figures["on_grid_q_max"]
+    assert "off_grid_q_max" not in r.outcome("reduced").figures  # its steps adapt: no grid
 
 
 @pytest.mark.slow
@@ -170,7 +175,7 @@ def test_off_grid_edge_error_is_first_order_in_the_misplacement():
 
 def test_gravity_only_where_declared_and_energy_conserved(results):
     r = results("gravity")
-    assert r.figures["reduced_energy_residual"] < 4e-11  # measured 7.8e-12
+    assert r.outcome("reduced").figures["energy_residual"] < 4e-11  # measured 7.8e-12
     for case in CATALOGUE:  # MuJoCo's gravity is the scene's, or zero when it declares none
         scene = load_scene(case.path)
         expected = [*scene.gravity, 0.0] if scene.gravity is not None else [0.0, 0.0, 0.0]
@@ -190,8 +195,8 @@ def test_fast_crank_peak_is_the_high_accuracy_value(results):
     (its 1 ms interpolant is the limit); bound 3e-8. MuJoCo at 2e-5 s within the scene's
     peak tolerance of it."""
     r = results("fast_crank")
-    assert r.reduced.peak.omega == pytest.approx(FAST_CRANK_PEAK, rel=3e-8)
-    assert r.comparison.diff.peak_omega_other == pytest.approx(FAST_CRANK_PEAK, rel=3e-5)
+    assert r.outcome("reduced").result.peak.omega == pytest.approx(FAST_CRANK_PEAK, rel=3e-8)
+    assert r.outcome("mujoco").comparison.diff.peak_omega_other == pytest.approx(FAST_CRANK_PEAK, rel=3e-5)
 
 
 def test_mode_jump_is_detected():

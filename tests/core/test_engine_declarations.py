@@ -63,6 +63,7 @@ def test_an_engine_that_declares_nothing_has_every_default(package):
     assert rung.settings is base and math.isnan(rung.parameter) and rung.series == "bare"
     assert engine.label == "bare"
     assert engine.stress_probes("scene", base) == ()
+    assert engine.fixed_step(base) is None  # no step grid declared: the steps adapt
     assert engine.batch_size == 1
     assert engine.simulate_batch(["a", "b"], base) == [("ran", "a", 2e-3), ("ran", "b", 2e-3)]
     with pytest.raises(ValueError, match=r"engine 'bare' declares no peak accuracy \(peak_accuracy\(settings\) in "
@@ -88,6 +89,10 @@ def test_declarations_are_read_from_the_settings_module(package):
 
         def peak_accuracy(settings):
             return settings.step ** 4
+
+
+        def fixed_step(settings):
+            return settings.step
     ''')
     base = engine.settings()
     assert [r.parameter for r in engine.ladder("s", base)] == [1e-2, 1e-3]
@@ -95,6 +100,7 @@ def test_declarations_are_read_from_the_settings_module(package):
     assert engine.label == "Full" and engine.batch_size == 8
     assert engine.stress_probes("s", base)[0].series == "coarse"
     assert engine.peak_accuracy(engine.settings(step=1e-2)) == pytest.approx(1e-8, rel=1e-15)
+    assert engine.fixed_step(engine.settings(step=2e-3)) == 2e-3
 
 
 @pytest.mark.parametrize("extra, message", [
@@ -102,11 +108,13 @@ def test_declarations_are_read_from_the_settings_module(package):
     ("BATCH_SIZE = 2.0", r"BATCH_SIZE is 2.0"),
     ("def peak_accuracy(settings):\n    return float('nan')", r"peak_accuracy gave nan"),
     ("def accuracy_ladder(scene, base, quick):\n    return [base]", r"accuracy_ladder gave .* not a Rung"),
+    ("def fixed_step(settings):\n    return 0.0", r"engine 'bad': fixed_step gave 0.0, not a positive step in s or None"),
 ])
 def test_a_declaration_that_breaks_its_rule_is_refused_naming_the_engine(package, extra, message):
     engine = package("pkg_bad", extra)
     with pytest.raises((ValueError, TypeError), match=message):
         engine.batch_size if "BATCH" in extra else (engine.peak_accuracy(engine.settings()) if "peak" in extra
+                                                    else engine.fixed_step(engine.settings()) if "fixed" in extra
                                                     else engine.ladder("s", engine.settings()))
 
 
