@@ -111,7 +111,7 @@ def test_a_ports_batch_rows_equal_its_variant_rows(name, short_file, tmp_path, c
     defects, which is what the rows say either way)."""
     vary = f"dampers.0.coefficient=[{', '.join(map(str, DAMPERS))}]"
     status2, printed, batched = _sweep(capsys, short_file, tmp_path / "b2", name, 2, vary)
-    assert f"{name} in batches of 2" in printed, printed
+    assert f"{ENGINES[name].label} in batches of 2" in printed, printed
     status1, printed, alone = _sweep(capsys, short_file, tmp_path / "b1", name, 1, vary)
     assert "in batches" not in printed
     assert [r["dampers.0.coefficient"] for r in batched] == list(DAMPERS)
