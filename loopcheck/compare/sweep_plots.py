@@ -233,7 +233,7 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{v:.4g}" for v in ys], fontsize=7)
     ax.set_xlabel(key_label(kx, speed_unit), **PLAIN)
     ax.set_ylabel(key_label(ky, speed_unit), **PLAIN)
-    over = "" if len(ratios) == 1 else f", worst of {', '.join(ENGINES[x].label for x in judged(spec))}"
+    over = "" if len(ratios) == 1 else f"\nthe worst of {', '.join(ENGINES[x].label for x in judged(spec))} in each variant"
     ax.set_title(_title(source, f"gate's worst figure / tolerance (> 1 fails){over}"), **PLAIN)
     bar = fig.colorbar(mesh, ax=ax, label="worst figure / its tolerance (ratio)")
     if norm is not None:
