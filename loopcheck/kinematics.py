@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -574,8 +575,27 @@ def _table(sums: list[_Sum]) -> TermTable:
                      phase=np.array(cols[4], dtype=float))
 
 
+_SYSTEMS: dict[int, tuple[weakref.ref, "LoopSystem"]] = {}
+"""compile_linkage's results, by the id of the linkage object, while it lives (a weak reference
+checked on each look-up, the entry dropped when the linkage goes)."""
+
+
 def compile_linkage(linkage: Linkage) -> LoopSystem:
-    """The term tables, linear rows and driving row of a checked linkage."""
+    """The term tables, linear rows and driving row of a checked linkage.
+
+    Compiled once per :class:`~loopcheck.mechanism.Linkage` object (frozen: a scene file's
+    assembly and the reduced engine's model share it; the system's kernels are per thread,
+    :func:`_cached_kernel`). Another linkage, equal or not, is compiled on its own."""
+    entry = _SYSTEMS.get(id(linkage))
+    if entry is not None and entry[0]() is linkage:
+        return entry[1]
+    system = _compile_linkage(linkage)
+    key = id(linkage)
+    _SYSTEMS[key] = (weakref.ref(linkage, lambda _, key=key: _SYSTEMS.pop(key, None)), system)
+    return system
+
+
+def _compile_linkage(linkage: Linkage) -> LoopSystem:
     bodies = linkage.body_map
     joints = linkage.joint_map
     prismatic = [j.name for j in linkage.joints if isinstance(j, PrismaticJoint)]
