@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -477,9 +478,35 @@ def assembly_modes(system: LoopSystem, x: np.ndarray) -> np.ndarray:
         block = J[:, 2 * k:2 * k + 2][:, :, [u, v]]  # (samples, 2, 2): rows x, y of loop k; columns u, v
         # At the dyad's limit position (its block's conditioning, |sin| of the angle between
         # the columns, below SINGULAR_CONDITIONING) the sign is round-off: the mode is 0 there.
-        ratio = hadamard_ratio(block)
-        out[:, k] = np.where(np.abs(ratio) < SINGULAR_CONDITIONING, 0, -np.sign(ratio)).astype(int)
+        out[:, k] = _mode_signs(block)
     return out[0] if np.ndim(x) == 1 else out
+
+
+MODE_MARGIN = 1e-12
+"""How far the closed-form ratio of :func:`_mode_signs` must be from 0 and from
+SINGULAR_CONDITIONING to decide a mode alone: both it and :func:`hadamard_ratio`'s LU are within a
+few ulps (~1e-15) of the exact ratio, which is in [−1, 1] (|ad| + |bc| ≤ the columns' norms'
+product, Cauchy–Schwarz)."""
+
+
+def _mode_signs(block: np.ndarray) -> np.ndarray:
+    """−sign(:func:`hadamard_ratio`) of each 2 × 2 block (samples, 2, 2), 0 where its magnitude is
+    below SINGULAR_CONDITIONING, exactly as from :func:`hadamard_ratio` itself: decided by the
+    closed form ad − bc over the columns' norms where that is over :data:`MODE_MARGIN` away from
+    the threshold, else (a limit position, a zero column, a value not finite) by
+    :func:`hadamard_ratio`'s LU (np.linalg.det), which the closed form saves on the other samples."""
+    a, b, c, d = block[:, 0, 0], block[:, 0, 1], block[:, 1, 0], block[:, 1, 1]
+    norms = np.sqrt(a * a + c * c) * np.sqrt(b * b + d * d)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ratio = (a * d - b * c) / norms
+    size = np.abs(ratio)
+    clear = np.isfinite(ratio) & (norms > 0) & (np.abs(size - SINGULAR_CONDITIONING) > MODE_MARGIN)
+    out = np.where(size < SINGULAR_CONDITIONING, 0, -np.sign(ratio))
+    unclear = np.flatnonzero(~clear)
+    if len(unclear):
+        exact = np.atleast_1d(hadamard_ratio(block[unclear]))
+        out[unclear] = np.where(np.abs(exact) < SINGULAR_CONDITIONING, 0, -np.sign(exact))
+    return out.astype(int)
 
 
 def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
@@ -574,8 +601,27 @@ def _table(sums: list[_Sum]) -> TermTable:
                      phase=np.array(cols[4], dtype=float))
 
 
+_SYSTEMS: dict[int, tuple[weakref.ref, "LoopSystem"]] = {}
+"""compile_linkage's results, by the id of the linkage object, while it lives (a weak reference
+checked on each look-up, the entry dropped when the linkage goes)."""
+
+
 def compile_linkage(linkage: Linkage) -> LoopSystem:
-    """The term tables, linear rows and driving row of a checked linkage."""
+    """The term tables, linear rows and driving row of a checked linkage.
+
+    Compiled once per :class:`~loopcheck.mechanism.Linkage` object (frozen: a scene file's
+    assembly and the reduced engine's model share it; the system's kernels are per thread,
+    :func:`_cached_kernel`). Another linkage, equal or not, is compiled on its own."""
+    entry = _SYSTEMS.get(id(linkage))
+    if entry is not None and entry[0]() is linkage:
+        return entry[1]
+    system = _compile_linkage(linkage)
+    key = id(linkage)
+    _SYSTEMS[key] = (weakref.ref(linkage, lambda _, key=key: _SYSTEMS.pop(key, None)), system)
+    return system
+
+
+def _compile_linkage(linkage: Linkage) -> LoopSystem:
     bodies = linkage.body_map
     joints = linkage.joint_map
     prismatic = [j.name for j in linkage.joints if isinstance(j, PrismaticJoint)]

@@ -626,12 +626,43 @@ def redundancy_note(linkage: Linkage, system, x0: np.ndarray) -> str | None:
             "closed loop, run with one degree of freedom on its independent equations")
 
 
+ASSEMBLY_CACHE = 64
+"""How many four-bar assemblies :func:`_assemble_four_bar` keeps (a sweep's variants that change
+no length nor q0 share one)."""
+_ASSEMBLIES: dict[tuple, np.ndarray] = {}
+
+
+def _assembly_key(system, g: FourBarGeometry, q0: float) -> tuple:
+    """Everything :func:`_assemble_four_bar`'s answer depends on: the lengths, branch and q0 (their
+    bits: −0.0 is not 0.0), and the loop system Newton runs on (its coordinates, loop table,
+    linear and coupling rows, drive and selected rows, as bytes)."""
+    t = system.loops
+    arrays = (t.offset, t.row, t.coef, t.mag, t.angle, t.phase, system.linear, system.drive, system.coupling_rows)
+    return (tuple(float(v).hex() for v in (g.c1, g.c2, g.c3, g.c4, q0)), g.branch, system.coordinate_names,
+            system.rows, tuple((a.dtype.str, a.shape, a.tobytes()) for a in arrays))
+
+
 def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
     """Newton from the closed form's assembly on the scene's branch, checked to stay there.
 
     The closed form, not Newton from a rough guess on the branch: that changes x0's last bits,
     which moved the shipped runs by up to 1.7e-6, and cannot reach a limit position, a double
-    root (docs/architecture.md, "The four-bar closed form")."""
+    root (docs/architecture.md, "The four-bar closed form").
+
+    Kept for the next scene of the same key (:func:`_assembly_key`; at most
+    :data:`ASSEMBLY_CACHE`, the oldest dropped): the same deterministic answer, a copy."""
+    key = _assembly_key(system, g, q0)
+    x0 = _ASSEMBLIES.get(key)
+    if x0 is None:
+        x0 = _assemble_four_bar_now(system, g, q0)
+        while len(_ASSEMBLIES) >= ASSEMBLY_CACHE:
+            _ASSEMBLIES.pop(next(iter(_ASSEMBLIES), None), None)
+        _ASSEMBLIES[key] = x0
+    return x0.copy()
+
+
+def _assemble_four_bar_now(system, g: FourBarGeometry, q0: float) -> np.ndarray:
+    """:func:`_assemble_four_bar` without its cache."""
     from .four_bar import AssemblyError as ClosedFormError, FourBar
 
     try:

@@ -51,6 +51,27 @@ class Peak:
     still_rising: bool = False
 
 
+def _cubic_roots(c2: np.ndarray, c3: np.ndarray, c4: np.ndarray, c5: np.ndarray) -> list:
+    """Per interval, the roots of 20 c5 s³ + 12 c4 s² + 6 c3 s + 2 c2 exactly as
+    ``np.roots([20 c5, 12 c4, 6 c3, 2 c2])`` gives them (none where c3 = c4 = c5 = 0): the
+    eigenvalues of its companion matrix, those of every full cubic (c5 ≠ 0, c2 ≠ 0) from one
+    batched call of ``np.linalg.eigvals``, the others by ``np.roots`` itself."""
+    p = np.stack([20 * c5, 12 * c4, 6 * c3, 2 * c2], axis=1)
+    full = (p[:, 0] != 0) & (p[:, 3] != 0)
+    out: list = [None] * len(p)
+    if np.any(full):
+        rows = np.flatnonzero(full)
+        A = np.zeros((len(rows), 3, 3))
+        A[:, 1, 0] = A[:, 2, 1] = 1.0
+        A[:, 0, :] = -p[rows, 1:] / p[rows, :1]
+        for r, w in zip(rows, np.linalg.eigvals(A)):
+            out[r] = w
+    for r in np.flatnonzero(~full):
+        c = p[r]
+        out[r] = np.roots(c) if (c[0] or c[1] or c[2]) else []
+    return out
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Samples of the input link: times (s), q (rad), q̇ (rad/s), q̈ (rad/s²), each shape (n,).
@@ -158,20 +179,23 @@ class Trajectory:
         near = objective[1:-1] >= objective[k] - PEAK_CANDIDATE_BAND * abs(objective[k])
         maxima = np.flatnonzero(rises & near) + 1
         around = sorted({i for m in (k, *maxima.tolist()) for i in (m - 2, m - 1, m, m + 1)})
-        for i in around:
-            if i < 0 or i + 1 >= len(self.t) or self.t[i + 1] == self.t[i]:
-                continue
-            h = self.t[i + 1] - self.t[i]
-            _, _, c2, c3, c4, c5 = self._coefficients(np.array(i), np.array(h))
-            # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³
-            roots = np.roots([20 * c5, 12 * c4, 6 * c3, 2 * c2]) if (c5 or c4 or c3) else []
-            for r in roots:
-                if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0:
-                    t = self.t[i] + r.real * h
-                    _, v, _ = self.interpolate(np.array([t]))
-                    better = abs(v[0]) > abs(best.omega) if sign is None else sign * v[0] > sign * best.omega
-                    if better:
-                        best = Peak(float(v[0]), float(t))
+        around = [i for i in around if 0 <= i and i + 1 < len(self.t) and self.t[i + 1] != self.t[i]]
+        if not around:
+            return self._flagged(best)
+        i = np.array(around)
+        h = self.t[i + 1] - self.t[i]
+        _, _, c2, c3, c4, c5 = self._coefficients(i, h)
+        # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³: its roots in (0, 1), interval by interval in
+        # time order (a tie keeps the earlier), as np.roots finds them, the eigenvalues of the
+        # companion matrix, here of all the intervals' in one call
+        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(c2, c3, c4, c5))
+                 for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
+        if times:
+            _, v, _ = self.interpolate(np.array(times))
+            for t, vt in zip(times, v):
+                better = abs(vt) > abs(best.omega) if sign is None else sign * vt > sign * best.omega
+                if better:
+                    best = Peak(float(vt), float(t))
         return self._flagged(best)
 
     def _flagged(self, peak: Peak) -> Peak:

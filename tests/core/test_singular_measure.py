@@ -168,3 +168,31 @@ def test_the_singular_threshold_is_defined_once():
                 for line in p.read_text(encoding="utf-8").splitlines()
                 if line.lstrip().startswith("cdef") and NAMES.search(line) and "readonly double singular" not in line]
     assert declared == [], declared
+
+
+def test_assembly_modes_closed_form_decides_as_hadamard_ratio():
+    """assembly_modes's 2 × 2 closed form (kinematics._mode_signs) gives exactly the modes of
+    hadamard_ratio's LU, near-singular blocks around SINGULAR_CONDITIONING (left to the LU within
+    MODE_MARGIN of it), zero columns and scales from 1e-8 to 1e8 included."""
+    from loopcheck import kinematics
+
+    rng = np.random.default_rng(3)
+    blocks = rng.normal(size=(4000, 2, 2)) * 10.0 ** rng.uniform(-8, 8, size=(4000, 1, 1))
+    t = rng.normal(size=4000)
+    eps = 10.0 ** rng.uniform(-18, -6, size=4000) * rng.choice([-1, 1], 4000)
+    blocks[::2, :, 1] = blocks[::2, :, 0] * t[::2, None] + eps[::2, None] * blocks[::2, ::-1, 0] * np.array([1, -1])
+    blocks[::17, :, 0] = 0.0
+    # on the threshold: columns of lengths 0.1..10, turned by φ, at an angle whose sine is
+    # SINGULAR_CONDITIONING within 1e-7 of it (~1e-16 absolute: where the closed form and the LU,
+    # each ~1e-16 off, disagree on about one block in ten; measured max difference 1.7e-16)
+    m = len(blocks[1::2][::10])
+    angle = kinematics.SINGULAR_CONDITIONING * (1.0 + rng.uniform(-1e-7, 1e-7, size=m))
+    phi = rng.uniform(0.0, 2 * np.pi, size=m)
+    lengths = rng.uniform(0.1, 10.0, size=(m, 2))
+    near = np.stack([np.stack([lengths[:, 0] * np.cos(phi), lengths[:, 1] * np.cos(phi + angle)], axis=1),
+                     np.stack([lengths[:, 0] * np.sin(phi), lengths[:, 1] * np.sin(phi + angle)], axis=1)], axis=1)
+    blocks[1::20] = near
+    ratio = kinematics.hadamard_ratio(blocks)
+    expected = np.where(np.abs(ratio) < kinematics.SINGULAR_CONDITIONING, 0, -np.sign(ratio))
+    assert np.array_equal(kinematics._mode_signs(blocks), expected)
+    assert np.sum(expected == 0) > 100 and np.sum(expected != 0) > 100  # both sides exercised

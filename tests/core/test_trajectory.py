@@ -126,3 +126,21 @@ def test_joint_trajectory_hermite_reproduces_cubics_and_their_rates():
                                np.zeros(len(t) + 1, int), np.zeros((len(t) + 1, 0), int))
     x_end, v_end = repeated.interpolate(1.0)
     assert np.array_equal(x_end[0], [7.0, 8.0]) and np.array_equal(v_end[0], [1.0, 2.0])
+
+
+def test_the_peaks_cubic_roots_are_np_roots_bit_for_bit():
+    """peak_rate's roots of q̈'s cubic, all intervals' in one eigvals call, equal np.roots of each
+    interval's exactly (bit for bit: the peak of a full run must not move), degenerate cubics
+    (a zero leading or constant coefficient, no cubic at all) included."""
+    from loopcheck.trajectory import _cubic_roots
+
+    rng = np.random.default_rng(7)
+    c2, c3, c4, c5 = rng.normal(size=(4, 400)) * 10.0 ** rng.uniform(-6, 3, size=(4, 400))
+    c5[::7] = 0.0
+    c2[::11] = 0.0
+    c3[::13] = c4[::13] = c5[::13] = 0.0
+    for k, roots in enumerate(_cubic_roots(c2, c3, c4, c5)):
+        p = [20 * c5[k], 12 * c4[k], 6 * c3[k], 2 * c2[k]]
+        expected = np.roots(p) if (c5[k] or c4[k] or c3[k]) else []
+        assert len(roots) == len(expected)
+        assert all(a.real == b.real and a.imag == b.imag for a, b in zip(roots, expected)), k
