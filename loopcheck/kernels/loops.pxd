@@ -47,15 +47,15 @@ cdef class Loops:
     # what _poly leaves: p, p', p'' of a linear row's polynomial, and r_x·K
     cdef double poly_p, poly_dp, poly_ddp, poly_rate
 
-    cdef double _lu_factor(self)
-    cdef int _lu_solve(self, double[::1] b)
-    cdef int _angle_trig(self)
-    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton)
-    cdef int _table_positions(self, Py_ssize_t table)
-    cdef int _table_rates(self, Py_ssize_t table, bint with_l)
-    cdef double _poly(self, Py_ssize_t lin, bint newton)
-    cdef double _constraints(self)
-    cdef int _basis(self)
-    cdef double _factor_row(self, double[::1] row)
-    cdef int _finish(self, double det, Py_ssize_t i)
-    cdef inline double _cramer_ratio(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros)
+    cdef double _lu_factor(self) except? -1
+    cdef int _lu_solve(self, double[::1] b) except -1
+    cdef int _angle_trig(self) except -1
+    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton) except? -1
+    cdef int _table_positions(self, Py_ssize_t table) except -1
+    cdef int _table_rates(self, Py_ssize_t table, bint with_l) except -1
+    cdef double _poly(self, Py_ssize_t lin, bint newton) except? -1
+    cdef double _constraints(self) except? -1
+    cdef int _basis(self) except -1
+    cdef double _factor_row(self, double[::1] row) except? -1
+    cdef int _finish(self, double det, Py_ssize_t i) except -1
+    cdef inline double _cramer_ratio(self, Py_ssize_t j, double det, double product, Py_ssize_t zeros) except? -1

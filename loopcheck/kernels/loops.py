@@ -165,6 +165,7 @@ class Loops:
     # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _lu_factor(self) -> cython.double:
         """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
         as its reciprocals (a solve then multiplies: its divisions were most of its latency);
@@ -210,6 +211,7 @@ class Loops:
         return det
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _lu_solve(self, b: cython.double[::1]) -> cython.int:
         """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
         solution."""
@@ -240,6 +242,7 @@ class Loops:
     # -- term tables -----------------------------------------------------------------------
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _angle_trig(self) -> cython.int:
         """cos and sin of every body angle of Newton's x[:n_angles] into trig (2, n)."""
         j: cython.Py_ssize_t
@@ -250,6 +253,7 @@ class Loops:
 
     @cython.cfunc
     @cython.inline
+    @cython.exceptval(-1, check=True)
     def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
         """Term t of the table whose header starts at tb: returns its row, and leaves its mag
         index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
@@ -274,6 +278,7 @@ class Loops:
         return row
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
         """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
@@ -290,6 +295,7 @@ class Loops:
         return 0
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _table_rates(self, table: cython.Py_ssize_t, with_l: cython.bint) -> cython.int:
         """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
         with_l), at kin's x, K and L."""
@@ -328,6 +334,7 @@ class Loops:
         return 0
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _poly(self, lin: cython.Py_ssize_t, newton: cython.bint) -> cython.double:
         """The polynomial of the linear row at F[lin] (module docstring) at s = r_x·x − x_ref, x
         Newton's (``newton``) or kin's: p(s), p'(s), p''(s) into poly_p, poly_dp, poly_ddp, and
@@ -352,6 +359,7 @@ class Loops:
         return s
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _constraints(self) -> cython.double:
         """Φ(x) into phi (m,) and Φ_x into Phi (m, n) (loop rows, then the linear rows), and their
         selected rows (select) into rhs[:n−1] and A[:n−1, :], x Newton's. Returns the sum of the magnitudes of Φ's terms (m or rad), its round-off
@@ -424,6 +432,7 @@ class Loops:
         return scale
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _basis(self) -> cython.int:
         """A redundant loop's rows (:meth:`_constraints`): into A[:n−1] an orthonormal basis of the
         rows of Φ_x by modified Gram-Schmidt, the largest remaining row first, and into rhs[:n−1]
@@ -491,6 +500,7 @@ class Loops:
     # -- one configuration ------------------------------------------------------------------
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _factor_row(self, row: cython.double[::1]) -> cython.double:
         """A = [Φ_x; row] factored, Φ_x the constraints' (:meth:`_constraints`) at Newton's x;
         returns det A and leaves it in det, and in hadamard the denominator of the conditioning
@@ -526,6 +536,7 @@ class Loops:
         return self.det
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _finish(self, det: cython.double, i: cython.Py_ssize_t) -> cython.int:
         """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
         it) whose determinant is det; the conditioning of every coordinate from the column norms:
@@ -585,6 +596,7 @@ class Loops:
 
     @cython.cfunc
     @cython.inline
+    @cython.exceptval(-1, check=True)
     def _cramer_ratio(self, j: cython.Py_ssize_t, det: cython.double, product: cython.double,
                          zeros: cython.Py_ssize_t) -> cython.double:
         """c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖ (K solved), product the product of the nonzero

@@ -121,19 +121,19 @@ cdef class Chart(RightHandSide):
     cdef readonly double[::1] kinks
     cdef double[:, :, ::1] base
 
-    cdef int _finish(self, double det)
-    cdef int _close(self, Py_ssize_t depth, double value, double reach)
-    cdef int _walk(self, double value)
-    cdef double _point_force(self, Py_ssize_t p, double q)
-    cdef int _coefficients(self)
-    cdef double _applied(self, Py_ssize_t piece)
-    cdef double _unclamped(self, Py_ssize_t a, Py_ssize_t piece, double v)
-    cdef bint _clamped(self, Py_ssize_t a)
-    cdef double _actuated(self, Py_ssize_t piece, double v, bint modes)
-    cdef double _clamp_margin(self, Py_ssize_t a, double v)
-    cdef double _friction_sign(self, double v)
-    cdef double _event_margin(self, Py_ssize_t event, double v)
-    cpdef bint evaluate(self, double value)
+    cdef int _finish(self, double det) except -1
+    cdef int _close(self, Py_ssize_t depth, double value, double reach) except -1
+    cdef int _walk(self, double value) except -1
+    cdef double _point_force(self, Py_ssize_t p, double q) except? -1
+    cdef int _coefficients(self) except -1
+    cdef double _applied(self, Py_ssize_t piece) except? -1
+    cdef double _unclamped(self, Py_ssize_t a, Py_ssize_t piece, double v) except? -1
+    cdef bint _clamped(self, Py_ssize_t a) except -1
+    cdef double _actuated(self, Py_ssize_t piece, double v, bint modes) except? -1
+    cdef double _clamp_margin(self, Py_ssize_t a, double v) except? -1
+    cdef double _friction_sign(self, double v) except? -2
+    cdef double _event_margin(self, Py_ssize_t event, double v) except? -1
+    cpdef bint evaluate(self, double value) except -1
     cpdef double acceleration(self, Py_ssize_t load, double t, double q, double v)
     cpdef double power(self, Py_ssize_t load, double v)
     cpdef double dissipation(self, double v)

@@ -431,6 +431,7 @@ class Chart(RightHandSide):
     # -- one configuration ------------------------------------------------------------------
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _finish(self, det: cython.double) -> cython.int:
         """x (Newton's), K and L into kin (3, n) from the factors of A (at x, or round-off from
         it), and the conditioning of every coordinate into the fields (:meth:`Loops._finish`)."""
@@ -442,6 +443,7 @@ class Chart(RightHandSide):
         return 0
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _close(self, depth: cython.Py_ssize_t, value: cython.double, reach: cython.double) -> cython.int:
         """Newton from the predictor of base[depth] (rows x, K, L) to x_i = value, whose predicted
         motion max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into kin (3, n).
@@ -516,6 +518,7 @@ class Chart(RightHandSide):
         return 0
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _walk(self, value: cython.double) -> cython.int:
         """Continue the chart from its last configuration to x_i = value, halving untrusted
         jumps; the result in kin and last. Returns OK, SINGULAR (no closure within the halvings)
@@ -583,6 +586,7 @@ class Chart(RightHandSide):
         return OK
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _point_force(self, p: cython.Py_ssize_t, q: cython.double) -> cython.double:
         """F_p(q) (N): the B-spline of point force p at the input coordinate q (de Boor, in the
         chart's spline scratch)."""
@@ -614,6 +618,7 @@ class Chart(RightHandSide):
         return self.spline[k]
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _coefficients(self) -> cython.int:
         """Eksergian's coefficients at the chart's kin into its fields (loopcheck.reduced.dynamics documents
         them). Uses the trig of the last Newton iteration (round-off from kin's x)."""
@@ -761,6 +766,7 @@ class Chart(RightHandSide):
         return 0
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _applied(self, piece: cython.Py_ssize_t) -> cython.double:
         """The generalized force of the loads (N·m or N) at the fields on load piece ``piece``
         (its index): T·dq/dx_i + Σ F_p(q) e·K_P + Σ F_p(t) e·K_P, the loads over time those of
@@ -774,6 +780,7 @@ class Chart(RightHandSide):
         return g
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _unclamped(self, a: cython.Py_ssize_t, piece: cython.Py_ssize_t, v: cython.double) -> cython.double:
         """Actuator a's force before its forcerange clamp, f_u = c + b1·gear·l + b2·gear·l̇ (N or
         N·m), at the fields, ẋ_i = v, on load piece ``piece``."""
@@ -784,6 +791,7 @@ class Chart(RightHandSide):
                 + self.F[prm + 1] * (self.fields[at + 1] * v))
 
     @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _clamped(self, a: cython.Py_ssize_t) -> cython.bint:
         """Whether actuator a's clamp switches with the state (an event): b1 or b2 nonzero, lo < hi,
         a finite bound."""
@@ -793,6 +801,7 @@ class Chart(RightHandSide):
         return (self.F[prm] != 0.0 or self.F[prm + 1] != 0.0) and lo < hi and (isfinite(lo) or isfinite(hi))
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _actuated(self, piece: cython.Py_ssize_t, v: cython.double, modes: cython.bint) -> cython.double:
         """The actuators' generalized force (N·m or N) at the fields, ẋ_i = v, on load piece
         ``piece``: Σ gear·f·dl/dx_i with f = clamp(c + b1·gear·l + b2·gear·l̇, lo, hi), c the
@@ -823,6 +832,7 @@ class Chart(RightHandSide):
         return g
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _clamp_margin(self, a: cython.Py_ssize_t, v: cython.double) -> cython.double:
         """Actuator a's clamp margin at the fields, ẋ_i = v, on the latest acceleration's piece: > 0
         while its mode holds (CLAMP_FREE: min(hi − f_u, f_u − lo) + ε; CLAMP_HI: f_u − hi + ε;
@@ -852,6 +862,7 @@ class Chart(RightHandSide):
     # -- the chart interface ----------------------------------------------------------------
 
     @cython.ccall
+    @cython.exceptval(-1, check=False)
     def evaluate(self, value: cython.double) -> cython.bint:
         """The chart's configuration and coefficients at x_i = value (memoized): True on success,
         else S[STATUS] = SINGULAR (no closed loop, a singular position or another branch within
@@ -871,6 +882,7 @@ class Chart(RightHandSide):
         return True
 
     @cython.cfunc
+    @cython.exceptval(-2, check=True)
     def _friction_sign(self, v: cython.double) -> cython.double:
         """The sign s of the slip (friction −s·C), 0 when sticking or without friction."""
         if not self.I[N_FRICTION]:
@@ -951,6 +963,7 @@ class Chart(RightHandSide):
                 self.kinks[e] = 1.0 if k_u > 0.0 else (-1.0 if k_u < 0.0 else 0.0)
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
     def _event_margin(self, event: cython.Py_ssize_t, v: cython.double) -> cython.double:
         """The margin of ``event`` (:meth:`fired`'s numbering) at the configuration last
         evaluated and rate v: > 0 while it has not happened."""
