@@ -94,6 +94,10 @@ _B = cython.declare(cython.double[::1], B)
 _C = cython.declare(cython.double[::1], C)
 _E3 = cython.declare(cython.double[::1], E3)
 _E5 = cython.declare(cython.double[::1], E5)
+# B, E5, E3 as rows (1, n) for _dot_kt_row
+_B_ROW = cython.declare(cython.double[:, ::1], B.reshape(1, -1))
+_E3_ROW = cython.declare(cython.double[:, ::1], E3.reshape(1, -1))
+_E5_ROW = cython.declare(cython.double[:, ::1], E5.reshape(1, -1))
 _D = cython.declare(cython.double[:, ::1], D)
 
 # What run() returns
@@ -338,6 +342,32 @@ def _dot_kt(K: cython.double[:, ::1], a: cython.double[::1], s: cython.Py_ssize_
 
 @cython.cfunc
 @cython.inline
+@cython.exceptval(-1, check=False)
+def _dot_kt_row(K: cython.double[:, ::1], a: cython.double[:, ::1], ra: cython.Py_ssize_t, s: cython.Py_ssize_t,
+                out: cython.double[:, ::1], ro: cython.Py_ssize_t) -> cython.int:
+    """:func:`_dot_kt` with the weights a[ra] and the result into out[ro]: the same sums in the
+    same order. It takes the rows by index because a view of a row (``_A[si]``, ``scratch[0]``)
+    is reference-counted atomically, twice a view: 30 atomic operations a step in _rk_step."""
+    nb: cython.Py_ssize_t = s - s % 4
+    r: cython.Py_ssize_t
+    i: cython.Py_ssize_t
+    acc: cython.double
+    for r in range(2):
+        acc = 0.0
+        i = 0
+        while i < nb:
+            acc = acc + (K[i, r] * a[ra, i] + K[i + 1, r] * a[ra, i + 1])
+            acc = acc + (K[i + 2, r] * a[ra, i + 2] + K[i + 3, r] * a[ra, i + 3])
+            i += 4
+        while i < s:
+            acc = acc + K[i, r] * a[ra, i]
+            i += 1
+        out[ro, r] = acc
+    return 0
+
+
+@cython.cfunc
+@cython.inline
 def _fun(rhs: RightHandSide, load: cython.Py_ssize_t, t: cython.double, q: cython.double,
          v: cython.double, K: cython.double[:, ::1], P: cython.double[:, ::1], row: cython.Py_ssize_t,
          work: cython.longlong[::1]) -> cython.int:
@@ -406,29 +436,25 @@ def _rk_step(rhs: RightHandSide, load: cython.Py_ssize_t, t: cython.double, y0: 
     """rk_step and DOP853._estimate_error_norm for one attempt (K[0] = f at (t, y) on entry;
     K[12] = f_new on exit; scratch (3, 2) is overwritten). Returns (status, fail_time, y_new0,
     y_new1, error_norm)."""
-    dy: cython.double[::1] = scratch[0]
     si: cython.Py_ssize_t
     s: cython.int
-    for si in range(1, _NS):
-        _dot_kt(K, _A[si], si, dy)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
-        s = _fun(rhs, load, t + _C[si] * h, y0 + dy[0] * h, y1 + dy[1] * h, K, P, si, work)
+    for si in range(1, _NS):  # dy in scratch[0]
+        _dot_kt_row(K, _A, si, si, scratch, 0)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
+        s = _fun(rhs, load, t + _C[si] * h, y0 + scratch[0, 0] * h, y1 + scratch[0, 1] * h, K, P, si, work)
         if s != _OK:
             return s, t + _C[si] * h, 0.0, 0.0, 0.0
-    bk: cython.double[::1] = dy
-    _dot_kt(K, _B, _NS, bk)
-    yn0: cython.double = y0 + h * bk[0]
-    yn1: cython.double = y1 + h * bk[1]
+    _dot_kt_row(K, _B_ROW, 0, _NS, scratch, 0)  # bk in scratch[0]
+    yn0: cython.double = y0 + h * scratch[0, 0]
+    yn1: cython.double = y1 + h * scratch[0, 1]
     s = _fun(rhs, load, t + h, yn0, yn1, K, P, _NS, work)
     if s != _OK:
         return s, t + h, 0.0, 0.0, 0.0
     sc0: cython.double = atol + _npmax(fabs(y0), fabs(yn0)) * rtol
     sc1: cython.double = atol + _npmax(fabs(y1), fabs(yn1)) * rtol
-    e5: cython.double[::1] = scratch[1]
-    e3: cython.double[::1] = scratch[2]
-    _dot_kt(K, _E5, _NS + 1, e5)
-    _dot_kt(K, _E3, _NS + 1, e3)
-    n5: cython.double = _norm2(e5[0] / sc0, e5[1] / sc1)
-    n3: cython.double = _norm2(e3[0] / sc0, e3[1] / sc1)
+    _dot_kt_row(K, _E5_ROW, 0, _NS + 1, scratch, 1)  # e5 in scratch[1]
+    _dot_kt_row(K, _E3_ROW, 0, _NS + 1, scratch, 2)  # e3 in scratch[2]
+    n5: cython.double = _norm2(scratch[1, 0] / sc0, scratch[1, 1] / sc1)
+    n3: cython.double = _norm2(scratch[2, 0] / sc0, scratch[2, 1] / sc1)
     err5_norm_2: cython.double = n5 * n5  # x ** 2, as numba lowers it: one product
     err3_norm_2: cython.double = n3 * n3
     if err5_norm_2 == 0 and err3_norm_2 == 0:
