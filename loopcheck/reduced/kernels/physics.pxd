@@ -115,7 +115,7 @@ cdef class Chart(RightHandSide):
     cdef readonly Loops loops
     # views of S and of W (physics.py: Chart), made once at construction
     cdef long long[::1] s, budget
-    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L, clamp
+    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L, clamp, dyad_base
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
     # the sign of each joint friction's K_u = row·K watched for its kink (0: not watched): set_kinks
     cdef readonly double[::1] kinks

@@ -412,6 +412,7 @@ class Chart(RightHandSide):
         self.norms, self.rows, self.kin = self.loops.norms, self.loops.rows, self.loops.kin
         self.K, self.L = self.loops.K, self.loops.L
         self.marked = np.zeros((3, n))
+        self.dyad_base = np.zeros(n)  # _close's copy of its base's x for _dyads
         self.kinks = np.zeros(max(int(I[N_FRICTION]), 1))
         degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
         self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
@@ -474,8 +475,13 @@ class Chart(RightHandSide):
         plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
         # x by closed form: taken as it is if it closes the loops
         closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
-        if closed and not _dyads(self.F, self.I, plan, self.x, self.base[depth, 0], self.trig, i):
-            return 1
+        if closed:
+            # base[depth, 0] copied into a view of its own: a view of the row, made and dropped at
+            # every closure, would change the array's acquisition count atomically twice
+            for j in range(n):
+                self.dyad_base[j] = self.base[depth, 0, j]
+            if not _dyads(self.F, self.I, plan, self.x, self.dyad_base, self.trig, i):
+                return 1
         for it in range(_c_newton_max_iter + 1):
             if not closed:  # the closed form left trig at x
                 self.loops._angle_trig()
