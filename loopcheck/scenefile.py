@@ -168,25 +168,28 @@ def _parse_joint_elements(top: Table, linkage: Linkage) -> list[JointElement]:
     N·m/rad, kg·m² and N·m on a revolute joint, N·s/m, N/m, kg and N on a prismatic one."""
     out = []
     joints = linkage.joint_map
+
+    def on_joint(t) -> tuple[str, bool]:
+        """The element's joint (one of the linkage's, else SceneError naming the key) and whether it
+        is revolute."""
+        joint = t.string("joint")
+        if joint not in joints:
+            raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+        return joint, not isinstance(joints[joint], PrismaticJoint)
+
     # one number each: (kind, table, key, its kind on a revolute joint, on a prismatic one)
     for kind, table, key, on_revolute, on_prismatic in (("inertia", "joint_inertias", "inertia", "inertia", "mass"),
                                                          ("friction", "joint_frictions", "friction", "torque", "force")):
         for k, t in enumerate(array_of_tables(top, table)):
-            joint = t.string("joint")
-            if joint not in joints:
-                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+            joint, revolute = on_joint(t)
             name = name_key(t.string("name", f"{table[:-1]}{k}"), t.key("name"))
-            revolute = not isinstance(joints[joint], PrismaticJoint)
             value = t.number(key, positive=True, kind=on_revolute if revolute else on_prismatic)
             t.close()
             out.append(_mechanism_value(t.path, lambda: JointElement(kind, name, joint, value)))
     for kind, table in (("damper", "joint_dampers"), ("spring", "joint_springs")):
         for k, t in enumerate(array_of_tables(top, table)):
-            joint = t.string("joint")
-            if joint not in joints:
-                raise SceneError(f"'{t.key('joint')}' = \"{joint}\" is not one of the joints: {', '.join(joints)}")
+            joint, revolute = on_joint(t)
             name = name_key(t.string("name", f"joint_{kind}{k}"), t.key("name"))
-            revolute = not isinstance(joints[joint], PrismaticJoint)
             rest = 0.0
             if kind == "damper":
                 coefficient = t.number("coefficient", positive=True,
