@@ -22,6 +22,7 @@ that declares an engine is found when the registry is first imported (:func:`reg
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 import math
@@ -35,6 +36,13 @@ from .scene import Scene
 
 GROUP = "loopcheck.engines"  # the entry-point group an engine is declared in
 _NAME = re.compile(r"[a-z][a-z0-9_]*")  # a scene file's table, a word of --engines
+
+
+@functools.cache
+def _takes(function, keyword: str) -> bool:
+    """Whether an engine's ``function`` takes the optional ``keyword`` (read once per function: a
+    sweep asks at every variant)."""
+    return keyword in inspect.signature(function).parameters
 
 
 @dataclass(frozen=True)
@@ -117,7 +125,7 @@ class Engine:
         passed on to a ``simulate`` that takes a keyword ``summary`` (the reduced engine's cheaper
         run), ignored by one that does not."""
         simulate = importlib.import_module(self.package).simulate
-        if summary and "summary" in inspect.signature(simulate).parameters:
+        if summary and _takes(simulate, "summary"):
             return simulate(scene, settings, summary=True)
         return simulate(scene, settings)
 
@@ -298,8 +306,6 @@ class Engine:
         ``simulate_batch`` takes ``each`` returns those itself (the ports: one batch, the failing
         variants' slots filled by another's run and dropped); one that does not is called plainly,
         and if the batch raises, each scene runs alone (:meth:`simulate`) for its own outcome."""
-        import inspect
-
         batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
         if not each:
             if batch is None:
@@ -307,7 +313,7 @@ class Engine:
             return list(batch(list(scenes), settings))
         if batch is not None:
             try:
-                if "each" in inspect.signature(batch).parameters:
+                if _takes(batch, "each"):
                     return list(batch(list(scenes), settings, each=True))
                 return list(batch(list(scenes), settings))
             except Exception:  # noqa: BLE001 - the batch as a whole: each variant's own run says what failed
