@@ -242,6 +242,20 @@ class LoopSystem:
     joint_rows: np.ndarray
     rows: tuple[int, ...] | None = None
     couplings: np.ndarray | None = None
+    inputs: tuple[str, ...] = ()
+
+    @property
+    def input_rows(self) -> np.ndarray:
+        """(k, n) the rows of the k inputs' own coordinates, q = input_rows·x, in the linkage's
+        inputs order (:attr:`loopcheck.mechanism.Linkage.inputs`); the first is :attr:`drive`."""
+        if not self.inputs:
+            return self.drive[None, :]
+        return np.array([self.joint_row(name) for name in self.inputs], dtype=float).reshape(-1, self.n)
+
+    @property
+    def dof(self) -> int:
+        """The degrees of freedom the linkage is driven with: one per input."""
+        return max(len(self.inputs), 1)
 
     @property
     def coupling_rows(self) -> np.ndarray:
@@ -262,12 +276,12 @@ class LoopSystem:
     def with_independent_rows(self, x: np.ndarray, rtol: float = RANK_RTOL) -> "LoopSystem":
         """The same linkage whose kernel runs on the independent constraint rows at the assembled
         configuration x (:func:`independent_rows` of every row's Jacobian, chosen once here).
-        Raises :class:`AssemblyError` where they are not n − 1 (not one degree of freedom)."""
+        Raises :class:`AssemblyError` where they are not n − dof (not :attr:`dof` degrees of freedom)."""
         J = all_constraints(self, x)[1]
         rows = independent_rows(J, rtol)
-        if len(rows) != self.n - 1:
+        if len(rows) != self.n - self.dof:
             raise AssemblyError(f"the loop equations have rank {len(rows)} of {J.shape[0]} rows over "
-                                f"{self.n} coordinates: {self.n - len(rows)} degrees of freedom, not 1")
+                                f"{self.n} coordinates: {self.n - len(rows)} degrees of freedom, not {self.dof}")
         return replace(self, rows=rows)
 
     @property
@@ -435,6 +449,55 @@ def assemble(system: LoopSystem, q: float, guess: np.ndarray, *, tol: float = 1e
                                 "configuration at this q closes every loop: a structure, or redundant links whose "
                                 "lengths do not fit)")
     return x
+
+
+def assemble_inputs(system: LoopSystem, q, guess: np.ndarray, *, tol: float = 1e-12,
+                    max_iter: int = 50) -> np.ndarray:
+    """All coordinates x with the loops closed and every input at its value: q (k,) in the
+    inputs' order (:attr:`LoopSystem.input_rows`), for a linkage of k ≥ 1 degrees of freedom.
+
+    Newton's method on (Φ(x), R x − q) = 0 from ``guess``, every constraint row (a redundant
+    loop's too: the step is the least-squares one, exact for consistent rows), converged when
+    every residual is ≤ ``tol`` (m or rad), then one more step to reach round-off. Set-up only
+    (a scene's start): plain NumPy, not the compiled kernel the one-input :func:`assemble` runs.
+
+    Raises
+    ------
+    AssemblyError
+        Non-finite values, a Jacobian [Φ_x; R] of rank below n on the way (the inputs cannot
+        hold the linkage there: a singular configuration of these inputs), or no convergence in
+        ``max_iter`` iterations."""
+    R = system.input_rows
+    q = np.array(q, dtype=float).reshape(-1)
+    x = np.array(guess, dtype=float)
+    if q.shape != (R.shape[0],):
+        raise AssemblyError(f"{len(q)} input values for {R.shape[0]} inputs")
+    if x.shape != (system.n,):
+        raise AssemblyError(f"the guess has shape {x.shape}, expected ({system.n},) "
+                            f"for coordinates {', '.join(system.coordinate_names)}")
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(x))):
+        raise AssemblyError(f"q = {q.tolist()} and the guess must be finite")
+    where = ", ".join(f"{v:.15g}" for v in q)
+    polished = False
+    for _ in range(max_iter + 1):
+        phi, J = system.kernel.all_constraints(x)
+        residual = np.concatenate([phi, R @ x - q])
+        if not np.all(np.isfinite(residual)):
+            raise AssemblyError(f"Newton's method diverged at q = ({where}): start from another guess")
+        A = np.vstack([J, R])
+        step, _, rank, _ = np.linalg.lstsq(A, -residual, rcond=None)
+        if rank < system.n:
+            raise AssemblyError(f"the inputs cannot hold the linkage at q = ({where}) during assembly (the "
+                                f"Jacobian [Φ_x; R] has rank {rank} of {system.n}: a singular configuration of "
+                                "these inputs): start from another guess")
+        if polished:
+            return x
+        converged = bool(np.max(np.abs(residual)) <= tol)
+        x = x + step
+        polished = converged
+    largest = float(np.max(np.abs(residual)))
+    raise AssemblyError(f"the loops do not close at q = ({where}): largest residual {largest:.3g} after {max_iter} "
+                        "Newton iterations (the lengths cannot meet there, or the guess is too far from an assembly)")
 
 
 def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -677,11 +740,13 @@ def _compile_linkage(linkage: Linkage) -> LoopSystem:
             body = e.parent
         return out
 
-    inp = joints[linkage.input_joint]
-    # The input's own coordinate never names a mode: q is given, so the mode is the sign of a
+    # An input's own coordinate never names a mode: q is given, so the mode is the sign of a
     # pair of dependent coordinates, which changes only where q cannot drive the loop.
-    driven = {disp[inp.name]} if isinstance(inp, PrismaticJoint) else {
-        angle[b] for b in (inp.body_a, inp.body_b) if angle[b] >= 0 and GROUND in (inp.body_a, inp.body_b)}
+    driven = set()
+    for name in linkage.inputs:
+        inp = joints[name]
+        driven |= {disp[inp.name]} if isinstance(inp, PrismaticJoint) else {
+            angle[b] for b in (inp.body_a, inp.body_b) if angle[b] >= 0 and GROUND in (inp.body_a, inp.body_b)}
     loops, mode_pairs = [], []
     for name in linkage.cut_joints:
         jt = joints[name]
@@ -732,4 +797,5 @@ def _compile_linkage(linkage: Linkage) -> LoopSystem:
                       points=_table([point(b, p) for b, p in point_names]),
                       point_names=point_names, input_unit=unit,
                       centres=_table([centre(b) for b in linkage.moving]),
-                      mode_pairs=np.array(mode_pairs, dtype=np.intp).reshape(-1, 2))
+                      mode_pairs=np.array(mode_pairs, dtype=np.intp).reshape(-1, 2),
+                      inputs=linkage.inputs if len(linkage.inputs) > 1 else ())

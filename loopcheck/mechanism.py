@@ -263,7 +263,7 @@ class TreeEdge:
 
 @dataclass(frozen=True)
 class Linkage:
-    """A planar linkage of revolute and prismatic joints with one degree of freedom.
+    """A planar linkage of revolute and prismatic joints with one degree of freedom or more.
 
     Parameters
     ----------
@@ -272,7 +272,8 @@ class Linkage:
     joints : sequence of RevoluteJoint or PrismaticJoint
     input_joint : str
         Name of the joint whose coordinate is the independent coordinate q (rad for a
-        revolute: body_b's angle relative to body_a; m for a prismatic: its displacement).
+        revolute: body_b's angle relative to body_a; m for a prismatic: its displacement);
+        with several degrees of freedom, the first input.
     tree_first : tuple of str
         Joints to take into the spanning tree before the other revolute ones (after the input
         and the prismatic joints), where the loops allow: a joint inertia's joints, which
@@ -280,6 +281,10 @@ class Linkage:
     couplings : tuple of JointCoupling
         Polynomial couplings between two joints' coordinates; each is one more closure
         equation (one fewer degree of freedom).
+    inputs : tuple of str
+        With several degrees of freedom, every input joint in order, the first being
+        ``input_joint`` (q = (q_1, …, q_n), each its joint's own coordinate); empty (the default)
+        means ``(input_joint,)``, one degree of freedom.
 
     Attributes (derived)
     --------------------
@@ -292,9 +297,9 @@ class Linkage:
     cut_joints : tuple of str
         One joint per independent loop, not in the tree; its loop closes when it is satisfied.
     grubler_dof : int
-        Grübler's count 3·moving bodies − 2·joints: at most 1 (above 1 is refused). Below 1 the
-        loops are redundantly closed (more loop equations than the coordinates less one); whether
-        the linkage moves with one DOF is decided by the rank of its loop equations at the
+        Grübler's count 3·moving bodies − 2·joints: at most the number of inputs (above is
+        refused). Below it the loops are redundantly closed (more loop equations than the
+        coordinates less the inputs); whether the linkage moves with that many DOF is decided by the rank of its loop equations at the
         assembled configuration (:func:`loopcheck.kinematics.rank_dof`), and the scene reader warns
         that the count differs (:class:`GrublerCountWarning`).
     """
@@ -304,6 +309,7 @@ class Linkage:
     input_joint: str
     tree_first: tuple[str, ...] = ()
     couplings: tuple[JointCoupling, ...] = ()
+    inputs: tuple[str, ...] = ()
     moving: tuple[str, ...] = field(init=False, repr=False, compare=False)
     tree: tuple[TreeEdge, ...] = field(init=False, repr=False, compare=False)
     cut_joints: tuple[str, ...] = field(init=False, repr=False, compare=False)
@@ -314,6 +320,7 @@ class Linkage:
         object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(self, "tree_first", tuple(self.tree_first))
         object.__setattr__(self, "couplings", tuple(self.couplings))
+        object.__setattr__(self, "inputs", tuple(self.inputs) or (self.input_joint,))
         for b in self.bodies:
             if not isinstance(b, Body):
                 raise MechanismError(f"bodies must be Body values, got {type(b).__name__}")
@@ -337,6 +344,12 @@ class Linkage:
                                          f"(point_{side})")
         if self.input_joint not in {j.name for j in self.joints}:
             raise MechanismError(f"input joint {self.input_joint!r} is not one of the joints")
+        if self.inputs[0] != self.input_joint:
+            raise MechanismError(f"inputs must start with the input joint {self.input_joint!r}, got {list(self.inputs)}")
+        _unique(list(self.inputs), "input")
+        for name in self.inputs:
+            if name not in {j.name for j in self.joints}:
+                raise MechanismError(f"input {name!r} is not one of the joints")
         for name in self.tree_first:
             if name not in {j.name for j in self.joints}:
                 raise MechanismError(f"tree_first: {name!r} is not one of the joints")
@@ -354,10 +367,11 @@ class Linkage:
         # equations: a parallelogram with an extra parallel crank) may still move with one DOF.
         # The rank of the loop equations at the assembled configuration decides
         # (:func:`loopcheck.kinematics.rank_dof`, when a scene is read); the count is a warning then.
-        if dof > 1:
+        if dof > len(self.inputs):
             raise MechanismError(f"the linkage has {dof} degrees of freedom by Grübler's count "
                                  f"3·{n} moving bodies − 2·{j} joints"
-                                 + (f" − {c} couplings" if c else "") + ", not 1")
+                                 + (f" − {c} couplings" if c else "")
+                                 + (", not 1" if len(self.inputs) == 1 else f", more than its {len(self.inputs)} inputs"))
         kinds = self.joint_map
         for name in cut:
             loop = _cycle(tree, kinds[name])
@@ -383,6 +397,11 @@ class Linkage:
         """Joints by name."""
         return {j.name: j for j in self.joints}
 
+    @property
+    def dof(self) -> int:
+        """The degrees of freedom the linkage is driven with: one per input."""
+        return len(self.inputs)
+
     def loop_of(self, cut_joint: str) -> tuple[str, ...]:
         """The joints of the loop that ``cut_joint`` closes: its tree path and itself."""
         return _cycle(self.tree, self.joint_map[cut_joint])
@@ -391,7 +410,7 @@ class Linkage:
         """Breadth-first tree from ground taking the input joint first, then prismatic joints,
         then the joints of ``tree_first`` (a maximum spanning tree with prismatic joints weighted
         above revolute ones): the
-        input joint is never cut (an engine can drive it as a tree joint), and a cut joint
+        input joints (all of them, in order) are never cut (an engine can drive it as a tree joint), and a cut joint
         is prismatic only if its loop is all prismatic (or it closes the input's loop that way,
         which :class:`Linkage` refuses like an all-prismatic loop)."""
         adjacent: dict[str, list[Joint]] = {}
@@ -407,7 +426,7 @@ class Linkage:
                           if (jt.body_a in reached) != (jt.body_b in reached)]
             if not candidates:
                 break
-            driven = [jt for jt in candidates if jt.name == self.input_joint]
+            driven = sorted((jt for jt in candidates if jt.name in self.inputs), key=lambda jt: self.inputs.index(jt.name))
             prismatic = [jt for jt in candidates if isinstance(jt, PrismaticJoint)]
             first = [jt for jt in candidates if jt.name in self.tree_first]
             jt = (driven or prismatic or first or candidates)[0]

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 from .results import EngineResult
-from .scene import Scene
+from .scene import Scene, SceneError
 
 
 GROUP = "loopcheck.engines"  # the entry-point group an engine is declared in
@@ -124,6 +124,7 @@ class Engine:
         result's summaries will be read (a sweep's row: the peak, the energy residual, the status),
         passed on to a ``simulate`` that takes a keyword ``summary`` (the reduced engine's cheaper
         run), ignored by one that does not."""
+        self.check_dof(scene)
         simulate = importlib.import_module(self.package).simulate
         if summary and _takes(simulate, "summary"):
             return simulate(scene, settings, summary=True)
@@ -132,6 +133,20 @@ class Engine:
     # The optional declarations (docs/engines.md, "What an engine may declare"). Each has a default,
     # so that an engine declaring none of them still reaches every study. The light ones live in the
     # engine's ``settings`` module (read without loading the engine); ``simulate_batch`` in its package.
+
+    @property
+    def several_dof(self) -> bool:
+        """Whether the engine runs linkages of several degrees of freedom: its settings module's
+        ``SEVERAL_DOF`` (default False: one DOF only, and a scene with several inputs is refused
+        by :meth:`check_dof`)."""
+        return self._declared("SEVERAL_DOF") is True
+
+    def check_dof(self, scene: Scene) -> None:
+        """Refuse, in one line (SceneError), a scene of several degrees of freedom that the engine
+        cannot run (:attr:`several_dof`)."""
+        if scene.dof > 1 and not self.several_dof:
+            raise SceneError(f"scene '{scene.name}' has {scene.dof} degrees of freedom (inputs "
+                             f"{', '.join(scene.inputs)}); the {self.label} engine runs one-DOF linkages only")
 
     def _declared(self, name: str) -> Any:
         return getattr(importlib.import_module(f"{self.package}.settings"), name, None)
@@ -186,6 +201,7 @@ class Engine:
         """Refuse, before any work, a run the engine cannot do with ``settings``: the package's
         ``check_work(scene, settings)`` where it has one (ValueError naming what to change), else
         nothing."""
+        self.check_dof(scene)
         check = getattr(importlib.import_module(self.package), "check_work", None)
         if check is not None:
             check(scene, settings)
@@ -306,6 +322,8 @@ class Engine:
         ``simulate_batch`` takes ``each`` returns those itself (the ports: one batch, the failing
         variants' slots filled by another's run and dropped); one that does not is called plainly,
         and if the batch raises, each scene runs alone (:meth:`simulate`) for its own outcome."""
+        for scene in scenes[:1]:  # variants of one structure: one check
+            self.check_dof(scene)
         batch = getattr(importlib.import_module(self.package), "simulate_batch", None)
         if not each:
             if batch is None:

@@ -168,7 +168,8 @@ class Scene:
     load : the generalized force on the input joint over time, a torque (N·m) on a
         revolute input or a force (N) on a prismatic one; None without one.
     gravity : (gx, gy) m/s², or None.
-    q0, qdot0 : the input coordinate and its rate at t = 0 (rad or m; per s).
+    q0, qdot0 : the input coordinate and its rate at t = 0 (rad or m; per s); with several
+        inputs, the first input's.
     x0 : the configuration assembled at q0 (the coordinates of
         :class:`loopcheck.kinematics.LoopSystem`: body angles in rad, slider displacements in m).
     mode : its assembly mode, one sign per loop (:func:`loopcheck.kinematics.assembly_mode`).
@@ -176,6 +177,9 @@ class Scene:
         say otherwise.
     engine_tolerances : each engine's own tolerances by engine name (``[tolerances.pin]``): the
         keys given, each already checked; a key not given is ``tolerances``' (:meth:`tolerances_for`).
+    inputs_q0, inputs_qdot0 : with several inputs, every input's coordinate and rate at t = 0, in
+        the linkage's inputs order (:attr:`loopcheck.mechanism.Linkage.inputs`), the first being q0
+        and qdot0; empty with one input (:meth:`initial_q` gives both cases).
     engine_tables : the settings the scene asks each engine for, by engine name (its table of
         the scene file, ``[reduced]``, ``[mujoco]``): the keys given, each already checked.
     four_bar : the four-bar shorthand's geometry when the scene used it (enables the
@@ -197,8 +201,19 @@ class Scene:
     source: str = "<memory>"
     four_bar: FourBarGeometry | None = None
     engine_tolerances: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    inputs_q0: tuple[float, ...] = ()
+    inputs_qdot0: tuple[float, ...] = ()
 
     def __post_init__(self):
+        k = len(self.mechanism.linkage.inputs)
+        q0s, qdot0s = tuple(map(float, self.inputs_q0)), tuple(map(float, self.inputs_qdot0))
+        if k == 1 and (q0s or qdot0s):
+            raise ValueError("inputs_q0 and inputs_qdot0 are for several inputs: one input's are q0 and qdot0")
+        if k > 1 and (len(q0s) != k or len(qdot0s) != k or (q0s[0], qdot0s[0]) != (self.q0, self.qdot0)):
+            raise ValueError(f"inputs_q0 and inputs_qdot0 need one value per input ({k}), the first q0 and qdot0; "
+                             f"got {list(q0s)} and {list(qdot0s)}")
+        object.__setattr__(self, "inputs_q0", q0s)
+        object.__setattr__(self, "inputs_qdot0", qdot0s)
         keys = {f.name for f in dataclasses.fields(Tolerances)}
         for engine, given in self.engine_tolerances.items():
             unknown = sorted(set(given) - keys)
@@ -221,6 +236,29 @@ class Scene:
         """The settings this scene asks the engine ``engine`` for (its table of the scene file:
         the keys given, each checked on its own; the engine's ``Settings`` resolve them)."""
         return self.engine_tables.get(engine, {})
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """The input joints, in order (one for a one-DOF linkage)."""
+        return self.mechanism.linkage.inputs
+
+    @property
+    def dof(self) -> int:
+        """The degrees of freedom: one per input."""
+        return len(self.mechanism.linkage.inputs)
+
+    def initial_q(self) -> tuple[float, ...]:
+        """Every input's coordinate at t = 0 (rad or m), in the inputs' order."""
+        return self.inputs_q0 or (self.q0,)
+
+    def initial_qdot(self) -> tuple[float, ...]:
+        """Every input's rate at t = 0 (rad/s or m/s), in the inputs' order."""
+        return self.inputs_qdot0 or (self.qdot0,)
+
+    def input_units(self) -> tuple[str, ...]:
+        """Each input coordinate's unit, "rad" or "m", in the inputs' order."""
+        joints = self.mechanism.linkage.joint_map
+        return tuple("m" if isinstance(joints[name], PrismaticJoint) else "rad" for name in self.inputs)
 
     @property
     def input_is_prismatic(self) -> bool:

@@ -344,7 +344,7 @@ def _with_inertias_in_tree(linkage: Linkage, joint_elements: list[JointElement])
     if not first:
         return linkage
     return _mechanism_value("joints", lambda: Linkage(linkage.bodies, linkage.joints, linkage.input_joint, first,
-                                                             linkage.couplings))
+                                                             linkage.couplings, linkage.inputs))
 
 
 def _mechanism_value(key: str, build):
@@ -355,8 +355,35 @@ def _mechanism_value(key: str, build):
         raise SceneError(f"'{key}': {exc}") from None
 
 
+def _parse_inputs(link: Table) -> tuple[str, ...]:
+    """``linkage.input = "J"`` (one degree of freedom) or ``linkage.inputs = ["J1", "J2", …]``
+    (several, in order: the initial values and the reports follow it), one of the two."""
+    if link.has("input") == link.has("inputs"):
+        raise SceneError("'linkage' needs 'input' (one joint) or 'inputs' (several), one of the two")
+    if link.has("input"):
+        return (link.string("input"),)
+    names = link.raw("inputs")
+    if not isinstance(names, list) or len(names) < 2 or not all(isinstance(v, str) for v in names):
+        raise SceneError(f"'{link.key('inputs')}' must be an array of two joint names or more "
+                         f"(one input is written input = \"J\")")
+    if len(set(names)) != len(names):
+        raise SceneError(f"'{link.key('inputs')}' names a joint twice")
+    return tuple(names)
+
+
+def _initial_values(init: Table, name: str, default, kinds: tuple[str, ...]) -> tuple[float, ...]:
+    """``initial.q`` / ``initial.qdot``: a number for one input, an array in the inputs' order for several."""
+    if len(kinds) == 1:
+        return (init.number(name, default, kind=kinds[0]),)
+    value = init.raw(name, [default] * len(kinds) if default is not ... else ...)
+    if not isinstance(value, list) or len(value) != len(kinds):
+        raise SceneError(f"'{init.key(name)}' must be an array of {len(kinds)} numbers, one per input (linkage.inputs)")
+    return tuple(number(v, f"{init.key(name)}[{i}]", kind=kind) for i, (v, kind) in enumerate(zip(value, kinds)))
+
+
 def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry | None]:
-    input_joint = link.string("input")
+    inputs = _parse_inputs(link)
+    input_joint = inputs[0]
     link.close()
     bodies_t = top.table("bodies")
     names = list(bodies_t.data)
@@ -368,14 +395,19 @@ def _parse_planar(top: Table, link: Table) -> tuple[Mechanism, FourBarGeometry |
         raise SceneError("missing key 'joints': a planar linkage needs [[joints]]")
     joints = [_parse_joint(t) for t in joints_t]
     joint_names = [j.name for j in joints]
-    if input_joint not in joint_names:
-        raise SceneError(f"'linkage.input' = \"{input_joint}\" is not one of the joints: {', '.join(joint_names)}")
+    for name in inputs:
+        if name not in joint_names:
+            key = "linkage.input" if len(inputs) == 1 else "linkage.inputs"
+            raise SceneError(f"'{key}' = \"{name}\" is not one of the joints: {', '.join(joint_names)}")
     couplings = _parse_couplings(top, joints)
     linkage = _mechanism_value("couplings" if couplings else "joints",
-                               lambda: Linkage(bodies, joints, input_joint, couplings=couplings))
+                               lambda: Linkage(bodies, joints, input_joint, couplings=couplings, inputs=inputs))
     input_kind = "position" if isinstance(linkage.joint_map[input_joint], PrismaticJoint) else "angle"
     elements = _parse_line_elements(top)
     forces = _parse_point_forces(top, input_kind)
+    if forces and len(inputs) > 1:
+        raise SceneError("'point_forces' are tabulated over the input coordinate q, and a linkage with several inputs "
+                         "has no one q: give the force over time ([[timed_forces]]) or as an actuator")
     joint_elements = _parse_joint_elements(top, linkage)
     linkage = _with_inertias_in_tree(linkage, joint_elements)
     timed = _parse_timed_forces(top)
@@ -499,6 +531,11 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     prismatic_input = isinstance(linkage.joint_map[linkage.input_joint], PrismaticJoint)
 
     load_key, other_key = ("force", "torque") if prismatic_input else ("torque", "force")
+    several = len(linkage.inputs) > 1
+    for key in ("torque", "force") if several else ():
+        if top.has(key):
+            raise SceneError(f"'{key}': a linkage with several inputs takes each input's load as an actuator on its "
+                             f"joint ([[actuators]] with joint = \"{linkage.input_joint}\" and its [actuators.control])")
     if top.has(other_key):
         raise SceneError(f"'{other_key}' does not fit the {'prismatic' if prismatic_input else 'revolute'} "
                          f"input joint '{linkage.input_joint}': give [{load_key}] "
@@ -507,8 +544,10 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     top.used.add(load_key)
 
     init = top.table("initial")
-    q0 = init.number("q", kind="position" if prismatic_input else "angle")
-    qdot0 = init.number("qdot", 0.0, kind="speed")
+    kinds = tuple("position" if isinstance(linkage.joint_map[j], PrismaticJoint) else "angle" for j in linkage.inputs)
+    q0s = _initial_values(init, "q", ..., kinds)
+    qdot0s = _initial_values(init, "qdot", 0.0, ("speed",) * len(kinds))
+    q0, qdot0 = q0s[0], qdot0s[0]
     guess_t = init.table("guess") if init.has("guess") else None
     mode = init.raw("mode", None)
     init.used.add("guess")
@@ -536,17 +575,19 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
     else:
         guess = _parse_guess(guess_t, system, linkage) if guess_t is not None else np.zeros(system.n)
         init.close()
-        x0 = _assemble(system, q0, guess, mode, linkage)
+        x0 = _assemble(system, q0s, guess, mode, linkage)
         note = redundancy_note(linkage, system, x0)
         if note is not None:
             warnings.warn(f"{source or f'scene {name!r}'}: {note}", GrublerCountWarning, stacklevel=2)
-    _check_start(system, x0, q0, qdot0)
+    if not several:  # several inputs: assemble_inputs refused a singular set of them
+        _check_start(system, x0, q0, qdot0)
     _check_ranges(system, mechanism.linkage, x0)
 
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
                   mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
-                  engine_tables=engine_tables, source=source, four_bar=four_bar, engine_tolerances=engine_tolerances)
+                  engine_tables=engine_tables, source=source, four_bar=four_bar, engine_tolerances=engine_tolerances,
+                  inputs_q0=q0s if several else (), inputs_qdot0=qdot0s if several else ())
     return scene
 
 
@@ -589,21 +630,22 @@ def _parse_guess(t: Table, system, linkage: Linkage) -> np.ndarray:
     return guess
 
 
-def _assemble(system, q0: float, guess: np.ndarray, mode, linkage: Linkage) -> np.ndarray:
-    """Newton from the guess; the degrees of freedom by the loop Jacobian's rank (one, or refused
-    naming Grübler's count and the rank's) and the asked mode are checked."""
+def _assemble(system, q0s: tuple[float, ...], guess: np.ndarray, mode, linkage: Linkage) -> np.ndarray:
+    """Newton from the guess; the degrees of freedom by the loop Jacobian's rank (one per input, or
+    refused naming Grübler's count and the rank's) and the asked mode are checked."""
+    q0 = f"{q0s[0]:g}" if len(q0s) == 1 else "[" + ", ".join(f"{v:g}" for v in q0s) + "]"
     try:
-        x0 = loops.assemble(system, q0, guess)
+        x0 = loops.assemble(system, q0s[0], guess) if len(q0s) == 1 else loops.assemble_inputs(system, q0s, guess)
     except loops.AssemblyError as exc:
-        raise SceneError(f"'initial.q' = {q0:g}: {exc}" + (
+        raise SceneError(f"'initial.q' = {q0}: {exc}" + (
             f"; the linkage has {linkage.grubler_dof} degrees of freedom by Grübler's count: a structure, unless "
             "its loop equations are redundant" if linkage.grubler_dof < 1 else "")) from None
     rank = loops.jacobian_rank(system, x0)
-    if rank != system.n - 1:
+    if rank != system.n - len(q0s):
         dof = system.n - rank
-        raise SceneError(f"'initial.q' = {q0:g}: the loop equations have rank {rank} ({system.m} rows over "
+        raise SceneError(f"'initial.q' = {q0}: the loop equations have rank {rank} ({system.m} rows over "
                          f"{system.n} coordinates) at the assembled configuration: {dof} degrees of freedom by "
-                         f"rank ({linkage.grubler_dof} by Grübler's count), not 1"
+                         f"rank ({linkage.grubler_dof} by Grübler's count), not {len(q0s)}"
                          + (": the linkage is locked" if dof == 0 else " (redundant or parallel joints)"))
     found = loops.assembly_mode(system, x0)
     if mode is not None:
@@ -621,12 +663,13 @@ def redundancy_note(linkage: Linkage, system, x0: np.ndarray) -> str | None:
     freedom by the rank of its loop equations at x0 whose Grübler count differs; None where it
     does not (:class:`~loopcheck.mechanism.GrublerCountWarning`: the scene reader and the MJCF import
     say it in these words)."""
-    if linkage.grubler_dof == 1:
+    dof = linkage.dof
+    if linkage.grubler_dof == dof:
         return None
     rank = loops.jacobian_rank(system, x0)
     return (f"Grübler's count gives {linkage.grubler_dof} degrees of freedom, the rank of the loop equations at "
-            f"the start gives 1 ({system.m - rank} of its {system.m} loop equations are redundant): a redundantly "
-            "closed loop, run with one degree of freedom on its independent equations")
+            f"the start gives {dof} ({system.m - rank} of its {system.m} loop equations are redundant): a redundantly "
+            f"closed loop, run with {'one degree' if dof == 1 else f'{dof} degrees'} of freedom on its independent equations")
 
 
 ASSEMBLY_CACHE = 64
