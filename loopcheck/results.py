@@ -111,6 +111,9 @@ class EngineResult:
         ``loopcheck.mjx.run.MjxDetails``), each with ``as_dict()``.
     caveats : known defects of the engine that bear on this run, one line each (e.g. MJX 3.17's
         missing J̇·q̇ on a scene with loops); the comparison prints them beside the verdict.
+    other_inputs : with several inputs (:attr:`loopcheck.scene.Scene.inputs`), the trajectories of the
+        inputs after the first, in order, each with its peak; empty with one input. ``trajectory``
+        and ``peak`` are the first input's; :attr:`inputs` gives them all.
     """
 
     engine: str
@@ -126,3 +129,9 @@ class EngineResult:
     constraint_violation: ConstraintViolation | None = None
     details: Any = None
     caveats: tuple[str, ...] = ()
+    other_inputs: tuple[tuple[Trajectory, Peak], ...] = ()
+
+    @property
+    def inputs(self) -> tuple[tuple[Trajectory, Peak], ...]:
+        """Every input's trajectory and peak, in the scene's inputs order (one for a one-DOF scene)."""
+        return ((self.trajectory, self.peak), *self.other_inputs)
