@@ -618,6 +618,7 @@ def study(scene: Scene, *, quick: bool = False, target: float | None = None, rep
     ValueError
         In one line, before any work: a scene table an engine's settings refuse.
     """
+    scene.require_one_dof("cost")
     target = target if target is not None else scene.tolerances.peak_omega_rtol
     repeats = repeats if repeats is not None else 3
     for name in engines:

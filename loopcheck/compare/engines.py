@@ -147,6 +147,8 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
     NumericalFailure
         If the reduced reference fails (another engine's failure is its verdict).
     """
+    for name in engines:  # before any work or output: an engine that cannot take the scene's DOF
+        ENGINES[name].check_dof(scene)
     settings = {name: (settings or {}).get(name) or engine_settings(name, scene) for name in engines}
     _log.info("%s: %s started (the reference)", scene.name, REFERENCE)
     start = time.perf_counter()

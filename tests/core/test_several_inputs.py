@@ -82,3 +82,17 @@ def test_an_engine_that_declares_no_several_dof_refuses_a_two_dof_scene_in_one_l
             engine.check_dof(scene)
         with pytest.raises(SceneError, match="runs one-DOF linkages only"):
             engine.simulate(scene, engine.settings())
+
+
+def test_the_one_dof_studies_refuse_a_two_dof_scene_before_any_work(tmp_path):
+    # cost and sweep read the first input's peak: on several inputs they would judge one coordinate
+    # of n, so they refuse (issue 41 gives them an n-DOF meaning)
+    from loopcheck.compare.cost import study
+    from loopcheck.compare.sweep_scene import check, load_sweep
+    from loopcheck.sweep_spec import spec_from_args
+
+    with pytest.raises(SceneError, match="loopcheck cost studies one-DOF scenes only"):
+        study(load_scene(FIVE_BAR), quick=True)
+    data, _ = load_sweep(str(FIVE_BAR))
+    with pytest.raises(SceneError, match="loopcheck sweep studies one-DOF scenes only"):
+        check(data, spec_from_args(["bodies.left_arm.mass=1:2:2"], None, None), str(FIVE_BAR))
