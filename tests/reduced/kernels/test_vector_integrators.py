@@ -104,10 +104,11 @@ def start(n):
 
 class Oscillator(VectorRightHandSide):
     """q̈ = −ω² q in two coordinates from q = (1, 0), q̇ = (0, ω): q = (cos ωt, sin ωt). Stop
-    margin q₀ − q₁: its root is ωt = π/4."""
+    margin q₀ − q₁ = cos ωt − sin ωt, or on the rates (``on_rates``) (q̇₀ + q̇₁)/ω, the same
+    function: its root is ωt = π/4."""
 
-    def __init__(self, omega, locate=False):
-        self.omega, self._locate = omega, locate
+    def __init__(self, omega, locate=False, on_rates=False):
+        self.omega, self._locate, self.on_rates = omega, locate, on_rates
 
     def dimension(self):
         return 2
@@ -118,7 +119,7 @@ class Oscillator(VectorRightHandSide):
         return 0
 
     def stop_margin(self, t, q, v):
-        return q[0] - q[1]
+        return (v[0] + v[1]) / self.omega if self.on_rates else q[0] - q[1]
 
     def locate(self, t, q, v):
         return self._locate
@@ -364,7 +365,7 @@ def test_dop853_at_n1_on_the_linkage_chart_gives_the_scalar_kernels_bits(case, u
 
 @pytest.mark.parametrize("locate", [False, True])
 def test_rkn4_at_n1_gives_the_scalar_kernels_bits(locate):
-    scalar_problem = scalar_pendulum(lambda t, q, v: q + 0.15)
+    scalar_problem = scalar_pendulum(lambda t, q, v: q + 0.15 + 0.01 * v)
     if locate:
         scalar_problem.locate = lambda t, q, v: True
     outcome, *scalar = run_rkn(scalar_problem, EDGES, 0.3, 0.0, 2e-3, use_stop=True)
@@ -387,11 +388,13 @@ OMEGA = 3.0
 ROOT_TIME = math.pi / 4 / OMEGA  # q₀ − q₁ = cos ωt − sin ωt = 0
 
 
-def test_dop853_stop_event_root_is_the_closed_forms():
+@pytest.mark.parametrize("on_rates", [False, True], ids=["on q", "on q̇"])
+def test_dop853_stop_event_root_is_the_closed_forms(on_rates):
     """At rtol 1e-12 the global error of q is ~1e-12 and Brent's tolerance 4 eps: the root within
     1e-12 s (measured 4.9e-14 s), q there within 1e-11 (measured 1.6e-12), q̇ within 1e-11 ω
     (measured 4.8e-12 = 1.6e-12 ω)."""
-    run = VA.run(Oscillator(OMEGA), [0.0, 1.0], [0], [1.0, 0.0], [0.0, OMEGA], rtol=RTOL, use_stop=True)
+    run = VA.run(Oscillator(OMEGA, on_rates=on_rates), [0.0, 1.0], [0], [1.0, 0.0], [0.0, OMEGA], rtol=RTOL,
+                 use_stop=True)
     assert run.stopped and run.status == output.OK
     assert abs(run.t_reached - ROOT_TIME) < 1e-12
     c, s = math.cos(OMEGA * ROOT_TIME), math.sin(OMEGA * ROOT_TIME)
@@ -399,13 +402,15 @@ def test_dop853_stop_event_root_is_the_closed_forms():
     assert np.max(np.abs(run.v[-1] - [-OMEGA * s, OMEGA * c])) < 1e-11 * OMEGA
 
 
-def test_rkn4_located_stop_is_the_closed_forms_root():
+@pytest.mark.parametrize("on_rates", [False, True], ids=["on q", "on q̇"])
+def test_rkn4_located_stop_is_the_closed_forms_root(on_rates):
     """RKN4 at h = 1e-3 (error ~ h⁴ = 1e-12 a unit time), the root on the step's Hermite
-    interpolants (also fourth order): within 1e-10 s (measured 1.4e-13 s); unlocated, the run
+    interpolants (also fourth order; q̇'s from q̇ and q̈ at the step's ends): within 1e-10 s
+    (measured 1.4e-13 s on q, 4.0e-15 s on q̇); unlocated, the run
     ends after the step past the root, within one step (measured 2.0e-4 s after it)."""
     for locate in (False, True):
         out = VectorSamples(2, 0)
-        outcome = vector_rkn_chart(Oscillator(OMEGA, locate), RKN4, np.array([0.0, 1.0]), np.zeros(1, dtype=np.intp),
+        outcome = vector_rkn_chart(Oscillator(OMEGA, locate, on_rates), RKN4, np.array([0.0, 1.0]), np.zeros(1, dtype=np.intp),
                                    0.0, np.array([1.0, 0.0]), np.array([0.0, OMEGA]), 1e-3, 1e6, True, True, out)
         assert outcome.stopped and outcome.status == output.OK
         if locate:
