@@ -279,16 +279,12 @@ def _dense(t: cython.double, t_old: cython.double, h: cython.double, sy: cython.
 def _dense_state(t: cython.double, j: cython.Py_ssize_t, steps: VectorSteps) -> cython.void:
     """q and q̇ of step j's dense output at t into steps.qs, steps.vs."""
     n: cython.Py_ssize_t = steps.dimension
-    sy: cython.double[:, ::1] = steps.sy
-    sF: cython.double[:, :, ::1] = steps.sF
-    qs: cython.double[::1] = steps.qs
-    vs: cython.double[::1] = steps.vs
     t_old: cython.double = steps.st[j]
     h: cython.double = steps.sh[j]
     i: cython.Py_ssize_t
     for i in range(n):
-        qs[i] = _dense(t, t_old, h, sy, sF, j, i)
-        vs[i] = _dense(t, t_old, h, sy, sF, j, n + i)
+        steps.qs[i] = _dense(t, t_old, h, steps.sy, steps.sF, j, i)
+        steps.vs[i] = _dense(t, t_old, h, steps.sy, steps.sF, j, n + i)
 
 
 @cython.cfunc
@@ -375,25 +371,20 @@ def _fun(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.double, st
     rates there into P[row]; steps.work = [nfev, max_evaluations].
     Returns a status: STEP_SIZE when the budget is spent (f not called), NONFINITE where the
     problem cannot be evaluated or q̈ is not finite."""
-    work: cython.longlong[::1] = steps.work
-    if work[0] >= work[1]:
+    if steps.work[0] >= steps.work[1]:
         return _STEP_SIZE
-    work[0] += 1
+    steps.work[0] += 1
     n: cython.Py_ssize_t = steps.dimension
-    vs: cython.double[::1] = steps.vs
-    acc: cython.double[::1] = steps.acc
-    K: cython.double[:, ::1] = steps.K
-    P: cython.double[:, ::1] = steps.P
-    if rhs.acceleration(load, t, steps.qs, vs, acc) != 0:
+    if rhs.acceleration(load, t, steps.qs, steps.vs, steps.acc) != 0:
         return _NONFINITE
     i: cython.Py_ssize_t
     finite: cython.bint = True
     for i in range(n):
-        K[row, i] = vs[i]
-        K[row, n + i] = acc[i]
-        finite = finite and isfinite(acc[i])
-    P[row, 0] = rhs.power(load, vs)
-    P[row, 1] = rhs.dissipation(vs)
+        steps.K[row, i] = steps.vs[i]
+        steps.K[row, n + i] = steps.acc[i]
+        finite = finite and isfinite(steps.acc[i])
+    steps.P[row, 0] = rhs.power(load, steps.vs)
+    steps.P[row, 1] = rhs.dissipation(steps.vs)
     return _OK if finite else _NONFINITE
 
 
@@ -402,14 +393,10 @@ def _fun(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.double, st
 def _stage_point(steps: VectorSteps, y: cython.Py_ssize_t, h: cython.double) -> cython.void:
     """steps.qs, steps.vs = Y[y] + S[DY] · h (scipy: y + dy with dy = np.dot(K[:s].T, a[:s]) * h)."""
     n: cython.Py_ssize_t = steps.dimension
-    Y: cython.double[:, ::1] = steps.Y
-    S: cython.double[:, ::1] = steps.S
-    qs: cython.double[::1] = steps.qs
-    vs: cython.double[::1] = steps.vs
     i: cython.Py_ssize_t
     for i in range(n):
-        qs[i] = Y[y, i] + S[_DY, i] * h
-        vs[i] = Y[y, n + i] + S[_DY, n + i] * h
+        steps.qs[i] = steps.Y[y, i] + steps.S[_DY, i] * h
+        steps.vs[i] = steps.Y[y, n + i] + steps.S[_DY, n + i] * h
 
 
 @cython.cfunc
@@ -421,14 +408,10 @@ def _initial_step(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.d
     RESTART_STEPS). Returns (status, fail_time, h_abs)."""
     n: cython.Py_ssize_t = steps.dimension
     m: cython.Py_ssize_t = 2 * n
-    Y: cython.double[:, ::1] = steps.Y
-    K: cython.double[:, ::1] = steps.K
-    qs: cython.double[::1] = steps.qs
-    vs: cython.double[::1] = steps.vs
     i: cython.Py_ssize_t
     for i in range(n):
-        qs[i] = Y[_Y, i]
-        vs[i] = Y[_Y, n + i]
+        steps.qs[i] = steps.Y[_Y, i]
+        steps.vs[i] = steps.Y[_Y, n + i]
     s: cython.int = _fun(rhs, load, t, steps, 0)
     if s != _OK:
         return s, t, 0.0
@@ -437,11 +420,11 @@ def _initial_step(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.d
         return _OK, NAN, 0.0
     sqrt_m: cython.double = pow(cython.cast(cython.double, m), 0.5)  # x.size ** 0.5
     for i in range(m):
-        Y[_SC, i] = Y[_Y, i] / (atol + fabs(Y[_Y, i]) * rtol)
-    d0: cython.double = _norm_row(Y, _SC, m) / sqrt_m
+        steps.Y[_SC, i] = steps.Y[_Y, i] / (atol + fabs(steps.Y[_Y, i]) * rtol)
+    d0: cython.double = _norm_row(steps.Y, _SC, m) / sqrt_m
     for i in range(m):
-        Y[_SC, i] = K[0, i] / (atol + fabs(Y[_Y, i]) * rtol)
-    d1: cython.double = _norm_row(Y, _SC, m) / sqrt_m
+        steps.Y[_SC, i] = steps.K[0, i] / (atol + fabs(steps.Y[_Y, i]) * rtol)
+    d1: cython.double = _norm_row(steps.Y, _SC, m) / sqrt_m
     h0: cython.double
     h1: cython.double
     if d0 < 1e-5 or d1 < 1e-5:
@@ -450,14 +433,14 @@ def _initial_step(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.d
         h0 = 0.01 * d0 / d1
     h0 = _pymin(h0, interval_length)
     for i in range(n):
-        qs[i] = Y[_Y, i] + h0 * 1.0 * K[0, i]
-        vs[i] = Y[_Y, n + i] + h0 * 1.0 * K[0, n + i]
+        steps.qs[i] = steps.Y[_Y, i] + h0 * 1.0 * steps.K[0, i]
+        steps.vs[i] = steps.Y[_Y, n + i] + h0 * 1.0 * steps.K[0, n + i]
     s = _fun(rhs, load, t + h0 * 1.0, steps, 1)
     if s != _OK:
         return s, t + h0, 0.0
     for i in range(m):
-        Y[_SC, i] = (K[1, i] - K[0, i]) / (atol + fabs(Y[_Y, i]) * rtol)
-    d2: cython.double = _norm_row(Y, _SC, m) / sqrt_m / h0
+        steps.Y[_SC, i] = (steps.K[1, i] - steps.K[0, i]) / (atol + fabs(steps.Y[_Y, i]) * rtol)
+    d2: cython.double = _norm_row(steps.Y, _SC, m) / sqrt_m / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = _pymax(1e-6, h0 * 1e-3)
     else:
@@ -474,38 +457,33 @@ def _rk_step(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.double
     entry; K[12] = f_new on exit, y_new into Y[_YN]). Returns (status, fail_time, error_norm)."""
     n: cython.Py_ssize_t = steps.dimension
     m: cython.Py_ssize_t = 2 * n
-    K: cython.double[:, ::1] = steps.K
-    Y: cython.double[:, ::1] = steps.Y
-    S: cython.double[:, ::1] = steps.S
     si: cython.Py_ssize_t
     i: cython.Py_ssize_t
     s: cython.int
     for si in range(1, _NS):
-        _dot_kt_row(K, _A, si, si, S, _DY, m)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
+        _dot_kt_row(steps.K, _A, si, si, steps.S, _DY, m)  # scipy: dy = np.dot(K[:s].T, a[:s]) * h, then y + dy
         _stage_point(steps, _Y, h)
         s = _fun(rhs, load, t + _C[si] * h, steps, si)
         if s != _OK:
             return s, t + _C[si] * h, 0.0
-    _dot_kt_row(K, _B_ROW, 0, _NS, S, _DY, m)  # y_new = y + h * np.dot(K[:-1].T, B)
-    qs: cython.double[::1] = steps.qs
-    vs: cython.double[::1] = steps.vs
+    _dot_kt_row(steps.K, _B_ROW, 0, _NS, steps.S, _DY, m)  # y_new = y + h * np.dot(K[:-1].T, B)
     for i in range(m):
-        Y[_YN, i] = Y[_Y, i] + h * S[_DY, i]
+        steps.Y[_YN, i] = steps.Y[_Y, i] + h * steps.S[_DY, i]
     for i in range(n):
-        qs[i] = Y[_YN, i]
-        vs[i] = Y[_YN, n + i]
+        steps.qs[i] = steps.Y[_YN, i]
+        steps.vs[i] = steps.Y[_YN, n + i]
     s = _fun(rhs, load, t + h, steps, _NS)
     if s != _OK:
         return s, t + h, 0.0
-    _dot_kt_row(K, _E5_ROW, 0, _NS + 1, S, _E5, m)
-    _dot_kt_row(K, _E3_ROW, 0, _NS + 1, S, _E3, m)
+    _dot_kt_row(steps.K, _E5_ROW, 0, _NS + 1, steps.S, _E5, m)
+    _dot_kt_row(steps.K, _E3_ROW, 0, _NS + 1, steps.S, _E3, m)
     sc: cython.double
     for i in range(m):  # scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol; err / scale
-        sc = atol + _npmax(fabs(Y[_Y, i]), fabs(Y[_YN, i])) * rtol
-        S[_E5, i] = S[_E5, i] / sc
-        S[_E3, i] = S[_E3, i] / sc
-    n5: cython.double = _norm_row(S, _E5, m)
-    n3: cython.double = _norm_row(S, _E3, m)
+        sc = atol + _npmax(fabs(steps.Y[_Y, i]), fabs(steps.Y[_YN, i])) * rtol
+        steps.S[_E5, i] = steps.S[_E5, i] / sc
+        steps.S[_E3, i] = steps.S[_E3, i] / sc
+    n5: cython.double = _norm_row(steps.S, _E5, m)
+    n3: cython.double = _norm_row(steps.S, _E3, m)
     err5_norm_2: cython.double = n5 * n5  # x ** 2, as numpy's power computes it: one product
     err3_norm_2: cython.double = n3 * n3
     if err5_norm_2 == 0 and err3_norm_2 == 0:
@@ -543,18 +521,17 @@ def _dense_coefficients(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t_old
     the interpolant of each component of steps.sy from step j to j + 1 (both set) into
     steps.sF[j]: q and q̇ from K, the energy flows from P. Returns (status, fail_time)."""
     m: cython.Py_ssize_t = 2 * steps.dimension
-    K: cython.double[:, ::1] = steps.K
     si: cython.Py_ssize_t
     s: cython.int
     c: cython.Py_ssize_t
     for si in range(_NS + 1, _NSE):
-        _dot_kt_row(K, _A, si, si, steps.S, _DY, m)
+        _dot_kt_row(steps.K, _A, si, si, steps.S, _DY, m)
         _stage_point(steps, _YO, h)
         s = _fun(rhs, load, t_old + _C[si] * h, steps, si)
         if s != _OK:
             return s, t_old + _C[si] * h
     for c in range(m):
-        _interpolant(steps.sF, steps.sy, j, h, K, c, c)
+        _interpolant(steps.sF, steps.sy, j, h, steps.K, c, c)
     for c in range(2):
         _interpolant(steps.sF, steps.sy, j, h, steps.P, m + c, c)
     return _OK, NAN
@@ -565,13 +542,10 @@ def _dense_coefficients(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t_old
 def _state_q(steps: VectorSteps) -> cython.void:
     """steps.qs, steps.vs = q, q̇ of Y[_Y] (the state the stop margin is read at)"""
     n: cython.Py_ssize_t = steps.dimension
-    Y: cython.double[:, ::1] = steps.Y
-    qs: cython.double[::1] = steps.qs
-    vs: cython.double[::1] = steps.vs
     i: cython.Py_ssize_t
     for i in range(n):
-        qs[i] = Y[_Y, i]
-        vs[i] = Y[_Y, n + i]
+        steps.qs[i] = steps.Y[_Y, i]
+        steps.vs[i] = steps.Y[_Y, n + i]
 
 
 @cython.cfunc
@@ -590,15 +564,11 @@ def _piece(rhs: VectorRightHandSide, load: cython.Py_ssize_t, start: cython.doub
     n: cython.Py_ssize_t = steps.dimension
     m: cython.Py_ssize_t = 2 * n
     W: cython.Py_ssize_t = m + 2
-    K: cython.double[:, ::1] = steps.K
-    P: cython.double[:, ::1] = steps.P
-    Y: cython.double[:, ::1] = steps.Y
-    pb: cython.double[:, ::1] = steps.pb  # Σ b_s P_s of a step (the energy flows' rates)
     t: cython.double = start
     i: cython.Py_ssize_t
     steps.st[0] = t
     for i in range(m):
-        steps.sy[0, i] = Y[_Y, i]
+        steps.sy[0, i] = steps.Y[_Y, i]
     steps.sy[0, m] = w0
     steps.sy[0, m + 1] = d0
     ns: cython.Py_ssize_t = 0
@@ -608,9 +578,9 @@ def _piece(rhs: VectorRightHandSide, load: cython.Py_ssize_t, start: cython.doub
     h_abs: cython.double
     status, fail_time, h_abs = _initial_step(rhs, load, t, end, rtol, atol, max_step, restart_cap, steps)
     for i in range(m):
-        Y[_F, i] = K[0, i]
-    p0: cython.double = P[0, 0]
-    p1: cython.double = P[0, 1]
+        steps.Y[_F, i] = steps.K[0, i]
+    p0: cython.double = steps.P[0, 0]
+    p1: cython.double = steps.P[0, 1]
     g: cython.double = 0.0
     g_new: cython.double
     min_step: cython.double
@@ -648,9 +618,9 @@ def _piece(rhs: VectorRightHandSide, load: cython.Py_ssize_t, start: cython.doub
             h = t_new - t
             h_abs = fabs(h)
             for i in range(m):
-                K[0, i] = Y[_F, i]
-            P[0, 0] = p0
-            P[0, 1] = p1
+                steps.K[0, i] = steps.Y[_F, i]
+            steps.P[0, 0] = p0
+            steps.P[0, 1] = p1
             status, fail_time, error_norm = _rk_step(rhs, load, t, h, rtol, atol, steps)
             if status != _OK:
                 break
@@ -672,18 +642,18 @@ def _piece(rhs: VectorRightHandSide, load: cython.Py_ssize_t, start: cython.doub
         t_old = t
         t = t_new
         for i in range(m):
-            Y[_YO, i] = Y[_Y, i]
-            Y[_Y, i] = Y[_YN, i]
-            Y[_F, i] = K[_NS, i]
-        p0 = P[_NS, 0]
-        p1 = P[_NS, 1]
+            steps.Y[_YO, i] = steps.Y[_Y, i]
+            steps.Y[_Y, i] = steps.Y[_YN, i]
+            steps.Y[_F, i] = steps.K[_NS, i]
+        p0 = steps.P[_NS, 0]
+        p1 = steps.P[_NS, 1]
         if ns + 1 >= steps.st.shape[0]:
             steps.grow(ns + 1)
         for i in range(m):
-            steps.sy[ns + 1, i] = Y[_Y, i]
-        _dot_kt_row(P, _B_ROW, 0, _NS, pb, 0, 2)  # the energy flows' step, with the state's weights
-        steps.sy[ns + 1, m] = steps.sy[ns, m] + h * pb[0, 0]
-        steps.sy[ns + 1, m + 1] = steps.sy[ns, m + 1] + h * pb[0, 1]
+            steps.sy[ns + 1, i] = steps.Y[_Y, i]
+        _dot_kt_row(steps.P, _B_ROW, 0, _NS, steps.pb, 0, 2)  # the energy flows' step, with the state's weights
+        steps.sy[ns + 1, m] = steps.sy[ns, m] + h * steps.pb[0, 0]
+        steps.sy[ns + 1, m + 1] = steps.sy[ns, m + 1] + h * steps.pb[0, 1]
         status, fail_time = _dense_coefficients(rhs, load, t_old, h, steps, ns)
         if status != _OK:
             break
