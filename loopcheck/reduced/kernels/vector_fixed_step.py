@@ -10,9 +10,9 @@ weights, as there (:mod:`.fixed_step`'s docstring).
 
 Every ``STABILITY_CHECK_EVERY`` steps the step is checked against the stability region of the
 locally linearized problem (:func:`check_stability`): the Jacobian of (q, q̇) ↦ (q̇, f) by
-one-sided differences (2n + 1 evaluations), its 2n eigenvalues by LAPACK (numpy: the check
-allocates, once per STABILITY_CHECK_EVERY steps), each mode hλ against RK4's amplification
-with :mod:`.fixed_step`'s margins.
+one-sided differences (2n + 1 evaluations), its 2n modes (at n = 1 :func:`.fixed_step.check_stability`'s
+closed form; at n ≥ 2 by LAPACK through numpy, which allocates, once per STABILITY_CHECK_EVERY
+steps), each mode hλ against RK4's amplification with :mod:`.fixed_step`'s margins.
 
 A stop (the problem's ``stop_margin`` ≤ 0 after a step) ends the run after that step, unless the
 problem asks for it to be located (``locate``): then the step is taken again from its start, to
@@ -24,13 +24,13 @@ import cython
 import numpy as np
 
 if cython.compiled:
-    from cython.cimports.libc.math import ceil, fabs, isfinite
+    from cython.cimports.libc.math import atan2, ceil, cos, fabs, isfinite, pow, sin
     from cython.cimports.loopcheck.reduced.kernels.fixed_step import RKNTableau, amplification_limit, rk4_amplification
     from cython.cimports.loopcheck.reduced.kernels.output import Outcome
     from cython.cimports.loopcheck.reduced.kernels.vector_output import VectorSamples, check_vector_run
     from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
-    from math import ceil, fabs, isfinite
+    from math import atan2, ceil, cos, fabs, isfinite, pow, sin
 
     from loopcheck.reduced.kernels.fixed_step import RKNTableau, amplification_limit, rk4_amplification
     from loopcheck.reduced.kernels.output import Outcome
@@ -104,12 +104,32 @@ def check_stability(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython
     when f cannot be evaluated. Uses 2n + 1 evaluations.
 
     The Jacobian of (q, q̇) ↦ (q̇, f) is [[0, I], [F_q, F_q̇]], F by one-sided differences of
-    step 1e-7 max(1, |xⱼ|) in each coordinate (:func:`.fixed_step.check_stability`'s); its
-    eigenvalues by numpy.linalg.eigvals."""
-    n: cython.Py_ssize_t = q.shape[0]
-    w: _Work = _Work(n, 1)
-    f0 = np.empty(n)
-    f0v: cython.double[::1] = f0
+    step 1e-7 max(1, |xⱼ|) in each coordinate (:func:`.fixed_step.check_stability`'s); its modes
+    at n = 1 as :func:`.fixed_step.check_stability` finds them (the same verdict and detail to the
+    bit), at n ≥ 2 the eigenvalues of the Jacobian by numpy.linalg.eigvals."""
+    return _check(rhs, load, t, q, v, h, outcome, _Work(q.shape[0], 1))
+
+
+@cython.cfunc
+def _mode(zr: cython.double, zi: cython.double, outcome: Outcome) -> cython.bint:
+    """Whether the mode z = hλ is amplified beyond its limit (then its detail into outcome)."""
+    amplification: cython.double = rk4_amplification(zr, zi)
+    limit: cython.double = amplification_limit(zr, zi)
+    if amplification > limit:
+        outcome.detail[0] = zr
+        outcome.detail[1] = zi
+        outcome.detail[2] = amplification
+        outcome.detail[3] = limit
+        return True
+    return False
+
+
+@cython.cfunc
+def _check(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.double, q: cython.double[::1],
+           v: cython.double[::1], h: cython.double, outcome: Outcome, w: _Work) -> cython.int:
+    """:func:`check_stability` in the workspace ``w`` (of n coordinates, its own: the run's stages
+    are left as they were)."""
+    n: cython.Py_ssize_t = w.n
     i: cython.Py_ssize_t
     j: cython.Py_ssize_t
     dx: cython.double
@@ -117,7 +137,7 @@ def check_stability(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython
     if not _evaluate(rhs, load, t, w, q, v, 0):
         return _FAILED
     for i in range(n):
-        f0v[i] = w.acc[i]
+        w.a0[i] = w.acc[i]  # f at (q, v)
         w.jac[i, n + i] = 1.0
     for j in range(2 * n):  # column j: q_j, then v_(j - n), moved by dx
         for i in range(n):
@@ -134,25 +154,30 @@ def check_stability(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython
         if not _evaluate(rhs, load, t, w, w.rq, w.rv, 0):
             return _FAILED
         for i in range(n):
-            w.jac[n + i, j] = (w.acc[i] - f0v[i]) / dx
+            w.jac[n + i, j] = (w.acc[i] - w.a0[i]) / dx
+    k: cython.Py_ssize_t
+    if n == 1:  # λ² − f_q̇ λ − f_q = 0, as fixed_step.check_stability solves it
+        f_q: cython.double = w.jac[1, 0]
+        f_v: cython.double = w.jac[1, 1]
+        disc: cython.double = f_v * f_v + 4.0 * f_q
+        root_r: cython.double = 0.0
+        root_i: cython.double = 0.0
+        if disc != 0.0:  # CPython's _Py_c_pow for complex(disc) ** 0.5
+            length: cython.double = pow(fabs(disc), 0.5)
+            phase: cython.double = atan2(0.0, disc) * 0.5
+            root_r = length * cos(phase)
+            root_i = length * sin(phase)
+        for k in range(2):
+            lr: cython.double = 0.5 * (f_v + root_r) if k == 0 else 0.5 * (f_v - root_r)
+            li: cython.double = 0.5 * root_i if k == 0 else 0.5 * (0.0 - root_i)
+            if _mode(h * lr, h * li, outcome):
+                return _UNSTABLE
+        return _OK
     modes = np.linalg.eigvals(w.jacobian)
     if not np.all(np.isfinite(modes)):
         return _FAILED
-    k: cython.Py_ssize_t
-    zr: cython.double
-    zi: cython.double
-    amplification: cython.double
-    limit: cython.double
     for k in range(2 * n):
-        zr = h * modes[k].real
-        zi = h * modes[k].imag
-        amplification = rk4_amplification(zr, zi)
-        limit = amplification_limit(zr, zi)
-        if amplification > limit:
-            outcome.detail[0] = zr
-            outcome.detail[1] = zi
-            outcome.detail[2] = amplification
-            outcome.detail[3] = limit
+        if _mode(h * modes[k].real, h * modes[k].imag, outcome):
             return _UNSTABLE
     return _OK
 
@@ -344,6 +369,7 @@ def vector_rkn_chart(rhs: VectorRightHandSide, tableau: RKNTableau, edges: cytho
             total += 1 + max(1, cython.cast(cython.Py_ssize_t, ceil((edges[k + 1] - start) / step - 1e-9)))
     out.reserve(total)
     w: _Work = _Work(n, s)
+    check: _Work = _Work(n, 1)  # the stability check's
     c: cython.double[::1] = tableau.c
     a: cython.double[:, ::1] = tableau.a
     abar: cython.double[:, ::1] = tableau.abar
@@ -402,7 +428,7 @@ def vector_rkn_chart(rhs: VectorRightHandSide, tableau: RKNTableau, edges: cytho
         for m in range(ns):
             t = start + m * h
             if stability and n_steps % _CHECK_EVERY == 0:
-                status = check_stability(rhs, load, t, q, v, h, outcome)
+                status = _check(rhs, load, t, q, v, h, outcome, check)
                 n_eval += 2 * n + 1
                 if status != _OK:
                     outcome.status = status

@@ -596,3 +596,16 @@ def test_the_uncompiled_source_gives_the_compiled_numbers():
         results[pure] = done.stdout.split(" ", 1)
     assert results["0"][0] == "True" and results["1"][0] == "False"
     assert results["0"][1] == results["1"][1]
+
+
+def test_the_stability_check_at_n1_is_the_scalar_kernels():
+    """A stiff damped oscillator (q̈ = −1e6 q − 50 q̇: hλ outside RK4's region at h = 0.01): the
+    same verdict, time and detail (Re hλ, Im hλ, |R|, limit) as fixed_step's, bit for bit."""
+    stiff = ClosedForm(lambda t, q, v, u: -1e6 * q - 50.0 * v)
+    outcome, *_ = run_rkn(stiff, [0.0, 1.0], 0.1, 0.0, 0.01)
+    out = VectorSamples(1, 0)
+    mine = vector_rkn_chart(ScalarAsVector(stiff), RKN4, np.array([0.0, 1.0]), np.zeros(1, dtype=np.intp), 0.0,
+                            np.array([0.1]), np.array([0.0]), 0.01, 1e6, True, False, out)
+    assert outcome.status == mine.status == output.UNSTABLE
+    assert (outcome.fail_time, outcome.n_evaluations) == (mine.fail_time, mine.n_evaluations)
+    assert np.array_equal(np.asarray(outcome.detail), np.asarray(mine.detail))
