@@ -598,10 +598,12 @@ def test_the_uncompiled_source_gives_the_compiled_numbers():
     assert results["0"][1] == results["1"][1]
 
 
-def test_the_stability_check_at_n1_is_the_scalar_kernels():
-    """A stiff damped oscillator (q̈ = −1e6 q − 50 q̇: hλ outside RK4's region at h = 0.01): the
-    same verdict, time and detail (Re hλ, Im hλ, |R|, limit) as fixed_step's, bit for bit."""
-    stiff = ClosedForm(lambda t, q, v, u: -1e6 * q - 50.0 * v)
+@pytest.mark.parametrize("stiffness, damping", [(1e6, 50.0), (1e4, 1e3)], ids=["complex modes", "real modes"])
+def test_the_stability_check_at_n1_is_the_scalar_kernels(stiffness, damping):
+    """Stiff oscillators at h = 0.01: q̈ = −1e6 q − 50 q̇ (a complex pair, hλ ≈ −0.25 ± 10i) and
+    the overdamped q̈ = −1e4 q − 1e3 q̇ (hλ ≈ −0.10 and −9.9: the second mode is the unstable one),
+    each the same verdict, time and detail (Re hλ, Im hλ, |R|, limit) as fixed_step's, bit for bit."""
+    stiff = ClosedForm(lambda t, q, v, u: -stiffness * q - damping * v)
     outcome, *_ = run_rkn(stiff, [0.0, 1.0], 0.1, 0.0, 0.01)
     out = VectorSamples(1, 0)
     mine = vector_rkn_chart(ScalarAsVector(stiff), RKN4, np.array([0.0, 1.0]), np.zeros(1, dtype=np.intp), 0.0,
@@ -609,3 +611,34 @@ def test_the_stability_check_at_n1_is_the_scalar_kernels():
     assert outcome.status == mine.status == output.UNSTABLE
     assert (outcome.fail_time, outcome.n_evaluations) == (mine.fail_time, mine.n_evaluations)
     assert np.array_equal(np.asarray(outcome.detail), np.asarray(mine.detail))
+
+
+class TwoOscillators(VectorRightHandSide):
+    """q̈₀ = −q₀, q̈₁ = −ω₁² q₁: uncoupled, the stiff mode (λ = ±i ω₁) in the second coordinate only."""
+
+    def __init__(self, omega1):
+        self.omega1 = omega1
+
+    def dimension(self):
+        return 2
+
+    def acceleration(self, load, t, q, v, a):
+        a[0] = -q[0]
+        a[1] = -self.omega1 ** 2 * q[1]
+        return 0
+
+
+def test_the_stability_check_finds_the_stiff_mode_of_any_coordinate():
+    """n = 2, ω₁ = 1000 rad/s at h = 0.01: the mode hλ = ±10i (closed form; the differenced
+    Jacobian's eigenvalue within 1e-4: measured 1.1e-12) is refused before the first step; at
+    h = 1e-3 (|hλ| = 1, inside RK4's interval |hω| < 2√2) the run is stable."""
+    for h, status in ((0.01, output.UNSTABLE), (1e-3, output.OK)):
+        out = VectorSamples(2, 0)
+        outcome = vector_rkn_chart(TwoOscillators(1000.0), RKN4, np.array([0.0, 0.2]), np.zeros(1, dtype=np.intp), 0.0,
+                                   np.array([1.0, 1e-3]), np.array([0.0, 0.0]), h, 1e6, True, False, out)
+        assert outcome.status == status
+    assert outcome.status == output.OK and outcome.n_steps == 200
+    out = VectorSamples(2, 0)
+    outcome = vector_rkn_chart(TwoOscillators(1000.0), RKN4, np.array([0.0, 0.2]), np.zeros(1, dtype=np.intp), 0.0,
+                               np.array([1.0, 1e-3]), np.array([0.0, 0.0]), 0.01, 1e6, True, False, out)
+    assert abs(outcome.detail[0]) < 1e-4 and abs(abs(outcome.detail[1]) - 10.0) < 1e-4
