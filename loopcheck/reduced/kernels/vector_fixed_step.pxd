@@ -8,8 +8,8 @@ from loopcheck.reduced.kernels.vector_problem cimport VectorRightHandSide
 
 cdef class _Work:
     cdef Py_ssize_t n
-    cdef double[:, ::1] kk, jac
-    cdef double[::1] pp, dd, qs, vs, acc, rq, rv, re, q0, v0, a0, a1
+    cdef double[:, ::1] kk, jac, hess
+    cdef double[::1] pp, dd, qs, vs, acc, rq, rv, re, q0, v0, a0, a1, wr, wi
     cdef object jacobian
 
 

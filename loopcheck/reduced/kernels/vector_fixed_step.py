@@ -24,13 +24,13 @@ import cython
 import numpy as np
 
 if cython.compiled:
-    from cython.cimports.libc.math import atan2, ceil, cos, fabs, isfinite, pow, sin
+    from cython.cimports.libc.math import atan2, ceil, cos, fabs, isfinite, pow, sin, sqrt
     from cython.cimports.loopcheck.reduced.kernels.fixed_step import RKNTableau, amplification_limit, rk4_amplification
     from cython.cimports.loopcheck.reduced.kernels.output import Outcome
     from cython.cimports.loopcheck.reduced.kernels.vector_output import VectorSamples, check_vector_run
     from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
-    from math import atan2, ceil, cos, fabs, isfinite, pow, sin
+    from math import atan2, ceil, cos, fabs, isfinite, pow, sin, sqrt
 
     from loopcheck.reduced.kernels.fixed_step import RKNTableau, amplification_limit, rk4_amplification
     from loopcheck.reduced.kernels.output import Outcome
@@ -73,6 +73,9 @@ class _Work:
         self.a1 = np.empty(n)
         self.jacobian = np.zeros((2 * n, 2 * n))
         self.jac = self.jacobian
+        self.hess = np.zeros((2 * n + 1, 2 * n + 1))
+        self.wr = np.zeros(2 * n + 1)
+        self.wi = np.zeros(2 * n + 1)
 
 
 @cython.cfunc
@@ -173,13 +176,283 @@ def _check(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython.double, 
             if _mode(h * lr, h * li, outcome):
                 return _UNSTABLE
         return _OK
-    modes = np.linalg.eigvals(w.jacobian)
-    if not np.all(np.isfinite(modes)):
-        return _FAILED
-    for k in range(2 * n):
-        if _mode(h * modes[k].real, h * modes[k].imag, outcome):
+    for i in range(2 * n):
+        for j in range(2 * n):
+            if not isfinite(w.jac[i, j]):
+                return _FAILED
+            w.hess[i + 1, j + 1] = w.jac[i, j]
+    if not _eigenvalues(w.hess, 2 * n, w.wr, w.wi):  # (not converged in 30 iterations a value: LAPACK's)
+        modes = np.linalg.eigvals(w.jacobian)
+        for k in range(2 * n):
+            w.wr[k + 1] = modes[k].real
+            w.wi[k + 1] = modes[k].imag
+    for k in range(1, 2 * n + 1):
+        if _mode(h * w.wr[k], h * w.wi[k], outcome):
             return _UNSTABLE
     return _OK
+
+
+# ---- the eigenvalues of a small real matrix (the stability check's, n ≥ 2) -------------------
+# EISPACK's balanc, elmhes and hqr, as Press et al. give them (Numerical Recipes in C, 2nd ed.,
+# §11.5–11.6), in double precision and their 1-based indexing: a[1..N, 1..N] of an (N+1, N+1)
+# array, row and column 0 unused. No allocation: the check runs every STABILITY_CHECK_EVERY steps
+# (numpy's eigvals, with its allocations and LAPACK's call, cost ~25 µs a check at n = 2).
+
+@cython.cfunc
+def _balance(a: cython.double[:, ::1], N: cython.Py_ssize_t) -> cython.void:
+    """balanc: a similar matrix whose rows and columns have comparable norms (powers of 2: exact)."""
+    last: cython.bint = False
+    i: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    r: cython.double
+    c: cython.double
+    f: cython.double
+    g: cython.double
+    s: cython.double
+    while not last:
+        last = True
+        for i in range(1, N + 1):
+            r = 0.0
+            c = 0.0
+            for j in range(1, N + 1):
+                if j != i:
+                    c += fabs(a[j, i])
+                    r += fabs(a[i, j])
+            if c != 0.0 and r != 0.0:
+                g = r / 2.0
+                f = 1.0
+                s = c + r
+                while c < g:
+                    f *= 2.0
+                    c *= 4.0
+                g = r * 2.0
+                while c > g:
+                    f /= 2.0
+                    c /= 4.0
+                if (c + r) / f < 0.95 * s:
+                    last = False
+                    g = 1.0 / f
+                    for j in range(1, N + 1):
+                        a[i, j] *= g
+                    for j in range(1, N + 1):
+                        a[j, i] *= f
+
+
+@cython.cfunc
+def _hessenberg(a: cython.double[:, ::1], N: cython.Py_ssize_t) -> cython.void:
+    """elmhes: a similar upper Hessenberg matrix by elimination with pivoting (the multipliers
+    left below the subdiagonal, which _hqr ignores)."""
+    m: cython.Py_ssize_t
+    i: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    x: cython.double
+    y: cython.double
+    for m in range(2, N):
+        x = 0.0
+        i = m
+        for j in range(m, N + 1):
+            if fabs(a[j, m - 1]) > fabs(x):
+                x = a[j, m - 1]
+                i = j
+        if i != m:
+            for j in range(m - 1, N + 1):
+                a[i, j], a[m, j] = a[m, j], a[i, j]
+            for j in range(1, N + 1):
+                a[j, i], a[j, m] = a[j, m], a[j, i]
+        if x != 0.0:
+            for i in range(m + 1, N + 1):
+                y = a[i, m - 1]
+                if y != 0.0:
+                    y /= x
+                    a[i, m - 1] = y
+                    for j in range(m, N + 1):
+                        a[i, j] -= y * a[m, j]
+                    for j in range(1, N + 1):
+                        a[j, m] += y * a[j, i]
+
+
+@cython.cfunc
+@cython.inline
+@cython.exceptval(check=False)
+def _sign(a: cython.double, b: cython.double) -> cython.double:
+    """NR's SIGN(a, b): |a| with the sign of b (b ≥ 0: positive)."""
+    return fabs(a) if b >= 0.0 else -fabs(a)
+
+
+@cython.cfunc
+def _hqr(a: cython.double[:, ::1], N: cython.Py_ssize_t, wr: cython.double[::1], wi: cython.double[::1]) -> cython.bint:
+    """hqr: the eigenvalues of the upper Hessenberg a[1..N, 1..N] (destroyed) into wr[1..N] +
+    i wi[1..N], by the shifted double-step QR algorithm. Where NR gives up after 30 iterations
+    (an exceptional shift at the 10th and the 20th), this one shifts so every 10 and gives up
+    after 30 max(10, N), as LAPACK's dlahqr: several complex pairs of one modulus (random
+    [[0, I], [F_q, F_q̇]] of n = 4, 5) took more than 30. False where it gives up."""
+    nn: cython.Py_ssize_t
+    m: cython.Py_ssize_t
+    l: cython.Py_ssize_t
+    k: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    i: cython.Py_ssize_t
+    its: cython.int
+    mmin: cython.Py_ssize_t
+    z: cython.double = 0.0
+    y: cython.double = 0.0
+    x: cython.double = 0.0
+    w: cython.double = 0.0
+    v: cython.double = 0.0
+    u: cython.double = 0.0
+    t: cython.double = 0.0
+    s: cython.double = 0.0
+    r: cython.double = 0.0
+    q: cython.double = 0.0
+    p: cython.double = 0.0
+    anorm: cython.double = 0.0
+    for i in range(1, N + 1):
+        for j in range(max(i - 1, 1), N + 1):
+            anorm += fabs(a[i, j])
+    nn = N
+    while nn >= 1:
+        its = 0
+        while True:
+            l = nn
+            while l >= 2:
+                s = fabs(a[l - 1, l - 1]) + fabs(a[l, l])
+                if s == 0.0:
+                    s = anorm
+                if fabs(a[l, l - 1]) + s == s:
+                    a[l, l - 1] = 0.0
+                    break
+                l -= 1
+            x = a[nn, nn]
+            if l == nn:  # one root found
+                wr[nn] = x + t
+                wi[nn] = 0.0
+                nn -= 1
+            else:
+                y = a[nn - 1, nn - 1]
+                w = a[nn, nn - 1] * a[nn - 1, nn]
+                if l == nn - 1:  # two roots found
+                    p = 0.5 * (y - x)
+                    q = p * p + w
+                    z = sqrt(fabs(q))
+                    x += t
+                    if q >= 0.0:  # a real pair
+                        z = p + _sign(z, p)
+                        wr[nn - 1] = x + z
+                        wr[nn] = x + z
+                        if z != 0.0:
+                            wr[nn] = x - w / z
+                        wi[nn - 1] = 0.0
+                        wi[nn] = 0.0
+                    else:  # a complex pair
+                        wr[nn - 1] = x + p
+                        wr[nn] = x + p
+                        wi[nn - 1] = -z
+                        wi[nn] = z
+                    nn -= 2
+                else:  # no roots found yet: continue the iteration
+                    if its == 30 * max(10, N):
+                        return False
+                    if its % 10 == 0 and its > 0:  # an exceptional shift
+                        t += x
+                        for i in range(1, nn + 1):
+                            a[i, i] -= x
+                        s = fabs(a[nn, nn - 1]) + fabs(a[nn - 1, nn - 2])
+                        x = 0.75 * s
+                        y = x
+                        w = -0.4375 * s * s
+                    its += 1
+                    m = nn - 2
+                    while m >= l:  # two consecutive small subdiagonal elements
+                        z = a[m, m]
+                        r = x - z
+                        s = y - z
+                        p = (r * s - w) / a[m + 1, m] + a[m, m + 1]
+                        q = a[m + 1, m + 1] - z - r - s
+                        r = a[m + 2, m + 1]
+                        s = fabs(p) + fabs(q) + fabs(r)
+                        p /= s
+                        q /= s
+                        r /= s
+                        if m == l:
+                            break
+                        u = fabs(a[m, m - 1]) * (fabs(q) + fabs(r))
+                        v = fabs(p) * (fabs(a[m - 1, m - 1]) + fabs(z) + fabs(a[m + 1, m + 1]))
+                        if u + v == v:
+                            break
+                        m -= 1
+                    for i in range(m + 2, nn + 1):
+                        a[i, i - 2] = 0.0
+                        if i != m + 2:
+                            a[i, i - 3] = 0.0
+                    for k in range(m, nn):  # the double QR step on rows l..nn, columns m..nn
+                        if k != m:
+                            p = a[k, k - 1]
+                            q = a[k + 1, k - 1]
+                            r = 0.0
+                            if k != nn - 1:
+                                r = a[k + 2, k - 1]
+                            x = fabs(p) + fabs(q) + fabs(r)
+                            if x != 0.0:
+                                p /= x
+                                q /= x
+                                r /= x
+                        s = _sign(sqrt(p * p + q * q + r * r), p)
+                        if s != 0.0:
+                            if k == m:
+                                if l != m:
+                                    a[k, k - 1] = -a[k, k - 1]
+                            else:
+                                a[k, k - 1] = -s * x
+                            p += s
+                            x = p / s
+                            y = q / s
+                            z = r / s
+                            q /= p
+                            r /= p
+                            for j in range(k, nn + 1):
+                                p = a[k, j] + q * a[k + 1, j]
+                                if k != nn - 1:
+                                    p += r * a[k + 2, j]
+                                    a[k + 2, j] -= p * z
+                                a[k + 1, j] -= p * y
+                                a[k, j] -= p * x
+                            mmin = nn if nn < k + 3 else k + 3
+                            for i in range(l, mmin + 1):
+                                p = x * a[i, k] + y * a[i, k + 1]
+                                if k != nn - 1:
+                                    p += z * a[i, k + 2]
+                                    a[i, k + 2] -= p * r
+                                a[i, k + 1] -= p * q
+                                a[i, k] -= p
+            if not (nn >= 1 and l < nn - 1):
+                break
+    return True
+
+
+@cython.cfunc
+def _eigenvalues(a: cython.double[:, ::1], N: cython.Py_ssize_t, wr: cython.double[::1],
+                 wi: cython.double[::1]) -> cython.bint:
+    """The eigenvalues of a[1..N, 1..N] (destroyed) into wr[1..N] + i wi[1..N]: balanced, reduced
+    to Hessenberg form, then hqr. False where hqr does not converge."""
+    _balance(a, N)
+    _hessenberg(a, N)
+    return _hqr(a, N, wr, wi)
+
+
+def eigenvalues(matrix) -> np.ndarray:
+    """The eigenvalues of a real square matrix (N ≥ 1) as the stability check finds them (complex,
+    (N,); in no particular order; ValueError where hqr does not converge). For the tests."""
+    matrix = np.asarray(matrix, dtype=np.float64)
+    N = matrix.shape[0]
+    if matrix.ndim != 2 or matrix.shape[1] != N or N < 1:
+        raise ValueError(f"a square matrix, not of shape {matrix.shape}")
+    a = np.zeros((N + 1, N + 1))
+    a[1:, 1:] = matrix
+    wr = np.zeros(N + 1)
+    wi = np.zeros(N + 1)
+    if not _eigenvalues(a, N, wr, wi):
+        raise ValueError("hqr did not converge")
+    return wr[1:] + 1j * wi[1:]
 
 
 @cython.cfunc
