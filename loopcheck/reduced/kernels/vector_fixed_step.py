@@ -11,8 +11,8 @@ weights, as there (:mod:`.fixed_step`'s docstring).
 Every ``STABILITY_CHECK_EVERY`` steps the step is checked against the stability region of the
 locally linearized problem (:func:`check_stability`): the Jacobian of (q, q̇) ↦ (q̇, f) by
 one-sided differences (2n + 1 evaluations), its 2n modes (at n = 1 :func:`.fixed_step.check_stability`'s
-closed form; at n ≥ 2 by LAPACK through numpy, which allocates, once per STABILITY_CHECK_EVERY
-steps), each mode hλ against RK4's amplification with :mod:`.fixed_step`'s margins.
+closed form; at n ≥ 2 the Jacobian's eigenvalues by EISPACK's QR algorithm, :func:`eigenvalues`,
+in the run's workspace), each mode hλ against RK4's amplification with :mod:`.fixed_step`'s margins.
 
 A stop (the problem's ``stop_margin`` ≤ 0 after a step) ends the run after that step, unless the
 problem asks for it to be located (``locate``): then the step is taken again from its start, to
@@ -109,7 +109,7 @@ def check_stability(rhs: VectorRightHandSide, load: cython.Py_ssize_t, t: cython
     The Jacobian of (q, q̇) ↦ (q̇, f) is [[0, I], [F_q, F_q̇]], F by one-sided differences of
     step 1e-7 max(1, |xⱼ|) in each coordinate (:func:`.fixed_step.check_stability`'s); its modes
     at n = 1 as :func:`.fixed_step.check_stability` finds them (the same verdict and detail to the
-    bit), at n ≥ 2 the eigenvalues of the Jacobian by numpy.linalg.eigvals."""
+    bit), at n ≥ 2 the eigenvalues of the Jacobian (:func:`eigenvalues`)."""
     return _check(rhs, load, t, q, v, h, outcome, _Work(q.shape[0], 1))
 
 
