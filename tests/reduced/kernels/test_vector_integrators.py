@@ -486,25 +486,41 @@ def test_energy_flows_balance_the_chains_energy(kernel):
 # ---------------------------------------------------------------------------
 
 class FailsAfter(Pendulums):
-    """Pendulums(2) whose acceleration cannot be evaluated from t_fail on (status 3)."""
+    """Pendulums(2) whose acceleration cannot be evaluated from t_fail on: status 3, or (``nan``)
+    status 0 with q̈₁ = NaN (the second coordinate's only)."""
 
-    def __init__(self, t_fail):
+    def __init__(self, t_fail, nan=False):
         super().__init__(2)
-        self.t_fail = t_fail
+        self.t_fail, self.nan = t_fail, nan
 
     def acceleration(self, load, t, q, v, a):
-        return 3 if t >= self.t_fail else super().acceleration(load, t, q, v, a)
+        status = super().acceleration(load, t, q, v, a)
+        if t < self.t_fail:
+            return status
+        if self.nan:
+            a[1] = math.nan
+            return 0
+        return 3
 
 
 def test_an_unevaluable_acceleration_ends_the_run_where_it_happens():
+    """From t = 0.7 on, q̈ cannot be evaluated (status 3) or is NaN in the second coordinate
+    alone: either way the run ends at the first evaluation there (the same time and count of
+    evaluations), keeping the pieces before."""
     q0, v0 = start(2)
-    run = VA.run(FailsAfter(0.7), EDGES, range(3), q0, v0, rtol=1e-8)
-    assert run.status == output.NONFINITE and 0.7 <= run.fail_time <= 1.1
-    assert run.t[-1] == 0.4  # the first piece's samples kept
-    out = VectorSamples(2, 1)
-    outcome = vector_rkn_chart(FailsAfter(0.7), RKN4, np.array(EDGES), np.arange(3, dtype=np.intp), 0.0, q0, v0, 0.01,
-                               1e6, False, False, out)
-    assert outcome.status == output.FAILED and 0.69 <= outcome.fail_time <= 0.7
+    runs = [VA.run(FailsAfter(0.7, nan), EDGES, range(3), q0, v0, rtol=1e-8) for nan in (False, True)]
+    for run in runs:
+        assert run.status == output.NONFINITE and 0.7 <= run.fail_time <= 1.1
+        assert run.t[-1] == 0.4  # the first piece's samples kept
+    assert (runs[0].fail_time, runs[0].n_evaluations) == (runs[1].fail_time, runs[1].n_evaluations)
+    outcomes = []
+    for nan in (False, True):
+        out = VectorSamples(2, 1)
+        outcomes.append(vector_rkn_chart(FailsAfter(0.7, nan), RKN4, np.array(EDGES), np.arange(3, dtype=np.intp), 0.0,
+                                         q0, v0, 0.01, 1e6, False, False, out))
+    for outcome in outcomes:
+        assert outcome.status == output.FAILED and 0.69 <= outcome.fail_time <= 0.7
+    assert outcomes[0].fail_time == outcomes[1].fail_time
 
 
 def test_speed_limit_names_the_coordinate():
