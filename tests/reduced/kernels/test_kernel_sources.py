@@ -31,6 +31,10 @@ ALLOWED = {
     "adaptive": {"problem", "output", "dop853_tableau"},
     "physics": {"problem", "output", "loopcheck.kernels.loops"},
     "partition": {"adaptive", "fixed_step", "output", "physics", "problem"},
+    "vector_problem": {"problem"},
+    "vector_output": set(),
+    "vector_adaptive": {"vector_problem", "vector_output", "output", "adaptive"},
+    "vector_fixed_step": {"vector_problem", "vector_output", "output", "fixed_step"},
 }
 
 
