@@ -15,10 +15,13 @@ from __future__ import annotations
 
 import os
 
+import mujoco
 import numpy as np
 import pytest
 
-from loopcheck.reference_models.run import simulate_mujoco
+from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+from loopcheck.reference_models.run import mjcf_text, simulate_mujoco
+from loopcheck.reference_models.settings import MujocoSettings
 from loopcheck.scenefile import load_scene
 from oracles.multibody import simulate
 from reduced.test_multibody_oracle import five_bar  # the same robot, described for the oracle
@@ -81,3 +84,25 @@ def test_the_step_search_judges_every_input(runs):
     assert check.as_dict()["inputs"] == list(check.inputs)
     assert check.max_dq == pytest.approx(7.97e-5, rel=0.05)  # O5's: O1's alone is 5.0e-5
 
+
+
+def test_the_exported_five_bar_starts_at_every_inputs_rate_and_drives_both_motors(tmp_path):
+    scene = load_scene(SCENE)
+    path = tmp_path / "five_bar.xml"
+    path.write_text(mjcf_text(scene, MujocoSettings(timestep=5e-4)))
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    for name, qdot0 in zip(scene.inputs, scene.initial_qdot()):  # the cranks' hinges are on the ground
+        assert data.qvel[model.jnt_dofadr[model.joint(name).id]] == pytest.approx(qdot0, abs=1e-15), name
+    assert [model.actuator(k).name for k in range(model.nu)] == ["left_motor", "right_motor"]
+    assert [model.actuator_trnid[k, 0] for k in range(model.nu)] == [model.joint("O1").id, model.joint("O5").id]
+
+
+def test_import_mjcf_refuses_a_model_of_several_inputs_in_one_line(tmp_path):
+    path = tmp_path / "five_bar.xml"
+    path.write_text(mjcf_text(load_scene(SCENE), MujocoSettings(timestep=5e-4)))
+    with pytest.raises(MjcfError, match="2 degrees of freedom") as caught:
+        import_mjcf(path)
+    assert "import-mjcf reads linkages of one degree of freedom only" in str(caught.value)
+    assert "\n" not in str(caught.value)
