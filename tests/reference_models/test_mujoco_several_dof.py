@@ -106,3 +106,14 @@ def test_import_mjcf_refuses_a_model_of_several_inputs_in_one_line(tmp_path):
         import_mjcf(path)
     assert "import-mjcf reads linkages of one degree of freedom only" in str(caught.value)
     assert "\n" not in str(caught.value)
+
+
+def test_loopcheck_mujoco_prints_every_inputs_peak(runs):
+    from loopcheck.reference_models.text import result_lines
+
+    scene, result, *_ = runs
+    lines = result_lines(scene, result)
+    assert lines[1] == "inputs           O1 (rad), O5 (rad), mode (+1) at q0"
+    peaks = [line for line in lines if line.startswith("peak qdot")]
+    assert [line.split()[2] for line in peaks] == ["O1", "O5"]
+    assert f"{result.other_inputs[0][1].omega:+.10g} rad/s" in peaks[1]
