@@ -87,7 +87,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
         data["description"] = scene.description
     if scene.gravity is not None:
         data["gravity"] = list(scene.gravity)
-    data["linkage"] = {"type": "planar", "input": linkage.input_joint}
+    data["linkage"] = ({"type": "planar", "inputs": list(linkage.inputs)} if len(linkage.inputs) > 1
+                       else {"type": "planar", "input": linkage.input_joint})
     data["bodies"] = {b.name: _body(b, mech) for b in linkage.bodies}
     joints = []
     for j in linkage.joints:
@@ -149,7 +150,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
     guess = {}
     for name, value in zip(system.coordinate_names, scene.x0):
         guess[name.rpartition(".")[0]] = value  # "<body>.angle" or "<joint>.s"
-    data["initial"] = {"q": scene.q0, "qdot": scene.qdot0, "guess": guess}
+    data["initial"] = ({"q": list(scene.initial_q()), "qdot": list(scene.initial_qdot()), "guess": guess}
+                       if scene.dof > 1 else {"q": scene.q0, "qdot": scene.qdot0, "guess": guess})
     if all(sign in (1, -1) for sign in scene.mode):  # a sign 0 (a dyad at a limit) is not a mode one can ask for
         data["initial"]["mode"] = list(scene.mode)
     data["simulation"] = {"horizon": scene.horizon}
