@@ -153,3 +153,18 @@ def test_draw_names_every_input_and_its_q0():
     at, labels = start_labels(load_scene(SCENE))
     assert at == "q0 = (O1 1.8 rad, O5 1.3 rad)"
     assert labels == {"O1": "input 1, q0 = 1.8 rad", "O5": "input 2, q0 = 1.3 rad"}
+
+
+def test_check_engines_lines_give_every_inputs_figures(runs):
+    """``loopcheck check --engines``' lines (an EnginesCheck of real runs): the reference's peak of
+    every input, and each engine's figures of every input, named."""
+    from loopcheck.compare.engines import EngineVerdict, EnginesCheck, engines_lines
+
+    scene, fine, coarse = runs
+    c = judge(scene, fine, coarse, BETWEEN)
+    check = EnginesCheck(scene, fine, (EngineVerdict("mujoco", BETWEEN, c),), None, {})
+    lines = engines_lines(check)
+    assert lines[0].startswith("FAIL") and f"O1 {fine.peak.omega:.10g} rad/s, O5 " in lines[0]
+    assert lines[1].split()[:3] == ["mujoco", "FAIL", "O1:"]
+    assert lines[2].split()[0] == "O5:" and f"max |dq| {c.diffs[1].q_max_abs:.2e} rad" in lines[2]
+    assert lines[3].strip() == c.gate.failures[0]
