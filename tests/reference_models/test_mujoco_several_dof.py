@@ -117,3 +117,18 @@ def test_loopcheck_mujoco_prints_every_inputs_peak(runs):
     peaks = [line for line in lines if line.startswith("peak qdot")]
     assert [line.split()[2] for line in peaks] == ["O1", "O5"]
     assert f"{result.other_inputs[0][1].omega:+.10g} rad/s" in peaks[1]
+
+
+def test_input_rates_hold_every_input_at_its_rate_and_keep_the_loops_closed():
+    """ẋ0 = K q̇0 (the MuJoCo model's initial rates): R ẋ = q̇ and Φ_x ẋ = 0 to round-off; a count
+    of rates other than the inputs' is refused."""
+    from loopcheck import kinematics as loops
+
+    scene = load_scene(SCENE)
+    system = loops.compile_linkage(scene.mechanism.linkage)
+    x = np.asarray(scene.x0)
+    xdot = loops.input_rates(system, x, scene.initial_qdot())
+    np.testing.assert_allclose(system.input_rows @ xdot, scene.initial_qdot(), rtol=0, atol=1e-15)
+    assert np.max(np.abs(loops.all_constraints(system, x)[1] @ xdot)) < 1e-15
+    with pytest.raises(loops.AssemblyError, match="1 input rates for 2 inputs"):
+        loops.input_rates(system, x, [0.5])
