@@ -500,6 +500,36 @@ def assemble_inputs(system: LoopSystem, q, guess: np.ndarray, *, tol: float = 1e
                         "Newton iterations (the lengths cannot meet there, or the guess is too far from an assembly)")
 
 
+def input_rates(system: LoopSystem, x: np.ndarray, qdot) -> np.ndarray:
+    """ẋ (n,) at an assembled x with every input at its rate: qdot (k,) in the inputs' order
+    (:attr:`LoopSystem.input_rows`), ẋ = K q̇ with K from [Φ_x; R] K = [0; I].
+
+    Every constraint row (a redundant loop's too: the least-squares solve, exact for consistent
+    rows). Set-up only (an engine's initial state): plain NumPy.
+
+    Raises
+    ------
+    AssemblyError
+        Non-finite values, a count of rates other than the inputs', or [Φ_x; R] of rank below n
+        (the inputs cannot hold the linkage at x: a singular configuration of these inputs)."""
+    R = system.input_rows
+    qdot = np.array(qdot, dtype=float).reshape(-1)
+    x = np.asarray(x, dtype=float)
+    if qdot.shape != (R.shape[0],):
+        raise AssemblyError(f"{len(qdot)} input rates for {R.shape[0]} inputs")
+    if not (np.all(np.isfinite(qdot)) and np.all(np.isfinite(x))):
+        raise AssemblyError(f"the input rates {qdot.tolist()} and the configuration must be finite")
+    if not np.any(qdot):
+        return np.zeros(system.n)
+    J = all_constraints(system, x)[1]
+    A = np.vstack([J, R])
+    xdot, _, rank, _ = np.linalg.lstsq(A, np.concatenate([np.zeros(J.shape[0]), qdot]), rcond=None)
+    if rank < system.n:
+        raise AssemblyError(f"the inputs cannot hold the linkage at their rates {qdot.tolist()} (the Jacobian "
+                            f"[Φ_x; R] has rank {rank} of {system.n}: a singular configuration of these inputs)")
+    return xdot
+
+
 def coefficients(system: LoopSystem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """K = dx/dq and L = d²x/dq² at an assembled x, each shape (n,).
 

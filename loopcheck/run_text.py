@@ -25,10 +25,23 @@ def setting_text(settings, name: str, unit: str = "") -> str:
 def scene_lines(scene) -> list[str]:
     """The scene's three lines: its name and file, the input and assembly mode, the effects."""
     linkage = scene.mechanism.linkage
-    return [f"scene            {scene.name}  ({scene.source})",
-            f"input            {linkage.input_joint} (q in {scene.input_unit}, mode "
-            + "(" + ", ".join(f"{v:+d}" for v in scene.mode) + ") at q0)",
+    mode = "(" + ", ".join(f"{v:+d}" for v in scene.mode) + ")"
+    if len(linkage.inputs) > 1:  # several inputs: each with its unit, then the mode
+        inputs = ", ".join(f"{name} ({unit})" for name, unit in zip(linkage.inputs, scene.input_units()))
+        line = f"inputs           {inputs}, mode {mode} at q0"
+    else:
+        line = f"input            {linkage.input_joint} (q in {scene.input_unit}, mode {mode} at q0)"
+    return [f"scene            {scene.name}  ({scene.source})", line,
             f"effects          {', '.join(scene.effects) or 'none'}"]
+
+
+def peak_lines(scene, result) -> list[str]:
+    """A run's peak line (``peak qdot``, its largest |q̇|), one per input with several inputs
+    (named: ``peak qdot O5``), each in its input's unit."""
+    if len(result.inputs) == 1:
+        return [f"peak qdot        {peak_text(result.peak, scene.input_unit)} (largest |qdot|)"]
+    return [f"{f'peak qdot {name}':<17}{peak_text(peak, unit)} (largest |qdot|)"
+            for name, unit, (_, peak) in zip(scene.inputs, scene.input_units(), result.inputs)]
 
 
 def energy_line(result) -> str:

@@ -780,9 +780,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--animate", action="store_true",
                    help="also write mechanism.gif, both engines' mechanism over the run (needs pillow)")
     p.add_argument("--joints", nargs="+", metavar="NAME", default=None,
-                   help="the joints whose coordinate and rate the CSVs and report.json carry, with the input's "
-                        f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the input's "
-                        "alone)")
+                   help="the joints whose coordinate and rate the CSVs carry, with the inputs' "
+                        f"(default: every joint of a scene of at most {JOINTS_BY_DEFAULT} joints, else the inputs' "
+                        "alone; report.json lists every joint)")
     _add_comparison_arguments(p)
     _add_engines_argument(p, "judge against the reduced reference, comma-separated, e.g. reduced,mujoco,pin: each "
                              "one's verdict is printed and written to report.json, their |dqdot| to engines.png, and "

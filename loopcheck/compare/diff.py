@@ -1,4 +1,5 @@
-"""Differences between two trajectories of the input joint, and the agreement gate.
+"""Differences between two trajectories of the input joint, and the agreement gate (over every
+input of a scene of several degrees of freedom: :func:`gate_inputs`, one :class:`Difference` per input).
 
 q is the input coordinate: an angle (rad) or a slider displacement (m); "ω" in names and
 keys is its rate q̇ (rad/s or m/s). Figures below quoted in rad hold for a revolute input.
@@ -295,14 +296,43 @@ def gate(diff: Difference, tolerances: Tolerances, modes: ModeCheck | None = Non
     another assembly mode (any loop). ``unit`` is the input coordinate's ("rad" or "m",
     ``scene.input_unit``): the messages give q in it and its rate in it per s.
     """
+    failures = [*_span_failures(diff), *_input_failures(diff, tolerances, unit), *_mode_failures(modes)]
+    return GateResult(passed=not failures, failures=tuple(failures), tolerances=tolerances)
+
+
+def gate_inputs(diffs: tuple[Difference, ...], tolerances: Tolerances, modes: ModeCheck | None = None, *,
+                units: tuple[str, ...], names: tuple[str, ...]) -> GateResult:
+    """The gate over every input of a scene of several degrees of freedom: ``diffs`` one
+    :class:`Difference` per input (in the scene's inputs order, ``names``, each in its ``units``
+    entry, "rad" or "m"). Each input is judged as :func:`gate` judges the one input, against the
+    same tolerances read in that input's own unit (q_atol is rad for an angle and m for a
+    displacement, as for one input); each failure names its input (``O5: q_max_abs = …``). The
+    span (the runs' common times) and the assembly modes (of the whole linkage) are judged once.
+    With one input it is :func:`gate` exactly."""
+    if not (len(diffs) == len(units) == len(names)) or not diffs:
+        raise ValueError(f"{len(diffs)} differences for {len(names)} inputs and {len(units)} units")
+    if len(diffs) == 1:
+        return gate(diffs[0], tolerances, modes, unit=units[0])
+    failures = [*_span_failures(diffs[0])]
+    for diff, unit, name in zip(diffs, units, names):
+        failures += [f"{name}: {failure}" for failure in _input_failures(diff, tolerances, unit)]
+    failures += _mode_failures(modes)
+    return GateResult(passed=not failures, failures=tuple(failures), tolerances=tolerances)
+
+
+def _span_failures(diff: Difference) -> list[str]:
+    if diff.covers_horizon:
+        return []
+    short = [f"{name} stops at t = {end:.6g} s" for name, end in
+             (("the reference", diff.reference_end), ("the compared run", diff.other_end))
+             if end < diff.span_end + 1e-12]
+    return [f"compared span [{diff.span_start:.6g}, {diff.span_end:.6g}] s stops short of the "
+            f"horizon {diff.horizon:.6g} s: {' and '.join(short)}"]
+
+
+def _input_failures(diff: Difference, tolerances: Tolerances, unit: str) -> list[str]:
     rate = f"{unit}/s"
     failures = []
-    if not diff.covers_horizon:
-        short = [f"{name} stops at t = {end:.6g} s" for name, end in
-                 (("the reference", diff.reference_end), ("the compared run", diff.other_end))
-                 if end < diff.span_end + 1e-12]
-        failures.append(f"compared span [{diff.span_start:.6g}, {diff.span_end:.6g}] s stops short of the "
-                        f"horizon {diff.horizon:.6g} s: {' and '.join(short)}")
     bound = tolerances.peak_bound(abs(diff.peak_omega_reference))
     if not diff.peak_omega_abs <= bound:
         failures.append(f"peak_omega_abs = {diff.peak_omega_abs:.3e} {rate} > tolerance peak_omega_rtol·|peak| + "
@@ -316,7 +346,10 @@ def gate(diff: Difference, tolerances: Tolerances, modes: ModeCheck | None = Non
                  f"{name}: no sample of the compared run is at an input position the reference reaches, so ω at equal "
                  "q cannot be compared (the engines are not in the same configuration)"
                  for name, value, tol, unit in checks if not value <= tol]
+    return failures
+
+
+def _mode_failures(modes: ModeCheck | None) -> list[str]:
     if modes is not None and modes.total:
-        failures.append(f"assembly mode differs ({'; '.join(modes.lines())}): a loop closed in "
-                        f"its other assembly")
-    return GateResult(passed=not failures, failures=tuple(failures), tolerances=tolerances)
+        return [f"assembly mode differs ({'; '.join(modes.lines())}): a loop closed in its other assembly"]
+    return []

@@ -151,10 +151,13 @@ def draw_outline(ax, linkage: Linkage, system: LoopSystem, x: np.ndarray, *, col
 
 
 def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.ndarray, *,
-                 q: float | None = None, input_label: str = "input") -> dict[str, object]:
+                 q: float | None = None, input_label: str = "input",
+                 input_labels: dict[str, str] | None = None) -> dict[str, object]:
     """Draw the mechanism (or a bare linkage) at coordinates ``x`` (shape (n,), assembled)
     on the axes ``ax``. ``q`` is the input coordinate there (rad or m), at which the point
-    forces' tables F(q) are read; default drive·x.
+    forces' tables F(q) are read; default drive·x. The input joint's label adds ``input_label``;
+    ``input_labels`` (joint name → text), where given, label every input joint instead (several
+    inputs).
 
     Returns
     -------
@@ -270,7 +273,10 @@ def draw_linkage(ax, mechanism: Mechanism | Linkage, system: LoopSystem, x: np.n
     anchors = [at(j.body_a, j.point_a) for j in linkage.joints]
     for j in linkage.joints:
         c = at(j.body_a, j.point_a)
-        label = j.name + (f" ({input_label})" if j.name == linkage.input_joint else "")
+        if input_labels is not None:
+            label = j.name + (f" ({input_labels[j.name]})" if j.name in input_labels else "")
+        else:
+            label = j.name + (f" ({input_label})" if j.name == linkage.input_joint else "")
         if isinstance(j, PrismaticJoint):
             th = angle_of(j.body_a) + j.direction_a
             u = np.array([math.cos(th), math.sin(th)])
@@ -378,23 +384,36 @@ def write_drawing(scene, path: str | Path) -> Path:
     return write_folder(target.parent, {target.name: lambda p: draw_scene(scene, p)}, flag="--out")[0]
 
 
+def start_labels(scene) -> tuple[str, dict[str, str] | None]:
+    """The start as a drawing's title says it ("q0 = 1.8 rad"; with several inputs every input's
+    name and q0 in its unit, "q0 = (O1 1.8 rad, O5 1.3 rad)"), and with several inputs each input
+    joint's label ("input 2, q0 = 1.3 rad"; None with one, whose label is ``input_label``)."""
+    if scene.dof == 1:
+        return f"q0 = {scene.q0:g} {scene.input_unit}", None
+    starts = list(zip(scene.inputs, scene.initial_q(), scene.input_units()))
+    return (f"q0 = ({', '.join(f'{name} {q0:g} {u}' for name, q0, u in starts)})",
+            {name: f"input {k + 1}, q0 = {q0:g} {u}" for k, (name, q0, u) in enumerate(starts)})
+
+
 def draw_scene(scene, path: str | Path) -> None:
     """Draw any scene's mechanism at its assembled q0 (``scene.x0``) into ``path``, in the
     format its suffix names (:data:`DRAWING_FORMATS`).
 
-    The title gives q0 in the input's unit (``scene.input_unit``), the assembly mode (one
-    sign per loop, ``scene.mode``) and gravity.
+    The title gives q0 in the input's unit (``scene.input_unit``; with several inputs, every
+    input's name and q0 in its unit, and each input joint's label its number and q0), the
+    assembly mode (one sign per loop, ``scene.mode``) and gravity.
     """
     from . import plots
 
     system = compile_linkage(scene.mechanism.linkage)
     unit = scene.input_unit
     fig, ax = plots.new_figure((9, 6.5), margins=DRAWING_MARGINS)
+    at, labels = start_labels(scene)
     draw_linkage(ax, scene.mechanism, system, np.asarray(scene.x0, dtype=float), q=scene.q0,
-                 input_label=f"input, q0 = {scene.q0:g} {unit}")
+                 input_label=f"input, q0 = {scene.q0:g} {unit}", input_labels=labels)
     gravity = ("" if scene.gravity is None
                else f", gravity ({scene.gravity[0]:g}, {scene.gravity[1]:g}) m/s²")
-    ax.set_title(f"{plots.short_name(scene.name)}: linkage at q0 = {scene.q0:g} {unit}, "
+    ax.set_title(f"{plots.short_name(scene.name)}: linkage at {at}, "
                  f"mode {mode_text(scene.mode)}{gravity}", **plots.PLAIN)
     declutter_labels(ax)
     plots._save(fig, Path(path))
@@ -501,7 +520,9 @@ def _frame(ax, mechanism: Mechanism, system: LoopSystem, xs: Sequence[np.ndarray
     labels, at its input coordinate ``q``), the other (``other_label``) as a dashed outline over it,
     with a thin solid outline of the reduced one beside it in the legend."""
     linkage = mechanism.linkage
-    draw_linkage(ax, mechanism, system, np.asarray(xs[0], dtype=float), q=q)
+    inputs = mechanism.linkage.inputs
+    draw_linkage(ax, mechanism, system, np.asarray(xs[0], dtype=float), q=q,
+                 input_labels={name: f"input {k + 1}" for k, name in enumerate(inputs)} if len(inputs) > 1 else None)
     for x, look in zip(xs, (REFERENCE_LOOK, {**OTHER_LOOK, "label": other_label})):
         draw_outline(ax, linkage, system, x, colour=look["colour"], linestyle=look["linestyle"],
                      label=look["label"], width=1.2)
@@ -593,8 +614,13 @@ def draw_strip(scene, reference, other, moments: Sequence[tuple[str, float]], pa
             head = f"{' and '.join(name for name, _ in group)}, t = {t:.6g} s"
         else:  # moments that would draw the same picture: said, and drawn once
             head = " and ".join(f"{name} (t = {when:.6g} s)" for name, when in group) + ", one picture"
-        _frame(ax, scene.mechanism, system, xs,
-               f"{head}\nq reduced {q[0]:.6g} {unit}, {other_label} {q[1]:.6g} {unit}", other_label, q=q[0])
+        if scene.dof > 1:  # every input's q, each engine on its line
+            values = [", ".join(f"{name} {float(row @ x):.5g} {u}" for name, u, row in
+                                zip(scene.inputs, scene.input_units(), system.input_rows)) for x in xs]
+            where = f"reduced {values[0]}\n{other_label} {values[1]}"
+        else:
+            where = f"q reduced {q[0]:.6g} {unit}, {other_label} {q[1]:.6g} {unit}"
+        _frame(ax, scene.mechanism, system, xs, f"{head}\n{where}", other_label, q=q[0])
     axes[0][0].set_ylabel("y (m)")
     axes[0][0].legend(loc="best", fontsize=8)
     fig.suptitle(f"{plots.short_name(scene.name)}: reduced (solid) and {other_label} (dashed)", y=0.975,
@@ -659,8 +685,17 @@ def animate_run(scene, reference, other, path: str | Path, *, frames: int | None
 def strip_moments(c: "Comparison") -> list[tuple[str, float]]:
     """The moments the mechanism strip shows: the reduced run's peak speed (the compared
     peak, ``diff.t_peak_reference``, said to be at the end of the horizon when it is) and the
-    sample of largest |Δq| (s). (The strip draws moments that look the same as one panel.)"""
+    sample of largest |Δq| (s). With several inputs, each input's peak speed, and the largest |Δq|
+    of the input whose q_max_abs is largest (named). (The strip draws moments that look the same
+    as one panel.)"""
     d = c.diff
+    if c.other_diffs:  # several inputs: every input's peak speed, and the largest |Δq| of the inputs
+        moments = [(f"peak speed of {name}" + (f" ({STILL_RISING})" if di.peak_still_rising else ""),
+                    float(di.t_peak_reference)) for name, di in zip(c.scene.inputs, c.diffs)]
+        k = int(np.argmax([di.q_max_abs for di in c.diffs]))
+        di = c.diffs[k]
+        worst = float(di.times[int(np.argmax(np.abs(di.dq)))]) if len(di.times) else di.span_end
+        return [*moments, (f"largest |Δq| (of {c.scene.inputs[k]})", worst)]
     peak = "peak speed" + (f" ({STILL_RISING})" if d.peak_still_rising else "")
     worst = float(d.times[int(np.argmax(np.abs(d.dq)))]) if len(d.times) else d.span_end
     return [(peak, float(d.t_peak_reference)), ("largest |Δq|", worst)]

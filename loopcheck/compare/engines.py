@@ -198,18 +198,23 @@ def farthest_from_the_others(peaks: dict[str, float]) -> str:
 
 def engines_lines(check: EnginesCheck) -> list[str]:
     """``loopcheck check --engines``' lines for one scene."""
-    scene, unit = check.scene, check.scene.input_unit
+    scene = check.scene
     status = "ok  " if check.passed else "FAIL"
-    lines = [f"{status}  {scene.source}: reduced peak {check.reference.peak.omega:.10g} {unit}/s"]
+    lines = [f"{status}  {scene.source}: reduced peak "
+             + ", ".join(f"{f'{name} ' if scene.dof > 1 else ''}{p.omega:.10g} {u}/s"
+                         for name, u, (_, p) in zip(scene.inputs, scene.input_units(), check.reference.inputs))]
     for v in check.verdicts:
         if v.comparison is None:
             lines.append(f"      {v.engine:8s} {v.failure}")
             lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
             continue
-        d, t = v.comparison.diff, v.comparison.gate.tolerances
-        lines.append(f"      {v.engine:8s} {'ok  ' if v.passed else 'FAIL'}  peak {d.peak_omega_other:.10g} "
-                     f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {unit} "
-                     f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})")
+        t = v.comparison.gate.tolerances
+        several = scene.dof > 1  # then each input's figures, named, the first on the engine's line
+        for k, (name, u, d) in enumerate(zip(scene.inputs, scene.input_units(), v.comparison.diffs)):
+            lead = f"      {v.engine:8s} {'ok  ' if v.passed else 'FAIL'}  " if k == 0 else " " * 20
+            lines.append(f"{lead}{f'{name}: ' if several else ''}peak {d.peak_omega_other:.10g} "
+                         f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {u} "
+                         f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {u}/s (tol {t.omega_atol:g})")
         lines += [f"               {failure}" for failure in v.comparison.gate.failures]
         lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
     if check.outlier is not None:

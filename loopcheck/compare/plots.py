@@ -153,7 +153,10 @@ def plot_trajectories(c: "Comparison", path: Path) -> None:
     """q and q̇ of both engines against time; dots mark the compared peak, one event in both
     (``diff.peak_reference`` and ``peak_other``: the reduced run's largest |q̇| and the other
     engine's extremum of the same sign nearest in time), and the title says when it is the end of the
-    horizon with the speed still rising."""
+    horizon with the speed still rising. With several inputs, one column per input
+    (:func:`_trajectories_by_input`)."""
+    if c.scene.dof > 1:
+        return _trajectories_by_input(c, path)
     unit, rate = _units(c)
     rising = c.diff.peak_still_rising
     fig, (ax_q, ax_w) = new_figure((8, 6 + 0.25 * rising), 2, 1, sharex=True,
@@ -221,9 +224,11 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
     gate's tolerance is a grey band only where it is within a decade of the data, and the
     legend says so otherwise (:func:`tolerance_band`). ``subtitle`` (plain text, lines of up
     to SUBTITLE_CHARS characters: longer ones are cut) goes under the title, e.g. which variant
-    of a sweep this is."""
+    of a sweep this is. With several inputs, one column per input (:func:`_differences_by_input`)."""
     from matplotlib.lines import Line2D
 
+    if c.scene.dof > 1:
+        return _differences_by_input(c, path, subtitle)
     unit, rate = _units(c)
     d = c.diff
     extra = [short_name(line, SUBTITLE_CHARS) for line in subtitle.splitlines()] if subtitle else []
@@ -256,6 +261,10 @@ def plot_differences(c: "Comparison", path: Path, subtitle: str | None = None) -
 
 
 def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
+    """q̇ against q of both engines, and Δq̇ at equal q; with several inputs, one column per input
+    (:func:`_omega_vs_q_by_input`)."""
+    if c.scene.dof > 1:
+        return _omega_vs_q_by_input(c, path)
     unit, rate = _units(c)
     fig, (ax, ax_d) = new_figure((8, 6), 2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for result, style in ((c.reference, REDUCED_STYLE), (c.other, other_style(c))):
@@ -269,6 +278,101 @@ def plot_omega_vs_q(c: "Comparison", path: Path) -> None:
     ax_d.set_xlabel(f"input q ({unit})")
     ax_d.set_ylabel(f"Δq̇(q) ({rate})")
     ax_d.legend(), ax_d.grid(alpha=0.3)
+    _save(fig, path)
+
+
+# Several inputs: small multiples, one column per input, each with its own unit and scale.
+COLUMN_INCHES = 5.2  # width of one input's column (room for a tolerance legend beside the axis offset)
+
+
+def _columns(c: "Comparison", height: float, rows: int, *, top: float = 0.75, hspace: float = 0.3, **subplots):
+    """A figure of ``rows`` rows and one column per input of ``c``'s scene, and each column's input
+    (name, unit, its trajectories' pair (reference, other) and its Difference)."""
+    n = c.scene.dof
+    fig, axes = new_figure((COLUMN_INCHES * n + 1.0, height), rows, n, squeeze=False,
+                           margins={"top": top, "hspace": hspace, "wspace": 1.0}, **subplots)
+    inputs = [(name, unit, (ref, oth), d) for name, unit, (ref, _), (oth, _), d in
+              zip(c.scene.inputs, c.scene.input_units(), c.reference.inputs, c.other.inputs, c.diffs)]
+    return fig, axes, inputs
+
+
+def _trajectories_by_input(c: "Comparison", path: Path) -> None:
+    other = other_style(c)
+    fig, axes, inputs = _columns(c, 6.2, 2, sharex=True)
+    rising = []
+    for k, (name, unit, runs, d) in enumerate(inputs):
+        ax_q, ax_w = axes[0][k], axes[1][k]
+        for trajectory, style in zip(runs, (REDUCED_STYLE, other)):
+            ax_q.plot(trajectory.t, trajectory.q, **style)
+            ax_w.plot(trajectory.t, trajectory.qdot, **style)
+        for peak, style, size in ((d.peak_reference, REDUCED_STYLE, 8), (d.peak_other, other, 4.5)):
+            ax_w.plot([peak.time], [peak.omega], "o", color=style["color"], markersize=size)
+        ax_q.set_title(f"input {name} ({unit})", fontsize=10, **PLAIN)
+        ax_q.set_ylabel(f"q of {name} ({unit})", **PLAIN)
+        ax_w.set_ylabel(f"q̇ of {name} ({unit}/s)", **PLAIN)
+        ax_w.set_xlabel("time t (s)")
+        ax_q.grid(alpha=0.3), ax_w.grid(alpha=0.3)
+        if d.peak_still_rising:
+            rising.append(name)
+    axes[0][0].legend(fontsize=8)
+    title = f"{short_name(c.scene.name)}: every input, both engines (dots: each input's compared peak q̇)"
+    if rising:
+        title += f"; peak of {', '.join(rising)} {STILL_RISING}"
+    fig.suptitle(title, y=1.0 - 0.12 / 6.2, fontsize=11, **PLAIN)
+    _save(fig, path)
+
+
+def _differences_by_input(c: "Comparison", path: Path, subtitle: str | None = None) -> None:
+    from matplotlib.lines import Line2D
+
+    extra = [short_name(line, SUBTITLE_CHARS) for line in subtitle.splitlines()] if subtitle else []
+    height = 7.2 + 0.25 * len(extra)
+    fig, axes, inputs = _columns(c, height, 2, sharex=True, top=0.75 + LEGEND_ROOM + 0.25 * len(extra),
+                                 hspace=0.3 + LEGEND_ROOM)
+    tol = c.gate.tolerances
+    other = engine_label(c.other.engine)
+    for k, (name, unit, _, d) in enumerate(inputs):
+        for ax, values, limit, u, label in (
+                (axes[0][k], d.dq, tol.q_atol, unit, f"Δq = q_{other} − q_reduced"),
+                (axes[1][k], d.domega, tol.omega_atol, f"{unit}/s", f"Δq̇ = q̇_{other} − q̇_reduced")):
+            ax.plot(d.times, values, color="tab:red", label=label)
+            largest = float(np.max(np.abs(values))) if len(values) else 0.0
+            drawn, text = tolerance_band(largest, limit, u)
+            if drawn:
+                ax.axhspan(-limit, limit, color="0.85", alpha=0.6, zorder=0, label=text)
+            else:
+                ax.add_line(Line2D([], [], linestyle="none", label=text))
+            ax.set_ylim(*scaled_limits(values, limit if drawn else None))
+            ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))  # short ticks: an offset (1e-5) instead
+            ax.grid(alpha=0.3)
+            ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7.5, frameon=False,
+                      borderaxespad=0.2, handlelength=1.5)
+        axes[0][k].set_ylabel(f"Δq of {name} ({unit})", **PLAIN)
+        axes[1][k].set_ylabel(f"Δq̇ of {name} ({unit}/s)", **PLAIN)
+        axes[1][k].set_xlabel("time t (s)")
+        axes[0][k].set_title(f"input {name}", pad=6 + 72 * LEGEND_ROOM, fontsize=10, **PLAIN)
+    title = f"{short_name(c.scene.name)}: {other} minus reduced reference, every input, on {other}'s sample times"
+    fig.suptitle("\n".join([title, *extra]), y=1.0 - 0.12 / height, fontsize=11, **PLAIN)
+    _save(fig, path)
+
+
+def _omega_vs_q_by_input(c: "Comparison", path: Path) -> None:
+    fig, axes, inputs = _columns(c, 6.2, 2, gridspec_kw={"height_ratios": [2, 1]})
+    for k, (name, unit, runs, d) in enumerate(inputs):
+        ax, ax_d = axes[0][k], axes[1][k]
+        ax.sharex(ax_d)
+        for trajectory, style in zip(runs, (REDUCED_STYLE, other_style(c))):
+            ax.plot(trajectory.q, trajectory.qdot, **style)
+        ax.set_ylabel(f"q̇ of {name} ({unit}/s)", **PLAIN)
+        ax.set_title(f"input {name}", fontsize=10, **PLAIN)
+        ax.grid(alpha=0.3)
+        ax_d.plot(d.q_samples, d.domega_vs_q, ".", markersize=2, color="tab:red", label="Δq̇ at equal q")
+        ax_d.set_xlabel(f"q of {name} ({unit})", **PLAIN)
+        ax_d.set_ylabel(f"Δq̇(q) ({unit}/s)")
+        ax_d.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=8), axes[1][0].legend(fontsize=8)
+    fig.suptitle(f"{short_name(c.scene.name)}: each input's rate against its position (phase-free comparison)",
+                 y=1.0 - 0.12 / 6.2, fontsize=11, **PLAIN)
     _save(fig, path)
 
 

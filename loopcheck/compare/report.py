@@ -17,14 +17,19 @@ nearest in time, :mod:`loopcheck.compare.diff`), signed, with ``peak_still_risin
 end of the horizon, |q̇| still rising); the ``diff`` peaks ``peak_omega_reference`` and
 ``peak_omega_other`` are signed too (schema 2: magnitudes). Each CSV also carries the coordinate and rate of every joint (a scene of
 at most :data:`JOINTS_BY_DEFAULT` joints; else the input's and those ``loopcheck run --joints``
-names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_report`). Schema 5
+names), and ``report.json``'s ``joints`` list summarizes them (:func:`joint_report`; from schema 7, every joint). Schema 5
 (several engines, ``loopcheck run --engines``): ``engines``, one verdict per engine judged against the
 reduced reference (:func:`engines_report`), and ``outlier``, the engine farthest from the others
 or null; ``other_engine`` names the engine the rest of the report compares with the reference,
 whose summary is under its own name (``mujoco``, or ``pin`` when MuJoCo is not in the list) and
 whose CSV is ``<engine>.csv``. Schema 6 (the comparison by role: :class:`loopcheck.compare.run.Comparison`'s
 ``reference`` and ``other``): ``reference_engine`` names the engine whose summary is the reference's
-(``reduced``), beside ``other_engine``.
+(``reduced``), beside ``other_engine``. Schema 7 (several degrees of freedom): ``scene`` gains
+``inputs``, ``input_units``, ``initial_q`` and ``initial_qdot`` (every input in order; ``input_joint``,
+``input_unit``, ``q0`` and ``qdot0`` stay the first's), and ``inputs`` holds one entry per input (the one
+input's too): its ``name``, ``unit``, the compared peak of the ``reference`` and the ``other`` engine, and the ``diff``
+figures (the top-level ``diff`` and the engines' peaks stay the first input's); ``joints`` lists every
+joint of the scene (no cap: the CSVs' columns alone follow :func:`joint_columns`).
 
 ``loopcheck run --animate`` adds ``mechanism.gif`` (:data:`ANIMATION_FILE`) to the set, ``loopcheck run
 --engines`` ``engines.png`` (:data:`ENGINES_PLOT`).
@@ -59,7 +64,7 @@ if TYPE_CHECKING:
     from .engines import EnginesCheck
     from .run import Comparison
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 # The figures a run writes, by file (each function takes the Comparison and the path).
 PLOTS = {
     "trajectories.png": plot_trajectories,
@@ -156,19 +161,33 @@ def engines_report(c: "Comparison", check: "EnginesCheck | None" = None) -> list
             for v in check.verdicts]
 
 
+def inputs_report(c: "Comparison") -> list[dict]:
+    """report.json's ``inputs``: per input of the scene, in order, its ``name``, ``unit``, the compared
+    peak (``peak_omega`` signed, ``t_peak``, ``peak_still_rising``) of the ``reference`` and of the
+    ``other`` engine (``reference_engine`` and ``other_engine`` name them), and its ``diff`` figures
+    (:meth:`loopcheck.compare.diff.Difference.figures`)."""
+    out = []
+    for name, unit, d in zip(c.scene.inputs, c.scene.input_units(), c.diffs):
+        peaks = {role: {"peak_omega": p.omega, "t_peak": p.time, "peak_still_rising": p.still_rising}
+                 for role, p in (("reference", d.peak_reference), ("other", d.peak_other))}
+        out.append({"name": name, "unit": unit, **peaks, "diff": {k: _finite(v) for k, v in d.figures().items()}})
+    return out
+
+
 def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "EnginesCheck | None" = None,
                 extraction: dict | None = None) -> dict:
     """The comparison as plain JSON-serialisable data; ``joints`` the joints of its ``joints``
-    list (:func:`joint_report`; default :func:`joint_columns`; none for ``()``); ``engines`` the
+    list (:func:`joint_report`; default every joint of the scene; none for ``()``); ``engines`` the
     check of several engines ``c`` is one of (``loopcheck run --engines``: :func:`engines_report`)."""
     s = c.scene
-    names = joint_columns(s) if joints is None else tuple(joints)
+    names = tuple(j.name for j in s.mechanism.linkage.joints) if joints is None else tuple(joints)
     return {
         "schema_version": SCHEMA_VERSION,
         "scene": {"name": s.name, "source": portable_source(s.source), "description": s.description,
                   "effects": list(s.effects), "input_joint": s.mechanism.linkage.input_joint,
-                  "input_unit": s.input_unit, "q0": s.q0, "qdot0": s.qdot0, "mode": list(s.mode),
-                  "horizon": s.horizon},
+                  "input_unit": s.input_unit, "q0": s.q0, "qdot0": s.qdot0, "inputs": list(s.inputs),
+                  "input_units": list(s.input_units()), "initial_q": list(s.initial_q()),
+                  "initial_qdot": list(s.initial_qdot()), "mode": list(s.mode), "horizon": s.horizon},
         "reference_engine": output_name(c.reference.engine),
         "other_engine": output_name(c.other.engine),
         output_name(c.reference.engine): engine_summary(c.reference, c.diff.peak_reference),
@@ -182,6 +201,7 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "
                                 "q_atol": c.gate.tolerances.q_atol,
                                 "omega_atol": c.gate.tolerances.omega_atol,
                                 "omega_vs_q_atol": c.gate.tolerances.omega_vs_q_atol}},
+        "inputs": inputs_report(c),
         "joints": joint_report(c, names) if names else [],
         "engines": engines_report(c, engines),
         "outlier": engines.outlier if engines is not None else None,
@@ -189,15 +209,15 @@ def report_dict(c: "Comparison", joints: Sequence[str] | None = None, engines: "
     }
 
 
-# A scene of at most this many joints gets every joint's columns by default; a larger one the
-# input's alone, unless ``loopcheck run --joints`` names others.
+# A scene of at most this many joints gets every joint's columns in the CSVs by default; a larger
+# one the inputs' alone, unless ``loopcheck run --joints`` names others (report.json lists every joint).
 JOINTS_BY_DEFAULT = 12
 
 
 def joint_columns(scene: Scene, names: Sequence[str] | None = None) -> tuple[str, ...]:
-    """The joints whose own coordinate and rate the CSVs and ``report.json`` carry, in the
-    description's order: ``names`` and the input joint when names are given, else every joint
-    of a scene of at most :data:`JOINTS_BY_DEFAULT` joints, else the input joint alone.
+    """The joints whose own coordinate and rate the CSVs carry, in the description's order:
+    ``names`` and the input joints when names are given, else every joint of a scene of at most
+    :data:`JOINTS_BY_DEFAULT` joints, else the input joints alone (``report.json`` lists every joint).
 
     Raises
     ------
@@ -207,11 +227,11 @@ def joint_columns(scene: Scene, names: Sequence[str] | None = None) -> tuple[str
     linkage = scene.mechanism.linkage
     every = [j.name for j in linkage.joints]
     if names is None:
-        return tuple(every) if len(every) <= JOINTS_BY_DEFAULT else (linkage.input_joint,)
+        return tuple(every) if len(every) <= JOINTS_BY_DEFAULT else tuple(n for n in every if n in linkage.inputs)
     for name in names:
         if name not in every:
             raise ValueError(f"--joints: {name!r} is not a joint of the scene; its joints are {', '.join(every)}")
-    chosen = {linkage.input_joint, *names}
+    chosen = {*linkage.inputs, *names}
     return tuple(name for name in every if name in chosen)
 
 
@@ -291,8 +311,8 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
     with the reference) and the PNG plots (with the mechanism strip) into ``out_dir``, as a set;
     with ``animate``, also mechanism.gif (the caller checks
     :func:`loopcheck.compare.draw.gif_writer_available` first); with ``engines`` (the check of several
-    engines ``c`` is one of), engines.png and each engine's verdict in report.json. The CSVs and
-    report.json carry the coordinates of the joints :func:`joint_columns` picks from ``joints``.
+    engines ``c`` is one of), engines.png and each engine's verdict in report.json. The CSVs carry
+    the coordinates of the joints :func:`joint_columns` picks from ``joints``, report.json those of every joint.
     ``committed``: as :func:`loopcheck.compare.output.write_folder`'s (the command's "wrote" line).
     ``extraction``: report.json's ``extraction`` (``--loop``: what was welded and dropped), when given.
 
@@ -314,5 +334,5 @@ def write_outputs(c: "Comparison", out_dir: str | Path, *, animate: bool = False
                                                       other_label=engine_label(c.other.engine))
     if engines is not None:
         files[ENGINES_PLOT] = lambda p: plot_engines(engines, p)
-    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, names, engines, extraction)), encoding="utf-8")
+    files["report.json"] = lambda p: p.write_text(json_text(report_dict(c, None, engines, extraction)), encoding="utf-8")
     return write_folder(out_dir, files, workers=min(2, os.cpu_count() or 1), one_run=True, committed=committed)

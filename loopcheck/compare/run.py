@@ -12,7 +12,7 @@ from loopcheck.scene import Scene
 from loopcheck.scene import Tolerances
 
 from .settings import mujoco_settings, reduced_settings
-from .diff import (Difference, GateResult, ModeCheck, compare_modes, compare_trajectories, gate,
+from .diff import (Difference, GateResult, ModeCheck, compare_modes, compare_trajectories, gate_inputs,
                    peak_floor_of)
 
 
@@ -21,7 +21,11 @@ class Comparison:
     """Two engines' results for one scene by role, how far apart they are, and the verdict:
     ``reference`` (the reduced engine's run, :data:`loopcheck.registry.REFERENCE`) and ``other``
     (the run judged against it: MuJoCo's in the default comparison, any engine's with
-    ``--engines``; ``other.engine`` names it)."""
+    ``--engines``; ``other.engine`` names it).
+
+    ``diff`` is the first input's difference (the one input's); with several inputs
+    (:attr:`loopcheck.scene.Scene.inputs`), ``other_diffs`` holds each later input's, in order,
+    and :attr:`diffs` all of them; the gate judges every input."""
 
     scene: Scene
     reference: EngineResult
@@ -29,6 +33,12 @@ class Comparison:
     diff: Difference
     modes: ModeCheck  # assembly mode of each loop, the other engine's against the reference's
     gate: GateResult
+    other_diffs: tuple[Difference, ...] = ()
+
+    @property
+    def diffs(self) -> tuple[Difference, ...]:
+        """Every input's difference, in the scene's inputs order (one for a one-DOF scene)."""
+        return (self.diff, *self.other_diffs)
 
 
 def compare_engines(scene: Scene, *, reduced: Any = None, mujoco: Any = None,
@@ -56,13 +66,25 @@ def compare_engines(scene: Scene, *, reduced: Any = None, mujoco: Any = None,
 
 
 def judge(scene: Scene, reference: EngineResult, other: EngineResult, tolerances: Tolerances) -> Comparison:
-    """Compare two finished runs of ``scene`` over its whole horizon and gate them."""
-    diff = compare_trajectories(reference.trajectory, other.trajectory, horizon=scene.horizon,
-                                peak_floor=peak_floor_of(tolerances))
+    """Compare two finished runs of ``scene`` over its whole horizon and gate them: every input's
+    trajectory (:attr:`loopcheck.results.EngineResult.inputs`), each judged by the gate
+    (:func:`loopcheck.compare.diff.gate_inputs`).
+
+    Raises
+    ------
+    ValueError
+        When a run does not record one trajectory per input of the scene."""
+    for run in (reference, other):
+        if len(run.inputs) != scene.dof:
+            raise ValueError(f"the {run.engine} run of '{scene.name}' records {len(run.inputs)} input trajectories, "
+                             f"the scene has {scene.dof} inputs ({', '.join(scene.inputs)})")
+    diffs = tuple(compare_trajectories(ref, oth, horizon=scene.horizon, peak_floor=peak_floor_of(tolerances))
+                  for (ref, _), (oth, _) in zip(reference.inputs, other.inputs))
     modes = compare_modes(reference.joints, other.joints)
-    verdict = _name_the_fixed_step(scene, other, gate(diff, tolerances, modes, unit=scene.input_unit))
-    return Comparison(scene=scene, reference=reference, other=other, diff=diff, modes=modes,
-                      gate=verdict)
+    verdict = gate_inputs(diffs, tolerances, modes, units=scene.input_units(), names=scene.inputs)
+    verdict = _name_the_fixed_step(scene, other, verdict)
+    return Comparison(scene=scene, reference=reference, other=other, diff=diffs[0], modes=modes,
+                      gate=verdict, other_diffs=diffs[1:])
 
 
 def _name_the_fixed_step(scene: Scene, run: EngineResult, verdict: GateResult) -> GateResult:

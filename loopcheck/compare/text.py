@@ -95,34 +95,52 @@ def comparison_lines(c: "Comparison") -> list[str]:
     """
     r, m, d = c.reference, c.other, c.diff
     unit = c.scene.input_unit
-    rate = f"{unit}/s"
+    several = c.scene.dof > 1
     other, reference = engine_label(m.engine), engine_label(r.engine)
-    peak_r, peak_m, peak_d = printed_pair(d.peak_omega_reference, d.peak_omega_other)
-    time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
     gap = "-" if m.constraint_violation is None else f"{m.constraint_violation.max:.2e}"
-    rows = [
-        ("", f"{reference} ({settings_label(r)})", f"{other} ({settings_label(m)})", f"difference ({other} - {reference})"),
-        (f"peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
-        ("time of peak (s)", time_r, time_m, time_d),
-        ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
-        ("loop violation (m)", "-", gap, ""),
-        ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
-        ("compared span (s)", "", "", f"{d.span_start:g} to {d.span_end:g} (horizon {d.horizon:g})"),
-        (f"max |dq| ({unit})", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
-        (f"max |dqdot| ({rate})", "", "", f"{d.omega_max_abs:.3e} (rms {d.omega_rms:.2e})"),
-        (f"max |dqdot| at equal q ({rate})", "", "", f"{d.omega_vs_q_max_abs:.3e}"),
-        ("assembly mode at q0", "", "", "(" + ", ".join(f"{v:+d}" for v in c.scene.mode) + ")"),
-        ("mode mismatches (per loop)", "", "", ", ".join(str(n) for n in c.modes.mismatches) or "-"),
-    ]
+    head = ("", f"{reference} ({settings_label(r)})", f"{other} ({settings_label(m)})", f"difference ({other} - {reference})")
+
+    def input_rows(d, unit: str, prefix: str = "") -> tuple[list[tuple], list[tuple]]:
+        """One input's peak rows and difference rows (``prefix`` names it with several inputs)."""
+        rate = f"{unit}/s"
+        peak_r, peak_m, peak_d = printed_pair(d.peak_omega_reference, d.peak_omega_other)
+        time_r, time_m, time_d = printed_pair(d.t_peak_reference, d.t_peak_other, digits=8)
+        return ([(f"{prefix}peak qdot ({rate})", peak_r, peak_m, f"{peak_d} ({d.peak_omega_rel:.2e} rel)"),
+                 (f"{prefix}time of peak (s)", time_r, time_m, time_d)],
+                [(f"{prefix}max |dq| ({unit})", "", "", f"{d.q_max_abs:.3e} (rms {d.q_rms:.2e})"),
+                 (f"{prefix}max |dqdot| ({rate})", "", "", f"{d.omega_max_abs:.3e} (rms {d.omega_rms:.2e})"),
+                 (f"{prefix}max |dqdot| at equal q ({rate})", "", "", f"{d.omega_vs_q_max_abs:.3e}")])
+
+    per_input = [input_rows(di, u, f"{name} " if several else "")
+                 for di, u, name in zip(c.diffs, c.scene.input_units(), c.scene.inputs)]
+    rows = [head, *(row for peaks, _ in per_input for row in peaks),
+            ("energy residual (rel)", f"{r.audit.relative_residual:.2e}", f"{m.audit.relative_residual:.2e}", ""),
+            ("loop violation (m)", "-", gap, ""),
+            ("wall time (s)", f"{r.wall_s:.3f}", f"{m.wall_s:.3f}", ""),
+            ("compared span (s)", "", "", f"{d.span_start:g} to {d.span_end:g} (horizon {d.horizon:g})"),
+            *(row for _, differences in per_input for row in differences),
+            ("assembly mode at q0", "", "", "(" + ", ".join(f"{v:+d}" for v in c.scene.mode) + ")"),
+            ("mode mismatches (per loop)", "", "", ", ".join(str(n) for n in c.modes.mismatches) or "-")]
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
-    lines = [f"scene: {c.scene.name} ({c.scene.source}); input {c.scene.mechanism.linkage.input_joint} "
-             f"({unit}); effects: {', '.join(c.scene.effects) or 'none'}"]
+    inputs = (f"inputs {', '.join(f'{name} ({u})' for name, u in zip(c.scene.inputs, c.scene.input_units()))}"
+              if several else f"input {c.scene.mechanism.linkage.input_joint} ({unit})")
+    lines = [f"scene: {c.scene.name} ({c.scene.source}); {inputs}; effects: {', '.join(c.scene.effects) or 'none'}"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
-    rising = [name for name, p in ((reference, d.peak_reference), (other, d.peak_other)) if p.still_rising]
-    if rising:
-        lines.append(f"peak: {STILL_RISING} ({' and '.join(rising)}): the horizon ends before the speed peaks")
+    for name, di in zip(c.scene.inputs, c.diffs):
+        rising = [engine for engine, p in ((reference, di.peak_reference), (other, di.peak_other)) if p.still_rising]
+        if rising:
+            lines.append(f"peak{f' of {name}' if several else ''}: {STILL_RISING} ({' and '.join(rising)}): the horizon "
+                         "ends before the speed peaks")
     lines += [f"warning: {note}" for note in getattr(m.details, "edge_warnings", ())]
-    return lines + gate_lines(c.gate, unit)
+    return lines + gate_lines(c.gate, gate_unit(c.scene))
+
+
+def gate_unit(scene) -> str:
+    """The unit the gate's tolerances are read in, for its head line: the input's ("rad" or "m"),
+    the inputs' when they share one, else "rad or m" (mixed inputs: each value is read in each
+    input's own unit, :func:`loopcheck.compare.diff.gate_inputs`)."""
+    units = set(scene.input_units())
+    return units.pop() if len(units) == 1 else "rad or m"
 
 
 def gate_lines(g: GateResult, unit: str = "rad") -> list[str]:
@@ -139,9 +157,18 @@ def gate_lines(g: GateResult, unit: str = "rad") -> list[str]:
 
 def check_lines(c: "Comparison") -> list[str]:
     """``loopcheck check``'s lines for one scene: status and figures, then each gate failure."""
-    d, t, unit = c.diff, c.gate.tolerances, c.scene.input_unit
+    t = c.gate.tolerances
     status = "ok  " if c.gate.passed else "FAIL"
-    return [f"{status}  {c.scene.source}: peak_omega_rel {d.peak_omega_rel:.2e} (tol {t.peak_omega_rtol:g}), "
-            f"q_max_abs {d.q_max_abs:.2e} {unit} (tol {t.q_atol:g}), "
-            f"omega_max_abs {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})",
-            *(f"      {failure}" for failure in c.gate.failures)]
+
+    def figures(d, unit: str) -> str:
+        return (f"peak_omega_rel {d.peak_omega_rel:.2e} (tol {t.peak_omega_rtol:g}), "
+                f"q_max_abs {d.q_max_abs:.2e} {unit} (tol {t.q_atol:g}), "
+                f"omega_max_abs {d.omega_max_abs:.2e} {unit}/s (tol {t.omega_atol:g})")
+
+    if c.scene.dof == 1:
+        head = [f"{status}  {c.scene.source}: {figures(c.diff, c.scene.input_unit)}"]
+    else:  # a line per input, named
+        head = [f"{status}  {c.scene.source}: {c.scene.dof} inputs",
+                *(f"      {name}: {figures(d, unit)}"
+                  for name, unit, d in zip(c.scene.inputs, c.scene.input_units(), c.diffs))]
+    return [*head, *(f"      {failure}" for failure in c.gate.failures)]

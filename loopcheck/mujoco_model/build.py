@@ -272,7 +272,11 @@ def assembled_angles(scene: Scene) -> np.ndarray:
 
 def initial_rates(scene: Scene) -> np.ndarray:
     """ẋ0 (general rates) consistent with the loops at (x0, q̇0), shape (n,)
-    (:func:`loopcheck.tree_coordinates.initial_rates` at the authored pose)."""
+    (:func:`loopcheck.tree_coordinates.initial_rates` at the authored pose; with several inputs,
+    :func:`loopcheck.kinematics.input_rates` of every input's rate)."""
+    if scene.dof > 1:  # every input at its rate: ẋ0 = K q̇0
+        return loops.input_rates(loops.compile_linkage(scene.mechanism.linkage), assembled_angles(scene),
+                                 scene.initial_qdot())
     return tree.initial_rates(scene.mechanism.linkage, assembled_angles(scene), scene.qdot0)
 
 
@@ -382,7 +386,6 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     dampers += _add_joint_elements(spec, scene)
 
     tree_joint = {e.joint: e for e in linkage.tree}
-    inp = tree_joint[linkage.input_joint]
     if scene.load is not None:
         motor = spec.add_actuator(name=INPUT_MOTOR, target=linkage.input_joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         motor.set_to_motor()
@@ -397,11 +400,15 @@ def build_spec(scene: Scene, *, constraint: ConstraintSettings, integrator: str 
     # Read-outs (no forces): the input's acceleration (a hinge's: the child's angular
     # acceleration minus the parent's; a slide's is read from qacc by the runner), energy,
     # damper rates, point-force velocities.
-    if not isinstance(joints[linkage.input_joint], PrismaticJoint):
-        for body in (inp.body, inp.parent):
-            if body != GROUND:
-                spec.add_sensor(name=sensor_name(body, "angacc"), type=mujoco.mjtSensor.mjSENS_FRAMEANGACC,
-                                objtype=mujoco.mjtObj.mjOBJ_BODY, objname=body)
+    # (every input's, with several: each body once)
+    read = []
+    for name in linkage.inputs:
+        if not isinstance(joints[name], PrismaticJoint):
+            read += [body for body in (tree_joint[name].body, tree_joint[name].parent)
+                     if body != GROUND and body not in read]
+    for body in read:
+        spec.add_sensor(name=sensor_name(body, "angacc"), type=mujoco.mjtSensor.mjSENS_FRAMEANGACC,
+                        objtype=mujoco.mjtObj.mjOBJ_BODY, objname=body)
     # Centre-of-mass position and velocity and angular velocity of every body, for the energy
     # audit (MuJoCo's e_kinetic sensor reads the energy of the previous evaluation).
     for name in linkage.moving:

@@ -24,7 +24,7 @@ from loopcheck.trajectory import JointTrajectory, Trajectory
 
 from .build import INPUT_MOTOR, ModelHandles, sensor_name
 from .energy import energy_audit, squares_by_row
-from .layout import Layout
+from .layout import InputJoint, Layout
 
 # Initial state: MuJoCo's loop residuals after mj_forward at the assembled (qpos, qvel), relative
 # to the mechanism's size (m) and to its point-speed scale (m/s) (check_initial_state). The
@@ -50,7 +50,9 @@ class RunRecord:
     each side of every load edge; joints : the general coordinates with their assembly modes;
     constraint_violation : the largest loop gap at each state (m); audit : the energy balance;
     input_load : N·m or N, the input motor's force at each state (zero without one); notes : a
-    line per joint or tendon limit that acted, and when it first did.
+    line per joint or tendon limit that acted, and when it first did; other_inputs : with several
+    inputs, each input after the first: its q and q̇ at the states and its trajectory (as q, qdot
+    and trajectory are the first's).
     """
 
     times: np.ndarray
@@ -62,6 +64,7 @@ class RunRecord:
     audit: EnergyAudit
     input_load: np.ndarray
     notes: tuple[str, ...] = ()  # each MuJoCo limit that acted (constraint_flows)
+    other_inputs: tuple[tuple[np.ndarray, np.ndarray, Trajectory], ...] = ()
 
     def gate(self, max_constraint_violation: float, max_energy_residual: float, initial: dict, engine: str) -> None:
         """NumericalFailure when the loop gap or the energy residual is beyond its bound (the
@@ -110,6 +113,14 @@ def record_run(scene: Scene, handles: ModelHandles, layout: Layout, data: mujoco
     qddot = input_acceleration(model, data, handles, layout, states, sensors, ctrl, STATE, timed, callback)
     trajectory = with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, STATE,
                                    timed, callback)
+    others = []
+    for joint in layout.inputs[1:]:  # several inputs: each one's own, as the first's
+        row = layout.system.joint_row(joint.name)
+        qi, qdoti = x @ row, xdot @ row
+        qddoti = input_acceleration(model, data, handles, layout, states, sensors, ctrl, STATE, timed, callback,
+                                    joint)
+        others.append((qi, qdoti, with_edge_samples(model, data, times, qi, qdoti, qddoti, states, ctrl, handles,
+                                                    layout, STATE, timed, callback, joint)))
     audit = energy_audit(scene, model, handles, layout, times, states, sensors, ctrl, q, timed)
     friction, notes = constraint_flows(model, data, states, ctrl, timed, callback)
     if friction is not None:
@@ -119,18 +130,20 @@ def record_run(scene: Scene, handles: ModelHandles, layout: Layout, data: mujoco
     return RunRecord(times=times, q=q, qdot=qdot, trajectory=trajectory,
                      joints=joint_trajectory(layout, times, x, xdot),
                      constraint_violation=ConstraintViolation(times, violation), audit=audit, input_load=motor,
-                     notes=notes)
+                     notes=notes, other_inputs=tuple(others))
 
 
-def input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback) -> np.ndarray:
-    """q̈ at every stored state (rad/s² or m/s²).
+def input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec, timed, callback,
+                       joint: InputJoint | None = None) -> np.ndarray:
+    """q̈ of an input (``joint``, default the first) at every stored state (rad/s² or m/s²).
 
     A hinge input: the z angular acceleration of its child body minus its parent's (sensors
-    read at each step's start). A slide input: drive·T·qacc from ``mj_forward`` at each state
+    read at each step's start). A slide input: row·qacc from ``mj_forward`` at each state
     with that step's control and timed forces' values (``timed``, handed to ``callback``).
     """
-    if layout.input_hinge:
-        return hinge_acceleration(handles.sensor_slices, layout, sensors)
+    joint = layout.inputs[0] if joint is None else joint
+    if joint.hinge:
+        return hinge_acceleration(handles.sensor_slices, layout, sensors, joint)
     out = np.empty(len(states))
     for k, state in enumerate(states):
         mujoco.mj_setState(model, data, state, spec)
@@ -139,15 +152,17 @@ def input_acceleration(model, data, handles, layout, states, sensors, ctrl, spec
         if timed.shape[1]:
             callback.step_values[:] = timed[min(k, len(timed) - 1)]
         mujoco.mj_forward(model, data)
-        out[k] = layout.input_row @ data.qacc
+        out[k] = joint.row @ data.qacc
     return out
 
 
-def hinge_acceleration(sl, layout, sensors) -> np.ndarray:
+def hinge_acceleration(sl, layout, sensors, joint: InputJoint | None = None) -> np.ndarray:
+    """A hinge input's (``joint``, default the first) q̈ from the angular-acceleration sensors."""
+    joint = layout.inputs[0] if joint is None else joint
     sensors = np.atleast_2d(sensors)
-    acc = sensors[:, sl[sensor_name(layout.input_body, "angacc")]][:, 2]
-    if sensor_name(layout.input_parent, "angacc") in sl:
-        acc = acc - sensors[:, sl[sensor_name(layout.input_parent, "angacc")]][:, 2]
+    acc = sensors[:, sl[sensor_name(joint.body, "angacc")]][:, 2]
+    if sensor_name(joint.parent, "angacc") in sl:
+        acc = acc - sensors[:, sl[sensor_name(joint.parent, "angacc")]][:, 2]
     return acc
 
 
@@ -189,7 +204,8 @@ def check_initial_state(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData
                                f"over {len(rows)} equality rows ({expected} expected): the assembled (q0, q̇0) "
                                "does not close the loops", 0.0)
     return {"position": position, "velocity": velocity, "limits": limits,
-            "unit_rate_inertia": unit_rate_inertia(model, data, rows, layout.input_row)}
+            "unit_rate_inertia": unit_rate_inertia(model, data, rows, layout.input_row) if len(layout.inputs) <= 1
+            else inputs_unit_rate_inertia(model, data, rows, np.array([j.row for j in layout.inputs]))}
 
 
 def unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray,
@@ -217,6 +233,26 @@ def unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarr
     mass = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, mass)
     return float(u @ mass @ u)
+
+
+def inputs_unit_rate_inertia(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray,
+                             input_rows: np.ndarray) -> float:
+    """With several inputs (``input_rows`` (k, nv): each input's rate from qvel), the smallest of
+    :func:`unit_rate_inertia`'s uᵀ M u over the inputs, each at unit rate with the others held
+    (the smallest diagonal term of the k×k 𝔍(q0)): u = N (R N)⁻¹ eᵢ, N (nv, k) the null space
+    of MuJoCo's equality rows. The energy gate's floor ½ 𝔍 (1 unit/s)² so judges a run in which
+    almost nothing moves against the lightest input."""
+    jacobian = np.zeros((data.nefc, model.nv))
+    if mujoco.mj_isSparse(model):
+        mujoco.mju_sparse2dense(jacobian, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind)
+    else:
+        jacobian[:] = data.efc_J.reshape(data.nefc, model.nv)
+    k = input_rows.shape[0]
+    null = np.linalg.svd(jacobian[rows])[2][-k:].T if len(rows) else np.eye(model.nv)[:, :k]
+    u = null @ np.linalg.pinv(input_rows @ null)  # (nv, k): column i moves input i alone at unit rate
+    mass = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, mass)
+    return float(np.min(np.einsum("ik,ij,jk->k", u, mass, u)))
 
 
 def check_complete(scene: Scene, times: np.ndarray, h: float, engine: str = "MuJoCo") -> None:
@@ -309,9 +345,10 @@ def sensors_at(model, data, state, ctrl_row, spec) -> np.ndarray:
 
 
 def with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles, layout, spec,
-                       timed, callback) -> Trajectory:
-    """Insert, at each step where the control or a timed force jumps, a sample with q̈ from
-    before the jump."""
+                       timed, callback, joint: InputJoint | None = None) -> Trajectory:
+    """Insert, at each step where the control or a timed force jumps, a sample with q̈ (of the
+    input ``joint``, default the first) from before the jump."""
+    joint = layout.inputs[0] if joint is None else joint
     jumped = np.zeros(max(len(states) - 2, 0), dtype=bool)
     if model.nu:
         jumped |= np.any(np.diff(ctrl, axis=0) != 0.0, axis=1)
@@ -325,12 +362,12 @@ def with_edge_samples(model, data, times, q, qdot, qddot, states, ctrl, handles,
     for k in jumps:
         if timed.shape[1]:
             callback.step_values[:] = timed[k - 1]
-        if layout.input_hinge:
+        if joint.hinge:
             before.append(hinge_acceleration(handles.sensor_slices, layout,
-                                              sensors_at(model, data, states[k], ctrl[k - 1], spec))[0])
+                                              sensors_at(model, data, states[k], ctrl[k - 1], spec), joint)[0])
         else:
             sensors_at(model, data, states[k], ctrl[k - 1], spec)
-            before.append(float(layout.input_row @ data.qacc))
+            before.append(float(joint.row @ data.qacc))
     return Trajectory(np.insert(times, jumps, times[jumps]), np.insert(q, jumps, q[jumps]),
                       np.insert(qdot, jumps, qdot[jumps]), np.insert(qddot, jumps, before), refined)
 

@@ -1179,7 +1179,9 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     except MechanismError as exc:
         reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
                                 f"closures{f', {len(placeholders)} couplings' if placeholders else ''})"
-                                if "degrees of freedom" in str(exc) else ""))
+                                if "degrees of freedom" in str(exc) else "")
+                    + (": import-mjcf reads linkages of one degree of freedom only (a model of several "
+                       "inputs is not imported yet)" if "degrees of freedom" in str(exc) and "not 1" in str(exc) else ""))
     # x = x_read + T (qpos − qpos_read): the coordinates (bodies' angles, slides' s) are the same for
     # the linkage rebuilt below with another spanning tree
     system = loops.compile_linkage(linkage)

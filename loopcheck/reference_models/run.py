@@ -14,7 +14,8 @@ is chosen from the scene and confirmed by step halving (:func:`simulate_mujoco`;
 
 MuJoCo's qpos/qvel map linearly onto the scene's general coordinates (x = x0 + T·qpos,
 :func:`loopcheck.mujoco_model.build.coordinate_map`); the trajectory is the input coordinate
-q = drive·x (rad or m, ``scene.input_unit``) and its rates.
+q = drive·x (rad or m, ``scene.input_unit``) and its rates; with several inputs, each input after
+the first is recorded the same way (``EngineResult.other_inputs``).
 """
 
 
@@ -278,13 +279,15 @@ def _run(scene: Scene, settings: MujocoSettings, handles: ModelHandles,
     details = MujocoDetails(grid_q=q, grid_qdot=qdot.copy(), input_load=record.input_load, initial_residuals=initial,
                             edge_warnings=tuple(edge_notes), mujoco_version=mujoco.__version__,
                             point_forces="mjcb_control (qfrc_applied, every RK stage)"
-                            if scene.mechanism.point_forces or scene.mechanism.timed_forces else None)
+                            if scene.mechanism.point_forces or scene.mechanism.timed_forces else None,
+                            other_grid=tuple((qi, qdoti.copy()) for qi, qdoti, _ in record.other_inputs))
     result = EngineResult(
         engine="mujoco", trajectory=record.trajectory, joints=record.joints,
         peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall, n_steps=n_steps,
         n_evaluations=n_steps * (4 if settings.integrator == "rk4" else 1), settings=settings,
         effects=tuple(scene.effects), constraint_violation=record.constraint_violation, details=details,
-        caveats=record.notes)
+        caveats=record.notes,
+        other_inputs=tuple((trajectory, trajectory.peak_rate()) for _, _, trajectory in record.other_inputs))
     # a failed gate carries the run (NumericalFailure.partial): shown up to the failure's time
     return with_partial(lambda: record.gate(settings.max_constraint_violation, settings.max_energy_residual,
                                             initial, "MuJoCo"), result)
@@ -306,6 +309,8 @@ class MujocoDetails:
         the coarse step and the differences against their limits; or
         :class:`~loopcheck.reference_models.timestep.FailedCheck`), each with its outcome.
     search_cost : what the search took; None for a fixed timestep.
+    other_grid : with several inputs, each input after the first: its q and q̇ at every step of
+        the grid (as grid_q and grid_qdot are the first's); empty with one input.
     """
 
     grid_q: np.ndarray
@@ -318,6 +323,7 @@ class MujocoDetails:
     timestep_automatic: bool = False
     timestep_checks: tuple[TimestepCheck, ...] = ()
     search_cost: SearchCost | None = None
+    other_grid: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
 
     def as_dict(self) -> dict:
         return {"mujoco_version": self.mujoco_version, "timestep_automatic": self.timestep_automatic,

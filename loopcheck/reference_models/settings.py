@@ -49,6 +49,9 @@ RUNS = (USER_MODEL,)
 # A user's own MuJoCo model (MJCF) is read as a scene and run as written (loopcheck.registry.Engine.model_files;
 # the commands reach it through loopcheck.reference_models.models).
 MODEL_FILES = (".xml",)
+# Linkages of several degrees of freedom run (loopcheck.registry.Engine.several_dof): one motor per
+# loaded joint, every input recorded (EngineResult.other_inputs), the step search judging every input.
+SEVERAL_DOF = True
 
 
 def gate_notes(scene, result, failures) -> tuple[str, ...]:

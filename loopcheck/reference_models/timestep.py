@@ -99,6 +99,9 @@ class MeasuredCheck:
     outcome : ACCEPTED, EXCEEDED or UNCONFIRMED.
     order : the order fitted from this check and the measured one before it, when the search
         jumped by it to its next step; None otherwise.
+    inputs, units : with several inputs, the input each of the three differences is of (the one
+        nearest its limit, :func:`_check`) and its unit ("rad" or "m"); empty with one input, whose
+        unit is ``unit``.
     """
 
     timestep: float
@@ -109,8 +112,13 @@ class MeasuredCheck:
     limits: tuple[float, float, float]
     outcome: CheckOutcome
     order: float | None = None
+    inputs: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
 
     def __post_init__(self):
+        if self.inputs and (len(self.inputs) != 3 or len(self.units) != 3):
+            raise ValueError(f"a check names the input and unit of each of its three differences, not "
+                             f"{len(self.inputs)} and {len(self.units)}")
         if self.outcome is CheckOutcome.FAILED:
             raise ValueError("a measured check's outcome cannot be FAILED (that is a FailedCheck)")
         if len(self.limits) != 3:
@@ -132,6 +140,8 @@ class MeasuredCheck:
             out["unconfirmed"] = True
         if self.order is not None:
             out["order"] = self.order
+        if self.inputs:
+            out["inputs"], out["units"] = list(self.inputs), list(self.units)
         return out
 
 
@@ -161,16 +171,32 @@ TimestepCheck = MeasuredCheck | FailedCheck  # one check of the automatic step s
 
 def _check(scene: Scene, tol, h: float, coarse, fine) -> TimestepCheck:
     """The record of one check: runs at h and h/2 compared against HALVING_FRACTION of the
-    tolerances (or the failure of either run)."""
+    tolerances (or the failure of either run). With several inputs every input is judged, each in
+    its own unit against the same tolerances (a value is read in each input's unit, rad or m, as
+    for one input), and the record keeps, for each of the three differences, the input nearest its
+    limit (the largest difference / limit), named in ``inputs``."""
     if isinstance(coarse, NumericalFailure) or isinstance(fine, NumericalFailure):
         failed = coarse if isinstance(coarse, NumericalFailure) else fine
         return FailedCheck(h, scene.input_unit, f"{failed.reason.value}: {failed}")
-    dq, dw, dpeak = _halving_difference(coarse, fine)
-    limits = (HALVING_FRACTION * tol.q_atol, HALVING_FRACTION * tol.omega_atol,
-              HALVING_FRACTION * tol.peak_bound(abs(fine.peak.omega)))
+    per_input = []
+    for k, (unit, (_, peak)) in enumerate(zip(scene.input_units(), fine.inputs)):
+        limits = (HALVING_FRACTION * tol.q_atol, HALVING_FRACTION * tol.omega_atol,
+                  HALVING_FRACTION * tol.peak_bound(abs(peak.omega)))
+        per_input.append((_halving_difference(coarse, fine, k), limits, unit))
+    if len(per_input) == 1:
+        (dq, dw, dpeak), limits, _ = per_input[0]
+        names: tuple[str, ...] = ()
+        units: tuple[str, ...] = ()
+    else:  # each difference from the input nearest its limit
+        worst = [max(range(len(per_input)), key=lambda k, j=j: per_input[k][0][j] / per_input[k][1][j])
+                 for j in range(3)]
+        dq, dw, dpeak = (per_input[k][0][j] for j, k in enumerate(worst))
+        limits = tuple(per_input[k][1][j] for j, k in enumerate(worst))
+        names = tuple(scene.inputs[k] for k in worst)
+        units = tuple(per_input[k][2] for k in worst)
     met = all(d <= lim for d, lim in zip((dq, dw, dpeak), limits))
     return MeasuredCheck(h, scene.input_unit, dq, dw, dpeak, limits,
-                         CheckOutcome.ACCEPTED if met else CheckOutcome.EXCEEDED)
+                         CheckOutcome.ACCEPTED if met else CheckOutcome.EXCEEDED, inputs=names, units=units)
 
 
 def _confirm_after_failure(evidence: list[TimestepCheck], record: TimestepCheck) -> TimestepCheck:
@@ -249,20 +275,31 @@ def _describe(record: TimestepCheck | None) -> str:
         return "not run"
     if isinstance(record, FailedCheck):
         return record.failure
-    unit = record.unit  # the input coordinate's: rad or m
-    return (f"max |Δq| {record.max_dq:.3g} {unit}, max |Δω| {record.max_domega:.3g} {unit}/s, "
-            f"|Δ peak| {record.dpeak:.3g} {unit}/s against limits {', '.join(f'{v:.3g}' for v in record.limits)}"
+    if record.inputs:  # several inputs: each difference's input and unit
+        (q_in, w_in, p_in), units = record.inputs, record.units
+        text = (f"max |Δq| {record.max_dq:.3g} {units[0]} of {q_in}, max |Δω| {record.max_domega:.3g} {units[1]}/s "
+                f"of {w_in}, |Δ peak| {record.dpeak:.3g} {units[2]}/s of {p_in}")
+    else:
+        unit = record.unit  # the input coordinate's: rad or m
+        text = (f"max |Δq| {record.max_dq:.3g} {unit}, max |Δω| {record.max_domega:.3g} {unit}/s, "
+                f"|Δ peak| {record.dpeak:.3g} {unit}/s")
+    return (f"{text} against limits {', '.join(f'{v:.3g}' for v in record.limits)}"
             + (", within them but after a failed coarser run: to be confirmed at h/2"
                if record.outcome is CheckOutcome.UNCONFIRMED else ""))
 
 
-def _halving_difference(coarse: EngineResult, fine: EngineResult) -> tuple[float, float, float]:
-    """max |Δq|, max |Δω| on the coarse grid (every second fine state) and |Δ peak ω|."""
-    qc, wc = coarse.details.grid_q, coarse.details.grid_qdot
-    qf, wf = fine.details.grid_q[::2], fine.details.grid_qdot[::2]
+def _halving_difference(coarse: EngineResult, fine: EngineResult, k: int = 0) -> tuple[float, float, float]:
+    """max |Δq|, max |Δω| on the coarse grid (every second fine state) and |Δ peak ω| of input k
+    (the first by default; ``details.other_grid`` and ``other_inputs`` hold the others)."""
+    def grid(result):
+        return ((result.details.grid_q, result.details.grid_qdot) if k == 0
+                else result.details.other_grid[k - 1])
+
+    (qc, wc), (qf, wf) = grid(coarse), grid(fine)
+    qf, wf = qf[::2], wf[::2]
     n = min(len(qc), len(qf))
     return (float(np.max(np.abs(qc[:n] - qf[:n]))), float(np.max(np.abs(wc[:n] - wf[:n]))),
-            abs(coarse.peak.omega - fine.peak.omega))
+            abs(coarse.inputs[k][1].omega - fine.inputs[k][1].omega))
 
 
 @dataclass(frozen=True)

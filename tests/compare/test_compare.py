@@ -83,7 +83,7 @@ def test_outputs_are_written_and_follow_the_schema(seed_comparison, tmp_path):
     assert report["gate"]["tolerances"] == {"peak_omega_rtol": 1e-4, "q_atol": 1e-3, "omega_atol": 0.1,
                                             "omega_vs_q_atol": None}
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatches_total"] == 0
-    assert report["schema_version"] == 6
+    assert report["schema_version"] == 7
     # a plain run (no --engines): MuJoCo, the one engine judged, is the engines list
     assert report["other_engine"] == "mujoco" and report["outlier"] is None
     assert [(e["engine"], e["passed"], e["q_max_abs"]) for e in report["engines"]] == [

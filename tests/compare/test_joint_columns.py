@@ -1,6 +1,7 @@
 """Every joint's own coordinate and rate in reduced.csv, mujoco.csv and report.json: a revolute
 joint's relative angle θ_b − θ_a (cut joints included), a prismatic joint's displacement; all
-joints of a scene of at most 12 joints, else the input's and those ``loopcheck run --joints`` names.
+joints of a scene of at most 12 joints in the CSVs, else the inputs' and those ``loopcheck run --joints`` names;
+every joint in report.json (schema 7).
 
 Oracles: a joint's relative angle is the difference of its two bodies' angles, taken here by
 name from the reduced solver's coordinates and from MuJoCo's own forward kinematics (the bodies'
@@ -22,7 +23,7 @@ from loopcheck.compare import report
 from loopcheck.compare.cli import main
 from loopcheck.compare.run import compare_engines
 from loopcheck.reduced import ReducedSettings
-from loopcheck.scenefile import scene_from_dict
+from loopcheck.scenefile import load_scene, scene_from_dict
 from loopcheck.mechanism import GROUND, PrismaticJoint
 from loopcheck.reference_models import MujocoSettings, build_model, joint_positions
 
@@ -144,7 +145,9 @@ def test_joints_flag_chooses_the_columns(tmp_path):
     assert status in (0, 1)
     header = (out / "reduced.csv").read_text().splitlines()[0].split(",")
     assert header[4:] == ["O2_rad", "O2_rate_rad_per_s", "B_rad", "B_rate_rad_per_s"]
-    assert [j["name"] for j in json.loads((out / "report.json").read_text())["joints"]] == ["O2", "B"]
+    # report.json lists every joint whatever the CSVs carry (schema 7: no cap)
+    assert [j["name"] for j in json.loads((out / "report.json").read_text())["joints"]] == [
+        j.name for j in load_scene(scene_file).mechanism.linkage.joints]
     fresh = tmp_path / "fresh"
     assert main(["run", str(scene_file), "--out", str(fresh), "--joints", "nope"]) == 2
     assert not fresh.exists()

@@ -146,7 +146,7 @@ def test_configuration_between_samples_is_the_assembled_one(scene, runs):
 def test_strip_moments_are_the_peak_and_the_largest_difference(runs, scene):
     (_, ref), (_, oth) = runs
     diff = compare_trajectories(ref, oth, horizon=1.0)
-    c = type("C", (), {"diff": diff})()
+    c = type("C", (), {"diff": diff, "other_diffs": ()})()  # one input
     (l1, t1), (l2, t2) = strip_moments(c)
     # q̇ = 1.5 + 0.6 t rises to the end of the run: the peak is the horizon's end, and says so.
     assert (l1, l2) == ("peak speed (at the end of the horizon, still rising)", "largest |Δq|")
@@ -276,7 +276,9 @@ def comparison_of(scene, reference, other):
     fields = dict(scene=scene, reference=engine_result("reduced", rj, rt),
                   other=engine_result("mujoco", oj, ot, 1e-9), diff=diff, modes=modes,
                   gate=gate(diff, tolerances, modes, unit=scene.input_unit))
-    return type("Comparison", (), fields)()
+    from loopcheck.compare.run import Comparison
+
+    return Comparison(**fields)
 
 
 def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
@@ -300,7 +302,7 @@ def test_a_slider_driven_comparison_speaks_in_metres(tmp_path, monkeypatch):
     assert lines[0].startswith("scene: slider_crank (<memory>); input slide (m)")
     assert not any("rad" in line for line in lines), lines
     report = report_dict(c)
-    assert report["schema_version"] == 6
+    assert report["schema_version"] == 7
     assert report["scene"]["input_unit"] == "m" and report["scene"]["input_joint"] == "slide"
     assert report["scene"]["mode"] == list(scene.mode)
     assert report["diff"]["mode_mismatches"] == [0] and report["diff"]["mode_mismatch_first_times"] == [None]

@@ -45,7 +45,7 @@ def test_run_with_mujoco_writes_todays_files_and_the_engines_verdicts(tmp_path, 
     image = matplotlib.image.imread(out / ENGINES_PLOT)
     assert image.shape[0] > 400 and np.ptp(image[..., :3]) > 0.5  # drawn, not a blank canvas
     report = _report(out)
-    assert report["schema_version"] == SCHEMA_VERSION == 6 and report["other_engine"] == "mujoco"
+    assert report["schema_version"] == SCHEMA_VERSION == 7 and report["other_engine"] == "mujoco"
     assert report["reference_engine"] == "reduced"
     [entry] = report["engines"]
     assert entry.keys() == ENTRY_KEYS and entry["engine"] == "mujoco" and entry["passed"] is True

@@ -28,6 +28,7 @@ def test_every_shipped_scene_reads_back(path):
     assert back.tolerances == scene.tolerances
     assert {k: dict(v) for k, v in back.engine_tables.items()} == {k: dict(v) for k, v in scene.engine_tables.items()}
     assert back.mode == scene.mode
+    assert (back.inputs, back.initial_q(), back.initial_qdot()) == (scene.inputs, scene.initial_q(), scene.initial_qdot())
     np.testing.assert_allclose(back.x0, scene.x0, rtol=0, atol=4e-15)
 
 
@@ -45,3 +46,15 @@ def test_a_pivot_body_is_written_by_its_pivot():
     assert 'pivot_inertia = 1.5\npivot = "O1"' in text
     crank = scene.mechanism.linkage.body_map["crank"]
     assert crank == Body("crank", dict(crank.points), 0.0, crank.com, 1.5)
+
+
+def test_a_scene_of_several_inputs_reads_back():
+    """The five-bar robot (two inputs): ``inputs`` and the initial arrays are written, in order."""
+    path = Path(__file__).parents[1] / "data" / "five_bar_robot.toml"
+    scene = load_scene(path)
+    text = scene_toml(scene)
+    assert 'inputs = ["O1", "O5"]' in text and "q = [1.8, 1.3]" in text
+    back = scene_from_dict(parse_toml(text, Path("written.toml")), source=str(path))
+    assert back.mechanism == scene.mechanism
+    assert (back.inputs, back.initial_q(), back.initial_qdot()) == (("O1", "O5"), (1.8, 1.3), (0.5, -0.3))
+    np.testing.assert_allclose(back.x0, scene.x0, rtol=0, atol=4e-15)
