@@ -31,6 +31,7 @@ ALLOWED = {
     "adaptive": {"problem", "output", "dop853_tableau"},
     "physics": {"problem", "output", "loopcheck.kernels.loops"},
     "partition": {"adaptive", "fixed_step", "output", "physics", "problem"},
+    "several": {"physics", "loopcheck.kernels.loops"},
 }
 
 
