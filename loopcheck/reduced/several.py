@@ -26,6 +26,8 @@ forces over q, a load on the first input alone (``[torque]``), redundant loops; 
 
 from __future__ import annotations
 
+import itertools
+import math
 import time
 from dataclasses import dataclass
 
@@ -45,6 +47,8 @@ from .settings import ReducedSettings
 
 HYSTERESIS = kernel.HYSTERESIS
 MAX_SWITCHES = 10_000
+# a switch chooses among every set of k joints up to this many sets (best_set)
+MAX_CANDIDATES = 500
 SCIPY_METHODS = {"dop853": "DOP853", "scipy-dop853": "DOP853", "radau": "Radau"}
 
 
@@ -114,7 +118,7 @@ class SeveralModel:
 def start_chart(model: SeveralModel, joints, x: np.ndarray) -> kernel.Several:
     """A chart of ``joints`` started at the assembled x (NumericalFailure where they cannot drive it)."""
     chart = model.new_chart()
-    if not chart.start(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(joints, dtype=np.int64)):
+    if not chart.start(np.array(x, dtype=float), np.array(joints, dtype=np.int64)):
         raise NumericalFailure("singular", f"the joints {model.set_name(joints)} cannot drive the linkage at "
                                f"x = {np.round(x, 12).tolist()}")
     return chart
@@ -232,6 +236,26 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
     return record, switches, n_steps, n_eval, J0, sets
 
 
+def best_set(model: SeveralModel, chart) -> tuple[tuple[int, ...], float]:
+    """The best-conditioned set of k joints at the chart's configuration and its conditioning: the
+    pivoted QR's choice (the kernel's), or a better one among every set of k joints when there are
+    at most MAX_CANDIDATES of them, else among the sets one joint away from the current one. (At
+    the event's root the QR's choice may still be the current set: the margin is discontinuous
+    where the QR's choice changes, and the root can fall on either side.)"""
+    current = tuple(int(j) for j in chart.current)
+    candidates = {tuple(int(j) for j in chart.best)}
+    nj, k = len(model.joint_names), model.k
+    if math.comb(nj, k) <= MAX_CANDIDATES:
+        candidates.update(itertools.combinations(range(nj), k))
+    else:
+        for i in range(k):
+            for j in range(nj):
+                if j not in current:
+                    candidates.add(tuple(sorted(current[:i] + (j,) + current[i + 1:])))
+    scored = sorted(((chart.conditioning_of(c), c) for c in candidates if c != current), reverse=True)
+    return scored[0][1], float(scored[0][0])
+
+
 def _switch(model: SeveralModel, chart, t: float, y: np.ndarray, switches: list):
     """At time t and state y in the chart's coordinates: the best set's chart there, y in its
     coordinates, the switch logged."""
@@ -240,13 +264,13 @@ def _switch(model: SeveralModel, chart, t: float, y: np.ndarray, switches: list)
     v = np.ascontiguousarray(y[k:2 * k])
     a = np.zeros(k)
     chart.stop_margin(t, q, v)
-    best = tuple(int(j) for j in chart.best)
-    c_old, c_new = float(chart.c_current), float(chart.c_best)
+    best, c_new = best_set(model, chart)
+    c_old = float(chart.c_current)
     if c_new < loops.SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"no set of joints can drive the linkage at t = {t:.9g} s: the best set "
                                f"({model.set_name(best)}) has conditioning {c_new:.3g}, below "
                                f"{loops.SINGULAR_CONDITIONING:g} (a singular configuration of the mechanism)", t)
-    if best == tuple(int(j) for j in chart.current):
+    if not c_new > c_old:
         raise NumericalFailure("singular", f"no better-conditioned set of joints at t = {t:.9g} s", t)
     chart.acceleration(0, t, q, v, a)  # ẋ = K q̇ at q
     x, xdot = np.array(chart.lastx), np.array(chart.xdot)

@@ -18,7 +18,7 @@ cdef class Several:
     cdef readonly double[:, ::1] JR, R, K, Jm, Bm
     cdef double[:, ::1] Rmark, small, timed, act_k, ku, kd, LU, Phx, lastK, baseK, startK, markK, U, Z, D, M
     cdef double[:, :, ::1] KG
-    cdef readonly double[::1] Qp, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq
+    cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq
     cdef double[::1] qv, act_l, basex, baseq, startx, startq, markx, markq, target, pred, resid, used
     cdef long long[::1] piv
     cdef readonly long long[::1] best, current, counts

@@ -30,8 +30,10 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     c_a = Σ_b m_b K_Gb,a·a_Gb0 + I_b K_a[θ_b] ẍ0[θ_b] + Σ_inertias c_u K_u,a (row_u·ẍ0)
     𝔍_ac = Σ_b m_b K_Gb,a·K_Gb,c + I_b K_a[θ_b] K_c[θ_b] + Σ_inertias c_u K_u,a K_u,c
     Q_a = Σ_b m_b g_b·K_Gb,a − Σ_springs k (D − D0) K_D,a − Σ_joint springs k (u − u0) K_u,a
-          − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a
+          − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a + T(t) drive·K_a
     B_ac = Σ_dampers b K_D,a K_D,c + Σ_joint dampers c K_u,a K_u,c
+    (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
+    actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
         the clamp only on a force that does not depend on the state: the engine refuses a
         forcerange on one that does)
@@ -39,7 +41,7 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
 
 (K_G, K_D = dD/dq_a, K_P, K_u = row·K_a, K_l: the velocity coefficients per coordinate.) The
 energy: T = ½ q̇ᵀ𝔍q̇, V = −Σ m g·r_G + Σ ½ k (D − D0)² + Σ ½ k (u − u0)², power
-P = Σ_a (timed + actuators)_a q̇_a, dissipation D = q̇ᵀ B q̇. At k = 1, c = ζ q̇² of :mod:`.physics`
+P = Σ_a (input load + timed + actuators)_a q̇_a, dissipation D = q̇ᵀ B q̇. At k = 1, c = ζ q̇² of :mod:`.physics`
 (ẍ0 = L q̇²): the same equation.
 
 Linear solves per evaluation (a new configuration): the Newton factorizations (2 or 3 from the
@@ -73,7 +75,7 @@ if cython.compiled:
     from cython.cimports.loopcheck.reduced.kernels.physics import (
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
-        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR)
+        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR, DRIVE)
 else:
     from math import fabs, isfinite, sqrt
 
@@ -82,7 +84,7 @@ else:
     from loopcheck.reduced.kernels.physics import (
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
-        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR)
+        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR, DRIVE)
 
 from loopcheck.reduced.kernels import physics as _physics
 
@@ -163,6 +165,7 @@ class Several:
         self.Jm = np.zeros((kk, kk))
         self.Bm = np.zeros((kk, kk))
         self.Qp = np.zeros(kk)
+        self.drive_rate = np.zeros(kk)
         self.Qa = np.zeros(kk)
         self.cv = np.zeros(kk)
         self.qdd = np.zeros(kk)
@@ -482,6 +485,10 @@ class Several:
                 self.KG[a, b, 1] = self.loops.rows[b, 1]
         for a in range(kk):
             self.Qp[a] = 0.0
+            v = 0.0
+            for j in range(n):  # dq_input/dq_a: the first input's load (a one-DOF scene's [torque]) acts on it
+                v += self.F[self.I[DRIVE] + j] * self.K[a, j]
+            self.drive_rate[a] = v
             for c in range(kk):
                 v = 0.0
                 for b in range(nb):
@@ -675,7 +682,7 @@ class Several:
                     self.cv[a] += f * self.ku[a, e]
         # the applied generalized forces of the piece: timed forces and actuators
         for a in range(kk):
-            w = 0.0
+            w = self.F[self.I[PIECE_VALUES] + load * (1 + nt)] * self.drive_rate[a]
             for e in range(nt):
                 w += self.F[self.I[PIECE_VALUES] + load * (1 + nt) + 1 + e] * self.timed[a, e]
             self.Qa[a] = w
