@@ -25,6 +25,7 @@ cdef class Several:
 
     cdef int _save_factors(self) except -1
     cdef int _solve(self, double[::1] b) except -1
+    cdef int _second_order(self, double[::1] out) except -1
     cdef int _small_solve(self) except -1
     cdef double _residual(self) except? -1
     cdef int _close(self) except -1
@@ -32,6 +33,8 @@ cdef class Several:
     cdef int _coefficients(self) except -1
     cpdef bint evaluate(self, double[::1] q) except -1
     cpdef int acceleration(self, Py_ssize_t load, double t, double[::1] q, double[::1] v, double[::1] out) except -1
+    cpdef Py_ssize_t accelerations(self, Py_ssize_t load, double[::1] T, double[:, ::1] Q, double[:, ::1] V,
+                                   double[:, ::1] out)
     cpdef double power(self, Py_ssize_t load, double[::1] v)
     cpdef double dissipation(self, double[::1] v)
     cpdef double kinetic(self, double[::1] v)

@@ -9,9 +9,9 @@ Coordinates. A chart holds k independent coordinates q = R x, R (k, n) rows of t
 coordinates (``system.joint_rows``: relative angles, slide displacements). With the m = n − k
 constraint rows Φ(x) = 0 (no redundant loop: the engine refuses one), A = [Φ_x; R] is square.
 
-Configuration at q: Newton's method on (Φ(x), R x − q) = 0 from the LINEAR predictor
-x_last + K_last (q − q_last) of the chart's last configuration (chosen for simplicity: one
-factorization more than the one-DOF chart's quadratic predictor on a short jump); converged when
+Configuration at q: Newton's method on (Φ(x), R x − q) = 0 from the quadratic predictor
+x_last + K_last Δ + ½ ẍ0(K_last Δ), Δ = q − q_last, of the chart's last configuration (ẍ0 below:
+one solve with the last factors; the one-DOF chart's x + K Δ + ½ L Δ²); converged when
 every residual is ≤ NEWTON_TOL (or the round-off floor NEWTON_ROUND_OFF × Σ |m w| |θ|, as
 :mod:`.physics`), then the step computed there applied (polish) and A factored once more at the
 polished x. A Newton correction larger than PREDICTOR_TRUST × the predicted motion (+
@@ -44,9 +44,9 @@ energy: T = ½ q̇ᵀ𝔍q̇, V = −Σ m g·r_G + Σ ½ k (D − D0)² + Σ ½ 
 P = Σ_a (input load + timed + actuators)_a q̇_a, dissipation D = q̇ᵀ B q̇. At k = 1, c = ζ q̇² of :mod:`.physics`
 (ẍ0 = L q̇²): the same equation.
 
-Linear solves per evaluation (a new configuration): the Newton factorizations (2 or 3 from the
-predictor: each one an LU of A and a solve), k solves for K, one for ẍ0, one k×k solve for q̈;
-``counts`` records them.
+Linear solves per evaluation (a new configuration): one for the predictor, the Newton
+factorizations (an LU of A each, all but the last followed by a solve), k solves for K, one for
+ẍ0, one k×k solve for q̈; ``counts`` records them (benchmarks/several_dof.py prints them).
 
 Conditioning of a coordinate set S (rows R_S): with Z an orthonormal basis (n − k vectors) of the
 motions that hold the set's coordinates, null(R_S), the dependent block's Jacobian is
@@ -259,6 +259,28 @@ class Several:
 
     @cython.cfunc
     @cython.exceptval(-1, check=False)
+    def _second_order(self, out: cython.double[::1]) -> cython.int:
+        """ẍ0 (n,) into out: A ẍ0 = (−γ(ẋ), 0) with the saved factors, ẋ in Loops' kin[1] and x in its
+        kin[0] and trig (kin[2] = 0): the loops' γ from the table rates, a polynomial row's
+        −γ_c = p''(s) (r_x·ẋ)²."""
+        n: cython.Py_ssize_t = self.n
+        mr: cython.Py_ssize_t = self.mr
+        nl: cython.Py_ssize_t = 2 * self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        j: cython.Py_ssize_t
+        self.loops._table_rates(LOOPS, False)
+        for j in range(nl // 2):
+            out[2 * j] = -self.loops.rows[j, 2]
+            out[2 * j + 1] = -self.loops.rows[j, 3]
+        for j in range(nl, mr):
+            self.loops._poly(self.I[LINEAR] + (j - nl) * (2 * n + ROW_EXTRA), False)
+            out[j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
+        for j in range(mr, n):
+            out[j] = 0.0
+        self._solve(out)
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _small_solve(self) -> cython.int:
         """q̈ from 𝔍 q̈ = Q − c: Gaussian elimination with partial pivoting on small (k, k+1)
         ([𝔍 | Q − c]); the solution into qdd. Returns 1 where 𝔍 is singular."""
@@ -350,10 +372,20 @@ class Several:
         polished: cython.bint = False
         converged: cython.bint
         self.counts[CLOSURES] += 1
+        # the quadratic predictor x + K Δ + ½ ẍ0(K Δ): the second-order term by one solve, with the
+        # factors of the last closure, of A ẍ0 = (−γ(K Δ), 0) at last's x
         for j in range(n):
-            v = self.lastx[j]
+            v = 0.0
             for a in range(kk):
                 v += self.lastK[a, j] * (self.target[a] - self.lastq[a])
+            self.loops.kin[0, j] = self.lastx[j]
+            self.loops.kin[1, j] = v
+            self.loops.kin[2, j] = 0.0
+            self.loops.x[j] = self.lastx[j]
+        self.loops._angle_trig()
+        self._second_order(self.pred)
+        for j in range(n):
+            v = self.lastx[j] + self.loops.kin[1, j] + 0.5 * self.pred[j]
             self.pred[j] = v
             if fabs(v - self.lastx[j]) > motion:
                 motion = fabs(v - self.lastx[j])
@@ -652,16 +684,7 @@ class Several:
             self.loops.kin[1, j] = w
             self.loops.kin[2, j] = 0.0
         # ẍ0: A ẍ0 = (−γ(ẋ), 0), one solve with the configuration's factors
-        self.loops._table_rates(LOOPS, False)
-        for j in range(nl // 2):
-            self.xdd0[2 * j] = -self.loops.rows[j, 2]
-            self.xdd0[2 * j + 1] = -self.loops.rows[j, 3]
-        for j in range(nl, mr):  # the polynomial rows: −γ_c = p''(s) (r_x·ẋ)²
-            self.loops._poly(self.I[LINEAR] + (j - nl) * (2 * n + ROW_EXTRA), False)
-            self.xdd0[j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
-        for j in range(mr, n):
-            self.xdd0[j] = 0.0
-        self._solve(self.xdd0)
+        self._second_order(self.xdd0)
         # c = Σ m K_Gᵀ a_G0 + I k_θᵀ θ̈0 (+ the joint inertias'), a_G0 at (ẋ, ẍ0)
         for j in range(n):
             self.loops.kin[2, j] = self.xdd0[j]
@@ -714,6 +737,20 @@ class Several:
         for a in range(kk):
             out[a] = self.qdd[a]
         return 0
+
+    @cython.ccall
+    def accelerations(self, load: cython.Py_ssize_t, T: cython.double[::1], Q: cython.double[:, ::1],
+                      V: cython.double[:, ::1], out: cython.double[:, ::1]) -> cython.Py_ssize_t:
+        """:meth:`acceleration` at each row of Q, V (m, k) at the times T (m,) in turn, into out (m, k),
+        a loop in C (the benchmark's: no Python call per evaluation). Returns the number evaluated."""
+        s: cython.Py_ssize_t
+        if not (Q.shape[0] == V.shape[0] == out.shape[0] == T.shape[0] and Q.shape[1] == V.shape[1] == out.shape[1]
+                == self.k):
+            raise ValueError(f"accelerations: T (m,), Q, V and out (m, {self.k})")
+        for s in range(Q.shape[0]):
+            if self.acceleration(load, T[s], Q[s], V[s], out[s]) != 0:
+                return s
+        return Q.shape[0]
 
     @cython.ccall
     def power(self, load: cython.Py_ssize_t, v: cython.double[::1]) -> cython.double:
@@ -1060,6 +1097,7 @@ class Several:
             self.valid = 0
             return False
         self.sign = 1 if det > 0.0 else -1
+        self._save_factors()
         self.valid = 0
         for a in range(kk):
             self.startq[a] = self.target[a]
