@@ -183,18 +183,23 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
     if not np.allclose(model.input_rows @ x, q0, rtol=0.0, atol=1e-9):
         x = loops.assemble_inputs(model.system, q0, x)
     joints = model.inputs
-    chart = start_chart(model, joints, x)
     v0 = np.array(scene.initial_qdot(), dtype=float)
-    margin = chart.stop_margin(0.0, q0, v0)
-    if chart.c_best < loops.SINGULAR_CONDITIONING and chart.c_current < loops.SINGULAR_CONDITIONING:
-        raise NumericalFailure("singular", f"no set of joints can drive the linkage at t = 0 (conditioning "
-                               f"{max(chart.c_best, chart.c_current):.3g})", 0.0)
-    if chart.c_current < loops.SINGULAR_CONDITIONING:
-        raise NumericalFailure("singular", f"the inputs {model.set_name(joints)} cannot drive the linkage at t = 0 "
-                               f"(conditioning {chart.c_current:.3g}), where their rates are given", 0.0)
+    chart = _first_chart(model, x)
+    c_inputs = chart.conditioning_of(joints)
+    best, c_best = best_set(model, chart)
+    if max(c_inputs, c_best) < loops.SINGULAR_CONDITIONING:
+        name = model.set_name(joints if c_inputs >= c_best else best)
+        raise NumericalFailure("singular", f"no set of joints can drive the linkage at t = 0 s: the best ({name}) "
+                               f"has conditioning {max(c_inputs, c_best):.3g}, below {loops.SINGULAR_CONDITIONING:g} "
+                               "(a singular configuration of the mechanism)", 0.0)
+    if c_inputs < loops.SINGULAR_CONDITIONING:
+        raise NumericalFailure("singular", f"the inputs {model.set_name(joints)} cannot drive the linkage at t = 0 s "
+                               f"(conditioning {c_inputs:.3g}), where their rates are given", 0.0)
+    if tuple(int(j) for j in chart.current) != tuple(int(j) for j in joints):
+        chart = start_chart(model, joints, x)
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
-    if not margin > 0.0:  # another set is clearly better at the start: the choice is logged at t = 0
+    if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
     J0 = np.array(chart.Jm)
     record = _Record()
@@ -220,8 +225,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
             sol = solve_ivp(fun, (t, end), y, method=method, rtol=rtol, atol=rtol, dense_output=True,
                             events=[event])
         if not sol.success:
-            raise NumericalFailure("step-size", f"{method} failed in [{t:.6g}, {end:.6g}] s in the coordinates "
-                                   f"{model.set_name(joints)}: {sol.message}", float(sol.t[-1]))
+            raise _failure(model, chart, sol, method, t, end, joints)
         n_steps += len(sol.t) - 1
         n_eval += sol.nfev
         stop = float(sol.t[-1])
@@ -234,6 +238,48 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
             sets.append(tuple(int(j) for j in joints))
         t = stop
     return record, switches, n_steps, n_eval, J0, sets
+
+
+def _failure(model: SeveralModel, chart, sol, method: str, start: float, end: float, joints) -> NumericalFailure:
+    """The failure of an integration that did not reach its piece's end: "singular" where the best set
+    of joints at its last state is below SINGULAR_CONDITIONING (the configuration is a singular one
+    of the mechanism, or the next one is), else the solver's own (step-size), each with its time and
+    the conditioning there."""
+    t = float(sol.t[-1])
+    k = model.k
+    y = sol.y[:, -1]
+    chart.rewind()
+    margin = chart.stop_margin(t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    if margin != margin:
+        where = "where the loops could not be closed"
+    else:
+        best, c_best = best_set(model, chart)
+        c_best = max(c_best, float(chart.c_current))
+        where = (f"where the coordinates {model.set_name(joints)} have conditioning {chart.c_current:.3g} and the "
+                 f"best set {c_best:.3g}")
+        if c_best < loops.SINGULAR_CONDITIONING:
+            return NumericalFailure("singular", f"no set of joints can drive the linkage at t = {t:.9g} s, {where}, "
+                                    f"below {loops.SINGULAR_CONDITIONING:g}: a singular configuration of the mechanism",
+                                    t)
+    return NumericalFailure("step-size", f"{method} failed in [{start:.6g}, {end:.6g}] s at t = {t:.9g} s in the "
+                            f"coordinates {model.set_name(joints)}, {where}: {sol.message}", t)
+
+
+def _first_chart(model: SeveralModel, x: np.ndarray):
+    """A chart at x: the inputs', else the first set of joints whose [Φ_x; R] is not singular there
+    (the conditionings at x are read from it)."""
+    nj, k = len(model.joint_names), model.k
+    sets = [tuple(int(j) for j in model.inputs)]
+    if math.comb(nj, k) <= MAX_CANDIDATES:
+        sets += [c for c in itertools.combinations(range(nj), k) if c != sets[0]]
+    for joints in sets:
+        try:
+            return start_chart(model, joints, x)
+        except NumericalFailure:
+            continue
+    raise NumericalFailure("singular", "no set of joints can drive the linkage at t = 0 s: [Φ_x; R] is singular at "
+                           "the scene's configuration for every set tried (a singular configuration of the mechanism)",
+                           0.0)
 
 
 def best_set(model: SeveralModel, chart) -> tuple[tuple[int, ...], float]:

@@ -228,3 +228,58 @@ def test_what_several_inputs_do_not_support_yet_is_refused_in_one_line(extra, na
     message = str(refused.value)
     assert "\n" not in message and named.split()[-1].strip("()") in message
     assert isinstance(refused.value, SceneError) or "rkn4" in named
+
+
+def test_the_several_coordinate_chart_runs_as_plain_python_with_the_compiled_numbers():
+    """LOOPCHECK_PURE_PYTHON=1 (a subprocess: the switch is read at import) runs the chart's .py
+    source: q̈ of the five-bar at its start and along 20 jumps of its inputs, and the conditionings,
+    equal to the compiled kernel's bit for bit (the same arithmetic in the same order)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    probe = f"""
+import json, numpy as np
+from loopcheck.reduced import kernels
+from loopcheck.reduced.kernels import several
+from loopcheck.scenefile import load_scene
+from loopcheck.reduced.several import SeveralModel, start_chart
+assert several.__file__.endswith(".py") == kernels.PURE_PYTHON
+scene = load_scene({str(FIVE_BAR)!r})
+model = SeveralModel(scene)
+chart = start_chart(model, model.inputs, np.array(scene.x0))
+out, a = [], np.zeros(2)
+for s in range(20):
+    q = np.array([1.8 + 0.05 * s, 1.3 - 0.03 * s])
+    v = np.array([0.5 + s, -0.3])
+    chart.acceleration(s % 3, 0.1 * s, q, v, a)
+    out.append(a.tolist() + [chart.power(s % 3, v), chart.kinetic(v), chart.stop_margin(0.0, q, v)])
+print(json.dumps(out))
+"""
+    runs = []
+    for pure in ("1", "0"):
+        env = dict(os.environ, LOOPCHECK_PURE_PYTHON=pure, PYTHONPATH=str(ROOT))
+        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=ROOT,
+                              timeout=120)
+        assert done.returncode == 0, done.stderr[-2000:]
+        runs.append(json.loads(done.stdout))
+    assert runs[0] == runs[1]
+
+
+def test_a_run_at_a_singular_configuration_of_the_mechanism_stops_with_its_time_and_conditioning():
+    """The five-bar robot at rest 1e-6 rad from its flat configuration (q = (π, 0): every link on the
+    ground line, where Φ_x loses rank and no set of joints can drive it; measured there: the inputs'
+    conditioning 7.6e-7, the best set's 3.1e-6): the run cannot follow it through and stops at once,
+    saying where and how well conditioned the coordinates were."""
+    from loopcheck.api import scene_from_string
+    from loopcheck.errors import NumericalFailure
+
+    text = (FIVE_BAR.read_text().replace("q = [1.8, 1.3]", f"q = [{np.pi - 1e-6!r}, 1e-6]")
+            .replace("guess = { left_arm = 0.8, right_arm = 2.3 }", "guess = { left_arm = 0.05, right_arm = 3.09 }")
+            .replace("qdot = [0.5, -0.3]", "qdot = [0.0, 0.0]"))
+    with pytest.raises(NumericalFailure) as stopped:
+        loopcheck.simulate(scene_from_string(text))
+    message = str(stopped.value)
+    assert "t = 0 s" in message and "conditioning 7.56e-07" in message and "best set 3.1e-06" in message
+    assert stopped.value.time == 0.0

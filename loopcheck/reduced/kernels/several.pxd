@@ -15,6 +15,7 @@ cdef class Several:
     cdef readonly Loops loops
     cdef readonly double singular, potential, c_current, c_best, tol, det
     cdef readonly int sign
+    cdef bint starting
     cdef readonly double[:, ::1] JR, R, K, Jm, Bm
     cdef double[:, ::1] Rmark, small, timed, act_k, ku, kd, LU, Phx, lastK, baseK, startK, markK, U, Z, D, M
     cdef double[:, :, ::1] KG

@@ -207,6 +207,7 @@ class Several:
         self.counts = np.zeros(5, np.int64)
         self.valid = 0
         self.sign = 0
+        self.starting = False
         self.piece = 0
         self.potential = 0.0
         self.c_current = 0.0
@@ -415,7 +416,7 @@ class Several:
         for j in range(n):
             if fabs(self.loops.x[j] - self.pred[j]) > correction:
                 correction = fabs(self.loops.x[j] - self.pred[j])
-        if correction > _c_predictor_trust * motion + _c_trusted_correction:
+        if correction > _c_predictor_trust * motion + _c_trusted_correction and not self.starting:
             return 1
         self._save_factors()
         for r in range(self.mr):
@@ -1101,7 +1102,10 @@ class Several:
         self.valid = 0
         for a in range(kk):
             self.startq[a] = self.target[a]
-        if not self.evaluate(self.startq):
+        self.starting = True  # the first closure polishes x, however ill-conditioned: no trust test
+        closed: cython.bint = self.evaluate(self.startq)
+        self.starting = False
+        if not closed:
             return False
         self.startx[:] = self.lastx
         self.startq[:] = self.lastq
