@@ -1043,6 +1043,8 @@ class Several:
     def stop_margin(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.double:
         """c(current set) − HYSTERESIS × c(best set) at q (NaN where q cannot be evaluated); leaves
         the two conditionings in c_current, c_best and the best set in best."""
+        if self.current[0] < 0:
+            raise ValueError("stop_margin: the chart has no coordinates yet: start() it first")
         if not self.evaluate(q):
             return _c_nan
         self._best_set()
@@ -1053,7 +1055,10 @@ class Several:
     def conditioning_of(self, joints) -> float:
         """The conditioning of the joints ``joints`` (k indices into the joint rows) at the
         configuration last evaluated."""
-        return self._set_conditioning(np.ascontiguousarray(joints, dtype=np.int64))
+        S = np.ascontiguousarray(joints, dtype=np.int64)
+        if S.shape != (self.k,) or np.any(S < 0) or np.any(S >= self.nj):
+            raise ValueError(f"conditioning_of: {self.k} joint indices in [0, {self.nj}), not {list(joints)}")
+        return self._set_conditioning(S)
 
     def best_joints(self) -> tuple:
         """The best set of k joints (pivoted QR) at the configuration last evaluated, ascending."""
