@@ -80,8 +80,9 @@ def check_scene(scene: Scene, settings: ReducedSettings | None = None) -> None:
         raise SceneError(f"{where}: a load on the input ([torque]/[force]) is not supported with several inputs: "
                          "use [[actuators]] on the joints")
     system = loops.compile_linkage(mech.linkage)
-    if system.m != system.n - scene.dof:
-        raise SceneError(f"{where}: {system.m} loop equations over {system.n} coordinates (a redundantly closed "
+    rows = system.m + len(system.coupling_rows)  # the loops', the linear rows, the couplings
+    if rows != system.n - scene.dof:
+        raise SceneError(f"{where}: {rows} closure equations over {system.n} coordinates (a redundantly closed "
                          "loop): not supported by the reduced engine with several inputs yet")
     if settings is not None and settings.method not in SCIPY_METHODS:
         raise ValueError(f"the reduced engine's method {settings.method} does not run a scene of several degrees "
