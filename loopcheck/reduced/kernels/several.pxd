@@ -44,7 +44,7 @@ cdef class Several:
     cpdef mark(self)
     cpdef rewind(self)
     cpdef reset(self)
-    cdef double _set_conditioning(self, long long[::1] S) except? -1
+    cdef double _sigma_ratio(self, long long[::1] S) except? -1
     cdef int _best_set(self) except -1
     cpdef double stop_margin(self, double t, double[::1] q, double[::1] v)
     cpdef bint start(self, double[::1] x, long long[::1] joints) except -1

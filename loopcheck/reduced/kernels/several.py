@@ -826,7 +826,7 @@ class Several:
 
     @cython.cfunc
     @cython.exceptval(-1, check=True)
-    def _set_conditioning(self, S: cython.longlong[::1]) -> cython.double:
+    def _sigma_ratio(self, S: cython.longlong[::1]) -> cython.double:
         """σ_min/σ_max of the dependent block D_S = Φ_x Zᵀ of the joints S (k indices into the joint
         rows) at the configuration last closed (module docstring)."""
         n: cython.Py_ssize_t = self.n
@@ -1048,8 +1048,8 @@ class Several:
         if not self.evaluate(q):
             return _c_nan
         self._best_set()
-        self.c_current = self._set_conditioning(self.current)
-        self.c_best = self._set_conditioning(self.best)
+        self.c_current = self._sigma_ratio(self.current)
+        self.c_best = self._sigma_ratio(self.best)
         return self.c_current - _c_hysteresis * self.c_best
 
     def conditioning_of(self, joints) -> float:
@@ -1058,7 +1058,7 @@ class Several:
         S = np.ascontiguousarray(joints, dtype=np.int64)
         if S.shape != (self.k,) or np.any(S < 0) or np.any(S >= self.nj):
             raise ValueError(f"conditioning_of: {self.k} joint indices in [0, {self.nj}), not {list(joints)}")
-        return self._set_conditioning(S)
+        return self._sigma_ratio(S)
 
     def best_joints(self) -> tuple:
         """The best set of k joints (pivoted QR) at the configuration last evaluated, ascending."""
