@@ -19,8 +19,9 @@ their joints). A configuration where even the best set's conditioning is below
 The inputs are the first set, kept at the start unless another is better by more than the
 hysteresis.
 
-Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
-joint friction, joint ranges, a forcerange clamp on a state-dependent actuator force, point
+A joint range ends the run where the joint reaches a bound (NumericalFailure "range-reached", as the
+one-DOF engine: a terminal event on the nearest bound's distance). Not yet supported with several
+DOF (refused in one line before any work, :func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force, point
 forces over q, a load on the first input alone (``[torque]``), redundant loops; RKN4.
 """
 
@@ -35,6 +36,7 @@ import numpy as np
 
 from loopcheck import kinematics as loops
 from loopcheck.errors import NumericalFailure
+from loopcheck.mechanism import PrismaticJoint
 from loopcheck.results import EnergyAudit
 from loopcheck.scene import Scene, SceneError
 from loopcheck.trajectory import JointTrajectory, Trajectory
@@ -65,10 +67,6 @@ def check_scene(scene: Scene, settings: ReducedSettings | None = None) -> None:
     if mech.joint_frictions:
         raise SceneError(f"{where}: joint friction ({', '.join(e.name for e in mech.joint_frictions)}) is not "
                          "supported by the reduced engine with several inputs yet")
-    ranged = ranged_joints(mech.linkage)
-    if ranged:
-        raise SceneError(f"{where}: joint ranges ({', '.join(j.name for j in ranged)}) are not supported by the "
-                         "reduced engine with several inputs yet")
     clamped = clamped_actuators(mech)
     if clamped:
         raise SceneError(f"{where}: actuator {', '.join(repr(a.name) for a in clamped)} clamps a force that depends "
@@ -102,6 +100,14 @@ class SeveralModel:
         self.input_rows = self.system.input_rows
         self.piece_edges = piece_edges(scene)
         self.angle_columns = np.array([name.endswith(".angle") for name in self.system.coordinate_names])
+        self.ranged = ranged_joints(scene.mechanism.linkage)
+        self.range_rows = np.array([self.system.joint_row(j.name) for j in self.ranged]).reshape(-1, self.system.n)
+        self.range_bounds = np.array([j.range for j in self.ranged], dtype=float).reshape(-1, 2)
+
+    def range_margins(self, x: np.ndarray) -> np.ndarray:
+        """(ranged joints, 2): each ranged joint's u − lo and hi − u at x."""
+        u = self.range_rows @ x
+        return np.stack([u - self.range_bounds[:, 0], self.range_bounds[:, 1] - u], axis=1)
 
     def new_chart(self) -> kernel.Several:
         return kernel.Several(self.arrays.F, self.arrays.I, self.system.joint_rows, self.k,
@@ -222,9 +228,18 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
         def event(tt, yy, chart=chart):
             return chart.stop_margin(tt, np.ascontiguousarray(yy[:k]), np.ascontiguousarray(yy[k:2 * k]))
         event.terminal, event.direction = True, -1
+        events = [event]
+        if len(model.ranged):
+            def in_range(tt, yy, chart=chart):
+                """> 0 while every ranged joint is inside its range: the nearest bound's distance."""
+                if not chart.evaluate(np.ascontiguousarray(yy[:k])):
+                    return math.nan
+                return float(np.min(model.range_margins(np.asarray(chart.lastx))))
+            in_range.terminal, in_range.direction = True, -1
+            events.append(in_range)
         with np.errstate(invalid="ignore", over="ignore"):
             sol = solve_ivp(fun, (t, end), y, method=method, rtol=rtol, atol=rtol, dense_output=True,
-                            events=[event])
+                            events=events)
         if not sol.success:
             raise _failure(model, chart, sol, method, t, end, joints)
         n_steps += len(sol.t) - 1
@@ -232,6 +247,9 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
         stop = float(sol.t[-1])
         _sample(model, chart, sol, t, stop, load, settings.sample_interval, record, len(sets) - 1)
         y = sol.y[:, -1].copy()
+        if sol.status == 1 and len(sol.t_events) > 1 and len(sol.t_events[1]):
+            raise _range_reached(model, np.asarray(chart.lastx) if chart.evaluate(np.ascontiguousarray(y[:k]))
+                                 else None, stop)
         if sol.status == 1:
             if len(switches) >= MAX_SWITCHES:
                 raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", stop)
@@ -239,6 +257,22 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
             sets.append(tuple(int(j) for j in joints))
         t = stop
     return record, switches, n_steps, n_eval, J0, sets
+
+
+def _range_reached(model: SeveralModel, x, t: float) -> NumericalFailure:
+    """The run's end where a joint reached a bound of its range (as the one-DOF engine ends it:
+    :func:`loopcheck.reduced.charts.compiled_failure`)."""
+    margins = model.range_margins(x) if x is not None else np.zeros((len(model.ranged), 2))
+    r, side = np.unravel_index(int(np.argmin(margins)), margins.shape)
+    joint = model.ranged[int(r)]
+    unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
+    lo, hi = joint.range
+    failure = NumericalFailure(
+        "range-reached", f"joint {joint.name!r} reached the {'upper' if side else 'lower'} bound "
+        f"{joint.range[int(side)]:.6g} {unit} of its range [{lo:.6g}, {hi:.6g}] {unit} at t = {t:.9g} s: the exact "
+        "solution stops there (MuJoCo's joint limit would act from then on)", t)
+    failure.joint = joint.name
+    return failure
 
 
 def _failure(model: SeveralModel, chart, sol, method: str, start: float, end: float, joints) -> NumericalFailure:
