@@ -12,17 +12,26 @@ event on the chart's ``stop_margin`` switches the coordinates:
 
     switch when  c(current set) < HYSTERESIS · c(best set)
 
-at the event's root, to the best set, with q, q̇ re-expressed from x, ẋ there (q' = R' x,
+(c(best set): the kernel's pivoted-QR choice) at the event's root, to the best-conditioned of every
+set of k joints (:func:`best_set`), with q, q̇ re-expressed from x, ẋ there (q' = R' x,
 q̇' = R' ẋ); every switch is logged (:class:`loopcheck.reduced.charts.Switch`, the sets named by
-their joints). A configuration where even the best set's conditioning is below
-:data:`loopcheck.kinematics.SINGULAR_CONDITIONING` stops the run (NumericalFailure "singular").
-The inputs are the first set, kept at the start unless another is better by more than the
-hysteresis.
+their joints, "O1, O5"). A configuration where even the best set's conditioning is below
+:data:`loopcheck.kinematics.SINGULAR_CONDITIONING` stops the run (NumericalFailure "singular"); an
+integration that fails otherwise names its time and the conditionings there. The inputs are the
+first set, kept at the start unless another is better by more than the hysteresis (then a switch
+at t = 0 is logged).
+
+Samples: the solver's steps, each cut into at least SAMPLES_PER_STEP parts no longer than the
+sample interval (as the one-DOF scipy runs); at each, x, ẋ, ẍ from the chart, every input's
+q = r·x, q̇ = r·ẋ, q̈ = r·ẍ (its joint row r), and the audit's T = ½ q̇ᵀ𝔍q̇, V, W, E.
+``JointTrajectory.coordinate`` is −1 (a chart is a set of joints, not one coordinate: the switches
+say which).
 
 A joint range ends the run where the joint reaches a bound (NumericalFailure "range-reached", as the
 one-DOF engine: a terminal event on the nearest bound's distance). Not yet supported with several
-DOF (refused in one line before any work, :func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force, point
-forces over q, a load on the first input alone (``[torque]``), redundant loops; RKN4.
+DOF (refused in one line before any work, :func:`check_scene`): joint friction, a forcerange clamp
+on a state-dependent actuator force, point forces over q, a load on the first input alone
+(``[torque]``), redundant loops; RKN4.
 """
 
 from __future__ import annotations
