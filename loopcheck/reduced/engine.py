@@ -16,7 +16,6 @@ from .integrators import solve_adaptive
 from .kernels.fixed_step import RKN4
 from .charts import PartitionedSolution, Switch, integrate_dop853, integrate_partitioned, integrate_rkn4
 from .settings import ReducedSettings
-from .several import check_scene, run_several
 from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Trajectory
@@ -95,7 +94,9 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
     ValueError
         Naming the setting or scene key to change.
     """
-    if scene.dof > 1:
+    if scene.dof > 1:  # imported here: a one-DOF run loads nothing of the several-DOF engine
+        from .several import check_scene
+
         check_scene(scene, settings)
         return
     mech = scene.mechanism
@@ -272,6 +273,8 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
 def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
     """A scene of several DOF (:mod:`loopcheck.reduced.several`): its run, gated on its energy balance
     as :func:`simulate` gates a one-DOF run (the scale's floor ½ max diag 𝔍0 (1 rad/s)²)."""
+    from .several import run_several
+
     run = run_several(scene, settings)
     audit = run.audit
     bound = max(ENERGY_FACTOR[settings.method] * settings.rtol, ENERGY_FLOOR)
