@@ -36,7 +36,7 @@ from loopcheck.reduced.settings import ReducedSettings  # noqa: E402
 from loopcheck.reduced.several import SeveralModel, integrate, start_chart  # noqa: E402
 from loopcheck.scenefile import load_scene  # noqa: E402
 
-SCENES = ((1, ROOT / "scenes/seed_fourbar.toml"), (2, ROOT / "tests/data/five_bar_robot.toml"),
+SCENES = ((1, ROOT / "scenes/seed_fourbar.toml"), (2, ROOT / "scenes/mechanisms/five_bar_robot.toml"),
           (3, ROOT / "tests/data/five_bar_pendulum.toml"))
 
 

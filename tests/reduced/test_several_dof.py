@@ -32,7 +32,7 @@ from oracles.multibody import simulate as oracle_simulate
 from test_multibody_oracle import five_bar
 
 Q_TOL, RATE_TOL = 1e-9, 1e-8  # rad, rad/s (module docstring)
-FIVE_BAR = ROOT / "tests/data/five_bar_robot.toml"
+FIVE_BAR = ROOT / "scenes/mechanisms/five_bar_robot.toml"
 
 
 @pytest.fixture(scope="module")
