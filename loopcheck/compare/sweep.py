@@ -560,8 +560,16 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
             timed.append(time.perf_counter() - began)
         if len(timed) == 2:  # the second: imports and compiled code loaded by the first
             _estimate(n - first - 2, timed[1], used)
-        yield from run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client,
-                            start=first + len(timed), batch_size=batch_size)
+        # on a local pool this process waits on its workers: matplotlib is imported meanwhile (by a
+        # thread, started once the workers are: loopcheck.compare.plots.prefetch_matplotlib)
+        pooled = used > 1 and client is None and not sizes and bool(plot_files(spec))
+        for k, row in enumerate(run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories,
+                                         client=client, start=first + len(timed), batch_size=batch_size)):
+            if k == 0 and pooled:
+                from .plots import prefetch_matplotlib
+
+                prefetch_matplotlib()
+            yield row
 
     def write_rows(path: Path) -> None:
         start = time.perf_counter()
