@@ -282,14 +282,22 @@ def chunk_size(n: int, workers: int) -> int:
     return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
 
 
-def _chunks(spec: SweepSpec, size: int, start: int = 0) -> Iterator[tuple[int, list[dict[str, float]]]]:
+def _chunks(spec: SweepSpec, size: int, start: int = 0,
+            workers: int = 1) -> Iterator[tuple[int, list[dict[str, float]]]]:
+    """The variants from ``start`` as tasks ``(start, values)`` of ``size`` consecutive variants;
+    with several ``workers``, smaller towards the end (at most half of what is left per worker,
+    at least one), so that the workers finish together instead of one waiting on the other's
+    last chunk."""
     it = itertools.islice(variant_values(spec), start, None)
+    left = count(spec) - start
     while True:
-        chunk = list(itertools.islice(it, size))
+        take = size if workers <= 1 else max(1, min(size, math.ceil(left / (2 * workers))))
+        chunk = list(itertools.islice(it, take))
         if not chunk:
             return
         yield start, chunk
         start += len(chunk)
+        left -= len(chunk)
 
 
 def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
@@ -461,7 +469,7 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
     else:
         if client is not None:
             workers = dask_threads(client)
-        tasks = _chunks(spec, chunk_size(n, workers), start)
+        tasks = _chunks(spec, chunk_size(n, workers), start, workers)
     if client is not None:
         yield from dask_rows(client, _dask_chunk, data, (source, keep_trajectories, spec.engines), tasks,
                              CHUNKS_IN_FLIGHT * workers)
