@@ -50,6 +50,7 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.libc.string import memcpy
     from cython.cimports.loopcheck.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from cython.cimports.loopcheck.reduced.kernels.problem import RightHandSide
 else:
@@ -538,9 +539,13 @@ class Chart(RightHandSide):
         moved: cython.double
         failed: cython.bint
         trusted: cython.bint
-        for r in range(3):
-            for j in range(n):
-                self.base[0, r, j] = self.last[r, j]
+        if cython.compiled:  # base[0] and last: C-contiguous (3, n) blocks of W, one copy
+            memcpy(cython.address(self.base[0, 0, 0]), cython.address(self.last[0, 0]),
+                   3 * n * cython.sizeof(cython.double))
+        else:
+            for r in range(3):
+                for j in range(n):
+                    self.base[0, r, j] = self.last[r, j]
         self.target[0] = value
         self.budget[0] = _c_max_halvings
         depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
@@ -586,9 +591,13 @@ class Chart(RightHandSide):
             self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
             self.budget[depth + 1] = self.budget[depth] - 1
             depth += 1
-        for r in range(3):
-            for j in range(n):
-                self.last[r, j] = self.kin[r, j]
+        if cython.compiled:  # kin (the kinematics' B) and last: C-contiguous (3, n) blocks, one copy
+            memcpy(cython.address(self.last[0, 0]), cython.address(self.kin[0, 0]),
+                   3 * n * cython.sizeof(cython.double))
+        else:
+            for r in range(3):
+                for j in range(n):
+                    self.last[r, j] = self.kin[r, j]
         return OK
 
     @cython.cfunc
