@@ -43,7 +43,9 @@ failed, and their nulls would make each row of sweep.json 3.4 times longer: 1270
 374 on the seed). The mode is in sweep.json (``"engines"``) and readable from the header.
 
 Variants run in a process pool (``workers`` processes, default all cores,
-:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task; results
+:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task (smaller
+towards the end, so that the workers finish together; meanwhile this process imports matplotlib
+for the plots in a thread: :func:`loopcheck.compare.plots.prefetch_matplotlib`); results
 come back in variant order and each row is
 written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
 (only a bounded summary is kept: counts, the worst variant, per key the range of the failing
