@@ -50,10 +50,14 @@ def prefetch_matplotlib() -> None:
 
     Every fork of this process waits for the import first (``os.register_at_fork``), so that no
     child (a replaced pool worker, a file writer) starts with an import lock held by a thread
-    it does not have; :func:`finish_prefetch` waits for it before a plot imports matplotlib
-    itself. An import that fails here is left to the plot's own import to report."""
+    it does not have (the one module of those imports that registers fork hooks itself,
+    matplotlib's font manager, registers one for the child only; logging's, a pair, are
+    registered before the thread starts); :func:`finish_prefetch` waits for it before a plot
+    imports matplotlib itself. An import that fails here is left to the plot's own import to
+    report."""
     if _PREFETCH:
         return
+    import logging  # noqa: F401 - its fork hooks come in pairs: registered here, not mid-fork by the thread
     import os
     import threading
 
