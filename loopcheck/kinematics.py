@@ -699,16 +699,47 @@ _SYSTEMS: dict[int, tuple[weakref.ref, "LoopSystem"]] = {}
 checked on each look-up, the entry dropped when the linkage goes)."""
 
 
+_BY_GEOMETRY: dict[tuple, "LoopSystem"] = {}
+"""compile_linkage's latest results by :func:`_geometry`, at most :data:`GEOMETRIES` of them."""
+GEOMETRIES = 8
+_GEOMETRY_LOCK = threading.Lock()
+
+
+def _geometry(linkage: Linkage) -> tuple | None:
+    """What :func:`_compile_linkage` reads of a linkage, as a key: the bodies' names, points and
+    centres of mass in order (not their mass, inertia or gravcomp), the joints, the input joint,
+    the tree's preferences and the couplings; None where a coordinate is −0.0 (equal to 0.0 as a
+    key, but not bit for bit: the two are compiled apart)."""
+    bodies = tuple((b.name, tuple(b.points.items()), b.com) for b in linkage.bodies)
+    numbers = [v for _, points, com in bodies for v in (*(c for _, xy in points for c in xy), *com)]
+    numbers += [j.direction_a for j in linkage.joints if isinstance(j, PrismaticJoint)]
+    numbers += [v for c in linkage.couplings for v in (*c.coefficients, c.x_ref, c.y_ref)]
+    if any(v == 0.0 and math.copysign(1.0, v) < 0.0 for v in numbers):
+        return None
+    return bodies, linkage.joints, linkage.input_joint, linkage.tree_first, linkage.couplings
+
+
 def compile_linkage(linkage: Linkage) -> LoopSystem:
     """The term tables, linear rows and driving row of a checked linkage.
 
     Compiled once per :class:`~loopcheck.mechanism.Linkage` object (frozen: a scene file's
     assembly and the reduced engine's model share it; the system's kernels are per thread,
-    :func:`_cached_kernel`). Another linkage, equal or not, is compiled on its own."""
+    :func:`_cached_kernel`), and once per geometry among the latest :data:`GEOMETRIES` (a sweep's
+    variants that change masses, loads or settings share one system, its kernels and what
+    :mod:`loopcheck.reduced.dynamics` derives from it): another linkage of the same
+    :func:`_geometry` gets the same system, the same arrays to the bit."""
     entry = _SYSTEMS.get(id(linkage))
     if entry is not None and entry[0]() is linkage:
         return entry[1]
-    system = _compile_linkage(linkage)
+    geometry = _geometry(linkage)
+    system = _BY_GEOMETRY.get(geometry) if geometry is not None else None
+    if system is None:
+        system = _compile_linkage(linkage)
+        if geometry is not None:
+            with _GEOMETRY_LOCK:  # threads (a Dask worker's) share the cache
+                while len(_BY_GEOMETRY) >= GEOMETRIES:
+                    del _BY_GEOMETRY[next(iter(_BY_GEOMETRY))]
+                _BY_GEOMETRY[geometry] = system
     key = id(linkage)
     _SYSTEMS[key] = (weakref.ref(linkage, lambda _, key=key: _SYSTEMS.pop(key, None)), system)
     return system

@@ -109,7 +109,7 @@ class Body:
 
     def __reduce__(self):
         # The read-only points view does not pickle (a scene is sent to worker processes).
-        return (Body, (self.name, dict(self.points), self.mass, self.com, self.inertia))
+        return (Body, (self.name, dict(self.points), self.mass, self.com, self.inertia, self.gravcomp))
 
 
 def _check_joint_ends(joint) -> None:

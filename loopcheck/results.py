@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,8 @@ from .trajectory import JointTrajectory, Peak, Trajectory, freeze_arrays
 class EnergyAudit:
     """Energy balance along a run, all in J, each shape (n,) on the times ``t`` (s).
 
-    residual = (T + V) − (T0 + V0) − W_torque + E_damper, zero for an exact solution.
+    residual = (T + V) − (T0 + V0) − W_torque + E_damper, zero for an exact solution. The residual
+    and the scale are computed once, on first use (the arrays are read-only).
     """
 
     t: np.ndarray
@@ -28,18 +30,20 @@ class EnergyAudit:
     def __post_init__(self) -> None:
         freeze_arrays(self, ("t", "kinetic", "potential", "torque_work", "damper_dissipation"), float)
 
-    @property
+    @cached_property
     def residual(self) -> np.ndarray:
         total = self.kinetic + self.potential
-        return total - total[0] - self.torque_work + self.damper_dissipation
+        residual = total - total[0] - self.torque_work + self.damper_dissipation
+        residual.setflags(write=False)
+        return residual
 
-    @property
+    @cached_property
     def scale(self) -> float:
         """Energy scale for relative figures: the largest of |W_torque|, T, |V − V0| (J)."""
         return float(max(np.max(np.abs(self.torque_work)), np.max(self.kinetic),
                          np.max(np.abs(self.potential - self.potential[0])), 1e-300))
 
-    @property
+    @cached_property
     def max_abs_residual(self) -> float:
         return float(np.max(np.abs(self.residual)))
 

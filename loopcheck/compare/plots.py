@@ -38,12 +38,61 @@ DPI = 110  # every PNG: figure inches × 110 pixels
 MARGINS = {"left": 1.0, "right": 0.25, "bottom": 0.6, "top": 0.45, "hspace": 0.3, "wspace": 0.3}
 
 
+# matplotlib imported ahead of a plot by a thread (:func:`prefetch_matplotlib`), while it runs
+_PREFETCH: list = []
+
+
+def prefetch_matplotlib() -> None:
+    """Start importing what :func:`new_figure` and :func:`_save` import (matplotlib's figure, its Agg
+    canvas, PIL's image plugins: ~0.35 s) in a thread of this process, for a caller that waits on
+    other processes meanwhile (a sweep's parent on its pool: the import then runs while the
+    parent would sit idle, not after the rows). Nothing else changes: the plots draw as before.
+
+    Every fork of this process waits for the import first (``os.register_at_fork``), so that no
+    child (a replaced pool worker, a file writer) starts with an import lock held by a thread
+    it does not have (the one module of those imports that registers fork hooks itself,
+    matplotlib's font manager, registers one for the child only; logging's, a pair, are
+    registered before the thread starts); :func:`finish_prefetch` waits for it before a plot
+    imports matplotlib itself. An import that fails here is left to the plot's own import to
+    report."""
+    if _PREFETCH:
+        return
+    import logging  # noqa: F401 - its fork hooks come in pairs: registered here, not mid-fork by the thread
+    import os
+    import threading
+
+    def load() -> None:
+        try:
+            import matplotlib.backends.backend_agg  # noqa: F401
+            import matplotlib.figure  # noqa: F401
+            from PIL import Image
+
+            Image.preinit()  # the plugins savefig's PNG writer loads
+        except Exception:  # noqa: BLE001 - the plot's own import raises it again, in its place
+            pass
+
+    thread = threading.Thread(target=load, name="loopcheck-matplotlib", daemon=True)
+    _PREFETCH.append(thread)
+    os.register_at_fork(before=finish_prefetch)
+    thread.start()
+
+
+def finish_prefetch() -> None:
+    """Wait for :func:`prefetch_matplotlib`'s import, if one was started and still runs."""
+    import threading
+
+    for thread in _PREFETCH:
+        if thread.is_alive() and thread is not threading.current_thread():
+            thread.join()
+
+
 def new_figure(figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, *, squeeze: bool = True,
                margins: dict | None = None, **subplots):
     """A figure of ``figsize`` inches on an Agg canvas (no pyplot), with fixed margins.
 
     ``margins`` overrides :data:`MARGINS` (left, right, bottom, top in inches; hspace and
     wspace in inches between axes). Returns (figure, axes) like ``pyplot.subplots``."""
+    finish_prefetch()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -43,7 +43,9 @@ failed, and their nulls would make each row of sweep.json 3.4 times longer: 1270
 374 on the seed). The mode is in sweep.json (``"engines"``) and readable from the header.
 
 Variants run in a process pool (``workers`` processes, default all cores,
-:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task; results
+:func:`loopcheck.compare.pool.ordered_map`), in chunks of consecutive variants per task (smaller
+towards the end, so that the workers finish together; meanwhile this process imports matplotlib
+for the plots in a thread: :func:`loopcheck.compare.plots.prefetch_matplotlib`); results
 come back in variant order and each row is
 written to ``sweep.csv`` as soon as it arrives, so memory stays flat with the number of variants
 (only a bounded summary is kept: counts, the worst variant, per key the range of the failing
@@ -282,14 +284,22 @@ def chunk_size(n: int, workers: int) -> int:
     return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
 
 
-def _chunks(spec: SweepSpec, size: int, start: int = 0) -> Iterator[tuple[int, list[dict[str, float]]]]:
+def _chunks(spec: SweepSpec, size: int, start: int = 0,
+            workers: int = 1) -> Iterator[tuple[int, list[dict[str, float]]]]:
+    """The variants from ``start`` as tasks ``(start, values)`` of ``size`` consecutive variants;
+    with several ``workers``, smaller towards the end (at most half of what is left per worker,
+    at least one), so that the workers finish together instead of one waiting on the other's
+    last chunk."""
     it = itertools.islice(variant_values(spec), start, None)
+    left = count(spec) - start
     while True:
-        chunk = list(itertools.islice(it, size))
+        take = size if workers <= 1 else max(1, min(size, math.ceil(left / (2 * workers))))
+        chunk = list(itertools.islice(it, take))
         if not chunk:
             return
         yield start, chunk
         start += len(chunk)
+        left -= len(chunk)
 
 
 def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
@@ -461,7 +471,7 @@ def run_rows(data: Mapping[str, Any], spec: SweepSpec, source: str, *, workers: 
     else:
         if client is not None:
             workers = dask_threads(client)
-        tasks = _chunks(spec, chunk_size(n, workers), start)
+        tasks = _chunks(spec, chunk_size(n, workers), start, workers)
     if client is not None:
         yield from dask_rows(client, _dask_chunk, data, (source, keep_trajectories, spec.engines), tasks,
                              CHUNKS_IN_FLIGHT * workers)
@@ -560,8 +570,16 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
             timed.append(time.perf_counter() - began)
         if len(timed) == 2:  # the second: imports and compiled code loaded by the first
             _estimate(n - first - 2, timed[1], used)
-        yield from run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories, client=client,
-                            start=first + len(timed), batch_size=batch_size)
+        # on a local pool this process waits on its workers: matplotlib is imported meanwhile (by a
+        # thread, started once the workers are: loopcheck.compare.plots.prefetch_matplotlib)
+        pooled = used > 1 and client is None and not sizes and bool(plot_files(spec))
+        for k, row in enumerate(run_rows(data, spec, source, workers=used, keep_trajectories=keep_trajectories,
+                                         client=client, start=first + len(timed), batch_size=batch_size)):
+            if k == 0 and pooled:
+                from .plots import prefetch_matplotlib
+
+                prefetch_matplotlib()
+            yield row
 
     def write_rows(path: Path) -> None:
         start = time.perf_counter()

@@ -172,10 +172,7 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     pf = mech.point_forces
     splines = _splines(tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf))
     tf = mech.timed_forces
-    # the kinematics' tables (loopcheck.kernels.loops): LOOPS, then physics' CENTRES, ENDS, FORCE_POINTS
-    tables = (loops.kernel_table(system.loops), loops.kernel_table(system.centres),
-              loops.kernel_table(system.points, ends),
-              loops.kernel_table(system.points, [system.point_index(p.body, p.point) for p in pf + tf]))
+    tables, plans = _kinematic_tables(system, ends, [system.point_index(p.body, p.point) for p in pf + tf])
     P = loops.Packer(physics.HEADER)
     P.kinematics(system.n, len(linkage.moving), tables, system.linear, system.couplings)
     h = P.header
@@ -225,9 +222,27 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
                                      for a in acts])
     h[physics.ACT_PIECE] = P.float(actuator_piece_values(scene, piece_edges(scene)))
     h[physics.N_CLAMPED] = len(clamped_actuators(mech))
-    plans, steps, weights = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
+    plans, steps, weights = plans
     h[physics.DYAD_PLAN], h[physics.DYAD_STEPS], h[physics.DYAD_W] = P.int(plans), P.int(steps), P.float(weights)
     return Model(*P.arrays())
+
+
+def _kinematic_tables(system: loops.LoopSystem, ends: list[int], forces: list[int]) -> tuple[tuple, tuple]:
+    """The kinematics' tables (:mod:`loopcheck.kernels.loops`: LOOPS, then physics' CENTRES, ENDS
+    of the elements' points ``ends``, FORCE_POINTS of the forces' points ``forces``) and the
+    closed form's plans (:func:`dyad_plans`), made once per system and points (kept with the
+    system, as its kernels are: a sweep's variants of one geometry share them; read-only arrays)."""
+    cache = system.__dict__.setdefault("_physics_tables", {})
+    key = (tuple(ends), tuple(forces))
+    if key not in cache:
+        tables = (loops.kernel_table(system.loops), loops.kernel_table(system.centres),
+                  loops.kernel_table(system.points, ends), loops.kernel_table(system.points, forces))
+        for table in tables:
+            for a in table:
+                a.setflags(write=False)
+        plans = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
+        cache[key] = tables, plans
+    return cache[key]
 
 
 class MechanismModel:

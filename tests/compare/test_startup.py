@@ -3,6 +3,7 @@ figure is drawn once, without pyplot, with no text cut off by the fixed margins.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -32,6 +33,27 @@ def test_commands_without_plots_do_not_load_matplotlib(command):
     loaded = modules_after(f"from loopcheck.compare.cli import main; assert main({args!r}) == 0")
     assert "matplotlib" not in loaded
     assert ("mujoco" in loaded) == (command[0] != "reduced")
+
+
+def test_a_fork_waits_for_the_matplotlib_import_started_ahead(tmp_path):
+    """A sweep's parent imports matplotlib in a thread while its pool works
+    (loopcheck.compare.plots.prefetch_matplotlib): a process forked meanwhile (a replaced worker)
+    must not start with that import half done (a module lock held by a thread it does not have).
+    Forked at once after the start, the child finds the import complete. (Planted: no fork hook:
+    fails here, the child sees matplotlib.figure missing.)"""
+    code = ("import os, sys\n"
+            "from loopcheck.compare.plots import prefetch_matplotlib\n"
+            "prefetch_matplotlib()\n"
+            "pid = os.fork()\n"
+            "if pid == 0:\n"
+            "    done = {'matplotlib.figure', 'matplotlib.backends.backend_agg'} <= set(sys.modules)\n"
+            "    os._exit(0 if done else 3)\n"
+            "_, status = os.waitpid(pid, 0)\n"
+            "assert os.waitstatus_to_exitcode(status) == 0, 'the child started before the import was done'\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
 
 
 @pytest.mark.slow  # ~5 s: a whole `loopcheck run`, plots included, in a fresh interpreter

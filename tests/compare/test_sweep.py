@@ -27,7 +27,7 @@ from loopcheck.compare.output import MANIFEST_FILE
 from loopcheck.compare.sweep import sweep_files
 from loopcheck.compare.sweep_journal import journal_path
 from loopcheck.compare.sweep_table import CSV_FILE, JSON_FILE, REDUCED_ONLY_COLUMNS, TRAJECTORY_FILE, read_rows
-from loopcheck.sweep_spec import Engines, spec_from_args
+from loopcheck.sweep_spec import Engines, spec_from_args, variant_values
 from loopcheck.shipped_scenes import default_scene_path
 
 from helpers import ROOT, interruptible, plots_left_out, short_seed_file  # noqa: F401 - fixture
@@ -112,6 +112,24 @@ def test_rows_come_in_variant_order_from_the_pool(short_scene, tmp_path, capsys)
     assert peaks[2] > peaks[0] and peaks[0] > peaks[1] and peaks[2] > peaks[3]
     assert (tmp_path / "sw" / "sweep_gate_map.png").is_file()
     assert "4 variants (2 workers" in printed and "4 passed" in printed
+
+
+def test_the_pool_s_chunks_hold_every_variant_once_in_order_and_shrink_at_the_end():
+    """Chunks of at most chunk_size; with two workers the last ones smaller, down to one variant
+    (the workers end together); one worker: chunks of the size. (Planted: no shrink: fails here.)"""
+    spec = spec_from_args(["dampers.0.coefficient=40:70:25", "bodies.coupler.mass=35:45:40"])
+    size = sweep_module.chunk_size(998, 2)
+    for workers in (1, 2):
+        chunks = list(sweep_module._chunks(spec, size, 2, workers))
+        starts = [start for start, _ in chunks]
+        assert starts == [2 + sum(len(v) for _, v in chunks[:k]) for k in range(len(chunks))]
+        assert [v for _, values in chunks for v in values] == list(variant_values(spec))[2:]
+        sizes = [len(v) for _, v in chunks]
+        assert max(sizes) == size == sizes[0]
+        if workers == 1:
+            assert sizes[:-1] == [size] * (len(sizes) - 1)
+        else:
+            assert sizes == sorted(sizes, reverse=True) and sizes[-1] == 1 and len(chunks) < 2 * 998 / size
 
 
 def test_monte_carlo_is_reproducible_with_its_seed(short_scene, tmp_path, capsys):

@@ -1,8 +1,11 @@
 """compile_linkage compiles each Linkage object once (loopcheck.kinematics._SYSTEMS): a scene
 file's assembly and the reduced engine's model share the system; another linkage object, of
 the same structure with another geometry, or made after the first is gone (its id reused),
-never gets the first one's system. Compared exactly with a fresh compilation: the cache may
-only return what compiling would."""
+never gets the first one's system. Linkage objects of one geometry (a sweep's variants that
+change masses) share one system (loopcheck.kinematics._BY_GEOMETRY), but not one with a −0.0
+where the other has 0.0. Compared exactly with a fresh compilation: the cache may only return
+what compiling would. (Planted: the geometry key with the masses; no −0.0 check: each fails
+here.)"""
 
 from __future__ import annotations
 
@@ -12,6 +15,7 @@ import numpy as np
 
 from loopcheck import kinematics
 from loopcheck.kinematics import compile_linkage
+from loopcheck.mechanism import Body, Linkage
 
 from test_mechanism import four_bar
 
@@ -50,3 +54,47 @@ def test_a_linkage_made_after_another_is_gone_is_compiled_on_its_own():
         del linkage
         gc.collect()
     assert not any(ref() is None for ref, _ in kinematics._SYSTEMS.values())
+
+
+def _with(linkage, body: str, **changes) -> Linkage:
+    """``linkage`` with body ``body``'s mass properties or points replaced."""
+    bodies = [Body(b.name, changes.get("points", dict(b.points)), changes.get("mass", b.mass),
+                   changes.get("com", b.com), changes.get("inertia", b.inertia)) if b.name == body else b
+              for b in linkage.bodies]
+    return Linkage(bodies, linkage.joints, linkage.input_joint)
+
+
+def test_linkages_of_one_geometry_share_a_system_whatever_their_masses():
+    base = four_bar((0.31, 1.02, 0.83, 0.94))
+    heavy = _with(base, "coupler", mass=7.0, inertia=0.2)
+    assert heavy != base
+    system = compile_linkage(base)
+    assert compile_linkage(heavy) is system
+    assert same_system(system, kinematics._compile_linkage(heavy))
+    # another centre of mass or another point is another geometry
+    moved = _with(base, "coupler", mass=7.0, com=(0.4, 0.1))
+    longer = _with(base, "coupler", points={"A": (0.0, 0.0), "B": (1.03, 0.0)})
+    for other in (moved, longer):
+        assert compile_linkage(other) is not system
+        assert same_system(compile_linkage(other), kinematics._compile_linkage(other))
+
+
+def test_a_negative_zero_is_not_shared_with_a_zero():
+    """−0.0 == 0.0 as a key, not to the bit: the two compile apart, each as compiling gives it."""
+    plus = _with(four_bar((0.32, 1.01, 0.84, 0.93)), "coupler", points={"A": (0.0, 0.0), "B": (1.01, 0.0)})
+    minus = _with(plus, "coupler", points={"A": (0.0, 0.0), "B": (1.01, -0.0)})
+    a, b = compile_linkage(plus), compile_linkage(minus)
+    assert a is not b
+    fresh = kinematics._compile_linkage(minus)
+    for t in ("loops", "points"):
+        for f in ("offset", "coef", "phase"):
+            assert getattr(getattr(b, t), f).tobytes() == getattr(getattr(fresh, t), f).tobytes()
+    # the bits differ somewhere: a shared system would have been wrong
+    assert any(getattr(getattr(a, t), f).tobytes() != getattr(getattr(b, t), f).tobytes()
+               for t in ("loops", "points") for f in ("offset", "coef", "phase"))
+
+
+def test_the_geometry_cache_keeps_its_latest_systems_only():
+    for k in range(kinematics.GEOMETRIES + 3):
+        compile_linkage(four_bar((0.3 + 0.002 * k, 1.0, 0.8, 0.9)))
+    assert len(kinematics._BY_GEOMETRY) <= kinematics.GEOMETRIES

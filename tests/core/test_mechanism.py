@@ -345,3 +345,13 @@ def test_malformed_messages_are_all_different():
 def test_mechanism_error_is_a_value_error():
     # The CLI maps ValueError to exit 2 (bad input).
     assert issubclass(MechanismError, ValueError)
+
+
+def test_a_body_pickles_whole():
+    """A scene goes to worker processes pickled: every field of a body comes back, its gravity
+    compensation too (it was dropped: a worker ran the body with its full weight; planted: fails here)."""
+    import pickle
+
+    body = Body("crank", {"O1": (0.0, 0.0), "A": (0.3, 0.0)}, 2.0, (0.1, 0.02), 0.3, gravcomp=0.5)
+    back = pickle.loads(pickle.dumps(body))
+    assert back == body and back.gravcomp == 0.5 and dict(back.points) == dict(body.points)

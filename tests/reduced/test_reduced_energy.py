@@ -248,3 +248,21 @@ def test_rkn4s_integrated_energy_flows_converge_at_its_order():
     for flow in range(2):
         order = np.polyfit(np.log(steps), np.log(errors[:, flow]), 1)[0]
         assert order >= 3.8, (flow, order)
+
+
+def test_an_audit_computes_its_residual_once_and_it_cannot_be_changed():
+    """The residual, its scale and largest magnitude are computed on first use and kept (a
+    sweep's row reads them three times): the kept residual is the balance's formula exactly
+    and read-only, so no caller can change what the next one reads. (Planted: the residual left
+    writable: fails here.)"""
+    from loopcheck.results import EnergyAudit
+
+    t = np.linspace(0.0, 1.0, 5)
+    audit = EnergyAudit(t, kinetic=1.0 + t, potential=2.0 * t, torque_work=3.0 * t, damper_dissipation=0.5 * t)
+    total = audit.kinetic + audit.potential
+    assert np.array_equal(audit.residual, total - total[0] - audit.torque_work + audit.damper_dissipation)
+    assert audit.residual is audit.residual
+    with pytest.raises(ValueError):
+        audit.residual[0] = 1.0
+    assert audit.max_abs_residual == float(np.max(np.abs(audit.residual)))
+    assert audit.relative_residual == audit.max_abs_residual / audit.scale

@@ -121,6 +121,7 @@ cdef class Chart(RightHandSide):
     cdef readonly double[::1] kinks
     cdef double[:, :, ::1] base
 
+    cdef int _dyads(self, Py_ssize_t first, Py_ssize_t i) except -1
     cdef int _finish(self, double det) except -1
     cdef int _close(self, Py_ssize_t depth, double value, double reach) except -1
     cdef int _walk(self, double value) except -1

@@ -50,6 +50,7 @@ import numpy as np
 
 if cython.compiled:
     from cython.cimports.libc.math import atan2, cos, fabs, floor, isfinite, sin, sqrt
+    from cython.cimports.libc.string import memcpy
     from cython.cimports.loopcheck.kernels.loops import LOOPS, N, N_ANGLES, TABLE_ENTRIES, TABLES, Loops
     from cython.cimports.loopcheck.reduced.kernels.problem import RightHandSide
 else:
@@ -256,101 +257,24 @@ def _nearest(angle: cython.double, target: cython.double) -> cython.double:
 @cython.ccall
 def _dyads(F: cython.double[::1], I: cython.longlong[::1], first: cython.Py_ssize_t, x: cython.double[::1],
            base: cython.double[::1], trig: cython.double[:, ::1], i: cython.Py_ssize_t) -> cython.bint:
-    """The dependent angles of x by closed form, loop after loop of the plan that starts at step
-    ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown angles a, b (the others known:
-    the chart's coordinate or solved by an earlier step) and only fixed-length terms reads
-
-        R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
-
-    two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
-    (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
-    ``base`` (n,) is taken: the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart
-    (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b follows from
-    R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the predictor's).
-    The cos and sin of every angle (the chart's coordinate i and the solved ones: with a plan,
-    all) go into trig (2, n) as they are computed, as :func:`angle_trig` would compute them.
-    Returns False where the circles do not meet (no closed loop)."""
-    tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
-    n_loops: cython.Py_ssize_t = I[tb]
-    step: cython.Py_ssize_t
-    k: cython.Py_ssize_t
-    a: cython.Py_ssize_t
-    b: cython.Py_ssize_t
-    w: cython.Py_ssize_t
-    t: cython.Py_ssize_t
-    g: cython.Py_ssize_t
-    wax: cython.double
-    way: cython.double
-    wbx: cython.double
-    wby: cython.double
-    phi_a: cython.double
-    phi_b: cython.double
-    dx: cython.double
-    dy: cython.double
-    ux: cython.double
-    uy: cython.double
-    c: cython.double
-    sn: cython.double
-    d2: cython.double
-    ra2: cython.double
-    cos_psi: cython.double
-    sin_psi: cython.double
-    last: cython.double
-    norm: cython.double
-    ra: cython.double
-    qx: cython.double
-    qy: cython.double
-    rq: cython.double
-    trig[0, i] = cos(x[i])
-    trig[1, i] = sin(x[i])
-    for step in range(first, first + n_loops):
-        k = I[I[DYAD_STEPS] + 3 * step]
-        a = I[I[DYAD_STEPS] + 3 * step + 1]
-        b = I[I[DYAD_STEPS] + 3 * step + 2]
-        w = I[DYAD_W] + 6 * step
-        wax, way, wbx, wby, phi_a, phi_b = F[w], F[w + 1], F[w + 2], F[w + 3], F[w + 4], F[w + 5]
-        dx = -F[I[tb + 2] + 2 * k]
-        dy = -F[I[tb + 2] + 2 * k + 1]
-        for t in range(I[tb + 1]):
-            g = I[I[tb + 6] + t]
-            if I[I[tb + 4] + t] != k or g == a or g == b:
-                continue
-            ux = F[I[tb + 3] + 2 * t]
-            uy = F[I[tb + 3] + 2 * t + 1]
-            if g >= 0:  # a known angle: i's or solved by an earlier step
-                c = trig[0, g]
-                sn = trig[1, g]
-                ux, uy = ux * c - uy * sn, ux * sn + uy * c
-            dx -= ux
-            dy -= uy
-        d2 = dx * dx + dy * dy
-        ra2 = wax * wax + way * way
-        cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * sqrt(d2 * ra2))
-        if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
-            return False
-        # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
-        # product; in the last configuration R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
-        last = sin(base[b] + phi_b - base[a] - phi_a)
-        cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
-        sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
-        # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
-        norm = sqrt(d2)
-        ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
-        ra = sqrt(ra2)
-        c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
-        x[a] = _nearest(atan2(uy, ux) - phi_a, x[a])
-        trig[0, a] = c
-        trig[1, a] = sn
-        qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
-        x[b] = _nearest(atan2(qy, qx) - phi_b, x[b])
-        rq = sqrt(qx * qx + qy * qy) * sqrt(wbx * wbx + wby * wby)
-        if rq > 0.0:
-            trig[0, b] = (qx * wbx + qy * wby) / rq
-            trig[1, b] = (qy * wbx - qx * wby) / rq
-        else:
-            trig[0, b] = cos(x[b])
-            trig[1, b] = sin(x[b])
-    return True
+    """:meth:`Chart._dyads` on the arrays of a model (F, I), from the predictor x (n,) with the
+    last configuration ``base`` (n,): x and trig (2, n) are overwritten as the chart's would be.
+    Returns False where the circles do not meet (no closed loop). (For tests: a chart calls its
+    method, on its own views.)"""
+    n: cython.Py_ssize_t = x.shape[0]
+    j: cython.Py_ssize_t
+    chart: Chart = Chart(Model(np.asarray(F), np.asarray(I)), 0.5)
+    for j in range(n):
+        chart.x[j] = x[j]
+        chart.dyad_base[j] = base[j]
+        chart.trig[0, j] = trig[0, j]
+        chart.trig[1, j] = trig[1, j]
+    closed: cython.bint = chart._dyads(first, i) == 1
+    for j in range(n):
+        x[j] = chart.x[j]
+        trig[0, j] = chart.trig[0, j]
+        trig[1, j] = chart.trig[1, j]
+    return closed
 
 
 # -- the chart -------------------------------------------------------------------------------
@@ -445,6 +369,111 @@ class Chart(RightHandSide):
 
     @cython.cfunc
     @cython.exceptval(-1, check=False)
+    def _dyads(self, first: cython.Py_ssize_t, i: cython.Py_ssize_t) -> cython.int:
+        """The dependent angles of the chart's x (the predictor) by closed form, loop after loop
+        of the plan that starts at step ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown
+        angles a, b (the others known: the chart's coordinate or solved by an earlier step) and
+        only fixed-length terms reads
+
+            R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
+
+        two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
+        (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
+        (``dyad_base`` (n,): :meth:`_close`'s copy of its base's x) is taken: the sign of
+        R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart (the dyad's 2×2 block of Φ_x
+        would be singular, and so [Φ_x; e_i]); θ_b follows from R(θ_b) W_b = d − R(θ_a) W_a; both
+        angles are the 2π-turns nearest x's (the predictor's). The cos and sin of every angle
+        (the chart's coordinate i and the solved ones: with a plan, all) go into trig (2, n) as
+        they are computed, as :func:`angle_trig` would compute them. Returns 0 where the circles
+        do not meet (no closed loop), else 1. A method on the chart's own views: as a function of
+        the arrays (:func:`_dyads`), five views were copied by value at every closure (2 % of a
+        seed variant's instructions)."""
+        tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * LOOPS
+        n_loops: cython.Py_ssize_t = self.I[tb]
+        step: cython.Py_ssize_t
+        k: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        b: cython.Py_ssize_t
+        w: cython.Py_ssize_t
+        t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        wax: cython.double
+        way: cython.double
+        wbx: cython.double
+        wby: cython.double
+        phi_a: cython.double
+        phi_b: cython.double
+        dx: cython.double
+        dy: cython.double
+        ux: cython.double
+        uy: cython.double
+        c: cython.double
+        sn: cython.double
+        d2: cython.double
+        ra2: cython.double
+        cos_psi: cython.double
+        sin_psi: cython.double
+        last: cython.double
+        norm: cython.double
+        ra: cython.double
+        qx: cython.double
+        qy: cython.double
+        rq: cython.double
+        self.trig[0, i] = cos(self.x[i])
+        self.trig[1, i] = sin(self.x[i])
+        for step in range(first, first + n_loops):
+            k = self.I[self.I[DYAD_STEPS] + 3 * step]
+            a = self.I[self.I[DYAD_STEPS] + 3 * step + 1]
+            b = self.I[self.I[DYAD_STEPS] + 3 * step + 2]
+            w = self.I[DYAD_W] + 6 * step
+            wax, way, wbx, wby = self.F[w], self.F[w + 1], self.F[w + 2], self.F[w + 3]
+            phi_a, phi_b = self.F[w + 4], self.F[w + 5]
+            dx = -self.F[self.I[tb + 2] + 2 * k]
+            dy = -self.F[self.I[tb + 2] + 2 * k + 1]
+            for t in range(self.I[tb + 1]):
+                g = self.I[self.I[tb + 6] + t]
+                if self.I[self.I[tb + 4] + t] != k or g == a or g == b:
+                    continue
+                ux = self.F[self.I[tb + 3] + 2 * t]
+                uy = self.F[self.I[tb + 3] + 2 * t + 1]
+                if g >= 0:  # a known angle: i's or solved by an earlier step
+                    c = self.trig[0, g]
+                    sn = self.trig[1, g]
+                    ux, uy = ux * c - uy * sn, ux * sn + uy * c
+                dx -= ux
+                dy -= uy
+            d2 = dx * dx + dy * dy
+            ra2 = wax * wax + way * way
+            cos_psi = (d2 + ra2 - (wbx * wbx + wby * wby)) / (2.0 * sqrt(d2 * ra2))
+            if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
+                return 0
+            # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
+            # product; in the last configuration
+            # R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
+            last = sin(self.dyad_base[b] + phi_b - self.dyad_base[a] - phi_a)
+            cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
+            sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
+            # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
+            norm = sqrt(d2)
+            ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
+            ra = sqrt(ra2)
+            c, sn = (ux * wax + uy * way) / ra, (uy * wax - ux * way) / ra
+            self.x[a] = _nearest(atan2(uy, ux) - phi_a, self.x[a])
+            self.trig[0, a] = c
+            self.trig[1, a] = sn
+            qx, qy = dx - (wax * c - way * sn), dy - (wax * sn + way * c)  # R(θ_b) W_b
+            self.x[b] = _nearest(atan2(qy, qx) - phi_b, self.x[b])
+            rq = sqrt(qx * qx + qy * qy) * sqrt(wbx * wbx + wby * wby)
+            if rq > 0.0:
+                self.trig[0, b] = (qx * wbx + qy * wby) / rq
+                self.trig[1, b] = (qy * wbx - qx * wby) / rq
+            else:
+                self.trig[0, b] = cos(self.x[b])
+                self.trig[1, b] = sin(self.x[b])
+        return 1
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _close(self, depth: cython.Py_ssize_t, value: cython.double, reach: cython.double) -> cython.int:
         """Newton from the predictor of base[depth] (rows x, K, L) to x_i = value, whose predicted
         motion max_j |K_j Δ| + ½ |L_j| Δ² is ``reach``; x, K, L into kin (3, n).
@@ -480,7 +509,7 @@ class Chart(RightHandSide):
             # every closure, would change the array's acquisition count atomically twice
             for j in range(n):
                 self.dyad_base[j] = self.base[depth, 0, j]
-            if not _dyads(self.F, self.I, plan, self.x, self.dyad_base, self.trig, i):
+            if not self._dyads(plan, i):
                 return 1
         for it in range(_c_newton_max_iter + 1):
             if not closed:  # the closed form left trig at x
@@ -538,9 +567,13 @@ class Chart(RightHandSide):
         moved: cython.double
         failed: cython.bint
         trusted: cython.bint
-        for r in range(3):
-            for j in range(n):
-                self.base[0, r, j] = self.last[r, j]
+        if cython.compiled:  # base[0] and last: C-contiguous (3, n) blocks of W, one copy
+            memcpy(cython.address(self.base[0, 0, 0]), cython.address(self.last[0, 0]),
+                   3 * n * cython.sizeof(cython.double))
+        else:
+            for r in range(3):
+                for j in range(n):
+                    self.base[0, r, j] = self.last[r, j]
         self.target[0] = value
         self.budget[0] = _c_max_halvings
         depth: cython.Py_ssize_t = 0  # base[d] is the configuration from which target[d] is sought
@@ -586,9 +619,13 @@ class Chart(RightHandSide):
             self.target[depth + 1] = self.base[depth, 0, i] + 0.5 * (self.target[depth] - self.base[depth, 0, i])
             self.budget[depth + 1] = self.budget[depth] - 1
             depth += 1
-        for r in range(3):
-            for j in range(n):
-                self.last[r, j] = self.kin[r, j]
+        if cython.compiled:  # kin (the kinematics' B) and last: C-contiguous (3, n) blocks, one copy
+            memcpy(cython.address(self.last[0, 0]), cython.address(self.kin[0, 0]),
+                   3 * n * cython.sizeof(cython.double))
+        else:
+            for r in range(3):
+                for j in range(n):
+                    self.last[r, j] = self.kin[r, j]
         return OK
 
     @cython.cfunc
