@@ -229,7 +229,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
     print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
           f"({len(scene.mechanism.linkage.cut_joints)} closing loops"
           + "".join(f", coupling '{c.name}'" for c in scene.mechanism.linkage.couplings)
-          + f"), input '{scene.mechanism.linkage.input_joint}': "
+          + (f"), inputs {', '.join(repr(i) for i in scene.inputs)}; the first, " if scene.dof > 1 else "), input ")
+          + f"'{scene.mechanism.linkage.input_joint}': "
           f"{_reader(args.model).models.input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
           f"horizon {scene.horizon:g} s")
     if imported.extraction:
