@@ -507,7 +507,8 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reading a MuJoCo model (MJCF, a file ending in .xml; docs/import.md)")
     g.add_argument("--input", default=None, metavar="JOINT",
                    help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
-                        "first joint)")
+                        "first joint); with several degrees of freedom, the first inputs in order, comma separated "
+                        "(the rest: the joints actuators act on, then coordinate partitioning)")
     g.add_argument("--keyframe", default=None, metavar="NAME",
                    help="read the configuration, rates and control of this keyframe (default: the model's only "
                         "keyframe, said in the output; qpos0 without keyframes; several are refused unless one is "

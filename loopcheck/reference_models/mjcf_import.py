@@ -1,4 +1,4 @@
-"""Reading a user's MJCF: the planar one-DOF linkage a MuJoCo model describes, as a scene.
+"""Reading a user's MJCF: the planar linkage a MuJoCo model describes (one DOF or several), as a scene.
 
 The file is compiled by MuJoCo itself (``mujoco.MjModel``), so defaults, classes, includes,
 ``angle="degree"``, euler and axis-angle frames are resolved as MuJoCo resolves them. The model
@@ -34,9 +34,13 @@ close; what becomes of each element:
   through the actuator: the same motion while its ``actuatorfrcrange`` does not clamp it.
 - The load: a motor on the input joint, ``gear`` × its control (the keyframe's ``ctrl`` or the
   one given, :class:`Control`); gravity: the option's, projected on the plane.
+- Several degrees of freedom (the loop Jacobian's rank deficiency at the configuration read): the
+  inputs are ``--input``'s joints, then the joints the actuators act on, then coordinate
+  partitioning (:func:`_inputs`); every actuator is then a scene actuator, and every input's q and
+  q̇ come from the configuration read and its qvel.
 
 Anything else that acts is refused with one line naming it (:class:`MjcfError`): ball and free
-joints, several joints on one body, axes off the plane, more than one degree of freedom,
+joints, several joints on one body, axes off the plane, several degrees of freedom without a loop,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
 bodies welded together with different ``gravcomp``, a joint's ``actuatorfrcrange`` (limited; MuJoCo
@@ -108,7 +112,7 @@ _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ012345678
 
 
 class MjcfError(SceneError):
-    """An MJCF model loopcheck cannot read as a planar one-DOF linkage; the message names the element."""
+    """An MJCF model loopcheck cannot read as a planar linkage; the message names the element."""
 
 
 @dataclass(frozen=True)
@@ -1071,6 +1075,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     ----------
     input_joint : the MuJoCo joint (hinge or slide) whose coordinate is q; default the joint the
         motor drives, else the model's first joint.
+        With several degrees of freedom, several joints separated by commas: the first inputs, in
+        order (the rest chosen by :func:`_inputs`).
     keyframe : the keyframe to read the configuration, rates and control from; default the
         model's only keyframe (said in ``ImportedModel.said``), qpos0 (at rest, with zero control)
         when it has none; a model with several is refused unless one is named or ``qpos0``.
