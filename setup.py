@@ -33,7 +33,7 @@ class ParallelBuildExt(build_ext):
 
 # the compiled modules, by package: the mechanism layer's kinematics, the reduced engine's core
 KERNELS = {"loopcheck.kernels": ("loops",),
-           "loopcheck.reduced.kernels": ("problem", "output", "physics", "fixed_step", "adaptive", "partition", "vector_problem", "vector_output", "vector_adaptive", "vector_fixed_step")}
+           "loopcheck.reduced.kernels": ("problem", "output", "physics", "fixed_step", "adaptive", "partition", "vector_problem", "vector_output", "vector_adaptive", "vector_fixed_step", "several")}
 CHECKED = os.environ.get("LOOPCHECK_CHECKED_BUILD", "") not in ("", "0")
 
 DIRECTIVES = {

@@ -36,6 +36,7 @@ NOT_RECORDED = {
     "mechanisms/servo_fourbar.toml": "tests/reduced/test_actuators.py (closed form), "
                                      "tests/reference_models/test_actuators_mjcf.py (MuJoCo, Pinocchio, audits)",
     "mechanisms/friction_fourbar.toml": "tests/reduced/test_friction_fourbar.py (stick, energy, halves)",
+    "mechanisms/five_bar_robot.toml": "tests/reduced/test_several_dof.py (two DOF: the multibody oracle, energy)",
 }
 
 

@@ -94,6 +94,11 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
     ValueError
         Naming the setting or scene key to change.
     """
+    if scene.dof > 1:  # imported here: a one-DOF run loads nothing of the several-DOF engine
+        from .several import check_scene
+
+        check_scene(scene, settings)
+        return
     mech = scene.mechanism
     events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
     if events and settings.method not in ("dop853", "rkn4"):
@@ -226,6 +231,8 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
         ``settings.check_error``, if RKN4's error estimate exceeds rtol (INACCURATE) or the
         energy balance does not close within its bound (ENERGY_IMBALANCE).
     """
+    if scene.dof > 1:  # Eksergian's reduction in several coordinates (loopcheck.reduced.several)
+        return simulate_several(scene, settings)
     check_work(scene, settings)
     model = MechanismModel(scene)
     start = time.perf_counter()
@@ -261,6 +268,28 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
         engine="reduced", trajectory=trajectory, joints=solution.joints, peak=trajectory.peak_rate(),
         audit=audit, wall_s=wall, n_steps=solution.n_steps, n_evaluations=solution.n_evaluations,
         settings=settings, effects=tuple(model.effects), details=details)
+
+
+def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
+    """A scene of several DOF (:mod:`loopcheck.reduced.several`): its run, gated on its energy balance
+    as :func:`simulate` gates a one-DOF run (the scale's floor ½ max diag 𝔍0 (1 rad/s)²)."""
+    from .several import run_several
+
+    run = run_several(scene, settings)
+    audit = run.audit
+    bound = max(ENERGY_FACTOR[settings.method] * settings.rtol, ENERGY_FLOOR)
+    scale = max(audit.scale, run.kinetic_scale)
+    if settings.check_error and not audit.max_abs_residual <= bound * scale:
+        raise NumericalFailure(
+            "energy-imbalance", f"the energy balance does not close: residual {audit.max_abs_residual:.3e} J, "
+            f"{audit.max_abs_residual / scale:.2e} of the run's {scale:.4g} J, above the bound {bound:.1e} "
+            f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol")
+    details = ReducedDetails(solver=run.solver, switches=run.switches, error_estimate=None, energy_bound=bound,
+                             energy_scale=scale)
+    (first, peak), *others = run.inputs
+    return EngineResult(engine="reduced", trajectory=first, joints=run.joints, peak=peak, audit=audit,
+                        wall_s=run.wall_s, n_steps=run.n_steps, n_evaluations=run.n_evaluations, settings=settings,
+                        effects=tuple(scene.effects), details=details, other_inputs=tuple(others))
 
 
 @dataclass(frozen=True)

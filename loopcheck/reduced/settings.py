@@ -117,6 +117,10 @@ class ReducedSettings:
 
 Settings = ReducedSettings  # the name every engine's settings have (loopcheck.registry)
 
+# Scenes of several degrees of freedom run (loopcheck.registry.Engine.several_dof): Eksergian's reduction in
+# k coordinates, loopcheck.reduced.several.
+SEVERAL_DOF = True
+
 # How tables and plots name and draw the engine (loopcheck.registry.Engine.label, .colour).
 LABEL = "reduced"
 COLOUR = "tab:blue"

@@ -1,4 +1,4 @@
-"""The comparison over n coordinates (issue 40) on the five-bar robot (tests/data/five_bar_robot.toml,
+"""The comparison over n coordinates (issue 40) on the five-bar robot (scenes/mechanisms/five_bar_robot.toml,
 two inputs O1 and O5): every input's difference and peak, the gate over the inputs naming the
 failing one, report.json's ``inputs`` and every joint, the table and check lines, the plots in
 small multiples. Until the reduced engine runs several inputs, the two runs compared are MuJoCo's
@@ -31,7 +31,7 @@ from loopcheck.trajectory import Trajectory
 
 from helpers import plots_left_out
 
-SCENE = os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_robot.toml")
+SCENE = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "mechanisms", "five_bar_robot.toml")
 BETWEEN = Tolerances(q_atol=8e-5)  # rad: above O1's max |Δq| (6.2e-5), below O5's (9.95e-5)
 
 

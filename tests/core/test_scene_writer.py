@@ -50,7 +50,7 @@ def test_a_pivot_body_is_written_by_its_pivot():
 
 def test_a_scene_of_several_inputs_reads_back():
     """The five-bar robot (two inputs): ``inputs`` and the initial arrays are written, in order."""
-    path = Path(__file__).parents[1] / "data" / "five_bar_robot.toml"
+    path = Path(__file__).parents[2] / "scenes" / "mechanisms" / "five_bar_robot.toml"
     scene = load_scene(path)
     text = scene_toml(scene)
     assert 'inputs = ["O1", "O5"]' in text and "q = [1.8, 1.3]" in text

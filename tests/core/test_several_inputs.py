@@ -13,7 +13,7 @@ from loopcheck.scene import SceneError
 from loopcheck.scenefile import load_scene
 from tests.oracles.multibody import Body, GROUND, Model, Pin
 
-FIVE_BAR = Path(__file__).resolve().parents[1] / "data" / "five_bar_robot.toml"
+FIVE_BAR = Path(__file__).resolve().parents[2] / "scenes" / "mechanisms" / "five_bar_robot.toml"
 
 
 def _text(**replace: str) -> str:

@@ -138,10 +138,6 @@ SCENES = {
 # and MuJoCo's kinetic energy is the reduced model's).
 CATALOGUE = sorted((ROOT / "scenes" / "mechanisms").glob("*.toml"))
 SCENES.update({f"catalogue:{path.stem}": (lambda path=path: load_scene(path)) for path in CATALOGUE})
-# The two-input five-bar robot, until it joins the catalogue (issue 40): the several-DOF branches.
-FIVE_BAR = ROOT / "tests" / "data" / "five_bar_robot.toml"
-if FIVE_BAR.exists() and "catalogue:five_bar_robot" not in SCENES:
-    SCENES["five_bar_robot"] = lambda: load_scene(FIVE_BAR)
 
 
 @pytest.fixture(params=sorted(SCENES), scope="module")

@@ -1,5 +1,5 @@
 """MuJoCo built from a scene of several degrees of freedom (issue 40): the five-bar robot
-(tests/data/five_bar_robot.toml, two motors) against the independent full-coordinate oracle
+(scenes/mechanisms/five_bar_robot.toml, two motors) against the independent full-coordinate oracle
 (tests/oracles/multibody.py; ``five_bar()`` of tests/reduced/test_multibody_oracle.py is the same
 robot), every input's q and q̇ over the run, and the energy balance of MuJoCo's own record.
 
@@ -26,7 +26,7 @@ from loopcheck.scenefile import load_scene
 from oracles.multibody import simulate
 from reduced.test_multibody_oracle import five_bar  # the same robot, described for the oracle
 
-SCENE = os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_robot.toml")
+SCENE = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "mechanisms", "five_bar_robot.toml")
 Q_TOL, RATE_TOL = 1e-4, 1e-2  # rad, rad/s: 4x MuJoCo's measured error at its automatic step (above)
 ORACLE_RTOL = 1e-9  # its accuracy (4e-9 rad, 7e-8 rad/s) is far below the tolerances
 BODIES = {"O1": "left_crank", "O5": "right_crank"}  # each input joint: the crank it drives from the ground

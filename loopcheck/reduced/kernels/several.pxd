@@ -1,0 +1,50 @@
+# C-level declaration of loopcheck/reduced/kernels/several.py (Cython's augmenting .pxd).
+
+from loopcheck.kernels.loops cimport Loops
+
+cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust, _c_trusted_correction, _c_hysteresis
+cdef double _c_jacobi_tol, _c_nan
+cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps
+
+
+cdef class Several:
+    cdef readonly object arrays
+    cdef double[::1] F
+    cdef long long[::1] I
+    cdef readonly Py_ssize_t n, k, mr, nj, valid, piece
+    cdef readonly Loops loops
+    cdef readonly double singular, potential, c_current, c_best, tol, det
+    cdef readonly int sign
+    cdef bint starting
+    cdef readonly double[:, ::1] JR, R, K, Jm, Bm
+    cdef double[:, ::1] Rmark, small, timed, act_k, ku, kd, LU, Phx, lastK, baseK, startK, markK, U, Z, D, M
+    cdef double[:, :, ::1] KG
+    cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq
+    cdef double[::1] qv, act_l, basex, baseq, startx, startq, markx, markq, target, pred, resid, used
+    cdef long long[::1] piv
+    cdef readonly long long[::1] best, current, counts
+
+    cdef int _save_factors(self) except -1
+    cdef int _solve(self, double[::1] b) except -1
+    cdef int _second_order(self, double[::1] out) except -1
+    cdef int _small_solve(self) except -1
+    cdef double _residual(self) except? -1
+    cdef int _close(self) except -1
+    cdef int _walk(self, double[::1] q) except -1
+    cdef int _coefficients(self) except -1
+    cpdef bint evaluate(self, double[::1] q) except -1
+    cpdef int acceleration(self, Py_ssize_t load, double t, double[::1] q, double[::1] v, double[::1] out) except -1
+    cpdef Py_ssize_t accelerations(self, Py_ssize_t load, double[::1] T, double[:, ::1] Q, double[:, ::1] V,
+                                   double[:, ::1] out)
+    cpdef double power(self, Py_ssize_t load, double[::1] v)
+    cpdef double dissipation(self, double[::1] v)
+    cpdef double kinetic(self, double[::1] v)
+    cpdef Py_ssize_t observation_size(self)
+    cpdef observe(self, double[:, ::1] out, Py_ssize_t row)
+    cpdef mark(self)
+    cpdef rewind(self)
+    cpdef reset(self)
+    cdef double _sigma_ratio(self, long long[::1] S) except? -1
+    cdef int _best_set(self) except -1
+    cpdef double stop_margin(self, double t, double[::1] q, double[::1] v)
+    cpdef bint start(self, double[::1] x, long long[::1] joints) except -1
