@@ -2,16 +2,12 @@
 over every input, naming the coordinate whose difference fails.
 
 The model: tests/data/mjcf/two_finger_gripper.xml (3 DOF: two five-bar fingers, coupled knuckles,
-a servo on a fixed tendon, sprung fingertips), as written (implicitfast at 0.5 ms, soft loops).
-Where the reduced engine of several DOF is not merged, the reference of the wording tests is MuJoCo
-itself run far finer (RK4 at 5e-5 s, the loops as stiff as it allows: a real run, which the check's
-own search finds within 0.14 of the tolerances already at 2e-3 s): what they test is how the check
-reads three inputs, not the model's accuracy; the test with the reduced reference runs where it is.
+a servo on a fixed tendon, sprung fingertips), as written (implicitfast at 0.5 ms, soft loops),
+against the reduced reference of several DOF (DOP853 at its default rtol 1e-12).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from pathlib import Path
 
@@ -21,7 +17,6 @@ import loopcheck
 from loopcheck.compare.run import judge
 from loopcheck.reference_models.mjcf_import import import_mjcf
 from loopcheck.reference_models.model_check import MARGIN, check_lines, check_model
-from loopcheck.reference_models.user_model import ModelOptions, run_model
 from loopcheck.scene import Tolerances
 
 GRIPPER = Path(__file__).parent.parent / "data" / "mjcf" / "two_finger_gripper.xml"
@@ -35,9 +30,8 @@ def imported():
 
 @pytest.fixture(scope="module")
 def fine(imported):
-    """MuJoCo at RK4, 5e-5 s, stiff loops: the stand-in reference (module docstring)."""
-    options = dataclasses.replace(ModelOptions.as_written(imported.model), integrator="rk4", timestep=5e-5)
-    return run_model(imported, options.stiff_loops())
+    """The reduced reference of the imported scene (what ``check`` compares with)."""
+    return loopcheck.simulate(imported.scene, loopcheck.ReducedSettings())
 
 
 def test_the_advice_names_only_the_coordinates_that_fail(imported, fine):
@@ -80,19 +74,14 @@ def test_a_reference_that_does_not_move_is_refused_over_every_input(imported, fi
 
 
 def test_check_against_the_reduced_reference(imported):
-    """The check as the command runs it, against the reduced reference of several DOF: the model as
-    written fails, the advice names the coordinates, and the cheapest options found pass with margin
-    (measured over 1 s: as written 51× the tolerance on the fingertips' peak; RK4 at 2 ms with stiff
-    loops within 0.14 of every tolerance). Skipped where the reduced engine of several DOF is not
-    merged."""
+    """The check as the command runs it (the comparison's own reduced reference): the model as
+    written fails on every input, the advice names them, and the cheapest options found pass with
+    margin (measured over 1 s: as written 51× the tolerance on the fingertips' peak; RK4 at 2 ms with
+    stiff loops within 0.14 of every tolerance)."""
     from loopcheck.compare.model_check import check_model as check_with_reference
 
-    try:
-        check = check_with_reference(imported)
-    except loopcheck.SceneError as exc:
-        assert "one-DOF linkages only" in str(exc)
-        pytest.skip("the reduced engine of several DOF (issue 40) is not merged in this tree")
+    check = check_with_reference(imported)
     lines = check_lines(check, "gripper.xml")
-    assert not check.passed and any("the coordinate whose difference fails: 'right_knuckle_joint'" in line
-                                    for line in lines)
+    assert not check.passed and any("the coordinate whose difference fails: 'right_knuckle_joint', 'right_tip_joint', "
+                                    "'left_tip_joint'" in line for line in lines)
     assert check.cheapest is not None and check.cheapest.with_margin

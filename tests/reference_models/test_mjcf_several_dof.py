@@ -7,7 +7,7 @@ position servo on a fixed tendon over both knuckles, the fingertips' joints held
 DOF (3) are counted by hand in the file: 2 per five-bar finger, less the coupling.
 Oracles: that count, the model's mirror symmetry (the left finger's coordinates are the right's,
 negated: its joints turn about −x), the loop equations (the rates the import reads keep them closed)
-and, where the reduced engine of several DOF runs, the energy balance.
+and the reduced engine's energy balance.
 """
 
 from __future__ import annotations
@@ -118,23 +118,11 @@ def test_the_model_as_written_runs_in_mujoco_with_every_input(gripper):
     assert 0.2 < float(result.trajectory.q[-1]) < 0.8
 
 
-def _reduced(scene):
-    """The reduced engine's run of a scene of several DOF, or None where it refuses them (issue 40's
-    engine not merged here)."""
-    try:
-        return loopcheck.simulate(scene, loopcheck.ReducedSettings())
-    except loopcheck.SceneError as exc:
-        assert "one-DOF linkages only" in str(exc)
-        return None
-
-
 def test_the_gripper_balances_its_energy_in_the_reduced_engine(gripper):
     """The imported gripper under the reduced engine (DOP853, rtol 1e-12) over 0.3 s: its energy
-    balance holds to 1e-9 relative (the issue's target; measured 6.3e-13 over 1 s), and its peaks
-    are mirror images. Skipped where the reduced engine of several DOF is not merged."""
-    run = _reduced(dataclasses.replace(gripper.scene, horizon=0.3))
-    if run is None:
-        pytest.skip("the reduced engine of several DOF (issue 40) is not merged in this tree")
+    balance holds to 1e-9 relative (the issue's target; measured 6.3e-13 over 1 s, no coordinate
+    switch), and its fingertips' peaks are mirror images."""
+    run = loopcheck.simulate(dataclasses.replace(gripper.scene, horizon=0.3), loopcheck.ReducedSettings())
     assert run.audit.relative_residual <= 1e-9
     (_, right), (_, left) = run.other_inputs
     assert right.omega == pytest.approx(-left.omega, rel=1e-9)
