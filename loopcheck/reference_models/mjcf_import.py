@@ -1178,8 +1178,10 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.said_inputs = choice
     if len(inputs) == 1 and no_motor is not None:
         reader.warnings.append(no_motor)
-    input_name = inputs[0]
-    inp = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, {v: k for k, v in reader.joint_of.items()}[input_name])
+    if inputs[0] != input_name:  # several DOF: the first input chosen (an unnamed joint is found by its scene name)
+        input_name = inputs[0]
+        inp = next(j for j in range(model.njnt)
+                   if reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")] == input_name)
     # several DOF: every actuator is a scene actuator (a linkage of several inputs has no input load)
     motor = _input_motor(reader, inp) if not actuation_off and len(inputs) == 1 else None
     if actuation_off:
@@ -1431,7 +1433,13 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
         basis.append(r / np.linalg.norm(r))
         return True
 
-    by_mj = {scene: mj for mj, scene in reader.joint_of.items()}
+    index = {reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]: j for j in range(m.njnt)}
+
+    def said(scene_name: str) -> str:  # a joint as the file names it ('O1'), an unnamed one by its label
+        j = index[scene_name]
+        mj = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+        return f"'{mj}'" if mj else element_label(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+
     for name in named:
         scene_name = reader.joint_of[name]
         if not take(scene_name):
@@ -1442,7 +1450,7 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
     for name, label in actuated:
         if name in chosen:
             continue
-        (taken_actuated if take(name) else tied).append(f"'{by_mj.get(name, name)}' ({label})")
+        (taken_actuated if take(name) else tied).append(f"{said(name)} ({label})")
     partitioned = []
     while len(chosen) < dof:
         rest = [n for n in mj_joints if n not in chosen]
@@ -1452,10 +1460,10 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
                         "independent coordinates: loopcheck's inputs are joints' own coordinates")
         best = rest[int(np.argmax(norms))]
         take(best)
-        partitioned.append(f"'{by_mj.get(best, best)}'")
+        partitioned.append(said(best))
     sigma = np.linalg.svd(np.array([rows[n] for n in chosen]), compute_uv=False)
     lines = [f"{dof} degrees of freedom (the rank of the loop equations at {read_at}); inputs, in order: "
-             + ", ".join(f"'{by_mj.get(n, n)}'" for n in chosen)]
+             + ", ".join(said(n) for n in chosen)]
     if named:
         lines.append("  named by --input: " + ", ".join(f"'{n}'" for n in named))
     if taken_actuated:

@@ -153,3 +153,32 @@ def test_loop_cuts_one_finger_of_two_dof_out(tmp_path):
     assert set(scene.mechanism.linkage.moving) == {"right_knuckle", "right_link", "right_rocker", "right_tip"}
     assert scene.inputs[1] in {"right_link_joint", "right_rocker_joint", "right_tip_joint"}
     assert "left_pin" in " ".join(extraction.dropped)
+
+
+def test_without_actuators_every_input_comes_by_partitioning_and_unnamed_joints_are_labelled(tmp_path):
+    """The five-bar robot's MJCF without its motors and with its cranks' and elbow's joints unnamed:
+    2 DOF, both inputs chosen by partitioning (the largest remainders: the left elbow and the right
+    elbow, measured), an unnamed one said by its label, and its initial rate read from the keyframe."""
+    import re
+
+    from loopcheck.reference_models import MujocoSettings, mjcf_text
+    from loopcheck.scenefile import load_scene
+
+    scene = load_scene(Path(__file__).parent.parent.parent / "scenes" / "mechanisms" / "five_bar_robot.toml")
+    text = mjcf_text(scene, MujocoSettings(timestep=5e-4))
+    text = re.sub(r"<actuator>.*?</actuator>|<sensor>.*?</sensor>", "", text, flags=re.S)
+    text = re.sub(r'<numeric name="loopcheck.ctrl[^/]*/>', "", text).replace(' ctrl="8 0"', "")
+    for joint in ("O1", "A"):
+        text = text.replace(f'<joint name="{joint}" />', "<joint />")
+    path = tmp_path / "five_bar.xml"
+    path.write_text(text)
+    imported = import_mjcf(path)
+    back = imported.scene
+    assert back.dof == 2 and imported.model.nu == 0
+    said = "\n".join(imported.said)
+    assert "inputs, in order: joint #2 (left_crank–left_arm), 'B'" in said and "partitioning" in said
+    # the rates read are the original motion's, in the new inputs: every body's angular rate is the same
+    system, original = loops.compile_linkage(back.mechanism.linkage), loops.compile_linkage(scene.mechanism.linkage)
+    rates = dict(zip(original.coordinate_names, loops.input_rates(original, np.asarray(scene.x0), scene.initial_qdot())))
+    xdot = np.array([rates[name] for name in system.coordinate_names])
+    assert back.initial_qdot() == pytest.approx(tuple(system.input_rows @ xdot), abs=1e-14)
