@@ -85,3 +85,15 @@ def test_check_against_the_reduced_reference(imported):
     assert not check.passed and any("the coordinate whose difference fails: 'right_knuckle_joint', 'right_tip_joint', "
                                     "'left_tip_joint'" in line for line in lines)
     assert check.cheapest is not None and check.cheapest.with_margin
+
+
+def test_cli_check_of_the_gripper_fails_naming_the_coordinates(tmp_path, capsys, monkeypatch):
+    """`loopcheck check two_finger_gripper.xml --horizon 0.05`: exit 1, every input's failures and
+    the line naming the coordinates whose difference fails."""
+    from loopcheck.compare.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["check", str(GRIPPER), "--horizon", "0.05"]) == 1
+    printed = capsys.readouterr().out
+    assert "FAIL" in printed and "right_tip_joint: peak_omega_abs" in printed
+    assert "the coordinate whose difference fails: 'right_knuckle_joint', 'right_tip_joint', 'left_tip_joint'" in printed

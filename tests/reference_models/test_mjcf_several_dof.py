@@ -182,3 +182,17 @@ def test_without_actuators_every_input_comes_by_partitioning_and_unnamed_joints_
     rates = dict(zip(original.coordinate_names, loops.input_rates(original, np.asarray(scene.x0), scene.initial_qdot())))
     xdot = np.array([rates[name] for name in system.coordinate_names])
     assert back.initial_qdot() == pytest.approx(tuple(system.input_rows @ xdot), abs=1e-14)
+
+
+def test_cli_import_says_the_inputs_and_writes_a_scene_of_three(tmp_path, capsys):
+    from loopcheck.compare.cli import main
+    from loopcheck.scenefile import load_scene
+
+    out = tmp_path / "gripper.toml"
+    assert main(["import-mjcf", str(GRIPPER), "--ctrl", "servo=0:0.6,0.2:0.1", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "3 degrees of freedom (the rank of the loop equations at keyframe 'grasp'); inputs, in order: " \
+           "'right_knuckle_joint', 'right_tip_joint', 'left_tip_joint'" in printed
+    assert "inputs 'right_knuckle_joint', 'right_tip_joint', 'left_tip_joint'; the first, 'right_knuckle_joint'" in printed
+    scene = load_scene(out)
+    assert scene.inputs == INPUTS and scene.mechanism.actuators[0].control.sample(np.array([0.1, 0.3])).tolist() == [0.6, 0.1]
