@@ -196,3 +196,21 @@ def test_cli_import_says_the_inputs_and_writes_a_scene_of_three(tmp_path, capsys
     assert "inputs 'right_knuckle_joint', 'right_tip_joint', 'left_tip_joint'; the first, 'right_knuckle_joint'" in printed
     scene = load_scene(out)
     assert scene.inputs == INPUTS and scene.mechanism.actuators[0].control.sample(np.array([0.1, 0.3])).tolist() == [0.6, 0.1]
+
+
+def test_ctrl_gives_each_motor_of_the_five_bar_its_own_control(tmp_path):
+    """--ctrl NAME=... once per actuator on a model of two motors (the five-bar's MJCF): each scene
+    actuator takes its own; a bare value is refused (two actuators, neither the input motor)."""
+    from loopcheck.reference_models import MujocoSettings, mjcf_text
+    from loopcheck.scenefile import load_scene
+
+    path = tmp_path / "five_bar.xml"
+    path.write_text(mjcf_text(load_scene(Path(__file__).parent.parent.parent / "scenes" / "mechanisms" /
+                                         "five_bar_robot.toml"), MujocoSettings(timestep=5e-4)))
+    imported = import_mjcf(path, controls={"left_motor": Control.constant(2.0),
+                                           "right_motor": Control((0.0, 0.2), (1.0, 0.0))})
+    left, right = imported.scene.mechanism.actuators
+    times = np.array([0.0, 0.1, 0.3])
+    assert left.control.sample(times).tolist() == [2.0, 2.0, 2.0] and right.control.sample(times).tolist() == [1.0, 1.0, 0.0]
+    with pytest.raises(MjcfError, match="--ctrl VALUE: the model has 2 actuators: name the one each control is for"):
+        import_mjcf(path, control=Control.constant(1.0))
