@@ -1246,11 +1246,11 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     largest = max((abs(v) for v in qdots), default=0.0)
     if (largest > 0.0 and residual > 1e-6 * max(largest, 1.0) * reader.scale) \
             or rates_off > 1e-6 * max(float(np.max(np.abs(xdot), initial=0.0)), 1.0):
-        whose = "the inputs' do" if several else "the input joint's does"
+        whose, start = (("the inputs' do", "the inputs' rates") if several else
+                        ("the input joint's does", "the input joint's rate"))
         reader.warnings.append(f"the keyframe's qvel does not keep the loops closed, or has rates {whose} not "
                                f"reproduce (rate residual {max(residual, rates_off):.3g}): the scene starts "
-                               f"from the {'inputs' if several else 'input joint'}' rate{'s' if several else ''} alone"
-                               .replace("joint' rate", "joint's rate"))
+                               f"from {start} alone")
     gravity = _gravity(reader)
     for joint_name, q, qdot in zip(inputs, qs, qdots):
         prismatic = isinstance(linkage.joint_map[joint_name], PrismaticJoint)
@@ -1408,6 +1408,9 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
         finite = bool(np.all(np.isfinite(J)))
     dof = loops.rank_dof(J) if finite else 1  # a value out of range is refused by name later
     if dof <= 1:
+        if len(named) > 1:
+            reader.fail(f"--input names {len(named)} joints, and the linkage has {max(dof, 0)} degree of freedom at "
+                        f"{read_at}: name one")
         return (input_name,), ()
     if n_cuts == 0 and not couplings:
         reader.fail(f"the linkage has {dof} degrees of freedom (the rank of its equations at {read_at}) and no loop: "

@@ -214,3 +214,9 @@ def test_ctrl_gives_each_motor_of_the_five_bar_its_own_control(tmp_path):
     assert left.control.sample(times).tolist() == [2.0, 2.0, 2.0] and right.control.sample(times).tolist() == [1.0, 1.0, 0.0]
     with pytest.raises(MjcfError, match="--ctrl VALUE: the model has 2 actuators: name the one each control is for"):
         import_mjcf(path, control=Control.constant(1.0))
+
+
+def test_input_naming_more_joints_than_a_one_dof_linkage_has_is_refused():
+    path = Path(__file__).parent.parent / "data" / "mjcf" / "fourbar_sites_keyframe.xml"
+    with pytest.raises(MjcfError, match="--input names 2 joints, and the linkage has 1 degree of freedom"):
+        import_mjcf(path, keyframe="assembled", input_joint="O1,O3")
