@@ -229,7 +229,8 @@ def cmd_import_mjcf(args: argparse.Namespace) -> int:
     print(f"{len(scene.mechanism.linkage.moving)} moving bodies, {len(scene.mechanism.linkage.joints)} joints "
           f"({len(scene.mechanism.linkage.cut_joints)} closing loops"
           + "".join(f", coupling '{c.name}'" for c in scene.mechanism.linkage.couplings)
-          + f"), input '{scene.mechanism.linkage.input_joint}': "
+          + (f"), inputs {', '.join(repr(i) for i in scene.inputs)}; the first, " if scene.dof > 1 else "), input ")
+          + f"'{scene.mechanism.linkage.input_joint}': "
           f"{_reader(args.model).models.input_coordinate(imported).text()}; loops closed to {imported.closure_residual:.3g} m at {where}; "
           f"horizon {scene.horizon:g} s")
     if imported.extraction:
@@ -506,7 +507,8 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("reading a MuJoCo model (MJCF, a file ending in .xml; docs/import.md)")
     g.add_argument("--input", default=None, metavar="JOINT",
                    help="the MuJoCo joint whose coordinate is q (default: the joint the motor drives, else the "
-                        "first joint)")
+                        "first joint); with several degrees of freedom, the first inputs in order, comma separated "
+                        "(the rest: the joints actuators act on, then coordinate partitioning)")
     g.add_argument("--keyframe", default=None, metavar="NAME",
                    help="read the configuration, rates and control of this keyframe (default: the model's only "
                         "keyframe, said in the output; qpos0 without keyframes; several are refused unless one is "

@@ -1,4 +1,4 @@
-"""Reading a user's MJCF: the planar one-DOF linkage a MuJoCo model describes, as a scene.
+"""Reading a user's MJCF: the planar linkage a MuJoCo model describes (one DOF or several), as a scene.
 
 The file is compiled by MuJoCo itself (``mujoco.MjModel``), so defaults, classes, includes,
 ``angle="degree"``, euler and axis-angle frames are resolved as MuJoCo resolves them. The model
@@ -34,9 +34,13 @@ close; what becomes of each element:
   through the actuator: the same motion while its ``actuatorfrcrange`` does not clamp it.
 - The load: a motor on the input joint, ``gear`` × its control (the keyframe's ``ctrl`` or the
   one given, :class:`Control`); gravity: the option's, projected on the plane.
+- Several degrees of freedom (the loop Jacobian's rank deficiency at the configuration read): the
+  inputs are ``--input``'s joints, then the joints the actuators act on, then coordinate
+  partitioning (:func:`_inputs`); every actuator is then a scene actuator, and every input's q and
+  q̇ come from the configuration read and its qvel.
 
 Anything else that acts is refused with one line naming it (:class:`MjcfError`): ball and free
-joints, several joints on one body, axes off the plane, more than one degree of freedom,
+joints, several joints on one body, axes off the plane, several degrees of freedom without a loop,
 equalities other than connect, actuators other than one motor on one joint, friction loss,
 geoms that can touch, fluid forces, tendons that wrap or have a dead band, armature along a line,
 bodies welded together with different ``gravcomp``, a joint's ``actuatorfrcrange`` (limited; MuJoCo
@@ -108,7 +112,7 @@ _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ012345678
 
 
 class MjcfError(SceneError):
-    """An MJCF model loopcheck cannot read as a planar one-DOF linkage; the message names the element."""
+    """An MJCF model loopcheck cannot read as a planar linkage; the message names the element."""
 
 
 @dataclass(frozen=True)
@@ -396,6 +400,7 @@ class _Reader:
         self.path, self.model = path, model
         self.qpos, self.qvel = qpos, qvel
         self.warnings: list[str] = []
+        self.said_inputs: tuple[str, ...] = ()  # the inputs chosen, with several DOF (:func:`_inputs`)
         self.data = mujoco.MjData(model)
         self.data.qpos[:] = qpos
         self.data.qvel[:] = qvel
@@ -1070,6 +1075,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     ----------
     input_joint : the MuJoCo joint (hinge or slide) whose coordinate is q; default the joint the
         motor drives, else the model's first joint.
+        With several degrees of freedom, several joints separated by commas: the first inputs, in
+        order (the rest chosen by :func:`_inputs`).
     keyframe : the keyframe to read the configuration, rates and control from; default the
         model's only keyframe (said in ``ImportedModel.said``), qpos0 (at rest, with zero control)
         when it has none; a model with several is refused unless one is named or ``qpos0``.
@@ -1104,7 +1111,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.warnings.extend(loading + tuple(said.lines))
     reader.check_options()
     reader.joints()
-    inp = _input_joint(reader, input_joint)
+    named_inputs = _named_inputs(reader, input_joint)
+    inp, no_motor = _input_joint(reader, named_inputs[0] if named_inputs else None)
     reader.plane(inp)
     reader.check_contacts(qpos)
     with np.errstate(over="ignore", invalid="ignore"):  # a huge position is refused below, by name
@@ -1121,30 +1129,6 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             raise
         raise MjcfError(f"{exc}; keyframe {closing[0]} closes the loops (--keyframe reads it)") from None
     input_name = reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
-    motor = _input_motor(reader, inp) if not actuation_off else None
-    if actuation_off:
-        reader.warnings.append("option flag actuation=\"disable\": the model's actuators exert no force in MuJoCo, "
-                               "left out (no load)")
-    motor_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, motor) if motor is not None else None
-    if motor_name is not None and motor_name in (controls or {}):  # --ctrl MOTOR=...: the input motor's control
-        if given_bare is not None:
-            reader.fail(f"--ctrl {motor_name}=...: given twice (a bare --ctrl is the input motor's control too)")
-        controls = dict(controls)
-        control = controls.pop(motor_name)
-    if motor_name is not None and motor_name in customs.controls:  # loopcheck.ctrl.MOTOR: the same, from the file
-        named_in_file = customs.controls.pop(motor_name)
-        if customs.control is not None:
-            reader.fail(f"custom numerics '{CUSTOM_CTRL}' and '{CUSTOM_ACTUATOR_CTRL}{motor_name}' both give the input "
-                        "motor's control: keep one")
-        control = control if control is not None else named_in_file
-    if motor is None and control is not None and model.nu:
-        if model.nu != 1:
-            reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "
-                        "(--ctrl NAME=VALUE)")
-        only = _object_name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, 0, "actuator")
-        controls = {only: control, **(controls or {})}
-        control = None
-    load, gear, applied = _load(reader, inp, control, key_ctrl, motor)
 
     # bodies, after every point is known
     joints = tree + cuts
@@ -1174,19 +1158,55 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                                                         "its plane frame")
     # the couplings' graph first (their polynomials and references need the coordinates: _couplings)
     placeholders = [JointCoupling(f"coupling{k}", *ends) for k, ends in enumerate(_coupled_joints(reader))]
+    # as many provisional inputs as Grübler's count asks (the DOF are counted below, by rank)
+    grubler = 3 * len(reader.moving) - 2 * len(joints) - len(placeholders)
+    provisional = _provisional_inputs(reader, inp, joints, grubler)
     try:
-        linkage = Linkage(bodies, joints, input_name, couplings=placeholders)
+        linkage = Linkage(bodies, joints, input_name, couplings=placeholders, inputs=provisional)
     except MechanismError as exc:
         reader.fail(f"{exc}" + (f" ({len(reader.moving)} moving bodies, {len(tree)} joints, {len(cuts)} loop "
                                 f"closures{f', {len(placeholders)} couplings' if placeholders else ''})"
-                                if "degrees of freedom" in str(exc) else "")
-                    + (": import-mjcf reads linkages of one degree of freedom only (a model of several "
-                       "inputs is not imported yet)" if "degrees of freedom" in str(exc) and "not 1" in str(exc) else ""))
+                                if "degrees of freedom" in str(exc) else ""))
     # x = x_read + T (qpos − qpos_read): the coordinates (bodies' angles, slides' s) are the same for
     # the linkage rebuilt below with another spanning tree
     system = loops.compile_linkage(linkage)
     T, x_read = _joint_coefficients(reader, system, linkage)
     couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
+    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
+    inputs, choice = _inputs(reader, bodies, joints, couplings, input_name, provisional, x_read, named_inputs,
+                             len(cuts), read_at, actuation_off)
+    reader.said_inputs = choice
+    if len(inputs) == 1 and no_motor is not None:
+        reader.warnings.append(no_motor)
+    if inputs[0] != input_name:  # several DOF: the first input chosen (an unnamed joint is found by its scene name)
+        input_name = inputs[0]
+        inp = next(j for j in range(model.njnt)
+                   if reader.joint_of[_object_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")] == input_name)
+    # several DOF: every actuator is a scene actuator (a linkage of several inputs has no input load)
+    motor = _input_motor(reader, inp) if not actuation_off and len(inputs) == 1 else None
+    if actuation_off:
+        reader.warnings.append("option flag actuation=\"disable\": the model's actuators exert no force in MuJoCo, "
+                               "left out (no load)")
+    motor_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, motor) if motor is not None else None
+    if motor_name is not None and motor_name in (controls or {}):  # --ctrl MOTOR=...: the input motor's control
+        if given_bare is not None:
+            reader.fail(f"--ctrl {motor_name}=...: given twice (a bare --ctrl is the input motor's control too)")
+        controls = dict(controls)
+        control = controls.pop(motor_name)
+    if motor_name is not None and motor_name in customs.controls:  # loopcheck.ctrl.MOTOR: the same, from the file
+        named_in_file = customs.controls.pop(motor_name)
+        if customs.control is not None:
+            reader.fail(f"custom numerics '{CUSTOM_CTRL}' and '{CUSTOM_ACTUATOR_CTRL}{motor_name}' both give the input "
+                        "motor's control: keep one")
+        control = control if control is not None else named_in_file
+    if motor is None and control is not None and model.nu:
+        if model.nu != 1:
+            reader.fail(f"--ctrl VALUE: the model has {model.nu} actuators: name the one each control is for "
+                        "(--ctrl NAME=VALUE)")
+        only = _object_name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, 0, "actuator")
+        controls = {only: control, **(controls or {})}
+        control = None
+    load, gear, applied = _load(reader, inp, control, key_ctrl, motor)
     elements, joint_elements = _elements(reader, linkage, system, T, x_read)
     actuators = () if actuation_off else \
         _actuators(reader, linkage, system, x_read, motor, {**customs.controls, **(controls or {})}, key_ctrl)
@@ -1197,34 +1217,46 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
             joints = [dataclasses.replace(j, range=reader.ranges[j.name]) if j.name in reader.ranges else j
                       for j in joints]
         # as the scene file builds it (the tree takes them first), so that its loops are the file's
-        linkage = Linkage(bodies, joints, input_name, inertias, couplings)
+        linkage = Linkage(bodies, joints, input_name, inertias, couplings, inputs)
         mechanism = Mechanism(linkage, elements, (), joint_elements, (), actuators)
     except MechanismError as exc:
         reader.fail(str(exc))
 
     system = loops.compile_linkage(linkage)
     guess = x_read
-    q0 = float(system.drive @ guess)
     xdot = T @ reader.qvel  # a body's angular rate about the normal, a slide's ṡ
-    qdot0 = float(system.drive @ xdot)
-    read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
-    _check_drive(reader, system, linkage, guess, inp, read_at)
+    several = len(inputs) > 1
+    qs = tuple(float(v) for v in system.input_rows @ guess)
+    qdots = tuple(float(v) for v in system.input_rows @ xdot)
+    q0, qdot0 = qs[0], qdots[0]
+    if not several:
+        _check_drive(reader, system, linkage, guess, inp, read_at)
     # every loop row, a redundant loop's dependent ones too
     residual = float(np.max(np.abs(loops.all_constraints(system, guess)[1] @ xdot), initial=0.0))
-    # and every rate the input's alone reproduces (a coupled or other joint's qvel beside it)
-    drives = qdot0 != 0.0 and loops.driving_conditioning(system, guess) >= loops.SINGULAR_CONDITIONING
-    reproduced = loops.coefficients(system, guess)[0] * qdot0 if drives else 0.0  # else refused (scene file)
+    # and every rate the inputs' alone reproduce (a coupled or other joint's qvel beside them)
+    if several:
+        with np.errstate(over="ignore", invalid="ignore"):
+            finite = all(math.isfinite(v) for v in qdots)
+        reproduced = loops.input_rates(system, guess, qdots) if finite else 0.0  # the partition holds the linkage
+    else:
+        drives = qdot0 != 0.0 and loops.driving_conditioning(system, guess) >= loops.SINGULAR_CONDITIONING
+        reproduced = loops.coefficients(system, guess)[0] * qdot0 if drives else 0.0  # else refused (scene file)
     with np.errstate(over="ignore", invalid="ignore"):  # a huge qvel is refused below, by name
         rates_off = float(np.max(np.abs(xdot - reproduced), initial=0.0))
-    if (abs(qdot0) > 0.0 and residual > 1e-6 * max(abs(qdot0), 1.0) * reader.scale) \
+    largest = max((abs(v) for v in qdots), default=0.0)
+    if (largest > 0.0 and residual > 1e-6 * max(largest, 1.0) * reader.scale) \
             or rates_off > 1e-6 * max(float(np.max(np.abs(xdot), initial=0.0)), 1.0):
-        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed, or has rates the input joint's "
-                               f"does not reproduce (rate residual {max(residual, rates_off):.3g}): the scene starts "
-                               "from the input joint's rate alone")
+        whose, start = (("the inputs' do", "the inputs' rates") if several else
+                        ("the input joint's does", "the input joint's rate"))
+        reader.warnings.append(f"the keyframe's qvel does not keep the loops closed, or has rates {whose} not "
+                               f"reproduce (rate residual {max(residual, rates_off):.3g}): the scene starts "
+                               f"from {start} alone")
     gravity = _gravity(reader)
-    prismatic_input = isinstance(linkage.joint_map[input_name], PrismaticJoint)
-    reader.representable(q0, "position" if prismatic_input else "angle", f"{read_at}: the input joint's qpos")
-    reader.representable(qdot0, "speed", f"{read_at}: the input joint's qvel")
+    for joint_name, q, qdot in zip(inputs, qs, qdots):
+        prismatic = isinstance(linkage.joint_map[joint_name], PrismaticJoint)
+        whose = f"input '{joint_name}'" if several else "the input joint"
+        reader.representable(q, "position" if prismatic else "angle", f"{read_at}: {whose}'s qpos")
+        reader.representable(qdot, "speed", f"{read_at}: {whose}'s qvel")
     for axis, value in zip("xy", gravity or ()):
         reader.representable(value, "gravity", f"option gravity, {axis} in the plane")
     for t in range(model.ntext):  # what loopcheck's own export notes it applies outside the model
@@ -1237,7 +1269,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
                         mechanism=mechanism, load=load, gravity=gravity, q0=q0, qdot0=qdot0,
                         x0=tuple(float(v) for v in guess), mode=loops.assembly_mode(system, guess),
                         horizon=horizon, engine_tables={}, tolerances=Tolerances(**customs.tolerances),
-                        engine_tolerances=customs.engine_tolerances)
+                        engine_tolerances=customs.engine_tolerances,
+                        inputs_q0=qs if several else (), inputs_qdot0=qdots if several else ())
     data = scene_data(provisional)
     try:
         with warnings.catch_warnings():  # said once, among the import's warnings, below
@@ -1252,7 +1285,8 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     return ImportedModel(scene=scene, model=model, qpos=qpos, qvel=qvel, joint_of=dict(reader.joint_of),
                          qpos_map=T, x_read=guess, control=applied, gear=gear,
                          keyframe=keyframe, closure_residual=max(reader.gaps, default=0.0), polish=polish,
-                         warnings=tuple(reader.warnings), said=(said_key,) if said_key else (),
+                         warnings=tuple(reader.warnings),
+                         said=((said_key,) if said_key else ()) + reader.said_inputs,
                          connects=_connect_sources(path, model), motor_index=motor if motor is not None else 0,
                          actuator_index=tuple(a for a in range(model.nu) if a != motor and not actuation_off),
                          range_sources=dict(reader.range_sources))
@@ -1282,20 +1316,170 @@ def _check_drive(reader: _Reader, system, linkage: Linkage, x: np.ndarray, inp: 
                 f"locks it); --input '{mj_names[can[0]]}' names a joint that can")
 
 
-def _input_joint(reader: _Reader, name: str | None) -> int:
+def _named_inputs(reader: _Reader, text: str | None) -> tuple[str, ...]:
+    """``--input``'s MuJoCo joints: one name, or several separated by commas (the first inputs of a
+    linkage of several DOF, in order); each must be a joint of the model, named once."""
+    if text is None:
+        return ()
+    m = reader.model
+    names = tuple(word.strip() for word in text.split(","))
+    for name in names:
+        if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) < 0:
+            listed = ", ".join(f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, i, 'joint')}'" for i in range(m.njnt))
+            reader.fail(f"--input '{name}' is not a joint of the model (its joints: {listed})")
+    if len(set(names)) != len(names):
+        reader.fail(f"--input '{text}' names a joint twice")
+    return names
+
+
+def _input_joint(reader: _Reader, name: str | None) -> tuple[int, str | None]:
+    """The first input's MuJoCo joint: ``name``'s, else the first joint a motor drives, else the
+    first joint, with the warning that says so (said with one DOF only: with several, the inputs
+    are chosen among every actuated joint, :func:`_inputs`)."""
     m = reader.model
     if name is not None:
-        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if j < 0:
-            names = ", ".join(f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, i, 'joint')}'" for i in range(m.njnt))
-            reader.fail(f"--input '{name}' is not a joint of the model (its joints: {names})")
-        return j
+        return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name), None
     for a in range(m.nu):
         if m.actuator_trntype[a] == _TRN_JOINT:
-            return int(m.actuator_trnid[a][0])
-    reader.warnings.append(f"no motor: the input is the first joint, "
-                           f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, 0, 'joint')}' (--input names another)")
-    return 0
+            return int(m.actuator_trnid[a][0]), None
+    return 0, (f"no motor: the input is the first joint, "
+               f"'{_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, 0, 'joint')}' (--input names another)")
+
+
+def _actuated_joints(reader: _Reader) -> list[tuple[str, str]]:
+    """(scene joint, what drives it) of every joint an actuator acts on, in the actuators' order: a
+    joint transmission's joint, and each joint of a fixed tendon's (in the tendon's order; the
+    drivers of a gripper's servo); once each."""
+    m = reader.model
+    out: dict[str, str] = {}
+    for a in range(m.nu):
+        label = element_label(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a)
+        trn, target = int(m.actuator_trntype[a]), int(m.actuator_trnid[a][0])
+        if trn == _TRN_JOINT:
+            found = [target]
+        elif trn == _TRN_TENDON:
+            adr, num = int(m.tendon_adr[target]), int(m.tendon_num[target])
+            if any(int(m.wrap_type[k]) != _WRAP_JOINT for k in range(adr, adr + num)):
+                continue  # refused with the actuators (_actuators)
+            found = [int(m.wrap_objid[k]) for k in range(adr, adr + num) if float(m.wrap_prm[k]) != 0.0]
+            label += f" through {element_label(m, mujoco.mjtObj.mjOBJ_TENDON, target)}"
+        else:
+            continue
+        for j in found:
+            out.setdefault(reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")], label)
+    return list(out.items())
+
+
+def _provisional_inputs(reader: _Reader, inp: int, joints, grubler: int) -> tuple[str, ...]:
+    """As many inputs as Grübler's count asks (at least one), the first input first, then the
+    model's other joints: enough for :class:`Linkage` while the DOF are counted by rank (:func:`_inputs`)."""
+    m = reader.model
+    first = reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, inp, "joint")]
+    others = [reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")] for j in range(m.njnt)]
+    ordered = list(dict.fromkeys([first, *others]))
+    return tuple(ordered[:max(1, grubler)])
+
+
+# A joint joins the inputs when its row, on the motions the loops allow, keeps this fraction of its
+# length once the inputs before it are projected out (below: it moves with them).
+INDEPENDENT_RTOL = 1e-6
+
+
+def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisional: tuple[str, ...],
+            x_read: np.ndarray, named: tuple[str, ...], n_cuts: int, read_at: str,
+            actuation_off: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(the scene's inputs, the lines that say how they were chosen) for the configuration read.
+
+    The count of DOF is the loop Jacobian's rank deficiency at the configuration read (every
+    constraint row, the couplings' too: :func:`loopcheck.kinematics.rank_dof`). One DOF: the first
+    input alone, as always. Several: the joints ``--input`` names, then the joints the actuators act
+    on (a joint transmission's, a fixed tendon's: :func:`_actuated_joints`), each taken where it does
+    not move with those before it, then coordinate partitioning among the model's other joints (their
+    own coordinates): pivoted QR of their rows on the null space of the loop Jacobian, largest
+    remainder first, until there are as many inputs as DOF."""
+    m = reader.model
+    try:
+        linkage = Linkage(bodies, joints, input_name, couplings=couplings, inputs=provisional)
+    except MechanismError as exc:
+        reader.fail(str(exc))
+    system = loops.compile_linkage(linkage)
+    J = loops.all_constraints(system, x_read)[1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = bool(np.all(np.isfinite(J)))
+    dof = loops.rank_dof(J) if finite else 1  # a value out of range is refused by name later
+    if dof <= 1:
+        if len(named) > 1:
+            reader.fail(f"--input names {len(named)} joints, and the linkage has {max(dof, 0)} degree of freedom at "
+                        f"{read_at}: name one")
+        return (input_name,), ()
+    if n_cuts == 0 and not couplings:
+        reader.fail(f"the linkage has {dof} degrees of freedom (the rank of its equations at {read_at}) and no loop: "
+                    "no connect equality or joint coupling closes one, and loopcheck checks closed-loop linkages")
+    _, _, vt = np.linalg.svd(J)
+    null = vt[system.n - dof:].T  # (n, dof): the motions the loops allow at x_read
+    mj_joints = [reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")] for j in range(m.njnt)]
+    rows = {name: system.joint_row(name) @ null for name in mj_joints}
+    chosen: list[str] = []
+    basis: list[np.ndarray] = []
+
+    def remainder(name: str) -> np.ndarray:
+        r = rows[name].copy()
+        for b in basis:
+            r -= (r @ b) * b
+        return r
+
+    def take(name: str) -> bool:
+        r = remainder(name)
+        if len(chosen) >= dof or not np.linalg.norm(r) > INDEPENDENT_RTOL * max(np.linalg.norm(rows[name]), 1e-300):
+            return False
+        chosen.append(name)
+        basis.append(r / np.linalg.norm(r))
+        return True
+
+    index = {reader.joint_of[_object_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")]: j for j in range(m.njnt)}
+
+    def said(scene_name: str) -> str:  # a joint as the file names it ('O1'), an unnamed one by its label
+        j = index[scene_name]
+        mj = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+        return f"'{mj}'" if mj else element_label(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+
+    for name in named:
+        scene_name = reader.joint_of[name]
+        if not take(scene_name):
+            reader.fail(f"--input '{name}' moves with the inputs named before it at {read_at} (or the inputs named "
+                        f"exceed the linkage's {dof} degrees of freedom): name independent joints")
+    actuated = [] if actuation_off else _actuated_joints(reader)
+    taken_actuated, tied = [], []
+    for name, label in actuated:
+        if name in chosen:
+            continue
+        (taken_actuated if take(name) else tied).append(f"{said(name)} ({label})")
+    partitioned = []
+    while len(chosen) < dof:
+        rest = [n for n in mj_joints if n not in chosen]
+        norms = [float(np.linalg.norm(remainder(n))) for n in rest]
+        if not rest or max(norms) <= 0.0:
+            reader.fail(f"{dof} degrees of freedom at {read_at}, and the model's joints give only {len(chosen)} "
+                        "independent coordinates: loopcheck's inputs are joints' own coordinates")
+        best = rest[int(np.argmax(norms))]
+        take(best)
+        partitioned.append(said(best))
+    sigma = np.linalg.svd(np.array([rows[n] for n in chosen]), compute_uv=False)
+    lines = [f"{dof} degrees of freedom (the rank of the loop equations at {read_at}); inputs, in order: "
+             + ", ".join(said(n) for n in chosen)]
+    if named:
+        lines.append("  named by --input: " + ", ".join(f"'{n}'" for n in named))
+    if taken_actuated:
+        lines.append("  driven by an actuator: " + ", ".join(taken_actuated))
+    if tied:
+        lines.append("  driven too, and moving with the inputs before it (a coupling or a loop ties it): "
+                     + ", ".join(tied))
+    if partitioned:
+        lines.append("  chosen by coordinate partitioning (pivoted QR on the loop Jacobian among the joints' own "
+                     "coordinates): " + ", ".join(partitioned))
+    lines.append(f"  conditioning of the inputs {sigma[-1] / sigma[0]:.3g} (σmin/σmax of their rows on the motions "
+                 "the loops allow); --input J1,J2,... names others")
+    return tuple(chosen), tuple(lines)
 
 
 def _plain_motor(m: mujoco.MjModel, a: int, inp: int) -> bool:

@@ -65,10 +65,10 @@ class VacuousCheck(SceneError):
 
 def refuse_vacuous(reference: EngineResult, tolerances: Tolerances, where: str, unit: str) -> None:
     """Raise :class:`VacuousCheck` when the reference ``reference`` does not move by more than the
-    gate's tolerances; ``where`` names the model and the state it was read at."""
-    q, qdot = reference.trajectory.q, reference.trajectory.qdot
-    moved = float(np.max(np.abs(q - q[0])))
-    fastest = float(np.max(np.abs(qdot)))
+    gate's tolerances (with several inputs: none of them does); ``where`` names the model and the
+    state it was read at."""
+    moved = max(float(np.max(np.abs(trajectory.q - trajectory.q[0]))) for trajectory, _ in reference.inputs)
+    fastest = max(float(np.max(np.abs(trajectory.qdot))) for trajectory, _ in reference.inputs)
     if fastest <= tolerances.omega_atol and moved <= tolerances.q_atol:
         raise VacuousCheck(f"{where}: the exact solution does not move (max |q̇| {fastest:.3g} {unit}/s ≤ omega_atol "
                            f"{tolerances.omega_atol:g}, max |q − q0| {moved:.3g} {unit} ≤ q_atol {tolerances.q_atol:g} "
@@ -91,14 +91,25 @@ class Trial:
         return self.comparison is not None and self.comparison.gate.passed
 
     @property
-    def excess(self) -> float:
-        """The worst of |Δ peak|, max |Δq| and max |Δq̇| over its tolerance (≤ 1 passes those three;
-        inf for a failed run)."""
+    def excesses(self) -> tuple[float, ...]:
+        """Each input's worst of |Δ peak|, max |Δq| and max |Δq̇| over its tolerance, in the scene's
+        inputs order (one value with one input; inf each for a failed run)."""
         if self.comparison is None:
-            return math.inf
-        d, t = self.comparison.diff, self.comparison.gate.tolerances
-        return max(d.peak_omega_abs / t.peak_bound(abs(d.peak_omega_reference)), d.q_max_abs / t.q_atol,
-                   d.omega_max_abs / t.omega_atol)
+            return (math.inf,)
+        t = self.comparison.gate.tolerances
+        return tuple(max(d.peak_omega_abs / t.peak_bound(abs(d.peak_omega_reference)), d.q_max_abs / t.q_atol,
+                         d.omega_max_abs / t.omega_atol) for d in self.comparison.diffs)
+
+    @property
+    def excess(self) -> float:
+        """The worst of |Δ peak|, max |Δq| and max |Δq̇| over its tolerance, over every input (≤ 1
+        passes those three; inf for a failed run)."""
+        return max(self.excesses)
+
+    def worst_input(self) -> int:
+        """The index (in the scene's inputs order) of the input whose difference is the largest
+        part of its tolerance (:attr:`excesses`)."""
+        return int(np.argmax(self.excesses))
 
     @property
     def with_margin(self) -> bool:
@@ -314,16 +325,23 @@ def check_model(imported: ImportedModel, reference: EngineResult, judge: Judge, 
                       stiff_friction=friction)
 
 
-def _figures(trial: Trial, unit: str) -> str:
+def _figures(trial: Trial, unit: str, names: tuple[str, ...] = (), units: tuple[str, ...] = ()) -> str:
+    """A trial's figures: the peak and the largest differences (with several inputs, ``names``,
+    the worst input's, named, in its unit of ``units``: the one whose difference is the largest part of its
+    tolerance), the
+    loops' opening and the energy balance."""
     if trial.skipped:
         return trial.skipped
     if trial.comparison is None:
         return f"failed: {trial.failure}"
     c = trial.comparison
-    d = c.diff
+    k = trial.worst_input() if len(names) > 1 else 0
+    d = c.diffs[k]
+    unit = units[k] if units else unit
+    whose = f"worst input '{names[k]}': " if len(names) > 1 else ""
     gap = c.other.constraint_violation.max
-    return (f"peak {d.peak_omega_other:.10g} {unit}/s ({d.peak_omega_rel:.2e} off), max |dq| {d.q_max_abs:.2e} {unit}, "
-            f"max |dq/dt| {d.omega_max_abs:.2e} {unit}/s, loops open up to {gap:.2e} m, "
+    return (f"{whose}peak {d.peak_omega_other:.10g} {unit}/s ({d.peak_omega_rel:.2e} off), max |dq| {d.q_max_abs:.2e} "
+            f"{unit}, max |dq/dt| {d.omega_max_abs:.2e} {unit}/s, loops open up to {gap:.2e} m, "
             f"energy balance {c.other.audit.relative_residual:.2e}")
 
 
@@ -344,15 +362,18 @@ def check_lines(check: ModelCheck, source: str) -> list[str]:
     t = check.as_written.comparison.gate.tolerances if check.as_written.comparison else scene.tolerances
     where = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
     status = "ok  " if check.passed else "FAIL"
-    lines = [f"{status}  {source} ({where}, input '{scene.mechanism.linkage.input_joint}'): MuJoCo as written "
+    names = scene.inputs
+    inputs = (f"inputs {', '.join(repr(n) for n in names)}" if len(names) > 1 else f"input '{names[0]}'")
+    lines = [f"{status}  {source} ({where}, {inputs}): MuJoCo as written "
              f"({check.as_written.options.text()}) against the exact reduced solution, "
              f"peak {check.reference.peak.omega:.10g} {unit}/s",
              f"      read at {where}: loops closed to {imported.closure_residual:.3g} m, Newton moved the "
-             f"configuration by {imported.polish:.3g} (rad or m); input {input_coordinate(imported).text()}",
+             f"configuration by {imported.polish:.3g} (rad or m); {'the first ' if len(names) > 1 else ''}input "
+             f"{input_coordinate(imported).text()}",
              f"      horizon: every run simulates {scene.horizon:g} s (--horizon)",
              f"      tolerances: peak_omega_rtol {t.peak_omega_rtol:g}, q_atol {t.q_atol:g} {unit}, "
              f"omega_atol {t.omega_atol:g} {unit}/s",
-             f"      as written:        {_figures(check.as_written, unit)}"]
+             f"      as written:        {_figures(check.as_written, unit, names, scene.input_units())}"]
     if check.as_written.comparison is not None:
         lines += [f"      {failure}" for failure in check.as_written.comparison.gate.failures]
     if check.contact is not None and check.contact is not check.as_written.failure:
@@ -364,11 +385,19 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
     """Each setting changed alone, the cause, and the cheapest options found (``loopcheck run`` prints
     these under its table)."""
     unit = check.imported.scene.input_unit
-    lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit)}",
-             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit)}"]
+    names, units = check.imported.scene.inputs, check.imported.scene.input_units()
+    lines = [f"      stiff loops:       {_figures(check.stiff_loops, unit, names, units)}",
+             f"      timestep / {STEP_FACTOR}:     {_figures(check.smaller_step, unit, names, units)}"]
     if check.stiff_friction is not None:
-        lines.append(f"      stiff friction:    {_figures(check.stiff_friction, unit)}")
+        lines.append(f"      stiff friction:    {_figures(check.stiff_friction, unit, names, units)}")
     lines.append(f"      the difference comes from: {check.cause}")
+    if len(names) > 1 and check.as_written.comparison is not None and not check.as_written.passed:
+        failing = [n for n in names if any(f.startswith(f"{n}: ") for f in check.as_written.comparison.gate.failures)]
+        worst = names[check.as_written.worst_input()]
+        lines.append(f"      the coordinate whose difference fails: "
+                     + (", ".join(f"'{n}'" for n in failing) if failing else f"'{worst}'")
+                     + f" (the worst, '{worst}': {check.as_written.excesses[check.as_written.worst_input()]:.3g}× its "
+                       "tolerance)")
     if check.contact is not None:
         pass  # no search: a contact leaves no options that meet the tolerances
     elif check.friction_is_the_cause:

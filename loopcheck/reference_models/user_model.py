@@ -10,7 +10,8 @@ needs (a smaller step, stiffer loops) without touching anything else.
 At the start of every step (after ``mj_forward``) the run records the joints' state, the input's
 acceleration, the energies, the power of the motor, of the dampers and of the dry friction (its efc rows), the limits that act, and each loop's gap (the
 distance between a connect's two anchors); the trajectory is the scene's input coordinate
-q = drive·x with x = x_read + qpos_map (qpos − qpos_read).
+q = drive·x with x = x_read + qpos_map (qpos − qpos_read); with several inputs, each further input
+q_i = row_i·x is recorded too (``EngineResult.other_inputs``).
 """
 
 from __future__ import annotations
@@ -337,8 +338,10 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
     system, T = loops.compile_linkage(scene.mechanism.linkage), imported.qpos_map
     x = imported.x_read + (qpos - imported.qpos) @ T.T
     xdot, xddot = qvel @ T.T, qacc @ T.T
-    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive,
-                            samples_refine_extrema(model))
+    refine = samples_refine_extrema(model)
+    trajectory = Trajectory(times, x @ system.drive, xdot @ system.drive, xddot @ system.drive, refine)
+    # with several inputs, each after the first: q_i = row_i·x (the comparison judges every input)
+    others = tuple(Trajectory(times, x @ row, xdot @ row, xddot @ row, refine) for row in system.input_rows[1:])
     joints = JointTrajectory(system.coordinate_names, times, x, xdot, np.full(n + 1, -1),
                              loops.assembly_modes(system, x))
     # the work of the actuators and the dampers' and dry friction's dissipation, by the trapezoidal rule
@@ -352,7 +355,8 @@ def run_model(imported: ImportedModel, options: ModelOptions | None = None) -> E
                         wall_s=wall, n_steps=n, n_evaluations=n * options.evaluations_per_step(), settings=options,
                         effects=tuple(scene.effects), constraint_violation=ConstraintViolation(times, gap),
                         details=ModelRunDetails(options, mujoco.__version__),
-                        caveats=tuple(limit_note(e, t) for e, t in limits.items()))
+                        caveats=tuple(limit_note(e, t) for e, t in limits.items()),
+                        other_inputs=tuple((other, other.peak_rate()) for other in others))
 
 
 __all__ = ["ENGINE", "InputCoordinate", "MAX_STEPS", "MJCF_INTEGRATOR", "input_coordinate", "ModelOptions", "ModelRunDetails", "run_model"]

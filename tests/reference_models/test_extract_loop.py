@@ -142,12 +142,14 @@ def test_a_body_in_two_loops_is_refused_listing_them(tmp_path):
     assert "connect 'ankle_loop' (acts outside the loop)" in extract_loop(robot, ["foot_loop"]).dropped
 
 
-def test_a_loop_with_two_dof_is_refused_saying_how_many(tmp_path):
-    # the connect closes on the pad, whose own joint then belongs to the loop (closed at qpos0)
+def test_a_loop_with_two_dof_is_read_with_two_inputs(tmp_path):
+    # the connect closes on the pad, whose own joint then belongs to the loop (closed at qpos0): 2 DOF,
+    # read as a scene of two inputs (issue 41: the refusal of a loop of several DOF is gone), said
     robot = _edited(tmp_path, 'body2="rocker" anchor=', 'body2="pad" anchor=')
     assert extract_loop(robot, ["foot_loop"], qpos0=True).moving == ("crank", "coupler", "rocker", "pad")
-    with pytest.raises(MjcfError, match=r"leg.xml \(--loop foot_loop\): .*2 degrees of freedom"):
-        import_loop(robot, ["foot_loop"], qpos0=True, horizon=HORIZON)
+    imported, _ = import_loop(robot, ["foot_loop"], qpos0=True, horizon=HORIZON)
+    assert imported.scene.dof == 2 and set(imported.scene.inputs) <= {j.name for j in imported.scene.mechanism.linkage.joints}
+    assert any(line.startswith("2 degrees of freedom (the rank of the loop equations at qpos0)") for line in imported.said)
 
 
 def test_a_spring_from_a_welded_body_is_kept_with_that_end_as_ground(tmp_path):

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from loopcheck.reference_models.mjcf_import import MjcfError, import_mjcf
+from loopcheck.reference_models.mjcf_import import import_mjcf
 from loopcheck.reference_models.run import mjcf_text, simulate_mujoco
 from loopcheck.reference_models.settings import MujocoSettings
 from loopcheck.scenefile import load_scene
@@ -99,13 +99,17 @@ def test_the_exported_five_bar_starts_at_every_inputs_rate_and_drives_both_motor
     assert [model.actuator_trnid[k, 0] for k in range(model.nu)] == [model.joint("O1").id, model.joint("O5").id]
 
 
-def test_import_mjcf_refuses_a_model_of_several_inputs_in_one_line(tmp_path):
+def test_import_mjcf_reads_both_motors_as_the_inputs(tmp_path):
+    """The five-bar's MJCF (export-mjcf) reads back with 2 DOF by rank, its two motors' joints the
+    inputs in the actuators' order, said in one line (the full round trip: test_mjcf_import)."""
     path = tmp_path / "five_bar.xml"
     path.write_text(mjcf_text(load_scene(SCENE), MujocoSettings(timestep=5e-4)))
-    with pytest.raises(MjcfError, match="2 degrees of freedom") as caught:
-        import_mjcf(path)
-    assert "import-mjcf reads linkages of one degree of freedom only" in str(caught.value)
-    assert "\n" not in str(caught.value)
+    imported = import_mjcf(path)
+    assert imported.scene.inputs == ("O1", "O5")
+    assert "2 degrees of freedom (the rank of the loop equations at keyframe 'home'); inputs, in order: 'O1', 'O5'" \
+        in imported.said
+    assert "driven by an actuator: 'O1' (actuator 'left_motor'), 'O5' (actuator 'right_motor')" in \
+        "\n".join(imported.said)
 
 
 def test_loopcheck_mujoco_prints_every_inputs_peak(runs):
