@@ -11,11 +11,13 @@ they are the engine's error, not the oracle's (its rtol-halving difference at rt
 9.1e-11 rad and 1.1e-9 rad/s). Bounds 3e-9 rad and 5e-8 rad/s (4–5x). The energy audit's
 relative residual is 1.1e-10 (bound 1e-9, issue 41's target).
 
-Planted (each fails these tests, then removed): the second input's initial rate dropped (its q̇0
-read as 0 in ``_initial_rates``): O5 starts at 0 rad/s, |Δq̇| 0.3 rad/s from t = 0; the second
-motor left out (``zip(self.actuators, ...)`` over the first only): |Δq| 0.09 rad and the energy
-balance off by 0.15 of its scale... see the report; the later inputs recorded from the first's row
-(``pm.input_rows[1:]`` → ``pm.input_rows[:1]``): O5's trajectory is O1's.
+Planted (each failed these tests, then removed): the second input's initial rate dropped (O5's
+q̇0 read as 0 in ``_initial_rates``): O5 starts at 0 rad/s, |Δq| 4.2 rad on O1 by the end, the
+motors' work off by 0.97 J; the second motor left out (``self.actuators[:1]`` in ``forces``):
+|Δq| 2.2 rad, the motors' work off by 10.6 J (the run's own audit still balances: it books what it
+applied); the later inputs recorded from the first's row (``pm.input_rows[:1]``): O5's trajectory
+is O1's (|Δq| 11 rad, q̇0 0.5 for −0.3 rad/s); the energy floor from the heaviest input (max for
+min in ``unit_rate_inertia``): 0.350 for 0.337 kg·m².
 """
 
 from __future__ import annotations
