@@ -190,7 +190,8 @@ def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engin
                           n_evaluations=len(qpos) * evaluations_per_step, settings=s,
                           effects=tuple(run.scene.effects), constraint_violation=record.constraint_violation,
                           details=details, caveats=caveats,
-                          other_inputs=tuple((trajectory, trajectory.peak_rate()) for *_, trajectory in record.other_inputs))
+                          other_inputs=tuple((trajectory, trajectory.peak_rate())
+                                             for *_, trajectory in record.other_inputs))
     # a failed gate carries the run and its known defects (NumericalFailure.partial)
     return with_partial(lambda: record.gate(s.max_constraint_violation, s.max_energy_residual, run.initial, engine),
                         result)

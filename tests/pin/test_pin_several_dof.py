@@ -22,8 +22,6 @@ min in ``unit_rate_inertia``): 0.350 for 0.337 kg·m².
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -31,20 +29,13 @@ pytest.importorskip("pinocchio", reason="the pin engine's extra is not installed
 
 from loopcheck.registry import ENGINES  # noqa: E402
 from loopcheck.scenefile import load_scene  # noqa: E402
+from oracles.five_bar_robot import BODIES, SCENE, start  # noqa: E402
 from oracles.multibody import simulate  # noqa: E402
 from reduced.test_multibody_oracle import five_bar  # noqa: E402  (the same robot, described for the oracle)
 
-SCENE = os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_robot.toml")
 Q_TOL, RATE_TOL = 3e-9, 5e-8  # rad, rad/s: 4-5x the engine's measured error at its defaults (above)
 ENERGY_TOL = 1e-9  # relative: issue 41's bound on a scene without coordinate switches (measured 1.1e-10)
 ORACLE_RTOL = 1e-11  # its accuracy (9.1e-11 rad, 1.1e-9 rad/s) is a tenth of the tolerances or less
-BODIES = {"O1": "left_crank", "O5": "right_crank"}  # each input joint: the crank it turns against the ground
-NAMES = ("left_crank", "left_arm", "right_arm", "right_crank")  # the scene's coordinates, in its order
-
-
-def _oracle_start(scene, model, rates=None):
-    return model.assemble(dict(zip(NAMES, scene.x0)), dict(zip(BODIES.values(), scene.initial_q())),
-                          dict(zip(BODIES.values(), scene.initial_qdot() if rates is None else rates)))
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +44,7 @@ def runs():
     scene = load_scene(SCENE)
     result = engine.simulate(scene, engine.settings())  # through the registry: its check_dof lets it run
     model = five_bar()
-    q0, qd0 = _oracle_start(scene, model)
+    q0, qd0 = start(scene, model)
     t = result.trajectory.t
     peaks = [peak.time for _, peak in result.inputs]
     times = np.concatenate([t, peaks])
@@ -116,7 +107,7 @@ def test_the_energy_floor_is_the_lightest_inputs_unit_rate_inertia():
     inertia = _Dynamics(scene, build(scene, settings), settings).unit_rate_inertia()
     diagonal = []
     for rates in ((1.0, 0.0), (0.0, 1.0)):
-        _, qd = _oracle_start(scene, model, rates)
+        _, qd = start(scene, model, rates)
         diagonal.append(float(qd @ model.mass() @ qd))
     assert diagonal[0] != pytest.approx(diagonal[1], rel=0.01)  # the minimum picks one
     assert inertia == pytest.approx(min(diagonal), rel=1e-12)
