@@ -17,7 +17,8 @@ motors' work off by 0.97 J; the second motor left out (``self.actuators[:1]`` in
 |Δq| 2.2 rad, the motors' work off by 10.6 J (the run's own audit still balances: it books what it
 applied); the later inputs recorded from the first's row (``pm.input_rows[:1]``): O5's trajectory
 is O1's (|Δq| 11 rad, q̇0 0.5 for −0.3 rad/s); the energy floor from the heaviest input (max for
-min in ``unit_rate_inertia``): 0.350 for 0.337 kg·m².
+min in ``unit_rate_inertia``): 0.350 for 0.337 kg·m²; the later inputs' offsets dropped (``r0 @ pm.x0``
+in ``simulate_pin``): O5 starts at 0 for 1.3 rad, the carriage at 0 for 0.6 m.
 """
 
 from __future__ import annotations
