@@ -23,6 +23,7 @@ in ``simulate_pin``): O5 starts at 0 for 1.3 rad, the carriage at 0 for 0.6 m.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 import numpy as np
@@ -147,3 +148,45 @@ def test_an_input_in_metres_follows_mujoco():
         assert np.max(np.abs(qdot - theirs.qdot)) < 2e-4, name
     assert np.ptp(pin_run.other_inputs[0][0].q) > 0.05  # the carriage moves (m)
     assert pin_run.audit.relative_residual < ENERGY_TOL
+
+
+def _hand_model():
+    """five_bar_hand.toml for the oracle: five_bar() with the hand pinned at W on the left arm and
+    the wrist motor's pulse across H (on the hand, its reaction on the arm)."""
+    from oracles.multibody import Body, Pin, Torque, pulse
+
+    base = five_bar()
+    return dataclasses.replace(
+        base, bodies=base.bodies + (Body("hand", 0.5, (0.15, 0.01), 0.004),),
+        pins=base.pins + (Pin("H", "left_arm", (0.5, 0.0), "hand", (0.0, 0.0)),),
+        torques=base.torques + (Torque("H", pulse(0.4, 0.05, 0.2)),), edges=(0.05, 0.1, 0.25, 0.3, 0.4))
+
+
+def test_three_inputs_one_between_moving_bodies_follow_the_oracle():
+    """Three inputs (tests/data/five_bar_hand.toml): the cranks and the hand's angle relative to
+    the left arm, an input whose joint joins two moving bodies, against the oracle over the
+    scene's 0.5 s. Measured at the defaults: max |Δq| 1.6e-10, 8.3e-11, 3.1e-10 rad, max |Δq̇|
+    3.1e-9, 2.8e-9, 8.3e-9 rad/s (O1, O5, H), energy residual 1.0e-10; the oracle's rtol-halving
+    differences at rtol 1e-11 are 2.3e-11 rad and 7.0e-10 rad/s. Bounds as the five-bar's.
+    Planted: the hand's initial rate dropped (``(*scene.initial_qdot()[:2], 0.0)`` in
+    ``_initial_rates``) fails it (|Δq̇| 1.0 rad/s on H at the start)."""
+    scene = load_scene(os.path.join(os.path.dirname(SCENE), "five_bar_hand.toml"))
+    engine = ENGINES["pin"]
+    result = engine.simulate(scene, engine.settings())
+    assert len(result.inputs) == 3 and result.audit.relative_residual < ENERGY_TOL
+    model, arm = _hand_model(), five_bar()
+    x0 = dict(zip(scene.mechanism.linkage.moving, scene.x0))
+    _, rates = start(scene, arm, scene.initial_qdot()[:2])  # the arm's rate, from the five-bar's loop alone
+    hand_rate = rates[3 * arm.index["left_arm"] + 2] + scene.initial_qdot()[2]
+    q0, qd0 = model.assemble(x0, {"left_crank": x0["left_crank"], "right_crank": x0["right_crank"], "hand": x0["hand"]},
+                             dict(zip(("left_crank", "right_crank", "hand"), (*scene.initial_qdot()[:2], hand_rate))))
+    oracle, accuracy = simulate(model, q0, qd0, result.trajectory.t, rtol=ORACLE_RTOL)
+    assert accuracy[0] < Q_TOL / 10 and accuracy[1] < RATE_TOL / 10
+    expected = {name: (oracle.angle(model, body), oracle.rate(model, body)) for name, body in BODIES.items()}
+    expected["H"] = (oracle.angle(model, "hand") - oracle.angle(model, "left_arm"),
+                     oracle.rate(model, "hand") - oracle.rate(model, "left_arm"))
+    for name, (trajectory, _) in zip(scene.inputs, result.inputs):
+        q, qdot = expected[name]
+        assert np.max(np.abs(trajectory.q - q)) < Q_TOL, name
+        assert np.max(np.abs(trajectory.qdot - qdot)) < RATE_TOL, name
+    assert np.ptp(result.other_inputs[1][0].q) > 1.0  # the hand turns on the arm
