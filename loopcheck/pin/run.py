@@ -15,6 +15,11 @@ scipy's ``solve_ivp`` integrates each piece between load edges with the load of 
 (restarted at every edge, as the reduced engine's DOP853 is); every solver step is cut into at
 least four parts no longer than ``sample_interval``, sampled from the dense output, and each
 step's end state is kept exactly.
+
+With several inputs (``scene.dof`` > 1) every input starts at its rate (ẋ0 = K q̇0,
+:func:`loopcheck.kinematics.input_rates`), their loads are actuators on their joints (above), and
+every input's q is read from Pinocchio's q through its joint's row (``PinModel.input_rows``): the
+first is the result's trajectory, the others ``EngineResult.other_inputs``, each with its peak.
 """
 
 from __future__ import annotations
