@@ -1005,6 +1005,8 @@ def _failure(exc: BaseException, received: list[int]) -> int:
         return EXIT_FAILED
     if isinstance(exc, NumericalFailure):
         print(f"loopcheck: numerical failure ({exc.reason}): {_one_line(exc)}", file=sys.stderr)
+        for caveat in getattr(exc.partial, "caveats", ()):  # the failed run's known defects (loopcheck mjx)
+            print(f"loopcheck: known defect: {caveat}", file=sys.stderr)
         return EXIT_FAILED
     if isinstance(exc, (SceneError, UsageError, OutputError, ValueError, ImportError)):
         # ImportError: an engine's library missing or of the wrong version, said in one line

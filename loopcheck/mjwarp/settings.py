@@ -50,6 +50,11 @@ LABEL = "MJWarp"
 # (loopcheck.registry.Engine.inherits): it runs the model the MuJoCo engine builds.
 INHERITS = ("mujoco", tuple(o.name for o in options(ModelOptions)))
 
+# Linkages of several degrees of freedom run (loopcheck.registry.Engine.several_dof): the MuJoCo engine's
+# model (one motor per loaded joint, every input at its initial rate), every input recorded by MuJoCo C at
+# the port's states (EngineResult.other_inputs); its known defect stated as on one DOF.
+SEVERAL_DOF = True
+
 # The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
 
 def accuracy_ladder(scene, base, quick: bool = False):

@@ -189,7 +189,9 @@ def finish(run: PortRun, qpos: np.ndarray, qvel: np.ndarray, *, name: str, engin
                           peak=record.trajectory.peak_rate(), audit=record.audit, wall_s=wall_s, n_steps=len(qpos),
                           n_evaluations=len(qpos) * evaluations_per_step, settings=s,
                           effects=tuple(run.scene.effects), constraint_violation=record.constraint_violation,
-                          details=details, caveats=caveats)
+                          details=details, caveats=caveats,
+                          other_inputs=tuple((trajectory, trajectory.peak_rate())
+                                             for *_, trajectory in record.other_inputs))
     # a failed gate carries the run and its known defects (NumericalFailure.partial)
     return with_partial(lambda: record.gate(s.max_constraint_violation, s.max_energy_residual, run.initial, engine),
                         result)

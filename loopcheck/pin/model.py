@@ -62,7 +62,9 @@ class PinModel:
     x0 (n,), T (n, nq) : x = x0 + T q, ẋ = T v (general coordinates of :class:`LoopSystem`).
     P (nq, n) : q = P (x − x0), v = P ẋ (a revolute joint's relative angle, a slider's s); P T = I.
     frames : frame id of each (body, point) the run needs, by (body, point).
-    input_row (nq,) : the input coordinate's rate from v: q̇_in = input_row · v.
+    input_row (nq,) : the input coordinate's rate from v: q̇_in = input_row · v (the first input's).
+    input_rows (k, nq) : every input's rate from v, in the scene's inputs order (the first is
+        ``input_row``): q̇ = input_rows · v.
     joint_coef : for each joint of a joint element, (coef (nq,), u0): its own coordinate
         u = u0 + coef · q (relative angle rad, or displacement m).
     size : the mechanism's size (m), the largest distance between two named points at x0.
@@ -89,6 +91,7 @@ class PinModel:
     size: float
     compensation: object = None
     compensation_data: object = None
+    input_rows: np.ndarray | None = None
 
     def point_jacobians(self, frames: list[int]) -> list[np.ndarray]:
         """The (2, nv) in-plane translational Jacobians of the frames, in the world's axes, at
@@ -228,4 +231,4 @@ def build(scene: Scene, settings: Settings) -> PinModel:
             compensation.inertias[jid] = pin.Inertia(mass, lever, np.zeros((3, 3)))
     return PinModel(model, data, constraint_models, constraint_datas, system, names, x0, T, P, frames,
                     system.drive @ T, joint_coef, size, compensation,
-                    None if compensation is None else compensation.createData())
+                    None if compensation is None else compensation.createData(), system.input_rows @ T)

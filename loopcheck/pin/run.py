@@ -15,6 +15,11 @@ scipy's ``solve_ivp`` integrates each piece between load edges with the load of 
 (restarted at every edge, as the reduced engine's DOP853 is); every solver step is cut into at
 least four parts no longer than ``sample_interval``, sampled from the dense output, and each
 step's end state is kept exactly.
+
+With several inputs (``scene.dof`` > 1) every input starts at its rate (ẋ0 = K q̇0,
+:func:`loopcheck.kinematics.input_rates`), their loads are actuators on their joints (above), and
+every input's q is read from Pinocchio's q through its joint's row (``PinModel.input_rows``): the
+first is the result's trajectory, the others ``EngineResult.other_inputs``, each with its peak.
 """
 
 from __future__ import annotations
@@ -228,21 +233,38 @@ class _Dynamics:
 
     def unit_rate_inertia(self) -> float:
         """𝔍(q0): vᵀ M v for the loop-consistent joint rates with the input at unit rate (at a
-        dead centre of the input, the largest rate 1), kg·m² or kg."""
+        dead centre of the input, the largest rate 1), kg·m² or kg. With several inputs, the
+        smallest diagonal term of the k×k 𝔍(q0): each input at unit rate with the others held
+        (:func:`loopcheck.kinematics.input_rates`), the lightest input's (MuJoCo's floor, too)."""
         system = self.pm.system
         x0 = self.pm.x0
+        M = pin.crba(self.pm.model, self.pm.data, np.zeros(self.nq))
+        if system.dof > 1:
+            units = np.eye(system.dof)
+            return min(float(u @ M @ u) for u in (self.pm.P @ loops.input_rates(system, x0, e) for e in units))
         best = int(np.argmax(loops.conditioning(system, x0)))
         K, _ = loops.coefficients(system.driven_by(best), x0)
         rate = float(system.drive @ K)
         K = K / rate if abs(rate) > 1e-6 * np.max(np.abs(K)) else K / np.max(np.abs(K))
         u = self.pm.P @ K
-        M = pin.crba(self.pm.model, self.pm.data, np.zeros(self.nq))
         return float(u @ M @ u)
 
 
 def _pieces(scene: Scene) -> list[tuple[float, float]]:
     edges = [0.0] + [e for e in scene.load_edges if 0.0 < e < scene.horizon] + [scene.horizon]
     return list(zip(edges[:-1], edges[1:]))
+
+
+def _initial_rates(scene: Scene, pm: PinModel) -> np.ndarray:
+    """ẋ0 consistent with the loops at the assembled x0: the input at its rate
+    (:func:`loopcheck.tree_coordinates.initial_rates`); with several inputs, every input at its
+    rate, ẋ0 = K q̇0 (:func:`loopcheck.kinematics.input_rates`)."""
+    if scene.dof > 1:
+        try:
+            return loops.input_rates(pm.system, pm.x0, scene.initial_qdot())
+        except loops.AssemblyError as exc:
+            raise NumericalFailure(FailureReason.INITIAL_STATE, f"the initial rates: {exc}", 0.0) from None
+    return initial_rates(scene.mechanism.linkage, scene.x0, scene.qdot0)
 
 
 def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineResult:
@@ -269,7 +291,7 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     dyn = _Dynamics(scene, pm, settings)
     n = pm.model.nq
     q0 = np.zeros(n)
-    v0 = pm.P @ initial_rates(scene.mechanism.linkage, scene.x0, scene.qdot0)
+    v0 = pm.P @ _initial_rates(scene, pm)
     gap0, rate0 = dyn.gaps(q0, v0)
     speed = pm.size * max(1.0, float(np.max(np.abs(v0), initial=0.0)))
     if not (gap0 <= INITIAL_RESIDUAL_REL * pm.size and rate0 <= INITIAL_RESIDUAL_REL * speed):
@@ -333,6 +355,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
         kinetic[i], potential[i] = dyn.energy(Q[i], V[i])
     row = pm.input_row
     trajectory = Trajectory(t, pm.system.drive @ pm.x0 + Q @ row, V @ row, acc @ row)
+    others = [Trajectory(t, r0 @ pm.x0 + Q @ row, V @ row, acc @ row)  # with several inputs, each later one's
+              for r0, row in zip(pm.system.input_rows[1:], pm.input_rows[1:])]
     x, xdot = pm.x(Q), pm.xdot(V)
     joints = JointTrajectory(pm.system.coordinate_names, t, x, xdot, np.full(len(t), -1),
                              loops.assembly_modes(pm.system, x))
@@ -350,4 +374,5 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
                          pinocchio_version=pin.__version__)
     return EngineResult(engine="pin", trajectory=trajectory, joints=joints, peak=trajectory.peak_rate(), audit=audit,
                         wall_s=wall, n_steps=sum(steps), n_evaluations=n_evaluations, settings=settings,
-                        effects=tuple(scene.effects), constraint_violation=violation, details=details)
+                        effects=tuple(scene.effects), constraint_violation=violation, details=details,
+                        other_inputs=tuple((tr, tr.peak_rate()) for tr in others))

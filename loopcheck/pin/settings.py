@@ -97,6 +97,10 @@ Settings = PinSettings  # the name every engine's settings have (loopcheck.regis
 LABEL = "Pinocchio"
 COLOUR = "tab:green"
 
+# Linkages of several degrees of freedom run (loopcheck.registry.Engine.several_dof): each input at its
+# initial rate, its actuators as generalized forces, every input recorded (EngineResult.other_inputs).
+SEVERAL_DOF = True
+
 # The study declarations (loopcheck.registry.Engine; docs/engines.md, "What an engine may declare").
 SWEEP_VIOLATION_LIMIT = 0.1  # m: a ladder measures an opening loop rather than rejecting it
 SWEEP_ENERGY_LIMIT = 1.0  # of the energy scale: likewise for a loose tolerance's energy error

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from loopcheck.run_text import energy_line, peak_text, scene_lines
+from loopcheck.run_text import energy_line, peak_lines, scene_lines
 
 
 def result_lines(scene, result) -> list[str]:
-    """What ``loopcheck pin`` prints: the settings as run, peak input rate, loop gap, energy residual
-    and cost."""
-    used, unit = result.settings, scene.input_unit
+    """What ``loopcheck pin`` prints: the settings as run, peak input rate (every input's, named,
+    with several), loop gap, energy residual and cost."""
+    used = result.settings
     return scene_lines(scene) + [
         f"settings         {result.details.solver}, rtol {used.rtol:g}, atol {used.atol:g}, Baumgarte Kp {used.baumgarte_kp:g} "
         f"Kd {used.kd:g}, Pinocchio {result.details.pinocchio_version}",
-        f"peak qdot        {peak_text(result.peak, unit)} (largest |qdot|)",
+        *peak_lines(scene, result),
         f"loop violation   {result.constraint_violation.max:.3e} m (largest over the run)",
         energy_line(result),
         f"cost             {result.n_steps} steps, {result.n_evaluations} evaluations, {result.wall_s:.3f} s"]

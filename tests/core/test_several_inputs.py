@@ -76,7 +76,7 @@ def test_an_engine_that_declares_no_several_dof_refuses_a_two_dof_scene_in_one_l
 
     scene = load_scene(FIVE_BAR)
     one_dof = [engine for engine in ENGINES.values() if not engine.several_dof]
-    assert one_dof  # the ports run one DOF only until issue 41
+    assert one_dof  # the reduced engine runs one DOF until its n-DOF kernel lands (issue 40; the ports and pin run several)
     for engine in one_dof:
         with pytest.raises(SceneError, match=r"has 2 degrees of freedom \(inputs O1, O5\)"):
             engine.check_dof(scene)
