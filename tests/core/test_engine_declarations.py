@@ -283,3 +283,22 @@ def test_a_batch_with_each_gives_each_variant_its_own_outcome(package, tmp_path)
     assert engine.batch_limit("small", base) == 2 and bare.batch_limit("small", base) is None
     with pytest.raises(ValueError, match=r"engine 'failing': batch_limit gave 0, not a whole number >= 1"):
         engine.batch_limit("big", base)
+
+
+def test_an_engine_that_does_not_declare_several_dof_refuses_a_scene_of_several_in_one_line(package):
+    from pathlib import Path
+
+    from loopcheck.scene import SceneError
+    from loopcheck.scenefile import load_scene
+
+    engine = package("pkg_one")
+    assert not engine.several_dof
+    scene = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "mechanisms" / "five_bar_robot.toml")
+    for call in (lambda: engine.check_dof(scene), lambda: engine.check_work(scene, engine.settings()),
+                 lambda: engine.simulate(scene, engine.settings()),
+                 lambda: engine.simulate_batch([scene], engine.settings())):
+        with pytest.raises(SceneError) as info:
+            call()
+        assert str(info.value) == ("scene 'five_bar_robot' has 2 degrees of freedom (inputs O1, O5); "
+                                   "the one engine runs one-DOF linkages only")
+    assert package("pkg_many", "SEVERAL_DOF = True").several_dof

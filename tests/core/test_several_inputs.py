@@ -71,17 +71,12 @@ def test_a_malformed_several_input_scene_is_refused_naming_its_key(replace, mess
     assert "\n" not in str(info.value)
 
 
-def test_an_engine_that_declares_no_several_dof_refuses_a_two_dof_scene_in_one_line():
-    from loopcheck.registry import ENGINES
+def test_every_built_in_engine_runs_several_dof():
+    # (an engine that does not declare it refuses such a scene in one line:
+    # tests/core/test_engine_declarations.py)
+    from loopcheck.registry import BUILT_IN
 
-    scene = load_scene(FIVE_BAR)
-    one_dof = [engine for engine in ENGINES.values() if not engine.several_dof]
-    assert one_dof  # the reduced engine runs one DOF until its n-DOF kernel lands (issue 40; the ports and pin run several)
-    for engine in one_dof:
-        with pytest.raises(SceneError, match=r"has 2 degrees of freedom \(inputs O1, O5\)"):
-            engine.check_dof(scene)
-        with pytest.raises(SceneError, match="runs one-DOF linkages only"):
-            engine.simulate(scene, engine.settings())
+    assert all(engine.several_dof for engine in BUILT_IN)
 
 
 def test_the_one_dof_studies_refuse_a_two_dof_scene_before_any_work(tmp_path):

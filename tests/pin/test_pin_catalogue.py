@@ -69,6 +69,9 @@ MEASURED = {
     "mechanisms/watt2_sixbar.toml": (1.6e-11, 2.5e-10, 2.7e-11, 1.4e-10, 3.8e-11),
     # measured 2026-11-28, pin 4.1.0 (installed outside the venv for the actuators' branch)
     "mechanisms/servo_fourbar.toml": (3.0e-11, 4.4e-10, 5.5e-11, 1.9e-10, 1.8e-11),
+    # two inputs (issue 40): the first input's figures here; every input against the oracle in
+    # tests/pin/test_pin_several_dof.py. Measured 2026-11-28, pin 4.1.0.
+    "mechanisms/five_bar_robot.toml": (4.8e-11, 5.4e-10, 2.2e-10, 1.1e-10, 1.3e-10),
 }
 
 
