@@ -707,7 +707,7 @@ _GEOMETRY_LOCK = threading.Lock()
 
 def _geometry(linkage: Linkage) -> tuple | None:
     """What :func:`_compile_linkage` reads of a linkage, as a key: the bodies' names, points and
-    centres of mass in order (not their mass, inertia or gravcomp), the joints, the input joint,
+    centres of mass in order (not their mass, inertia or gravcomp), the joints, the inputs,
     the tree's preferences and the couplings; None where a coordinate is −0.0 (equal to 0.0 as a
     key, but not bit for bit: the two are compiled apart)."""
     bodies = tuple((b.name, tuple(b.points.items()), b.com) for b in linkage.bodies)
@@ -716,7 +716,7 @@ def _geometry(linkage: Linkage) -> tuple | None:
     numbers += [v for c in linkage.couplings for v in (*c.coefficients, c.x_ref, c.y_ref)]
     if any(v == 0.0 and math.copysign(1.0, v) < 0.0 for v in numbers):
         return None
-    return bodies, linkage.joints, linkage.input_joint, linkage.tree_first, linkage.couplings
+    return bodies, linkage.joints, linkage.inputs, linkage.tree_first, linkage.couplings
 
 
 def compile_linkage(linkage: Linkage) -> LoopSystem:

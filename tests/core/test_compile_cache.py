@@ -98,3 +98,18 @@ def test_the_geometry_cache_keeps_its_latest_systems_only():
     for k in range(kinematics.GEOMETRIES + 3):
         compile_linkage(four_bar((0.3 + 0.002 * k, 1.0, 0.8, 0.9)))
     assert len(kinematics._BY_GEOMETRY) <= kinematics.GEOMETRIES
+
+
+def test_the_same_geometry_with_other_inputs_is_compiled_on_its_own():
+    # (a five-bar's export and import hold the same geometry; another choice of inputs has another
+    # tree and other input rows: planted, the key without the inputs gave the import's second input
+    # as joint A's angle)
+    from pathlib import Path
+
+    from loopcheck.scenefile import load_scene
+
+    linkage = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "mechanisms" / "five_bar_robot.toml").mechanism.linkage
+    other = Linkage(linkage.bodies, linkage.joints, "O1", inputs=("O1", "A"))
+    a, b = compile_linkage(linkage), compile_linkage(other)
+    assert a.inputs == ("O1", "O5") and b.inputs == ("O1", "A")
+    assert not np.array_equal(a.input_rows, b.input_rows)
