@@ -14,11 +14,14 @@ balance: 2.5e-11 of the run's scale (bound 1e-9). RKN4: see its convergence test
 Plants (each made in the source, the file run, then removed), every one failing the five-bar
 tests both by the engine's own energy gate and by the oracle (run with check_error=False):
 𝔍's off-diagonal terms × (1 + 1e-7): energy 1.3e-6, oracle 2.1e-6 rad; c × (1 + 1e-6): energy
-3.2e-6, oracle 6.5e-6 rad (both measured on scipy's path, the same chart); the coordinate switch
+3.2e-6, oracle 6.5e-6 rad (the compiled DOP853; RKN4 the same, 2.2e-6 and 6.6e-6 rad, and its
+convergence test fails, its fitted order 0.5 with c planted: the energy gate of RKN4, 10 × rtol,
+is too loose to see them); the coordinate switch
 re-expressing q̇' = R' ẋ × (1 + 1e-7): energy 3.4e-7, oracle 8.3e-7 rad (the fold's test fails
 too); the compiled run handing the switch its q̇ × (1 + 1e-7) at a stop: the same on DOP853, 9.0e-7
 rad on RKN4, and the bit-for-bit test with scipy's DOP853 fails; the compiled run's work done
-before a switch dropped from its samples: energy 0.34."""
+before a switch dropped from its samples: energy 0.34; RKN4's stability check off: the stiff
+damper's run fails "singular" instead of "unstable"."""
 
 from __future__ import annotations
 
@@ -156,6 +159,28 @@ def test_rkn4_on_the_five_bar_converges_to_the_oracle_at_fourth_order():
     assert energy[0] > 8 * energy[1] > 64 * energy[2] and energy[2] < 1e-7
     default = loopcheck.simulate(scene, ReducedSettings(method="rkn4"))
     assert default.settings.step == 5e-4 and default.details.error_estimate.relative < 1e-5
+
+
+@pytest.mark.parametrize("coefficient, reason, named", [
+    (2000.0, "unstable", "outside RKN4's stability region at t = 0 s (h·λ = -6.08"),
+    (200.0, "inaccurate", "estimates its own error (step doubling) at 4.20e-05"),
+])
+def test_rkn4_with_several_inputs_refuses_a_step_too_stiff_or_too_coarse(coefficient, reason, named):
+    """RKN4 at its default step (0.5 ms) on the five-bar with a stiff joint damper at A: the
+    stability check finds the stiff mode (2000 N·m·s/rad: h·λ = −6.08, measured), or, where the step
+    is stable (200), its step-doubling estimate exceeds rtol 1e-5 (measured 4.2e-5: 5.6e-4 rad/s);
+    each a one-line failure saying what to change, as with one DOF."""
+    from loopcheck.api import scene_from_string
+    from loopcheck.errors import NumericalFailure
+    from loopcheck.reduced.settings import ReducedSettings
+
+    text = FIVE_BAR.read_text().replace(
+        "[initial]", f'[[joint_dampers]]\njoint = "A"\ncoefficient = {coefficient}\n\n[initial]')
+    with pytest.raises(NumericalFailure) as failed:
+        loopcheck.simulate(scene_from_string(text), ReducedSettings(method="rkn4"))
+    message = str(failed.value)
+    assert failed.value.reason.value == reason and named in message and "\n" not in message
+    assert "smaller step" in message
 
 
 FOLD = ROOT / "tests/data/five_bar_fold.toml"
