@@ -278,10 +278,11 @@ def _first_step(fun, t0: float, y0: np.ndarray, end: float, m: int, rtol: float,
 
 
 def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: ReducedSettings, record: _Record,
-               set_index: int, joints) -> _Leg:
+               set_index: int, joints, budget: int) -> _Leg:
     """One chart from t, integrated by scipy's solve_ivp (DOP853: :func:`_state_error_dop853` and the
     compiled DOP853's restart rule; Radau on all of y) piece by piece to the horizon or to the chart's
-    stop event (a switch, a range's bound)."""
+    stop event (a switch, a range's bound); at most ``budget`` evaluations of q̈ (the run's failure,
+    :func:`loopcheck.reduced.integrators.budget_spent`, beyond them)."""
     from scipy.integrate import solve_ivp
 
     k = model.k
@@ -294,12 +295,16 @@ def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: Re
     cap = 0.0
     base = y[2 * k:].copy()  # W and E at the chart's start: its own from 0 (the compiled runs' sums)
     y = np.concatenate([y[:2 * k], [0.0, 0.0]])
+    left = [budget]
     while True:
         end = edges[0]
         load = model.piece(t, end)
         chart.mark()
 
         def fun(tt, yy, chart=chart, load=load):
+            left[0] -= 1
+            if left[0] < 0:
+                raise budget_spent(f"scipy {name}", MAX_EVALUATIONS, float(tt), 0.0, scene.horizon)
             q = np.ascontiguousarray(yy[:k])
             v = np.ascontiguousarray(yy[k:2 * k])
             if chart.acceleration(load, tt, q, v, a) != 0:
@@ -412,7 +417,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
             leg = _leg_compiled(model, chart, t, y, settings, record, len(sets) - 1, joints, fixed,
                                 MAX_EVALUATIONS - n_eval, workspace)
         else:
-            leg = _leg_scipy(model, chart, t, y, settings, record, len(sets) - 1, joints)
+            leg = _leg_scipy(model, chart, t, y, settings, record, len(sets) - 1, joints, MAX_EVALUATIONS - n_eval)
         n_steps += leg.n_steps
         n_eval += leg.n_evaluations
         t, y = leg.t, leg.y
