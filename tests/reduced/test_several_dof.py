@@ -261,11 +261,12 @@ def test_the_several_coordinate_chart_at_one_input_gives_the_one_dof_kernels_acc
 
 def test_a_one_input_run_through_the_several_coordinate_engine_follows_todays():
     """The seed over 1.5 s (through the pulse's end at 1 s) by the n-DOF run (its chart switches
-    to joint A's coordinate at 0.63 s by the hysteresis rule) against today's engine, both DOP853 at
-    rtol 1e-12: at the load edge and the horizon, sampled by both, 1e-10 rad and 1e-9 rad/s; at
-    every sample of the n-DOF run (today's interpolated: its interpolant's own error in q̇ is
-    ~1.1e-8 rad/s, loopcheck.reduced.integrators) 1e-10 rad and 3e-8 rad/s. Measured: 2.0e-11 rad,
-    1.1e-8 rad/s on the samples; 1.0e-11 rad and 6.7e-11 rad/s at the shared times."""
+    to joint A's coordinate at 0.63 s by the hysteresis rule) against today's engine, both the
+    compiled DOP853 at rtol 1e-12 (in n coordinates, and the one-DOF kernel's): at the load edge and
+    the horizon, sampled by both, 1e-10 rad and 1e-9 rad/s; at every sample of the n-DOF run
+    (today's interpolated: its interpolant's own error in q̇ is ~1.1e-8 rad/s,
+    loopcheck.reduced.integrators) 1e-10 rad and 3e-8 rad/s. Measured: 2.5e-11 rad, 9.3e-9 rad/s on
+    the samples; 1.2e-11 rad and 1.4e-10 rad/s at the shared times."""
     from loopcheck.reduced.settings import ReducedSettings
     from loopcheck.reduced.several import SeveralModel, integrate
 
