@@ -13,12 +13,20 @@ scalars; the call adds ~0.1 µs); its solves are not counted (its docstring: 3 f
 Newton steps from the quadratic predictor where no closed-form dyad applies, and 2 solves for K
 and L).
 
+Then the whole runs: each scene of several DOF over its horizon by the methods of the reduced
+engine, the integration's wall time (``EngineResult.wall_s``: the run of the charts and their
+switches, not the scene's loading nor RKN4's error estimate) as the median of the repeats, with
+its steps and evaluations of q̈: the compiled DOP853 (the default: the chart called from the
+compiled integrator), scipy's DOP853 on the same chart (the same steps, through Python) and the
+compiled RKN4 at its default step. The load average is printed with them (the machine is shared).
+
     python benchmarks/several_dof.py [--repeats 7]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import replace
@@ -92,6 +100,24 @@ def main() -> None:
                 times.append(time.perf_counter() - start)
             print(f"{1:>2} {'(one-DOF kernel)':<20} {len(t):>6} {np.median(times) / len(t) * 1e9:>9.0f} "
                   f"{'3':>8} {'2+2':>11} {'-':>8} {'1':>13}   (documented counts; called from Python)")
+    runs(args.repeats)
+
+
+def runs(repeats: int) -> None:
+    """The whole runs' wall times by method (module docstring)."""
+    print(f"\nwhole runs, median of {repeats} (load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}):")
+    print(f"{'n':>2} {'scene':<20} {'horizon':>8} {'method':<13} {'wall_s':>9} {'steps':>6} {'evals':>7} {'µs/eval':>8}")
+    for k, path in SCENES[1:]:
+        scene = load_scene(path)
+        for method in ("dop853", "scipy-dop853", "rkn4"):
+            walls = []
+            for _ in range(repeats):
+                result = loopcheck.simulate(scene, ReducedSettings(method=method))
+                walls.append(result.wall_s)
+            wall = float(np.median(walls))
+            print(f"{k:>2} {scene.name:<20} {scene.horizon:>7g}s {method:<13} {wall:>9.4f} {result.n_steps:>6} "
+                  f"{result.n_evaluations:>7} {wall / result.n_evaluations * 1e6:>8.2f}")
+    print(f"(load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())})")
 
 
 if __name__ == "__main__":

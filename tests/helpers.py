@@ -171,6 +171,66 @@ def scipy_in_kernel_order():
     return stack
 
 
+class _NumpyInVectorKernelOrder:
+    """numpy, but for scipy's DOP853 sums of any number of components: np.dot of the stages
+    (2n × s by s) by vector_adaptive._dot_kt, np.dot of the dense output (D by K) each entry summed
+    over j in turn, np.linalg.norm of a vector by vector_adaptive._norm (plainly from the first
+    component). The order is a convention both sides share (:class:`_NumpyInKernelOrder` at n = 1)."""
+
+    def __init__(self):
+        from types import SimpleNamespace
+
+        self.linalg = SimpleNamespace(**{k: getattr(np.linalg, k) for k in dir(np.linalg) if not k.startswith("__")})
+        self.linalg.norm = self._norm
+
+    def __getattr__(self, name):
+        return getattr(np, name)
+
+    @staticmethod
+    def _norm(x, *args, **kwargs):
+        from loopcheck.reduced.kernels import vector_adaptive
+
+        x = np.asarray(x)
+        if x.ndim == 1 and not args and not kwargs:
+            return vector_adaptive._norm(np.ascontiguousarray(x, dtype=float))
+        return np.linalg.norm(x, *args, **kwargs)
+
+    @staticmethod
+    def dot(a, b):
+        from loopcheck.reduced.kernels import vector_adaptive
+
+        a, b = np.asarray(a), np.asarray(b)
+        if a.ndim == 2 and b.ndim == 1:  # K[:s].T · a[:s]
+            out = np.empty(a.shape[0])
+            vector_adaptive._dot_kt(np.ascontiguousarray(a.T), np.ascontiguousarray(b, dtype=float), b.shape[0], out)
+            return out
+        if a.ndim == 2 and b.ndim == 2:  # D · K
+            out = np.empty((a.shape[0], b.shape[1]))
+            for r in range(a.shape[0]):
+                for c in range(b.shape[1]):
+                    acc = 0.0
+                    for j in range(a.shape[1]):
+                        acc += a[r, j] * b[j, c]
+                    out[r, c] = acc
+            return out
+        return np.dot(a, b)
+
+
+def scipy_in_vector_kernel_order():
+    """A context in which scipy's RK solvers (and select_initial_step) sum as the compiled
+    n-coordinate DOP853 does (:class:`_NumpyInVectorKernelOrder`): for the tests that compare them
+    step for step (tests/reduced/kernels/test_vector_integrators.py, tests/reduced/test_several_dof.py)."""
+    from unittest import mock
+
+    from scipy.integrate._ivp import common, rk
+
+    stack = contextlib.ExitStack()
+    ordered = _NumpyInVectorKernelOrder()
+    for module in (rk, common):
+        stack.enter_context(mock.patch.object(module, "np", ordered))
+    return stack
+
+
 def without_dyad_plans(model):
     """``model``'s kernel arrays with every chart's dyad plan switched off: Newton's method alone
     closes the loops (loopcheck.reduced.kernels.physics._close)."""

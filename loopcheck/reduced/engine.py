@@ -94,19 +94,18 @@ def check_work(scene: Scene, settings: ReducedSettings) -> None:
     ValueError
         Naming the setting or scene key to change.
     """
+    mech = scene.mechanism
     if scene.dof > 1:  # imported here: a one-DOF run loads nothing of the several-DOF engine
         from .several import check_scene
 
-        check_scene(scene, settings)
-        return
-    mech = scene.mechanism
+        check_scene(scene)  # (its ranges are an event of every method, its clamps and friction refused)
     events = [e.name for e in mech.joint_frictions] + [j.name for j in mech.linkage.joints if j.range is not None]
-    if events and settings.method not in ("dop853", "rkn4"):
+    if scene.dof == 1 and events and settings.method not in ("dop853", "rkn4"):
         raise ValueError(f"the reduced engine's method {settings.method} does not run joint friction or joint "
                          f"ranges ({', '.join(events)}): their events are the compiled core's; use method dop853 "
                          "or rkn4")
     clamped = [a.name for a in clamped_actuators(mech)]
-    if clamped and settings.method not in ("dop853", "rkn4"):
+    if scene.dof == 1 and clamped and settings.method not in ("dop853", "rkn4"):
         raise ValueError(f"the reduced engine's method {settings.method} does not run a forcerange clamp on a "
                          f"force that depends on the state (actuator {', '.join(map(repr, clamped))}): its "
                          "switching is an event of the compiled core; use method dop853 or rkn4")
@@ -270,12 +269,61 @@ def simulate(scene: Scene, settings: ReducedSettings = ReducedSettings(), *, sum
         settings=settings, effects=tuple(model.effects), details=details)
 
 
-def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
-    """A scene of several DOF (:mod:`loopcheck.reduced.several`): its run, gated on its energy balance
-    as :func:`simulate` gates a one-DOF run (the scale's floor ½ max diag 𝔍0 (1 rad/s)²)."""
+def estimate_error_several(scene: Scene, settings: ReducedSettings, run) -> ErrorEstimate:
+    """RKN4's global error by step doubling on a scene of several DOF, as :func:`estimate_error` on
+    one: the same run at twice the step (or at half the step where that one fails), every input
+    compared at the coarser run's samples; the largest over the inputs (q_scale, qdot_scale: the
+    run's largest |q|, |q̇| over the inputs, each at least 1; the unit the inputs', "rad/m" where
+    they mix)."""
     from .several import run_several
 
+    start = time.perf_counter()
+    factor = 2.0 ** RKN4.order
+    fine = [tr for tr, _ in run.inputs]
+
+    def largest(pairs, weight):
+        found = [richardson_estimate(a, b, weight) for a, b in pairs]
+        return max(q for q, _ in found), max(v for _, v in found)
+
+    try:
+        coarse = [tr for tr, _ in run_several(scene, settings, step=2.0 * settings.step).inputs]
+        q_abs, v_abs = largest(zip(fine, coarse), 1.0 / (factor - 1.0))
+    except NumericalFailure:
+        try:
+            finer = [tr for tr, _ in run_several(scene, settings, step=0.5 * settings.step).inputs]
+            q_abs, v_abs = largest(zip(finer, fine), factor / (factor - 1.0))
+        except NumericalFailure as exc:
+            if settings.check_error:
+                raise NumericalFailure(
+                    "inaccurate", f"RKN4's error estimate needs the same run at half the step "
+                    f"({settings.step / 2:g} s), which failed ({exc.reason}: {exc}); use a smaller step "
+                    "(`--step`, `[reduced] step`)", exc.time) from None
+            q_abs = v_abs = math.nan
+    units = sorted(set(scene.input_units()))
+    return ErrorEstimate(q_abs, v_abs, max(1.0, max(float(np.max(np.abs(tr.q))) for tr in fine)),
+                         max(1.0, max(float(np.max(np.abs(tr.qdot))) for tr in fine)), settings.rtol, settings.step,
+                         time.perf_counter() - start, "/".join(units))
+
+
+def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
+    """A scene of several DOF (:mod:`loopcheck.reduced.several`): its run, RKN4's error estimate
+    (:func:`estimate_error_several`), gated on it and on its energy balance as :func:`simulate`
+    gates a one-DOF run (the energy scale's floor ½ max diag 𝔍0 (1 rad/s)²)."""
+    from .several import run_several
+
+    check_work(scene, settings)
     run = run_several(scene, settings)
+    estimate = None
+    if settings.method == "rkn4":
+        estimate = estimate_error_several(scene, settings, run)
+        if settings.check_error and not estimate.relative <= settings.rtol:
+            raise NumericalFailure(
+                "inaccurate", f"RKN4 at step {settings.step:g} s estimates its own error (step doubling) at "
+                f"{estimate.relative:.2e} of the run's scale ({estimate.q_abs:.2e} {estimate.unit} in the inputs' "
+                f"q, {estimate.qdot_abs:.2e} {estimate.unit}/s in their q̇ at speeds up to "
+                f"{estimate.qdot_scale:.4g} {estimate.unit}/s), above the tolerance rtol = {settings.rtol:g}: use a "
+                f"smaller step (`--step`, `[reduced] step`; about "
+                f"{settings.step * (settings.rtol / estimate.relative / 2) ** 0.25:.2g} s) or a looser rtol")
     audit = run.audit
     bound = max(ENERGY_FACTOR[settings.method] * settings.rtol, ENERGY_FLOOR)
     scale = max(audit.scale, run.kinetic_scale)
@@ -283,8 +331,9 @@ def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
         raise NumericalFailure(
             "energy-imbalance", f"the energy balance does not close: residual {audit.max_abs_residual:.3e} J, "
             f"{audit.max_abs_residual / scale:.2e} of the run's {scale:.4g} J, above the bound {bound:.1e} "
-            f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol")
-    details = ReducedDetails(solver=run.solver, switches=run.switches, error_estimate=None, energy_bound=bound,
+            f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol"
+            + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
+    details = ReducedDetails(solver=run.solver, switches=run.switches, error_estimate=estimate, energy_bound=bound,
                              energy_scale=scale)
     (first, peak), *others = run.inputs
     return EngineResult(engine="reduced", trajectory=first, joints=run.joints, peak=peak, audit=audit,

@@ -5,37 +5,53 @@ independent joint coordinates, with coordinate partitioning (issue 40).
 
 The arithmetic is compiled (:class:`loopcheck.reduced.kernels.several.Several`, whose docstring
 states the formulation: c by one extra solve with the actual rates, the conditioning of a set of
-joints and the best set by pivoted QR). This module drives it: scipy's ``solve_ivp`` (DOP853, or
-Radau) on y = (q, q̇, W, E) (W the work of the timed forces and actuators, E the dampers'
-dissipation, integrated alongside for the energy audit), restarted at every load edge; a terminal
-event on the chart's ``stop_margin`` switches the coordinates:
+joints and the best set by pivoted QR). The chart is a
+:class:`~loopcheck.reduced.kernels.vector_problem.VectorRightHandSide`, so the methods of the one-DOF
+engine (:data:`loopcheck.reduced.settings.METHODS`) mean the same here:
+
+- ``dop853`` (the default): the compiled DOP853 in n coordinates
+  (:func:`~loopcheck.reduced.kernels.vector_adaptive.vector_dop853_run`: scipy's algorithm step for
+  step, restarted at every load edge with the one-DOF rule), the chart called from compiled code;
+- ``rkn4``: the compiled RKN4 (:func:`~loopcheck.reduced.kernels.vector_fixed_step.vector_rkn_chart`)
+  at the settings' step, with its stability check; the engine estimates its error by step doubling
+  (:func:`loopcheck.reduced.engine.simulate_several`);
+- ``scipy-dop853``: scipy's ``solve_ivp`` DOP853 on the same compiled chart, its error estimate on
+  (q, q̇) alone and the same first steps and restarts as the compiled one (an independent check of
+  the compiled integrator: they agree to round-off, tests/reduced/test_several_dof.py);
+- ``radau``: scipy's Radau on y = (q, q̇, W, E).
+
+Each integrates W (the work of the timed forces and actuators) and E (the dampers' dissipation)
+alongside the state for the energy audit (outside the error estimate, but for Radau's). The
+chart's stop event (its ``stop_margin``: a terminal event located at its root by DOP853, after the
+step by RKN4) is the coordinate switch,
 
     switch when  c(current set) < HYSTERESIS · c(best set)
 
-(c(best set): the kernel's pivoted-QR choice) at the event's root, to the best-conditioned of every
-set of k joints (:func:`best_set`), with q, q̇ re-expressed from x, ẋ there (q' = R' x,
-q̇' = R' ẋ); every switch is logged (:class:`loopcheck.reduced.charts.Switch`, the sets named by
-their joints, "O1, O5"). A configuration where even the best set's conditioning is below
-:data:`loopcheck.kinematics.SINGULAR_CONDITIONING` stops the run (NumericalFailure "singular"); an
-integration that fails otherwise names its time and the conditionings there. The inputs are the
-first set, kept at the start unless another is better by more than the hysteresis (then a switch
-at t = 0 is logged).
+(c(best set): the kernel's pivoted-QR choice), or a ranged joint reaching a bound. At a switch the run
+goes on from the event in the best-conditioned of every set of k joints (:func:`best_set`), with
+q, q̇ re-expressed from x, ẋ there (q' = R' x, q̇' = R' ẋ); every switch is logged
+(:class:`loopcheck.reduced.charts.Switch`, the sets named by their joints, "O1, O5"). A configuration
+where even the best set's conditioning is below :data:`loopcheck.kinematics.SINGULAR_CONDITIONING`
+stops the run (NumericalFailure "singular"); an integration that fails otherwise names its time and
+the conditionings there. The inputs are the first set, kept at the start unless another is better
+by more than the hysteresis (then a switch at t = 0 is logged).
 
-Samples: the solver's steps, each cut into at least SAMPLES_PER_STEP parts no longer than the
-sample interval (as the one-DOF scipy runs); at each, x, ẋ, ẍ from the chart, every input's
-q = r·x, q̇ = r·ẋ, q̈ = r·ẍ (its joint row r), and the audit's T = ½ q̇ᵀ𝔍q̇, V, W, E.
+Samples: the adaptive methods' steps, each cut into at least SAMPLES_PER_STEP parts no longer than
+the sample interval (as the one-DOF runs); RKN4's steps. At each, x, ẋ, ẍ, V and T = ½ q̇ᵀ𝔍q̇ from
+the chart, every input's q = r·x, q̇ = r·ẋ, q̈ = r·ẍ (its joint row r), W and E.
 ``JointTrajectory.coordinate`` is −1 (a chart is a set of joints, not one coordinate: the switches
 say which).
 
 A joint range ends the run where the joint reaches a bound (NumericalFailure "range-reached", as the
-one-DOF engine: a terminal event on the nearest bound's distance). Not yet supported with several
-DOF (refused in one line before any work, :func:`check_scene`): joint friction, a forcerange clamp
-on a state-dependent actuator force, point forces over q, a load on the first input alone
-(``[torque]``), redundant loops; RKN4.
+one-DOF engine: the nearest bound's distance in the chart's stop event, located at its root by
+either integrator). Not yet supported with several DOF (refused in one line before any work,
+:func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force, point
+forces over q, a load on the first input alone (``[torque]``), redundant loops.
 """
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -52,24 +68,29 @@ from loopcheck.trajectory import JointTrajectory, Trajectory
 
 from .charts import Switch
 from .dynamics import build_arrays, clamped_actuators, piece_edges, ranged_joints
-from .integrators import SAMPLES_PER_STEP, sample_parts
+from .integrators import MAX_EVALUATIONS, RESTART_STEPS, SAMPLES_PER_STEP, SPEED_LIMIT, budget_spent, sample_parts
+from .kernels import output, vector_adaptive, vector_fixed_step
 from .kernels import several as kernel
+from .kernels.fixed_step import RKN4
+from .kernels.vector_output import VectorSamples
 from .settings import ReducedSettings
 
 HYSTERESIS = kernel.HYSTERESIS
 MAX_SWITCHES = 10_000
 # a switch chooses among every set of k joints up to this many sets (best_set)
 MAX_CANDIDATES = 500
-SCIPY_METHODS = {"dop853": "DOP853", "scipy-dop853": "DOP853", "radau": "Radau"}
+# the methods (loopcheck.reduced.settings.METHODS): compiled, or scipy's solve_ivp on the compiled chart
+COMPILED = ("dop853", "rkn4")
+SCIPY_METHODS = {"scipy-dop853": "DOP853", "radau": "Radau"}
 
 
-def check_scene(scene: Scene, settings: ReducedSettings | None = None) -> None:
+def check_scene(scene: Scene) -> None:
     """Refuse, in one line, what the several-DOF engine does not run yet (module docstring).
 
     Raises
     ------
     SceneError
-        Naming the element; ValueError naming the method (RKN4).
+        Naming the element.
     """
     mech = scene.mechanism
     where = f"scene '{scene.name}' ({scene.dof} degrees of freedom)"
@@ -91,9 +112,6 @@ def check_scene(scene: Scene, settings: ReducedSettings | None = None) -> None:
     if rows != system.n - scene.dof:
         raise SceneError(f"{where}: {rows} closure equations over {system.n} coordinates (a redundantly closed "
                          "loop): not supported by the reduced engine with several inputs yet")
-    if settings is not None and settings.method not in SCIPY_METHODS:
-        raise ValueError(f"the reduced engine's method {settings.method} does not run a scene of several degrees "
-                         f"of freedom yet ({where}): use method dop853 or radau")
 
 
 class SeveralModel:
@@ -141,16 +159,45 @@ def start_chart(model: SeveralModel, joints, x: np.ndarray) -> kernel.Several:
 
 
 class _Record:
-    """The samples of a run, appended chart by chart."""
+    """The samples of a run, appended chart by chart: t, x, ẋ, ẍ, V, T, and the work done and the
+    energy dissipated since t = 0 (W, E), and each sample's index into the sets charted (sets)."""
 
     def __init__(self):
         self.t, self.x, self.xdot, self.xdd, self.V, self.T, self.W, self.E, self.sets = ([] for _ in range(9))
 
+    def append(self, n: int, t, observed, work, dissipated, set_index: int) -> None:
+        """One chart's samples: ``observed`` (m, 3n + 2) the chart's :meth:`observe` rows (x, ẋ, ẍ,
+        V, T), ``work`` and ``dissipated`` (m,) since t = 0."""
+        self.t.append(np.asarray(t))
+        self.x.append(observed[:, :n])
+        self.xdot.append(observed[:, n:2 * n])
+        self.xdd.append(observed[:, 2 * n:3 * n])
+        self.V.append(observed[:, 3 * n])
+        self.T.append(observed[:, 3 * n + 1])
+        self.W.append(np.asarray(work))
+        self.E.append(np.asarray(dissipated))
+        self.sets.append(np.full(len(t), set_index))
 
-def _sample(model, chart, sol, start, end, load, sample_interval, record, joints_index):
-    """The samples of one integrated piece: the solver's steps cut as the one-DOF runs cut them
-    (:func:`loopcheck.reduced.integrators.dense_samples`), the chart walked again from the piece's
-    start (:meth:`rewind`) and evaluated at each, in order."""
+
+@dataclass
+class _Leg:
+    """How one chart's integration ended: the time and state reached (q, q̇ in its coordinates,
+    the work done and the energy dissipated since t = 0), whether its stop event ended it, and
+    what it cost."""
+
+    t: float
+    y: np.ndarray  # (2k + 2,): q, q̇, W, E
+    stopped: bool
+    n_steps: int
+    n_evaluations: int
+
+
+def _sample(model, chart, sol, start, end, load, sample_interval, record, joints_index, base):
+    """The samples of one piece integrated by scipy: the solver's steps cut as the compiled
+    DOP853 cuts them (:func:`loopcheck.reduced.integrators.dense_samples`), the chart walked again
+    from the piece's start (:meth:`rewind`) and evaluated at each, in order; ``base`` the work done
+    and the energy dissipated before the chart's start (its own integrated from 0, as the compiled
+    runs integrate them)."""
     k = model.k
     t0, t1 = sol.t[:-1], sol.t[1:]
     parts = sample_parts(t1 - t0, sample_interval, SAMPLES_PER_STEP)
@@ -164,7 +211,6 @@ def _sample(model, chart, sol, start, end, load, sample_interval, record, joints
     chart.rewind()
     obs = np.zeros((len(times), chart.observation_size()))
     a = np.zeros(k)
-    kinetic = np.zeros(len(times))
     for r in range(len(times)):
         q = np.ascontiguousarray(states[:k, r])
         v = np.ascontiguousarray(states[k:2 * k, r])
@@ -172,28 +218,170 @@ def _sample(model, chart, sol, start, end, load, sample_interval, record, joints
             raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the "
                                    f"loops at t = {times[r]:.6g} s", float(times[r]))
         chart.observe(obs, r)
-        kinetic[r] = chart.kinetic(v)
-    n = model.system.n
-    record.t.append(times)
-    record.x.append(obs[:, :n])
-    record.xdot.append(obs[:, n:2 * n])
-    record.xdd.append(obs[:, 2 * n:3 * n])
-    record.V.append(obs[:, 3 * n])
-    record.T.append(kinetic)
-    record.W.append(states[2 * k])
-    record.E.append(states[2 * k + 1])
-    record.sets.append(np.full(len(times), joints_index))
+    record.append(model.system.n, times, obs, base[0] + states[2 * k], base[1] + states[2 * k + 1], joints_index)
 
 
-def integrate(model: SeveralModel, settings: ReducedSettings):
-    """The run from t = 0 to the horizon (module docstring): (record, switches, steps, evaluations,
-    the initial 𝔍, the sets of joints charted in turn)."""
+@functools.cache
+def _state_error_dop853():
+    """scipy's DOP853 on y = (q, q̇, W, E) with its error estimate on (q, q̇) alone (the first
+    ``state_size`` components): the energy flows ride along, integrated with the state's weights
+    and given its dense output, and take no part in the steps, as in the compiled DOP853
+    (:mod:`loopcheck.reduced.kernels.vector_adaptive`). (A class made at first use: scipy is
+    imported only by the runs that use it.)"""
+    from scipy.integrate import DOP853
+
+    class StateErrorDOP853(DOP853):
+        def __init__(self, fun, t0, y0, t_bound, *, state_size: int, **options):
+            self.state_size = state_size
+            super().__init__(fun, t0, y0, t_bound, **options)
+
+        def _estimate_error_norm(self, K, h, scale):
+            m = self.state_size
+            return super()._estimate_error_norm(K[:, :m], h, scale[:m])
+
+    return StateErrorDOP853
+
+
+def _norm(x: np.ndarray) -> float:
+    """The 2-norm summed plainly from the first component (the compiled DOP853's order)."""
+    acc = x[0] * x[0]
+    for i in range(1, len(x)):
+        acc = acc + x[i] * x[i]
+    return math.sqrt(acc)
+
+
+def _first_step(fun, t0: float, y0: np.ndarray, end: float, m: int, rtol: float, atol: float, cap: float):
+    """scipy's select_initial_step (common.py, order 7) on the first m components of y (q, q̇), its
+    norms summed as the compiled DOP853's ``_initial_step`` sums them, at most ``cap`` when > 0 (a
+    restart at a load edge: the largest of the previous piece's last RESTART_STEPS steps). Returns
+    (h, the function to hand solve_ivp: ``fun`` but for its first call at (t0, y0), which returns f0
+    as computed here, before the probe moved the chart on)."""
+    f0 = fun(t0, y0)
+    pending = [(t0, np.array(y0, dtype=float), f0)]
+
+    def primed(t, y):
+        if pending and t == pending[0][0] and np.array_equal(y, pending[0][1]):
+            return pending.pop()[2].copy()
+        return fun(t, y)
+
+    interval = abs(end - t0)
+    scale = atol + np.abs(y0[:m]) * rtol
+    d0 = _norm(y0[:m] / scale) / math.sqrt(m)
+    d1 = _norm(f0[:m] / scale) / math.sqrt(m)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    f1 = fun(t0 + h0, y0 + h0 * f0)
+    d2 = _norm((f1[:m] - f0[:m]) / scale) / math.sqrt(m) / h0
+    h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    h = min(100 * h0, h1, interval)
+    return (min(h, cap) if cap > 0.0 else h), primed
+
+
+def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: ReducedSettings, record: _Record,
+               set_index: int, joints, budget: int) -> _Leg:
+    """One chart from t, integrated by scipy's solve_ivp (DOP853: :func:`_state_error_dop853` and the
+    compiled DOP853's restart rule; Radau on all of y) piece by piece to the horizon or to the chart's
+    stop event (a switch, a range's bound); at most ``budget`` evaluations of q̈ (the run's failure,
+    :func:`loopcheck.reduced.integrators.budget_spent`, beyond them)."""
     from scipy.integrate import solve_ivp
 
+    k = model.k
+    scene = model.scene
+    name = SCIPY_METHODS[settings.method]
+    rtol = settings.rtol
+    edges = [b for b in scene.load_edges if t < b < scene.horizon] + [scene.horizon]
+    a = np.zeros(k)
+    n_steps = n_eval = 0
+    cap = 0.0
+    base = y[2 * k:].copy()  # W and E at the chart's start: its own from 0 (the compiled runs' sums)
+    y = np.concatenate([y[:2 * k], [0.0, 0.0]])
+    left = [budget]
+    while True:
+        end = edges[0]
+        load = model.piece(t, end)
+        chart.mark()
+
+        def fun(tt, yy, chart=chart, load=load):
+            left[0] -= 1
+            if left[0] < 0:
+                raise budget_spent(f"scipy {name}", MAX_EVALUATIONS, float(tt), 0.0, scene.horizon)
+            q = np.ascontiguousarray(yy[:k])
+            v = np.ascontiguousarray(yy[k:2 * k])
+            if chart.acceleration(load, tt, q, v, a) != 0:
+                return np.full(2 * k + 2, np.nan)
+            return np.concatenate([v, a, [chart.power(load, v), chart.dissipation(v)]])
+
+        def event(tt, yy, chart=chart):
+            return chart.stop_margin(tt, np.ascontiguousarray(yy[:k]), np.ascontiguousarray(yy[k:2 * k]))
+        event.terminal, event.direction = True, -1
+        if name == "DOP853":
+            first, fun = _first_step(fun, t, y, end, 2 * k, rtol, rtol, cap)
+            method, options = _state_error_dop853(), {"state_size": 2 * k, "first_step": first}
+            n_eval += 1  # the probe's evaluation (the first, f0, solve_ivp counts)
+        else:
+            method, options = name, {}
+        with np.errstate(invalid="ignore", over="ignore"):
+            sol = solve_ivp(fun, (t, end), y, method=method, rtol=rtol, atol=rtol, dense_output=True,
+                            events=[event], **options)
+        if not sol.success:
+            raise _failure(model, chart, sol, f"scipy {name}", t, end, joints)
+        n_steps += len(sol.t) - 1
+        n_eval += sol.nfev
+        stop = float(sol.t[-1])
+        _sample(model, chart, sol, t, stop, load, settings.sample_interval, record, set_index, base)
+        y = sol.y[:, -1].copy()
+        reached = np.concatenate([y[:2 * k], base + y[2 * k:]])
+        if sol.status == 1:
+            return _Leg(stop, reached, True, n_steps, n_eval)
+        t = stop
+        edges.pop(0)
+        if not edges:
+            return _Leg(t, reached, False, n_steps, n_eval)
+        cap = float(np.max(np.diff(sol.t)[-RESTART_STEPS:]))
+
+
+def _leg_compiled(model: SeveralModel, chart, t: float, y: np.ndarray, settings: ReducedSettings, record: _Record,
+                  set_index: int, joints, step: float | None, budget: int, workspace) -> _Leg:
+    """One chart from t, integrated in the compiled core without Python (the chart is a
+    :class:`~loopcheck.reduced.kernels.vector_problem.VectorRightHandSide`): DOP853
+    (:func:`~loopcheck.reduced.kernels.vector_adaptive.vector_dop853_run`, scipy's algorithm step for
+    step) or RKN4 at ``step`` with its stability check
+    (:func:`~loopcheck.reduced.kernels.vector_fixed_step.vector_rkn_chart`), over the load pieces to
+    the horizon or to the chart's stop event (a switch, a range's bound)."""
+    k = model.k
+    edges = model.piece_edges
+    out = VectorSamples(k, chart.observation_size())
+    q0, v0 = np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k])
+    if step is None:
+        first = int(np.searchsorted(edges, t, side="right")) - 1
+        here = np.ascontiguousarray(np.concatenate([[t], edges[first + 1:]]))
+        loads = np.arange(first, len(edges) - 1, dtype=np.intp)
+        outcome = vector_adaptive.vector_dop853_run(
+            chart, here, loads, q0, v0, settings.rtol, settings.rtol, settings.sample_interval, SAMPLES_PER_STEP,
+            SPEED_LIMIT, budget, math.inf, True, out, workspace)
+        method = "DOP853"
+    else:
+        outcome = vector_fixed_step.vector_rkn_chart(chart, RKN4, edges, np.arange(len(edges) - 1, dtype=np.intp),
+                                                     t, q0, v0, float(step), SPEED_LIMIT, True, True, out)
+        method = "RKN4"
+    times, _, _, _, observed, energy = out.arrays()
+    if len(times):
+        record.append(model.system.n, times, observed, y[2 * k] + energy[:, 0], y[2 * k + 1] + energy[:, 1],
+                      set_index)
+    if outcome.status != output.OK:
+        raise _compiled_failure(model, chart, outcome, method, joints, step, budget)
+    _, q, v, _, _, _ = out.arrays()
+    end = np.concatenate([q[-1], v[-1], [y[2 * k] + energy[-1, 0], y[2 * k + 1] + energy[-1, 1]]])
+    return _Leg(float(outcome.t_reached), end, bool(outcome.stopped), int(outcome.n_steps),
+                int(outcome.n_evaluations))
+
+
+def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None = None):
+    """The run from t = 0 to the horizon (module docstring): (record, switches, steps, evaluations,
+    the initial 𝔍, the sets of joints charted in turn). ``step`` overrides RKN4's step (the error
+    estimate's run at twice the step)."""
     scene = model.scene
     k = model.k
-    method = SCIPY_METHODS[settings.method]
-    rtol = settings.rtol
     x = np.array(scene.x0, dtype=float)
     q0 = np.array(scene.initial_q(), dtype=float)
     if not np.allclose(model.input_rows @ x, q0, rtol=0.0, atol=1e-9):
@@ -216,56 +404,87 @@ def integrate(model: SeveralModel, settings: ReducedSettings):
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
     if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
+        _check_range(model, chart, 0.0, y)
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
     J0 = np.array(chart.Jm)
     record = _Record()
-    edges = [b for b in scene.load_edges if 0.0 < b < scene.horizon] + [scene.horizon]
     t, n_steps, n_eval, sets = 0.0, 0, 0, [tuple(int(j) for j in joints)]
-    a = np.zeros(k)
+    compiled = settings.method in COMPILED
+    fixed = (settings.step if step is None else step) if settings.method == "rkn4" else None
+    workspace = vector_adaptive.VectorSteps(k) if settings.method == "dop853" else None
     while t < scene.horizon:
-        end = next(e for e in edges if e > t)
-        load = model.piece(t, end)
-        chart.mark()
-
-        def fun(tt, yy, chart=chart, load=load):
-            q = np.ascontiguousarray(yy[:k])
-            v = np.ascontiguousarray(yy[k:2 * k])
-            if chart.acceleration(load, tt, q, v, a) != 0:
-                return np.full(2 * k + 2, np.nan)
-            return np.concatenate([v, a, [chart.power(load, v), chart.dissipation(v)]])
-
-        def event(tt, yy, chart=chart):
-            return chart.stop_margin(tt, np.ascontiguousarray(yy[:k]), np.ascontiguousarray(yy[k:2 * k]))
-        event.terminal, event.direction = True, -1
-        events = [event]
-        if len(model.ranged):
-            def in_range(tt, yy, chart=chart):
-                """> 0 while every ranged joint is inside its range: the nearest bound's distance."""
-                if not chart.evaluate(np.ascontiguousarray(yy[:k])):
-                    return math.nan
-                return float(np.min(model.range_margins(np.asarray(chart.lastx))))
-            in_range.terminal, in_range.direction = True, -1
-            events.append(in_range)
-        with np.errstate(invalid="ignore", over="ignore"):
-            sol = solve_ivp(fun, (t, end), y, method=method, rtol=rtol, atol=rtol, dense_output=True,
-                            events=events)
-        if not sol.success:
-            raise _failure(model, chart, sol, method, t, end, joints)
-        n_steps += len(sol.t) - 1
-        n_eval += sol.nfev
-        stop = float(sol.t[-1])
-        _sample(model, chart, sol, t, stop, load, settings.sample_interval, record, len(sets) - 1)
-        y = sol.y[:, -1].copy()
-        if sol.status == 1 and len(sol.t_events) > 1 and len(sol.t_events[1]):
-            raise _range_reached(model, np.asarray(chart.lastx) if chart.evaluate(np.ascontiguousarray(y[:k]))
-                                 else None, stop)
-        if sol.status == 1:
-            if len(switches) >= MAX_SWITCHES:
-                raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", stop)
-            y, chart, joints = _switch(model, chart, stop, y, switches)
-            sets.append(tuple(int(j) for j in joints))
-        t = stop
+        if compiled:
+            leg = _leg_compiled(model, chart, t, y, settings, record, len(sets) - 1, joints, fixed,
+                                MAX_EVALUATIONS - n_eval, workspace)
+        else:
+            leg = _leg_scipy(model, chart, t, y, settings, record, len(sets) - 1, joints, MAX_EVALUATIONS - n_eval)
+        n_steps += leg.n_steps
+        n_eval += leg.n_evaluations
+        t, y = leg.t, leg.y
+        if not leg.stopped:
+            break
+        _check_range(model, chart, t, y)
+        if len(switches) >= MAX_SWITCHES:
+            raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
+        y, chart, joints = _switch(model, chart, t, y, switches)
+        sets.append(tuple(int(j) for j in joints))
     return record, switches, n_steps, n_eval, J0, sets
+
+
+def _check_range(model: SeveralModel, chart, t: float, y: np.ndarray) -> None:
+    """At a stop of the chart's event: raise the run's end (:func:`_range_reached`) where it was a
+    ranged joint's bound (its margin the nearer of the two), else return (a switch)."""
+    if not len(model.ranged):
+        return
+    k = model.k
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    bound = chart.range_margin()
+    if switch != switch or bound <= chart.c_current - HYSTERESIS * chart.c_best:
+        raise _range_reached(model, np.asarray(chart.lastx) if switch == switch else None, t)
+
+
+def _compiled_failure(model: SeveralModel, chart, outcome, method: str, joints, step: float | None,
+                      budget: int) -> NumericalFailure:
+    """The failure a compiled run reports (``outcome``, :class:`loopcheck.reduced.kernels.output.Outcome`),
+    each with its time: a configuration the chart could not close ("singular", with the
+    conditionings at the last one it closed), q̈ or the state not finite, a speed beyond the limit,
+    RKN4's step outside its stability region, DOP853's step collapsed or its budget spent."""
+    t = float(outcome.fail_time) if outcome.fail_time == outcome.fail_time else 0.0
+    status = outcome.status
+    if status == output.SPEED:
+        name = model.joint_names[int(chart.current[int(outcome.detail[0])])]
+        return NumericalFailure("unstable", f"the rate of joint {name} ({abs(outcome.fail_value):.3g}) exceeds "
+                                f"{SPEED_LIMIT:.3g} at t = {t:.6g} s: the integration is unstable"
+                                + (" at this step" if step is not None else ""), t)
+    if status == output.UNSTABLE:
+        re, im, amplification, limit = outcome.detail
+        return NumericalFailure(
+            "unstable", f"the step h = {step:.3g} s is outside RKN4's stability region at t = {t:.6g} s "
+            f"(h·λ = {re:.3g}{im:+.3g}j, |R| = {amplification:.6g} > {limit:.6g}): the problem is "
+            "too stiff for this explicit step; use a smaller step (`--step`, `[reduced] step`) or "
+            "the implicit Radau method", t)
+    if status == output.STEP_SIZE:
+        if outcome.n_evaluations >= budget:
+            return budget_spent(method, MAX_EVALUATIONS, t, 0.0, model.scene.horizon)
+        return NumericalFailure(
+            "step-size", f"DOP853's step fell below the spacing of the floating-point numbers at t = {t:.6g} s in "
+            f"the coordinates {model.set_name(joints)}: it has collapsed (an extreme speed, damper or inertia "
+            "in the scene?)", t)
+    if not chart.valid:  # the walk failed: the chart's last configuration is the last it closed
+        chart.best_joints()
+        best, c_best = best_set(model, chart)
+        c_now = chart.conditioning_of(chart.current)
+        c_best = max(c_best, c_now)
+        where = f"where the coordinates {model.set_name(joints)} have conditioning {c_now:.3g} and the best set " \
+                f"{c_best:.3g}"
+        if c_best < loops.SINGULAR_CONDITIONING:
+            return NumericalFailure("singular", f"no set of joints can drive the linkage at t = {t:.9g} s, {where}, "
+                                    f"below {loops.SINGULAR_CONDITIONING:g}: a singular configuration of the "
+                                    "mechanism", t)
+        return NumericalFailure("singular", f"{method} could not close the loops in the coordinates "
+                                f"{model.set_name(joints)} at t = {t:.9g} s, {where}", t)
+    return NumericalFailure("non-finite", f"the acceleration or the state became NaN or infinite at t = {t:.6g} s "
+                            f"in the coordinates {model.set_name(joints)}", t)
 
 
 def _range_reached(model: SeveralModel, x, t: float) -> NumericalFailure:
@@ -390,13 +609,17 @@ class SeveralRun:
     solver: str
 
 
-def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> SeveralRun:
+SOLVER_NAMES = {"dop853": "DOP853", "rkn4": RKN4.name, "scipy-dop853": "scipy DOP853", "radau": "scipy Radau"}
+
+
+def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), step: float | None = None) -> SeveralRun:
     """The reduced engine's run of a scene of several DOF (module docstring): every input's
-    trajectory and peak, every joint coordinate, the energy audit, the switches."""
-    check_scene(scene, settings)
+    trajectory and peak, every joint coordinate, the energy audit, the switches (``step``: RKN4's
+    step instead of the settings', for its error estimate)."""
+    check_scene(scene)
     model = SeveralModel(scene)
     begin = time.perf_counter()
-    record, switches, n_steps, n_eval, J0, sets = integrate(model, settings)
+    record, switches, n_steps, n_eval, J0, sets = integrate(model, settings, step)
     wall = time.perf_counter() - begin
     t = np.concatenate(record.t)
     x = np.concatenate(record.x)
@@ -409,5 +632,4 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings()) -> 
     audit = EnergyAudit(t=t, kinetic=np.concatenate(record.T), potential=np.concatenate(record.V),
                         torque_work=np.concatenate(record.W), damper_dissipation=np.concatenate(record.E))
     return SeveralRun(tuple((tr, tr.peak_rate()) for tr in trajectories), joints, audit, tuple(switches), wall,
-                      n_steps, n_eval, 0.5 * float(np.max(np.abs(np.diag(J0)))),
-                      f"scipy {SCIPY_METHODS[settings.method]}")
+                      n_steps, n_eval, 0.5 * float(np.max(np.abs(np.diag(J0)))), SOLVER_NAMES[settings.method])

@@ -1,13 +1,14 @@
 # C-level declaration of loopcheck/reduced/kernels/several.py (Cython's augmenting .pxd).
 
 from loopcheck.kernels.loops cimport Loops
+from loopcheck.reduced.kernels.vector_problem cimport VectorRightHandSide
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust, _c_trusted_correction, _c_hysteresis
 cdef double _c_jacobi_tol, _c_nan
 cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps
 
 
-cdef class Several:
+cdef class Several(VectorRightHandSide):
     cdef readonly object arrays
     cdef double[::1] F
     cdef long long[::1] I
@@ -19,7 +20,7 @@ cdef class Several:
     cdef readonly double[:, ::1] JR, R, K, Jm, Bm
     cdef double[:, ::1] Rmark, small, timed, act_k, ku, kd, LU, Phx, lastK, baseK, startK, markK, U, Z, D, M
     cdef double[:, :, ::1] KG
-    cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq
+    cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq, rate
     cdef double[::1] qv, act_l, basex, baseq, startx, startq, markx, markq, target, pred, resid, used
     cdef long long[::1] piv
     cdef readonly long long[::1] best, current, counts
@@ -33,7 +34,8 @@ cdef class Several:
     cdef int _walk(self, double[::1] q) except -1
     cdef int _coefficients(self) except -1
     cpdef bint evaluate(self, double[::1] q) except -1
-    cpdef int acceleration(self, Py_ssize_t load, double t, double[::1] q, double[::1] v, double[::1] out) except -1
+    cpdef Py_ssize_t dimension(self)
+    cpdef int acceleration(self, Py_ssize_t load, double t, double[::1] q, double[::1] v, double[::1] out)
     cpdef Py_ssize_t accelerations(self, Py_ssize_t load, double[::1] T, double[:, ::1] Q, double[:, ::1] V,
                                    double[:, ::1] out)
     cpdef double power(self, Py_ssize_t load, double[::1] v)
@@ -47,4 +49,6 @@ cdef class Several:
     cdef double _sigma_ratio(self, long long[::1] S) except? -1
     cdef int _best_set(self) except -1
     cpdef double stop_margin(self, double t, double[::1] q, double[::1] v)
+    cpdef double range_margin(self)
+    cpdef bint locate(self, double t, double[::1] q, double[::1] v)
     cpdef bint start(self, double[::1] x, long long[::1] joints) except -1

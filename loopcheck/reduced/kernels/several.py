@@ -75,7 +75,9 @@ if cython.compiled:
     from cython.cimports.loopcheck.reduced.kernels.physics import (
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
-        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR, DRIVE)
+        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+    from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
     from math import fabs, isfinite, sqrt
 
@@ -84,7 +86,9 @@ else:
     from loopcheck.reduced.kernels.physics import (
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
-        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_TIMED, PIECE_VALUES, TIMED_DIR, DRIVE)
+        N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+    from loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 
 from loopcheck.reduced.kernels import physics as _physics
 
@@ -117,7 +121,7 @@ _c_nan = cython.declare(cython.double, math.nan)
 
 @cython.final
 @cython.cclass
-class Several:
+class Several(VectorRightHandSide):
     """The compiled chart of a linkage in k independent joint coordinates (module docstring).
 
     ``Several(F, I, joint_rows, k, singular)``: the packed model (F, I), the joints' own coordinate
@@ -125,10 +129,14 @@ class Several:
     the conditioning below which no set can drive the linkage (reported; the run decides).
     :meth:`start` makes it a chart of one set of joints at an assembled x.
 
-    The methods the integrators call (the vector interface): ``acceleration(load, t, q, v, a) ->
+    A :class:`.vector_problem.VectorRightHandSide`: the compiled n-coordinate integrators
+    (:mod:`.vector_adaptive`, :mod:`.vector_fixed_step`) call its methods through its table of C
+    function pointers, without Python: ``dimension()`` (k), ``acceleration(load, t, q, v, a) ->
     int`` (0, or 1 where the configuration could not be found: a holds NaN), ``power(load, v)``,
-    ``dissipation(v)``, ``stop_margin(t, q, v)`` (> 0 while the set serves), ``observation_size()``
-    and ``observe(out, row)`` (x, ẋ, ẍ, T, V at the latest acceleration), ``mark()``, ``rewind()``.
+    ``dissipation(v)``, ``stop_margin(t, q, v)`` (> 0 while the set serves and every ranged joint
+    is inside its range), ``locate`` (a range's bound is located at its root, a switch is not),
+    ``observation_size()`` and ``observe(out, row)`` (x, ẋ, ẍ, V, T at the latest acceleration),
+    ``mark()``, ``rewind()``.
     """
 
     def __init__(self, F, I, joint_rows, k: int, singular: float):
@@ -170,6 +178,7 @@ class Several:
         self.cv = np.zeros(kk)
         self.qdd = np.zeros(kk)
         self.qv = np.zeros(kk)
+        self.rate = np.zeros(kk)
         self.small = np.zeros((kk, kk + 1))
         self.timed = np.zeros((kk, max(nt, 1)))
         self.act_l = np.zeros(max(na, 1))
@@ -648,7 +657,11 @@ class Several:
         return True
 
     @cython.ccall
-    @cython.exceptval(-1, check=False)
+    def dimension(self) -> cython.Py_ssize_t:
+        """k, the number of independent coordinates (the integrators' n)."""
+        return self.k
+
+    @cython.ccall
     def acceleration(self, load: cython.Py_ssize_t, t: cython.double, q: cython.double[::1], v: cython.double[::1],
                      out: cython.double[::1]) -> cython.int:
         """q̈ (k,) into out at q, q̇ = v on load piece ``load`` (module docstring): 0, or 1 where
@@ -673,6 +686,8 @@ class Several:
         rate: cython.double
         prm: cython.Py_ssize_t
         self.piece = load
+        for a in range(kk):
+            self.rate[a] = v[a]
         if not self.evaluate(q):
             for a in range(kk):
                 out[a] = _c_nan
@@ -786,11 +801,11 @@ class Several:
 
     @cython.ccall
     def observation_size(self) -> cython.Py_ssize_t:
-        return 3 * self.n + 1
+        return 3 * self.n + 2
 
     @cython.ccall
     def observe(self, out: cython.double[:, ::1], row: cython.Py_ssize_t):
-        """x, ẋ, ẍ (n each) and V at the latest acceleration into out[row]."""
+        """x, ẋ, ẍ (n each), V and T = ½ q̇ᵀ𝔍q̇ at the latest acceleration into out[row]."""
         j: cython.Py_ssize_t
         n: cython.Py_ssize_t = self.n
         for j in range(n):
@@ -798,6 +813,7 @@ class Several:
             out[row, n + j] = self.xdot[j]
             out[row, 2 * n + j] = self.xdd[j]
         out[row, 3 * n] = self.potential
+        out[row, 3 * n + 1] = self.kinetic(self.rate)
 
     @cython.ccall
     def mark(self):
@@ -1041,8 +1057,9 @@ class Several:
 
     @cython.ccall
     def stop_margin(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.double:
-        """c(current set) − HYSTERESIS × c(best set) at q (NaN where q cannot be evaluated); leaves
-        the two conditionings in c_current, c_best and the best set in best."""
+        """The least of c(current set) − HYSTERESIS × c(best set) (the switch) and
+        :meth:`range_margin` (a ranged joint at a bound) at q (NaN where q cannot be evaluated);
+        leaves the two conditionings in c_current, c_best and the best set in best."""
         if self.current[0] < 0:
             raise ValueError("stop_margin: the chart has no coordinates yet: start() it first")
         if not self.evaluate(q):
@@ -1050,7 +1067,32 @@ class Several:
         self._best_set()
         self.c_current = self._sigma_ratio(self.current)
         self.c_best = self._sigma_ratio(self.best)
-        return self.c_current - _c_hysteresis * self.c_best
+        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin())
+
+    @cython.ccall
+    def range_margin(self) -> cython.double:
+        """The nearest bound's distance, min over the ranged joints of u − lo and hi − u (rad or
+        m), at the configuration last evaluated: > 0 while every one is inside its range (inf
+        without ranged joints)."""
+        n: cython.Py_ssize_t = self.n
+        r: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        u: cython.double
+        g: cython.double = math.inf
+        for r in range(self.I[N_RANGES]):
+            u = 0.0
+            for j in range(n):
+                u += self.F[self.I[RANGE_ROWS] + r * n + j] * self.lastx[j]
+            g = min(g, u - self.F[self.I[RANGE_BOUNDS] + 2 * r])
+            g = min(g, self.F[self.I[RANGE_BOUNDS] + 2 * r + 1] - u)
+        return g
+
+    @cython.ccall
+    def locate(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.bint:
+        """At a stop after a fixed step: a range's bound is located at its root (the time the joint
+        reaches it); a switch of coordinates is not (it may happen anywhere near its own root)."""
+        g: cython.double = self.stop_margin(t, q, v)
+        return g == g and self.range_margin() < self.c_current - _c_hysteresis * self.c_best
 
     def conditioning_of(self, joints) -> float:
         """The conditioning of the joints ``joints`` (k indices into the joint rows) at the

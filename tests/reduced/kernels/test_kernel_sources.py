@@ -35,7 +35,7 @@ ALLOWED = {
     "vector_output": set(),
     "vector_adaptive": {"vector_problem", "vector_output", "output", "adaptive"},
     "vector_fixed_step": {"vector_problem", "vector_output", "output", "fixed_step"},
-    "several": {"physics", "loopcheck.kernels.loops"},
+    "several": {"physics", "vector_problem", "loopcheck.kernels.loops"},
 }
 
 

@@ -17,19 +17,16 @@ interpreter, a few µs an evaluation): short horizons.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import subprocess
 import sys
 import tomllib
-from types import SimpleNamespace
-from unittest import mock
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.integrate._ivp import common, rk
+from scipy.integrate._ivp import common
 
 from loopcheck.reduced.kernels import adaptive, output, physics
 from loopcheck.reduced.kernels import vector_adaptive as VA
@@ -38,7 +35,7 @@ from loopcheck.reduced.kernels.vector_fixed_step import vector_rkn_chart
 from loopcheck.reduced.kernels.vector_output import VectorSamples
 from loopcheck.reduced.kernels.vector_problem import ScalarAsVector, VectorRightHandSide
 
-from helpers import ROOT, ClosedForm, run_dop853, run_rkn
+from helpers import ROOT, ClosedForm, run_dop853, run_rkn, scipy_in_vector_kernel_order
 
 EDGES = (0.0, 0.4, 1.1, 2.0)   # three load pieces
 LOADS = (0.8, -0.3, 0.0)       # the torque on the first pendulum on each (N·m)
@@ -123,53 +120,6 @@ class Oscillator(VectorRightHandSide):
 
     def locate(self, t, q, v):
         return self._locate
-
-
-class _NumpyInVectorKernelOrder:
-    """numpy, but for scipy's DOP853 sums of any number of components: np.dot of the stages
-    (2n × s by s) by vector_adaptive._dot_kt, np.dot of the dense output (D by K) each entry summed
-    over j in turn, np.linalg.norm of a vector by vector_adaptive._norm (plainly from the first
-    component). The order is a convention both sides share (helpers._NumpyInKernelOrder at n = 1)."""
-
-    def __init__(self):
-        self.linalg = SimpleNamespace(**{k: getattr(np.linalg, k) for k in dir(np.linalg) if not k.startswith("__")})
-        self.linalg.norm = self._norm
-
-    def __getattr__(self, name):
-        return getattr(np, name)
-
-    @staticmethod
-    def _norm(x, *args, **kwargs):
-        x = np.asarray(x)
-        if x.ndim == 1 and not args and not kwargs:
-            return VA._norm(np.ascontiguousarray(x, dtype=float))
-        return np.linalg.norm(x, *args, **kwargs)
-
-    @staticmethod
-    def dot(a, b):
-        a, b = np.asarray(a), np.asarray(b)
-        if a.ndim == 2 and b.ndim == 1:  # K[:s].T · a[:s]
-            out = np.empty(a.shape[0])
-            VA._dot_kt(np.ascontiguousarray(a.T), np.ascontiguousarray(b, dtype=float), b.shape[0], out)
-            return out
-        if a.ndim == 2 and b.ndim == 2:  # D · K
-            out = np.empty((a.shape[0], b.shape[1]))
-            for r in range(a.shape[0]):
-                for c in range(b.shape[1]):
-                    acc = 0.0
-                    for j in range(a.shape[1]):
-                        acc += a[r, j] * b[j, c]
-                    out[r, c] = acc
-            return out
-        return np.dot(a, b)
-
-
-def scipy_in_vector_kernel_order():
-    stack = contextlib.ExitStack()
-    ordered = _NumpyInVectorKernelOrder()
-    for module in (rk, common):
-        stack.enter_context(mock.patch.object(module, "np", ordered))
-    return stack
 
 
 def scipy_pieces(rhs, edges, q0, v0, rtol, *, use_stop=False):
