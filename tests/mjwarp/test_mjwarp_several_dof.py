@@ -1,5 +1,5 @@
 """The MJWarp engine on a scene of several degrees of freedom (issue 41): the two-motor five-bar
-robot (tests/data/five_bar_robot.toml) over its first 0.2 s (both motors act: the second from 0.1 s)
+robot (scenes/mechanisms/five_bar_robot.toml) over its first 0.2 s (both motors act: the second from 0.1 s)
 at the grid step (1 ms, RK4, float32) against the independent full-coordinate oracle
 (tests/oracles/five_bar_robot.py), every input recorded, under the known-defect rule of issue 39:
 the run completes and carries its known defect; no test asks MJWarp to meet the reference's

@@ -1,4 +1,4 @@
-"""The two-motor five-bar robot of tests/data/five_bar_robot.toml in the multibody oracle
+"""The two-motor five-bar robot of scenes/mechanisms/five_bar_robot.toml in the multibody oracle
 (:mod:`oracles.multibody`; ``five_bar()`` of tests/reduced/test_multibody_oracle.py describes the
 same robot from its own physics), started from the scene's initial state: every input's angle and
 rate at given times, for the tests of the engines on several degrees of freedom (not shipped)."""
@@ -11,7 +11,7 @@ import numpy as np
 
 from oracles.multibody import simulate
 
-SCENE = os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_robot.toml")
+SCENE = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "mechanisms", "five_bar_robot.toml")
 BODIES = {"O1": "left_crank", "O5": "right_crank"}  # each input joint: the crank it turns against the ground
 NAMES = ("left_crank", "left_arm", "right_arm", "right_crank")  # the scene's coordinates, in its order
 

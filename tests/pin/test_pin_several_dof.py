@@ -1,5 +1,5 @@
 """The Pinocchio engine on a scene of several degrees of freedom (issue 41): the two-motor five-bar
-robot (tests/data/five_bar_robot.toml) against the independent full-coordinate oracle
+robot (scenes/mechanisms/five_bar_robot.toml) against the independent full-coordinate oracle
 (tests/oracles/multibody.py; ``five_bar()`` of tests/reduced/test_multibody_oracle.py is the same
 robot described from its own physics), every input's q and q̇ over the whole run, each input's
 peak, and the energy balance of the run's own audit.
