@@ -135,7 +135,7 @@ def test_an_input_in_metres_follows_mujoco():
     from loopcheck.reference_models.run import simulate_mujoco
     from loopcheck.reference_models.settings import MujocoSettings
 
-    scene = load_scene(os.path.join(os.path.dirname(SCENE), "five_bar_slider.toml"))
+    scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_slider.toml"))
     assert scene.input_units() == ("rad", "m")
     engine = ENGINES["pin"]
     pin_run = engine.simulate(scene, engine.settings())
@@ -170,7 +170,7 @@ def test_three_inputs_one_between_moving_bodies_follow_the_oracle():
     differences at rtol 1e-11 are 2.3e-11 rad and 7.0e-10 rad/s. Bounds as the five-bar's.
     Planted: the hand's initial rate dropped (``(*scene.initial_qdot()[:2], 0.0)`` in
     ``_initial_rates``) fails it (|Δq| 0.031 rad on O1: the hand swings the arm)."""
-    scene = load_scene(os.path.join(os.path.dirname(SCENE), "five_bar_hand.toml"))
+    scene = load_scene(os.path.join(os.path.dirname(__file__), "..", "data", "five_bar_hand.toml"))
     engine = ENGINES["pin"]
     result = engine.simulate(scene, engine.settings())
     assert len(result.inputs) == 3 and result.audit.relative_residual < ENERGY_TOL
