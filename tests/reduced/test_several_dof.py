@@ -78,11 +78,11 @@ def test_the_five_bar_balances_its_energy_and_reports_every_joint(five_bar_run):
     assert np.max(np.abs(left - right)) < 1e-12
 
 
-FOLD = ROOT / "tests/data/five_bar_fold.toml"
+FOLD = ROOT / "scenes/hard/five_bar_fold.toml"
 
 
 def five_bar_fold() -> Model:
-    """tests/data/five_bar_fold.toml, by hand: the five-bar with a 0.5 m right arm, no gravity."""
+    """scenes/hard/five_bar_fold.toml, by hand: the five-bar with a 0.5 m right arm, no gravity."""
     return Model(
         bodies=(Body("left_crank", 2.0, (0.2, 0.0), 0.03), Body("left_arm", 1.5, (0.35, 0.02), 0.07),
                 Body("right_arm", 1.2, (0.25, -0.01), 0.05), Body("right_crank", 2.5, (0.2, 0.0), 0.04)),
