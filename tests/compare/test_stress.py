@@ -140,6 +140,24 @@ def test_an_off_grid_edge_on_a_scene_of_several_dof_fails_saying_so():
                           "(its loads are actuators)",)
 
 
+def test_the_drift_of_a_scene_of_several_dof_counts_the_input_that_turns_most():
+    """tests/data/five_bar_pendulum.toml (3 DOF) over its 0.8 s: the cranks turn 1.006 and 0.69
+    revolutions, the wrist 4.30 (measured): drift per revolution is |ΔE|/E over the wrist's turns,
+    not the first input's."""
+    import loopcheck
+    from loopcheck.compare.stress import _drift_per_revolution
+
+    from helpers import ROOT
+
+    result = loopcheck.simulate(load_scene(ROOT / "tests" / "data" / "five_bar_pendulum.toml"))
+    turns = [abs(tr.q[-1] - tr.q[0]) / (2 * np.pi) for tr, _ in result.inputs]
+    assert turns[2] > 4.0 > 1.0 > max(turns[1], turns[0] - 0.01)  # the wrist turns most, by far
+    a = result.audit
+    energy = a.kinetic + a.potential
+    change = abs(energy[-1] - energy[0]) / max(a.scale, abs(energy[0]))
+    assert _drift_per_revolution(result) == pytest.approx(change / turns[2], rel=1e-12)
+
+
 def test_start_at_dead_centre_uses_another_coordinate(results):
     scene = load_scene(BY_NAME["start_dead_centre"].path)
     result = results("start_dead_centre").outcome("reduced").result
