@@ -21,6 +21,11 @@ a refusal of what it does not run) has that point's verdict: the study goes on.
 Wall times move with the machine's load: the report records the load average at the start
 and end, and the headline ratio of each engine against the reference is an interval from the
 repeats' spread (:class:`CostRatio`), with a warning when it is too wide to read.
+
+A scene of several degrees of freedom: a run's errors are the worst input's, each figure at its
+largest over the inputs (:func:`loopcheck.compare.diff.worst_figures`: the peak error relative to
+each input's own peak, the trajectory differences in each input's unit), and the truth's accuracy
+likewise; so the work-precision curve, the verdicts and the recommendation hold for every input.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from loopcheck.results import EngineResult
 from loopcheck.scene import Scene
 from loopcheck.trajectory import Trajectory
 
-from .diff import compare_trajectories
+from .diff import compare_trajectories, worst_figures
 from .output import json_text, portable_source, write_folder
 from .pool import ordered_map
 from .run import judge
@@ -178,8 +183,11 @@ def ground_truth(scene: Scene) -> Truth:
     tight_rung, check_rung = reference.truth()
     tight = reference.simulate(scene, tight_rung.settings)
     check = reference.simulate(scene, check_rung.settings)
-    d = compare_trajectories(tight.trajectory, check.trajectory)
-    return Truth(tight, {"against": _rung_text(check_rung), **d.figures()})
+    diffs = tuple(compare_trajectories(a, b) for (a, _), (b, _) in zip(tight.inputs, check.inputs))
+    # several inputs: the worst input's errors, and no one input's peaks or peak times
+    figures = diffs[0].figures() if len(diffs) == 1 else {k: getattr(diffs[0], k) for k in
+                                                          ("span_start", "span_end", "horizon")}
+    return Truth(tight, {"against": _rung_text(check_rung), **figures, **worst_figures(diffs)})
 
 
 def ladder(scene: Scene, engines: Sequence[str] = DEFAULT_ENGINES, quick: bool = False) -> list[Config]:
@@ -233,12 +241,12 @@ def measure(scene: Scene, config: Config, truth: Truth, repeats: int) -> Measure
     except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
         return Measurement(config, status="refused", message=str(exc), verdict_reasons=(f"refused: {exc}",))
     comparison = judge(scene, truth.result, first, scene.tolerances_for(config.engine))
-    d = comparison.diff
+    d = worst_figures(comparison.diffs)  # every input's: the worst (one input: its own)
     reasons = (*own_failures, *comparison.gate.failures)
     return Measurement(
         config, status="ok", verdict=Verdict.FAIL if reasons else Verdict.PASS, verdict_reasons=reasons,
-        peak_omega_rel=d.peak_omega_rel, q_max_abs=d.q_max_abs,
-        omega_max_abs=d.omega_max_abs, omega_vs_q_max_abs=d.omega_vs_q_max_abs,
+        peak_omega_rel=d["peak_omega_rel"], q_max_abs=d["q_max_abs"],
+        omega_max_abs=d["omega_max_abs"], omega_vs_q_max_abs=d["omega_vs_q_max_abs"],
         constraint_violation=(math.nan if first.constraint_violation is None
                               else first.constraint_violation.max),
         wall_min_s=min(walls), wall_median_s=statistics.median(walls), wall_max_s=max(walls),
@@ -491,8 +499,12 @@ def cost_report(scene: Scene, truth: Truth, measurements: list[Measurement],
                      if reference is not None and reference.reached and r.reached else None)
             recommendation[ratio_key(name)] = ratio.as_dict() if ratio else None
     load = load or LoadAverage(None, None, os.cpu_count() or 1)
+    units = scene.input_units()
     return {
-        "scene": scene.name, "source": portable_source(scene.source), "input_unit": scene.input_unit,
+        "scene": scene.name, "source": portable_source(scene.source),
+        "input_unit": units[0] if len(set(units)) == 1 else "rad or m",
+        "inputs": [{"name": name, "unit": unit, "truth_peak_omega": peak.omega}
+                   for name, unit, (_, peak) in zip(scene.inputs, units, truth.result.inputs)],
         "engines": list(engines), "reference": REFERENCE,
         "truth": {"method": truth_text(), "peak_omega": truth.peak_omega, "accuracy": truth.error},
         "timing": {"what": "simulation only (integration or rollout); no model building, audit or plots",
@@ -563,10 +575,16 @@ def summary_lines(report: dict, measurements: list[Measurement]) -> list[str]:
     load = timing.get("load_average") or {}
     loads = " ; ".join(f"{when} {' '.join(f'{x:.2f}' for x in load[when])}" for when in ("start", "end")
                        if load.get(when))
-    lines = [f"truth: {report['truth']['method']}, peak qdot {report['truth']['peak_omega']:+.12g} {unit}/s; "
+    inputs = report.get("inputs") or []
+    if len(inputs) > 1:  # several DOF: every input's peak; the errors below are the worst input's
+        peaks = ", ".join(f"{i['name']} {i['truth_peak_omega']:+.12g} {i['unit']}/s" for i in inputs)
+        worst = " (the worst input's, as every error below)"
+    else:
+        peaks, worst = f"{report['truth']['peak_omega']:+.12g} {unit}/s", ""
+    lines = [f"truth: {report['truth']['method']}, peak qdot {peaks}; "
              f"against {report['truth']['accuracy']['against'].split(' ', 1)[-1]}: peak "
              f"{report['truth']['accuracy']['peak_omega_rel']:.1e} rel, "
-             f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}",
+             f"max |dq| {report['truth']['accuracy']['q_max_abs']:.1e} {unit}{worst}",
              f"wall time: median of {timing['repeats']} runs [min-max], simulation only; load average "
              f"(1, 5, 15 min) {loads or 'not available'} on {load.get('cores', '?')} cores",
              "verdict: what `loopcheck run` says (its own limits, and its gate against the truth at the "
@@ -618,7 +636,6 @@ def study(scene: Scene, *, quick: bool = False, target: float | None = None, rep
     ValueError
         In one line, before any work: a scene table an engine's settings refuse.
     """
-    scene.require_one_dof("cost")
     target = target if target is not None else scene.tolerances.peak_omega_rtol
     repeats = repeats if repeats is not None else 3
     for name in engines:

@@ -353,3 +353,22 @@ def _mode_failures(modes: ModeCheck | None) -> list[str]:
     if modes is not None and modes.total:
         return [f"assembly mode differs ({'; '.join(modes.lines())}): a loop closed in its other assembly"]
     return []
+
+
+ERROR_FIGURES = ("peak_omega_abs", "peak_omega_rel", "t_peak_abs", "q_max_abs", "q_rms", "omega_max_abs", "omega_rms",
+                 "omega_vs_q_max_abs")  # a Difference's figures that measure an error (larger is worse)
+
+
+def worst_figures(diffs: tuple[Difference, ...]) -> dict[str, float]:
+    """Each error figure (:data:`ERROR_FIGURES`) of ``diffs`` (one :class:`Difference` per input of
+    a scene, in its inputs order) at its largest over the inputs, each in its input's unit (rad or
+    m, per s): what a study of a scene of several degrees of freedom judges, so that what it says
+    holds for every input. NaN where any input's figure is NaN (ω at equal q not comparable there).
+    With one input, that input's figures exactly."""
+    if not diffs:
+        raise ValueError("worst_figures needs one difference per input, got none")
+    out = {}
+    for key in ERROR_FIGURES:
+        values = [getattr(d, key) for d in diffs]
+        out[key] = math.nan if any(math.isnan(v) for v in values) else max(values)
+    return out

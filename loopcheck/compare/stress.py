@@ -11,6 +11,13 @@ step), energy drift over long runs, and the error of a pulse edge off the step g
 that has one (:meth:`loopcheck.registry.Engine.fixed_step`). A case passes when every engine ran
 and passed its gate and every check holds. Nothing is skipped and nothing is marked as expected to
 fail.
+
+A scene of several degrees of freedom (``five_bar_fold``: a two-DOF five-bar through a singular
+configuration of its inputs' set) is judged the same way over every input: the gate judges each
+input (:func:`loopcheck.compare.diff.gate_inputs`), an engine's figures are the worst input's
+(:func:`_run_figures`), the switches are the reference's whatever its chart, the probes judge whole
+runs, and the drift counts the revolutions of the input that turns most. The off-grid edge is
+one input's pulse (``scene.load``): a case that asks for it on a scene of several DOF fails, saying so.
 """
 
 from __future__ import annotations
@@ -33,7 +40,7 @@ from loopcheck.scene import Scene
 from loopcheck.scenefile import load_scene
 from loopcheck.shipped_scenes import scenes_dir
 
-from .diff import compare_trajectories
+from .diff import compare_trajectories, worst_figures
 from .engines import check_engines
 from .run import Comparison
 from .settings import engine_settings
@@ -85,6 +92,9 @@ CATALOGUE = (
     # drive there: the reference must change coordinate), a six-bar near a toggle.
     Case("slider_dead_centres", "mechanisms/slider_crank_driven_slider.toml", must_switch=True),
     Case("sixbar_near_toggle", "mechanisms/stephenson3_near_toggle.toml"),
+    # Two DOF: a five-bar whose arms fold parallel, a singular configuration of its inputs' set (the
+    # reference must leave the inputs' coordinates and stay accurate on both inputs).
+    Case("five_bar_fold", "hard/five_bar_fold.toml", must_switch=True),
 )
 
 
@@ -173,25 +183,32 @@ def _failure_status(line: str) -> RunStatus | FailureReason:
     return FailureReason(line.split("(", 1)[1].split(")", 1)[0])
 
 
+def _revolutions(result: EngineResult) -> float:
+    """The turns of the input that turns most (each input's |q(T) − q(0)| / 2π), at least 1: a
+    swing, or a slide, counts as one."""
+    return max(1.0, *(abs(tr.q[-1] - tr.q[0]) / (2 * math.pi) for tr, _ in result.inputs))
+
+
 def _drift_per_revolution(result) -> float:
-    """|E(T) − E(0)| / E(0) per revolution of the input (conservative scenes)."""
+    """|E(T) − E(0)| / E(0) per revolution of the input that turns most (conservative scenes)."""
     a = result.audit
     energy = a.kinetic + a.potential
     scale = max(a.scale, abs(energy[0]), 1e-300)
-    revolutions = max(abs(result.trajectory.q[-1] - result.trajectory.q[0]) / (2 * math.pi), 1.0)
-    return float(abs(energy[-1] - energy[0]) / scale / revolutions)
+    return float(abs(energy[-1] - energy[0]) / scale / _revolutions(result))
 
 
 def _run_figures(result: EngineResult, comparison: Comparison | None) -> dict:
+    """An engine's figures in a case; its differences from the reference are the worst input's,
+    each figure over every input (:attr:`~loopcheck.compare.run.Comparison.diffs`: one for a
+    one-DOF scene: :func:`loopcheck.compare.diff.worst_figures`), in that input's unit."""
     figures = dict(wall_s=result.wall_s, energy_residual=result.audit.relative_residual)
     if result.constraint_violation is not None:
         figures["constraint_violation"] = result.constraint_violation.max
     if comparison is not None:
-        diff = comparison.diff
-        figures.update(peak_omega_rel=diff.peak_omega_rel, peak_omega_abs=diff.peak_omega_abs,
-                       t_peak_abs=diff.t_peak_abs, q_max_abs=diff.q_max_abs, omega_max_abs=diff.omega_max_abs,
-                       omega_vs_q_max_abs=diff.omega_vs_q_max_abs, span_end=diff.span_end,
-                       mode_mismatches=comparison.modes.total)
+        worst = worst_figures(comparison.diffs)
+        figures.update({key: worst[key] for key in ("peak_omega_rel", "peak_omega_abs", "t_peak_abs", "q_max_abs",
+                                                    "omega_max_abs", "omega_vs_q_max_abs")})
+        figures.update(span_end=comparison.diff.span_end, mode_mismatches=comparison.modes.total)
     return figures
 
 
@@ -267,7 +284,10 @@ def run_case(case: Case, engines: tuple[str, ...] = DEFAULT_ENGINES) -> CaseResu
         problems += _run_probes(scene, case, outcomes, extra, notes)
     if case.energy_drift:
         problems += _report_drift(outcomes, extra, notes)
-    if case.off_grid_edge and reference is not None:
+    if case.off_grid_edge and scene.dof > 1:
+        problems.append(f"the off-grid edge is one input's pulse: scene '{scene.name}' has {scene.dof} degrees of "
+                        "freedom (its loads are actuators)")
+    elif case.off_grid_edge and reference is not None:
         on_grid_references: dict[float, EngineResult] = {}
         for o in others:
             if o.result is not None:
@@ -343,7 +363,7 @@ def _report_drift(outcomes: list[EngineOutcome], extra: dict, notes: list) -> li
     if not ran or ran[0].engine != REFERENCE:
         return []
     reference = ran[0].result
-    revolutions = max(abs(reference.trajectory.q[-1] - reference.trajectory.q[0]) / (2 * math.pi), 1.0)
+    revolutions = _revolutions(reference)
     problems, bound = _check_reference_drift(reference, extra[REFERENCE]["drift_per_revolution"], revolutions)
     extra[REFERENCE]["drift_bound"] = bound
     span = f"{revolutions:.0f} revolutions" if revolutions > 1.0 else "swinging, under one revolution"

@@ -45,10 +45,10 @@ def results():
     return get
 
 
-def test_catalogue_covers_the_ten_kinds_of_hard_case():
+def test_catalogue_covers_the_eleven_kinds_of_hard_case():
     assert CASES == ["dead_centre", "start_dead_centre", "near_change_point", "stiff_damper",
                      "long_conservative", "fast_crank", "off_grid_edge", "gravity",
-                     "slider_dead_centres", "sixbar_near_toggle"]
+                     "slider_dead_centres", "sixbar_near_toggle", "five_bar_fold"]
     for case in CATALOGUE:
         text = case.path.read_text()
         assert "# HARD CASE" in text and "Expected:" in text  # each scene documents itself
@@ -68,16 +68,22 @@ def test_case_passes_over_the_whole_horizon(results, name):
 @pytest.mark.parametrize("name", [case_param(n) for n in CASES])
 def test_tolerances_are_within_10x_of_the_measured_differences(results, name):
     """Each scene sets its tolerances 3-10x above the differences measured (its comment
-    says which): a tolerance far above them could never fail, one below would always."""
+    says which): a tolerance far above them could never fail, one below would always. With several
+    inputs each tolerance is held to the worse input's figure (the one nearest it)."""
     r = results(name)
     comparison = r.outcome("mujoco").comparison
-    d, tol = comparison.diff, comparison.gate.tolerances
-    pairs = [(d.peak_omega_abs, tol.peak_omega_rtol * abs(d.peak_omega_reference) + tol.peak_omega_atol),
-             (d.q_max_abs, tol.q_atol), (d.omega_max_abs, tol.omega_atol)]
-    if tol.omega_vs_q_atol is not None:
-        pairs.append((d.omega_vs_q_max_abs, tol.omega_vs_q_atol))
-    for measured, tolerance in pairs:
-        assert 2.5 * measured <= tolerance <= 10 * measured, (measured, tolerance)
+    tol = comparison.gate.tolerances
+    keys = ["peak", "q", "omega"] + (["omega_vs_q"] if tol.omega_vs_q_atol is not None else [])
+    worst = dict.fromkeys(keys, 0.0)  # each check's largest measured / tolerance over the inputs
+    for d in comparison.diffs:
+        pairs = {"peak": (d.peak_omega_abs, tol.peak_omega_rtol * abs(d.peak_omega_reference) + tol.peak_omega_atol),
+                 "q": (d.q_max_abs, tol.q_atol), "omega": (d.omega_max_abs, tol.omega_atol),
+                 "omega_vs_q": (d.omega_vs_q_max_abs, tol.omega_vs_q_atol)}
+        for key in keys:
+            measured, tolerance = pairs[key]
+            worst[key] = max(worst[key], measured / tolerance)
+    for key, ratio in worst.items():
+        assert 0.1 <= ratio <= 0.4, (key, ratio)
 
 
 def test_dead_centre_switches_coordinate_and_stays_continuous(results):
@@ -103,6 +109,53 @@ def test_dead_centre_switches_coordinate_and_stays_continuous(results):
     assert joints.x[:, 0].min() >= q_limit - 1e-9
     assert joints.x[:, 0].min() < q_limit + 1e-3
     assert result.audit.relative_residual < 1e-9  # conservative: measured 6.9e-11 through the switches
+
+
+def test_five_bar_fold_leaves_the_inputs_chart_and_is_judged_on_both_inputs(results):
+    """The two-DOF case: the reference leaves the inputs' chart (O1, O5) before the arms fold, its
+    joints continuous across the switch (the case's own check: 1e-12 rad, 1e-9 rad/s), and MuJoCo is
+    judged on both inputs: its figures are the worse input's. Measured: max |Δq| 9.4e-7 rad on O1,
+    1.0e-6 rad on O5, so the case's figure is O5's (a first-input-only figure would be O1's)."""
+    r = results("five_bar_fold")
+    reference = r.outcome("reduced").result
+    assert r.figures["switches"] >= 1 and reference.details.switches[0].old == "O1, O5"
+    assert any("coordinate switches" in note for note in r.notes)
+    mujoco = r.outcome("mujoco")
+    diffs = mujoco.comparison.diffs
+    assert len(diffs) == 2 and all(d.covers_horizon for d in diffs)
+    for key in ("peak_omega_rel", "q_max_abs", "omega_max_abs", "omega_vs_q_max_abs"):
+        assert mujoco.figures[key] == max(getattr(d, key) for d in diffs), key
+    assert diffs[1].q_max_abs > diffs[0].q_max_abs  # so the figure above is the second input's
+    assert reference.audit.relative_residual < 1e-9  # measured 5.1e-12 (no damping, pulses do the work)
+
+
+def test_an_off_grid_edge_on_a_scene_of_several_dof_fails_saying_so():
+    """The off-grid edge is one input's pulse: asked of a two-DOF scene, the case fails naming why,
+    never measures the first input's load alone."""
+    from loopcheck.compare.stress import Case
+
+    r = run_case(Case("fold_edge", BY_NAME["five_bar_fold"].scene_file, off_grid_edge=True))
+    assert not r.passed
+    assert r.problems == ("the off-grid edge is one input's pulse: scene 'five_bar_fold' has 2 degrees of freedom "
+                          "(its loads are actuators)",)
+
+
+def test_the_drift_of_a_scene_of_several_dof_counts_the_input_that_turns_most():
+    """tests/data/five_bar_pendulum.toml (3 DOF) over its 0.8 s: the cranks turn 1.006 and 0.69
+    revolutions, the wrist 4.30 (measured): drift per revolution is |ΔE|/E over the wrist's turns,
+    not the first input's."""
+    import loopcheck
+    from loopcheck.compare.stress import _drift_per_revolution
+
+    from helpers import ROOT
+
+    result = loopcheck.simulate(load_scene(ROOT / "tests" / "data" / "five_bar_pendulum.toml"))
+    turns = [abs(tr.q[-1] - tr.q[0]) / (2 * np.pi) for tr, _ in result.inputs]
+    assert turns[2] > 4.0 > 1.0 > max(turns[1], turns[0] - 0.01)  # the wrist turns most, by far
+    a = result.audit
+    energy = a.kinetic + a.potential
+    change = abs(energy[-1] - energy[0]) / max(a.scale, abs(energy[0]))
+    assert _drift_per_revolution(result) == pytest.approx(change / turns[2], rel=1e-12)
 
 
 def test_start_at_dead_centre_uses_another_coordinate(results):

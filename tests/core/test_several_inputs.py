@@ -79,15 +79,12 @@ def test_every_built_in_engine_runs_several_dof():
     assert all(engine.several_dof for engine in BUILT_IN)
 
 
-def test_the_one_dof_studies_refuse_a_two_dof_scene_before_any_work(tmp_path):
-    # cost and sweep read the first input's peak: on several inputs they would judge one coordinate
-    # of n, so they refuse (issue 41 gives them an n-DOF meaning)
-    from loopcheck.compare.cost import study
+def test_the_sweep_refuses_a_two_dof_scene_before_any_work(tmp_path):
+    # a sweep's rows hold one input's peak: on several inputs they would judge one coordinate of n, so
+    # it refuses (docs/comparison.md; cost judges every input: tests/compare/test_cost_several_dof.py)
     from loopcheck.compare.sweep_scene import check, load_sweep
     from loopcheck.sweep_spec import spec_from_args
 
-    with pytest.raises(SceneError, match="loopcheck cost studies one-DOF scenes only"):
-        study(load_scene(FIVE_BAR), quick=True)
     data, _ = load_sweep(str(FIVE_BAR))
     with pytest.raises(SceneError, match="loopcheck sweep studies one-DOF scenes only"):
         check(data, spec_from_args(["bodies.left_arm.mass=1:2:2"], None, None), str(FIVE_BAR))

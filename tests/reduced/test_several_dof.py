@@ -85,6 +85,11 @@ def test_the_five_bar_balances_its_energy_and_reports_every_joint(five_bar_run):
     assert np.max(np.abs(left - right)) < 1e-12
 
 
+SCENE_PATHS = {"five_bar_robot": ROOT / "scenes/mechanisms/five_bar_robot.toml",
+               "five_bar_fold": ROOT / "scenes/hard/five_bar_fold.toml",
+               "five_bar_pendulum": ROOT / "tests/data/five_bar_pendulum.toml"}
+
+
 @pytest.mark.parametrize("name", ["five_bar_robot", "five_bar_fold", "five_bar_pendulum"])
 def test_the_compiled_dop853_is_scipys_dop853_on_the_same_chart_to_the_bit(name):
     """The default method (the compiled DOP853 in n coordinates, the chart called from compiled code)
@@ -99,7 +104,7 @@ def test_the_compiled_dop853_is_scipys_dop853_on_the_same_chart_to_the_bit(name)
     from helpers import scipy_in_vector_kernel_order
     from loopcheck.reduced.settings import ReducedSettings
 
-    scene = load_scene(ROOT / "tests/data" / f"{name}.toml")
+    scene = load_scene(SCENE_PATHS[name])
     compiled = loopcheck.simulate(scene, ReducedSettings())
     with scipy_in_vector_kernel_order():
         scipy = loopcheck.simulate(scene, ReducedSettings(method="scipy-dop853"))
@@ -183,11 +188,11 @@ def test_rkn4_with_several_inputs_refuses_a_step_too_stiff_or_too_coarse(coeffic
     assert "smaller step" in message
 
 
-FOLD = ROOT / "tests/data/five_bar_fold.toml"
+FOLD = ROOT / "scenes/hard/five_bar_fold.toml"
 
 
 def five_bar_fold() -> Model:
-    """tests/data/five_bar_fold.toml, by hand: the five-bar with a 0.5 m right arm, no gravity."""
+    """scenes/hard/five_bar_fold.toml, by hand: the five-bar with a 0.5 m right arm, no gravity."""
     return Model(
         bodies=(Body("left_crank", 2.0, (0.2, 0.0), 0.03), Body("left_arm", 1.5, (0.35, 0.02), 0.07),
                 Body("right_arm", 1.2, (0.25, -0.01), 0.05), Body("right_crank", 2.5, (0.2, 0.0), 0.04)),
