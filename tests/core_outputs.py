@@ -37,6 +37,8 @@ NOT_RECORDED = {
                                      "tests/reference_models/test_actuators_mjcf.py (MuJoCo, Pinocchio, audits)",
     "mechanisms/friction_fourbar.toml": "tests/reduced/test_friction_fourbar.py (stick, energy, halves)",
     "mechanisms/five_bar_robot.toml": "tests/reduced/test_several_dof.py (two DOF: the multibody oracle, energy)",
+    "mechanisms/adaptive_finger.toml": "tests/reduced/test_catalogue_several_dof.py (two DOF: the multibody oracle, energy)",
+    "mechanisms/three_rrr.toml": "tests/reduced/test_catalogue_several_dof.py (three DOF: the multibody oracle, energy)",
 }
 
 

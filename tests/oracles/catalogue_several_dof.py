@@ -33,7 +33,7 @@ def finger(spring_sign: float = 1.0) -> Model:
 
 
 FINGER_INPUTS = ("D", "J")  # the driver's angle (pin D's, from the ground), J's relative angle
-FINGER_GUESS = {"driver": 0.3, "coupler": 0.0, "proximal": 0.0, "distal": 0.0}
+FINGER_GUESS = {"driver": 0.0, "coupler": 0.2, "proximal": 0.0, "distal": 0.0}
 
 
 def three_rrr() -> Model:
@@ -58,7 +58,7 @@ def three_rrr() -> Model:
 
 
 RRR_INPUTS = ("A1", "A2", "A3")
-RRR_GUESS = {"crank1": -0.59, "link1": -2.24, "crank2": 1.5, "link2": -0.15, "crank3": 3.6, "link3": 1.94,
+RRR_GUESS = {"crank1": -0.59, "link1": -2.24, "crank2": 1.5, "link2": -0.15, "crank3": -2.68, "link3": 1.94,
              "platform": 0.0}
 
 

@@ -71,7 +71,7 @@ def test_every_input_agrees_with_the_oracle(case):
         q, qdot = oracle[name]
         assert np.max(np.abs(q - trajectory.q[idx])) < Q_TOL, name
         assert np.max(np.abs(qdot - trajectory.qdot[idx])) < RATE_TOL, name
-        assert np.ptp(trajectory.q) > 0.3, name  # every input moves visibly
+        assert np.ptp(trajectory.q) > 0.2, name  # every input moves visibly
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
