@@ -7,13 +7,13 @@ defect; no test asks a port to pass). Pinocchio also against the independent mul
 (tests/oracles/catalogue_several_dof.py), every input.
 
 Measured (2026-11-28; pin 4.1.0, mujoco-warp 4.0.0, CPU) over 0.15 s:
-  Pinocchio against the oracle, every sample: finger D 2.9e-11 rad, 4.7e-10 rad/s; J 4.1e-11 rad,
-    2.5e-9 rad/s; 3-RRR A1 4.3e-12 rad, 1.7e-11 rad/s; A2 3.3e-12, 3.4e-11; A3 3.8e-12, 4.9e-11
-    (the oracle's accuracy at rtol 1e-11: 3.4e-12 rad, 3.4e-10 rad/s on the finger). Bounds 2e-10
-    rad and 1e-8 rad/s (4-5x the finger's). Its energy balance: 3.6e-11 (finger), 6.6e-12 (3-RRR).
-  loopcheck.check over 0.15 s: MuJoCo ok (peaks 1.2e-5, 1.1e-6 off; 1.3e-6, 2.9e-6, 1.4e-5);
-    Pinocchio ok (≤ 1.3e-10); MJWarp completes and fails its gate on the finger (peaks 1.2e-4 and
-    1.4e-4 off) and on the 3-RRR's A3 (1.7e-4 of a small peak, 0.18 rad/s), its known defect said.
+  Pinocchio against the oracle, every sample: finger D 1.1e-11 rad, 2.4e-10 rad/s; J 1.8e-11 rad,
+    1.6e-9 rad/s; 3-RRR A1 4.3e-12 rad, 1.7e-11 rad/s; A2 3.3e-12, 3.4e-11; A3 3.8e-12, 4.9e-11
+    (the oracle's accuracy at rtol 1e-11: 1.0e-11 rad, 1.8e-10 rad/s on the finger). Bounds 2e-10
+    rad and 1e-8 rad/s (≥ 6x the finger's). Its energy balance: 3.1e-11 (finger), 6.6e-12 (3-RRR).
+  loopcheck.check over 0.15 s: MuJoCo ok (peaks 8.9e-6, 6.8e-7 off; 1.3e-6, 2.9e-6, 1.4e-5);
+    Pinocchio ok (≤ 7.3e-11); MJWarp ok on the finger (5.9e-5, 2.8e-5) and fails its gate on the
+    3-RRR's A3 (1.7e-4 of a small peak, 0.18 rad/s); its known defect said on both.
   Over the whole horizons, for the record (loopcheck.check, every engine): the finger over 0.3 s —
     MuJoCo ok, Pinocchio ok, MJX fails (peak 3.7e-3 off, |Δq| 1.4e-3 rad: its known defect), MJWarp
     fails (1.2e-4, 1.4e-4: its known defect); the 3-RRR over 0.5 s — MuJoCo ok (≤ 1.3e-5), Pinocchio

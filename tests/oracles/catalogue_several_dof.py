@@ -33,7 +33,7 @@ def finger(spring_sign: float = 1.0) -> Model:
 
 
 FINGER_INPUTS = ("D", "J")  # the driver's angle (pin D's, from the ground), J's relative angle
-FINGER_GUESS = {"driver": 0.0, "coupler": 0.2, "proximal": 0.0, "distal": 0.0}
+FINGER_GUESS = {"driver": -0.3, "coupler": 0.2, "proximal": 0.0, "distal": 0.0}
 
 
 def three_rrr() -> Model:
