@@ -39,6 +39,8 @@ NOT_RECORDED = {
     "mechanisms/five_bar_robot.toml": "tests/reduced/test_several_dof.py (two DOF: the multibody oracle, energy)",
     "hard/five_bar_fold.toml": "tests/reduced/test_several_dof.py (two DOF through a singular configuration of "
                                "its inputs: the multibody oracle, energy)",
+    "mechanisms/adaptive_finger.toml": "tests/reduced/test_catalogue_several_dof.py (two DOF: the multibody oracle, energy)",
+    "mechanisms/three_rrr.toml": "tests/reduced/test_catalogue_several_dof.py (three DOF: the multibody oracle, energy)",
 }
 
 

@@ -102,6 +102,7 @@ CUSTOM_HORIZON = "loopcheck.horizon"  # [s]
 CUSTOM_CTRL = "loopcheck.ctrl"  # the input motor's control table [t0, v0, t1, v1, ...] (s, ctrl units; gear 1)
 CUSTOM_ACTUATOR_CTRL = "loopcheck.ctrl."  # + an actuator's name: its control table [t0, v0, t1, v1, ...]
 CUSTOM_TOLERANCES = "loopcheck.tolerances."  # + KEY, or + ENGINE.KEY: [value]
+CUSTOM_INPUTS = "loopcheck.inputs"  # a <text>: the inputs' joints in order, "D,J" (several DOF only)
 PIVOT_POINT_MASS = 1.0  # kg, at a fixed pivot: no kinetic or potential energy
 INPUT_MOTOR = "input_motor"  # the actuator of the scene's load on the input joint
 RESERVED_NAMES = (BASE_BODY, "world")  # MuJoCo names a description's body may not take
@@ -468,9 +469,13 @@ def add_scene_customs(spec: mujoco.MjSpec, scene: Scene) -> None:
     """What the scene holds outside the model, as ``<custom>`` numerics (``loopcheck import-mjcf``
     reads them back; they do not act on the model): the horizon, every tolerance given (the
     scene's ``[tolerances]`` and each engine's own table's keys) and the input's load table, when
-    it has a load (the motor's gear is 1, so its control is the load). A point or timed force is said in a text
-    (:func:`build_spec`): MJCF cannot carry it."""
+    it has a load (the motor's gear is 1, so its control is the load). With several inputs, their joints
+    in order as a ``<custom>`` text (an input no actuator drives, such as a spring-held joint, is then
+    read back as the same input, not chosen again by partitioning). A point or timed force is said in a
+    text (:func:`build_spec`): MJCF cannot carry it."""
     spec.add_numeric(name=CUSTOM_HORIZON, data=[float(scene.horizon)])
+    if len(scene.inputs) > 1:
+        spec.add_text(name=CUSTOM_INPUTS, data=",".join(scene.inputs))
     for f in dataclasses.fields(Tolerances):
         value = getattr(scene.tolerances, f.name)
         if value is not None:
@@ -797,7 +802,7 @@ def check_joint_order(scene: Scene, model: mujoco.MjModel) -> None:
         raise ValueError(f"the model's joints {names} are not the scene's tree joints {wanted} in order")
 
 
-__all__ = ["BASE_BODY", "CUSTOM_CTRL", "CUSTOM_HORIZON", "CUSTOM_PREFIX", "CUSTOM_TOLERANCES", "ConstraintSettings",
+__all__ = ["BASE_BODY", "CUSTOM_CTRL", "CUSTOM_HORIZON", "CUSTOM_INPUTS", "CUSTOM_PREFIX", "CUSTOM_TOLERANCES", "ConstraintSettings",
            "HOME_KEY", "INPUT_MOTOR", "actuator_controls", "actuator_tendons", "transmission_tendon", "ModelHandles", "TreeBody", "add_scene_customs", "assembled_angles",
            "build_spec", "check_joint_order", "compile_model", "coupling_polycoef", "coordinate_map", "initial_qpos_qvel", "initial_rates",
            "joint_order", "joint_positions", "joint_rates", "joint_rates_matrix", "joint_tendons", "load_table",

@@ -81,7 +81,7 @@ from loopcheck.scenefile import redundancy_note, scene_from_dict
 from loopcheck.settings import parse_number
 
 from loopcheck.mujoco_model.build import (BASE_BODY, CUSTOM_ACTUATOR_CTRL, CUSTOM_CTRL, CUSTOM_HORIZON,
-                                          CUSTOM_PREFIX, CUSTOM_TOLERANCES, INPUT_MOTOR)
+                                          CUSTOM_INPUTS, CUSTOM_PREFIX, CUSTOM_TOLERANCES, INPUT_MOTOR)
 from loopcheck.mujoco_model.warning_handler import compile_spec, mujoco_warnings
 
 # Loops must close at the configuration read within this fraction of the longest link (the
@@ -1112,6 +1112,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     reader.check_options()
     reader.joints()
     named_inputs = _named_inputs(reader, input_joint)
+    written_inputs = _custom_inputs(path, model)
     inp, no_motor = _input_joint(reader, named_inputs[0] if named_inputs else None)
     reader.plane(inp)
     reader.check_contacts(qpos)
@@ -1174,7 +1175,7 @@ def import_mjcf(path: str | Path, *, input_joint: str | None = None, keyframe: s
     couplings = _couplings(reader, system, T, x_read, {j.name for j in joints})
     read_at = f"keyframe '{keyframe}'" if keyframe is not None else "qpos0"
     inputs, choice = _inputs(reader, bodies, joints, couplings, input_name, provisional, x_read, named_inputs,
-                             len(cuts), read_at, actuation_off)
+                             len(cuts), read_at, actuation_off, written_inputs)
     reader.said_inputs = choice
     if len(inputs) == 1 and no_motor is not None:
         reader.warnings.append(no_motor)
@@ -1316,6 +1317,24 @@ def _check_drive(reader: _Reader, system, linkage: Linkage, x: np.ndarray, inp: 
                 f"locks it); --input '{mj_names[can[0]]}' names a joint that can")
 
 
+def _custom_inputs(path: Path, model: mujoco.MjModel) -> tuple[str, ...]:
+    """The inputs ``loopcheck export-mjcf`` wrote for a scene of several (the ``<custom>`` text
+    ``loopcheck.inputs``, "D,J"), MuJoCo joints' names, empty without it; each must be a joint of the
+    model (refused naming the text). :func:`_inputs` takes them before coordinate partitioning."""
+    for n in range(model.ntext):
+        if mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TEXT, n) != CUSTOM_INPUTS:
+            continue
+        adr, size = int(model.text_adr[n]), int(model.text_size[n])
+        text = bytes(model.text_data[adr:adr + size]).split(b"\0")[0].decode()
+        names = tuple(name.strip() for name in text.split(","))
+        for name in names:
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) < 0:
+                raise MjcfError(f"{path}: custom text '{CUSTOM_INPUTS}' data=\"{text}\": '{name}' is not a "
+                                "joint of the model")
+        return names
+    return ()
+
+
 def _named_inputs(reader: _Reader, text: str | None) -> tuple[str, ...]:
     """``--input``'s MuJoCo joints: one name, or several separated by commas (the first inputs of a
     linkage of several DOF, in order); each must be a joint of the model, named once."""
@@ -1387,14 +1406,15 @@ INDEPENDENT_RTOL = 1e-6
 
 def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisional: tuple[str, ...],
             x_read: np.ndarray, named: tuple[str, ...], n_cuts: int, read_at: str,
-            actuation_off: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
+            actuation_off: bool, written: tuple[str, ...] = ()) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(the scene's inputs, the lines that say how they were chosen) for the configuration read.
 
     The count of DOF is the loop Jacobian's rank deficiency at the configuration read (every
     constraint row, the couplings' too: :func:`loopcheck.kinematics.rank_dof`). One DOF: the first
     input alone, as always. Several: the joints ``--input`` names, then the joints the actuators act
     on (a joint transmission's, a fixed tendon's: :func:`_actuated_joints`), each taken where it does
-    not move with those before it, then coordinate partitioning among the model's other joints (their
+    not move with those before it, then the joints of ``written`` (the export's ``loopcheck.inputs``,
+    :func:`_custom_inputs`) the same way, then coordinate partitioning among the model's other joints (their
     own coordinates): pivoted QR of their rows on the null space of the loop Jacobian, largest
     remainder first, until there are as many inputs as DOF."""
     m = reader.model
@@ -1454,6 +1474,8 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
         if name in chosen:
             continue
         (taken_actuated if take(name) else tied).append(f"{said(name)} ({label})")
+    from_text = [said(reader.joint_of[name]) for name in written
+                 if reader.joint_of[name] not in chosen and take(reader.joint_of[name])]
     partitioned = []
     while len(chosen) < dof:
         rest = [n for n in mj_joints if n not in chosen]
@@ -1474,6 +1496,8 @@ def _inputs(reader: _Reader, bodies, joints, couplings, input_name: str, provisi
     if tied:
         lines.append("  driven too, and moving with the inputs before it (a coupling or a loop ties it): "
                      + ", ".join(tied))
+    if from_text:
+        lines.append(f"  the inputs export-mjcf wrote (custom text '{CUSTOM_INPUTS}'): " + ", ".join(from_text))
     if partitioned:
         lines.append("  chosen by coordinate partitioning (pivoted QR on the loop Jacobian among the joints' own "
                      "coordinates): " + ", ".join(partitioned))

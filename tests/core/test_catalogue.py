@@ -37,11 +37,13 @@ EXPECTED = {  # scene: (moving bodies, loops, effects)
     "seed_fourbar_geared_flywheel": (4, 1, ("torque", "damper")),
     "servo_fourbar": (3, 1, ("actuator",)),
     "five_bar_robot": (4, 1, ("actuator", "gravity")),  # two DOF (issue 40)
+    "adaptive_finger": (4, 1, ("joint-spring", "actuator")),  # two DOF, one motor (issue 41)
+    "three_rrr": (7, 2, ("actuator",)),  # three DOF (issue 41)
 }
 # Scenes of several inputs: the one-input checks below (a full turn of the crank, K and L of the one
 # input by finite differences) do not apply; tests/reduced/test_several_dof.py holds them to the
-# independent multibody oracle.
-SEVERAL_DOF = ("five_bar_robot",)
+# independent multibody oracle (tests/reduced/test_catalogue_several_dof.py the finger and the 3-RRR).
+SEVERAL_DOF = ("five_bar_robot", "adaptive_finger", "three_rrr")
 # whole turns each other angle makes per turn of the crank (0 where it comes back): the drag link's
 # coupler and follower turn with it, the geared flywheel turns twice the other way (its coupling)
 TURNS = {"drag_link": 1, "seed_fourbar_geared_flywheel": {"flywheel.angle": -2}}

@@ -14,9 +14,11 @@ coincide: Φ(q) = 0. With M = diag(m, m, I_G) per body and Φ_q the constraints'
     [ Φ_q   0   ] [ λ  ] = [ γ ],     γ = −(Φ_q q̇)_q q̇ = Σ ± θ̇² R(θ) u   (u = s − c),
 
 the index-1 form of the equations of motion. Q holds gravity, the joints' torques (τ on the body
-``b`` of a joint, −τ on its body ``a``, for the relative angle θ_b − θ_a) and the point-to-point
-dampers (force −c ḋ along the line between their points). The work of the torques and the
-dampers' dissipation are integrated alongside, for the energy balance.
+``b`` of a joint, −τ on its body ``a``, for the relative angle θ_b − θ_a), the torsion springs on
+a joint's relative angle (τ = −k (θ_b − θ_a − u0), the same way round; potential ½ k (θ_b − θ_a −
+u0)², counted in the energy) and the point-to-point dampers (force −c ḋ along the line between
+their points). The work of the torques and the dampers' dissipation are integrated alongside, for
+the energy balance.
 
 ``simulate`` integrates it with scipy's DOP853 (restarted at every load edge) and states its own
 accuracy: the largest differences of the body angles and of their rates between rtol and rtol / 2 — a
@@ -81,11 +83,21 @@ class Torque:
 
 
 @dataclass(frozen=True)
+class TorsionSpring:
+    """A torsion spring across a pin: τ = −k (θ_b − θ_a − u0) on its body b, −τ on its body a (the
+    ground's angle 0); potential ½ k (θ_b − θ_a − u0)²."""
+    pin: str
+    stiffness: float    # N·m/rad
+    rest: float = 0.0   # rad
+
+
+@dataclass(frozen=True)
 class Model:
     bodies: tuple
     pins: tuple
     dampers: tuple = ()
     torques: tuple = ()
+    springs: tuple = ()                          # TorsionSpring
     gravity: float = 0.0                         # m/s², along −y
     edges: tuple = ()                            # s: where a torque jumps (the integrator restarts)
     index: dict = field(init=False, repr=False, compare=False)
@@ -137,6 +149,16 @@ class Model:
     def mass(self) -> np.ndarray:
         return np.diag(np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies]))
 
+    def relative(self, pin: str, q) -> float:
+        """θ_b − θ_a of a pin (rad; the ground's angle 0), from q or q̇."""
+        p = next(p for p in self.pins if p.name == pin)
+        angle = 0.0
+        if p.b != GROUND:
+            angle += q[3 * self.index[p.b] + 2]
+        if p.a != GROUND:
+            angle -= q[3 * self.index[p.a] + 2]
+        return float(angle)
+
     def _point_velocity(self, body, s, q, qd):
         r, u, i = self._point(body, s, q)
         if i is None:
@@ -161,6 +183,13 @@ class Model:
                 Q[3 * self.index[p.a] + 2] -= tau
                 rate -= qd[3 * self.index[p.a] + 2]
             power += tau * rate
+        for spring in self.springs:
+            p = pins[spring.pin]
+            tau = -spring.stiffness * (self.relative(spring.pin, q) - spring.rest)
+            if p.b != GROUND:
+                Q[3 * self.index[p.b] + 2] += tau
+            if p.a != GROUND:
+                Q[3 * self.index[p.a] + 2] -= tau
         dissipation = 0.0
         for d in self.dampers:
             ra, va, ua, ia = self._point_velocity(d.a, d.sa, q, qd)
@@ -186,27 +215,38 @@ class Model:
         return sol[:self.n], power, dissipation
 
     def energy(self, q, qd) -> float:
-        """Kinetic + gravity's potential (J)."""
+        """Kinetic + gravity's and the torsion springs' potential (J)."""
         kinetic = 0.5 * qd @ self.mass() @ qd
         potential = sum(b.mass * self.gravity * q[3 * i + 1] for i, b in enumerate(self.bodies))
+        potential += sum(0.5 * s.stiffness * (self.relative(s.pin, q) - s.rest) ** 2 for s in self.springs)
         return float(kinetic + potential)
 
+    def angle_row(self, name: str) -> np.ndarray:
+        """The row r with r·q = a body's angle, or a pin's relative angle θ_b − θ_a."""
+        row = np.zeros(self.n)
+        if name in self.index:
+            row[3 * self.index[name] + 2] = 1.0
+            return row
+        p = next(p for p in self.pins if p.name == name)
+        if p.b != GROUND:
+            row[3 * self.index[p.b] + 2] += 1.0
+        if p.a != GROUND:
+            row[3 * self.index[p.a] + 2] -= 1.0
+        return row
+
     def assemble(self, guess: dict, fixed: dict, rates: dict) -> tuple[np.ndarray, np.ndarray]:
-        """A consistent (q, q̇): the body angles ``guess`` (rad, each body's), the bodies named in
-        ``fixed`` held at their angle, positions by Newton on Φ = 0; q̇ from the bodies' angular
-        rates ``rates`` (rad/s, as many as the mechanism's degrees of freedom) and Φ_q q̇ = 0."""
+        """A consistent (q, q̇): the body angles ``guess`` (rad, each body's), the angles named in
+        ``fixed`` held (a body's angle, or a pin's relative angle θ_b − θ_a by the pin's name),
+        positions by Newton on Φ = 0; q̇ from the rates of the angles named in ``rates`` (rad/s,
+        bodies' or pins', as many as the mechanism's degrees of freedom) and Φ_q q̇ = 0."""
         q = np.zeros(self.n)
         for i, b in enumerate(self.bodies):
             q[3 * i + 2] = guess[b.name]
-        held = [3 * self.index[name] + 2 for name in fixed]
-        for name, angle in fixed.items():
-            q[3 * self.index[name] + 2] = angle
+        rows = np.array([self.angle_row(name) for name in fixed]).reshape(len(fixed), self.n)
+        values = np.array(list(fixed.values()), float)
         for _ in range(100):
-            r = np.concatenate([self.residual(q), np.zeros(len(held))])
+            r = np.concatenate([self.residual(q), rows @ q - values])
             J, _ = self.jacobian(q)
-            rows = np.zeros((len(held), self.n))
-            for k, j in enumerate(held):
-                rows[k, j] = 1.0
             step = np.linalg.lstsq(np.vstack([J, rows]), -r, rcond=None)[0]
             q += step
             if np.max(np.abs(step)) < 1e-15 and np.max(np.abs(self.residual(q))) < 1e-14:
@@ -214,10 +254,7 @@ class Model:
         else:
             raise RuntimeError("the assembly did not converge")
         J, _ = self.jacobian(q)
-        named = [3 * self.index[name] + 2 for name in rates]
-        rows = np.zeros((len(named), self.n))
-        for k, j in enumerate(named):
-            rows[k, j] = 1.0
+        rows = np.array([self.angle_row(name) for name in rates]).reshape(len(rates), self.n)
         A = np.vstack([J, rows])
         b = np.concatenate([np.zeros(J.shape[0]), list(rates.values())])
         qd = np.linalg.solve(A, b) if A.shape[0] == A.shape[1] else np.linalg.lstsq(A, b, rcond=None)[0]
@@ -293,4 +330,5 @@ def pulse(value: float, start: float, duration: float) -> Callable[[float], floa
     return lambda t: value if start <= t < start + duration else 0.0
 
 
-__all__ = ["Body", "Damper", "GROUND", "Model", "Pin", "Run", "Torque", "integrate", "pulse", "simulate"]
+__all__ = ["Body", "Damper", "GROUND", "Model", "Pin", "Run", "Torque", "TorsionSpring", "integrate", "pulse",
+           "simulate"]

@@ -75,6 +75,10 @@ MEASURED = {
     # two inputs through a singular configuration of their set (the reference switches coordinates):
     # the first input's figures, measured 2026-11-28, pin 4.1.0
     "hard/five_bar_fold.toml": (4.2e-11, 7.4e-10, 2.2e-11, 1.1e-10, 4.1e-11),
+    # issue 41's catalogue scenes, the first input's figures (every input against the oracle:
+    # tests/compare/test_catalogue_several_dof_engines.py). Measured 2026-11-28, pin 4.1.0.
+    "mechanisms/adaptive_finger.toml": (5.0e-12, 1.7e-10, 2.8e-12, 3.1e-11, 2.8e-12),
+    "mechanisms/three_rrr.toml": (2.6e-11, 1.9e-10, 3.2e-12, 9.9e-11, 5.4e-12),
 }
 
 

@@ -168,6 +168,7 @@ def test_without_actuators_every_input_comes_by_partitioning_and_unnamed_joints_
     text = mjcf_text(scene, MujocoSettings(timestep=5e-4))
     text = re.sub(r"<actuator>.*?</actuator>|<sensor>.*?</sensor>", "", text, flags=re.S)
     text = re.sub(r'<numeric name="loopcheck.ctrl[^/]*/>', "", text).replace(' ctrl="8 0"', "")
+    text = re.sub(r'<text name="loopcheck.inputs"[^/]*/>', "", text)  # export's inputs, which name O1
     for joint in ("O1", "A"):
         text = text.replace(f'<joint name="{joint}" />', "<joint />")
     path = tmp_path / "five_bar.xml"

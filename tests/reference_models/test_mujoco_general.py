@@ -149,7 +149,8 @@ def test_inline_scenes_are_what_they_say(scene):
     """Guards the fixtures: the loops, the slides and the input's kind are as described."""
     linkage = scene.mechanism.linkage
     expected = {"offset_slider_crank": 1, "watt_ii": 2, "watt2_sixbar": 2, "stephenson3_sixbar": 2,
-                "stephenson3_near_toggle": 2, "andrews_squeezer": 3, "parallelogram_redundant": 2}.get(scene.name, 1)
+                "stephenson3_near_toggle": 2, "andrews_squeezer": 3, "parallelogram_redundant": 2,
+                    "three_rrr": 2}.get(scene.name, 1)
     assert len(linkage.cut_joints) == expected
     if scene.name == "watt_ii":
         assert set(linkage.cut_joints) == {"B", "D"}
