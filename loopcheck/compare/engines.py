@@ -174,26 +174,35 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
         _log.info("%s: %s ended in %.3g s (%s)", scene.name, name, time.perf_counter() - start,
                   "passed" if verdicts[-1].passed else "failed" if verdicts[-1].comparison is not None
                   else verdicts[-1].failure.split(":")[0])
-    peaks = {REFERENCE: reference.peak.omega}
-    peaks.update({v.engine: v.comparison.diff.peak_omega_other for v in verdicts if v.comparison is not None})
-    scale = max(abs(reference.peak.omega), 1e-300)
-    spread = {(a, b): abs(peaks[a] - peaks[b]) / scale for i, a in enumerate(peaks) for b in list(peaks)[i + 1:]}
+    # each input's peaks, relative to the reference's peak of that input (one input: as it was)
+    compared = [v for v in verdicts if v.comparison is not None]
+    relative = []
+    for k, (_, peak) in enumerate(reference.inputs):
+        scale = max(abs(peak.omega), 1e-300)
+        relative.append({REFERENCE: peak.omega / scale,
+                         **{v.engine: v.comparison.diffs[k].peak_omega_other / scale for v in compared}})
+    names = list(relative[0])
+    spread = {(a, b): max(abs(r[a] - r[b]) for r in relative) for i, a in enumerate(names) for b in names[i + 1:]}
     outlier = None
     if len(engines) >= 3 and not all(v.passed for v in verdicts):
         failed = [v.engine for v in verdicts if v.comparison is None]
         if failed:
             outlier = failed[0]
         else:
-            outlier = farthest_from_the_others(peaks)
+            outlier = farthest_from_the_others(relative)
     return EnginesCheck(scene, reference, tuple(verdicts), outlier, spread)
 
 
-def farthest_from_the_others(peaks: dict[str, float]) -> str:
+def farthest_from_the_others(peaks: Mapping[str, float] | Sequence[Mapping[str, float]]) -> str:
     """The engine whose peak is farthest from the median of the other engines' peaks (the
-    issue's rule; with three engines, the one farthest from the mean of the other two)."""
+    issue's rule; with three engines, the one farthest from the mean of the other two). With
+    several inputs, ``peaks`` is one mapping per input, each on a common scale (relative to the
+    reference's peak of that input), and an engine's distance is its largest over the inputs."""
+    per_input = [peaks] if isinstance(peaks, Mapping) else list(peaks)
+
     def distance(name: str) -> float:
-        return abs(peaks[name] - median(p for other, p in peaks.items() if other != name))
-    return max(peaks, key=distance)
+        return max(abs(p[name] - median(v for other, v in p.items() if other != name)) for p in per_input)
+    return max(per_input[0], key=distance)
 
 
 def engines_lines(check: EnginesCheck) -> list[str]:

@@ -231,3 +231,15 @@ def test_check_engines_says_when_each_engine_starts_and_ends(tmp_path):
     quiet = subprocess.run([argv[0], *argv[1:3], "-q", *argv[3:]], capture_output=True, text=True, timeout=120,
                            cwd=tmp_path)
     assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_with_several_inputs_the_outlier_is_farthest_on_any_input():
+    """Two inputs, each engine's peak relative to the reference's of that input: 'b' agrees on the
+    first and is 1e-2 off on the second, 'c' is 1e-4 off on the first and agrees on the second; 'b' is
+    named. (Planted: the first input alone names 'c'.)"""
+    from loopcheck.compare.engines import farthest_from_the_others
+
+    first = {"reduced": 1.0, "a": 1.0, "b": 1.0, "c": 1.0001}
+    second = {"reduced": 1.0, "a": 1.0, "b": 1.01, "c": 1.0}
+    assert farthest_from_the_others([first, second]) == "b"
+    assert farthest_from_the_others([first]) == "c"
