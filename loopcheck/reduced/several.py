@@ -44,9 +44,14 @@ say which).
 
 A joint range ends the run where the joint reaches a bound (NumericalFailure "range-reached", as the
 one-DOF engine: the nearest bound's distance in the chart's stop event, located at its root by
-either integrator). Not yet supported with several DOF (refused in one line before any work,
-:func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force, point
-forces over q, a load on the first input alone (``[torque]``), redundant loops.
+either integrator).
+
+A redundantly closed loop (more constraint rows than n − k, consistent): the chart runs on the n − k
+independent rows at the assembled start (:meth:`SeveralModel.select_rows`), and every sample's
+dropped rows are checked closed to DROPPED_TOL (:func:`check_dropped`: a failure names the time
+where the selection lost rank). Not yet supported with several DOF (refused in one line before any
+work, :func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force,
+point forces over q, a load on the first input alone (``[torque]``).
 """
 
 from __future__ import annotations
@@ -107,11 +112,6 @@ def check_scene(scene: Scene) -> None:
     if scene.load is not None:
         raise SceneError(f"{where}: a load on the input ([torque]/[force]) is not supported with several inputs: "
                          "use [[actuators]] on the joints")
-    system = loops.compile_linkage(mech.linkage)
-    rows = system.m + len(system.coupling_rows)  # the loops', the linear rows, the couplings
-    if rows != system.n - scene.dof:
-        raise SceneError(f"{where}: {rows} closure equations over {system.n} coordinates (a redundantly closed "
-                         "loop): not supported by the reduced engine with several inputs yet")
 
 
 class SeveralModel:
@@ -130,6 +130,26 @@ class SeveralModel:
         self.ranged = ranged_joints(scene.mechanism.linkage)
         self.range_rows = np.array([self.system.joint_row(j.name) for j in self.ranged]).reshape(-1, self.system.n)
         self.range_bounds = np.array([j.range for j in self.ranged], dtype=float).reshape(-1, 2)
+        self.select = None  # a redundant loop's independent rows (select_rows), else every row
+        self.dropped = np.zeros(0, dtype=np.int64)
+
+    def select_rows(self, x: np.ndarray) -> None:
+        """At the assembled start x: where the constraint rows are more than n − k (a redundantly
+        closed loop), the n − k independent ones (:func:`loopcheck.kinematics.independent_rows`,
+        as :meth:`loopcheck.kinematics.LoopSystem.with_independent_rows` chooses them for one
+        input) for the chart, the others kept to be checked along the run (:func:`check_dropped`).
+        Raises SceneError where the rank is not n − k (not k degrees of freedom)."""
+        n, k = self.system.n, self.k
+        J = loops.all_constraints(self.system, x)[1]
+        if J.shape[0] == n - k:
+            return
+        rows = loops.independent_rows(J)
+        if len(rows) != n - k:
+            raise SceneError(f"scene '{self.scene.name}': the loop equations have rank {len(rows)} of {J.shape[0]} "
+                             f"rows over {n} coordinates at the start: {n - len(rows)} degrees of freedom, not the "
+                             f"{k} inputs")
+        self.select = np.array(rows, dtype=np.int64)
+        self.dropped = np.array([r for r in range(J.shape[0]) if r not in rows], dtype=np.int64)
 
     def range_margins(self, x: np.ndarray) -> np.ndarray:
         """(ranged joints, 2): each ranged joint's u − lo and hi − u at x."""
@@ -138,7 +158,7 @@ class SeveralModel:
 
     def new_chart(self) -> kernel.Several:
         return kernel.Several(self.arrays.F, self.arrays.I, self.system.joint_rows, self.k,
-                              loops.SINGULAR_CONDITIONING)
+                              loops.SINGULAR_CONDITIONING, self.select)
 
     def set_name(self, joints) -> str:
         return ", ".join(self.joint_names[int(j)] for j in joints)
@@ -386,6 +406,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
     q0 = np.array(scene.initial_q(), dtype=float)
     if not np.allclose(model.input_rows @ x, q0, rtol=0.0, atol=1e-9):
         x = loops.assemble_inputs(model.system, q0, x)
+    model.select_rows(x)
     joints = model.inputs
     v0 = np.array(scene.initial_qdot(), dtype=float)
     chart = _first_chart(model, x)
@@ -429,6 +450,30 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         y, chart, joints = _switch(model, chart, t, y, switches)
         sets.append(tuple(int(j) for j in joints))
     return record, switches, n_steps, n_eval, J0, sets
+
+
+# a redundant loop's dropped rows: |Φ_r| at most this (m or rad) at every sample (check_dropped):
+# consistent rows stay at the closure's round-off (NEWTON_TOL 1e-12, ~1e-15 measured)
+DROPPED_TOL = 1e-9
+
+
+def check_dropped(model: SeveralModel, t: np.ndarray, x: np.ndarray) -> None:
+    """A redundant loop's rows the chart did not run on (:meth:`SeveralModel.select_rows`) at
+    every sample x (samples, n): NumericalFailure "singular" at the first time one exceeds
+    DROPPED_TOL (the selected rows no longer imply it: the selection lost rank there, a
+    bifurcation of the redundant linkage), with the row, its value and the rank there."""
+    if not len(model.dropped):
+        return
+    for i in range(len(t)):
+        phi, J = loops.all_constraints(model.system, x[i])
+        gap = np.abs(phi[model.dropped])
+        if np.max(gap) > DROPPED_TOL:
+            r = int(model.dropped[int(np.argmax(gap))])
+            rank = len(loops.independent_rows(J[model.select]))
+            raise NumericalFailure(
+                "singular", f"the redundant loop's constraint row {r}, dropped at the start as dependent, opened to "
+                f"{np.max(gap):.3g} (> {DROPPED_TOL:g}) at t = {t[i]:.9g} s: the {len(model.select)} rows the chart "
+                f"runs on have rank {rank} there and no longer imply it (the selection lost rank)", float(t[i]))
 
 
 def _check_range(model: SeveralModel, chart, t: float, y: np.ndarray) -> None:
@@ -623,6 +668,7 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), ste
     wall = time.perf_counter() - begin
     t = np.concatenate(record.t)
     x = np.concatenate(record.x)
+    check_dropped(model, t, x)
     xdot = np.concatenate(record.xdot)
     xdd = np.concatenate(record.xdd)
     x[:, model.angle_columns] = np.unwrap(x[:, model.angle_columns], axis=0)

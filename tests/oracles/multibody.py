@@ -13,7 +13,8 @@ coincide: Φ(q) = 0. With M = diag(m, m, I_G) per body and Φ_q the constraints'
     [ M    Φ_qᵀ ] [ q̈ ]   [ Q ]
     [ Φ_q   0   ] [ λ  ] = [ γ ],     γ = −(Φ_q q̇)_q q̇ = Σ ± θ̇² R(θ) u   (u = s − c),
 
-the index-1 form of the equations of motion. Q holds gravity, the joints' torques (τ on the body
+the index-1 form of the equations of motion (a ``redundant`` model, whose pins close a loop with
+dependent rows, takes Φ_q q̈ = γ on an orthonormal basis of Φ_q's rows, by its SVD: the same q̈). Q holds gravity, the joints' torques (τ on the body
 ``b`` of a joint, −τ on its body ``a``, for the relative angle θ_b − θ_a) and the point-to-point
 dampers (force −c ḋ along the line between their points). The work of the torques and the
 dampers' dissipation are integrated alongside, for the energy balance.
@@ -88,6 +89,7 @@ class Model:
     torques: tuple = ()
     gravity: float = 0.0                         # m/s², along −y
     edges: tuple = ()                            # s: where a torque jumps (the integrator restarts)
+    redundant: bool = False                      # pins that close a loop redundantly (accelerations)
     index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -181,8 +183,17 @@ class Model:
         J, gamma = self.jacobian(q)
         Q, power, dissipation = self.forces(t, q, qd)
         m = J.shape[0]
+        g = gamma(qd)
+        if self.redundant:
+            # dependent pin rows: Φ_q q̈ = γ on an orthonormal basis of Φ_q's row space instead (its
+            # left singular vectors above 1e-8 of the largest singular value): the same q̈ for
+            # consistent rows, and the KKT matrix square and regular
+            U, sv, _ = np.linalg.svd(J, full_matrices=False)
+            basis = U[:, sv > 1e-8 * sv[0]]
+            J, g = basis.T @ J, basis.T @ g
+            m = J.shape[0]
         A = np.block([[M, J.T], [J, np.zeros((m, m))]])
-        sol = np.linalg.solve(A, np.concatenate([Q, gamma(qd)]))
+        sol = np.linalg.solve(A, np.concatenate([Q, g]))
         return sol[:self.n], power, dissipation
 
     def energy(self, q, qd) -> float:

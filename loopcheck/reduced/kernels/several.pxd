@@ -23,6 +23,8 @@ cdef class Several(VectorRightHandSide):
     cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq, rate
     cdef double[::1] qv, act_l, basex, baseq, startx, startq, markx, markq, target, pred, resid, used
     cdef long long[::1] piv
+    cdef readonly long long[::1] sel
+    cdef double[::1] gam
     cdef readonly long long[::1] best, current, counts
 
     cdef int _save_factors(self) except -1

@@ -7,7 +7,10 @@ kinematics (:class:`loopcheck.kernels.loops.Loops`: term tables, Φ, Φ_x, the d
 
 Coordinates. A chart holds k independent coordinates q = R x, R (k, n) rows of the joints' own
 coordinates (``system.joint_rows``: relative angles, slide displacements). With the m = n − k
-constraint rows Φ(x) = 0 (no redundant loop: the engine refuses one), A = [Φ_x; R] is square.
+constraint rows Φ(x) = 0, A = [Φ_x; R] is square. A redundantly closed loop has more rows than
+n − k: the chart then runs on n − k of them, ``select`` (the independent rows at the assembled
+start, :func:`loopcheck.kinematics.independent_rows`; the run checks that the others stay closed),
+Φ, Φ_x and γ below meaning the selected rows.
 
 Configuration at q: Newton's method on (Φ(x), R x − q) = 0 from the quadratic predictor
 x_last + K_last Δ + ½ ẍ0(K_last Δ), Δ = q − q_last, of the chart's last configuration (ẍ0 below:
@@ -124,9 +127,11 @@ _c_nan = cython.declare(cython.double, math.nan)
 class Several(VectorRightHandSide):
     """The compiled chart of a linkage in k independent joint coordinates (module docstring).
 
-    ``Several(F, I, joint_rows, k, singular)``: the packed model (F, I), the joints' own coordinate
-    rows (joints, n) (the candidates of the partitioning), k the degrees of freedom, ``singular``
-    the conditioning below which no set can drive the linkage (reported; the run decides).
+    ``Several(F, I, joint_rows, k, singular, select=None)``: the packed model (F, I), the joints'
+    own coordinate rows (joints, n) (the candidates of the partitioning), k the degrees of freedom,
+    ``singular`` the conditioning below which no set can drive the linkage (reported; the run
+    decides), ``select`` the n − k constraint rows to run on (a redundant loop's independent
+    rows; None: every row, which must then be n − k).
     :meth:`start` makes it a chart of one set of joints at an assembled x.
 
     A :class:`.vector_problem.VectorRightHandSide`: the compiled n-coordinate integrators
@@ -139,7 +144,7 @@ class Several(VectorRightHandSide):
     ``mark()``, ``rewind()``.
     """
 
-    def __init__(self, F, I, joint_rows, k: int, singular: float):
+    def __init__(self, F, I, joint_rows, k: int, singular: float, select=None):
         F = np.ascontiguousarray(F, dtype=np.float64)
         I = np.ascontiguousarray(I, dtype=np.int64)
         self.F = F
@@ -150,11 +155,24 @@ class Several(VectorRightHandSide):
         self.k = int(k)
         if not 1 <= self.k <= n:
             raise ValueError(f"Several: k = {k} degrees of freedom of {n} coordinates")
-        self.loops = Loops(F, I)
-        m = self.loops.m
-        if m != n - self.k:
-            raise ValueError(f"Several: {m} constraint rows for {n} coordinates and {k} degrees of freedom "
-                             f"(a redundant loop or a wrong count): n − k = {n - self.k} rows are needed")
+        m_all = 2 * int(I[TABLES + TABLE_ENTRIES * LOOPS]) + int(I[N_LINEAR])
+        # Loops on n − 1 of its rows (never its adaptive basis: this chart reads Φ and Φ_x whole)
+        self.loops = Loops(F, I, np.arange(n - 1, dtype=np.int64) if m_all > n - 1 else None)
+        m_all = self.loops.m
+        if select is None:
+            if m_all != n - self.k:
+                raise ValueError(f"Several: {m_all} constraint rows for {n} coordinates and {k} degrees of freedom "
+                                 f"(a redundant loop or a wrong count): n − k = {n - self.k} rows are needed, "
+                                 "or a selection of them")
+            select = np.arange(m_all, dtype=np.int64)
+        select = np.asarray(select, dtype=np.int64).reshape(-1)
+        if len(select) != n - self.k or (len(select) and (np.min(select) < 0 or np.max(select) >= m_all
+                                                          or len(np.unique(select)) != len(select))):
+            raise ValueError(f"Several: select must be n − k = {n - self.k} distinct rows of the {m_all} constraint "
+                             f"rows, got {select.tolist()}")
+        self.sel = np.ascontiguousarray(select)
+        self.gam = np.zeros(max(m_all, 1))
+        m = n - self.k
         self.mr = m
         self.singular = singular
         JR = np.ascontiguousarray(joint_rows, dtype=np.float64).reshape(-1, n)
@@ -276,14 +294,17 @@ class Several(VectorRightHandSide):
         n: cython.Py_ssize_t = self.n
         mr: cython.Py_ssize_t = self.mr
         nl: cython.Py_ssize_t = 2 * self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        nlin: cython.Py_ssize_t = self.I[N_LINEAR]
         j: cython.Py_ssize_t
         self.loops._table_rates(LOOPS, False)
-        for j in range(nl // 2):
-            out[2 * j] = -self.loops.rows[j, 2]
-            out[2 * j + 1] = -self.loops.rows[j, 3]
-        for j in range(nl, mr):
-            self.loops._poly(self.I[LINEAR] + (j - nl) * (2 * n + ROW_EXTRA), False)
-            out[j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
+        for j in range(nl // 2):  # every row's −γ into gam, the selected ones into out
+            self.gam[2 * j] = -self.loops.rows[j, 2]
+            self.gam[2 * j + 1] = -self.loops.rows[j, 3]
+        for j in range(nlin):
+            self.loops._poly(self.I[LINEAR] + j * (2 * n + ROW_EXTRA), False)
+            self.gam[nl + j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
+        for j in range(mr):
+            out[j] = self.gam[self.sel[j]]
         for j in range(mr, n):
             out[j] = 0.0
         self._solve(out)
@@ -344,9 +365,9 @@ class Several(VectorRightHandSide):
         self.loops._constraints()
         largest: cython.double = 0.0
         for r in range(mr):
-            self.loops.rhs[r] = self.loops.phi[r]
+            self.loops.rhs[r] = self.loops.phi[self.sel[r]]
             for c in range(n):
-                self.loops.A[r, c] = self.loops.Phi[r, c]
+                self.loops.A[r, c] = self.loops.Phi[self.sel[r], c]
         for r in range(self.k):
             v = 0.0
             for c in range(n):
@@ -430,7 +451,7 @@ class Several(VectorRightHandSide):
         self._save_factors()
         for r in range(self.mr):
             for j in range(n):
-                self.Phx[r, j] = self.loops.Phi[r, j]
+                self.Phx[r, j] = self.loops.Phi[self.sel[r], j]
         for j in range(n):
             self.loops.kin[0, j] = self.loops.x[j]
             self.lastx[j] = self.loops.x[j]
