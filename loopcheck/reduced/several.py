@@ -102,11 +102,6 @@ def check_scene(scene: Scene) -> None:
     if mech.joint_frictions:
         raise SceneError(f"{where}: joint friction ({', '.join(e.name for e in mech.joint_frictions)}) is not "
                          "supported by the reduced engine with several inputs yet")
-    clamped = clamped_actuators(mech)
-    if clamped:
-        raise SceneError(f"{where}: actuator {', '.join(repr(a.name) for a in clamped)} clamps a force that depends "
-                         "on the state (forcerange with bias b1 or b2): not supported by the reduced engine with "
-                         "several inputs yet")
     if mech.point_forces:
         raise SceneError(f"{where}: point forces over q are not supported with several inputs")
     if scene.load is not None:
@@ -130,6 +125,7 @@ class SeveralModel:
         self.ranged = ranged_joints(scene.mechanism.linkage)
         self.range_rows = np.array([self.system.joint_row(j.name) for j in self.ranged]).reshape(-1, self.system.n)
         self.range_bounds = np.array([j.range for j in self.ranged], dtype=float).reshape(-1, 2)
+        self.clamped = clamped_actuators(scene.mechanism)
         self.select = None  # a redundant loop's independent rows (select_rows), else every row
         self.dropped = np.zeros(0, dtype=np.int64)
 
@@ -424,6 +420,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         chart = start_chart(model, joints, x)
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
+    _set_clamps(model, chart, 0.0, y)
     if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
         _check_range(model, chart, 0.0, y)
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
@@ -445,6 +442,8 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         if not leg.stopped:
             break
         _check_range(model, chart, t, y)
+        if _clamp_stop(model, chart, t, y):
+            continue
         if len(switches) >= MAX_SWITCHES:
             raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
         y, chart, joints = _switch(model, chart, t, y, switches)
@@ -474,6 +473,34 @@ def check_dropped(model: SeveralModel, t: np.ndarray, x: np.ndarray) -> None:
                 "singular", f"the redundant loop's constraint row {r}, dropped at the start as dependent, opened to "
                 f"{np.max(gap):.3g} (> {DROPPED_TOL:g}) at t = {t[i]:.9g} s: the {len(model.select)} rows the chart "
                 f"runs on have rank {rank} there and no longer imply it (the selection lost rank)", float(t[i]))
+
+
+def _set_clamps(model: SeveralModel, chart, t: float, y: np.ndarray) -> int:
+    """Each clamped actuator's mode set by its force at (t, y) on t's load piece
+    (:meth:`kernel.Several.set_clamps`): the count changed."""
+    k = model.k
+    changed = chart.set_clamps(model.piece(t, t), np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    if changed < 0:
+        raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the loops "
+                               f"at t = {t:.9g} s", t)
+    return changed
+
+
+def _clamp_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
+    """At a stop of the chart's event: True where it was a clamped actuator's force leaving its
+    mode (its margin the least of the event's three), the modes then set anew at (t, y): the run
+    goes on in the same chart. False where it was a switch."""
+    if not len(model.clamped):
+        return False
+    k = model.k
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    clamp = chart.clamp_margin(np.ascontiguousarray(y[k:2 * k]))
+    if switch != switch or clamp > chart.c_current - HYSTERESIS * chart.c_best:
+        return False
+    if _set_clamps(model, chart, t, y) == 0:
+        raise NumericalFailure("singular", f"an actuator's forcerange clamp stopped the run at t = {t:.9g} s without "
+                               "changing its mode", t)
+    return True
 
 
 def _check_range(model: SeveralModel, chart, t: float, y: np.ndarray) -> None:

@@ -76,9 +76,11 @@ class Damper:
 @dataclass(frozen=True)
 class Torque:
     """τ(t) (N·m) across a pin: on its body b, and −τ on its body a. Constant between the model's
-    ``edges`` (it is read at the middle of each piece)."""
+    ``edges`` (it is read at the middle of each piece). With ``state``, τ(t, u, u̇) instead: a law
+    of the pin's relative angle u = θ_b − θ_a (rad) and its rate (a servo)."""
     pin: str
-    value: Callable[[float], float]
+    value: Callable[..., float]
+    state: bool = False
 
 
 @dataclass(frozen=True)
@@ -154,14 +156,18 @@ class Model:
         pins = {p.name: p for p in self.pins}
         for torque in self.torques:
             p = pins[torque.pin]
-            tau = torque.value(t)
-            rate = 0.0
+            angle = rate = 0.0
             if p.b != GROUND:
-                Q[3 * self.index[p.b] + 2] += tau
+                angle += q[3 * self.index[p.b] + 2]
                 rate += qd[3 * self.index[p.b] + 2]
             if p.a != GROUND:
-                Q[3 * self.index[p.a] + 2] -= tau
+                angle -= q[3 * self.index[p.a] + 2]
                 rate -= qd[3 * self.index[p.a] + 2]
+            tau = torque.value(t, angle, rate) if torque.state else torque.value(t)
+            if p.b != GROUND:
+                Q[3 * self.index[p.b] + 2] += tau
+            if p.a != GROUND:
+                Q[3 * self.index[p.a] + 2] -= tau
             power += tau * rate
         dissipation = 0.0
         for d in self.dampers:

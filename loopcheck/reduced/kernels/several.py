@@ -38,8 +38,9 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
-        the clamp only on a force that does not depend on the state: the engine refuses a
-        forcerange on one that does)
+        on a force that depends on the state, a clamp mode per actuator (:mod:`.physics`'s
+        CLAMP_FREE: f unclamped, CLAMP_HI: hi, CLAMP_LO: lo; CLAMP_AUTO: by value), switched by the
+        run at the stop event's root (:meth:`Several.clamp_margin`, :meth:`Several.set_clamps`))
     𝔍 q̈ = Q − c   (a k×k dense solve, partial pivoting)
 
 (K_G, K_D = dD/dq_a, K_P, K_u = row·K_a, K_l: the velocity coefficients per coordinate.) The
@@ -79,7 +80,7 @@ if cython.compiled:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO)
     from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
     from math import fabs, isfinite, sqrt
@@ -90,7 +91,7 @@ else:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO)
     from loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 
 from loopcheck.reduced.kernels import physics as _physics
@@ -113,6 +114,7 @@ _c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
 _c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
 _c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
 _c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_clamp_hysteresis = cython.declare(cython.double, _physics.CLAMP_HYSTERESIS)
 _c_walk_halvings = cython.declare(cython.Py_ssize_t, WALK_HALVINGS)
 _c_jacobi_sweeps = cython.declare(cython.Py_ssize_t, JACOBI_SWEEPS)
 _c_jacobi_tol = cython.declare(cython.double, JACOBI_TOL)
@@ -200,6 +202,8 @@ class Several(VectorRightHandSide):
         self.small = np.zeros((kk, kk + 1))
         self.timed = np.zeros((kk, max(nt, 1)))
         self.act_l = np.zeros(max(na, 1))
+        # each actuator's clamp mode (physics' CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO: set_clamps)
+        self.clampm = np.full(max(na, 1), float(CLAMP_AUTO))
         self.act_k = np.zeros((kk, max(na, 1)))
         self.ku = np.zeros((kk, max(nje, 1)))
         self.kd = np.zeros((kk, max(ne, 1)))
@@ -753,7 +757,12 @@ class Several(VectorRightHandSide):
                 rate += self.act_k[a, e] * v[a]
             f = (self.F[self.I[ACT_PIECE] + load * na + e] + self.F[prm + 5 * e] * self.act_l[e]
                  + self.F[prm + 5 * e + 1] * rate)
-            f = min(max(f, self.F[prm + 5 * e + 3]), self.F[prm + 5 * e + 4])
+            if self.clampm[e] == CLAMP_HI:
+                f = self.F[prm + 5 * e + 4]
+            elif self.clampm[e] == CLAMP_LO:
+                f = self.F[prm + 5 * e + 3]
+            elif self.clampm[e] != CLAMP_FREE:
+                f = min(max(f, self.F[prm + 5 * e + 3]), self.F[prm + 5 * e + 4])
             for a in range(kk):
                 self.Qa[a] += self.F[prm + 5 * e + 2] * f * self.act_k[a, e]
         for a in range(kk):
@@ -1088,7 +1097,105 @@ class Several(VectorRightHandSide):
         self._best_set()
         self.c_current = self._sigma_ratio(self.current)
         self.c_best = self._sigma_ratio(self.best)
-        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin())
+        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin(), self.clamp_margin(v))
+
+    @cython.ccall
+    def clamp_margin(self, v: cython.double[::1]) -> cython.double:
+        """The least clamp margin of the clamped actuators (a force that depends on the state,
+        with a forcerange) at the configuration last evaluated, q̇ = v, on the latest
+        acceleration's piece: > 0 while each one's force is in its mode (physics' rule: CLAMP_FREE
+        min(hi − f_u, f_u − lo) + ε, CLAMP_HI f_u − hi + ε, CLAMP_LO lo − f_u + ε, ε =
+        CLAMP_HYSTERESIS × the larger finite bound's magnitude); inf without one or in CLAMP_AUTO."""
+        g: cython.double = math.inf
+        e: cython.Py_ssize_t
+        if self.I[N_CLAMPED] == 0:
+            return g
+        prm: cython.Py_ssize_t
+        lo: cython.double
+        hi: cython.double
+        f: cython.double
+        eps: cython.double
+        for e in range(self.I[N_ACTUATORS]):
+            if not self._clamped(e):
+                continue
+            prm = self.I[ACT_PARAMS] + 5 * e
+            lo = self.F[prm + 3]
+            hi = self.F[prm + 4]
+            eps = 0.0
+            if isfinite(lo):
+                eps = fabs(lo)
+            if isfinite(hi):
+                eps = max(eps, fabs(hi))
+            eps *= _c_clamp_hysteresis
+            f = self._unclamped(e, self.piece, v)
+            if self.clampm[e] == CLAMP_HI:
+                g = min(g, f - hi + eps)
+            elif self.clampm[e] == CLAMP_LO:
+                g = min(g, lo - f + eps)
+            elif self.clampm[e] == CLAMP_FREE:
+                g = min(g, min(hi - f, f - lo) + eps)
+        return g
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _clamped(self, e: cython.Py_ssize_t) -> cython.bint:
+        """Whether actuator e's clamp switches with the state (physics' rule): b1 or b2 nonzero,
+        lo < hi, a finite bound."""
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * e
+        lo: cython.double = self.F[prm + 3]
+        hi: cython.double = self.F[prm + 4]
+        return (self.F[prm] != 0.0 or self.F[prm + 1] != 0.0) and lo < hi and (isfinite(lo) or isfinite(hi))
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _unclamped(self, e: cython.Py_ssize_t, piece: cython.Py_ssize_t, v: cython.double[::1]) -> cython.double:
+        """Actuator e's force before its clamp, c + b1·gear·l + b2·gear·l̇ at the configuration
+        last evaluated, q̇ = v, on load piece ``piece``."""
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * e
+        rate: cython.double = 0.0
+        a: cython.Py_ssize_t
+        for a in range(self.k):
+            rate += self.act_k[a, e] * v[a]
+        return (self.F[self.I[ACT_PIECE] + piece * self.I[N_ACTUATORS] + e] + self.F[prm] * self.act_l[e]
+                + self.F[prm + 1] * rate)
+
+    @cython.ccall
+    def set_clamps(self, load: cython.Py_ssize_t, q: cython.double[::1], v: cython.double[::1]) -> cython.Py_ssize_t:
+        """Set each clamped actuator's mode by its unclamped force at q, q̇ = v on load piece
+        ``load`` (physics' rule: CLAMP_HI above hi, CLAMP_LO below lo, else CLAMP_FREE). Returns the
+        count of modes changed, −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1
+        self.piece = load
+        changed: cython.Py_ssize_t = 0
+        e: cython.Py_ssize_t
+        prm: cython.Py_ssize_t
+        f: cython.double
+        mode: cython.double
+        for e in range(self.I[N_ACTUATORS]):
+            if not self._clamped(e):
+                continue
+            prm = self.I[ACT_PARAMS] + 5 * e
+            f = self._unclamped(e, load, v)
+            mode = CLAMP_HI if f > self.F[prm + 4] else (CLAMP_LO if f < self.F[prm + 3] else CLAMP_FREE)
+            if mode != self.clampm[e]:
+                changed += 1
+                self.clampm[e] = mode
+        return changed
+
+    @cython.ccall
+    def stop_at_start(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.bint:
+        """True at a load piece's start (right after its first acceleration) where a clamped
+        actuator's force is out of its mode (a control step past a bound, or back inside)."""
+        if self.I[N_CLAMPED] == 0:
+            return False
+        if not self.evaluate(q):
+            return True
+        return self.clamp_margin(v) < 0.0
+
+    def clamp_modes(self) -> tuple:
+        """The actuators' clamp modes (physics' CLAMP_* values)."""
+        return tuple(int(m) for m in self.clampm[:self.I[N_ACTUATORS]])
 
     @cython.ccall
     def range_margin(self) -> cython.double:
@@ -1113,7 +1220,7 @@ class Several(VectorRightHandSide):
         """At a stop after a fixed step: a range's bound is located at its root (the time the joint
         reaches it); a switch of coordinates is not (it may happen anywhere near its own root)."""
         g: cython.double = self.stop_margin(t, q, v)
-        return g == g and self.range_margin() < self.c_current - _c_hysteresis * self.c_best
+        return g == g and min(self.range_margin(), self.clamp_margin(v)) < self.c_current - _c_hysteresis * self.c_best
 
     def conditioning_of(self, joints) -> float:
         """The conditioning of the joints ``joints`` (k indices into the joint rows) at the
