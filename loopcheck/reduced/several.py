@@ -49,9 +49,16 @@ either integrator).
 A redundantly closed loop (more constraint rows than n − k, consistent): the chart runs on the n − k
 independent rows at the assembled start (:meth:`SeveralModel.select_rows`), and every sample's
 dropped rows are checked closed to DROPPED_TOL (:func:`check_dropped`: a failure names the time
-where the selection lost rank). Not yet supported with several DOF (refused in one line before any
-work, :func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force,
-point forces over q, a load on the first input alone (``[torque]``).
+where the selection lost rank).
+
+A forcerange clamp on a force that depends on the state (an actuator with bias b1 or b2): each such
+actuator has a clamp mode (the one-DOF engine's: free, at hi, at lo), its margin in the chart's
+stop event (:meth:`kernel.Several.clamp_margin`, CLAMP_HYSTERESIS) and checked at each load piece's
+start (``stop_at_start``; scipy's legs set the modes at each piece's start); at such a stop the
+modes are set anew by value (:func:`_clamp_stop`) and the run goes on in the same coordinates.
+
+Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
+joint friction, point forces over q, a load on the first input alone (``[torque]``).
 """
 
 from __future__ import annotations
@@ -315,6 +322,8 @@ def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: Re
     while True:
         end = edges[0]
         load = model.piece(t, end)
+        if len(model.clamped):  # each piece's start sets the clamp modes by value (a control step past a bound)
+            _set_clamps(model, chart, t, y)
         chart.mark()
 
         def fun(tt, yy, chart=chart, load=load):
