@@ -57,8 +57,16 @@ stop event (:meth:`kernel.Several.clamp_margin`, CLAMP_HYSTERESIS) and checked a
 start (``stop_at_start``; scipy's legs set the modes at each piece's start); at such a stop the
 modes are set anew by value (:func:`_clamp_stop`) and the run goes on in the same coordinates.
 
+Joint friction (Coulomb, f on a joint's own coordinate u): slipping only. Each friction has a
+direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation), its margin s u̇ in the
+chart's stop event; at u̇ = 0 the joint slips on the way its acceleration takes it with the
+friction against it (:func:`_slip_stop`); where neither way (it would stick: one more constraint
+row while stuck, a chart of k − 1 coordinates, not built yet) the run stops (NumericalFailure
+"singular" naming the joint and the time). A coordinate switch carries the clamps' modes and the
+frictions' directions to the new chart.
+
 Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
-joint friction, point forces over q, a load on the first input alone (``[torque]``).
+point forces over q, a load on the first input alone (``[torque]``).
 """
 
 from __future__ import annotations
@@ -106,9 +114,6 @@ def check_scene(scene: Scene) -> None:
     """
     mech = scene.mechanism
     where = f"scene '{scene.name}' ({scene.dof} degrees of freedom)"
-    if mech.joint_frictions:
-        raise SceneError(f"{where}: joint friction ({', '.join(e.name for e in mech.joint_frictions)}) is not "
-                         "supported by the reduced engine with several inputs yet")
     if mech.point_forces:
         raise SceneError(f"{where}: point forces over q are not supported with several inputs")
     if scene.load is not None:
@@ -133,6 +138,9 @@ class SeveralModel:
         self.range_rows = np.array([self.system.joint_row(j.name) for j in self.ranged]).reshape(-1, self.system.n)
         self.range_bounds = np.array([j.range for j in self.ranged], dtype=float).reshape(-1, 2)
         self.clamped = clamped_actuators(scene.mechanism)
+        frictions = list(dict.fromkeys(e.joint for e in scene.mechanism.joint_frictions))  # build_arrays' order
+        self.friction_joints = tuple(frictions)
+        self.friction_rows = np.array([self.system.joint_row(j) for j in frictions]).reshape(-1, self.system.n)
         self.select = None  # a redundant loop's independent rows (select_rows), else every row
         self.dropped = np.zeros(0, dtype=np.int64)
 
@@ -430,6 +438,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
     _set_clamps(model, chart, 0.0, y)
+    _set_slips(model, chart, 0.0, y, range(len(model.friction_joints)))
     if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
         _check_range(model, chart, 0.0, y)
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
@@ -451,7 +460,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         if not leg.stopped:
             break
         _check_range(model, chart, t, y)
-        if _clamp_stop(model, chart, t, y):
+        if _clamp_stop(model, chart, t, y) or _slip_stop(model, chart, t, y):
             continue
         if len(switches) >= MAX_SWITCHES:
             raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
@@ -509,6 +518,55 @@ def _clamp_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
     if _set_clamps(model, chart, t, y) == 0:
         raise NumericalFailure("singular", f"an actuator's forcerange clamp stopped the run at t = {t:.9g} s without "
                                "changing its mode", t)
+    return True
+
+
+# a joint friction's rate |u̇| at most this (rad/s or m/s) at a stop is at rest there (_slip_stop)
+REST_RATE = 1e-9
+
+
+def _set_slips(model: SeveralModel, chart, t: float, y: np.ndarray, frictions) -> None:
+    """Each joint friction of ``frictions`` (indices) set slipping the way its joint moves at
+    (t, y), or, at rest (|u̇| ≤ REST_RATE), the way its acceleration takes it with the friction
+    against it. Raises NumericalFailure where neither way: the joint would stick (a stuck joint
+    among several inputs is one more constraint row while it sticks: not supported yet)."""
+    k = model.k
+    q, v = np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k])
+    a = np.zeros(k)
+    load = model.piece(t, t)
+    for e in frictions:
+        if chart.acceleration(load, t, q, v, a) != 0:
+            raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the "
+                                   f"loops at t = {t:.9g} s", t)
+        rate = float(model.friction_rows[e] @ np.asarray(chart.xdot))
+        if abs(rate) > REST_RATE:
+            chart.set_slip(e, 1.0 if rate > 0 else -1.0)
+            continue
+        for direction in (-float(chart.slip[e]), float(chart.slip[e])):
+            chart.set_slip(e, direction)
+            chart.acceleration(load, t, q, v, a)
+            if direction * float(model.friction_rows[e] @ np.asarray(chart.xdd)) > 0.0:
+                break
+        else:
+            raise NumericalFailure("singular", f"joint friction on {model.friction_joints[e]!r} holds its joint at "
+                                   f"t = {t:.9g} s (it would stick): a stuck joint among several inputs is not "
+                                   "supported by the reduced engine yet", t)
+
+
+def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
+    """At a stop of the chart's event: True where it was a joint friction's rate reaching 0 (its
+    s u̇ the least of the event's margins), the frictions at rest then set anew
+    (:func:`_set_slips`): the run goes on in the same coordinates. False where it was a switch."""
+    if not len(model.friction_joints):
+        return False
+    k = model.k
+    v = np.ascontiguousarray(y[k:2 * k])
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), v)
+    if switch != switch or chart.slip_margin(v) > chart.c_current - HYSTERESIS * chart.c_best:
+        return False
+    K = np.asarray(chart.K)
+    rates = model.friction_rows @ (K.T @ v)
+    _set_slips(model, chart, t, y, [e for e in range(len(rates)) if chart.slip[e] * rates[e] <= REST_RATE])
     return True
 
 
@@ -665,6 +723,8 @@ def _switch(model: SeveralModel, chart, t: float, y: np.ndarray, switches: list)
     chart.acceleration(0, t, q, v, a)  # ẋ = K q̇ at q
     x, xdot = np.array(chart.lastx), np.array(chart.xdot)
     new = start_chart(model, best, x)
+    np.asarray(new.clampm)[:] = np.asarray(chart.clampm)  # the clamps' modes and the frictions' slips go on
+    np.asarray(new.slip)[:] = np.asarray(chart.slip)
     R = np.asarray(new.R)
     switches.append(Switch(t, model.set_name(chart.current), model.set_name(best), c_old, c_new))
     return np.concatenate([R @ x, R @ xdot, y[2 * k:]]), new, np.array(best, dtype=np.int64)

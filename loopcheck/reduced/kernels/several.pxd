@@ -25,7 +25,9 @@ cdef class Several(VectorRightHandSide):
     cdef long long[::1] piv
     cdef readonly long long[::1] sel
     cdef double[::1] gam
-    cdef readonly double[::1] clampm
+    cdef readonly double[::1] clampm, slip
+    cdef double[:, ::1] fric_k
+    cpdef double slip_margin(self, double[::1] v)
     cpdef double clamp_margin(self, double[::1] v)
     cdef bint _clamped(self, Py_ssize_t e) except -1
     cdef double _unclamped(self, Py_ssize_t e, Py_ssize_t piece, double[::1] v) except? -1

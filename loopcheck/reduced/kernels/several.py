@@ -35,6 +35,8 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     Q_a = Σ_b m_b g_b·K_Gb,a − Σ_springs k (D − D0) K_D,a − Σ_joint springs k (u − u0) K_u,a
           − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a + T(t) drive·K_a
     B_ac = Σ_dampers b K_D,a K_D,c + Σ_joint dampers c K_u,a K_u,c
+    (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
+    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
@@ -80,7 +82,8 @@ if cython.compiled:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO,
+        N_FRICTION, FRICTION_ROWS, FRICTION_COEF)
     from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
     from math import fabs, isfinite, sqrt
@@ -91,7 +94,8 @@ else:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO,
+        N_FRICTION, FRICTION_ROWS, FRICTION_COEF)
     from loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 
 from loopcheck.reduced.kernels import physics as _physics
@@ -204,6 +208,11 @@ class Several(VectorRightHandSide):
         self.act_l = np.zeros(max(na, 1))
         # each actuator's clamp mode (physics' CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO: set_clamps)
         self.clampm = np.full(max(na, 1), float(CLAMP_AUTO))
+        # joint friction (slipping only): each one's K_u per coordinate and its direction of slip s = ±1
+        # (set by the run: set_slip), its force −f s on its joint's coordinate
+        nfr = int(I[N_FRICTION])
+        self.fric_k = np.zeros((kk, max(nfr, 1)))
+        self.slip = np.ones(max(nfr, 1))
         self.act_k = np.zeros((kk, max(na, 1)))
         self.ku = np.zeros((kk, max(nje, 1)))
         self.kd = np.zeros((kk, max(ne, 1)))
@@ -650,6 +659,12 @@ class Several(VectorRightHandSide):
                     for j in range(n):
                         v += self.F[rows_at + e * n + j] * self.K[a, j]
                     self.act_k[a, e] = v
+        for e in range(self.I[N_FRICTION]):
+            for a in range(kk):
+                v = 0.0
+                for j in range(n):
+                    v += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.K[a, j]
+                self.fric_k[a, e] = v
         self.potential = V
         return 0
 
@@ -767,6 +782,8 @@ class Several(VectorRightHandSide):
                 self.Qa[a] += self.F[prm + 5 * e + 2] * f * self.act_k[a, e]
         for a in range(kk):
             w = self.Qp[a] + self.Qa[a] - self.cv[a]
+            for e in range(self.I[N_FRICTION]):  # a slipping joint's friction −f s K_u (in the dissipation)
+                w -= self.F[self.I[FRICTION_COEF] + e] * self.slip[e] * self.fric_k[a, e]
             for c in range(kk):
                 w -= self.Bm[a, c] * v[c]
                 self.small[a, c] = self.Jm[a, c]
@@ -813,10 +830,38 @@ class Several(VectorRightHandSide):
         w: cython.double = 0.0
         a: cython.Py_ssize_t
         c: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        u: cython.double
         for a in range(self.k):
             for c in range(self.k):
                 w += v[a] * self.Bm[a, c] * v[c]
+        for e in range(self.I[N_FRICTION]):  # f s u̇ = f |u̇| while slipping
+            u = 0.0
+            for a in range(self.k):
+                u += self.fric_k[a, e] * v[a]
+            w += self.F[self.I[FRICTION_COEF] + e] * self.slip[e] * u
         return w
+
+    @cython.ccall
+    def slip_margin(self, v: cython.double[::1]) -> cython.double:
+        """The least s u̇ over the joint frictions (each slipping in its direction s) at the
+        configuration last evaluated, q̇ = v: > 0 while each slips its way (inf without friction)."""
+        g: cython.double = math.inf
+        e: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        u: cython.double
+        for e in range(self.I[N_FRICTION]):
+            u = 0.0
+            for a in range(self.k):
+                u += self.fric_k[a, e] * v[a]
+            g = min(g, self.slip[e] * u)
+        return g
+
+    def set_slip(self, e: int, direction: float) -> None:
+        """Joint friction e slips in ``direction`` (±1)."""
+        if direction not in (1.0, -1.0) or not 0 <= e < self.I[N_FRICTION]:
+            raise ValueError(f"set_slip: friction {e} of {self.I[N_FRICTION]}, direction ±1, not {direction}")
+        self.slip[e] = direction
 
     @cython.ccall
     def kinetic(self, v: cython.double[::1]) -> cython.double:
@@ -1097,7 +1142,8 @@ class Several(VectorRightHandSide):
         self._best_set()
         self.c_current = self._sigma_ratio(self.current)
         self.c_best = self._sigma_ratio(self.best)
-        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin(), self.clamp_margin(v))
+        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin(), self.clamp_margin(v),
+                   self.slip_margin(v))
 
     @cython.ccall
     def clamp_margin(self, v: cython.double[::1]) -> cython.double:
@@ -1220,7 +1266,8 @@ class Several(VectorRightHandSide):
         """At a stop after a fixed step: a range's bound is located at its root (the time the joint
         reaches it); a switch of coordinates is not (it may happen anywhere near its own root)."""
         g: cython.double = self.stop_margin(t, q, v)
-        return g == g and min(self.range_margin(), self.clamp_margin(v)) < self.c_current - _c_hysteresis * self.c_best
+        return g == g and min(self.range_margin(), self.clamp_margin(v), self.slip_margin(v)) < \
+            self.c_current - _c_hysteresis * self.c_best
 
     def conditioning_of(self, joints) -> float:
         """The conditioning of the joints ``joints`` (k indices into the joint rows) at the
