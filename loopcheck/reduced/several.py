@@ -44,9 +44,29 @@ say which).
 
 A joint range ends the run where the joint reaches a bound (NumericalFailure "range-reached", as the
 one-DOF engine: the nearest bound's distance in the chart's stop event, located at its root by
-either integrator). Not yet supported with several DOF (refused in one line before any work,
-:func:`check_scene`): joint friction, a forcerange clamp on a state-dependent actuator force, point
-forces over q, a load on the first input alone (``[torque]``), redundant loops.
+either integrator).
+
+A redundantly closed loop (more constraint rows than n − k, consistent): the chart runs on the n − k
+independent rows at the assembled start (:meth:`SeveralModel.select_rows`), and every sample's
+dropped rows are checked closed to DROPPED_TOL (:func:`check_dropped`: a failure names the time
+where the selection lost rank).
+
+A forcerange clamp on a force that depends on the state (an actuator with bias b1 or b2): each such
+actuator has a clamp mode (the one-DOF engine's: free, at hi, at lo), its margin in the chart's
+stop event (:meth:`kernel.Several.clamp_margin`, CLAMP_HYSTERESIS) and checked at each load piece's
+start (``stop_at_start``; scipy's legs set the modes at each piece's start); at such a stop the
+modes are set anew by value (:func:`_clamp_stop`) and the run goes on in the same coordinates.
+
+Joint friction (Coulomb, f on a joint's own coordinate u): slipping only. Each friction has a
+direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation), its margin s u̇ in the
+chart's stop event; at u̇ = 0 the joint slips on the way its acceleration takes it with the
+friction against it (:func:`_slip_stop`); where neither way (it would stick: one more constraint
+row while stuck, a chart of k − 1 coordinates, not built yet) the run stops (NumericalFailure
+"singular" naming the joint and the time). A coordinate switch carries the clamps' modes and the
+frictions' directions to the new chart.
+
+Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
+point forces over q, a load on the first input alone (``[torque]``).
 """
 
 from __future__ import annotations
@@ -94,24 +114,11 @@ def check_scene(scene: Scene) -> None:
     """
     mech = scene.mechanism
     where = f"scene '{scene.name}' ({scene.dof} degrees of freedom)"
-    if mech.joint_frictions:
-        raise SceneError(f"{where}: joint friction ({', '.join(e.name for e in mech.joint_frictions)}) is not "
-                         "supported by the reduced engine with several inputs yet")
-    clamped = clamped_actuators(mech)
-    if clamped:
-        raise SceneError(f"{where}: actuator {', '.join(repr(a.name) for a in clamped)} clamps a force that depends "
-                         "on the state (forcerange with bias b1 or b2): not supported by the reduced engine with "
-                         "several inputs yet")
     if mech.point_forces:
         raise SceneError(f"{where}: point forces over q are not supported with several inputs")
     if scene.load is not None:
         raise SceneError(f"{where}: a load on the input ([torque]/[force]) is not supported with several inputs: "
                          "use [[actuators]] on the joints")
-    system = loops.compile_linkage(mech.linkage)
-    rows = system.m + len(system.coupling_rows)  # the loops', the linear rows, the couplings
-    if rows != system.n - scene.dof:
-        raise SceneError(f"{where}: {rows} closure equations over {system.n} coordinates (a redundantly closed "
-                         "loop): not supported by the reduced engine with several inputs yet")
 
 
 class SeveralModel:
@@ -130,6 +137,30 @@ class SeveralModel:
         self.ranged = ranged_joints(scene.mechanism.linkage)
         self.range_rows = np.array([self.system.joint_row(j.name) for j in self.ranged]).reshape(-1, self.system.n)
         self.range_bounds = np.array([j.range for j in self.ranged], dtype=float).reshape(-1, 2)
+        self.clamped = clamped_actuators(scene.mechanism)
+        frictions = list(dict.fromkeys(e.joint for e in scene.mechanism.joint_frictions))  # build_arrays' order
+        self.friction_joints = tuple(frictions)
+        self.friction_rows = np.array([self.system.joint_row(j) for j in frictions]).reshape(-1, self.system.n)
+        self.select = None  # a redundant loop's independent rows (select_rows), else every row
+        self.dropped = np.zeros(0, dtype=np.int64)
+
+    def select_rows(self, x: np.ndarray) -> None:
+        """At the assembled start x: where the constraint rows are more than n − k (a redundantly
+        closed loop), the n − k independent ones (:func:`loopcheck.kinematics.independent_rows`,
+        as :meth:`loopcheck.kinematics.LoopSystem.with_independent_rows` chooses them for one
+        input) for the chart, the others kept to be checked along the run (:func:`check_dropped`).
+        Raises SceneError where the rank is not n − k (not k degrees of freedom)."""
+        n, k = self.system.n, self.k
+        J = loops.all_constraints(self.system, x)[1]
+        if J.shape[0] == n - k:
+            return
+        rows = loops.independent_rows(J)
+        if len(rows) != n - k:
+            raise SceneError(f"scene '{self.scene.name}': the loop equations have rank {len(rows)} of {J.shape[0]} "
+                             f"rows over {n} coordinates at the start: {n - len(rows)} degrees of freedom, not the "
+                             f"{k} inputs")
+        self.select = np.array(rows, dtype=np.int64)
+        self.dropped = np.array([r for r in range(J.shape[0]) if r not in rows], dtype=np.int64)
 
     def range_margins(self, x: np.ndarray) -> np.ndarray:
         """(ranged joints, 2): each ranged joint's u − lo and hi − u at x."""
@@ -138,7 +169,7 @@ class SeveralModel:
 
     def new_chart(self) -> kernel.Several:
         return kernel.Several(self.arrays.F, self.arrays.I, self.system.joint_rows, self.k,
-                              loops.SINGULAR_CONDITIONING)
+                              loops.SINGULAR_CONDITIONING, self.select)
 
     def set_name(self, joints) -> str:
         return ", ".join(self.joint_names[int(j)] for j in joints)
@@ -299,6 +330,8 @@ def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: Re
     while True:
         end = edges[0]
         load = model.piece(t, end)
+        if len(model.clamped):  # each piece's start sets the clamp modes by value (a control step past a bound)
+            _set_clamps(model, chart, t, y)
         chart.mark()
 
         def fun(tt, yy, chart=chart, load=load):
@@ -386,6 +419,7 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
     q0 = np.array(scene.initial_q(), dtype=float)
     if not np.allclose(model.input_rows @ x, q0, rtol=0.0, atol=1e-9):
         x = loops.assemble_inputs(model.system, q0, x)
+    model.select_rows(x)
     joints = model.inputs
     v0 = np.array(scene.initial_qdot(), dtype=float)
     chart = _first_chart(model, x)
@@ -403,6 +437,8 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         chart = start_chart(model, joints, x)
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
+    _set_clamps(model, chart, 0.0, y)
+    _set_slips(model, chart, 0.0, y, range(len(model.friction_joints)))
     if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
         _check_range(model, chart, 0.0, y)
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
@@ -424,11 +460,114 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         if not leg.stopped:
             break
         _check_range(model, chart, t, y)
+        if _clamp_stop(model, chart, t, y) or _slip_stop(model, chart, t, y):
+            continue
         if len(switches) >= MAX_SWITCHES:
             raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
         y, chart, joints = _switch(model, chart, t, y, switches)
         sets.append(tuple(int(j) for j in joints))
     return record, switches, n_steps, n_eval, J0, sets
+
+
+# a redundant loop's dropped rows: |Φ_r| at most this (m or rad) at every sample (check_dropped):
+# consistent rows stay at the closure's round-off (NEWTON_TOL 1e-12, ~1e-15 measured)
+DROPPED_TOL = 1e-9
+
+
+def check_dropped(model: SeveralModel, t: np.ndarray, x: np.ndarray) -> None:
+    """A redundant loop's rows the chart did not run on (:meth:`SeveralModel.select_rows`) at
+    every sample x (samples, n): NumericalFailure "singular" at the first time one exceeds
+    DROPPED_TOL (the selected rows no longer imply it: the selection lost rank there, a
+    bifurcation of the redundant linkage), with the row, its value and the rank there."""
+    if not len(model.dropped):
+        return
+    for i in range(len(t)):
+        phi, J = loops.all_constraints(model.system, x[i])
+        gap = np.abs(phi[model.dropped])
+        if np.max(gap) > DROPPED_TOL:
+            r = int(model.dropped[int(np.argmax(gap))])
+            rank = len(loops.independent_rows(J[model.select]))
+            raise NumericalFailure(
+                "singular", f"the redundant loop's constraint row {r}, dropped at the start as dependent, opened to "
+                f"{np.max(gap):.3g} (> {DROPPED_TOL:g}) at t = {t[i]:.9g} s: the {len(model.select)} rows the chart "
+                f"runs on have rank {rank} there and no longer imply it (the selection lost rank)", float(t[i]))
+
+
+def _set_clamps(model: SeveralModel, chart, t: float, y: np.ndarray) -> int:
+    """Each clamped actuator's mode set by its force at (t, y) on t's load piece
+    (:meth:`kernel.Several.set_clamps`): the count changed."""
+    k = model.k
+    changed = chart.set_clamps(model.piece(t, t), np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    if changed < 0:
+        raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the loops "
+                               f"at t = {t:.9g} s", t)
+    return changed
+
+
+def _clamp_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
+    """At a stop of the chart's event: True where it was a clamped actuator's force leaving its
+    mode (its margin the least of the event's three), the modes then set anew at (t, y): the run
+    goes on in the same chart. False where it was a switch."""
+    if not len(model.clamped):
+        return False
+    k = model.k
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    clamp = chart.clamp_margin(np.ascontiguousarray(y[k:2 * k]))
+    if switch != switch or clamp > chart.c_current - HYSTERESIS * chart.c_best:
+        return False
+    if _set_clamps(model, chart, t, y) == 0:
+        raise NumericalFailure("singular", f"an actuator's forcerange clamp stopped the run at t = {t:.9g} s without "
+                               "changing its mode", t)
+    return True
+
+
+# a joint friction's rate |u̇| at most this (rad/s or m/s) at a stop is at rest there (_slip_stop)
+REST_RATE = 1e-9
+
+
+def _set_slips(model: SeveralModel, chart, t: float, y: np.ndarray, frictions) -> None:
+    """Each joint friction of ``frictions`` (indices) set slipping the way its joint moves at
+    (t, y), or, at rest (|u̇| ≤ REST_RATE), the way its acceleration takes it with the friction
+    against it. Raises NumericalFailure where neither way: the joint would stick (a stuck joint
+    among several inputs is one more constraint row while it sticks: not supported yet)."""
+    k = model.k
+    q, v = np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k])
+    a = np.zeros(k)
+    load = model.piece(t, t)
+    for e in frictions:
+        if chart.acceleration(load, t, q, v, a) != 0:
+            raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the "
+                                   f"loops at t = {t:.9g} s", t)
+        rate = float(model.friction_rows[e] @ np.asarray(chart.xdot))
+        if abs(rate) > REST_RATE:
+            chart.set_slip(e, 1.0 if rate > 0 else -1.0)
+            continue
+        for direction in (-float(chart.slip[e]), float(chart.slip[e])):
+            chart.set_slip(e, direction)
+            chart.acceleration(load, t, q, v, a)
+            if direction * float(model.friction_rows[e] @ np.asarray(chart.xdd)) > 0.0:
+                break
+        else:
+            raise NumericalFailure("singular", f"joint friction on {model.friction_joints[e]!r} holds its joint at "
+                                   f"t = {t:.9g} s (it would stick): a stuck joint among several inputs is not "
+                                   "supported by the reduced engine yet", t)
+
+
+def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
+    """At a stop of the chart's event: True where it was a joint friction's rate reaching 0 (its
+    s u̇ the least of the event's margins), the frictions at rest then set anew
+    (:func:`_set_slips`): the run goes on in the same coordinates. False where it was a switch."""
+    if not len(model.friction_joints):
+        return False
+    k = model.k
+    v = np.ascontiguousarray(y[k:2 * k])
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), v)
+    if switch != switch or chart.slip_margin(v) > chart.c_current - HYSTERESIS * chart.c_best:
+        return False
+    K = np.asarray(chart.K)
+    rates = model.friction_rows @ (K.T @ v)
+    _set_slips(model, chart, t, y, [e for e in range(len(rates)) if chart.slip[e] * rates[e] <= REST_RATE])
+    return True
 
 
 def _check_range(model: SeveralModel, chart, t: float, y: np.ndarray) -> None:
@@ -584,6 +723,8 @@ def _switch(model: SeveralModel, chart, t: float, y: np.ndarray, switches: list)
     chart.acceleration(0, t, q, v, a)  # ẋ = K q̇ at q
     x, xdot = np.array(chart.lastx), np.array(chart.xdot)
     new = start_chart(model, best, x)
+    np.asarray(new.clampm)[:] = np.asarray(chart.clampm)  # the clamps' modes and the frictions' slips go on
+    np.asarray(new.slip)[:] = np.asarray(chart.slip)
     R = np.asarray(new.R)
     switches.append(Switch(t, model.set_name(chart.current), model.set_name(best), c_old, c_new))
     return np.concatenate([R @ x, R @ xdot, y[2 * k:]]), new, np.array(best, dtype=np.int64)
@@ -623,6 +764,7 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), ste
     wall = time.perf_counter() - begin
     t = np.concatenate(record.t)
     x = np.concatenate(record.x)
+    check_dropped(model, t, x)
     xdot = np.concatenate(record.xdot)
     xdd = np.concatenate(record.xdd)
     x[:, model.angle_columns] = np.unwrap(x[:, model.angle_columns], axis=0)

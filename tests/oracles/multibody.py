@@ -13,12 +13,13 @@ coincide: Φ(q) = 0. With M = diag(m, m, I_G) per body and Φ_q the constraints'
     [ M    Φ_qᵀ ] [ q̈ ]   [ Q ]
     [ Φ_q   0   ] [ λ  ] = [ γ ],     γ = −(Φ_q q̇)_q q̇ = Σ ± θ̇² R(θ) u   (u = s − c),
 
-the index-1 form of the equations of motion. Q holds gravity, the joints' torques (τ on the body
-``b`` of a joint, −τ on its body ``a``, for the relative angle θ_b − θ_a), the torsion springs on
-a joint's relative angle (τ = −k (θ_b − θ_a − u0), the same way round; potential ½ k (θ_b − θ_a −
-u0)², counted in the energy) and the point-to-point dampers (force −c ḋ along the line between
-their points). The work of the torques and the dampers' dissipation are integrated alongside, for
-the energy balance.
+the index-1 form of the equations of motion (a ``redundant`` model, whose pins close a loop with
+dependent rows, takes Φ_q q̈ = γ on an orthonormal basis of Φ_q's rows, by its SVD: the same q̈).
+Q holds gravity, the joints' torques (τ on the body ``b`` of a joint, −τ on its body ``a``, for
+the relative angle θ_b − θ_a), the torsion springs on a joint's relative angle (τ = −k (θ_b − θ_a −
+u0), the same way round; potential ½ k (θ_b − θ_a − u0)², counted in the energy) and the
+point-to-point dampers (force −c ḋ along the line between their points). The work of the torques
+and the dampers' dissipation are integrated alongside, for the energy balance.
 
 ``simulate`` integrates it with scipy's DOP853 (restarted at every load edge) and states its own
 accuracy: the largest differences of the body angles and of their rates between rtol and rtol / 2 — a
@@ -77,9 +78,11 @@ class Damper:
 @dataclass(frozen=True)
 class Torque:
     """τ(t) (N·m) across a pin: on its body b, and −τ on its body a. Constant between the model's
-    ``edges`` (it is read at the middle of each piece)."""
+    ``edges`` (it is read at the middle of each piece). With ``state``, τ(t, u, u̇) instead: a law
+    of the pin's relative angle u = θ_b − θ_a (rad) and its rate (a servo)."""
     pin: str
-    value: Callable[[float], float]
+    value: Callable[..., float]
+    state: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,7 @@ class Model:
     springs: tuple = ()                          # TorsionSpring
     gravity: float = 0.0                         # m/s², along −y
     edges: tuple = ()                            # s: where a torque jumps (the integrator restarts)
+    redundant: bool = False                      # pins that close a loop redundantly (accelerations)
     index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -174,14 +178,18 @@ class Model:
         pins = {p.name: p for p in self.pins}
         for torque in self.torques:
             p = pins[torque.pin]
-            tau = torque.value(t)
-            rate = 0.0
+            angle = rate = 0.0
             if p.b != GROUND:
-                Q[3 * self.index[p.b] + 2] += tau
+                angle += q[3 * self.index[p.b] + 2]
                 rate += qd[3 * self.index[p.b] + 2]
             if p.a != GROUND:
-                Q[3 * self.index[p.a] + 2] -= tau
+                angle -= q[3 * self.index[p.a] + 2]
                 rate -= qd[3 * self.index[p.a] + 2]
+            tau = torque.value(t, angle, rate) if torque.state else torque.value(t)
+            if p.b != GROUND:
+                Q[3 * self.index[p.b] + 2] += tau
+            if p.a != GROUND:
+                Q[3 * self.index[p.a] + 2] -= tau
             power += tau * rate
         for spring in self.springs:
             p = pins[spring.pin]
@@ -210,8 +218,17 @@ class Model:
         J, gamma = self.jacobian(q)
         Q, power, dissipation = self.forces(t, q, qd)
         m = J.shape[0]
+        g = gamma(qd)
+        if self.redundant:
+            # dependent pin rows: Φ_q q̈ = γ on an orthonormal basis of Φ_q's row space instead (its
+            # left singular vectors above 1e-8 of the largest singular value): the same q̈ for
+            # consistent rows, and the KKT matrix square and regular
+            U, sv, _ = np.linalg.svd(J, full_matrices=False)
+            basis = U[:, sv > 1e-8 * sv[0]]
+            J, g = basis.T @ J, basis.T @ g
+            m = J.shape[0]
         A = np.block([[M, J.T], [J, np.zeros((m, m))]])
-        sol = np.linalg.solve(A, np.concatenate([Q, gamma(qd)]))
+        sol = np.linalg.solve(A, np.concatenate([Q, g]))
         return sol[:self.n], power, dissipation
 
     def energy(self, q, qd) -> float:

@@ -4,7 +4,7 @@ from loopcheck.kernels.loops cimport Loops
 from loopcheck.reduced.kernels.vector_problem cimport VectorRightHandSide
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust, _c_trusted_correction, _c_hysteresis
-cdef double _c_jacobi_tol, _c_nan
+cdef double _c_jacobi_tol, _c_nan, _c_clamp_hysteresis
 cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps
 
 
@@ -23,6 +23,16 @@ cdef class Several(VectorRightHandSide):
     cdef readonly double[::1] Qp, drive_rate, Qa, cv, qdd, xdot, xdd0, xdd, lastx, lastq, rate
     cdef double[::1] qv, act_l, basex, baseq, startx, startq, markx, markq, target, pred, resid, used
     cdef long long[::1] piv
+    cdef readonly long long[::1] sel
+    cdef double[::1] gam
+    cdef readonly double[::1] clampm, slip
+    cdef double[:, ::1] fric_k
+    cpdef double slip_margin(self, double[::1] v)
+    cpdef double clamp_margin(self, double[::1] v)
+    cdef bint _clamped(self, Py_ssize_t e) except -1
+    cdef double _unclamped(self, Py_ssize_t e, Py_ssize_t piece, double[::1] v) except? -1
+    cpdef bint stop_at_start(self, double t, double[::1] q, double[::1] v)
+    cpdef Py_ssize_t set_clamps(self, Py_ssize_t load, double[::1] q, double[::1] v)
     cdef readonly long long[::1] best, current, counts
 
     cdef int _save_factors(self) except -1

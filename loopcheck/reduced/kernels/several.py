@@ -7,7 +7,10 @@ kinematics (:class:`loopcheck.kernels.loops.Loops`: term tables, Φ, Φ_x, the d
 
 Coordinates. A chart holds k independent coordinates q = R x, R (k, n) rows of the joints' own
 coordinates (``system.joint_rows``: relative angles, slide displacements). With the m = n − k
-constraint rows Φ(x) = 0 (no redundant loop: the engine refuses one), A = [Φ_x; R] is square.
+constraint rows Φ(x) = 0, A = [Φ_x; R] is square. A redundantly closed loop has more rows than
+n − k: the chart then runs on n − k of them, ``select`` (the independent rows at the assembled
+start, :func:`loopcheck.kinematics.independent_rows`; the run checks that the others stay closed),
+Φ, Φ_x and γ below meaning the selected rows.
 
 Configuration at q: Newton's method on (Φ(x), R x − q) = 0 from the quadratic predictor
 x_last + K_last Δ + ½ ẍ0(K_last Δ), Δ = q − q_last, of the chart's last configuration (ẍ0 below:
@@ -32,11 +35,14 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     Q_a = Σ_b m_b g_b·K_Gb,a − Σ_springs k (D − D0) K_D,a − Σ_joint springs k (u − u0) K_u,a
           − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a + T(t) drive·K_a
     B_ac = Σ_dampers b K_D,a K_D,c + Σ_joint dampers c K_u,a K_u,c
+    (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
+    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
-        the clamp only on a force that does not depend on the state: the engine refuses a
-        forcerange on one that does)
+        on a force that depends on the state, a clamp mode per actuator (:mod:`.physics`'s
+        CLAMP_FREE: f unclamped, CLAMP_HI: hi, CLAMP_LO: lo; CLAMP_AUTO: by value), switched by the
+        run at the stop event's root (:meth:`Several.clamp_margin`, :meth:`Several.set_clamps`))
     𝔍 q̈ = Q − c   (a k×k dense solve, partial pivoting)
 
 (K_G, K_D = dD/dq_a, K_P, K_u = row·K_a, K_l: the velocity coefficients per coordinate.) The
@@ -76,7 +82,8 @@ if cython.compiled:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO,
+        N_FRICTION, FRICTION_ROWS, FRICTION_COEF)
     from cython.cimports.loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 else:
     from math import fabs, isfinite, sqrt
@@ -87,7 +94,8 @@ else:
         ACT_PARAMS, ACT_PIECE, ACT_ROWS, CENTRES, ELEMENT_COEF, ELEMENT_REST, ENDS, FORCE_POINTS, GRAVITY,
         HAS_GRAVITY, INERTIAS, JOINT_COEF, JOINT_REST, JOINT_ROWS, MASSES, N_ACTUATORS, N_DAMPERS, N_ELEMENTS,
         N_FORCES, N_JOINT_DAMPERS, N_JOINT_ELEMENTS, N_JOINT_INERTIAS, N_RANGES, N_TIMED, PIECE_VALUES,
-        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE)
+        RANGE_BOUNDS, RANGE_ROWS, TIMED_DIR, DRIVE, N_CLAMPED, CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO,
+        N_FRICTION, FRICTION_ROWS, FRICTION_COEF)
     from loopcheck.reduced.kernels.vector_problem import VectorRightHandSide
 
 from loopcheck.reduced.kernels import physics as _physics
@@ -110,6 +118,7 @@ _c_newton_round_off = cython.declare(cython.double, NEWTON_ROUND_OFF)
 _c_predictor_trust = cython.declare(cython.double, PREDICTOR_TRUST)
 _c_trusted_correction = cython.declare(cython.double, TRUSTED_CORRECTION)
 _c_hysteresis = cython.declare(cython.double, HYSTERESIS)
+_c_clamp_hysteresis = cython.declare(cython.double, _physics.CLAMP_HYSTERESIS)
 _c_walk_halvings = cython.declare(cython.Py_ssize_t, WALK_HALVINGS)
 _c_jacobi_sweeps = cython.declare(cython.Py_ssize_t, JACOBI_SWEEPS)
 _c_jacobi_tol = cython.declare(cython.double, JACOBI_TOL)
@@ -124,9 +133,11 @@ _c_nan = cython.declare(cython.double, math.nan)
 class Several(VectorRightHandSide):
     """The compiled chart of a linkage in k independent joint coordinates (module docstring).
 
-    ``Several(F, I, joint_rows, k, singular)``: the packed model (F, I), the joints' own coordinate
-    rows (joints, n) (the candidates of the partitioning), k the degrees of freedom, ``singular``
-    the conditioning below which no set can drive the linkage (reported; the run decides).
+    ``Several(F, I, joint_rows, k, singular, select=None)``: the packed model (F, I), the joints'
+    own coordinate rows (joints, n) (the candidates of the partitioning), k the degrees of freedom,
+    ``singular`` the conditioning below which no set can drive the linkage (reported; the run
+    decides), ``select`` the n − k constraint rows to run on (a redundant loop's independent
+    rows; None: every row, which must then be n − k).
     :meth:`start` makes it a chart of one set of joints at an assembled x.
 
     A :class:`.vector_problem.VectorRightHandSide`: the compiled n-coordinate integrators
@@ -139,7 +150,7 @@ class Several(VectorRightHandSide):
     ``mark()``, ``rewind()``.
     """
 
-    def __init__(self, F, I, joint_rows, k: int, singular: float):
+    def __init__(self, F, I, joint_rows, k: int, singular: float, select=None):
         F = np.ascontiguousarray(F, dtype=np.float64)
         I = np.ascontiguousarray(I, dtype=np.int64)
         self.F = F
@@ -150,11 +161,24 @@ class Several(VectorRightHandSide):
         self.k = int(k)
         if not 1 <= self.k <= n:
             raise ValueError(f"Several: k = {k} degrees of freedom of {n} coordinates")
-        self.loops = Loops(F, I)
-        m = self.loops.m
-        if m != n - self.k:
-            raise ValueError(f"Several: {m} constraint rows for {n} coordinates and {k} degrees of freedom "
-                             f"(a redundant loop or a wrong count): n − k = {n - self.k} rows are needed")
+        m_all = 2 * int(I[TABLES + TABLE_ENTRIES * LOOPS]) + int(I[N_LINEAR])
+        # Loops on n − 1 of its rows (never its adaptive basis: this chart reads Φ and Φ_x whole)
+        self.loops = Loops(F, I, np.arange(n - 1, dtype=np.int64) if m_all > n - 1 else None)
+        m_all = self.loops.m
+        if select is None:
+            if m_all != n - self.k:
+                raise ValueError(f"Several: {m_all} constraint rows for {n} coordinates and {k} degrees of freedom "
+                                 f"(a redundant loop or a wrong count): n − k = {n - self.k} rows are needed, "
+                                 "or a selection of them")
+            select = np.arange(m_all, dtype=np.int64)
+        select = np.asarray(select, dtype=np.int64).reshape(-1)
+        if len(select) != n - self.k or (len(select) and (np.min(select) < 0 or np.max(select) >= m_all
+                                                          or len(np.unique(select)) != len(select))):
+            raise ValueError(f"Several: select must be n − k = {n - self.k} distinct rows of the {m_all} constraint "
+                             f"rows, got {select.tolist()}")
+        self.sel = np.ascontiguousarray(select)
+        self.gam = np.zeros(max(m_all, 1))
+        m = n - self.k
         self.mr = m
         self.singular = singular
         JR = np.ascontiguousarray(joint_rows, dtype=np.float64).reshape(-1, n)
@@ -182,6 +206,13 @@ class Several(VectorRightHandSide):
         self.small = np.zeros((kk, kk + 1))
         self.timed = np.zeros((kk, max(nt, 1)))
         self.act_l = np.zeros(max(na, 1))
+        # each actuator's clamp mode (physics' CLAMP_FREE, CLAMP_HI, CLAMP_LO, CLAMP_AUTO: set_clamps)
+        self.clampm = np.full(max(na, 1), float(CLAMP_AUTO))
+        # joint friction (slipping only): each one's K_u per coordinate and its direction of slip s = ±1
+        # (set by the run: set_slip), its force −f s on its joint's coordinate
+        nfr = int(I[N_FRICTION])
+        self.fric_k = np.zeros((kk, max(nfr, 1)))
+        self.slip = np.ones(max(nfr, 1))
         self.act_k = np.zeros((kk, max(na, 1)))
         self.ku = np.zeros((kk, max(nje, 1)))
         self.kd = np.zeros((kk, max(ne, 1)))
@@ -276,14 +307,17 @@ class Several(VectorRightHandSide):
         n: cython.Py_ssize_t = self.n
         mr: cython.Py_ssize_t = self.mr
         nl: cython.Py_ssize_t = 2 * self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        nlin: cython.Py_ssize_t = self.I[N_LINEAR]
         j: cython.Py_ssize_t
         self.loops._table_rates(LOOPS, False)
-        for j in range(nl // 2):
-            out[2 * j] = -self.loops.rows[j, 2]
-            out[2 * j + 1] = -self.loops.rows[j, 3]
-        for j in range(nl, mr):
-            self.loops._poly(self.I[LINEAR] + (j - nl) * (2 * n + ROW_EXTRA), False)
-            out[j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
+        for j in range(nl // 2):  # every row's −γ into gam, the selected ones into out
+            self.gam[2 * j] = -self.loops.rows[j, 2]
+            self.gam[2 * j + 1] = -self.loops.rows[j, 3]
+        for j in range(nlin):
+            self.loops._poly(self.I[LINEAR] + j * (2 * n + ROW_EXTRA), False)
+            self.gam[nl + j] = self.loops.poly_ddp * self.loops.poly_rate * self.loops.poly_rate
+        for j in range(mr):
+            out[j] = self.gam[self.sel[j]]
         for j in range(mr, n):
             out[j] = 0.0
         self._solve(out)
@@ -344,9 +378,9 @@ class Several(VectorRightHandSide):
         self.loops._constraints()
         largest: cython.double = 0.0
         for r in range(mr):
-            self.loops.rhs[r] = self.loops.phi[r]
+            self.loops.rhs[r] = self.loops.phi[self.sel[r]]
             for c in range(n):
-                self.loops.A[r, c] = self.loops.Phi[r, c]
+                self.loops.A[r, c] = self.loops.Phi[self.sel[r], c]
         for r in range(self.k):
             v = 0.0
             for c in range(n):
@@ -430,7 +464,7 @@ class Several(VectorRightHandSide):
         self._save_factors()
         for r in range(self.mr):
             for j in range(n):
-                self.Phx[r, j] = self.loops.Phi[r, j]
+                self.Phx[r, j] = self.loops.Phi[self.sel[r], j]
         for j in range(n):
             self.loops.kin[0, j] = self.loops.x[j]
             self.lastx[j] = self.loops.x[j]
@@ -625,6 +659,12 @@ class Several(VectorRightHandSide):
                     for j in range(n):
                         v += self.F[rows_at + e * n + j] * self.K[a, j]
                     self.act_k[a, e] = v
+        for e in range(self.I[N_FRICTION]):
+            for a in range(kk):
+                v = 0.0
+                for j in range(n):
+                    v += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.K[a, j]
+                self.fric_k[a, e] = v
         self.potential = V
         return 0
 
@@ -732,11 +772,18 @@ class Several(VectorRightHandSide):
                 rate += self.act_k[a, e] * v[a]
             f = (self.F[self.I[ACT_PIECE] + load * na + e] + self.F[prm + 5 * e] * self.act_l[e]
                  + self.F[prm + 5 * e + 1] * rate)
-            f = min(max(f, self.F[prm + 5 * e + 3]), self.F[prm + 5 * e + 4])
+            if self.clampm[e] == CLAMP_HI:
+                f = self.F[prm + 5 * e + 4]
+            elif self.clampm[e] == CLAMP_LO:
+                f = self.F[prm + 5 * e + 3]
+            elif self.clampm[e] != CLAMP_FREE:
+                f = min(max(f, self.F[prm + 5 * e + 3]), self.F[prm + 5 * e + 4])
             for a in range(kk):
                 self.Qa[a] += self.F[prm + 5 * e + 2] * f * self.act_k[a, e]
         for a in range(kk):
             w = self.Qp[a] + self.Qa[a] - self.cv[a]
+            for e in range(self.I[N_FRICTION]):  # a slipping joint's friction −f s K_u (in the dissipation)
+                w -= self.F[self.I[FRICTION_COEF] + e] * self.slip[e] * self.fric_k[a, e]
             for c in range(kk):
                 w -= self.Bm[a, c] * v[c]
                 self.small[a, c] = self.Jm[a, c]
@@ -783,10 +830,38 @@ class Several(VectorRightHandSide):
         w: cython.double = 0.0
         a: cython.Py_ssize_t
         c: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        u: cython.double
         for a in range(self.k):
             for c in range(self.k):
                 w += v[a] * self.Bm[a, c] * v[c]
+        for e in range(self.I[N_FRICTION]):  # f s u̇ = f |u̇| while slipping
+            u = 0.0
+            for a in range(self.k):
+                u += self.fric_k[a, e] * v[a]
+            w += self.F[self.I[FRICTION_COEF] + e] * self.slip[e] * u
         return w
+
+    @cython.ccall
+    def slip_margin(self, v: cython.double[::1]) -> cython.double:
+        """The least s u̇ over the joint frictions (each slipping in its direction s) at the
+        configuration last evaluated, q̇ = v: > 0 while each slips its way (inf without friction)."""
+        g: cython.double = math.inf
+        e: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        u: cython.double
+        for e in range(self.I[N_FRICTION]):
+            u = 0.0
+            for a in range(self.k):
+                u += self.fric_k[a, e] * v[a]
+            g = min(g, self.slip[e] * u)
+        return g
+
+    def set_slip(self, e: int, direction: float) -> None:
+        """Joint friction e slips in ``direction`` (±1)."""
+        if direction not in (1.0, -1.0) or not 0 <= e < self.I[N_FRICTION]:
+            raise ValueError(f"set_slip: friction {e} of {self.I[N_FRICTION]}, direction ±1, not {direction}")
+        self.slip[e] = direction
 
     @cython.ccall
     def kinetic(self, v: cython.double[::1]) -> cython.double:
@@ -1067,7 +1142,106 @@ class Several(VectorRightHandSide):
         self._best_set()
         self.c_current = self._sigma_ratio(self.current)
         self.c_best = self._sigma_ratio(self.best)
-        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin())
+        return min(self.c_current - _c_hysteresis * self.c_best, self.range_margin(), self.clamp_margin(v),
+                   self.slip_margin(v))
+
+    @cython.ccall
+    def clamp_margin(self, v: cython.double[::1]) -> cython.double:
+        """The least clamp margin of the clamped actuators (a force that depends on the state,
+        with a forcerange) at the configuration last evaluated, q̇ = v, on the latest
+        acceleration's piece: > 0 while each one's force is in its mode (physics' rule: CLAMP_FREE
+        min(hi − f_u, f_u − lo) + ε, CLAMP_HI f_u − hi + ε, CLAMP_LO lo − f_u + ε, ε =
+        CLAMP_HYSTERESIS × the larger finite bound's magnitude); inf without one or in CLAMP_AUTO."""
+        g: cython.double = math.inf
+        e: cython.Py_ssize_t
+        if self.I[N_CLAMPED] == 0:
+            return g
+        prm: cython.Py_ssize_t
+        lo: cython.double
+        hi: cython.double
+        f: cython.double
+        eps: cython.double
+        for e in range(self.I[N_ACTUATORS]):
+            if not self._clamped(e):
+                continue
+            prm = self.I[ACT_PARAMS] + 5 * e
+            lo = self.F[prm + 3]
+            hi = self.F[prm + 4]
+            eps = 0.0
+            if isfinite(lo):
+                eps = fabs(lo)
+            if isfinite(hi):
+                eps = max(eps, fabs(hi))
+            eps *= _c_clamp_hysteresis
+            f = self._unclamped(e, self.piece, v)
+            if self.clampm[e] == CLAMP_HI:
+                g = min(g, f - hi + eps)
+            elif self.clampm[e] == CLAMP_LO:
+                g = min(g, lo - f + eps)
+            elif self.clampm[e] == CLAMP_FREE:
+                g = min(g, min(hi - f, f - lo) + eps)
+        return g
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _clamped(self, e: cython.Py_ssize_t) -> cython.bint:
+        """Whether actuator e's clamp switches with the state (physics' rule): b1 or b2 nonzero,
+        lo < hi, a finite bound."""
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * e
+        lo: cython.double = self.F[prm + 3]
+        hi: cython.double = self.F[prm + 4]
+        return (self.F[prm] != 0.0 or self.F[prm + 1] != 0.0) and lo < hi and (isfinite(lo) or isfinite(hi))
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _unclamped(self, e: cython.Py_ssize_t, piece: cython.Py_ssize_t, v: cython.double[::1]) -> cython.double:
+        """Actuator e's force before its clamp, c + b1·gear·l + b2·gear·l̇ at the configuration
+        last evaluated, q̇ = v, on load piece ``piece``."""
+        prm: cython.Py_ssize_t = self.I[ACT_PARAMS] + 5 * e
+        rate: cython.double = 0.0
+        a: cython.Py_ssize_t
+        for a in range(self.k):
+            rate += self.act_k[a, e] * v[a]
+        return (self.F[self.I[ACT_PIECE] + piece * self.I[N_ACTUATORS] + e] + self.F[prm] * self.act_l[e]
+                + self.F[prm + 1] * rate)
+
+    @cython.ccall
+    def set_clamps(self, load: cython.Py_ssize_t, q: cython.double[::1], v: cython.double[::1]) -> cython.Py_ssize_t:
+        """Set each clamped actuator's mode by its unclamped force at q, q̇ = v on load piece
+        ``load`` (physics' rule: CLAMP_HI above hi, CLAMP_LO below lo, else CLAMP_FREE). Returns the
+        count of modes changed, −1 where the configuration fails."""
+        if not self.evaluate(q):
+            return -1
+        self.piece = load
+        changed: cython.Py_ssize_t = 0
+        e: cython.Py_ssize_t
+        prm: cython.Py_ssize_t
+        f: cython.double
+        mode: cython.double
+        for e in range(self.I[N_ACTUATORS]):
+            if not self._clamped(e):
+                continue
+            prm = self.I[ACT_PARAMS] + 5 * e
+            f = self._unclamped(e, load, v)
+            mode = CLAMP_HI if f > self.F[prm + 4] else (CLAMP_LO if f < self.F[prm + 3] else CLAMP_FREE)
+            if mode != self.clampm[e]:
+                changed += 1
+                self.clampm[e] = mode
+        return changed
+
+    @cython.ccall
+    def stop_at_start(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.bint:
+        """True at a load piece's start (right after its first acceleration) where a clamped
+        actuator's force is out of its mode (a control step past a bound, or back inside)."""
+        if self.I[N_CLAMPED] == 0:
+            return False
+        if not self.evaluate(q):
+            return True
+        return self.clamp_margin(v) < 0.0
+
+    def clamp_modes(self) -> tuple:
+        """The actuators' clamp modes (physics' CLAMP_* values)."""
+        return tuple(int(m) for m in self.clampm[:self.I[N_ACTUATORS]])
 
     @cython.ccall
     def range_margin(self) -> cython.double:
@@ -1092,7 +1266,8 @@ class Several(VectorRightHandSide):
         """At a stop after a fixed step: a range's bound is located at its root (the time the joint
         reaches it); a switch of coordinates is not (it may happen anywhere near its own root)."""
         g: cython.double = self.stop_margin(t, q, v)
-        return g == g and self.range_margin() < self.c_current - _c_hysteresis * self.c_best
+        return g == g and min(self.range_margin(), self.clamp_margin(v), self.slip_margin(v)) < \
+            self.c_current - _c_hysteresis * self.c_best
 
     def conditioning_of(self, joints) -> float:
         """The conditioning of the joints ``joints`` (k indices into the joint rows) at the
