@@ -31,3 +31,23 @@ def inputs_at(scene, times, rtol: float) -> tuple[dict, tuple[float, float]]:
     model = five_bar()
     run, accuracy = simulate(model, *start(scene, model), np.asarray(times, dtype=float), rtol=rtol)
     return {name: (run.angle(model, body), run.rate(model, body)) for name, body in BODIES.items()}, accuracy
+
+
+def assert_inputs_follow(scene, result, q_tol: float, rate_tol: float) -> None:
+    """Every input of ``result`` (a port's run of the five-bar robot ``scene``) recorded on the run's
+    grid from its initial state, within ``q_tol`` rad and ``rate_tol`` rad/s of the oracle (whose own
+    accuracy must be a hundredth of those), each with its own peak; the two motors' peaks differ."""
+    import pytest
+
+    assert len(result.inputs) == len(scene.inputs) == 2
+    oracle, accuracy = inputs_at(scene, result.trajectory.t, rtol=1e-10)
+    assert accuracy[0] < q_tol / 100 and accuracy[1] < rate_tol / 100
+    for name, (trajectory, peak), q0, qdot0 in zip(scene.inputs, result.inputs, scene.initial_q(),
+                                                   scene.initial_qdot()):
+        np.testing.assert_array_equal(trajectory.t, result.trajectory.t)
+        assert trajectory.q[0] == pytest.approx(q0, abs=1e-12) and trajectory.qdot[0] == pytest.approx(qdot0, abs=1e-12)
+        q, qdot = oracle[name]
+        assert np.max(np.abs(trajectory.q - q)) < q_tol, name
+        assert np.max(np.abs(trajectory.qdot - qdot)) < rate_tol, name
+        assert peak == trajectory.peak_rate(), name
+    assert result.other_inputs[0][1].omega < -3.0 < 7.0 < result.peak.omega  # two different peaks, not one twice
