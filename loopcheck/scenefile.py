@@ -727,14 +727,20 @@ def _assemble_four_bar_now(system, g: FourBarGeometry, q0: float) -> np.ndarray:
     return x0
 
 
+# The assembled x0 is known to Newton's tolerance (m or rad): a joint found outside its range by no
+# more than that starts on its bound (Menagerie's Robotiq 2F-85 at qpos0: its driver at its lower
+# bound 0 came out at -3.2e-32 rad and was refused).
+RANGE_START_TOL = 1e-12
+
+
 def _check_ranges(system, linkage: Linkage, x0: np.ndarray) -> None:
-    """Every joint with a range starts inside it (lo ≤ u0 ≤ hi)."""
+    """Every joint with a range starts inside it (lo ≤ u0 ≤ hi, to the assembly's RANGE_START_TOL)."""
     for joint in linkage.joints:
         if joint.range is None:
             continue
         u0 = float(system.joint_row(joint.name) @ x0)
         lo, hi = joint.range
-        if not lo <= u0 <= hi:
+        if not lo - RANGE_START_TOL <= u0 <= hi + RANGE_START_TOL:
             unit = "m" if isinstance(joint, PrismaticJoint) else "rad"
             raise SceneError(f"joint '{joint.name}' starts at {u0:.9g} {unit}, outside its range [{lo:g}, {hi:g}] {unit}")
 

@@ -145,6 +145,11 @@ def test_a_scene_starting_outside_its_range_is_refused():
         scene_from_dict(rotor(span=(0.5, 2.0)))
     with pytest.raises(SceneError, match=r"joints\[0\].range' = \[2, 1\]: the lower bound must be below the upper"):
         scene_from_dict(rotor(span=(2.0, 1.0)))
+    # outside by no more than the assembly's tolerance is on the bound (Menagerie's Robotiq 2F-85 at
+    # qpos0: its driver at its lower bound came out at -3.2e-32 rad); beyond it, outside
+    scene_from_dict(rotor(span=(1e-13, 2.0)))
+    with pytest.raises(SceneError, match=r"^joint 'O' starts at 0 rad, outside its range \[1e-09, 2\] rad$"):
+        scene_from_dict(rotor(span=(1e-9, 2.0)))
 
 
 def test_the_scipy_methods_refuse_events():
