@@ -247,15 +247,6 @@ class Scene:
         """The degrees of freedom: one per input."""
         return len(self.mechanism.linkage.inputs)
 
-    def require_one_dof(self, study: str) -> None:
-        """Refuse, in one line, a study that has no meaning yet for a scene of several degrees of
-        freedom (``study``: its command's name; today ``sweep``, and its sensitivity, whose rows, plots
-        and derivatives hold one input's peak: docs/comparison.md, "Several inputs")."""
-        if self.dof > 1:
-            raise SceneError(f"scene '{self.name}' has {self.dof} degrees of freedom (inputs {', '.join(self.inputs)}); "
-                             f"loopcheck {study} studies one-DOF scenes only: its rows and sensitivities hold one "
-                             "input's peak (check, run, cost and stress take several)")
-
     def initial_q(self) -> tuple[float, ...]:
         """Every input's coordinate at t = 0 (rad or m), in the inputs' order."""
         return self.inputs_q0 or (self.q0,)

@@ -636,7 +636,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
             items = sensitivities(data, spec, path, **({"engines": args.sensitivity_engines}
                                                        if args.sensitivity_engines else {}))
-            print("\n".join(sensitivity_lines(items, unit=f"{_scene(path).input_unit}/s")))
+            scene = _scene(path)
+            print("\n".join(sensitivity_lines(items, unit=f"{scene.input_unit}/s",
+                                               units={n: f"{u}/s" for n, u in zip(scene.inputs, scene.input_units())})))
             found = [s.as_dict() for s in items]
         def said(summary, paths) -> None:  # with the files in place, before a held signal comes
             print("\n".join(summary_lines(summary)))

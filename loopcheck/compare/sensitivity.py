@@ -1,4 +1,5 @@
-"""Local sensitivities of the peak input speed: d(peak |ω|)/dp at the nominal scene, by engine.
+"""Local sensitivities of the peak input speed: d(peak |ω|)/dp at the nominal scene, by engine
+(with several inputs, each input's: d(peak_i |ω|)/dp from the same runs, a table per input).
 
 For each varied key p of a sweep (nominal p0: the scene's value, or the spec's centre where the
 file gives none), central differences of an engine's continuous peak |ω| P(p) (the scene's own
@@ -50,6 +51,7 @@ class Sensitivity:
     at_2h: float        # D(2h)
     engine: str = REFERENCE
     frozen_step: float | None = None  # s: the engine's step grid, frozen at the nominal scene's (None: adaptive)
+    input: str = ""     # a scene of several degrees of freedom: the input whose peak this is ("": the one input)
 
     def __post_init__(self):
         if not (self.step > 0.0 and math.isfinite(self.step)):
@@ -60,7 +62,7 @@ class Sensitivity:
     def as_dict(self) -> dict[str, float | str | None]:
         return {"key": self.key, "nominal": self.nominal, "step": self.step, "peak": self.peak,
                 "derivative": self.derivative, "error": self.error, "at_h": self.at_h, "at_2h": self.at_2h,
-                "engine": self.engine, "frozen_step": self.frozen_step}
+                "engine": self.engine, "frozen_step": self.frozen_step, **({"input": self.input} if self.input else {})}
 
 
 @dataclass(frozen=True)
@@ -131,9 +133,9 @@ def _run(data, values, key: str, source: str, engine: str, nominal_settings: Any
 
 
 def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str,
-          engine: str = REFERENCE, nominal_settings: Any | None = None) -> float:
-    """The engine's continuous peak |ω| of the scene at ``values``."""
-    return abs(_run(data, values, key, source, engine, nominal_settings).peak.omega)
+          engine: str = REFERENCE, nominal_settings: Any | None = None) -> tuple[float, ...]:
+    """The engine's continuous peak |ω| of each input of the scene at ``values``, in its inputs' order."""
+    return tuple(abs(peak.omega) for _, peak in _run(data, values, key, source, engine, nominal_settings).inputs)
 
 
 def check_engines_declare(data: Mapping[str, Any], spec: SweepSpec, source: str,
@@ -166,6 +168,8 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
     check_engines_declare(data, spec, source, engines)
     base = {k: v for k, v in data.items() if k != SWEEP_TABLE}
     nominal = nominal_values(base, spec, source)
+    inputs = _scene(base, nominal, spec.keys[0], source).inputs
+    names = inputs if len(inputs) > 1 else ("",)  # several: each input's own, named
     runs, failed = {}, {}
     for engine in engines:
         try:
@@ -185,7 +189,6 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
                 continue
             frozen = runs[engine].settings
             eps = ENGINES[engine].peak_accuracy(frozen)
-            peak0 = abs(runs[engine].peak.omega)
             h = scale * eps ** (1.0 / 3.0)
             try:
                 at = {k: _peak(base, {**nominal, v.key: p0 + k * h}, v.key, source, engine, frozen)
@@ -195,11 +198,13 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
                     raise
                 out.append(SensitivityFailure(v.key, engine, _failure_line(exc)))
                 continue
-            d_h = (at[1] - at[-1]) / (2.0 * h)
-            d_2h = (at[2] - at[-2]) / (4.0 * h)
-            out.append(Sensitivity(key=v.key, nominal=p0, step=h, peak=peak0, derivative=d_h + (d_h - d_2h) / 3.0,
-                                   error=abs(d_h - d_2h) / 3.0 + eps * peak0 / h, at_h=d_h, at_2h=d_2h,
-                                   engine=engine, frozen_step=ENGINES[engine].fixed_step(frozen)))
+            for i, (name, (_, peak)) in enumerate(zip(names, runs[engine].inputs)):
+                peak0 = abs(peak.omega)
+                d_h = (at[1][i] - at[-1][i]) / (2.0 * h)
+                d_2h = (at[2][i] - at[-2][i]) / (4.0 * h)
+                out.append(Sensitivity(key=v.key, nominal=p0, step=h, peak=peak0, derivative=d_h + (d_h - d_2h) / 3.0,
+                                       error=abs(d_h - d_2h) / 3.0 + eps * peak0 / h, at_h=d_h, at_2h=d_2h,
+                                       engine=engine, frozen_step=ENGINES[engine].fixed_step(frozen), input=name))
     return out
 
 
@@ -210,10 +215,23 @@ def _failure_line(exc: Exception) -> str:
     return f"numerical failure ({exc.reason}): {line}" if isinstance(exc, NumericalFailure) else f"refused: {line}"
 
 
-def sensitivity_lines(items: list[Sensitivity | SensitivityFailure], unit: str = "rad/s") -> list[str]:
+def sensitivity_lines(items: list[Sensitivity | SensitivityFailure], unit: str = "rad/s",
+                      units: Mapping[str, str] | None = None) -> list[str]:
     """A table: key, nominal value, step, d(peak)/dp and its error estimate; with several engines,
     each engine's row under the reference's with its difference from it (relative to it), and the
-    engines' nominal peaks and frozen steps."""
+    engines' nominal peaks and frozen steps. A scene of several degrees of freedom (items of
+    named inputs): a table per input, headed by the input's name, in its unit (``units``: each
+    input's speed unit, rad/s or m/s; default ``unit``); an engine's failure is in each table."""
+    named = list(dict.fromkeys(s.input for s in items if isinstance(s, Sensitivity) and s.input))
+    if named:
+        lines = []
+        for name in named:
+            unit_k = (units or {}).get(name, unit)
+            lines.append(f"input {name} ({unit_k}):")
+            part = [s if isinstance(s, SensitivityFailure) else replace(s, input="")  # its own table
+                    for s in items if isinstance(s, SensitivityFailure) or s.input == name]
+            lines += ["  " + line for line in sensitivity_lines(part, unit_k)]
+        return lines
     engines = list(dict.fromkeys(s.engine for s in items))
     if len(engines) <= 1:
         lines = [f"d(peak |omega|)/dp at the nominal scene (peak {items[0].peak:.10g} {unit}; central differences "

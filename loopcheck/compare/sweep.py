@@ -126,39 +126,75 @@ def _ratio(value: float, bound: float | None) -> float | None:
     return value / bound if bound > 0 else math.inf
 
 
+def _input_ratios(d, tol) -> tuple[float | None, float | None]:
+    """One input's difference ``d`` against the tolerances ``tol``: its peak ratio (peak_omega_abs
+    over its bound) and its worst ratio (the largest of its ratios)."""
+    peak_ratio = _ratio(d.peak_omega_abs, tol.peak_bound(abs(d.peak_omega_reference)))
+    ratios = [peak_ratio, _ratio(d.q_max_abs, tol.q_atol), _ratio(d.omega_max_abs, tol.omega_atol),
+              _ratio(d.omega_vs_q_max_abs, tol.omega_vs_q_atol)]
+    ratios = [r for r in ratios if r is not None]
+    return peak_ratio, max(ratios) if ratios else None
+
+
 def comparison_row(c, engine: str | None = None, several: bool = False) -> dict[str, Any]:
     """The figures of one comparison (the ``diff`` and ``gate`` of report.json, both engines'
     peaks, times and residuals), keyed by sweep.csv column: ``diff.*``/``gate.*``, or with
     ``several`` (the sweep judges several engines) ``diff.ENGINE.*``/``gate.ENGINE.*``. ``engine``:
-    the judged engine's name (default the result's)."""
+    the judged engine's name (default the result's).
+
+    A scene of several degrees of freedom: the unprefixed figures are its first input's (as
+    report.json's ``diff``), but ``gate.passed`` and ``gate.worst_ratio``, which judge every input
+    (:func:`loopcheck.compare.diff.gate_inputs`); each later input NAME has its own figures in
+    ``NAME:``-prefixed columns (:func:`~loopcheck.compare.sweep_table.input_columns`)."""
     from .report import report_dict
+    from .sweep_table import INPUT_DIFF_FIGURES, input_column
 
     engine = engine or c.other.engine
     col = (lambda table, k: f"{table}.{engine}.{k}") if several else (lambda table, k: f"{table}.{k}")  # noqa: E731
     report = report_dict(c, joints=())  # a row holds no joint coordinates
     row: dict[str, Any] = {col("diff", k): report["diff"][k] for k in DIFF_FIGURES}
     tol = c.gate.tolerances
-    peak_ratio = _ratio(c.diff.peak_omega_abs, tol.peak_bound(abs(c.diff.peak_omega_reference)))
-    ratios = [peak_ratio, _ratio(c.diff.q_max_abs, tol.q_atol), _ratio(c.diff.omega_max_abs, tol.omega_atol),
-              _ratio(c.diff.omega_vs_q_max_abs, tol.omega_vs_q_atol)]
-    ratios = [r for r in ratios if r is not None]
+    ratios = [_input_ratios(d, tol) for d in c.diffs]
+    peak_ratio, worst = ratios[0]
+    worsts = [w for _, w in ratios if w is not None]
     row.update({col("gate", "passed"): c.gate.passed,
                 **{col("gate", k): v for k, v in report["gate"]["tolerances"].items()},
-                col("gate", "peak_ratio"): peak_ratio, col("gate", "worst_ratio"): max(ratios) if ratios else None})
+                col("gate", "peak_ratio"): peak_ratio, col("gate", "worst_ratio"): max(worsts) if worsts else None})
     row.update(engine_row(REFERENCE, c.reference, c.diff.peak_reference))
     row.update(engine_row(engine, c.other, c.diff.peak_other))
     gap = c.other.constraint_violation
     row[f"{engine}.max_constraint_violation"] = gap.max if gap is not None else None
+    for name, d, (peak_k, worst_k) in list(zip(c.scene.inputs, c.diffs, ratios))[1:]:
+        figures = {k: v for k, v in report_figures(d).items() if k in INPUT_DIFF_FIGURES}
+        row.update({input_column(name, col("diff", k)): figures[k] for k in INPUT_DIFF_FIGURES})
+        row.update({input_column(name, col("gate", "peak_ratio")): peak_k,
+                    input_column(name, col("gate", "worst_ratio")): worst_k})
+        for who, peak in ((REFERENCE, d.peak_reference), (engine, d.peak_other)):
+            row.update({input_column(name, f"{who}.peak_omega"): peak.omega, input_column(name, f"{who}.t_peak"): peak.time})
     return row
 
 
-def engine_row(engine: str, result, peak=None) -> dict[str, Any]:
+def report_figures(d) -> dict[str, float | None]:
+    """A difference's scalar figures as report.json writes them (NaN and inf as None)."""
+    return {k: (float(v) if math.isfinite(v) else None) for k, v in d.figures().items()}
+
+
+def engine_row(engine: str, result, peak=None, inputs: tuple[str, ...] = ()) -> dict[str, Any]:
     """One engine's figures (report.json's per-engine part, with the peak event ``peak``:
-    default the run's own), keyed by sweep.csv column."""
+    default the run's own), keyed by sweep.csv column; with several inputs, each later input's
+    own peak and its time too (``NAME:ENGINE.peak_omega``, ``NAME:ENGINE.t_peak``; ``inputs``: the
+    scene's; a comparison's row sets them from its differences instead)."""
     from .report import engine_summary
+    from .sweep_table import input_column
 
     summary = engine_summary(result, peak)
-    return {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}
+    row = {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}
+    if inputs[1:] and len(result.other_inputs) != len(inputs) - 1:
+        raise ValueError(f"the {result.engine} run records {len(result.other_inputs) + 1} input trajectories, the "
+                         f"scene has {len(inputs)} inputs ({', '.join(inputs)})")
+    for name, (_, p) in zip(inputs[1:], result.other_inputs):
+        row.update({input_column(name, f"{engine}.peak_omega"): p.omega, input_column(name, f"{engine}.t_peak"): p.time})
+    return row
 
 
 def failure_text(exc: BaseException) -> str:
@@ -189,7 +225,7 @@ def _run_engines(scene, engines, summary: bool = True,
     names = sweep_engines(engine_names(engines))
     if len(names) == 1:  # the reference alone; no other engine is imported (loopcheck.compare.run would load one)
         result = ENGINES[REFERENCE].simulate(scene, engine_settings(REFERENCE, scene), summary=summary)
-        return engine_row(REFERENCE, result), "passed", "", {REFERENCE: result}
+        return engine_row(REFERENCE, result, inputs=scene.inputs), "passed", "", {REFERENCE: result}
     from .run import judge
 
     reference = ENGINES[REFERENCE].simulate(scene, engine_settings(REFERENCE, scene))
@@ -216,7 +252,7 @@ def _run_engines(scene, engines, summary: bool = True,
         gates += [f"{name}: {f}" if several else f for f in c.gate.failures]
         results[name] = got
     if not any(k.startswith(f"{REFERENCE}.") for k in figures):
-        figures.update(engine_row(REFERENCE, reference))
+        figures.update(engine_row(REFERENCE, reference, inputs=scene.inputs))
     status = "failed" if failures else "gate_failed" if gates else "passed"
     return figures, status, "; ".join(failures + gates), results
 
@@ -251,15 +287,20 @@ def run_variant(index: int, values: Mapping[str, float], data: Mapping[str, Any]
         row.update(figures)
         row.update(status=status, reason=reason)
         if keep_trajectories:
-            row["_trajectories"] = {e: _trajectory(r) for e, r in results.items()}
+            row["_trajectories"] = {e: _trajectory(r, scene.inputs) for e, r in results.items()}
     row["variant_wall_s"] = time.perf_counter() - start + sum(
         r.wall_s for r in (batched or {}).values() if not isinstance(r, BaseException))
     return row
 
 
-def _trajectory(result) -> list[tuple[float, float, float, float]]:
-    tr = result.trajectory
-    return [tuple(map(float, r)) for r in zip(tr.t, tr.q, tr.qdot, tr.qddot)]
+def _trajectory(result, inputs: tuple[str, ...] = ()) -> list:
+    """The samples (t, q, q̇, q̈) of the run's input; with several ``inputs``, (name, samples) of each."""
+    def samples(tr) -> list[tuple[float, float, float, float]]:
+        return [tuple(map(float, r)) for r in zip(tr.t, tr.q, tr.qdot, tr.qddot)]
+
+    if len(inputs) > 1:
+        return [(name, samples(tr)) for name, (tr, _) in zip(inputs, result.inputs)]
+    return samples(result.trajectory)
 
 
 # -- the pool ---------------------------------------------------------------------------
@@ -553,13 +594,16 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         warnings.warn(f"--workers {workers}: using {used} (at most one process per core: {os.cpu_count() or 1} cores)")
     from loopcheck.scenefile import scene_from_dict
 
-    speed_unit = f"{scene_from_dict(data, source).input_unit}/s"
+    scene = scene_from_dict(data, source)
+    speed_unit = f"{scene.input_unit}/s"
+    inputs = scene.inputs if scene.dof > 1 else ()  # several: the later inputs' columns (sweep_table.input_columns)
+    units = tuple(zip(scene.inputs, scene.input_units())) if scene.dof > 1 else ()
     sizes = batch_sizes(spec.engines, batch_size)
     summary = Summary(spec.keys, workers=used, engines=sweep_engines(spec.engines), speed_unit=speed_unit,
-                      batch_sizes=sizes)
+                      batch_sizes=sizes, inputs=units)
     bar = _Progress(n) if progress else None
 
-    journal = Journal(out, data, spec, resume=resume, restart=restart)  # locked until closed
+    journal = Journal(out, data, spec, resume=resume, restart=restart, inputs=inputs)  # locked until closed
 
     def fresh_rows() -> Iterator[dict[str, Any]]:  # started once the journal's rows are replayed
         first = journal.kept
@@ -585,7 +629,7 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         start = time.perf_counter()
         rows = itertools.chain(journal.replay(), fresh_rows())
         stream_rows(rows, spec, path, path.parent / TRAJECTORY_FILE if keep_trajectories else None, summary,
-                    bar.step if bar else None, journal.write)
+                    bar.step if bar else None, journal.write, inputs)
         summary.wall_s = time.perf_counter() - start
 
     def staged(path: Path) -> None:  # written with sweep.csv
@@ -597,8 +641,8 @@ def run_sweep(data: Mapping[str, Any], spec: SweepSpec, source: str, out: str | 
         files[TRAJECTORY_FILE] = staged
     for name in plot_files(spec):  # from the staged sweep.csv, but the worst variant's (run again)
         files[name] = (lambda p: plot_worst(data, source, summary, p, sizes)) if name == WORST_PLOT else \
-            (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit))
-    files[JSON_FILE] = lambda p: write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity)
+            (lambda p, name=name: PLOTS[name](p.parent / CSV_FILE, spec, source, p, speed_unit, inputs=units))
+    files[JSON_FILE] = lambda p: write_json(p, p.parent / CSV_FILE, spec, source, summary, sensitivity, units)
 
     def in_place(paths: list[Path]) -> None:
         journal.close(True)  # the set is committed: nothing is left to resume

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, BinaryIO, Iterator, Mapping
 
 from .sweep_summary import STATUSES
-from .sweep_table import columns, is_list_column, parse_cell
+from .sweep_table import columns, input_of, is_list_column, parse_cell
 from loopcheck.sweep_spec import SweepSpec, count, variant_values
 
 JOURNAL_SUFFIX = ".sweep-journal.csv"
@@ -148,8 +148,10 @@ class Journal:
     are checked and replayed (:meth:`replay`). A journal that cannot be created is a warning, not
     an error (the sweep runs on, but cannot be resumed)."""
 
-    def __init__(self, out, data: Mapping[str, Any], spec: SweepSpec, resume: bool = False, restart: bool = False):
+    def __init__(self, out, data: Mapping[str, Any], spec: SweepSpec, resume: bool = False, restart: bool = False,
+                 inputs: tuple[str, ...] = ()):
         self.path, self.spec, self.file = journal_path(out), spec, None
+        self.inputs = tuple(inputs)  # the scene's, when it has several (sweep_table.columns)
         self.kept = 0  # rows read back (known once replay() is exhausted)
         self.written = 0
         self._replay = False
@@ -170,7 +172,7 @@ class Journal:
             if not self._replay:
                 self.file.seek(0)
                 self.file.truncate()
-                self.file.write(f"{JOURNAL_MAGIC}{_identity(data, spec)}\n".encode() + _line(columns(spec)))
+                self.file.write(f"{JOURNAL_MAGIC}{_identity(data, spec)}\n".encode() + _line(columns(spec, self.inputs)))
                 self.file.flush()
         except BaseException:
             self.file.close()
@@ -184,7 +186,7 @@ class Journal:
         if not self._replay:
             return
         self._replay = False
-        f, cols = self.file, columns(self.spec)
+        f, cols = self.file, columns(self.spec, self.inputs)
         end = f.tell()
         problem = None
         if f.readline() != _line(cols):
@@ -196,7 +198,7 @@ class Journal:
                 line = f.readline()
                 if not line:
                     break
-                row, problem = _checked(line, k, values, cols)
+                row, problem = _checked(line, k, values, cols, self.inputs)
                 if row is None:
                     break
                 self.kept = k + 1
@@ -237,8 +239,11 @@ class Journal:
         self.file = None
 
 
-def _checked(line: bytes, k: int, values: Mapping[str, float], cols: tuple[str, ...]) -> tuple[dict | None, str]:
-    """Row ``k`` read from its journal ``line`` and checked, or None and what is wrong with it."""
+def _checked(line: bytes, k: int, values: Mapping[str, float], cols: tuple[str, ...],
+             inputs: tuple[str, ...] = ()) -> tuple[dict | None, str]:
+    """Row ``k`` read from its journal ``line`` and checked, or None and what is wrong with it.
+    With several ``inputs``, each later input's figures must also agree with each other
+    (:func:`_inputs_problem`)."""
     if not line.endswith(b"\n"):
         return None, f"row {k}: its line is cut (no line end)"
     try:
@@ -264,5 +269,48 @@ def _checked(line: bytes, k: int, values: Mapping[str, float], cols: tuple[str, 
     for key, value in values.items():
         if row[key] is None or float(row[key]) != float(value):
             return None, f"row {k}: its {key} is {row[key]!r}, not variant {k}'s {value!r}"
+    if inputs[1:]:
+        problem = _inputs_problem(row, cols, inputs)
+        if problem:
+            return None, f"row {k}: {problem}"
     row["_journaled"] = True
     return row, ""
+
+
+def _inputs_problem(row: Mapping[str, Any], cols: tuple[str, ...], inputs: tuple[str, ...]) -> str:
+    """What is wrong with the figures of the inputs of a row of a scene of several degrees of
+    freedom ("" when nothing): a row that holds an engine's first-input peak holds every input's;
+    for each input and judged engine, its ``peak_omega_abs`` is exactly |``peak_omega_other`` −
+    ``peak_omega_reference``| (the cells are the floats' repr), and with one judged engine the
+    engines' ``peak_omega`` cells are those two peaks. A cell changed by hand, or swapped with
+    another input's, fails one of these."""
+    from loopcheck.registry import REFERENCE
+
+    from .sweep_table import input_column
+
+    def at(name: str, column: str) -> str:
+        return column if name == inputs[0] else input_column(name, column)
+
+    stems = [c[:-len("peak_omega_abs")] for c in cols if c.startswith("diff.") and c.endswith(".peak_omega_abs")]
+    judged = [c.split(".", 1)[0] for c in cols if c.endswith(".max_constraint_violation")]
+    for name in inputs:
+        for stem in stems:
+            ref, other, gap = (row.get(at(name, stem + f)) for f in ("peak_omega_reference", "peak_omega_other",
+                                                                    "peak_omega_abs"))
+            if ref is None and other is None and gap is None:
+                continue
+            if ref is None or other is None or gap is None or abs(other - ref) != gap:
+                return (f"its {at(name, stem + 'peak_omega_abs')} cell is not |{at(name, stem + 'peak_omega_other')} "
+                        f"- {at(name, stem + 'peak_omega_reference')}|")
+        if len(stems) == 1 and len(judged) == 1:
+            for engine, figure in ((REFERENCE, "peak_omega_reference"), (judged[0], "peak_omega_other")):
+                peak, diff = row.get(at(name, f"{engine}.peak_omega")), row.get(at(name, "diff." + figure))
+                if diff is not None and peak != diff:
+                    return f"its {at(name, engine + '.peak_omega')} cell is not its {at(name, 'diff.' + figure)}"
+    for col in cols:
+        if input_of(col, inputs)[0] or not col.endswith(".peak_omega") or col.count(".") != 1:
+            continue
+        given = [row.get(at(name, col)) is not None for name in inputs]
+        if any(given) and not all(given):
+            return f"it holds {col} of some inputs but not of every input ({', '.join(inputs)})"
+    return ""

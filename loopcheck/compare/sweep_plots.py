@@ -11,7 +11,7 @@ from typing import Any, Mapping
 
 from .sweep_summary import Summary, values_text
 from .sweep_engines import judged, judged_scene, sweep_engines
-from .sweep_table import diff_column, read_rows
+from .sweep_table import diff_column, input_column, read_rows
 from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
 from loopcheck.sweep_spec import SweepSpec
 
@@ -50,13 +50,29 @@ def _title(source: str, what: str) -> str:
     return f"{short_name(Path(source).stem if not source.startswith('<') else source)}: {what}"
 
 
-def _peaks(csv_path: Path, spec: SweepSpec, names: tuple[str, ...] = ()) -> tuple[dict[str, list], dict]:
+def _peaks(csv_path: Path, spec: SweepSpec, names: tuple[str, ...] = (),
+           input_name: str | None = None) -> tuple[dict[str, list], dict]:
     """The columns ``names`` of a sweep.csv, and the peak |ω| of each engine the sweep ran (by
-    engine name, the reference first, NaN where not measured)."""
+    engine name, the reference first, NaN where not measured): the first input's, or with
+    ``input_name`` that later input's (``NAME:ENGINE.peak_omega``)."""
     engines = sweep_engines(spec.engines)
-    cols = _column(csv_path, names + tuple(f"{e}.peak_omega" for e in engines))
-    return cols, {e: abs(_nan(cols[f"{e}.peak_omega"])) for e in engines}
+    at = (lambda c: c) if input_name is None else (lambda c: input_column(input_name, c))  # noqa: E731
+    cols = _column(csv_path, names + tuple(at(f"{e}.peak_omega") for e in engines))
+    return cols, {e: abs(_nan(cols[at(f"{e}.peak_omega")])) for e in engines}
 
+
+def _by_input(spec: SweepSpec, csv_path: Path, names: tuple[str, ...],
+              inputs: tuple[tuple[str, str], ...]) -> list[tuple[str, str, dict, dict]]:
+    """Each input's (name, speed unit, columns ``names``, peaks by engine: :func:`_peaks`)."""
+    out = []
+    for k, (name, unit) in enumerate(inputs):
+        cols, peaks = _peaks(csv_path, spec, names, None if k == 0 else name)
+        out.append((name, f"{unit}/s", cols, peaks))
+    return out
+
+
+SUPTITLE_ROOM = 0.45
+"""Inches above the first panel of a plot with one panel per input for the figure's title."""
 
 MARKERS = ("o", "x", "s", "^", "v", "D", "P", "*", "h")
 LINESTYLES = ("-", "--", ":")
@@ -144,21 +160,51 @@ def spread(fractions: list[float], gap: float = LABEL_GAP) -> list[float]:
     return out
 
 
-def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
+def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str,
+                    inputs: tuple[tuple[str, str], ...] = ()) -> None:
     """Peak |ω| of each engine run against the first varied key (other keys: one line each value,
-    named at the right of the axes, outside the points, by the other keys' values)."""
-    import numpy as np
-
-    from .plots import MARGINS, PLAIN, _save, new_figure
+    named at the right of the axes, outside the points, by the other keys' values). With several
+    ``inputs`` (name, unit: rad or m), one panel per input, one above the other, each in its unit."""
+    from .plots import MARGINS, _save, new_figure
 
     key = spec.keys[0]
-    cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
+    right = 1.7 if spec.keys[1:] else MARGINS["right"]
+    if len(inputs) < 2:
+        cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
+        fig, ax = new_figure((7.0 + right - MARGINS["right"], 4.2), margins={**_title_margins(spec), "right": right})
+        _peak_panel(ax, spec, cols, peaks, speed_unit, "the input")
+        ax.set_title(_title(source, _what(spec, f"peak speed against {key}")), **_plain())
+        _save(fig, path)
+        return
+    panels = _by_input(spec, csv_path, spec.keys + ("status",), inputs)
+    height = 1.0 + 3.6 * len(panels)
+    fig, axes = new_figure((7.0 + right - MARGINS["right"], height), len(panels), 1, squeeze=False,
+                           margins={"top": _title_margins(spec)["top"] + SUPTITLE_ROOM, "right": right, "hspace": 0.9})
+    for k, (name, unit, cols, peaks) in enumerate(panels):
+        _peak_panel(axes[k][0], spec, cols, peaks, unit, name)
+        axes[k][0].set_title(f"input {name} ({unit})", fontsize=10, **_plain())
+    fig.suptitle(_title(source, _what(spec, f"peak speed of each input against {key}")), y=1.0 - 0.12 / height,
+                 va="top", **_plain())
+    _save(fig, path)
+
+
+def _plain() -> dict:
+    from .plots import PLAIN
+
+    return PLAIN
+
+
+def _peak_panel(ax, spec: SweepSpec, cols: dict, peaks: dict, speed_unit: str, which: str) -> None:
+    """One panel of the peak plot: each engine's peak |ω| of the input ``which`` against the first key."""
+    import numpy as np
+
+    from .plots import PLAIN
+
+    key = spec.keys[0]
     x = _nan(cols[key])
     red = peaks[REFERENCE]
     styles = _engine_styles(tuple(peaks))
     others = spec.keys[1:]
-    right = 1.7 if others else MARGINS["right"]
-    fig, ax = new_figure((7.0 + right - MARGINS["right"], 4.2), margins={**_title_margins(spec), "right": right})
     groups: dict[tuple, list[int]] = {}
     for i in range(len(x)):
         groups.setdefault(tuple(cols[k][i] for k in others), []).append(i)
@@ -180,8 +226,7 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
             ax.axvline(xv, color="tab:red", alpha=0.3, linewidth=1)
         ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
     ax.set_xlabel(key_label(key, speed_unit), **PLAIN)
-    ax.set_ylabel(f"peak |ω| of the input ({speed_unit})")
-    ax.set_title(_title(source, _what(spec, f"peak speed against {key}")), **PLAIN)
+    ax.set_ylabel(f"peak |ω| of {which} ({speed_unit})", **({} if which == "the input" else PLAIN))
     ax.grid(True, alpha=0.3)
     handles, _ = ax.get_legend_handles_labels()
     low, high = ax.get_ylim()  # headroom above the points for the legend: it covers none of them
@@ -198,13 +243,14 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
         ax.text(1.03, 1.02, "\n".join(key_label(k, speed_unit).replace(" (", "\n(") for k in others),
                 transform=ax.transAxes,
                 ha="left", va="bottom", fontsize=7, **PLAIN)
-    _save(fig, path)
 
 
-def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
+def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str,
+                  inputs: tuple[tuple[str, str], ...] = ()) -> None:
     """The gate's worst ratio (largest figure over its tolerance) over the first two grid keys
     (the others: the largest ratio over their values; several judged engines: the largest over
-    them); gray where no comparison ran."""
+    them; several ``inputs``: the row's ``gate.worst_ratio`` is already the largest over every
+    input, and the title says so); gray where no comparison ran."""
     import numpy as np
     from matplotlib.colors import LogNorm
 
@@ -234,6 +280,8 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     ax.set_xlabel(key_label(kx, speed_unit), **PLAIN)
     ax.set_ylabel(key_label(ky, speed_unit), **PLAIN)
     over = "" if len(ratios) == 1 else f"\nthe worst of {', '.join(ENGINES[x].label for x in judged(spec))} in each variant"
+    if len(inputs) > 1:
+        over += f"\nthe worst of the inputs {', '.join(n for n, _ in inputs)}"
     ax.set_title(_title(source, f"gate's worst figure / tolerance (> 1 fails){over}"), **PLAIN)
     bar = fig.colorbar(mesh, ax=ax, label="worst figure / its tolerance (ratio)")
     if norm is not None:
@@ -276,21 +324,44 @@ def plot_worst(data: Mapping[str, Any], source: str, summary: Summary, path: Pat
         c = judge(judged_, reference, other, judged_.tolerances)
     values = values_text(worst["values"])
     by = f" ({ENGINES[engine].label})" if "engine" in worst else ""
-    plot_differences(c, path, subtitle=f"worst of {summary.total} variants{by}: #{worst['index']}, peak-ω difference "
+    of = f" of {worst['input']}" if "input" in worst else ""
+    plot_differences(c, path, subtitle=f"worst of {summary.total} variants{by}: #{worst['index']}, peak-ω difference{of} "
                                        f"{worst['peak_ratio']:.3g}× its tolerance\n{values}")
 
 
-def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str) -> None:
+def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path, speed_unit: str,
+                        inputs: tuple[tuple[str, str], ...] = ()) -> None:
     """Histogram of each engine run's peak |ω| over a Monte Carlo sample (the reduced engine's
-    filled, MuJoCo's outlined)."""
-    import numpy as np
-
+    filled, MuJoCo's outlined); with several ``inputs``, one panel per input, each in its unit."""
     from .plots import PLAIN, _save, new_figure
 
-    _, peaks = _peaks(csv_path, spec)
+    if len(inputs) < 2:
+        _, peaks = _peaks(csv_path, spec)
+        fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
+        n = _histogram_panel(ax, peaks, speed_unit, "the input")
+        ax.set_title(_title(source, _what(spec, f"peak speed over {n} samples (seed {spec.seed})")), **PLAIN)
+        _save(fig, path)
+        return
+    panels = _by_input(spec, csv_path, (), inputs)
+    height = 1.0 + 3.6 * len(panels)
+    fig, axes = new_figure((7.0, height), len(panels), 1, squeeze=False,
+                           margins={"top": _title_margins(spec)["top"] + SUPTITLE_ROOM, "hspace": 0.9})
+    for k, (name, unit, _, peaks) in enumerate(panels):
+        n = _histogram_panel(axes[k][0], peaks, unit, name)
+        axes[k][0].set_title(f"input {name} ({unit})", fontsize=10, **PLAIN)
+    fig.suptitle(_title(source, _what(spec, f"peak speed of each input over {n} samples (seed {spec.seed})")),
+                 y=1.0 - 0.12 / height, va="top", **PLAIN)
+    _save(fig, path)
+
+
+def _histogram_panel(ax, peaks: dict, speed_unit: str, which: str) -> int:
+    """One panel of the histogram: each engine's peak |ω| of the input ``which``; the reference's count."""
+    import numpy as np
+
+    from .plots import PLAIN
+
     peaks = {e: p[np.isfinite(p)] for e, p in peaks.items()}
     styles = _engine_styles(tuple(peaks))
-    fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
     every = np.concatenate(list(peaks.values()))
     if every.size:
         bins = np.histogram_bin_edges(every, bins=min(50, max(5, int(math.sqrt(every.size)))))
@@ -299,12 +370,10 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
             look = {"alpha": 0.6} if engine == REFERENCE else {"histtype": "step", "linestyle": "--", "linewidth": 1.5}
             ax.hist(peak, bins=bins, color=style["color"], label=style["label"], **look)
         ax.legend(fontsize=8)
-    ax.set_xlabel(f"peak |ω| of the input ({speed_unit})")
+    ax.set_xlabel(f"peak |ω| of {which} ({speed_unit})", **({} if which == "the input" else PLAIN))
     ax.set_ylabel("variants")
-    ax.set_title(_title(source, _what(spec, f"peak speed over {len(peaks[REFERENCE])} samples (seed {spec.seed})")),
-                 **PLAIN)
     ax.grid(True, alpha=0.3)
-    _save(fig, path)
+    return len(peaks[REFERENCE])
 
 
 PLOTS = {PEAK_PLOT: plot_peak_omega, MAP_PLOT: plot_gate_map, HIST_PLOT: plot_peak_histogram}

@@ -37,8 +37,14 @@ class Summary:
     # several judged engines: per engine, its gate's counts and its worst peak ratio
     per_engine: dict[str, dict[str, Any]] = field(default_factory=dict)
     batch_sizes: dict[str, int] = field(default_factory=dict)  # engines run in batches: their batch size
+    # several degrees of freedom: each input's name and unit (rad or m), in the scene's order; the
+    # worst variant is the worst over every input (its "input" named), and each input has its
+    # peak extremes (input_peak_extremes; peak_extremes stays the first input's)
+    inputs: tuple[tuple[str, str], ...] = ()
+    input_peak_extremes: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
 
     def __post_init__(self):
+        self.inputs = tuple((str(n), str(u)) for n, u in self.inputs) if len(self.inputs) > 1 else ()
         self.engines = tuple(Engines(self.engines).runs if isinstance(self.engines, str) else self.engines)
         if len(self.engines) > 2:
             self.per_engine = {x: {"passed": 0, "gate_failed": 0, "failed": 0, "worst_peak_ratio": None}
@@ -56,14 +62,25 @@ class Summary:
                 counts["failed"] += 1
             elif passed is not None:
                 counts["passed" if passed else "gate_failed"] += 1
-            ratio = row.get(f"gate.{x}.peak_ratio")
-            if ratio is None or math.isnan(ratio):
-                continue
-            if counts["worst_peak_ratio"] is None or ratio > counts["worst_peak_ratio"]:
-                counts["worst_peak_ratio"] = ratio
-            if self.worst is None or ratio > self.worst["peak_ratio"]:
-                self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
-                              "peak_omega_rel": row.get(f"diff.{x}.peak_omega_rel"), "engine": x}
+            for at, name in self._columns():
+                ratio = row.get(at(f"gate.{x}.peak_ratio"))
+                if ratio is None or math.isnan(ratio):
+                    continue
+                if counts["worst_peak_ratio"] is None or ratio > counts["worst_peak_ratio"]:
+                    counts["worst_peak_ratio"] = ratio
+                if self.worst is None or ratio > self.worst["peak_ratio"]:
+                    self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
+                                  "peak_omega_rel": row.get(at(f"diff.{x}.peak_omega_rel")), "engine": x,
+                                  **({"input": name} if name else {})}
+
+    def _columns(self):
+        """Each input's column of a figure (a function) and its name ("" for the one input)."""
+        from .sweep_table import input_column
+
+        if not self.inputs:
+            return [((lambda c: c), "")]
+        first = self.inputs[0][0]
+        return [((lambda c: c), first)] + [((lambda c, n=n: input_column(n, c)), n) for n, _ in self.inputs[1:]]
 
     def add(self, row: Mapping[str, Any]) -> None:
         self.total += 1
@@ -75,20 +92,25 @@ class Summary:
         if status in ("gate_failed", "failed"):
             for k, v in values.items():
                 _extend(self.failing_ranges, k, v)
-        ratio = row.get("gate.peak_ratio")
-        if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
-            self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
-                          "peak_omega_rel": row.get("diff.peak_omega_rel")}
+        for at, name in self._columns():
+            ratio = row.get(at("gate.peak_ratio"))
+            if ratio is not None and not math.isnan(ratio) and (self.worst is None or ratio > self.worst["peak_ratio"]):
+                self.worst = {"index": row["index"], "values": values, "peak_ratio": ratio, "status": status,
+                              "peak_omega_rel": row.get(at("diff.peak_omega_rel")), **({"input": name} if name else {})}
         if self.per_engine:
             self._add_engine(row, status, values)
-        peak = row.get(f"{REFERENCE}.peak_omega")
-        if peak is not None and math.isfinite(peak):
-            entry = {"index": row["index"], "values": values, "peak_omega": abs(peak)}
-            low, high = self.peak_extremes.get("lowest"), self.peak_extremes.get("highest")
-            if low is None or abs(peak) < low["peak_omega"]:
-                self.peak_extremes["lowest"] = entry
-            if high is None or abs(peak) > high["peak_omega"]:
-                self.peak_extremes["highest"] = entry
+        for at, name in self._columns():
+            extremes = self.input_peak_extremes.setdefault(name, {}) if name else self.peak_extremes
+            peak = row.get(at(f"{REFERENCE}.peak_omega"))
+            if peak is not None and math.isfinite(peak):
+                entry = {"index": row["index"], "values": values, "peak_omega": abs(peak)}
+                low, high = extremes.get("lowest"), extremes.get("highest")
+                if low is None or abs(peak) < low["peak_omega"]:
+                    extremes["lowest"] = entry
+                if high is None or abs(peak) > high["peak_omega"]:
+                    extremes["highest"] = entry
+        if self.inputs:
+            self.peak_extremes = self.input_peak_extremes.get(self.inputs[0][0], {})
 
     @property
     def none_valid(self) -> bool:
@@ -108,6 +130,8 @@ class Summary:
             out["per_engine"] = {x: dict(c) for x, c in self.per_engine.items()}
         if self.batch_sizes:
             out["batch_sizes"] = dict(self.batch_sizes)
+        if self.inputs:
+            out["input_peak_extremes"] = {n: self.input_peak_extremes.get(n, {}) for n, _ in self.inputs}
         return out
 
 
@@ -130,11 +154,14 @@ def summary_lines(summary: Summary) -> list[str]:
     if not summary.judged:
         lines = [f"{summary.total} variants, {REFERENCE} engine only, no gate ({workers}): {c['passed']} passed its "
                  f"own checks, {c['failed']} failed numerically, {c['invalid']} invalid"]
-        low, high = summary.peak_extremes.get("lowest"), summary.peak_extremes.get("highest")
-        if low is not None:
-            lines.append(f"peak |omega| from {low['peak_omega']:.6g} {summary.speed_unit} (#{low['index']}: "
-                         f"{values_text(low['values'])}) to {high['peak_omega']:.6g} {summary.speed_unit} "
-                         f"(#{high['index']}: {values_text(high['values'])})")
+        each = ([(f" of {n}", summary.input_peak_extremes.get(n, {}), f"{u}/s") for n, u in summary.inputs]
+                or [("", summary.peak_extremes, summary.speed_unit)])
+        for of, extremes, unit in each:
+            low, high = extremes.get("lowest"), extremes.get("highest")
+            if low is not None:
+                lines.append(f"peak |omega|{of} from {low['peak_omega']:.6g} {unit} (#{low['index']}: "
+                             f"{values_text(low['values'])}) to {high['peak_omega']:.6g} {unit} "
+                             f"(#{high['index']}: {values_text(high['values'])})")
     else:
         lines = [f"{summary.total} variants ({workers}): {c['passed']} passed, {c['gate_failed']} failed the gate, "
                  f"{c['failed']} failed numerically, {c['invalid']} invalid"]
@@ -147,7 +174,8 @@ def summary_lines(summary: Summary) -> list[str]:
     w = summary.worst
     if w is not None:
         by = f" of {ENGINES[w['engine']].label}" if "engine" in w else ""
-        lines.append(f"worst variant{by}: #{w['index']} ({values_text(w['values'])}): peak-omega difference "
+        of = f" of {w['input']}" if "input" in w else ""
+        lines.append(f"worst variant{by}: #{w['index']} ({values_text(w['values'])}): peak-omega difference{of} "
                      f"{w['peak_ratio']:.3g}x its tolerance (peak_omega_rel {w['peak_omega_rel']:.3e}), {w['status']}")
     if summary.failing_ranges:
         parts = []

@@ -33,6 +33,44 @@ REDUCED_ONLY_COLUMNS = tuple(f"reduced.{k}" for k in ENGINE_FIGURES) + ("variant
 """The figure columns of a reduced-only sweep (module docstring)."""
 LIST_COLUMNS = ("diff.mode_mismatches", "diff.mode_mismatch_first_times")
 
+INPUT_DIFF_FIGURES = DIFF_FIGURES[:12]
+"""The figures of :data:`DIFF_FIGURES` that each input of a scene of several degrees of freedom has
+its own of (peak_omega_abs … t_peak_other); the span, horizon and assembly modes are the linkage's."""
+INPUT_GATE_FIGURES = ("peak_ratio", "worst_ratio")
+INPUT_ENGINE_FIGURES = ("peak_omega", "t_peak")
+INPUT_SEPARATOR = ":"
+
+
+def input_column(name: str, column: str) -> str:
+    """The column of a later input ``name``'s own ``column`` (``O5:diff.peak_omega_abs``,
+    ``O5:reduced.peak_omega``): a scene of several degrees of freedom (module docstring of
+    :mod:`loopcheck.compare.sweep`, "Several inputs")."""
+    return f"{name}{INPUT_SEPARATOR}{column}"
+
+
+def input_columns(spec: SweepSpec, inputs: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The columns of the inputs after the first (``inputs``: the scene's, in order; none for one
+    input): for each, every judged engine's :data:`INPUT_DIFF_FIGURES` and
+    :data:`INPUT_GATE_FIGURES`, then every engine's :data:`INPUT_ENGINE_FIGURES`."""
+    names = sweep_engines(spec.engines)
+    others = names[1:]
+    out: list[str] = []
+    for name in inputs[1:]:
+        out += [input_column(name, diff_column(others, x, k)) for x in others for k in INPUT_DIFF_FIGURES]
+        out += [input_column(name, diff_column(others, x, k, "gate")) for x in others for k in INPUT_GATE_FIGURES]
+        out += [input_column(name, f"{e}.{k}") for e in names for k in INPUT_ENGINE_FIGURES]
+    return tuple(out)
+
+
+def input_of(column: str, inputs: tuple[str, ...]) -> tuple[int, str]:
+    """Which input a column is of (its index in ``inputs``; 0 for an unprefixed one) and the
+    column's figure without the input's prefix."""
+    for k, name in enumerate(inputs[1:], 1):
+        prefix = name + INPUT_SEPARATOR
+        if column.startswith(prefix):
+            return k, column[len(prefix):]
+    return 0, column
+
 CSV_FILE, JSON_FILE, TRAJECTORY_FILE = "sweep.csv", "sweep.json", "trajectories.csv"
 
 
@@ -49,8 +87,9 @@ def diff_column(spec_or_judged, engine: str, figure: str, table: str = "diff") -
     return f"{table}.{engine}.{figure}" if len(names) > 1 else f"{table}.{figure}"
 
 
-def columns(spec: SweepSpec) -> tuple[str, ...]:
-    """The columns of sweep.csv for ``spec``: the fixed ones, the varied keys, then the figures.
+def columns(spec: SweepSpec, inputs: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The columns of sweep.csv for ``spec``: the fixed ones, the varied keys, then the figures,
+    then with several ``inputs`` (the scene's) the later inputs' own (:func:`input_columns`).
     The reference alone: its own figures (:data:`REDUCED_ONLY_COLUMNS`). One judged engine (the
     default pair among them, :data:`FIGURE_COLUMNS`): ``diff.*``, ``gate.*``, both engines'
     figures, the judged engine's loop gap. Several: each judged engine's ``diff.ENGINE.*`` and
@@ -65,7 +104,7 @@ def columns(spec: SweepSpec) -> tuple[str, ...]:
                    + tuple(diff_column(others, x, k, "gate") for x in others for k in GATE_FIGURES)
                    + sum((mine(n) for n in names), ())
                    + tuple(f"{x}.max_constraint_violation" for x in others) + ("variant_wall_s",))
-    return FIXED_COLUMNS + spec.keys + figures
+    return FIXED_COLUMNS + spec.keys + figures + input_columns(spec, inputs)
 
 
 def is_list_column(column: str) -> bool:
@@ -117,15 +156,18 @@ def read_rows(path: str | Path) -> Iterator[dict[str, Any]]:
 
 
 def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path, trajectory_path: Path | None,
-            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None) -> None:
+            summary: Summary, progress: Callable | None, journal: Callable[[list], None] | None = None,
+            inputs: tuple[str, ...] = ()) -> None:
     """Write ``rows`` into sweep.csv (and trajectories), count them in ``summary``; each row but
-    those read back from the journal (marked ``_journaled``) also goes to ``journal``."""
-    cols = columns(spec)
+    those read back from the journal (marked ``_journaled``) also goes to ``journal``. ``inputs``:
+    the scene's (:func:`columns`); with several, trajectories.csv has an ``input`` column."""
+    cols = columns(spec, inputs)
+    several = len(inputs) > 1
     traj = open(trajectory_path, "w", newline="", encoding="utf-8") if trajectory_path else None
     try:
         tw = csv.writer(traj) if traj else None
         if tw:
-            tw.writerow(("index", "engine", "t_s", "q", "qdot", "qddot"))
+            tw.writerow(("index", "engine") + (("input",) if several else ()) + ("t_s", "q", "qdot", "qddot"))
         with open(csv_path, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
             writer.writerow(cols)
@@ -138,7 +180,11 @@ def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path,
                     journal(cells)
                 if tw and trajectories:
                     for engine, samples in trajectories.items():
-                        tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
+                        if several:  # by input: (name, samples) each
+                            for name, part in samples:
+                                tw.writerows((row["index"], engine, name, *map(repr, s)) for s in part)
+                        else:
+                            tw.writerows((row["index"], engine, *map(repr, s)) for s in samples)
                 summary.add(row)
                 if progress:
                     progress(row)
@@ -148,11 +194,13 @@ def stream_rows(rows: Iterable[dict[str, Any]], spec: SweepSpec, csv_path: Path,
 
 
 def write_json(path: Path, csv_path: Path, spec: SweepSpec, source: str, summary: Summary,
-                sensitivity: list[dict] | None = None) -> None:
-    """sweep.json: the specification, summary and sensitivities, then the rows read back one by one."""
+                sensitivity: list[dict] | None = None, inputs: tuple[tuple[str, str], ...] = ()) -> None:
+    """sweep.json: the specification, summary and sensitivities, then the rows read back one by one.
+    ``inputs``: with several, each input's name and unit (rad or m), as ``inputs``."""
     engines = engines_value(spec.engines)
     head = {**({"schema_version": SCHEMA_VERSION} if isinstance(engines, list) else {}),
             "source": portable_source(source), "engines": engines, "keys": list(spec.keys),
+            **({"inputs": [{"name": n, "unit": u} for n, u in inputs]} if len(inputs) > 1 else {}),
             "kind": "grid" if spec.is_grid else "monte_carlo", "samples": spec.samples, "seed": spec.seed,
             "varies": [str(v) if not spec.is_grid else {"key": v.key, "values": list(v.values)}
                        for v in spec.varies],
