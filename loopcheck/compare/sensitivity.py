@@ -132,10 +132,16 @@ def _run(data, values, key: str, source: str, engine: str, nominal_settings: Any
         raise ValueError(f"{who}{_where(key, values)}: {exc}") from None
 
 
-def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str,
-          engine: str = REFERENCE, nominal_settings: Any | None = None) -> tuple[float, ...]:
+def _peaks(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str,
+           engine: str = REFERENCE, nominal_settings: Any | None = None) -> tuple[float, ...]:
     """The engine's continuous peak |ω| of each input of the scene at ``values``, in its inputs' order."""
     return tuple(abs(peak.omega) for _, peak in _run(data, values, key, source, engine, nominal_settings).inputs)
+
+
+def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str,
+          engine: str = REFERENCE, nominal_settings: Any | None = None) -> float:
+    """The engine's continuous peak |ω| of the scene at ``values`` (its first input's)."""
+    return _peaks(data, values, key, source, engine, nominal_settings)[0]
 
 
 def check_engines_declare(data: Mapping[str, Any], spec: SweepSpec, source: str,
@@ -191,7 +197,7 @@ def sensitivities(data: Mapping[str, Any], spec: SweepSpec, source: str = "<memo
             eps = ENGINES[engine].peak_accuracy(frozen)
             h = scale * eps ** (1.0 / 3.0)
             try:
-                at = {k: _peak(base, {**nominal, v.key: p0 + k * h}, v.key, source, engine, frozen)
+                at = {k: _peaks(base, {**nominal, v.key: p0 + k * h}, v.key, source, engine, frozen)
                       for k in (-2, -1, 1, 2)}
             except (NumericalFailure, ValueError) as exc:
                 if engine == REFERENCE or isinstance(exc, SweepSpecError):

@@ -80,6 +80,16 @@ made from the staged ``sweep.csv`` read back row by row.
 - ``trajectories.csv`` with ``keep_trajectories``: index, engine, t, q, qdot, qddot of every
   variant that ran (for small sweeps).
 
+Several inputs (a scene of several degrees of freedom; docs/comparison.md, "Several inputs"): the
+one-DOF columns hold the first input's figures (as report.json's ``diff``), but ``gate.passed`` and
+``gate.worst_ratio``, which judge every input (:func:`loopcheck.compare.diff.gate_inputs`); each
+later input NAME has its own columns after them, ``NAME:`` and the one-DOF column
+(:func:`~loopcheck.compare.sweep_table.input_columns`: its differences, its gate ratios, every
+engine's peak and its time). The journal checks them (:mod:`loopcheck.compare.sweep_journal`), the
+summary's worst variant is the worst over every input, the peak plots have a panel per input and the
+sensitivities a table per input. The reduced engine in several coordinates has no summary mode (a
+reduced-only row is its full run); MJX's and MJWarp's batches carry every input as their single runs do.
+
 This module runs a sweep: the row of one variant, the process pool, the order of the rows and the
 estimate of a long sweep (:func:`run_sweep`). The rest has a module each: the Dask cluster
 (:mod:`loopcheck.compare.sweep_dask`), the journal of finished rows (:mod:`loopcheck.compare.sweep_journal`),

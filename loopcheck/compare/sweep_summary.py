@@ -17,6 +17,17 @@ the reduced engine's own checks) / both engines ran and the gate failed; an engi
 numerically; the variant could not be assembled (its scene is invalid)."""
 
 
+INPUT_SEPARATOR = ":"
+
+
+def input_column(name: str, column: str) -> str:
+    """The column of a later input ``name``'s own ``column`` (``O5:diff.peak_omega_abs``,
+    ``O5:reduced.peak_omega``): a scene of several degrees of freedom (module docstring of
+    :mod:`loopcheck.compare.sweep`, "Several inputs"; sweep.csv's columns:
+    :func:`loopcheck.compare.sweep_table.input_columns`)."""
+    return f"{name}{INPUT_SEPARATOR}{column}"
+
+
 @dataclass
 class Summary:
     """What a sweep prints and keeps in memory: counts, the worst variant (compared sweeps),
@@ -75,8 +86,6 @@ class Summary:
 
     def _columns(self):
         """Each input's column of a figure (a function) and its name ("" for the one input)."""
-        from .sweep_table import input_column
-
         if not self.inputs:
             return [((lambda c: c), "")]
         first = self.inputs[0][0]

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
 
 from .output import json_text, plain, portable_source
 from .sweep_engines import engines_value, judged, sweep_engines
+from .sweep_summary import INPUT_SEPARATOR, input_column  # noqa: F401 - a column's name: its home is the summary's
 from loopcheck.registry import REFERENCE
 from loopcheck.sweep_spec import SweepSpec
 
@@ -38,14 +39,6 @@ INPUT_DIFF_FIGURES = DIFF_FIGURES[:12]
 its own of (peak_omega_abs … t_peak_other); the span, horizon and assembly modes are the linkage's."""
 INPUT_GATE_FIGURES = ("peak_ratio", "worst_ratio")
 INPUT_ENGINE_FIGURES = ("peak_omega", "t_peak")
-INPUT_SEPARATOR = ":"
-
-
-def input_column(name: str, column: str) -> str:
-    """The column of a later input ``name``'s own ``column`` (``O5:diff.peak_omega_abs``,
-    ``O5:reduced.peak_omega``): a scene of several degrees of freedom (module docstring of
-    :mod:`loopcheck.compare.sweep`, "Several inputs")."""
-    return f"{name}{INPUT_SEPARATOR}{column}"
 
 
 def input_columns(spec: SweepSpec, inputs: tuple[str, ...] = ()) -> tuple[str, ...]:
