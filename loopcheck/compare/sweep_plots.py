@@ -101,11 +101,13 @@ def _title_margins(spec: SweepSpec) -> dict[str, float]:
     return {"top": MARGINS["top"] + (0.25 if not judged(spec) else 0.0)}
 
 
-def key_unit(key: str, speed_unit: str = "rad/s") -> str | None:
+def key_unit(key: str, speed_unit: str = "rad/s", input_units: tuple[str, ...] = ()) -> str | None:
     """The unit of a varied scene-file key, as its axis says it ("" for a ratio, None where not
     known): the engines' settings from their declarations (:func:`loopcheck.settings.options`),
     the scene's keys from docs/scenes.md; the input's q and q̇ (and the tolerances on them) in
-    the scene's input unit (``speed_unit`` is its speed: rad/s, or m/s for a prismatic input)."""
+    the scene's input unit (``speed_unit`` is its speed: rad/s, or m/s for a prismatic input); a
+    scene of several inputs (``input_units``: each input's, rad or m): ``initial.q.K`` and
+    ``initial.qdot.K`` in input K's unit, a tolerance on q in "rad or m" when the inputs' differ."""
     from loopcheck.registry import ENGINES
 
     parts = key.split(".")
@@ -117,9 +119,14 @@ def key_unit(key: str, speed_unit: str = "rad/s") -> str | None:
 
         found = [o.unit for o in options(ENGINES[head].settings) if o.name == name]
         return found[0] if found else None
+    if len(set(input_units)) > 1:  # mixed inputs: a tolerance on q is in either unit
+        position, speed_unit = " or ".join(sorted(set(input_units))), " or ".join(f"{u}/s" for u in sorted(set(input_units)))
     if head == "tolerances":
         return {"peak_omega_rtol": "", "q_atol": position}.get(name, speed_unit if name.endswith("_atol") else None)
     if head == "initial":
+        index = [int(p) for p in parts if p.isdigit()]
+        if input_units and index and index[0] < len(input_units):
+            position, speed_unit = input_units[index[0]], f"{input_units[index[0]]}/s"
         return {"q": position, "qdot": speed_unit}.get(name)
     if head in ("simulation", "torque", "force", "timed_forces") and name in ("horizon", "start", "duration", "times"):
         return "s"
@@ -132,9 +139,9 @@ def key_unit(key: str, speed_unit: str = "rad/s") -> str | None:
     return table.get(head, {}).get(name)
 
 
-def key_label(key: str, speed_unit: str = "rad/s") -> str:
-    """An axis label of a varied key: the key and its unit (a ratio says so)."""
-    unit = key_unit(key, speed_unit)
+def key_label(key: str, speed_unit: str = "rad/s", input_units: tuple[str, ...] = ()) -> str:
+    """An axis label of a varied key: the key and its unit (a ratio says so; ``input_units``: :func:`key_unit`)."""
+    unit = key_unit(key, speed_unit, input_units)
     return key if unit is None else f"{key} ({unit or 'ratio'})"
 
 
@@ -181,7 +188,7 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
     fig, axes = new_figure((7.0 + right - MARGINS["right"], height), len(panels), 1, squeeze=False,
                            margins={"top": _title_margins(spec)["top"] + SUPTITLE_ROOM, "right": right, "hspace": 0.9})
     for k, (name, unit, cols, peaks) in enumerate(panels):
-        _peak_panel(axes[k][0], spec, cols, peaks, unit, name)
+        _peak_panel(axes[k][0], spec, cols, peaks, unit, name, tuple(u for _, u in inputs))
         axes[k][0].set_title(f"input {name} ({unit})", fontsize=10, **_plain())
     fig.suptitle(_title(source, _what(spec, f"peak speed of each input against {key}")), y=1.0 - 0.12 / height,
                  va="top", **_plain())
@@ -194,8 +201,10 @@ def _plain() -> dict:
     return PLAIN
 
 
-def _peak_panel(ax, spec: SweepSpec, cols: dict, peaks: dict, speed_unit: str, which: str) -> None:
-    """One panel of the peak plot: each engine's peak |ω| of the input ``which`` against the first key."""
+def _peak_panel(ax, spec: SweepSpec, cols: dict, peaks: dict, speed_unit: str, which: str,
+                input_units: tuple[str, ...] = ()) -> None:
+    """One panel of the peak plot: each engine's peak |ω| of the input ``which`` against the first key
+    (``input_units``: each input's unit, for the keys' labels: :func:`key_unit`)."""
     import numpy as np
 
     from .plots import PLAIN
@@ -225,7 +234,7 @@ def _peak_panel(ax, spec: SweepSpec, cols: dict, peaks: dict, speed_unit: str, w
         for xv in x[bad]:
             ax.axvline(xv, color="tab:red", alpha=0.3, linewidth=1)
         ax.plot([], [], color="tab:red", alpha=0.3, label="invalid / failed variant")
-    ax.set_xlabel(key_label(key, speed_unit), **PLAIN)
+    ax.set_xlabel(key_label(key, speed_unit, input_units), **PLAIN)
     ax.set_ylabel(f"peak |ω| of {which} ({speed_unit})", **({} if which == "the input" else PLAIN))
     ax.grid(True, alpha=0.3)
     handles, _ = ax.get_legend_handles_labels()
@@ -240,7 +249,7 @@ def _peak_panel(ax, spec: SweepSpec, cols: dict, peaks: dict, speed_unit: str, w
             ax.annotate(text, xy=(1.0, (y - low) / (high - low)), xycoords="axes fraction", xytext=(1.03, h),
                         textcoords="axes fraction", ha="left", va="center", fontsize=7, annotation_clip=False,
                         arrowprops={"arrowstyle": "-", "color": "0.6", "linewidth": 0.5}, **PLAIN)
-        ax.text(1.03, 1.02, "\n".join(key_label(k, speed_unit).replace(" (", "\n(") for k in others),
+        ax.text(1.03, 1.02, "\n".join(key_label(k, speed_unit, input_units).replace(" (", "\n(") for k in others),
                 transform=ax.transAxes,
                 ha="left", va="bottom", fontsize=7, **PLAIN)
 
@@ -277,8 +286,9 @@ def plot_gate_map(csv_path: Path, spec: SweepSpec, source: str, path: Path, spee
     ax.set_facecolor("0.8")
     ax.set_xticks(np.arange(len(xs)) + 0.5, [f"{v:.4g}" for v in xs], fontsize=7, rotation=45 if len(xs) > 6 else 0)
     ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{v:.4g}" for v in ys], fontsize=7)
-    ax.set_xlabel(key_label(kx, speed_unit), **PLAIN)
-    ax.set_ylabel(key_label(ky, speed_unit), **PLAIN)
+    units = tuple(u for _, u in inputs) if len(inputs) > 1 else ()
+    ax.set_xlabel(key_label(kx, speed_unit, units), **PLAIN)
+    ax.set_ylabel(key_label(ky, speed_unit, units), **PLAIN)
     over = "" if len(ratios) == 1 else f"\nthe worst of {', '.join(ENGINES[x].label for x in judged(spec))} in each variant"
     if len(inputs) > 1:
         over += f"\nthe worst of the inputs {', '.join(n for n, _ in inputs)}"

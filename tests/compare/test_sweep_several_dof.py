@@ -196,3 +196,13 @@ def test_each_input_s_peak_sensitivity_is_a_central_difference_of_runs_made_apar
     lines = sensitivity_lines(items, units={"O1": "rad/s", "O5": "rad/s"})
     assert lines[0] == "input O1 (rad/s):" and "input O5 (rad/s):" in lines
     assert items[1].as_dict()["input"] == "O5"
+
+
+def test_a_key_of_one_input_is_labelled_in_that_input_s_unit():
+    from loopcheck.compare.sweep_plots import key_label, key_unit
+
+    mixed = ("rad", "m")  # the five-bar slider: a crank angle and a slide
+    assert key_label("initial.qdot.1", "rad/s", mixed) == "initial.qdot.1 (m/s)"
+    assert key_label("initial.q.0", "m/s", mixed) == "initial.q.0 (rad)"
+    assert key_unit("tolerances.q_atol", "rad/s", mixed) == "m or rad"
+    assert key_unit("initial.qdot.1", "rad/s") == "rad/s"  # one input: the scene's unit, as before
