@@ -22,6 +22,7 @@ nonlinear effects so that the difference keeps its digits), λ from (C G Cᵀ) �
 − C a0, and a = a0 + G Cᵀλ: the KKT system of the loops and the couplings together, the loops
 still Pinocchio's. A coupling's residual counts in the loop gap as a length (φ × the
 mechanism's size for a revolute coupled joint, φ for a prismatic one).
+
 scipy's ``solve_ivp`` integrates each piece between load edges with the load of that piece
 (restarted at every edge, as the reduced engine's DOP853 is); every solver step is cut into at
 least four parts no longer than ``sample_interval``, sampled from the dense output, and each
@@ -211,7 +212,9 @@ class _Dynamics:
         for k, row in enumerate(rows):
             probe = scale / float(np.max(np.abs(row)))
             response[:, k] = (self._loops(q, v, tau + probe * row) - a) / probe
-        lam = np.linalg.solve(C @ response, np.array(target) - C @ a)
+        # least squares: a coupling dependent on the loops (or another) is a dependent row, as the
+        # proximal solver takes the loops' own (its cut singular values below 1e-12 of the largest)
+        lam = np.linalg.lstsq(C @ response, np.array(target) - C @ a, rcond=1e-12)[0]
         return a + response @ lam
 
     def _loops(self, q, v, tau) -> np.ndarray:
@@ -340,8 +343,7 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     if not (gap0 <= INITIAL_RESIDUAL_REL * pm.size and rate0 <= INITIAL_RESIDUAL_REL * speed):
         raise NumericalFailure(FailureReason.INITIAL_STATE,
                                f"the Pinocchio model's loops (and couplings, as lengths) are open by {gap0:.3g} m (rate "
-                               f"{rate0:.3g} m/s) at the "
-                               "initial state: the assembled (q0, q̇0) does not close them", 0.0)
+                               f"{rate0:.3g} m/s) at the initial state: the assembled (q0, q̇0) does not close them", 0.0)
 
     start = time.perf_counter()
     y = np.concatenate([q0, v0, [0.0, 0.0]])
@@ -411,7 +413,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     scale = audit.gate(settings.max_energy_residual, 0.5 * dyn.unit_rate_inertia(), "the Pinocchio run",
                        "[pin] max_energy_residual")
     details = PinDetails(solver=SCIPY_NAMES[settings.method], pieces=len(steps), n_steps_per_piece=tuple(steps),
-                         constraint_rows=3 * len(pm.constraints) + len(pm.couplings), baumgarte=(settings.baumgarte_kp, settings.kd),
+                         constraint_rows=3 * len(pm.constraints) + len(pm.couplings),
+                         baumgarte=(settings.baumgarte_kp, settings.kd),
                          proximal=(settings.proximal_mu, settings.proximal_accuracy, settings.proximal_iterations),
                          largest_gap_rate=float(np.max(gap_rate)), energy_scale=scale,
                          energy_bound=settings.max_energy_residual, initial_residuals=(gap0, rate0),
