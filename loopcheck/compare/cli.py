@@ -403,11 +403,14 @@ def cmd_check(args: argparse.Namespace) -> int:
         raise UsageError("--write-submodel writes one model's loop: list one model")
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
     scenes = [_run_scene(args, path) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
-    if args.engines is not None:
-        if models:
-            raise UsageError("--engines checks scenes: a MuJoCo model (.xml) is checked as written against the "
-                             "reduced solution alone")
-        return _check_engines(args, scenes)
+    if args.engines is not None:  # a model's scene as imported (its joints, couplings, actuators): every engine runs it
+        _load_extras(args.engines)  # a missing extra: one line, before anything is printed
+        for path, imported in models.items():
+            for line in imported.warnings:
+                print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+            for line in imported.said:
+                print(f"{path}: {line}")
+        return _check_engines(args, [m.scene for m in models.values()] + scenes)
     for path, scene in [*((p, m.scene) for p, m in models.items()), *((s.source, s) for s in scenes)]:
         try:  # the reference's refusals, before anything is printed
             ENGINES[REFERENCE].check_work(scene, _reduced_reference(args, scene))

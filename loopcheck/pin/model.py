@@ -22,8 +22,16 @@ A body of mass 0 given by its inertia about a fixed pivot: mass 0 with that iner
 point: a zero mass has no parallel-axis term). A joint inertia (½ I u̇² on a joint's own
 coordinate u) on a tree joint is Pinocchio's ``armature`` of that joint's one dof (u is that
 joint's q: I·row·rowᵀ is I on the diagonal); on a cut joint u is a sum of several q's and its
-cross terms do not fit a diagonal armature: refused with one line. A joint coupling (MuJoCo's
-equality/joint) is refused with one line: Pinocchio's constraint models are contacts between frames.
+cross terms do not fit a diagonal armature: refused with one line.
+
+Couplings. A joint coupling (MuJoCo's equality/joint, y − y_ref = p(x − x_ref) on two joints' own
+coordinates) has no Pinocchio constraint model (its constraint models hold frames: contacts,
+anchors, joint limits and friction; its mimic joint is linear and takes the coupled joint's dof
+away): each is a :class:`CouplingRow`, one holonomic row beside the loops, which
+:mod:`loopcheck.pin.run` adds to ``constraintDynamics``' solution. A joint's own coordinate is
+linear in Pinocchio's q (u = u0 + c·q: a revolute's relative angle is a difference of the
+bodies' angles x0 + T q, a slider's s is its q), a cut joint's too, so a coupling on a joint
+that closes a loop needs no frames.
 
 Everything else (dampers, springs, loads, point and timed forces) is applied as generalized
 forces by :mod:`loopcheck.pin.run` from the point Jacobians of :meth:`PinModel.point_jacobians`.
@@ -44,10 +52,41 @@ except ModuleNotFoundError as exc:  # the optional extra
 
 from loopcheck import kinematics as loops
 from loopcheck.tree_coordinates import coordinate_map, depth_first
-from loopcheck.mechanism import GROUND, PrismaticJoint
+from loopcheck.mechanism import GROUND, JointCoupling, PrismaticJoint, RevoluteJoint
 from loopcheck.scene import Scene
 
 from .settings import Settings
+
+
+@dataclass(frozen=True)
+class CouplingRow:
+    """A joint coupling y − y_ref = p(x − x_ref) (:class:`loopcheck.mechanism.JointCoupling`) over
+    Pinocchio's q: each joint's own coordinate u = u0 + c·q (linear in q, a cut joint's too: a
+    revolute's relative angle is a difference of the bodies' angles, each x0 + T q), so
+
+        φ = u_y − y_ref − p(u_x − x_ref),   its Jacobian row (c_y − p'(s) c_x),
+        φ̈ = (c_y − p'(s) c_x)·a − p''(s) (c_x·v)²   (s = u_x − x_ref).
+
+    coupling : the scene's coupling; y_coef, y0 : the coupled joint's c and u0; x_coef, x0 : the
+    driver's; length : m per unit of φ when the residual is read as a gap (the mechanism's size
+    for a revolute coupled joint, rad; 1 for a prismatic one, m).
+    """
+
+    coupling: JointCoupling
+    y_coef: np.ndarray
+    y0: float
+    x_coef: np.ndarray
+    x0: float
+    length: float
+
+    def state(self, q: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray, float, float]:
+        """(φ, the row (nq,), φ̇, γ = p''(s) (c_x·v)²) at (q, v): φ̈ = row·a − γ."""
+        c = self.coupling
+        p, dp, ddp = c.polynomial(self.x0 + float(self.x_coef @ q))
+        phi = self.y0 + float(self.y_coef @ q) - c.y_ref - p
+        row = self.y_coef - dp * self.x_coef
+        rate = float(self.x_coef @ v)
+        return phi, row, float(row @ v), ddp * rate * rate
 
 
 @dataclass(frozen=True)
@@ -68,6 +107,7 @@ class PinModel:
     joint_coef : for each joint of a joint element, (coef (nq,), u0): its own coordinate
         u = u0 + coef · q (relative angle rad, or displacement m).
     size : the mechanism's size (m), the largest distance between two named points at x0.
+    couplings : one :class:`CouplingRow` per joint coupling of the linkage, in its order.
     compensation, compensation_data : where a body has ``gravcomp`` under gravity, a copy of the
         model whose bodies weigh gravcomp × their mass at the same centre of mass (no rotational
         inertia: only its gravity is read), and a data of it; else None. Pinocchio's gravity is one
@@ -92,6 +132,7 @@ class PinModel:
     compensation: object = None
     compensation_data: object = None
     input_rows: np.ndarray | None = None
+    couplings: tuple[CouplingRow, ...] = ()
 
     def point_jacobians(self, frames: list[int]) -> list[np.ndarray]:
         """The (2, nv) in-plane translational Jacobians of the frames, in the world's axes, at
@@ -117,7 +158,7 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     Raises
     ------
     ValueError
-        A joint inertia on a cut joint, or a joint coupling (one line naming it).
+        A joint inertia on a cut joint, or a joint friction (one line naming it).
     """
     mech = scene.mechanism
     linkage = mech.linkage
@@ -125,10 +166,6 @@ def build(scene: Scene, settings: Settings) -> PinModel:
     system = loops.compile_linkage(linkage)
     x0 = np.asarray(scene.x0, dtype=float)
     angle = {GROUND: 0.0, **{b: float(x0[i]) for i, b in enumerate(linkage.moving)}}
-    for c in linkage.couplings:
-        raise ValueError(f"coupling {c.name!r} (joint {c.joint!r} follows joint {c.driver!r} by a polynomial) has no "
-                         "Pinocchio form: its constraintDynamics holds contact constraints (3D, 6D) between frames, "
-                         "not a polynomial between two joints' coordinates; leave the pin engine out")
     if mech.joint_frictions:
         raise ValueError(f"joint friction {mech.joint_frictions[0].name!r}: the Pinocchio engine has no dry "
                          "(Coulomb) friction with stick and slip; leave the pin engine out")
@@ -213,7 +250,8 @@ def build(scene: Scene, settings: Settings) -> PinModel:
         model.armature[column[e.joint]] += e.coefficient
     joint_coef = {}
     for joint in dict.fromkeys([e.joint for e in mech.joint_elements]
-                               + [j for a in mech.actuators for j, _ in a.terms]):  # actuators' joints too
+                               + [j for a in mech.actuators for j, _ in a.terms]  # actuators' joints too
+                               + [j for c in linkage.couplings for j in (c.joint, c.driver)]):  # couplings' too
         row = system.joint_row(joint)
         joint_coef[joint] = (row @ T, float(row @ x0))
     data = model.createData()
@@ -229,6 +267,9 @@ def build(scene: Scene, settings: Settings) -> PinModel:
         for jid in range(1, compensation.njoints):
             mass, lever = compensated.get(jid, (0.0, np.zeros(3)))
             compensation.inertias[jid] = pin.Inertia(mass, lever, np.zeros((3, 3)))
+    couplings = tuple(CouplingRow(c, *joint_coef[c.joint], *joint_coef[c.driver],
+                                  size if isinstance(joints[c.joint], RevoluteJoint) else 1.0)
+                      for c in linkage.couplings)
     return PinModel(model, data, constraint_models, constraint_datas, system, names, x0, T, P, frames,
                     system.drive @ T, joint_coef, size, compensation,
-                    None if compensation is None else compensation.createData(), system.input_rows @ T)
+                    None if compensation is None else compensation.createData(), system.input_rows @ T, couplings)

@@ -11,6 +11,18 @@ their Baumgarte-corrected drift, solved by its proximal Cholesky) under the gene
 
 (g = (J_b − J_a)ᵀ n the line's Jacobian, n its unit vector, d its length; J_p a point's
 in-plane translational Jacobian, e the force's ground direction; gravity is Pinocchio's own).
+
+Joint couplings (:class:`loopcheck.pin.model.CouplingRow`) are rows beside the loops: φ = u_y −
+y_ref − p(u_x − x_ref), its Jacobian row C = c_y − p'(s) c_x over v, and C a = γ − Kp φ − Kd C v
+with γ = p''(s) (c_x·v)² and the loops' Baumgarte gains. Pinocchio's ``constraintDynamics`` takes
+only its own constraint models, and its solution is affine in τ: a(τ + Cᵀλ) = a(τ) + G Cᵀλ, G the
+loop-constrained inverse inertia. So a0 = a(τ), each column of G Cᵀ from one more solve (the
+difference of a(τ + s Cₖᵀ) and a0, s scaling the probe to the largest of |τ| and Pinocchio's
+nonlinear effects so that the difference keeps its digits), λ from (C G Cᵀ) λ = γ − Kp φ − Kd C v
+− C a0, and a = a0 + G Cᵀλ: the KKT system of the loops and the couplings together, the loops
+still Pinocchio's. A coupling's residual counts in the loop gap as a length (φ × the
+mechanism's size for a revolute coupled joint, φ for a prismatic one).
+
 scipy's ``solve_ivp`` integrates each piece between load edges with the load of that piece
 (restarted at every edge, as the reduced engine's DOP853 is); every solver step is cut into at
 least four parts no longer than ``sample_interval``, sampled from the dense output, and each
@@ -60,7 +72,8 @@ class PinDetails:
     solver : scipy's method ("DOP853", ...).
     pieces : the integrated pieces between load edges.
     n_steps_per_piece : the solver's accepted steps in each piece.
-    constraint_rows : the rows of the loop constraints (3 per cut joint, CONTACT_3D).
+    constraint_rows : the rows of the loop constraints (3 per cut joint, CONTACT_3D) and the
+        joint couplings' (one each).
     baumgarte : (Kp 1/s², Kd 1/s).
     proximal : (μ, accuracy, iterations) of ``constraintDynamics``.
     largest_gap_rate : m/s, the largest |d gap/dt| at the samples.
@@ -118,6 +131,7 @@ class _Dynamics:
         self.q_input0 = float(pm.system.drive @ pm.x0)
         self.evaluations = 0
         self.budget = settings.max_evaluations
+        self.kp, self.kd = settings.baumgarte_kp, settings.kd  # the couplings' Baumgarte gains: the loops'
 
     def _kinematics(self, q: np.ndarray) -> None:
         pin.computeJointJacobians(self.pm.model, self.pm.data, q)
@@ -178,8 +192,35 @@ class _Dynamics:
         return tau, power, dissipation
 
     def acceleration(self, q, v, tau) -> np.ndarray:
+        """The constrained acceleration: Pinocchio's ``constraintDynamics`` (the loops), and with
+        joint couplings their rows beside it (the module's docstring says how)."""
         pm = self.pm
-        return pin.constraintDynamics(pm.model, pm.data, q, v, tau, pm.constraints, pm.constraint_datas, self.prox)
+        a = self._loops(q, v, tau)
+        if not pm.couplings:
+            return a
+        rows, target = [], []
+        for c in pm.couplings:
+            phi, row, rate, gamma = c.state(q, v)
+            rows.append(row)
+            target.append(gamma - self.kp * phi - self.kd * rate)  # row·a = γ, Baumgarte-corrected as the loops
+        C = np.array(rows)
+        # the loops' dynamics is affine in τ: its response to a generalized force Cᵀλ is G Cᵀλ,
+        # G the loop-constrained inverse inertia; each column of G Cᵀ from one more solve, the
+        # probe scaled to the forces at hand so that the difference keeps its digits
+        scale = max(float(np.max(np.abs(tau))), float(np.max(np.abs(pm.data.nle))), 1e-300)
+        response = np.empty((self.nq, len(rows)))
+        for k, row in enumerate(rows):
+            probe = scale / float(np.max(np.abs(row)))
+            response[:, k] = (self._loops(q, v, tau + probe * row) - a) / probe
+        # least squares: a coupling dependent on the loops (or another) is a dependent row, as the
+        # proximal solver takes the loops' own (its cut singular values below 1e-12 of the largest)
+        lam = np.linalg.lstsq(C @ response, np.array(target) - C @ a, rcond=1e-12)[0]
+        return a + response @ lam
+
+    def _loops(self, q, v, tau) -> np.ndarray:
+        pm = self.pm
+        return pin.constraintDynamics(pm.model, pm.data, q, v, tau, pm.constraints, pm.constraint_datas,
+                                      self.prox).copy()
 
     def rhs(self, load: float, timed: tuple[float, ...]):
         n = self.nq
@@ -200,12 +241,17 @@ class _Dynamics:
 
     def gaps(self, q: np.ndarray, v: np.ndarray, *, kinematics: bool = True) -> tuple[float, float]:
         """The largest loop gap (m) and its rate (m/s) over the cut joints at (q, v)
-        (``kinematics=False``: at the kinematics already computed at q)."""
+        (``kinematics=False``: at the kinematics already computed at q), and over the couplings: a
+        coupling's residual φ and its rate as a length (:attr:`CouplingRow.length` × φ: a residual
+        of δ rad moves a point at the mechanism's size by δ·size)."""
+        gap = rate = 0.0
+        for c in self.pm.couplings:
+            phi, _, phi_rate, _ = c.state(q, v)
+            gap, rate = max(gap, c.length * abs(phi)), max(rate, c.length * abs(phi_rate))
         if not self.cut_frames:
-            return 0.0, 0.0
+            return gap, rate
         if kinematics:
             self._kinematics(q)
-        gap = rate = 0.0
         for a, b in self.cut_frames:
             (pa, Ja), (pb, Jb) = self._point(a), self._point(b)
             gap = max(gap, math.hypot(*(pb - pa)))
@@ -296,8 +342,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     speed = pm.size * max(1.0, float(np.max(np.abs(v0), initial=0.0)))
     if not (gap0 <= INITIAL_RESIDUAL_REL * pm.size and rate0 <= INITIAL_RESIDUAL_REL * speed):
         raise NumericalFailure(FailureReason.INITIAL_STATE,
-                               f"the Pinocchio model's loops are open by {gap0:.3g} m (rate {rate0:.3g} m/s) at the "
-                               "initial state: the assembled (q0, q̇0) does not close them", 0.0)
+                               f"the Pinocchio model's loops (and couplings, as lengths) are open by {gap0:.3g} m (rate "
+                               f"{rate0:.3g} m/s) at the initial state: the assembled (q0, q̇0) does not close them", 0.0)
 
     start = time.perf_counter()
     y = np.concatenate([q0, v0, [0.0, 0.0]])
@@ -367,7 +413,8 @@ def simulate_pin(scene: Scene, settings: PinSettings = PinSettings()) -> EngineR
     scale = audit.gate(settings.max_energy_residual, 0.5 * dyn.unit_rate_inertia(), "the Pinocchio run",
                        "[pin] max_energy_residual")
     details = PinDetails(solver=SCIPY_NAMES[settings.method], pieces=len(steps), n_steps_per_piece=tuple(steps),
-                         constraint_rows=3 * len(pm.constraints), baumgarte=(settings.baumgarte_kp, settings.kd),
+                         constraint_rows=3 * len(pm.constraints) + len(pm.couplings),
+                         baumgarte=(settings.baumgarte_kp, settings.kd),
                          proximal=(settings.proximal_mu, settings.proximal_accuracy, settings.proximal_iterations),
                          largest_gap_rate=float(np.max(gap_rate)), energy_scale=scale,
                          energy_bound=settings.max_energy_residual, initial_residuals=(gap0, rate0),

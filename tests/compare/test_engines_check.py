@@ -12,6 +12,8 @@ from loopcheck.compare.settings import engine_settings
 from loopcheck.reference_models import MujocoSettings
 from loopcheck.scenefile import load_scene
 
+from helpers import ROOT
+
 HAS_PIN = importlib.util.find_spec("pinocchio") is not None
 # MuJoCo's own default softness on the loop at RK4 1 ms: it runs (its gap and energy bounds opened)
 # with the seed's peak 3.2e-2 low (tests/compare/test_model_check.py measures the same model)
@@ -80,11 +82,15 @@ def test_cli_check_with_three_engines(capsys):
     assert "      mujoco   ok" in out and "      pin      ok" in out and "farthest" not in out
 
 
-def test_cli_engines_do_not_apply_to_a_model(capsys):
+def test_cli_engines_run_a_models_imported_scene(capsys):
+    """A model listed with --engines is imported as a scene, its import's lines printed, and every
+    engine runs that scene (before issue 41 it was refused: checked as written, reduced alone)."""
     from loopcheck.compare.cli import main
 
-    assert main(["check", "tests/data/mjcf/fourbar_xz_degrees.xml", "--engines", "reduced,mujoco"]) == 2
-    assert "--engines checks scenes" in capsys.readouterr().err
+    model = ROOT / "tests" / "data" / "mjcf" / "fourbar_xz_degrees.xml"
+    assert main(["check", str(model), "--engines", "reduced,mujoco", "--horizon", "0.2"]) == 0
+    out = capsys.readouterr().out
+    assert f"ok    {model}: reduced peak" in out and "      mujoco   ok" in out and "1 passed, 0 failed" in out
 
 
 def _short_seed(extra: str = "") -> str:

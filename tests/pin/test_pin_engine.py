@@ -1,6 +1,6 @@
 """The Pinocchio engine on the seed (against the exact peak) and on the elements the catalogue
 does not hold: joint dampers and springs (also on a cut joint and a prismatic joint), timed
-forces, joint inertias; what it refuses.
+forces, joint inertias; a joint coupling (the geared flywheel, in the catalogue too); what it refuses.
 
 Oracles: the seed's exact peak 34.26441306 rad/s (the issue's reference value); elsewhere the
 reduced engine (DOP853, rtol 1e-12) on the same scene. Tolerances: the pin engine's DOP853 at
@@ -93,11 +93,47 @@ def test_an_inertia_on_a_cut_joint_is_refused_by_name():
     assert "\n" not in str(caught.value)
 
 
-def test_a_joint_coupling_is_refused_by_name():
-    scene = loopcheck.load_scene(ROOT / "scenes" / "mechanisms" / "seed_fourbar_geared_flywheel.toml")
-    with pytest.raises(ValueError, match="coupling 'gear' .* has no Pinocchio form") as caught:
-        simulate(scene, PinSettings())
-    assert "\n" not in str(caught.value)
+def test_a_joint_coupling_runs_as_a_row_beside_the_loop():
+    """The geared flywheel (a gear pair F = −2 O1, linear): the four-bar's CONTACT_3D and the
+    coupling's row; measured (2026-11-28, pin 4.1.0) at relative |Δq| 5.2e-11, |Δq̇| 1.8e-9, peak
+    7.3e-11, energy residual 3.4e-10 (BOUNDS); the gap, the coupling's residual as a length in it,
+    2.3e-10 m (bound 1e-9 m)."""
+    _, r = _agree(loopcheck.load_scene(ROOT / "scenes" / "mechanisms" / "seed_fourbar_geared_flywheel.toml"))
+    assert r.details.constraint_rows == 4 and r.constraint_violation.max <= 1e-9
+
+
+def _flywheels_on_every_joint():
+    """The geared flywheel with a flywheel coupled to each joint of its loop, so that one of the
+    coupled joints must be cut (B): quadratic couplings driven by A, B and O3, and B itself driven
+    by a fifth flywheel. One DOF: 9 bodies' 27 − 2·9 joints − 8 couplings."""
+    import tomllib
+
+    from loopcheck.scenefile import scene_from_dict
+
+    data = tomllib.loads((ROOT / "scenes" / "mechanisms" / "seed_fourbar_geared_flywheel.toml").read_text())
+    gears = [("A", "F2", [0.0, 0.5, 0.3]), ("B", "F3", [0.0, -0.4, 0.2]), ("O3", "F4", [0.0, 0.7, -0.25]),
+             ("F5", "B", [0.0, -1.5, 0.4])]  # (driver, joint, polycoef)
+    for k in range(2, 6):
+        data["bodies"]["ground"]["points"][f"F{k}"] = [0.3 * k, -0.9]
+        data["bodies"][f"flywheel{k}"] = {"points": {f"F{k}": [0.0, 0.0]}, "pivot_inertia": 0.1 * k, "pivot": f"F{k}"}
+        data["joints"].append({"name": f"F{k}", "type": "revolute", "a": f"ground.F{k}", "b": f"flywheel{k}.F{k}"})
+        data["initial"]["guess"][f"flywheel{k}"] = 0.0
+    data["couplings"] += [{"name": f"gear_{joint}", "joint": joint, "driver": driver, "polycoef": coef}
+                          for driver, joint, coef in gears]
+    data["simulation"]["horizon"] = 0.5
+    return scene_from_dict(data)
+
+
+def test_a_coupling_on_a_joint_that_closes_the_loop():
+    """A cut joint's own coordinate is a sum of several of Pinocchio's q (its relative angle over
+    the tree), its coupling row too, as driver (gear_F3) and as coupled joint (gear_B). Measured
+    (2026-11-28, pin 4.1.0, 0.5 s) relative |Δq| 5.2e-11, |Δq̇| 3.3e-10, peak 1.2e-11, energy residual
+    1.1e-10, gap 9.6e-11 m (BOUNDS, the module's). Planted: each coupled joint's coordinate taken as its largest q alone (a
+    tree joint's form) fails it: |Δq| 0.45 of the scale."""
+    scene = _flywheels_on_every_joint()
+    assert scene.dof == 1 and scene.mechanism.linkage.cut_joints == ("B",)
+    _, r = _agree(scene)
+    assert r.details.constraint_rows == 3 + 5
 
 
 def test_a_run_beyond_its_evaluations_fails_naming_the_setting():
