@@ -403,14 +403,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         raise UsageError("--write-submodel writes one model's loop: list one model")
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
     scenes = [_run_scene(args, path) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
-    if args.engines is not None:  # a model's scene as imported (its joints, couplings, actuators): every engine runs it
+    if args.engines is not None:  # a model: the engine that read it runs it as written, the others its scene as imported
         _load_extras(args.engines)  # a missing extra: one line, before anything is printed
-        for path, imported in models.items():
-            for line in imported.warnings:
-                print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
-            for line in imported.said:
-                print(f"{path}: {line}")
-        return _check_engines(args, [m.scene for m in models.values()] + scenes)
+        return _check_engines(args, scenes, models)
     for path, scene in [*((p, m.scene) for p, m in models.items()), *((s.source, s) for s in scenes)]:
         try:  # the reference's refusals, before anything is printed
             ENGINES[REFERENCE].check_work(scene, _reduced_reference(args, scene))
@@ -469,9 +464,10 @@ def _engines(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _engines_check(args: argparse.Namespace, scene):
+def _engines_check(args: argparse.Namespace, scene, as_written=None):
     """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
-    reference at its own tolerances (the flags given over the scene's for it)."""
+    reference at its own tolerances (the flags given over the scene's for it); ``as_written``:
+    :func:`loopcheck.compare.engines.check_engines`' (a user's model run as written)."""
     from .engines import check_engines
     from .settings import engine_settings
 
@@ -481,7 +477,7 @@ def _engines_check(args: argparse.Namespace, scene):
                        _mujoco_settings(args, scene) if name == OTHER else engine_settings(name, scene))
                 for name in args.engines}
     tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
-    return check_engines(scene, args.engines, settings, tolerances)
+    return check_engines(scene, args.engines, settings, tolerances, as_written)
 
 
 def _load_extras(engines) -> None:
@@ -491,17 +487,31 @@ def _load_extras(engines) -> None:
         ENGINES[name].load()
 
 
-def _check_engines(args: argparse.Namespace, scenes: list) -> int:
-    """``loopcheck check --engines``: each engine against the reduced reference, the outlier named."""
+def _check_engines(args: argparse.Namespace, scenes: list, models: dict | None = None) -> int:
+    """``loopcheck check --engines``: each engine against the reduced reference, the outlier named.
+    A user's model (``models``: path → imported) runs as written in the engine that read it (listed
+    or not among the others, by its role) and as its imported scene in the others."""
     from .engines import engines_lines
+    from .model_check import reader_of
 
     _load_extras(args.engines)
     failed = 0
+    for path, imported in (models or {}).items():
+        for line in imported.warnings:
+            print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+        for line in imported.said:
+            print(f"{path}: {line}")
+        reader = reader_of(imported)
+        as_written = (reader.name, f"{path} as written (the others: its scene as imported)",
+                      lambda imported=imported, reader=reader: reader.models.run_model(imported))
+        check = _engines_check(args, imported.scene, as_written)
+        failed += not check.passed
+        print("\n".join(engines_lines(check)))
     for scene in scenes:
         check = _engines_check(args, scene)
         failed += not check.passed
         print("\n".join(engines_lines(check)))
-    print(f"{len(scenes) - failed} passed, {failed} failed")
+    print(f"{len(scenes) + len(models or {}) - failed} passed, {failed} failed")
     return EXIT_FAILED if failed else EXIT_OK
 
 

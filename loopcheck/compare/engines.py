@@ -16,7 +16,7 @@ import logging
 import time
 from dataclasses import dataclass, replace
 from statistics import median
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from loopcheck.errors import NumericalFailure
 from loopcheck.registry import DEFAULT_ENGINES, ENGINES, REFERENCE
@@ -42,6 +42,7 @@ class EngineVerdict:
     # failure: its known defects are printed and engines.png draws it up to that time.
     partial: EngineResult | None = None
     failed_at: float | None = None
+    ran: str | None = None  # what ran instead of the engine's model of the scene (a user's model as written)
 
     @property
     def passed(self) -> bool:
@@ -136,11 +137,16 @@ def compared_engine(engines: tuple[str, ...]) -> str:
 
 
 def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any] | None = None,
-                  tolerances: Mapping[str, Tolerances] | None = None) -> EnginesCheck:
+                  tolerances: Mapping[str, Tolerances] | None = None,
+                  as_written: tuple[str, str, Callable[[], EngineResult]] | None = None) -> EnginesCheck:
     """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included; an
     engine not there runs with the scene's table over its defaults) on ``scene`` and judge each
     against the reduced reference by its tolerances: ``tolerances[name]``, by default the scene's
     for that engine (:meth:`loopcheck.scene.Scene.tolerances_for`).
+
+    ``as_written``: (engine, what, run) where ``scene`` was read from a user's model: that engine
+    (the one that read the file) runs the model as written, ``run()``, instead of its own model of
+    the scene, and its verdict says ``what`` ran; the others run the scene as imported.
 
     Raises
     ------
@@ -162,15 +168,16 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
         judged = replace(scene, tolerances=own)  # MuJoCo's automatic step is chosen for the tolerances it is judged by
         _log.info("%s: %s started", scene.name, name)
         start = time.perf_counter()
+        ran = as_written[1] if as_written is not None and as_written[0] == name else None
         try:
-            result = ENGINES[name].simulate(judged, settings[name])
+            result = as_written[2]() if ran is not None else ENGINES[name].simulate(judged, settings[name])
         except NumericalFailure as exc:
             verdicts.append(EngineVerdict(name, own, None, f"numerical failure ({exc.reason}): {exc}",
-                                          partial=exc.partial, failed_at=exc.time))
+                                          partial=exc.partial, failed_at=exc.time, ran=ran))
         except ValueError as exc:  # what the engine does not run (an MJX refusal, ...): one line, its verdict
-            verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}"))
+            verdicts.append(EngineVerdict(name, own, None, f"refused: {exc}", ran=ran))
         else:
-            verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own)))
+            verdicts.append(EngineVerdict(name, own, judge(judged, reference, result, own), ran=ran))
         _log.info("%s: %s ended in %.3g s (%s)", scene.name, name, time.perf_counter() - start,
                   "passed" if verdicts[-1].passed else "failed" if verdicts[-1].comparison is not None
                   else verdicts[-1].failure.split(":")[0])
@@ -213,8 +220,10 @@ def engines_lines(check: EnginesCheck) -> list[str]:
              + ", ".join(f"{f'{name} ' if scene.dof > 1 else ''}{p.omega:.10g} {u}/s"
                          for name, u, (_, p) in zip(scene.inputs, scene.input_units(), check.reference.inputs))]
     for v in check.verdicts:
+        ran = [f"               ran {v.ran}"] if v.ran else []
         if v.comparison is None:
             lines.append(f"      {v.engine:8s} {v.failure}")
+            lines += ran
             lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
             continue
         t = v.comparison.gate.tolerances
@@ -224,6 +233,7 @@ def engines_lines(check: EnginesCheck) -> list[str]:
             lines.append(f"{lead}{f'{name}: ' if several else ''}peak {d.peak_omega_other:.10g} "
                          f"({d.peak_omega_rel:.2e}, tol {t.peak_omega_rtol:g}), max |dq| {d.q_max_abs:.2e} {u} "
                          f"(tol {t.q_atol:g}), max |dq/dt| {d.omega_max_abs:.2e} {u}/s (tol {t.omega_atol:g})")
+        lines += ran
         lines += [f"               {failure}" for failure in v.comparison.gate.failures]
         lines += [f"               known defect: {caveat}" for caveat in v.known_defects]
     if check.outlier is not None:

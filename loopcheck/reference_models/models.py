@@ -5,7 +5,8 @@ the comparison and the command line name no engine.
 The interface: ``Control`` (an actuator's control, ``--ctrl``), ``import_model`` (the file read as a
 scene at a keyframe or qpos0, an ``ImportedModel``), ``import_loop`` (one loop cut out, ``--loop``), ``import_assembled``
 (the loops closed by Newton, ``--assemble``), ``input_coordinate`` (the input as the file names it),
-``model_text`` (a scene's model written in the format, ``export-mjcf``), and the check of the model
+``model_text`` (a scene's model written in the format, ``export-mjcf``), ``run_model`` (the model
+as written, run: ``check model.xml --engines``), and the check of the model
 as written against the reduced reference (:mod:`loopcheck.reference_models.model_check`:
 ``check_model``, ``check_lines``, ``diagnosis_lines``, ``reference_failure_lines``, ``VacuousCheck``).
 Each name loads its module on first use.
@@ -21,7 +22,7 @@ _HOMES = {
     **dict.fromkeys(("Control", "ImportedModel"), ".mjcf_import"),
     "import_model": (".mjcf_import", "import_mjcf"),
     **dict.fromkeys(("import_loop", "import_assembled"), ".extract"),
-    "input_coordinate": ".user_model",
+    **dict.fromkeys(("input_coordinate", "run_model"), ".user_model"),
     "model_text": (".run", "mjcf_text"),
     **dict.fromkeys(("VacuousCheck", "check_lines", "check_model", "diagnosis_lines", "reference_failure_lines"),
                     ".model_check"),
