@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+from functools import partial
 
 
 def _ended_at_start_up(signum: int, frame) -> None:
@@ -38,7 +39,8 @@ if _AS_COMMAND:
         if signal.getsignal(_signum) is not signal.SIG_IGN:  # nohup's or a background job's choice stays
             signal.signal(_signum, _ended_at_start_up)
 
-import argparse  # noqa: E402 - after the start-up handlers: a signal while these load is one line
+import argparse
+from functools import partial  # noqa: E402 - after the start-up handlers: a signal while these load is one line
 import contextlib  # noqa: E402
 import logging  # noqa: E402
 import warnings
@@ -464,10 +466,10 @@ def _engines(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _engines_check(args: argparse.Namespace, scene, as_written=None):
+def _engines_check(args: argparse.Namespace, scene, as_written=None, refuse=None):
     """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
     reference at its own tolerances (the flags given over the scene's for it); ``as_written``:
-    :func:`loopcheck.compare.engines.check_engines`' (a user's model run as written)."""
+    and ``refuse``: :func:`loopcheck.compare.engines.check_engines`' (a user's model run as written)."""
     from .engines import check_engines
     from .settings import engine_settings
 
@@ -477,7 +479,7 @@ def _engines_check(args: argparse.Namespace, scene, as_written=None):
                        _mujoco_settings(args, scene) if name == OTHER else engine_settings(name, scene))
                 for name in args.engines}
     tolerances = {name: _tolerances(scene, args, name) for name in args.engines if name != REFERENCE}
-    return check_engines(scene, args.engines, settings, tolerances, as_written)
+    return check_engines(scene, args.engines, settings, tolerances, as_written, refuse)
 
 
 def _load_extras(engines) -> None:
@@ -502,9 +504,12 @@ def _check_engines(args: argparse.Namespace, scenes: list, models: dict | None =
         for line in imported.said:
             print(f"{path}: {line}")
         reader = reader_of(imported)
+        read_at = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+        vacuous = partial(reader.models.refuse_vacuous, tolerances=_tolerances(imported.scene, args, reader.name),
+                          where=f"{path} (read at {read_at})", unit=imported.scene.input_unit)
         as_written = (reader.name, f"{path} as written (the others: its scene as imported)",
-                      lambda imported=imported, reader=reader: reader.models.run_model(imported))
-        check = _engines_check(args, imported.scene, as_written)
+                      partial(reader.models.run_model, imported))
+        check = _engines_check(args, imported.scene, as_written, vacuous)
         failed += not check.passed
         print("\n".join(engines_lines(check)))
     for scene in scenes:

@@ -138,7 +138,8 @@ def compared_engine(engines: tuple[str, ...]) -> str:
 
 def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str, Any] | None = None,
                   tolerances: Mapping[str, Tolerances] | None = None,
-                  as_written: tuple[str, str, Callable[[], EngineResult]] | None = None) -> EnginesCheck:
+                  as_written: tuple[str, str, Callable[[], EngineResult]] | None = None,
+                  refuse: Callable[[EngineResult], None] | None = None) -> EnginesCheck:
     """Run ``engines`` (``settings``: each engine's Settings by name, the reference's included; an
     engine not there runs with the scene's table over its defaults) on ``scene`` and judge each
     against the reduced reference by its tolerances: ``tolerances[name]``, by default the scene's
@@ -146,7 +147,8 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
 
     ``as_written``: (engine, what, run) where ``scene`` was read from a user's model: that engine
     (the one that read the file) runs the model as written, ``run()``, instead of its own model of
-    the scene, and its verdict says ``what`` ran; the others run the scene as imported.
+    the scene, and its verdict says ``what`` ran; the others run the scene as imported. ``refuse``: called with the reference's result before
+    any other engine runs; what it raises (a check that could not fail) stops the check.
 
     Raises
     ------
@@ -160,6 +162,8 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
     start = time.perf_counter()
     reference = ENGINES[REFERENCE].simulate(scene, settings[REFERENCE])
     _log.info("%s: %s ended in %.3g s", scene.name, REFERENCE, time.perf_counter() - start)
+    if refuse is not None:
+        refuse(reference)
     verdicts = []
     for name in engines:
         if name == REFERENCE:

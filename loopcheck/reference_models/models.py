@@ -8,7 +8,8 @@ scene at a keyframe or qpos0, an ``ImportedModel``), ``import_loop`` (one loop c
 ``model_text`` (a scene's model written in the format, ``export-mjcf``), ``run_model`` (the model
 as written, run: ``check model.xml --engines``), and the check of the model
 as written against the reduced reference (:mod:`loopcheck.reference_models.model_check`:
-``check_model``, ``check_lines``, ``diagnosis_lines``, ``reference_failure_lines``, ``VacuousCheck``).
+``check_model``, ``check_lines``, ``diagnosis_lines``, ``reference_failure_lines``, ``VacuousCheck``,
+``refuse_vacuous``).
 Each name loads its module on first use.
 """
 
@@ -24,7 +25,8 @@ _HOMES = {
     **dict.fromkeys(("import_loop", "import_assembled"), ".extract"),
     **dict.fromkeys(("input_coordinate", "run_model"), ".user_model"),
     "model_text": (".run", "mjcf_text"),
-    **dict.fromkeys(("VacuousCheck", "check_lines", "check_model", "diagnosis_lines", "reference_failure_lines"),
+    **dict.fromkeys(("VacuousCheck", "check_lines", "check_model", "diagnosis_lines", "reference_failure_lines",
+                     "refuse_vacuous"),
                     ".model_check"),
 }
 __getattr__, __dir__, _names = lazy_names("loopcheck.reference_models", _HOMES, globals())

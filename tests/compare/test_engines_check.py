@@ -104,6 +104,20 @@ def test_cli_engines_run_a_model_as_written_in_its_reader_and_its_scene_in_the_o
     assert f"               ran {model} as written (the others: its scene as imported)" in out
 
 
+def test_cli_engines_refuse_a_model_whose_check_could_not_fail(capsys):
+    """A model read at rest without control does not move: with --engines, as without, the check is
+    refused in one line (exit 2) before MuJoCo runs, not passed by every engine at zero difference
+    (plant: no refusal, and the command printed "1 passed")."""
+    from loopcheck.compare.cli import main
+
+    model = ROOT / "tests" / "data" / "mjcf" / "fourbar_xz_degrees.xml"
+    assert main(["check", str(model), "--engines", "reduced,mujoco", "--horizon", "0.2"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    error = [line for line in captured.err.splitlines() if line.startswith("loopcheck: error: ")]
+    assert len(error) == 1 and "the check could not fail" in error[0]
+
+
 def _short_seed(extra: str = "") -> str:
     """The seed over 0.2 s (the pulse still on, the peak the horizon's end: 6.6 rad/s), with ``extra`` TOML."""
     from helpers import SEED_SCENE
