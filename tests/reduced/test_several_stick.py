@@ -15,12 +15,18 @@ oracle's own accuracy (its run at rtol/2) 1.6e-12 rad and 1.1e-11 rad/s, below a
 the energy balance 8.3e-12 of the run's scale (5e-11; 0.26 J dissipated); the holding force from
 the engine's chart against the oracle's multiplier 1.4e-10 N·m (HOLD_TOL 1e-9 N·m).
 
-Plants (each made in the source, these tests run, then removed): the stuck row's right-hand side
-+row·ẍ0 for −row·ẍ0 (the held pin drifts: the oracle test fails, 1e-3 rad); the break's direction
-s = +sign λ (the events differ); stop_at_start blind to a stuck joint's margin (the load edge's
-break at 0.1 s is missed: the events differ); a stuck joint's margin f − λ for f − |λ| (the break at
-0.320 s is missed); the kinetic energy taken by the hold's projection left out of E (not seen:
-below 1e-20 J, REST_RATE²); see each test for its own.
+Plants (each made in the source, the kernel rebuilt, this file run, then removed), and the tests
+each failed: the stuck row's right-hand side +row·ẍ0 for −row·ẍ0 (the passive elbow's test: O5's
+row is a chart coordinate's, where row·ẍ0 = 0); the break's direction s = +sign λ (the O5 fixture's
+three, the elbow's, every method's); the compiled stop_at_start blind to a stuck joint's margin
+(the load edge's break at 0.1 s missed: the O5 tests, every method's); a stuck joint's margin f − λ
+for f − |λ| (the O5 oracle test and the holding force's, every method's); the scipy legs blind to a
+load edge that breaks a hold (every method's); λ read into the wrong joints (the two-held test);
+the friction left out of the dissipation (the elbow's, every method's, the two-held test: the
+energy gate); the KKT solve's row swap dropped (the indeterminate hold's test). Not caught: the
+hold's projection of q̇ left out (the rates at a located stick are already below 1e-14 here; the
+projection is kept so a stuck rate is exactly held), and the KKT's singular-pivot threshold at 0
+(the indeterminate hold is refused all the same, no set of modes consistent).
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ import loopcheck
 from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
-from oracles.multibody import simulate_friction
+from oracles.multibody import Lock, simulate_friction
 from test_multibody_oracle import five_bar
 
 STICK = ROOT / "tests/data/five_bar_stick.toml"
@@ -72,8 +78,8 @@ def test_a_two_dof_five_bar_whose_pin_sticks_and_slips_agrees_with_the_oracle(st
     """The engine's events (stick, a load edge breaking it loose, stick, the hold reaching f, stick,
     slip: every kind) are the oracle's, each within EVENT_TOL; both inputs agree with the oracle to
     Q_TOL, RATE_TOL through them; the energy balances (the friction's f |u̇| dissipated while it
-    slips, none while it sticks). Plants: the stuck row's right-hand side's sign; the break's
-    direction; stop_at_start blind to the stuck margin; the margin f − λ."""
+    slips, none while it sticks). Plants: the break's direction; stop_at_start blind to the stuck
+    margin; the margin f − λ."""
     _, result, model, t, idx, oracle, half = stick_run
     events = result.details.friction_events
     assert [(e.mode, e.direction, e.joint) for e in events] == [(m, int(s), "O5") for _, m, s in oracle.events]
@@ -98,7 +104,8 @@ def test_a_passive_elbow_that_sticks_is_held_as_the_oracle_holds_it():
     rad, 1.2e-10 rad/s; the oracle's own accuracy 2.9e-12 rad, 6.2e-11 rad/s); while stuck the elbow's
     rate stays within 2e-10 rad/s of 0 and its angle within 5e-11 rad (measured 5.3e-11 and 8.6e-12:
     u̇ = r q̇ is an invariant of the held equation, kept to the integration's accuracy); energy
-    4.9e-12 (bound 5e-11; 0.18 J dissipated). Plant: the stuck row's right-hand side's sign."""
+    4.9e-12 (bound 5e-11; 0.18 J dissipated). Plants: the stuck row's right-hand side's sign (the
+    held elbow drifts); the break's direction; the friction left out of the dissipation."""
     from loopcheck.api import scene_from_string
 
     result = loopcheck.simulate(scene_from_string(_with_frictions({"A": 20.0})))
@@ -147,8 +154,8 @@ def test_while_it_sticks_its_pin_is_held_and_nothing_is_dissipated(stick_run):
     """In each stick phase (the samples strictly inside) the right crank's rate is 0 and its angle
     constant to 1e-14 (rad/s, rad; measured exactly 0: O5 is a chart coordinate here, its row a
     unit row, and the hold projects its rate to 0 and solves its q̈ = 0), and the friction
-    dissipates nothing (E constant to 1e-14 J of the 0.26 J dissipated; measured exactly). Plant:
-    the stuck row's right-hand side's sign (the pin drifts)."""
+    dissipates nothing (E constant to 1e-14 J of the 0.26 J dissipated; measured exactly). Plants:
+    stop_at_start blind to the stuck margin; the break's direction."""
     scene, result, *_ = stick_run
     (_, _), (right, _) = result.inputs
     audit = result.audit
@@ -212,8 +219,8 @@ def test_every_method_finds_the_same_sticks_and_slips():
     chart find the compiled DOP853's events over the whole scene (0.8 s: eight, a reversal and the
     last stick too) within 1e-9 s (measured: RKN4 1.0e-10, scipy's DOP853 2.5e-16, Radau 8.1e-12),
     and balance their energy (each within its own gate: measured 8.3e-12, 2.2e-10, 8.3e-12,
-    4.1e-12). Plant: the scipy legs blind to a load edge
-    that breaks a hold (their events lose the one at 0.1 s)."""
+    4.1e-12). Plants: the scipy legs blind to a load edge that breaks a hold (their events lose the
+    one at 0.1 s); the compiled stop_at_start blind; the margin f − λ; the break's direction."""
     scene = load_scene(STICK)
     runs = {m: loopcheck.simulate(scene, loopcheck.ReducedSettings(method=m))
             for m in ("dop853", "rkn4", "scipy-dop853", "radau")}
@@ -229,8 +236,12 @@ def test_both_inputs_stuck_hold_the_whole_linkage_still():
     """12 N·m on both motors' pins O1 and O5: O5 sticks at 0.013 s, O1 at 0.353 s (the left motor's
     pulse over), and then the whole linkage is held (k = 2 stuck rows: the KKT system's q̈ is R_S's
     own solve): both rates 0 and the angles constant to 1e-14 to the horizon (measured 6.5e-34 and
-    0), no friction events after, the energy balanced to 1e-11 (measured 1.2e-12). Plant: the
-    KKT solve's row swap dropped (the run fails at the first stick: a zero pivot)."""
+    0), no friction events after, the energy balanced to 1e-11 (measured 1.2e-12). At the end, the
+    engine's two holding forces (its chart's multipliers) are the oracle's static holding torques
+    (both pins locked, q̇ = 0: tests/oracles/multibody.py's Lock rows) to 2e-14 N·m (measured
+    2.7e-15 of 5.8 and 4.5 N·m: round-off) and within 12 N·m. Plants: the multipliers read into
+    the wrong joints (λ's index not advanced: the holds differ); the friction left out of the
+    dissipation (the energy)."""
     from loopcheck.api import scene_from_string
 
     result = loopcheck.simulate(scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0})))
@@ -242,13 +253,36 @@ def test_both_inputs_stuck_hold_the_whole_linkage_still():
         assert np.count_nonzero(after) > 10
         assert np.max(np.abs(tr.qdot[after])) < 1e-14 and np.ptp(tr.q[after]) < 1e-14
     assert result.audit.relative_residual < 1e-11
+    from loopcheck.reduced.several import SeveralModel, start_chart
+
+    scene = scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0}))
+    x = np.array(result.joints.x[-1])
+    model = SeveralModel(scene)
+    chart = start_chart(model, model.inputs, x)
+    order = list(model.friction_joints)
+    for e in range(len(order)):
+        chart.set_slip(e, 0.0)
+    end = float(result.trajectory.t[-1])
+    q = np.array([result.trajectory.q[-1], result.other_inputs[0][0].q[-1]])
+    assert chart.acceleration(model.piece(end, end), end, q, np.zeros(2), np.zeros(2)) == 0
+    engine = {joint: float(chart.lam[e]) for e, joint in enumerate(order)}
+    names = result.joints.names
+    angle = {body: float(x[names.index(f"{body}.angle")]) for body in ("left_crank", "left_arm", "right_arm",
+                                                                         "right_crank")}
+    oracle = replace(five_bar(), locks=(Lock("O1", angle["left_crank"]), Lock("O5", angle["right_crank"])))
+    qo, _ = oracle.assemble(angle, {"left_crank": angle["left_crank"], "right_crank": angle["right_crank"]},
+                            {"left_crank": 0.0, "right_crank": 0.0})
+    held = oracle.holding(end, qo, np.zeros(oracle.n))
+    for joint, tau in zip(("O1", "O5"), held):
+        assert abs(engine[joint] - tau) < 2e-14 and abs(engine[joint]) < 12.0, joint
 
 
 def test_a_hold_that_no_set_of_modes_decides_stops_the_run_in_one_line():
     """Three frictions (O1, O5 and the elbow A, 12 N·m each) on a linkage of two degrees of freedom:
     once two stick the third is held too, with more rows than coordinates (a statically
     indeterminate hold, whose share of the holding forces the engine does not decide): the run
-    stops, NumericalFailure "singular", one line naming the joints and the time."""
+    stops, NumericalFailure "singular", one line naming the joints and the time. Plant: the KKT
+    solve's row swap dropped (a hold is then accepted)."""
     from loopcheck.api import scene_from_string
     from loopcheck.errors import NumericalFailure
 
