@@ -57,13 +57,18 @@ stop event (:meth:`kernel.Several.clamp_margin`, CLAMP_HYSTERESIS) and checked a
 start (``stop_at_start``; scipy's legs set the modes at each piece's start); at such a stop the
 modes are set anew by value (:func:`_clamp_stop`) and the run goes on in the same coordinates.
 
-Joint friction (Coulomb, f on a joint's own coordinate u): slipping only. Each friction has a
-direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation), its margin s u̇ in the
-chart's stop event; at u̇ = 0 the joint slips on the way its acceleration takes it with the
-friction against it (:func:`_slip_stop`); where neither way (it would stick: one more constraint
-row while stuck, a chart of k − 1 coordinates, not built yet) the run stops (NumericalFailure
-"singular" naming the joint and the time). A coordinate switch carries the clamps' modes and the
-frictions' directions to the new chart.
+Joint friction (Coulomb, f on a joint's own coordinate u; static = kinetic). Each friction has a
+mode: slipping in the direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation,
+its margin s u̇ in the chart's stop event), or stuck (s = 0: its coordinate held by one more row
+of the chart's KKT system, :meth:`kernel.Several._stuck_solve`, λ its holding force; its margin
+f − |λ| in the stop event, a load edge that steps |λ| past f a stop at the piece's start). At each
+such stop the modes are decided together (:func:`_set_frictions`: the moving ones slip their
+way, a stuck one at |λ| = f slips with s = −sign λ, those at rest take the first consistent set
+of modes, fewest slipping first), the stuck joints' rates projected to 0 (:func:`_hold`), each
+change logged (:class:`loopcheck.reduced.charts.FrictionEvent` with its joint); where no set is
+consistent (a statically indeterminate hold among them) the run stops (NumericalFailure
+"singular" naming the joints and the time). A coordinate switch carries the clamps' and the
+frictions' modes to the new chart.
 
 Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
 point forces over q, a load on the first input alone (``[torque]``).

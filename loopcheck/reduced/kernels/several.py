@@ -36,7 +36,9 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
           − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a + T(t) drive·K_a
     B_ac = Σ_dampers b K_D,a K_D,c + Σ_joint dampers c K_u,a K_u,c
     (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
-    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation)
+    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation;
+    a stuck one, s = 0, holds its coordinate: one more row r_e q̈ = −row_e·ẍ0 and its multiplier
+    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
