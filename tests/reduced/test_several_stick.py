@@ -136,6 +136,46 @@ def test_a_passive_elbow_that_sticks_is_held_as_the_oracle_holds_it():
     assert result.audit.relative_residual < 5e-11
 
 
+def test_a_coordinate_switch_while_a_pin_is_held_keeps_it_held():
+    """20 N·m on the right elbow B: it sticks at 0.0083 s, slips at 0.515 s, sticks at 0.564 s and
+    the coordinates switch while it is held (O1, O5 → B, O5 at 0.601 s; then P, B at 0.685 s and
+    O1, B at 0.774 s), slips at 0.669 s and reverses at 0.791 s. The events are the oracle's within
+    EVENT_TOL (measured 2.3e-13 s) and both inputs agree with the oracle over the 0.8 s to Q_TOL,
+    RATE_TOL (measured 9.1e-12 rad, 8.8e-11 rad/s; its own accuracy 3.4e-12 rad, 9.4e-11 rad/s);
+    the held elbow's angle stays within 5e-12 rad across the switch (measured 7.8e-13); energy
+    2.5e-12 (bound 2e-11).
+    Plant: the switch not carrying the frictions' modes to the new chart (the held elbow slips
+    after the switch: the events differ)."""
+    from loopcheck.api import scene_from_string
+
+    result = loopcheck.simulate(scene_from_string(_with_frictions({"B": 20.0})))
+    events = result.details.friction_events
+    spans = _stuck_spans(events, 0.8)
+    switch = result.details.switches[0]
+    assert (switch.old, switch.new) == ("O1, O5", "B, O5") and any(a < switch.time < b for a, b in spans)
+    (left, _), (right, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    model = five_bar()
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    oracle = simulate_friction(model, "B", 20.0, q0, qd0, t)
+    half = simulate_friction(model, "B", 20.0, q0, qd0, t, rtol=5e-13)
+    assert [(m, int(s)) for _, m, s in oracle.events] == [(e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+    for body, tr in (("left_crank", left), ("right_crank", right)):
+        i = 3 * model.index[body] + 2
+        assert np.max(np.abs(oracle.q[:, i] - half.q[:, i])) < Q_TOL / 3
+        assert np.max(np.abs(oracle.qd[:, i] - half.qd[:, i])) < RATE_TOL / 3
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    names = result.joints.names
+    u = result.joints.x[:, names.index("right_crank.angle")] - result.joints.x[:, names.index("right_arm.angle")]
+    held = next((a, b) for a, b in spans if a < switch.time < b)
+    inside = (result.joints.t > held[0]) & (result.joints.t < held[1])
+    assert np.ptp(u[inside]) < 5e-12
+    assert result.audit.relative_residual < 2e-11
+
+
 def _stuck_spans(events, horizon):
     """The (start, end) of each stick phase."""
     spans, start = [], None
