@@ -234,8 +234,9 @@ def test_the_holding_force_stays_within_the_friction_and_reaches_it_at_the_slip(
     """The engine's λ (its chart's multiplier, N·m on O5's angle) at the samples inside each stick
     phase agrees with the oracle's holding torque to HOLD_TOL and stays below f (at most 8.42 of
     8.5 N·m); at the slip inside the second phase (0.320 s) it equals f to 2e-13 N·m (measured
-    2.1e-14: the event's root, located by brentq to round-off), on the side s = −sign λ it slips; at the load edge (0.1 s, the hold's state there) it is below f on the piece before the
-    right motor's pulse and above f on the pulse's. Plant: the margin f − λ for f − |λ| (no break
+    2.1e-14: the event's root, located by brentq to round-off), on the side s = −sign λ it slips;
+    at the load edge (0.1 s, the hold's state there) it is below f on the piece before the right
+    motor's pulse and above f on the pulse's. Plant: the margin f − λ for f − |λ| (no break
     at 0.320 s). (Its λ: 5.5 N·m before, 10.5 N·m on the pulse's piece.)"""
     scene, result, model, t, idx, oracle, _ = stick_run
     events = result.details.friction_events
