@@ -53,11 +53,19 @@ class Switch:
 @dataclass(frozen=True)
 class FrictionEvent:
     """A change of the joint friction's mode at time t (s): "stick", or "slip" with the sign of
-    the chart coordinate's rate (+1 or −1) in ``direction`` (0 for a stick)."""
+    the chart coordinate's rate (+1 or −1) in ``direction`` (0 for a stick). ``joint``: with
+    several inputs, the joint whose friction changed (the sign then its own coordinate's rate);
+    None with one input (every friction sticks and slips with the one coordinate)."""
 
     time: float
     mode: str
     direction: int = 0
+    joint: str | None = None
+
+    def __post_init__(self):
+        if self.mode not in ("stick", "slip") or self.direction not in ((0,) if self.mode == "stick" else (1, -1)):
+            raise ValueError(f"FrictionEvent: mode 'stick' with direction 0 or 'slip' with ±1, not {self.mode!r}, "
+                             f"{self.direction!r}")
 
 
 @dataclass(frozen=True)

@@ -334,7 +334,7 @@ def simulate_several(scene: Scene, settings: ReducedSettings) -> EngineResult:
             f"(the larger of {ENERGY_FACTOR[settings.method]:g} × rtol and {ENERGY_FLOOR:g}): use a tighter rtol"
             + (" or a smaller step (`--step`, `[reduced] step`)" if settings.method == "rkn4" else ""))
     details = ReducedDetails(solver=run.solver, switches=run.switches, error_estimate=estimate, energy_bound=bound,
-                             energy_scale=scale)
+                             energy_scale=scale, friction_events=run.friction_events)
     (first, peak), *others = run.inputs
     return EngineResult(engine="reduced", trajectory=first, joints=run.joints, peak=peak, audit=audit,
                         wall_s=run.wall_s, n_steps=run.n_steps, n_evaluations=run.n_evaluations, settings=settings,

@@ -57,13 +57,18 @@ stop event (:meth:`kernel.Several.clamp_margin`, CLAMP_HYSTERESIS) and checked a
 start (``stop_at_start``; scipy's legs set the modes at each piece's start); at such a stop the
 modes are set anew by value (:func:`_clamp_stop`) and the run goes on in the same coordinates.
 
-Joint friction (Coulomb, f on a joint's own coordinate u): slipping only. Each friction has a
-direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation), its margin s u̇ in the
-chart's stop event; at u̇ = 0 the joint slips on the way its acceleration takes it with the
-friction against it (:func:`_slip_stop`); where neither way (it would stick: one more constraint
-row while stuck, a chart of k − 1 coordinates, not built yet) the run stops (NumericalFailure
-"singular" naming the joint and the time). A coordinate switch carries the clamps' modes and the
-frictions' directions to the new chart.
+Joint friction (Coulomb, f on a joint's own coordinate u; static = kinetic). Each friction has a
+mode: slipping in the direction s = ±1 (its force −f s K_u on q, f |u̇| among the dissipation,
+its margin s u̇ in the chart's stop event), or stuck (s = 0: its coordinate held by one more row
+of the chart's KKT system, :meth:`kernel.Several._stuck_solve`, λ its holding force; its margin
+f − |λ| in the stop event, a load edge that steps |λ| past f a stop at the piece's start). At each
+such stop the modes are decided together (:func:`_set_frictions`: the moving ones slip their
+way, a stuck one at |λ| = f slips with s = −sign λ, those at rest take the first consistent set
+of modes, fewest slipping first), the stuck joints' rates projected to 0 (:func:`_hold`), each
+change logged (:class:`loopcheck.reduced.charts.FrictionEvent` with its joint); where no set is
+consistent (a statically indeterminate hold among them) the run stops (NumericalFailure
+"singular" naming the joints and the time). A coordinate switch carries the clamps' and the
+frictions' modes to the new chart.
 
 Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
 point forces over q, a load on the first input alone (``[torque]``).
@@ -86,7 +91,7 @@ from loopcheck.results import EnergyAudit
 from loopcheck.scene import Scene, SceneError
 from loopcheck.trajectory import JointTrajectory, Trajectory
 
-from .charts import Switch
+from .charts import FrictionEvent, Switch
 from .dynamics import build_arrays, clamped_actuators, piece_edges, ranged_joints
 from .integrators import MAX_EVALUATIONS, RESTART_STEPS, SAMPLES_PER_STEP, SPEED_LIMIT, budget_spent, sample_parts
 from .kernels import output, vector_adaptive, vector_fixed_step
@@ -332,6 +337,10 @@ def _leg_scipy(model: SeveralModel, chart, t: float, y: np.ndarray, settings: Re
         load = model.piece(t, end)
         if len(model.clamped):  # each piece's start sets the clamp modes by value (a control step past a bound)
             _set_clamps(model, chart, t, y)
+        if len(model.friction_joints) and 0.0 in np.asarray(chart.slip) and _breaking(model, chart, t, y):
+            # a load edge that breaks a stuck joint loose: a stop at the piece's start (the compiled runs'
+            # stop_at_start), its modes set by the run
+            return _Leg(t, np.concatenate([y[:2 * k], base + y[2 * k:]]), True, n_steps, n_eval)
         chart.mark()
 
         def fun(tt, yy, chart=chart, load=load):
@@ -438,7 +447,9 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
     switches = []
     y = np.concatenate([q0, v0, [0.0, 0.0]])
     _set_clamps(model, chart, 0.0, y)
-    _set_slips(model, chart, 0.0, y, range(len(model.friction_joints)))
+    events = []
+    if len(model.friction_joints):
+        y = _set_frictions(model, chart, 0.0, y, events)
     if not chart.stop_margin(0.0, q0, v0) > 0.0:  # another set is clearly better at the start: logged at t = 0
         _check_range(model, chart, 0.0, y)
         y, chart, joints = _switch(model, chart, 0.0, y, switches)
@@ -460,13 +471,16 @@ def integrate(model: SeveralModel, settings: ReducedSettings, step: float | None
         if not leg.stopped:
             break
         _check_range(model, chart, t, y)
-        if _clamp_stop(model, chart, t, y) or _slip_stop(model, chart, t, y):
+        if _clamp_stop(model, chart, t, y):
+            continue
+        friction, y = _slip_stop(model, chart, t, y, events)
+        if friction:
             continue
         if len(switches) >= MAX_SWITCHES:
             raise NumericalFailure("singular", f"more than {MAX_SWITCHES} coordinate switches", t)
         y, chart, joints = _switch(model, chart, t, y, switches)
         sets.append(tuple(int(j) for j in joints))
-    return record, switches, n_steps, n_eval, J0, sets
+    return record, switches, n_steps, n_eval, J0, sets, tuple(events)
 
 
 # a redundant loop's dropped rows: |Φ_r| at most this (m or rad) at every sample (check_dropped):
@@ -521,53 +535,129 @@ def _clamp_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
     return True
 
 
-# a joint friction's rate |u̇| at most this (rad/s or m/s) at a stop is at rest there (_slip_stop)
+# a joint friction's rate |u̇| at most this (rad/s or m/s) at a stop is at rest there (_set_frictions)
 REST_RATE = 1e-9
+# a stuck joint's holding force |λ| within this fraction of its friction f at a stop breaks loose
+# there (the stop's root is located to round-off: |λ| − f ~ 1e-13 f measured)
+BREAK_TOL = 1e-9
+# at most this many frictions at rest decided together (3^n combinations of modes tried)
+MAX_AT_REST = 8
 
 
-def _set_slips(model: SeveralModel, chart, t: float, y: np.ndarray, frictions) -> None:
-    """Each joint friction of ``frictions`` (indices) set slipping the way its joint moves at
-    (t, y), or, at rest (|u̇| ≤ REST_RATE), the way its acceleration takes it with the friction
-    against it. Raises NumericalFailure where neither way: the joint would stick (a stuck joint
-    among several inputs is one more constraint row while it sticks: not supported yet)."""
-    k = model.k
+def _friction_state(model: SeveralModel, chart, t: float, q: np.ndarray, v: np.ndarray):
+    """The acceleration at (t, q, v) on t's load piece with the chart's friction modes: each
+    friction's u̇, ü and holding force λ (0 where it slips), or None where the acceleration fails
+    (a singular hold)."""
+    a = np.zeros(model.k)
+    if chart.acceleration(model.piece(t, t), t, q, v, a) != 0:
+        return None
+    rows = model.friction_rows
+    return rows @ np.asarray(chart.xdot), rows @ np.asarray(chart.xdd), np.array(chart.lam)[:len(rows)]
+
+
+def _set_frictions(model: SeveralModel, chart, t: float, y: np.ndarray, events: list, forced=()) -> np.ndarray:
+    """Set every joint friction's mode at (t, y) (module docstring): one moving (|u̇| > REST_RATE)
+    slips its way; a joint in ``forced`` (stuck, its |λ| reaching f) slips against its holding
+    force (s = −sign λ: the friction keeps pushing with f as the joint moves the way the rest of
+    the linkage pushes it); the others at rest (|u̇| ≤ REST_RATE, or stuck) take the first
+    consistent set of modes, fewest slipping first: each stuck with |λ| < f, each slipping from
+    rest with s ü > 0. Each change is logged in ``events`` (:class:`FrictionEvent`, with its
+    joint). The stuck joints' rates are then projected to 0 (q̇ ← q̇ − 𝔍⁻¹Rᵀ(R𝔍⁻¹Rᵀ)⁻¹R q̇, the
+    smallest kinetic energy change: a plastic hold; its loss, ~(u̇ ≤ REST_RATE)², among the
+    dissipation). Returns y so set. Raises NumericalFailure ("singular", naming the joints and
+    the time) where no set of modes is consistent."""
+    k, nf = model.k, len(model.friction_joints)
     q, v = np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k])
-    a = np.zeros(k)
-    load = model.piece(t, t)
-    for e in frictions:
-        if chart.acceleration(load, t, q, v, a) != 0:
-            raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the "
-                                   f"loops at t = {t:.9g} s", t)
-        rate = float(model.friction_rows[e] @ np.asarray(chart.xdot))
-        if abs(rate) > REST_RATE:
-            chart.set_slip(e, 1.0 if rate > 0 else -1.0)
+    before = np.array(chart.slip)[:nf]
+    state = _friction_state(model, chart, t, q, v)
+    if state is None:
+        raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not evaluate the "
+                               f"acceleration at t = {t:.9g} s", t)
+    rate, _, lam = state
+    rest = []
+    for e in range(nf):
+        if e in forced:
+            chart.set_slip(e, -1.0 if lam[e] > 0 else 1.0)
+        elif before[e] != 0.0 and abs(rate[e]) > REST_RATE:
+            chart.set_slip(e, 1.0 if rate[e] > 0 else -1.0)
+        elif before[e] == 0.0 or abs(rate[e]) <= REST_RATE:
+            rest.append(e)
+    if len(rest) > MAX_AT_REST:
+        raise NumericalFailure("singular", f"{len(rest)} joint frictions at rest together at t = {t:.9g} s: at most "
+                               f"{MAX_AT_REST} are decided together", t)
+    # the candidates: fewest slipping first; a slip from rest its previous way first
+    combos = sorted(itertools.product(*[(0.0, before[e] or 1.0, -(before[e] or 1.0)) for e in rest]),
+                    key=lambda c: sum(m != 0.0 for m in c))
+    for combo in combos:
+        for e, mode in zip(rest, combo):
+            chart.set_slip(e, mode)
+        state = _friction_state(model, chart, t, q, v)
+        if state is None:
             continue
-        for direction in (-float(chart.slip[e]), float(chart.slip[e])):
-            chart.set_slip(e, direction)
-            chart.acceleration(load, t, q, v, a)
-            if direction * float(model.friction_rows[e] @ np.asarray(chart.xdd)) > 0.0:
-                break
-        else:
-            raise NumericalFailure("singular", f"joint friction on {model.friction_joints[e]!r} holds its joint at "
-                                   f"t = {t:.9g} s (it would stick): a stuck joint among several inputs is not "
-                                   "supported by the reduced engine yet", t)
+        _, acc, lam = state
+        if all((abs(lam[e]) < chart.friction_capacity(e)) if mode == 0.0 else (mode * acc[e] > 0.0)
+               for e, mode in zip(rest, combo)):
+            break
+    else:
+        names = ", ".join(repr(model.friction_joints[e]) for e in rest)
+        raise NumericalFailure("singular", f"joint friction on {names} at rest at t = {t:.9g} s: no consistent set "
+                               "of stick and slip modes (each stuck within its friction, each slipping the way it "
+                               "accelerates; a hold of more joints than the linkage's degrees of freedom, or of "
+                               "dependent ones, is statically indeterminate and not decided)", t)
+    after = np.array(chart.slip)[:nf]
+    stuck = [e for e in range(nf) if after[e] == 0.0]
+    if stuck:
+        y = _hold(model, chart, t, y, stuck)
+        v = np.ascontiguousarray(y[k:2 * k])
+    for e in range(nf):
+        if after[e] != before[e] and (t > 0.0 or after[e] == 0.0):
+            events.append(FrictionEvent(float(t), "stick" if after[e] == 0.0 else "slip", int(after[e]),
+                                        model.friction_joints[e]))
+    return y
 
 
-def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray) -> bool:
-    """At a stop of the chart's event: True where it was a joint friction's rate reaching 0 (its
-    s u̇ the least of the event's margins), the frictions at rest then set anew
-    (:func:`_set_slips`): the run goes on in the same coordinates. False where it was a switch."""
+def _hold(model: SeveralModel, chart, t: float, y: np.ndarray, stuck) -> np.ndarray:
+    """y with q̇ projected onto u̇_e = 0 for the stuck frictions (𝔍-weighted, :func:`_set_frictions`),
+    the kinetic energy it takes added to the dissipation E."""
+    k = model.k
+    q, v = np.ascontiguousarray(y[:k]), np.array(y[k:2 * k])
+    if not chart.evaluate(q):
+        raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not close the loops "
+                               f"at t = {t:.9g} s", t)
+    J = np.array(chart.Jm)
+    R = model.friction_rows[stuck] @ np.asarray(chart.K).T  # (s, k): u̇_S = R q̇
+    JiRt = np.linalg.solve(J, R.T)
+    w = v - JiRt @ np.linalg.solve(R @ JiRt, R @ v)
+    y = y.copy()
+    y[k:2 * k] = w
+    y[2 * k + 1] += 0.5 * (v @ J @ v - w @ J @ w)
+    return y
+
+
+def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray, events: list):
+    """At a stop of the chart's event: (True, y) where it was a joint friction's (its margin the
+    least of the event's: a slipping joint's s u̇ reaching 0, or a stuck joint's f − |λ|), the
+    modes then set anew (:func:`_set_frictions`, the stuck ones reaching f forced to slip): the
+    run goes on in the same coordinates from the y returned. (False, y) where it was a switch."""
     if not len(model.friction_joints):
-        return False
+        return False, y
     k = model.k
     v = np.ascontiguousarray(y[k:2 * k])
-    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), v)
+    switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), v)  # (the holding forces at y, where stuck)
     if switch != switch or chart.slip_margin(v) > chart.c_current - HYSTERESIS * chart.c_best:
-        return False
-    K = np.asarray(chart.K)
-    rates = model.friction_rows @ (K.T @ v)
-    _set_slips(model, chart, t, y, [e for e in range(len(rates)) if chart.slip[e] * rates[e] <= REST_RATE])
-    return True
+        return False, y
+    return True, _set_frictions(model, chart, t, y, events, _breaking(model, chart, t, y))
+
+
+def _breaking(model: SeveralModel, chart, t: float, y: np.ndarray) -> tuple:
+    """The stuck frictions whose holding force at (t, y) reaches their friction (to BREAK_TOL)."""
+    k = model.k
+    state = _friction_state(model, chart, t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
+    if state is None:
+        return ()
+    lam = state[2]
+    return tuple(e for e in range(len(model.friction_joints))
+                 if chart.slip[e] == 0.0 and abs(lam[e]) >= (1.0 - BREAK_TOL) * chart.friction_capacity(e))
 
 
 def _check_range(model: SeveralModel, chart, t: float, y: np.ndarray) -> None:
@@ -736,7 +826,8 @@ class SeveralRun:
 
     inputs: each input's trajectory and peak, in the scene's inputs order; joints: every joint
     coordinate; audit: the energy balance at the samples; switches: the coordinate switches;
-    kinetic_scale: ½ max diag 𝔍 at the start (J per (rad/s)²), the energy scale's floor.
+    kinetic_scale: ½ max diag 𝔍 at the start (J per (rad/s)²), the energy scale's floor;
+    friction_events: each change of a joint friction's mode (stick, slip and its way), in time order.
     """
 
     inputs: tuple
@@ -748,6 +839,7 @@ class SeveralRun:
     n_evaluations: int
     kinetic_scale: float
     solver: str
+    friction_events: tuple = ()
 
 
 SOLVER_NAMES = {"dop853": "DOP853", "rkn4": RKN4.name, "scipy-dop853": "scipy DOP853", "radau": "scipy Radau"}
@@ -760,7 +852,7 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), ste
     check_scene(scene)
     model = SeveralModel(scene)
     begin = time.perf_counter()
-    record, switches, n_steps, n_eval, J0, sets = integrate(model, settings, step)
+    record, switches, n_steps, n_eval, J0, sets, events = integrate(model, settings, step)
     wall = time.perf_counter() - begin
     t = np.concatenate(record.t)
     x = np.concatenate(record.x)
@@ -774,4 +866,5 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), ste
     audit = EnergyAudit(t=t, kinetic=np.concatenate(record.T), potential=np.concatenate(record.V),
                         torque_work=np.concatenate(record.W), damper_dissipation=np.concatenate(record.E))
     return SeveralRun(tuple((tr, tr.peak_rate()) for tr in trajectories), joints, audit, tuple(switches), wall,
-                      n_steps, n_eval, 0.5 * float(np.max(np.abs(np.diag(J0)))), SOLVER_NAMES[settings.method])
+                      n_steps, n_eval, 0.5 * float(np.max(np.abs(np.diag(J0)))), SOLVER_NAMES[settings.method],
+                      events)

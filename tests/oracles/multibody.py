@@ -30,7 +30,7 @@ with no stabilization) is reported too.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -95,6 +95,15 @@ class TorsionSpring:
 
 
 @dataclass(frozen=True)
+class Lock:
+    """A pin held at its relative angle ``value`` (rad): one more constraint row θ_b − θ_a − value
+    = 0 (Jacobian row: the pin's angle row, γ = 0); its multiplier μ gives the holding torque
+    τ = −μ on the pin (on its body b, −τ on its body a): a stuck joint friction."""
+    pin: str
+    value: float
+
+
+@dataclass(frozen=True)
 class Model:
     bodies: tuple
     pins: tuple
@@ -104,6 +113,7 @@ class Model:
     gravity: float = 0.0                         # m/s², along −y
     edges: tuple = ()                            # s: where a torque jumps (the integrator restarts)
     redundant: bool = False                      # pins that close a loop redundantly (accelerations)
+    locks: tuple = ()                            # Lock: pins held (a stuck friction)
     index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -128,11 +138,14 @@ class Model:
             ra, _, _ = self._point(p.a, p.sa, q)
             rb, _, _ = self._point(p.b, p.sb, q)
             out.append(ra - rb)
+        out.append(np.array([self.relative(lock.pin, q) - lock.value for lock in self.locks]))
         return np.concatenate(out)
 
     def jacobian(self, q) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
         """Φ_q, and γ(q̇)."""
-        J = np.zeros((2 * len(self.pins), self.n))
+        J = np.zeros((2 * len(self.pins) + len(self.locks), self.n))
+        for k, lock in enumerate(self.locks):
+            J[2 * len(self.pins) + k] = self.angle_row(lock.pin)
         terms = []
         for k, p in enumerate(self.pins):
             for body, s, sign in ((p.a, p.sa, 1.0), (p.b, p.sb, -1.0)):
@@ -144,7 +157,7 @@ class Model:
                 terms.append((k, i, sign, u))
 
         def gamma(qd):
-            g = np.zeros(2 * len(self.pins))
+            g = np.zeros(2 * len(self.pins) + len(self.locks))
             for k, i, sign, u in terms:
                 g[2 * k:2 * k + 2] += sign * qd[3 * i + 2] ** 2 * u
             return g
@@ -214,6 +227,16 @@ class Model:
         return Q, power, dissipation
 
     def accelerations(self, t, q, qd) -> tuple[np.ndarray, float, float]:
+        qdd, _, power, dissipation = self.solve(t, q, qd)
+        return qdd, power, dissipation
+
+    def holding(self, t, q, qd) -> np.ndarray:
+        """Each lock's holding torque τ = −μ (N·m, on the pin's relative angle)."""
+        _, mu, _, _ = self.solve(t, q, qd)
+        return -mu[len(mu) - len(self.locks):]
+
+    def solve(self, t, q, qd) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """q̈, the multipliers μ, the torques' power and the dampers' dissipation."""
         M = self.mass()
         J, gamma = self.jacobian(q)
         Q, power, dissipation = self.forces(t, q, qd)
@@ -229,7 +252,7 @@ class Model:
             m = J.shape[0]
         A = np.block([[M, J.T], [J, np.zeros((m, m))]])
         sol = np.linalg.solve(A, np.concatenate([Q, g]))
-        return sol[:self.n], power, dissipation
+        return sol[:self.n], sol[self.n:], power, dissipation
 
     def energy(self, q, qd) -> float:
         """Kinetic + gravity's and the torsion springs' potential (J)."""
@@ -343,9 +366,111 @@ def simulate(model: Model, q0, qd0, t_eval, rtol: float = 1e-12) -> tuple[Run, t
     return run, accuracy
 
 
+@dataclass(frozen=True)
+class FrictionRun:
+    """A run with Coulomb friction on one pin (:func:`simulate_friction`): the state at the times
+    asked, the events (time, "stick" or "slip", the way s it slips or 0) and, at each time, the
+    holding torque where stuck (NaN where it slips)."""
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    events: list
+    hold: np.ndarray
+
+
+def simulate_friction(model: Model, pin: str, friction: float, q0, qd0, t_eval, rtol: float = 1e-12) -> FrictionRun:
+    """Coulomb friction f on ``pin`` (static = kinetic), from the physics: while it slips in the
+    way s = ±1, a torque −f s on the pin, until its rate u̇ crosses 0 (a terminal event of
+    solve_ivp); while it sticks, a Lock row holds the pin, until its holding torque reaches ±f (an
+    event: |τ| − f = 0), where it slips with s = −sign τ. At each rate zero it sticks where the
+    hold needs |τ| < f, else it slips the way its acceleration takes it. At each load edge a stuck
+    pin whose hold exceeds f slips. At the start it slips the way its rate goes (decided as at a
+    rate zero where that is 0). The rates are projected (M-weighted) onto the lock at a stick."""
+    t_eval = np.asarray(t_eval, float)
+    n = model.n
+    row = model.angle_row(pin)
+    t, q, qd = float(t_eval[0]), np.array(q0, float), np.array(qd0, float)
+    end = float(t_eval[-1])
+    edges = [e for e in model.edges if t < e < end] + [end]
+
+    def with_mode(s, value=None):
+        if s == 0.0:
+            return replace(model, locks=(Lock(pin, value),))
+        return replace(model, torques=model.torques + (Torque(pin, lambda tt, s=s: -friction * s),))
+
+    def decide(t_load, q, qd):
+        """At a rate zero: 0 (stick) where |τ_hold| < f, else the way it accelerates."""
+        held = with_mode(0.0, float(row @ q))
+        tau = float(held.holding(t_load, q, _project(held, q, qd))[0])
+        if abs(tau) < friction:
+            return 0.0
+        return -math.copysign(1.0, tau)
+
+    rate0 = float(row @ qd)
+    s = math.copysign(1.0, rate0) if rate0 != 0.0 else decide(0.5 * (t + edges[0]), q, qd)
+    events = []
+    ts, qs, qds, holds = [], [], [], []
+    while t < end:
+        hi = edges[0]
+        t_load = 0.5 * (t + hi)
+        m = with_mode(s, float(row @ q))
+        if s == 0.0:
+            qd = _project(m, q, qd)
+            if abs(float(m.holding(t_load, q, qd)[0])) >= friction:  # a load edge breaks it loose
+                s = -math.copysign(1.0, float(m.holding(t_load, q, qd)[0]))
+                events.append((t, "slip", s))
+                continue
+
+        def rhs(tt, y, m=m):
+            qdd, _, _ = m.accelerations(t_load, y[:n], y[n:])
+            return np.concatenate([y[n:], qdd])
+
+        if s == 0.0:
+            def event(tt, y, m=m):
+                return friction - abs(float(m.holding(t_load, y[:n], y[n:])[0]))
+        else:
+            def event(tt, y, s=s):
+                return s * float(row @ y[n:])
+        event.terminal, event.direction = True, -1
+        sol = solve_ivp(rhs, (t, hi), np.concatenate([q, qd]), method="DOP853", rtol=rtol, atol=rtol * 1e-2,
+                        dense_output=True, events=[event])
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        stop = float(sol.t[-1])
+        inside = t_eval[(t_eval >= t) & (t_eval < stop)] if sol.status == 1 or stop < end else \
+            t_eval[(t_eval >= t) & (t_eval <= stop)]
+        if inside.size:
+            Y = sol.sol(inside)
+            ts.append(inside)
+            qs.append(Y[:n].T)
+            qds.append(Y[n:].T)
+            holds.append([float(m.holding(t_load, y[:n], y[n:])[0]) if s == 0.0 else math.nan for y in Y.T])
+        y = sol.y[:, -1]
+        t, q, qd = stop, y[:n].copy(), y[n:].copy()
+        if sol.status == 1:  # the event
+            if s == 0.0:
+                tau = float(m.holding(t_load, q, qd)[0])
+                s = -math.copysign(1.0, tau)
+                events.append((t, "slip", s))
+            else:
+                new = decide(t_load, q, qd)
+                events.append((t, "stick" if new == 0.0 else "slip", new))
+                s = new
+        else:
+            edges.pop(0)
+    return FrictionRun(np.concatenate(ts), np.vstack(qs), np.vstack(qds), events, np.concatenate(holds))
+
+
+def _project(model: Model, q, qd) -> np.ndarray:
+    """q̇ projected onto Φ_q q̇ = 0 (the model's rows, its locks with them) in the mass metric."""
+    J, _ = model.jacobian(q)
+    Minv = np.diag(1.0 / np.diag(model.mass()))
+    return qd - Minv @ J.T @ np.linalg.solve(J @ Minv @ J.T, J @ qd)
+
+
 def pulse(value: float, start: float, duration: float) -> Callable[[float], float]:
     return lambda t: value if start <= t < start + duration else 0.0
 
 
-__all__ = ["Body", "Damper", "GROUND", "Model", "Pin", "Run", "Torque", "TorsionSpring", "integrate", "pulse",
-           "simulate"]
+__all__ = ["Body", "Damper", "FrictionRun", "GROUND", "Lock", "Model", "Pin", "Run", "Torque", "TorsionSpring",
+           "integrate", "pulse", "simulate", "simulate_friction"]

@@ -324,23 +324,6 @@ def test_a_three_dof_five_bar_with_a_pendulum_agrees_with_the_oracle():
     assert result.audit.relative_residual < 1e-9
 
 
-def test_a_joint_friction_that_would_stick_with_several_inputs_fails_in_one_line_with_its_time():
-    """Sticking (a stuck joint among several is one more constraint row while it sticks) is not
-    supported yet: where the elbow's friction (20 N·m) holds it at its rate's zero, the run stops
-    ("singular", one line) naming the joint and the time (0.0119322234 s, by DOP853). Plant:
-    _set_slips taking the first direction without the acceleration's test runs on."""
-    from loopcheck.api import scene_from_string
-    from loopcheck.errors import NumericalFailure
-
-    text = FIVE_BAR.read_text().replace(
-        "[simulation]", '[[joint_frictions]]\nname = "rub"\njoint = "A"\nfriction = 20.0\n\n[simulation]')
-    with pytest.raises(NumericalFailure) as failed:
-        loopcheck.simulate(scene_from_string(text))
-    message = str(failed.value)
-    assert failed.value.reason.value == "singular" and "\n" not in message
-    assert "'A'" in message and "would stick" in message and failed.value.time == pytest.approx(0.0119322234, abs=1e-9)
-
-
 def test_the_several_coordinate_chart_runs_as_plain_python_with_the_compiled_numbers():
     """LOOPCHECK_PURE_PYTHON=1 (a subprocess: the switch is read at import) runs the chart's .py
     source: q̈ of the five-bar at its start and along 20 jumps of its inputs, and the conditionings,

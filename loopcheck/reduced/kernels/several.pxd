@@ -4,7 +4,7 @@ from loopcheck.kernels.loops cimport Loops
 from loopcheck.reduced.kernels.vector_problem cimport VectorRightHandSide
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust, _c_trusted_correction, _c_hysteresis
-cdef double _c_jacobi_tol, _c_nan, _c_clamp_hysteresis
+cdef double _c_jacobi_tol, _c_nan, _c_clamp_hysteresis, _c_stuck_pivot
 cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps
 
 
@@ -25,7 +25,11 @@ cdef class Several(VectorRightHandSide):
     cdef long long[::1] piv
     cdef readonly long long[::1] sel
     cdef double[::1] gam
-    cdef readonly double[::1] clampm, slip
+    cdef readonly double[::1] clampm, slip, lam
+    cdef double[:, ::1] kkt
+    cdef double[::1] ksol, scratch
+    cdef Py_ssize_t _stuck_count(self) except -1
+    cdef int _stuck_solve(self) except -1
     cdef double[:, ::1] fric_k
     cpdef double slip_margin(self, double[::1] v)
     cpdef double clamp_margin(self, double[::1] v)

@@ -36,7 +36,9 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
           − Σ_c B_ac q̇_c + Σ_timed F_p(t) e_p·K_P,a + Σ_actuators gear f K_l,a + T(t) drive·K_a
     B_ac = Σ_dampers b K_D,a K_D,c + Σ_joint dampers c K_u,a K_u,c
     (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
-    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation)
+    run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation;
+    a stuck one, s = 0, holds its coordinate: one more row r_e q̈ = −row_e·ẍ0 and its multiplier
+    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
@@ -111,6 +113,8 @@ WALK_HALVINGS = 8
 # One-sided Jacobi SVD: sweeps at most, and the relative orthogonality at which a pair is left.
 JACOBI_SWEEPS = 60
 JACOBI_TOL = 1e-15
+# The stuck joints' KKT system is singular where a pivot is at most this × max(|𝔍|, |R_S|²/|𝔍|).
+STUCK_PIVOT = 1e-12
 
 _c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
 _c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
@@ -123,6 +127,7 @@ _c_walk_halvings = cython.declare(cython.Py_ssize_t, WALK_HALVINGS)
 _c_jacobi_sweeps = cython.declare(cython.Py_ssize_t, JACOBI_SWEEPS)
 _c_jacobi_tol = cython.declare(cython.double, JACOBI_TOL)
 _c_nan = cython.declare(cython.double, math.nan)
+_c_stuck_pivot = cython.declare(cython.double, STUCK_PIVOT)
 
 # counts (Several.counts): LU factorizations of A, solves with them, k×k solves, closures, evaluations
 (FACTORS, SOLVES, SMALL_SOLVES, CLOSURES, EVALUATIONS) = range(5)
@@ -213,6 +218,11 @@ class Several(VectorRightHandSide):
         nfr = int(I[N_FRICTION])
         self.fric_k = np.zeros((kk, max(nfr, 1)))
         self.slip = np.ones(max(nfr, 1))
+        # a stuck joint (slip 0): its holding force λ (the KKT system's multiplier, latest acceleration)
+        self.lam = np.zeros(max(nfr, 1))
+        self.kkt = np.zeros((kk + nfr, kk + nfr + 1))
+        self.ksol = np.zeros(kk + nfr)
+        self.scratch = np.zeros(kk)
         self.act_k = np.zeros((kk, max(na, 1)))
         self.ku = np.zeros((kk, max(nje, 1)))
         self.kd = np.zeros((kk, max(ne, 1)))
@@ -363,6 +373,105 @@ class Several(VectorRightHandSide):
         return 0
 
     # -- one configuration ------------------------------------------------------------------
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _stuck_count(self) -> cython.Py_ssize_t:
+        """The number of stuck joint frictions (slip 0)."""
+        e: cython.Py_ssize_t
+        s: cython.Py_ssize_t = 0
+        for e in range(self.I[N_FRICTION]):
+            if self.slip[e] == 0.0:
+                s += 1
+        return s
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _stuck_solve(self) -> cython.int:
+        """q̈ and the stuck joints' holding forces λ from the KKT system (s stuck joints, rows
+        r_e = K_u,e per coordinate):
+
+            [𝔍  −R_Sᵀ] [q̈]   [Q − c      ]
+            [R_S   0 ] [λ] = [−row_S·ẍ0  ]
+
+        (ü_e = r_e q̈ + row_e·ẍ0 = 0: each stuck joint's coordinate held; λ_e the generalized
+        force its friction applies on u_e), from small ([𝔍 | Q − c]) and fric_k; Gaussian
+        elimination with partial pivoting on kkt ((k + s) × (k + s + 1)). q̈ into qdd, λ into lam.
+        Returns 1 where the system is singular: a pivot at most STUCK_PIVOT × max(|𝔍|, |R_S|²/|𝔍|)
+        (the stuck rows dependent: a statically indeterminate hold, or more stuck joints than k)."""
+        kk: cython.Py_ssize_t = self.k
+        n: cython.Py_ssize_t = self.n
+        nfr: cython.Py_ssize_t = self.I[N_FRICTION]
+        m: cython.Py_ssize_t = kk
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        big: cython.double
+        f: cython.double
+        s: cython.double
+        jmax: cython.double = 0.0
+        rmax: cython.double = 0.0
+        self.counts[SMALL_SOLVES] += 1
+        for e in range(nfr):
+            if self.slip[e] == 0.0:
+                m += 1
+        for r in range(m):
+            for c in range(m + 1):
+                self.kkt[r, c] = 0.0
+        for r in range(kk):
+            for c in range(kk):
+                self.kkt[r, c] = self.small[r, c]
+                jmax = max(jmax, fabs(self.small[r, c]))
+            self.kkt[r, m] = self.small[r, kk]
+        p = kk
+        for e in range(nfr):
+            if self.slip[e] != 0.0:
+                continue
+            s = 0.0
+            for j in range(n):
+                s += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.xdd0[j]
+            for r in range(kk):
+                self.kkt[r, p] = -self.fric_k[r, e]
+                self.kkt[p, r] = self.fric_k[r, e]
+                rmax = max(rmax, fabs(self.fric_k[r, e]))
+            self.kkt[p, m] = -s
+            p += 1
+        if not jmax > 0.0:
+            return 1
+        tiny: cython.double = _c_stuck_pivot * max(jmax, rmax * rmax / jmax)
+        for j in range(m):
+            p = j
+            big = fabs(self.kkt[j, j])
+            for r in range(j + 1, m):
+                if fabs(self.kkt[r, j]) > big:
+                    big = fabs(self.kkt[r, j])
+                    p = r
+            if not big > tiny:
+                return 1
+            if p != j:
+                for c in range(j, m + 1):
+                    s = self.kkt[j, c]
+                    self.kkt[j, c] = self.kkt[p, c]
+                    self.kkt[p, c] = s
+            for r in range(j + 1, m):
+                f = self.kkt[r, j] / self.kkt[j, j]
+                for c in range(j, m + 1):
+                    self.kkt[r, c] -= f * self.kkt[j, c]
+        for r in range(m - 1, -1, -1):
+            s = self.kkt[r, m]
+            for c in range(r + 1, m):
+                s -= self.kkt[r, c] * self.ksol[c]
+            self.ksol[r] = s / self.kkt[r, r]
+        for r in range(kk):
+            self.qdd[r] = self.ksol[r]
+        p = kk
+        for e in range(nfr):
+            if self.slip[e] == 0.0:
+                self.lam[e] = self.ksol[p]
+                p += 1
+        return 0
 
     @cython.cfunc
     @cython.exceptval(-1, check=True)
@@ -788,7 +897,14 @@ class Several(VectorRightHandSide):
                 w -= self.Bm[a, c] * v[c]
                 self.small[a, c] = self.Jm[a, c]
             self.small[a, kk] = w
-        if self._small_solve() != 0:
+        for e in range(self.I[N_FRICTION]):
+            self.lam[e] = 0.0
+        if self._stuck_count() > 0:
+            if self._stuck_solve() != 0:
+                for a in range(kk):
+                    out[a] = _c_nan
+                return 1
+        elif self._small_solve() != 0:
             for a in range(kk):
                 out[a] = _c_nan
             return 1
@@ -844,13 +960,18 @@ class Several(VectorRightHandSide):
 
     @cython.ccall
     def slip_margin(self, v: cython.double[::1]) -> cython.double:
-        """The least s u̇ over the joint frictions (each slipping in its direction s) at the
-        configuration last evaluated, q̇ = v: > 0 while each slips its way (inf without friction)."""
+        """The least margin over the joint frictions at the configuration last evaluated, q̇ = v:
+        s u̇ of each slipping in its direction s, f − |λ| of each stuck (λ its holding force at the
+        latest acceleration: :meth:`stop_margin` computes one there); > 0 while each slips its way
+        or holds (inf without friction)."""
         g: cython.double = math.inf
         e: cython.Py_ssize_t
         a: cython.Py_ssize_t
         u: cython.double
         for e in range(self.I[N_FRICTION]):
+            if self.slip[e] == 0.0:
+                g = min(g, self.F[self.I[FRICTION_COEF] + e] - fabs(self.lam[e]))
+                continue
             u = 0.0
             for a in range(self.k):
                 u += self.fric_k[a, e] * v[a]
@@ -858,10 +979,17 @@ class Several(VectorRightHandSide):
         return g
 
     def set_slip(self, e: int, direction: float) -> None:
-        """Joint friction e slips in ``direction`` (±1)."""
-        if direction not in (1.0, -1.0) or not 0 <= e < self.I[N_FRICTION]:
-            raise ValueError(f"set_slip: friction {e} of {self.I[N_FRICTION]}, direction ±1, not {direction}")
+        """Joint friction e slips in ``direction`` (±1), or sticks (0: its joint's coordinate held,
+        :meth:`_stuck_solve`)."""
+        if direction not in (1.0, -1.0, 0.0) or not 0 <= e < self.I[N_FRICTION]:
+            raise ValueError(f"set_slip: friction {e} of {self.I[N_FRICTION]}, direction ±1 or 0, not {direction}")
         self.slip[e] = direction
+
+    def friction_capacity(self, e: int) -> float:
+        """Joint friction e's f (N·m or N): the largest holding force it gives."""
+        if not 0 <= e < self.I[N_FRICTION]:
+            raise ValueError(f"friction_capacity: friction {e} of {self.I[N_FRICTION]}")
+        return float(self.F[self.I[FRICTION_COEF] + e])
 
     @cython.ccall
     def kinetic(self, v: cython.double[::1]) -> cython.double:
@@ -1139,6 +1267,9 @@ class Several(VectorRightHandSide):
             raise ValueError("stop_margin: the chart has no coordinates yet: start() it first")
         if not self.evaluate(q):
             return _c_nan
+        if self._stuck_count() > 0:  # the holding forces at (t, q, v): an acceleration there
+            if self.acceleration(self.piece, t, q, v, self.scratch) != 0:
+                return _c_nan
         self._best_set()
         self.c_current = self._sigma_ratio(self.current)
         self.c_best = self._sigma_ratio(self.best)
@@ -1232,11 +1363,18 @@ class Several(VectorRightHandSide):
     @cython.ccall
     def stop_at_start(self, t: cython.double, q: cython.double[::1], v: cython.double[::1]) -> cython.bint:
         """True at a load piece's start (right after its first acceleration) where a clamped
-        actuator's force is out of its mode (a control step past a bound, or back inside)."""
-        if self.I[N_CLAMPED] == 0:
+        actuator's force is out of its mode (a control step past a bound, or back inside), or a
+        stuck joint's holding force beyond its friction (a load step that breaks it loose)."""
+        stuck: cython.bint = self._stuck_count() > 0
+        if self.I[N_CLAMPED] == 0 and not stuck:
             return False
         if not self.evaluate(q):
             return True
+        if stuck:
+            if self.acceleration(self.piece, t, q, v, self.scratch) != 0:
+                return True
+            if self.slip_margin(v) < 0.0:
+                return True
         return self.clamp_margin(v) < 0.0
 
     def clamp_modes(self) -> tuple:
