@@ -153,14 +153,19 @@ class Loops:
         self.P = np.zeros(max(n, 1), np.int64)
         self.piv = self.P
         views = []
+        starts = []
         o = 0
         for shape in ((n,), (2, n), (n, n), (n,), (n,), (rows, 4), (3, n)):
             size = math.prod(shape)
             views.append(self.B[o:o + size].reshape(shape))
+            starts.append(o)
             o += size
         self.x, self.trig, self.A, self.rhs, self.norms, self.rows, self.kin = views
         self.K = views[6][1]
         self.L = views[6][2]
+        self.b = self.B
+        # where rhs, K and L start in B: what _lu_solve solves in place
+        self.rhs_at, self.K_at, self.L_at = starts[3], starts[6] + n, starts[6] + 2 * n
 
     # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
 
@@ -212,9 +217,10 @@ class Loops:
 
     @cython.cfunc
     @cython.exceptval(-1, check=False)
-    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
-        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
-        solution."""
+    def _lu_solve(self, at: cython.Py_ssize_t) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b = B[at:at + n] (rhs, K or L: rhs_at, K_at,
+        L_at) is overwritten by the solution. (An offset, not a view: a view argument is a
+        struct of 26 words copied at every call.)"""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -224,19 +230,19 @@ class Loops:
         for k in range(n):
             p = self.piv[k]
             if p != k:
-                s = b[k]
-                b[k] = b[p]
-                b[p] = s
+                s = self.b[at + k]
+                self.b[at + k] = self.b[at + p]
+                self.b[at + p] = s
         for r in range(n):
-            s = b[r]
+            s = self.b[at + r]
             for c in range(r):
-                s -= self.A[r, c] * b[c]
-            b[r] = s
+                s -= self.A[r, c] * self.b[at + c]
+            self.b[at + r] = s
         for r in range(n - 1, -1, -1):
-            s = b[r]
+            s = self.b[at + r]
             for c in range(r + 1, n):
-                s -= self.A[r, c] * b[c]
-            b[r] = s * self.A[r, r]
+                s -= self.A[r, c] * self.b[at + c]
+            self.b[at + r] = s * self.A[r, r]
         return 0
 
     # -- term tables -----------------------------------------------------------------------
@@ -252,46 +258,40 @@ class Loops:
         return 0
 
     @cython.cfunc
-    @cython.inline
-    @cython.exceptval(-1, check=True)
-    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
-        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
-        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
-        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
-        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
-        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
-        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
-        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
-        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
-        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
-        c: cython.double
-        s: cython.double
-        if a >= 0:
-            c = self.trig[0, a]
-            s = self.trig[1, a]
-            wx, wy = wx * c - wy * s, wx * s + wy * c
-        self.term_g = g
-        self.term_a = a
-        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
-        self.term_ux = wx
-        self.term_uy = wy
-        return row
-
-    @cython.cfunc
     @cython.exceptval(-1, check=False)
     def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
         """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
         off: cython.Py_ssize_t = self.I[tb + 2]
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
         k: cython.Py_ssize_t
         t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        wx: cython.double
+        wy: cython.double
+        c: cython.double
+        s: cython.double
+        m: cython.double
         for k in range(self.I[tb]):
             self.rows[k, 0] = self.F[off + 2 * k]
             self.rows[k, 1] = self.F[off + 2 * k + 1]
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            self.rows[k, 0] += self.term_m * self.term_ux
-            self.rows[k, 1] += self.term_m * self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring)
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            wx = self.F[w_at + 2 * t]
+            wy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                c = self.trig[0, a]
+                s = self.trig[1, a]
+                wx, wy = wx * c - wy * s, wx * s + wy * c
+            m = self.kin[0, g] if g >= 0 else 1.0
+            self.rows[k, 0] += m * wx
+            self.rows[k, 1] += m * wy
         return 0
 
     @cython.cfunc
@@ -300,6 +300,10 @@ class Loops:
         """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
         with_l), at kin's x, K and L."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
         k: cython.Py_ssize_t
         c: cython.Py_ssize_t
         t: cython.Py_ssize_t
@@ -312,12 +316,22 @@ class Loops:
         td: cython.double
         cu: cython.double
         cn: cython.double
+        cs: cython.double
+        sn: cython.double
         for k in range(self.I[tb]):
             for c in range(4):
                 self.rows[k, c] = 0.0
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring)
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            ux = self.F[w_at + 2 * t]
+            uy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                cs = self.trig[0, a]
+                sn = self.trig[1, a]
+                ux, uy = ux * cs - uy * sn, ux * sn + uy * cs
+            m = self.kin[0, g] if g >= 0 else 1.0
             md = self.kin[1, g] if g >= 0 else 0.0
             td = self.kin[1, a] if a >= 0 else 0.0
             cu = 2.0 * md * td  # coefficient of u⊥ in L_r
@@ -383,14 +397,28 @@ class Loops:
             for c in range(n):
                 self.Phi[r, c] = 0.0
         off: cython.Py_ssize_t = self.I[tb + 2]
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
+        cs: cython.double
+        sn: cython.double
         scale: cython.double = 0.0
         spread: cython.double = 0.0
         for r in range(nl):
             self.phi[r] = self.F[off + r]
             scale += fabs(self.F[off + r])
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, True)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring), m and θ of Newton's x
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            ux = self.F[w_at + 2 * t]
+            uy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                cs = self.trig[0, a]
+                sn = self.trig[1, a]
+                ux, uy = ux * cs - uy * sn, ux * sn + uy * cs
+            m = self.x[g] if g >= 0 else 1.0
             self.phi[2 * k] += m * ux
             self.phi[2 * k + 1] += m * uy
             lever = fabs(m) * (fabs(ux) + fabs(uy))
@@ -549,7 +577,7 @@ class Loops:
         for j in range(n):
             self.K[j] = 0.0
         self.K[n - 1] = 1.0
-        self._lu_solve(self.K)
+        self._lu_solve(self.K_at)
         self._table_rates(LOOPS, False)
         nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
         for k in range(nl):
@@ -569,7 +597,7 @@ class Loops:
         else:
             for j in range(n):
                 self.L[j] = self.phi[self.sel[j]] if j < self.sel.shape[0] else 0.0
-        self._lu_solve(self.L)
+        self._lu_solve(self.L_at)
         # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
         product: cython.double = 1.0
         zeros: cython.Py_ssize_t = 0
@@ -724,7 +752,7 @@ class Loops:
                 if converged:
                     break
                 return SINGULAR_JACOBIAN, iteration, largest
-            self._lu_solve(self.rhs)
+            self._lu_solve(self.rhs_at)
             for j in range(n):
                 self.x[j] -= self.rhs[j]
             self._angle_trig()
