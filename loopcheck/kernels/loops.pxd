@@ -52,6 +52,10 @@ cdef class Loops:
 
     cdef double _lu_factor(self) except? -1
     cdef int _lu_solve(self, Py_ssize_t at) except -1
+    cdef double _lu_factor_general(self) except? -1
+    cdef double _lu_factor3(self) except? -1
+    cdef int _lu_solve_general(self, Py_ssize_t at) except -1
+    cdef int _lu_solve3(self, Py_ssize_t at) except -1
     cdef int _angle_trig(self) except -1
     cdef int _table_positions(self, Py_ssize_t table) except -1
     cdef int _table_rates(self, Py_ssize_t table, bint with_l) except -1

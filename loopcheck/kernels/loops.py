@@ -174,7 +174,16 @@ class Loops:
     def _lu_factor(self) -> cython.double:
         """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
         as its reciprocals (a solve then multiplies: its divisions were most of its latency);
-        returns det A (0.0 if singular; |det A| on a redundant loop's basis, :meth:`_basis`)."""
+        returns det A (0.0 if singular; |det A| on a redundant loop's basis, :meth:`_basis`).
+        At n = 3 by :meth:`_lu_factor3`, the same arithmetic unrolled."""
+        if self.n == 3:
+            return self._lu_factor3()
+        return self._lu_factor_general()
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _lu_factor_general(self) -> cython.double:
+        """:meth:`_lu_factor` at any n."""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -216,11 +225,111 @@ class Loops:
         return det
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _lu_factor3(self) -> cython.double:
+        """:meth:`_lu_factor` of a 3 × 3 A (a four-bar's, a slider-crank's: most linkages), its
+        entries held in locals: the same operations in the same order (the same pivots, factors
+        and det to the bit), without the loops' and the views' bookkeeping, which were most of
+        the general one's instructions at n = 3."""
+        a00: cython.double = self.A[0, 0]
+        a01: cython.double = self.A[0, 1]
+        a02: cython.double = self.A[0, 2]
+        a10: cython.double = self.A[1, 0]
+        a11: cython.double = self.A[1, 1]
+        a12: cython.double = self.A[1, 2]
+        a20: cython.double = self.A[2, 0]
+        a21: cython.double = self.A[2, 1]
+        a22: cython.double = self.A[2, 2]
+        det: cython.double = 1.0
+        big: cython.double
+        inverse: cython.double
+        f: cython.double
+        p: cython.Py_ssize_t = 0
+        singular: cython.bint = False
+        # column 0: the pivot, the rows swapped, the multipliers and the update of rows 1, 2
+        big = fabs(a00)
+        if fabs(a10) > big:
+            big = fabs(a10)
+            p = 1
+        if fabs(a20) > big:
+            big = fabs(a20)
+            p = 2
+        self.piv[0] = p
+        if big == 0.0:
+            singular = True
+        else:
+            if p == 1:
+                det = -det
+                a00, a01, a02, a10, a11, a12 = a10, a11, a12, a00, a01, a02
+            elif p == 2:
+                det = -det
+                a00, a01, a02, a20, a21, a22 = a20, a21, a22, a00, a01, a02
+            det *= a00
+            inverse = 1.0 / a00
+            a00 = inverse
+            f = a10 * inverse
+            a10 = f
+            a11 -= f * a01
+            a12 -= f * a02
+            f = a20 * inverse
+            a20 = f
+            a21 -= f * a01
+            a22 -= f * a02
+            # column 1
+            p = 1
+            big = fabs(a11)
+            if fabs(a21) > big:
+                big = fabs(a21)
+                p = 2
+            self.piv[1] = p
+            if big == 0.0:
+                singular = True
+            else:
+                if p == 2:
+                    det = -det
+                    a10, a11, a12, a20, a21, a22 = a20, a21, a22, a10, a11, a12
+                det *= a11
+                inverse = 1.0 / a11
+                a11 = inverse
+                f = a21 * inverse
+                a21 = f
+                a22 -= f * a12
+                # column 2
+                self.piv[2] = 2
+                if fabs(a22) == 0.0:
+                    singular = True
+                else:
+                    det *= a22
+                    a22 = 1.0 / a22
+        self.A[0, 0] = a00
+        self.A[0, 1] = a01
+        self.A[0, 2] = a02
+        self.A[1, 0] = a10
+        self.A[1, 1] = a11
+        self.A[1, 2] = a12
+        self.A[2, 0] = a20
+        self.A[2, 1] = a21
+        self.A[2, 2] = a22
+        if singular:
+            return 0.0
+        if self.adaptive:
+            return fabs(det)
+        return det
+
+    @cython.cfunc
     @cython.exceptval(-1, check=False)
     def _lu_solve(self, at: cython.Py_ssize_t) -> cython.int:
         """Solve with :meth:`_lu_factor`'s factors; b = B[at:at + n] (rhs, K or L: rhs_at, K_at,
         L_at) is overwritten by the solution. (An offset, not a view: a view argument is a
-        struct of 26 words copied at every call.)"""
+        struct of 26 words copied at every call.) At n = 3 by :meth:`_lu_solve3`."""
+        if self.n == 3:
+            return self._lu_solve3(at)
+        return self._lu_solve_general(at)
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _lu_solve_general(self, at: cython.Py_ssize_t) -> cython.int:
+        """:meth:`_lu_solve` at any n."""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -243,6 +352,31 @@ class Loops:
             for c in range(r + 1, n):
                 s -= self.A[r, c] * self.b[at + c]
             self.b[at + r] = s * self.A[r, r]
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _lu_solve3(self, at: cython.Py_ssize_t) -> cython.int:
+        """:meth:`_lu_solve` with the factors of :meth:`_lu_factor3` (n = 3), b in locals: the
+        same operations in the same order."""
+        b0: cython.double = self.b[at]
+        b1: cython.double = self.b[at + 1]
+        b2: cython.double = self.b[at + 2]
+        p: cython.Py_ssize_t = self.piv[0]
+        if p == 1:
+            b0, b1 = b1, b0
+        elif p == 2:
+            b0, b2 = b2, b0
+        if self.piv[1] == 2:
+            b1, b2 = b2, b1
+        b1 = b1 - self.A[1, 0] * b0
+        b2 = (b2 - self.A[2, 0] * b0) - self.A[2, 1] * b1
+        b2 = b2 * self.A[2, 2]
+        b1 = (b1 - self.A[1, 2] * b2) * self.A[1, 1]
+        b0 = ((b0 - self.A[0, 1] * b1) - self.A[0, 2] * b2) * self.A[0, 0]
+        self.b[at] = b0
+        self.b[at + 1] = b1
+        self.b[at + 2] = b2
         return 0
 
     # -- term tables -----------------------------------------------------------------------
