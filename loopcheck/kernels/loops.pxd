@@ -41,16 +41,22 @@ cdef class Loops:
     cdef long long[::1] piv
     cdef double[::1] x, rhs, norms, K, L
     cdef double[:, ::1] trig, A, rows, kin
-    # what _term leaves (its row is returned), what _constraints, _factor_row and _finish leave
-    cdef Py_ssize_t term_g, term_a, best_j
-    cdef double term_m, term_ux, term_uy, spread, det, hadamard, own, best
+    # B as one view, and where rhs, K and L start in it (what _lu_solve solves in place)
+    cdef double[::1] b
+    cdef readonly Py_ssize_t rhs_at, K_at, L_at
+    # what _constraints, _factor_row and _finish leave
+    cdef Py_ssize_t best_j
+    cdef double spread, det, hadamard, own, best
     # what _poly leaves: p, p', p'' of a linear row's polynomial, and r_x·K
     cdef double poly_p, poly_dp, poly_ddp, poly_rate
 
     cdef double _lu_factor(self) except? -1
-    cdef int _lu_solve(self, double[::1] b) except -1
+    cdef int _lu_solve(self, Py_ssize_t at) except -1
+    cdef double _lu_factor_general(self) except? -1
+    cdef double _lu_factor3(self) except? -1
+    cdef int _lu_solve_general(self, Py_ssize_t at) except -1
+    cdef int _lu_solve3(self, Py_ssize_t at) except -1
     cdef int _angle_trig(self) except -1
-    cdef inline Py_ssize_t _term(self, Py_ssize_t tb, Py_ssize_t t, bint newton) except? -1
     cdef int _table_positions(self, Py_ssize_t table) except -1
     cdef int _table_rates(self, Py_ssize_t table, bint with_l) except -1
     cdef double _poly(self, Py_ssize_t lin, bint newton) except? -1

@@ -153,14 +153,19 @@ class Loops:
         self.P = np.zeros(max(n, 1), np.int64)
         self.piv = self.P
         views = []
+        starts = []
         o = 0
         for shape in ((n,), (2, n), (n, n), (n,), (n,), (rows, 4), (3, n)):
             size = math.prod(shape)
             views.append(self.B[o:o + size].reshape(shape))
+            starts.append(o)
             o += size
         self.x, self.trig, self.A, self.rhs, self.norms, self.rows, self.kin = views
         self.K = views[6][1]
         self.L = views[6][2]
+        self.b = self.B
+        # where rhs, K and L start in B: what _lu_solve solves in place
+        self.rhs_at, self.K_at, self.L_at = starts[3], starts[6] + n, starts[6] + 2 * n
 
     # -- small dense linear algebra (n ≲ 50: no LAPACK call overhead) --------------------------
 
@@ -169,7 +174,16 @@ class Loops:
     def _lu_factor(self) -> cython.double:
         """LU with partial pivoting of A (n, n) in place, pivots into piv, U's diagonal stored
         as its reciprocals (a solve then multiplies: its divisions were most of its latency);
-        returns det A (0.0 if singular; |det A| on a redundant loop's basis, :meth:`_basis`)."""
+        returns det A (0.0 if singular; |det A| on a redundant loop's basis, :meth:`_basis`).
+        At n = 3 by :meth:`_lu_factor3`, the same arithmetic unrolled."""
+        if self.n == 3:
+            return self._lu_factor3()
+        return self._lu_factor_general()
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _lu_factor_general(self) -> cython.double:
+        """:meth:`_lu_factor` at any n."""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -211,10 +225,111 @@ class Loops:
         return det
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _lu_factor3(self) -> cython.double:
+        """:meth:`_lu_factor` of a 3 × 3 A (a four-bar's, a slider-crank's: most linkages), its
+        entries held in locals: the same operations in the same order (the same pivots, factors
+        and det to the bit), without the loops' and the views' bookkeeping, which were most of
+        the general one's instructions at n = 3."""
+        a00: cython.double = self.A[0, 0]
+        a01: cython.double = self.A[0, 1]
+        a02: cython.double = self.A[0, 2]
+        a10: cython.double = self.A[1, 0]
+        a11: cython.double = self.A[1, 1]
+        a12: cython.double = self.A[1, 2]
+        a20: cython.double = self.A[2, 0]
+        a21: cython.double = self.A[2, 1]
+        a22: cython.double = self.A[2, 2]
+        det: cython.double = 1.0
+        big: cython.double
+        inverse: cython.double
+        f: cython.double
+        p: cython.Py_ssize_t = 0
+        singular: cython.bint = False
+        # column 0: the pivot, the rows swapped, the multipliers and the update of rows 1, 2
+        big = fabs(a00)
+        if fabs(a10) > big:
+            big = fabs(a10)
+            p = 1
+        if fabs(a20) > big:
+            big = fabs(a20)
+            p = 2
+        self.piv[0] = p
+        if big == 0.0:
+            singular = True
+        else:
+            if p == 1:
+                det = -det
+                a00, a01, a02, a10, a11, a12 = a10, a11, a12, a00, a01, a02
+            elif p == 2:
+                det = -det
+                a00, a01, a02, a20, a21, a22 = a20, a21, a22, a00, a01, a02
+            det *= a00
+            inverse = 1.0 / a00
+            a00 = inverse
+            f = a10 * inverse
+            a10 = f
+            a11 -= f * a01
+            a12 -= f * a02
+            f = a20 * inverse
+            a20 = f
+            a21 -= f * a01
+            a22 -= f * a02
+            # column 1
+            p = 1
+            big = fabs(a11)
+            if fabs(a21) > big:
+                big = fabs(a21)
+                p = 2
+            self.piv[1] = p
+            if big == 0.0:
+                singular = True
+            else:
+                if p == 2:
+                    det = -det
+                    a10, a11, a12, a20, a21, a22 = a20, a21, a22, a10, a11, a12
+                det *= a11
+                inverse = 1.0 / a11
+                a11 = inverse
+                f = a21 * inverse
+                a21 = f
+                a22 -= f * a12
+                # column 2
+                self.piv[2] = 2
+                if fabs(a22) == 0.0:
+                    singular = True
+                else:
+                    det *= a22
+                    a22 = 1.0 / a22
+        self.A[0, 0] = a00
+        self.A[0, 1] = a01
+        self.A[0, 2] = a02
+        self.A[1, 0] = a10
+        self.A[1, 1] = a11
+        self.A[1, 2] = a12
+        self.A[2, 0] = a20
+        self.A[2, 1] = a21
+        self.A[2, 2] = a22
+        if singular:
+            return 0.0
+        if self.adaptive:
+            return fabs(det)
+        return det
+
+    @cython.cfunc
     @cython.exceptval(-1, check=False)
-    def _lu_solve(self, b: cython.double[::1]) -> cython.int:
-        """Solve with :meth:`_lu_factor`'s factors; b (n,: rhs, K or L) is overwritten by the
-        solution."""
+    def _lu_solve(self, at: cython.Py_ssize_t) -> cython.int:
+        """Solve with :meth:`_lu_factor`'s factors; b = B[at:at + n] (rhs, K or L: rhs_at, K_at,
+        L_at) is overwritten by the solution. (An offset, not a view: a view argument is a
+        struct of 26 words copied at every call.) At n = 3 by :meth:`_lu_solve3`."""
+        if self.n == 3:
+            return self._lu_solve3(at)
+        return self._lu_solve_general(at)
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _lu_solve_general(self, at: cython.Py_ssize_t) -> cython.int:
+        """:meth:`_lu_solve` at any n."""
         n: cython.Py_ssize_t = self.n
         k: cython.Py_ssize_t
         r: cython.Py_ssize_t
@@ -224,19 +339,44 @@ class Loops:
         for k in range(n):
             p = self.piv[k]
             if p != k:
-                s = b[k]
-                b[k] = b[p]
-                b[p] = s
+                s = self.b[at + k]
+                self.b[at + k] = self.b[at + p]
+                self.b[at + p] = s
         for r in range(n):
-            s = b[r]
+            s = self.b[at + r]
             for c in range(r):
-                s -= self.A[r, c] * b[c]
-            b[r] = s
+                s -= self.A[r, c] * self.b[at + c]
+            self.b[at + r] = s
         for r in range(n - 1, -1, -1):
-            s = b[r]
+            s = self.b[at + r]
             for c in range(r + 1, n):
-                s -= self.A[r, c] * b[c]
-            b[r] = s * self.A[r, r]
+                s -= self.A[r, c] * self.b[at + c]
+            self.b[at + r] = s * self.A[r, r]
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _lu_solve3(self, at: cython.Py_ssize_t) -> cython.int:
+        """:meth:`_lu_solve` with the factors of :meth:`_lu_factor3` (n = 3), b in locals: the
+        same operations in the same order."""
+        b0: cython.double = self.b[at]
+        b1: cython.double = self.b[at + 1]
+        b2: cython.double = self.b[at + 2]
+        p: cython.Py_ssize_t = self.piv[0]
+        if p == 1:
+            b0, b1 = b1, b0
+        elif p == 2:
+            b0, b2 = b2, b0
+        if self.piv[1] == 2:
+            b1, b2 = b2, b1
+        b1 = b1 - self.A[1, 0] * b0
+        b2 = (b2 - self.A[2, 0] * b0) - self.A[2, 1] * b1
+        b2 = b2 * self.A[2, 2]
+        b1 = (b1 - self.A[1, 2] * b2) * self.A[1, 1]
+        b0 = ((b0 - self.A[0, 1] * b1) - self.A[0, 2] * b2) * self.A[0, 0]
+        self.b[at] = b0
+        self.b[at + 1] = b1
+        self.b[at + 2] = b2
         return 0
 
     # -- term tables -----------------------------------------------------------------------
@@ -252,46 +392,40 @@ class Loops:
         return 0
 
     @cython.cfunc
-    @cython.inline
-    @cython.exceptval(-1, check=True)
-    def _term(self, tb: cython.Py_ssize_t, t: cython.Py_ssize_t, newton: cython.bint) -> cython.Py_ssize_t:
-        """Term t of the table whose header starts at tb: returns its row, and leaves its mag
-        index, angle index, m and u = R(θ) w (module docstring) in term_g, term_a, term_m,
-        term_ux, term_uy (a C tuple returned instead costs a check of Python's error state per
-        term); m = x[mag] or 1, x Newton's iterate (``newton``) or kin's."""
-        row: cython.Py_ssize_t = self.I[self.I[tb + 4] + t]
-        g: cython.Py_ssize_t = self.I[self.I[tb + 5] + t]
-        a: cython.Py_ssize_t = self.I[self.I[tb + 6] + t]
-        wx: cython.double = self.F[self.I[tb + 3] + 2 * t]
-        wy: cython.double = self.F[self.I[tb + 3] + 2 * t + 1]
-        c: cython.double
-        s: cython.double
-        if a >= 0:
-            c = self.trig[0, a]
-            s = self.trig[1, a]
-            wx, wy = wx * c - wy * s, wx * s + wy * c
-        self.term_g = g
-        self.term_a = a
-        self.term_m = (self.x[g] if newton else self.kin[0, g]) if g >= 0 else 1.0
-        self.term_ux = wx
-        self.term_uy = wy
-        return row
-
-    @cython.cfunc
     @cython.exceptval(-1, check=False)
     def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
         """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
         off: cython.Py_ssize_t = self.I[tb + 2]
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
         k: cython.Py_ssize_t
         t: cython.Py_ssize_t
+        g: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        wx: cython.double
+        wy: cython.double
+        c: cython.double
+        s: cython.double
+        m: cython.double
         for k in range(self.I[tb]):
             self.rows[k, 0] = self.F[off + 2 * k]
             self.rows[k, 1] = self.F[off + 2 * k + 1]
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            self.rows[k, 0] += self.term_m * self.term_ux
-            self.rows[k, 1] += self.term_m * self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring)
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            wx = self.F[w_at + 2 * t]
+            wy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                c = self.trig[0, a]
+                s = self.trig[1, a]
+                wx, wy = wx * c - wy * s, wx * s + wy * c
+            m = self.kin[0, g] if g >= 0 else 1.0
+            self.rows[k, 0] += m * wx
+            self.rows[k, 1] += m * wy
         return 0
 
     @cython.cfunc
@@ -300,6 +434,10 @@ class Loops:
         """K_r into rows[:, 0:2] and L_r into rows[:, 2:4] (γ, the part without L, unless
         with_l), at kin's x, K and L."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
         k: cython.Py_ssize_t
         c: cython.Py_ssize_t
         t: cython.Py_ssize_t
@@ -312,12 +450,22 @@ class Loops:
         td: cython.double
         cu: cython.double
         cn: cython.double
+        cs: cython.double
+        sn: cython.double
         for k in range(self.I[tb]):
             for c in range(4):
                 self.rows[k, c] = 0.0
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, False)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring)
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            ux = self.F[w_at + 2 * t]
+            uy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                cs = self.trig[0, a]
+                sn = self.trig[1, a]
+                ux, uy = ux * cs - uy * sn, ux * sn + uy * cs
+            m = self.kin[0, g] if g >= 0 else 1.0
             md = self.kin[1, g] if g >= 0 else 0.0
             td = self.kin[1, a] if a >= 0 else 0.0
             cu = 2.0 * md * td  # coefficient of u⊥ in L_r
@@ -383,14 +531,28 @@ class Loops:
             for c in range(n):
                 self.Phi[r, c] = 0.0
         off: cython.Py_ssize_t = self.I[tb + 2]
+        w_at: cython.Py_ssize_t = self.I[tb + 3]
+        rows_at: cython.Py_ssize_t = self.I[tb + 4]
+        mags_at: cython.Py_ssize_t = self.I[tb + 5]
+        angles_at: cython.Py_ssize_t = self.I[tb + 6]
+        cs: cython.double
+        sn: cython.double
         scale: cython.double = 0.0
         spread: cython.double = 0.0
         for r in range(nl):
             self.phi[r] = self.F[off + r]
             scale += fabs(self.F[off + r])
-        for t in range(self.I[tb + 1]):
-            k = self._term(tb, t, True)
-            g, a, m, ux, uy = self.term_g, self.term_a, self.term_m, self.term_ux, self.term_uy
+        for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring), m and θ of Newton's x
+            k = self.I[rows_at + t]
+            g = self.I[mags_at + t]
+            a = self.I[angles_at + t]
+            ux = self.F[w_at + 2 * t]
+            uy = self.F[w_at + 2 * t + 1]
+            if a >= 0:
+                cs = self.trig[0, a]
+                sn = self.trig[1, a]
+                ux, uy = ux * cs - uy * sn, ux * sn + uy * cs
+            m = self.x[g] if g >= 0 else 1.0
             self.phi[2 * k] += m * ux
             self.phi[2 * k + 1] += m * uy
             lever = fabs(m) * (fabs(ux) + fabs(uy))
@@ -549,7 +711,7 @@ class Loops:
         for j in range(n):
             self.K[j] = 0.0
         self.K[n - 1] = 1.0
-        self._lu_solve(self.K)
+        self._lu_solve(self.K_at)
         self._table_rates(LOOPS, False)
         nl: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
         for k in range(nl):
@@ -569,7 +731,7 @@ class Loops:
         else:
             for j in range(n):
                 self.L[j] = self.phi[self.sel[j]] if j < self.sel.shape[0] else 0.0
-        self._lu_solve(self.L)
+        self._lu_solve(self.L_at)
         # conditioning of every coordinate: c_j = |K_j| |det A| / Π_{l≠j} ‖col_l‖
         product: cython.double = 1.0
         zeros: cython.Py_ssize_t = 0
@@ -724,7 +886,7 @@ class Loops:
                 if converged:
                     break
                 return SINGULAR_JACOBIAN, iteration, largest
-            self._lu_solve(self.rhs)
+            self._lu_solve(self.rhs_at)
             for j in range(n):
                 self.x[j] -= self.rhs[j]
             self._angle_trig()

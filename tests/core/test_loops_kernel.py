@@ -83,3 +83,50 @@ def test_the_python_source_gives_the_compiled_numbers(scene):
     source = _results(source_module(), scene)
     assert np.all(np.isfinite(ran)) and ran.size > 100
     np.testing.assert_array_equal(ran, source)
+
+
+def _three_by_three_cases() -> list[np.ndarray]:
+    """3 × 3 matrices for the LU: every row order of the pivots (each permutation of a matrix
+    with one large entry per column), random ones, one singular at each column, a zero matrix,
+    a NaN and an infinity."""
+    rng = np.random.default_rng(39)
+    cases = [rng.normal(size=(3, 3)) for _ in range(40)]
+    base = np.array([[5.0, 0.3, -0.2], [0.1, -4.0, 0.7], [-0.4, 0.2, 3.0]])
+    for order in ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)):
+        cases.append(base[list(order)])
+    singular = rng.normal(size=(3, 3))
+    cases += [np.array([[0.0, 1.0, 2.0], [0.0, 3.0, 4.0], [0.0, 5.0, 6.0]]),  # column 0 zero
+              np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 5.0], [3.0, 6.0, 7.0]]),  # column 1 zero after elimination
+              np.vstack([singular[:2], singular[0] + singular[1]]),  # rank 2: column 2 zero to round-off
+              np.zeros((3, 3)), np.array([[np.nan, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+              np.array([[1.0, 0.0, 0.0], [0.0, np.inf, 1.0], [0.0, 1.0, 1.0]])]
+    return cases
+
+
+def test_the_three_by_three_lu_is_the_general_one_bit_for_bit():
+    """A four-bar's A = [Φ_x; row] is 3 × 3: its LU (_lu_factor3, _lu_solve3, entries in locals) must
+    do the general path's operations in the general path's order. Compared on loops.py's source
+    (plain Python: both paths callable) for pivots in every row order, singular matrices (each
+    column's pivot 0: det 0 and the factors left as the general path leaves them), NaN and inf:
+    the factors, the pivots, det and three solves, bit for bit (NaN equal to NaN)."""
+    source = source_module()
+    system = kinematics.compile_linkage(load_scene(ROOT / "scenes/seed_fourbar.toml").mechanism.linkage)
+    fast, general = (source.Loops(*pack(system.n, 3, (system.loops,), system.linear, system.couplings))
+                     for _ in range(2))
+    assert fast.n == 3
+    rhs = np.array([[1.0, -2.0, 0.5], [0.0, 0.0, 1.0], [3.0e-7, 1.0e3, -2.5]])
+    for matrix in _three_by_three_cases():
+        got = []
+        for kernel, factor, solve in ((fast, fast._lu_factor3, fast._lu_solve3),
+                                      (general, general._lu_factor_general, general._lu_solve_general)):
+            kernel.A[:, :] = matrix
+            kernel.P[:] = -1
+            det = factor()
+            out = [np.array([det]), np.array(kernel.A).ravel(), np.array(kernel.P, dtype=float)]
+            if det != 0.0:
+                for b in rhs:
+                    kernel.rhs[:] = b
+                    solve(kernel.rhs_at)
+                    out.append(np.array(kernel.rhs))
+            got.append(np.concatenate(out))
+        np.testing.assert_array_equal(got[0], got[1], err_msg=f"A =\n{matrix}")

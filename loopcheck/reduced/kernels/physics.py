@@ -535,7 +535,7 @@ class Chart(RightHandSide):
                 factored = True
                 break
             closed = False  # not closed to round-off: Newton from there
-            self.loops._lu_solve(self.rhs)
+            self.loops._lu_solve(self.loops.rhs_at)
             for j in range(n):
                 self.x[j] -= self.rhs[j]
             # converged: the step just taken polishes to round-off

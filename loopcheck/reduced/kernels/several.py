@@ -555,7 +555,7 @@ class Several(VectorRightHandSide):
             if polished:
                 break
             converged = largest <= self.tol
-            self.loops._lu_solve(self.loops.rhs)
+            self.loops._lu_solve(self.loops.rhs_at)
             self.counts[SOLVES] += 1
             for j in range(n):
                 self.loops.x[j] -= self.loops.rhs[j]
