@@ -318,22 +318,6 @@ def test_both_inputs_stuck_hold_the_whole_linkage_still():
         assert abs(engine[joint] - tau) < 2e-14 and abs(engine[joint]) < 12.0, joint
 
 
-def test_a_hold_that_no_set_of_modes_decides_stops_the_run_in_one_line():
-    """Three frictions (O1, O5 and the elbow A, 12 N·m each) on a linkage of two degrees of freedom:
-    once two stick the third is held too, with more rows than coordinates (a statically
-    indeterminate hold, whose share of the holding forces the engine does not decide): the run
-    stops, NumericalFailure "singular", one line naming the joints and the time. Plant: the KKT
-    solve's row swap dropped (a hold is then accepted)."""
-    from loopcheck.api import scene_from_string
-    from loopcheck.errors import NumericalFailure
-
-    with pytest.raises(NumericalFailure) as failed:
-        loopcheck.simulate(scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0, "A": 12.0})))
-    message = str(failed.value)
-    assert failed.value.reason.value == "singular" and "\n" not in message
-    assert "statically indeterminate" in message and "at t = " in message and failed.value.time > 0.0
-
-
 def test_check_of_the_scene_as_mjcf_names_the_friction_that_creeps(tmp_path, monkeypatch):
     """`loopcheck check model.xml` of the scene exported (timestep 1 ms) over 0.45 s: MuJoCo's
     soft friction creeps where the exact O5 is held, so the model as written fails (152× its
