@@ -40,7 +40,7 @@ import loopcheck
 from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
-from oracles.multibody import Lock, simulate_friction, simulate_frictions
+from oracles.multibody import Lock, hold_margin, simulate_friction, simulate_frictions
 from test_multibody_oracle import five_bar
 
 STICK = ROOT / "tests/data/five_bar_stick.toml"
@@ -369,7 +369,7 @@ def test_a_one_dof_hold_by_two_frictions_through_the_n_dof_chart_follows_the_one
     time (the n-DOF run logs O1 and B together; B's two reversals while it slips are its own
     events) within 2e-12 s (measured 1.6e-12); the crank's angle and rate at every n-DOF sample
     (the one-DOF run interpolated, its interpolant's own error ~1e-8 rad/s) within 1e-10 rad and
-    3e-8 rad/s (measured 5.2e-12, 2.4e-09), both exactly still after the stick; the dissipated
+    3e-8 rad/s (measured 1.3e-11, 3.9e-10), both exactly still after the stick; the dissipated
     energy at the end within 1e-9 J of 250.48 J (measured 2.5e-10). Plant: the indeterminate
     hold's q̈ without R_Sᵀλ_p (q̈ = 𝔍⁻¹(Q − c): the held linkage drifts)."""
     from loopcheck.reduced.settings import ReducedSettings
@@ -405,10 +405,13 @@ def test_three_frictions_hold_a_two_dof_five_bar_as_the_oracle_holds_it():
     2: statically indeterminate, d = 1), through the load edges at 0.1, 0.3 and 0.4 s. Against
     the oracle's simulate_frictions (its own mode search; its holding margin by scipy's linprog
     over the full-coordinate multipliers' null space): the events within EVENT_TOL (measured
-    3.6e-16 s), both inputs to Q_TOL, RATE_TOL (measured 1.1e-13 rad, 1.3e-13 rad/s); the engine's
+    3.1e-15 s), both inputs to Q_TOL, RATE_TOL (measured 1.1e-13 rad, 1.3e-13 rad/s); the engine's
     margin (its kernel's LP by vertex enumeration) at every held sample the oracle's within 1e-10
-    N·m (measured 1.4e-14 of 5.7 to 12 N·m), on every load piece; energy 1e-11. Plant: the null
-    vector's pivot part with the wrong sign (−U11⁻¹U12 → +: the margins differ)."""
+    N·m (measured 5.9e-13 of 5.7 to 9.1 N·m), on every load piece; the holding forces reported (the
+    max-margin λ, unique here) the oracle's LP optimum's at 0.05, 0.2, 0.35 s within 1e-9 N·m;
+    energy 1e-11. Plants: the null vector's pivot part with the wrong sign (−U11⁻¹U12 → +: the
+    margin is the same, μ → −μ, but λ_A's sign is wrong: the holding forces differ); the LP's
+    feasibility check dropped; q̈ without R_Sᵀλ_p (the held linkage moves)."""
     from loopcheck.reduced.several import SeveralModel, start_chart
 
     scene, result = _five_bar_three_held()
@@ -435,6 +438,18 @@ def test_three_frictions_hold_a_two_dof_five_bar_as_the_oracle_holds_it():
     assert np.all(np.isfinite(oracle.margin[held])) and np.min(oracle.margin[held]) > 0.0
     assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
     assert len({several.piece(w, w) for w in t[held]}) >= 3
+    # the holding forces reported (the max-margin λ, unique here) are the oracle's LP optimum's
+    for near in (0.05, 0.2, 0.35):
+        i = int(np.argmin(np.abs(t - near)))
+        when = float(t[i])
+        q, v = np.array([left.q[idx][i], right.q[idx][i]]), np.array([left.qdot[idx][i], right.qdot[idx][i]])
+        assert chart.acceleration(several.piece(when, when), when, q, v, np.zeros(2)) == 0
+        chart.slip_margin(v)
+        locked = replace(model, locks=tuple(Lock(p, model.relative(p, oracle.q[i])) for p in frictions),
+                         redundant=True)
+        _, tau = hold_margin(locked, when, oracle.q[i], oracle.qd[i], frictions)
+        for e, joint in enumerate(several.friction_joints):
+            assert abs(chart.lam[e] - tau[joint]) < 1e-9, (when, joint)
     assert result.audit.relative_residual < 1e-11
 
 
