@@ -507,3 +507,42 @@ def test_an_indeterminate_hold_breaks_where_its_margin_reaches_zero_as_the_oracl
         assert np.max(np.abs(u - tr.q[idx])) < Q_TOL, name
         assert np.max(np.abs(ud - tr.qdot[idx])) < RATE_TOL, name
     assert result.audit.relative_residual < 5e-11
+
+
+def test_five_frictions_hold_the_five_bar_with_a_three_dimensional_share_as_the_oracle_holds_it():
+    """10 N·m on O1 and O5, 3 N·m on A, B and P: O5 sticks at 0.0072 s, the other four at 0.0283 s
+    together (five rows of rank 2: d = 3, the kernel's LP over a three-dimensional μ, C(10, 4) =
+    210 vertices tried) and the five hold the linkage through the load edge at 0.1 s. Against the
+    oracle's simulate_frictions over 0.15 s: the events within EVENT_TOL (measured 3.4e-15 s), both
+    inputs to Q_TOL, RATE_TOL (measured 5.1e-14 rad, 4.1e-14 rad/s), the engine's margin at every
+    held sample the oracle's linprog value within 1e-10 N·m (measured 1.3e-13, the margin between
+    1.5 and 3 N·m: at 3 N·m the elbows' share is 0, the LP's optimum a face, not a vertex, its
+    value still unique); energy 5e-11 (measured 1.4e-11). Plant: the LP's feasibility check dropped (the margins differ)."""
+    from loopcheck.api import scene_from_string
+    from loopcheck.reduced.several import SeveralModel, start_chart
+
+    frictions = {"O1": 10.0, "O5": 10.0, "A": 3.0, "B": 3.0, "P": 3.0}
+    scene = replace(scene_from_string(_with_frictions(frictions)), horizon=0.15)
+    result = loopcheck.simulate(scene)
+    events = result.details.friction_events
+    assert [(e.mode, e.joint) for e in events] == [("stick", j) for j in ("O5", "O1", "A", "B", "P")]
+    (left, _), (right, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    model = five_bar()
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    oracle = simulate_frictions(model, frictions, q0, qd0, t)
+    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+    for body, tr in (("left_crank", left), ("right_crank", right)):
+        i = 3 * model.index[body] + 2
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    held = t > events[-1].time
+    several = SeveralModel(scene)
+    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
+    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
+                           np.c_[left.qdot[idx], right.qdot[idx]][held])
+    assert chart.nullity == 3
+    assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
+    assert result.audit.relative_residual < 5e-11
