@@ -66,8 +66,12 @@ such stop the modes are decided together (:func:`_set_frictions`: the moving one
 way, a stuck one at |λ| = f slips with s = −sign λ, those at rest take the first consistent set
 of modes, fewest slipping first), the stuck joints' rates projected to 0 (:func:`_hold`), each
 change logged (:class:`loopcheck.reduced.charts.FrictionEvent` with its joint); where no set is
-consistent (a statically indeterminate hold among them) the run stops (NumericalFailure
-"singular" naming the joints and the time). A coordinate switch carries the clamps' and the
+consistent the run stops (NumericalFailure "singular" naming the joints and the time). A
+statically indeterminate hold (more stuck joints than their rows' rank: two frictions on one DOF,
+three on the five-bar) is a hold like any other: the chart's q̈ is unique, its holding forces the
+max-margin share and its margin the linear programme's max_μ min_e f_e − |λ_p,e + N_e μ|
+(:meth:`kernel.Several._indeterminate`, :meth:`kernel.Several._max_margin`); a stuck set is
+consistent where that margin is positive. A coordinate switch carries the clamps' and the
 frictions' modes to the new chart.
 
 Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):

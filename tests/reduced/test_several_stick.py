@@ -23,10 +23,15 @@ three, the elbow's, every method's); the compiled stop_at_start blind to a stuck
 for f − |λ| (the O5 oracle test and the holding force's, every method's); the scipy legs blind to a
 load edge that breaks a hold (every method's); λ read into the wrong joints (the two-held test);
 the friction left out of the dissipation (the elbow's, every method's, the two-held test: the
-energy gate); the KKT solve's row swap dropped (the indeterminate hold's test). Not caught: the
-hold's projection of q̇ left out (the rates at a located stick are already below 1e-14 here; the
-projection is kept so a stuck rate is exactly held), and the KKT's singular-pivot threshold at 0
-(the indeterminate hold is refused all the same, no set of modes consistent).
+energy gate). Not caught: the hold's projection of q̇ left out (the rates at a located stick are
+already below 1e-14 here; the projection is kept so a stuck rate is exactly held).
+
+Statically indeterminate holds (more stuck joints than their rows' rank; the kernel's
+_indeterminate and _max_margin, the last section): against the one-DOF engine's capacity rule
+(friction_fourbar through the n-DOF chart) and against the oracle's simulate_frictions (several
+pins, its own mode search, its holding margin by scipy's linprog over the null space of the
+full-coordinate multipliers: an LP written independently of the kernel's vertex enumeration).
+Their plants are in each test's docstring.
 """
 
 from __future__ import annotations

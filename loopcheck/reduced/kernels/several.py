@@ -38,7 +38,9 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
     run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation;
     a stuck one, s = 0, holds its coordinate: one more row r_e q̈ = −row_e·ẍ0 and its multiplier
-    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event)
+    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event; more
+    stuck rows than their rank, a statically indeterminate hold: :meth:`Several._indeterminate`,
+    the margin max_μ min_e f_e − |λ_p,e + N_e μ| by :meth:`Several._max_margin`)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
@@ -1248,8 +1250,10 @@ class Several(VectorRightHandSide):
     def slip_margin(self, v: cython.double[::1]) -> cython.double:
         """The least margin over the joint frictions at the configuration last evaluated, q̇ = v:
         s u̇ of each slipping in its direction s, f − |λ| of each stuck (λ its holding force at the
-        latest acceleration: :meth:`stop_margin` computes one there); > 0 while each slips its way
-        or holds (inf without friction)."""
+        latest acceleration: :meth:`stop_margin` computes one there; an indeterminate hold's
+        max-margin λ, :meth:`_max_margin` run here first, so that lam holds it after this call);
+        > 0 while each slips its way or holds (inf without friction; NaN where an indeterminate
+        hold's LP finds no vertex)."""
         g: cython.double = math.inf
         e: cython.Py_ssize_t
         a: cython.Py_ssize_t
