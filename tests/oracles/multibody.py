@@ -650,6 +650,6 @@ def pulse(value: float, start: float, duration: float) -> Callable[[float], floa
     return lambda t: value if start <= t < start + duration else 0.0
 
 
-__all__ = ["Body", "Damper", "FrictionRun", "FrictionsRun", "GROUND", "Lock", "Model", "Pin", "Run", "Torque", "TorsionSpring",
-           "hold_margin", "integrate", "pulse", "simulate", "simulate_friction",
+__all__ = ["Body", "Damper", "FrictionRun", "FrictionsRun", "GROUND", "Lock", "Model", "Pin", "Run", "Torque",
+           "TorsionSpring", "hold_margin", "integrate", "pulse", "simulate", "simulate_friction",
            "simulate_frictions"]

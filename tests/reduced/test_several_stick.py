@@ -375,8 +375,9 @@ def test_a_one_dof_hold_by_two_frictions_through_the_n_dof_chart_follows_the_one
     events) within 2e-12 s (measured 1.6e-12); the crank's angle and rate at every n-DOF sample
     (the one-DOF run interpolated, its interpolant's own error ~1e-8 rad/s) within 1e-10 rad and
     3e-8 rad/s (measured 1.3e-11, 3.9e-10), both exactly still after the stick; the dissipated
-    energy at the end within 1e-9 J of 250.48 J (measured 2.5e-10). Plant: the indeterminate
-    hold's q̈ without R_Sᵀλ_p (q̈ = 𝔍⁻¹(Q − c): the held linkage drifts)."""
+    energy at the end within 1e-9 J of 250.48 J (measured 2.5e-10). Plant: the LP's feasibility
+    check dropped (an infeasible vertex's λ taken: the hold is refused, no consistent modes). (q̈ without R_Sᵀλ_p is not
+    caught here: the held four-bar has no load left, Q − c = 0; the five-bar tests catch it.)"""
     from loopcheck.reduced.settings import ReducedSettings
     from loopcheck.reduced.several import SeveralModel, integrate
 
@@ -466,8 +467,8 @@ def test_an_indeterminate_hold_breaks_where_its_margin_reaches_zero_as_the_oracl
     active rows, s = −sign λ), O1 stays stuck; O5 and A stick again at 0.33054 s. Against the
     oracle's simulate_frictions (its break located by solve_ivp on its linprog margin): the events
     within EVENT_TOL (measured 1.2e-13 s), the three inputs to Q_TOL, RATE_TOL (measured 5.5e-12
-    rad, 4.2e-11 rad/s; the oracle's own accuracy, its run at rtol/2, below a third of them);
-    energy 5e-11 (measured 5.0e-12). Plants: the LP's feasibility check dropped (the largest t of
+    rad, 4.2e-11 rad/s; the oracle's own accuracy, its run at rtol/2, 2.5e-13 rad and 2.2e-12
+    rad/s on the bodies' angles, below a third of them); energy 5e-11 (measured 5.0e-12). Plants: the LP's feasibility check dropped (the largest t of
     any vertex: the margin too large, the break missed); the break's direction."""
     from loopcheck.api import scene_from_string
     from oracles.multibody import Body, Pin
@@ -522,7 +523,8 @@ def test_five_frictions_hold_the_five_bar_with_a_three_dimensional_share_as_the_
     inputs to Q_TOL, RATE_TOL (measured 5.1e-14 rad, 4.1e-14 rad/s), the engine's margin at every
     held sample the oracle's linprog value within 1e-10 N·m (measured 1.3e-13, the margin between
     1.5 and 3 N·m: at 3 N·m the elbows' share is 0, the LP's optimum a face, not a vertex, its
-    value still unique); energy 5e-11 (measured 1.4e-11). Plant: the LP's feasibility check dropped (the margins differ)."""
+    value still unique); energy 5e-11 (measured 1.4e-11). Plant: the LP's feasibility check
+    dropped (the events differ: the hold's consistency is misjudged)."""
     from loopcheck.api import scene_from_string
     from loopcheck.reduced.several import SeveralModel, start_chart
 
