@@ -66,8 +66,12 @@ such stop the modes are decided together (:func:`_set_frictions`: the moving one
 way, a stuck one at |λ| = f slips with s = −sign λ, those at rest take the first consistent set
 of modes, fewest slipping first), the stuck joints' rates projected to 0 (:func:`_hold`), each
 change logged (:class:`loopcheck.reduced.charts.FrictionEvent` with its joint); where no set is
-consistent (a statically indeterminate hold among them) the run stops (NumericalFailure
-"singular" naming the joints and the time). A coordinate switch carries the clamps' and the
+consistent the run stops (NumericalFailure "singular" naming the joints and the time). A
+statically indeterminate hold (more stuck joints than their rows' rank: two frictions on one DOF,
+three on the five-bar) is a hold like any other: the chart's q̈ is unique, its holding forces the
+max-margin share and its margin the linear programme's max_μ min_e f_e − |λ_p,e + N_e μ|
+(:meth:`kernel.Several._indeterminate`, :meth:`kernel.Several._max_margin`); a stuck set is
+consistent where that margin is positive. A coordinate switch carries the clamps' and the
 frictions' modes to the new chart.
 
 Not yet supported with several DOF (refused in one line before any work, :func:`check_scene`):
@@ -546,10 +550,13 @@ MAX_AT_REST = 8
 
 def _friction_state(model: SeveralModel, chart, t: float, q: np.ndarray, v: np.ndarray):
     """The acceleration at (t, q, v) on t's load piece with the chart's friction modes: each
-    friction's u̇, ü and holding force λ (0 where it slips), or None where the acceleration fails
-    (a singular hold)."""
+    friction's u̇, ü and holding force λ (0 where it slips; a statically indeterminate hold's
+    max-margin λ, :meth:`kernel.Several.slip_margin`), or None where the acceleration fails (a
+    singular hold)."""
     a = np.zeros(model.k)
     if chart.acceleration(model.piece(t, t), t, q, v, a) != 0:
+        return None
+    if chart.slip_margin(v) != chart.slip_margin(v):  # (the max-margin λ of an indeterminate hold)
         return None
     rows = model.friction_rows
     return rows @ np.asarray(chart.xdot), rows @ np.asarray(chart.xdd), np.array(chart.lam)[:len(rows)]
@@ -601,9 +608,8 @@ def _set_frictions(model: SeveralModel, chart, t: float, y: np.ndarray, events: 
     else:
         names = ", ".join(repr(model.friction_joints[e]) for e in rest)
         raise NumericalFailure("singular", f"joint friction on {names} at rest at t = {t:.9g} s: no consistent set "
-                               "of stick and slip modes (each stuck within its friction, each slipping the way it "
-                               "accelerates; a hold of more joints than the linkage's degrees of freedom, or of "
-                               "dependent ones, is statically indeterminate and not decided)", t)
+                               "of stick and slip modes (each stuck within its friction by some admissible share "
+                               "of the holding forces, each slipping the way it accelerates)", t)
     after = np.array(chart.slip)[:nf]
     stuck = [e for e in range(nf) if after[e] == 0.0]
     if stuck:
@@ -627,7 +633,11 @@ def _hold(model: SeveralModel, chart, t: float, y: np.ndarray, stuck) -> np.ndar
     J = np.array(chart.Jm)
     R = model.friction_rows[stuck] @ np.asarray(chart.K).T  # (s, k): u̇_S = R q̇
     JiRt = np.linalg.solve(J, R.T)
-    w = v - JiRt @ np.linalg.solve(R @ JiRt, R @ v)
+    G = R @ JiRt
+    if np.linalg.matrix_rank(R) == len(stuck):
+        w = v - JiRt @ np.linalg.solve(G, R @ v)
+    else:  # dependent rows (an indeterminate hold): any solution of G y = R q̇ gives the same J⁻¹Rᵀy
+        w = v - JiRt @ np.linalg.lstsq(G, R @ v, rcond=None)[0]
     y = y.copy()
     y[k:2 * k] = w
     y[2 * k + 1] += 0.5 * (v @ J @ v - w @ J @ w)

@@ -461,6 +461,184 @@ def simulate_friction(model: Model, pin: str, friction: float, q0, qd0, t_eval, 
     return FrictionRun(np.concatenate(ts), np.vstack(qs), np.vstack(qds), events, np.concatenate(holds))
 
 
+@dataclass(frozen=True)
+class FrictionsRun:
+    """A run with Coulomb friction on several pins (:func:`simulate_frictions`): the state at the
+    times asked, the events (time, pin, "stick" or "slip", the way s it slips or 0) and, at each
+    time, the holding margin max min_e (f_e − |τ_e|) over the admissible holding torques of the
+    stuck pins (inf where none is stuck)."""
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    events: list
+    margin: np.ndarray
+
+
+def hold_margin(model: Model, t_load, q, qd, frictions: dict) -> tuple[float, dict]:
+    """The stuck pins' (``model.locks``) holding torques that leave the most margin: the multipliers
+    μ of every row (pins' and locks') with Φ_qᵀ μ = Q − M q̈ (q̈ unique, ``redundant``'s SVD where
+    the locks are dependent) are μ0 + N z (μ0 by least squares, N = scipy's null_space(Φ_qᵀ)), and
+    scipy's linprog (HiGHS) maximizes t subject to t ≤ f_e − |τ_e(z)|, τ_e = −μ_lock,e, over z.
+    Returns (t, {pin: τ}). A statically determinate hold (N empty) is the plain min_e f_e − |τ_e|."""
+    from scipy.linalg import null_space
+    from scipy.optimize import linprog
+
+    qdd, _, _, _ = model.solve(t_load, q, qd)
+    J, _ = model.jacobian(q)
+    Q, _, _ = model.forces(t_load, q, qd)
+    b = Q - model.mass() @ qdd
+    mu0 = np.linalg.lstsq(J.T, b, rcond=None)[0]
+    N = null_space(J.T)
+    m = len(model.locks)
+    first = J.shape[0] - m
+    f = np.array([frictions[lock.pin] for lock in model.locks])
+    tau0, Nt = -mu0[first:], -N[first:]
+    if N.shape[1] == 0:
+        tau = tau0
+    else:
+        d = N.shape[1]
+        # variables (z, t): ±(τ0 + Nt z) + t ≤ f
+        A = np.vstack([np.hstack([Nt, np.ones((m, 1))]), np.hstack([-Nt, np.ones((m, 1))])])
+        ub = np.concatenate([f - tau0, f + tau0])
+        lp = linprog(np.concatenate([np.zeros(d), [-1.0]]), A_ub=A, b_ub=ub, bounds=[(None, None)] * (d + 1),
+                     method="highs-ds")
+        if not lp.success:
+            raise RuntimeError(lp.message)
+        tau = tau0 + Nt @ lp.x[:d]
+    return float(np.min(f - np.abs(tau))), {lock.pin: float(v) for lock, v in zip(model.locks, tau)}
+
+
+def simulate_frictions(model: Model, frictions: dict, q0, qd0, t_eval, rtol: float = 1e-12,
+                       rest_rate: float = 1e-9) -> FrictionsRun:
+    """Coulomb friction f_p on each pin p of ``frictions`` (static = kinetic), from the physics: a
+    slipping pin takes the torque −f s (s = ±1, the way it turns) until its rate crosses 0; the
+    stuck pins are held by Lock rows while some admissible share of their holding torques keeps
+    every |τ_e| < f_e (:func:`hold_margin`: the largest least margin, by a linear programme: a
+    hold of more pins than the degrees of freedom is statically indeterminate, any admissible
+    share holds it), until that margin reaches 0 (an event), where the pins at |τ| = f (to 1e-7 f)
+    slip with s = −sign τ. At each such stop (and at the start, and at a load edge whose hold has
+    no margin left) the pins at rest (|u̇| ≤ ``rest_rate``, or stuck) take the first consistent
+    set of modes, fewest slipping first (the stuck ones with a positive margin, each slipping one
+    accelerating its way, s ü > 0; a slip from rest tried +1 first). The rates are projected
+    (M-weighted, least squares where the locks are dependent) onto the locks at a stick."""
+    import itertools
+
+    t_eval = np.asarray(t_eval, float)
+    n = model.n
+    pins = list(frictions)
+    rows = {p: model.angle_row(p) for p in pins}
+    t, q, qd = float(t_eval[0]), np.array(q0, float), np.array(qd0, float)
+    end = float(t_eval[-1])
+    edges = [e for e in model.edges if t < e < end] + [end]
+    modes = {p: None for p in pins}
+
+    def with_modes(modes, q):
+        locks = tuple(Lock(p, model.relative(p, q)) for p in pins if modes[p] == 0.0)
+        torques = tuple(Torque(p, lambda tt, v=-frictions[p] * modes[p]: v) for p in pins if modes[p])
+        return replace(model, locks=locks, torques=model.torques + torques, redundant=True)
+
+    def decide(t_load, q, qd, forced=()):
+        new = dict(modes)
+        rest = []
+        for p in pins:
+            rate = float(rows[p] @ qd)
+            if p in forced:
+                new[p] = forced[p]
+            elif modes[p] != 0.0 and abs(rate) > rest_rate:
+                new[p] = math.copysign(1.0, rate)
+            else:
+                rest.append(p)
+        for combo in sorted(itertools.product((0.0, 1.0, -1.0), repeat=len(rest)),
+                            key=lambda c: sum(m != 0.0 for m in c)):
+            trial = dict(new, **dict(zip(rest, combo)))
+            m = with_modes(trial, q)
+            v = _project_any(m, q, qd)
+            if any(trial[p] == 0.0 for p in pins) and hold_margin(m, t_load, q, v, frictions)[0] <= 0.0:
+                continue
+            qdd, _, _, _ = m.solve(t_load, q, v)
+            if all(mode * float(rows[p] @ qdd) > 0.0 for p, mode in zip(rest, combo) if mode):
+                return trial, v
+        raise RuntimeError(f"no consistent modes at t = {t}")
+
+    def log(t, old, new):
+        for p in pins:
+            if new[p] != old[p] and (t > t_eval[0] or new[p] == 0.0):
+                events.append((t, p, "stick" if new[p] == 0.0 else "slip", new[p]))
+
+    events = []
+    ts, qs, qds, margins = [], [], [], []
+    new, qd = decide(0.5 * (t + edges[0]), q, qd)
+    log(t, modes, new)
+    modes = new
+    while t < end:
+        hi = edges[0]
+        t_load = 0.5 * (t + hi)
+        m = with_modes(modes, q)
+        stuck = any(modes[p] == 0.0 for p in pins)
+        if stuck:
+            qd = _project_any(m, q, qd)
+            margin, tau = hold_margin(m, t_load, q, qd, frictions)
+            if margin <= 0.0:  # a load edge breaks it loose
+                forced = {p: -math.copysign(1.0, tau[p]) for p in tau if abs(tau[p]) >= (1 - 1e-7) * frictions[p]}
+                new, qd = decide(t_load, q, qd, forced)
+                log(t, modes, new)
+                modes = new
+                continue
+
+        def rhs(tt, y, m=m):
+            qdd, _, _, _ = m.solve(t_load, y[:n], y[n:])
+            return np.concatenate([y[n:], qdd])
+
+        evs = []
+        for p in pins:
+            if modes[p]:
+                def slip_event(tt, y, p=p, s=modes[p]):
+                    return s * float(rows[p] @ y[n:])
+                evs.append(slip_event)
+        if stuck:
+            def hold_event(tt, y, m=m):
+                return hold_margin(m, t_load, y[:n], y[n:], frictions)[0]
+            evs.append(hold_event)
+        for ev in evs:
+            ev.terminal, ev.direction = True, -1
+        sol = solve_ivp(rhs, (t, hi), np.concatenate([q, qd]), method="DOP853", rtol=rtol, atol=rtol * 1e-2,
+                        dense_output=True, events=evs)
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        stop = float(sol.t[-1])
+        inside = t_eval[(t_eval >= t) & (t_eval < stop)] if sol.status == 1 or stop < end else \
+            t_eval[(t_eval >= t) & (t_eval <= stop)]
+        if inside.size:
+            Y = sol.sol(inside)
+            ts.append(inside)
+            qs.append(Y[:n].T)
+            qds.append(Y[n:].T)
+            margins.append([hold_margin(m, t_load, y[:n], y[n:], frictions)[0] if stuck else math.inf
+                            for y in Y.T])
+        y = sol.y[:, -1]
+        t, q, qd = stop, y[:n].copy(), y[n:].copy()
+        if sol.status == 1:  # an event
+            forced = {}
+            if stuck:
+                margin, tau = hold_margin(m, t_load, q, qd, frictions)
+                if margin <= 1e-7 * max(frictions.values()):
+                    forced = {p: -math.copysign(1.0, tau[p]) for p in tau
+                              if abs(tau[p]) >= (1 - 1e-7) * frictions[p]}
+            new, qd = decide(t_load, q, qd, forced)
+            log(t, modes, new)
+            modes = new
+        else:
+            edges.pop(0)
+    return FrictionsRun(np.concatenate(ts), np.vstack(qs), np.vstack(qds), events, np.concatenate(margins))
+
+
+def _project_any(model: Model, q, qd) -> np.ndarray:
+    """:func:`_project`, by least squares where the rows are dependent (several locks)."""
+    J, _ = model.jacobian(q)
+    Minv = np.diag(1.0 / np.diag(model.mass()))
+    return qd - Minv @ J.T @ np.linalg.lstsq(J @ Minv @ J.T, J @ qd, rcond=None)[0]
+
+
 def _project(model: Model, q, qd) -> np.ndarray:
     """q̇ projected onto Φ_q q̇ = 0 (the model's rows, its locks with them) in the mass metric."""
     J, _ = model.jacobian(q)
@@ -472,5 +650,6 @@ def pulse(value: float, start: float, duration: float) -> Callable[[float], floa
     return lambda t: value if start <= t < start + duration else 0.0
 
 
-__all__ = ["Body", "Damper", "FrictionRun", "GROUND", "Lock", "Model", "Pin", "Run", "Torque", "TorsionSpring",
-           "integrate", "pulse", "simulate", "simulate_friction"]
+__all__ = ["Body", "Damper", "FrictionRun", "FrictionsRun", "GROUND", "Lock", "Model", "Pin", "Run", "Torque",
+           "TorsionSpring", "hold_margin", "integrate", "pulse", "simulate", "simulate_friction",
+           "simulate_frictions"]

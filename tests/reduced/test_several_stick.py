@@ -23,10 +23,15 @@ three, the elbow's, every method's); the compiled stop_at_start blind to a stuck
 for f − |λ| (the O5 oracle test and the holding force's, every method's); the scipy legs blind to a
 load edge that breaks a hold (every method's); λ read into the wrong joints (the two-held test);
 the friction left out of the dissipation (the elbow's, every method's, the two-held test: the
-energy gate); the KKT solve's row swap dropped (the indeterminate hold's test). Not caught: the
-hold's projection of q̇ left out (the rates at a located stick are already below 1e-14 here; the
-projection is kept so a stuck rate is exactly held), and the KKT's singular-pivot threshold at 0
-(the indeterminate hold is refused all the same, no set of modes consistent).
+energy gate). Not caught: the hold's projection of q̇ left out (the rates at a located stick are
+already below 1e-14 here; the projection is kept so a stuck rate is exactly held).
+
+Statically indeterminate holds (more stuck joints than their rows' rank; the kernel's
+_indeterminate and _max_margin, the last section): against the one-DOF engine's capacity rule
+(friction_fourbar through the n-DOF chart) and against the oracle's simulate_frictions (several
+pins, its own mode search, its holding margin by scipy's linprog over the null space of the
+full-coordinate multipliers: an LP written independently of the kernel's vertex enumeration).
+Their plants are in each test's docstring.
 """
 
 from __future__ import annotations
@@ -40,7 +45,7 @@ import loopcheck
 from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
-from oracles.multibody import Lock, simulate_friction
+from oracles.multibody import Lock, hold_margin, simulate_friction, simulate_frictions
 from test_multibody_oracle import five_bar
 
 STICK = ROOT / "tests/data/five_bar_stick.toml"
@@ -318,22 +323,6 @@ def test_both_inputs_stuck_hold_the_whole_linkage_still():
         assert abs(engine[joint] - tau) < 2e-14 and abs(engine[joint]) < 12.0, joint
 
 
-def test_a_hold_that_no_set_of_modes_decides_stops_the_run_in_one_line():
-    """Three frictions (O1, O5 and the elbow A, 12 N·m each) on a linkage of two degrees of freedom:
-    once two stick the third is held too, with more rows than coordinates (a statically
-    indeterminate hold, whose share of the holding forces the engine does not decide): the run
-    stops, NumericalFailure "singular", one line naming the joints and the time. Plant: the KKT
-    solve's row swap dropped (a hold is then accepted)."""
-    from loopcheck.api import scene_from_string
-    from loopcheck.errors import NumericalFailure
-
-    with pytest.raises(NumericalFailure) as failed:
-        loopcheck.simulate(scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0, "A": 12.0})))
-    message = str(failed.value)
-    assert failed.value.reason.value == "singular" and "\n" not in message
-    assert "statically indeterminate" in message and "at t = " in message and failed.value.time > 0.0
-
-
 def test_check_of_the_scene_as_mjcf_names_the_friction_that_creeps(tmp_path, monkeypatch):
     """`loopcheck check model.xml` of the scene exported (timestep 1 ms) over 0.45 s: MuJoCo's
     soft friction creeps where the exact O5 is held, so the model as written fails (152× its
@@ -356,3 +345,211 @@ def test_check_of_the_scene_as_mjcf_names_the_friction_that_creeps(tmp_path, mon
     assert check.stiff_friction.excess < 0.2 * min(check.stiff_loops.excess, check.smaller_step.excess)
     assert check.cause.startswith("mostly " + model_check.FRICTION_CAUSE)
     assert f"leave {check.stiff_friction.excess:.3g}× the tolerances" in check.cause
+
+
+# -- statically indeterminate holds (more stuck rows than their rank) -------------------------------
+
+FOURBAR = ROOT / "scenes/mechanisms/friction_fourbar.toml"
+PENDULUM = ROOT / "tests/data/five_bar_pendulum.toml"
+
+
+def _engine_margins(model, chart, times, q, v):
+    """The engine's holding margin (its chart's slip_margin: the LP's max-min f − |λ|, every
+    friction stuck) at each (t, q, q̇)."""
+    for e in range(len(model.friction_joints)):
+        chart.set_slip(e, 0.0)
+    out, a = [], np.zeros(model.k)
+    for when, qi, vi in zip(times, q, v):
+        assert chart.acceleration(model.piece(when, when), float(when), np.array(qi), np.array(vi), a) == 0
+        out.append(chart.slip_margin(np.array(vi)))
+    return np.array(out)
+
+
+def test_a_one_dof_hold_by_two_frictions_through_the_n_dof_chart_follows_the_one_dof_engine():
+    """scenes/mechanisms/friction_fourbar.toml (1 DOF, friction on O1 and on B: two stuck rows of
+    rank 1, d = 1) through the n-DOF chart (integrate at k = 1) against the one-DOF engine (the
+    capacity rule |Q_rest| ≤ Σ f |K_u|, an independent implementation; run at rtol 1e-13: at its
+    default 1e-12 its own error is 2.8e-10 s on the stick and 3.7e-9 rad on the held angle, the
+    n-DOF run's 2.6e-13 s and 4.4e-12 rad, each against its run at 1e-13). Both stick at the same
+    time (the n-DOF run logs O1 and B together; B's two reversals while it slips are its own
+    events) within 2e-12 s (measured 1.6e-12); the crank's angle and rate at every n-DOF sample
+    (the one-DOF run interpolated, its interpolant's own error ~1e-8 rad/s) within 1e-10 rad and
+    3e-8 rad/s (measured 1.3e-11, 3.9e-10), both exactly still after the stick; the dissipated
+    energy at the end within 1e-9 J of 250.48 J (measured 2.5e-10). Plant: the LP's feasibility
+    check dropped (an infeasible vertex's λ taken: the hold is refused, no consistent modes). (q̈ without R_Sᵀλ_p is not
+    caught here: the held four-bar has no load left, Q − c = 0; the five-bar tests catch it.)"""
+    from loopcheck.reduced.settings import ReducedSettings
+    from loopcheck.reduced.several import SeveralModel, integrate
+
+    scene = load_scene(FOURBAR)
+    one = loopcheck.simulate(scene, ReducedSettings(rtol=1e-13))
+    record, _, _, _, _, _, events = integrate(SeveralModel(scene), ReducedSettings())
+    (stick,) = one.details.friction_events
+    assert [(e.mode, e.joint) for e in events][-2:] == [("stick", "O1"), ("stick", "B")]
+    assert all(e.joint == "B" and e.mode == "slip" for e in events[:-2])
+    assert events[-1].time == events[-2].time and abs(events[-1].time - stick.time) < 2e-12
+    t, x, xdot = np.concatenate(record.t), np.concatenate(record.x), np.concatenate(record.xdot)
+    q, qdot, _ = one.trajectory.interpolate(t)
+    assert np.max(np.abs(x[:, 0] - q)) < 1e-10
+    assert np.max(np.abs(xdot[:, 0] - qdot)) < 3e-8
+    after = t > stick.time
+    assert np.count_nonzero(after) > 10 and np.max(np.abs(xdot[after, 0])) == 0.0 and np.ptp(x[after, 0]) == 0.0
+    dissipated = np.concatenate(record.E)[-1]
+    assert abs(dissipated - (one.audit.damper_dissipation[-1])) < 1e-9
+
+
+def _five_bar_three_held():
+    from loopcheck.api import scene_from_string
+
+    scene = replace(scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0, "A": 12.0})), horizon=HORIZON)
+    return scene, loopcheck.simulate(scene)
+
+
+def test_three_frictions_hold_a_two_dof_five_bar_as_the_oracle_holds_it():
+    """O1, O5 and the elbow A at 12 N·m each on the five-bar (2 DOF): O5 sticks at 0.0060 s, O1
+    and A together at 0.0099 s, and the three hold the linkage to the horizon (three rows of rank
+    2: statically indeterminate, d = 1), through the load edges at 0.1, 0.3 and 0.4 s. Against
+    the oracle's simulate_frictions (its own mode search; its holding margin by scipy's linprog
+    over the full-coordinate multipliers' null space): the events within EVENT_TOL (measured
+    3.1e-15 s), both inputs to Q_TOL, RATE_TOL (measured 1.1e-13 rad, 1.3e-13 rad/s); the engine's
+    margin (its kernel's LP by vertex enumeration) at every held sample the oracle's within 1e-10
+    N·m (measured 5.9e-13 of 5.7 to 9.1 N·m), on every load piece; the holding forces reported (the
+    max-margin λ, unique here) the oracle's LP optimum's at 0.05, 0.2, 0.35 s within 1e-9 N·m;
+    energy 1e-11. Plants: the null vector's pivot part with the wrong sign (−U11⁻¹U12 → +: the
+    margin is the same, μ → −μ, but λ_A's sign is wrong: the holding forces differ); the LP's
+    feasibility check dropped; q̈ without R_Sᵀλ_p (the held linkage moves)."""
+    from loopcheck.reduced.several import SeveralModel, start_chart
+
+    scene, result = _five_bar_three_held()
+    frictions = {"O1": 12.0, "O5": 12.0, "A": 12.0}
+    events = result.details.friction_events
+    assert [(e.mode, e.joint) for e in events] == [("stick", "O5"), ("stick", "O1"), ("stick", "A")]
+    (left, _), (right, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    model = five_bar()
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    oracle = simulate_frictions(model, frictions, q0, qd0, t)
+    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+    for body, tr in (("left_crank", left), ("right_crank", right)):
+        i = 3 * model.index[body] + 2
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    held = t > events[-1].time
+    several = SeveralModel(scene)
+    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
+    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
+                           np.c_[left.qdot[idx], right.qdot[idx]][held])
+    assert np.all(np.isfinite(oracle.margin[held])) and np.min(oracle.margin[held]) > 0.0
+    assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
+    assert len({several.piece(w, w) for w in t[held]}) >= 3
+    # the holding forces reported (the max-margin λ, unique here) are the oracle's LP optimum's
+    for near in (0.05, 0.2, 0.35):
+        i = int(np.argmin(np.abs(t - near)))
+        when = float(t[i])
+        q, v = np.array([left.q[idx][i], right.q[idx][i]]), np.array([left.qdot[idx][i], right.qdot[idx][i]])
+        assert chart.acceleration(several.piece(when, when), when, q, v, np.zeros(2)) == 0
+        chart.slip_margin(v)
+        locked = replace(model, locks=tuple(Lock(p, model.relative(p, oracle.q[i])) for p in frictions),
+                         redundant=True)
+        _, tau = hold_margin(locked, when, oracle.q[i], oracle.qd[i], frictions)
+        for e, joint in enumerate(several.friction_joints):
+            assert abs(chart.lam[e] - tau[joint]) < 1e-9, (when, joint)
+    assert result.audit.relative_residual < 1e-11
+
+
+def test_an_indeterminate_hold_breaks_where_its_margin_reaches_zero_as_the_oracle_finds():
+    """tests/data/five_bar_pendulum.toml (3 DOF: the pendulum on the wrist) with 8 N·m on O1, O5
+    and A: O5 sticks at 0.0124 s, O1 and A at 0.0274 s (three rows of rank 2: the five-bar held,
+    d = 1, the pendulum swinging), the holding margin then falls as the pendulum swings and
+    reaches 0 at 0.18784 s inside a load piece (no edge there): O5 and A slip (the LP's two
+    active rows, s = −sign λ), O1 stays stuck; O5 and A stick again at 0.33054 s. Against the
+    oracle's simulate_frictions (its break located by solve_ivp on its linprog margin): the events
+    within EVENT_TOL (measured 1.2e-13 s), the three inputs to Q_TOL, RATE_TOL (measured 5.5e-12
+    rad, 4.2e-11 rad/s; the oracle's own accuracy, its run at rtol/2, 2.5e-13 rad and 2.2e-12
+    rad/s on the bodies' angles, below a third of them); energy 5e-11 (measured 5.0e-12). Plants: the LP's feasibility check dropped (the largest t of
+    any vertex: the margin too large, the break missed); the break's direction."""
+    from loopcheck.api import scene_from_string
+    from oracles.multibody import Body, Pin
+
+    frictions = {"O1": 8.0, "O5": 8.0, "A": 8.0}
+    extra = "".join(f'[[joint_frictions]]\nname = "rub_{j}"\njoint = "{j}"\nfriction = {f}\n\n'
+                    for j, f in frictions.items())
+    scene = replace(scene_from_string(PENDULUM.read_text().replace("[simulation]", extra + "[simulation]")),
+                    horizon=0.35)
+    result = loopcheck.simulate(scene)
+    events = result.details.friction_events
+    assert [(e.mode, e.direction, e.joint) for e in events] == [
+        ("stick", 0, "O5"), ("stick", 0, "O1"), ("stick", 0, "A"), ("slip", -1, "O5"), ("slip", -1, "A"),
+        ("stick", 0, "O5"), ("stick", 0, "A")]
+    assert 0.1 < events[3].time < 0.3  # inside the piece between the load edges
+    base = five_bar()
+    model = replace(base, bodies=base.bodies + (Body("pendulum", 0.5, (0.15, 0.0), 0.004),),
+                    pins=base.pins + (Pin("wrist", "left_arm", (0.7, 0.0), "pendulum", (0.0, 0.0)),))
+    x0, xdot0 = result.joints.x[0], result.joints.xdot[0]
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3,
+                              "pendulum": float(x0[4])},
+                             {"left_crank": 1.8, "right_crank": 1.3, "pendulum": float(x0[4])},
+                             {"left_crank": 0.5, "right_crank": -0.3, "pendulum": float(xdot0[4])})
+    (left, _), (right, _), (wrist, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    oracle = simulate_frictions(model, frictions, q0, qd0, t)
+    half = simulate_frictions(model, frictions, q0, qd0, t, rtol=5e-13)
+    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+
+    def wrist_of(run):
+        p, a = 3 * model.index["pendulum"] + 2, 3 * model.index["left_arm"] + 2
+        return run.q[:, p] - run.q[:, a], run.qd[:, p] - run.qd[:, a]
+
+    for name, tr in (("left_crank", left), ("right_crank", right), ("wrist", wrist)):
+        if name == "wrist":
+            (u, ud), (uh, udh) = wrist_of(oracle), wrist_of(half)
+        else:
+            i = 3 * model.index[name] + 2
+            u, ud, uh, udh = oracle.q[:, i], oracle.qd[:, i], half.q[:, i], half.qd[:, i]
+        assert np.max(np.abs(u - uh)) < Q_TOL / 3 and np.max(np.abs(ud - udh)) < RATE_TOL / 3, name
+        assert np.max(np.abs(u - tr.q[idx])) < Q_TOL, name
+        assert np.max(np.abs(ud - tr.qdot[idx])) < RATE_TOL, name
+    assert result.audit.relative_residual < 5e-11
+
+
+def test_five_frictions_hold_the_five_bar_with_a_three_dimensional_share_as_the_oracle_holds_it():
+    """10 N·m on O1 and O5, 3 N·m on A, B and P: O5 sticks at 0.0072 s, the other four at 0.0283 s
+    together (five rows of rank 2: d = 3, the kernel's LP over a three-dimensional μ, C(10, 4) =
+    210 vertices tried) and the five hold the linkage through the load edge at 0.1 s. Against the
+    oracle's simulate_frictions over 0.15 s: the events within EVENT_TOL (measured 3.4e-15 s), both
+    inputs to Q_TOL, RATE_TOL (measured 5.1e-14 rad, 4.1e-14 rad/s), the engine's margin at every
+    held sample the oracle's linprog value within 1e-10 N·m (measured 1.3e-13, the margin between
+    1.5 and 3 N·m: at 3 N·m the elbows' share is 0, the LP's optimum a face, not a vertex, its
+    value still unique); energy 5e-11 (measured 1.4e-11). Plant: the LP's feasibility check
+    dropped (the events differ: the hold's consistency is misjudged)."""
+    from loopcheck.api import scene_from_string
+    from loopcheck.reduced.several import SeveralModel, start_chart
+
+    frictions = {"O1": 10.0, "O5": 10.0, "A": 3.0, "B": 3.0, "P": 3.0}
+    scene = replace(scene_from_string(_with_frictions(frictions)), horizon=0.15)
+    result = loopcheck.simulate(scene)
+    events = result.details.friction_events
+    assert [(e.mode, e.joint) for e in events] == [("stick", j) for j in ("O5", "O1", "A", "B", "P")]
+    (left, _), (right, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    model = five_bar()
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    oracle = simulate_frictions(model, frictions, q0, qd0, t)
+    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+    for body, tr in (("left_crank", left), ("right_crank", right)):
+        i = 3 * model.index[body] + 2
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    held = t > events[-1].time
+    several = SeveralModel(scene)
+    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
+    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
+                           np.c_[left.qdot[idx], right.qdot[idx]][held])
+    assert chart.nullity == 3
+    assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
+    assert result.audit.relative_residual < 5e-11

@@ -4,8 +4,8 @@ from loopcheck.kernels.loops cimport Loops
 from loopcheck.reduced.kernels.vector_problem cimport VectorRightHandSide
 
 cdef double _c_newton_tol, _c_newton_round_off, _c_predictor_trust, _c_trusted_correction, _c_hysteresis
-cdef double _c_jacobi_tol, _c_nan, _c_clamp_hysteresis, _c_stuck_pivot
-cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps
+cdef double _c_jacobi_tol, _c_nan, _c_clamp_hysteresis, _c_stuck_pivot, _c_stuck_rank, _c_stuck_consistent
+cdef Py_ssize_t _c_newton_max_iter, _c_walk_halvings, _c_jacobi_sweeps, _c_stuck_lp
 
 
 cdef class Several(VectorRightHandSide):
@@ -30,6 +30,13 @@ cdef class Several(VectorRightHandSide):
     cdef double[::1] ksol, scratch
     cdef Py_ssize_t _stuck_count(self) except -1
     cdef int _stuck_solve(self) except -1
+    cdef int _indeterminate(self) except -1
+    cdef int _max_margin(self) except -1
+    cdef double[:, ::1] wk, G, nul, lpa
+    cdef double[::1] lamp, lpx
+    cdef long long[::1] sidx, perm, comb
+    cdef readonly Py_ssize_t nullity
+    cdef readonly bint fresh
     cdef double[:, ::1] fric_k
     cpdef double slip_margin(self, double[::1] v)
     cpdef double clamp_margin(self, double[::1] v)

@@ -38,7 +38,9 @@ second derivative without ẍ (Loops' table rates with kin = (x, ẋ, 0)), and f
     (and − Σ_frictions f s K_u,a in Q: a joint friction slipping in direction s = ±1, set by the
     run, :meth:`Several.set_slip`; its margin s u̇ in the stop event, f s u̇ in the dissipation;
     a stuck one, s = 0, holds its coordinate: one more row r_e q̈ = −row_e·ẍ0 and its multiplier
-    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event)
+    λ_e in a KKT system, :meth:`Several._stuck_solve`, its margin f − |λ_e| in the stop event; more
+    stuck rows than their rank, a statically indeterminate hold: :meth:`Several._indeterminate`,
+    the margin max_μ min_e f_e − |λ_p,e + N_e μ| by :meth:`Several._max_margin`)
     (T(t) the input load of a one-DOF scene on its input q = drive·x; several inputs take
     actuators)
     f = clamp(gain·ctrl(t) + b0 + b1·l + b2·l̇, lo, hi)   (l = row·x, l̇ = Σ_a K_l,a q̇_a;
@@ -115,6 +117,13 @@ JACOBI_SWEEPS = 60
 JACOBI_TOL = 1e-15
 # The stuck joints' KKT system is singular where a pivot is at most this × max(|𝔍|, |R_S|²/|𝔍|).
 STUCK_PIVOT = 1e-12
+# A statically indeterminate hold (:meth:`Several._indeterminate`): the stuck rows' rank is the count
+# of pivots of G = R_S 𝔍⁻¹ R_Sᵀ above STUCK_RANK × its largest diagonal; the dependent rows'
+# right-hand sides must agree to STUCK_CONSISTENT × the largest |g|; at most STUCK_LP stuck rows
+# with a null space (the margin's LP enumerates the vertices: C(2s, d + 1) small solves).
+STUCK_RANK = 1e-10
+STUCK_CONSISTENT = 1e-8
+STUCK_LP = 8
 
 _c_newton_tol = cython.declare(cython.double, NEWTON_TOL)
 _c_newton_max_iter = cython.declare(cython.Py_ssize_t, NEWTON_MAX_ITER)
@@ -128,6 +137,9 @@ _c_jacobi_sweeps = cython.declare(cython.Py_ssize_t, JACOBI_SWEEPS)
 _c_jacobi_tol = cython.declare(cython.double, JACOBI_TOL)
 _c_nan = cython.declare(cython.double, math.nan)
 _c_stuck_pivot = cython.declare(cython.double, STUCK_PIVOT)
+_c_stuck_rank = cython.declare(cython.double, STUCK_RANK)
+_c_stuck_consistent = cython.declare(cython.double, STUCK_CONSISTENT)
+_c_stuck_lp = cython.declare(cython.Py_ssize_t, STUCK_LP)
 
 # counts (Several.counts): LU factorizations of A, solves with them, k×k solves, closures, evaluations
 (FACTORS, SOLVES, SMALL_SOLVES, CLOSURES, EVALUATIONS) = range(5)
@@ -221,6 +233,19 @@ class Several(VectorRightHandSide):
         # a stuck joint (slip 0): its holding force λ (the KKT system's multiplier, latest acceleration)
         self.lam = np.zeros(max(nfr, 1))
         self.kkt = np.zeros((kk + nfr, kk + nfr + 1))
+        # a statically indeterminate hold (_indeterminate): [𝔍 | R_Sᵀ | b] solved in place, G = R_S 𝔍⁻¹ R_Sᵀ
+        # with g, the stuck joints' indices, G's pivot order, λ_p and N (stuck order), the LP's system
+        self.wk = np.zeros((kk, kk + nfr + 1))
+        self.G = np.zeros((max(nfr, 1), max(nfr, 1) + 1))
+        self.sidx = np.zeros(max(nfr, 1), np.int64)
+        self.perm = np.zeros(max(nfr, 1), np.int64)
+        self.lamp = np.zeros(max(nfr, 1))
+        self.nul = np.zeros((max(nfr, 1), max(nfr, 1)))
+        self.lpa = np.zeros((max(nfr, 1) + 1, max(nfr, 1) + 2))
+        self.lpx = np.zeros(max(nfr, 1) + 1)
+        self.comb = np.zeros(2 * max(nfr, 1), np.int64)
+        self.nullity = 0
+        self.fresh = True
         self.ksol = np.zeros(kk + nfr)
         self.scratch = np.zeros(kk)
         self.act_k = np.zeros((kk, max(na, 1)))
@@ -397,8 +422,9 @@ class Several(VectorRightHandSide):
         (ü_e = r_e q̈ + row_e·ẍ0 = 0: each stuck joint's coordinate held; λ_e the generalized
         force its friction applies on u_e), from small ([𝔍 | Q − c]) and fric_k; Gaussian
         elimination with partial pivoting on kkt ((k + s) × (k + s + 1)). q̈ into qdd, λ into lam.
-        Returns 1 where the system is singular: a pivot at most STUCK_PIVOT × max(|𝔍|, |R_S|²/|𝔍|)
-        (the stuck rows dependent: a statically indeterminate hold, or more stuck joints than k)."""
+        Where a pivot is at most STUCK_PIVOT × max(|𝔍|, |R_S|²/|𝔍|) (the stuck rows dependent: a
+        statically indeterminate hold, or more stuck joints than k) the hold is solved by
+        :meth:`_indeterminate` instead. Returns 1 where neither solves it."""
         kk: cython.Py_ssize_t = self.k
         n: cython.Py_ssize_t = self.n
         nfr: cython.Py_ssize_t = self.I[N_FRICTION]
@@ -448,8 +474,8 @@ class Several(VectorRightHandSide):
                 if fabs(self.kkt[r, j]) > big:
                     big = fabs(self.kkt[r, j])
                     p = r
-            if not big > tiny:
-                return 1
+            if not big > tiny:  # the stuck rows dependent: a statically indeterminate hold
+                return self._indeterminate()
             if p != j:
                 for c in range(j, m + 1):
                     s = self.kkt[j, c]
@@ -472,6 +498,266 @@ class Several(VectorRightHandSide):
                 self.lam[e] = self.ksol[p]
                 p += 1
         return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _indeterminate(self) -> cython.int:
+        """A statically indeterminate hold: s stuck rows R_S of rank r < s. q̈ is unique (the motion
+        with the rows' span held), λ is not: with Y = 𝔍⁻¹R_Sᵀ, z = 𝔍⁻¹(Q − c) (one elimination of 𝔍
+        with partial pivoting on [𝔍 | R_Sᵀ | Q − c]), G = R_S Y and g = −row_S·ẍ0 − R_S z, every λ
+        with G λ = g holds the rows (q̈ = z + Y λ the same for each: Y N = 0). G (s × s, symmetric
+        positive semidefinite, its null space null(R_Sᵀ)) is eliminated with diagonal pivoting:
+        r pivots above STUCK_RANK × its largest diagonal, the d = s − r rows left must have their
+        g reduced to at most STUCK_CONSISTENT × max |g| (else the rows are inconsistent: 1). Then
+        λ = λ_p + N μ: λ_p (the pivots' solve, 0 on the others) into lamp, N's d columns (1 on one
+        dependent row, the pivots' solve of its column) into nul, both in stuck order; λ_p into
+        lam (the max-margin λ is chosen on demand: :meth:`_max_margin`, fresh False), q̈ into qdd.
+        Returns 1 where 𝔍 is singular, no row is independent, the rows are inconsistent, or d ≥ 1
+        with more than STUCK_LP stuck rows."""
+        kk: cython.Py_ssize_t = self.k
+        n: cython.Py_ssize_t = self.n
+        nfr: cython.Py_ssize_t = self.I[N_FRICTION]
+        ns: cython.Py_ssize_t = 0
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        i: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        w: cython.Py_ssize_t
+        rank: cython.Py_ssize_t
+        big: cython.double
+        f: cython.double
+        v: cython.double
+        gmax: cython.double = 0.0
+        gscale: cython.double = 0.0
+        for e in range(nfr):
+            if self.slip[e] == 0.0:
+                self.sidx[ns] = e
+                ns += 1
+        w = kk + ns + 1
+        for r in range(kk):
+            for c in range(kk):
+                self.wk[r, c] = self.small[r, c]
+            for j in range(ns):
+                self.wk[r, kk + j] = self.fric_k[r, self.sidx[j]]
+            self.wk[r, kk + ns] = self.small[r, kk]
+        for j in range(kk):
+            p = j
+            big = fabs(self.wk[j, j])
+            for r in range(j + 1, kk):
+                if fabs(self.wk[r, j]) > big:
+                    big = fabs(self.wk[r, j])
+                    p = r
+            if not big > 0.0:
+                return 1
+            if p != j:
+                for c in range(j, w):
+                    v = self.wk[j, c]
+                    self.wk[j, c] = self.wk[p, c]
+                    self.wk[p, c] = v
+            for r in range(j + 1, kk):
+                f = self.wk[r, j] / self.wk[j, j]
+                for c in range(j, w):
+                    self.wk[r, c] -= f * self.wk[j, c]
+        for c in range(kk, w):  # back substitution, in place: Y = wk[:, k:k+s], z = wk[:, k+s]
+            for r in range(kk - 1, -1, -1):
+                v = self.wk[r, c]
+                for j in range(r + 1, kk):
+                    v -= self.wk[r, j] * self.wk[j, c]
+                self.wk[r, c] = v / self.wk[r, r]
+        for i in range(ns):
+            e = self.sidx[i]
+            v = 0.0
+            for j in range(n):
+                v += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.xdd0[j]
+            v = -v
+            for r in range(kk):
+                v -= self.fric_k[r, e] * self.wk[r, kk + ns]
+            self.G[i, ns] = v
+            gscale = max(gscale, fabs(v))
+            for j in range(ns):
+                v = 0.0
+                for r in range(kk):
+                    v += self.fric_k[r, e] * self.wk[r, kk + j]
+                self.G[i, j] = v
+            gmax = max(gmax, fabs(self.G[i, i]))
+            self.perm[i] = i
+        rank = 0
+        for j in range(ns):  # diagonal pivoting: rows and columns swapped together
+            p = j
+            big = fabs(self.G[j, j])
+            for r in range(j + 1, ns):
+                if fabs(self.G[r, r]) > big:
+                    big = fabs(self.G[r, r])
+                    p = r
+            if not big > _c_stuck_rank * gmax:
+                break
+            if p != j:
+                for c in range(ns + 1):
+                    v = self.G[j, c]
+                    self.G[j, c] = self.G[p, c]
+                    self.G[p, c] = v
+                for r in range(ns):
+                    v = self.G[r, j]
+                    self.G[r, j] = self.G[r, p]
+                    self.G[r, p] = v
+                i = self.perm[j]
+                self.perm[j] = self.perm[p]
+                self.perm[p] = i
+            for r in range(j + 1, ns):
+                f = self.G[r, j] / self.G[j, j]
+                for c in range(j, ns + 1):
+                    self.G[r, c] -= f * self.G[j, c]
+            rank += 1
+        if rank == 0:
+            return 1
+        for r in range(rank, ns):
+            if fabs(self.G[r, ns]) > _c_stuck_consistent * gscale:
+                return 1
+        self.nullity = ns - rank
+        if self.nullity > 0 and ns > _c_stuck_lp:
+            return 1
+        # λ_p and N in pivot order into ksol (λ_p) and nul (then permuted to stuck order)
+        for r in range(ns):
+            self.ksol[r] = 0.0
+            for c in range(self.nullity):
+                self.nul[r, c] = 1.0 if r == rank + c else 0.0
+        for r in range(rank - 1, -1, -1):
+            v = self.G[r, ns]
+            for j in range(r + 1, rank):
+                v -= self.G[r, j] * self.ksol[j]
+            self.ksol[r] = v / self.G[r, r]
+            for c in range(self.nullity):
+                v = -self.G[r, rank + c]
+                for j in range(r + 1, rank):
+                    v -= self.G[r, j] * self.nul[j, c]
+                self.nul[r, c] = v / self.G[r, r]
+        for r in range(ns):
+            self.lamp[self.perm[r]] = self.ksol[r]
+        for c in range(self.nullity):  # permute N's rows through lpx (a column at a time)
+            for r in range(ns):
+                self.lpx[self.perm[r]] = self.nul[r, c]
+            for r in range(ns):
+                self.nul[r, c] = self.lpx[r]
+        for r in range(kk):
+            v = self.wk[r, kk + ns]
+            for j in range(ns):
+                v += self.wk[r, kk + j] * self.lamp[j]
+            self.qdd[r] = v
+        for j in range(ns):
+            self.lam[self.sidx[j]] = self.lamp[j]
+        self.fresh = self.nullity == 0
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _max_margin(self) -> cython.int:
+        """The max-margin holding forces of an indeterminate hold (:meth:`_indeterminate`'s λ_p, N,
+        d = nullity ≥ 1): max over μ of t subject to t ≤ f_e − |λ_p,e + N_e μ| for every stuck e, a
+        linear programme in (μ, t) whose 2s constraints σ(λ_p,e + N_e μ) + t ≤ f_e (σ = ±1) bound a
+        pointed polyhedron (N has a unit row per dependent row): its maximum is at a vertex, d + 1
+        constraints active. Every such set is tried (a (d+1)-square solve with partial pivoting,
+        skipped where a pivot is at most 1e-12 of the set's largest entry), the feasible vertices
+        (each constraint within 1e-9 × (max f + max |λ_p|)) kept, the first of the largest t taken:
+        λ = λ_p + N μ into lam (fresh). The LP's value is then min_e f_e − |λ_e|, a continuous
+        function of the state while the rank holds (of the set of admissible λ, not of its basis).
+        Returns 1 where no vertex is feasible (lam left at λ_p)."""
+        ns: cython.Py_ssize_t = 0
+        nfr: cython.Py_ssize_t = self.I[N_FRICTION]
+        d: cython.Py_ssize_t = self.nullity
+        dd: cython.Py_ssize_t = d + 1
+        nc: cython.Py_ssize_t
+        r: cython.Py_ssize_t
+        c: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        p: cython.Py_ssize_t
+        e: cython.Py_ssize_t
+        i: cython.Py_ssize_t
+        sg: cython.double
+        v: cython.double
+        big: cython.double
+        amax: cython.double
+        tol: cython.double = 0.0
+        best: cython.double = -math.inf
+        found: cython.bint = False
+        ok: cython.bint
+        for e in range(nfr):
+            if self.slip[e] == 0.0:
+                tol = max(tol, self.F[self.I[FRICTION_COEF] + e] + fabs(self.lamp[ns]))
+                ns += 1
+        tol *= 1e-9
+        nc = 2 * ns
+        if dd > nc:
+            return 1
+        for j in range(dd):
+            self.comb[j] = j
+        while True:
+            # the system of the active constraints comb[0..dd): rows (σ N_e, 1 | f_e − σ λ_p,e)
+            amax = 0.0
+            for r in range(dd):
+                i = self.comb[r]
+                e = i // 2
+                sg = 1.0 if i % 2 == 0 else -1.0
+                for c in range(d):
+                    self.lpa[r, c] = sg * self.nul[e, c]
+                    amax = max(amax, fabs(self.lpa[r, c]))
+                self.lpa[r, d] = 1.0
+                self.lpa[r, dd] = self.F[self.I[FRICTION_COEF] + self.sidx[e]] - sg * self.lamp[e]
+            amax = max(amax, 1.0)
+            ok = True
+            for j in range(dd):
+                p = j
+                big = fabs(self.lpa[j, j])
+                for r in range(j + 1, dd):
+                    if fabs(self.lpa[r, j]) > big:
+                        big = fabs(self.lpa[r, j])
+                        p = r
+                if not big > 1e-12 * amax:
+                    ok = False
+                    break
+                if p != j:
+                    for c in range(j, dd + 1):
+                        v = self.lpa[j, c]
+                        self.lpa[j, c] = self.lpa[p, c]
+                        self.lpa[p, c] = v
+                for r in range(j + 1, dd):
+                    v = self.lpa[r, j] / self.lpa[j, j]
+                    for c in range(j, dd + 1):
+                        self.lpa[r, c] -= v * self.lpa[j, c]
+            if ok:
+                for r in range(dd - 1, -1, -1):
+                    v = self.lpa[r, dd]
+                    for c in range(r + 1, dd):
+                        v -= self.lpa[r, c] * self.lpx[c]
+                    self.lpx[r] = v / self.lpa[r, r]
+                if self.lpx[d] > best:
+                    for e in range(ns):  # feasible: every constraint within tol
+                        v = self.lamp[e]
+                        for c in range(d):
+                            v += self.nul[e, c] * self.lpx[c]
+                        if fabs(v) + self.lpx[d] > self.F[self.I[FRICTION_COEF] + self.sidx[e]] + tol:
+                            ok = False
+                            break
+                    if ok:
+                        best = self.lpx[d]
+                        found = True
+                        for e in range(ns):
+                            v = self.lamp[e]
+                            for c in range(d):
+                                v += self.nul[e, c] * self.lpx[c]
+                            self.lam[self.sidx[e]] = v
+            # the next combination of dd of the nc constraints
+            j = dd - 1
+            while j >= 0 and self.comb[j] == nc - dd + j:
+                j -= 1
+            if j < 0:
+                break
+            self.comb[j] += 1
+            for c in range(j + 1, dd):
+                self.comb[c] = self.comb[c - 1] + 1
+        self.fresh = True
+        return 0 if found else 1
 
     @cython.cfunc
     @cython.exceptval(-1, check=True)
@@ -899,6 +1185,8 @@ class Several(VectorRightHandSide):
             self.small[a, kk] = w
         for e in range(self.I[N_FRICTION]):
             self.lam[e] = 0.0
+        self.nullity = 0
+        self.fresh = True
         if self._stuck_count() > 0:
             if self._stuck_solve() != 0:
                 for a in range(kk):
@@ -962,12 +1250,17 @@ class Several(VectorRightHandSide):
     def slip_margin(self, v: cython.double[::1]) -> cython.double:
         """The least margin over the joint frictions at the configuration last evaluated, q̇ = v:
         s u̇ of each slipping in its direction s, f − |λ| of each stuck (λ its holding force at the
-        latest acceleration: :meth:`stop_margin` computes one there); > 0 while each slips its way
-        or holds (inf without friction)."""
+        latest acceleration: :meth:`stop_margin` computes one there; an indeterminate hold's
+        max-margin λ, :meth:`_max_margin` run here first, so that lam holds it after this call);
+        > 0 while each slips its way or holds (inf without friction; NaN where an indeterminate
+        hold's LP finds no vertex)."""
         g: cython.double = math.inf
         e: cython.Py_ssize_t
         a: cython.Py_ssize_t
         u: cython.double
+        if not self.fresh:  # an indeterminate hold: its max-margin λ (the LP's value is the least margin)
+            if self._max_margin() != 0:
+                return _c_nan
         for e in range(self.I[N_FRICTION]):
             if self.slip[e] == 0.0:
                 g = min(g, self.F[self.I[FRICTION_COEF] + e] - fabs(self.lam[e]))
