@@ -553,3 +553,20 @@ def test_five_frictions_hold_the_five_bar_with_a_three_dimensional_share_as_the_
     assert chart.nullity == 3
     assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
     assert result.audit.relative_residual < 5e-11
+
+
+def test_coinciding_events_stop_the_run_in_one_line_not_by_its_budget():
+    """O1, O5, A and P at 12 N·m: at 0.0037699 s O5's rate reaches 0 and it slips back from rest
+    (its margin exactly 0 at the leg's start) while another margin crosses in the first step: the
+    root search returns the leg's start and the run stopped there again and again (58 822 times,
+    7 s, then "DOP853 spent its budget", whose advice, loosen rtol, is wrong). Now it stops after
+    MAX_STILL_STOPS such legs, saying so, at that time. Plant: the guard removed (the budget's
+    message after 7 s)."""
+    from loopcheck.api import scene_from_string
+    from loopcheck.errors import NumericalFailure
+
+    with pytest.raises(NumericalFailure) as caught:
+        loopcheck.simulate(scene_from_string(_with_frictions({"O1": 12.0, "O5": 12.0, "A": 12.0, "P": 12.0})))
+    message = str(caught.value)
+    assert "without advancing: events coincide there" in message and "\n" not in message
+    assert abs(caught.value.time - 0.0037699) < 1e-6
