@@ -398,6 +398,34 @@ def test_a_one_dof_hold_by_two_frictions_through_the_n_dof_chart_follows_the_one
     assert abs(dissipated - (one.audit.damper_dissipation[-1])) < 1e-9
 
 
+def _held_against_the_oracle(scene, result, frictions):
+    """The five-bar's run ``result`` of ``scene`` held by ``frictions`` against the oracle's
+    simulate_frictions on the run's samples: the same events (EVENT_TOL), both inputs (Q_TOL,
+    RATE_TOL). Returns (the oracle's model, its run, the unique sample times, their indices, the
+    samples held after the last event, the engine's model, its chart, the engine's margins there)."""
+    from loopcheck.reduced.several import SeveralModel, start_chart
+
+    events = result.details.friction_events
+    (left, _), (right, _) = result.inputs
+    t, idx = np.unique(left.t, return_index=True)
+    model = five_bar()
+    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    oracle = simulate_frictions(model, frictions, q0, qd0, t)
+    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
+    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
+    for body, tr in (("left_crank", left), ("right_crank", right)):
+        i = 3 * model.index[body] + 2
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    held = t > events[-1].time
+    several = SeveralModel(scene)
+    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
+    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
+                           np.c_[left.qdot[idx], right.qdot[idx]][held])
+    return model, oracle, t, idx, held, several, chart, mine
+
+
 def _five_bar_three_held():
     from loopcheck.api import scene_from_string
 
@@ -418,29 +446,13 @@ def test_three_frictions_hold_a_two_dof_five_bar_as_the_oracle_holds_it():
     energy 1e-11. Plants: the null vector's pivot part with the wrong sign (−U11⁻¹U12 → +: the
     margin is the same, μ → −μ, but λ_A's sign is wrong: the holding forces differ); the LP's
     feasibility check dropped; q̈ without R_Sᵀλ_p (the held linkage moves)."""
-    from loopcheck.reduced.several import SeveralModel, start_chart
 
     scene, result = _five_bar_three_held()
     frictions = {"O1": 12.0, "O5": 12.0, "A": 12.0}
     events = result.details.friction_events
     assert [(e.mode, e.joint) for e in events] == [("stick", "O5"), ("stick", "O1"), ("stick", "A")]
+    model, oracle, t, idx, held, several, chart, mine = _held_against_the_oracle(scene, result, frictions)
     (left, _), (right, _) = result.inputs
-    t, idx = np.unique(left.t, return_index=True)
-    model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
-    oracle = simulate_frictions(model, frictions, q0, qd0, t)
-    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
-    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
-    held = t > events[-1].time
-    several = SeveralModel(scene)
-    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
-    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
-                           np.c_[left.qdot[idx], right.qdot[idx]][held])
     assert np.all(np.isfinite(oracle.margin[held])) and np.min(oracle.margin[held]) > 0.0
     assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
     assert len({several.piece(w, w) for w in t[held]}) >= 3
@@ -526,30 +538,13 @@ def test_five_frictions_hold_the_five_bar_with_a_three_dimensional_share_as_the_
     value still unique); energy 5e-11 (measured 1.4e-11). Plant: the LP's feasibility check
     dropped (the events differ: the hold's consistency is misjudged)."""
     from loopcheck.api import scene_from_string
-    from loopcheck.reduced.several import SeveralModel, start_chart
 
     frictions = {"O1": 10.0, "O5": 10.0, "A": 3.0, "B": 3.0, "P": 3.0}
     scene = replace(scene_from_string(_with_frictions(frictions)), horizon=0.15)
     result = loopcheck.simulate(scene)
     events = result.details.friction_events
     assert [(e.mode, e.joint) for e in events] == [("stick", j) for j in ("O5", "O1", "A", "B", "P")]
-    (left, _), (right, _) = result.inputs
-    t, idx = np.unique(left.t, return_index=True)
-    model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
-    oracle = simulate_frictions(model, frictions, q0, qd0, t)
-    assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
-    assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
-    held = t > events[-1].time
-    several = SeveralModel(scene)
-    chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
-    mine = _engine_margins(several, chart, t[held], np.c_[left.q[idx], right.q[idx]][held],
-                           np.c_[left.qdot[idx], right.qdot[idx]][held])
+    _, oracle, _, _, held, _, chart, mine = _held_against_the_oracle(scene, result, frictions)
     assert chart.nullity == 3
     assert np.max(np.abs(mine - oracle.margin[held])) < 1e-10
     assert result.audit.relative_residual < 5e-11
