@@ -607,6 +607,19 @@ def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
     return tuple(int(v) for v in assembly_modes(system, np.asarray(x, dtype=float)))
 
 
+def unwrap_angles(angles: np.ndarray) -> np.ndarray:
+    """Angles sampled along a run (samples, columns) made continuous (no 2π jumps): exactly
+    ``np.unwrap(angles, axis=0)``, which a run whose samples never jump by π or more (every run
+    sampled finely enough) gets without its corrections: their sum is +0.0 there, so the result is
+    the angles + 0.0 (−0.0 becomes +0.0, as in np.unwrap)."""
+    steps = np.diff(angles, axis=0)
+    if not np.all(np.abs(steps) < math.pi):  # a jump to correct (or a value not finite)
+        return np.unwrap(angles, axis=0)
+    out = np.array(angles, dtype=float)
+    out[1:] += 0.0
+    return out
+
+
 def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) -> int:
     """Rank of Φ_x at x (singular values above ``rtol`` × the largest); n − 1 for one DOF.
 

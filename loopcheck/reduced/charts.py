@@ -432,7 +432,7 @@ def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajec
         coords.append(np.full(len(tr.t), chart.independent))
     x = np.concatenate(xs)
     angles = model.angle_columns
-    x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
+    x[:, angles] = loops.unwrap_angles(x[:, angles])  # continuous angles (no 2π jumps)
     t = np.concatenate(ts)
     joints = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
                              loops.assembly_modes(model.system, x).reshape(len(t), -1))
