@@ -178,6 +178,14 @@ class Packer:
             h[tb + 2], h[tb + 3] = self.float(offset), self.float(w)
             h[tb + 4], h[tb + 5], h[tb + 6] = self.int(row), self.int(mag), self.int(angle)
 
+    def copy(self) -> "Packer":
+        """A packer holding what this one holds (the arrays packed so far shared, read-only; the
+        header copied), to append to apart."""
+        other = Packer.__new__(Packer)
+        other.F, other.I = list(self.F), [self.I[0].copy(), *self.I[1:]]
+        other.nf, other.ni, other.header = self.nf, self.ni, other.I[0]
+        return other
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         return np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I)
 

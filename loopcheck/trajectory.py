@@ -104,13 +104,14 @@ class Trajectory:
         for name, a in arrays.items():
             if a.ndim != 1 or a.shape != n:
                 raise ValueError(f"Trajectory.{name} must have shape {n}, got {a.shape}")
-            if not np.all(np.isfinite(a)):
+            if not np.isfinite(a).all():
                 raise ValueError(f"Trajectory.{name} contains NaN or inf")
             a.setflags(write=False)
             object.__setattr__(self, name, a)
         if n[0] < 2:
             raise ValueError("a trajectory needs at least two samples")
-        if np.any(np.diff(arrays["t"]) < 0):
+        t = arrays["t"]
+        if (t[1:] < t[:-1]).any():
             raise ValueError("Trajectory.t must be non-decreasing")
         if not isinstance(self.refined_extrema, (bool, np.bool_)):
             raise ValueError(f"Trajectory.refined_extrema must be True or False, got {self.refined_extrema!r}")
