@@ -51,24 +51,24 @@ class Peak:
     still_rising: bool = False
 
 
-def _cubic_roots(c2: np.ndarray, c3: np.ndarray, c4: np.ndarray, c5: np.ndarray) -> list:
-    """Per interval, the roots of 20 c5 s³ + 12 c4 s² + 6 c3 s + 2 c2 exactly as
-    ``np.roots([20 c5, 12 c4, 6 c3, 2 c2])`` gives them (none where c3 = c4 = c5 = 0): the
-    eigenvalues of its companion matrix, those of every full cubic (c5 ≠ 0, c2 ≠ 0) from one
-    batched call of ``np.linalg.eigvals``, the others by ``np.roots`` itself."""
-    p = np.stack([20 * c5, 12 * c4, 6 * c3, 2 * c2], axis=1)
-    full = (p[:, 0] != 0) & (p[:, 3] != 0)
-    out: list = [None] * len(p)
-    if np.any(full):
-        rows = np.flatnonzero(full)
-        A = np.zeros((len(rows), 3, 3))
+def _cubic_roots(cubics: list[tuple[float, float, float, float]]) -> list:
+    """Per interval, the roots of 20 c5 s³ + 12 c4 s² + 6 c3 s + 2 c2 (``cubics``: each interval's
+    (c2, c3, c4, c5), floats) exactly as ``np.roots([20 c5, 12 c4, 6 c3, 2 c2])`` gives them (none
+    where c3 = c4 = c5 = 0): the eigenvalues of its companion matrix, those of every full cubic
+    (c5 ≠ 0, c2 ≠ 0) from one batched call of ``np.linalg.eigvals`` (the matrix's first row
+    −p[1:] / p[0] as np.roots makes it), the others by ``np.roots`` itself."""
+    polys = [(20 * c5, 12 * c4, 6 * c3, 2 * c2) for c2, c3, c4, c5 in cubics]
+    full = [k for k, p in enumerate(polys) if p[0] != 0 and p[3] != 0]
+    out: list = [None] * len(polys)
+    if full:
+        A = np.zeros((len(full), 3, 3))
         A[:, 1, 0] = A[:, 2, 1] = 1.0
-        A[:, 0, :] = -p[rows, 1:] / p[rows, :1]
-        for r, w in zip(rows, np.linalg.eigvals(A)):
-            out[r] = w
-    for r in np.flatnonzero(~full):
-        c = p[r]
-        out[r] = np.roots(c) if (c[0] or c[1] or c[2]) else []
+        A[:, 0, :] = [[-p[1] / p[0], -p[2] / p[0], -p[3] / p[0]] for p in (polys[k] for k in full)]
+        for k, w in zip(full, np.linalg.eigvals(A)):
+            out[k] = w
+    for k, p in enumerate(polys):
+        if out[k] is None:
+            out[k] = np.roots(p) if (p[0] or p[1] or p[2]) else []
     return out
 
 
@@ -190,13 +190,12 @@ class Trajectory:
         around = [i for i in around if 0 <= i and i + 1 < len(self.t) and self.t[i + 1] != self.t[i]]
         if not around:
             return self._flagged(best)
-        i = np.array(around)
-        h = self.t[i + 1] - self.t[i]
-        _, _, c2, c3, c4, c5 = self._coefficients(i, h)
+        h = [self.t[j + 1] - self.t[j] for j in around]
         # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³: its roots in (0, 1), interval by interval in
         # time order (a tie keeps the earlier), as np.roots finds them, the eigenvalues of the
-        # companion matrix, here of all the intervals' in one call
-        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(c2, c3, c4, c5))
+        # companion matrix, here of all the (few) intervals' in one call, their coefficients in floats
+        cubics = [self._coefficients(j, hj)[2:] for j, hj in zip(around, h)]
+        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(cubics))
                  for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
         if times:  # q̇ there as interpolate gives it, each (a few) in floats: ~1 µs, not ~50 of arrays
             i, h, s = self._locate(np.array(times))
