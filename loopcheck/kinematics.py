@@ -178,6 +178,14 @@ class Packer:
             h[tb + 2], h[tb + 3] = self.float(offset), self.float(w)
             h[tb + 4], h[tb + 5], h[tb + 6] = self.int(row), self.int(mag), self.int(angle)
 
+    def copy(self) -> "Packer":
+        """A packer holding what this one holds (the arrays packed so far shared, read-only; the
+        header copied), to append to apart."""
+        other = Packer.__new__(Packer)
+        other.F, other.I = list(self.F), [self.I[0].copy(), *self.I[1:]]
+        other.nf, other.ni, other.header = self.nf, self.ni, other.I[0]
+        return other
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         return np.concatenate(self.F) if self.F else np.zeros(1), np.concatenate(self.I)
 
@@ -605,6 +613,19 @@ def _mode_signs(block: np.ndarray) -> np.ndarray:
 def assembly_mode(system: LoopSystem, x: np.ndarray) -> tuple[int, ...]:
     """:func:`assembly_modes` of one configuration, as a tuple."""
     return tuple(int(v) for v in assembly_modes(system, np.asarray(x, dtype=float)))
+
+
+def unwrap_angles(angles: np.ndarray) -> np.ndarray:
+    """Angles sampled along a run (samples, columns) made continuous (no 2π jumps): exactly
+    ``np.unwrap(angles, axis=0)``, which a run whose samples never jump by π or more (every run
+    sampled finely enough) gets without its corrections: their sum is +0.0 there, so the result is
+    the angles + 0.0 (−0.0 becomes +0.0, as in np.unwrap)."""
+    steps = np.diff(angles, axis=0)
+    if not np.all(np.abs(steps) < math.pi):  # a jump to correct (or a value not finite)
+        return np.unwrap(angles, axis=0)
+    out = np.array(angles, dtype=float)
+    out[1:] += 0.0
+    return out
 
 
 def jacobian_rank(system: LoopSystem, x: np.ndarray, rtol: float = RANK_RTOL) -> int:

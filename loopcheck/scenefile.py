@@ -571,11 +571,12 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
             raise SceneError("'initial.guess' and 'initial.mode' are for a planar linkage: the four-bar "
                              "shorthand assembles on 'linkage.branch'")
         init.close()
-        x0 = _assemble_four_bar(system, four_bar, q0)
+        x0, found_mode = _assemble_four_bar(system, four_bar, q0)
     else:
         guess = _parse_guess(guess_t, system, linkage) if guess_t is not None else np.zeros(system.n)
         init.close()
         x0 = _assemble(system, q0s, guess, mode, linkage)
+        found_mode = loops.assembly_mode(system, x0)
         note = redundancy_note(linkage, system, x0)
         if note is not None:
             warnings.warn(f"{source or f'scene {name!r}'}: {note}", GrublerCountWarning, stacklevel=2)
@@ -585,7 +586,7 @@ def scene_from_dict(data: Mapping[str, Any], source: str = "<memory>") -> Scene:
 
     scene = Scene(name=name, description=description, mechanism=mechanism, load=load, gravity=gravity,
                   q0=q0, qdot0=qdot0, x0=tuple(float(v) for v in x0),
-                  mode=loops.assembly_mode(system, x0), horizon=horizon, tolerances=tolerances,
+                  mode=found_mode, horizon=horizon, tolerances=tolerances,
                   engine_tables=engine_tables, source=source, four_bar=four_bar, engine_tolerances=engine_tolerances,
                   inputs_q0=q0s if several else (), inputs_qdot0=qdot0s if several else ())
     return scene
@@ -675,7 +676,7 @@ def redundancy_note(linkage: Linkage, system, x0: np.ndarray) -> str | None:
 ASSEMBLY_CACHE = 64
 """How many four-bar assemblies :func:`_assemble_four_bar` keeps (a sweep's variants that change
 no length nor q0 share one)."""
-_ASSEMBLIES: dict[tuple, np.ndarray] = {}
+_ASSEMBLIES: dict[tuple, tuple[np.ndarray, tuple[int, ...]]] = {}
 
 
 def _assembly_key(system, g: FourBarGeometry, q0: float) -> tuple:
@@ -688,23 +689,26 @@ def _assembly_key(system, g: FourBarGeometry, q0: float) -> tuple:
             system.rows, tuple((a.dtype.str, a.shape, a.tobytes()) for a in arrays))
 
 
-def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> np.ndarray:
-    """Newton from the closed form's assembly on the scene's branch, checked to stay there.
+def _assemble_four_bar(system, g: FourBarGeometry, q0: float) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Newton from the closed form's assembly on the scene's branch, checked to stay there, and its
+    assembly mode (:func:`loopcheck.kinematics.assembly_mode`).
 
     The closed form, not Newton from a rough guess on the branch: that changes x0's last bits,
     which moved the shipped runs by up to 1.7e-6, and cannot reach a limit position, a double
     root (docs/architecture.md, "The four-bar closed form").
 
     Kept for the next scene of the same key (:func:`_assembly_key`; at most
-    :data:`ASSEMBLY_CACHE`, the oldest dropped): the same deterministic answer, a copy."""
+    :data:`ASSEMBLY_CACHE`, the oldest dropped): the same deterministic answer, a copy of x0."""
     key = _assembly_key(system, g, q0)
-    x0 = _ASSEMBLIES.get(key)
-    if x0 is None:
+    found = _ASSEMBLIES.get(key)
+    if found is None:
         x0 = _assemble_four_bar_now(system, g, q0)
+        found = x0, loops.assembly_mode(system, x0)
         while len(_ASSEMBLIES) >= ASSEMBLY_CACHE:
             _ASSEMBLIES.pop(next(iter(_ASSEMBLIES), None), None)
-        _ASSEMBLIES[key] = x0
-    return x0.copy()
+        _ASSEMBLIES[key] = found
+    x0, mode = found
+    return x0.copy(), mode
 
 
 def _assemble_four_bar_now(system, g: FourBarGeometry, q0: float) -> np.ndarray:

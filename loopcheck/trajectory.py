@@ -51,25 +51,35 @@ class Peak:
     still_rising: bool = False
 
 
-def _cubic_roots(c2: np.ndarray, c3: np.ndarray, c4: np.ndarray, c5: np.ndarray) -> list:
-    """Per interval, the roots of 20 c5 s³ + 12 c4 s² + 6 c3 s + 2 c2 exactly as
-    ``np.roots([20 c5, 12 c4, 6 c3, 2 c2])`` gives them (none where c3 = c4 = c5 = 0): the
-    eigenvalues of its companion matrix, those of every full cubic (c5 ≠ 0, c2 ≠ 0) from one
-    batched call of ``np.linalg.eigvals``, the others by ``np.roots`` itself."""
-    p = np.stack([20 * c5, 12 * c4, 6 * c3, 2 * c2], axis=1)
-    full = (p[:, 0] != 0) & (p[:, 3] != 0)
-    out: list = [None] * len(p)
-    if np.any(full):
-        rows = np.flatnonzero(full)
-        A = np.zeros((len(rows), 3, 3))
+def _cubic_roots(cubics: list[tuple[float, float, float, float]]) -> list:
+    """Per interval, the roots of 20 c5 s³ + 12 c4 s² + 6 c3 s + 2 c2 (``cubics``: each interval's
+    (c2, c3, c4, c5), floats) exactly as ``np.roots([20 c5, 12 c4, 6 c3, 2 c2])`` gives them (none
+    where c3 = c4 = c5 = 0): the eigenvalues of its companion matrix, those of every full cubic
+    (c5 ≠ 0, c2 ≠ 0) from one batched call of ``np.linalg.eigvals`` (the matrix's first row
+    −p[1:] / p[0] as np.roots makes it), the others by ``np.roots`` itself."""
+    polys = [(20 * c5, 12 * c4, 6 * c3, 2 * c2) for c2, c3, c4, c5 in cubics]
+    full = [k for k, p in enumerate(polys) if p[0] != 0 and p[3] != 0]
+    out: list = [None] * len(polys)
+    if full:
+        A = np.zeros((len(full), 3, 3))
         A[:, 1, 0] = A[:, 2, 1] = 1.0
-        A[:, 0, :] = -p[rows, 1:] / p[rows, :1]
-        for r, w in zip(rows, np.linalg.eigvals(A)):
-            out[r] = w
-    for r in np.flatnonzero(~full):
-        c = p[r]
-        out[r] = np.roots(c) if (c[0] or c[1] or c[2]) else []
+        A[:, 0, :] = [[-p[1] / p[0], -p[2] / p[0], -p[3] / p[0]] for p in (polys[k] for k in full)]
+        for k, w in zip(full, np.linalg.eigvals(A)):
+            out[k] = w
+    for k, p in enumerate(polys):
+        if out[k] is None:
+            out[k] = np.roots(p) if (p[0] or p[1] or p[2]) else []
     return out
+
+
+def _quintic(c: tuple, s, h) -> tuple:
+    """q, q̇, q̈ of the quintic with coefficients ``c`` (c0..c5 in s = (t − t_i)/h) at s, on intervals
+    of length h: arrays or floats alike (the same operations in the same order: the same bits)."""
+    c0, c1, c2, c3, c4, c5 = c
+    q = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+    v = (c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
+    a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
+    return q, v, a
 
 
 @dataclass(frozen=True)
@@ -94,13 +104,14 @@ class Trajectory:
         for name, a in arrays.items():
             if a.ndim != 1 or a.shape != n:
                 raise ValueError(f"Trajectory.{name} must have shape {n}, got {a.shape}")
-            if not np.all(np.isfinite(a)):
+            if not np.isfinite(a).all():
                 raise ValueError(f"Trajectory.{name} contains NaN or inf")
             a.setflags(write=False)
             object.__setattr__(self, name, a)
         if n[0] < 2:
             raise ValueError("a trajectory needs at least two samples")
-        if np.any(np.diff(arrays["t"]) < 0):
+        t = arrays["t"]
+        if (t[1:] < t[:-1]).any():
             raise ValueError("Trajectory.t must be non-decreasing")
         if not isinstance(self.refined_extrema, (bool, np.bool_)):
             raise ValueError(f"Trajectory.refined_extrema must be True or False, got {self.refined_extrema!r}")
@@ -110,8 +121,9 @@ class Trajectory:
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])
 
-    def _coefficients(self, i: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Polynomial coefficients c0..c5 in s = (t − t_i)/h on intervals i."""
+    def _coefficients(self, i, h) -> tuple:
+        """Polynomial coefficients c0..c5 in s = (t − t_i)/h on intervals i (an array, or one index
+        and its length h as floats)."""
         q0, v0, a0 = self.q[i], self.qdot[i], self.qddot[i]
         q1, v1, a1 = self.q[i + 1], self.qdot[i + 1], self.qddot[i + 1]
         c0, c1, c2 = q0, h * v0, 0.5 * h * h * a0
@@ -142,11 +154,7 @@ class Trajectory:
         if np.any(times < self.t[0] - 1e-12) or np.any(times > self.t[-1] + 1e-12):
             raise ValueError("interpolation outside the trajectory's time span")
         i, h, s = self._locate(times)
-        c0, c1, c2, c3, c4, c5 = self._coefficients(i, h)
-        q = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
-        v = (c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
-        a = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / (h * h)
-        return q, v, a
+        return _quintic(self._coefficients(i, h), s, h)
 
     def peak_rate(self, sign: int | None = None) -> Peak:
         """The largest |q̇| over the run (rad/s, or m/s for a prismatic input), located between
@@ -182,16 +190,16 @@ class Trajectory:
         around = [i for i in around if 0 <= i and i + 1 < len(self.t) and self.t[i + 1] != self.t[i]]
         if not around:
             return self._flagged(best)
-        i = np.array(around)
-        h = self.t[i + 1] - self.t[i]
-        _, _, c2, c3, c4, c5 = self._coefficients(i, h)
+        h = [self.t[j + 1] - self.t[j] for j in around]
         # q̈ ∝ 2 c2 + 6 c3 s + 12 c4 s² + 20 c5 s³: its roots in (0, 1), interval by interval in
         # time order (a tie keeps the earlier), as np.roots finds them, the eigenvalues of the
-        # companion matrix, here of all the intervals' in one call
-        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(c2, c3, c4, c5))
+        # companion matrix, here of all the (few) intervals' in one call, their coefficients in floats
+        cubics = [self._coefficients(j, hj)[2:] for j, hj in zip(around, h)]
+        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(cubics))
                  for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-        if times:
-            _, v, _ = self.interpolate(np.array(times))
+        if times:  # q̇ there as interpolate gives it, each (a few) in floats: ~1 µs, not ~50 of arrays
+            i, h, s = self._locate(np.array(times))
+            v = [_quintic(self._coefficients(j, hj), sj, hj)[1] for j, hj, sj in zip(i.tolist(), h.tolist(), s.tolist())]
             for t, vt in zip(times, v):
                 better = abs(vt) > abs(best.omega) if sign is None else sign * vt > sign * best.omega
                 if better:

@@ -395,10 +395,11 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, metho
     """A :class:`PartitionedSolution` from a compiled partitioned run."""
     t, value, rate, accel, observed, energy = run.samples.arrays()
     cuts = run.segment_starts[1:]
+    bounds = [0, *(int(c) for c in cuts), len(t)]
     segments = []
-    for k, rows in enumerate(np.split(np.arange(len(t)), cuts)):
+    for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):  # (views of the samples' fresh copies)
         chart = Chart(model, int(run.coordinates[k]), run.starts[k][0])
-        traj = Trajectory(t[rows], value[rows], rate[rows], accel[rows])
+        traj = Trajectory(t[a:b], value[a:b], rate[a:b], accel[a:b])
         stopped = k + 1 < len(run.coordinates)
         first = k == 0  # the run's counts go with its first segment
         segments.append((chart, Solution(traj, method, run.outcome.n_steps if first else 0,
@@ -432,7 +433,7 @@ def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajec
         coords.append(np.full(len(tr.t), chart.independent))
     x = np.concatenate(xs)
     angles = model.angle_columns
-    x[:, angles] = np.unwrap(x[:, angles], axis=0)  # continuous angles (no 2π jumps)
+    x[:, angles] = loops.unwrap_angles(x[:, angles])  # continuous angles (no 2π jumps)
     t = np.concatenate(ts)
     joints = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
                              loops.assembly_modes(model.system, x).reshape(len(t), -1))

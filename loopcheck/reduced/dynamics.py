@@ -172,9 +172,9 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     pf = mech.point_forces
     splines = _splines(tuple(TabulatedForce(p.coordinate, p.values, p.period) for p in pf))
     tf = mech.timed_forces
-    tables, plans = _kinematic_tables(system, ends, [system.point_index(p.body, p.point) for p in pf + tf])
-    P = loops.Packer(physics.HEADER)
-    P.kinematics(system.n, len(linkage.moving), tables, system.linear, system.couplings)
+    packed, plans = _kinematic_tables(system, len(linkage.moving), ends,
+                                      [system.point_index(p.body, p.point) for p in pf + tf])
+    P = packed.copy()
     h = P.header
     h[physics.N_DAMPERS] = len(mech.dampers)
     h[physics.N_ELEMENTS], h[physics.N_FORCES] = len(elements), len(pf)
@@ -227,13 +227,16 @@ def build_arrays(scene: Scene, system: loops.LoopSystem) -> Model:
     return Model(*P.arrays())
 
 
-def _kinematic_tables(system: loops.LoopSystem, ends: list[int], forces: list[int]) -> tuple[tuple, tuple]:
+def _kinematic_tables(system: loops.LoopSystem, n_moving: int, ends: list[int],
+                      forces: list[int]) -> tuple[loops.Packer, tuple]:
     """The kinematics' tables (:mod:`loopcheck.kernels.loops`: LOOPS, then physics' CENTRES, ENDS
-    of the elements' points ``ends``, FORCE_POINTS of the forces' points ``forces``) and the
-    closed form's plans (:func:`dyad_plans`), made once per system and points (kept with the
-    system, as its kernels are: a sweep's variants of one geometry share them; read-only arrays)."""
+    of the elements' points ``ends``, FORCE_POINTS of the forces' points ``forces``) packed with
+    the kinematics' header (:meth:`loopcheck.kinematics.Packer.kinematics`; copy the packer to
+    append the rest), and the closed form's plans (:func:`dyad_plans`), made once per system,
+    moving bodies and points (kept with the system, as its kernels are: a sweep's variants of one
+    geometry share them; read-only arrays)."""
     cache = system.__dict__.setdefault("_physics_tables", {})
-    key = (tuple(ends), tuple(forces))
+    key = (n_moving, tuple(ends), tuple(forces))
     if key not in cache:
         tables = (loops.kernel_table(system.loops), loops.kernel_table(system.centres),
                   loops.kernel_table(system.points, ends), loops.kernel_table(system.points, forces))
@@ -241,7 +244,11 @@ def _kinematic_tables(system: loops.LoopSystem, ends: list[int], forces: list[in
             for a in table:
                 a.setflags(write=False)
         plans = dyad_plans(system.n, tables[0], len(system.linear) + len(system.coupling_rows))
-        cache[key] = tables, plans
+        packed = loops.Packer(physics.HEADER)
+        packed.kinematics(system.n, n_moving, tables, system.linear, system.couplings)
+        for a in packed.F + packed.I[1:]:
+            a.setflags(write=False)
+        cache[key] = packed, plans
     return cache[key]
 
 

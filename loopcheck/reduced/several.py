@@ -882,7 +882,7 @@ def run_several(scene: Scene, settings: ReducedSettings = ReducedSettings(), ste
     check_dropped(model, t, x)
     xdot = np.concatenate(record.xdot)
     xdd = np.concatenate(record.xdd)
-    x[:, model.angle_columns] = np.unwrap(x[:, model.angle_columns], axis=0)
+    x[:, model.angle_columns] = loops.unwrap_angles(x[:, model.angle_columns])
     trajectories = [Trajectory(t, x @ r, xdot @ r, xdd @ r) for r in model.input_rows]
     joints = JointTrajectory(model.system.coordinate_names, t, x, xdot, np.full(len(t), -1),
                              loops.assembly_modes(model.system, x).reshape(len(t), -1))

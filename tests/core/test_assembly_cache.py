@@ -1,7 +1,7 @@
 """The four-bar shorthand's assembly is kept for the next scene of the same lengths, branch, q0 and
 loop system (loopcheck.scenefile._ASSEMBLIES: a sweep's variants of the masses and dampers share
-it); a scene that changes any of them is assembled on its own. Compared exactly with the
-uncached assembly: the cache may only return what assembling would."""
+it, with its assembly mode); a scene that changes any of them is assembled on its own. Compared exactly
+with the uncached assembly: the cache may only return what assembling would."""
 
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ from loopcheck.scenefile import scene_from_dict
 from helpers import seed_dict
 
 
-def fresh_x0(data: dict) -> np.ndarray:
-    """x0 of the scene assembled without the cache."""
+def fresh(data: dict):
+    """The scene assembled without the cache."""
     saved = dict(scenefile._ASSEMBLIES)
     scenefile._ASSEMBLIES.clear()
     try:
-        return np.array(scene_from_dict(data).x0)
+        return scene_from_dict(data)
     finally:
         scenefile._ASSEMBLIES.clear()
         scenefile._ASSEMBLIES.update(saved)
@@ -39,10 +39,13 @@ def changed(path: str, value) -> dict:
 def test_a_scene_that_changes_the_assembly_is_assembled_on_its_own(path, value):
     seed = scene_from_dict(seed_dict())  # the seed's assembly in the cache first
     other = changed(path, value)
-    x0 = np.array(scene_from_dict(other).x0)
-    assert np.array_equal(x0, fresh_x0(other))
+    scene, own = scene_from_dict(other), fresh(other)
+    x0 = np.array(scene.x0)
+    assert np.array_equal(x0, np.array(own.x0)) and scene.mode == own.mode  # its assembly mode is kept with x0
     if path != "initial.q" or value != -0.0:
         assert not np.array_equal(x0, np.array(seed.x0))
+    if path == "linkage.branch":
+        assert scene.mode != seed.mode
 
 
 def test_a_variant_of_a_mass_and_a_damper_shares_the_assembly():
@@ -52,7 +55,9 @@ def test_a_variant_of_a_mass_and_a_damper_shares_the_assembly():
     n = len(scenefile._ASSEMBLIES)
     second = scene_from_dict(data)
     assert len(scenefile._ASSEMBLIES) == n  # no new entry: the same key
-    assert second.x0 == first.x0 and np.array_equal(np.array(second.x0), fresh_x0(data))
+    own = fresh(data)
+    assert second.x0 == first.x0 and np.array_equal(np.array(second.x0), np.array(own.x0))
+    assert second.mode == first.mode == own.mode
 
 
 def test_the_cache_is_bounded():

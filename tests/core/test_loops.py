@@ -397,3 +397,20 @@ def test_independent_rows_of_a_linkage_without_redundancy_are_all_its_rows(case)
     np.testing.assert_array_equal(assemble(chosen, q0, guess), x0)
     for a, b in zip(coefficients(chosen, x0), coefficients(system, x0)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_unwrap_angles_is_numpys_unwrap_bit_for_bit():
+    """loopcheck.kinematics.unwrap_angles saves np.unwrap's corrections where no sample jumps by π:
+    its result must be np.unwrap's exactly (bits, −0.0 included) with jumps and without."""
+    from loopcheck.kinematics import unwrap_angles
+
+    rng = np.random.default_rng(3)
+    smooth = np.cumsum(rng.uniform(-1.0, 1.0, (200, 3)), axis=0)
+    smooth[5, 1] = smooth[0, 2] = -0.0
+    jumps = smooth.copy()
+    jumps[100:, 0] += 2 * np.pi  # a 2π jump to remove
+    jumps[50, 2] = jumps[49, 2] + np.pi  # a jump of exactly π (np.unwrap keeps it)
+    for angles in (smooth, jumps, smooth[:1], np.array([[np.nan, 0.0], [1.0, -0.0]])):
+        got, want = unwrap_angles(angles), np.unwrap(angles, axis=0)
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))  # bits: −0.0 is not 0.0

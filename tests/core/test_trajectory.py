@@ -139,7 +139,7 @@ def test_the_peaks_cubic_roots_are_np_roots_bit_for_bit():
     c5[::7] = 0.0
     c2[::11] = 0.0
     c3[::13] = c4[::13] = c5[::13] = 0.0
-    for k, roots in enumerate(_cubic_roots(c2, c3, c4, c5)):
+    for k, roots in enumerate(_cubic_roots(list(zip(c2.tolist(), c3.tolist(), c4.tolist(), c5.tolist())))):
         p = [20 * c5[k], 12 * c4[k], 6 * c3[k], 2 * c2[k]]
         expected = np.roots(p) if (c5[k] or c4[k] or c3[k]) else []
         assert len(roots) == len(expected)
