@@ -127,24 +127,64 @@ def _cell(value: Any) -> Any:
 
 def parse_cell(column: str, text: str) -> Any:
     """The value of a cell of ``column`` written as ``text`` (None: not measured)."""
+    return cell_parser(column)(text)
+
+
+def _text(text: str) -> Any:
+    return text
+
+
+def _measured(read: Callable[[str], Any]) -> Callable[[str], Any]:
+    def parse(text: str) -> Any:
+        return None if text == "" else read(text)
+    return parse
+
+
+def _number(text: str) -> Any:
+    return text == "true" if text in ("true", "false") else float(text)
+
+
+def _count(text: str) -> Any:
+    return text == "true" if text in ("true", "false") else int(float(text))
+
+
+_TEXT, _LIST, _NUMBER, _COUNT = _text, _measured(json.loads), _measured(_number), _measured(_count)
+
+
+def cell_parser(column: str) -> Callable[[str], Any]:
+    """:func:`parse_cell` of ``column``, chosen once for all its cells (:func:`read_rows`)."""
     if column in ("status", "reason"):
-        return text
+        return _TEXT
     if column == "index":
-        return int(text)
-    if text == "":
-        return None
+        return int
     if is_list_column(column):
-        return json.loads(text)
-    if text in ("true", "false"):
-        return text == "true"
-    value = float(text)
-    return int(value) if column.endswith(("n_steps", "mode_mismatches_total")) else value
+        return _LIST
+    return _COUNT if column.endswith(("n_steps", "mode_mismatches_total")) else _NUMBER
 
 
 def read_rows(path: str | Path) -> Iterator[dict[str, Any]]:
-    """The rows of a sweep.csv, one at a time, with their types (None: not measured)."""
+    """The rows of a sweep.csv, one at a time, with their types (None: not measured): each
+    column's :func:`parse_cell`, chosen once (a row of another length, as ``csv.DictReader``
+    reads it: a cell past the header under the key None, a missing one as None; so a header
+    that names a column twice)."""
     with open(path, newline="", encoding="utf-8") as f:
-        for raw in csv.DictReader(f):
+        reader = csv.reader(f)
+        header = next(reader, None)
+        if header is None:
+            return
+        parsers = [cell_parser(k) for k in header]
+        unique = len(set(header)) == len(header)  # else as DictReader: the last cell of a name, alone parsed
+        for cells in reader:
+            if not cells:  # a blank line (DictReader skips it)
+                continue
+            if len(cells) == len(header) and unique:
+                yield {k: parse(v) for k, parse, v in zip(header, parsers, cells)}
+                continue
+            raw: dict[Any, Any] = dict(zip(header, cells))
+            if len(cells) < len(header):
+                raw.update((k, None) for k in header[len(cells):])
+            elif len(cells) > len(header):
+                raw[None] = cells[len(header):]
             yield {k: parse_cell(k, v) for k, v in raw.items()}
 
 
