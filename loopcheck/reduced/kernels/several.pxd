@@ -67,6 +67,7 @@ cdef class Several(VectorRightHandSide):
     cpdef mark(self)
     cpdef rewind(self)
     cpdef reset(self)
+    cdef void _project_out(self, double[:, ::1] a, Py_ssize_t i, double[:, ::1] b, Py_ssize_t count) noexcept
     cdef double _sigma_ratio(self, long long[::1] S) except? -1
     cdef int _best_set(self) except -1
     cpdef double stop_margin(self, double t, double[::1] q, double[::1] v)

@@ -1337,6 +1337,23 @@ class Several(VectorRightHandSide):
     # -- coordinate sets ----------------------------------------------------------------------
 
     @cython.cfunc
+    @cython.exceptval(check=False)
+    def _project_out(self, a: cython.double[:, ::1], i: cython.Py_ssize_t, b: cython.double[:, ::1],
+                     count: cython.Py_ssize_t) -> cython.void:
+        """One pass of modified Gram-Schmidt: row i of ``a`` less its components along the first
+        ``count`` rows of ``b`` (orthonormal), one after the other."""
+        n: cython.Py_ssize_t = self.n
+        l: cython.Py_ssize_t
+        j: cython.Py_ssize_t
+        v: cython.double
+        for l in range(count):
+            v = 0.0
+            for j in range(n):
+                v += b[l, j] * a[i, j]
+            for j in range(n):
+                a[i, j] -= v * b[l, j]
+
+    @cython.cfunc
     @cython.exceptval(-1, check=True)
     def _sigma_ratio(self, S: cython.longlong[::1]) -> cython.double:
         """σ_min/σ_max of the dependent block D_S = Φ_x Zᵀ of the joints S (k indices into the joint
@@ -1370,12 +1387,7 @@ class Several(VectorRightHandSide):
             for j in range(n):
                 big += self.U[i, j] * self.U[i, j]
             for p in range(2):
-                for l in range(i):
-                    v = 0.0
-                    for j in range(n):
-                        v += self.U[l, j] * self.U[i, j]
-                    for j in range(n):
-                        self.U[i, j] -= v * self.U[l, j]
+                self._project_out(self.U, i, self.U, i)
             v = 0.0
             for j in range(n):
                 v += self.U[i, j] * self.U[i, j]
@@ -1419,18 +1431,8 @@ class Several(VectorRightHandSide):
                 self.Z[r, j] = 0.0
             self.Z[r, best] = 1.0
             for p in range(2):
-                for l in range(kk):
-                    v = 0.0
-                    for j in range(n):
-                        v += self.U[l, j] * self.Z[r, j]
-                    for j in range(n):
-                        self.Z[r, j] -= v * self.U[l, j]
-                for l in range(r):
-                    v = 0.0
-                    for j in range(n):
-                        v += self.Z[l, j] * self.Z[r, j]
-                    for j in range(n):
-                        self.Z[r, j] -= v * self.Z[l, j]
+                self._project_out(self.Z, r, self.U, kk)
+                self._project_out(self.Z, r, self.Z, r)
             v = 0.0
             for j in range(n):
                 v += self.Z[r, j] * self.Z[r, j]
@@ -1490,7 +1492,6 @@ class Several(VectorRightHandSide):
         kk: cython.Py_ssize_t = self.k
         nj: cython.Py_ssize_t = self.nj
         i: cython.Py_ssize_t
-        l: cython.Py_ssize_t
         j: cython.Py_ssize_t
         r: cython.Py_ssize_t
         p: cython.Py_ssize_t
@@ -1501,12 +1502,7 @@ class Several(VectorRightHandSide):
             for j in range(n):
                 self.U[i, j] = self.K[i, j]
             for p in range(2):
-                for l in range(i):
-                    v = 0.0
-                    for j in range(n):
-                        v += self.U[l, j] * self.U[i, j]
-                    for j in range(n):
-                        self.U[i, j] -= v * self.U[l, j]
+                self._project_out(self.U, i, self.U, i)
             v = 0.0
             for j in range(n):
                 v += self.U[i, j] * self.U[i, j]
