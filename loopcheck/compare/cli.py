@@ -39,8 +39,7 @@ if _AS_COMMAND:
         if signal.getsignal(_signum) is not signal.SIG_IGN:  # nohup's or a background job's choice stays
             signal.signal(_signum, _ended_at_start_up)
 
-import argparse
-from functools import partial  # noqa: E402 - after the start-up handlers: a signal while these load is one line
+import argparse  # noqa: E402 - after the start-up handlers: a signal while these load is one line
 import contextlib  # noqa: E402
 import logging  # noqa: E402
 import warnings
@@ -406,7 +405,6 @@ def cmd_check(args: argparse.Namespace) -> int:
     models = {path: _import(args, path) for path in args.scenes if _is_mjcf(path)}
     scenes = [_run_scene(args, path) for path in args.scenes if not _is_mjcf(path)]  # all bad input first
     if args.engines is not None:  # a model: the engine that read it runs it as written, the others its scene as imported
-        _load_extras(args.engines)  # a missing extra: one line, before anything is printed
         return _check_engines(args, scenes, models)
     for path, scene in [*((p, m.scene) for p, m in models.items()), *((s.source, s) for s in scenes)]:
         try:  # the reference's refusals, before anything is printed
@@ -468,8 +466,8 @@ def _engines(text: str) -> tuple[str, ...]:
 
 def _engines_check(args: argparse.Namespace, scene, as_written=None, refuse=None):
     """``--engines``: each engine of the list run on ``scene`` and judged against the reduced
-    reference at its own tolerances (the flags given over the scene's for it); ``as_written``:
-    and ``refuse``: :func:`loopcheck.compare.engines.check_engines`' (a user's model run as written)."""
+    reference at its own tolerances (the flags given over the scene's for it); ``as_written`` and
+    ``refuse`` as :func:`loopcheck.compare.engines.check_engines` takes them (a user's model)."""
     from .engines import check_engines
     from .settings import engine_settings
 
@@ -504,9 +502,8 @@ def _check_engines(args: argparse.Namespace, scenes: list, models: dict | None =
         for line in imported.said:
             print(f"{path}: {line}")
         reader = reader_of(imported)
-        read_at = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
-        vacuous = partial(reader.models.refuse_vacuous, tolerances=_tolerances(imported.scene, args, reader.name),
-                          where=f"{path} (read at {read_at})", unit=imported.scene.input_unit)
+        vacuous = partial(reader.models.refuse_vacuous_model, imported,
+                          tolerances=_tolerances(imported.scene, args, reader.name))
         as_written = (reader.name, f"{path} as written (the others: its scene as imported)",
                       partial(reader.models.run_model, imported))
         check = _engines_check(args, imported.scene, as_written, vacuous)

@@ -147,8 +147,9 @@ def check_engines(scene: Scene, engines: tuple[str, ...], settings: Mapping[str,
 
     ``as_written``: (engine, what, run) where ``scene`` was read from a user's model: that engine
     (the one that read the file) runs the model as written, ``run()``, instead of its own model of
-    the scene, and its verdict says ``what`` ran; the others run the scene as imported. ``refuse``: called with the reference's result before
-    any other engine runs; what it raises (a check that could not fail) stops the check.
+    the scene, and its verdict says ``what`` ran; the others run the scene as imported.
+    ``refuse``: called with the reference's result before any other engine runs; what it raises
+    (a check that could not fail) stops the check.
 
     Raises
     ------

@@ -76,6 +76,14 @@ def refuse_vacuous(reference: EngineResult, tolerances: Tolerances, where: str, 
                            "--ctrl, or read a keyframe with rates or control with --keyframe")
 
 
+def refuse_vacuous_model(imported: ImportedModel, reference: EngineResult, *, tolerances: Tolerances) -> None:
+    """:func:`refuse_vacuous` for the user's model ``imported``, named by its file and the state it
+    was read at (a keyframe or qpos0)."""
+    scene = imported.scene
+    read_at = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
+    refuse_vacuous(reference, tolerances, f"{scene.source or scene.name} (read at {read_at})", scene.input_unit)
+
+
 @dataclass(frozen=True)
 class Trial:
     """One run of the model with ``options``: its comparison with the reference, or why it failed."""
@@ -310,8 +318,7 @@ def check_model(imported: ImportedModel, reference: EngineResult, judge: Judge, 
     """
     scene = imported.scene
     tolerances = tolerances or scene.tolerances
-    read_at = f"keyframe '{imported.keyframe}'" if imported.keyframe else "qpos0"
-    refuse_vacuous(reference, tolerances, f"{scene.source or scene.name} (read at {read_at})", scene.input_unit)
+    refuse_vacuous_model(imported, reference, tolerances=tolerances)
     written = ModelOptions.as_written(imported.model)
 
     def trial(label: str, options: ModelOptions, budget: int | None = None) -> Trial:
@@ -441,4 +448,5 @@ def diagnosis_lines(check: ModelCheck) -> list[str]:
 
 
 __all__ = ["FRICTION_CAUSE", "MARGIN", "MAX_HALVINGS", "SEARCH_STEPS", "TRIAL_STEPS", "ModelCheck", "Trial", "VacuousCheck",
-           "check_lines", "check_model", "diagnosis_lines", "friction_snippet", "reference_failure_lines", "refuse_vacuous"]
+           "check_lines", "check_model", "diagnosis_lines", "friction_snippet", "reference_failure_lines", "refuse_vacuous",
+           "refuse_vacuous_model"]

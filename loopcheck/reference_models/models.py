@@ -9,7 +9,7 @@ scene at a keyframe or qpos0, an ``ImportedModel``), ``import_loop`` (one loop c
 as written, run: ``check model.xml --engines``), and the check of the model
 as written against the reduced reference (:mod:`loopcheck.reference_models.model_check`:
 ``check_model``, ``check_lines``, ``diagnosis_lines``, ``reference_failure_lines``, ``VacuousCheck``,
-``refuse_vacuous``).
+``refuse_vacuous_model``).
 Each name loads its module on first use.
 """
 
@@ -26,7 +26,7 @@ _HOMES = {
     **dict.fromkeys(("input_coordinate", "run_model"), ".user_model"),
     "model_text": (".run", "mjcf_text"),
     **dict.fromkeys(("VacuousCheck", "check_lines", "check_model", "diagnosis_lines", "reference_failure_lines",
-                     "refuse_vacuous"),
+                     "refuse_vacuous_model"),
                     ".model_check"),
 }
 __getattr__, __dir__, _names = lazy_names("loopcheck.reference_models", _HOMES, globals())
