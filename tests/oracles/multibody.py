@@ -431,14 +431,7 @@ def simulate_friction(model: Model, pin: str, friction: float, q0, qd0, t_eval, 
         else:
             def event(tt, y, s=s):
                 return s * float(row @ y[n:])
-        event.terminal, event.direction = True, -1
-        sol = solve_ivp(rhs, (t, hi), np.concatenate([q, qd]), method="DOP853", rtol=rtol, atol=rtol * 1e-2,
-                        dense_output=True, events=[event])
-        if not sol.success:
-            raise RuntimeError(sol.message)
-        stop = float(sol.t[-1])
-        inside = t_eval[(t_eval >= t) & (t_eval < stop)] if sol.status == 1 or stop < end else \
-            t_eval[(t_eval >= t) & (t_eval <= stop)]
+        sol, stop, inside = _leg(rhs, t, hi, q, qd, [event], rtol, t_eval)
         if inside.size:
             Y = sol.sol(inside)
             ts.append(inside)
@@ -599,15 +592,7 @@ def simulate_frictions(model: Model, frictions: dict, q0, qd0, t_eval, rtol: flo
             def hold_event(tt, y, m=m):
                 return hold_margin(m, t_load, y[:n], y[n:], frictions)[0]
             evs.append(hold_event)
-        for ev in evs:
-            ev.terminal, ev.direction = True, -1
-        sol = solve_ivp(rhs, (t, hi), np.concatenate([q, qd]), method="DOP853", rtol=rtol, atol=rtol * 1e-2,
-                        dense_output=True, events=evs)
-        if not sol.success:
-            raise RuntimeError(sol.message)
-        stop = float(sol.t[-1])
-        inside = t_eval[(t_eval >= t) & (t_eval < stop)] if sol.status == 1 or stop < end else \
-            t_eval[(t_eval >= t) & (t_eval <= stop)]
+        sol, stop, inside = _leg(rhs, t, hi, q, qd, evs, rtol, t_eval)
         if inside.size:
             Y = sol.sol(inside)
             ts.append(inside)
@@ -630,6 +615,22 @@ def simulate_frictions(model: Model, frictions: dict, q0, qd0, t_eval, rtol: flo
         else:
             edges.pop(0)
     return FrictionsRun(np.concatenate(ts), np.vstack(qs), np.vstack(qds), events, np.concatenate(margins))
+
+
+def _leg(rhs, t: float, hi: float, q, qd, events: list, rtol: float, t_eval):
+    """One leg of the friction oracles: solve_ivp's DOP853 from (t, q, q̇) towards ``hi``, stopped
+    by the first of ``events`` to fall through zero. Returns (the solution, the time it stopped,
+    the times of ``t_eval`` it covers: up to the stop, the stop itself only at the run's end)."""
+    for ev in events:
+        ev.terminal, ev.direction = True, -1
+    sol = solve_ivp(rhs, (t, hi), np.concatenate([q, qd]), method="DOP853", rtol=rtol, atol=rtol * 1e-2,
+                    dense_output=True, events=events)
+    if not sol.success:
+        raise RuntimeError(sol.message)
+    stop = float(sol.t[-1])
+    inside = t_eval[(t_eval >= t) & (t_eval < stop)] if sol.status == 1 or stop < float(t_eval[-1]) else \
+        t_eval[(t_eval >= t) & (t_eval <= stop)]
+    return sol, stop, inside
 
 
 def _project_any(model: Model, q, qd) -> np.ndarray:
