@@ -134,10 +134,17 @@ def run_tree(tree: Path, path: Path, quick: bool) -> None:
         raise SystemExit(f"{tree}: {done.stderr[-3000:]}")
 
 
-def compare(a_path: Path, b_path: Path) -> int:
+def compare(a_path: Path, b_path: Path, ignore: tuple[str, ...] = ()) -> int:
+    import fnmatch
+
     a, b = np.load(a_path), np.load(b_path)
     differ = []
-    for key in sorted(set(a.files) | set(b.files)):
+    keys = sorted(set(a.files) | set(b.files))
+    ignored = [k for k in keys if any(fnmatch.fnmatchcase(k, p) for p in ignore)]
+    if ignored:
+        print(f"{len(ignored)} arrays ignored (--ignore {' '.join(ignore)}): {len(set(ignored) & set(a.files))} of "
+              f"before, {len(set(ignored) & set(b.files))} of after")
+    for key in (k for k in keys if k not in set(ignored)):
         if key not in a.files or key not in b.files:
             differ.append(f"{key}: only in {'before' if key in a.files else 'after'}")
             continue
@@ -161,6 +168,9 @@ def main() -> int:
     parser.add_argument("--before", type=Path, help="a tree of the code before (its kernels built in place)")
     parser.add_argument("--after", type=Path, default=ROOT, help="the tree after (default: this one)")
     parser.add_argument("--quick", action="store_true", help="the seed, its variants and two scenes only")
+    parser.add_argument("--ignore", nargs="*", default=[], metavar="GLOB",
+                        help="keys to leave out of the comparison (fnmatch patterns, e.g. '*-summary.joints*' for what "
+                             "one tree no longer makes)")
     parser.add_argument("--dump", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.dump:
@@ -172,7 +182,7 @@ def main() -> int:
         paths = Path(tmp) / "before.npz", Path(tmp) / "after.npz"
         run_tree(args.before.resolve(), paths[0], args.quick)
         run_tree(args.after.resolve(), paths[1], args.quick)
-        return compare(*paths)
+        return compare(*paths, tuple(args.ignore))
 
 
 if __name__ == "__main__":

@@ -100,7 +100,8 @@ class EngineResult:
 
     engine : the engine's name (:data:`loopcheck.registry.ENGINES`: "reduced", "mujoco", "pin").
     trajectory : the input coordinate q (rad, or m for a prismatic input), q̇ and q̈ over time.
-    joints : every joint's own coordinate and rate over time (:class:`JointTrajectory`).
+    joints : every joint's own coordinate and rate over time (:class:`JointTrajectory`); None for
+        a reduced summary run (``loopcheck.reduced.engine.simulate``'s ``summary``: a sweep's row).
     peak : the largest |q̇| and its time.
     audit : the energy balance along the run.
     wall_s : s, the simulation only (no model building, no post-processing).
@@ -122,7 +123,7 @@ class EngineResult:
 
     engine: str
     trajectory: Trajectory
-    joints: JointTrajectory
+    joints: JointTrajectory | None
     peak: Peak
     audit: EnergyAudit
     wall_s: float

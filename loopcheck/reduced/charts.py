@@ -191,7 +191,7 @@ class PartitionedSolution:
     segments: tuple[tuple[Chart, Solution], ...]
     switches: tuple[Switch, ...]
     trajectory: Trajectory  # the input q, q̇, q̈
-    joints: JointTrajectory
+    joints: JointTrajectory | None  # None for a summary run (integrate_dop853's ``summary``)
     n_steps: int
     n_evaluations: int
     # per segment, the coefficient fields (m, N_FIELDS) at its samples: recorded by the compiled
@@ -366,33 +366,35 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
                         SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,
                         peak_column=physics.INPUT_RATE if summary else -1)
-    return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol})
+    return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol}, joints=not summary)
 
 
 def _solution(model: MechanismModel, segments, switches, observed=None, energy=None,
               friction_events: tuple[FrictionEvent, ...] = (),
-              clamp_events: tuple[ClampEvent, ...] = ()) -> PartitionedSolution:
+              clamp_events: tuple[ClampEvent, ...] = (), joints: bool = True) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
     (:meth:`loopcheck.reduced.kernels.physics.Chart.observe`), or None to walk each chart to its samples;
-    ``energy``: per segment, the energy flows the compiled run integrated (or None)."""
+    ``energy``: per segment, the energy flows the compiled run integrated (or None); ``joints``:
+    whether to assemble the joints' trajectory (not for a summary run, whose row keeps none)."""
     n = len(model.coordinate_names)
     if observed is None:
         observed = [None] * len(segments)
     nf = physics.field_count(model.arrays)
     recorded = [(o[:, :nf], o[:, nf:].reshape(-1, 3, n)) if o is not None else
                 chart.walk(solution.trajectory.q) for (chart, solution), o in zip(segments, observed)]
-    input_traj, joints = _assemble_outputs(model, segments, recorded)
+    input_traj, joint_traj = _assemble_outputs(model, segments, recorded, joints)
     first = segments[0][1]
     return PartitionedSolution(
-        segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joints,
+        segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joint_traj,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
         sample_fields=tuple(f for f, _ in recorded), sample_energy=None if energy is None else tuple(energy),
         method=first.method, settings=first.settings, friction_events=friction_events, clamp_events=clamp_events)
 
 
 def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, method: str,
-                      settings: dict) -> PartitionedSolution:
-    """A :class:`PartitionedSolution` from a compiled partitioned run."""
+                      settings: dict, joints: bool = True) -> PartitionedSolution:
+    """A :class:`PartitionedSolution` from a compiled partitioned run (``joints``: with the joints'
+    trajectory, :func:`_solution`)."""
     t, value, rate, accel, observed, energy = run.samples.arrays()
     cuts = run.segment_starts[1:]
     bounds = [0, *(int(c) for c in cuts), len(t)]
@@ -411,12 +413,15 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, metho
                    for t, mode in run.events)
     actuators = model.scene.mechanism.actuators
     clamps = tuple(ClampEvent(float(t), actuators[int(a)].name, CLAMP_MODES[int(mode)]) for t, a, mode in run.clamps)
-    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events, clamps)
+    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events, clamps,
+                     joints)
 
 
-def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajectory, JointTrajectory]:
-    """The input's trajectory and all joint coordinates, from every chart's samples and the
-    fields (m, N_FIELDS) and kinematics (m, 3, n) at them (``recorded``, per segment).
+def _assemble_outputs(model: MechanismModel, segments, recorded,
+                      joints: bool = True) -> tuple[Trajectory, JointTrajectory | None]:
+    """The input's trajectory and, with ``joints``, all joint coordinates (else None), from every
+    chart's samples and the fields (m, N_FIELDS) and kinematics (m, 3, n) at them (``recorded``,
+    per segment).
 
     q = drive·x, q̇ = (drive·K) ẋ_i, q̈ = (drive·L) ẋ_i² + (drive·K) ẍ_i (K, L w.r.t. the
     chart's coordinate x_i).
@@ -429,12 +434,13 @@ def _assemble_outputs(model: MechanismModel, segments, recorded) -> tuple[Trajec
         vs.append(k_q * tr.qdot)
         accs.append(l_q * tr.qdot ** 2 + k_q * tr.qddot)
         xs.append(kin[:, 0, :])
-        xdots.append(kin[:, 1, :] * tr.qdot[:, None])
-        coords.append(np.full(len(tr.t), chart.independent))
+        if joints:
+            xdots.append(kin[:, 1, :] * tr.qdot[:, None])
+            coords.append(np.full(len(tr.t), chart.independent))
     x = np.concatenate(xs)
     angles = model.angle_columns
     x[:, angles] = loops.unwrap_angles(x[:, angles])  # continuous angles (no 2π jumps)
     t = np.concatenate(ts)
-    joints = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
-                             loops.assembly_modes(model.system, x).reshape(len(t), -1))
-    return Trajectory(t, x @ model.system.drive, np.concatenate(vs), np.concatenate(accs)), joints
+    joint_traj = JointTrajectory(model.coordinate_names, t, x, np.concatenate(xdots), np.concatenate(coords),
+                                 loops.assembly_modes(model.system, x).reshape(len(t), -1)) if joints else None
+    return Trajectory(t, x @ model.system.drive, np.concatenate(vs), np.concatenate(accs)), joint_traj
