@@ -113,7 +113,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from loopcheck.compare.pool import ordered_map  # noqa: E402
-from loopcheck.compare.sweep import chunk_size  # noqa: E402
+from loopcheck.compare.sweep import chunk_lengths, chunk_size  # noqa: E402
 from loopcheck.sweep_spec import ENGINE_CHOICES, Engines, apply, count, spec_from_args, variant_values  # noqa: E402
 from loopcheck.compare.sweep_scene import check, load_sweep  # noqa: E402
 from loopcheck.reduced import ReducedSettings  # noqa: E402
@@ -194,8 +194,14 @@ def _mujoco_chunk(values_list):
     return [simulate_mujoco(build(_W["data"], v, _W["source"]), _W["settings"]).peak.omega for v in values_list]
 
 
-def chunks(items, size):
-    return [items[i:i + size] for i in range(0, len(items), size)]
+def chunks(items, size, workers=2):
+    """``items`` in the sweep's tasks over ``workers`` processes (loopcheck.compare.sweep.chunk_lengths:
+    ``size`` each, fewer towards the end, as ``loopcheck sweep`` hands them out)."""
+    out, at = [], 0
+    for take in chunk_lengths(len(items), size, workers):
+        out.append(items[at:at + take])
+        at += take
+    return out
 
 
 # -- part 1: the reduced engine ---------------------------------------------------------------

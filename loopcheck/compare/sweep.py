@@ -335,22 +335,28 @@ def chunk_size(n: int, workers: int) -> int:
     return max(1, min(MAX_CHUNK, math.ceil(n / (8 * workers))))
 
 
+def chunk_lengths(n: int, size: int, workers: int = 1) -> Iterator[int]:
+    """How many of ``n`` variants each task takes, in order: ``size``; with several ``workers``,
+    fewer towards the end (at most half of what is left per worker, at least one), so that the
+    workers finish together instead of one waiting on the other's last chunk."""
+    left = n
+    while left > 0:
+        take = size if workers <= 1 else max(1, min(size, math.ceil(left / (2 * workers))))
+        yield take
+        left -= take
+
+
 def _chunks(spec: SweepSpec, size: int, start: int = 0,
             workers: int = 1) -> Iterator[tuple[int, list[dict[str, float]]]]:
-    """The variants from ``start`` as tasks ``(start, values)`` of ``size`` consecutive variants;
-    with several ``workers``, smaller towards the end (at most half of what is left per worker,
-    at least one), so that the workers finish together instead of one waiting on the other's
-    last chunk."""
+    """The variants from ``start`` as tasks ``(start, values)`` of consecutive variants, as many
+    as :func:`chunk_lengths` says."""
     it = itertools.islice(variant_values(spec), start, None)
-    left = count(spec) - start
-    while True:
-        take = size if workers <= 1 else max(1, min(size, math.ceil(left / (2 * workers))))
+    for take in chunk_lengths(count(spec) - start, size, workers):
         chunk = list(itertools.islice(it, take))
         if not chunk:
             return
         yield start, chunk
         start += len(chunk)
-        left -= len(chunk)
 
 
 def _dask_chunk(start: int, values: list[dict[str, float]], data: Mapping[str, Any], source: str,
