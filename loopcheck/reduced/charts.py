@@ -20,7 +20,9 @@ the integrators that take a Python function (scipy's).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -203,20 +205,33 @@ class PartitionedSolution:
     sample_energy: tuple[np.ndarray, ...] | None
     method: str
     settings: dict = field(default_factory=dict)
+    start_inertia: float = math.nan  # 𝔍 (kg·m² or kg) at the scene's start configuration (:class:`Start`)
     friction_events: tuple[FrictionEvent, ...] = ()  # the compiled runs' (each stick and slip)
     clamp_events: tuple[ClampEvent, ...] = ()        # the compiled runs' (each change of a forcerange clamp)
 
 
-def _start(model: MechanismModel) -> tuple[np.ndarray, int, float]:
-    """The assembled x0, the coordinate to start in, and its rate ẋ_i for the scene's q̇0."""
+class Start(NamedTuple):
+    """Where a run starts (:func:`_start`): the assembled x0 (n,), the coordinate i to start in, its
+    rate ẋ_i for the scene's q̇0 and 𝔍 there (kg·m² or kg: the energy scale's floor,
+    :func:`loopcheck.reduced.engine.energy_scale`)."""
+
+    x: np.ndarray
+    coordinate: int
+    rate: float
+    inertia: float
+
+
+def _start(model: MechanismModel) -> Start:
+    """Where the scene's run starts (:class:`Start`)."""
     scene = model.scene
     x0 = model.assemble(scene.q0)
     i = best_coordinate(model, x0)
-    input_rate = Chart(model, i, x0).coefficients(float(x0[i])).input_rate
+    coefficients = Chart(model, i, x0).coefficients(float(x0[i]))
     if scene.qdot0 != 0.0 and loops.driving_conditioning(model.system, x0) < loops.SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
                                f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
-    return x0, i, scene.qdot0 / input_rate if scene.qdot0 != 0.0 else 0.0
+    rate = scene.qdot0 / coefficients.input_rate if scene.qdot0 != 0.0 else 0.0
+    return Start(x0, i, rate, coefficients.generalized_inertia)
 
 
 def integrate_partitioned(model: MechanismModel, integrate_chart) -> PartitionedSolution:
@@ -227,7 +242,8 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
     and returns a :class:`Solution` (``stopped`` when ``stop`` fired).
     """
     scene = model.scene
-    x, i, rate = _start(model)
+    start = _start(model)
+    x, i, rate = start.x, start.coordinate, start.rate
     t = 0.0
     segments, switches = [], []
     while True:
@@ -248,7 +264,7 @@ def integrate_partitioned(model: MechanismModel, integrate_chart) -> Partitioned
         rate = rate_old * old.K[j]  # ẋ_j = K_j ẋ_i, K w.r.t. the old coordinate
         switches.append(Switch(t, chart.name, model.coordinate_names[j], c_i, c_j))
         x, i = old.x, j
-    return _solution(model, segments, switches)
+    return _solution(model, segments, switches, start.inertia)
 
 
 def piece_load(model: MechanismModel, start: float, end: float) -> int:
@@ -333,24 +349,25 @@ def compiled_failure(model: MechanismModel, outcome, chart, step: float | None =
 
 
 def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None = None,
-                  **options) -> compiled.PartitionedRun:
+                  **options) -> tuple[compiled.PartitionedRun, Start]:
     """A whole compiled run (``kernel``: :func:`loopcheck.reduced.kernels.partition.run_rkn` or
     ``run_dop853``, with its ``settings`` after the start and its keyword ``options``) from the
-    scene's start over its load pieces; the run, or the failure it reports raised."""
-    x0, i, rate = _start(model)
+    scene's start over its load pieces; the run and its start, or the failure it reports raised."""
+    start = _start(model)
     edges, loads = load_pieces(model)
     chart = model.new_chart()
-    run = kernel(chart, edges, loads, x0, i, rate, *settings, Samples(chart.observation_size()), **options)
+    run = kernel(chart, edges, loads, start.x, start.coordinate, start.rate, *settings,
+                 Samples(chart.observation_size()), **options)
     if run.outcome.status != output.OK:
         raise compiled_failure(model, run.outcome, chart, step)
-    return run
+    return run, start
 
 
 def integrate_rkn4(model: MechanismModel, step: float, check_stability: bool = True) -> PartitionedSolution:
     """The compiled RKN4 run of the scene at the largest step ``step`` (s), all charts."""
-    run = _run_compiled(model, compiled.run_rkn, RKN4, float(step), SPEED_LIMIT, check_stability,
-                        MAX_SWITCHES, step=step)
-    return compiled_solution(model, run, RKN4.name, {"method": "rkn4", "step": step})
+    run, start = _run_compiled(model, compiled.run_rkn, RKN4, float(step), SPEED_LIMIT, check_stability,
+                               MAX_SWITCHES, step=step)
+    return compiled_solution(model, run, start, RKN4.name, {"method": "rkn4", "step": step})
 
 
 def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
@@ -363,13 +380,14 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     local maximum of the input's |q̇| over the steps (:func:`loopcheck.reduced.kernels.adaptive.dop853_run`'s
     ``peak_column``): a full run's steps, peak and energy flows to round-off, for a run whose
     trajectory is not kept (a sweep's row)."""
-    run = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
+    run, start = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
                         SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,
                         peak_column=physics.INPUT_RATE if summary else -1)
-    return compiled_solution(model, run, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol}, joints=not summary)
+    return compiled_solution(model, run, start, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol},
+                             joints=not summary)
 
 
-def _solution(model: MechanismModel, segments, switches, observed=None, energy=None,
+def _solution(model: MechanismModel, segments, switches, start_inertia: float, observed=None, energy=None,
               friction_events: tuple[FrictionEvent, ...] = (),
               clamp_events: tuple[ClampEvent, ...] = (), joints: bool = True) -> PartitionedSolution:
     """``observed``: per segment, what the compiled run recorded at its samples
@@ -388,13 +406,14 @@ def _solution(model: MechanismModel, segments, switches, observed=None, energy=N
         segments=tuple(segments), switches=tuple(switches), trajectory=input_traj, joints=joint_traj,
         n_steps=sum(s.n_steps for _, s in segments), n_evaluations=sum(s.n_evaluations for _, s in segments),
         sample_fields=tuple(f for f, _ in recorded), sample_energy=None if energy is None else tuple(energy),
-        method=first.method, settings=first.settings, friction_events=friction_events, clamp_events=clamp_events)
+        method=first.method, settings=first.settings, start_inertia=start_inertia, friction_events=friction_events,
+        clamp_events=clamp_events)
 
 
-def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, method: str,
+def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, start: Start, method: str,
                       settings: dict, joints: bool = True) -> PartitionedSolution:
-    """A :class:`PartitionedSolution` from a compiled partitioned run (``joints``: with the joints'
-    trajectory, :func:`_solution`)."""
+    """A :class:`PartitionedSolution` from a compiled partitioned run from ``start`` (``joints``:
+    with the joints' trajectory, :func:`_solution`)."""
     t, value, rate, accel, observed, energy = run.samples.arrays()
     cuts = run.segment_starts[1:]
     bounds = [0, *(int(c) for c in cuts), len(t)]
@@ -413,8 +432,8 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, metho
                    for t, mode in run.events)
     actuators = model.scene.mechanism.actuators
     clamps = tuple(ClampEvent(float(t), actuators[int(a)].name, CLAMP_MODES[int(mode)]) for t, a, mode in run.clamps)
-    return _solution(model, segments, switches, np.split(observed, cuts), np.split(energy, cuts), events, clamps,
-                     joints)
+    return _solution(model, segments, switches, start.inertia, np.split(observed, cuts), np.split(energy, cuts),
+                     events, clamps, joints)
 
 
 def _assemble_outputs(model: MechanismModel, segments, recorded,

@@ -376,9 +376,7 @@ def energy_scale(audit, solution: PartitionedSolution) -> float:
     (largest |W_torque|, T, |V − V0|), but at least the kinetic energy ½ 𝔍0 (1 rad/s or 1 m/s)² of the
     initial configuration at unit speed, so that a run in which almost nothing moves (a pulse
     of 1e-12 s, a 1e30 kg coupler: scales of 1e-21 J and less) is judged by round-off, not by a
-    relative figure of nothing. The floor is the same as the error estimate's |q̇| ≥ 1 rad/s."""
-    chart, first = solution.segments[0]
-    chart.reset()
-    inertia = chart.coefficients(float(first.trajectory.q[0])).generalized_inertia
-    return max(audit.scale, 0.5 * abs(inertia))
+    relative figure of nothing. The floor is the same as the error estimate's |q̇| ≥ 1 rad/s.
+    𝔍0 is the one the run started from (:attr:`PartitionedSolution.start_inertia`)."""
+    return max(audit.scale, 0.5 * abs(solution.start_inertia))
 
