@@ -148,6 +148,15 @@ class Trajectory:
         h = self.t[i + 1] - self.t[i]
         return i, h, (times - self.t[i]) / h
 
+    def _at(self, time: float, j: int) -> tuple[int, float, float]:
+        """:meth:`_locate` of one time found inside interval j (whose length is positive): (i, h, s)
+        in floats, the same numbers; a time that rounds onto t[j + 1] goes to :meth:`_locate`."""
+        if self.t[j] <= time < self.t[j + 1]:
+            h = self.t[j + 1] - self.t[j]
+            return j, h, (time - self.t[j]) / h
+        i, h, s = self._locate(np.array([time]))
+        return int(i[0]), float(h[0]), float(s[0])
+
     def interpolate(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """q, q̇, q̈ at ``times`` (within [t0, tf]); each the shape of ``times``."""
         times = np.asarray(times, dtype=float)
@@ -195,11 +204,11 @@ class Trajectory:
         # time order (a tie keeps the earlier), as np.roots finds them, the eigenvalues of the
         # companion matrix, here of all the (few) intervals' in one call, their coefficients in floats
         cubics = [self._coefficients(j, hj)[2:] for j, hj in zip(around, h)]
-        times = [self.t[j] + r.real * hj for j, hj, roots in zip(around, h, _cubic_roots(cubics))
+        found = [(self.t[j] + r.real * hj, j) for j, hj, roots in zip(around, h, _cubic_roots(cubics))
                  for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-        if times:  # q̇ there as interpolate gives it, each (a few) in floats: ~1 µs, not ~50 of arrays
-            i, h, s = self._locate(np.array(times))
-            v = [_quintic(self._coefficients(j, hj), sj, hj)[1] for j, hj, sj in zip(i.tolist(), h.tolist(), s.tolist())]
+        if found:  # q̇ there as interpolate gives it, each (a few) in floats: ~1 µs, not ~50 of arrays
+            times = [t for t, _ in found]
+            v = [_quintic(self._coefficients(i, h), s, h)[1] for i, h, s in (self._at(t, j) for t, j in found)]
             for t, vt in zip(times, v):
                 better = abs(vt) > abs(best.omega) if sign is None else sign * vt > sign * best.omega
                 if better:

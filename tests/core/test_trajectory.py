@@ -144,3 +144,16 @@ def test_the_peaks_cubic_roots_are_np_roots_bit_for_bit():
         expected = np.roots(p) if (c5[k] or c4[k] or c3[k]) else []
         assert len(roots) == len(expected)
         assert all(a.real == b.real and a.imag == b.imag for a, b in zip(roots, expected)), k
+
+
+def test_a_time_found_in_an_interval_is_located_as_interpolate_locates_it():
+    """peak_rate's candidates are located in floats (Trajectory._at) without the arrays of
+    _locate: the same interval, length and local coordinate, bit for bit, also for a time that
+    rounds onto the interval's end (it belongs to the next interval, as interpolate says) and next
+    to a repeated sample (a load edge)."""
+    t = np.array([0.0, 0.1, 0.25, 0.25, 0.4, 0.7])
+    tr = Trajectory(t, np.sin(t), np.cos(t), -np.sin(t))
+    for j in (0, 1, 3, 4):
+        for time in (t[j], t[j] + 0.3 * (t[j + 1] - t[j]), np.nextafter(t[j + 1], -1.0), t[j + 1]):
+            i, h, s = tr._locate(np.array([time]))
+            assert tr._at(float(time), j) == (int(i[0]), float(h[0]), float(s[0])), (j, time)
