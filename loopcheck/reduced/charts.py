@@ -20,6 +20,7 @@ the integrators that take a Python function (scipy's).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -92,15 +93,28 @@ class Chart:
     """Eksergian's equation in one independent coordinate: a Python view of a compiled chart
     (:class:`loopcheck.reduced.kernels.physics.Chart`) that starts at an assembled configuration x."""
 
-    def __init__(self, model: MechanismModel, independent: int, x: np.ndarray):
+    def __init__(self, model: MechanismModel, independent: int, x: np.ndarray, *, started: bool = False):
+        """``started``: the chart of a compiled run, started there already: its compiled state is
+        made when first used (a sweep's summary run uses none), not here."""
         self.model = model
         self.independent = independent
         self.name = model.coordinate_names[independent]
-        self.state = model.new_chart()
-        if not self.state.start(np.ascontiguousarray(x, dtype=float), independent):
+        self._x = np.array(x, dtype=float)  # a C-contiguous copy, as the kernel takes
+        if not started:
+            self.state  # noqa: B018 - made now: a start that fails is refused here
+
+    @functools.cached_property
+    def state(self) -> physics.Chart:
+        """The compiled chart, started at x."""
+        state = self.model.new_chart()
+        if not state.start(self._x, self.independent):
             raise NumericalFailure("singular", f"{self.name} cannot drive the linkage at its start "
-                                              f"({self.name} = {x[independent]:.15g})")
-        self._views = self.state.arrays()
+                                              f"({self.name} = {self._x[self.independent]:.15g})")
+        return state
+
+    @functools.cached_property
+    def _views(self) -> dict:
+        return self.state.arrays()
 
     @property
     def start(self) -> Kinematics:
@@ -419,7 +433,7 @@ def compiled_solution(model: MechanismModel, run: compiled.PartitionedRun, start
     bounds = [0, *(int(c) for c in cuts), len(t)]
     segments = []
     for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):  # (views of the samples' fresh copies)
-        chart = Chart(model, int(run.coordinates[k]), run.starts[k][0])
+        chart = Chart(model, int(run.coordinates[k]), run.starts[k][0], started=True)
         traj = Trajectory(t[a:b], value[a:b], rate[a:b], accel[a:b])
         stopped = k + 1 < len(run.coordinates)
         first = k == 0  # the run's counts go with its first segment
