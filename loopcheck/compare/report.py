@@ -55,7 +55,6 @@ from loopcheck.scene import Scene
 from loopcheck.trajectory import Peak
 
 from .output import json_text, portable_source, write_folder
-from .draw import plot_mechanism_strip
 from .plots import (plot_constraint_violation, plot_differences, plot_energy, plot_engines, plot_omega_vs_q,
                     plot_trajectories)
 if TYPE_CHECKING:
@@ -65,6 +64,16 @@ if TYPE_CHECKING:
     from .run import Comparison
 
 SCHEMA_VERSION = 7
+
+
+def plot_mechanism_strip(c, path) -> None:
+    """:func:`loopcheck.compare.draw.plot_mechanism_strip` (imported when a run draws it: every command
+    imports this module, ~24 ms more with the drawing's)."""
+    from .draw import plot_mechanism_strip as plot
+
+    plot(c, path)
+
+
 # The figures a run writes, by file (each function takes the Comparison and the path).
 PLOTS = {
     "trajectories.png": plot_trajectories,
