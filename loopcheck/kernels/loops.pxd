@@ -58,6 +58,7 @@ cdef class Loops:
     cdef int _lu_solve3(self, Py_ssize_t at) except -1
     cdef int _angle_trig(self) except -1
     cdef int _table_positions(self, Py_ssize_t table) except -1
+    cdef int _table_points(self, Py_ssize_t table, bint with_rates) except -1
     cdef int _table_rates(self, Py_ssize_t table, bint with_l) except -1
     cdef double _poly(self, Py_ssize_t lin, bint newton) except? -1
     cdef double _constraints(self) except? -1

@@ -732,16 +732,13 @@ class Chart(RightHandSide):
                 V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
         ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
         if ne:
-            self.loops._table_rates(ENDS, False)
-            for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
-                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
-                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
-            self.loops._table_positions(ENDS)
+            self.loops._table_points(ENDS, True)  # the ends' positions and K_r, one walk of the table
             for e in range(ne):
                 dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
                 dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
                 length = sqrt(dx * dx + dy * dy)
-                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                k_d = (dx * (self.rows[2 * e, 2] - self.rows[2 * e + 1, 2])  # K_D = dD/dx_i, K_a − K_b
+                       + dy * (self.rows[2 * e, 3] - self.rows[2 * e + 1, 3])) / length
                 c = self.F[self.I[ELEMENT_COEF] + e]
                 if e < self.I[N_DAMPERS]:
                     damping += c * k_d * k_d
