@@ -32,7 +32,7 @@ cdef class Loops:
     cdef readonly object G
     cdef double[:, ::1] W, E, T
     cdef double[::1] used
-    cdef double[::1] phi
+    cdef double[::1] phi, Phi_flat
     cdef double[:, ::1] Phi
     cdef double[::1] F
     cdef long long[::1] I

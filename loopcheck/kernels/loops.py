@@ -148,6 +148,7 @@ class Loops:
         self.used = self.G[b * n + b * b + nb * b:b * n + b * b + nb * b + b]
         self.phi = self.C[0:m]
         self.Phi = self.C[m:m + m * n].reshape(m, n)
+        self.Phi_flat = self.C[m:m + m * n]  # Phi as one row: zeroed in one loop
         rows = max(int(I[MAX_ROWS]), 1)
         self.B = np.zeros(n + 2 * n + n * n + n + n + 4 * rows + 3 * n)
         self.P = np.zeros(max(n, 1), np.int64)
@@ -545,9 +546,8 @@ class Loops:
         uy: cython.double
         lever: cython.double
         v: cython.double
-        for r in range(self.m):
-            for c in range(n):
-                self.Phi[r, c] = 0.0
+        for r in range(self.m * n):
+            self.Phi_flat[r] = 0.0
         off: cython.Py_ssize_t = self.I[tb + 2]
         w_at: cython.Py_ssize_t = self.I[tb + 3]
         rows_at: cython.Py_ssize_t = self.I[tb + 4]

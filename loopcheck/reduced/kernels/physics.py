@@ -518,12 +518,11 @@ class Chart(RightHandSide):
         largest: cython.double
         delta: cython.double = value - self.base[depth, 0, i]
         far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
-        for j in range(n):
-            self.x[j] = self.base[depth, 0, j] if far else (
-                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
-        self.x[i] = value
-        for j in range(n):
-            self.guess[j] = self.x[j]
+        for j in range(n):  # the predictor, and a copy of it in guess (_walk's trust in it)
+            v = value if j == i else (self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta))
+            self.x[j] = v
+            self.guess[j] = v
         det: cython.double = 0.0
         converged: cython.bint = False
         factored: cython.bint = False  # at the polished x
