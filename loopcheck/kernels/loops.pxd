@@ -32,6 +32,7 @@ cdef class Loops:
     cdef readonly object G
     cdef double[:, ::1] W, E, T
     cdef double[::1] used
+    # Φ (m,) and Φ_x (m, n), views of C; Phi_flat is Φ_x as one row (m·n,)
     cdef double[::1] phi, Phi_flat
     cdef double[:, ::1] Phi
     cdef double[::1] F
