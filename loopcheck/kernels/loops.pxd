@@ -32,7 +32,8 @@ cdef class Loops:
     cdef readonly object G
     cdef double[:, ::1] W, E, T
     cdef double[::1] used
-    cdef double[::1] phi
+    # Φ (m,) and Φ_x (m, n), views of C; Phi_flat is Φ_x as one row (m·n,)
+    cdef double[::1] phi, Phi_flat
     cdef double[:, ::1] Phi
     cdef double[::1] F
     cdef long long[::1] I
@@ -58,6 +59,7 @@ cdef class Loops:
     cdef int _lu_solve3(self, Py_ssize_t at) except -1
     cdef int _angle_trig(self) except -1
     cdef int _table_positions(self, Py_ssize_t table) except -1
+    cdef int _table_points(self, Py_ssize_t table, bint with_rates) except -1
     cdef int _table_rates(self, Py_ssize_t table, bint with_l) except -1
     cdef double _poly(self, Py_ssize_t lin, bint newton) except? -1
     cdef double _constraints(self) except? -1

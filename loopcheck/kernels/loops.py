@@ -148,6 +148,7 @@ class Loops:
         self.used = self.G[b * n + b * b + nb * b:b * n + b * b + nb * b + b]
         self.phi = self.C[0:m]
         self.Phi = self.C[m:m + m * n].reshape(m, n)
+        self.Phi_flat = self.C[m:m + m * n]  # Phi as one row: zeroed in one loop
         rows = max(int(I[MAX_ROWS]), 1)
         self.B = np.zeros(n + 2 * n + n * n + n + n + 4 * rows + 3 * n)
         self.P = np.zeros(max(n, 1), np.int64)
@@ -395,6 +396,14 @@ class Loops:
     @cython.exceptval(-1, check=False)
     def _table_positions(self, table: cython.Py_ssize_t) -> cython.int:
         """r of every row of a table at kin's x into rows[:, 0:2] (m), leaving columns 2, 3 alone."""
+        return self._table_points(table, False)
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _table_points(self, table: cython.Py_ssize_t, with_rates: cython.bint) -> cython.int:
+        """:meth:`_table_positions`, and with ``with_rates`` K_r into rows[:, 2:4] in the same walk
+        of the table, each as :meth:`_table_rates` computes it into rows[:, 0:2] (the same
+        numbers): a chart's line elements read both of their ends, walked once rather than twice."""
         tb: cython.Py_ssize_t = TABLES + TABLE_ENTRIES * table
         off: cython.Py_ssize_t = self.I[tb + 2]
         w_at: cython.Py_ssize_t = self.I[tb + 3]
@@ -410,9 +419,14 @@ class Loops:
         c: cython.double
         s: cython.double
         m: cython.double
+        md: cython.double
+        td: cython.double
         for k in range(self.I[tb]):
             self.rows[k, 0] = self.F[off + 2 * k]
             self.rows[k, 1] = self.F[off + 2 * k + 1]
+            if with_rates:
+                self.rows[k, 2] = 0.0
+                self.rows[k, 3] = 0.0
         for t in range(self.I[tb + 1]):  # term t: m u, u = R(θ) w (module docstring)
             k = self.I[rows_at + t]
             g = self.I[mags_at + t]
@@ -426,6 +440,11 @@ class Loops:
             m = self.kin[0, g] if g >= 0 else 1.0
             self.rows[k, 0] += m * wx
             self.rows[k, 1] += m * wy
+            if with_rates:  # K_r = ṁ u + m θ̇ u⊥ (module docstring)
+                md = self.kin[1, g] if g >= 0 else 0.0
+                td = self.kin[1, a] if a >= 0 else 0.0
+                self.rows[k, 2] += md * wx - m * td * wy
+                self.rows[k, 3] += md * wy + m * td * wx
         return 0
 
     @cython.cfunc
@@ -527,9 +546,8 @@ class Loops:
         uy: cython.double
         lever: cython.double
         v: cython.double
-        for r in range(self.m):
-            for c in range(n):
-                self.Phi[r, c] = 0.0
+        for r in range(self.m * n):
+            self.Phi_flat[r] = 0.0
         off: cython.Py_ssize_t = self.I[tb + 2]
         w_at: cython.Py_ssize_t = self.I[tb + 3]
         rows_at: cython.Py_ssize_t = self.I[tb + 4]

@@ -115,12 +115,13 @@ cdef class Chart(RightHandSide):
     cdef readonly Loops loops
     # views of S and of W (physics.py: Chart), made once at construction
     cdef long long[::1] s, budget
-    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L, clamp, dyad_base
+    cdef double[::1] value, fields, rhs, norms, x, guess, target, spline, K, L, clamp, dyad_sides
     cdef double[:, ::1] origin, last, kin, A, trig, rows, marked
     # the sign of each joint friction's K_u = row·K watched for its kink (0: not watched): set_kinks
     cdef readonly double[::1] kinks
     cdef double[:, :, ::1] base
 
+    cdef int _dyad_sides(self, Py_ssize_t first) except -1
     cdef int _dyads(self, Py_ssize_t first, Py_ssize_t i) except -1
     cdef int _finish(self, double det) except -1
     cdef int _close(self, Py_ssize_t depth, double value, double reach) except -1

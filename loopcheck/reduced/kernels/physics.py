@@ -266,9 +266,10 @@ def _dyads(F: cython.double[::1], I: cython.longlong[::1], first: cython.Py_ssiz
     chart: Chart = Chart(Model(np.asarray(F), np.asarray(I)), 0.5)
     for j in range(n):
         chart.x[j] = x[j]
-        chart.dyad_base[j] = base[j]
+        chart.last[0, j] = base[j]
         chart.trig[0, j] = trig[0, j]
         chart.trig[1, j] = trig[1, j]
+    chart._dyad_sides(first)
     closed: cython.bint = chart._dyads(first, i) == 1
     for j in range(n):
         x[j] = chart.x[j]
@@ -293,7 +294,8 @@ class Chart(RightHandSide):
     are methods that read and write these views and take no array argument (compiled, an array
     argument is a 200-byte view passed by value, and a view made in a call changes a reference
     count atomically: written as functions of arrays, an evaluation on the seed took 1 950 ns,
-    as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n) and the
+    as methods 763). Besides W, a chart owns the configuration :meth:`mark` keeps (3, n), the
+    assembly of each of its dyads (``dyad_sides``, one per loop: :meth:`_dyad_sides`), the
     scratch of the B-splines (the largest degree + 1), and the linkage's kinematics (``loops``, a
     :class:`loopcheck.kernels.loops.Loops` on the model's arrays: Newton's x, trig, A, rhs, norms, rows
     and kin (3, n: x, K, L), which the chart views under the same names). A chart is empty until
@@ -336,7 +338,8 @@ class Chart(RightHandSide):
         self.norms, self.rows, self.kin = self.loops.norms, self.loops.rows, self.loops.kin
         self.K, self.L = self.loops.K, self.loops.L
         self.marked = np.zeros((3, n))
-        self.dyad_base = np.zeros(n)  # _close's copy of its base's x for _dyads
+        # the assembly of each dyad of the chart's plan (_dyad_sides), one per loop
+        self.dyad_sides = np.zeros(max(int(I[TABLES + TABLE_ENTRIES * LOOPS]), 1))
         self.kinks = np.zeros(max(int(I[N_FRICTION]), 1))
         degrees = I[I[SPLINE_DEGREE]:I[SPLINE_DEGREE] + I[N_FORCES]]
         self.spline = np.zeros(int(degrees.max()) + 1 if len(degrees) else 1)
@@ -369,6 +372,30 @@ class Chart(RightHandSide):
 
     @cython.cfunc
     @cython.exceptval(-1, check=False)
+    def _dyad_sides(self, first: cython.Py_ssize_t) -> cython.int:
+        """The assembly of each dyad of the plan that starts at step ``first`` (:meth:`_dyads`; none
+        where ``first`` < 0) in the chart's last configuration (``last``'s x), into ``dyad_sides``
+        (one per loop): sin(θ_b + φ_b − θ_a − φ_a), of the sign of R(θ_a) W_a × R(θ_b) W_b, which
+        cannot change along a chart. Set once, where the chart starts (:meth:`start`), as the sign
+        of its det A is, rather than at every closure from the walk's base: the same signs
+        (checked on every closure of the reduced tests and of benchmarks/same_results.py), a sine
+        saved at each closure (3 % of an evaluation's instructions on the seed)."""
+        n_loops: cython.Py_ssize_t = self.I[TABLES + TABLE_ENTRIES * LOOPS]
+        step: cython.Py_ssize_t
+        a: cython.Py_ssize_t
+        b: cython.Py_ssize_t
+        w: cython.Py_ssize_t
+        if first < 0:
+            return 0
+        for step in range(first, first + n_loops):
+            a = self.I[self.I[DYAD_STEPS] + 3 * step + 1]
+            b = self.I[self.I[DYAD_STEPS] + 3 * step + 2]
+            w = self.I[DYAD_W] + 6 * step
+            self.dyad_sides[step - first] = sin(self.last[0, b] + self.F[w + 5] - self.last[0, a] - self.F[w + 4])
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
     def _dyads(self, first: cython.Py_ssize_t, i: cython.Py_ssize_t) -> cython.int:
         """The dependent angles of the chart's x (the predictor) by closed form, loop after loop
         of the plan that starts at step ``first`` (:data:`DYAD_PLAN`): each loop k with two unknown
@@ -378,11 +405,11 @@ class Chart(RightHandSide):
             R(θ_a) W_a + R(θ_b) W_b = d,   d = −(offset_k + Σ_known R(θ_t) w_t),
 
         two circles: the angle ψ of R(θ_a) W_a from d satisfies cos ψ = (|d|² + |W_a|² − |W_b|²) /
-        (2 |d| |W_a|). Of the two assemblies (±ψ) the one of the chart's last configuration
-        (``dyad_base`` (n,): :meth:`_close`'s copy of its base's x) is taken: the sign of
-        R(θ_a) W_a × R(θ_b) W_b, which cannot change along a chart (the dyad's 2×2 block of Φ_x
-        would be singular, and so [Φ_x; e_i]); θ_b follows from R(θ_b) W_b = d − R(θ_a) W_a; both
-        angles are the 2π-turns nearest x's (the predictor's). The cos and sin of every angle
+        (2 |d| |W_a|). Of the two assemblies (±ψ) the chart's is taken (``dyad_sides``, set where it
+        starts: :meth:`_dyad_sides`): the sign of R(θ_a) W_a × R(θ_b) W_b, which cannot change
+        along a chart (the dyad's 2×2 block of Φ_x would be singular, and so [Φ_x; e_i]); θ_b
+        follows from R(θ_b) W_b = d − R(θ_a) W_a; both angles are the 2π-turns nearest x's (the
+        predictor's). The cos and sin of every angle
         (the chart's coordinate i and the solved ones: with a plan, all) go into trig (2, n) as
         they are computed, as :func:`angle_trig` would compute them. Returns 0 where the circles
         do not meet (no closed loop), else 1. A method on the chart's own views: as a function of
@@ -448,9 +475,8 @@ class Chart(RightHandSide):
             if not fabs(cos_psi) <= 1.0 + _c_dyad_round_off:
                 return 0
             # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
-            # product; in the last configuration
-            # R(θ_a) W_a × R(θ_b) W_b = |W_a| |W_b| sin(θ_b + φ_b − θ_a − φ_a)
-            last = sin(self.dyad_base[b] + phi_b - self.dyad_base[a] - phi_a)
+            # product; the chart's, sin(θ_b + φ_b − θ_a − φ_a) (_dyad_sides)
+            last = self.dyad_sides[step - first]
             cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
             sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
             # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
@@ -492,25 +518,19 @@ class Chart(RightHandSide):
         largest: cython.double
         delta: cython.double = value - self.base[depth, 0, i]
         far: cython.bint = reach > _c_far_jump  # from the base's configuration (FAR_JUMP)
-        for j in range(n):
-            self.x[j] = self.base[depth, 0, j] if far else (
-                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta)
-        self.x[i] = value
-        for j in range(n):
-            self.guess[j] = self.x[j]
+        for j in range(n):  # the predictor, and a copy of it in guess (_walk's trust in it)
+            v = value if j == i else (self.base[depth, 0, j] if far else (
+                self.base[depth, 0, j] + self.base[depth, 1, j] * delta + 0.5 * self.base[depth, 2, j] * delta * delta))
+            self.x[j] = v
+            self.guess[j] = v
         det: cython.double = 0.0
         converged: cython.bint = False
         factored: cython.bint = False  # at the polished x
         plan: cython.Py_ssize_t = self.I[self.I[DYAD_PLAN] + i]
         # x by closed form: taken as it is if it closes the loops
         closed: cython.bint = plan >= 0 and (reach <= _c_closed_form_reach or far)
-        if closed:
-            # base[depth, 0] copied into a view of its own: a view of the row, made and dropped at
-            # every closure, would change the array's acquisition count atomically twice
-            for j in range(n):
-                self.dyad_base[j] = self.base[depth, 0, j]
-            if not self._dyads(plan, i):
-                return 1
+        if closed and not self._dyads(plan, i):
+            return 1
         for it in range(_c_newton_max_iter + 1):
             if not closed:  # the closed form left trig at x
                 self.loops._angle_trig()
@@ -711,16 +731,13 @@ class Chart(RightHandSide):
                 V -= self.F[ms + b] * (gx * self.rows[b, 0] + gy * self.rows[b, 1])
         ne: cython.Py_ssize_t = self.I[N_ELEMENTS]
         if ne:
-            self.loops._table_rates(ENDS, False)
-            for e in range(ne):  # K_a − K_b into columns 2, 3 of row 2e, kept by table_positions
-                self.rows[2 * e, 2] = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
-                self.rows[2 * e, 3] = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
-            self.loops._table_positions(ENDS)
+            self.loops._table_points(ENDS, True)  # the ends' positions and K_r, one walk of the table
             for e in range(ne):
                 dx = self.rows[2 * e, 0] - self.rows[2 * e + 1, 0]
                 dy = self.rows[2 * e, 1] - self.rows[2 * e + 1, 1]
                 length = sqrt(dx * dx + dy * dy)
-                k_d = (dx * self.rows[2 * e, 2] + dy * self.rows[2 * e, 3]) / length  # K_D = dD/dx_i
+                k_d = (dx * (self.rows[2 * e, 2] - self.rows[2 * e + 1, 2])  # K_D = dD/dx_i, K_a − K_b
+                       + dy * (self.rows[2 * e, 3] - self.rows[2 * e + 1, 3])) / length
                 c = self.F[self.I[ELEMENT_COEF] + e]
                 if e < self.I[N_DAMPERS]:
                     damping += c * k_d * k_d
@@ -1236,7 +1253,8 @@ class Chart(RightHandSide):
     @cython.ccall
     def start(self, x: cython.double[::1], independent: cython.Py_ssize_t) -> cython.bint:
         """Make this a chart of coordinate ``independent`` starting at the assembled x (n,): its
-        K, L there and the sign of its det A. Returns True on success (False: singular). x may
+        K, L there, the sign of its det A and its dyads' assemblies (:meth:`_dyad_sides`), which
+        its walks keep. Returns True on success (False: singular). x may
         be one of the chart's own buffers (its kin[0], at a switch): :meth:`kinematics_at`
         copies it first."""
         n: cython.Py_ssize_t = self.n
@@ -1259,6 +1277,7 @@ class Chart(RightHandSide):
             for j in range(n):
                 self.last[r, j] = self.kin[r, j]
                 self.origin[r, j] = self.kin[r, j]
+        self._dyad_sides(self.I[self.I[DYAD_PLAN] + independent])
         self.value[0] = self.x[independent]  # x's, copied by kinematics_at
         self.s[VALID] = 1
         return True

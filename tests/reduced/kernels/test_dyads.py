@@ -105,3 +105,48 @@ def test_a_walk_in_closed_form_equals_newtons(name):
     for field in (physics.INERTIA, physics.CENTRIFUGAL, physics.INPUT_RATE):
         scale = np.max(np.abs(f_newton[:, field]))
         assert np.max(np.abs(f_closed[:, field] - f_newton[:, field])) <= RATE_BOUND * scale
+
+
+def _mirrored(m: MechanismModel, x: np.ndarray, i: int) -> tuple[np.ndarray, float, float]:
+    """The four-bar's other assembly at x's x_i (its one dyad mirrored: the closed form from a base
+    whose θ_b + φ_b − θ_a − φ_a is negated), and the dyad's sin(θ_b + φ_b − θ_a − φ_a) at x and
+    there (of the sign of R(θ_a) W_a × R(θ_b) W_b: :meth:`physics.Chart._dyads`)."""
+    F, I = m.arrays
+    plan = plans(m)[i]
+    a, b = (int(v) for v in I[I[physics.DYAD_STEPS] + 3 * plan + 1:I[physics.DYAD_STEPS] + 3 * plan + 3])
+    phi_a, phi_b = F[I[physics.DYAD_W] + 6 * plan + 4:I[physics.DYAD_W] + 6 * plan + 6]
+    base = x.copy()
+    base[b] = 2.0 * (x[a] + phi_a) - x[b] - 2.0 * phi_b
+    other = x.copy()
+    assert physics._dyads(F, I, plan, other, base, np.zeros((2, len(x))), i)
+    return other, math.sin(x[b] + phi_b - x[a] - phi_a), math.sin(other[b] + phi_b - other[a] - phi_a)
+
+
+@pytest.mark.parametrize("i", [0, 1, 2])
+def test_a_chart_keeps_the_assembly_it_starts_on(i):
+    """The assembly a chart's closed form takes is stored when it starts (Chart.start), not read
+    from the walk's base at every closure: one chart started on each assembly of the seed four-bar
+    in turn (in the chart of each of its angles, at its start) walks where Newton's method alone
+    walks from the same start (the plans switched off), on the assembly it started on, to
+    WALK_ANGLE_BOUND and RATE_BOUND (the bounds of the walks above: closed form against Newton).
+    Newton's walk keeps its assembly by the sign of det A, which a mirrored dyad flips."""
+    m = model("seed_fourbar")
+    x0 = m.x0.copy()
+    other, side, other_side = _mirrored(m, x0, i)
+    assert side * other_side < 0.0 and np.max(np.abs(other - x0)) > 0.5  # the two assemblies, 0.6 rad apart or more
+    values = x0[i] + np.linspace(0.0, 0.05, 6)
+    closed = physics.Chart(m.arrays, SINGULAR_CONDITIONING)  # one chart, restarted: no sides left over
+    newton = physics.Chart(without_dyad_plans(m), SINGULAR_CONDITIONING)
+    for start, sign in ((x0, side), (other, other_side), (x0, side)):
+        walks = []
+        for chart in (closed, newton):
+            assert chart.start(start, i)
+            kin = np.empty((len(values), 3, m.system.n))
+            assert chart.walk(values, np.empty((len(values), physics.N_FIELDS)), kin) == len(values)
+            walks.append(kin)
+        closed_kin, newton_kin = walks
+        _, walked, _ = _mirrored(m, newton_kin[-1, 0], i)
+        assert walked * sign > 0.0  # Newton's walk stayed on the assembly it started on
+        assert np.max(np.abs(closed_kin[:, 0] - newton_kin[:, 0])) <= WALK_ANGLE_BOUND
+        scale = np.maximum(np.abs(newton_kin[:, 1:]), 1.0)
+        assert np.max(np.abs(closed_kin[:, 1:] - newton_kin[:, 1:]) / scale) <= RATE_BOUND
