@@ -635,6 +635,7 @@ def _cli_sweep(tree: Path, n: int, out: Path) -> float:
     the scene's rtol 1e-12, two workers, sweep.csv, the plot and sweep.json written) with the
     package of ``tree`` (PYTHONPATH and the working folder)."""
     env = dict(os.environ, PYTHONPATH=str(tree))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # as a user's Python: the bytecode caches written, then read
     cmd = [sys.executable, "-m", "loopcheck.compare.cli", "sweep", str(default_scene_path()),
            *sum((["--vary", a] for a in grid_args(*grid_for(n))), []), "--engines", "reduced", "--out", str(out)]
     start = time.perf_counter()
@@ -719,12 +720,15 @@ def part5(path: Path, n: int, rtol: float, repeats: int, before: Path | None, tm
         print("   the command: not measured (--before TREE: a tree of the code before, its kernels built)")
         return
     walls = {"before": [], "after": []}
+    for tree in (before, ROOT):  # untimed: each tree's bytecode caches written, its files read once
+        _cli_sweep(tree, n, tmp / "cli-warm-up")
     for _ in range(repeats):
         for label, tree in (("before", before), ("after", ROOT)):
             walls[label].append(_cli_sweep(tree, n, tmp / f"cli-{label}"))
     print(f"   `loopcheck sweep {path.name} --vary {DAMPER}=.. --vary {MASS}=.. --engines reduced --out TMP` "
           f"({n} variants, its defaults: rtol {own.rtol:g}, 2 workers, sweep.csv, the plot and sweep.json written), "
-          f"before = {before}, after = this tree")
+          f"before = {before}, after = this tree, each run once first (untimed: its bytecode caches written, as a "
+          f"user's first run leaves them)")
     for label in ("before", "after"):
         w = walls[label]
         print(f"   {label:6s}  best {min(w):6.2f} s  median {statistics.median(w):6.2f} s  "

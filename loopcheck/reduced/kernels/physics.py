@@ -230,6 +230,7 @@ _c_dyad_round_off = cython.declare(cython.double, DYAD_ROUND_OFF)
 _c_closed_form_residual = cython.declare(cython.double, CLOSED_FORM_RESIDUAL)
 _c_closed_form_reach = cython.declare(cython.double, CLOSED_FORM_REACH)
 _c_pi = cython.declare(cython.double, math.pi)
+_c_inv_two_pi = cython.declare(cython.double, 0.5 / math.pi)
 _c_nan = cython.declare(cython.double, math.nan)
 
 
@@ -251,7 +252,7 @@ def field_count(model: Model) -> int:
 @cython.inline
 def _nearest(angle: cython.double, target: cython.double) -> cython.double:
     """angle + 2πk closest to target (rad)."""
-    return target + (angle - target) - 2.0 * _c_pi * floor((angle - target) / (2.0 * _c_pi) + 0.5)
+    return target + (angle - target) - 2.0 * _c_pi * floor((angle - target) * _c_inv_two_pi + 0.5)
 
 
 @cython.ccall
