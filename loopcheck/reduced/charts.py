@@ -226,13 +226,15 @@ class PartitionedSolution:
 
 class Start(NamedTuple):
     """Where a run starts (:func:`_start`): the assembled x0 (n,), the coordinate i to start in, its
-    rate ẋ_i for the scene's q̇0 and 𝔍 there (kg·m² or kg: the energy scale's floor,
-    :func:`loopcheck.reduced.engine.energy_scale`)."""
+    rate ẋ_i for the scene's q̇0, 𝔍 there (kg·m² or kg: the energy scale's floor,
+    :func:`loopcheck.reduced.engine.energy_scale`) and the compiled chart that found them (a compiled
+    run starts it again and goes on with it: a chart fewer to make)."""
 
     x: np.ndarray
     coordinate: int
     rate: float
     inertia: float
+    chart: physics.Chart
 
 
 def _start(model: MechanismModel) -> Start:
@@ -240,12 +242,13 @@ def _start(model: MechanismModel) -> Start:
     scene = model.scene
     x0 = model.assemble(scene.q0)
     i = best_coordinate(model, x0)
-    coefficients = Chart(model, i, x0).coefficients(float(x0[i]))
+    chart = Chart(model, i, x0)
+    coefficients = chart.coefficients(float(x0[i]))
     if scene.qdot0 != 0.0 and loops.driving_conditioning(model.system, x0) < loops.SINGULAR_CONDITIONING:
         raise NumericalFailure("singular", f"the input joint '{scene.mechanism.linkage.input_joint}' is at a "
                                f"dead centre at q0 = {scene.q0} {scene.input_unit}, where its speed must be zero")
     rate = scene.qdot0 / coefficients.input_rate if scene.qdot0 != 0.0 else 0.0
-    return Start(x0, i, rate, coefficients.generalized_inertia)
+    return Start(x0, i, rate, coefficients.generalized_inertia, chart.state)
 
 
 def integrate_partitioned(model: MechanismModel, integrate_chart) -> PartitionedSolution:
@@ -369,7 +372,7 @@ def _run_compiled(model: MechanismModel, kernel, *settings, step: float | None =
     scene's start over its load pieces; the run and its start, or the failure it reports raised."""
     start = _start(model)
     edges, loads = load_pieces(model)
-    chart = model.new_chart()
+    chart = start.chart
     run = kernel(chart, edges, loads, start.x, start.coordinate, start.rate, *settings,
                  Samples(chart.observation_size()), **options)
     if run.outcome.status != output.OK:

@@ -36,7 +36,7 @@ def test_a_walk_of_hundreds_of_rad_keeps_the_dependent_angles_turns(far):
     from loopcheck.reduced.charts import _start
 
     model = MechanismModel(load_scene(LONG_CONSERVATIVE))
-    x0, i, _, _ = _start(model)
+    x0, i, _, _, _ = _start(model)
     chart = Chart(model, i, x0)
     there = chart.kinematics(far).x
     back = chart.kinematics(float(x0[i])).x

@@ -108,7 +108,7 @@ class Case:
 @cache
 def seed() -> Case:
     model = MechanismModel(load_scene(default_scene_path()))
-    x0, i, v0, _ = _start(model)
+    x0, i, v0, _, _ = _start(model)
     assert i == 0 and v0 == 0.0  # the crank's chart, at rest
     return Case(model, x0, i, v0, *load_pieces(model))
 

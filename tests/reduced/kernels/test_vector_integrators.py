@@ -257,7 +257,7 @@ def seed_case():
     from loopcheck.shipped_scenes import default_scene_path
 
     model = MechanismModel(load_scene(default_scene_path()))
-    x0, i, v0, _ = _start(model)
+    x0, i, v0, _, _ = _start(model)
     edges, loads = load_pieces(model)
 
     def chart():
