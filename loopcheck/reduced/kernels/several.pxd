@@ -49,6 +49,7 @@ cdef class Several(VectorRightHandSide):
     cdef int _save_factors(self) except -1
     cdef int _solve(self, double[::1] b) except -1
     cdef int _second_order(self, double[::1] out) except -1
+    cdef int _eliminate(self, double[:, ::1] M, Py_ssize_t m, Py_ssize_t w, double tiny) except -1
     cdef int _small_solve(self) except -1
     cdef double _residual(self) except? -1
     cdef int _close(self) except -1

@@ -360,10 +360,13 @@ class Several(VectorRightHandSide):
 
     @cython.cfunc
     @cython.exceptval(-1, check=False)
-    def _small_solve(self) -> cython.int:
-        """q̈ from 𝔍 q̈ = Q − c: Gaussian elimination with partial pivoting on small (k, k+1)
-        ([𝔍 | Q − c]); the solution into qdd. Returns 1 where 𝔍 is singular."""
-        kk: cython.Py_ssize_t = self.k
+    def _eliminate(self, M: cython.double[:, ::1], m: cython.Py_ssize_t, w: cython.Py_ssize_t,
+                   tiny: cython.double) -> cython.int:
+        """Solve the m × m block of M (m, w) against each of its columns m..w−1 in place: Gaussian
+        elimination with partial pivoting, then back substitution, those columns left holding the
+        solutions. Returns 1 (M part-way) where a pivot is at most ``tiny`` (0: exactly singular).
+        The small dense solves of this chart (:meth:`_small_solve`, :meth:`_stuck_solve`,
+        :meth:`_indeterminate`, :meth:`_max_margin`) are this one elimination."""
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         j: cython.Py_ssize_t
@@ -371,30 +374,44 @@ class Several(VectorRightHandSide):
         big: cython.double
         f: cython.double
         s: cython.double
-        self.counts[SMALL_SOLVES] += 1
-        for j in range(kk):
+        for j in range(m):
             p = j
-            big = fabs(self.small[j, j])
-            for r in range(j + 1, kk):
-                if fabs(self.small[r, j]) > big:
-                    big = fabs(self.small[r, j])
+            big = fabs(M[j, j])
+            for r in range(j + 1, m):
+                if fabs(M[r, j]) > big:
+                    big = fabs(M[r, j])
                     p = r
-            if not big > 0.0:
+            if not big > tiny:
                 return 1
-            if p != j:
-                for c in range(kk + 1):
-                    s = self.small[j, c]
-                    self.small[j, c] = self.small[p, c]
-                    self.small[p, c] = s
-            for r in range(j + 1, kk):
-                f = self.small[r, j] / self.small[j, j]
-                for c in range(j, kk + 1):
-                    self.small[r, c] -= f * self.small[j, c]
-        for r in range(kk - 1, -1, -1):
-            s = self.small[r, kk]
-            for c in range(r + 1, kk):
-                s -= self.small[r, c] * self.qdd[c]
-            self.qdd[r] = s / self.small[r, r]
+            if p != j:  # (the columns before j are never read again)
+                for c in range(j, w):
+                    s = M[j, c]
+                    M[j, c] = M[p, c]
+                    M[p, c] = s
+            for r in range(j + 1, m):
+                f = M[r, j] / M[j, j]
+                for c in range(j, w):
+                    M[r, c] -= f * M[j, c]
+        for c in range(m, w):
+            for r in range(m - 1, -1, -1):
+                s = M[r, c]
+                for j in range(r + 1, m):
+                    s -= M[r, j] * M[j, c]
+                M[r, c] = s / M[r, r]
+        return 0
+
+    @cython.cfunc
+    @cython.exceptval(-1, check=False)
+    def _small_solve(self) -> cython.int:
+        """q̈ from 𝔍 q̈ = Q − c: :meth:`_eliminate` on small (k, k+1) ([𝔍 | Q − c]); the solution
+        into qdd. Returns 1 where 𝔍 is singular."""
+        kk: cython.Py_ssize_t = self.k
+        r: cython.Py_ssize_t
+        self.counts[SMALL_SOLVES] += 1
+        if self._eliminate(self.small, kk, kk + 1, 0.0):
+            return 1
+        for r in range(kk):
+            self.qdd[r] = self.small[r, kk]
         return 0
 
     # -- one configuration ------------------------------------------------------------------
@@ -421,7 +438,8 @@ class Several(VectorRightHandSide):
 
         (ü_e = r_e q̈ + row_e·ẍ0 = 0: each stuck joint's coordinate held; λ_e the generalized
         force its friction applies on u_e), from small ([𝔍 | Q − c]) and fric_k; Gaussian
-        elimination with partial pivoting on kkt ((k + s) × (k + s + 1)). q̈ into qdd, λ into lam.
+        elimination with partial pivoting on kkt ((k + s) × (k + s + 1): :meth:`_eliminate`). q̈
+        into qdd, λ into lam.
         Where a pivot is at most STUCK_PIVOT × max(|𝔍|, |R_S|²/|𝔍|) (the stuck rows dependent: a
         statically indeterminate hold, or more stuck joints than k) the hold is solved by
         :meth:`_indeterminate` instead. Returns 1 where neither solves it."""
@@ -434,8 +452,6 @@ class Several(VectorRightHandSide):
         j: cython.Py_ssize_t
         p: cython.Py_ssize_t
         e: cython.Py_ssize_t
-        big: cython.double
-        f: cython.double
         s: cython.double
         jmax: cython.double = 0.0
         rmax: cython.double = 0.0
@@ -467,35 +483,14 @@ class Several(VectorRightHandSide):
         if not jmax > 0.0:
             return 1
         tiny: cython.double = _c_stuck_pivot * max(jmax, rmax * rmax / jmax)
-        for j in range(m):
-            p = j
-            big = fabs(self.kkt[j, j])
-            for r in range(j + 1, m):
-                if fabs(self.kkt[r, j]) > big:
-                    big = fabs(self.kkt[r, j])
-                    p = r
-            if not big > tiny:  # the stuck rows dependent: a statically indeterminate hold
-                return self._indeterminate()
-            if p != j:
-                for c in range(j, m + 1):
-                    s = self.kkt[j, c]
-                    self.kkt[j, c] = self.kkt[p, c]
-                    self.kkt[p, c] = s
-            for r in range(j + 1, m):
-                f = self.kkt[r, j] / self.kkt[j, j]
-                for c in range(j, m + 1):
-                    self.kkt[r, c] -= f * self.kkt[j, c]
-        for r in range(m - 1, -1, -1):
-            s = self.kkt[r, m]
-            for c in range(r + 1, m):
-                s -= self.kkt[r, c] * self.ksol[c]
-            self.ksol[r] = s / self.kkt[r, r]
+        if self._eliminate(self.kkt, m, m + 1, tiny):  # the stuck rows dependent: a statically indeterminate hold
+            return self._indeterminate()
         for r in range(kk):
-            self.qdd[r] = self.ksol[r]
+            self.qdd[r] = self.kkt[r, m]
         p = kk
         for e in range(nfr):
             if self.slip[e] == 0.0:
-                self.lam[e] = self.ksol[p]
+                self.lam[e] = self.kkt[p, m]
                 p += 1
         return 0
 
@@ -542,30 +537,8 @@ class Several(VectorRightHandSide):
             for j in range(ns):
                 self.wk[r, kk + j] = self.fric_k[r, self.sidx[j]]
             self.wk[r, kk + ns] = self.small[r, kk]
-        for j in range(kk):
-            p = j
-            big = fabs(self.wk[j, j])
-            for r in range(j + 1, kk):
-                if fabs(self.wk[r, j]) > big:
-                    big = fabs(self.wk[r, j])
-                    p = r
-            if not big > 0.0:
-                return 1
-            if p != j:
-                for c in range(j, w):
-                    v = self.wk[j, c]
-                    self.wk[j, c] = self.wk[p, c]
-                    self.wk[p, c] = v
-            for r in range(j + 1, kk):
-                f = self.wk[r, j] / self.wk[j, j]
-                for c in range(j, w):
-                    self.wk[r, c] -= f * self.wk[j, c]
-        for c in range(kk, w):  # back substitution, in place: Y = wk[:, k:k+s], z = wk[:, k+s]
-            for r in range(kk - 1, -1, -1):
-                v = self.wk[r, c]
-                for j in range(r + 1, kk):
-                    v -= self.wk[r, j] * self.wk[j, c]
-                self.wk[r, c] = v / self.wk[r, r]
+        if self._eliminate(self.wk, kk, w, 0.0):  # in place: Y = wk[:, k:k+s], z = wk[:, k+s]
+            return 1
         for i in range(ns):
             e = self.sidx[i]
             v = 0.0
@@ -671,12 +644,10 @@ class Several(VectorRightHandSide):
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
         j: cython.Py_ssize_t
-        p: cython.Py_ssize_t
         e: cython.Py_ssize_t
         i: cython.Py_ssize_t
         sg: cython.double
         v: cython.double
-        big: cython.double
         amax: cython.double
         tol: cython.double = 0.0
         best: cython.double = -math.inf
@@ -705,32 +676,10 @@ class Several(VectorRightHandSide):
                 self.lpa[r, d] = 1.0
                 self.lpa[r, dd] = self.F[self.I[FRICTION_COEF] + self.sidx[e]] - sg * self.lamp[e]
             amax = max(amax, 1.0)
-            ok = True
-            for j in range(dd):
-                p = j
-                big = fabs(self.lpa[j, j])
-                for r in range(j + 1, dd):
-                    if fabs(self.lpa[r, j]) > big:
-                        big = fabs(self.lpa[r, j])
-                        p = r
-                if not big > 1e-12 * amax:
-                    ok = False
-                    break
-                if p != j:
-                    for c in range(j, dd + 1):
-                        v = self.lpa[j, c]
-                        self.lpa[j, c] = self.lpa[p, c]
-                        self.lpa[p, c] = v
-                for r in range(j + 1, dd):
-                    v = self.lpa[r, j] / self.lpa[j, j]
-                    for c in range(j, dd + 1):
-                        self.lpa[r, c] -= v * self.lpa[j, c]
+            ok = self._eliminate(self.lpa, dd, dd + 1, 1e-12 * amax) == 0
             if ok:
-                for r in range(dd - 1, -1, -1):
-                    v = self.lpa[r, dd]
-                    for c in range(r + 1, dd):
-                        v -= self.lpa[r, c] * self.lpx[c]
-                    self.lpx[r] = v / self.lpa[r, r]
+                for r in range(dd):
+                    self.lpx[r] = self.lpa[r, dd]
                 if self.lpx[d] > best:
                     for e in range(ns):  # feasible: every constraint within tol
                         v = self.lamp[e]
