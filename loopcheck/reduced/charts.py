@@ -21,7 +21,6 @@ the integrators that take a Python function (scipy's).
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -217,9 +216,9 @@ class PartitionedSolution:
     # integrated alongside the state by the compiled runs; None for scipy's (the energy audit
     # then integrates the power over the samples' interpolant)
     sample_energy: tuple[np.ndarray, ...] | None
+    start_inertia: float  # 𝔍 (kg·m² or kg) at the scene's start configuration (:class:`Start`)
     method: str
     settings: dict = field(default_factory=dict)
-    start_inertia: float = math.nan  # 𝔍 (kg·m² or kg) at the scene's start configuration (:class:`Start`)
     friction_events: tuple[FrictionEvent, ...] = ()  # the compiled runs' (each stick and slip)
     clamp_events: tuple[ClampEvent, ...] = ()        # the compiled runs' (each change of a forcerange clamp)
 
@@ -398,8 +397,8 @@ def integrate_dop853(model: MechanismModel, rtol: float, sample_interval: float,
     ``peak_column``): a full run's steps, peak and energy flows to round-off, for a run whose
     trajectory is not kept (a sweep's row)."""
     run, start = _run_compiled(model, compiled.run_dop853, float(rtol), float(sample_interval), SAMPLES_PER_STEP,
-                        SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,
-                        peak_column=physics.INPUT_RATE if summary else -1)
+                               SPEED_LIMIT, MAX_EVALUATIONS, tuple(float(c) for c in retry_caps), MAX_SWITCHES,
+                               peak_column=physics.INPUT_RATE if summary else -1)
     return compiled_solution(model, run, start, "DOP853", {"method": "dop853", "rtol": rtol, "atol": rtol},
                              joints=not summary)
 

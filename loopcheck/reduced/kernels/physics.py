@@ -441,7 +441,7 @@ class Chart(RightHandSide):
         ra2: cython.double
         cos_psi: cython.double
         sin_psi: cython.double
-        last: cython.double
+        side: cython.double
         norm: cython.double
         ra: cython.double
         qx: cython.double
@@ -477,9 +477,9 @@ class Chart(RightHandSide):
                 return 0
             # R(θ_a) W_a × (d − R(θ_a) W_a) = −|W_a| |d| sin(±ψ): the +ψ assembly has a negative cross
             # product; the chart's, sin(θ_b + φ_b − θ_a − φ_a) (_dyad_sides)
-            last = self.dyad_sides[step - first]
+            side = self.dyad_sides[step - first]
             cos_psi = min(max(cos_psi, -1.0), 1.0)  # a flat dyad, to round-off: Newton polishes it
-            sin_psi = sqrt(1.0 - cos_psi * cos_psi) if last < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
+            sin_psi = sqrt(1.0 - cos_psi * cos_psi) if side < 0.0 else -sqrt(1.0 - cos_psi * cos_psi)
             # the direction of R(θ_a) W_a, at θ_a + φ_a: d's turned by ±ψ; cos θ_a, sin θ_a turned back by φ_a
             norm = sqrt(d2)
             ux, uy = (dx * cos_psi - dy * sin_psi) / norm, (dy * cos_psi + dx * sin_psi) / norm
