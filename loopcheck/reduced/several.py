@@ -575,9 +575,9 @@ def _friction_state(model: SeveralModel, chart, t: float, q: np.ndarray, v: np.n
     return rows @ np.asarray(chart.xdot), rows @ np.asarray(chart.xdd), np.array(chart.lam)[:len(rows)]
 
 
-def _set_frictions(model: SeveralModel, chart, t: float, y: np.ndarray, events: list, forced=()) -> np.ndarray:
+def _set_frictions(model: SeveralModel, chart, t: float, y: np.ndarray, events: list) -> np.ndarray:
     """Set every joint friction's mode at (t, y) (module docstring): one moving (|u̇| > REST_RATE)
-    slips its way; a joint in ``forced`` (stuck, its |λ| reaching f) slips against its holding
+    slips its way; a stuck one whose |λ| reaches f (:func:`_at_capacity`) slips against its holding
     force (s = −sign λ: the friction keeps pushing with f as the joint moves the way the rest of
     the linkage pushes it); the others at rest (|u̇| ≤ REST_RATE, or stuck) take the first
     consistent set of modes, fewest slipping first: each stuck with |λ| < f, each slipping from
@@ -594,6 +594,7 @@ def _set_frictions(model: SeveralModel, chart, t: float, y: np.ndarray, events: 
         raise NumericalFailure("singular", f"the chart of {model.set_name(chart.current)} could not evaluate the "
                                f"acceleration at t = {t:.9g} s", t)
     rate, _, lam = state
+    forced = _at_capacity(chart, lam)
     rest = []
     for e in range(nf):
         if e in forced:
@@ -660,7 +661,7 @@ def _hold(model: SeveralModel, chart, t: float, y: np.ndarray, stuck) -> np.ndar
 def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray, events: list):
     """At a stop of the chart's event: (True, y) where it was a joint friction's (its margin the
     least of the event's: a slipping joint's s u̇ reaching 0, or a stuck joint's f − |λ|), the
-    modes then set anew (:func:`_set_frictions`, the stuck ones reaching f forced to slip): the
+    modes then set anew (:func:`_set_frictions`, the stuck ones reaching f made to slip): the
     run goes on in the same coordinates from the y returned. (False, y) where it was a switch."""
     if not len(model.friction_joints):
         return False, y
@@ -669,17 +670,20 @@ def _slip_stop(model: SeveralModel, chart, t: float, y: np.ndarray, events: list
     switch = chart.stop_margin(t, np.ascontiguousarray(y[:k]), v)  # (the holding forces at y, where stuck)
     if switch != switch or chart.slip_margin(v) > chart.c_current - HYSTERESIS * chart.c_best:
         return False, y
-    return True, _set_frictions(model, chart, t, y, events, _breaking(model, chart, t, y))
+    return True, _set_frictions(model, chart, t, y, events)
 
 
 def _breaking(model: SeveralModel, chart, t: float, y: np.ndarray) -> tuple:
     """The stuck frictions whose holding force at (t, y) reaches their friction (to BREAK_TOL)."""
     k = model.k
     state = _friction_state(model, chart, t, np.ascontiguousarray(y[:k]), np.ascontiguousarray(y[k:2 * k]))
-    if state is None:
-        return ()
-    lam = state[2]
-    return tuple(e for e in range(len(model.friction_joints))
+    return () if state is None else _at_capacity(chart, state[2])
+
+
+def _at_capacity(chart, lam: np.ndarray) -> tuple:
+    """The stuck frictions whose holding forces ``lam`` (one per friction) reach their friction
+    (to BREAK_TOL)."""
+    return tuple(e for e in range(len(lam))
                  if chart.slip[e] == 0.0 and abs(lam[e]) >= (1.0 - BREAK_TOL) * chart.friction_capacity(e))
 
 
