@@ -51,6 +51,7 @@ cdef class Several(VectorRightHandSide):
     cdef int _second_order(self, double[::1] out) except -1
     cdef int _eliminate(self, double[:, ::1] M, Py_ssize_t m, Py_ssize_t w, double tiny) except -1
     cdef int _small_solve(self) except -1
+    cdef double _row_xdd0(self, Py_ssize_t e) except? -1
     cdef double _residual(self) except? -1
     cdef int _close(self) except -1
     cdef int _walk(self, double[::1] q) except -1

@@ -428,6 +428,18 @@ class Several(VectorRightHandSide):
         return s
 
     @cython.cfunc
+    @cython.exceptval(-1, check=True)
+    def _row_xdd0(self, e: cython.Py_ssize_t) -> cython.double:
+        """row_e·ẍ0: friction e's coordinate's acceleration at q̈ = 0 (its stuck row's right-hand side,
+        with the sign turned)."""
+        n: cython.Py_ssize_t = self.n
+        j: cython.Py_ssize_t
+        s: cython.double = 0.0
+        for j in range(n):
+            s += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.xdd0[j]
+        return s
+
+    @cython.cfunc
     @cython.exceptval(-1, check=False)
     def _stuck_solve(self) -> cython.int:
         """q̈ and the stuck joints' holding forces λ from the KKT system (s stuck joints, rows
@@ -444,21 +456,15 @@ class Several(VectorRightHandSide):
         statically indeterminate hold, or more stuck joints than k) the hold is solved by
         :meth:`_indeterminate` instead. Returns 1 where neither solves it."""
         kk: cython.Py_ssize_t = self.k
-        n: cython.Py_ssize_t = self.n
         nfr: cython.Py_ssize_t = self.I[N_FRICTION]
-        m: cython.Py_ssize_t = kk
+        m: cython.Py_ssize_t = kk + self._stuck_count()
         r: cython.Py_ssize_t
         c: cython.Py_ssize_t
-        j: cython.Py_ssize_t
         p: cython.Py_ssize_t
         e: cython.Py_ssize_t
-        s: cython.double
         jmax: cython.double = 0.0
         rmax: cython.double = 0.0
         self.counts[SMALL_SOLVES] += 1
-        for e in range(nfr):
-            if self.slip[e] == 0.0:
-                m += 1
         for r in range(m):
             for c in range(m + 1):
                 self.kkt[r, c] = 0.0
@@ -471,14 +477,11 @@ class Several(VectorRightHandSide):
         for e in range(nfr):
             if self.slip[e] != 0.0:
                 continue
-            s = 0.0
-            for j in range(n):
-                s += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.xdd0[j]
             for r in range(kk):
                 self.kkt[r, p] = -self.fric_k[r, e]
                 self.kkt[p, r] = self.fric_k[r, e]
                 rmax = max(rmax, fabs(self.fric_k[r, e]))
-            self.kkt[p, m] = -s
+            self.kkt[p, m] = -self._row_xdd0(e)
             p += 1
         if not jmax > 0.0:
             return 1
@@ -541,10 +544,7 @@ class Several(VectorRightHandSide):
             return 1
         for i in range(ns):
             e = self.sidx[i]
-            v = 0.0
-            for j in range(n):
-                v += self.F[self.I[FRICTION_ROWS] + e * n + j] * self.xdd0[j]
-            v = -v
+            v = -self._row_xdd0(e)
             for r in range(kk):
                 v -= self.fric_k[r, e] * self.wk[r, kk + ns]
             self.G[i, ns] = v
