@@ -115,7 +115,8 @@ from .sweep_journal import Journal
 from .sweep_plots import PLOTS, WORST_PLOT, plot_files, plot_worst
 from .sweep_summary import Summary
 from .sweep_engines import judged_scene, sweep_engines
-from .sweep_table import CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, JSON_FILE, TRAJECTORY_FILE, stream_rows, write_json
+from .sweep_table import (CSV_FILE, DIFF_FIGURES, ENGINE_FIGURES, INPUT_DIFF_FIGURES, JSON_FILE, TRAJECTORY_FILE,
+                          input_column, stream_rows, write_json)
 from loopcheck.registry import ENGINES, REFERENCE
 from loopcheck.sweep_spec import Engines, SweepSpec, count, engine_names, variant_values
 
@@ -157,7 +158,6 @@ def comparison_row(c, engine: str | None = None, several: bool = False) -> dict[
     (:func:`loopcheck.compare.diff.gate_inputs`); each later input NAME has its own figures in
     ``NAME:``-prefixed columns (:func:`~loopcheck.compare.sweep_table.input_columns`)."""
     from .report import report_dict
-    from .sweep_table import INPUT_DIFF_FIGURES, input_column
 
     engine = engine or c.other.engine
     col = (lambda table, k: f"{table}.{engine}.{k}") if several else (lambda table, k: f"{table}.{k}")  # noqa: E731
@@ -195,7 +195,6 @@ def engine_row(engine: str, result, peak=None, inputs: tuple[str, ...] = ()) -> 
     own peak and its time too (``NAME:ENGINE.peak_omega``, ``NAME:ENGINE.t_peak``; ``inputs``: the
     scene's; a comparison's row sets them from its differences instead)."""
     from .report import engine_summary
-    from .sweep_table import input_column
 
     summary = engine_summary(result, peak)
     row = {f"{engine}.{k}": summary[k] for k in ENGINE_FIGURES}

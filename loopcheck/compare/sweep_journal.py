@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, BinaryIO, Iterator, Mapping
 
 from .sweep_summary import STATUSES
-from .sweep_table import columns, input_of, is_list_column, parse_cell
+from .sweep_table import columns, input_column, input_of, is_list_column, parse_cell
 from loopcheck.sweep_spec import SweepSpec, count, variant_values
 
 JOURNAL_SUFFIX = ".sweep-journal.csv"
@@ -285,8 +285,6 @@ def _inputs_problem(row: Mapping[str, Any], cols: tuple[str, ...], inputs: tuple
     engines' ``peak_omega`` cells are those two peaks. A cell changed by hand, or swapped with
     another input's, fails one of these."""
     from loopcheck.registry import REFERENCE
-
-    from .sweep_table import input_column
 
     def at(name: str, column: str) -> str:
         return column if name == inputs[0] else input_column(name, column)
