@@ -51,24 +51,24 @@ def _title(source: str, what: str) -> str:
 
 
 def _peaks(csv_path: Path, spec: SweepSpec, names: tuple[str, ...] = (),
-           input_name: str | None = None) -> tuple[dict[str, list], dict]:
-    """The columns ``names`` of a sweep.csv, and the peak |ω| of each engine the sweep ran (by
-    engine name, the reference first, NaN where not measured): the first input's, or with
-    ``input_name`` that later input's (``NAME:ENGINE.peak_omega``)."""
+           input_names: tuple[str | None, ...] = (None,)) -> tuple[dict[str, list], list[dict]]:
+    """The columns ``names`` of a sweep.csv, and for each of ``input_names`` (None: the first input;
+    a later input's name: its ``NAME:ENGINE.peak_omega``) the peak |ω| of each engine the sweep ran
+    (by engine name, the reference first, NaN where not measured): one reading of the file."""
     engines = sweep_engines(spec.engines)
-    at = (lambda c: c) if input_name is None else (lambda c: input_column(input_name, c))  # noqa: E731
-    cols = _column(csv_path, names + tuple(at(f"{e}.peak_omega") for e in engines))
-    return cols, {e: abs(_nan(cols[at(f"{e}.peak_omega")])) for e in engines}
+
+    def at(name: str | None, column: str) -> str:
+        return column if name is None else input_column(name, column)
+
+    cols = _column(csv_path, names + tuple(at(n, f"{e}.peak_omega") for n in input_names for e in engines))
+    return cols, [{e: abs(_nan(cols[at(n, f"{e}.peak_omega")])) for e in engines} for n in input_names]
 
 
 def _by_input(spec: SweepSpec, csv_path: Path, names: tuple[str, ...],
               inputs: tuple[tuple[str, str], ...]) -> list[tuple[str, str, dict, dict]]:
-    """Each input's (name, speed unit, columns ``names``, peaks by engine: :func:`_peaks`)."""
-    out = []
-    for k, (name, unit) in enumerate(inputs):
-        cols, peaks = _peaks(csv_path, spec, names, None if k == 0 else name)
-        out.append((name, f"{unit}/s", cols, peaks))
-    return out
+    """Each input's (name, speed unit, the columns ``names``, peaks by engine: :func:`_peaks`)."""
+    cols, peaks = _peaks(csv_path, spec, names, tuple(None if k == 0 else name for k, (name, _) in enumerate(inputs)))
+    return [(name, f"{unit}/s", cols, p) for (name, unit), p in zip(inputs, peaks)]
 
 
 SUPTITLE_ROOM = 0.45
@@ -177,7 +177,7 @@ def plot_peak_omega(csv_path: Path, spec: SweepSpec, source: str, path: Path, sp
     key = spec.keys[0]
     right = 1.7 if spec.keys[1:] else MARGINS["right"]
     if len(inputs) < 2:
-        cols, peaks = _peaks(csv_path, spec, spec.keys + ("status",))
+        cols, (peaks,) = _peaks(csv_path, spec, spec.keys + ("status",))
         fig, ax = new_figure((7.0 + right - MARGINS["right"], 4.2), margins={**_title_margins(spec), "right": right})
         _peak_panel(ax, spec, cols, peaks, speed_unit, "the input")
         ax.set_title(_title(source, _what(spec, f"peak speed against {key}")), **_plain())
@@ -346,7 +346,7 @@ def plot_peak_histogram(csv_path: Path, spec: SweepSpec, source: str, path: Path
     from .plots import PLAIN, _save, new_figure
 
     if len(inputs) < 2:
-        _, peaks = _peaks(csv_path, spec)
+        _, (peaks,) = _peaks(csv_path, spec)
         fig, ax = new_figure((7.0, 4.2), margins=_title_margins(spec))
         n = _histogram_panel(ax, peaks, speed_unit, "the input")
         ax.set_title(_title(source, _what(spec, f"peak speed over {n} samples (seed {spec.seed})")), **PLAIN)
