@@ -138,12 +138,6 @@ def _peaks(data: Mapping[str, Any], values: Mapping[str, float], key: str, sourc
     return tuple(abs(peak.omega) for _, peak in _run(data, values, key, source, engine, nominal_settings).inputs)
 
 
-def _peak(data: Mapping[str, Any], values: Mapping[str, float], key: str, source: str,
-          engine: str = REFERENCE, nominal_settings: Any | None = None) -> float:
-    """The engine's continuous peak |ω| of the scene at ``values`` (its first input's)."""
-    return _peaks(data, values, key, source, engine, nominal_settings)[0]
-
-
 def check_engines_declare(data: Mapping[str, Any], spec: SweepSpec, source: str,
                           engines: Sequence[str]) -> None:
     """Before any run: every engine of ``engines`` declares its peak accuracy (ValueError, the

@@ -18,7 +18,7 @@ import json
 import pytest
 
 from loopcheck.compare.cli import main
-from loopcheck.compare.sensitivity import Sensitivity, _peak, sensitivities
+from loopcheck.compare.sensitivity import Sensitivity, _peaks, sensitivities
 from loopcheck.sweep_spec import spec_from_args
 from loopcheck.compare.sweep_scene import load_sweep
 from loopcheck.shipped_scenes import default_scene_path
@@ -37,7 +37,7 @@ def seed():
 
 
 def _richardson(data, path, key, p0, delta):
-    peaks = {k: _peak(data, {key: p0 + k * delta}, key, path) for k in (-2, -1, 1, 2)}
+    peaks = {k: _peaks(data, {key: p0 + k * delta}, key, path)[0] for k in (-2, -1, 1, 2)}
     d_h = (peaks[1] - peaks[-1]) / (2 * delta)
     d_2h = (peaks[2] - peaks[-2]) / (4 * delta)
     return d_h + (d_h - d_2h) / 3, abs(d_h - d_2h) / 3
