@@ -294,10 +294,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from .model_check import check_model, reader_of
 
         imported = _import(args, args.scene)
-        for line in imported.warnings:
-            print(f"loopcheck: warning: {args.scene}: {line}", file=sys.stderr)
-        for line in imported.said:
-            print(f"{args.scene}: {line}")
+        _print_notes(args.scene, imported)
         scene = imported.scene
         joints = joint_columns(scene, args.joints)
         check = check_model(imported, tolerances=_tolerances(scene, args), reduced=_reduced_reference(args, scene))
@@ -389,6 +386,15 @@ def _import(args: argparse.Namespace, path: str):
                        control=bare, controls=named, **horizon)
 
 
+def _print_notes(path: str, imported) -> None:
+    """What reading the model ``path`` said: its warnings (stderr) and its notes (the keyframe read,
+    ...), each line naming the file."""
+    for line in imported.warnings:
+        print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
+    for line in imported.said:
+        print(f"{path}: {line}")
+
+
 def _extraction_lines(imported, indent: str = "") -> str:
     """What ``--loop`` cut out of the model (:meth:`Extraction.lines`), for stdout."""
     return "\n".join(f"{indent}{line}" for line in imported.extraction.lines()) if imported.extraction else ""
@@ -417,11 +423,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
         own = reader_of(imported).models  # the reading engine's check and its lines
 
-        def said(imported=imported, path=path) -> None:  # after the check: a refusal in it prints its line alone
-            for line in imported.warnings:
-                print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
-            for line in imported.said:
-                print(f"{path}: {line}")
+        said = partial(_print_notes, path, imported)  # after the check: a refusal in it prints its line alone
 
         try:
             check = check_model(imported, tolerances=_tolerances(imported.scene, args),
@@ -497,10 +499,7 @@ def _check_engines(args: argparse.Namespace, scenes: list, models: dict | None =
     _load_extras(args.engines)
     failed = 0
     for path, imported in (models or {}).items():
-        for line in imported.warnings:
-            print(f"loopcheck: warning: {path}: {line}", file=sys.stderr)
-        for line in imported.said:
-            print(f"{path}: {line}")
+        _print_notes(path, imported)
         reader = reader_of(imported)
         vacuous = partial(reader.models.refuse_vacuous_model, imported,
                           tolerances=_tolerances(imported.scene, args, reader.name))
