@@ -65,10 +65,28 @@ def five_bar() -> Model:
         gravity=9.81, edges=(0.1, 0.3, 0.4))
 
 
+FIVE_BAR_START = ({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
+                  {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+"""The five-bar robot's start as scenes/mechanisms/five_bar_robot.toml gives it, for
+:meth:`Model.assemble`: the angles' guesses, the inputs' angles, their rates."""
+
+
+def five_bar_pendulum(x0, xdot0) -> tuple[Model, np.ndarray, np.ndarray]:
+    """tests/data/five_bar_pendulum.toml's linkage (:func:`five_bar` with a pendulum on a free wrist at
+    P: 3 DOF) and its start (q0, q̇0), the pendulum's angle and rate from the engine's first sample
+    (x0, ẋ0: its fifth coordinate)."""
+    base = five_bar()
+    model = replace(base, bodies=base.bodies + (Body("pendulum", 0.5, (0.15, 0.0), 0.004),),
+                    pins=base.pins + (Pin("wrist", "left_arm", (0.7, 0.0), "pendulum", (0.0, 0.0)),))
+    guess, angles, rates = FIVE_BAR_START
+    q0, qd0 = model.assemble({**guess, "pendulum": float(x0[4])}, {**angles, "pendulum": float(x0[4])},
+                             {**rates, "pendulum": float(xdot0[4])})
+    return model, q0, qd0
+
+
 def test_the_oracle_on_a_two_dof_five_bar_keeps_its_loop_its_energy_and_states_its_accuracy():
     model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     assert np.max(np.abs(model.residual(q0))) < 1e-14
     t = np.linspace(0.0, 0.8, 81)
     run, accuracy = simulate(model, q0, qd0, t)

@@ -36,7 +36,7 @@ from loopcheck.scenefile import load_scene
 from helpers import ROOT
 from oracles.multibody import GROUND, Body, Model, Pin, Torque, pulse
 from oracles.multibody import simulate as oracle_simulate
-from test_multibody_oracle import five_bar
+from test_multibody_oracle import FIVE_BAR_START, five_bar, five_bar_pendulum
 
 Q_TOL, RATE_TOL = 1e-9, 1e-8  # rad, rad/s (module docstring)
 FIVE_BAR = ROOT / "scenes/mechanisms/five_bar_robot.toml"
@@ -300,14 +300,7 @@ def test_a_three_dof_five_bar_with_a_pendulum_agrees_with_the_oracle():
     to 70 rad/s, with scipy's DOP853 before the compiled one: 9.1e-12 rad, 1.5e-10 rad/s.)"""
     scene = replace(load_scene(PENDULUM), horizon=0.4)  # through its switch at 0.29 s (the oracle's cost)
     result = loopcheck.simulate(scene)
-    base = five_bar()
-    model = replace(base, bodies=base.bodies + (Body("pendulum", 0.5, (0.15, 0.0), 0.004),),
-                    pins=base.pins + (Pin("wrist", "left_arm", (0.7, 0.0), "pendulum", (0.0, 0.0)),))
-    x0, xdot0 = result.joints.x[0], result.joints.xdot[0]
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3,
-                              "pendulum": float(x0[4])},
-                             {"left_crank": 1.8, "right_crank": 1.3, "pendulum": float(x0[4])},
-                             {"left_crank": 0.5, "right_crank": -0.3, "pendulum": float(xdot0[4])})
+    model, q0, qd0 = five_bar_pendulum(result.joints.x[0], result.joints.xdot[0])
     (left, _), (right, _), (wrist, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     run, accuracy = oracle_simulate(model, q0, qd0, t)
@@ -436,8 +429,7 @@ def test_a_damped_five_bar_agrees_with_the_oracle_and_audits_the_dissipation():
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     model = replace(five_bar(), dampers=(Damper(GROUND, (0.3, 1.2), "left_arm", (0.7, 0.0), 5.0),))
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     run, accuracy = oracle_simulate(model, q0, qd0, t)
     assert accuracy[0] < Q_TOL / 3 and accuracy[1] < RATE_TOL / 3
     for body, tr in (("left_crank", left), ("right_crank", right)):
@@ -697,8 +689,7 @@ def test_a_two_dof_five_bar_with_a_clamped_position_servo_agrees_with_the_oracle
                    state=True)
     model = replace(base, torques=(servo, base.torques[1]),
                     edges=(0.1, 0.2, 0.3, 0.4, 0.5) if control == "pulse" else base.edges)
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     run, accuracy = oracle_simulate(model, q0, qd0, t, rtol=5e-14)
     assert accuracy[0] < Q_TOL / 3 and accuracy[1] < RATE_TOL / 3
     for body, tr in (("left_crank", left), ("right_crank", right)):
@@ -733,8 +724,7 @@ def test_a_two_dof_five_bar_with_joint_friction_slipping_agrees_with_the_oracle(
     base = five_bar()
     rub = Torque("A", lambda t, u, rate: -friction * float(np.sign(rate)), state=True)
     model = replace(base, torques=base.torques + (rub,))
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     run, accuracy = oracle_simulate(model, q0, qd0, t, rtol=5e-14)
     names = result.joints.names
     u_rate = result.joints.xdot[:, names.index("left_arm.angle")] - result.joints.xdot[:, names.index("left_crank.angle")]

@@ -46,7 +46,7 @@ from loopcheck.scenefile import load_scene
 
 from helpers import ROOT
 from oracles.multibody import Lock, hold_margin, simulate_friction, simulate_frictions
-from test_multibody_oracle import five_bar
+from test_multibody_oracle import FIVE_BAR_START, five_bar, five_bar_pendulum
 
 STICK = ROOT / "tests/data/five_bar_stick.toml"
 FIVE_BAR = ROOT / "scenes/mechanisms/five_bar_robot.toml"
@@ -65,6 +65,19 @@ def _with_frictions(frictions: dict) -> str:
     return text.replace("[simulation]", extra + "[simulation]")
 
 
+def _assert_inputs_follow(model, oracle, inputs, idx, half=None) -> None:
+    """Both inputs (the engine's trajectories ``inputs`` of the two cranks, at the samples ``idx``)
+    follow the oracle's run to Q_TOL, RATE_TOL; with ``half`` (the oracle at rtol/2), the oracle's own
+    accuracy is within a third of them."""
+    for body, tr in zip(("left_crank", "right_crank"), inputs):
+        i = 3 * model.index[body] + 2
+        if half is not None:
+            assert np.max(np.abs(oracle.q[:, i] - half.q[:, i])) < Q_TOL / 3
+            assert np.max(np.abs(oracle.qd[:, i] - half.qd[:, i])) < RATE_TOL / 3
+        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
+        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+
+
 @pytest.fixture(scope="module")
 def stick_run():
     scene = replace(load_scene(STICK), horizon=HORIZON)
@@ -72,8 +85,7 @@ def stick_run():
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     oracle = simulate_friction(model, "O5", FRICTION, q0, qd0, t)
     half = simulate_friction(model, "O5", FRICTION, q0, qd0, t, rtol=5e-13)
     return scene, result, model, t, idx, oracle, half
@@ -92,12 +104,7 @@ def test_a_two_dof_five_bar_whose_pin_sticks_and_slips_agrees_with_the_oracle(st
     assert events[1].time == 0.1  # the right motor's pulse starts: a load edge breaks the hold
     assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
     (left, _), (right, _) = result.inputs
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - half.q[:, i])) < Q_TOL / 3
-        assert np.max(np.abs(oracle.qd[:, i] - half.qd[:, i])) < RATE_TOL / 3
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    _assert_inputs_follow(model, oracle, (left, right), idx, half)
     assert result.audit.relative_residual < 5e-11
 
 
@@ -117,20 +124,14 @@ def test_a_passive_elbow_that_sticks_is_held_as_the_oracle_holds_it():
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     oracle = simulate_friction(model, "A", 20.0, q0, qd0, t)
     half = simulate_friction(model, "A", 20.0, q0, qd0, t, rtol=5e-13)
     events = result.details.friction_events
     assert [(e.mode, e.direction, e.joint) for e in events] == [("stick", 0, "A"), ("slip", -1, "A"), ("stick", 0, "A")]
     assert [(m, int(s)) for _, m, s in oracle.events] == [(e.mode, e.direction) for e in events]
     assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - half.q[:, i])) < Q_TOL / 3
-        assert np.max(np.abs(oracle.qd[:, i] - half.qd[:, i])) < RATE_TOL / 3
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    _assert_inputs_follow(model, oracle, (left, right), idx, half)
     names = result.joints.names
     arm, crank = names.index("left_arm.angle"), names.index("left_crank.angle")
     u = result.joints.x[:, arm] - result.joints.x[:, crank]
@@ -161,18 +162,12 @@ def test_a_coordinate_switch_while_a_pin_is_held_keeps_it_held():
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     oracle = simulate_friction(model, "B", 20.0, q0, qd0, t)
     half = simulate_friction(model, "B", 20.0, q0, qd0, t, rtol=5e-13)
     assert [(m, int(s)) for _, m, s in oracle.events] == [(e.mode, e.direction) for e in events]
     assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - half.q[:, i])) < Q_TOL / 3
-        assert np.max(np.abs(oracle.qd[:, i] - half.qd[:, i])) < RATE_TOL / 3
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    _assert_inputs_follow(model, oracle, (left, right), idx, half)
     names = result.joints.names
     u = result.joints.x[:, names.index("right_crank.angle")] - result.joints.x[:, names.index("right_arm.angle")]
     held = next((a, b) for a, b in spans if a < switch.time < b)
@@ -409,15 +404,11 @@ def _held_against_the_oracle(scene, result, frictions):
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     model = five_bar()
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3},
-                             {"left_crank": 1.8, "right_crank": 1.3}, {"left_crank": 0.5, "right_crank": -0.3})
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
     oracle = simulate_frictions(model, frictions, q0, qd0, t)
     assert [(p, m, int(s)) for _, p, m, s in oracle.events] == [(e.joint, e.mode, e.direction) for e in events]
     assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
-    for body, tr in (("left_crank", left), ("right_crank", right)):
-        i = 3 * model.index[body] + 2
-        assert np.max(np.abs(oracle.q[:, i] - tr.q[idx])) < Q_TOL, body
-        assert np.max(np.abs(oracle.qd[:, i] - tr.qdot[idx])) < RATE_TOL, body
+    _assert_inputs_follow(model, oracle, (left, right), idx)
     held = t > events[-1].time
     several = SeveralModel(scene)
     chart = start_chart(several, several.inputs, np.array(result.joints.x[0]))
@@ -483,7 +474,6 @@ def test_an_indeterminate_hold_breaks_where_its_margin_reaches_zero_as_the_oracl
     rad/s on the bodies' angles, below a third of them); energy 5e-11 (measured 5.0e-12). Plants: the LP's feasibility check dropped (the largest t of
     any vertex: the margin too large, the break missed); the break's direction."""
     from loopcheck.api import scene_from_string
-    from oracles.multibody import Body, Pin
 
     frictions = {"O1": 8.0, "O5": 8.0, "A": 8.0}
     extra = "".join(f'[[joint_frictions]]\nname = "rub_{j}"\njoint = "{j}"\nfriction = {f}\n\n'
@@ -496,14 +486,7 @@ def test_an_indeterminate_hold_breaks_where_its_margin_reaches_zero_as_the_oracl
         ("stick", 0, "O5"), ("stick", 0, "O1"), ("stick", 0, "A"), ("slip", -1, "O5"), ("slip", -1, "A"),
         ("stick", 0, "O5"), ("stick", 0, "A")]
     assert 0.1 < events[3].time < 0.3  # inside the piece between the load edges
-    base = five_bar()
-    model = replace(base, bodies=base.bodies + (Body("pendulum", 0.5, (0.15, 0.0), 0.004),),
-                    pins=base.pins + (Pin("wrist", "left_arm", (0.7, 0.0), "pendulum", (0.0, 0.0)),))
-    x0, xdot0 = result.joints.x[0], result.joints.xdot[0]
-    q0, qd0 = model.assemble({"left_crank": 1.8, "left_arm": 0.8, "right_arm": 2.3, "right_crank": 1.3,
-                              "pendulum": float(x0[4])},
-                             {"left_crank": 1.8, "right_crank": 1.3, "pendulum": float(x0[4])},
-                             {"left_crank": 0.5, "right_crank": -0.3, "pendulum": float(xdot0[4])})
+    model, q0, qd0 = five_bar_pendulum(result.joints.x[0], result.joints.xdot[0])
     (left, _), (right, _), (wrist, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
     oracle = simulate_frictions(model, frictions, q0, qd0, t)
