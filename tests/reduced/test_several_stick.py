@@ -65,6 +65,15 @@ def _with_frictions(frictions: dict) -> str:
     return text.replace("[simulation]", extra + "[simulation]")
 
 
+def _oracle_runs(pin: str, friction: float, t: np.ndarray):
+    """The oracle's five-bar (:func:`five_bar` from the scene's start) with ``friction`` (N·m) on
+    ``pin``, run to the times ``t`` at its rtol and at half of it: (model, run, half)."""
+    model = five_bar()
+    q0, qd0 = model.assemble(*FIVE_BAR_START)
+    return (model, simulate_friction(model, pin, friction, q0, qd0, t),
+            simulate_friction(model, pin, friction, q0, qd0, t, rtol=5e-13))
+
+
 def _assert_inputs_follow(model, oracle, inputs, idx, half=None) -> None:
     """Both inputs (the engine's trajectories ``inputs`` of the two cranks, at the samples ``idx``)
     follow the oracle's run to Q_TOL, RATE_TOL; with ``half`` (the oracle at rtol/2), the oracle's own
@@ -84,10 +93,7 @@ def stick_run():
     result = loopcheck.simulate(scene)
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
-    model = five_bar()
-    q0, qd0 = model.assemble(*FIVE_BAR_START)
-    oracle = simulate_friction(model, "O5", FRICTION, q0, qd0, t)
-    half = simulate_friction(model, "O5", FRICTION, q0, qd0, t, rtol=5e-13)
+    model, oracle, half = _oracle_runs("O5", FRICTION, t)
     return scene, result, model, t, idx, oracle, half
 
 
@@ -123,10 +129,7 @@ def test_a_passive_elbow_that_sticks_is_held_as_the_oracle_holds_it():
     result = loopcheck.simulate(scene_from_string(_with_frictions({"A": 20.0})))
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
-    model = five_bar()
-    q0, qd0 = model.assemble(*FIVE_BAR_START)
-    oracle = simulate_friction(model, "A", 20.0, q0, qd0, t)
-    half = simulate_friction(model, "A", 20.0, q0, qd0, t, rtol=5e-13)
+    model, oracle, half = _oracle_runs("A", 20.0, t)
     events = result.details.friction_events
     assert [(e.mode, e.direction, e.joint) for e in events] == [("stick", 0, "A"), ("slip", -1, "A"), ("stick", 0, "A")]
     assert [(m, int(s)) for _, m, s in oracle.events] == [(e.mode, e.direction) for e in events]
@@ -161,10 +164,7 @@ def test_a_coordinate_switch_while_a_pin_is_held_keeps_it_held():
     assert (switch.old, switch.new) == ("O1, O5", "B, O5") and any(a < switch.time < b for a, b in spans)
     (left, _), (right, _) = result.inputs
     t, idx = np.unique(left.t, return_index=True)
-    model = five_bar()
-    q0, qd0 = model.assemble(*FIVE_BAR_START)
-    oracle = simulate_friction(model, "B", 20.0, q0, qd0, t)
-    half = simulate_friction(model, "B", 20.0, q0, qd0, t, rtol=5e-13)
+    model, oracle, half = _oracle_runs("B", 20.0, t)
     assert [(m, int(s)) for _, m, s in oracle.events] == [(e.mode, e.direction) for e in events]
     assert max(abs(e.time - o[0]) for e, o in zip(events, oracle.events)) < EVENT_TOL
     _assert_inputs_follow(model, oracle, (left, right), idx, half)
